@@ -1,0 +1,180 @@
+// Random Gaussian scenes and a rasterizer runner for the C++ tests.
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "core/finite.hpp"
+#include "core/rasterizer.hpp"
+
+namespace test {
+using namespace spikegs::raster;
+
+template <typename T>
+struct Scene {
+  std::int64_t n = 0;
+  int channels = 3, sh_degree = -1;
+  std::vector<T> means, quats, scales, opacities, colors, background;
+  Camera<T> cam;
+  int coeffs() const { return sh_degree < 0 ? 1 : (sh_degree + 1) * (sh_degree + 1); }
+  GaussianParams<T> params() const {
+    GaussianParams<T> p{means.data(), quats.data(), scales.data(), opacities.data(), colors.data()};
+    p.n = n, p.channels = channels, p.sh_degree = sh_degree, p.sh_coeffs = coeffs();
+    return p;
+  }
+  template <typename U>
+  Scene<U> cast() const {
+    Scene<U> s;
+    s.n = n, s.channels = channels, s.sh_degree = sh_degree;
+    auto cv = [](const std::vector<T>& v) { return std::vector<U>(v.begin(), v.end()); };
+    s.means = cv(means), s.quats = cv(quats), s.scales = cv(scales), s.opacities = cv(opacities);
+    s.colors = cv(colors), s.background = cv(background);
+    for (int k = 0; k < 16; ++k) s.cam.viewmat[k] = U(cam.viewmat[k]);
+    s.cam.fx = U(cam.fx), s.cam.fy = U(cam.fy), s.cam.cx = U(cam.cx), s.cam.cy = U(cam.cy);
+    s.cam.width = cam.width, s.cam.height = cam.height;
+    s.cam.near_plane = U(cam.near_plane), s.cam.far_plane = U(cam.far_plane);
+    return s;
+  }
+};
+
+// A camera at a small random rotation/translation looking down +z, Gaussians 2-4 units ahead.
+inline Scene<double> random_scene(std::uint32_t seed, std::int64_t n, int width, int height,
+                                  int channels, int sh_degree) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<double> g(0, 1);
+  Scene<double> s;
+  s.n = n, s.channels = channels, s.sh_degree = sh_degree;
+  const double f = 1.2 * std::max(width, height);
+  s.cam.fx = f * (0.9 + 0.2 * u(rng)), s.cam.fy = f * (0.9 + 0.2 * u(rng));
+  s.cam.cx = width * (0.4 + 0.2 * u(rng)), s.cam.cy = height * (0.4 + 0.2 * u(rng));
+  s.cam.width = width, s.cam.height = height;
+  s.cam.near_plane = 0.01, s.cam.far_plane = 1e10;
+  // rotation from a small random axis-angle (Rodrigues), translation small
+  double ax = 0.1 * g(rng), ay = 0.1 * g(rng), az = 0.1 * g(rng);
+  const double th = std::sqrt(ax * ax + ay * ay + az * az);
+  ax /= th, ay /= th, az /= th;
+  const double c = std::cos(th), sn = std::sin(th), C1 = 1 - c;
+  const double R[3][3] = {{c + ax * ax * C1, ax * ay * C1 - az * sn, ax * az * C1 + ay * sn},
+                          {ay * ax * C1 + az * sn, c + ay * ay * C1, ay * az * C1 - ax * sn},
+                          {az * ax * C1 - ay * sn, az * ay * C1 + ax * sn, c + az * az * C1}};
+  for (int r = 0; r < 4; ++r)
+    for (int k = 0; k < 4; ++k)
+      s.cam.viewmat[r * 4 + k] = r == 3 ? (k == 3 ? 1.0 : 0.0) : (k == 3 ? 0.1 * g(rng) : R[r][k]);
+  for (std::int64_t i = 0; i < n; ++i) {
+    // a point 2-4 units ahead in camera space, within the view, mapped back to world space
+    const double z = 2 + 2 * u(rng);
+    const double pc[3] = {(u(rng) - 0.5) * z * width / f, (u(rng) - 0.5) * z * height / f, z};
+    double q[3];
+    for (int r = 0; r < 3; ++r) q[r] = pc[r] - s.cam.viewmat[r * 4 + 3];
+    for (int k = 0; k < 3; ++k) s.means.push_back(R[0][k] * q[0] + R[1][k] * q[1] + R[2][k] * q[2]);
+    for (int k = 0; k < 4; ++k) s.quats.push_back(g(rng));
+    const double base = z / f * (1.0 + 3.0 * u(rng));  // a few pixels
+    for (int k = 0; k < 3; ++k) s.scales.push_back(base * (0.5 + u(rng)));
+    s.opacities.push_back(0.1 + 0.6 * u(rng));
+    for (int k = 0; k < s.coeffs() * channels; ++k)
+      s.colors.push_back(sh_degree < 0 ? u(rng) : 0.3 * g(rng));
+  }
+  for (int c = 0; c < channels; ++c) s.background.push_back(u(rng));
+  return s;
+}
+
+template <typename T>
+struct Render {
+  std::vector<T> image, alpha;
+  RasterState<T> state;
+};
+
+template <typename T>
+Render<T> render(const Scene<T>& s) {
+  Render<T> r;
+  const std::int64_t pixels = std::int64_t(s.cam.width) * s.cam.height;
+  r.image.assign(pixels * s.channels, T(0));
+  r.alpha.assign(pixels, T(0));
+  rasterize_forward(s.params(), s.cam, s.background.data(), r.image.data(), r.alpha.data(),
+                    r.state);
+  return r;
+}
+
+// Gradients of every input, sized like the inputs.
+template <typename T>
+struct Grads {
+  std::vector<T> means, quats, scales, opacities, colors, background, mean2d;
+  T viewmat[16] = {};
+  explicit Grads(const Scene<T>& s)
+      : means(s.means.size()),
+        quats(s.quats.size()),
+        scales(s.scales.size()),
+        opacities(s.opacities.size()),
+        colors(s.colors.size()),
+        background(s.channels),
+        mean2d(2 * s.n) {}
+  ParamGrads<T> view() {
+    return {means.data(), quats.data(), scales.data(), opacities.data(), colors.data(), viewmat};
+  }
+  bool finite() const {
+    using spikegs::all_finite;
+    return all_finite(means.data(), long(means.size())) &&
+           all_finite(quats.data(), long(quats.size())) &&
+           all_finite(scales.data(), long(scales.size())) &&
+           all_finite(opacities.data(), long(opacities.size())) &&
+           all_finite(colors.data(), long(colors.size())) && all_finite(viewmat, 16) &&
+           all_finite(background.data(), long(background.size()));
+  }
+};
+
+template <typename T>
+Grads<T> backward(const Scene<T>& s, const Render<T>& r, const std::vector<T>& gimg,
+                  const std::vector<T>& galpha) {
+  Grads<T> g(s);
+  ParamGrads<T> view = g.view();
+  rasterize_backward(s.params(), s.cam, s.background.data(), r.state, gimg.data(), galpha.data(),
+                     view, g.background.data(), g.mean2d.data());
+  return g;
+}
+
+inline std::vector<double> random_weights(std::size_t count, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0, 1);
+  std::vector<double> w(count);
+  for (auto& v : w) v = g(rng);
+  return w;
+}
+
+inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+
+// Smallest distance, over all (pixel, visible Gaussian) pairs the compositing reaches, of alpha to
+// the 1/255 and 0.99 kinks and of the transmittance to the stop threshold (relative): finite
+// differences straddling a kink are meaningless, so tests pick scenes away from them.
+inline double kink_margin(const Scene<double>& s, const Render<double>& r) {
+  const auto& proj = r.state.proj;
+  const auto& order = r.state.bins.order;
+  double margin = 1e30;
+  for (int py = 0; py < s.cam.height; ++py)
+    for (int px = 0; px < s.cam.width; ++px) {
+      double T = 1;
+      for (const std::int32_t i : order) {
+        const double dx = px + 0.5 - proj.mean2d[2 * i], dy = py + 0.5 - proj.mean2d[2 * i + 1];
+        const double power =
+            -0.5 * (proj.conic[3 * i] * dx * dx + proj.conic[3 * i + 2] * dy * dy) -
+            proj.conic[3 * i + 1] * dx * dy;
+        const double raw = proj.opacity[i] * std::exp(power);
+        margin =
+            std::min({margin, std::abs(raw - kAlphaMin) / kAlphaMin, std::abs(raw - kAlphaMax)});
+        if (raw < kAlphaMin) continue;
+        const double a = std::min(kAlphaMax, raw);
+        const double next = T * (1 - a);
+        margin = std::min(margin, std::abs(next - kTransmittanceMin) / kTransmittanceMin);
+        if (next < kTransmittanceMin) break;
+        T = next;
+      }
+    }
+  return margin;
+}
+
+}  // namespace test

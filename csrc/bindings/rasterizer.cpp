@@ -1,0 +1,154 @@
+// Binding of the rasterizer: float32 and float64 variants, numpy arrays in and out (zero copy for
+// C-contiguous arrays of the right dtype), the GIL released while the core runs.
+#include "core/rasterizer.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <optional>
+#include <string>
+
+#include "bindings/register.hpp"
+
+namespace py = pybind11;
+namespace sr = spikegs::raster;
+
+namespace spikegs {
+namespace {
+
+template <typename T>
+using Array = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+// The forward's state, kept by Python between forward and backward.
+template <typename T>
+struct RasterContext {
+  sr::Camera<T> cam;
+  sr::RasterState<T> state;
+  int sh_degree, sh_coeffs, channels;
+};
+
+template <typename T>
+sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
+                                const Array<T>& scales, const Array<T>& opacities,
+                                const Array<T>& colors, int sh_degree, int sh_coeffs,
+                                int channels) {
+  sr::GaussianParams<T> p{means.data(), quats.data(), scales.data(), opacities.data(),
+                          colors.data()};
+  p.n = means.shape(0);
+  p.channels = channels;
+  p.sh_degree = sh_degree;
+  p.sh_coeffs = sh_coeffs;
+  const py::ssize_t n = p.n;
+  if (quats.size() != 4 * n || scales.size() != 3 * n || opacities.size() != n ||
+      colors.size() != n * p.color_stride())
+    throw py::value_error("rasterize: input sizes do not match N = " + std::to_string(n));
+  return p;
+}
+
+template <typename T>
+py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& scales,
+                  const Array<T>& opacities, const Array<T>& colors, const Array<T>& viewmat,
+                  const Array<T>& K, int width, int height, int sh_degree, int sh_coeffs,
+                  int channels, std::optional<Array<T>> background, T near_plane, T far_plane) {
+  auto ctx = std::make_shared<RasterContext<T>>();
+  ctx->sh_degree = sh_degree, ctx->sh_coeffs = sh_coeffs, ctx->channels = channels;
+  sr::Camera<T>& cam = ctx->cam;
+  if (viewmat.size() != 16 || K.size() != 9)
+    throw py::value_error("rasterize: viewmat must be 4x4, K 3x3");
+  std::copy(viewmat.data(), viewmat.data() + 16, cam.viewmat);
+  cam.fx = K.data()[0], cam.fy = K.data()[4], cam.cx = K.data()[2], cam.cy = K.data()[5];
+  cam.width = width, cam.height = height, cam.near_plane = near_plane, cam.far_plane = far_plane;
+  const sr::GaussianParams<T> p =
+      params_of(means, quats, scales, opacities, colors, sh_degree, sh_coeffs, channels);
+  if (background && background->size() != channels)
+    throw py::value_error("rasterize: background must have C entries");
+  const T* bg = background ? background->data() : nullptr;
+
+  Array<T> image({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels)});
+  Array<T> alpha({py::ssize_t(height), py::ssize_t(width)});
+  {
+    py::gil_scoped_release release;
+    sr::rasterize_forward(p, cam, bg, image.mutable_data(), alpha.mutable_data(), ctx->state);
+  }
+  const py::ssize_t n = p.n;
+  const auto& proj = ctx->state.proj;
+  Array<std::int32_t> radii(n);
+  Array<T> means2d({n, py::ssize_t(2)}), depths(n);
+  std::copy(proj.radius.begin(), proj.radius.end(), radii.mutable_data());
+  std::copy(proj.mean2d.begin(), proj.mean2d.end(), means2d.mutable_data());
+  std::copy(proj.depth.begin(), proj.depth.end(), depths.mutable_data());
+  return py::make_tuple(image, alpha, radii, means2d, depths, ctx);
+}
+
+template <typename T>
+py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Array<T>& quats,
+                   const Array<T>& scales, const Array<T>& opacities, const Array<T>& colors,
+                   std::optional<Array<T>> background, const Array<T>& grad_image,
+                   std::optional<Array<T>> grad_alpha) {
+  const sr::GaussianParams<T> p = params_of(means, quats, scales, opacities, colors, ctx.sh_degree,
+                                            ctx.sh_coeffs, ctx.channels);
+  const py::ssize_t pixels = py::ssize_t(ctx.cam.width) * ctx.cam.height;
+  if (grad_image.size() != pixels * ctx.channels || (grad_alpha && grad_alpha->size() != pixels))
+    throw py::value_error("rasterize backward: gradient shapes do not match the image");
+  auto zeros_like = [](const Array<T>& a) {
+    Array<T> z(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
+    std::fill(z.mutable_data(), z.mutable_data() + z.size(), T(0));
+    return z;
+  };
+  Array<T> dmeans = zeros_like(means), dquats = zeros_like(quats), dscales = zeros_like(scales);
+  Array<T> dopac = zeros_like(opacities), dcolors = zeros_like(colors);
+  Array<T> dviewmat({4, 4}), dbackground(py::ssize_t(ctx.channels)),
+      dmeans2d({p.n, py::ssize_t(2)});
+  std::fill(dviewmat.mutable_data(), dviewmat.mutable_data() + 16, T(0));
+  sr::ParamGrads<T> g{dmeans.mutable_data(), dquats.mutable_data(),  dscales.mutable_data(),
+                      dopac.mutable_data(),  dcolors.mutable_data(), dviewmat.mutable_data()};
+  {
+    py::gil_scoped_release release;
+    sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state,
+                           grad_image.data(), grad_alpha ? grad_alpha->data() : nullptr, g,
+                           dbackground.mutable_data(), dmeans2d.mutable_data());
+  }
+  return py::make_tuple(dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d);
+}
+
+template <typename T>
+void bind_variant(py::module_& m, const std::string& suffix) {
+  using Ctx = RasterContext<T>;
+  py::class_<Ctx, std::shared_ptr<Ctx>>(m, ("RasterContext_" + suffix).c_str())
+      .def_property_readonly(
+          "pairs", [](const Ctx& c) { return c.state.composite.pairs; },
+          "(pixel, Gaussian) pairs evaluated by the forward")
+      .def_property_readonly("num_visible", [](const Ctx& c) { return c.state.bins.order.size(); })
+      .def_property_readonly("num_tile_pairs",
+                             [](const Ctx& c) { return c.state.bins.ranks.size(); });
+  m.def(("rasterize_forward_" + suffix).c_str(), &forward<T>, py::arg("means"), py::arg("quats"),
+        py::arg("scales"), py::arg("opacities"), py::arg("colors"), py::arg("viewmat"),
+        py::arg("K"), py::arg("width"), py::arg("height"), py::arg("sh_degree"),
+        py::arg("sh_coeffs"), py::arg("channels"), py::arg("background"), py::arg("near"),
+        py::arg("far"),
+        "-> (image [H,W,C], alpha [H,W], radii [N], means2d [N,2], depths [N], context)");
+  m.def(("rasterize_backward_" + suffix).c_str(), &backward<T>, py::arg("context"),
+        py::arg("means"), py::arg("quats"), py::arg("scales"), py::arg("opacities"),
+        py::arg("colors"), py::arg("background"), py::arg("grad_image"), py::arg("grad_alpha"),
+        "-> gradients (means, quats, scales, opacities, colors, viewmat, background, means2d)");
+}
+
+}  // namespace
+
+void bind_rasterizer(py::module_& m) {
+  bind_variant<float>(m, "float32");
+  bind_variant<double>(m, "float64");
+  py::dict constants;
+  constants["tile_size"] = sr::kTileSize;
+  constants["alpha_max"] = sr::kAlphaMax;
+  constants["alpha_min"] = sr::kAlphaMin;
+  constants["transmittance_min"] = sr::kTransmittanceMin;
+  constants["dilation"] = sr::kDilation;
+  constants["clamp_margin"] = sr::kClampMargin;
+  constants["near"] = sr::kDefaultNear;
+  constants["far"] = sr::kDefaultFar;
+  constants["max_sh_degree"] = sr::kMaxShDegree;
+  m.attr("constants") = constants;
+}
+
+}  // namespace spikegs

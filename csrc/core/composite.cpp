@@ -1,0 +1,305 @@
+// Tile-parallel compositing. Within a tile, each splat is applied to the rows its box covers, 16
+// pixels at a time, so the inner loops (exp included) vectorise. Per-thread buffers, no atomics.
+#include "core/composite.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace spikegs::raster {
+namespace {
+
+constexpr int kTilePixels = kTileSize * kTileSize;
+
+// Splat parameters gathered in depth order: mx, my, A, B, C, opacity, colour[C].
+template <typename T>
+std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int channels) {
+  const int stride = 6 + channels;
+  std::vector<T> out(bins.order.size() * stride);
+  for (std::size_t rank = 0; rank < bins.order.size(); ++rank) {
+    const std::int64_t i = bins.order[rank];
+    T* s = out.data() + rank * stride;
+    s[0] = proj.mean2d[2 * i], s[1] = proj.mean2d[2 * i + 1];
+    s[2] = proj.conic[3 * i], s[3] = proj.conic[3 * i + 1], s[4] = proj.conic[3 * i + 2];
+    s[5] = proj.opacity[i];
+    for (int c = 0; c < channels; ++c) s[6 + c] = proj.color[i * channels + c];
+  }
+  return out;
+}
+
+// Rows of the tile [row0, row1) that the splat's box can reach.
+template <typename T>
+void splat_rows(T my, std::int32_t radius, int tile_y0, int tile_h, int& row0, int& row1) {
+  row0 = std::max(0, int(std::floor(my - radius - 1)) - tile_y0);
+  row1 = std::min(tile_h, int(std::ceil(my + radius + 1)) - tile_y0);
+}
+
+template <typename T>
+struct Tile {
+  int x0, y0, w, h;
+  std::int64_t begin, end;  // range in bins.ranks
+};
+
+template <typename T>
+Tile<T> tile_at(const TileBins& bins, std::int64_t t, int width, int height) {
+  Tile<T> tile;
+  tile.x0 = int(t % bins.tiles_x) * kTileSize;
+  tile.y0 = int(t / bins.tiles_x) * kTileSize;
+  tile.w = std::min(kTileSize, width - tile.x0);
+  tile.h = std::min(kTileSize, height - tile.y0);
+  tile.begin = bins.offsets[t];
+  tile.end = bins.offsets[t + 1];
+  return tile;
+}
+
+template <typename T, int NC>
+void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int height,
+                  int runtime_channels, const T* background, T* image, T* alpha_out,
+                  CompositeState<T>& state) {
+  const int C = NC > 0 ? NC : runtime_channels;
+  const int stride = 6 + C;
+  const std::vector<T> splats = gather_splats(proj, bins, C);
+  const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
+  state.final_T.assign(std::int64_t(width) * height, T(1));
+  state.last.assign(std::int64_t(width) * height, -1);
+  std::int64_t pairs = 0;
+
+#pragma omp parallel reduction(+ : pairs)
+  {
+    alignas(64) T trans[kTilePixels], active[kTilePixels], weight[kTileSize];
+    alignas(64) std::int32_t last[kTilePixels];
+    std::vector<T> acc(std::size_t(C) * kTilePixels);  // [C, 256]
+#pragma omp for schedule(dynamic, 1)
+    for (std::int64_t t = 0; t < tiles; ++t) {
+      const Tile<T> tile = tile_at<T>(bins, t, width, height);
+      std::fill(acc.begin(), acc.end(), T(0));
+      for (int p = 0; p < kTilePixels; ++p) {
+        const int px = p % kTileSize, py = p / kTileSize;
+        trans[p] = 1;
+        active[p] = (px < tile.w && py < tile.h) ? T(1) : T(0);
+        last[p] = -1;
+      }
+      int remaining = tile.w * tile.h;
+      for (std::int64_t j = tile.begin; j < tile.end && remaining > 0; ++j) {
+        const std::int32_t rank = bins.ranks[j];
+        const T* s = splats.data() + std::int64_t(rank) * stride;
+        const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
+        int row0, row1;
+        splat_rows(my, proj.radius[bins.order[rank]], tile.y0, tile.h, row0, row1);
+        const std::int32_t pos = std::int32_t(j - tile.begin);
+        for (int row = row0; row < row1; ++row) {
+          const T dy = T(tile.y0 + row) + T(0.5) - my;
+          T* tr = trans + row * kTileSize;
+          T* act = active + row * kTileSize;
+          std::int32_t* lst = last + row * kTileSize;
+          int stopped = 0;
+#pragma omp simd reduction(+ : stopped)
+          for (int x = 0; x < kTileSize; ++x) {
+            const T dx = T(tile.x0 + x) + T(0.5) - mx;
+            const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
+            const T a = std::min(T(kAlphaMax), o * std::exp(power));
+            const bool valid = act[x] > 0 && power <= 0 && a >= T(kAlphaMin);
+            const T next = tr[x] * (1 - a);
+            const bool stop = valid && next < T(kTransmittanceMin);
+            const bool take = valid && !stop;
+            weight[x] = take ? a * tr[x] : T(0);
+            tr[x] = take ? next : tr[x];
+            lst[x] = take ? pos : lst[x];
+            act[x] = stop ? T(0) : act[x];
+            stopped += stop ? 1 : 0;
+          }
+          remaining -= stopped;
+          for (int c = 0; c < C; ++c) {
+            const T col = s[6 + c];
+            T* ac = acc.data() + std::size_t(c) * kTilePixels + row * kTileSize;
+#pragma omp simd
+            for (int x = 0; x < kTileSize; ++x) ac[x] += weight[x] * col;
+          }
+        }
+        pairs += std::int64_t(row1 - row0) * tile.w;
+      }
+      for (int py = 0; py < tile.h; ++py)
+        for (int px = 0; px < tile.w; ++px) {
+          const int p = py * kTileSize + px;
+          const std::int64_t pix = std::int64_t(tile.y0 + py) * width + tile.x0 + px;
+          for (int c = 0; c < C; ++c)
+            image[pix * C + c] = acc[std::size_t(c) * kTilePixels + p] +
+                                 trans[p] * (background ? background[c] : T(0));
+          alpha_out[pix] = 1 - trans[p];
+          state.final_T[pix] = trans[p];
+          state.last[pix] = last[p];
+        }
+    }
+  }
+  state.pairs = pairs;
+}
+
+template <typename T, int NC>
+void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, int height,
+                   int runtime_channels, const T* background, const CompositeState<T>& state,
+                   const T* grad_image, const T* grad_alpha, ProjectedGrads<T>& grads,
+                   T* grad_background) {
+  const int C = NC > 0 ? NC : runtime_channels;
+  const int stride = 6 + C;
+  const std::vector<T> splats = gather_splats(proj, bins, C);
+  const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
+  const std::int64_t visible = std::int64_t(bins.order.size());
+  const int threads = omp_get_max_threads();
+  // Per-thread gradients by depth rank: mx, my, A, B, C, opacity, colour[C]; background [C].
+  std::vector<std::vector<T>> thread_grads(threads);
+  std::vector<std::vector<T>> thread_bg(threads, std::vector<T>(C, T(0)));
+
+#pragma omp parallel
+  {
+    std::vector<T>& g = thread_grads[omp_get_thread_num()];
+    g.assign(visible * stride, T(0));
+    T* gbg = thread_bg[omp_get_thread_num()].data();
+    alignas(64) T trans[kTilePixels], tfinal[kTilePixels], galpha[kTilePixels];
+    alignas(64) std::int32_t last[kTilePixels];
+    std::vector<T> behind(std::size_t(C) * kTilePixels),
+        gimg(std::size_t(C) * kTilePixels);  // [C, 256]
+    std::vector<T> gcol(C);                  // colour gradient of the current splat
+#pragma omp for schedule(dynamic, 1)
+    for (std::int64_t t = 0; t < tiles; ++t) {
+      const Tile<T> tile = tile_at<T>(bins, t, width, height);
+      std::int32_t max_last = -1;
+      for (int p = 0; p < kTilePixels; ++p) {
+        const int px = p % kTileSize, py = p / kTileSize;
+        const bool inside = px < tile.w && py < tile.h;
+        const std::int64_t pix = std::int64_t(tile.y0 + py) * width + tile.x0 + px;
+        tfinal[p] = trans[p] = inside ? state.final_T[pix] : T(1);
+        last[p] = inside ? state.last[pix] : -1;
+        galpha[p] = inside && grad_alpha ? grad_alpha[pix] : T(0);
+        for (int c = 0; c < C; ++c) {
+          const T gi = inside ? grad_image[pix * C + c] : T(0);
+          gimg[std::size_t(c) * kTilePixels + p] = gi;
+          behind[std::size_t(c) * kTilePixels + p] = background ? background[c] : T(0);
+          gbg[c] += tfinal[p] * gi;
+        }
+        max_last = std::max(max_last, last[p]);
+      }
+      for (std::int64_t j = tile.begin + max_last; j >= tile.begin; --j) {
+        const std::int32_t rank = bins.ranks[j];
+        const T* s = splats.data() + std::int64_t(rank) * stride;
+        const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
+        int row0, row1;
+        splat_rows(my, proj.radius[bins.order[rank]], tile.y0, tile.h, row0, row1);
+        const std::int32_t pos = std::int32_t(j - tile.begin);
+        T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
+        std::fill(gcol.begin(), gcol.end(), T(0));
+        for (int row = row0; row < row1; ++row) {
+          const T dy = T(tile.y0 + row) + T(0.5) - my;
+          const int base = row * kTileSize;
+          alignas(64) T alph[kTileSize], gauss[kTileSize], tj[kTileSize], dalpha[kTileSize];
+#pragma omp simd
+          for (int x = 0; x < kTileSize; ++x) {
+            const int p = base + x;
+            const T dx = T(tile.x0 + x) + T(0.5) - mx;
+            const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
+            const T G = std::exp(power);
+            const T a = std::min(T(kAlphaMax), o * G);
+            const bool valid = pos <= last[p] && power <= 0 && a >= T(kAlphaMin);
+            const T inv = T(1) / (1 - a);                  // 1 - a >= 1 - kAlphaMax
+            trans[p] = valid ? trans[p] * inv : trans[p];  // T before this splat
+            alph[x] = valid ? a : T(0);
+            gauss[x] = valid && o * G < T(kAlphaMax) ? G : T(0);  // 0 where alpha is clamped
+            tj[x] = valid ? trans[p] : T(0);
+            dalpha[x] = valid ? tfinal[p] * inv * galpha[p] : T(0);
+          }
+          for (int c = 0; c < C; ++c) {
+            const T col = s[6 + c];
+            T* bh = behind.data() + std::size_t(c) * kTilePixels + base;
+            const T* gi = gimg.data() + std::size_t(c) * kTilePixels + base;
+            T sum = 0;
+#pragma omp simd reduction(+ : sum)
+            for (int x = 0; x < kTileSize; ++x) {
+              dalpha[x] += tj[x] * (col - bh[x]) * gi[x];
+              sum += alph[x] * tj[x] * gi[x];
+              bh[x] = alph[x] * col + (1 - alph[x]) * bh[x];
+            }
+            gcol[c] += sum;
+          }
+#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o)
+          for (int x = 0; x < kTileSize; ++x) {
+            const T dx = T(tile.x0 + x) + T(0.5) - mx;
+            const T dpower = o * gauss[x] * dalpha[x];
+            g_o += gauss[x] * dalpha[x];
+            g_A += T(-0.5) * dx * dx * dpower;
+            g_B += -dx * dy * dpower;
+            g_C += T(-0.5) * dy * dy * dpower;
+            g_mx += (A * dx + B * dy) * dpower;
+            g_my += (B * dx + Cc * dy) * dpower;
+          }
+        }
+        T* out = g.data() + std::int64_t(rank) * stride;
+        out[0] += g_mx, out[1] += g_my, out[2] += g_A, out[3] += g_B, out[4] += g_C, out[5] += g_o;
+        for (int c = 0; c < C; ++c) out[6 + c] += gcol[c];
+      }
+    }
+  }
+
+  const std::int64_t n = std::int64_t(proj.radius.size());
+  grads.mean2d.assign(2 * n, T(0));
+  grads.conic.assign(3 * n, T(0));
+  grads.opacity.assign(n, T(0));
+  grads.color.assign(n * C, T(0));
+#pragma omp parallel for schedule(static)
+  for (std::int64_t rank = 0; rank < visible; ++rank) {
+    const std::int64_t i = bins.order[rank];
+    for (int tid = 0; tid < threads; ++tid) {
+      const T* s = thread_grads[tid].data() + rank * stride;
+      grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
+      grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
+      grads.opacity[i] += s[5];
+      for (int c = 0; c < C; ++c) grads.color[i * C + c] += s[6 + c];
+    }
+  }
+  if (grad_background)
+    for (int c = 0; c < C; ++c) {
+      grad_background[c] = 0;
+      for (int tid = 0; tid < threads; ++tid) grad_background[c] += thread_bg[tid][c];
+    }
+}
+
+}  // namespace
+
+template <typename T>
+void composite_forward(const Projected<T>& proj, const TileBins& bins, int width, int height,
+                       int channels, const T* background, T* image, T* alpha,
+                       CompositeState<T>& state) {
+  if (channels == 1)
+    return forward_impl<T, 1>(proj, bins, width, height, 1, background, image, alpha, state);
+  if (channels == 3)
+    return forward_impl<T, 3>(proj, bins, width, height, 3, background, image, alpha, state);
+  forward_impl<T, 0>(proj, bins, width, height, channels, background, image, alpha, state);
+}
+
+template <typename T>
+void composite_backward(const Projected<T>& proj, const TileBins& bins, int width, int height,
+                        int channels, const T* background, const CompositeState<T>& state,
+                        const T* grad_image, const T* grad_alpha, ProjectedGrads<T>& grads,
+                        T* grad_background) {
+  if (channels == 1)
+    return backward_impl<T, 1>(proj, bins, width, height, 1, background, state, grad_image,
+                               grad_alpha, grads, grad_background);
+  if (channels == 3)
+    return backward_impl<T, 3>(proj, bins, width, height, 3, background, state, grad_image,
+                               grad_alpha, grads, grad_background);
+  backward_impl<T, 0>(proj, bins, width, height, channels, background, state, grad_image,
+                      grad_alpha, grads, grad_background);
+}
+
+template void composite_forward<float>(const Projected<float>&, const TileBins&, int, int, int,
+                                       const float*, float*, float*, CompositeState<float>&);
+template void composite_forward<double>(const Projected<double>&, const TileBins&, int, int, int,
+                                        const double*, double*, double*, CompositeState<double>&);
+template void composite_backward<float>(const Projected<float>&, const TileBins&, int, int, int,
+                                        const float*, const CompositeState<float>&, const float*,
+                                        const float*, ProjectedGrads<float>&, float*);
+template void composite_backward<double>(const Projected<double>&, const TileBins&, int, int, int,
+                                         const double*, const CompositeState<double>&,
+                                         const double*, const double*, ProjectedGrads<double>&,
+                                         double*);
+
+}  // namespace spikegs::raster

@@ -1,0 +1,325 @@
+// EWA projection, forward and backward; see docs/rasterizer.md for the maths step by step.
+#include "core/projection.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/glm.hpp>
+
+#include "core/finite.hpp"
+#include "core/sh.hpp"
+
+namespace spikegs::raster {
+namespace {
+
+template <typename T>
+using Vec3 = glm::vec<3, T, glm::defaultp>;
+template <typename T>
+using Mat3 = glm::mat<3, 3, T, glm::defaultp>;
+
+// glm is column-major: m[column][row].
+template <typename T>
+Mat3<T> rotation_of(const T* viewmat) {
+  Mat3<T> w;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) w[c][r] = viewmat[r * 4 + c];
+  return w;
+}
+
+template <typename T>
+Mat3<T> quat_to_rotation(T w, T x, T y, T z) {
+  Mat3<T> r;
+  r[0][0] = 1 - 2 * (y * y + z * z), r[1][0] = 2 * (x * y - w * z), r[2][0] = 2 * (x * z + w * y);
+  r[0][1] = 2 * (x * y + w * z), r[1][1] = 1 - 2 * (x * x + z * z), r[2][1] = 2 * (y * z - w * x);
+  r[0][2] = 2 * (x * z - w * y), r[1][2] = 2 * (y * z + w * x), r[2][2] = 1 - 2 * (x * x + y * y);
+  return r;
+}
+
+// d(loss)/d(w, x, y, z) for R = quat_to_rotation(w, x, y, z), given g = d(loss)/dR.
+template <typename T>
+void quat_to_rotation_vjp(T w, T x, T y, T z, const Mat3<T>& g, T out[4]) {
+  auto G = [&](int r, int c) { return g[c][r]; };
+  out[0] = 2 * (-z * G(0, 1) + y * G(0, 2) + z * G(1, 0) - x * G(1, 2) - y * G(2, 0) + x * G(2, 1));
+  out[1] = 2 * (y * G(0, 1) + z * G(0, 2) + y * G(1, 0) - 2 * x * G(1, 1) - w * G(1, 2) +
+                z * G(2, 0) + w * G(2, 1) - 2 * x * G(2, 2));
+  out[2] = 2 * (-2 * y * G(0, 0) + x * G(0, 1) + w * G(0, 2) + x * G(1, 0) + z * G(1, 2) -
+                w * G(2, 0) + z * G(2, 1) - 2 * y * G(2, 2));
+  out[3] = 2 * (-2 * z * G(0, 0) - w * G(0, 1) + x * G(0, 2) + w * G(1, 0) - 2 * z * G(1, 1) +
+                y * G(1, 2) + x * G(2, 0) + y * G(2, 1));
+}
+
+// Everything the forward computes for one Gaussian that the backward needs again.
+template <typename T>
+struct Splat {
+  bool visible = false;
+  T qinv;            // 1 / |q|
+  T qn[4];           // normalised quaternion
+  Mat3<T> R, M, WM;  // rotation, R diag(s), W M
+  Vec3<T> p;         // camera-space mean
+  T u_x, u_y;        // clamped x/z and y/z
+  bool clamped_x, clamped_y;
+  Vec3<T> J0, J1;  // rows of the projection Jacobian
+  Vec3<T> V0, V1;  // rows of V = J W M
+  T a, b, c, det;  // 2D covariance (+ dilation) and its determinant
+};
+
+template <typename T>
+Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::int64_t i) {
+  Splat<T> s;
+  const T* mean = prm.means + 3 * i;
+  const T* quat = prm.quats + 4 * i;
+  const T* scale = prm.scales + 3 * i;
+  if (!all_finite(mean, 3) || !all_finite(quat, 4) || !all_finite(scale, 3) ||
+      !is_finite(prm.opacities[i]) ||
+      !all_finite(prm.colors + i * prm.color_stride(), prm.color_stride()))
+    return s;
+  const T qq = quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3];
+  if (!(qq > 0) || !is_finite(qq)) return s;
+  s.qinv = T(1) / std::sqrt(qq);
+  for (int k = 0; k < 4; ++k) s.qn[k] = quat[k] * s.qinv;
+
+  const Mat3<T> W = rotation_of(cam.viewmat);
+  const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
+  s.p = W * Vec3<T>(mean[0], mean[1], mean[2]) + t;
+  const T z = s.p.z;
+  if (!(z > cam.near_plane && z < cam.far_plane)) return s;
+
+  s.R = quat_to_rotation(s.qn[0], s.qn[1], s.qn[2], s.qn[3]);
+  s.M = s.R;
+  for (int c = 0; c < 3; ++c) s.M[c] *= scale[c];
+  s.WM = W * s.M;
+
+  const T tan_x = T(0.5) * cam.width / cam.fx, tan_y = T(0.5) * cam.height / cam.fy;
+  const T margin = T(kClampMargin);
+  const T lo_x = -(cam.cx / cam.fx + margin * tan_x),
+          hi_x = (cam.width - cam.cx) / cam.fx + margin * tan_x;
+  const T lo_y = -(cam.cy / cam.fy + margin * tan_y),
+          hi_y = (cam.height - cam.cy) / cam.fy + margin * tan_y;
+  const T ux = s.p.x / z, uy = s.p.y / z;
+  s.u_x = std::min(std::max(ux, lo_x), hi_x);
+  s.u_y = std::min(std::max(uy, lo_y), hi_y);
+  s.clamped_x = !(ux >= lo_x && ux <= hi_x);
+  s.clamped_y = !(uy >= lo_y && uy <= hi_y);
+  const T tx = z * s.u_x, ty = z * s.u_y;
+  s.J0 = Vec3<T>(cam.fx / z, 0, -cam.fx * tx / (z * z));
+  s.J1 = Vec3<T>(0, cam.fy / z, -cam.fy * ty / (z * z));
+  s.V0 = glm::transpose(s.WM) * s.J0;
+  s.V1 = glm::transpose(s.WM) * s.J1;
+  const T eps = T(kDilation);
+  const T n0 = glm::dot(s.V0, s.V0), n1 = glm::dot(s.V1, s.V1);
+  const Vec3<T> cr = glm::cross(s.V0, s.V1);
+  s.a = n0 + eps;
+  s.b = glm::dot(s.V0, s.V1);
+  s.c = n1 + eps;
+  s.det = glm::dot(cr, cr) + eps * (n0 + n1) + eps * eps;
+  if (!(s.det > 0) || !is_finite(s.det) || !is_finite(s.a) || !is_finite(s.b) || !is_finite(s.c))
+    return s;
+  s.visible = true;
+  return s;
+}
+
+// Viewing direction for SH: unit vector from the camera centre to the mean, and that distance.
+template <typename T>
+Vec3<T> view_direction(const T* mean, const Camera<T>& cam, T& length) {
+  const Mat3<T> W = rotation_of(cam.viewmat);
+  const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
+  const Vec3<T> d = Vec3<T>(mean[0], mean[1], mean[2]) + glm::transpose(W) * t;  // mean - campos
+  length = glm::length(d);
+  return d / length;
+}
+
+}  // namespace
+
+template <typename T>
+void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Projected<T>& out) {
+  const std::int64_t n = prm.n;
+  const int C = prm.channels;
+  out.mean2d.assign(2 * n, T(0));
+  out.conic.assign(3 * n, T(0));
+  out.depth.assign(n, T(0));
+  out.opacity.assign(n, T(0));
+  out.color.assign(n * C, T(0));
+  out.radius.assign(n, 0);
+  out.tile_rect.assign(4 * n, 0);
+  const int tiles_x = cam.tiles_x(), tiles_y = cam.tiles_y();
+
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    const Splat<T> s = build_splat(prm, cam, i);
+    const T o = prm.opacities[i];
+    if (!s.visible || !(o >= T(kAlphaMin))) continue;
+    const T mx = cam.fx * s.p.x / s.p.z + cam.cx, my = cam.fy * s.p.y / s.p.z + cam.cy;
+    const T mid = T(0.5) * (s.a + s.c);
+    const T lambda = mid + std::sqrt(std::max(T(0.1), mid * mid - s.det));
+    const T r = std::ceil(std::sqrt(T(2) * std::log(T(255) * o) * lambda));
+    if (!(mx + r > 0 && mx - r < cam.width && my + r > 0 && my - r < cam.height)) continue;
+    const T ts = T(kTileSize);
+    out.radius[i] = std::int32_t(std::min(r, T(1 << 30)));
+    out.tile_rect[4 * i + 0] = std::int32_t(std::max(T(0), std::floor((mx - r) / ts)));
+    out.tile_rect[4 * i + 1] = std::int32_t(std::max(T(0), std::floor((my - r) / ts)));
+    out.tile_rect[4 * i + 2] = std::int32_t(std::min(T(tiles_x), std::floor((mx + r) / ts) + 1));
+    out.tile_rect[4 * i + 3] = std::int32_t(std::min(T(tiles_y), std::floor((my + r) / ts) + 1));
+    out.mean2d[2 * i] = mx;
+    out.mean2d[2 * i + 1] = my;
+    out.conic[3 * i] = s.c / s.det;
+    out.conic[3 * i + 1] = -s.b / s.det;
+    out.conic[3 * i + 2] = s.a / s.det;
+    out.depth[i] = s.p.z;
+    out.opacity[i] = o;
+    const T* col = prm.colors + i * prm.color_stride();
+    T* dst = out.color.data() + i * C;
+    if (prm.sh_degree < 0) {
+      for (int c = 0; c < C; ++c) dst[c] = col[c];
+    } else {
+      T length;
+      const Vec3<T> dir = view_direction(prm.means + 3 * i, cam, length);
+      T basis[16];
+      sh_basis(prm.sh_degree, dir.x, dir.y, dir.z, basis);
+      const int K = (prm.sh_degree + 1) * (prm.sh_degree + 1);
+      for (int c = 0; c < C; ++c) {
+        T v = T(0.5);
+        for (int k = 0; k < K; ++k) v += basis[k] * col[k * C + c];
+        dst[c] = std::max(v, T(0));
+      }
+    }
+  }
+}
+
+template <typename T>
+void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const Projected<T>& proj,
+                      const ProjectedGrads<T>& dp, ParamGrads<T>& g) {
+  const std::int64_t n = prm.n;
+  const int C = prm.channels;
+  const int threads = omp_get_max_threads();
+  std::vector<Mat3<T>> dW_thread(threads, Mat3<T>(T(0)));
+  std::vector<Vec3<T>> dt_thread(threads, Vec3<T>(T(0)));
+  const Mat3<T> W = rotation_of(cam.viewmat);
+  const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
+
+#pragma omp parallel
+  {
+    Mat3<T> dW(T(0));
+    Vec3<T> dt(T(0));
+#pragma omp for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i) {
+      if (proj.radius[i] == 0) continue;
+      const Splat<T> s = build_splat(prm, cam, i);
+      const T* mean = prm.means + 3 * i;
+      const T* scale = prm.scales + 3 * i;
+      const Vec3<T> mu(mean[0], mean[1], mean[2]);
+      Vec3<T> dmu(T(0)), dpc(T(0));  // gradients of the world mean and the camera-space mean
+
+      g.opacities[i] += dp.opacity[i];
+
+      // colour
+      const T* col = prm.colors + i * prm.color_stride();
+      T* dcol = g.colors + i * prm.color_stride();
+      const T* dcolor = dp.color.data() + i * C;
+      if (prm.sh_degree < 0) {
+        for (int c = 0; c < C; ++c) dcol[c] += dcolor[c];
+      } else {
+        T length;
+        const Vec3<T> dir = view_direction(mean, cam, length);
+        T basis[16], weight[16];
+        sh_basis(prm.sh_degree, dir.x, dir.y, dir.z, basis);
+        const int K = (prm.sh_degree + 1) * (prm.sh_degree + 1);
+        for (int k = 0; k < K; ++k) weight[k] = 0;
+        for (int c = 0; c < C; ++c) {
+          if (proj.color[i * C + c] <= 0) {  // clamped at 0: recompute to see if it was active
+            T v = T(0.5);
+            for (int k = 0; k < K; ++k) v += basis[k] * col[k * C + c];
+            if (v < 0) continue;
+          }
+          for (int k = 0; k < K; ++k) {
+            dcol[k * C + c] += basis[k] * dcolor[c];
+            weight[k] += col[k * C + c] * dcolor[c];
+          }
+        }
+        T ddir[3] = {0, 0, 0};
+        sh_basis_vjp(prm.sh_degree, dir.x, dir.y, dir.z, weight, ddir);
+        const Vec3<T> gd(ddir[0], ddir[1], ddir[2]);
+        const Vec3<T> dd = (gd - dir * glm::dot(dir, gd)) / length;  // through normalisation
+        dmu += dd;
+        // d = mean + W^T t: d/dW = t dd^T, d/dt = W dd
+        dW += glm::outerProduct(t, dd);
+        dt += W * dd;
+      }
+
+      // conic = inverse(cov2d): dcov = -Q G Q with G the symmetric gradient of Q
+      const T A = proj.conic[3 * i], B = proj.conic[3 * i + 1], Cc = proj.conic[3 * i + 2];
+      const T gA = dp.conic[3 * i], gB = T(0.5) * dp.conic[3 * i + 1], gC = dp.conic[3 * i + 2];
+      // X = Q G Q, Q = [[A, B], [B, Cc]], G = [[gA, gB], [gB, gC]]
+      const T QG00 = A * gA + B * gB, QG01 = A * gB + B * gC;
+      const T QG10 = B * gA + Cc * gB, QG11 = B * gB + Cc * gC;
+      const T da = -(QG00 * A + QG01 * B);
+      const T db = -2 * (QG00 * B + QG01 * Cc);
+      const T dc = -(QG10 * B + QG11 * Cc);
+      // cov = (V0.V0 + eps, V0.V1, V1.V1 + eps)
+      const Vec3<T> dV0 = T(2) * da * s.V0 + db * s.V1;
+      const Vec3<T> dV1 = T(2) * dc * s.V1 + db * s.V0;
+      // V_r = (W M)^T J_r
+      Vec3<T> dJ0 = s.WM * dV0, dJ1 = s.WM * dV1;
+      const Mat3<T> dWM = glm::outerProduct(s.J0, dV0) + glm::outerProduct(s.J1, dV1);
+      dW += dWM * glm::transpose(s.M);
+      const Mat3<T> dM = glm::transpose(W) * dWM;
+      Mat3<T> dR;
+      for (int c = 0; c < 3; ++c) {
+        g.scales[3 * i + c] += glm::dot(dM[c], s.R[c]);
+        dR[c] = dM[c] * scale[c];
+      }
+      T dqn[4];
+      quat_to_rotation_vjp(s.qn[0], s.qn[1], s.qn[2], s.qn[3], dR, dqn);
+      const T dot = dqn[0] * s.qn[0] + dqn[1] * s.qn[1] + dqn[2] * s.qn[2] + dqn[3] * s.qn[3];
+      for (int k = 0; k < 4; ++k) g.quats[4 * i + k] += (dqn[k] - s.qn[k] * dot) * s.qinv;
+
+      // Jacobian rows J0 = (fx/z, 0, -fx tx/z^2), J1 = (0, fy/z, -fy ty/z^2), tx = z u_x
+      const T z = s.p.z, iz = T(1) / z, iz2 = iz * iz;
+      const T tx = z * s.u_x, ty = z * s.u_y;
+      dpc.z += -cam.fx * iz2 * dJ0.x + T(2) * cam.fx * tx * iz2 * iz * dJ0.z;
+      dpc.z += -cam.fy * iz2 * dJ1.y + T(2) * cam.fy * ty * iz2 * iz * dJ1.z;
+      const T dtx = -cam.fx * iz2 * dJ0.z, dty = -cam.fy * iz2 * dJ1.z;
+      if (s.clamped_x)
+        dpc.z += s.u_x * dtx;
+      else
+        dpc.x += dtx;
+      if (s.clamped_y)
+        dpc.z += s.u_y * dty;
+      else
+        dpc.y += dty;
+
+      // mean2d = (fx x/z + cx, fy y/z + cy)
+      const T gmx = dp.mean2d[2 * i], gmy = dp.mean2d[2 * i + 1];
+      dpc.x += cam.fx * iz * gmx;
+      dpc.y += cam.fy * iz * gmy;
+      dpc.z += -(cam.fx * s.p.x * gmx + cam.fy * s.p.y * gmy) * iz2;
+
+      // p = W mu + t
+      dmu += glm::transpose(W) * dpc;
+      dW += glm::outerProduct(dpc, mu);
+      dt += dpc;
+      for (int k = 0; k < 3; ++k) g.means[3 * i + k] += dmu[k];
+    }
+    const int tid = omp_get_thread_num();
+    dW_thread[tid] = dW;
+    dt_thread[tid] = dt;
+  }
+  for (int tid = 0; tid < threads; ++tid)
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) g.viewmat[r * 4 + c] += dW_thread[tid][c][r];
+      g.viewmat[r * 4 + 3] += dt_thread[tid][r];
+    }
+}
+
+template void project_forward<float>(const GaussianParams<float>&, const Camera<float>&,
+                                     Projected<float>&);
+template void project_forward<double>(const GaussianParams<double>&, const Camera<double>&,
+                                      Projected<double>&);
+template void project_backward<float>(const GaussianParams<float>&, const Camera<float>&,
+                                      const Projected<float>&, const ProjectedGrads<float>&,
+                                      ParamGrads<float>&);
+template void project_backward<double>(const GaussianParams<double>&, const Camera<double>&,
+                                       const Projected<double>&, const ProjectedGrads<double>&,
+                                       ParamGrads<double>&);
+
+}  // namespace spikegs::raster

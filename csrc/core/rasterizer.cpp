@@ -1,0 +1,38 @@
+#include "core/rasterizer.hpp"
+
+#include <algorithm>
+
+namespace spikegs::raster {
+
+template <typename T>
+void rasterize_forward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
+                       T* image, T* alpha, RasterState<T>& state) {
+  project_forward(params, cam, state.proj);
+  bin_tiles(state.proj, cam, state.bins);
+  composite_forward(state.proj, state.bins, cam.width, cam.height, params.channels, background,
+                    image, alpha, state.composite);
+}
+
+template <typename T>
+void rasterize_backward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
+                        const RasterState<T>& state, const T* grad_image, const T* grad_alpha,
+                        ParamGrads<T>& grads, T* grad_background, T* grad_mean2d) {
+  ProjectedGrads<T> dproj;
+  composite_backward(state.proj, state.bins, cam.width, cam.height, params.channels, background,
+                     state.composite, grad_image, grad_alpha, dproj, grad_background);
+  if (grad_mean2d) std::copy(dproj.mean2d.begin(), dproj.mean2d.end(), grad_mean2d);
+  project_backward(params, cam, state.proj, dproj, grads);
+}
+
+template void rasterize_forward<float>(const GaussianParams<float>&, const Camera<float>&,
+                                       const float*, float*, float*, RasterState<float>&);
+template void rasterize_forward<double>(const GaussianParams<double>&, const Camera<double>&,
+                                        const double*, double*, double*, RasterState<double>&);
+template void rasterize_backward<float>(const GaussianParams<float>&, const Camera<float>&,
+                                        const float*, const RasterState<float>&, const float*,
+                                        const float*, ParamGrads<float>&, float*, float*);
+template void rasterize_backward<double>(const GaussianParams<double>&, const Camera<double>&,
+                                         const double*, const RasterState<double>&, const double*,
+                                         const double*, ParamGrads<double>&, double*, double*);
+
+}  // namespace spikegs::raster

@@ -1,0 +1,1 @@
+"""Benchmarks: every figure is an error next to a time, with a ratio against a named alternative."""

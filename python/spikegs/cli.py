@@ -1,0 +1,49 @@
+"""The `spikegs` command line: one sub-command per module, each with `add_arguments` and `run`."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# sub-command -> (module implementing it, one-line help)
+COMMANDS = {
+    "demo": ("spikegs.demo", "simulate, train SIM, SpikeGS and TFP(33)+3DGS, evaluate: the main job"),
+    "simulate": ("spikegs.data.simulate_cli", "make a synthetic spike dataset"),
+    "sim-train": ("spikegs.sim_cli", "train the SIM blind-spot network on a dataset"),
+    "train": ("spikegs.train_cli", "train a Gaussian scene from a spike dataset"),
+    "eval": ("spikegs.eval_cli", "evaluate a training run on its test views"),
+    "render": ("spikegs.render_cli", "render a novel-view orbit video of a run"),
+    "bench": ("spikegs.bench.cli", "benchmarks: error against run time"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="spikegs", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (module_name, help_text) in COMMANDS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as err:
+            if err.name != module_name:
+                raise
+            continue  # a command whose module is not part of this build
+        module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
+        sub.choices[name].set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, FileNotFoundError, FileExistsError) as err:
+        print(f"spikegs {args.command}: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,193 @@
+"""`spikegs.rasterize`: the C++ tile rasterizer as one differentiable torch op.
+
+The maths is in docs/rasterizer.md.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import torch
+
+from . import _C
+
+CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
+
+
+class RasterizeResult(NamedTuple):
+    image: torch.Tensor  # [H, W, C]
+    alpha: torch.Tensor  # [H, W] 1 - final transmittance
+    radii: torch.Tensor  # [N] int32 pixels, 0 = culled
+    means2d: torch.Tensor  # [N, 2] projected centres (pixels)
+    depths: torch.Tensor  # [N] camera-space z
+
+
+def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
+    """Raise ValueError naming `name` unless `t` is a CPU `dtype` tensor of `shape` (None: any)."""
+    if not isinstance(t, torch.Tensor):
+        raise ValueError(f"{name}: expected a torch.Tensor, got {type(t).__name__}")
+    if t.device.type != "cpu":
+        raise ValueError(f"{name}: expected a CPU tensor, got one on device '{t.device}'")
+    if t.dtype != dtype:
+        raise ValueError(f"{name}: expected dtype {dtype} (the dtype of means), got {t.dtype}")
+    if t.dim() != len(shape) or any(s is not None and s != d for s, d in zip(shape, t.shape)):
+        want = ", ".join("*" if s is None else str(s) for s in shape)
+        raise ValueError(f"{name}: expected shape [{want}], got {list(t.shape)}")
+    return t
+
+
+def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
+    """(sh_degree, coefficients per Gaussian) for `colors`; degree -1 means direct colours."""
+    if colors.dim() == 2:
+        if sh_degree is not None:
+            raise ValueError(
+                f"colors: sh_degree={sh_degree} needs SH coefficients [N, K, C], "
+                f"got {list(colors.shape)}"
+            )
+        return -1, 1
+    if colors.dim() != 3:
+        raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
+    k = colors.shape[1]
+    if sh_degree is None:
+        sh_degree = math.isqrt(k) - 1
+        if (sh_degree + 1) ** 2 != k:
+            raise ValueError(f"colors: {k} SH coefficients is not a square; pass sh_degree")
+    if not 0 <= sh_degree <= CONSTANTS["max_sh_degree"]:
+        raise ValueError(f"sh_degree: expected 0..{CONSTANTS['max_sh_degree']}, got {sh_degree}")
+    if k < (sh_degree + 1) ** 2:
+        raise ValueError(
+            f"colors: sh_degree {sh_degree} needs {(sh_degree + 1) ** 2} coefficients, got {k}"
+        )
+    return sh_degree, k
+
+
+class _RasterizeFunction(torch.autograd.Function):
+    @staticmethod
+    def forward(
+        ctx,
+        means,
+        quats,
+        scales,
+        opacities,
+        colors,
+        viewmat,
+        background,
+        screen_points,
+        K,
+        settings,
+    ):
+        core = "float64" if means.dtype == torch.float64 else "float32"
+        arrays = [
+            t.detach().contiguous().numpy() for t in (means, quats, scales, opacities, colors)
+        ]
+        bg = None if background is None else background.detach().contiguous().numpy()
+        image, alpha, radii, means2d, depths, raster = getattr(_C, f"rasterize_forward_{core}")(
+            *arrays,
+            viewmat.detach().contiguous().numpy(),
+            K.detach().contiguous().numpy(),
+            settings["width"],
+            settings["height"],
+            settings["sh_degree"],
+            settings["sh_coeffs"],
+            settings["channels"],
+            bg,
+            settings["near"],
+            settings["far"],
+        )
+        ctx.raster, ctx.core = raster, core
+        ctx.save_for_backward(means, quats, scales, opacities, colors, background)
+        outputs = tuple(torch.from_numpy(x) for x in (image, alpha, radii, means2d, depths))
+        ctx.mark_non_differentiable(*outputs[2:])
+        return outputs
+
+    @staticmethod
+    def backward(ctx, grad_image, grad_alpha, *_):
+        means, quats, scales, opacities, colors, background = ctx.saved_tensors
+        arrays = [
+            t.detach().contiguous().numpy() for t in (means, quats, scales, opacities, colors)
+        ]
+        bg = None if background is None else background.detach().contiguous().numpy()
+        grads = getattr(_C, f"rasterize_backward_{ctx.core}")(
+            ctx.raster,
+            *arrays,
+            bg,
+            grad_image.contiguous().numpy(),
+            None if grad_alpha is None else grad_alpha.contiguous().numpy(),
+        )
+        dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d = map(
+            torch.from_numpy, grads
+        )
+        dbackground = dbackground if ctx.needs_input_grad[6] else None
+        dmeans2d = dmeans2d if ctx.needs_input_grad[7] else None
+        return dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d, None, None
+
+
+def rasterize(
+    means: torch.Tensor,
+    quats: torch.Tensor,
+    scales: torch.Tensor,
+    opacities: torch.Tensor,
+    colors: torch.Tensor,
+    viewmat: torch.Tensor,
+    K: torch.Tensor,
+    width: int,
+    height: int,
+    *,
+    sh_degree: int | None = None,
+    background: torch.Tensor | None = None,
+    near: float = CONSTANTS["near"],
+    far: float = CONSTANTS["far"],
+    screen_points: torch.Tensor | None = None,
+) -> RasterizeResult:
+    """Render N Gaussians into one [H, W, C] image, differentiably.
+
+    means [N, 3], quats [N, 4] (w, x, y, z, any norm), scales [N, 3] and opacities [N] (already
+    activated), colors [N, C] (direct) or [N, K, C] (SH coefficients, degree `sh_degree` or
+    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV), K [3, 3] intrinsics, background [C].
+    All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
+    `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
+    projected 2D means (as in 3DGS densification). Culled Gaussians get radius 0 and zero gradient.
+    """
+    if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
+        got = means.dtype if isinstance(means, torch.Tensor) else type(means).__name__
+        raise ValueError(f"means: expected a float32 or float64 tensor, got {got}")
+    dtype = means.dtype
+    n = means.shape[0] if means.dim() == 2 else None
+    _check("means", means, (n, 3), dtype)
+    _check("quats", quats, (n, 4), dtype)
+    _check("scales", scales, (n, 3), dtype)
+    _check("opacities", opacities, (n,), dtype)
+    if not isinstance(colors, torch.Tensor) or colors.dim() not in (2, 3):
+        raise ValueError(
+            f"colors: expected shape [N, C] or [N, K, C], got {getattr(colors, 'shape', colors)}"
+        )
+    _check("colors", colors, (n,) + (None,) * (colors.dim() - 1), dtype)
+    channels = colors.shape[-1]
+    if channels < 1:
+        raise ValueError("colors: expected at least one channel")
+    _check("viewmat", viewmat, (4, 4), dtype)
+    _check("K", K, (3, 3), dtype)
+    if background is not None:
+        _check("background", background, (channels,), dtype)
+    if screen_points is not None:
+        _check("screen_points", screen_points, (n, 2), dtype)
+    for name, value in (("width", width), ("height", height)):
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise ValueError(f"{name}: expected a positive int, got {value!r}")
+    if not 0 < near < far:
+        raise ValueError(f"near, far: expected 0 < near < far, got near={near}, far={far}")
+    degree, coeffs = _sh_layout(colors, sh_degree)
+    settings = dict(
+        width=width,
+        height=height,
+        sh_degree=degree,
+        sh_coeffs=coeffs,
+        channels=channels,
+        near=float(near),
+        far=float(far),
+    )
+    outputs = _RasterizeFunction.apply(
+        means, quats, scales, opacities, colors, viewmat, background, screen_points, K, settings
+    )
+    return RasterizeResult(*outputs)
