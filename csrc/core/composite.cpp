@@ -11,28 +11,29 @@ namespace spikegs::raster {
 namespace {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
+constexpr int kSplatHeader = 7;  // floats before the colour in a gathered splat
 
-// Splat parameters gathered in depth order: mx, my, A, B, C, opacity, colour[C].
+// Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width, colour[C].
 template <typename T>
 std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int channels) {
-  const int stride = 6 + channels;
+  const int stride = kSplatHeader + channels;
   std::vector<T> out(bins.order.size() * stride);
   for (std::size_t rank = 0; rank < bins.order.size(); ++rank) {
     const std::int64_t i = bins.order[rank];
     T* s = out.data() + rank * stride;
     s[0] = proj.mean2d[2 * i], s[1] = proj.mean2d[2 * i + 1];
     s[2] = proj.conic[3 * i], s[3] = proj.conic[3 * i + 1], s[4] = proj.conic[3 * i + 2];
-    s[5] = proj.opacity[i];
-    for (int c = 0; c < channels; ++c) s[6 + c] = proj.color[i * channels + c];
+    s[5] = proj.opacity[i], s[6] = proj.extent[2 * i + 1];
+    for (int c = 0; c < channels; ++c) s[kSplatHeader + c] = proj.color[i * channels + c];
   }
   return out;
 }
 
-// Rows of the tile [row0, row1) that the splat's box can reach.
+// Rows of the tile [row0, row1) that the splat can reach (y half-width `ey`, slack included).
 template <typename T>
-void splat_rows(T my, std::int32_t radius, int tile_y0, int tile_h, int& row0, int& row1) {
-  row0 = std::max(0, int(std::floor(my - radius - 1)) - tile_y0);
-  row1 = std::min(tile_h, int(std::ceil(my + radius + 1)) - tile_y0);
+void splat_rows(T my, T ey, int tile_y0, int tile_h, int& row0, int& row1) {
+  row0 = std::max(0, int(std::floor(my - ey)) - tile_y0);
+  row1 = std::min(tile_h, int(std::ceil(my + ey)) - tile_y0);
 }
 
 template <typename T>
@@ -58,7 +59,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
                   int runtime_channels, const T* background, T* image, T* alpha_out,
                   CompositeState<T>& state) {
   const int C = NC > 0 ? NC : runtime_channels;
-  const int stride = 6 + C;
+  const int stride = kSplatHeader + C;
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   state.final_T.assign(std::int64_t(width) * height, T(1));
@@ -74,21 +75,24 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
       std::fill(acc.begin(), acc.end(), T(0));
+      int row_active[kTileSize];  // pixels of each row still compositing
       for (int p = 0; p < kTilePixels; ++p) {
         const int px = p % kTileSize, py = p / kTileSize;
         trans[p] = 1;
         active[p] = (px < tile.w && py < tile.h) ? T(1) : T(0);
         last[p] = -1;
       }
+      for (int row = 0; row < kTileSize; ++row) row_active[row] = row < tile.h ? tile.w : 0;
       int remaining = tile.w * tile.h;
       for (std::int64_t j = tile.begin; j < tile.end && remaining > 0; ++j) {
         const std::int32_t rank = bins.ranks[j];
         const T* s = splats.data() + std::int64_t(rank) * stride;
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
         int row0, row1;
-        splat_rows(my, proj.radius[bins.order[rank]], tile.y0, tile.h, row0, row1);
+        splat_rows(my, s[6], tile.y0, tile.h, row0, row1);
         const std::int32_t pos = std::int32_t(j - tile.begin);
         for (int row = row0; row < row1; ++row) {
+          if (row_active[row] == 0) continue;
           const T dy = T(tile.y0 + row) + T(0.5) - my;
           T* tr = trans + row * kTileSize;
           T* act = active + row * kTileSize;
@@ -110,14 +114,15 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
             stopped += stop ? 1 : 0;
           }
           remaining -= stopped;
+          row_active[row] -= stopped;
+          pairs += tile.w;
           for (int c = 0; c < C; ++c) {
-            const T col = s[6 + c];
+            const T col = s[kSplatHeader + c];
             T* ac = acc.data() + std::size_t(c) * kTilePixels + row * kTileSize;
 #pragma omp simd
             for (int x = 0; x < kTileSize; ++x) ac[x] += weight[x] * col;
           }
         }
-        pairs += std::int64_t(row1 - row0) * tile.w;
       }
       for (int py = 0; py < tile.h; ++py)
         for (int px = 0; px < tile.w; ++px) {
@@ -141,7 +146,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
                    const T* grad_image, const T* grad_alpha, ProjectedGrads<T>& grads,
                    T* grad_background) {
   const int C = NC > 0 ? NC : runtime_channels;
-  const int stride = 6 + C;
+  const int stride = kSplatHeader + C, grad_stride = 6 + C;
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   const std::int64_t visible = std::int64_t(bins.order.size());
@@ -153,7 +158,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp parallel
   {
     std::vector<T>& g = thread_grads[omp_get_thread_num()];
-    g.assign(visible * stride, T(0));
+    g.assign(visible * grad_stride, T(0));
     T* gbg = thread_bg[omp_get_thread_num()].data();
     alignas(64) T trans[kTilePixels], tfinal[kTilePixels], galpha[kTilePixels];
     alignas(64) std::int32_t last[kTilePixels];
@@ -163,7 +168,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
-      std::int32_t max_last = -1;
+      std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
+      std::fill(row_last, row_last + kTileSize, -1);
       for (int p = 0; p < kTilePixels; ++p) {
         const int px = p % kTileSize, py = p / kTileSize;
         const bool inside = px < tile.w && py < tile.h;
@@ -178,17 +184,19 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           gbg[c] += tfinal[p] * gi;
         }
         max_last = std::max(max_last, last[p]);
+        row_last[py] = std::max(row_last[py], last[p]);
       }
       for (std::int64_t j = tile.begin + max_last; j >= tile.begin; --j) {
         const std::int32_t rank = bins.ranks[j];
         const T* s = splats.data() + std::int64_t(rank) * stride;
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
         int row0, row1;
-        splat_rows(my, proj.radius[bins.order[rank]], tile.y0, tile.h, row0, row1);
+        splat_rows(my, s[6], tile.y0, tile.h, row0, row1);
         const std::int32_t pos = std::int32_t(j - tile.begin);
         T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
         std::fill(gcol.begin(), gcol.end(), T(0));
         for (int row = row0; row < row1; ++row) {
+          if (pos > row_last[row]) continue;
           const T dy = T(tile.y0 + row) + T(0.5) - my;
           const int base = row * kTileSize;
           alignas(64) T alph[kTileSize], gauss[kTileSize], tj[kTileSize], dalpha[kTileSize];
@@ -208,7 +216,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             dalpha[x] = valid ? tfinal[p] * inv * galpha[p] : T(0);
           }
           for (int c = 0; c < C; ++c) {
-            const T col = s[6 + c];
+            const T col = s[kSplatHeader + c];
             T* bh = behind.data() + std::size_t(c) * kTilePixels + base;
             const T* gi = gimg.data() + std::size_t(c) * kTilePixels + base;
             T sum = 0;
@@ -232,7 +240,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             g_my += (B * dx + Cc * dy) * dpower;
           }
         }
-        T* out = g.data() + std::int64_t(rank) * stride;
+        T* out = g.data() + std::int64_t(rank) * grad_stride;
         out[0] += g_mx, out[1] += g_my, out[2] += g_A, out[3] += g_B, out[4] += g_C, out[5] += g_o;
         for (int c = 0; c < C; ++c) out[6 + c] += gcol[c];
       }
@@ -248,7 +256,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
     for (int tid = 0; tid < threads; ++tid) {
-      const T* s = thread_grads[tid].data() + rank * stride;
+      const T* s = thread_grads[tid].data() + rank * grad_stride;
       grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
       grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
       grads.opacity[i] += s[5];

@@ -141,6 +141,7 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
   out.opacity.assign(n, T(0));
   out.color.assign(n * C, T(0));
   out.radius.assign(n, 0);
+  out.extent.assign(2 * n, T(0));
   out.tile_rect.assign(4 * n, 0);
   const int tiles_x = cam.tiles_x(), tiles_y = cam.tiles_y();
 
@@ -152,14 +153,20 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     const T mx = cam.fx * s.p.x / s.p.z + cam.cx, my = cam.fy * s.p.y / s.p.z + cam.cy;
     const T mid = T(0.5) * (s.a + s.c);
     const T lambda = mid + std::sqrt(std::max(T(0.1), mid * mid - s.det));
-    const T r = std::ceil(std::sqrt(T(2) * std::log(T(255) * o) * lambda));
+    // alpha >= 1/255 inside the ellipse d^T conic d <= 2 ln(255 o), whose bounding circle is r
+    const T level = T(2) * std::log(T(255) * o);
+    const T r = std::ceil(std::sqrt(level * lambda));
     if (!(mx + r > 0 && mx - r < cam.width && my + r > 0 && my - r < cam.height)) continue;
+    // binning uses the ellipse's own x and y half-widths (tighter), plus a pixel of slack
+    const T ex = std::sqrt(level * s.a) + 1, ey = std::sqrt(level * s.c) + 1;
     const T ts = T(kTileSize);
     out.radius[i] = std::int32_t(std::min(r, T(1 << 30)));
-    out.tile_rect[4 * i + 0] = std::int32_t(std::max(T(0), std::floor((mx - r) / ts)));
-    out.tile_rect[4 * i + 1] = std::int32_t(std::max(T(0), std::floor((my - r) / ts)));
-    out.tile_rect[4 * i + 2] = std::int32_t(std::min(T(tiles_x), std::floor((mx + r) / ts) + 1));
-    out.tile_rect[4 * i + 3] = std::int32_t(std::min(T(tiles_y), std::floor((my + r) / ts) + 1));
+    out.extent[2 * i] = ex;
+    out.extent[2 * i + 1] = ey;
+    out.tile_rect[4 * i + 0] = std::int32_t(std::max(T(0), std::floor((mx - ex) / ts)));
+    out.tile_rect[4 * i + 1] = std::int32_t(std::max(T(0), std::floor((my - ey) / ts)));
+    out.tile_rect[4 * i + 2] = std::int32_t(std::min(T(tiles_x), std::floor((mx + ex) / ts) + 1));
+    out.tile_rect[4 * i + 3] = std::int32_t(std::min(T(tiles_y), std::floor((my + ey) / ts) + 1));
     out.mean2d[2 * i] = mx;
     out.mean2d[2 * i + 1] = my;
     out.conic[3 * i] = s.c / s.det;

@@ -37,12 +37,13 @@ struct GaussianParams {
 // Per-Gaussian outputs of the projection; radius 0 marks a culled Gaussian.
 template <typename T>
 struct Projected {
-  std::vector<T> mean2d;                // [N, 2]
-  std::vector<T> conic;                 // [N, 3] (A, B, C) of the inverse 2D covariance
-  std::vector<T> depth;                 // [N]
-  std::vector<T> opacity;               // [N]
-  std::vector<T> color;                 // [N, C]
-  std::vector<std::int32_t> radius;     // [N] pixels, 0 = culled
+  std::vector<T> mean2d;             // [N, 2]
+  std::vector<T> conic;              // [N, 3] (A, B, C) of the inverse 2D covariance
+  std::vector<T> depth;              // [N]
+  std::vector<T> opacity;            // [N]
+  std::vector<T> color;              // [N, C]
+  std::vector<std::int32_t> radius;  // [N] pixels, 0 = culled
+  std::vector<T> extent;  // [N, 2] x, y half-widths of the region where alpha >= 1/255 (+1 px)
   std::vector<std::int32_t> tile_rect;  // [N, 4] tile range x0, y0, x1, y1 (half-open)
 };
 
