@@ -1,0 +1,260 @@
+// Spike-stream core: layouts round trip, window counts and TFI against naive loops, simulator.
+#include <omp.h>
+
+#include <cstdint>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "core/spike_format.hpp"
+#include "core/spike_kernels.hpp"
+#include "core/spike_simulator.hpp"
+#include "harness.hpp"
+
+using namespace spikegs;
+
+namespace {
+
+using Bits = std::vector<uint8_t>;  // [T, H, W] 0/1
+
+Bits random_bits(int64_t T, int64_t H, int64_t W, double p, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::bernoulli_distribution spike(p);
+  Bits b(size_t(T * H * W));
+  for (auto& v : b) v = spike(gen);
+  return b;
+}
+
+// A packed copy of `bits` in `layout`, and the stream over it.
+struct Packed {
+  std::vector<uint8_t> bytes;
+  PackedStream stream;
+  Packed(const Bits& bits, int64_t T, const SpikeLayout& layout)
+      : bytes(size_t(T * layout.frame_bytes())) {
+    pack_frames(bits.data(), T, layout, bytes.data());
+    stream = PackedStream::over(bytes.data(), int64_t(bytes.size()), layout);
+  }
+};
+
+template <typename Fn>
+bool throws_invalid(Fn&& fn) {
+  try {
+    fn();
+  } catch (const std::invalid_argument&) {
+    return true;
+  }
+  return false;
+}
+
+// Naive TFI at k for one pixel's spike train s[0..T), as documented in spike_kernels.hpp.
+float naive_tfi(const std::vector<int>& s, int64_t k, int64_t M) {
+  int64_t prev = -1, next = -1;
+  for (int64_t t = k; t >= 0 && prev < 0; --t)
+    if (s[t]) prev = t;
+  for (int64_t t = k + 1; t < int64_t(s.size()) && next < 0; ++t)
+    if (s[t]) next = t;
+  const int64_t interval = (prev < 0 || next < 0) ? M : std::min(next - prev, M);
+  return 1.0f / float(interval);
+}
+
+}  // namespace
+
+TEST_CASE(round_trip_layouts) {
+  for (int64_t W : {1, 7, 8, 13, 64, 400})
+    for (bool flip : {false, true}) {
+      const int64_t T = 5, H = 3;
+      const Bits bits = random_bits(T, H, W, 0.4, unsigned(W));
+      for (const SpikeLayout& l : {SpikeLayout::memory(H, W), SpikeLayout::dat(H, W, flip),
+                                   SpikeLayout::dat(H, W, flip, W + 19, 5)}) {
+        Packed p(bits, T, l);
+        Bits back(bits.size());
+        unpack_frames(p.stream, 0, T, back.data());
+        CHECK(back == bits, "W=", W, " flip=", flip, " row_bits=", l.row_bits);
+        // Through another layout and back.
+        const SpikeLayout mem = SpikeLayout::memory(H, W);
+        std::vector<uint8_t> re(size_t(T * mem.frame_bytes()));
+        repack_frames(p.stream, 0, T, mem, re.data());
+        CHECK(re == Packed(bits, T, mem).bytes, "repack W=", W, " flip=", flip);
+      }
+    }
+}
+
+TEST_CASE(dat_layout_matches_camera_format) {
+  // 2x8 frame, flipped: image row 1 is stored first, LSB = column 0.
+  const Bits bits = {1, 0, 0, 0, 0, 0, 0, 1,   // image row 0
+                     0, 1, 1, 0, 0, 0, 0, 0};  // image row 1
+  Packed p(bits, 1, SpikeLayout::dat(2, 8, true));
+  CHECK(p.bytes.size() == 2 && p.bytes[0] == 0x06 && p.bytes[1] == 0x81);
+  // H·W not a multiple of 8: rows are bit-contiguous, the frame rounds up to whole bytes.
+  CHECK(SpikeLayout::dat(3, 5, false).frame_bytes() == 2);
+}
+
+TEST_CASE(bad_shapes_refused) {
+  std::vector<uint8_t> bytes(100);
+  const SpikeLayout l = SpikeLayout::dat(4, 8, true);  // 4-byte frames
+  CHECK(throws_invalid([&] { PackedStream::over(bytes.data(), 99, l); }), "truncated file");
+  CHECK(!throws_invalid([&] { PackedStream::over(bytes.data(), 100, l); }));
+  CHECK(throws_invalid([&] { SpikeLayout::dat(4, 8, true, 6); }), "raw row narrower than image");
+  CHECK(throws_invalid([&] { SpikeLayout::memory(0, 8); }));
+  const PackedStream s = PackedStream::over(bytes.data(), 100, l);  // 25 readouts
+  std::vector<int32_t> out(32);
+  for (int64_t start : {-1, 23}) {
+    CHECK(throws_invalid([&] { window_counts<int32_t>(s, &start, 1, 3, 1, out.data()); }),
+          "window start ", start);
+  }
+  std::vector<float> f(32);
+  for (int64_t k : {-1, 25}) CHECK(throws_invalid([&] { tfi(s, &k, 1, 8, f.data()); }), "k=", k);
+  std::vector<uint8_t> u(32 * 3);
+  CHECK(throws_invalid([&] { unpack_frames(s, 23, 3, u.data()); }));
+}
+
+TEST_CASE(window_counts_match_naive) {
+  // A small cropped unaligned frame (one partial chunk) and a 40x400 one (four chunks, the last
+  // with a partial group of words).
+  const int64_t T = 700;
+  for (const SpikeLayout& l :
+       {SpikeLayout::dat(5, 123, true, 130, 3), SpikeLayout::memory(40, 400)}) {
+    const int64_t H = l.height, W = l.width;
+    const Bits bits = random_bits(T, H, W, 0.3, 7);
+    Packed p(bits, T, l);
+    for (int64_t w : {1, 33, 255, 256, 600}) {
+      const std::vector<int64_t> starts = {0, 17, T - w};
+      std::vector<int32_t> got(starts.size() * H * W);
+      std::vector<float> tfp(got.size());
+      window_counts<int32_t>(p.stream, starts.data(), int64_t(starts.size()), w, 1, got.data());
+      window_counts<float>(p.stream, starts.data(), int64_t(starts.size()), w, 1.0f / float(w),
+                           tfp.data());
+      int bad = 0;
+      for (size_t b = 0; b < starts.size(); ++b)
+        for (int64_t i = 0; i < H * W; ++i) {
+          int32_t want = 0;
+          for (int64_t t = starts[b]; t < starts[b] + w; ++t) want += bits[t * H * W + i];
+          const size_t o = b * H * W + i;
+          bad += got[o] != want || std::abs(tfp[o] - float(want) / float(w)) > 1e-6f;
+        }
+      CHECK(bad == 0, H, "x", W, " w=", w, " mismatches=", bad);
+    }
+  }
+}
+
+TEST_CASE(window_counts_all_zero_all_one) {
+  const int64_t T = 40, H = 4, W = 77;
+  for (uint8_t value : {0, 1}) {
+    Packed p(Bits(size_t(T * H * W), value), T, SpikeLayout::memory(H, W));
+    const int64_t start = 3;
+    std::vector<float> tfp(H * W, -1.0f);
+    window_counts<float>(p.stream, &start, 1, 33, 1.0f / 33, tfp.data());
+    bool ok = true;
+    for (float v : tfp) ok = ok && v == float(value);
+    CHECK(ok, "value ", int(value));
+  }
+}
+
+TEST_CASE(tfi_matches_naive) {
+  const int64_t T = 300, M = 50;
+  for (const SpikeLayout& l : {SpikeLayout::dat(3, 70, true), SpikeLayout::memory(20, 400)}) {
+    const int64_t H = l.height, W = l.width;
+    const Bits bits = random_bits(T, H, W, 0.02, 11);
+    Packed p(bits, T, l);
+    const std::vector<int64_t> ks = {0, 1, 100, 250, T - 1};
+    std::vector<float> got(ks.size() * H * W);
+    tfi(p.stream, ks.data(), int64_t(ks.size()), M, got.data());
+    int bad = 0;
+    for (int64_t i = 0; i < H * W; ++i) {
+      std::vector<int> s(T);
+      for (int64_t t = 0; t < T; ++t) s[t] = bits[t * H * W + i];
+      for (size_t b = 0; b < ks.size(); ++b) bad += got[b * H * W + i] != naive_tfi(s, ks[b], M);
+    }
+    CHECK(bad == 0, H, "x", W, " mismatches=", bad);
+  }
+}
+
+TEST_CASE(tfi_edge_cases) {
+  // One pixel: spikes at readouts 0 and 4, nothing else in 10 readouts.
+  Bits bits(10, 0);
+  bits[0] = bits[4] = 1;
+  Packed p(bits, 10, SpikeLayout::memory(1, 1));
+  auto at = [&](int64_t k, int64_t M) {
+    float v = -1;
+    tfi(p.stream, &k, 1, M, &v);
+    return v;
+  };
+  CHECK(at(0, 100) == 0.25f, "a spike at readout 0 counts as the last spike at k=0");
+  CHECK(at(3, 100) == 0.25f);
+  CHECK(at(4, 100) == 0.01f, "no spike after readout 4: 1/max_interval");
+  CHECK(at(9, 100) == 0.01f, "last readout: 1/max_interval");
+  CHECK(at(2, 3) == 1.0f / 3, "interval 4 capped at max_interval 3");
+  Packed none(Bits(10, 0), 10, SpikeLayout::memory(1, 1));
+  const int64_t k = 5;
+  float v = -1;
+  tfi(none.stream, &k, 1, 7, &v);
+  CHECK(v == 1.0f / 7, "no spike at all: 1/max_interval, found ", v);
+  Packed all(Bits(10, 1), 10, SpikeLayout::memory(1, 1));
+  tfi(all.stream, &k, 1, 7, &v);
+  CHECK(v == 1.0f, "a spike every readout: TFI 1, found ", v);
+}
+
+TEST_CASE(simulator_independent_of_threads_and_chunks) {
+  const int64_t H = 9, W = 21, T = 60;
+  const std::vector<float> frames(2 * H * W, 0.7f);
+  const std::vector<double> times = {0.0, double(T - 1)};
+  auto simulate = [&](int threads, int64_t chunk) {
+    omp_set_num_threads(threads);
+    SpikeSimulator sim(H, W, SimParams{}, 1234);
+    std::vector<uint8_t> out(size_t(T * H * ((W + 7) / 8)));
+    for (int64_t t = 0; t < T; t += chunk)
+      sim.run(frames.data(), times.data(), 2, std::min(chunk, T - t),
+              out.data() + t * H * ((W + 7) / 8));
+    return out;
+  };
+  const auto a = simulate(1, T), b = simulate(2, 7);
+  omp_set_num_threads(omp_get_num_procs());
+  CHECK(a == b, "same seed, other thread count and chunking");
+  SpikeSimulator other(H, W, SimParams{}, 1235);
+  std::vector<uint8_t> c(a.size());
+  other.run(frames.data(), times.data(), 2, T, c.data());
+  CHECK(a != c, "another seed gives another stream");
+}
+
+TEST_CASE(simulator_refuses_bad_input) {
+  SimParams bad;
+  bad.rate_at_one = 1.5;
+  CHECK(throws_invalid([&] { SpikeSimulator(2, 2, bad, 0); }));
+  SpikeSimulator sim(2, 2, SimParams{}, 0);
+  const std::vector<float> frames(8, 0.5f);
+  const std::vector<double> short_times = {0.0, 5.0}, unsorted = {3.0, 1.0};
+  std::vector<uint8_t> out(20);
+  CHECK(throws_invalid([&] { sim.run(frames.data(), short_times.data(), 2, 10, out.data()); }),
+        "frames must cover every readout");
+  CHECK(throws_invalid([&] { sim.run(frames.data(), unsorted.data(), 2, 1, out.data()); }));
+}
+
+TEST_CASE(simulator_rate_is_calibrated_and_capped) {
+  const int64_t H = 4, W = 64, T = 4000;
+  SimParams params;
+  params.dark_rate = 0;
+  // Row r: intensity 0.5·r (rate 0.125·r); row 3 overexposed (40 times the saturating light).
+  std::vector<float> frames(2 * H * W);  // [2, H, W], the same light at both ends
+  for (int64_t i = 0; i < 2 * H * W; ++i) {
+    const int64_t r = (i / W) % H;
+    frames[i] = r == 3 ? 160.0f : 0.5f * float(r);
+  }
+  const std::vector<double> times = {0.0, double(T - 1)};
+  SpikeSimulator sim(H, W, params, 3);
+  std::vector<uint8_t> packed(size_t(T * H * 8));
+  sim.run(frames.data(), times.data(), 2, T, packed.data());
+  const PackedStream s =
+      PackedStream::over(packed.data(), int64_t(packed.size()), SpikeLayout::memory(H, W));
+  const int64_t start = 0;
+  std::vector<float> rate(H * W);
+  window_counts<float>(s, &start, 1, T, 1.0f / float(T), rate.data());
+  for (int64_t r = 0; r < 3; ++r) {
+    double mean = 0;
+    for (int64_t x = 0; x < W; ++x) mean += rate[r * W + x] / double(W);
+    const double want = 0.25 * 0.5 * double(r);
+    CHECK(std::abs(mean - want) < 0.01 * want + 1e-4, "row ", r, ": rate ", mean, " want ", want);
+  }
+  bool saturated = true;
+  for (int64_t x = 0; x < W; ++x) saturated = saturated && rate[3 * W + x] == 1.0f;
+  CHECK(saturated, "overexposed pixels fire once per readout, never more");
+}

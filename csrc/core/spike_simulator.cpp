@@ -1,0 +1,128 @@
+#include "core/spike_simulator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "core/spike_rng.hpp"
+
+namespace spikegs {
+namespace {
+
+template <typename... Args>
+[[noreturn]] void fail(const Args&... args) {
+  std::ostringstream os;
+  (os << ... << args);
+  throw std::invalid_argument(os.str());
+}
+
+// Stream keys: one for the per-pixel constants, one for the per-readout draws.
+constexpr uint64_t kPixelStream = 0x5049584C5F434F4Eull;
+constexpr uint64_t kReadoutStream = 0x524541444F555453ull;
+
+// Light at one readout: frames f and f+1 mixed with weight a on the second.
+struct Segment {
+  int64_t f;
+  float a;
+};
+
+}  // namespace
+
+void SimParams::validate() const {
+  auto check = [](bool ok, const char* name, const char* expected, double found) {
+    if (!ok) fail(name, " expected ", expected, ", found ", found);
+  };
+  check(threshold > 0 && std::isfinite(threshold), "threshold", "> 0", threshold);
+  check(rate_at_one > 0 && rate_at_one <= 1, "rate_at_one", "in (0, 1]", rate_at_one);
+  check(dark_rate >= 0 && dark_rate <= 1, "dark_rate", "in [0, 1]", dark_rate);
+  check(dark_sigma >= 0 && std::isfinite(dark_sigma), "dark_sigma", ">= 0", dark_sigma);
+  check(fpn_sigma >= 0 && std::isfinite(fpn_sigma), "fpn_sigma", ">= 0", fpn_sigma);
+  check(temporal_sigma >= 0 && std::isfinite(temporal_sigma), "temporal_sigma", ">= 0",
+        temporal_sigma);
+}
+
+SpikeSimulator::SpikeSimulator(int64_t height, int64_t width, const SimParams& params,
+                               uint64_t seed)
+    : height_(height), width_(width), params_(params), key_(mix64(seed ^ kReadoutStream)) {
+  if (height < 1 || width < 1) fail("height and width expected >= 1, found ", height, "x", width);
+  params.validate();
+  const int64_t hw = height * width;
+  voltage_.resize(size_t(hw));
+  theta_.resize(size_t(hw));
+  dark_.resize(size_t(hw));
+  const uint64_t pixel_key = mix64(seed ^ kPixelStream);
+  const double theta = params.threshold, ds = params.dark_sigma;
+  for (int64_t i = 0; i < hw; ++i) {
+    const NormalPair z = normal_pair(random_bits(pixel_key, 2 * uint64_t(i)));
+    theta_[i] = float(theta * std::max(1.0 + params.fpn_sigma * z.z0, 0.1));
+    dark_[i] = float(theta * params.dark_rate * std::exp(ds * z.z1 - 0.5 * ds * ds));
+    const float u = uniform_open(uint32_t(random_bits(pixel_key, 2 * uint64_t(i) + 1)));
+    voltage_[i] = params.random_init ? u * theta_[i] : 0.0f;
+  }
+}
+
+void SpikeSimulator::run(const float* frames, const double* times, int64_t num_frames, int64_t n,
+                         uint8_t* out) {
+  const int64_t t0 = readout_, last = readout_ + n - 1;
+  if (n < 0) fail("number of readouts expected >= 0, found ", n);
+  if (num_frames < 1) fail("at least one frame expected, found none");
+  for (int64_t f = 0; f < num_frames; ++f)
+    if (!std::isfinite(times[f]) || (f > 0 && !(times[f] > times[f - 1])))
+      fail("frame times expected finite and strictly increasing, found ", times[f], " at frame ",
+           f);
+  if (num_frames > 1 && n > 0 && (times[0] > double(t0) || times[num_frames - 1] < double(last)))
+    fail("frame times expected to cover readouts [", t0, ", ", last, "], found [", times[0], ", ",
+         times[num_frames - 1], "]");
+
+  std::vector<Segment> seg(static_cast<size_t>(n));  // [n]
+  for (int64_t t = 0, f = 0; t < n; ++t) {
+    const double rt = double(t0 + t);
+    while (f + 2 < num_frames && times[f + 1] <= rt) ++f;
+    const double span = num_frames > 1 ? times[f + 1] - times[f] : 1.0;
+    seg[t] = {f, num_frames > 1 ? float(std::clamp((rt - times[f]) / span, 0.0, 1.0)) : 0.0f};
+  }
+
+  const int64_t H = height_, W = width_, hw = H * W, row_bytes = (W + 7) / 8;
+  const int64_t next_frame = num_frames > 1 ? hw : 0;
+  const float gain = float(params_.threshold * params_.rate_at_one);
+  const float shot = params_.shot_noise ? 1.0f : 0.0f;
+  const float tsig = float(params_.temporal_sigma);
+  const uint64_t key = key_;
+#pragma omp parallel
+  {
+    std::vector<uint8_t> spike(static_cast<size_t>(8 * row_bytes),
+                               0);  // [8·ceil(W/8)] one row's spikes
+#pragma omp for schedule(static)
+    for (int64_t r = 0; r < H; ++r) {
+      float* v = voltage_.data() + r * W;
+      const float* theta = theta_.data() + r * W;
+      const float* dark = dark_.data() + r * W;
+      for (int64_t t = 0; t < n; ++t) {
+        const float* i0 = frames + seg[t].f * hw + r * W;
+        const float* i1 = i0 + next_frame;
+        const float a = seg[t].a;
+        const uint64_t counter0 = uint64_t(t0 + t) * uint64_t(hw) + uint64_t(r * W);
+#pragma omp simd
+        for (int64_t x = 0; x < W; ++x) {
+          const NormalPair z = normal_pair(random_bits(key, counter0 + uint64_t(x)));
+          const float light = std::max(i0[x] + a * (i1[x] - i0[x]), 0.0f);
+          const float mu = gain * light + dark[x];
+          const float th = theta[x], vx = v[x] + mu + shot * std::sqrt(mu) * z.z0;
+          const bool fire = vx >= th * (1.0f + tsig * z.z1);
+          v[x] = fire ? std::min(vx - th, th) : vx;
+          spike[x] = fire;
+        }
+        uint8_t* row = out + (t * H + r) * row_bytes;
+        for (int64_t j = 0; j < row_bytes; ++j) {
+          uint8_t byte = 0;
+          for (int b = 0; b < 8; ++b) byte |= uint8_t(spike[8 * j + b] << b);
+          row[j] = byte;
+        }
+      }
+    }
+  }
+  readout_ += n;
+}
+
+}  // namespace spikegs

@@ -1,0 +1,219 @@
+"""Packed spike streams: lazy access, window counts, TFP and TFI from the C++ core, .dat writing.
+
+In memory a stream stays packed, `[T, H, ceil(W/8)]` uint8, least significant bit first, row 0 at
+the top. A `.dat` file is the spike camera's layout: frames of H·W/8 bytes (rounded up to whole
+bytes when H·W is not a multiple of 8), row-major and bit-contiguous, rows stored bottom-up when
+`flip` (the readers of this family flip on load). Decoding happens on the fly, window by window.
+
+TFP(k, w): mean of the spikes in the w readouts k - w//2 .. k - w//2 + w - 1.
+TFI(k) = 1 / min(t_next - t_prev, max_interval): t_prev is the last readout <= k with a spike (a
+spike at k, or at readout 0, counts), t_next the first readout > k with one, and a side with no
+spike is infinitely far. A pixel with no spike pair within max_interval, and every pixel at the
+last readout, reads 1/max_interval: never inf or NaN.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+
+from .. import _C
+
+PathLike = Union[str, os.PathLike]
+TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
+
+
+def _readouts(k) -> tuple[np.ndarray, bool]:
+    """`k` as a 1-D int64 array [B], and whether it was a single index."""
+    arr = np.asarray(k)
+    if arr.ndim > 1 or not (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
+        raise ValueError(
+            f"readout index expected an int or a 1-D integer array, found {arr.dtype} "
+            f"of shape {arr.shape}"
+        )
+    return arr.astype(np.int64).reshape(-1), arr.ndim == 0
+
+
+def _frame_count(num_bytes: int, layout: _C.SpikeLayout, what: str) -> int:
+    """Readouts in `num_bytes` bytes; ValueError unless a whole number of frames."""
+    fb = layout.frame_bytes
+    if num_bytes % fb:
+        raise ValueError(
+            f"{what}: a whole number of {layout.height}x{layout.row_bits}-bit frames of {fb} bytes "
+            f"expected, found {num_bytes} bytes ({num_bytes // fb} frames and {num_bytes % fb} "
+            f"bytes over)"
+        )
+    return num_bytes // fb
+
+
+class SpikeStream:
+    """A packed spike stream [T, H, W], memory-mapped or in memory, decoded window by window."""
+
+    def __init__(self, data: np.ndarray, layout: _C.SpikeLayout, path: Path | None = None):
+        if data.dtype != np.uint8 or not data.flags.c_contiguous:
+            raise ValueError(f"packed data expected C-contiguous uint8, found {data.dtype}")
+        self._data = data  # uint8 bytes of T frames of layout.frame_bytes
+        self._layout = layout
+        self._len = _frame_count(data.size, layout, str(path or "packed data"))
+        self.path = path
+
+    @classmethod
+    def open(
+        cls,
+        path: PathLike,
+        height: int,
+        width: int,
+        flip: bool = True,
+        raw_width: int | None = None,
+        col_offset: int = 0,
+    ) -> SpikeStream:
+        """Memory-map a .dat file; `raw_width` stored pixels per row, of which columns
+        [col_offset, col_offset + width) are kept (raw camera files with extra columns)."""
+        path = Path(path)
+        layout = _C.SpikeLayout.dat(height, width, flip, raw_width or 0, col_offset)
+        size = path.stat().st_size
+        _frame_count(size, layout, str(path))
+        data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
+        return cls(data, layout, path)
+
+    @classmethod
+    def from_packed(
+        cls, packed: np.ndarray, height: int | None = None, width: int | None = None
+    ) -> SpikeStream:
+        """Wrap packed [T, H, ceil(W/8)] uint8 (LSB first, row 0 on top); width: 8·last dim."""
+        packed = np.asarray(packed)
+        if packed.ndim != 3 or packed.dtype != np.uint8:
+            raise ValueError(
+                f"packed expected uint8 [T, H, ceil(W/8)], found {packed.dtype} {packed.shape}"
+            )
+        height = packed.shape[1] if height is None else height
+        width = 8 * packed.shape[2] if width is None else width
+        if packed.shape[1:] != (height, (width + 7) // 8):
+            raise ValueError(
+                f"packed expected [T, {height}, {(width + 7) // 8}] for {height}x{width} frames, "
+                f"found {list(packed.shape)}"
+            )
+        return cls(np.ascontiguousarray(packed), _C.SpikeLayout.memory(height, width))
+
+    def __len__(self) -> int:
+        return self._len
+
+    @property
+    def height(self) -> int:
+        return self._layout.height
+
+    @property
+    def width(self) -> int:
+        return self._layout.width
+
+    @property
+    def layout(self) -> _C.SpikeLayout:
+        return self._layout
+
+    def __repr__(self) -> str:
+        where = f"'{self.path}'" if self.path else "memory"
+        return (
+            f"SpikeStream({where}, readouts={len(self)}, height={self.height}, width={self.width})"
+        )
+
+    def _starts(self, k, w: int) -> tuple[np.ndarray, bool]:
+        """First readout [B] of the window of `w` centred on each k; ValueError past either end."""
+        ks, single = _readouts(k)
+        if int(w) != w or w < 1:
+            raise ValueError(f"window length expected a positive int, found {w}")
+        w = int(w)
+        starts = ks - w // 2
+        bad = np.flatnonzero((starts < 0) | (starts + w > len(self)))
+        if bad.size:
+            i = bad[0]
+            raise ValueError(
+                f"window of {w} readouts centred on k={ks[i]} covers "
+                f"[{starts[i]}, {starts[i] + w}); expected within the stream's [0, {len(self)}), "
+                f"i.e. k in [{w // 2}, {len(self) - w + w // 2}]"
+            )
+        return starts, single
+
+    def window(self, k, w: int) -> np.ndarray:
+        """Spikes, 0/1 uint8 [w, H, W], of readouts k - w//2 .. k - w//2 + w - 1 ([B, w, H, W])."""
+        starts, single = self._starts(k, w)
+        out = np.empty((len(starts), int(w), self.height, self.width), np.uint8)
+        for i, s in enumerate(starts):
+            out[i] = _C.spike_unpack(self._data, self._layout, int(s), int(w))
+        return out[0] if single else out
+
+    def counts(self, k, w: int) -> np.ndarray:
+        """Spikes per pixel in the window of `w` centred on k: int32 [H, W] ([B, H, W])."""
+        starts, single = self._starts(k, w)
+        out = _C.spike_counts(self._data, self._layout, starts, int(w))
+        return out[0] if single else out
+
+    def tfp(self, k, w: int) -> np.ndarray:
+        """Texture from playback: counts / w, float32 [H, W] ([B, H, W])."""
+        starts, single = self._starts(k, w)
+        out = _C.spike_tfp(self._data, self._layout, starts, int(w))
+        return out[0] if single else out
+
+    def tfi(self, k, max_interval: int = TFI_DEFAULT_MAX_INTERVAL) -> np.ndarray:
+        """Texture from inter-spike interval (module docstring): float32 [H, W] ([B, H, W])."""
+        ks, single = _readouts(k)
+        bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
+        if bad.size:
+            raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
+        out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
+        return out[0] if single else out
+
+    def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]."""
+        stop = len(self) if stop is None else stop
+        if not 0 <= start <= stop <= len(self):
+            raise ValueError(f"readouts [{start}, {stop}) expected within [0, {len(self)})")
+        mem = _C.SpikeLayout.memory(self.height, self.width)
+        out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
+        return out.reshape(stop - start, self.height, -1)
+
+
+class DatWriter:
+    """Appends readouts to a .dat file, chunk by chunk (a context manager)."""
+
+    def __init__(self, path: PathLike, height: int, width: int, flip: bool = True):
+        self.path = Path(path)
+        self._layout = _C.SpikeLayout.dat(height, width, flip)
+        self._memory = _C.SpikeLayout.memory(height, width)
+        self._file = open(self.path, "wb")
+
+    def write_bits(self, bits: np.ndarray) -> None:
+        """Append bits [n, H, W] (bool or 0/1 integers)."""
+        self._file.write(_C.spike_pack(bits, self._layout).data)
+
+    def write_packed(self, packed: np.ndarray) -> None:
+        """Append packed readouts [n, H, ceil(W/8)] in the memory layout."""
+        n = len(packed)
+        self._file.write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> DatWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def save_dat(path: PathLike, bits: np.ndarray, flip: bool = True, chunk: int = 1024) -> Path:
+    """Write bits [T, H, W] (bool or 0/1) as a .dat file, `chunk` readouts at a time."""
+    bits = np.asarray(bits)
+    if bits.ndim != 3:
+        raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
+    if bits.dtype != np.bool_:
+        if not np.issubdtype(bits.dtype, np.integer):
+            raise ValueError(f"bits expected bool or 0/1 integers, found {bits.dtype}")
+        if bits.size and (bits.min() < 0 or bits.max() > 1):
+            raise ValueError(f"bits expected 0/1, found values in [{bits.min()}, {bits.max()}]")
+    with DatWriter(path, bits.shape[1], bits.shape[2], flip) as writer:
+        for t in range(0, len(bits), chunk):
+            writer.write_bits(bits[t : t + chunk])
+    return Path(path)

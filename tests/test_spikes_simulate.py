@@ -1,0 +1,124 @@
+"""simulate_spikes: firing statistics, calibration, determinism, streaming and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from spikegs import SimParams, SpikeStream, simulate_spikes
+
+
+def rates(packed: np.ndarray, width: int) -> np.ndarray:
+    """Mean spikes per readout per pixel: [H, W]."""
+    return SpikeStream.from_packed(packed, packed.shape[1], width).tfp(
+        len(packed) // 2, len(packed)
+    )
+
+
+def linear_fit(params: SimParams) -> tuple[float, float, float]:
+    """Slope, intercept and max deviation from the line of the mean rate at 40 levels in [0, 1]
+    (one per row, 64 pixels each) over 4000 readouts."""
+    levels = np.linspace(0.0, 1.0, 40, dtype=np.float32)
+    frames = np.repeat(levels[None, :, None], 64, axis=2)  # [1, 40, 64]
+    rate = rates(simulate_spikes(frames, 4000, seed=1, params=params), 64).mean(1)  # [40]
+    slope, intercept = np.polyfit(levels, rate, 1)
+    return slope, intercept, np.abs(rate - (slope * levels + intercept)).max()
+
+
+def test_rate_is_linear_in_intensity():
+    # Shot, temporal-threshold and dark noise on; no fixed pattern: within 0.3% of full scale
+    # (measured 0.06-0.11%: the resolution of 64 pixels x 4000 readouts).
+    params = SimParams(fpn_sigma=0.0)
+    slope, intercept, deviation = linear_fit(params)
+    assert slope == pytest.approx(params.rate_at_one, rel=0.005)
+    assert intercept == pytest.approx(params.dark_rate, abs=1e-4)
+    assert deviation < 0.003 * params.rate_at_one
+    # Default 3% threshold mismatch: each pixel's gain is θ/θ_i, so a level's mean over 64 pixels
+    # scatters by ~0.4%; the long-run slope is rate_at_one · E[θ/θ_i] ≈ rate_at_one · (1 + 0.03²).
+    params = SimParams()
+    slope, intercept, deviation = linear_fit(params)
+    assert slope == pytest.approx(params.rate_at_one, rel=0.01)
+    assert deviation < 0.015 * params.rate_at_one
+
+
+def test_calibration_knob():
+    frames = np.ones((1, 8, 64), np.float32)
+    params = SimParams(rate_at_one=0.1, dark_rate=0.0)
+    assert rates(simulate_spikes(frames, 3000, params=params), 64).mean() == pytest.approx(
+        0.1, rel=0.01
+    )
+
+
+def test_dark_pixels_fire_at_dark_rate():
+    dark = np.zeros((1, 64, 64), np.float32)
+    uniform = SimParams(dark_rate=0.01, dark_sigma=0.0, fpn_sigma=0.0)
+    r = rates(simulate_spikes(dark, 8000, params=uniform), 64)
+    assert r.mean() == pytest.approx(0.01, rel=0.02)
+    assert np.abs(r - 0.01).max() < 0.004  # every pixel, not just the mean
+    spread = rates(simulate_spikes(dark, 8000, params=SimParams(dark_rate=0.01)), 64)
+    assert spread.mean() == pytest.approx(0.01, rel=0.03)  # log-normal spread keeps the mean
+    assert spread.std() > 2 * r.std()
+
+
+def test_never_more_than_one_spike_per_readout():
+    levels = np.array([2.0, 4.0, 8.0, 1e3], np.float32)  # 4.0 = one spike per readout
+    frames = np.repeat(levels[None, :, None], 16, axis=2)  # [1, 4, 16]
+    r = rates(simulate_spikes(frames, 2000), 16).mean(1)
+    assert r[0] == pytest.approx(0.5, rel=0.02)
+    assert (r <= 1).all() and (r[2:] == 1).all()
+
+
+def test_light_is_interpolated_in_time():
+    ramp = np.stack([np.zeros((4, 32)), np.ones((4, 32))]).astype(np.float32)  # 0 -> 1
+    packed = simulate_spikes(ramp, 4001, params=SimParams(dark_rate=0.0))
+    s = SpikeStream.from_packed(packed, 4, 32)
+    # Mean light over readouts [1000, 2000) is 0.375, over [3000, 4000) 0.875.
+    assert s.tfp(1500, 1000).mean() == pytest.approx(0.25 * 0.375, rel=0.03)
+    assert s.tfp(3500, 1000).mean() == pytest.approx(0.25 * 0.875, rel=0.03)
+
+
+def test_deterministic_for_a_seed_and_chunking():
+    frames = np.random.default_rng(0).random((3, 5, 21), dtype=np.float32)
+    a = simulate_spikes(frames, 300, seed=7)
+    np.testing.assert_array_equal(a, simulate_spikes(frames, 300, seed=7, chunk=13))
+    assert (a != simulate_spikes(frames, 300, seed=8)).any()
+
+
+def test_callable_source_matches_frames():
+    frames = np.random.default_rng(1).random((4, 6, 10), dtype=np.float32)
+    times = np.array([0.0, 100.0, 200.0, 299.0])
+
+    def light(t: float) -> np.ndarray:
+        i = min(int(np.searchsorted(times, t, side="right")) - 1, 2)
+        a = (t - times[i]) / (times[i + 1] - times[i])
+        return (1 - a) * frames[i] + a * frames[i + 1]
+
+    want = simulate_spikes(frames, 300, frame_times=times, seed=3)
+    np.testing.assert_array_equal(simulate_spikes(light, 300, frame_every=100, seed=3), want)
+
+
+def test_streams_to_dat(tmp_path):
+    frames = np.random.default_rng(2).random((2, 5, 13), dtype=np.float32)
+    want = simulate_spikes(frames, 100, seed=4)
+    s = simulate_spikes(frames, 100, seed=4, out=tmp_path / "sim.dat", chunk=30)
+    assert isinstance(s, SpikeStream) and (len(s), s.height, s.width) == (100, 5, 13)
+    np.testing.assert_array_equal(s.packed(), want)
+    np.testing.assert_array_equal(
+        SpikeStream.open(tmp_path / "sim.dat", 5, 13, flip=False).window(50, 100),
+        s.window(50, 100)[:, ::-1],
+    )
+
+
+def test_bad_input_refused():
+    frames = np.ones((2, 4, 4), np.float32)
+    with pytest.raises(ValueError, match="finite intensities >= 0"):
+        simulate_spikes(-frames, 10)
+    with pytest.raises(ValueError, match=r"covering readouts \[0, 9\]"):
+        simulate_spikes(frames, 10, frame_times=[0.0, 5.0])
+    with pytest.raises(ValueError, match=r"frame_times expected \[2\]"):
+        simulate_spikes(frames, 10, frame_times=[0.0, 5.0, 9.0])
+    with pytest.raises(ValueError, match=r"expected shape \[4, 4\]"):
+        simulate_spikes(lambda t: np.ones((4, 4 + int(t > 0))), 10, frame_every=5)
+    with pytest.raises(ValueError, match="rate_at_one"):
+        simulate_spikes(frames, 10, params=SimParams(rate_at_one=2.0))
+    with pytest.raises(ValueError, match="num_readouts"):
+        simulate_spikes(frames, 0)

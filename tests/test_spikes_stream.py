@@ -1,0 +1,143 @@
+"""SpikeStream, save_dat and the TFP/TFI kernels against plain numpy versions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from spikegs import SpikeStream, save_dat
+from spikegs.spikes import TFI_DEFAULT_MAX_INTERVAL
+
+
+def random_bits(shape, p=0.3, seed=0) -> np.ndarray:
+    return (np.random.default_rng(seed).random(shape) < p).astype(np.uint8)  # [T, H, W]
+
+
+def numpy_read_dat(path, height, width, flip=True) -> np.ndarray:
+    """The common Python reader of this family: bits over the whole frame, LSB first, flipud."""
+    raw = np.fromfile(path, dtype=np.uint8)
+    bits = np.unpackbits(raw, bitorder="little").reshape(-1, height * width + (-height * width) % 8)
+    frames = bits[:, : height * width].reshape(-1, height, width)
+    return frames[:, ::-1] if flip else frames
+
+
+def naive_tfi(bits: np.ndarray, k: int, max_interval: int) -> np.ndarray:
+    """TFI by its definition, one pixel at a time: 1 / min(t_next - t_prev, max_interval)."""
+    out = np.empty(bits.shape[1:], np.float32)
+    for idx in np.ndindex(*bits.shape[1:]):
+        train = bits[(slice(None), *idx)]
+        before = np.flatnonzero(train[: k + 1])
+        after = np.flatnonzero(train[k + 1 :])
+        interval = after[0] + k + 1 - before[-1] if before.size and after.size else max_interval
+        out[idx] = 1.0 / min(interval, max_interval)
+    return out
+
+
+@pytest.mark.parametrize("width", [1, 7, 8, 13, 400])
+@pytest.mark.parametrize("flip", [True, False])
+def test_round_trip(tmp_path, width, flip):
+    bits = random_bits((9, 6, width), seed=width)
+    path = save_dat(tmp_path / "s.dat", bits, flip=flip)
+    assert path.stat().st_size == 9 * -(-6 * width // 8)
+    s = SpikeStream.open(path, 6, width, flip=flip)
+    assert (len(s), s.height, s.width) == (9, 6, width)
+    np.testing.assert_array_equal(s.window(4, 9), bits)
+    np.testing.assert_array_equal(numpy_read_dat(path, 6, width, flip), bits)
+    packed = s.packed()  # [T, H, ceil(W/8)]
+    np.testing.assert_array_equal(packed, np.packbits(bits, axis=-1, bitorder="little"))
+    np.testing.assert_array_equal(SpikeStream.from_packed(packed, 6, width).window(4, 9), bits)
+
+
+def test_unflipped_file_read_flipped(tmp_path):
+    bits = random_bits((3, 4, 16))
+    path = save_dat(tmp_path / "s.dat", bits, flip=False)
+    np.testing.assert_array_equal(SpikeStream.open(path, 4, 16).window(1, 3), bits[:, ::-1])
+
+
+def test_raw_width_crop(tmp_path):
+    raw = random_bits((5, 4, 416))  # a camera row of 416 pixels, 400 of them image
+    path = save_dat(tmp_path / "raw.dat", raw)
+    s = SpikeStream.open(path, 4, 400, raw_width=416, col_offset=8)
+    np.testing.assert_array_equal(s.window(2, 5), raw[:, :, 8:408])
+    np.testing.assert_array_equal(s.counts(2, 5), raw[:, :, 8:408].sum(0))
+
+
+@pytest.mark.parametrize("w", [1, 4, 33, 300])
+def test_counts_and_tfp_match_numpy(w):
+    bits = random_bits((400, 7, 37), seed=w)
+    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"), 7, 37)
+    ks = np.array([w // 2, 150, 400 - w + w // 2])
+    want = np.stack([bits[k - w // 2 : k - w // 2 + w].sum(0) for k in ks])  # [B, H, W]
+    np.testing.assert_array_equal(s.counts(ks, w), want)
+    assert s.counts(ks, w).dtype == np.int32
+    np.testing.assert_allclose(s.tfp(ks, w), want / w, rtol=1e-6)
+    np.testing.assert_allclose(s.tfp(int(ks[1]), w), want[1] / w, rtol=1e-6)
+    assert s.window(ks, w).shape == (3, w, 7, 37)
+
+
+def test_all_zero_and_all_one_windows():
+    for value in (0, 1):
+        s = SpikeStream.from_packed(np.full((50, 3, 2), 255 * value, np.uint8), 3, 13)
+        np.testing.assert_array_equal(s.tfp(25, 33), np.full((3, 13), value, np.float32))
+        np.testing.assert_array_equal(s.counts(25, 50), np.full((3, 13), 50 * value))
+        np.testing.assert_array_equal(s.tfi(10), np.full((3, 13), 1.0 if value else 1 / 1024))
+
+
+def test_tfi_matches_definition():
+    bits = random_bits((200, 4, 19), p=0.05, seed=3)
+    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"), 4, 19)
+    ks = [0, 1, 57, 198, 199]
+    got = s.tfi(ks, max_interval=40)
+    for i, k in enumerate(ks):
+        np.testing.assert_array_equal(got[i], naive_tfi(bits, k, 40), err_msg=f"k={k}")
+    assert np.isfinite(got).all() and (got > 0).all() and (got <= 1).all()
+
+
+def test_tfi_edge_cases():
+    train = np.zeros((12, 1, 1), np.uint8)
+    train[[0, 5], 0, 0] = 1
+    s = SpikeStream.from_packed(np.packbits(train, axis=-1, bitorder="little"), 1, 1)
+    assert s.tfi(0)[0, 0] == pytest.approx(1 / 5)  # the spike at readout 0 is t_prev
+    assert s.tfi(4)[0, 0] == pytest.approx(1 / 5)
+    assert s.tfi(5)[0, 0] == pytest.approx(1 / TFI_DEFAULT_MAX_INTERVAL)  # nothing after 5
+    assert s.tfi(11, max_interval=8)[0, 0] == pytest.approx(1 / 8)  # last readout
+    assert s.tfi(2, max_interval=3)[0, 0] == pytest.approx(1 / 3)  # interval 5 capped
+
+
+def test_truncated_file_refused(tmp_path):
+    path = save_dat(tmp_path / "s.dat", random_bits((4, 8, 16)))
+    with open(path, "ab") as f:
+        f.write(b"\0" * 5)
+    with pytest.raises(ValueError, match="16 bytes expected, found 69 bytes"):
+        SpikeStream.open(path, 8, 16)
+    with pytest.raises(ValueError, match="expected"):
+        SpikeStream.open(path, 8, 16, raw_width=12)  # raw rows narrower than the image
+
+
+def test_empty_file(tmp_path):
+    path = tmp_path / "empty.dat"
+    path.write_bytes(b"")
+    assert len(SpikeStream.open(path, 4, 8)) == 0
+
+
+def test_windows_past_either_end_refused():
+    s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
+    for k in (3, 16, [5, 30]):  # windows of 9 start at k - 4: k in [4, 15]
+        with pytest.raises(ValueError, match=r"expected within the stream's \[0, 20\)"):
+            s.counts(k, 9)
+    assert s.tfp(4, 9).shape == (2, 8) and s.tfp(15, 9).shape == (2, 8)
+    for k in (-1, 20):
+        with pytest.raises(ValueError, match=r"expected in \[0, 20\)"):
+            s.tfi(k)
+    with pytest.raises(ValueError, match="window length"):
+        s.tfp(5, 0)
+    with pytest.raises(ValueError, match="integer"):
+        s.tfp(5.5, 3)
+
+
+def test_bad_shapes_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"expected \[T, 4, 2\]"):
+        SpikeStream.from_packed(np.zeros((3, 4, 1), np.uint8), 4, 13)
+    with pytest.raises(ValueError, match="0/1"):
+        save_dat(tmp_path / "x.dat", np.full((2, 2, 8), 2, np.uint8))
+    with pytest.raises(ValueError, match=r"\[T, H, W\]"):
+        save_dat(tmp_path / "x.dat", np.zeros((2, 8), np.uint8))
