@@ -1,0 +1,128 @@
+"""`spikegs bench sim`: SIM inference FPS at 250×400, training time, PSNR gain over TFP(33).
+
+Quality: SIM is trained on each built-in scene (simulated at 250×400 with the project's spike
+simulator) and compared with TFP(33), TFP(65) and TFI on the held-out on-path views. Speed: the
+straightforward SIM (square padding, four rotations stacked on the batch, channels first,
+autograd on) is the named alternative that the fast path (rotated kernels on one canvas,
+channels-last, inference mode, float32 or bfloat16) is timed against, in the same run.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..data import simulate_dataset
+from ..data.scenes import SCENES
+from ..sim import SIM
+from ..sim_train import evaluate_dataset, inference_model, train_sim
+from .common import median_seconds, print_table, write_results
+
+STEPS = 500  # SIM training steps per scene: +0.4 dB more at 1500 (solids), 3× the time
+
+
+def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
+    """Time SIM variants on one random spike window; error = max |Δ| against float32 fast path."""
+    rng = np.random.default_rng(1)
+    spikes = torch.from_numpy(rng.random((1, model.window, height, width)) < 0.15).float()
+    plain = SIM(**model.config)  # channels-first float32 copy, gradients on
+    plain.load_state_dict(model.state_dict())
+    variants = {
+        "straightforward f32 (square, NCHW, autograd)": (
+            plain,
+            spikes,
+            lambda m, x: m.forward_rotated(x, square=True),
+        ),
+        "rotated pairs f32 (channels-last, inference)": (
+            inference_model(model, torch.float32),
+            spikes.contiguous(memory_format=torch.channels_last),
+            lambda m, x: m.forward_rotated(x),
+        ),
+    }
+    for dtype in (torch.float32, torch.bfloat16):
+        name = f"canvas {str(dtype)[6:]} (channels-last, inference)"
+        fast = inference_model(model, dtype)
+        x = spikes.to(dtype).contiguous(memory_format=torch.channels_last)
+        variants[name] = (fast, x, lambda m, x: m(x))
+    with torch.inference_mode():
+        reference = model(spikes)
+    rows = []
+    for name, (m, x, fn) in variants.items():
+        grad = "autograd" in name
+        with torch.inference_mode(mode=not grad):
+            seconds = median_seconds(lambda m=m, x=x, fn=fn: fn(m, x), repeats=repeats)
+            error = (fn(m, x).detach().float() - reference).abs().max().item()
+        rows.append({"variant": name, "seconds": seconds, "fps": 1 / seconds, "max_abs_err": error})
+    base = rows[0]["seconds"]
+    for row in rows:
+        row["speedup"] = base / row["seconds"]
+    return rows
+
+
+def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
+    """Simulate `scene`, train SIM on it, score every method: (quality rows, training, model)."""
+    height, width, readouts, views = (64, 96, 400, 2) if quick else (250, 400, 1200, 4)
+    steps = 30 if quick else STEPS
+    dataset = simulate_dataset(
+        scene,
+        root / scene,
+        height=height,
+        width=width,
+        readouts=readouts,
+        test_on_path=views,
+        test_off_path=0,
+        progress=False,
+    )
+    start = time.perf_counter()
+    model, losses = train_sim(dataset.stream, dataset.train_timestamps, steps=steps, seed=0)
+    seconds = time.perf_counter() - start
+    rows = []
+    for dtype in (torch.float32, torch.bfloat16):
+        for name, scores in evaluate_dataset(model, dataset, dtype).items():
+            if name == "SIM" or dtype == torch.float32:
+                label = f"SIM {str(dtype)[6:]}" if name == "SIM" else name
+                rows.append({"scene": scene, "method": label, **scores})
+    train = {
+        "scene": scene,
+        "size": f"{height}x{width}",
+        "steps": steps,
+        "seconds": seconds,
+        "s_per_step": seconds / steps,
+        "final_loss": float(np.mean(losses[-20:])),
+    }
+    return rows, train, model
+
+
+def run(quick: bool, out: Path) -> dict:
+    """Quality on the built-in scenes, training time, inference FPS at 250×400; writes sim.json."""
+    quality, training = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene in SCENES if not quick else list(SCENES)[:1]:
+            rows, train, model = _scene(scene, quick, Path(tmp))
+            quality += rows
+            training.append(train)
+    psnr = {(r["scene"], r["method"]): r["psnr"] for r in quality}
+    scenes = [t["scene"] for t in training]
+    gains = {s: psnr[s, "SIM bfloat16"] - psnr[s, "TFP(33)"] for s in scenes}
+    size = (64, 96) if quick else (250, 400)
+    fps_rows = _fps_rows(model, *size, repeats=1 if quick else 5)  # the last scene's SIM
+
+    print(f"SIM: {model.num_parameters()} parameters")
+    print_table(training)
+    print_table(quality)
+    print_table(fps_rows)
+    for scene, gain in gains.items():
+        print(f"{scene}: SIM PSNR gain over TFP(33) {gain:+.2f} dB")
+    results = {
+        "parameters": model.num_parameters(),
+        "training": training,
+        "quality": quality,
+        "psnr_gain_over_tfp33_db": gains,
+        "inference": {"size": f"{size[0]}x{size[1]}", "rows": fps_rows},
+    }
+    write_results(out, "sim", results)
+    return results

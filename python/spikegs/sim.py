@@ -1,0 +1,141 @@
+"""SIM: the Spike Instant Mapping network, a self-supervised blind-spot net (SpikeGS §3.3, SSML).
+
+Each of four branches sees the spike window rotated by 0/90/180/270°, runs `m` shift-based 3×3
+convolutions (receptive field only at or above the pixel) and a final one-row shift (the pixel
+itself excluded in every time channel); the un-rotated branches are merged by `n` 1×1 convolutions.
+
+`SIM.forward` computes the same function without rotating any data: a convolution of a rotated
+input equals the rotation of a convolution with the rotated kernel, so the four branches become
+four channel groups of one (grouped) convolution on a zero-framed canvas of the unrotated window;
+each group's map drifts one pixel towards its side per layer and is zeroed outside its region
+(its zero padding). Any H×W works, with no square padding, no transposes and no per-layer copies.
+`SIM.forward_rotated` is the literal rotate-the-data formulation, the reference the fast path is
+tested against.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+# The side each branch looks towards, as a (row, col) step in the unrotated frame: k = 0 up,
+# 1 right, 2 down, 3 left (torch.rot90 by k = 1 puts the original right side on top).
+_DIRS = ((-1, 0), (0, 1), (1, 0), (0, -1))
+_SLOPE = 0.1  # leaky ReLU slope
+
+
+def _region(k: int, steps: int, pad: int) -> tuple[int, int]:
+    """Top-left corner in the canvas of branch k's H×W feature map after `steps` one-pixel moves."""
+    return pad + steps * _DIRS[k][0], pad + steps * _DIRS[k][1]
+
+
+def _clear_outside(y: torch.Tensor, steps: int, pad: int) -> None:
+    """Zero, in place, each channel group of the canvas y [B, 4C, H+2p, W+2p] outside its region."""
+    h, w = y.shape[-2] - 2 * pad, y.shape[-1] - 2 * pad
+    c = y.shape[1] // 4
+    for k in range(4):
+        g = y.narrow(1, k * c, c)
+        r0, c0 = _region(k, steps, pad)
+        g[..., :r0, :].zero_()
+        g[..., r0 + h :, :].zero_()
+        g[..., :, :c0].zero_()
+        g[..., :, c0 + w :].zero_()
+
+
+def _shift_down(y: torch.Tensor) -> torch.Tensor:
+    """Move `y` [B, C, H, W] down by one row, zeros entering at the top."""
+    return F.pad(y, (0, 0, 1, 0))[..., :-1, :]
+
+
+class SIM(nn.Module):
+    """Blind-spot map from a spike window [B, window, H, W] (0/1) to an image [B, C, H, W].
+
+    The output at a pixel never depends on that pixel's own spikes; each branch sees a block
+    2m+1 wide and 2m+1 deep on its side of the pixel, m = `shift_layers`.
+    """
+
+    def __init__(
+        self,
+        window: int = 33,
+        out_channels: int = 1,
+        width: int = 32,
+        head_width: int = 32,
+        shift_layers: int = 3,
+        head_layers: int = 3,
+    ):
+        super().__init__()
+        if window < 1 or shift_layers < 1 or head_layers < 1:
+            raise ValueError("window, shift_layers and head_layers must be positive")
+        self.config = {
+            "window": window,
+            "out_channels": out_channels,
+            "width": width,
+            "head_width": head_width,
+            "shift_layers": shift_layers,
+            "head_layers": head_layers,
+        }
+        self.window = window
+        self.out_channels = out_channels
+        self.shift = nn.ModuleList(
+            nn.Conv2d(window if i == 0 else width, width, 3) for i in range(shift_layers)
+        )
+        head_in = [4 * width] + [head_width] * (head_layers - 1)
+        head_out = [head_width] * (head_layers - 1) + [out_channels]
+        self.head = nn.ModuleList(nn.Conv2d(i, o, 1) for i, o in zip(head_in, head_out))
+
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+    def _merge(self, y: torch.Tensor) -> torch.Tensor:
+        """The 1×1 head on the concatenated branches [B, 4·width, H, W] -> [B, C, H, W].
+
+        The output is clamped to [0, 1] outside training only: a saturating activation (sigmoid)
+        can die under the L1 loss when the targets are low firing rates.
+        """
+        for conv in self.head[:-1]:
+            y = F.leaky_relu(conv(y), _SLOPE, inplace=True)
+        y = self.head[-1](y)
+        return y if self.training else y.clamp(0.0, 1.0)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format."""
+        # Branch k's map moves one pixel towards its side per shift conv, and once more for the
+        # blind spot; all four live on one zero-framed canvas wide enough for that drift.
+        pad = len(self.shift) + 1
+        y = F.pad(x, (pad, pad, pad, pad))  # [B, T, H+2p, W+2p]
+        for i, conv in enumerate(self.shift):
+            # branch k's kernel, seen from the unrotated frame: [4·width, C_in, 3, 3]
+            w = torch.cat([torch.rot90(conv.weight, -k, dims=(2, 3)) for k in range(4)])
+            y = F.conv2d(y, w, conv.bias.repeat(4), padding=1, groups=1 if i == 0 else 4)
+            _clear_outside(y, i + 1, pad)  # the zero padding each branch's next layer sees
+            y = F.leaky_relu(y, _SLOPE, inplace=True)  # in place: no new page-faulted canvas
+        h, w = x.shape[-2:]
+        crops = [
+            g[..., r : r + h, c : c + w]
+            for k, g in enumerate(y.chunk(4, dim=1))
+            for r, c in [_region(k, pad, pad)]  # the blind spot: one more pixel outwards
+        ]
+        return self._merge(torch.cat(crops, dim=1))  # [B, 4·width, H, W] -> [B, C, H, W]
+
+    def forward_rotated(self, x: torch.Tensor, square: bool = False) -> torch.Tensor:
+        """The literal formulation: rotate the data, shift-convolve, un-rotate, merge.
+
+        The 0/180° and 90/270° pairs share a shape and run as two batches; `square=True` instead
+        zero-pads H×W to a square and runs all four rotations as one batch, the straightforward
+        version (its bottom/right border differs where the padding leaks in).
+        """
+        h, w = x.shape[-2:]
+        if square:
+            s = max(h, w)
+            x = F.pad(x, (0, s - w, 0, s - h))
+        turns = [(0, 2), (1, 3)] if not square else [(0, 1, 2, 3)]
+        branches = {}
+        for group in turns:
+            y = torch.cat([torch.rot90(x, k, dims=(2, 3)) for k in group])  # [len·B, T, H', W']
+            for conv in self.shift:
+                y = F.leaky_relu(conv(F.pad(y, (1, 1, 2, 0))), _SLOPE)  # rows at or above only
+            y = _shift_down(y)
+            for k, part in zip(group, y.chunk(len(group))):
+                branches[k] = torch.rot90(part, -k, dims=(2, 3))[..., :h, :w]
+        return self._merge(torch.cat([branches[k] for k in range(4)], dim=1))

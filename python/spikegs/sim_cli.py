@@ -1,0 +1,48 @@
+"""`spikegs sim-train DATASET`: train SIM on a dataset's spikes (or reuse the cached weights), then
+compare it with TFP(33), TFP(65) and TFI on the held-out on-path views."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .bench.common import print_table
+from .config import SimConfig, TrainConfig
+from .data.dataset import load_dataset
+from .sim_train import evaluate_dataset, train_or_load
+from .targets import sim_path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sim = SimConfig()
+    parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
+    parser.add_argument("--window", type=int, default=sim.window, help="spike window, readouts")
+    parser.add_argument("--steps", type=int, default=sim.iterations, help="training steps")
+    parser.add_argument("--batch-size", type=int, default=sim.batch, help="crops per step")
+    parser.add_argument("--crop", type=int, default=sim.crop, help="crop side, pixels")
+    parser.add_argument("--seed", type=int, default=TrainConfig().seed)
+    parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")
+    parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
+
+
+def run(args: argparse.Namespace) -> int:
+    dataset = load_dataset(args.dataset)
+    if dataset.channels != 1:
+        raise ValueError("sim-train expects a mono dataset (one SIM per spike stream)")
+    out = args.out or sim_path(dataset, args.window, args.seed)
+    model, seconds = train_or_load(
+        out,
+        dataset.stream,
+        dataset.train_timestamps,
+        args.window,
+        force=args.force,
+        steps=args.steps,
+        batch_size=args.batch_size,
+        crop=args.crop,
+        seed=args.seed,
+    )
+    done = f"trained in {seconds:.1f} s" if seconds else "reused"
+    print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
+    scores = evaluate_dataset(model, dataset)
+    print_table([{"method": name, **s} for name, s in scores.items()])
+    return 0

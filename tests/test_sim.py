@@ -1,0 +1,176 @@
+"""SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
+
+import numpy as np
+import pytest
+import torch
+from skimage import data
+from spikegs.metrics import psnr, ssim
+from spikegs.sim import SIM
+from spikegs.sim_train import (
+    compare_methods,
+    infer_sim,
+    inference_model,
+    load_sim,
+    predict,
+    save_sim,
+    train_or_load,
+    train_sim,
+    valid_timestamps,
+)
+
+
+class BernoulliStream:
+    """Stand-in spike stream: Bernoulli spikes, uint8 [T, H, W], with the interface SIM uses."""
+
+    def __init__(self, rates, length: int, seed: int = 0):
+        rng = np.random.default_rng(seed)
+        self.spikes = np.stack([rng.random(rates(k).shape) < rates(k) for k in range(length)])
+        self.spikes = self.spikes.astype(np.uint8)  # [T, H, W]
+        self.height, self.width = self.spikes.shape[1:]
+
+    def __len__(self) -> int:
+        return len(self.spikes)
+
+    def _each(self, k, fn) -> np.ndarray:
+        return np.stack([fn(int(i)) for i in k]) if np.ndim(k) else fn(int(k))
+
+    def window(self, k, w: int) -> np.ndarray:  # [w, H, W] ([B, w, H, W])
+        return self._each(k, lambda i: self.spikes[i - w // 2 : i - w // 2 + w])
+
+    def tfp(self, k, w: int) -> np.ndarray:  # [H, W] ([B, H, W])
+        return self.window(k, w).mean(axis=-3, dtype=np.float32)
+
+    def tfi(self, k) -> np.ndarray:  # 1 / (first spike after k - last at or before k)
+        def one(i: int) -> np.ndarray:
+            back = np.argmax(self.spikes[: i + 1][::-1], axis=0)  # 0 where there is none
+            ahead = np.argmax(self.spikes[i + 1 :], axis=0) + 1
+            return (1.0 / (back + ahead)).astype(np.float32)
+
+        return self._each(k, one)
+
+
+def sliding_camera(height: int, width: int, gain: float = 0.25):
+    """Firing rates [H, W] at readout k: skimage's camera image, one pixel further right every 8."""
+    image = data.camera()[::4, ::4].astype(np.float32) / 255.0  # [128, 128]
+    return lambda k: gain * image[40 : 40 + height, 30 + k // 8 : 30 + k // 8 + width]
+
+
+TRAIN = {"steps": 30, "batch_size": 4, "crop": 16, "progress": False}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    """These tensors are tiny: one thread beats OpenMP hand-offs, most of all on a busy machine."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    rates = sliding_camera(24, 40)
+    return rates, BernoulliStream(rates, 110)
+
+
+@pytest.fixture(scope="module")
+def trained(scene):
+    stream = scene[1]
+    return train_sim(stream, valid_timestamps(stream, 33), 33, seed=3, **TRAIN)
+
+
+def _spikes(*shape, seed=0):
+    return (torch.rand(*shape, generator=torch.Generator().manual_seed(seed)) < 0.3).float()
+
+
+def test_parameter_count():
+    n = SIM().num_parameters()
+    print(f"SIM parameters: {n}")
+    assert 15_000 <= n <= 45_000
+
+
+@pytest.mark.parametrize("path", ["forward", "forward_rotated"])
+@pytest.mark.parametrize("pixel", [(9, 10), (0, 0), (17, 20)])
+def test_blind_spot_is_exact(path, pixel):
+    torch.manual_seed(0)
+    model = SIM()
+    x = _spikes(2, 33, 18, 21).requires_grad_()
+    i, j = pixel
+    getattr(model, path)(x)[0, 0, i, j].backward()
+    grad = x.grad.abs()  # [2, 33, 18, 21]
+    assert grad[1].sum() == 0  # other batch items are not seen
+    assert (grad[0, :, i, j] == 0).all()  # no time channel of the pixel itself
+    field = grad[0].sum(0) > 0  # [18, 21]
+    assert field.sum() > 9  # more than a 3×3 neighbourhood
+    if pixel == (9, 10):  # interior: all four half planes, each 7 deep, 15×15 cross in all
+        for di, dj in [(-1, 0), (1, 0), (0, -1), (0, 1), (-7, 0), (7, 3), (-3, 7), (2, -7)]:
+            assert field[i + di, j + dj], (di, dj)
+        assert not field[i - 4, j - 4] and not field[i + 7, j + 4]
+        assert field.sum() == 15 * 15 - 4 * 4 * 4 - 1
+
+
+@pytest.mark.parametrize("size", [(1, 1), (2, 9), (7, 5), (13, 32), (32, 13)])
+def test_shapes_and_paths_agree(size):
+    torch.manual_seed(1)
+    model = SIM(out_channels=3).eval()
+    x = _spikes(2, 33, *size)
+    with torch.no_grad():
+        y = model(x)
+        assert y.shape == (2, 3, *size)
+        assert torch.allclose(y, model.forward_rotated(x), atol=1e-6)
+        assert model.forward_rotated(x, square=True).shape == y.shape
+    fast = inference_model(model, torch.bfloat16)
+    bf16 = predict(fast, x.to(torch.uint8).numpy())  # [2, H, W, 3]
+    assert bf16.shape == (2, *size, 3) and bf16.dtype == np.float32
+    assert np.abs(bf16 - y.permute(0, 2, 3, 1).numpy()).max() < 0.02
+
+
+def test_training_lowers_the_loss_and_is_deterministic(scene, trained):
+    model, losses = trained
+    assert not model.training
+    assert np.mean(losses[-5:]) < 0.7 * np.mean(losses[:5])
+    again, losses_again = train_sim(scene[1], valid_timestamps(scene[1], 33), 33, seed=3, **TRAIN)
+    assert losses_again == losses
+    for a, b in zip(model.parameters(), again.parameters()):
+        assert torch.equal(a, b)
+
+
+def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
+    model = trained[0]
+    path = tmp_path / "run" / "sim.pt"
+    save_sim(model, path, steps=TRAIN["steps"])
+    loaded = load_sim(path)
+    x = _spikes(1, 33, 11, 14)
+    for a, b in zip(loaded.state_dict().values(), model.state_dict().values()):
+        assert torch.equal(a, b)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(x), model(x))  # layouts differ: last-bit changes only
+    reused, seconds = train_or_load(path, object(), [], 33)  # a stream it must not touch
+    assert seconds == 0 and torch.equal(reused.head[-1].bias, model.head[-1].bias)
+
+
+def test_inference_over_timestamps(scene, trained):
+    model, stream = trained[0], scene[1]
+    ts = np.array([40, 50, 60])
+    images = infer_sim(model, stream, ts, batch_size=2, dtype=torch.float32)  # [3, H, W, 1]
+    assert images.shape == (3, stream.height, stream.width, 1)
+    with torch.no_grad():
+        direct = model(torch.from_numpy(stream.window(ts, 33)).float())
+    np.testing.assert_allclose(images[..., 0], direct[:, 0].numpy(), atol=1e-5)
+
+
+def test_compare_methods_reports_all(scene, trained):
+    rates, stream = scene
+    ts = np.array([40, 70])
+    scores = compare_methods(trained[0], stream, ts, np.stack([rates(k) for k in ts]))
+    assert set(scores) == {"SIM", "TFP(33)", "TFP(65)", "TFI"}
+    assert all(np.isfinite(s["psnr"]) and -1 <= s["ssim"] <= 1 for s in scores.values())
+
+
+def test_metrics():
+    gt = np.random.default_rng(0).random((16, 20)).astype(np.float32)
+    assert psnr(gt + 0.1, gt) == pytest.approx(20.0, abs=1e-4)
+    assert ssim(gt, gt) == pytest.approx(1.0)
+    assert ssim(np.stack([gt] * 3, -1), np.stack([gt] * 3, -1)) == pytest.approx(1.0)
+    with pytest.raises(ValueError):
+        psnr(gt, gt[:-1])
