@@ -1,0 +1,253 @@
+"""`spikegs bench rasterizer`: C++ rasterizer time, work and memory against the torch reference.
+
+For each N (Gaussians), image size and channel count C, on the standard scene: forward and
+forward+backward medians (ms), evaluated (pixel, Gaussian) pairs and ns per pair, peak memory, the
+float32 error against float64, and the ratio against `spikegs.reference` (pure torch) timed once in
+the same run where it is affordable (N <= 1e4). Peak memory is the resident-set high-water mark
+(VmHWM in /proc/self/status) after resetting it (`echo 5 > /proc/self/clear_refs`), minus the
+resident set before the run: the C++ core's allocations are invisible to tracemalloc and torch's
+allocator counters, and ru_maxrss cannot be reset. It is measured in a fresh process, because an
+allocator that already holds memory from earlier runs shows no growth.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import torch
+
+from .. import reference
+from ..rasterize import rasterize
+from .common import median_seconds, print_table, write_results
+
+REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
+# The reference is a Python loop of small ops: one torch thread is its fastest setting (threads
+# only add synchronisation, badly so on a loaded machine).
+REFERENCE_THREADS = 1
+LOSS = "mean((image - 0.5)^2) + mean(alpha)"
+
+
+def standard_scene(n: int, width: int, height: int, channels: int, seed: int = 0) -> dict:
+    """N Gaussians uniform in a unit cube 2 units in front of an identity camera, fx = fy = 256,
+    principal point at the image centre; scales in [0.01, 0.05], random unit quaternions,
+    opacities in [0.05, 0.95], random direct colours. float64 tensors."""
+    gen = torch.Generator().manual_seed(seed)
+
+    def uniform(lo: float, hi: float, *shape: int) -> torch.Tensor:
+        return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
+
+    quats = torch.randn(n, 4, generator=gen, dtype=torch.float64)
+    return {
+        "means": uniform(-0.5, 0.5, n, 3) + torch.tensor([0.0, 0.0, 2.0], dtype=torch.float64),
+        "quats": quats / quats.norm(dim=-1, keepdim=True),
+        "scales": uniform(0.01, 0.05, n, 3),
+        "opacities": uniform(0.05, 0.95, n),
+        "colors": uniform(0.0, 1.0, n, channels),
+        "viewmat": torch.eye(4, dtype=torch.float64),
+        "K": torch.tensor(
+            [[256.0, 0.0, width / 2], [0.0, 256.0, height / 2], [0.0, 0.0, 1.0]],
+            dtype=torch.float64,
+        ),
+    }
+
+
+def _render(fn: Callable, scene: dict, width: int, height: int, grad: bool):
+    """Render with `fn` (and with `grad`, backpropagate the benchmark loss): (out, leaves)."""
+    leaves = {k: v.detach().requires_grad_(grad) for k, v in scene.items()}
+    with torch.set_grad_enabled(grad):
+        out = fn(*leaves.values(), width, height)
+        if grad:
+            loss = ((out.image - 0.5) ** 2).mean() + out.alpha.mean()
+            loss.backward()
+    return out, leaves
+
+
+def _status_mb(field: str) -> float:
+    """A memory field of /proc/self/status (VmRSS, VmHWM) in MiB."""
+    with open("/proc/self/status") as f:
+        line = next(line for line in f if line.startswith(field + ":"))
+    return float(line.split()[1]) / 1024  # kB -> MiB
+
+
+def peak_in_this_process(n: int, width: int, height: int, channels: int) -> float:
+    """Resident-set high-water mark of one float32 forward+backward above the resident set before
+    it (MiB); meant for a fresh process, whose allocator holds no memory from earlier runs."""
+    scene = {k: v.float() for k, v in standard_scene(n, width, height, channels).items()}
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")  # resets VmHWM to the current resident set
+    before = _status_mb("VmRSS")
+    _render(rasterize, scene, width, height, True)
+    return _status_mb("VmHWM") - before
+
+
+def _peak_rss_mb(n: int, width: int, height: int, channels: int) -> float:
+    """`peak_in_this_process` run in a fresh Python process; NaN where /proc cannot do it."""
+    code = (
+        "from spikegs.bench.rasterizer import peak_in_this_process as f; "
+        f"print(f({n}, {width}, {height}, {channels}))"
+    )
+    package_root = str(Path(__file__).resolve().parents[2])
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]),
+    }
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    try:
+        return float(done.stdout.split()[-1])
+    except (IndexError, ValueError):
+        return float("nan")
+
+
+@contextlib.contextmanager
+def _torch_threads(count: int):
+    """Run the block with `count` torch intra-op threads."""
+    saved = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(saved)
+
+
+def _pairs(out, width: int, height: int) -> tuple[int, str]:
+    """(pixel, Gaussian) pairs the forward evaluated: the C++ count where the autograd node holds
+    the core's context, else the pixels of each visible Gaussian's box inside the image."""
+    count = getattr(getattr(out.image.grad_fn, "raster", None), "pairs", None)
+    if count is not None:
+        return int(count), "core"
+    r = out.radii.double()
+    mx, my = out.means2d.detach().double().unbind(-1)
+    w = (torch.minimum(mx + r, torch.tensor(width)) - torch.clamp(mx - r, min=0)).clamp(min=0)
+    h = (torch.minimum(my + r, torch.tensor(height)) - torch.clamp(my - r, min=0)).clamp(min=0)
+    return int((w * h)[out.radii > 0].sum().item()), "box estimate"
+
+
+def _max_error(a: torch.Tensor, b: torch.Tensor) -> float:
+    return (a.detach().double() - b.detach().double()).abs().max().item()
+
+
+def measure(n: int, width: int, height: int, channels: int, repeats: int) -> dict[str, Any]:
+    """One row of the benchmark: timings, work, memory and errors for one configuration."""
+    scene64 = standard_scene(n, width, height, channels)
+    scene = {k: v.float() for k, v in scene64.items()}
+    forward_s = median_seconds(lambda: _render(rasterize, scene, width, height, False), repeats)
+    both_s = median_seconds(lambda: _render(rasterize, scene, width, height, True), repeats)
+    peak_mb = _peak_rss_mb(n, width, height, channels)
+    out, leaves = _render(rasterize, scene, width, height, True)
+    out64, leaves64 = _render(rasterize, scene64, width, height, True)
+    pairs, pairs_source = _pairs(out, width, height)
+    grad_scale = max(leaves64["means"].grad.abs().max().item(), 1e-300)
+    row = {
+        "N": n,
+        "size": f"{width}x{height}",
+        "C": channels,
+        "fwd_ms": 1e3 * forward_s,
+        "fwd_bwd_ms": 1e3 * both_s,
+        "pairs": pairs,
+        "pairs_source": pairs_source,
+        "ns_per_pair": 1e9 * forward_s / max(pairs, 1),
+        "peak_mb": peak_mb,
+        "err_image_f32": _max_error(out.image, out64.image),
+        "err_grad_means_f32_rel": _max_error(leaves["means"].grad, leaves64["means"].grad)
+        / grad_scale,
+    }
+    if n <= REFERENCE_MAX_N:
+        with _torch_threads(REFERENCE_THREADS):
+            start = time.perf_counter()
+            ref, _ = _render(reference.rasterize, scene, width, height, False)
+            ref_forward_s = time.perf_counter() - start
+            start = time.perf_counter()
+            _render(reference.rasterize, scene, width, height, True)
+            ref_both_s = time.perf_counter() - start
+        row.update(
+            ref_fwd_ms=1e3 * ref_forward_s,
+            ref_fwd_bwd_ms=1e3 * ref_both_s,
+            ref_err_image_f32=_max_error(ref.image, out64.image),
+            speedup_fwd=ref_forward_s / forward_s,
+            speedup_fwd_bwd=ref_both_s / both_s,
+        )
+    return row
+
+
+def _plot(rows: list[dict[str, Any]], path: Path) -> None:
+    """Time against N, log-log: C++ (solid), torch reference (dashed), a colour per size and C."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    configs = sorted({(r["size"], r["C"]) for r in rows})
+    for ax, key, title in zip(axes, ("fwd_ms", "fwd_bwd_ms"), ("forward", "forward + backward")):
+        for i, (size, channels) in enumerate(configs):
+            sel = [r for r in rows if (r["size"], r["C"]) == (size, channels)]
+            color = f"C{i}"
+            label = f"{size}, C={channels}"
+            ax.loglog(
+                [r["N"] for r in sel],
+                [r[key] for r in sel],
+                "o-",
+                color=color,
+                label=f"C++ {label}",
+            )
+            ref = [r for r in sel if "ref_" + key in r]
+            if ref:
+                ax.loglog(
+                    [r["N"] for r in ref],
+                    [r["ref_" + key] for r in ref],
+                    "s--",
+                    color=color,
+                    label=f"torch reference {label}",
+                )
+        ax.set_title(title)
+        ax.set_xlabel("Gaussians N")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("time (ms)")
+    axes[1].legend(fontsize=7)
+    fig.suptitle("spikegs.rasterize (C++) vs spikegs.reference (torch), float32")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run(quick: bool, out: Path) -> dict:
+    """Run the benchmark, print the table, write rasterizer.json and rasterizer.png under `out`."""
+    if quick:
+        ns, sizes, channel_counts, repeats = [1_000, 10_000], [(256, 256)], [3], 2
+    else:
+        ns, sizes, channel_counts, repeats = (
+            [1_000, 10_000, 100_000],
+            [(256, 256), (400, 250)],
+            [1, 3],
+            5,
+        )
+    rows = []
+    for width, height in sizes:
+        for channels in channel_counts:
+            for n in ns:
+                rows.append(measure(n, width, height, channels, repeats))
+                print(f"  N={n} {width}x{height} C={channels}: {rows[-1]['fwd_bwd_ms']:.1f} ms")
+    columns = [c for c in dict.fromkeys(k for row in rows for k in row) if c != "pairs_source"]
+    print_table(rows, columns)
+    results = {
+        "scene": "means uniform in a unit cube 2 units in front, fx = fy = 256, cx, cy = centre, "
+        "identity viewmat, scales U[0.01, 0.05], unit quaternions, opacities U[0.05, 0.95], "
+        "direct colours U[0, 1]; float32 (errors against the float64 core)",
+        "loss": LOSS,
+        "alternative": "spikegs.reference.rasterize (pure torch, autograd), timed once, "
+        f"{REFERENCE_THREADS} torch thread(s)",
+        "peak_memory": "one forward+backward in a fresh process: VmHWM after "
+        "`5 > /proc/self/clear_refs`, minus VmRSS before (MiB)",
+        "load_average": os.getloadavg(),
+        "repeats": repeats,
+        "rows": rows,
+    }
+    write_results(out, "rasterizer", results)
+    _plot(rows, out / "rasterizer.png")
+    return results

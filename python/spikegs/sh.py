@@ -1,0 +1,60 @@
+"""Real spherical harmonics of degrees 0-3, constants and signs as in the 3DGS reference code."""
+
+from __future__ import annotations
+
+import torch
+
+MAX_DEGREE = 3
+C0 = 0.28209479177387814
+C1 = 0.4886025119029199
+C2 = (
+    1.0925484305920792,
+    -1.0925484305920792,
+    0.31539156525252005,
+    -1.0925484305920792,
+    0.5462742152960396,
+)
+C3 = (
+    -0.5900435899266435,
+    2.890611442640554,
+    -0.4570457994644658,
+    0.3731763325901154,
+    -0.4570457994644658,
+    1.445305721320277,
+    -0.5900435899266435,
+)
+
+
+def num_coeffs(degree: int) -> int:
+    """Number of SH coefficients up to `degree`: (degree + 1)²."""
+    return (degree + 1) ** 2
+
+
+def sh_basis(dirs: torch.Tensor, degree: int) -> torch.Tensor:
+    """Basis values Y_k(dir) for unit directions `dirs` [N, 3]; returns [N, (degree + 1)²]."""
+    if not 0 <= degree <= MAX_DEGREE:
+        raise ValueError(f"sh degree must be in 0..{MAX_DEGREE}, got {degree}")
+    x, y, z = dirs.unbind(-1)  # [N] each
+    basis = [torch.full_like(x, C0)]
+    if degree >= 1:
+        basis += [-C1 * y, C1 * z, -C1 * x]
+    if degree >= 2:
+        xx, yy, zz = x * x, y * y, z * z
+        basis += [
+            C2[0] * x * y,
+            C2[1] * y * z,
+            C2[2] * (2 * zz - xx - yy),
+            C2[3] * x * z,
+            C2[4] * (xx - yy),
+        ]
+    if degree >= 3:
+        basis += [
+            C3[0] * y * (3 * xx - yy),
+            C3[1] * x * y * z,
+            C3[2] * y * (4 * zz - xx - yy),
+            C3[3] * z * (2 * zz - 3 * xx - 3 * yy),
+            C3[4] * x * (4 * zz - xx - yy),
+            C3[5] * z * (xx - yy),
+            C3[6] * x * (xx - 3 * yy),
+        ]
+    return torch.stack(basis, dim=-1)  # [N, (degree + 1)²]

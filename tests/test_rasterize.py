@@ -1,0 +1,459 @@
+"""The C++ rasterizer (`spikegs.rasterize`) against the pure-torch reference, plus checks of the
+reference itself (docs/rasterizer.md is the specification of both)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import spikegs
+import torch
+from spikegs import reference
+from spikegs.sh import num_coeffs, sh_basis
+
+try:
+    from spikegs import _C  # noqa: F401
+
+    HAVE_CPP = True
+except ImportError:
+    HAVE_CPP = False
+needs_cpp = pytest.mark.skipif(not HAVE_CPP, reason="the C++ extension spikegs._C is not built")
+
+ARGS = ("means", "quats", "scales", "opacities", "colors", "viewmat", "K")  # positional tensors
+# differentiable inputs; screen_points [N, 2] (zeros) receives the gradient of the 2D means
+PARAMS = (
+    "means",
+    "quats",
+    "scales",
+    "opacities",
+    "colors",
+    "viewmat",
+    "background",
+    "screen_points",
+)
+SIZES = [(13, 9), (33, 17), (64, 48)]  # (width, height), none a multiple of the tile size
+COLOR_MODES = [None, 0, 1, 2, 3]  # None: direct colours, else the SH degree
+
+
+def random_rotation(gen: torch.Generator, dtype: torch.dtype) -> torch.Tensor:
+    """A random 3x3 rotation matrix."""
+    q, r = torch.linalg.qr(torch.randn(3, 3, generator=gen, dtype=dtype))
+    q = q * torch.sign(torch.diagonal(r))
+    return q if torch.det(q) > 0 else -q
+
+
+def make_scene(
+    seed: int,
+    n: int,
+    width: int,
+    height: int,
+    channels: int = 3,
+    sh_degree: int | None = None,
+    dtype: torch.dtype = torch.float64,
+    opacity: tuple[float, float] = (0.05, 0.95),
+    sigma_px: tuple[float, float] = (0.3, 6.0),
+) -> dict:
+    """A random scene seen by a rotated, translated camera: Gaussians spread over the view and
+    beyond it (where the Jacobian clamp acts); footprints of `sigma_px` pixels; a background."""
+    gen = torch.Generator().manual_seed(seed)
+
+    def uniform(lo: float, hi: float, *shape: int) -> torch.Tensor:
+        return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
+
+    f = 0.9 * max(width, height)
+    K = torch.tensor([[f, 0, 0.5 * width + 0.3], [0, f, 0.5 * height - 0.2], [0, 0, 1]])
+    viewmat = torch.eye(4, dtype=torch.float64)
+    viewmat[:3, :3] = random_rotation(gen, torch.float64)
+    viewmat[:3, 3] = uniform(-1, 1, 3)
+    z = uniform(1.5, 4.0, n)
+    px = torch.stack([uniform(-0.3, 1.3, n) * width, uniform(-0.3, 1.3, n) * height], -1)
+    cam = torch.cat([(px - K[:2, 2]) / f * z[:, None], z[:, None]], -1)  # [N, 3]
+    means = (cam - viewmat[:3, 3]) @ viewmat[:3, :3]  # [N, 3] = W^T (p - t)
+    scales = uniform(*sigma_px, n, 3) * z[:, None] / f
+    if sh_degree is None:
+        colors = uniform(0, 1, n, channels)
+    else:
+        colors = 0.4 * torch.randn(
+            n, num_coeffs(sh_degree), channels, generator=gen, dtype=torch.float64
+        )
+    scene = {
+        "means": means,
+        "quats": torch.randn(n, 4, generator=gen, dtype=torch.float64),
+        "scales": scales,
+        "opacities": uniform(*opacity, n),
+        "colors": colors,
+        "viewmat": viewmat,
+        "K": K,
+        "background": uniform(0, 1, channels),
+        "screen_points": torch.zeros(n, 2, dtype=torch.float64),
+    }
+    scene = {k: v.to(dtype) for k, v in scene.items()}
+    scene.update(width=width, height=height, sh_degree=sh_degree)
+    return scene
+
+
+def project(scene: dict) -> reference._Splats:
+    """The reference's projection of a scene with direct colours, nothing culled upfront."""
+    inputs = (scene[k] for k in ARGS)
+    keep = torch.ones(scene["means"].shape[0], dtype=torch.bool)
+    return reference._project(*inputs, scene["width"], scene["height"], None, 0.01, 1e10, keep)
+
+
+def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
+    """Call a rasterizer (`spikegs.rasterize` or `reference.rasterize`) on a scene dict."""
+    s = {**scene, **overrides}
+    return fn(
+        *(s[k] for k in ARGS),
+        s["width"],
+        s["height"],
+        sh_degree=s["sh_degree"],
+        background=s["background"],
+        screen_points=s["screen_points"],
+    )
+
+
+def forward_backward(fn, scene: dict, dtype: torch.dtype, seed: int = 1):
+    """Outputs and gradients of (image, alpha) . (random upstream gradient) w.r.t. PARAMS."""
+    leaves = {k: scene[k].detach().to(dtype).requires_grad_() for k in PARAMS}
+    out = render(fn, scene, K=scene["K"].to(dtype), **leaves)
+    gen = torch.Generator().manual_seed(seed)
+    g_image = torch.randn(out.image.shape, generator=gen, dtype=torch.float64).to(dtype)
+    g_alpha = torch.randn(out.alpha.shape, generator=gen, dtype=torch.float64).to(dtype)
+    loss = (out.image * g_image).sum() + (out.alpha * g_alpha).sum()
+    grads = torch.autograd.grad(loss, list(leaves.values()), allow_unused=True)
+    grads = {k: torch.zeros_like(v) if g is None else g for (k, v), g in zip(leaves.items(), grads)}
+    return out, grads
+
+
+def assert_near(actual: torch.Tensor, expected: torch.Tensor, rtol: float, what: str) -> None:
+    """|actual - expected| <= rtol * max(|expected|, 1) elementwise (both finite), in float64."""
+    actual, expected = actual.detach().double(), expected.detach().double()
+    assert actual.shape == expected.shape, what
+    assert torch.isfinite(actual).all(), f"{what}: non-finite values"
+    scale = max(expected.abs().max().item() if expected.numel() else 0.0, 1.0)
+    err = (actual - expected).abs().max().item() if expected.numel() else 0.0
+    assert err <= rtol * scale, f"{what}: max abs error {err:.3g} > {rtol:.1g} * {scale:.3g}"
+
+
+def check_finite_and_culled(out, grads) -> None:
+    """Finite outputs and gradients; exactly zero gradients for culled Gaussians."""
+    for name in ("image", "alpha", "means2d", "depths"):
+        assert torch.isfinite(getattr(out, name)).all(), name
+    culled = out.radii == 0
+    for name, g in grads.items():
+        assert torch.isfinite(g).all(), f"grad {name}"
+        if name not in ("viewmat", "background"):  # per-Gaussian gradients
+            assert torch.all(g[culled] == 0), f"grad {name} of a culled Gaussian"
+
+
+def compare_to_reference(scene: dict, dtype: torch.dtype, rtol: float) -> None:
+    """C++ in `dtype` against the float64 reference on the same inputs: outputs and gradients."""
+    scene = {k: v.to(dtype) if torch.is_tensor(v) else v for k, v in scene.items()}
+    out, grads = forward_backward(spikegs.rasterize, scene, dtype)
+    ref, ref_grads = forward_backward(reference.rasterize, scene, torch.float64)
+    assert out.radii.dtype == torch.int32
+    assert torch.equal(out.radii, ref.radii), "radii"
+    for name in ("image", "alpha", "means2d", "depths"):
+        assert getattr(out, name).dtype == dtype, name
+        assert_near(getattr(out, name), getattr(ref, name), rtol, name)
+    check_finite_and_culled(out, grads)
+    for name in PARAMS:
+        assert_near(grads[name], ref_grads[name], rtol, f"grad {name}")
+
+
+# ---- the reference on its own ---------------------------------------------------------------
+
+
+def test_sh_basis_is_orthonormal():
+    """The 16 basis functions integrate to the identity over the sphere (Fibonacci quadrature)."""
+    m = 20000
+    i = torch.arange(m, dtype=torch.float64) + 0.5
+    z = 1 - 2 * i / m
+    phi = math.pi * (1 + 5**0.5) * i
+    r = torch.sqrt(1 - z * z)
+    dirs = torch.stack([r * torch.cos(phi), r * torch.sin(phi), z], -1)
+    Y = sh_basis(dirs, 3)  # [M, 16]
+    gram = Y.T @ Y * (4 * math.pi / m)
+    assert torch.allclose(gram, torch.eye(16, dtype=torch.float64), atol=1e-4)
+
+
+def test_reference_single_gaussian_mass():
+    """alpha of one Gaussian integrates to o * 2 pi sqrt(det Sigma2) * (1 - 1/(255 o)): the 1/255
+    cut removes the mass outside the level set o G = 1/255."""
+    o = 0.5
+    scene = make_scene(0, 1, 64, 48, opacity=(o, o), sigma_px=(4.0, 6.0))
+    scene["means"] = (
+        (torch.tensor([0.1, -0.05, 3.0]) - scene["viewmat"][:3, 3]) @ scene["viewmat"][:3, :3]
+    )[None]
+    out = render(reference.rasterize, scene)
+    splats = project(scene)
+    A, B, C = splats.conics[0].tolist()
+    mass = o * 2 * math.pi / math.sqrt(A * C - B * B) * (1 - reference.ALPHA_MIN / o)
+    assert out.radii.item() > 0
+    assert abs(out.alpha.sum().item() - mass) < 2e-3 * mass
+    color = out.image - (1 - out.alpha)[..., None] * scene["background"]
+    assert torch.allclose(color.sum((0, 1)) / out.alpha.sum(), scene["colors"][0])
+
+
+def brute_force_image(splats: reference._Splats, width: int, height: int) -> torch.Tensor:
+    """docs/rasterizer.md's per-pixel loop written literally with Python floats (no background)."""
+    visible = [i for i in range(len(splats.visible)) if splats.visible[i]]
+    order = sorted(visible, key=lambda i: (splats.depths[i].item(), i))
+    image = torch.zeros(height, width, splats.colors.shape[1], dtype=torch.float64)
+    for py in range(height):
+        for px in range(width):
+            T = 1.0
+            for i in order:
+                mx, my = splats.means2d[i].tolist()
+                A, B, C = splats.conics[i].tolist()
+                dx, dy = px + 0.5 - mx, py + 0.5 - my
+                power = -0.5 * (A * dx * dx + C * dy * dy) - B * dx * dy
+                if power > 0:
+                    continue
+                alpha = min(reference.ALPHA_MAX, splats.opacities[i].item() * math.exp(power))
+                if alpha < reference.ALPHA_MIN:
+                    continue
+                if T * (1 - alpha) < reference.T_MIN:
+                    break
+                image[py, px] += alpha * T * splats.colors[i]
+                T *= 1 - alpha
+    return image
+
+
+def test_reference_compositing_matches_the_literal_loop():
+    scene = make_scene(3, 40, 13, 9, opacity=(0.5, 0.99), sigma_px=(1.0, 5.0))
+    scene["background"] = torch.zeros(3, dtype=torch.float64)
+    out = render(reference.rasterize, scene)
+    splats = project(scene)
+    assert (out.alpha > 1 - 1e-3).any(), "the scene should exercise the transmittance stop"
+    assert torch.allclose(out.image, brute_force_image(splats, 13, 9), rtol=0, atol=1e-12)
+
+
+# ---- C++ against the reference ---------------------------------------------------------------
+
+
+@needs_cpp
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize(
+    "color_mode", COLOR_MODES, ids=lambda d: "direct" if d is None else f"sh{d}"
+)
+@pytest.mark.parametrize("channels", [1, 3])
+@pytest.mark.parametrize(
+    "dtype, rtol", [(torch.float64, 1e-9), (torch.float32, 1e-4)], ids=["float64", "float32"]
+)
+def test_matches_reference(size, color_mode, channels, dtype, rtol):
+    width, height = size
+    seed = 1000 * SIZES.index(size) + 10 * COLOR_MODES.index(color_mode) + channels
+    n = 1 + seed % 50
+    scene = make_scene(seed, n, width, height, channels, color_mode)
+    compare_to_reference(scene, dtype, rtol)
+
+
+@pytest.mark.parametrize("sh_degree", [None, 1])
+@pytest.mark.parametrize("impl", ["reference", pytest.param("cpp", marks=needs_cpp)])
+def test_gradcheck(impl, sh_degree):
+    """Finite differences in float64: opacities in [0.1, 0.7] and a few Gaussians keep every alpha
+    away from the 0.99 clamp and the transmittance stop. screen_points is left out: it is a
+    gradient tap whose value the C++ op does not read (its gradient is compared with the reference's
+    in test_matches_reference)."""
+    fn = spikegs.rasterize if impl == "cpp" else reference.rasterize
+    scene = make_scene(5, 4, 17, 11, sh_degree=sh_degree, opacity=(0.1, 0.7), sigma_px=(1.5, 3.0))
+    if sh_degree is not None:
+        scene["colors"] *= 0.25  # colours stay well above the clamp at 0
+    names = [k for k in PARAMS if k != "screen_points"]
+    leaves = [scene[k].clone().requires_grad_() for k in names]
+
+    def image_and_alpha(*args):
+        out = render(fn, scene, **dict(zip(names, args)))
+        return out.image, out.alpha
+
+    # the reference is slow: random projections of the Jacobian (fast mode) suffice to check it
+    assert torch.autograd.gradcheck(
+        image_and_alpha, leaves, eps=1e-6, atol=1e-6, rtol=1e-4, fast_mode=impl == "reference"
+    )
+
+
+@needs_cpp
+def test_equal_depths_keep_index_order():
+    """Overlapping Gaussians at exactly the same depth are composited in index order."""
+    scene = make_scene(9, 6, 33, 17, opacity=(0.6, 0.9), sigma_px=(3.0, 5.0))
+    scene["viewmat"] = torch.eye(4, dtype=torch.float64)  # depth = means[:, 2] exactly
+    scene["means"] = torch.tensor([[0.02 * i - 0.05, 0.01 * i, 2.0] for i in range(6)]).double()
+    out = render(spikegs.rasterize, scene)
+    assert torch.all(out.depths == 2.0)
+    assert torch.allclose(out.image, render(reference.rasterize, scene).image, rtol=0, atol=1e-12)
+    flipped = render(
+        spikegs.rasterize, {k: v.flip(0) if k in PARAMS[:5] else v for k, v in scene.items()}
+    )
+    assert not torch.allclose(out.image, flipped.image, atol=1e-3), "the order should matter here"
+
+
+@needs_cpp
+def test_reference_reads_the_core_constants():
+    table = spikegs._C.constants
+    assert (reference.ALPHA_MAX, reference.ALPHA_MIN) == (table["alpha_max"], table["alpha_min"])
+    assert (reference.T_MIN, reference.TILE) == (table["transmittance_min"], table["tile_size"])
+    assert (reference.DILATION, reference.CLAMP_MARGIN) == (
+        table["dilation"],
+        table["clamp_margin"],
+    )
+
+
+@needs_cpp
+def test_result_type():
+    out = render(spikegs.rasterize, make_scene(6, 5, 13, 9))
+    assert isinstance(out, spikegs.RasterizeResult)
+    assert out._fields == ("image", "alpha", "radii", "means2d", "depths")
+    assert out.image.shape == (9, 13, 3) and out.alpha.shape == (9, 13)
+    assert out.radii.shape == (5,) and out.means2d.shape == (5, 2) and out.depths.shape == (5,)
+
+
+@needs_cpp
+def test_non_contiguous_inputs():
+    """Transposed and strided views give what their contiguous copies give: the same outputs, the
+    same gradients up to the order of the threads' sums (not deterministic)."""
+    scene = make_scene(7, 20, 33, 17, sh_degree=2)
+    views = {k: torch.stack([scene[k], scene[k]], -1)[..., 1] for k in ARGS + ("background",)}
+    views["means"] = scene["means"].T.contiguous().T
+    views["colors"] = scene["colors"].permute(2, 0, 1).contiguous().permute(1, 2, 0)
+    assert not any(v.is_contiguous() for v in views.values())
+    out, grads = forward_backward(spikegs.rasterize, scene, torch.float64)
+    out_v, grads_v = forward_backward(spikegs.rasterize, {**scene, **views}, torch.float64)
+    for a, b in zip(out, out_v):
+        assert torch.equal(a, b)
+    for name in PARAMS:
+        assert_near(grads_v[name], grads[name], 1e-12, name)
+
+
+# ---- input validation ------------------------------------------------------------------------
+
+
+def _bad_inputs():
+    """Cases (id, overrides of the scene, argument the error must name) and the float32 scene."""
+    s = make_scene(8, 6, 13, 9, sh_degree=1, dtype=torch.float32)
+    return [
+        ("means-shape", {"means": s["means"][:, :2]}, "means"),
+        ("quats-shape", {"quats": s["quats"][:, :3]}, "quats"),
+        ("scales-shape", {"scales": s["scales"][:, :1]}, "scales"),
+        ("opacities-shape", {"opacities": s["opacities"][:, None]}, "opacities"),
+        ("colors-shape", {"colors": s["colors"][:, 0, 0]}, "colors"),
+        ("viewmat-shape", {"viewmat": s["viewmat"][:3]}, "viewmat"),
+        ("K-shape", {"K": s["K"][:2]}, "K"),
+        ("background-shape", {"background": s["background"][:2]}, "background"),
+        ("means-int", {"means": s["means"].long()}, "means"),
+        ("means-float16", {"means": s["means"].half()}, "means"),
+        ("scales-mixed", {"scales": s["scales"].double()}, "scales"),
+        ("colors-mixed", {"colors": s["colors"].double()}, "colors"),
+        ("viewmat-mixed", {"viewmat": s["viewmat"].double()}, "viewmat"),
+        ("means-meta", {"means": s["means"].to("meta")}, "means"),
+        ("opacities-meta", {"opacities": s["opacities"].to("meta")}, "opacities"),
+        ("scales-n", {"scales": torch.cat([s["scales"], s["scales"][:1]])}, "scales"),
+        ("colors-n", {"colors": s["colors"][:-1]}, "colors"),
+        ("width-0", {"width": 0}, "width"),
+        ("height-neg", {"height": -3}, "height"),
+        ("sh-k-small", {"sh_degree": 2}, "colors|sh_degree"),
+        ("sh-k-not-square", {"colors": s["colors"][:, :3], "sh_degree": None}, "colors|sh_degree"),
+        (
+            "sh-degree-4",
+            {"colors": s["colors"].repeat(1, 7, 1)[:, :25], "sh_degree": 4},
+            "colors|sh_degree",
+        ),
+    ], s
+
+
+_BAD, _BAD_SCENE = _bad_inputs()
+
+
+@needs_cpp
+@pytest.mark.parametrize("overrides, name", [c[1:] for c in _BAD], ids=[c[0] for c in _BAD])
+def test_bad_input_raises(overrides, name):
+    with pytest.raises(ValueError, match=name):
+        render(spikegs.rasterize, _BAD_SCENE, **overrides)
+
+
+# ---- stiff and extreme cases (DESIGN §4) ---------------------------------------------------
+
+EXTREME = {  # name -> (N, (width, height))
+    "wide-scales": (12, (33, 17)),
+    "ill-conditioned": (10, (33, 17)),
+    "near-plane": (12, (33, 17)),
+    "opacity-logits": (8, (33, 17)),
+    "stacked": (300, (33, 17)),
+    "sub-and-screen": (10, (33, 17)),
+    "bad-quats": (8, (33, 17)),
+    "bad-values": (10, (33, 17)),
+    "empty": (0, (33, 17)),
+    "width-1": (10, (1, 17)),
+    "height-1": (10, (23, 1)),
+    "one-pixel": (10, (1, 1)),
+}
+
+
+def _extreme(name: str) -> dict:
+    """One stiff or extreme scene by name (float64)."""
+    nan, inf = float("nan"), float("inf")
+    n, (width, height) = EXTREME[name]
+    s = make_scene(list(EXTREME).index(name), n, width, height, sh_degree=1)
+    W, t = s["viewmat"][:3, :3], s["viewmat"][:3, 3]
+
+    def at_camera(points) -> torch.Tensor:  # camera-space points -> world means
+        return (torch.as_tensor(points, dtype=torch.float64) - t) @ W
+
+    f = s["K"][0, 0].item()
+    if name == "wide-scales":
+        s["scales"] = torch.logspace(-6, 3, n * 3, dtype=torch.float64).reshape(3, n).T
+    elif name == "ill-conditioned":  # covariance condition numbers up to 1e8
+        ratio = torch.logspace(0, 4, n, dtype=torch.float64)
+        s["scales"] = torch.stack([0.05 * ratio, 0.05 * ratio, 0.05 * torch.ones(n)], -1) * 0.1
+    elif name == "near-plane":  # means around and behind z = near, large enough to straddle it
+        z = torch.tensor(
+            [-2.0, -0.1, 0.0, 0.005, 0.01, 0.0100001, 0.011, 0.02, 0.05, 0.1, 0.3, 1.0]
+        )
+        s["means"] = at_camera(torch.stack([0.02 * z, -0.01 * z, z], -1))
+        s["scales"] = torch.full((n, 3), 0.2, dtype=torch.float64)
+    elif name == "opacity-logits":
+        s["opacities"] = torch.sigmoid(torch.tensor([30.0, -30.0] * (n // 2), dtype=torch.float64))
+        s["means"] = at_camera([[0.1 * i - 0.3, 0.0, 2.0 + 0.01 * i] for i in range(n)])
+        s["scales"] = torch.full((n, 3), 0.1, dtype=torch.float64)
+    elif name == "stacked":  # hundreds of Gaussians on one pixel: the transmittance stop
+        gen = torch.Generator().manual_seed(0)
+        s["means"] = at_camera([[0.0, 0.0, 2.0]]) + 1e-4 * torch.randn(
+            n, 3, generator=gen, dtype=torch.float64
+        )
+        s["opacities"] = 0.3 + 0.6 * torch.rand(n, generator=gen, dtype=torch.float64)
+    elif name == "sub-and-screen":  # sub-pixel footprints and ones covering the whole image
+        s["scales"][: n // 2] = 1e-4 / f
+        s["scales"][n // 2 :] = 50.0
+    elif name == "bad-quats":
+        s["quats"][0] = 0.0
+        s["quats"][1, 2] = nan
+        s["quats"][2] = 1e-30  # tiny but not zero: a valid rotation
+        s["quats"][3, 0] = inf
+    elif name == "bad-values":
+        s["means"][0, 0] = nan
+        s["means"][1, 2] = inf
+        s["means"][2, 1] = -inf
+        s["scales"][3, 1] = nan
+        s["opacities"][4] = nan
+        s["colors"][5, 2, 0] = inf
+        s["scales"][6, 0] = 1e200  # finite, but its covariance overflows
+    return s
+
+
+@pytest.mark.parametrize("name", EXTREME)
+def test_extreme_reference(name):
+    scene = _extreme(name)
+    out, grads = forward_backward(reference.rasterize, scene, torch.float64)
+    check_finite_and_culled(out, grads)
+    assert out.alpha.numel() == 0 or out.alpha.max().item() <= 1 - reference.T_MIN
+
+
+@needs_cpp
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32], ids=["float64", "float32"])
+@pytest.mark.parametrize("name", EXTREME)
+def test_extreme_cpp(name, dtype):
+    scene = {k: v.to(dtype) if torch.is_tensor(v) else v for k, v in _extreme(name).items()}
+    out, grads = forward_backward(spikegs.rasterize, scene, dtype)
+    check_finite_and_culled(out, grads)
+    if dtype == torch.float64:
+        compare_to_reference(scene, dtype, 1e-9)
