@@ -1,0 +1,199 @@
+"""The dataset layout on disk (docs/datasets.md): writing its parts and loading it, checked.
+
+DIR/meta.json              sizes, readout period, flip, simulator parameters + seed, K, scene
+DIR/spikes.dat             mono; a colour dataset has spikes_r.dat, spikes_g.dat, spikes_b.dat
+DIR/trajectory.json        camera-to-world poses (OpenCV) at recorded readouts
+DIR/train_timestamps.txt   readouts at which training samples are taken, one per line
+DIR/test_views.json        held-out views: name, readout (null off the path), pose, image file
+DIR/test/NAME.exr          their clean instantaneous images, float, firing-rate units
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..image_io import read_image, write_image
+from ..spikes import SpikeStream
+from .trajectory import CONVENTION, PathLike, Trajectory
+
+META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
+    "meta.json",
+    "trajectory.json",
+    "train_timestamps.txt",
+    "test_views.json",
+)
+TEST_DIR = "test"
+READOUT_PERIOD_S = 25e-6
+WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits in the stream
+FORMAT_VERSION = 1
+
+
+def spike_files(channels: int) -> list[str]:
+    """The .dat file of each channel: spikes.dat (mono) or spikes_r/g/b.dat (colour)."""
+    return ["spikes.dat"] if channels == 1 else [f"spikes_{c}.dat" for c in "rgb"]
+
+
+@dataclasses.dataclass
+class TestView:
+    """A held-out view; `image` [H, W, C] float32 in firing-rate units (intensity × rate_at_one)."""
+
+    name: str
+    viewmat: np.ndarray  # [4, 4] world-to-camera, OpenCV
+    image: np.ndarray  # [H, W, C]
+    readout: float | None  # on-path readout time, None off the path
+
+
+class Dataset:
+    """A loaded dataset. `stream` is the SpikeStream of a mono dataset and the list [r, g, b] of a
+    colour one; `streams` is always the list, one SpikeStream per channel."""
+
+    def __init__(self, root: Path, meta: dict, streams, trajectory, train_timestamps, test_views):
+        self.root = root
+        self.meta = meta
+        self.height, self.width = int(meta["height"]), int(meta["width"])
+        self.channels = int(meta["channels"])
+        self.K = np.array(
+            [[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], np.float32
+        )
+        self.streams: list[SpikeStream] = streams
+        self.stream = streams[0] if self.channels == 1 else streams
+        self.trajectory: Trajectory = trajectory
+        self.train_timestamps: np.ndarray = train_timestamps  # [M] int64
+        self.test_views: list[TestView] = test_views
+        self.scene_center = np.asarray(meta["scene_center"], np.float64)  # [3]
+        self.scene_radius = float(meta["scene_radius"])
+
+    @property
+    def num_readouts(self) -> int:
+        return int(self.meta["num_readouts"])
+
+    def __repr__(self) -> str:
+        return (
+            f"Dataset('{self.root}', scene={self.meta.get('scene')!r}, {self.height}x{self.width}"
+            f"x{self.channels}, readouts={self.num_readouts}, train={len(self.train_timestamps)}, "
+            f"test={len(self.test_views)})"
+        )
+
+
+def holds_dataset(out: Path) -> bool:
+    """Whether `out` holds (a part of) a dataset."""
+    names = [META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3)]
+    return any((out / n).exists() for n in names)
+
+
+def check_output(out: PathLike, overwrite: bool) -> Path:
+    """FileExistsError if `out` is a file, or holds a dataset and not `overwrite`."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"output {out} exists and is not a directory")
+    if out.is_dir() and holds_dataset(out) and not overwrite:
+        raise FileExistsError(f"{out} already holds a dataset; pass --overwrite to replace it")
+    return out
+
+
+def prepare_output(out: PathLike, overwrite: bool) -> Path:
+    """Create `out` after `check_output`; an old dataset there is deleted with everything in its
+    directory (caches derived from the old spikes included)."""
+    out = check_output(out, overwrite)
+    if out.is_dir() and holds_dataset(out):
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def write_parts(
+    out: Path,
+    meta: dict,
+    trajectory: Trajectory,
+    train_timestamps: np.ndarray,
+    test_views: list[TestView],
+) -> None:
+    """Write everything but the spikes; meta.json last, so a dataset without it is incomplete."""
+    K = {k: meta[k] for k in ("fx", "fy", "cx", "cy")}
+    size = {"w": meta["width"], "h": meta["height"]}
+    trajectory.save_json(
+        out / TRAJECTORY, fl_x=K["fx"], fl_y=K["fy"], cx=K["cx"], cy=K["cy"], **size
+    )
+    np.savetxt(out / TIMESTAMPS, np.asarray(train_timestamps, np.int64), fmt="%d")
+    frames = []
+    for view in test_views:
+        file_path = f"{TEST_DIR}/{view.name}.exr"
+        write_image(out / file_path, view.image)
+        frames.append(
+            {
+                "name": view.name,
+                "readout": view.readout,
+                "file_path": file_path,
+                "transform_matrix": np.linalg.inv(view.viewmat).tolist(),
+            }
+        )
+    doc = {"camera_model": "OPENCV", "convention": CONVENTION, **size, "frames": frames}
+    (out / TEST_VIEWS).write_text(json.dumps(doc, indent=1))
+    (out / META).write_text(json.dumps(meta, indent=1))
+
+
+def _file(root: Path, name: str) -> Path:
+    path = root / name
+    if not path.is_file():
+        raise FileNotFoundError(f"dataset file not found: {path}")
+    return path
+
+
+def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
+    path = _file(root, TEST_VIEWS)
+    doc = json.loads(path.read_text())
+    if doc.get("convention", CONVENTION) != CONVENTION:
+        raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
+    views = []
+    for frame in doc.get("frames", []):
+        c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
+        if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
+            raise ValueError(f"{path}: view '{frame['name']}' has a non-finite or non-4x4 pose")
+        image = read_image(_file(root, frame["file_path"]))  # [H, W, C]
+        if image.shape != shape:
+            raise ValueError(
+                f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
+                f"found {list(image.shape)}"
+            )
+        readout = None if frame.get("readout") is None else float(frame["readout"])
+        views.append(TestView(frame["name"], np.linalg.inv(c2w), image, readout))
+    return views
+
+
+def load_dataset(path: PathLike) -> Dataset:
+    """Open a dataset directory, checking every file before returning (FileNotFoundError names a
+    missing file, ValueError a malformed one); the spikes are memory-mapped, not read."""
+    root = Path(path)
+    if not root.is_dir():
+        raise FileNotFoundError(f"dataset directory not found: {root}")
+    meta_path = _file(root, META)
+    meta = json.loads(meta_path.read_text())
+    required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
+    missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
+    if missing:
+        raise ValueError(f"{meta_path}: missing keys {missing}")
+    num = int(meta["num_readouts"])
+    streams = []
+    for name in spike_files(int(meta["channels"])):
+        stream = SpikeStream.open(_file(root, name), meta["height"], meta["width"], meta["flip"])
+        if len(stream) != num:
+            raise ValueError(f"{root / name}: {len(stream)} readouts, meta.json says {num}")
+        streams.append(stream)
+    trajectory = Trajectory.load_json(_file(root, TRAJECTORY))
+    if trajectory.start > 0 or trajectory.end < num - 1:
+        raise ValueError(
+            f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
+            f"expected [0, {num - 1}]"
+        )
+    timestamps = np.loadtxt(_file(root, TIMESTAMPS), dtype=np.int64, ndmin=1)  # [M]
+    lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
+    if len(timestamps) == 0 or timestamps.min() < lo or timestamps.max() > hi:
+        raise ValueError(f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}]")
+    shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
+    test_views = _read_test_views(root, shape)
+    return Dataset(root, meta, streams, trajectory, timestamps, test_views)

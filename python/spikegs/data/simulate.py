@@ -1,0 +1,188 @@
+"""Make a synthetic spike dataset: ground truth along a fast camera path, turned into spikes."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from ..spikes import SimParams, simulate_spikes
+from .dataset import (
+    FORMAT_VERSION,
+    READOUT_PERIOD_S,
+    WINDOW_MARGIN,
+    Dataset,
+    TestView,
+    check_output,
+    load_dataset,
+    prepare_output,
+    spike_files,
+    write_parts,
+)
+from .scenes import SCENES
+from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Source
+from .trajectory import Trajectory
+
+DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
+DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
+DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), linear between
+
+
+def make_source(
+    scene: str | Path | dict | Source, width: int, height: int, channels: int, *, spp: int = 16
+) -> Source:
+    """The source of `scene`: a built-in name (SCENES), a Mitsuba .xml file or dict, a NeRF-style
+    transforms JSON (or a directory holding transforms_train.json / transforms.json) or a Source."""
+    if isinstance(scene, Source):
+        return scene
+    if isinstance(scene, dict):
+        return MitsubaSource(scene, width, height, channels, spp=spp)
+    if str(scene) in SCENES:
+        return ProceduralSource(str(scene), SCENES[str(scene)](), width, height, channels)
+    path = Path(scene)
+    if path.is_dir():
+        found = [
+            path / n for n in ("transforms_train.json", "transforms.json") if (path / n).is_file()
+        ]
+        path = found[0] if found else path
+    if path.suffix == ".xml":
+        return MitsubaSource(path, width, height, channels, spp=spp)
+    if path.suffix == ".json" and path.is_file():
+        return FrameSequenceSource.from_transforms(path, width, height, channels)
+    raise ValueError(
+        f"unknown scene '{scene}': expected a built-in scene ({', '.join(SCENES)}), a Mitsuba "
+        f".xml file, or a transforms JSON (or a directory holding transforms_train.json)"
+    )
+
+
+def train_timestamps(num_readouts: int, held_out: np.ndarray, every: int) -> np.ndarray:
+    """Readouts [M] every `every` within [32, T - 33] (a 65-readout window fits), keeping 65-readout
+    windows clear of each held-out on-path readout."""
+    ks = np.arange(WINDOW_MARGIN, num_readouts - WINDOW_MARGIN, every)  # [M]
+    if len(held_out):
+        near = np.abs(ks[:, None] - np.asarray(held_out)[None, :]) <= 2 * WINDOW_MARGIN
+        ks = ks[~near.any(axis=1)]
+    return ks.astype(np.int64)
+
+
+def write_spikes(
+    source: Source,
+    trajectory: Trajectory,
+    times: np.ndarray,
+    out: Path,
+    readouts: int,
+    seed: int,
+    params: SimParams,
+    flip: bool,
+    progress: bool,
+) -> None:
+    """Render the light at readouts `times` [F] into a temporary file, then simulate each channel
+    into its .dat (mono: `seed`; colour: one seed per channel derived from it)."""
+    shape = (len(times), source.height, source.width, source.channels)
+    tmp = out / ".light.npy"
+    light = np.lib.format.open_memmap(tmp, "w+", np.float32, shape)  # [F, H, W, C] on disk
+    try:
+        for i, t in enumerate(tqdm(times, desc="render", unit="frame", disable=not progress)):
+            light[i] = source.image_at(trajectory, float(t))
+        files = spike_files(source.channels)
+        seeds = [seed] if len(files) == 1 else np.random.SeedSequence(seed).generate_state(3)
+        for c, name in enumerate(tqdm(files, desc="spikes", disable=not progress)):
+            simulate_spikes(
+                light[..., c],
+                readouts,
+                frame_times=times,
+                out=out / name,
+                flip=flip,
+                seed=int(seeds[c]),
+                params=params,
+            )
+    finally:
+        del light
+        tmp.unlink()
+
+
+def simulate_dataset(
+    scene: str | Path | dict | Source,
+    out: str | Path,
+    *,
+    height: int = 128,
+    width: int = 128,
+    readouts: int = DEFAULT_READOUTS,
+    speed: float = DEFAULT_SPEED,
+    seed: int = 0,
+    overwrite: bool = False,
+    color: bool = False,
+    frame_every: float = DEFAULT_FRAME_EVERY,
+    test_on_path: int = 8,
+    test_off_path: int = 8,
+    train_every: int = 1,
+    spp: int = 16,
+    flip: bool = True,
+    progress: bool = True,
+    **sim_params,
+) -> Dataset:
+    """Simulate a dataset into `out` and return it loaded. `speed`: degrees of orbit per readout
+    (spiral sources); `frame_every`: readouts between two rendered light frames (the simulator
+    interpolates linearly); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
+    params = SimParams(**sim_params)
+    min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
+    if readouts < min_readouts:
+        raise ValueError(f"readouts: expected >= {min_readouts} for {test_on_path} held-out views")
+    if height < 1 or width < 1 or frame_every <= 0 or train_every < 1:
+        raise ValueError("height, width, frame_every and train_every expected positive")
+    check_output(out, overwrite)  # before any work
+    channels = 3 if color else 1
+    source = make_source(scene, width, height, channels, spp=spp)
+    if (source.height, source.width, source.channels) != (height, width, channels):
+        raise ValueError(
+            f"source '{source.name}' gives {source.height}x{source.width}x{source.channels} "
+            f"images, expected {height}x{width}x{channels}"
+        )
+    out = prepare_output(out, overwrite)
+    trajectory = source.trajectory(readouts, speed)
+    times = source.light_times(readouts, frame_every)  # [F]
+    write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
+    rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them
+    on_path = source.on_path_times(readouts, test_on_path, 2 * WINDOW_MARGIN)  # [n]
+    views = [
+        TestView(
+            f"on_{i:03d}", trajectory.pose_at(t), source.image_at(trajectory, t) * rate, float(t)
+        )
+        for i, t in enumerate(on_path)
+    ]
+    views += [
+        TestView(name, viewmat, image * rate, None)
+        for name, viewmat, image in source.off_path_views(test_off_path)
+    ]
+    K = source.K
+    meta = {
+        "format_version": FORMAT_VERSION,
+        "scene": source.name,
+        "source": source.kind,
+        "height": height,
+        "width": width,
+        "channels": channels,
+        "num_readouts": readouts,
+        "readout_period_s": READOUT_PERIOD_S,
+        "flip": flip,
+        "spike_files": spike_files(channels),
+        "seed": seed,
+        "sim": dataclasses.asdict(params),
+        "fx": float(K[0, 0]),
+        "fy": float(K[1, 1]),
+        "cx": float(K[0, 2]),
+        "cy": float(K[1, 2]),
+        "scene_center": source.scene_center.tolist(),
+        "scene_radius": source.scene_radius,
+        "degrees_per_readout": speed if source.kind != "frames" else None,
+        "frame_every": frame_every if source.kind != "frames" else None,
+        "luma": "rec709-linear" if channels == 1 else None,
+        "image_scale": rate,
+    }
+    held_out = [v.readout for v in views if v.readout is not None]
+    write_parts(
+        out, meta, trajectory, train_timestamps(readouts, np.array(held_out), train_every), views
+    )
+    return load_dataset(out)

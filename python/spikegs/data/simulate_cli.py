@@ -1,0 +1,84 @@
+"""`spikegs simulate`: make a synthetic spike dataset (docs/datasets.md)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+from ..spikes import SimParams
+from .scenes import SCENES
+from .simulate import DEFAULT_FRAME_EVERY, DEFAULT_READOUTS, DEFAULT_SPEED, simulate_dataset
+from .sources import MissingDependencyError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--scene",
+        default="solids",
+        help=f"built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a NeRF-style "
+        "transforms JSON / a directory holding transforms_train.json (default: solids)",
+    )
+    parser.add_argument("--out", type=Path, required=True, help="output dataset directory")
+    parser.add_argument("--height", type=int, default=128)
+    parser.add_argument("--width", type=int, default=128)
+    parser.add_argument(
+        "--readouts", type=int, default=DEFAULT_READOUTS, help="readouts (25 µs each)"
+    )
+    parser.add_argument(
+        "--speed", type=float, default=DEFAULT_SPEED, help="degrees of orbit per readout"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="simulator seed")
+    parser.add_argument(
+        "--frame-every",
+        type=float,
+        default=DEFAULT_FRAME_EVERY,
+        help="readouts between rendered light frames (linear in between)",
+    )
+    parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
+    parser.add_argument("--test-on-path", type=int, default=8, help="held-out on-path views")
+    parser.add_argument("--test-off-path", type=int, default=8, help="off-path test views")
+    parser.add_argument("--train-every", type=int, default=1, help="stride of training timestamps")
+    parser.add_argument("--spp", type=int, default=16, help="samples per pixel (Mitsuba)")
+    parser.add_argument("--no-flip", action="store_true", help="write .dat rows top-down")
+    parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    sim = parser.add_argument_group("simulator parameters (SimParams)")
+    for field in dataclasses.fields(SimParams):
+        flag = "--" + field.name.replace("_", "-")
+        if field.type in (bool, "bool"):
+            sim.add_argument(flag, action=argparse.BooleanOptionalAction, default=field.default)
+        else:
+            sim.add_argument(flag, type=float, default=field.default)
+
+
+def run(args: argparse.Namespace) -> int:
+    sim_params = {f.name: getattr(args, f.name) for f in dataclasses.fields(SimParams)}
+    start = time.perf_counter()
+    try:
+        dataset = simulate_dataset(
+            args.scene,
+            args.out,
+            height=args.height,
+            width=args.width,
+            readouts=args.readouts,
+            speed=args.speed,
+            seed=args.seed,
+            overwrite=args.overwrite,
+            color=args.color,
+            frame_every=args.frame_every,
+            test_on_path=args.test_on_path,
+            test_off_path=args.test_off_path,
+            train_every=args.train_every,
+            spp=args.spp,
+            flip=not args.no_flip,
+            progress=not args.quiet,
+            **sim_params,
+        )
+    except MissingDependencyError as err:
+        print(f"spikegs simulate: error: {err}", file=sys.stderr)
+        return 2
+    print(f"{dataset} in {time.perf_counter() - start:.1f} s")
+    return 0

@@ -1,0 +1,400 @@
+"""Ground-truth sources behind one interface: a camera path and clean instantaneous images.
+
+Three kinds:
+- `ProceduralSource`: a built-in Gaussian scene (scenes.py) rendered by `spikegs.rasterize`;
+- `MitsubaSource`: a Mitsuba 3 scene file or dict, rendered with the `scalar_rgb` variant;
+- `FrameSequenceSource`: rendered frames with poses (e.g. a NeRF-synthetic transforms.json,
+  OpenGL poses converted to OpenCV), spread evenly over the readouts and interpolated linearly.
+
+Images are linear light, intensity 1.0 = white, [H, W, C]. A mono camera (C = 1) sees the Rec. 709
+luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); colour keeps C = 3.
+"""
+
+from __future__ import annotations
+
+import json
+from abc import ABC, abstractmethod
+from pathlib import Path
+
+import numpy as np
+import skimage.transform
+import torch
+
+from ..image_io import read_image
+from ..rasterize import rasterize
+from .scenes import GaussianScene, srgb_to_linear
+from .trajectory import Trajectory, look_at, orbit_eye
+
+LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
+OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
+
+
+class MissingDependencyError(ImportError):
+    """An optional dependency (an extra) is needed and not installed."""
+
+
+def to_channels(rgb: np.ndarray, channels: int) -> np.ndarray:
+    """Linear RGB [..., 3] -> [..., channels]: Rec. 709 luma for 1, unchanged for 3."""
+    if channels == 3:
+        return rgb
+    if channels == 1:
+        return rgb @ LUMA_709[:, None]
+    raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
+
+
+def intrinsics(width: int, height: int, fov_x_deg: float) -> np.ndarray:
+    """K [3, 3] of a pinhole with horizontal field of view `fov_x_deg`, square pixels, centred."""
+    f = width / 2 / np.tan(np.radians(fov_x_deg) / 2)
+    return np.array([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
+
+
+def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
+    """Readouts [F] at which the light is rendered: 0, frame_every, … and the last readout."""
+    last = num_readouts - 1
+    return np.append(np.arange(0.0, last, frame_every), float(last))
+
+
+class Source(ABC):
+    """Ground truth for a dataset of `width` × `height` pixels, `channels` 1 (mono) or 3."""
+
+    name: str
+    kind: str
+
+    def __init__(self, width: int, height: int, channels: int, K: np.ndarray, center, radius):
+        if channels not in (1, 3):
+            raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
+        self.width, self.height, self.channels = int(width), int(height), int(channels)
+        self.K = np.asarray(K, np.float64)  # [3, 3]
+        self.scene_center = np.asarray(center, np.float64)  # [3]
+        self.scene_radius = float(radius)
+
+    @abstractmethod
+    def trajectory(self, num_readouts: int, degrees_per_readout: float) -> Trajectory:
+        """The camera path over readouts [0, num_readouts - 1]."""
+
+    @abstractmethod
+    def image_at(self, trajectory: Trajectory, t: float) -> np.ndarray:
+        """The clean instantaneous image [H, W, C] on the path at readout t."""
+
+    @abstractmethod
+    def light_times(self, num_readouts: int, frame_every: float) -> np.ndarray:
+        """Readouts [F] at which the simulator samples the light (linear in between)."""
+
+    @abstractmethod
+    def on_path_times(self, num_readouts: int, count: int, margin: int) -> np.ndarray:
+        """`count` readouts [count] within [margin, num_readouts - 1 - margin] for held-out views
+        whose clean image is exact."""
+
+    @abstractmethod
+    def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Up to `count` views off the path: (name, viewmat [4, 4], image [H, W, C])."""
+
+
+class RenderSource(Source):
+    """A source that renders any pose: an ascending spiral around the scene, off-path views on
+    a wider circle at mid elevation."""
+
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        channels: int,
+        center,
+        radius: float,
+        *,
+        fov_deg: float = 40.0,
+        distance: float = 2.5,
+        elevation_deg: tuple[float, float] = (10.0, 50.0),
+    ):
+        super().__init__(
+            width, height, channels, intrinsics(width, height, fov_deg), center, radius
+        )
+        self.distance = distance * self.scene_radius  # camera to scene centre
+        self.elevation_deg = elevation_deg
+
+    @abstractmethod
+    def render(self, viewmat: np.ndarray) -> np.ndarray:
+        """The clean image [H, W, C] seen from `viewmat` [4, 4] (world-to-camera, OpenCV)."""
+
+    def trajectory(self, num_readouts: int, degrees_per_readout: float) -> Trajectory:
+        return Trajectory.spiral(
+            num_readouts,
+            radius=self.distance,
+            start_elevation_deg=self.elevation_deg[0],
+            end_elevation_deg=self.elevation_deg[1],
+            degrees_per_readout=degrees_per_readout,
+            look_at=tuple(self.scene_center),
+        )
+
+    def image_at(self, trajectory: Trajectory, t: float) -> np.ndarray:
+        return self.render(trajectory.pose_at(t))
+
+    def light_times(self, num_readouts: int, frame_every: float) -> np.ndarray:
+        return sample_times(num_readouts, frame_every)
+
+    def on_path_times(self, num_readouts: int, count: int, margin: int) -> np.ndarray:
+        return np.round(np.linspace(margin, num_readouts - 1 - margin, count + 2)[1:-1])
+
+    def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        views = []
+        elevation = float(np.mean(self.elevation_deg))
+        for i in range(count):
+            eye = orbit_eye(
+                self.scene_center, 1.2 * self.distance, 360 * (i + 0.5) / count, elevation
+            )
+            viewmat = look_at(eye, self.scene_center)
+            views.append((f"off_{i:03d}", viewmat, self.render(viewmat)))
+        return views
+
+
+class ProceduralSource(RenderSource):
+    """A built-in Gaussian scene rendered by the project's rasterizer."""
+
+    kind = "procedural"
+
+    def __init__(self, name: str, scene: GaussianScene, width: int, height: int, channels: int = 1):
+        super().__init__(width, height, channels, scene.center, scene.radius)
+        self.name = name
+        tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+        self._gaussians = [
+            tensor(a) for a in (scene.means, scene.quats, scene.scales, scene.opacities)
+        ]
+        self._colors = tensor(to_channels(scene.colors, channels))  # [N, C]
+        self._background = tensor(to_channels(scene.background, channels))  # [C]
+        self._K = tensor(self.K)
+
+    def render(self, viewmat: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            out = rasterize(
+                *self._gaussians,
+                self._colors,
+                torch.as_tensor(viewmat, dtype=torch.float32),
+                self._K,
+                self.width,
+                self.height,
+                background=self._background,
+            )
+        return out.image.numpy()
+
+
+def import_mitsuba():
+    """Mitsuba 3 with the `scalar_rgb` variant set (the llvm_* variants fail with Debian's LLVM)."""
+    try:
+        import mitsuba as mi
+    except ImportError as err:
+        raise MissingDependencyError(
+            "a Mitsuba scene needs Mitsuba 3, which is not installed: "
+            "pip install 'spikegs[mitsuba]' (or pip install mitsuba)"
+        ) from err
+    mi.set_variant("scalar_rgb")
+    return mi
+
+
+class MitsubaSource(RenderSource):
+    """A Mitsuba 3 scene (a .xml file or a scene dict) rendered on the CPU (`scalar_rgb`).
+
+    The scene's own sensors are ignored: one perspective sensor with a box filter is moved with
+    `mi.traverse` (Mitsuba cameras look along +z with x left, y up: OpenCV with x, y flipped).
+    The sampler seed is the same for every frame, so Monte Carlo noise does not flicker.
+    """
+
+    kind = "mitsuba"
+
+    def __init__(
+        self,
+        scene: str | Path | dict,
+        width: int,
+        height: int,
+        channels: int = 1,
+        *,
+        spp: int = 16,
+        fov_deg: float = 40.0,
+        center=None,
+        radius: float | None = None,
+    ):
+        mi = import_mitsuba()
+        if isinstance(scene, dict):
+            self.name, self._scene = "mitsuba-dict", mi.load_dict(scene)
+        else:
+            path = Path(scene)
+            if not path.is_file():
+                raise FileNotFoundError(f"Mitsuba scene file not found: {path}")
+            self.name, self._scene = path.stem, mi.load_file(str(path))
+        box = self._scene.bbox()
+        lo, hi = np.array(box.min, np.float64), np.array(box.max, np.float64)
+        center = (lo + hi) / 2 if center is None else center
+        radius = np.linalg.norm(hi - lo) / 2 if radius is None else radius
+        super().__init__(width, height, channels, center, radius, fov_deg=fov_deg)
+        self._mi, self._spp = mi, int(spp)
+        self._sensor = mi.load_dict(
+            {
+                "type": "perspective",
+                "fov": fov_deg,
+                "fov_axis": "x",
+                "film": {
+                    "type": "hdrfilm",
+                    "width": self.width,
+                    "height": self.height,
+                    "rfilter": {"type": "box"},
+                    "pixel_format": "rgb",
+                },
+                "sampler": {"type": "independent", "sample_count": self._spp},
+            }
+        )
+        self._params = mi.traverse(self._sensor)
+
+    def render(self, viewmat: np.ndarray) -> np.ndarray:
+        c2w = np.linalg.inv(viewmat) @ np.diag([-1.0, -1.0, 1.0, 1.0])  # OpenCV -> Mitsuba axes
+        self._params["to_world"] = self._mi.ScalarTransform4f(c2w.tolist())
+        self._params.update()
+        rgb = np.array(self._mi.render(self._scene, sensor=self._sensor, spp=self._spp, seed=0))
+        return to_channels(np.maximum(rgb, 0.0), self.channels).astype(np.float32)
+
+
+class FrameSequenceSource(Source):
+    """Rendered frames [F, H, W, C] with poses [F, 4, 4] (world-to-camera, OpenCV), spread evenly
+    over the readouts; the light in between is the linear interpolation of the two frames.
+    Off-path views are optional test frames with their poses."""
+
+    kind = "frames"
+
+    def __init__(
+        self,
+        name: str,
+        frames: np.ndarray,
+        viewmats: np.ndarray,
+        K: np.ndarray,
+        *,
+        test_views: list[tuple[str, np.ndarray, np.ndarray]] = (),
+    ):
+        frames = np.asarray(frames, np.float32)  # [F, H, W, C]
+        viewmats = np.asarray(viewmats, np.float64)  # [F, 4, 4]
+        if frames.ndim != 4 or len(frames) < 2:
+            raise ValueError(
+                f"frames expected [F, H, W, C] with F >= 2, found {list(frames.shape)}"
+            )
+        if len(viewmats) != len(frames):
+            raise ValueError(
+                f"frame sequence '{name}': {len(frames)} frames but {len(viewmats)} poses; "
+                f"expected one pose per frame"
+            )
+        Trajectory(np.arange(len(frames)), viewmats, source=name)  # validates the poses now
+        height, width, channels = frames.shape[1:]
+        center, radius = _centre_of_view(viewmats)
+        super().__init__(width, height, channels, K, center, radius)
+        self.name, self.frames, self.viewmats = name, frames, viewmats
+        self._test_views = list(test_views)
+
+    @classmethod
+    def from_transforms(
+        cls,
+        path: str | Path,
+        width: int,
+        height: int,
+        channels: int = 1,
+        *,
+        background: float = 1.0,
+        test_path: str | Path | None = None,
+    ) -> FrameSequenceSource:
+        """Read a NeRF-style transforms JSON (OpenGL camera-to-world unless `"convention":
+        "opencv"`), resize the frames to width × height; test frames from `test_path` or a sibling
+        transforms_test.json. 8-bit images are sRGB (decoded); alpha composited on `background`."""
+        path = Path(path)
+        frames, viewmats, K = _read_transforms(path, width, height, channels, background)
+        sibling = path.with_name("transforms_test.json")
+        test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
+        tests = []
+        if test_path:
+            images, poses, _ = _read_transforms(
+                Path(test_path), width, height, channels, background
+            )
+            tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
+        return cls(path.parent.name or path.stem, frames, viewmats, K, test_views=tests)
+
+    def frame_readouts(self, num_readouts: int) -> np.ndarray:
+        """Readout [F] of each frame: evenly over [0, num_readouts - 1]."""
+        return np.linspace(0.0, num_readouts - 1, len(self.frames))
+
+    def trajectory(self, num_readouts: int, degrees_per_readout: float) -> Trajectory:
+        """The frames' own poses (`degrees_per_readout` does not apply)."""
+        return Trajectory(self.frame_readouts(num_readouts), self.viewmats, source=self.name)
+
+    def image_at(self, trajectory: Trajectory, t: float) -> np.ndarray:
+        u = (t - trajectory.start) / (trajectory.end - trajectory.start) * (len(self.frames) - 1)
+        i = min(int(np.floor(u)), len(self.frames) - 2)
+        w = u - i
+        return (1 - w) * self.frames[i] + w * self.frames[i + 1]
+
+    def light_times(self, num_readouts: int, frame_every: float) -> np.ndarray:
+        return self.frame_readouts(num_readouts)
+
+    def on_path_times(self, num_readouts: int, count: int, margin: int) -> np.ndarray:
+        readouts = self.frame_readouts(num_readouts)
+        inside = readouts[(readouts >= margin) & (readouts <= num_readouts - 1 - margin)]
+        pick = np.round(np.linspace(0, len(inside) - 1, count + 2)[1:-1]).astype(int)
+        return np.unique(inside[pick]) if len(inside) else inside
+
+    def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        return self._test_views[:count]
+
+
+def _centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
+    """The point [3] nearest to all optical axes, and the mean camera distance to it / 2.5
+    (the scene radius that the spiral sources see from their distance of 2.5 radii)."""
+    c2w = np.linalg.inv(viewmats)  # [F, 4, 4]
+    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [F, 3] each
+    proj = np.eye(3) - dirs[:, :, None] * dirs[:, None, :]  # [F, 3, 3]
+    center = np.linalg.lstsq(proj.sum(0), np.einsum("fij,fj->i", proj, eyes), rcond=None)[0]
+    return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
+
+
+def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
+    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] of a transforms JSON."""
+    if not path.is_file():
+        raise FileNotFoundError(f"transforms file not found: {path}")
+    doc = json.loads(path.read_text())
+    frames = doc.get("frames") or []
+    if not frames:
+        raise ValueError(f"{path}: no frames")
+    images, c2ws = [], []
+    for f in frames:
+        if "transform_matrix" not in f or "file_path" not in f:
+            raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
+        image = _read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
+        src_h, src_w = image.shape[:2]
+        if (src_h, src_w) != (height, width):
+            image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
+        images.append(to_channels(image, channels))
+        c2ws.append(np.asarray(f["transform_matrix"], np.float64))
+    c2w = np.stack(c2ws)  # [F, 4, 4]
+    if not np.isfinite(c2w).all():
+        raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
+    if doc.get("convention", "opengl").lower() != "opencv":
+        c2w = c2w @ OPENGL_TO_OPENCV
+    if "fl_x" in doc:
+        fx, fy = float(doc["fl_x"]), float(doc.get("fl_y", doc["fl_x"]))
+        cx, cy = float(doc.get("cx", src_w / 2)), float(doc.get("cy", src_h / 2))
+    elif "camera_angle_x" in doc:
+        fx = fy = src_w / 2 / np.tan(float(doc["camera_angle_x"]) / 2)
+        cx, cy = src_w / 2, src_h / 2
+    else:
+        raise ValueError(f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy)")
+    sx, sy = width / src_w, height / src_h
+    K = np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
+    return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
+
+
+def _read_frame(base: Path, background: float) -> np.ndarray:
+    """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic)."""
+    candidates = [base] + [base.with_name(base.name + ext) for ext in (".png", ".exr", ".jpg")]
+    found = next((p for p in candidates if p.is_file()), None)
+    if found is None:
+        raise FileNotFoundError(f"frame image not found: {base} (tried .png, .exr, .jpg)")
+    image = read_image(found).astype(np.float64)  # [h, w, c]
+    if found.suffix.lower() != ".exr":
+        image[..., :3] = srgb_to_linear(image[..., :3])
+    if image.shape[2] == 4:
+        image = image[..., :3] * image[..., 3:] + background * (1 - image[..., 3:])
+    elif image.shape[2] < 3:
+        image = np.repeat(image[..., :1], 3, axis=2)
+    return image

@@ -1,0 +1,178 @@
+"""Continuous camera trajectories: poses recorded at readouts, slerp/linear in between.
+
+Poses are OpenCV cameras (x right, y down, z forward). In memory a pose is the world-to-camera
+`viewmat` [4, 4]; on disk (`save_json`) it is the camera-to-world `transform_matrix`, in the
+nerfstudio-like layout with a `readout` per frame and `"convention": "opencv"` stated.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+PathLike = Union[str, os.PathLike]
+CONVENTION = "opencv"
+WORLD_UP = np.array([0.0, 0.0, 1.0])  # the spiral ascends along +z
+
+
+def look_at(eye, target, up=WORLD_UP) -> np.ndarray:
+    """World-to-camera viewmat [4, 4] of an OpenCV camera at `eye` looking at `target`."""
+    eye, target = np.asarray(eye, np.float64), np.asarray(target, np.float64)
+    forward = target - eye
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, up)
+    norm = np.linalg.norm(right)
+    if norm < 1e-9:
+        raise ValueError(f"look_at: the view direction {forward} is parallel to up {up}")
+    right /= norm
+    down = np.cross(forward, right)
+    c2w = np.eye(4)
+    c2w[:3, :3] = np.stack([right, down, forward], axis=1)
+    c2w[:3, 3] = eye
+    return np.linalg.inv(c2w)
+
+
+def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
+    """Camera centres [..., 3] on a sphere of `radius` around `center` (+z up)."""
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    offset = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+    return np.asarray(center, np.float64) + radius * offset
+
+
+class Trajectory:
+    """Camera poses at increasing readouts [P]; `pose_at(t)` interpolates between them."""
+
+    def __init__(self, readouts: np.ndarray, viewmats: np.ndarray, *, source: str = "poses"):
+        readouts = np.asarray(readouts, np.float64).reshape(-1)  # [P]
+        viewmats = np.asarray(viewmats, np.float64)  # [P, 4, 4]
+        if viewmats.shape != (len(readouts), 4, 4) or len(readouts) == 0:
+            raise ValueError(
+                f"{source}: expected readouts [P] and viewmats [P, 4, 4] with P >= 1, found "
+                f"{list(readouts.shape)} and {list(viewmats.shape)}"
+            )
+        if not (np.isfinite(readouts).all() and np.isfinite(viewmats).all()):
+            raise ValueError(f"{source}: non-finite readouts or poses (NaN/inf)")
+        if (np.diff(readouts) <= 0).any():
+            raise ValueError(f"{source}: readouts expected strictly increasing")
+        c2w = np.linalg.inv(viewmats)  # [P, 4, 4]
+        rot = c2w[:, :3, :3]
+        if (
+            not np.allclose(rot @ rot.transpose(0, 2, 1), np.eye(3), atol=1e-5)
+            or (np.linalg.det(rot) < 0).any()
+        ):
+            raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
+        self.readouts = readouts
+        self.viewmats = viewmats
+        self._rotations = Rotation.from_matrix(rot)  # camera-to-world [P]
+        self._centers = c2w[:, :3, 3]  # [P, 3]
+
+    def __len__(self) -> int:
+        return len(self.readouts)
+
+    @property
+    def start(self) -> float:
+        return float(self.readouts[0])
+
+    @property
+    def end(self) -> float:
+        return float(self.readouts[-1])
+
+    @property
+    def centers(self) -> np.ndarray:
+        """Camera centres [P, 3] in world coordinates."""
+        return self._centers
+
+    def pose_at(self, t) -> np.ndarray:
+        """Viewmat [4, 4] (or [B, 4, 4] for t [B]) at readout time t: camera-to-world rotation
+        slerped and camera centre interpolated linearly between the two bracketing poses."""
+        ts = np.asarray(t, np.float64)
+        flat = ts.reshape(-1)  # [B]
+        bad = ~((flat >= self.start) & (flat <= self.end))
+        if bad.any():
+            raise ValueError(
+                f"pose_at: t={flat[bad][0]} outside the trajectory's readouts "
+                f"[{self.start}, {self.end}]"
+            )
+        i = np.clip(np.searchsorted(self.readouts, flat, side="right") - 1, 0, len(self) - 1)
+        j = np.minimum(i + 1, len(self) - 1)
+        span = self.readouts[j] - self.readouts[i]
+        u = np.where(span > 0, (flat - self.readouts[i]) / np.where(span > 0, span, 1.0), 0.0)
+        r0, r1 = self._rotations[i], self._rotations[j]
+        rot = r0 * Rotation.from_rotvec((r0.inv() * r1).as_rotvec() * u[:, None])  # slerp
+        c2w = np.tile(np.eye(4), (len(flat), 1, 1))  # [B, 4, 4]
+        c2w[:, :3, :3] = rot.as_matrix()
+        c2w[:, :3, 3] = (1 - u)[:, None] * self._centers[i] + u[:, None] * self._centers[j]
+        out = np.linalg.inv(c2w)
+        return out[0] if ts.ndim == 0 else out
+
+    @classmethod
+    def spiral(
+        cls,
+        num_readouts: int,
+        *,
+        radius: float,
+        start_elevation_deg: float,
+        end_elevation_deg: float,
+        degrees_per_readout: float,
+        look_at: tuple = (0.0, 0.0, 0.0),
+        start_azimuth_deg: float = 0.0,
+        every: int = 1,
+    ) -> Trajectory:
+        """An ascending spiral around `look_at`: azimuth grows by `degrees_per_readout`, elevation
+        linearly from start to end; poses at readouts 0, every, 2·every, … and the last one."""
+        if num_readouts < 2 or every < 1:
+            raise ValueError(
+                f"spiral: num_readouts >= 2 and every >= 1 expected, found {num_readouts}, {every}"
+            )
+        last = num_readouts - 1
+        readouts = np.unique(np.append(np.arange(0, last, every), last)).astype(np.float64)  # [P]
+        frac = readouts / last
+        azimuth = start_azimuth_deg + degrees_per_readout * readouts  # [P]
+        elevation = start_elevation_deg + (end_elevation_deg - start_elevation_deg) * frac  # [P]
+        eyes = orbit_eye(look_at, radius, azimuth, elevation)  # [P, 3]
+        viewmats = np.stack([_look_at(eye, look_at) for eye in eyes])  # [P, 4, 4]
+        return cls(readouts, viewmats, source="spiral")
+
+    def save_json(self, path: PathLike, **extra) -> None:
+        """Write the nerfstudio-like trajectory JSON (camera-to-world, OpenCV); `extra` keys
+        (e.g. intrinsics fl_x, fl_y, cx, cy, w, h) go to the top level."""
+        frames = [
+            {"readout": _number(k), "transform_matrix": c2w.tolist()}
+            for k, c2w in zip(self.readouts, np.linalg.inv(self.viewmats))
+        ]
+        doc = {"camera_model": "OPENCV", "convention": CONVENTION, **extra, "frames": frames}
+        Path(path).write_text(json.dumps(doc, indent=1))
+
+    @classmethod
+    def load_json(cls, path: PathLike) -> Trajectory:
+        """Read `save_json`'s file; ValueError naming the file when it is malformed."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"trajectory file not found: {path}")
+        doc = json.loads(path.read_text())
+        if doc.get("convention", CONVENTION) != CONVENTION:
+            raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
+        frames = doc.get("frames") or []
+        try:
+            readouts = np.array([f["readout"] for f in frames], np.float64)  # [P]
+            c2w = np.array([f["transform_matrix"] for f in frames], np.float64)  # [P, 4, 4]
+        except (KeyError, TypeError, ValueError) as err:
+            raise ValueError(f"{path}: malformed frames ({err})") from err
+        if not np.isfinite(c2w).all():
+            raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
+        if c2w.shape[1:] != (4, 4):
+            raise ValueError(f"{path}: transform_matrix expected 4x4, found {list(c2w.shape[1:])}")
+        return cls(readouts, np.linalg.inv(c2w), source=str(path))
+
+
+_look_at = look_at  # `spiral` has a parameter of the same name
+
+
+def _number(k: float):
+    """An integral readout as int (cleaner JSON), else float."""
+    return int(k) if float(k).is_integer() else float(k)

@@ -1,0 +1,160 @@
+"""Datasets: simulate -> write -> load round trip, determinism, calibration, bad input, the CLI."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from spikegs.cli import main
+from spikegs.data import SCENES, FrameSequenceSource, load_dataset, simulate_dataset
+from spikegs.data.sources import intrinsics
+from spikegs.data.trajectory import look_at
+
+SMALL = dict(height=24, width=32, readouts=400, test_on_path=2, test_off_path=2, progress=False)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """A small dataset of the default scene."""
+    return simulate_dataset("solids", tmp_path_factory.mktemp("ds") / "solids", seed=3, **SMALL)
+
+
+def test_round_trip(small):
+    ds = load_dataset(small.root)
+    assert (ds.height, ds.width, ds.channels) == (24, 32, 1)
+    assert ds.meta["scene"] == "solids" and ds.meta["seed"] == 3
+    assert ds.meta["readout_period_s"] == 25e-6 and ds.meta["flip"] is True
+    assert ds.meta["sim"]["rate_at_one"] == 0.25
+    assert ds.K.dtype == np.float32 and ds.K[0, 2] == 16 and ds.K[1, 2] == 12
+    assert len(ds.stream) == ds.num_readouts == 400
+    np.testing.assert_array_equal(ds.stream.packed(), small.stream.packed())
+    np.testing.assert_allclose(ds.trajectory.viewmats, small.trajectory.viewmats)
+    assert ds.trajectory.start == 0 and ds.trajectory.end == 399
+    ts = ds.train_timestamps
+    assert ts.dtype == np.int64 and ts.min() >= 32 and ts.max() <= 399 - 32
+    assert ds.scene_radius > 0 and ds.scene_center.shape == (3,)
+    assert [v.name for v in ds.test_views] == ["on_000", "on_001", "off_000", "off_001"]
+
+
+def test_test_views(small):
+    on = [v for v in small.test_views if v.readout is not None]
+    off = [v for v in small.test_views if v.readout is None]
+    assert len(on) == 2 and len(off) == 2
+    for view in on:
+        # on the path, clear of every training window of 65 readouts
+        np.testing.assert_allclose(view.viewmat, small.trajectory.pose_at(view.readout), atol=1e-12)
+        assert np.abs(small.train_timestamps - view.readout).min() > 64
+    for view in off:  # another radius: off the spiral
+        center = np.linalg.inv(view.viewmat)[:3, 3]
+        distance = np.linalg.norm(center - small.scene_center)
+        assert distance > 1.1 * np.linalg.norm(small.trajectory.centers[0] - small.scene_center)
+    for view in small.test_views:
+        assert view.image.shape == (24, 32, 1) and view.image.dtype == np.float32
+        # firing-rate units: intensity (<= 1) x rate_at_one
+        assert 0 < view.image.max() <= 0.25 + 1e-6
+
+
+def test_spikes_see_the_scene(small):
+    # TFP over a long window vs the clean image at its centre: correlated, same scale
+    view = next(v for v in small.test_views if v.readout is not None)
+    k = int(view.readout)
+    tfp = small.stream.tfp(k, 9)
+    assert np.corrcoef(tfp.ravel(), view.image[..., 0].ravel())[0, 1] > 0.6
+    assert tfp.mean() == pytest.approx(view.image.mean(), rel=0.35)
+
+
+def test_determinism_for_a_seed(tmp_path, small):
+    again = simulate_dataset("solids", tmp_path / "again", seed=3, **SMALL)
+    other = simulate_dataset("solids", tmp_path / "other", seed=4, **SMALL)
+    assert (again.root / "spikes.dat").read_bytes() == (small.root / "spikes.dat").read_bytes()
+    assert (other.root / "spikes.dat").read_bytes() != (small.root / "spikes.dat").read_bytes()
+    for a, b in zip(again.test_views, small.test_views):
+        np.testing.assert_array_equal(a.image, b.image)
+
+
+def constant_source(level: float, size: int = 16) -> FrameSequenceSource:
+    """A static camera looking at a constant image."""
+    frames = np.full((2, size, size, 1), level, np.float32)
+    viewmat = look_at([0, -3, 0], [0, 0, 0])
+    return FrameSequenceSource("constant", frames, [viewmat, viewmat], intrinsics(size, size, 40))
+
+
+def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
+    ds = simulate_dataset(
+        constant_source(0.6), tmp_path / "const", height=16, width=16, readouts=4000, progress=False
+    )
+    p = ds.meta["sim"]
+    rate = ds.stream.tfp(2000, 4000).mean()
+    assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)
+    for view in ds.test_views:
+        np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
+
+
+def test_colour_dataset_has_one_stream_per_channel(tmp_path):
+    ds = simulate_dataset("wires", tmp_path / "rgb", color=True, **SMALL)
+    assert ds.channels == 3 and len(ds.streams) == 3 and ds.stream == ds.streams
+    assert [s.path.name for s in ds.streams] == ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
+    assert ds.test_views[0].image.shape == (24, 32, 3)
+    assert len({s.path.read_bytes() for s in ds.streams}) == 3  # independent channel noise
+
+
+def test_missing_files_and_nan_poses(tmp_path, small):
+    for name in (
+        "meta.json",
+        "spikes.dat",
+        "trajectory.json",
+        "train_timestamps.txt",
+        "test/on_000.exr",
+    ):
+        root = tmp_path / name.replace("/", "_")
+        shutil.copytree(small.root, root)
+        (root / name).unlink()
+        with pytest.raises(FileNotFoundError, match=name.split("/")[-1]):
+            load_dataset(root)
+    root = tmp_path / "nan"
+    shutil.copytree(small.root, root)
+    doc = json.loads((root / "trajectory.json").read_text())
+    doc["frames"][5]["transform_matrix"][1][1] = float("nan")
+    (root / "trajectory.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="trajectory.json"):
+        load_dataset(root)
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        load_dataset(tmp_path / "nowhere")
+
+
+def test_existing_dataset_needs_overwrite(tmp_path):
+    out = tmp_path / "ds"
+    simulate_dataset("wires", out, **SMALL)
+    (out / "sim").mkdir()  # a cache derived from the old spikes
+    with pytest.raises(FileExistsError, match="--overwrite"):
+        simulate_dataset("wires", out, **SMALL)
+    ds = simulate_dataset("wires", out, overwrite=True, seed=1, **SMALL)
+    assert ds.meta["seed"] == 1 and not (out / "sim").exists()
+
+
+def test_unknown_scene_lists_the_known_ones(tmp_path):
+    with pytest.raises(ValueError) as err:
+        simulate_dataset("teapot", tmp_path / "x", **SMALL)
+    assert all(name in str(err.value) for name in SCENES)
+    assert not (tmp_path / "x").exists()  # nothing written before the scene is known
+
+
+def test_frames_and_poses_of_different_counts():
+    frames = np.zeros((3, 8, 8, 1), np.float32)
+    with pytest.raises(ValueError, match="3 frames but 2 poses"):
+        FrameSequenceSource("x", frames, [np.eye(4)] * 2, intrinsics(8, 8, 40))
+
+
+def test_cli(tmp_path, capsys):
+    out = tmp_path / "cli"
+    args = ["simulate", "--scene", "fine-texture", "--out", str(out), "--height", "16"]
+    args += ["--width", "16", "--readouts", "330", "--test-on-path", "2", "--quiet"]
+    assert main(args + ["--seed", "5", "--rate-at-one", "0.3"]) == 0
+    ds = load_dataset(out)
+    assert ds.meta["seed"] == 5 and ds.meta["sim"]["rate_at_one"] == 0.3
+    assert main(args) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(["simulate", "--scene", "teapot", "--out", str(tmp_path / "t")]) == 2
+    assert "solids" in capsys.readouterr().err

@@ -1,0 +1,161 @@
+"""Ground-truth sources: procedural scenes, frame sequences (NeRF-style transforms), Mitsuba."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+from spikegs.data import SCENES, FrameSequenceSource, ProceduralSource, simulate_dataset
+from spikegs.data.sources import (
+    LUMA_709,
+    OPENGL_TO_OPENCV,
+    MissingDependencyError,
+    MitsubaSource,
+    import_mitsuba,
+)
+from spikegs.image_io import write_image
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_procedural_scenes(name):
+    scene = SCENES[name]()
+    assert len(scene.means) > 1000 and np.isfinite(scene.means).all()
+    assert 0 <= scene.colors.min() and scene.colors.max() <= 1
+    np.testing.assert_array_equal(SCENES[name]().colors, scene.colors)  # fixed by the seed
+    mono = ProceduralSource(name, scene, 40, 30)
+    rgb = ProceduralSource(name, scene, 40, 30, channels=3)
+    viewmat = mono.trajectory(100, 1.0).pose_at(50.0)
+    gray, color = mono.render(viewmat), rgb.render(viewmat)
+    assert gray.shape == (30, 40, 1) and color.shape == (30, 40, 3) and gray.dtype == np.float32
+    np.testing.assert_allclose(gray[..., 0], color @ LUMA_709, atol=1e-5)  # Rec. 709 luma
+    assert gray.std() > 0.02  # the scene is in view
+
+
+def write_transforms(path, name, frames, viewmats, K, ext):
+    """A NeRF-synthetic-style transforms JSON: OpenGL camera-to-world, extensionless file paths."""
+    (path.parent / name).mkdir(parents=True, exist_ok=True)
+    entries = []
+    for i, (frame, viewmat) in enumerate(zip(frames, viewmats)):
+        stem = f"{name}/r_{i}"
+        encoded = (
+            frame
+            if ext == ".exr"
+            else np.where(frame <= 0.0031308, frame * 12.92, 1.055 * frame ** (1 / 2.4) - 0.055)
+        )  # 8-bit files hold sRGB
+        write_image(path.parent / (stem + ext), encoded)
+        c2w = np.linalg.inv(viewmat) @ OPENGL_TO_OPENCV  # OpenCV -> OpenGL camera axes
+        entries.append({"file_path": stem, "transform_matrix": c2w.tolist()})
+    fov = 2 * np.arctan(K[0, 2] / K[0, 0])
+    path.write_text(json.dumps({"camera_angle_x": fov, "frames": entries}))
+
+
+def test_frame_sequence_source(tmp_path):
+    truth = ProceduralSource("solids", SCENES["solids"](), 32, 32, channels=3)
+    path = truth.trajectory(1001, 0.5)
+    train_poses = path.pose_at(np.linspace(0, 1000, 6))  # [6, 4, 4]
+    train = np.stack([truth.render(v) for v in train_poses])  # [6, 32, 32, 3]
+    test_poses = [v for _, v, _ in truth.off_path_views(2)]
+    test = np.stack([truth.render(v) for v in test_poses])
+    write_transforms(
+        tmp_path / "transforms_train.json", "train", train, train_poses, truth.K, ".exr"
+    )
+    write_transforms(tmp_path / "transforms_test.json", "test", test, test_poses, truth.K, ".png")
+
+    source = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 32, 32, 3)
+    np.testing.assert_allclose(source.viewmats, train_poses, atol=1e-6)  # OpenGL -> OpenCV
+    np.testing.assert_allclose(source.K, truth.K, rtol=1e-6)
+    np.testing.assert_allclose(source.frames, train, atol=1e-6)
+    traj = source.trajectory(501, 0.0)
+    np.testing.assert_allclose(traj.readouts, np.linspace(0, 500, 6))
+    np.testing.assert_allclose(source.image_at(traj, 150.0), train[1] / 2 + train[2] / 2, atol=1e-6)
+    (_, v0, im0), _ = source.off_path_views(5)
+    np.testing.assert_allclose(v0, test_poses[0], atol=1e-6)
+    np.testing.assert_allclose(im0, test[0], atol=0.01)  # 8-bit sRGB, decoded
+
+    # half resolution, mono: intrinsics scale, luma of the frames
+    half = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 16, 16)
+    np.testing.assert_allclose(half.K[:2], truth.K[:2] / 2, rtol=1e-6)
+    assert half.frames.shape == (6, 16, 16, 1)
+
+    # a dataset from the directory: on-path held-out views are exact frames
+    ds = simulate_dataset(
+        tmp_path,
+        tmp_path / "ds",
+        height=32,
+        width=32,
+        readouts=501,
+        test_on_path=2,
+        test_off_path=2,
+        progress=False,
+    )
+    rate = ds.meta["sim"]["rate_at_one"]
+    for view in ds.test_views:
+        if view.readout is not None:
+            i = int(np.argmin(np.abs(traj.readouts - view.readout)))
+            assert view.readout == traj.readouts[i]
+            np.testing.assert_allclose(view.image[..., 0], train[i] @ LUMA_709 * rate, atol=1e-6)
+    assert [v.readout for v in ds.test_views][2:] == [None, None]
+
+
+def test_frame_sequence_missing_image(tmp_path):
+    path = tmp_path / "transforms.json"
+    path.write_text(
+        json.dumps(
+            {
+                "camera_angle_x": 0.7,
+                "frames": [{"file_path": "./train/r_0", "transform_matrix": np.eye(4).tolist()}],
+            }
+        )
+    )
+    with pytest.raises(FileNotFoundError, match="r_0"):
+        FrameSequenceSource.from_transforms(path, 8, 8)
+
+
+def test_mitsuba_missing_says_how_to_install(monkeypatch):
+    monkeypatch.setitem(sys.modules, "mitsuba", None)  # import mitsuba -> ImportError
+    with pytest.raises(MissingDependencyError, match=r"pip install 'spikegs\[mitsuba\]'"):
+        import_mitsuba()
+
+
+def test_mitsuba_source_convention_and_dataset(tmp_path):
+    pytest.importorskip("mitsuba")
+    target = np.array([0.3, -0.2, 0.1])
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "path"},
+        "ball": {
+            "type": "sphere",
+            "center": target.tolist(),
+            "radius": 0.25,
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 0.5, 0.25]}},
+        },
+    }
+    source = MitsubaSource(scene, 16, 16, channels=3, spp=1, center=[0, 0, 0], radius=1.0)
+    traj = source.trajectory(101, 1.0)
+    viewmat = traj.pose_at(60.0)
+    image = source.render(viewmat)  # [16, 16, 3]
+    assert image.shape == (16, 16, 3)
+    mask = image[..., 0] > 0.5
+    assert mask.sum() > 3
+    np.testing.assert_allclose(image[mask], [[1.0, 0.5, 0.25]] * mask.sum(), atol=1e-5)
+    # the ball is where the OpenCV camera model projects its centre (pixel centres at +0.5)
+    cam = viewmat[:3, :3] @ target + viewmat[:3, 3]
+    expected = (source.K @ cam)[:2] / cam[2]
+    rows, cols = np.nonzero(mask)
+    np.testing.assert_allclose([cols.mean() + 0.5, rows.mean() + 0.5], expected, atol=1.0)
+
+    ds = simulate_dataset(
+        scene,
+        tmp_path / "mi",
+        height=16,
+        width=16,
+        readouts=330,
+        spp=1,
+        test_on_path=2,
+        test_off_path=1,
+        frame_every=40,
+        progress=False,
+    )
+    assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3

@@ -1,0 +1,146 @@
+"""Trajectory: slerp/linear interpolation, continuity, the spiral, the JSON file."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from spikegs.data import Trajectory
+from spikegs.data.trajectory import look_at
+
+
+def pose(rotvec, center) -> np.ndarray:
+    """Viewmat [4, 4] of a camera with camera-to-world rotation `rotvec` at `center`."""
+    c2w = np.eye(4)
+    c2w[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    c2w[:3, 3] = center
+    return np.linalg.inv(c2w)
+
+
+def c2w_parts(viewmat: np.ndarray) -> tuple[Rotation, np.ndarray]:
+    c2w = np.linalg.inv(viewmat)
+    return Rotation.from_matrix(c2w[:3, :3]), c2w[:3, 3]
+
+
+@pytest.fixture
+def two_poses() -> Trajectory:
+    # 90° about z and a 2-unit move along x between readouts 10 and 30
+    return Trajectory(
+        np.array([10.0, 30.0]),
+        np.stack([pose([0, 0, 0], [0, 0, 0]), pose([0, 0, np.pi / 2], [2, 0, 0])]),
+    )
+
+
+def test_ends_are_the_recorded_poses(two_poses):
+    np.testing.assert_allclose(two_poses.pose_at(10.0), two_poses.viewmats[0], atol=1e-12)
+    np.testing.assert_allclose(two_poses.pose_at(30), two_poses.viewmats[1], atol=1e-12)
+
+
+def test_middle_is_slerp_and_linear(two_poses):
+    for u in (0.25, 0.5, 0.75):
+        rot, center = c2w_parts(two_poses.pose_at(10 + 20 * u))
+        np.testing.assert_allclose(rot.as_rotvec(), [0, 0, u * np.pi / 2], atol=1e-12)
+        np.testing.assert_allclose(center, [2 * u, 0, 0], atol=1e-12)
+
+
+def test_batch_matches_scalar_and_stays_rigid(two_poses):
+    ts = np.linspace(10, 30, 7)
+    batch = two_poses.pose_at(ts)  # [7, 4, 4]
+    assert batch.shape == (7, 4, 4) and batch.dtype == np.float64
+    for t, m in zip(ts, batch):
+        np.testing.assert_allclose(m, two_poses.pose_at(float(t)), atol=1e-12)
+        np.testing.assert_allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-12)
+
+
+def test_continuity_across_recorded_poses():
+    traj = Trajectory.spiral(
+        200,
+        radius=3,
+        start_elevation_deg=10,
+        end_elevation_deg=40,
+        degrees_per_readout=0.5,
+        every=16,
+    )
+    ts = np.linspace(0, 199, 4001)  # steps of ~0.05 readouts, across every recorded pose
+    poses = traj.pose_at(ts)
+    steps = np.abs(np.diff(poses, axis=0)).max(axis=(1, 2))
+    # 0.5°/readout at radius 3: ~1.3e-3 per step; a jump would be orders larger
+    assert steps.max() < 3e-3
+    assert steps.max() < 3 * np.median(steps)
+
+
+def test_outside_the_recorded_readouts_is_an_error(two_poses):
+    for t in (9.999, 30.001, np.nan):
+        with pytest.raises(ValueError, match="outside"):
+            two_poses.pose_at(t)
+    with pytest.raises(ValueError, match="outside"):
+        two_poses.pose_at(np.array([15.0, 31.0]))
+
+
+def test_spiral_orbits_ascends_and_looks_at_the_centre():
+    target = (0.5, -0.2, 0.1)
+    traj = Trajectory.spiral(
+        101,
+        radius=4,
+        start_elevation_deg=0,
+        end_elevation_deg=30,
+        degrees_per_readout=0.2,
+        look_at=target,
+    )
+    assert len(traj) == 101
+    offsets = traj.centers - np.array(target)  # [P, 3]
+    np.testing.assert_allclose(np.linalg.norm(offsets, axis=1), 4, atol=1e-12)
+    azimuth = np.degrees(np.unwrap(np.arctan2(offsets[:, 1], offsets[:, 0])))
+    np.testing.assert_allclose(np.diff(azimuth), 0.2, atol=1e-9)
+    elevation = np.degrees(np.arcsin(offsets[:, 2] / 4))
+    np.testing.assert_allclose(elevation[[0, 50, 100]], [0, 15, 30], atol=1e-9)
+    # the target is on the optical axis (OpenCV: +z forward) and the image is upright (+y down)
+    for m in traj.viewmats:
+        cam = m[:3, :3] @ np.array(target) + m[:3, 3]
+        np.testing.assert_allclose(cam[:2], 0, atol=1e-12)
+        assert cam[2] == pytest.approx(4)
+        assert (m[:3, :3] @ np.array([0, 0, 1.0]))[1] < 0  # world up is image up
+
+
+def test_spiral_every_n_keeps_both_ends():
+    traj = Trajectory.spiral(
+        100, radius=2, start_elevation_deg=5, end_elevation_deg=5, degrees_per_readout=1, every=30
+    )
+    np.testing.assert_array_equal(traj.readouts, [0, 30, 60, 90, 99])
+
+
+def test_json_round_trip_states_the_convention(tmp_path, two_poses):
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    assert doc["convention"] == "opencv" and doc["camera_model"] == "OPENCV"
+    assert [f["readout"] for f in doc["frames"]] == [10, 30]
+    np.testing.assert_allclose(
+        doc["frames"][1]["transform_matrix"], np.linalg.inv(two_poses.viewmats[1])
+    )
+    back = Trajectory.load_json(path)
+    np.testing.assert_allclose(back.readouts, two_poses.readouts)
+    np.testing.assert_allclose(back.viewmats, two_poses.viewmats, atol=1e-12)
+
+
+def test_json_with_nan_or_missing_file_is_an_error(tmp_path, two_poses):
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    doc["frames"][0]["transform_matrix"][0][3] = float("nan")
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="trajectory.json"):
+        Trajectory.load_json(path)
+    with pytest.raises(FileNotFoundError, match="nothing.json"):
+        Trajectory.load_json(tmp_path / "nothing.json")
+
+
+def test_bad_poses_are_rejected():
+    with pytest.raises(ValueError, match="increasing"):
+        Trajectory(np.array([0.0, 0.0]), np.stack([np.eye(4)] * 2))
+    with pytest.raises(ValueError, match="rigid"):
+        Trajectory(np.array([0.0]), np.diag([2.0, 1, 1, 1])[None])
+    with pytest.raises(ValueError, match="parallel"):
+        look_at([0, 0, 5], [0, 0, 0])
