@@ -165,7 +165,9 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     std::vector<T> behind(std::size_t(C) * kTilePixels),
         gimg(std::size_t(C) * kTilePixels);  // [C, 256]
     std::vector<T> gcol(C);                  // colour gradient of the current splat
-#pragma omp for schedule(dynamic, 1)
+// static round-robin: the same tiles meet the same per-thread buffers every call, so the
+// gradient sums (and a resumed training run) are bitwise reproducible
+#pragma omp for schedule(static, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row

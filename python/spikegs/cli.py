@@ -8,7 +8,10 @@ import sys
 
 # sub-command -> (module implementing it, one-line help)
 COMMANDS = {
-    "demo": ("spikegs.demo", "simulate, train SIM, SpikeGS and TFP(33)+3DGS, evaluate: the main job"),
+    "demo": (
+        "spikegs.demo",
+        "simulate, train SIM, SpikeGS and TFP(33)+3DGS, evaluate: the main job",
+    ),
     "simulate": ("spikegs.data.simulate_cli", "make a synthetic spike dataset"),
     "sim-train": ("spikegs.sim_cli", "train the SIM blind-spot network on a dataset"),
     "train": ("spikegs.train_cli", "train a Gaussian scene from a spike dataset"),
@@ -25,9 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             module = importlib.import_module(module_name)
         except ModuleNotFoundError as err:
-            if err.name != module_name:
-                raise
-            continue  # a command whose module is not part of this build
+            if err.name is None or not module_name.startswith(err.name):
+                raise  # a dependency is missing, not the command's own module
+            continue  # a command whose module (or package) is not part of this build
         module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
         sub.choices[name].set_defaults(_run=module.run)
     return parser

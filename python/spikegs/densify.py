@@ -1,0 +1,145 @@
+"""Adaptive density control of 3DGS: clone, split, prune and opacity reset, with the optimiser's
+Adam moments carried along so that training continues smoothly."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from .gaussians import GaussianModel
+from .reference import _quat_to_rotation
+
+
+@dataclass
+class DensifyConfig:
+    start: int = 500  # first iteration that densifies
+    stop: int = 15000  # last iteration that densifies
+    every: int = 100  # densify and prune every this many iterations
+    grad_threshold: float = 0.0002  # mean screen-space gradient (NDC units) that triggers it
+    percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
+    min_opacity: float = 0.005  # prune below
+    max_screen_size: float = 0.0  # prune larger than this many pixels (0: never)
+    max_world_size: float = 0.5  # prune larger than this fraction of the scene radius
+    opacity_reset_every: int = 3000  # 0: never
+    max_gaussians: int = 200_000  # never grow beyond
+
+
+def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, state_fn) -> None:
+    """Replace each Gaussian parameter p by param_fn(name, p), its Adam moments m by state_fn(m)."""
+    for group in optimizer.param_groups:
+        name = group["name"]
+        if name not in model.params:
+            continue
+        old = group["params"][0]
+        new = torch.nn.Parameter(param_fn(name, old.detach()))
+        state = optimizer.state.pop(old, None)
+        if state:
+            state["exp_avg"] = state_fn(name, state["exp_avg"])
+            state["exp_avg_sq"] = state_fn(name, state["exp_avg_sq"])
+            optimizer.state[new] = state
+        group["params"][0] = new
+        model.params[name] = new
+
+
+class Densifier:
+    """Accumulates screen-space gradients between steps and applies density control."""
+
+    def __init__(self, config: DensifyConfig, scene_radius: float):
+        self.config = config
+        self.scene_radius = scene_radius
+        self.grad_sum = torch.zeros(0)
+        self.count = torch.zeros(0)
+        self.max_radii = torch.zeros(0)
+
+    def _resize(self, n: int) -> None:
+        if self.grad_sum.shape[0] != n:
+            self.grad_sum, self.count, self.max_radii = (
+                torch.zeros(n),
+                torch.zeros(n),
+                torch.zeros(n),
+            )
+
+    def observe(
+        self, radii: torch.Tensor, screen_grad: torch.Tensor, width: int, height: int
+    ) -> None:
+        """Record one render's 2D-mean gradients [N, 2] (pixels) for visible Gaussians."""
+        self._resize(radii.shape[0])
+        visible = radii > 0
+        ndc = screen_grad[visible] * torch.tensor([0.5 * width, 0.5 * height])
+        self.grad_sum[visible] += ndc.norm(dim=1)
+        self.count[visible] += 1
+        self.max_radii[visible] = torch.maximum(self.max_radii[visible], radii[visible].float())
+
+    def step(self, model: GaussianModel, optimizer: torch.optim.Optimizer, iteration: int) -> None:
+        """Densify/prune and reset opacities at the configured iterations (1-based)."""
+        c = self.config
+        if c.start <= iteration <= c.stop and iteration % c.every == 0:
+            self._densify_and_prune(model, optimizer, iteration)
+        if c.opacity_reset_every and iteration % c.opacity_reset_every == 0 and iteration <= c.stop:
+            cap = torch.logit(torch.tensor(0.01))
+            _surgery(
+                model,
+                optimizer,
+                lambda name, p: torch.minimum(p, cap) if name == "opacity_logits" else p,
+                lambda name, m: torch.zeros_like(m) if name == "opacity_logits" else m,
+            )
+
+    def _densify_and_prune(self, model: GaussianModel, optimizer, iteration: int) -> None:
+        c = self.config
+        n = len(model)
+        self._resize(n)
+        grads = self.grad_sum / self.count.clamp_min(1)
+        selected = grads >= c.grad_threshold
+        room = max(c.max_gaussians - n, 0)
+        if int(selected.sum()) > room:  # keep the strongest gradients under the cap
+            order = torch.argsort(grads, descending=True)
+            selected = torch.zeros(n, dtype=torch.bool)
+            selected[order[:room]] = True
+        big = model.scales.max(dim=1).values > c.percent_dense * self.scene_radius
+        clone, split = selected & ~big, selected & big
+
+        with torch.no_grad():
+            p = {k: v.detach() for k, v in model.params.items()}
+            new = {k: v[clone] for k, v in p.items()}  # clones: exact copies
+            # splits: two samples from each Gaussian, 1.6x smaller; the originals are removed
+            std = model.scales[split].repeat(2, 1)
+            rot = _quat_to_rotation(torch.nn.functional.normalize(p["quats"][split], dim=1)).repeat(
+                2, 1, 1
+            )
+            offsets = (rot @ (torch.randn_like(std) * std).unsqueeze(-1)).squeeze(-1)
+            for k, v in p.items():
+                extra = v[split].repeat(2, *([1] * (v.dim() - 1)))
+                if k == "means":
+                    extra = extra + offsets
+                elif k == "log_scales":
+                    extra = extra - torch.log(torch.tensor(1.6))
+                new[k] = torch.cat([new[k], extra])
+            added = new["means"].shape[0]
+            _surgery(
+                model,
+                optimizer,
+                lambda name, v: torch.cat([v, new[name]]),
+                lambda name, m: torch.cat([m, torch.zeros_like(new[name])]),
+            )
+            remove = torch.cat([split, torch.zeros(added, dtype=torch.bool)])
+            remove |= model.opacities < c.min_opacity
+            if c.max_world_size:
+                remove |= model.scales.max(dim=1).values > c.max_world_size * self.scene_radius
+            if c.max_screen_size and iteration > c.opacity_reset_every:
+                radii = torch.cat([self.max_radii, torch.zeros(added)])
+                remove |= radii > c.max_screen_size
+            keep = ~remove
+            _surgery(model, optimizer, lambda name, v: v[keep], lambda name, m: m[keep])
+        self._resize(0)
+        self._resize(len(model))
+
+    def state_dict(self) -> dict:
+        return {"grad_sum": self.grad_sum, "count": self.count, "max_radii": self.max_radii}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.grad_sum, self.count, self.max_radii = (
+            state["grad_sum"],
+            state["count"],
+            state["max_radii"],
+        )

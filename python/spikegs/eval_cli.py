@@ -1,0 +1,36 @@
+"""`spikegs eval RUN`: PSNR/SSIM on the test views, written to RUN/eval.json with images."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
+    parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
+    parser.add_argument("--no-images", action="store_true", help="write eval.json only")
+
+
+def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
+    """The dataset a run was trained on, unless one is given."""
+    if dataset is not None:
+        return dataset
+    train = run_dir / "train.json"
+    if not train.exists():
+        raise FileNotFoundError(f"{train} not found: is {run_dir} a finished run?")
+    return Path(json.loads(train.read_text())["dataset"])
+
+
+def run(args: argparse.Namespace) -> int:
+    from .data import load_dataset
+    from .evaluate import evaluate_run
+
+    dataset = load_dataset(run_dataset(args.run, args.dataset))
+    result = evaluate_run(args.run, dataset, write_images=not args.no_images)
+    print(
+        f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
+        f"over {len(result['views'])} test views -> {args.run / 'eval.json'}"
+    )
+    return 0

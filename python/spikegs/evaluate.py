@@ -1,0 +1,66 @@
+"""Evaluation of a trained scene on the dataset's held-out test views: PSNR, SSIM, images."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .gaussians import GaussianModel
+from .image_io import write_image
+from .metrics import psnr, ssim
+from .ply import load_ply
+from .targets import intensity_scale
+
+
+def render_view(model: GaussianModel, view, K: torch.Tensor, width: int, height: int) -> np.ndarray:
+    """The model's image [H, W, C] (intensity units) from a test view's pose."""
+    with torch.no_grad():
+        viewmat = torch.as_tensor(view.viewmat, dtype=torch.float32)
+        return model.render(viewmat, K, width, height).image.numpy()
+
+
+def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> dict[str, float]:
+    """PSNR (and SSIM) of `pred` against `gt`, both [H, W, C] intensities, clipped to [0, 1]."""
+    pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)
+    out = {"psnr": psnr(pred, gt)}
+    if with_ssim:
+        out["ssim"] = ssim(pred, gt)
+    return out
+
+
+def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
+    """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png."""
+    run_dir = Path(run_dir)
+    ply = run_dir / "scene.ply"
+    if not ply.exists():
+        raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
+    model = load_ply(ply)
+    scale = intensity_scale(dataset)
+    K = torch.as_tensor(dataset.K, dtype=torch.float32)
+    views = {}
+    for view in dataset.test_views:
+        pred = render_view(model, view, K, dataset.width, dataset.height)
+        gt = np.asarray(view.image, dtype=np.float32) / scale
+        views[view.name] = view_metrics(pred, gt)
+        if write_images:  # ground truth | render | 4 x absolute error
+            side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
+            write_image(run_dir / "eval" / f"{view.name}.png", side)
+    train = (
+        json.loads((run_dir / "train.json").read_text())
+        if (run_dir / "train.json").exists()
+        else {}
+    )
+    result = {
+        "method": train.get("method"),
+        "psnr": float(np.mean([v["psnr"] for v in views.values()])),
+        "ssim": float(np.mean([v["ssim"] for v in views.values()])),
+        "train_seconds": train.get("train_seconds"),
+        "sim_seconds": train.get("sim_seconds"),
+        "gaussians": len(model),
+        "views": views,
+    }
+    (run_dir / "eval.json").write_text(json.dumps(result, indent=2))
+    return result

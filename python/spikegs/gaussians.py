@@ -1,0 +1,119 @@
+"""The Gaussian scene: raw parameters, their activations, initialisation and rendering."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from .rasterize import RasterizeResult, rasterize
+from .sh import num_coeffs
+
+PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
+
+
+class GaussianModel:
+    """N Gaussians as raw (unconstrained) tensors; `scales`, `opacities` and `colors` activate them.
+
+    means [N, 3], log_scales [N, 3], quats [N, 4] (w, x, y, z, unnormalised), opacity_logits [N],
+    sh_dc [N, 1, C] and sh_rest [N, K - 1, C] with K = (sh_degree + 1)², plus a learnable
+    background [C]. C = 1 for a mono spike camera.
+    """
+
+    def __init__(self, params: dict[str, torch.Tensor], background: torch.Tensor, sh_degree: int):
+        missing = set(PARAMETER_NAMES) - set(params)
+        if missing:
+            raise ValueError(f"GaussianModel: missing parameters {sorted(missing)}")
+        self.params = {k: torch.nn.Parameter(params[k].detach().clone()) for k in PARAMETER_NAMES}
+        self.background = torch.nn.Parameter(background.detach().clone())
+        self.sh_degree = sh_degree
+
+    @classmethod
+    def random(
+        cls,
+        n: int,
+        center,
+        radius: float,
+        channels: int,
+        sh_degree: int = 0,
+        generator: torch.Generator | None = None,
+    ) -> GaussianModel:
+        """`n` Gaussians uniform in the ball (center, radius), grey, semi-transparent, isotropic."""
+        g = generator
+        direction = torch.randn(n, 3, generator=g)
+        direction = direction / direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
+        r = radius * torch.rand(n, 1, generator=g) ** (1 / 3)
+        means = torch.as_tensor(center, dtype=torch.float32) + direction * r
+        # scale: about the mean distance between neighbours at this density
+        spacing = radius * (4 / 3 * math.pi / max(n, 1)) ** (1 / 3)
+        return cls.from_points(means, torch.full((n, channels), 0.5), spacing, sh_degree)
+
+    @classmethod
+    def from_points(
+        cls, points: torch.Tensor, colors: torch.Tensor, scale: float, sh_degree: int = 0
+    ) -> GaussianModel:
+        """Gaussians at `points` [N, 3] with colours [N, C] (intensity units) and one scale."""
+        n, channels = colors.shape
+        params = {
+            "means": points.float(),
+            "log_scales": torch.full((n, 3), math.log(scale)),
+            "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1),
+            "opacity_logits": torch.full((n,), math.log(0.1 / 0.9)),
+            "sh_dc": ((colors.float() - 0.5) / 0.28209479177387814).unsqueeze(1),
+            "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels),
+        }
+        return cls(params, torch.zeros(channels), sh_degree)
+
+    def __len__(self) -> int:
+        return self.params["means"].shape[0]
+
+    @property
+    def channels(self) -> int:
+        return self.params["sh_dc"].shape[-1]
+
+    @property
+    def scales(self) -> torch.Tensor:  # [N, 3]
+        return self.params["log_scales"].exp()
+
+    @property
+    def opacities(self) -> torch.Tensor:  # [N]
+        return torch.sigmoid(self.params["opacity_logits"])
+
+    @property
+    def sh(self) -> torch.Tensor:  # [N, K, C]
+        return torch.cat([self.params["sh_dc"], self.params["sh_rest"]], dim=1)
+
+    def render(
+        self,
+        viewmat: torch.Tensor,
+        K: torch.Tensor,
+        width: int,
+        height: int,
+        screen_points: torch.Tensor | None = None,
+    ) -> RasterizeResult:
+        """Render from world-to-camera `viewmat` [4, 4] with intrinsics `K` [3, 3]."""
+        return rasterize(
+            self.params["means"],
+            self.params["quats"],
+            self.scales,
+            self.opacities,
+            self.sh,
+            viewmat,
+            K,
+            width,
+            height,
+            sh_degree=self.sh_degree,
+            background=self.background,
+            screen_points=screen_points,
+        )
+
+    def state_dict(self) -> dict:
+        return {
+            "params": {k: v.detach().clone() for k, v in self.params.items()},
+            "background": self.background.detach().clone(),
+            "sh_degree": self.sh_degree,
+        }
+
+    @classmethod
+    def from_state_dict(cls, state: dict) -> GaussianModel:
+        return cls(state["params"], state["background"], state["sh_degree"])

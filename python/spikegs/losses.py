@@ -1,0 +1,39 @@
+"""The SpikeGS losses (paper eqs. 6, 9, 14) and an optional differentiable D-SSIM term."""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+
+
+def instant_loss(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """L_instant = |render(t) - Ī(t)|₁, mean over pixels; images [H, W, C]."""
+    return (render - target).abs().mean()
+
+
+def exposure_loss(renders: list[torch.Tensor], target: torch.Tensor) -> torch.Tensor:
+    """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁; renders K x [H, W, C], target [H,W,C]."""
+    return (torch.stack(renders).mean(dim=0) - target).abs().mean()
+
+
+def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
+    x = torch.arange(size, dtype=torch.float32) - (size - 1) / 2
+    g = torch.exp(-(x**2) / (2 * sigma**2))
+    g = g / g.sum()
+    return g[:, None] * g[None, :]  # [size, size]
+
+
+def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]."""
+    c = render.shape[-1]
+    x, y = render.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None]  # [1, C, H, W]
+    w = _gaussian_window().to(render)[None, None].expand(c, 1, -1, -1)
+
+    def blur(t):
+        return F.conv2d(t, w, padding=w.shape[-1] // 2, groups=c)
+
+    mx, my = blur(x), blur(y)
+    vx, vy, cxy = blur(x * x) - mx**2, blur(y * y) - my**2, blur(x * y) - mx * my
+    c1, c2 = 0.01**2, 0.03**2
+    s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx**2 + my**2 + c1) * (vx + vy + c2))
+    return (1 - s.mean()) / 2

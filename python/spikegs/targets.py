@@ -1,0 +1,91 @@
+"""Supervision images for training, computed once per training timestamp, in intensity units.
+
+Spike images (TFP, TFI, SIM) are firing rates, spikes per readout; dividing by the rate that
+intensity 1.0 fires (the simulator's calibration, or for real data a high percentile of TFP)
+puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS defaults hold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .config import Config
+from .sim_train import infer_sim, train_or_load
+
+
+@dataclass
+class Targets:
+    timestamps: np.ndarray  # [M] readouts
+    instant: torch.Tensor | None  # [M, H, W, C] or None
+    exposure: torch.Tensor | None  # [M, H, W, C] or None
+    sim_seconds: float = 0.0  # time spent training SIM (0 when it was cached)
+
+
+def _find_key(tree, key: str):
+    """The first value stored under `key` anywhere in nested dicts, or None."""
+    if isinstance(tree, dict):
+        if key in tree:
+            return tree[key]
+        for value in tree.values():
+            found = _find_key(value, key)
+            if found is not None:
+                return found
+    return None
+
+
+def intensity_scale(dataset) -> float:
+    """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
+    rate = _find_key(dataset.meta, "rate_at_one")
+    if rate is not None:
+        return float(rate)
+    ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
+    return float(np.percentile(dataset.stream.tfp(ts, 33), 99.5)) or 1.0
+
+
+def _channels_last(images: np.ndarray, scale: float) -> torch.Tensor:
+    """[M, H, W] or [M, H, W, C] firing rates -> [M, H, W, C] intensities."""
+    images = np.asarray(images, dtype=np.float32)
+    if images.ndim == 3:
+        images = images[..., None]
+    return torch.from_numpy(images / scale)
+
+
+def sim_path(dataset, window: int, seed: int) -> Path:
+    """Where a dataset's trained SIM is cached (shared by every method trained on it)."""
+    return Path(dataset.root) / "sim" / f"sim_w{window}_seed{seed}.pt"
+
+
+def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
+    """Instant and exposure targets of `config`'s method at the dataset's training timestamps."""
+    s = config.supervision
+    ts = np.asarray(dataset.train_timestamps)
+    scale = intensity_scale(dataset)
+    stream = dataset.stream
+    instant, sim_seconds = None, 0.0
+    if s.instant_weight > 0 and s.instant != "none":
+        if s.instant == "sim":
+            c = config.sim
+            model, sim_seconds = train_or_load(
+                sim_path(dataset, c.window, config.train.seed),
+                stream,
+                ts,
+                c.window,
+                steps=c.iterations,
+                batch_size=c.batch,
+                crop=c.crop,
+                seed=config.train.seed,
+                progress=progress,
+            )
+            instant = _channels_last(infer_sim(model, stream, ts), scale)
+        elif s.instant == "tfp":
+            instant = _channels_last(stream.tfp(ts, s.instant_window), scale)
+        else:
+            instant = _channels_last(stream.tfi(ts), scale)
+    exposure = None
+    if s.exposure_weight > 0:
+        exposure = _channels_last(stream.tfp(ts, s.exposure_window), scale)
+    return Targets(ts, instant, exposure, sim_seconds)

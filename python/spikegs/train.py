@@ -1,0 +1,227 @@
+"""The trainer: one loop for SpikeGS, its baselines and ablations (a method is a supervision).
+
+A run directory holds config.yaml, log.jsonl (error against time), checkpoints/last.pt and, at the
+end, scene.ply and train.json. Training resumes from the last checkpoint with `resume=True`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+from tqdm.auto import tqdm
+
+from .config import Config
+from .densify import Densifier
+from .evaluate import render_view, view_metrics
+from .gaussians import PARAMETER_NAMES, GaussianModel
+from .losses import dssim, exposure_loss, instant_loss
+from .ply import save_ply
+from .targets import build_targets, intensity_scale
+
+
+def _optimizer(model: GaussianModel, config: Config, scene_radius: float) -> torch.optim.Adam:
+    lr = config.lr
+    groups = [
+        {"params": [model.params[name]], "name": name, "lr": getattr(lr, name)}
+        for name in PARAMETER_NAMES
+    ]
+    groups[0]["lr"] = lr.means * scene_radius
+    groups.append({"params": [model.background], "name": "background", "lr": lr.background})
+    return torch.optim.Adam(groups, lr=0.0, eps=1e-15)
+
+
+def _means_lr(config: Config, iteration: int, scene_radius: float) -> float:
+    """Exponential decay from lr.means to lr.means_final over the run, times the scene radius."""
+    frac = min(iteration / max(config.train.iterations, 1), 1.0)
+    lr0, lr1 = config.lr.means, config.lr.means_final
+    if lr0 == 0 or lr1 == 0:
+        return lr0 * scene_radius
+    return math.exp(math.log(lr0) * (1 - frac) + math.log(lr1) * frac) * scene_radius
+
+
+class Trainer:
+    """Trains a GaussianModel on `dataset` with the supervision of `config`, in `run_dir`."""
+
+    def __init__(self, dataset, config: Config, run_dir: str | Path, progress: bool = True):
+        self.dataset, self.config, self.progress = dataset, config, progress
+        self.run_dir = Path(run_dir)
+        self.scale = intensity_scale(dataset)
+        self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
+        self.radius = float(dataset.scene_radius)
+        self.checkpoint_path = self.run_dir / "checkpoints" / "last.pt"
+
+    # -- state ---------------------------------------------------------------------------------
+    def _fresh_state(self) -> None:
+        t = self.config.train
+        torch.manual_seed(t.seed)
+        gen = torch.Generator().manual_seed(t.seed)
+        self.model = GaussianModel.random(
+            t.init_gaussians,
+            self.dataset.scene_center,
+            self.radius,
+            self.dataset.channels,
+            t.sh_degree,
+            gen,
+        )
+        self.optimizer = _optimizer(self.model, self.config, self.radius)
+        self.densifier = Densifier(self.config.densify, self.radius)
+        self.rng = np.random.default_rng(t.seed)
+        self.iteration, self.train_seconds = 0, 0.0
+
+    def save_checkpoint(self) -> None:
+        self.checkpoint_path.parent.mkdir(parents=True, exist_ok=True)
+        state = {
+            "iteration": self.iteration,
+            "train_seconds": self.train_seconds,
+            "model": self.model.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "densifier": self.densifier.state_dict(),
+            "rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "config": self.config.to_dict(),
+        }
+        tmp = self.checkpoint_path.with_suffix(".tmp")
+        torch.save(state, tmp)
+        tmp.replace(self.checkpoint_path)  # atomic: a kill mid-save keeps the previous one
+
+    def _load_checkpoint(self) -> None:
+        state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        if state["config"] != self.config.to_dict():
+            raise ValueError(
+                f"{self.checkpoint_path}: saved with another configuration; "
+                "resume with the same method and settings"
+            )
+        self.model = GaussianModel.from_state_dict(state["model"])
+        self.optimizer = _optimizer(self.model, self.config, self.radius)
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.densifier = Densifier(self.config.densify, self.radius)
+        self.densifier.load_state_dict(state["densifier"])
+        self.rng = np.random.default_rng()
+        self.rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
+
+    # -- one step ------------------------------------------------------------------------------
+    def _pose(self, readout: float) -> torch.Tensor:
+        return torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
+
+    def step(self) -> float:
+        """One optimisation step on a random training timestamp; returns the loss."""
+        s, targets = self.config.supervision, self.targets
+        self.iteration += 1
+        for group in self.optimizer.param_groups:
+            if group["name"] == "means":
+                group["lr"] = _means_lr(self.config, self.iteration, self.radius)
+        index = int(self.rng.integers(len(targets.timestamps)))
+        t = float(targets.timestamps[index])
+        h, w = self.dataset.height, self.dataset.width
+        screen = torch.zeros(len(self.model), 2, requires_grad=True)
+        radii = torch.zeros(len(self.model), dtype=torch.int32)
+        loss = torch.zeros(())
+        if targets.instant is not None:
+            r = self.model.render(self._pose(t), self.K, w, h, screen_points=screen)
+            radii = torch.maximum(radii, r.radii)
+            loss = loss + s.instant_weight * instant_loss(r.image, targets.instant[index])
+            if s.dssim_weight:
+                loss = loss + s.dssim_weight * dssim(r.image, targets.instant[index])
+        if targets.exposure is not None:
+            half = (s.exposure_window - 1) / 2
+            renders = []
+            for tk in np.linspace(t - half, t + half, s.exposure_poses):
+                r = self.model.render(self._pose(float(tk)), self.K, w, h, screen_points=screen)
+                radii = torch.maximum(radii, r.radii)
+                renders.append(r.image)
+            loss = loss + s.exposure_weight * exposure_loss(renders, targets.exposure[index])
+        loss.backward()
+        self.optimizer.step()
+        self.optimizer.zero_grad(set_to_none=True)
+        self.densifier.observe(radii, screen.grad, w, h)
+        self.densifier.step(self.model, self.optimizer, self.iteration)
+        return loss.item()
+
+    # -- the loop ------------------------------------------------------------------------------
+    def quick_psnr(self) -> float:
+        """PSNR on the first test view (the progress bar's held-out figure)."""
+        view = self.dataset.test_views[0]
+        image = render_view(self.model, view, self.K, self.dataset.width, self.dataset.height)
+        return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
+
+    def train(self, resume: bool = False) -> dict:
+        """Run (or resume) training to `config.train.iterations`; returns the run summary."""
+        t = self.config.train
+        if resume:
+            if not self.checkpoint_path.exists():
+                raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+        elif self.checkpoint_path.exists():
+            raise FileExistsError(f"{self.run_dir} already holds a run; pass resume or another dir")
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        (self.run_dir / "config.yaml").write_text(
+            yaml.safe_dump(self.config.to_dict(), sort_keys=False)
+        )
+        self.targets = build_targets(self.dataset, self.config, self.progress)
+        if resume:
+            self._load_checkpoint()
+        else:
+            self._fresh_state()
+        log = (self.run_dir / "log.jsonl").open("a")
+        bar = tqdm(
+            total=t.iterations,
+            initial=self.iteration,
+            disable=not self.progress,
+            desc=self.config.method,
+            dynamic_ncols=True,
+        )
+        psnr = float("nan")
+        try:
+            while self.iteration < t.iterations:
+                start = time.perf_counter()
+                loss = self.step()
+                self.train_seconds += time.perf_counter() - start
+                it = self.iteration
+                if it % t.eval_every == 0 or it == t.iterations:
+                    psnr = self.quick_psnr()
+                if it % t.log_every == 0 or it % t.eval_every == 0 or it == t.iterations:
+                    record = {
+                        "iteration": it,
+                        "seconds": round(self.train_seconds, 3),
+                        "loss": loss,
+                        "gaussians": len(self.model),
+                    }
+                    if it % t.eval_every == 0 or it == t.iterations:
+                        record["psnr"] = psnr
+                    log.write(json.dumps(record) + "\n")
+                    log.flush()
+                    bar.set_postfix(
+                        loss=f"{loss:.4f}",
+                        psnr=f"{psnr:.2f}",
+                        n=len(self.model),
+                        s=f"{self.train_seconds:.0f}",
+                    )
+                if it % t.checkpoint_every == 0:
+                    self.save_checkpoint()
+                bar.update(1)
+        except KeyboardInterrupt:
+            self.save_checkpoint()  # Ctrl-C loses nothing: resume continues from here
+            raise
+        finally:
+            bar.close()
+            log.close()
+        self.save_checkpoint()
+        save_ply(self.model, self.run_dir / "scene.ply")
+        summary = {
+            "method": self.config.method,
+            "dataset": str(Path(self.dataset.root).resolve()),
+            "iterations": self.iteration,
+            "train_seconds": self.train_seconds,
+            "sim_seconds": self.targets.sim_seconds,
+            "gaussians": len(self.model),
+            "intensity_scale": self.scale,
+        }
+        (self.run_dir / "train.json").write_text(json.dumps(summary, indent=2))
+        return summary

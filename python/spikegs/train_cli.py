@@ -1,0 +1,42 @@
+"""`spikegs train DATASET --method NAME|--config FILE --out RUN [--resume]`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from .config import available_methods, load_config
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument(
+        "--method", default="spikegs", help=f"one of {', '.join(available_methods())}"
+    )
+    which.add_argument("--config", type=Path, help="a YAML config file instead of a method name")
+    parser.add_argument("--out", type=Path, required=True, help="run folder")
+    parser.add_argument("--iterations", type=int, help="override train.iterations")
+    parser.add_argument("--seed", type=int, help="override train.seed")
+    parser.add_argument("--resume", action="store_true", help="continue from RUN's last checkpoint")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def config_from_args(args: argparse.Namespace):
+    """The validated config of --method/--config with the command-line overrides applied."""
+    train = {
+        k: v for k, v in (("iterations", args.iterations), ("seed", args.seed)) if v is not None
+    }
+    return load_config(args.config or args.method, {"train": train} if train else None)
+
+
+def run(args: argparse.Namespace) -> int:
+    from .data import load_dataset
+    from .train import Trainer
+
+    config = config_from_args(args)  # bad method or config: refused before any work
+    dataset = load_dataset(args.dataset)
+    summary = Trainer(dataset, config, args.out, progress=not args.no_progress).train(args.resume)
+    print(json.dumps(summary, indent=2))
+    return 0
