@@ -2,7 +2,7 @@
 # Installs SpikeGS with its test extras and runs every test: the C++ tests (ctest) and pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install.sh ".[test]"
+bash scripts/install.sh ".[test,mitsuba]"
 cmake -S . -B build/ctest -DSPIKEGS_PYTHON=OFF -DSPIKEGS_TESTS=ON >/dev/null
 cmake --build build/ctest -j"$(nproc)"
 ctest --test-dir build/ctest --output-on-failure -j"$(nproc)"
