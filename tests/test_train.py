@@ -159,3 +159,15 @@ def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
     assert "known methods" in capsys.readouterr().err
     assert main(["train", str(tmp_path / "missing"), "--out", str(tmp_path / "r")]) == 2
     assert not (tmp_path / "r").exists()
+
+
+def test_render_writes_an_orbit_gif(dataset, tmp_path):
+    from PIL import Image
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    gif = tmp_path / "orbit.gif"
+    assert main(["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "3"]) == 0
+    with Image.open(gif) as im:
+        assert im.n_frames == 3 and im.size == (dataset.width, dataset.height)
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "x.avi")]) == 2
