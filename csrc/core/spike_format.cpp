@@ -4,15 +4,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/errors.hpp"
+
 namespace spikegs {
 namespace {
-
-template <typename... Args>
-[[noreturn]] void fail(const Args&... args) {
-  std::ostringstream os;
-  (os << ... << args);
-  throw std::invalid_argument(os.str());
-}
 
 inline int get_bit(const uint8_t* p, int64_t bit) { return (p[bit >> 3] >> (bit & 7)) & 1; }
 inline void set_bit(uint8_t* p, int64_t bit) { p[bit >> 3] |= uint8_t(1u << (bit & 7)); }

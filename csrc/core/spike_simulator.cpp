@@ -5,17 +5,11 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/errors.hpp"
 #include "core/spike_rng.hpp"
 
 namespace spikegs {
 namespace {
-
-template <typename... Args>
-[[noreturn]] void fail(const Args&... args) {
-  std::ostringstream os;
-  (os << ... << args);
-  throw std::invalid_argument(os.str());
-}
 
 // Stream keys: one for the per-pixel constants, one for the per-readout draws.
 constexpr uint64_t kPixelStream = 0x5049584C5F434F4Eull;

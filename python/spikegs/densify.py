@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import torch
 
 from .gaussians import GaussianModel
-from .reference import _quat_to_rotation
+from .reference import quat_to_rotation
 
 
 @dataclass
@@ -104,7 +104,7 @@ class Densifier:
             new = {k: v[clone] for k, v in p.items()}  # clones: exact copies
             # splits: two samples from each Gaussian, 1.6x smaller; the originals are removed
             std = model.scales[split].repeat(2, 1)
-            rot = _quat_to_rotation(torch.nn.functional.normalize(p["quats"][split], dim=1)).repeat(
+            rot = quat_to_rotation(torch.nn.functional.normalize(p["quats"][split], dim=1)).repeat(
                 2, 1, 1
             )
             offsets = (rot @ (torch.randn_like(std) * std).unsqueeze(-1)).squeeze(-1)

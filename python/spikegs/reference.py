@@ -76,7 +76,7 @@ def _resolve_sh_degree(colors: torch.Tensor, sh_degree: int | None) -> int | Non
     return sh_degree
 
 
-def _quat_to_rotation(q: torch.Tensor) -> torch.Tensor:
+def quat_to_rotation(q: torch.Tensor) -> torch.Tensor:
     """Rotation matrices [N, 3, 3] of unit quaternions q [N, 4] (w, x, y, z)."""
     w, x, y, z = q.unbind(-1)
     rows = (
@@ -114,7 +114,7 @@ def _project(
     keep = keep & (p[:, 2] > near) & (p[:, 2] < far)
     p = torch.where(_rows(keep, p), p, safe_point)
     x, y, z = p.unbind(-1)  # [N] each
-    R = _quat_to_rotation(quats / quats.norm(dim=-1, keepdim=True))  # [N, 3, 3]
+    R = quat_to_rotation(quats / quats.norm(dim=-1, keepdim=True))  # [N, 3, 3]
     WM = W @ (R * scales[:, None, :])  # [N, 3, 3] = W R diag(s)
 
     # 4-6: clamped Jacobian, 2D covariance with dilation, determinant, conic
