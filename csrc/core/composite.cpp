@@ -94,16 +94,23 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
         for (int row = row0; row < row1; ++row) {
           if (row_active[row] == 0) continue;
           const T dy = T(tile.y0 + row) + T(0.5) - my;
-          T* tr = trans + row * kTileSize;
-          T* act = active + row * kTileSize;
-          std::int32_t* lst = last + row * kTileSize;
-          int stopped = 0;
-#pragma omp simd reduction(+ : stopped)
+          T* __restrict tr = trans + row * kTileSize;
+          T* __restrict act = active + row * kTileSize;
+          std::int32_t* __restrict lst = last + row * kTileSize;
+          // arithmetic first, in a loop of its own so that exp vectorises (a power > 0 only
+          // arises from rounding and is skipped below)
+          alignas(64) T alpha[kTileSize];
+#pragma omp simd
           for (int x = 0; x < kTileSize; ++x) {
             const T dx = T(tile.x0 + x) + T(0.5) - mx;
             const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
-            const T a = std::min(T(kAlphaMax), o * std::exp(power));
-            const bool valid = act[x] > 0 && power <= 0 && a >= T(kAlphaMin);
+            alpha[x] = power <= 0 ? std::min(T(kAlphaMax), o * std::exp(power)) : T(0);
+          }
+          int stopped = 0;
+#pragma omp simd reduction(+ : stopped)
+          for (int x = 0; x < kTileSize; ++x) {
+            const T a = alpha[x];
+            const bool valid = act[x] > 0 && a >= T(kAlphaMin);
             const T next = tr[x] * (1 - a);
             const bool stop = valid && next < T(kTransmittanceMin);
             const bool take = valid && !stop;
@@ -118,7 +125,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
           pairs += tile.w;
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
-            T* ac = acc.data() + std::size_t(c) * kTilePixels + row * kTileSize;
+            T* __restrict ac = acc.data() + std::size_t(c) * kTilePixels + row * kTileSize;
 #pragma omp simd
             for (int x = 0; x < kTileSize; ++x) ac[x] += weight[x] * col;
           }
@@ -219,7 +226,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           }
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
-            T* bh = behind.data() + std::size_t(c) * kTilePixels + base;
+            T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels + base;
             const T* gi = gimg.data() + std::size_t(c) * kTilePixels + base;
             T sum = 0;
 #pragma omp simd reduction(+ : sum)
