@@ -1,5 +1,7 @@
 // Tile-parallel compositing. Within a tile, each splat is applied to the rows its box covers, 16
 // pixels at a time, so the inner loops (exp included) vectorise. Per-thread buffers, no atomics.
+// The backward takes those rows as one run of pixels, so that its gradient sums are reduced once
+// per (tile, splat) rather than once per row.
 #include "core/composite.hpp"
 
 #include <omp.h>
@@ -167,81 +169,147 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     std::vector<T>& g = thread_grads[omp_get_thread_num()];
     g.assign(visible * grad_stride, T(0));
     T* gbg = thread_bg[omp_get_thread_num()].data();
-    alignas(64) T trans[kTilePixels], tfinal[kTilePixels], galpha[kTilePixels];
+    // Per tile, [256]: pixel centres, T (running back to front), T_final grad_alpha, position of
+    // the last contributor.
+    alignas(64) T cx[kTilePixels], cy[kTilePixels], trans[kTilePixels], tg[kTilePixels];
     alignas(64) std::int32_t last[kTilePixels];
+    alignas(64) T gauss[kTilePixels];  // G of the current splat (0 where alpha is clamped)
     std::vector<T> behind(std::size_t(C) * kTilePixels),
         gimg(std::size_t(C) * kTilePixels);  // [C, 256]
-    std::vector<T> gcol(C);                  // colour gradient of the current splat
 // static round-robin: the same tiles meet the same per-thread buffers every call, so the
 // gradient sums (and a resumed training run) are bitwise reproducible
 #pragma omp for schedule(static, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
-      std::fill(row_last, row_last + kTileSize, -1);
       for (int p = 0; p < kTilePixels; ++p) {
-        const int px = p % kTileSize, py = p / kTileSize;
-        const bool inside = px < tile.w && py < tile.h;
-        const std::int64_t pix = std::int64_t(tile.y0 + py) * width + tile.x0 + px;
-        tfinal[p] = trans[p] = inside ? state.final_T[pix] : T(1);
-        last[p] = inside ? state.last[pix] : -1;
-        galpha[p] = inside && grad_alpha ? grad_alpha[pix] : T(0);
-        for (int c = 0; c < C; ++c) {
-          const T gi = inside ? grad_image[pix * C + c] : T(0);
-          gimg[std::size_t(c) * kTilePixels + p] = gi;
-          behind[std::size_t(c) * kTilePixels + p] = background ? background[c] : T(0);
-          gbg[c] += tfinal[p] * gi;
+        cx[p] = T(tile.x0 + p % kTileSize) + T(0.5);
+        cy[p] = T(tile.y0 + p / kTileSize) + T(0.5);
+        trans[p] = T(1), tg[p] = T(0), last[p] = -1;
+      }
+      for (int c = 0; c < C; ++c) {
+        const T bg = background ? background[c] : T(0);
+        std::fill_n(behind.data() + std::size_t(c) * kTilePixels, kTilePixels, bg);
+        std::fill_n(gimg.data() + std::size_t(c) * kTilePixels, kTilePixels, T(0));
+      }
+      for (int py = 0; py < kTileSize; ++py) {
+        row_last[py] = -1;
+        if (py >= tile.h) continue;
+        const std::int64_t pix0 = std::int64_t(tile.y0 + py) * width + tile.x0;
+        for (int px = 0; px < tile.w; ++px) {
+          const int p = py * kTileSize + px;
+          const std::int64_t pix = pix0 + px;
+          const T tf = state.final_T[pix];
+          const std::int32_t lp = state.last[pix];
+          trans[p] = tf;
+          tg[p] = grad_alpha ? tf * grad_alpha[pix] : T(0);
+          last[p] = lp;
+          row_last[py] = std::max(row_last[py], lp);
+          for (int c = 0; c < C; ++c) {
+            const T gi = grad_image[pix * C + c];
+            gimg[std::size_t(c) * kTilePixels + p] = gi;
+            gbg[c] += tf * gi;
+          }
         }
-        max_last = std::max(max_last, last[p]);
-        row_last[py] = std::max(row_last[py], last[p]);
+        max_last = std::max(max_last, row_last[py]);
       }
       for (std::int64_t j = tile.begin + max_last; j >= tile.begin; --j) {
         const std::int32_t rank = bins.ranks[j];
         const T* s = splats.data() + std::int64_t(rank) * stride;
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
+        const std::int32_t pos = std::int32_t(j - tile.begin);
         int row0, row1;
         splat_rows(my, s[6], tile.y0, tile.h, row0, row1);
-        const std::int32_t pos = std::int32_t(j - tile.begin);
-        T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
-        std::fill(gcol.begin(), gcol.end(), T(0));
-        for (int row = row0; row < row1; ++row) {
-          if (pos > row_last[row]) continue;
-          const T dy = T(tile.y0 + row) + T(0.5) - my;
-          const int base = row * kTileSize;
-          alignas(64) T alph[kTileSize], gauss[kTileSize], tj[kTileSize], dalpha[kTileSize];
+        // rows whose pixels all stopped before this splat are left out at both ends; the rest
+        // are done as one run of pixels, so that the sums below are reduced once per splat
+        while (row0 < row1 && pos > row_last[row0]) ++row0;
+        while (row1 > row0 && pos > row_last[row1 - 1]) --row1;
+        if (row0 >= row1) continue;
+        const int p0 = row0 * kTileSize, p1 = row1 * kTileSize;
+        // G = exp(power) in a loop of its own, so that the vector exp call has nothing live
+        // around it (a power > 0 only arises from rounding: G = 0, the pair is skipped)
 #pragma omp simd
-          for (int x = 0; x < kTileSize; ++x) {
-            const int p = base + x;
-            const T dx = T(tile.x0 + x) + T(0.5) - mx;
-            const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
-            const T G = std::exp(power);
-            const T a = std::min(T(kAlphaMax), o * G);
-            const bool valid = pos <= last[p] && power <= 0 && a >= T(kAlphaMin);
-            const T inv = T(1) / (1 - a);                  // 1 - a >= 1 - kAlphaMax
-            trans[p] = valid ? trans[p] * inv : trans[p];  // T before this splat
-            alph[x] = valid ? a : T(0);
-            gauss[x] = valid && o * G < T(kAlphaMax) ? G : T(0);  // 0 where alpha is clamped
-            tj[x] = valid ? trans[p] : T(0);
-            dalpha[x] = valid ? tfinal[p] * inv * galpha[p] : T(0);
+        for (int p = p0; p < p1; ++p) {
+          const T dx = cx[p] - mx, dy = cy[p] - my;
+          const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
+          gauss[p] = power <= 0 ? std::exp(power) : T(0);
+        }
+        T* out = g.data() + std::int64_t(rank) * grad_stride;
+        T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
+        if constexpr (NC > 0) {
+          // alpha, T, the colour and the geometric gradients in one pass: every load is
+          // unconditional and every conditional a select, so that the loop vectorises
+          T col[NC], gc[NC] = {};
+          for (int c = 0; c < NC; ++c) col[c] = s[kSplatHeader + c];
+#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o, gc[ : NC])
+          for (int p = p0; p < p1; ++p) {
+            const T G = gauss[p], raw = o * G, tr = trans[p], tgp = tg[p];
+            const std::int32_t lp = last[p];
+            const T dx = cx[p] - mx, dy = cy[p] - my;
+            const T a = std::min(T(kAlphaMax), raw);
+            const bool valid = pos <= lp && a >= T(kAlphaMin);
+            const T inv = T(1) / (1 - a);  // 1 - a >= 1 - kAlphaMax
+            const T before = tr * (valid ? inv : T(1));
+            trans[p] = before;
+            const T al = valid ? a : T(0), t = valid ? before : T(0);
+            T da = valid ? tgp * inv : T(0);
+#pragma GCC unroll 4
+            for (int c = 0; c < NC; ++c) {
+              T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels;
+              const T w = t * gimg[std::size_t(c) * kTilePixels + p];
+              const T diff = col[c] - bh[p];
+              da += diff * w;
+              gc[c] += al * w;
+              bh[p] += al * diff;
+            }
+            const T ga = valid && raw < T(kAlphaMax) ? G * da : T(0);  // 0 where alpha is clamped
+            const T dpower = o * ga;
+            g_o += ga;
+            g_A += T(-0.5) * dx * dx * dpower;
+            g_B += -dx * dy * dpower;
+            g_C += T(-0.5) * dy * dy * dpower;
+            g_mx += (A * dx + B * dy) * dpower;
+            g_my += (B * dx + Cc * dy) * dpower;
+          }
+          for (int c = 0; c < NC; ++c) out[6 + c] += gc[c];
+        } else {
+          // any channel count: the same in three passes, the channels one at a time
+          alignas(64) T alph[kTilePixels], tj[kTilePixels], dalpha[kTilePixels];
+#pragma omp simd
+          for (int p = p0; p < p1; ++p) {
+            const T G = gauss[p], raw = o * G, tr = trans[p], tgp = tg[p];
+            const std::int32_t lp = last[p];
+            const T a = std::min(T(kAlphaMax), raw);
+            const bool valid = pos <= lp && a >= T(kAlphaMin);
+            const T inv = T(1) / (1 - a);
+            const T before = tr * (valid ? inv : T(1));
+            trans[p] = before;
+            alph[p] = valid ? a : T(0);
+            tj[p] = valid ? before : T(0);
+            dalpha[p] = valid ? tgp * inv : T(0);
+            gauss[p] = valid && raw < T(kAlphaMax) ? G : T(0);
           }
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
-            T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels + base;
-            const T* gi = gimg.data() + std::size_t(c) * kTilePixels + base;
+            T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels;
+            const T* __restrict gi = gimg.data() + std::size_t(c) * kTilePixels;
             T sum = 0;
 #pragma omp simd reduction(+ : sum)
-            for (int x = 0; x < kTileSize; ++x) {
-              dalpha[x] += tj[x] * (col - bh[x]) * gi[x];
-              sum += alph[x] * tj[x] * gi[x];
-              bh[x] = alph[x] * col + (1 - alph[x]) * bh[x];
+            for (int p = p0; p < p1; ++p) {
+              const T w = tj[p] * gi[p];
+              const T diff = col - bh[p];
+              dalpha[p] += diff * w;
+              sum += alph[p] * w;
+              bh[p] += alph[p] * diff;
             }
-            gcol[c] += sum;
+            out[6 + c] += sum;
           }
 #pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o)
-          for (int x = 0; x < kTileSize; ++x) {
-            const T dx = T(tile.x0 + x) + T(0.5) - mx;
-            const T dpower = o * gauss[x] * dalpha[x];
-            g_o += gauss[x] * dalpha[x];
+          for (int p = p0; p < p1; ++p) {
+            const T dx = cx[p] - mx, dy = cy[p] - my;
+            const T ga = gauss[p] * dalpha[p];
+            const T dpower = o * ga;
+            g_o += ga;
             g_A += T(-0.5) * dx * dx * dpower;
             g_B += -dx * dy * dpower;
             g_C += T(-0.5) * dy * dy * dpower;
@@ -249,9 +317,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             g_my += (B * dx + Cc * dy) * dpower;
           }
         }
-        T* out = g.data() + std::int64_t(rank) * grad_stride;
         out[0] += g_mx, out[1] += g_my, out[2] += g_A, out[3] += g_B, out[4] += g_C, out[5] += g_o;
-        for (int c = 0; c < C; ++c) out[6 + c] += gcol[c];
       }
     }
   }
