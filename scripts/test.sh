@@ -2,8 +2,9 @@
 # Installs SpikeGS with its test extras and runs every test: the C++ tests (ctest) and pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install.sh ".[test,mitsuba]"
+bash scripts/install.sh ".[test,mitsuba,sfm]"
 cmake -S . -B build/ctest -DSPIKEGS_PYTHON=OFF -DSPIKEGS_TESTS=ON >/dev/null
 cmake --build build/ctest -j"$(nproc)"
 ctest --test-dir build/ctest --output-on-failure -j"$(nproc)"
 python -m pytest -q tests
+spikegs bench all --quick --out "${TMPDIR:-/tmp}/spikegs-bench-quick"

@@ -17,6 +17,7 @@ COMMANDS = {
     "train": ("spikegs.train_cli", "train a Gaussian scene from a spike dataset"),
     "eval": ("spikegs.eval_cli", "evaluate a training run on its test views"),
     "render": ("spikegs.render_cli", "render a novel-view orbit video of a run"),
+    "poses": ("spikegs.poses_cli", "camera poses and a point cloud from the spikes (SfM)"),
     "bench": ("spikegs.bench.cli", "benchmarks: error against run time"),
 }
 

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from .densify import DensifyConfig
+from .pose_refine import PoseRefineConfig
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -74,6 +75,7 @@ class Config:
     lr: LearningRates = field(default_factory=LearningRates)
     densify: DensifyConfig = field(default_factory=DensifyConfig)
     sim: SimConfig = field(default_factory=SimConfig)
+    pose_refine: PoseRefineConfig = field(default_factory=PoseRefineConfig)
 
     def validate(self) -> Config:
         s, t = self.supervision, self.train
@@ -119,6 +121,7 @@ class Config:
             ">= train.init_gaussians",
         )
         _require(self.sim.window % 2 == 1, "sim.window", self.sim.window, "odd")
+        _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")
         return self
 
     def to_dict(self) -> dict[str, Any]:

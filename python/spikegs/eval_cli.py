@@ -33,4 +33,7 @@ def run(args: argparse.Namespace) -> int:
         f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {args.run / 'eval.json'}"
     )
+    pseudo = [name for name in result["views"] if name.startswith("pseudo_")]
+    if pseudo:
+        print(f"note: {len(pseudo)} views without a sharp image, scored against TFP (pseudo_*)")
     return 0

@@ -60,6 +60,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "train_seconds": train.get("train_seconds"),
         "sim_seconds": train.get("sim_seconds"),
         "gaussians": len(model),
+        # real data without sharp images: scored against a TFP pseudo ground truth (pseudo_*)
+        "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
         "views": views,
     }
     (run_dir / "eval.json").write_text(json.dumps(result, indent=2))

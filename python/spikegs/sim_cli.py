@@ -27,12 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
-    if dataset.channels != 1:
-        raise ValueError("sim-train expects a mono dataset (one SIM per spike stream)")
-    out = args.out or sim_path(dataset, args.window, args.seed)
+    sim = SimConfig(args.window, args.steps, args.crop, args.batch_size)
+    out = args.out or sim_path(dataset, sim, args.seed)
     model, seconds = train_or_load(
         out,
-        dataset.stream,
+        dataset.streams,
         dataset.train_timestamps,
         args.window,
         force=args.force,

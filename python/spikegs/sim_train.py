@@ -64,6 +64,9 @@ def train_sim(
 ) -> tuple[SIM, list[float]]:
     """Train a fresh SIM on random `crop`² crops of windows at random training `timestamps`.
 
+    `stream` may be a list of streams (a colour camera's channels): each crop then comes from a
+    random one of them, and the one network serves every channel.
+
     The loss is the paper's: L1 between SIM(window) and TFP(window), the mean of the same window.
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
     default where native. Deterministic for a given `seed` and thread count. Returns the model
@@ -80,13 +83,17 @@ def train_sim(
     bf16 = bf16_is_fast() if bf16 is None else bf16
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps)
-    ch, cw = min(crop, stream.height), min(crop, stream.width)
+    streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
+    height, width = streams[0].height, streams[0].width
+    ch, cw = min(crop, height), min(crop, width)
     losses = []
     bar = tqdm(range(steps), desc="SIM", disable=not progress, dynamic_ncols=True)
     for _ in bar:
-        windows = stream.window(rng.choice(timestamps, batch_size), window)  # [B, w, H, W]
-        ys = rng.integers(0, stream.height - ch + 1, batch_size)
-        xs = rng.integers(0, stream.width - cw + 1, batch_size)
+        ks = rng.choice(timestamps, batch_size)
+        channel = rng.integers(len(streams), size=batch_size) if len(streams) > 1 else [0] * len(ks)
+        windows = [streams[c].window(k, window) for c, k in zip(channel, ks)]  # B x [w, H, W]
+        ys = rng.integers(0, height - ch + 1, batch_size)
+        xs = rng.integers(0, width - cw + 1, batch_size)
         crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
         x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
         target = x.mean(dim=1, keepdim=True)  # TFP of the same window, [B, 1, ch, cw]
@@ -185,10 +192,19 @@ def compare_methods(
 
 
 def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
-    """`compare_methods` on a mono dataset's held-out on-path views, against their clean images."""
+    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
+    mean over channels for a colour camera."""
     views = [v for v in dataset.test_views if v.readout is not None]
     if not views:
         raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
     timestamps = np.array([round(v.readout) for v in views])
-    gt = np.stack([v.image[..., 0] for v in views])  # [N, H, W] firing rates
-    return compare_methods(model, dataset.stream, timestamps, gt, dtype)
+    per_channel = [
+        compare_methods(
+            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype
+        )
+        for c, stream in enumerate(dataset.streams)
+    ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates
+    return {
+        name: {m: float(np.mean([r[name][m] for r in per_channel])) for m in scores}
+        for name, scores in per_channel[0].items()
+    }

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .config import Config
+from .config import Config, SimConfig
 from .sim_train import infer_sim, train_or_load
 
 
@@ -43,20 +43,19 @@ def intensity_scale(dataset) -> float:
     if rate is not None:
         return float(rate)
     ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
-    return float(np.percentile(dataset.stream.tfp(ts, 33), 99.5)) or 1.0
+    return float(np.percentile(_per_channel(dataset.streams, lambda s: s.tfp(ts, 33)), 99.5)) or 1.0
 
 
-def _channels_last(images: np.ndarray, scale: float) -> torch.Tensor:
-    """[M, H, W] or [M, H, W, C] firing rates -> [M, H, W, C] intensities."""
-    images = np.asarray(images, dtype=np.float32)
-    if images.ndim == 3:
-        images = images[..., None]
-    return torch.from_numpy(images / scale)
+def _per_channel(streams, image_fn) -> np.ndarray:
+    """`image_fn(stream)` [M, H, W] (or [M, H, W, 1]) of each channel's stream -> [M, H, W, C]."""
+    images = [np.asarray(image_fn(s), dtype=np.float32) for s in streams]
+    return np.concatenate([i if i.ndim == 4 else i[..., None] for i in images], axis=-1)
 
 
-def sim_path(dataset, window: int, seed: int) -> Path:
-    """Where a dataset's trained SIM is cached (shared by every method trained on it)."""
-    return Path(dataset.root) / "sim" / f"sim_w{window}_seed{seed}.pt"
+def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
+    """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
+    name = f"sim_w{sim.window}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_seed{seed}.pt"
+    return Path(dataset.root) / "sim" / name
 
 
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
@@ -64,14 +63,14 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     s = config.supervision
     ts = np.asarray(dataset.train_timestamps)
     scale = intensity_scale(dataset)
-    stream = dataset.stream
+    streams = dataset.streams  # one per channel: a colour camera's SIM is shared by its channels
     instant, sim_seconds = None, 0.0
     if s.instant_weight > 0 and s.instant != "none":
         if s.instant == "sim":
             c = config.sim
             model, sim_seconds = train_or_load(
-                sim_path(dataset, c.window, config.train.seed),
-                stream,
+                sim_path(dataset, c, config.train.seed),
+                streams,
                 ts,
                 c.window,
                 steps=c.iterations,
@@ -80,12 +79,17 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
                 seed=config.train.seed,
                 progress=progress,
             )
-            instant = _channels_last(infer_sim(model, stream, ts), scale)
+            instant = _per_channel(streams, lambda st: infer_sim(model, st, ts))
         elif s.instant == "tfp":
-            instant = _channels_last(stream.tfp(ts, s.instant_window), scale)
+            instant = _per_channel(streams, lambda st: st.tfp(ts, s.instant_window))
         else:
-            instant = _channels_last(stream.tfi(ts), scale)
+            instant = _per_channel(streams, lambda st: st.tfi(ts))
     exposure = None
     if s.exposure_weight > 0:
-        exposure = _channels_last(stream.tfp(ts, s.exposure_window), scale)
-    return Targets(ts, instant, exposure, sim_seconds)
+        exposure = _per_channel(streams, lambda st: st.tfp(ts, s.exposure_window))
+    return Targets(
+        ts,
+        None if instant is None else torch.from_numpy(instant / scale),  # [M, H, W, C]
+        None if exposure is None else torch.from_numpy(exposure / scale),
+        sim_seconds,
+    )

@@ -22,10 +22,14 @@ from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
 from .losses import dssim, exposure_loss, instant_loss
 from .ply import save_ply
+from .point_cloud import POINTS, gaussians_from_points
+from .pose_refine import PoseRefiner, make_refiner
 from .targets import build_targets, intensity_scale
 
 
-def _optimizer(model: GaussianModel, config: Config, scene_radius: float) -> torch.optim.Adam:
+def _optimizer(
+    model: GaussianModel, config: Config, scene_radius: float, poses: PoseRefiner | None = None
+) -> torch.optim.Adam:
     lr = config.lr
     groups = [
         {"params": [model.params[name]], "name": name, "lr": getattr(lr, name)}
@@ -33,6 +37,8 @@ def _optimizer(model: GaussianModel, config: Config, scene_radius: float) -> tor
     ]
     groups[0]["lr"] = lr.means * scene_radius
     groups.append({"params": [model.background], "name": "background", "lr": lr.background})
+    if poses is not None:
+        groups.append({"params": [poses.corrections], "name": "poses", "lr": config.pose_refine.lr})
     return torch.optim.Adam(groups, lr=0.0, eps=1e-15)
 
 
@@ -61,15 +67,24 @@ class Trainer:
         t = self.config.train
         torch.manual_seed(t.seed)
         gen = torch.Generator().manual_seed(t.seed)
-        self.model = GaussianModel.random(
-            t.init_gaussians,
-            self.dataset.scene_center,
-            self.radius,
-            self.dataset.channels,
-            t.sh_degree,
-            gen,
+        cloud = Path(self.dataset.root) / POINTS  # a sparse point cloud, e.g. from `spikegs poses`
+        if cloud.exists():
+            self.model = gaussians_from_points(
+                cloud, t.init_gaussians, self.dataset.channels, t.sh_degree, gen
+            )
+        else:
+            self.model = GaussianModel.random(
+                t.init_gaussians,
+                self.dataset.scene_center,
+                self.radius,
+                self.dataset.channels,
+                t.sh_degree,
+                gen,
+            )
+        self.poses = make_refiner(
+            self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
-        self.optimizer = _optimizer(self.model, self.config, self.radius)
+        self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
         self.densifier = Densifier(self.config.densify, self.radius)
         self.rng = np.random.default_rng(t.seed)
         self.iteration, self.train_seconds = 0, 0.0
@@ -82,6 +97,7 @@ class Trainer:
             "model": self.model.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "densifier": self.densifier.state_dict(),
+            "poses": None if self.poses is None else self.poses.state_dict(),
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "config": self.config.to_dict(),
@@ -98,7 +114,12 @@ class Trainer:
                 "resume with the same method and settings"
             )
         self.model = GaussianModel.from_state_dict(state["model"])
-        self.optimizer = _optimizer(self.model, self.config, self.radius)
+        self.poses = make_refiner(
+            self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
+        )
+        if self.poses is not None:
+            self.poses.load_state_dict(state["poses"])
+        self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
         self.optimizer.load_state_dict(state["optimizer"])
         self.densifier = Densifier(self.config.densify, self.radius)
         self.densifier.load_state_dict(state["densifier"])
@@ -108,8 +129,10 @@ class Trainer:
         self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
 
     # -- one step ------------------------------------------------------------------------------
-    def _pose(self, readout: float) -> torch.Tensor:
-        return torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
+    def _pose(self, readout: float, view: int) -> torch.Tensor:
+        """Viewmat [4, 4] at `readout`, with training view `view`'s correction when refining."""
+        viewmat = torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
+        return viewmat if self.poses is None else self.poses(viewmat, view)
 
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
@@ -123,18 +146,22 @@ class Trainer:
         h, w = self.dataset.height, self.dataset.width
         screen = torch.zeros(len(self.model), 2, requires_grad=True)
         radii = torch.zeros(len(self.model), dtype=torch.int32)
-        loss = torch.zeros(())
+        loss, instant = torch.zeros(()), None
         if targets.instant is not None:
-            r = self.model.render(self._pose(t), self.K, w, h, screen_points=screen)
-            radii = torch.maximum(radii, r.radii)
-            loss = loss + s.instant_weight * instant_loss(r.image, targets.instant[index])
+            instant = self.model.render(self._pose(t, index), self.K, w, h, screen_points=screen)
+            radii = torch.maximum(radii, instant.radii)
+            loss = loss + s.instant_weight * instant_loss(instant.image, targets.instant[index])
             if s.dssim_weight:
-                loss = loss + s.dssim_weight * dssim(r.image, targets.instant[index])
+                loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
         if targets.exposure is not None:
             half = (s.exposure_window - 1) / 2
             renders = []
-            for tk in np.linspace(t - half, t + half, s.exposure_poses):
-                r = self.model.render(self._pose(float(tk)), self.K, w, h, screen_points=screen)
+            for k, tk in enumerate(np.linspace(t - half, t + half, s.exposure_poses)):
+                if instant is not None and 2 * k + 1 == s.exposure_poses:
+                    renders.append(instant.image)  # an odd K's centre pose is t: render it once
+                    continue
+                viewmat = self._pose(float(tk), index)
+                r = self.model.render(viewmat, self.K, w, h, screen_points=screen)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(renders, targets.exposure[index])
@@ -152,8 +179,11 @@ class Trainer:
         image = render_view(self.model, view, self.K, self.dataset.width, self.dataset.height)
         return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
 
-    def train(self, resume: bool = False) -> dict:
-        """Run (or resume) training to `config.train.iterations`; returns the run summary."""
+    def train(self, resume: bool = False, on_eval=None) -> dict:
+        """Run (or resume) training to `config.train.iterations`; returns the run summary.
+
+        `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
+        outside the timed steps (its time is not in `train_seconds`)."""
         t = self.config.train
         if resume:
             if not self.checkpoint_path.exists():
@@ -186,6 +216,8 @@ class Trainer:
                 it = self.iteration
                 if it % t.eval_every == 0 or it == t.iterations:
                     psnr = self.quick_psnr()
+                    if on_eval is not None:
+                        on_eval(self)
                 if it % t.log_every == 0 or it % t.eval_every == 0 or it == t.iterations:
                     record = {
                         "iteration": it,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import time
 from pathlib import Path
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
@@ -12,6 +13,8 @@ PARTS = {
     "spikes": "spikegs.bench.spikes",
     "sim": "spikegs.bench.sim",
     "train": "spikegs.bench.train",
+    "stiff": "spikegs.bench.stiff",
+    "poses": "spikegs.bench.poses",
 }
 
 
@@ -19,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("part", choices=[*PARTS, "all"], help="which benchmark to run")
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
     parser.add_argument("--out", type=Path, default=Path("bench-results"), help="output folder")
+    parser.add_argument("--iterations", type=int, help="training iterations per run (bench train)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,5 +36,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"== {part}: not part of this build, skipped")
             continue
         print(f"== {part}")
-        module.run(quick=args.quick, out=args.out)
+        options = {"iterations": args.iterations} if part == "train" and args.iterations else {}
+        start = time.perf_counter()
+        module.run(quick=args.quick, out=args.out, **options)
+        print(f"== {part}: {time.perf_counter() - start:.1f} s")
     return 0

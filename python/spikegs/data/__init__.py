@@ -1,6 +1,9 @@
-"""Synthetic spike datasets: camera trajectories, ground-truth sources, the layout on disk."""
+"""Spike datasets: synthetic ones (trajectories, ground-truth sources, the layout on disk) and the
+real-data layouts (LLFF, NeRF/nerfstudio with spike_data/), all opened by `load_dataset`."""
 
 from .dataset import Dataset, TestView, load_dataset
+from .llff import load_llff
+from .nerf_layout import load_nerf_layout
 from .scenes import SCENES, GaussianScene
 from .simulate import make_source, simulate_dataset
 from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Source
@@ -17,6 +20,8 @@ __all__ = [
     "TestView",
     "Trajectory",
     "load_dataset",
+    "load_llff",
+    "load_nerf_layout",
     "make_source",
     "simulate_dataset",
 ]

@@ -6,6 +6,8 @@ DIR/trajectory.json        camera-to-world poses (OpenCV) at recorded readouts
 DIR/train_timestamps.txt   readouts at which training samples are taken, one per line
 DIR/test_views.json        held-out views: name, readout (null off the path), pose, image file
 DIR/test/NAME.exr          their clean instantaneous images, float, firing-rate units
+
+`load_dataset` also opens the real-data layouts (llff.py, nerf_layout.py) by what DIR holds.
 """
 
 from __future__ import annotations
@@ -167,10 +169,19 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
 
 def load_dataset(path: PathLike) -> Dataset:
     """Open a dataset directory, checking every file before returning (FileNotFoundError names a
-    missing file, ValueError a malformed one); the spikes are memory-mapped, not read."""
+    missing file, ValueError a malformed one); the spikes are memory-mapped, not read. Without a
+    meta.json, an LLFF (poses_bounds.npy) or NeRF (transforms*.json) layout is opened instead."""
     root = Path(path)
     if not root.is_dir():
         raise FileNotFoundError(f"dataset directory not found: {root}")
+    if not (root / META).is_file():
+        from .llff import POSES_BOUNDS, load_llff
+        from .nerf_layout import TRANSFORMS, load_nerf_layout
+
+        if (root / POSES_BOUNDS).is_file():
+            return load_llff(root)
+        if any((root / name).is_file() for name in TRANSFORMS):
+            return load_nerf_layout(root)
     meta_path = _file(root, META)
     meta = json.loads(meta_path.read_text())
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")

@@ -280,7 +280,7 @@ class FrameSequenceSource(Source):
             )
         Trajectory(np.arange(len(frames)), viewmats, source=name)  # validates the poses now
         height, width, channels = frames.shape[1:]
-        center, radius = _centre_of_view(viewmats)
+        center, radius = centre_of_view(viewmats)
         super().__init__(width, height, channels, K, center, radius)
         self.name, self.frames, self.viewmats = name, frames, viewmats
         self._test_views = list(test_views)
@@ -338,7 +338,7 @@ class FrameSequenceSource(Source):
         return self._test_views[:count]
 
 
-def _centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
+def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
     """The point [3] nearest to all optical axes, and the mean camera distance to it / 2.5
     (the scene radius that the spiral sources see from their distance of 2.5 radii)."""
     c2w = np.linalg.inv(viewmats)  # [F, 4, 4]
@@ -360,7 +360,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     for f in frames:
         if "transform_matrix" not in f or "file_path" not in f:
             raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
-        image = _read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
+        image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
         src_h, src_w = image.shape[:2]
         if (src_h, src_w) != (height, width):
             image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
@@ -384,7 +384,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
 
 
-def _read_frame(base: Path, background: float) -> np.ndarray:
+def read_frame(base: Path, background: float) -> np.ndarray:
     """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic)."""
     candidates = [base] + [base.with_name(base.name + ext) for ext in (".png", ".exr", ".jpg")]
     found = next((p for p in candidates if p.is_file()), None)

@@ -26,7 +26,7 @@ PathLike = Union[str, os.PathLike]
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
 
 
-def _readouts(k) -> tuple[np.ndarray, bool]:
+def as_readouts(k) -> tuple[np.ndarray, bool]:
     """`k` as a 1-D int64 array [B], and whether it was a single index."""
     arr = np.asarray(k)
     if arr.ndim > 1 or not (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
@@ -121,7 +121,7 @@ class SpikeStream:
 
     def _starts(self, k, w: int) -> tuple[np.ndarray, bool]:
         """First readout [B] of the window of `w` centred on each k; ValueError past either end."""
-        ks, single = _readouts(k)
+        ks, single = as_readouts(k)
         if int(w) != w or w < 1:
             raise ValueError(f"window length expected a positive int, found {w}")
         w = int(w)
@@ -158,7 +158,7 @@ class SpikeStream:
 
     def tfi(self, k, max_interval: int = TFI_DEFAULT_MAX_INTERVAL) -> np.ndarray:
         """Texture from inter-spike interval (module docstring): float32 [H, W] ([B, H, W])."""
-        ks, single = _readouts(k)
+        ks, single = as_readouts(k)
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")

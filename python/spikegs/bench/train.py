@@ -1,0 +1,235 @@
+"""`spikegs bench train`: PSNR and SSIM against wall-clock training time, every method and scene.
+
+Each built-in scene is simulated once (cached under OUT/data/SCENE) and every method is trained on
+it with the demo's schedule (DEMO_OVERRIDES, stretched to the chosen iterations). PSNR and SSIM
+over all test views are measured at regular iterations through the trainer's `on_eval` hook,
+outside the timed steps. SIM is trained once per scene (cached with the dataset) and shared by
+the methods that use it; its training time is reported separately and counts for those methods:
+their curves start at their SIM time. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..config import Config, load_config
+from ..data import load_dataset, simulate_dataset
+from ..data.scenes import SCENES
+from ..demo import DEMO_OVERRIDES
+from ..evaluate import render_view, view_metrics
+from ..targets import sim_path
+from ..train import Trainer
+from .common import print_table, write_results
+
+BASELINES = ("tfp33", "tfp65", "tfi")
+METHODS = ("spikegs", *BASELINES, "only_instant", "only_exposure", "k9", "k13")
+QUICK_METHODS = ("spikegs", "tfp33")
+HEADLINE_SCENE = "solids"  # the default scene; the headline plot shows SpikeGS and BASELINES
+POINTS = 8  # evaluations per run
+# per run: half the demo's 1200, so that the full benchmark (24 runs) fits in ~16 min on 2 cores
+FULL_ITERATIONS = 600
+QUICK_ITERATIONS = 100
+# Training timestamps every TRAIN_EVERY readouts (~730 of 4000): more than a run samples, and the
+# targets (SIM inference on each of them) are computed for every run that uses SIM.
+TRAIN_EVERY = 4
+FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
+QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "test_off_path": 2}
+QUICK_SIM_ITERATIONS = 20
+SIM_NOTE = "SIM methods start at their SIM training time"
+
+
+def schedule(iterations: int, quick: bool) -> dict:
+    """Config overrides: the demo's schedule with its densification stretched to `iterations`,
+    evaluated at POINTS regular iterations, one checkpoint at the end."""
+    overrides = copy.deepcopy(DEMO_OVERRIDES)
+    stretch = iterations / overrides["train"]["iterations"]
+    overrides["train"].update(
+        iterations=iterations,
+        eval_every=math.ceil(iterations / POINTS),
+        checkpoint_every=iterations,
+    )
+    densify = overrides["densify"]
+    densify.update({k: max(1, round(densify[k] * stretch)) for k in ("start", "stop", "every")})
+    if quick:
+        overrides["sim"]["iterations"] = QUICK_SIM_ITERATIONS
+    return overrides
+
+
+def _matches(dataset, scene: str, settings: dict) -> bool:
+    """Whether a loaded dataset was simulated from `scene` with `settings`."""
+    meta, views = dataset.meta, dataset.test_views
+    on_path = sum(v.readout is not None for v in views)
+    ts = np.asarray(dataset.train_timestamps)
+    every = int(np.diff(ts).min()) if len(ts) > 1 else TRAIN_EVERY
+    found = (meta["scene"], meta["height"], meta["width"], meta["num_readouts"], every)
+    want = (scene, settings["height"], settings["width"], settings["readouts"], TRAIN_EVERY)
+    views_wanted = (settings["test_on_path"], settings["test_off_path"])
+    return found == want and (on_path, len(views) - on_path) == views_wanted
+
+
+def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
+    """(dataset, seconds simulating): the one cached at `root` when it matches, else simulated."""
+    try:
+        dataset = load_dataset(root)
+        if _matches(dataset, scene, settings):
+            return dataset, 0.0
+    except (FileNotFoundError, ValueError, KeyError):
+        pass
+    start = time.perf_counter()
+    dataset = simulate_dataset(
+        scene, root, overwrite=True, progress=False, train_every=TRAIN_EVERY, **settings
+    )
+    return dataset, time.perf_counter() - start
+
+
+def uses_sim(config: Config) -> bool:
+    s = config.supervision
+    return s.instant == "sim" and s.instant_weight > 0
+
+
+def sim_seconds(dataset, config: Config) -> float:
+    """Training time of the dataset's cached SIM for `config` (recorded when it was trained)."""
+    path = sim_path(dataset, config.sim, config.train.seed)
+    return float(torch.load(path, map_location="cpu", weights_only=True)["meta"]["seconds"])
+
+
+def held_out_scores(trainer: Trainer) -> dict[str, float]:
+    """Mean PSNR and SSIM of the trainer's model over every test view of its dataset."""
+    ds = trainer.dataset
+    scores = [
+        view_metrics(
+            render_view(trainer.model, view, trainer.K, ds.width, ds.height),
+            np.asarray(view.image, dtype=np.float32) / trainer.scale,
+        )
+        for view in ds.test_views
+    ]
+    return {k: float(np.mean([s[k] for s in scores])) for k in ("psnr", "ssim")}
+
+
+def train_method(dataset, config: Config, run_dir: Path) -> dict:
+    """Train one method afresh in `run_dir`; its curve, final scores and times."""
+    shutil.rmtree(run_dir, ignore_errors=True)
+    start = time.perf_counter()
+    curve = []
+
+    def record(trainer: Trainer) -> None:
+        point = {"iteration": trainer.iteration, "train_seconds": trainer.train_seconds}
+        curve.append({**point, **held_out_scores(trainer), "gaussians": len(trainer.model)})
+
+    summary = Trainer(dataset, config, run_dir, progress=False).train(on_eval=record)
+    sim_s = sim_seconds(dataset, config) if uses_sim(config) else 0.0
+    return {
+        "psnr": curve[-1]["psnr"],
+        "ssim": curve[-1]["ssim"],
+        "train_seconds": summary["train_seconds"],
+        "sim_seconds": sim_s,
+        "uses_sim": uses_sim(config),
+        "gaussians": summary["gaussians"],
+        "iterations": summary["iterations"],
+        "wall_seconds": time.perf_counter() - start,  # with targets, SIM and evaluations
+        "curve": curve,  # time axis of the plots: sim_seconds + train_seconds
+    }
+
+
+def _table(methods: dict) -> list[dict]:
+    """The paper's Tables 1-3 analogue for one scene: scores, times, gain over TFP(33)."""
+    base = methods.get("tfp33", {}).get("psnr")
+    return [
+        {
+            "method": name,
+            "PSNR": r["psnr"],
+            "SSIM": r["ssim"],
+            "train s": r["train_seconds"],
+            "SIM s": r["sim_seconds"] if r["uses_sim"] else "-",
+            "Gaussians": r["gaussians"],
+            "gain over tfp33 (dB)": "-" if base is None else r["psnr"] - base,
+        }
+        for name, r in methods.items()
+    ]
+
+
+def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
+    """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
+    for i, (name, r) in enumerate(methods.items()):
+        seconds = [r["sim_seconds"] + p["train_seconds"] for p in r["curve"]]
+        sim = r["uses_sim"]
+        label = f"{name} (from SIM {r['sim_seconds']:.0f} s)" if sim else name
+        for ax, metric in zip(axes, metrics):
+            values = [p[metric] for p in r["curve"]]
+            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
+    for ax, metric in zip(axes, metrics):
+        ax.set_xscale("log")
+        ax.set_xlabel("seconds (SIM + training)")
+        ax.set_ylabel(metric.upper())
+        ax.grid(True, which="both", alpha=0.3)
+    axes[-1].legend(fontsize=8)
+
+
+def _save_plot(path: Path, methods: dict, metrics: tuple[str, ...], title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
+    _plot_curves(axes[0], methods, metrics)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run(quick: bool, out: Path, iterations: int | None = None) -> dict:
+    """Train every method on every scene; print a table per scene, write JSON and plots."""
+    iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
+    scenes = [HEADLINE_SCENE] if quick else list(SCENES)
+    methods = QUICK_METHODS if quick else METHODS
+    settings = QUICK_DATA if quick else FULL_DATA
+    overrides = schedule(iterations, quick)
+    configs = {m: load_config(m, overrides) for m in methods}
+    start = time.perf_counter()
+    results = {}
+    for scene in scenes:
+        scene_start = time.perf_counter()
+        dataset, simulate_s = dataset_for(scene, out / "data" / scene, settings)
+        runs = {}
+        for method, config in configs.items():
+            runs[method] = train_method(dataset, config, out / "runs" / scene / method)
+            r = runs[method]
+            print(
+                f"  {scene} {method}: {r['psnr']:.2f} dB; {r['train_seconds']:.1f} s training, "
+                f"{r['wall_seconds']:.1f} s in all"
+            )
+        wall = time.perf_counter() - scene_start
+        results[scene] = {"simulate_seconds": simulate_s, "wall_seconds": wall, "methods": runs}
+        size = f"{dataset.width}x{dataset.height}"
+        print(f"{scene} ({size}, {len(dataset.test_views)} test views, {iterations} iterations)")
+        print_table(_table(runs))
+        title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"
+        _save_plot(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
+    headline = results[HEADLINE_SCENE]["methods"]
+    shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
+    title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
+    _save_plot(out / "headline.png", shown, ("psnr",), title)
+    payload = {
+        "data": {**settings, "train_every": TRAIN_EVERY},
+        "iterations": iterations,
+        "schedule": overrides,
+        "points_per_run": POINTS,
+        "time_axis": "SIM methods: sim_seconds + train_seconds; others: train_seconds "
+        "(optimisation steps only; evaluation excluded)",
+        "scores": "mean PSNR (dB, data range 1) and SSIM over every test view",
+        "total_seconds": time.perf_counter() - start,
+        "load_average": os.getloadavg(),
+        "scenes": results,
+    }
+    write_results(out, "train", payload)
+    return payload

@@ -1,0 +1,165 @@
+"""The LLFF layout (SpikeNeRF's real scenes): poses_bounds.npy with spikes per view or one stream.
+
+DIR/poses_bounds.npy            [N, 17]: per view a 3x5 matrix, row-major, [R | t | hwf] (R's
+                                columns: the camera's down, right, backwards axes in the world;
+                                t: its centre; hwf: height, width, focal in pixels), then the near
+                                and far depth bounds
+DIR/spikes/*.dat                one stream per view, sorted file names in pose order; or
+DIR/spikes.dat + readouts.txt   one stream and the readout of each pose, one number a line
+DIR/spikegs.json                loader options (real_options.py), all optional
+
+Poses become OpenCV world-to-camera viewmats here; the scene sphere encloses every view's frustum
+between its near and far bound (forward-facing scenes have no orbit centre).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .dataset import Dataset
+from .real import camera_meta, held_out, scene_sphere, stream_dataset, views_dataset
+from .real_options import open_spikes, read_options
+from .trajectory import PathLike
+
+POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
+    "poses_bounds.npy",
+    "spikes",
+    "spikes.dat",
+    "readouts.txt",
+)
+# camera axes [down, right, backwards] <-> [right, down, forward]; the matrix is its own inverse
+LLFF_TO_OPENCV = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+def viewmats_from_llff(poses: np.ndarray) -> np.ndarray:
+    """LLFF poses [N, 3, 5] -> OpenCV world-to-camera viewmats [N, 4, 4]."""
+    c2w = np.tile(np.eye(4), (len(poses), 1, 1))  # [N, 4, 4]
+    c2w[:, :3, :3] = poses[:, :, :3] @ LLFF_TO_OPENCV
+    c2w[:, :3, 3] = poses[:, :, 3]
+    return np.linalg.inv(c2w)
+
+
+def to_poses_bounds(viewmats: np.ndarray, hwf, bounds: np.ndarray) -> np.ndarray:
+    """OpenCV viewmats [N, 4, 4], hwf (height, width, focal), bounds [N, 2] -> [N, 17] rows."""
+    c2w = np.linalg.inv(np.asarray(viewmats, np.float64))  # [N, 4, 4]
+    poses = np.concatenate(
+        [
+            c2w[:, :3, :3] @ LLFF_TO_OPENCV,
+            c2w[:, :3, 3:],
+            np.tile(np.reshape(hwf, (1, 3, 1)), (len(c2w), 1, 1)),
+        ],
+        axis=2,
+    )  # [N, 3, 5]
+    return np.concatenate([poses.reshape(-1, 15), np.asarray(bounds, np.float64)], axis=1)
+
+
+def frustum_sphere(
+    viewmats: np.ndarray, bounds: np.ndarray, K: np.ndarray, width: int, height: int
+):
+    """Centre [3] and radius of the sphere around the box holding every view's image corners at
+    its near and far depth (bounds [N, 2])."""
+    u = np.array([0.0, width, 0.0, width])
+    v = np.array([0.0, 0.0, height, height])
+    rays = np.stack(
+        [(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1
+    )  # [4, 3]
+    points = bounds[:, :, None, None] * rays[None, None]  # [N, 2, 4, 3] camera coordinates
+    c2w = np.linalg.inv(viewmats)  # [N, 4, 4]
+    world = np.einsum("nij,nkcj->nkci", c2w[:, :3, :3], points) + c2w[:, None, None, :3, 3]
+    world = world.reshape(-1, 3)
+    center = (world.min(axis=0) + world.max(axis=0)) / 2
+    return center, float(np.linalg.norm(world - center, axis=1).max())
+
+
+def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Poses [N, 3, 5] and bounds [N, 2] of poses_bounds.npy, checked."""
+    if not path.is_file():
+        raise FileNotFoundError(f"LLFF poses file not found: {path}")
+    arr = np.load(path)
+    if arr.ndim != 2 or arr.shape[1] != 17 or len(arr) == 0:
+        raise ValueError(
+            f"{path}: expected [N, 17] (a 3x5 pose and near, far per view), found {list(arr.shape)}"
+        )
+    arr = arr.astype(np.float64)
+    rows = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if rows.size:
+        raise ValueError(
+            f"{path}: non-finite (NaN/inf) values in the rows of views {rows.tolist()}"
+        )
+    poses, bounds = arr[:, :15].reshape(-1, 3, 5), arr[:, 15:]
+    rows = np.flatnonzero(~((bounds[:, 0] > 0) & (bounds[:, 1] > bounds[:, 0])))
+    if rows.size:
+        raise ValueError(
+            f"{path}: bounds expected 0 < near < far, not so for views {rows.tolist()}"
+        )
+    hwf = poses[:, :, 4]  # [N, 3]
+    if not np.allclose(hwf, hwf[0], rtol=1e-6) or (hwf[0] <= 0).any():
+        raise ValueError(
+            f"{path}: height, width, focal expected positive and the same in every row"
+        )
+    return poses, bounds
+
+
+def _read_readouts(path: Path, count: int) -> np.ndarray:
+    """The readout [count] of each pose, strictly increasing, from readouts.txt."""
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"readouts file not found: {path} (one readout per pose, for {STREAM})"
+        )
+    readouts = np.loadtxt(path, dtype=np.float64, ndmin=1)  # [P]
+    if len(readouts) != count:
+        raise ValueError(
+            f"{path}: {len(readouts)} readouts for {count} poses; expected one per pose"
+        )
+    if not np.isfinite(readouts).all() or (np.diff(readouts) <= 0).any():
+        raise ValueError(f"{path}: readouts expected finite and strictly increasing")
+    return readouts
+
+
+def load_llff(path: PathLike, **overrides) -> Dataset:
+    """Open an LLFF-layout directory (module docstring); `overrides` are spikegs.json options.
+    Every file is checked before any spike is read."""
+    root = Path(path)
+    source = root / POSES_BOUNDS
+    options = read_options(root, overrides)
+    poses, bounds = _read_poses_bounds(source)
+    viewmats = viewmats_from_llff(poses)  # [N, 4, 4]
+    h, w, f = poses[0, :, 4]
+    height, width = options.height or round(h), options.width or round(w)
+    K = np.array([[f * width / w, 0, width / 2], [0, f * height / h, height / 2], [0, 0, 1]])
+    test = held_out(len(poses), options.test_views, str(source))
+    sphere = scene_sphere(options, *frustum_sphere(viewmats, bounds, K, width, height))
+    near_far = {"near": float(bounds[:, 0].min()), "far": float(bounds[:, 1].max())}
+    if (root / STREAM).is_file():
+        readouts = _read_readouts(root / READOUTS, len(poses))
+        meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
+        stream = open_spikes(root / STREAM, height, width, options)
+        return stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
+    folder = root / SPIKES_DIR
+    if not folder.is_dir():
+        raise FileNotFoundError(
+            f"spikes not found in {root}: expected {SPIKES_DIR}/ (one .dat per view) or {STREAM} "
+            f"with {READOUTS}"
+        )
+    files = sorted(folder.glob("*.dat"))
+    if len(files) != len(poses):
+        raise ValueError(
+            f"{source} holds {len(poses)} poses but {folder} holds {len(files)} .dat files; "
+            f"expected one per pose, in sorted name order"
+        )
+    meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
+    streams = [open_spikes(p, height, width, options) for p in files]
+    names = [p.stem for p in files]
+    return views_dataset(
+        root,
+        meta,
+        names,
+        viewmats,
+        streams,
+        [None] * len(files),
+        test,
+        options.pseudo_gt_window,
+        str(source),
+    )

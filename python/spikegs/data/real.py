@@ -1,0 +1,198 @@
+"""A Dataset from real spike data: per-view streams or one stream, held-out views, meta.
+
+A held-out view without a sharp image gets a pseudo ground truth: TFP over a long window of its own
+spikes (by default the whole view for per-view streams, 65 readouts around its pose for one
+stream). Its name starts with `pseudo_` and meta["test_ground_truth"] says so, so evaluation
+output does too. A sharp image (intensity, [0, 1]) is stored times the trainer's intensity scale.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..spikes import SpikeStream
+from ..targets import intensity_scale
+from .dataset import FORMAT_VERSION, READOUT_PERIOD_S, WINDOW_MARGIN, Dataset, TestView
+from .real_options import Options
+from .simulate import train_timestamps
+from .trajectory import Trajectory
+from .view_stream import ViewStreams
+
+NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
+PSEUDO_PREFIX = "pseudo_"
+MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
+HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
+PSEUDO_NOTE = "TFP of the held-out view's own spikes, not a sharp image: views named pseudo_*"
+
+
+@dataclasses.dataclass
+class HeldOut:
+    """A test view before its image is final."""
+
+    name: str
+    viewmat: np.ndarray  # [4, 4] world-to-camera, OpenCV
+    readout: float | None  # on the stream's readout axis; None: no spikes of this view
+    image: np.ndarray | None  # [H, W, C] sharp intensity, or None for a pseudo ground truth
+    window: int = NEEDED_WINDOW  # readouts of the pseudo ground truth's TFP
+
+
+def camera_meta(
+    layout: str, root: Path, K: np.ndarray, height: int, width: int, options: Options, **extra
+) -> dict:
+    """meta.json-like keys of a real dataset (docs/datasets.md); `extra` are added as they are."""
+    meta = {
+        "format_version": FORMAT_VERSION,
+        "layout": layout,
+        "scene": root.resolve().name,
+        "height": height,
+        "width": width,
+        "channels": 1,
+        "readout_period_s": READOUT_PERIOD_S,
+        "flip": options.flip,
+        "raw_width": options.raw_width or width,
+        "col_offset": options.col_offset,
+        "fx": float(K[0, 0]),
+        "fy": float(K[1, 1]),
+        "cx": float(K[0, 2]),
+        "cy": float(K[1, 2]),
+        **extra,
+    }
+    if options.rate_at_one is not None:
+        meta["rate_at_one"] = float(options.rate_at_one)
+    return meta
+
+
+def held_out(count: int, indices: list[int] | None, source: str) -> np.ndarray:
+    """Mask [count] of the test views: `indices`, or every HOLDOUT_EVERY-th from 0."""
+    indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
+    bad = [i for i in indices if not 0 <= i < count]
+    if bad:
+        raise ValueError(f"{source}: test_views {bad} outside the {count} views [0, {count})")
+    mask = np.zeros(count, bool)
+    mask[indices] = True
+    return mask
+
+
+def scene_sphere(options: Options, center, radius: float) -> dict:
+    """scene_center, scene_radius: the options' where given, else the computed ones."""
+    center = options.scene_center if options.scene_center is not None else center
+    radius = options.scene_radius if options.scene_radius is not None else radius
+    return {"scene_center": [float(c) for c in center], "scene_radius": float(radius)}
+
+
+def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) -> Dataset:
+    """The Dataset with test images in firing-rate units (sharp x intensity scale, or TFP)."""
+    meta["num_readouts"] = len(stream)
+    if not len(timestamps):
+        raise ValueError(f"{root}: no training timestamp left once the test views are held out")
+    if not held_out:
+        raise ValueError(f"{root}: no test view (set test_views in spikegs.json)")
+    dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
+    sharp = [h for h in held_out if h.image is not None]
+    scale = intensity_scale(dataset) if sharp else 1.0
+    for h in held_out:
+        if h.image is None:
+            image = stream.tfp(round(h.readout), h.window)[..., None]  # [H, W, 1]
+            dataset.test_views.append(TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout))
+        else:
+            image = (np.asarray(h.image) * scale).astype(np.float32)  # [H, W, 1]
+            dataset.test_views.append(TestView(h.name, h.viewmat, image, h.readout))
+    meta["test_ground_truth"] = {
+        "sharp_images": len(sharp),
+        "pseudo": len(held_out) - len(sharp),
+        **({"pseudo_method": PSEUDO_NOTE} if len(sharp) < len(held_out) else {}),
+    }
+    if sharp:
+        meta["image_scale"] = scale
+    return dataset
+
+
+def _longest_odd(length: int) -> int:
+    """The longest odd window in `length` readouts: it fits centred on the middle one."""
+    return length - 1 + length % 2
+
+
+def views_dataset(
+    root: Path,
+    meta: dict,
+    names: list[str],
+    viewmats: np.ndarray,
+    streams: list[SpikeStream | None],
+    images: list[np.ndarray | None],
+    test: np.ndarray,
+    pseudo_window: int | None,
+    source: str,
+) -> Dataset:
+    """One spike stream per view [V] (None: a test view known only by its sharp image): views
+    joined on one readout axis, a training timestamp at each training view's centre."""
+    for name, stream in zip(names, streams):
+        if stream is not None and len(stream) < NEEDED_WINDOW:
+            raise ValueError(
+                f"{stream.path}: view '{name}' has {len(stream)} readouts; a view needs at least "
+                f"{NEEDED_WINDOW}, the longest window training reads"
+            )
+        if stream is not None and pseudo_window and len(stream) < pseudo_window:
+            raise ValueError(
+                f"{stream.path}: view '{name}' has {len(stream)} readouts, fewer than "
+                f"pseudo_gt_window {pseudo_window}"
+            )
+    present = [i for i, s in enumerate(streams) if s is not None]
+    joined = ViewStreams([streams[i] for i in present], [names[i] for i in present])
+    trajectory = joined.held_trajectory(np.asarray(viewmats)[present], source)
+    centers = dict(zip(present, joined.centers().tolist()))
+    lengths = dict(zip(present, np.diff(joined.offsets).tolist()))
+    held_out = [
+        HeldOut(
+            names[i],
+            viewmats[i],
+            float(centers[i]) if i in centers else None,
+            images[i],
+            pseudo_window or _longest_odd(lengths.get(i, 1)),
+        )
+        for i in np.flatnonzero(test)
+    ]
+    timestamps = [centers[i] for i in present if not test[i]]
+    meta["spike_files"] = [os.path.relpath(streams[i].path, root) for i in present]
+    meta["view_readouts"] = {
+        names[i]: [int(joined.offsets[j]), int(joined.offsets[j + 1])]
+        for j, i in enumerate(present)
+    }
+    return _finish(root, meta, joined, trajectory, timestamps, held_out)
+
+
+def stream_dataset(
+    root: Path,
+    meta: dict,
+    stream: SpikeStream,
+    readouts: np.ndarray,
+    viewmats: np.ndarray,
+    test: np.ndarray,
+    options: Options,
+    source: str,
+) -> Dataset:
+    """One continuous stream with a pose [P, 4, 4] at each readout [P]: training timestamps every
+    `train_every` readouts clear of the held-out poses; a held-out pose whose pseudo-ground-truth
+    window does not fit in the stream is not evaluated."""
+    trajectory = Trajectory(readouts, viewmats, source=source)
+    if trajectory.start < 0 or trajectory.end > len(stream) - 1:
+        raise ValueError(
+            f"{source}: pose readouts span [{trajectory.start}, {trajectory.end}], outside the "
+            f"stream's [0, {len(stream) - 1}] ({stream.path})"
+        )
+    every = options.train_every or max(1, math.ceil(len(stream) / MAX_DEFAULT_TIMESTAMPS))
+    ks = train_timestamps(len(stream), readouts[test], every)  # [M]
+    ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
+    window = options.pseudo_gt_window or NEEDED_WINDOW
+    held_out = [
+        HeldOut(f"view_{i:03d}", viewmats[i], float(readouts[i]), None, window)
+        for i in np.flatnonzero(test)
+        if window // 2 <= round(readouts[i]) <= len(stream) - window + window // 2
+    ]
+    meta["spike_files"] = [os.path.relpath(stream.path, root)]
+    meta["train_every"] = every
+    return _finish(root, meta, stream, trajectory, ks, held_out)

@@ -1,0 +1,183 @@
+"""`spikegs poses DATASET`: camera poses from the spikes themselves, for a camera with no pose log.
+
+Spike images (TFP, or the dataset's cached SIM) at chosen readouts go through structure from
+motion (pycolmap); the registered poses become DATASET/trajectory.json (an existing one is kept as
+trajectory.json.bak) and the sparse points DATASET/points3d.ply, which the trainer uses to place
+its initial Gaussians. SfM poses are known up to a similarity: with a known trajectory they are
+aligned to it and their error is reported; without one they stay in SfM's own frame.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .data.dataset import META, TRAJECTORY, spike_files
+from .data.sources import MissingDependencyError
+from .data.trajectory import Trajectory
+from .point_cloud import POINTS, write_points
+from .pose_refine import pose_errors
+from .sfm import Reconstruction, align, reconstruct, spike_images
+from .spikes import SpikeStream
+
+MIN_IMAGES = 8
+WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", type=Path, help="dataset directory (meta.json and spikes)")
+    parser.add_argument("--window", type=int, default=33, help="TFP window, odd (default 33)")
+    when = parser.add_mutually_exclusive_group()
+    when.add_argument("--every", type=int, help="an image every N readouts")
+    when.add_argument("--count", type=int, default=40, help="images spread evenly (default 40)")
+    parser.add_argument(
+        "--sim", action="store_true", help="images from the cached SIM (DATASET/sim/*.pt), not TFP"
+    )
+    parser.add_argument(
+        "--min-registered",
+        type=float,
+        default=0.5,
+        help="fail below this fraction of registered images (default 0.5)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        report = estimate_poses(
+            args.dataset, args.window, args.every, args.count, args.sim, args.min_registered
+        )
+    except MissingDependencyError as err:
+        print(f"spikegs poses: error: {err}", file=sys.stderr)
+        return 2
+    print(report["summary"])
+    return 0
+
+
+def _image_readouts(num_readouts: int, window: int, every: int | None, count: int) -> np.ndarray:
+    """Readouts [N] whose `window` fits in the stream: every `every`, else `count` evenly."""
+    half = window // 2
+    last = num_readouts - 1 - half
+    if every is not None:
+        return np.arange(half, last + 1, every)
+    return np.unique(np.round(np.linspace(half, last, count)).astype(np.int64))
+
+
+def _cached_sim(root: Path):
+    from .sim_train import load_sim
+
+    cached = sorted((root / "sim").glob("*.pt"), key=lambda p: p.stat().st_mtime)
+    if not cached:
+        raise ValueError(f"--sim: no trained SIM in {root / 'sim'}; run `spikegs sim-train` first")
+    return load_sim(cached[-1])
+
+
+def _complete_meta(meta: dict, recon: Reconstruction) -> list[str]:
+    """Fill in what meta.json did not know (intrinsics, scene centre and radius) from SfM."""
+    messages = []
+    if not all(k in meta for k in ("fx", "fy", "cx", "cy")):
+        K = recon.K
+        meta.update(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2], cy=K[1, 2])
+        messages.append(
+            f"the intrinsics were unknown: SfM's estimate fx = fy = {K[0, 0]:.2f}, "
+            f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META}"
+        )
+    if "scene_center" not in meta or "scene_radius" not in meta:
+        centre = np.median(recon.points, axis=0)  # [3]
+        distances = np.linalg.norm(recon.points - centre, axis=1)  # [P]
+        meta.update(scene_center=centre.tolist(), scene_radius=float(np.percentile(distances, 95)))
+        messages.append(f"scene_center and scene_radius estimated from the points ({META})")
+    return messages
+
+
+def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) -> dict:
+    """Rotation (degrees) and centre (scene radii) errors of aligned poses against `reference`."""
+    rotation, centre = pose_errors(recon.viewmats, reference.pose_at(recon.readouts))
+    centre = centre / radius
+    return {
+        "rotation_error_deg_median": float(np.median(rotation)),
+        "rotation_error_deg_max": float(rotation.max()),
+        "centre_error_median": float(np.median(centre)),
+        "centre_error_max": float(centre.max()),
+    }
+
+
+def estimate_poses(
+    root: str | Path,
+    window: int = 33,
+    every: int | None = None,
+    count: int = 40,
+    sim: bool = False,
+    min_registered: float = 0.5,
+) -> dict:
+    """Run SfM on the dataset at `root` and write its poses and points there; returns the report
+    (also written to DATASET/sfm/report.json)."""
+    root = Path(root)
+    meta_path = root / META
+    if not meta_path.is_file():
+        raise FileNotFoundError(f"dataset file not found: {meta_path}")
+    meta = json.loads(meta_path.read_text())
+    if window < 1 or window % 2 == 0:
+        raise ValueError(f"--window: expected an odd window >= 1, got {window}")
+    if every is not None and every < 1:
+        raise ValueError(f"--every: expected >= 1 readout, got {every}")
+    h, w, num = int(meta["height"]), int(meta["width"]), int(meta["num_readouts"])
+    readouts = _image_readouts(num, window, every, count)
+    if len(readouts) < MIN_IMAGES:
+        raise ValueError(
+            f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
+            f"{num} readouts with a {window}-readout window: raise --count or lower --every"
+        )
+    streams = [
+        SpikeStream.open(root / name, h, w, meta["flip"])
+        for name in spike_files(int(meta["channels"]))
+    ]
+    images = spike_images(streams, readouts, window, _cached_sim(root) if sim else None)
+    K = None
+    if all(k in meta for k in ("fx", "fy", "cx", "cy")):
+        K = np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]])
+    recon = reconstruct(images, readouts, root / WORK_DIR, K, min_registered)
+    report = {
+        "images": recon.num_images,
+        "registered": len(recon.readouts),
+        "points": len(recon.points),
+    }
+    messages = [
+        f"SfM: {len(recon.readouts)} of {recon.num_images} images registered "
+        f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points"
+    ]
+    backup = root / f"{TRAJECTORY}.bak"
+    reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
+    reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
+    if reference is None:
+        messages.append(
+            "no trajectory to align to: the poses are in SfM's own frame, known up to a "
+            "similarity (arbitrary rotation, translation and scale)"
+        )
+    else:
+        recon = align(recon, reference)
+    messages += _complete_meta(meta, recon)
+    if reference is not None:
+        report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
+        messages.append(
+            f"aligned to {reference_path.name} by a similarity on the camera centres: rotation "
+            f"error median {report['rotation_error_deg_median']:.2f} deg (max "
+            f"{report['rotation_error_deg_max']:.2f}), centre error median "
+            f"{report['centre_error_median']:.2%} of the scene radius "
+            f"(max {report['centre_error_max']:.2%})"
+        )
+        if not backup.exists():
+            shutil.copy2(reference_path, backup)
+            messages.append(f"the previous trajectory is kept as {backup.name}")
+    intrinsics = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
+    recon.trajectory(num).save_json(root / TRAJECTORY, **intrinsics, w=w, h=h)
+    write_points(root / POINTS, recon.points, recon.colors)
+    meta_path.write_text(json.dumps(meta, indent=1))
+    messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+    report["summary"] = "\n".join(messages)
+    (root / WORK_DIR / "report.json").write_text(json.dumps(report, indent=1))
+    return report

@@ -1,0 +1,251 @@
+"""Camera poses from spikes: spike images (TFP or SIM) at chosen readouts, structure from motion
+with pycolmap (`pip install 'spikegs[sfm]'`), poses as OpenCV world-to-camera viewmats.
+
+SfM recovers poses and points up to a similarity (rotation, translation and scale of the world);
+`align` maps them onto a known trajectory by a least-squares similarity on the camera centres
+(Umeyama). COLMAP's camera is OpenCV's (x right, y down, z forward; pixel centres at +0.5), so
+its `cam_from_world` is our viewmat as it is.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from .data.sources import MissingDependencyError
+from .data.trajectory import Trajectory
+
+GAMMA = 2.2  # images are gamma-encoded for SIFT (contrast in the darks), points linearised back
+MIN_FEATURES = 100  # fewer SIFT features per image than this: the images are the likely problem
+MIN_PAIR_INLIERS = 15  # verified matches that make two images a matched pair
+
+
+@dataclasses.dataclass
+class Reconstruction:
+    """Registered images of one SfM run and its sparse points, in one world frame."""
+
+    readouts: np.ndarray  # [R] readouts of the registered images, increasing
+    viewmats: np.ndarray  # [R, 4, 4] world-to-camera, OpenCV
+    K: np.ndarray  # [3, 3] intrinsics (given, or estimated by SfM)
+    points: np.ndarray  # [P, 3]
+    colors: np.ndarray  # [P, 3] uint8, linear intensity
+    num_images: int  # images given to SfM
+
+    def transformed(self, scale: float, rotation: np.ndarray, shift: np.ndarray) -> Reconstruction:
+        """The same reconstruction in the world X' = scale · rotation @ X + shift."""
+        world = np.eye(4)
+        world[:3, :3], world[:3, 3] = rotation, shift / scale  # X'/scale = world @ X
+        viewmats = self.viewmats @ np.linalg.inv(world)  # [R, 4, 4], camera frame scaled by 1/s
+        viewmats[:, :3, 3] *= scale
+        points = scale * self.points @ rotation.T + shift
+        return dataclasses.replace(self, viewmats=viewmats, points=points)
+
+    def trajectory(self, num_readouts: int) -> Trajectory:
+        """The registered poses as a trajectory over [0, num_readouts - 1]: unregistered readouts
+        in between are interpolated, the first and last poses are held constant to the ends."""
+        readouts, viewmats = self.readouts, self.viewmats
+        if readouts[0] > 0:
+            readouts, viewmats = np.append(0, readouts), np.concatenate([viewmats[:1], viewmats])
+        if readouts[-1] < num_readouts - 1:
+            readouts = np.append(readouts, num_readouts - 1)
+            viewmats = np.concatenate([viewmats, viewmats[-1:]])
+        return Trajectory(readouts, viewmats, source="sfm")
+
+
+def spike_images(streams, readouts: np.ndarray, window: int, sim=None) -> np.ndarray:
+    """Grey images [N, H, W] in [0, 1] at `readouts` [N]: TFP(`window`) or, given a SIM, its
+    images; the mean of a colour camera's channels, divided by the 99.5th percentile."""
+    from .sim_train import infer_sim
+
+    def image(stream) -> np.ndarray:  # [N, H, W]
+        if sim is None:
+            return np.asarray(stream.tfp(readouts, window), np.float32)
+        return infer_sim(sim, stream, readouts)[..., 0]
+
+    grey = np.mean([image(s) for s in streams], axis=0)  # [N, H, W]
+    return np.clip(grey / max(float(np.percentile(grey, 99.5)), 1e-12), 0.0, 1.0)
+
+
+def reconstruct(
+    images: np.ndarray,
+    readouts: np.ndarray,
+    work_dir: str | Path,
+    K: np.ndarray | None = None,
+    min_registered: float = 0.5,
+    seed: int = 0,
+) -> Reconstruction:
+    """Incremental SfM on grey images [N, H, W] taken at `readouts` [N], in `work_dir` (replaced:
+    images/, database.db, sparse/). Known intrinsics `K` are held fixed, else a pinhole camera is
+    estimated. ValueError, with the numbers and the likely cause, when fewer than `min_registered`
+    of the images are registered."""
+    pycolmap = import_pycolmap()
+    work = Path(work_dir)
+    shutil.rmtree(work, ignore_errors=True)
+    (work / "images").mkdir(parents=True)
+    names = [f"{int(k):08d}.png" for k in readouts]
+    for name, image in zip(names, images):
+        encoded = np.round(255 * image ** (1 / GAMMA)).astype(np.uint8)
+        Image.fromarray(encoded).save(work / "images" / name)
+    database = work / "database.db"
+    reader = pycolmap.ImageReaderOptions()
+    if K is None:
+        reader.camera_model = "SIMPLE_PINHOLE"
+    else:
+        reader.camera_model = "PINHOLE"
+        reader.camera_params = ",".join(
+            str(float(K[i, j])) for i, j in ((0, 0), (1, 1), (0, 2), (1, 2))
+        )
+    level = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = 2  # COLMAP's progress log is long: errors only
+    try:
+        pycolmap.extract_features(
+            database, work / "images", names, pycolmap.CameraMode.SINGLE, reader
+        )
+        pycolmap.match_exhaustive(database)
+        stats = _match_stats(database, len(names))
+        if stats["parallax_pairs"] == 0:
+            raise ValueError(_failure(stats, None, min_registered))
+        models = pycolmap.incremental_mapping(
+            database, work / "images", work / "sparse", _mapper_options(K is None, seed)
+        )
+    finally:
+        pycolmap.logging.minloglevel = level
+    model = max(models.values(), key=lambda m: m.num_reg_images(), default=None)
+    registered = 0 if model is None else model.num_reg_images()
+    if registered < max(3, min_registered * len(names)):
+        raise ValueError(_failure(stats, registered, min_registered))
+    return _read_model(model, names, readouts)
+
+
+def import_pycolmap():
+    """pycolmap, or MissingDependencyError saying how to install it."""
+    try:
+        import pycolmap
+    except ImportError as err:
+        raise MissingDependencyError(
+            "poses from spikes need pycolmap, which is not installed: "
+            "pip install 'spikegs[sfm]' (or pip install pycolmap)"
+        ) from err
+    return pycolmap
+
+
+def _mapper_options(estimate_focal: bool, seed: int):
+    """Incremental mapping relaxed for small images (a few hundred features each)."""
+    import pycolmap
+
+    options = pycolmap.IncrementalPipelineOptions()
+    options.ba_refine_focal_length = estimate_focal
+    options.ba_refine_extra_params = False
+    options.min_model_size = 3
+    options.random_seed = seed
+    options.mapper.init_min_num_inliers = 30
+    options.mapper.abs_pose_min_num_inliers = 12
+    options.mapper.abs_pose_min_inlier_ratio = 0.1
+    options.mapper.abs_pose_refine_focal_length = estimate_focal
+    return options
+
+
+def _read_model(model, names: list[str], readouts: np.ndarray) -> Reconstruction:
+    by_name = {image.name: image for image in model.images.values() if image.has_pose}
+    order = [i for i, name in enumerate(names) if name in by_name]
+    viewmats = np.tile(np.eye(4), (len(order), 1, 1))  # [R, 4, 4]
+    for row, i in enumerate(order):
+        viewmats[row, :3] = by_name[names[i]].cam_from_world().matrix()
+    camera = next(iter(model.cameras.values()))
+    points = np.array([p.xyz for p in model.points3D.values()]).reshape(-1, 3)  # [P, 3]
+    encoded = np.array([p.color for p in model.points3D.values()]).reshape(-1, 3) / 255.0
+    colors = np.round(255 * encoded**GAMMA).astype(np.uint8)  # [P, 3]
+    return Reconstruction(
+        np.asarray(readouts, np.float64)[order],
+        viewmats,
+        np.asarray(camera.calibration_matrix(), np.float64),
+        points,
+        colors,
+        len(names),
+    )
+
+
+def _match_stats(database: Path, num_images: int) -> dict:
+    """Features per image, image pairs with >= MIN_PAIR_INLIERS verified matches, and how many of
+    those show parallax (their geometry is not a homography: neither pure rotation nor a plane
+    seen from one place)."""
+    import pycolmap
+
+    config = pycolmap.TwoViewGeometryConfiguration
+    moving = (config.CALIBRATED, config.CALIBRATED_RIG, config.UNCALIBRATED, config.PLANAR)
+    db = pycolmap.Database.open(database)
+    try:
+        geometries = db.read_two_view_geometries()[1]
+        matched = [g for g in geometries if len(g.inlier_matches) >= MIN_PAIR_INLIERS]
+        return {
+            "images": num_images,
+            "features": db.num_keypoints() / max(num_images, 1),
+            "pairs": len(matched),
+            "parallax_pairs": sum(g.config in moving for g in matched),
+            "inliers": db.num_inlier_matches(),
+        }
+    finally:
+        db.close()
+
+
+def _failure(stats: dict, registered: int | None, min_registered: float) -> str:
+    """The failure message: what SfM managed (`registered` None: mapping not tried), in numbers,
+    and the likely reasons."""
+    n = stats["images"]
+    need = max(3, int(np.ceil(min_registered * n)))
+    outcome = (
+        "no matched image pair shows parallax, so nothing can be triangulated"
+        if registered is None
+        else f"{registered} of {n} images registered (needed {need})"
+    )
+    reasons = []
+    if n < 10:
+        reasons.append(f"too few images ({n}): raise --count or lower --every")
+    if stats["features"] < MIN_FEATURES:
+        reasons.append(
+            "few features: textureless or noisy images (a longer --window, or --sim, gives "
+            "cleaner images)"
+        )
+    if stats["pairs"] < n:
+        reasons.append(
+            "few matching pairs: too little overlap between images, or repetitive texture"
+        )
+    if stats["parallax_pairs"] < n:
+        reasons.append(
+            "too little parallax (a short stream, or a camera that barely moves or only turns): "
+            "spread the images over more readouts"
+        )
+    return (
+        f"structure from motion failed: {outcome}; {n} images, {stats['features']:.0f} SIFT "
+        f"features per image, {stats['pairs']} image pairs with >= {MIN_PAIR_INLIERS} verified "
+        f"matches ({stats['parallax_pairs']} of them with parallax, {stats['inliers']} inlier "
+        "matches in all). Likely: "
+        + "; ".join(reasons or ["a hard scene for SIFT at this resolution"])
+        + "."
+    )
+
+
+def umeyama(source: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """The similarity (scale, rotation [3, 3], shift [3]) that maps points `source` [N, 3] onto
+    `target` [N, 3] in the least-squares sense: target ≈ scale · rotation @ source + shift."""
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    s, t = source - mu_s, target - mu_t
+    u, d, vt = np.linalg.svd(t.T @ s / len(source))
+    flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
+    rotation = u @ flip @ vt
+    scale = float(np.trace(np.diag(d) @ flip) / (s * s).sum(axis=1).mean())
+    return scale, rotation, mu_t - scale * rotation @ mu_s
+
+
+def align(recon: Reconstruction, trajectory: Trajectory) -> Reconstruction:
+    """`recon` moved into `trajectory`'s world by the similarity that best maps its camera centres
+    onto the trajectory's centres at the same readouts."""
+    if len(recon.readouts) < 3:
+        raise ValueError(f"align: needs >= 3 registered images, found {len(recon.readouts)}")
+    centres = np.linalg.inv(recon.viewmats)[:, :3, 3]  # [R, 3]
+    known = np.linalg.inv(trajectory.pose_at(recon.readouts))[:, :3, 3]  # [R, 3]
+    return recon.transformed(*umeyama(centres, known))

@@ -1,0 +1,297 @@
+"""Real-data layouts (LLFF per-view / one stream, NeRF with spike_data/): fixtures cut from a
+simulated dataset, pose conventions, windows within one view, bad input, training end to end."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from spikegs.config import load_config
+from spikegs.data import load_dataset, make_source, simulate_dataset
+from spikegs.data.llff import to_poses_bounds, viewmats_from_llff
+from spikegs.data.sources import OPENGL_TO_OPENCV
+from spikegs.data.trajectory import look_at
+from spikegs.evaluate import evaluate_run
+from spikegs.image_io import write_image
+from spikegs.sim_train import evaluate_dataset, train_sim
+from spikegs.spikes import DatWriter, save_dat
+from spikegs.train import Trainer
+
+H, W, VIEWS, LENGTH = 32, 48, 10, 70  # a view: LENGTH readouts of the simulated stream
+SMALL = dict(height=H, width=W, test_on_path=1, test_off_path=0, progress=False)
+FAST = {
+    "train": {"iterations": 30, "init_gaussians": 500, "eval_every": 30, "checkpoint_every": 30},
+    "supervision": {"exposure_weight": 0.5, "exposure_poses": 3},
+}
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    """A simulated moving camera: VIEWS x LENGTH readouts."""
+    root = tmp_path_factory.mktemp("sim") / "solids"
+    return simulate_dataset("solids", root, readouts=VIEWS * LENGTH, **SMALL)
+
+
+def view_poses(sim) -> np.ndarray:
+    """The pose [V, 4, 4] at the centre of each view's readouts."""
+    return sim.trajectory.pose_at(np.arange(VIEWS) * LENGTH + LENGTH // 2)
+
+
+def write_view(sim, path, i: int, length: int = LENGTH) -> None:
+    """View i's readouts of the simulated stream as a .dat of its own."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with DatWriter(path, H, W) as writer:
+        writer.write_packed(sim.stream.packed(i * LENGTH, i * LENGTH + length))
+
+
+def bounds_of(sim, viewmats) -> np.ndarray:
+    """Near and far [V, 2] around the scene sphere."""
+    distance = np.linalg.norm(np.linalg.inv(viewmats)[:, :3, 3] - sim.scene_center, axis=1)
+    return np.stack([distance - 1.5 * sim.scene_radius, distance + 1.5 * sim.scene_radius], 1)
+
+
+@pytest.fixture(scope="module")
+def llff(sim, tmp_path_factory):
+    """LLFF with one spike file per view."""
+    root = tmp_path_factory.mktemp("llff")
+    viewmats = view_poses(sim)
+    hwf = (H, W, sim.K[0, 0])
+    np.save(root / "poses_bounds.npy", to_poses_bounds(viewmats, hwf, bounds_of(sim, viewmats)))
+    for i in range(VIEWS):
+        write_view(sim, root / "spikes" / f"{i:03d}.dat", i)
+    return root
+
+
+@pytest.fixture(scope="module")
+def llff_stream(sim, tmp_path_factory):
+    """LLFF with one continuous stream and readouts.txt: a pose every 50 readouts."""
+    root = tmp_path_factory.mktemp("llff_stream")
+    readouts = np.arange(0, VIEWS * LENGTH, 50)
+    viewmats = sim.trajectory.pose_at(readouts)
+    hwf = (H, W, sim.K[0, 0])
+    np.save(root / "poses_bounds.npy", to_poses_bounds(viewmats, hwf, bounds_of(sim, viewmats)))
+    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
+    shutil.copy(sim.root / "spikes.dat", root / "spikes.dat")
+    return root
+
+
+def nerf_frame(viewmat, file_path: str, **extra) -> dict:
+    c2w = np.linalg.inv(viewmat) @ OPENGL_TO_OPENCV  # OpenGL camera-to-world
+    return {"file_path": file_path, "transform_matrix": c2w.tolist(), **extra}
+
+
+@pytest.fixture(scope="module")
+def nerf(sim, tmp_path_factory):
+    """transforms_{train,test}.json, spike_data/: test/r_0 has a sharp image, test/r_1 none."""
+    root = tmp_path_factory.mktemp("nerf")
+    viewmats = view_poses(sim)
+    fov = float(2 * np.arctan(W / 2 / sim.K[0, 0]))
+    train = [nerf_frame(viewmats[i], f"./train/r_{i}") for i in range(2, VIEWS - 1)]
+    train.append(nerf_frame(viewmats[-1], "./train/last.png", spike_path="custom/last.dat"))
+    test = [nerf_frame(viewmats[i], f"./test/r_{i}") for i in range(2)]
+    for name, frames in (("train", train), ("test", test)):
+        doc = {"camera_angle_x": fov, "w": W, "h": H, "frames": frames}
+        (root / f"transforms_{name}.json").write_text(json.dumps(doc))
+    for i in range(2, VIEWS - 1):
+        write_view(sim, root / "spike_data" / "train" / f"r_{i}.dat", i)
+    write_view(sim, root / "custom" / "last.dat", VIEWS - 1)
+    write_view(sim, root / "spike_data" / "r_1.dat", 1)  # found by stem
+    sharp = make_source("solids", W, H, 1).render(viewmats[0])  # [H, W, 1] intensity
+    write_image(root / "test" / "r_0.exr", sharp)
+    return root
+
+
+def copy(root, tmp_path):
+    out = tmp_path / root.name
+    shutil.copytree(root, out)
+    return out
+
+
+# -- loading ---------------------------------------------------------------------------------------
+def test_llff_per_view_loads(sim, llff):
+    ds = load_dataset(llff)
+    assert ds.meta["layout"] == "llff" and (ds.height, ds.width, ds.channels) == (H, W, 1)
+    assert len(ds.stream) == ds.num_readouts == VIEWS * LENGTH
+    np.testing.assert_allclose(ds.K, sim.K, rtol=1e-6)
+    assert [v.name for v in ds.test_views] == ["pseudo_000", "pseudo_008"]  # every 8th view
+    assert (
+        ds.meta["test_ground_truth"]["pseudo"] == 2
+        and "pseudo_method" in ds.meta["test_ground_truth"]
+    )
+    centers = np.arange(VIEWS) * LENGTH + (LENGTH - 1) // 2
+    np.testing.assert_array_equal(ds.train_timestamps, np.delete(centers, [0, 8]))
+    # pseudo ground truth: TFP of the whole held-out view (69 readouts, odd)
+    np.testing.assert_allclose(ds.test_views[1].image[..., 0], sim.stream.tfp(8 * LENGTH + 34, 69))
+    # the sphere around the frustums holds the simulated scene's centre
+    assert np.linalg.norm(ds.scene_center - sim.scene_center) < ds.scene_radius
+    assert ds.meta["near"] > 0 and ds.meta["far"] > ds.meta["near"]
+
+
+def test_llff_stream_loads(sim, llff_stream):
+    ds = load_dataset(llff_stream)
+    assert ds.meta["layout"] == "llff-stream" and len(ds.stream) == VIEWS * LENGTH
+    # poses 0 and 8 are held out; pose 0 (readout 0) has no room for a window, so only 8 is scored
+    assert [v.name for v in ds.test_views] == ["pseudo_view_008"]
+    assert ds.test_views[0].readout == 400
+    ts = ds.train_timestamps
+    assert np.abs(ts - 400).min() > 64 and np.abs(ts - 0).min() > 64
+    assert ts.min() >= 32 and ts.max() <= 650 - 32  # exposure poses within the recorded ones
+    np.testing.assert_allclose(ds.trajectory.pose_at(375), sim.trajectory.pose_at(375), atol=1e-2)
+
+
+def test_nerf_layout_loads(sim, nerf):
+    ds = load_dataset(nerf)
+    assert ds.meta["layout"] == "nerf"
+    assert [v.name for v in ds.test_views] == ["test_r_0", "pseudo_test_r_1"]
+    assert ds.meta["test_ground_truth"]["sharp_images"] == 1
+    sharp, pseudo = ds.test_views
+    assert sharp.readout is None  # no spikes of r_0: off the path
+    clean = make_source("solids", W, H, 1).render(view_poses(sim)[0])  # [H, W, 1]
+    np.testing.assert_allclose(sharp.image, clean * ds.meta["image_scale"], rtol=1e-5)
+    assert pseudo.readout is not None
+    assert len(ds.stream) == 9 * LENGTH and len(ds.train_timestamps) == 8
+    np.testing.assert_allclose(ds.K, sim.K, rtol=1e-6)
+    assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.5 * sim.scene_radius
+
+
+def test_raw_stream_options(sim, llff_stream, tmp_path):
+    """Rows with extra columns, stored top-down: spikegs.json crops and un-flips."""
+    root = copy(llff_stream, tmp_path)
+    bits = np.unpackbits(sim.stream.packed(), axis=-1, bitorder="little")[..., :W]  # [T, H, W]
+    raw = np.zeros((len(bits), H, W + 16), np.uint8)
+    raw[..., 8 : 8 + W] = bits
+    save_dat(root / "spikes.dat", raw, flip=False)
+    with pytest.raises(ValueError, match="spikes.dat"):
+        load_dataset(root)  # 64-pixel rows do not fit 32x48 readouts of this length
+    (root / "spikegs.json").write_text(
+        json.dumps({"raw_width": W + 16, "col_offset": 8, "flip": False})
+    )
+    ds = load_dataset(root)
+    np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
+    assert ds.meta["raw_width"] == W + 16
+
+
+# -- conventions -----------------------------------------------------------------------------------
+def random_viewmats(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.stack([look_at(rng.normal(size=3) * 3, rng.normal(size=3) * 0.3) for _ in range(n)])
+
+
+def test_llff_pose_round_trip_and_convention():
+    viewmats = random_viewmats(6)
+    rows = to_poses_bounds(viewmats, (H, W, 50.0), np.tile([1.0, 9.0], (6, 1)))
+    poses = rows[:, :15].reshape(-1, 3, 5)
+    np.testing.assert_allclose(viewmats_from_llff(poses), viewmats, atol=1e-6)
+    # LLFF's columns are [down, right, backwards]: NeRF's reorder gives OpenGL [right, up, back]
+    opengl = np.concatenate([poses[:, :, 1:2], -poses[:, :, 0:1], poses[:, :, 2:4]], 2)  # [N, 3, 4]
+    c2w = np.linalg.inv(viewmats)
+    np.testing.assert_allclose(
+        opengl[:, :, :3] @ OPENGL_TO_OPENCV[:3, :3], c2w[:, :3, :3], atol=1e-9
+    )
+    np.testing.assert_allclose(opengl[:, :, 3], c2w[:, :3, 3], atol=1e-9)
+
+
+def test_nerf_pose_round_trip(sim, nerf):
+    ds = load_dataset(nerf)
+    np.testing.assert_allclose(ds.test_views[0].viewmat, view_poses(sim)[0], atol=1e-6)
+    np.testing.assert_allclose(ds.trajectory.pose_at(0), view_poses(sim)[2], atol=1e-6)
+
+
+def test_windows_never_straddle_two_views(llff):
+    ds = load_dataset(llff)
+    offsets = ds.stream.offsets
+    for k in [*ds.train_timestamps, *(v.readout for v in ds.test_views)]:
+        view = ds.stream.view_of(int(k))
+        assert offsets[view] <= k - 32 and k + 32 < offsets[view + 1]
+        # exposure poses anywhere in the window: the view's own pose
+        np.testing.assert_allclose(ds.trajectory.pose_at(k + 32), ds.trajectory.pose_at(k - 32))
+    with pytest.raises(ValueError, match="within one view"):
+        ds.stream.tfp(LENGTH - 10, 33)
+    with pytest.raises(ValueError, match="within one view"):
+        ds.stream.window(np.array([100, LENGTH + 5]), 33)
+    assert ds.stream.tfp(np.array([100, 10 + 35]), 21).shape == (2, H, W)
+    assert ds.stream.tfi(LENGTH - 1).shape == (H, W)  # TFI stops at the view's end
+
+
+def test_sim_trains_and_evaluates_on_view_streams(llff):
+    ds = load_dataset(llff)
+    model, _ = train_sim(
+        ds.stream, ds.train_timestamps, 33, steps=2, batch_size=2, crop=16, progress=False
+    )
+    scores = evaluate_dataset(model, ds)
+    assert np.isfinite([s["psnr"] for s in scores.values()]).all()
+
+
+# -- bad input -------------------------------------------------------------------------------------
+def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
+    root = copy(llff, tmp_path / "count")
+    (root / "spikes" / "009.dat").unlink()
+    with pytest.raises(ValueError, match="poses_bounds.npy holds 10 poses .* 9 .dat"):
+        load_dataset(root)
+
+    root = copy(llff, tmp_path / "size")
+    with open(root / "spikes" / "003.dat", "ab") as f:
+        f.write(b"\0" * 3)
+    with pytest.raises(ValueError, match="003.dat.*raw_width"):
+        load_dataset(root)
+
+    root = copy(llff, tmp_path / "nan")
+    rows = np.load(root / "poses_bounds.npy")
+    rows[2, 3] = np.nan
+    np.save(root / "poses_bounds.npy", rows)
+    with pytest.raises(ValueError, match="poses_bounds.npy.*NaN"):
+        load_dataset(root)
+
+    root = copy(llff, tmp_path / "short")
+    write_view(sim, root / "spikes" / "004.dat", 4, length=40)
+    with pytest.raises(ValueError, match="004.dat.*40 readouts.*at least 65"):
+        load_dataset(root)
+
+    root = copy(llff, tmp_path / "nospikes")
+    shutil.rmtree(root / "spikes")
+    with pytest.raises(FileNotFoundError, match="spikes/"):
+        load_dataset(root)
+
+    root = copy(llff_stream, tmp_path / "noreadouts")
+    (root / "readouts.txt").unlink()
+    with pytest.raises(FileNotFoundError, match="readouts.txt"):
+        load_dataset(root)
+    np.savetxt(root / "readouts.txt", np.arange(0, 500, 50), fmt="%d")
+    with pytest.raises(ValueError, match="readouts.txt: 10 readouts for 14 poses"):
+        load_dataset(root)
+
+    (root / "spikegs.json").write_text(json.dumps({"heigth": 3}))
+    with pytest.raises(ValueError, match="spikegs.json: unknown options \\['heigth'\\]"):
+        load_dataset(root)
+
+
+def test_nerf_bad_input(nerf, tmp_path):
+    root = copy(nerf, tmp_path / "missing")
+    (root / "spike_data" / "train" / "r_3.dat").unlink()
+    with pytest.raises(FileNotFoundError, match="r_3.dat"):
+        load_dataset(root)
+
+    root = copy(nerf, tmp_path / "nan")
+    doc = json.loads((root / "transforms_train.json").read_text())
+    doc["frames"][1]["transform_matrix"][0][0] = float("inf")
+    (root / "transforms_train.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="transforms_train.json.*NaN"):
+        load_dataset(root)
+
+    root = copy(nerf, tmp_path / "noimage")
+    (root / "spike_data" / "r_1.dat").unlink()  # test/r_1: no spikes and no image
+    with pytest.raises(FileNotFoundError, match="r_1.dat.*no sharp image"):
+        load_dataset(root)
+
+
+# -- training end to end ---------------------------------------------------------------------------
+@pytest.mark.parametrize("layout", ["llff", "llff_stream", "nerf"])
+def test_trains_end_to_end(layout, request, tmp_path):
+    ds = load_dataset(request.getfixturevalue(layout))
+    summary = Trainer(ds, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
+    result = evaluate_run(tmp_path / "run", ds)
+    assert summary["iterations"] == 30 and np.isfinite(summary["intensity_scale"])
+    assert np.isfinite(result["psnr"]) and np.isfinite(result["ssim"])
+    assert set(result["views"]) == {v.name for v in ds.test_views}
