@@ -174,3 +174,22 @@ def test_metrics():
     assert ssim(np.stack([gt] * 3, -1), np.stack([gt] * 3, -1)) == pytest.approx(1.0)
     with pytest.raises(ValueError):
         psnr(gt, gt[:-1])
+
+
+def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():
+    """A flat scene firing 0.1 spikes/readout, 9-readout windows: the count is mostly 0 or 1, so
+    the L1 optimum (a median, 0 or 1/9) misses the rate that the L2 optimum (the mean) finds."""
+    stream = BernoulliStream(lambda k: np.full((20, 20), 0.1, np.float32), 80, seed=1)
+    ks = valid_timestamps(stream, 9)
+    fit = {"steps": 150, "batch_size": 4, "crop": 16, "progress": False, "lr": 1e-2}
+    means = {
+        loss: float(
+            infer_sim(train_sim(stream, ks, 9, loss=loss, seed=0, **fit)[0], stream, ks).mean()
+        )
+        for loss in ("l1", "l2")
+    }
+    # Binomial(9, 0.1) counts: median 1 -> 1/9 = 0.111 (measured 0.1108); mean 0.1 (0.0982)
+    assert abs(means["l2"] - 0.1) < 0.006, means
+    assert abs(means["l1"] - 1 / 9) < 0.006 and means["l1"] - means["l2"] > 0.007, means
+    with pytest.raises(ValueError, match="SIM loss"):
+        train_sim(stream, ks, 9, loss="huber", **fit)

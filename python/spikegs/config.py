@@ -65,6 +65,7 @@ class SimConfig:
     iterations: int = 500  # 1500 gained 0.4 dB for 3x the time (solids)
     crop: int = 64
     batch: int = 8
+    loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
 
 
 @dataclass
@@ -121,6 +122,7 @@ class Config:
             ">= train.init_gaussians",
         )
         _require(self.sim.window % 2 == 1, "sim.window", self.sim.window, "odd")
+        _require(self.sim.loss in ("l1", "l2"), "sim.loss", self.sim.loss, "l1 or l2")
         _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")
         return self
 

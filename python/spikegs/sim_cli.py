@@ -20,6 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--steps", type=int, default=sim.iterations, help="training steps")
     parser.add_argument("--batch-size", type=int, default=sim.batch, help="crops per step")
     parser.add_argument("--crop", type=int, default=sim.crop, help="crop side, pixels")
+    parser.add_argument("--loss", choices=("l1", "l2"), default=sim.loss, help="loss against TFP")
     parser.add_argument("--seed", type=int, default=TrainConfig().seed)
     parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
@@ -27,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
-    sim = SimConfig(args.window, args.steps, args.crop, args.batch_size)
+    sim = SimConfig(args.window, args.steps, args.crop, args.batch_size, args.loss)
     out = args.out or sim_path(dataset, sim, args.seed)
     model, seconds = train_or_load(
         out,
@@ -38,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
         steps=args.steps,
         batch_size=args.batch_size,
         crop=args.crop,
+        loss=args.loss,
         seed=args.seed,
     )
     done = f"trained in {seconds:.1f} s" if seconds else "reused"

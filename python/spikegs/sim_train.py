@@ -36,6 +36,9 @@ def _fast_dtype(dtype: torch.dtype | None) -> torch.dtype:
     return dtype or (torch.bfloat16 if bf16_is_fast() else torch.float32)
 
 
+LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}  # SIM's self-supervised loss against TFP
+
+
 def valid_timestamps(stream, window: int) -> np.ndarray:
     """Readouts k whose window of `window` readouts centred on k lies inside the stream."""
     half = window // 2
@@ -57,6 +60,7 @@ def train_sim(
     batch_size: int = 8,
     crop: int = 64,
     lr: float = 2e-3,
+    loss: str = "l2",
     seed: int = 0,
     bf16: bool | None = None,
     progress: bool = True,
@@ -67,7 +71,10 @@ def train_sim(
     `stream` may be a list of streams (a colour camera's channels): each crop then comes from a
     random one of them, and the one network serves every channel.
 
-    The loss is the paper's: L1 between SIM(window) and TFP(window), the mean of the same window.
+    The target is the paper's: TFP of the same window. `loss` "l2" (default) makes the optimum
+    the conditional mean, the Noise2Void argument the paper states; "l1" (the paper's eq. 13) makes
+    it the conditional median, biased where a window holds few spikes (a short window or a dim
+    scene: 33.6 dB against 41.2 dB with l2 for a 17-readout window on `solids`).
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
     default where native. Deterministic for a given `seed` and thread count. Returns the model
     (eval mode) and the loss of every step.
@@ -75,6 +82,8 @@ def train_sim(
     timestamps = np.asarray(timestamps)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")
+    if loss not in LOSSES:
+        raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(LOSSES)}")
     rng = np.random.default_rng(seed)
     with torch.random.fork_rng():
         torch.manual_seed(seed)
@@ -99,12 +108,12 @@ def train_sim(
         target = x.mean(dim=1, keepdim=True)  # TFP of the same window, [B, 1, ch, cw]
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             pred = model(x)  # [B, 1, ch, cw]
-        loss = F.l1_loss(pred.float(), target)
+        step_loss = LOSSES[loss](pred.float(), target)
         opt.zero_grad(set_to_none=True)
-        loss.backward()
+        step_loss.backward()
         opt.step()
         sched.step()
-        losses.append(loss.item())
+        losses.append(step_loss.item())
         if len(losses) % 50 == 0:
             bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
     return model.eval(), losses

@@ -54,7 +54,7 @@ def _per_channel(streams, image_fn) -> np.ndarray:
 
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
-    name = f"sim_w{sim.window}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_seed{seed}.pt"
+    name = f"sim_w{sim.window}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_{sim.loss}_seed{seed}.pt"
     return Path(dataset.root) / "sim" / name
 
 
@@ -76,6 +76,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
                 steps=c.iterations,
                 batch_size=c.batch,
                 crop=c.crop,
+                loss=c.loss,
                 seed=config.train.seed,
                 progress=progress,
             )
