@@ -202,3 +202,15 @@ def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
     assert trainer.model.channels == 3
     result = evaluate_run(tmp_path / "run", data, write_images=False)
     assert np.isfinite(result["psnr"])
+
+
+def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
+    """The default config (3000 iterations, reset every 3000) once reset every opacity to 0.01 at
+    its last step and ended nearly transparent (256² solids: 28.5 dB at 2500, 17.1 dB at 3000)."""
+    from spikegs.densify import Densifier, DensifyConfig
+
+    config = DensifyConfig(start=10**9, opacity_reset_every=3000, stop=15000)
+    assert not Densifier(config, 1.0, iterations=3000)._resets_opacity(3000)
+    long_run = Densifier(config, 1.0, iterations=30000)
+    resets = [i for i in range(1, 30001) if long_run._resets_opacity(i)]
+    assert resets == [3000, 6000, 9000, 12000, 15000]  # as in 3DGS: up to densify's stop

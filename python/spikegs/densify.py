@@ -45,9 +45,10 @@ def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, s
 class Densifier:
     """Accumulates screen-space gradients between steps and applies density control."""
 
-    def __init__(self, config: DensifyConfig, scene_radius: float):
+    def __init__(self, config: DensifyConfig, scene_radius: float, iterations: int):
         self.config = config
         self.scene_radius = scene_radius
+        self.iterations = iterations  # of the whole run: no opacity reset too close to its end
         self.grad_sum = torch.zeros(0)
         self.count = torch.zeros(0)
         self.max_radii = torch.zeros(0)
@@ -76,7 +77,7 @@ class Densifier:
         c = self.config
         if c.start <= iteration <= c.stop and iteration % c.every == 0:
             self._densify_and_prune(model, optimizer, iteration)
-        if c.opacity_reset_every and iteration % c.opacity_reset_every == 0 and iteration <= c.stop:
+        if self._resets_opacity(iteration):
             cap = torch.logit(torch.tensor(0.01))
             _surgery(
                 model,
@@ -84,6 +85,18 @@ class Densifier:
                 lambda name, p: torch.minimum(p, cap) if name == "opacity_logits" else p,
                 lambda name, m: torch.zeros_like(m) if name == "opacity_logits" else m,
             )
+
+    def _resets_opacity(self, iteration: int) -> bool:
+        """Opacities are reset every `opacity_reset_every` iterations up to `stop`, and only with
+        a whole reset period left to recover from it (3DGS: last reset at 15k of 30k); a reset at
+        the end of a run would leave a nearly transparent scene."""
+        every = self.config.opacity_reset_every
+        return bool(
+            every
+            and iteration % every == 0
+            and iteration <= self.config.stop
+            and iteration + every <= self.iterations
+        )
 
     def _densify_and_prune(self, model: GaussianModel, optimizer, iteration: int) -> None:
         c = self.config

@@ -85,7 +85,7 @@ class Trainer:
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
         self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
-        self.densifier = Densifier(self.config.densify, self.radius)
+        self.densifier = Densifier(self.config.densify, self.radius, self.config.train.iterations)
         self.rng = np.random.default_rng(t.seed)
         self.iteration, self.train_seconds = 0, 0.0
 
@@ -121,7 +121,7 @@ class Trainer:
             self.poses.load_state_dict(state["poses"])
         self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
         self.optimizer.load_state_dict(state["optimizer"])
-        self.densifier = Densifier(self.config.densify, self.radius)
+        self.densifier = Densifier(self.config.densify, self.radius, self.config.train.iterations)
         self.densifier.load_state_dict(state["densifier"])
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]
