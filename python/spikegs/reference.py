@@ -23,6 +23,8 @@ def _load_constants() -> dict[str, float]:
         "dilation": 0.3,
         "clamp_margin": 0.3,
         "tile_size": 16,
+        "near": 0.01,
+        "far": 1e10,
     }
     try:
         from . import _C
@@ -209,8 +211,8 @@ def rasterize(
     *,
     sh_degree: int | None = None,
     background: torch.Tensor | None = None,
-    near: float = 0.01,
-    far: float = 1e10,
+    near: float = float(_CONSTANTS["near"]),
+    far: float = float(_CONSTANTS["far"]),
     screen_points: torch.Tensor | None = None,
 ) -> RasterizeResult:
     """Render N Gaussians exactly as docs/rasterizer.md says; differentiable through autograd.

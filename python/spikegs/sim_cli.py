@@ -9,8 +9,8 @@ from pathlib import Path
 from .bench.common import print_table
 from .config import SimConfig, TrainConfig
 from .data.dataset import load_dataset
-from .sim_train import evaluate_dataset, train_or_load
-from .targets import sim_path
+from .sim_train import evaluate_dataset
+from .targets import trained_sim
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,19 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     sim = SimConfig(args.window, args.steps, args.crop, args.batch_size, args.loss)
-    out = args.out or sim_path(dataset, sim, args.seed)
-    model, seconds = train_or_load(
-        out,
-        dataset.streams,
-        dataset.train_timestamps,
-        args.window,
-        force=args.force,
-        steps=args.steps,
-        batch_size=args.batch_size,
-        crop=args.crop,
-        loss=args.loss,
-        seed=args.seed,
-    )
+    model, seconds, out = trained_sim(dataset, sim, args.seed, path=args.out, force=args.force)
     done = f"trained in {seconds:.1f} s" if seconds else "reused"
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     scores = evaluate_dataset(model, dataset)

@@ -58,27 +58,45 @@ def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     return Path(dataset.root) / "sim" / name
 
 
+def trained_sim(
+    dataset,
+    sim: SimConfig,
+    seed: int,
+    *,
+    path: Path | None = None,
+    force: bool = False,
+    progress: bool = True,
+):
+    """(SIM, seconds spent training it, path): the one cached for `sim`'s settings (at `path`, by
+    default `sim_path`), else trained on every channel's stream at the training timestamps."""
+    path = path or sim_path(dataset, sim, seed)
+    model, seconds = train_or_load(
+        path,
+        dataset.streams,  # a colour camera's channels share one SIM
+        dataset.train_timestamps,
+        sim.window,
+        force=force,
+        steps=sim.iterations,
+        batch_size=sim.batch,
+        crop=sim.crop,
+        loss=sim.loss,
+        seed=seed,
+        progress=progress,
+    )
+    return model, seconds, path
+
+
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     """Instant and exposure targets of `config`'s method at the dataset's training timestamps."""
     s = config.supervision
     ts = np.asarray(dataset.train_timestamps)
     scale = intensity_scale(dataset)
-    streams = dataset.streams  # one per channel: a colour camera's SIM is shared by its channels
+    streams = dataset.streams  # [C] SpikeStreams, one per channel
     instant, sim_seconds = None, 0.0
     if s.instant_weight > 0 and s.instant != "none":
         if s.instant == "sim":
-            c = config.sim
-            model, sim_seconds = train_or_load(
-                sim_path(dataset, c, config.train.seed),
-                streams,
-                ts,
-                c.window,
-                steps=c.iterations,
-                batch_size=c.batch,
-                crop=c.crop,
-                loss=c.loss,
-                seed=config.train.seed,
-                progress=progress,
+            model, sim_seconds, _ = trained_sim(
+                dataset, config.sim, config.train.seed, progress=progress
             )
             instant = _per_channel(streams, lambda st: infer_sim(model, st, ts))
         elif s.instant == "tfp":
