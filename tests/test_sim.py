@@ -193,3 +193,29 @@ def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():
     assert abs(means["l1"] - 1 / 9) < 0.006 and means["l1"] - means["l2"] > 0.007, means
     with pytest.raises(ValueError, match="SIM loss"):
         train_sim(stream, ks, 9, loss="huber", **fit)
+
+
+def test_centred_target_learns_the_light_at_t_not_the_window_mean():
+    """Light flashes (0.6 spikes/readout) for the 9 readouts around each training timestamp and
+    is dim (0.05) otherwise: against the whole 33-readout window SIM learns the window's mean
+    (0.2, the motion blur of a moving camera in miniature); against its 9 centre readouts it
+    learns the light at t."""
+    period = 40
+    stream = BernoulliStream(
+        lambda k: np.full((20, 20), 0.6 if abs(k % period - 20) <= 4 else 0.05, np.float32),
+        6 * period,
+        seed=2,
+    )
+    ks = np.arange(20, len(stream) - 20, period)  # the flashes' centres
+    fit = {"steps": 150, "batch_size": 4, "crop": 16, "progress": False, "lr": 1e-2, "seed": 0}
+    learned = {
+        target: float(
+            infer_sim(train_sim(stream, ks, 33, target_window=target, **fit)[0], stream, ks).mean()
+        )
+        for target in (33, 9)
+    }
+    assert abs(learned[33] - (24 * 0.05 + 9 * 0.6) / 33) < 0.02, learned
+    assert abs(learned[9] - 0.6) < 0.03, learned
+    for bad in (0, 8, 35):
+        with pytest.raises(ValueError, match="target window"):
+            train_sim(stream, ks, 33, target_window=bad, **fit)

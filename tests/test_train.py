@@ -94,6 +94,24 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
     assert torch.equal(whole.model.background, resumed.model.background)
 
 
+def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
+    """Adam is blind to the loss's scale, and so is densification: weights (1, 1) and (10, 10)
+    on the instant and exposure losses grow the same Gaussians (its screen-space gradient is
+    divided by the weights' sum, so SpikeGS's two losses do not densify twice as eagerly)."""
+    densify = {"start": 30, "stop": 30, "every": 30, "opacity_reset_every": 0}
+    models = []
+    for weight in (1.0, 10.0):
+        overrides = {
+            "train": {**FAST["train"], "iterations": 30, "checkpoint_every": 30},
+            "densify": {**densify, "grad_threshold": 0.0005},
+            "supervision": {"instant_weight": weight, "exposure_weight": weight},
+        }
+        trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / f"w{weight}", False)
+        trainer.train()
+        models.append(trainer.model)
+    assert len(models[0]) == len(models[1]) > FAST["train"]["init_gaussians"]
+
+
 def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
@@ -147,6 +165,9 @@ def test_every_method_config_loads():
         ("spikegs", {"supervision": {"exposure_window": 32}}, "odd window"),
         ("spikegs", {"supervision": {"instant": "magic"}}, "supervision.instant"),
         ("spikegs", {"lr": {"means": -1.0}}, "lr.means"),
+        ("spikegs", {"supervision": {"exposure_norm": "huber"}}, "exposure_norm"),
+        ("spikegs", {"sim": {"target_window": 8}}, "sim.target_window"),
+        ("spikegs", {"sim": {"target_window": 35}}, "sim.target_window"),
     ],
 )
 def test_config_validation(name, overrides, message):

@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from .densify import DensifyConfig
+from .losses import NORMS
 from .pose_refine import PoseRefineConfig
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -34,6 +35,12 @@ class SupervisionConfig:
     exposure_window: int = 33  # readouts of the virtual exposure around t
     exposure_poses: int = 5  # K renders averaged over the window
     dssim_weight: float = 0.0  # optional D-SSIM term on the instant loss, as in 3DGS
+    instant_norm: str = "l1"  # l1 (the paper's eq. 6) | l2
+    exposure_norm: str = "l1"  # l1 (the paper's eq. 9) | l2: the mean of a quantised TFP
+
+    def total_weight(self) -> float:
+        """The sum of the weights of the losses in use (> 0 in a valid config)."""
+        return (self.instant_weight if self.instant != "none" else 0.0) + self.exposure_weight
 
 
 @dataclass
@@ -61,7 +68,8 @@ class TrainConfig:
 
 @dataclass
 class SimConfig:
-    window: int = 33
+    window: int = 33  # readouts SIM sees
+    target_window: int = 0  # readouts at the window's centre whose TFP SIM learns (0: window)
     iterations: int = 500  # 1500 gained 0.4 dB for 3x the time (solids)
     crop: int = 64
     batch: int = 8
@@ -91,6 +99,9 @@ class Config:
             _require(
                 value >= 1 and value % 2 == 1, f"supervision.{name}", value, "an odd window >= 1"
             )
+        for name in ("instant_norm", "exposure_norm"):
+            value = getattr(s, name)
+            _require(value in NORMS, f"supervision.{name}", value, " or ".join(NORMS))
         _require(s.exposure_poses >= 2, "supervision.exposure_poses", s.exposure_poses, ">= 2")
         for name in ("instant_weight", "exposure_weight", "dssim_weight"):
             _require(getattr(s, name) >= 0, f"supervision.{name}", getattr(s, name), ">= 0")
@@ -122,6 +133,13 @@ class Config:
             ">= train.init_gaussians",
         )
         _require(self.sim.window % 2 == 1, "sim.window", self.sim.window, "odd")
+        _require(
+            self.sim.target_window == 0
+            or (1 <= self.sim.target_window <= self.sim.window and self.sim.target_window % 2),
+            "sim.target_window",
+            self.sim.target_window,
+            "0 (the whole window) or an odd number of readouts <= sim.window",
+        )
         _require(self.sim.loss in ("l1", "l2"), "sim.loss", self.sim.loss, "l1 or l2")
         _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")
         return self

@@ -2,18 +2,32 @@
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
-
-def instant_loss(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """L_instant = |render(t) - Ī(t)|₁, mean over pixels; images [H, W, C]."""
-    return (render - target).abs().mean()
+NORMS = {"l1": F.l1_loss, "l2": F.mse_loss}  # l1: the paper's; l2: unbiased on quantised targets
 
 
-def exposure_loss(renders: list[torch.Tensor], target: torch.Tensor) -> torch.Tensor:
-    """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁; renders K x [H, W, C], target [H,W,C]."""
-    return (torch.stack(renders).mean(dim=0) - target).abs().mean()
+def instant_loss(render: torch.Tensor, target: torch.Tensor, norm: str = "l1") -> torch.Tensor:
+    """L_instant = |render(t) - Ī(t)|₁ (or squared, `norm` l2), mean over pixels; [H, W, C]."""
+    return NORMS[norm](render, target)
+
+
+def exposure_times(t: float, window: int, poses: int) -> np.ndarray:
+    """The K = `poses` readout times whose renders average to the exposure of the `window`
+    readouts centred on t: the midpoints of K equal parts of [t - window/2, t + window/2] (the
+    midpoint rule for paper eq. 8; K samples from end to end would spread the blur wider)."""
+    step = window / poses
+    return t - window / 2 + step * (np.arange(poses) + 0.5)  # [K]
+
+
+def exposure_loss(
+    renders: list[torch.Tensor], target: torch.Tensor, norm: str = "l1"
+) -> torch.Tensor:
+    """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or squared, `norm` l2); renders
+    K x [H, W, C], target [H, W, C]."""
+    return NORMS[norm](torch.stack(renders).mean(dim=0), target)
 
 
 def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:

@@ -17,6 +17,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sim = SimConfig()
     parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
     parser.add_argument("--window", type=int, default=sim.window, help="spike window, readouts")
+    parser.add_argument(
+        "--target-window",
+        type=int,
+        default=sim.target_window,
+        help="readouts at the window's centre whose TFP SIM learns (0: the whole window)",
+    )
     parser.add_argument("--steps", type=int, default=sim.iterations, help="training steps")
     parser.add_argument("--batch-size", type=int, default=sim.batch, help="crops per step")
     parser.add_argument("--crop", type=int, default=sim.crop, help="crop side, pixels")
@@ -28,7 +34,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
-    sim = SimConfig(args.window, args.steps, args.crop, args.batch_size, args.loss)
+    sim = SimConfig(
+        window=args.window,
+        target_window=args.target_window,
+        iterations=args.steps,
+        crop=args.crop,
+        batch=args.batch_size,
+        loss=args.loss,
+    )
     model, seconds, out = trained_sim(dataset, sim, args.seed, path=args.out, force=args.force)
     done = f"trained in {seconds:.1f} s" if seconds else "reused"
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")

@@ -1,4 +1,4 @@
-"""Per-scene self-supervised SIM training (L1 against TFP of the same window), save/load, inference.
+"""Per-scene self-supervised SIM training (against TFP of the window centre), save/load, inference.
 
 A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` -> uint8 0/1
 [w, H, W] ([B, w, H, W] for an array of k), `.tfp(k, w)` and `.tfi(k)` -> float32 [H, W]
@@ -61,6 +61,7 @@ def train_sim(
     crop: int = 64,
     lr: float = 2e-3,
     loss: str = "l2",
+    target_window: int | None = None,
     seed: int = 0,
     bf16: bool | None = None,
     progress: bool = True,
@@ -71,10 +72,15 @@ def train_sim(
     `stream` may be a list of streams (a colour camera's channels): each crop then comes from a
     random one of them, and the one network serves every channel.
 
-    The target is the paper's: TFP of the same window. `loss` "l2" (default) makes the optimum
-    the conditional mean, the Noise2Void argument the paper states; "l1" (the paper's eq. 13) makes
-    it the conditional median, biased where a window holds few spikes (a short window or a dim
-    scene: 33.6 dB against 41.2 dB with l2 for a 17-readout window on `solids`).
+    The target is TFP of the centre `target_window` readouts of the input window (default: the
+    whole window, the paper's eq. 13). The blind spot keeps the pixel's own spikes out of the
+    input, so the optimum is the mean light over the target window given the neighbours' spikes
+    over the whole window: a shorter target keeps the input's context for denoising but less of
+    the window's motion blur (noisier targets cost training variance, not bias). `loss` "l2"
+    (default) makes the optimum the conditional mean, the Noise2Void argument the paper states;
+    "l1" (the paper's eq. 13) makes it the conditional median, biased where a window holds few
+    spikes (a short window or a dim scene: 33.6 dB against 41.2 dB with l2 for a 17-readout
+    window on `solids`).
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
     default where native. Deterministic for a given `seed` and thread count. Returns the model
     (eval mode) and the loss of every step.
@@ -84,6 +90,13 @@ def train_sim(
         raise ValueError("no training timestamps")
     if loss not in LOSSES:
         raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(LOSSES)}")
+    target_window = window if target_window is None else target_window
+    if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
+        raise ValueError(
+            f"SIM target window {target_window}: expected 1..{window} and centred in the "
+            f"{window}-readout input window (same parity)"
+        )
+    first = (window - target_window) // 2  # the target's first readout in the input window
     rng = np.random.default_rng(seed)
     with torch.random.fork_rng():
         torch.manual_seed(seed)
@@ -105,7 +118,7 @@ def train_sim(
         xs = rng.integers(0, width - cw + 1, batch_size)
         crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
         x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
-        target = x.mean(dim=1, keepdim=True)  # TFP of the same window, [B, 1, ch, cw]
+        target = x[:, first : first + target_window].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             pred = model(x)  # [B, 1, ch, cw]
         step_loss = LOSSES[loss](pred.float(), target)

@@ -54,8 +54,9 @@ def _per_channel(streams, image_fn) -> np.ndarray:
 
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
-    name = f"sim_w{sim.window}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_{sim.loss}_seed{seed}.pt"
-    return Path(dataset.root) / "sim" / name
+    target = sim.target_window or sim.window
+    name = f"sim_w{sim.window}_t{target}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_{sim.loss}"
+    return Path(dataset.root) / "sim" / f"{name}_seed{seed}.pt"
 
 
 def trained_sim(
@@ -80,6 +81,7 @@ def trained_sim(
         batch_size=sim.batch,
         crop=sim.crop,
         loss=sim.loss,
+        target_window=sim.target_window or sim.window,
         seed=seed,
         progress=progress,
     )

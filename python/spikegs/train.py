@@ -20,7 +20,7 @@ from .config import Config
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
-from .losses import dssim, exposure_loss, instant_loss
+from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
@@ -150,13 +150,14 @@ class Trainer:
         if targets.instant is not None:
             instant = self.model.render(self._pose(t, index), self.K, w, h, screen_points=screen)
             radii = torch.maximum(radii, instant.radii)
-            loss = loss + s.instant_weight * instant_loss(instant.image, targets.instant[index])
+            loss = loss + s.instant_weight * instant_loss(
+                instant.image, targets.instant[index], s.instant_norm
+            )
             if s.dssim_weight:
                 loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
         if targets.exposure is not None:
-            half = (s.exposure_window - 1) / 2
             renders = []
-            for k, tk in enumerate(np.linspace(t - half, t + half, s.exposure_poses)):
+            for k, tk in enumerate(exposure_times(t, s.exposure_window, s.exposure_poses)):
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
@@ -164,11 +165,14 @@ class Trainer:
                 r = self.model.render(viewmat, self.K, w, h, screen_points=screen)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
-            loss = loss + s.exposure_weight * exposure_loss(renders, targets.exposure[index])
+            loss = loss + s.exposure_weight * exposure_loss(
+                renders, targets.exposure[index], s.exposure_norm
+            )
         loss.backward()
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
-        self.densifier.observe(radii, screen.grad, w, h)
+        # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
+        self.densifier.observe(radii, screen.grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         return loss.item()
 

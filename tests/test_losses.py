@@ -1,0 +1,67 @@
+"""The SpikeGS losses: exposure sampling times, L1/L2 optima on quantised targets, D-SSIM."""
+
+import numpy as np
+import pytest
+import torch
+from skimage.metrics import structural_similarity
+from spikegs.losses import dssim, exposure_loss, exposure_times, instant_loss
+
+
+@pytest.mark.parametrize("window, poses", [(33, 5), (33, 9), (65, 13), (9, 2)])
+def test_exposure_times_spread_like_the_window(window, poses):
+    """Midpoints of K equal parts: centred on t, inside the window, and spread like a uniform
+    exposure (variance window²/12 up to the midpoint rule's 1/K², not end to end's ~K/(K-1))."""
+    times = exposure_times(100.0, window, poses)  # [K]
+    assert len(times) == poses and np.all(np.diff(times) > 0)
+    assert times.mean() == pytest.approx(100.0)
+    assert times.min() > 100 - window / 2 and times.max() < 100 + window / 2
+    exposure_var = window**2 / 12
+    assert abs(times.var() / exposure_var - 1) <= 1 / poses**2 + 1e-9
+    if poses % 2:
+        assert times[poses // 2] == pytest.approx(100.0)  # the instant pose is one of them
+
+
+def _fit_constant(norm: str, targets: torch.Tensor) -> float:
+    """The constant image that minimises the exposure loss over `targets` [M, H, W, 1]."""
+    x = torch.zeros(1, requires_grad=True)
+    opt = torch.optim.Adam([x], lr=0.01)
+    for _ in range(1500):
+        opt.zero_grad()
+        loss = sum(exposure_loss([x.expand(4, 4, 1)] * 3, t, norm) for t in targets)
+        loss.backward()
+        opt.step()
+    return float(x.detach())
+
+
+def test_l2_exposure_learns_the_mean_of_quantised_tfp_where_l1_learns_the_median():
+    """TFP of 33 readouts at 0.1 spikes/readout is 3/33 or 4/33 (3.3 spikes on average): L1 ends
+    at the median count 3/33, L2 at the mean 3.3/33."""
+    counts = torch.tensor([3.0] * 7 + [4.0] * 3) / 33  # 3.3 / 33 on average
+    targets = counts[:, None, None, None].expand(-1, 4, 4, 1)
+    assert _fit_constant("l1", targets) == pytest.approx(3 / 33, abs=2e-3)
+    assert _fit_constant("l2", targets) == pytest.approx(0.1, abs=2e-3)
+
+
+def test_instant_loss_norms():
+    render, target = torch.full((2, 3, 1), 0.5), torch.full((2, 3, 1), 0.2)
+    assert float(instant_loss(render, target)) == pytest.approx(0.3)
+    assert float(instant_loss(render, target, "l2")) == pytest.approx(0.09)
+    assert float(exposure_loss([render, target], target)) == pytest.approx(0.15)
+
+
+def test_dssim_matches_scikit_image():
+    """Same SSIM as scikit-image's Gaussian-window variant; ours zero-pads the 5-pixel border
+    that scikit-image leaves out (12 % of this image): equal within 5 %."""
+    rng = np.random.default_rng(0)
+    a = rng.random((160, 160, 1)).astype(np.float32)
+    b = np.clip(a + 0.1 * rng.standard_normal(a.shape), 0, 1).astype(np.float32)
+    ours = float(dssim(torch.from_numpy(a), torch.from_numpy(b)))
+    ref = structural_similarity(
+        a[..., 0],
+        b[..., 0],
+        data_range=1.0,
+        gaussian_weights=True,
+        sigma=1.5,
+        use_sample_covariance=False,
+    )
+    assert (1 - ref) / 2 == pytest.approx(ours, rel=0.05), (ours, (1 - ref) / 2)
