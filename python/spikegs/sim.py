@@ -52,7 +52,8 @@ class SIM(nn.Module):
     """Blind-spot map from a spike window [B, window, H, W] (0/1) to an image [B, C, H, W].
 
     The output at a pixel never depends on that pixel's own spikes; each branch sees a block
-    2m+1 wide and 2m+1 deep on its side of the pixel, m = `shift_layers`.
+    2m+1 wide and 2m+1 deep on its side of the pixel, m = `shift_layers`. It learns the TFP of
+    the `target_window` readouts at the window's centre (default: all).
     """
 
     def __init__(
@@ -63,10 +64,17 @@ class SIM(nn.Module):
         head_width: int = 32,
         shift_layers: int = 3,
         head_layers: int = 3,
+        target_window: int | None = None,
     ):
         super().__init__()
         if window < 1 or shift_layers < 1 or head_layers < 1:
             raise ValueError("window, shift_layers and head_layers must be positive")
+        target_window = window if target_window is None else target_window
+        if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
+            raise ValueError(
+                f"SIM target window {target_window}: expected 1..{window} and centred in the "
+                f"{window}-readout input window (same parity)"
+            )
         self.config = {
             "window": window,
             "out_channels": out_channels,
@@ -74,8 +82,11 @@ class SIM(nn.Module):
             "head_width": head_width,
             "shift_layers": shift_layers,
             "head_layers": head_layers,
+            "target_window": target_window,
         }
         self.window = window
+        first = (window - target_window) // 2
+        self.target = slice(first, first + target_window)  # the readouts whose TFP SIM learns
         self.out_channels = out_channels
         self.shift = nn.ModuleList(
             nn.Conv2d(window if i == 0 else width, width, 3) for i in range(shift_layers)

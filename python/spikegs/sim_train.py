@@ -90,17 +90,10 @@ def train_sim(
         raise ValueError("no training timestamps")
     if loss not in LOSSES:
         raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(LOSSES)}")
-    target_window = window if target_window is None else target_window
-    if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
-        raise ValueError(
-            f"SIM target window {target_window}: expected 1..{window} and centred in the "
-            f"{window}-readout input window (same parity)"
-        )
-    first = (window - target_window) // 2  # the target's first readout in the input window
     rng = np.random.default_rng(seed)
     with torch.random.fork_rng():
         torch.manual_seed(seed)
-        model = SIM(window=window, **sim_kwargs)
+        model = SIM(window=window, target_window=target_window, **sim_kwargs)
     model = model.to(memory_format=torch.channels_last).train()
     bf16 = bf16_is_fast() if bf16 is None else bf16
     opt = torch.optim.Adam(model.parameters(), lr=lr)
@@ -118,7 +111,7 @@ def train_sim(
         xs = rng.integers(0, width - cw + 1, batch_size)
         crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
         x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
-        target = x[:, first : first + target_window].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
+        target = x[:, model.target].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
             pred = model(x)  # [B, 1, ch, cw]
         step_loss = LOSSES[loss](pred.float(), target)

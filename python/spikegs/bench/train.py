@@ -23,7 +23,7 @@ import torch
 from ..config import Config, load_config
 from ..data import load_dataset, simulate_dataset
 from ..data.scenes import SCENES
-from ..demo import DEMO_OVERRIDES
+from ..demo import DEMO_OVERRIDES, TRAIN_EVERY
 from ..evaluate import render_view, view_metrics
 from ..targets import sim_path
 from ..train import Trainer
@@ -37,9 +37,6 @@ POINTS = 8  # evaluations per run
 # per run: half the demo's 1200, so that the full benchmark (24 runs) fits in ~16 min on 2 cores
 FULL_ITERATIONS = 600
 QUICK_ITERATIONS = 100
-# Training timestamps every TRAIN_EVERY readouts (~730 of 4000): more than a run samples, and the
-# targets (SIM inference on each of them) are computed for every run that uses SIM.
-TRAIN_EVERY = 4
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
 QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "test_off_path": 2}
 QUICK_SIM_ITERATIONS = 20
