@@ -8,6 +8,7 @@ import torch
 from spikegs.cli import main
 from spikegs.config import available_methods, load_config
 from spikegs.data import simulate_dataset
+from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
 from spikegs.ply import load_ply, save_ply
@@ -168,6 +169,7 @@ def test_every_method_config_loads():
         ("spikegs", {"supervision": {"exposure_norm": "huber"}}, "exposure_norm"),
         ("spikegs", {"sim": {"target_window": 8}}, "sim.target_window"),
         ("spikegs", {"sim": {"target_window": 35}}, "sim.target_window"),
+        ("spikegs", {"densify": {"stop": -1}}, "densify.stop"),
     ],
 )
 def test_config_validation(name, overrides, message):
@@ -228,10 +230,15 @@ def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
 def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
     """The default config (3000 iterations, reset every 3000) once reset every opacity to 0.01 at
     its last step and ended nearly transparent (256² solids: 28.5 dB at 2500, 17.1 dB at 3000)."""
-    from spikegs.densify import Densifier, DensifyConfig
-
     config = DensifyConfig(start=10**9, opacity_reset_every=3000, stop=15000)
     assert not Densifier(config, 1.0, iterations=3000)._resets_opacity(3000)
     long_run = Densifier(config, 1.0, iterations=30000)
     resets = [i for i in range(1, 30001) if long_run._resets_opacity(i)]
     assert resets == [3000, 6000, 9000, 12000, 15000]  # as in 3DGS: up to densify's stop
+
+
+def test_densification_stops_halfway_by_default():
+    """3DGS densifies up to 15k of its 30k iterations; the default (stop 0) scales to any run."""
+    assert Densifier(DensifyConfig(), 1.0, 3000).stop == 1500
+    assert Densifier(DensifyConfig(), 1.0, 30000).stop == 15000
+    assert Densifier(DensifyConfig(stop=700), 1.0, 3000).stop == 700

@@ -127,6 +127,9 @@ class Config:
                 getattr(self.lr, f.name) >= 0, f"lr.{f.name}", getattr(self.lr, f.name), ">= 0"
             )
         _require(
+            self.densify.stop >= 0, "densify.stop", self.densify.stop, ">= 0 (0: half the run)"
+        )
+        _require(
             self.densify.max_gaussians >= t.init_gaussians,
             "densify.max_gaussians",
             self.densify.max_gaussians,

@@ -14,7 +14,7 @@ from .reference import quat_to_rotation
 @dataclass
 class DensifyConfig:
     start: int = 500  # first iteration that densifies
-    stop: int = 1500  # last iteration that densifies: half the default 3000 (3DGS: 15k of 30k)
+    stop: int = 0  # last iteration that densifies; 0: half the run (3DGS: 15k of 30k)
     every: int = 100  # densify and prune every this many iterations
     grad_threshold: float = 0.0002  # mean screen-space gradient (NDC units) that triggers it
     percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
@@ -49,6 +49,7 @@ class Densifier:
         self.config = config
         self.scene_radius = scene_radius
         self.iterations = iterations  # of the whole run: no opacity reset too close to its end
+        self.stop = config.stop or iterations // 2  # the last iteration that densifies
         self.grad_sum = torch.zeros(0)
         self.count = torch.zeros(0)
         self.max_radii = torch.zeros(0)
@@ -75,7 +76,7 @@ class Densifier:
     def step(self, model: GaussianModel, optimizer: torch.optim.Optimizer, iteration: int) -> None:
         """Densify/prune and reset opacities at the configured iterations (1-based)."""
         c = self.config
-        if c.start <= iteration <= c.stop and iteration % c.every == 0:
+        if c.start <= iteration <= self.stop and iteration % c.every == 0:
             self._densify_and_prune(model, optimizer, iteration)
         if self._resets_opacity(iteration):
             cap = torch.logit(torch.tensor(0.01))
@@ -94,7 +95,7 @@ class Densifier:
         return bool(
             every
             and iteration % every == 0
-            and iteration <= self.config.stop
+            and iteration <= self.stop
             and iteration + every <= self.iterations
         )
 
