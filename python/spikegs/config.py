@@ -75,6 +75,10 @@ class SimConfig:
     batch: int = 8
     loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
 
+    def target_readouts(self) -> int:
+        """The readouts whose TFP SIM learns: `target_window`, or the whole window when 0."""
+        return self.target_window or self.window
+
 
 @dataclass
 class Config:

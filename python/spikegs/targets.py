@@ -54,9 +54,11 @@ def _per_channel(streams, image_fn) -> np.ndarray:
 
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
-    target = sim.target_window or sim.window
-    name = f"sim_w{sim.window}_t{target}_it{sim.iterations}_b{sim.batch}_c{sim.crop}_{sim.loss}"
-    return Path(dataset.root) / "sim" / f"{name}_seed{seed}.pt"
+    name = (
+        f"sim_w{sim.window}_t{sim.target_readouts()}_it{sim.iterations}_b{sim.batch}"
+        f"_c{sim.crop}_{sim.loss}_seed{seed}.pt"
+    )
+    return Path(dataset.root) / "sim" / name
 
 
 def trained_sim(
@@ -81,7 +83,7 @@ def trained_sim(
         batch_size=sim.batch,
         crop=sim.crop,
         loss=sim.loss,
-        target_window=sim.target_window or sim.window,
+        target_window=sim.target_readouts(),
         seed=seed,
         progress=progress,
     )
