@@ -38,6 +38,16 @@ def test_round_trip(small):
     assert [v.name for v in ds.test_views] == ["on_000", "on_001", "off_000", "off_001"]
 
 
+@pytest.mark.parametrize("readouts, every", [(2100, None), (2100, 1)])
+def test_training_timestamps_default_to_at_most_1024(tmp_path, readouts, every):
+    """As for real streams: a stride of ceil(readouts / 1024), unless train_every is given."""
+    options = {**SMALL, "height": 8, "width": 8, "readouts": readouts}
+    ds = simulate_dataset("solids", tmp_path / "d", train_every=every, **options)
+    stride = np.diff(ds.train_timestamps)
+    assert stride.min() == (3 if every is None else 1) == ds.meta["train_every"]
+    assert len(ds.train_timestamps) <= (1024 if every is None else readouts)
+
+
 def test_test_views(small):
     on = [v for v in small.test_views if v.readout is not None]
     off = [v for v in small.test_views if v.readout is None]

@@ -109,6 +109,25 @@ def test_blind_spot_is_exact(path, pixel):
         assert field.sum() == 15 * 15 - 4 * 4 * 4 - 1
 
 
+@pytest.mark.parametrize("size", [(1, 1), (7, 5), (13, 32)])
+def test_training_path_matches_inference_and_the_rotated_gradients(size):
+    """Under autograd the canvas is masked out of place (not zeroed in place): same values, and
+    the weight gradients of the literal rotate-the-data network."""
+    torch.manual_seed(2)
+    model = SIM().train()
+    x = _spikes(2, 33, *size)
+    y = model(x)
+    with torch.no_grad():
+        assert torch.equal(y, model(x))
+    grads = []
+    for path in (model.forward, model.forward_rotated):
+        model.zero_grad()
+        (path(x) * _spikes(*y.shape, seed=3)).sum().backward()
+        grads.append([p.grad.clone() for p in model.parameters()])
+    for fast, literal in zip(*grads):
+        assert torch.allclose(fast, literal, rtol=1e-4, atol=1e-5)
+
+
 @pytest.mark.parametrize("size", [(1, 1), (2, 9), (7, 5), (13, 32), (32, 13)])
 def test_shapes_and_paths_agree(size):
     torch.manual_seed(1)

@@ -25,9 +25,6 @@ DEMO_OVERRIDES = {
     "densify": {"start": 200, "stop": 900, "every": 100, "opacity_reset_every": 0},
     "sim": {"iterations": 300},
 }
-# A training timestamp every TRAIN_EVERY readouts (~730 of 4000): more than a 1200-iteration run
-# samples, and SIM inference (the instant targets) runs on each of them.
-TRAIN_EVERY = 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -51,9 +48,7 @@ def run(args: argparse.Namespace) -> int:
     configs = {m: load_config(m, overrides) for m in METHODS}
     out = Path(args.out)
     print(f"[1/3] simulating the spike dataset -> {out / 'data'}")
-    dataset = simulate_dataset(
-        args.scene, out / "data", overwrite=True, progress=progress, train_every=TRAIN_EVERY
-    )
+    dataset = simulate_dataset(args.scene, out / "data", overwrite=True, progress=progress)
     results = {}
     for i, method in enumerate(METHODS, start=2):
         print(f"[{i}/3] training {method}")

@@ -164,6 +164,11 @@ def inference_model(model: SIM, dtype: torch.dtype = torch.float32) -> SIM:
     return fast.to(dtype=dtype, memory_format=torch.channels_last).eval().requires_grad_(False)
 
 
+def fast_inference_model(model: SIM, dtype: torch.dtype | None = None) -> SIM:
+    """`inference_model` in `dtype`, by default the fastest this CPU has (`_fast_dtype`)."""
+    return inference_model(model, _fast_dtype(dtype))
+
+
 def predict(model: SIM, windows: np.ndarray) -> np.ndarray:
     """Spike windows uint8 [B, w, H, W] -> float32 images [B, H, W, C], in `model`'s dtype."""
     dtype = next(model.parameters()).dtype
@@ -176,7 +181,7 @@ def infer_sim(
     model: SIM, stream, timestamps: Sequence[int], batch_size: int = 4, dtype=None
 ) -> np.ndarray:
     """SIM images at `timestamps`: float32 [N, H, W, C], computed in `dtype` (`_fast_dtype`)."""
-    fast = inference_model(model, _fast_dtype(dtype))
+    fast = fast_inference_model(model, dtype)
     timestamps = np.asarray(timestamps)
     chunks = [
         predict(fast, stream.window(timestamps[i : i + batch_size], model.window))

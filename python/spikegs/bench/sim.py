@@ -1,10 +1,11 @@
-"""`spikegs bench sim`: SIM inference FPS at 250×400, training time, PSNR gain over TFP(33).
+"""`spikegs bench sim`: SIM inference FPS at 250×400, training step and time, PSNR over TFP(33).
 
 Quality: SIM is trained on each built-in scene (simulated at 250×400 with the project's spike
 simulator) and compared with TFP(33), TFP(65) and TFI on the held-out on-path views. Speed: the
 straightforward SIM (square padding, four rotations stacked on the batch, channels first,
 autograd on) is the named alternative that the fast path (rotated kernels on one canvas,
-channels-last, inference mode, float32 or bfloat16) is timed against, in the same run.
+channels-last, inference mode, float32 or bfloat16) is timed against, in the same run; a training
+step (batch 8, 64² crops) of the canvas network against the literal rotated one.
 """
 
 from __future__ import annotations
@@ -63,6 +64,34 @@ def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
     return rows
 
 
+def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
+    """Time one training step (forward, L2 loss, backward) of the canvas network against the
+    literal rotate-the-data one on the same crops; error = max |Δ weight gradient| / max |grad|."""
+    rng = np.random.default_rng(2)
+    x = torch.from_numpy(rng.random((batch, model.window, crop, crop)) < 0.15).float()
+    x = x.contiguous(memory_format=torch.channels_last)
+    target = x.mean(dim=1, keepdim=True)  # [B, 1, crop, crop]
+    net = SIM(**model.config).to(memory_format=torch.channels_last).train()
+    net.load_state_dict(model.state_dict())
+    grads, rows = [], []
+    for name, fn in (("rotated pairs (literal)", net.forward_rotated), ("canvas", net.forward)):
+
+        def step(fn=fn):
+            net.zero_grad(set_to_none=True)
+            ((fn(x) - target) ** 2).mean().backward()
+
+        seconds = median_seconds(step, repeats=repeats)
+        grads.append(torch.cat([p.grad.flatten() for p in net.parameters()]))
+        rows.append(
+            {"variant": f"train step {name}", "batch": batch, "crop": crop, "seconds": seconds}
+        )
+    scale = grads[0].abs().max().item() or 1.0
+    for row, grad in zip(rows, grads):
+        row["speedup"] = rows[0]["seconds"] / row["seconds"]
+        row["grad_err"] = (grad - grads[0]).abs().max().item() / scale
+    return rows
+
+
 def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
     """Simulate `scene`, train SIM on it, score every method: (quality rows, training, model)."""
     height, width, readouts, views = (64, 96, 400, 2) if quick else (250, 400, 1200, 4)
@@ -110,11 +139,13 @@ def run(quick: bool, out: Path) -> dict:
     gains = {s: psnr[s, "SIM bfloat16"] - psnr[s, "TFP(33)"] for s in scenes}
     size = (64, 96) if quick else (250, 400)
     fps_rows = _fps_rows(model, *size, repeats=1 if quick else 5)  # the last scene's SIM
+    step_rows = _train_step_rows(model, 8, 32 if quick else 64, repeats=1 if quick else 7)
 
     print(f"SIM: {model.num_parameters()} parameters")
     print_table(training)
     print_table(quality)
     print_table(fps_rows)
+    print_table(step_rows)
     for scene, gain in gains.items():
         print(f"{scene}: SIM PSNR gain over TFP(33) {gain:+.2f} dB")
     results = {
@@ -123,6 +154,7 @@ def run(quick: bool, out: Path) -> dict:
         "quality": quality,
         "psnr_gain_over_tfp33_db": gains,
         "inference": {"size": f"{size[0]}x{size[1]}", "rows": fps_rows},
+        "train_step": step_rows,
     }
     write_results(out, "sim", results)
     return results

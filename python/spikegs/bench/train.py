@@ -23,7 +23,8 @@ import torch
 from ..config import Config, load_config
 from ..data import load_dataset, simulate_dataset
 from ..data.scenes import SCENES
-from ..demo import DEMO_OVERRIDES, TRAIN_EVERY
+from ..data.simulate import default_train_every
+from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
 from ..targets import sim_path
 from ..train import Trainer
@@ -65,9 +66,10 @@ def _matches(dataset, scene: str, settings: dict) -> bool:
     meta, views = dataset.meta, dataset.test_views
     on_path = sum(v.readout is not None for v in views)
     ts = np.asarray(dataset.train_timestamps)
-    every = int(np.diff(ts).min()) if len(ts) > 1 else TRAIN_EVERY
+    want_every = default_train_every(settings["readouts"])
+    every = int(np.diff(ts).min()) if len(ts) > 1 else want_every
     found = (meta["scene"], meta["height"], meta["width"], meta["num_readouts"], every)
-    want = (scene, settings["height"], settings["width"], settings["readouts"], TRAIN_EVERY)
+    want = (scene, settings["height"], settings["width"], settings["readouts"], want_every)
     views_wanted = (settings["test_on_path"], settings["test_off_path"])
     return found == want and (on_path, len(views) - on_path) == views_wanted
 
@@ -81,9 +83,7 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
     except (FileNotFoundError, ValueError, KeyError):
         pass
     start = time.perf_counter()
-    dataset = simulate_dataset(
-        scene, root, overwrite=True, progress=False, train_every=TRAIN_EVERY, **settings
-    )
+    dataset = simulate_dataset(scene, root, overwrite=True, progress=False, **settings)
     return dataset, time.perf_counter() - start
 
 
@@ -217,7 +217,7 @@ def run(quick: bool, out: Path, iterations: int | None = None) -> dict:
     title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
     _save_plot(out / "headline.png", shown, ("psnr",), title)
     payload = {
-        "data": {**settings, "train_every": TRAIN_EVERY},
+        "data": {**settings, "train_every": default_train_every(settings["readouts"])},
         "iterations": iterations,
         "schedule": overrides,
         "points_per_run": POINTS,

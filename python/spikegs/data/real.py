@@ -9,7 +9,6 @@ output does too. A sharp image (intensity, [0, 1]) is stored times the trainer's
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from pathlib import Path
 
@@ -19,13 +18,12 @@ from ..spikes import SpikeStream
 from ..targets import intensity_scale
 from .dataset import FORMAT_VERSION, READOUT_PERIOD_S, WINDOW_MARGIN, Dataset, TestView
 from .real_options import Options
-from .simulate import train_timestamps
+from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory
 from .view_stream import ViewStreams
 
 NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
 PSEUDO_PREFIX = "pseudo_"
-MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
 HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
 PSEUDO_NOTE = "TFP of the held-out view's own spikes, not a sharp image: views named pseudo_*"
 
@@ -184,7 +182,7 @@ def stream_dataset(
             f"{source}: pose readouts span [{trajectory.start}, {trajectory.end}], outside the "
             f"stream's [0, {len(stream) - 1}] ({stream.path})"
         )
-    every = options.train_every or max(1, math.ceil(len(stream) / MAX_DEFAULT_TIMESTAMPS))
+    every = options.train_every or default_train_every(len(stream))
     ks = train_timestamps(len(stream), readouts[test], every)  # [M]
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
     window = options.pseudo_gt_window or NEEDED_WINDOW

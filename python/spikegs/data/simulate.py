@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ from .trajectory import Trajectory
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
 DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), linear between
+MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
 
 
 def make_source(
@@ -55,6 +57,12 @@ def make_source(
         f"unknown scene '{scene}': expected a built-in scene ({', '.join(SCENES)}), a Mitsuba "
         f".xml file, or a transforms JSON (or a directory holding transforms_train.json)"
     )
+
+
+def default_train_every(num_readouts: int) -> int:
+    """The stride giving at most MAX_DEFAULT_TIMESTAMPS training timestamps in a stream: a
+    4000-readout stream gets one every 4 readouts (a view every 0.6° of the default orbit)."""
+    return max(1, math.ceil(num_readouts / MAX_DEFAULT_TIMESTAMPS))
 
 
 def train_timestamps(num_readouts: int, held_out: np.ndarray, every: int) -> np.ndarray:
@@ -117,7 +125,7 @@ def simulate_dataset(
     frame_every: float = DEFAULT_FRAME_EVERY,
     test_on_path: int = 8,
     test_off_path: int = 8,
-    train_every: int = 1,
+    train_every: int | None = None,
     spp: int = 16,
     flip: bool = True,
     progress: bool = True,
@@ -125,11 +133,13 @@ def simulate_dataset(
 ) -> Dataset:
     """Simulate a dataset into `out` and return it loaded. `speed`: degrees of orbit per readout
     (spiral sources); `frame_every`: readouts between two rendered light frames (the simulator
-    interpolates linearly); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
+    interpolates linearly); `train_every`: readouts between training timestamps (default
+    `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts:
         raise ValueError(f"readouts: expected >= {min_readouts} for {test_on_path} held-out views")
+    train_every = default_train_every(readouts) if train_every is None else train_every
     if height < 1 or width < 1 or frame_every <= 0 or train_every < 1:
         raise ValueError("height, width, frame_every and train_every expected positive")
     check_output(out, overwrite)  # before any work
@@ -180,6 +190,7 @@ def simulate_dataset(
         "frame_every": frame_every if source.kind != "frames" else None,
         "luma": "rec709-linear" if channels == 1 else None,
         "image_scale": rate,
+        "train_every": train_every,
     }
     held_out = [v.readout for v in views if v.readout is not None]
     write_parts(

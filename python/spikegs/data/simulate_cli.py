@@ -40,7 +40,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
     parser.add_argument("--test-on-path", type=int, default=8, help="held-out on-path views")
     parser.add_argument("--test-off-path", type=int, default=8, help="off-path test views")
-    parser.add_argument("--train-every", type=int, default=1, help="stride of training timestamps")
+    parser.add_argument(
+        "--train-every",
+        type=int,
+        help="readouts between training timestamps (default: at most 1024 timestamps)",
+    )
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel (Mitsuba)")
     parser.add_argument("--no-flip", action="store_true", help="write .dat rows top-down")
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")

@@ -1,0 +1,54 @@
+"""Training targets: computed on first use, equal to the eager computation, never recomputed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from spikegs.config import load_config
+from spikegs.data import simulate_dataset
+from spikegs.sim_train import infer_sim
+from spikegs.targets import build_targets, intensity_scale, trained_sim
+from spikegs.train import Trainer
+
+SIM_FAST = {"sim": {"iterations": 5, "crop": 16, "batch": 2}}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("targets") / "data"
+    return simulate_dataset(
+        "solids", root, height=24, width=24, readouts=300, test_on_path=1, progress=False
+    )
+
+
+def test_targets_are_computed_on_first_use_and_match_the_eager_images(dataset):
+    config = load_config("spikegs", SIM_FAST)
+    targets = build_targets(dataset, config, progress=False)
+    assert targets.instant.computed == 0 and targets.exposure.computed == 0
+    ts, scale = np.asarray(dataset.train_timestamps), intensity_scale(dataset)
+    picks = [0, len(ts) // 2, len(ts) - 1]
+    model, _, _ = trained_sim(dataset, config.sim, config.train.seed, progress=False)
+    eager_sim = infer_sim(model, dataset.streams[0], ts[picks]) / scale  # [3, H, W, 1], batched
+    eager_tfp = dataset.streams[0].tfp(ts[picks], 33)[..., None] / scale  # [3, H, W, 1]
+    for j, i in enumerate(picks):
+        np.testing.assert_allclose(targets.instant[i].numpy(), eager_sim[j], atol=1e-5)
+        np.testing.assert_allclose(targets.exposure[i].numpy(), eager_tfp[j], atol=1e-7)
+    assert targets.instant.computed == len(picks)
+    first = targets.instant[picks[0]]
+    assert targets.instant[picks[0]] is first  # kept, not recomputed
+    assert targets.instant[picks[0]].dtype == torch.float32
+    assert len(targets.instant) == len(ts)
+
+
+def test_a_run_computes_only_the_timestamps_it_samples(dataset, tmp_path):
+    overrides = {
+        **SIM_FAST,
+        "train": {"iterations": 10, "init_gaussians": 200, "eval_every": 10},
+        "densify": {"start": 4, "stop": 8, "every": 4, "opacity_reset_every": 0},
+    }
+    trainer = Trainer(dataset, load_config("spikegs", overrides), tmp_path / "run", progress=False)
+    trainer.train()
+    assert len(trainer.targets.timestamps) > 10
+    assert 1 <= trainer.targets.instant.computed <= 10
+    assert trainer.targets.exposure.computed == trainer.targets.instant.computed
