@@ -10,7 +10,8 @@ four channel groups of one (grouped) convolution on a zero-framed canvas of the 
 each group's map drifts one pixel towards its side per layer and is zeroed outside its region
 (its zero padding). Any H×W works, with no square padding, no transposes and no per-layer copies.
 `SIM.forward_rotated` is the literal rotate-the-data formulation, the reference the fast path is
-tested against.
+tested against; SIM training steps through it (its backward is faster than the grouped
+convolutions' on training crops), inference through the canvas.
 """
 
 from __future__ import annotations

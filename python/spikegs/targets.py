@@ -1,8 +1,8 @@
 """Supervision images for training, computed once per training timestamp, in intensity units.
 
-Each image is computed the first time a run samples its timestamp and kept from then on: a
-3000-iteration run samples about 2,000 of a full scene's 3,400 timestamps, and SIM inference at
-the other 1,400 (minutes in float32) would be wasted.
+Each image is computed the first time a run samples its timestamp and kept from then on: n
+steps over M timestamps visit about M·(1 − exp(−n/M)) of them (3000 steps: ~1,990 of 3,400), and
+SIM inference at the others (0.2-0.3 s a 256² frame in float32) would be wasted.
 
 Spike images (TFP, TFI, SIM) are firing rates, spikes per readout; dividing by the rate that
 intensity 1.0 fires (the simulator's calibration, or for real data a high percentile of TFP)
