@@ -111,8 +111,8 @@ def test_blind_spot_is_exact(path, pixel):
 
 @pytest.mark.parametrize("size", [(1, 1), (7, 5), (13, 32)])
 def test_training_path_matches_inference_and_the_rotated_gradients(size):
-    """Under autograd the canvas is masked out of place (not zeroed in place): same values, and
-    the weight gradients of the literal rotate-the-data network."""
+    """SIM trains through `forward_rotated` and infers through the canvas: the canvas gives the
+    same values with and without autograd, and the literal network's weight gradients."""
     torch.manual_seed(2)
     model = SIM().train()
     x = _spikes(2, 33, *size)

@@ -31,20 +31,10 @@ def _region(k: int, steps: int, pad: int) -> tuple[int, int]:
     return pad + steps * _DIRS[k][0], pad + steps * _DIRS[k][1]
 
 
-def _clear_outside(y: torch.Tensor, steps: int, pad: int) -> torch.Tensor:
-    """y [B, 4C, H+2p, W+2p] with each channel group of the canvas zeroed outside its region.
-
-    In place when autograd is not recording y; otherwise one product with a 0/1 mask, whose
-    backward is one pass over the gradient (each in-place slice write would copy all of it).
-    """
+def _clear_outside(y: torch.Tensor, steps: int, pad: int) -> None:
+    """Zero, in place, each channel group of the canvas y [B, 4C, H+2p, W+2p] outside its region."""
     h, w = y.shape[-2] - 2 * pad, y.shape[-1] - 2 * pad
     c = y.shape[1] // 4
-    if torch.is_grad_enabled() and y.requires_grad:
-        mask = y.new_zeros(1, *y.shape[1:]).contiguous(memory_format=torch.channels_last)
-        for k in range(4):
-            r0, c0 = _region(k, steps, pad)
-            mask[:, k * c : (k + 1) * c, r0 : r0 + h, c0 : c0 + w] = 1
-        return y * mask
     for k in range(4):
         g = y.narrow(1, k * c, c)
         r0, c0 = _region(k, steps, pad)
@@ -52,7 +42,6 @@ def _clear_outside(y: torch.Tensor, steps: int, pad: int) -> torch.Tensor:
         g[..., r0 + h :, :].zero_()
         g[..., :, :c0].zero_()
         g[..., :, c0 + w :].zero_()
-    return y
 
 
 def _shift_down(y: torch.Tensor) -> torch.Tensor:
@@ -131,7 +120,7 @@ class SIM(nn.Module):
             # branch k's kernel, seen from the unrotated frame: [4·width, C_in, 3, 3]
             w = torch.cat([torch.rot90(conv.weight, -k, dims=(2, 3)) for k in range(4)])
             y = F.conv2d(y, w, conv.bias.repeat(4), padding=1, groups=1 if i == 0 else 4)
-            y = _clear_outside(y, i + 1, pad)  # the zero padding each branch's next layer sees
+            _clear_outside(y, i + 1, pad)  # the zero padding each branch's next layer sees
             y = F.leaky_relu(y, _SLOPE, inplace=True)  # in place: no new page-faulted canvas
         h, w = x.shape[-2:]
         crops = [

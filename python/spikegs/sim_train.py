@@ -83,8 +83,8 @@ def train_sim(
     window on `solids`).
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
     default where native. Steps run the rotate-the-data network (`SIM.forward_rotated`, the same
-    function as `forward`): its backward is 1.1-1.4× faster than the canvas's grouped convolutions
-    on small crops (`spikegs bench sim`), while the canvas is the faster inference.
+    function as `forward`): its backward is ~1.6× faster than the canvas's (grouped convolutions,
+    in-place border zeroing) on 64² crops (`spikegs bench sim`); the canvas is the faster inference.
     Deterministic for a given `seed` and thread count. Returns the model (eval mode) and the loss
     of every step.
     """
