@@ -42,3 +42,45 @@ def test_sim_train_step_rows_time_the_same_gradients():
     ]
     for row in rows:
         assert row["seconds"] > 0 and row["grad_err"] < 1e-4, row
+
+
+def _run(psnr: float, **extra) -> dict:
+    keys = ("ssim", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
+    return {"psnr": psnr, **{k: 1.0 for k in keys}, "uses_sim": False, "curve": [], **extra}
+
+
+def test_train_seeds_average_and_gains_pair_seed_by_seed():
+    methods = {
+        "tfp33": train.over_seeds([_run(25.0), _run(27.0)]),
+        "spikegs": train.over_seeds([_run(26.0, curve=["seed 0"]), _run(28.4)]),
+        "only_instant": train.over_seeds([_run(25.5), _run(27.5)]),
+        "only_exposure": train.over_seeds([_run(25.8), _run(27.6)]),
+    }
+    spikegs = methods["spikegs"]
+    assert spikegs["psnr"] == pytest.approx(27.2) and spikegs["curve"] == ["seed 0"]
+    assert spikegs["psnr_std"] == pytest.approx(math.sqrt(2) * 1.2)
+    assert [s["psnr"] for s in spikegs["seeds"]] == [26.0, 28.4]
+    gain, spread = train.paired_gains(methods)["spikegs"]  # +1.0 and +1.4: paired, not pooled
+    assert gain == pytest.approx(1.2) and spread == pytest.approx(math.sqrt(2) * 0.2)
+    assert train.ablation_order(methods) == "spikegs > only_exposure > only_instant"
+    methods["only_instant"] = train.over_seeds([_run(26.0), _run(27.8)])
+    assert train.ablation_order(methods) == "holds"
+    assert train.ablation_order({"tfp33": methods["tfp33"]}) is None
+    row = {r["method"]: r for r in train._table(methods)}["spikegs"]
+    assert row["PSNR"] == "27.20 ± 1.70" and row["gain over tfp33 (dB)"] == "1.20 ± 0.28"
+
+
+def test_train_selection_names_what_is_unknown():
+    assert train.selection(quick=True) == ([train.HEADLINE_SCENE], list(train.QUICK_METHODS))
+    with pytest.raises(ValueError, match="unknown nope, tfp99.*methods: spikegs"):
+        train.selection(False, ["solids", "nope"], ["tfp99"])
+    with pytest.raises(ValueError, match="seeds 0"):
+        train.selection(False, seeds=0)
+
+
+def test_train_runs_every_seed(tmp_path):
+    result = train.run(quick=True, out=tmp_path, seeds=2, methods=["tfp33"])
+    tfp33 = result["scenes"][train.HEADLINE_SCENE]["methods"]["tfp33"]
+    assert len(tfp33["seeds"]) == 2 and result["seeds"] == 2
+    assert tfp33["seeds"][0]["psnr"] != tfp33["seeds"][1]["psnr"]  # two runs, not one twice
+    assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()

@@ -16,7 +16,10 @@ class DensifyConfig:
     start: int = 500  # first iteration that densifies
     stop: int = 0  # last iteration that densifies; 0: half the run (3DGS: 15k of 30k)
     every: int = 100  # densify and prune every this many iterations
-    grad_threshold: float = 0.0002  # mean screen-space gradient (NDC units) that triggers it
+    # mean screen-space gradient (NDC units) that triggers it; 3DGS uses 0.0002 over 150 densify
+    # rounds (15k iterations), our 3000-iteration default has 10: half the threshold gains
+    # 0.4-0.8 dB for every method (BENCHMARKS.md), a quarter overfits TFP noise
+    grad_threshold: float = 0.0001
     percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
     min_opacity: float = 0.005  # prune below
     max_screen_size: float = 0.0  # prune larger than this many pixels (0: never)

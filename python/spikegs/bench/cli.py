@@ -23,10 +23,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
     parser.add_argument("--out", type=Path, default=Path("bench-results"), help="output folder")
     parser.add_argument("--iterations", type=int, help="training iterations per run (bench train)")
+    parser.add_argument(
+        "--seeds", type=int, default=1, help="bench train: runs per method and scene (seeds 0..N-1)"
+    )
+    parser.add_argument("--scenes", help="bench train: comma-separated scenes (default: all)")
+    parser.add_argument("--methods", help="bench train: comma-separated methods (default: all)")
+
+
+def _train_options(args: argparse.Namespace) -> dict:
+    """bench train's keyword arguments from the command line."""
+    options = {"seeds": args.seeds}
+    if args.iterations:
+        options["iterations"] = args.iterations
+    for name in ("scenes", "methods"):
+        if getattr(args, name):
+            options[name] = [v.strip() for v in getattr(args, name).split(",") if v.strip()]
+    return options
 
 
 def run(args: argparse.Namespace) -> int:
     parts = list(PARTS) if args.part == "all" else [args.part]
+    if "train" in parts:  # a bad scene, method or seed count fails before any part runs
+        from .train import selection
+
+        options = _train_options(args)
+        selection(args.quick, options.get("scenes"), options.get("methods"), args.seeds)
     for part in parts:
         try:
             module = importlib.import_module(PARTS[part])
@@ -36,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"== {part}: not part of this build, skipped")
             continue
         print(f"== {part}")
-        options = {"iterations": args.iterations} if part == "train" and args.iterations else {}
+        options = _train_options(args) if part == "train" else {}
         start = time.perf_counter()
         module.run(quick=args.quick, out=args.out, **options)
         print(f"== {part}: {time.perf_counter() - start:.1f} s")

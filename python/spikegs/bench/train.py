@@ -6,6 +6,10 @@ over all test views are measured at regular iterations through the trainer's `on
 outside the timed steps. SIM is trained once per scene (cached with the dataset) and shared by
 the methods that use it; its training time is reported separately and counts for those methods:
 their curves start at their SIM time. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png.
+
+With `seeds` > 1 every run is repeated with train.seed = 0 .. seeds-1 (SIM retrained for each:
+its training is part of a method's randomness): scores and times are means over the seeds, with
+their standard deviations and the gains over TFP(33) paired seed by seed; the plots show seed 0.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import math
 import os
 import shutil
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +38,7 @@ from .common import print_table, write_results
 BASELINES = ("tfp33", "tfp65", "tfi")
 METHODS = ("spikegs", *BASELINES, "only_instant", "only_exposure", "k9", "k13")
 QUICK_METHODS = ("spikegs", "tfp33")
+ABLATION_ORDER = ("spikegs", "only_instant", "only_exposure")  # the paper's Table 3, best first
 HEADLINE_SCENE = "solids"  # the default scene; the headline plot shows SpikeGS and BASELINES
 POINTS = 8  # evaluations per run
 # per run: half the demo's 1200, so that the full benchmark (24 runs) fits in ~16 min on 2 cores
@@ -136,18 +142,66 @@ def train_method(dataset, config: Config, run_dir: Path) -> dict:
     }
 
 
+def seeded(config: Config, seed: int) -> Config:
+    """`config` with train.seed = `seed` (which also seeds its SIM)."""
+    config = copy.deepcopy(config)
+    config.train.seed = seed
+    return config
+
+
+def over_seeds(runs: list[dict]) -> dict:
+    """One method's runs on one scene, one per seed -> seed 0's run (its curve, for the plots)
+    with the scores and times replaced by their means, standard deviations and every seed's."""
+    keys = ("psnr", "ssim", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
+    merged = {k: v for k, v in runs[0].items()}
+    for key in keys:
+        values = [r[key] for r in runs]
+        merged[key] = float(np.mean(values))
+        if key in ("psnr", "ssim"):
+            merged[f"{key}_std"] = float(np.std(values, ddof=1)) if len(runs) > 1 else 0.0
+    merged["seeds"] = [{k: r[k] for k in keys} for r in runs]
+    return merged
+
+
+def paired_gains(methods: dict, base: str = "tfp33") -> dict[str, tuple[float, float]]:
+    """PSNR gain of each method over `base`, seed by seed: name -> (mean, standard deviation)."""
+    if base not in methods:
+        return {}
+    reference = [s["psnr"] for s in methods[base]["seeds"]]
+    gains = {}
+    for name, r in methods.items():
+        diff = [s["psnr"] - b for s, b in zip(r["seeds"], reference)]
+        gains[name] = (float(np.mean(diff)), float(np.std(diff, ddof=1)) if len(diff) > 1 else 0.0)
+    return gains
+
+
+def ablation_order(methods: dict) -> str | None:
+    """'holds' when the mean PSNRs follow the paper's ablation (both losses > only instant >
+    only exposure), else the order found; None when a method of it was not run."""
+    if not all(m in methods for m in ABLATION_ORDER):
+        return None
+    found = sorted(ABLATION_ORDER, key=lambda m: -methods[m]["psnr"])
+    return "holds" if tuple(found) == ABLATION_ORDER else " > ".join(found)
+
+
 def _table(methods: dict) -> list[dict]:
-    """The paper's Tables 1-3 analogue for one scene: scores, times, gain over TFP(33)."""
-    base = methods.get("tfp33", {}).get("psnr")
+    """The paper's Tables 1-3 analogue for one scene: scores, times, gain over TFP(33) (means
+    over the seeds, ± their standard deviations when there are several)."""
+    gains = paired_gains(methods)
+    several = any(len(r["seeds"]) > 1 for r in methods.values())
+
+    def spread(mean: float, std: float, digits: int) -> str | float:
+        return f"{mean:.{digits}f} ± {std:.{digits}f}" if several else mean
+
     return [
         {
             "method": name,
-            "PSNR": r["psnr"],
-            "SSIM": r["ssim"],
+            "PSNR": spread(r["psnr"], r["psnr_std"], 2),
+            "SSIM": spread(r["ssim"], r["ssim_std"], 3),
             "train s": r["train_seconds"],
             "SIM s": r["sim_seconds"] if r["uses_sim"] else "-",
             "Gaussians": r["gaussians"],
-            "gain over tfp33 (dB)": "-" if base is None else r["psnr"] - base,
+            "gain over tfp33 (dB)": spread(*gains[name], 2) if name in gains else "-",
         }
         for name, r in methods.items()
     ]
@@ -184,11 +238,37 @@ def _save_plot(path: Path, methods: dict, metrics: tuple[str, ...], title: str) 
     plt.close(fig)
 
 
-def run(quick: bool, out: Path, iterations: int | None = None) -> dict:
-    """Train every method on every scene; print a table per scene, write JSON and plots."""
+def selection(
+    quick: bool,
+    scenes: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+    seeds: int = 1,
+) -> tuple[list[str], list[str]]:
+    """The scenes and methods a run trains (defaults filled in); ValueError naming what is
+    unknown, with the known ones, before any work starts."""
+    scenes = list(scenes or ([HEADLINE_SCENE] if quick else SCENES))
+    methods = list(methods or (QUICK_METHODS if quick else METHODS))
+    unknown = [s for s in scenes if s not in SCENES] + [m for m in methods if m not in METHODS]
+    if unknown or seeds < 1:
+        raise ValueError(
+            f"bench train: unknown {', '.join(unknown) or f'seeds {seeds}'}; scenes: "
+            f"{', '.join(SCENES)}; methods: {', '.join(METHODS)}; seeds >= 1"
+        )
+    return scenes, methods
+
+
+def run(
+    quick: bool,
+    out: Path,
+    iterations: int | None = None,
+    seeds: int = 1,
+    scenes: Sequence[str] | None = None,
+    methods: Sequence[str] | None = None,
+) -> dict:
+    """Train `methods` (default: all) on `scenes` (default: every built-in one) with `seeds`
+    seeds each; print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
-    scenes = [HEADLINE_SCENE] if quick else list(SCENES)
-    methods = QUICK_METHODS if quick else METHODS
+    scenes, methods = selection(quick, scenes, methods, seeds)
     settings = QUICK_DATA if quick else FULL_DATA
     overrides = schedule(iterations, quick)
     configs = {m: load_config(m, overrides) for m in methods}
@@ -199,26 +279,44 @@ def run(quick: bool, out: Path, iterations: int | None = None) -> dict:
         dataset, simulate_s = dataset_for(scene, out / "data" / scene, settings)
         runs = {}
         for method, config in configs.items():
-            runs[method] = train_method(dataset, config, out / "runs" / scene / method)
-            r = runs[method]
-            print(
-                f"  {scene} {method}: {r['psnr']:.2f} dB; {r['train_seconds']:.1f} s training, "
-                f"{r['wall_seconds']:.1f} s in all"
-            )
+            per_seed = []
+            for seed in range(seeds):
+                name = method if seed == 0 else f"{method}-seed{seed}"
+                r = train_method(dataset, seeded(config, seed), out / "runs" / scene / name)
+                per_seed.append(r)
+                print(
+                    f"  {scene} {method} seed {seed}: {r['psnr']:.2f} dB; "
+                    f"{r['train_seconds']:.1f} s training, {r['wall_seconds']:.1f} s in all"
+                )
+            runs[method] = over_seeds(per_seed)
         wall = time.perf_counter() - scene_start
-        results[scene] = {"simulate_seconds": simulate_s, "wall_seconds": wall, "methods": runs}
+        order = ablation_order(runs)
+        results[scene] = {
+            "simulate_seconds": simulate_s,
+            "wall_seconds": wall,
+            "methods": runs,
+            "gain_over_tfp33_db": paired_gains(runs),
+            "ablation_order": order,
+        }
         size = f"{dataset.width}x{dataset.height}"
-        print(f"{scene} ({size}, {len(dataset.test_views)} test views, {iterations} iterations)")
+        print(
+            f"{scene} ({size}, {len(dataset.test_views)} test views, {iterations} iterations, "
+            f"{seeds} seed{'s' if seeds > 1 else ''})"
+        )
         print_table(_table(runs))
+        if order is not None:
+            print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"
         _save_plot(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
-    headline = results[HEADLINE_SCENE]["methods"]
-    shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
-    title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
-    _save_plot(out / "headline.png", shown, ("psnr",), title)
+    if HEADLINE_SCENE in results:
+        headline = results[HEADLINE_SCENE]["methods"]
+        shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
+        title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
+        _save_plot(out / "headline.png", shown, ("psnr",), title)
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
         "iterations": iterations,
+        "seeds": seeds,
         "schedule": overrides,
         "points_per_run": POINTS,
         "time_axis": "SIM methods: sim_seconds + train_seconds; others: train_seconds "
