@@ -17,8 +17,8 @@ class DensifyConfig:
     stop: int = 0  # last iteration that densifies; 0: half the run (3DGS: 15k of 30k)
     every: int = 100  # densify and prune every this many iterations
     # mean screen-space gradient (NDC units) that triggers it; 3DGS uses 0.0002 over 150 densify
-    # rounds (15k iterations), our 3000-iteration default has 10: half the threshold gains
-    # 0.4-0.8 dB for every method (BENCHMARKS.md), a quarter overfits TFP noise
+    # rounds (15k iterations), our 3000-iteration default has 10: half the threshold gained
+    # 0.0-1.1 dB for every method and scene measured (BENCHMARKS.md), a quarter lost again
     grad_threshold: float = 0.0001
     percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
     min_opacity: float = 0.005  # prune below

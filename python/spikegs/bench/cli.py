@@ -43,11 +43,16 @@ def _train_options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     parts = list(PARTS) if args.part == "all" else [args.part]
+    train_options = _train_options(args)
     if "train" in parts:  # a bad scene, method or seed count fails before any part runs
         from .train import selection
 
-        options = _train_options(args)
-        selection(args.quick, options.get("scenes"), options.get("methods"), args.seeds)
+        selection(
+            args.quick,
+            train_options.get("scenes"),
+            train_options.get("methods"),
+            train_options["seeds"],
+        )
     for part in parts:
         try:
             module = importlib.import_module(PARTS[part])
@@ -57,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"== {part}: not part of this build, skipped")
             continue
         print(f"== {part}")
-        options = _train_options(args) if part == "train" else {}
+        options = train_options if part == "train" else {}
         start = time.perf_counter()
         module.run(quick=args.quick, out=args.out, **options)
         print(f"== {part}: {time.perf_counter() - start:.1f} s")

@@ -149,16 +149,21 @@ def seeded(config: Config, seed: int) -> Config:
     return config
 
 
+def _mean_and_std(values: list[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (0 for a single value)."""
+    return float(np.mean(values)), float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+
+
 def over_seeds(runs: list[dict]) -> dict:
     """One method's runs on one scene, one per seed -> seed 0's run (its curve, for the plots)
     with the scores and times replaced by their means, standard deviations and every seed's."""
     keys = ("psnr", "ssim", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
-    merged = {k: v for k, v in runs[0].items()}
+    merged = dict(runs[0])
     for key in keys:
-        values = [r[key] for r in runs]
-        merged[key] = float(np.mean(values))
+        mean, std = _mean_and_std([r[key] for r in runs])
+        merged[key] = mean
         if key in ("psnr", "ssim"):
-            merged[f"{key}_std"] = float(np.std(values, ddof=1)) if len(runs) > 1 else 0.0
+            merged[f"{key}_std"] = std
     merged["seeds"] = [{k: r[k] for k in keys} for r in runs]
     return merged
 
@@ -168,11 +173,10 @@ def paired_gains(methods: dict, base: str = "tfp33") -> dict[str, tuple[float, f
     if base not in methods:
         return {}
     reference = [s["psnr"] for s in methods[base]["seeds"]]
-    gains = {}
-    for name, r in methods.items():
-        diff = [s["psnr"] - b for s, b in zip(r["seeds"], reference)]
-        gains[name] = (float(np.mean(diff)), float(np.std(diff, ddof=1)) if len(diff) > 1 else 0.0)
-    return gains
+    return {
+        name: _mean_and_std([s["psnr"] - b for s, b in zip(r["seeds"], reference)])
+        for name, r in methods.items()
+    }
 
 
 def ablation_order(methods: dict) -> str | None:
