@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from spikegs.cli import main
+from spikegs.cli import build_parser, main
 from spikegs.config import available_methods, load_config
 from spikegs.data import simulate_dataset
 from spikegs.densify import Densifier, DensifyConfig
@@ -14,6 +14,7 @@ from spikegs.gaussians import GaussianModel
 from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer
+from spikegs.train_cli import config_from_args
 
 FAST = {
     "train": {"iterations": 200, "init_gaussians": 800, "eval_every": 50, "checkpoint_every": 50},
@@ -243,3 +244,20 @@ def test_densification_stops_halfway_by_default():
     assert Densifier(DensifyConfig(), 1.0, 3000).stop == 1500
     assert Densifier(DensifyConfig(), 1.0, 30000).stop == 15000
     assert Densifier(DensifyConfig(stop=700), 1.0, 3000).stop == 700
+
+
+def test_iterations_override_scales_the_densification_schedule():
+    """`--iterations` once moved only train.iterations: a 1200-step run of the default config
+    densified at 500 and 600 only (2 rounds instead of 10)."""
+    config = load_config("spikegs", {"densify": {"stop": 2000, "opacity_reset_every": 0}})
+    short = config.with_iterations(config.train.iterations // 5)  # 3000 -> 600
+    assert short.train.iterations == 600
+    assert (short.densify.start, short.densify.stop, short.densify.every) == (100, 400, 20)
+    assert short.densify.opacity_reset_every == 0  # never stays never
+    assert short.densify.grad_threshold == config.densify.grad_threshold
+    assert config.train.iterations == 3000 and config.densify.start == 500  # a copy
+    args = ["train", "data", "--method", "spikegs", "--out", "run", "--iterations", "1200"]
+    cli = config_from_args(build_parser().parse_args(args))
+    assert (cli.densify.start, cli.densify.every, cli.densify.stop) == (200, 40, 0)
+    with pytest.raises(ValueError, match="train.iterations"):
+        config.with_iterations(0)

@@ -154,6 +154,23 @@ class Config:
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
+    def with_iterations(self, iterations: int) -> Config:
+        """A copy that trains for `iterations` steps, its densification schedule (start, stop,
+        every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
+        run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
+        _require(iterations >= 1, "train.iterations", iterations, ">= 1")
+        factor = iterations / self.train.iterations
+        d = self.densify
+        scaled = {
+            k: max(1, round(getattr(d, k) * factor)) if getattr(d, k) else 0
+            for k in ("start", "stop", "every", "opacity_reset_every")
+        }
+        return dataclasses.replace(
+            self,
+            train=dataclasses.replace(self.train, iterations=iterations),
+            densify=dataclasses.replace(d, **scaled),
+        ).validate()
+
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
     if not ok:

@@ -30,7 +30,11 @@ DEMO_OVERRIDES = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
     parser.add_argument("--scene", default="solids", help="built-in scene (default: solids)")
-    parser.add_argument("--iterations", type=int, help="training iterations per method")
+    parser.add_argument(
+        "--iterations",
+        type=int,
+        help="training iterations per method (densification scaled with them)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -42,10 +46,9 @@ def run(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     progress = not args.no_progress
-    overrides = json.loads(json.dumps(DEMO_OVERRIDES))
+    configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
     if args.iterations:
-        overrides["train"]["iterations"] = args.iterations
-    configs = {m: load_config(m, overrides) for m in METHODS}
+        configs = {m: c.with_iterations(args.iterations) for m, c in configs.items()}
     out = Path(args.out)
     print(f"[1/3] simulating the spike dataset -> {out / 'data'}")
     dataset = simulate_dataset(args.scene, out / "data", overwrite=True, progress=progress)

@@ -17,7 +17,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     which.add_argument("--config", type=Path, help="a YAML config file instead of a method name")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
-    parser.add_argument("--iterations", type=int, help="override train.iterations")
+    parser.add_argument(
+        "--iterations",
+        type=int,
+        help="override train.iterations; the densification schedule is scaled with it",
+    )
     parser.add_argument("--seed", type=int, help="override train.seed")
     parser.add_argument("--resume", action="store_true", help="continue from RUN's last checkpoint")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -25,10 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """The validated config of --method/--config with the command-line overrides applied."""
-    train = {
-        k: v for k, v in (("iterations", args.iterations), ("seed", args.seed)) if v is not None
-    }
-    return load_config(args.config or args.method, {"train": train} if train else None)
+    seed = None if args.seed is None else {"train": {"seed": args.seed}}
+    config = load_config(args.config or args.method, seed)
+    return config if args.iterations is None else config.with_iterations(args.iterations)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -54,14 +54,13 @@ def schedule(iterations: int, quick: bool) -> dict:
     """Config overrides: the demo's schedule with its densification stretched to `iterations`,
     evaluated at POINTS regular iterations, one checkpoint at the end."""
     overrides = copy.deepcopy(DEMO_OVERRIDES)
-    stretch = iterations / overrides["train"]["iterations"]
     overrides["train"].update(
         iterations=iterations,
         eval_every=math.ceil(iterations / POINTS),
         checkpoint_every=iterations,
     )
-    densify = overrides["densify"]
-    densify.update({k: max(1, round(densify[k] * stretch)) for k in ("start", "stop", "every")})
+    stretched = load_config(None, DEMO_OVERRIDES).with_iterations(iterations).densify
+    overrides["densify"] = {k: getattr(stretched, k) for k in DEMO_OVERRIDES["densify"]}
     if quick:
         overrides["sim"]["iterations"] = QUICK_SIM_ITERATIONS
     return overrides
