@@ -7,6 +7,7 @@ are refused with a message that lists what is allowed.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -159,17 +160,13 @@ class Config:
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
         run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
         _require(iterations >= 1, "train.iterations", iterations, ">= 1")
-        factor = iterations / self.train.iterations
-        d = self.densify
-        scaled = {
-            k: max(1, round(getattr(d, k) * factor)) if getattr(d, k) else 0
-            for k in ("start", "stop", "every", "opacity_reset_every")
-        }
-        return dataclasses.replace(
-            self,
-            train=dataclasses.replace(self.train, iterations=iterations),
-            densify=dataclasses.replace(d, **scaled),
-        ).validate()
+        config = copy.deepcopy(self)
+        factor = iterations / config.train.iterations
+        config.train.iterations = iterations
+        for key in ("start", "stop", "every", "opacity_reset_every"):
+            value = getattr(config.densify, key)
+            setattr(config.densify, key, max(1, round(value * factor)) if value else 0)
+        return config.validate()
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
