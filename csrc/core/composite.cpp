@@ -31,6 +31,21 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
   return out;
 }
 
+// Adds one pixel's share of a gathered splat `s`'s geometric gradients: `ga` = G · dL/dalpha is
+// dL/d(opacity); through alpha = o·G, G = exp(power), power = -(A dx² + C dy²)/2 - B dx dy, it
+// reaches the conic (A, B, C) and the 2D mean (dx = pixel - mean).
+template <typename T>
+inline void add_geometry_grad(const T* s, T dx, T dy, T ga, T& g_mx, T& g_my, T& g_A, T& g_B,
+                              T& g_C, T& g_o) {
+  const T A = s[2], B = s[3], Cc = s[4], dpower = s[5] * ga;
+  g_o += ga;
+  g_A += T(-0.5) * dx * dx * dpower;
+  g_B += -dx * dy * dpower;
+  g_C += T(-0.5) * dy * dy * dpower;
+  g_mx += (A * dx + B * dy) * dpower;
+  g_my += (B * dx + Cc * dy) * dpower;
+}
+
 // Rows of the tile [row0, row1) that the splat can reach (y half-width `ey`, slack included).
 template <typename T>
 void splat_rows(T my, T ey, int tile_y0, int tile_h, int& row0, int& row1) {
@@ -263,13 +278,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
               bh[p] += al * diff;
             }
             const T ga = valid && raw < T(kAlphaMax) ? G * da : T(0);  // 0 where alpha is clamped
-            const T dpower = o * ga;
-            g_o += ga;
-            g_A += T(-0.5) * dx * dx * dpower;
-            g_B += -dx * dy * dpower;
-            g_C += T(-0.5) * dy * dy * dpower;
-            g_mx += (A * dx + B * dy) * dpower;
-            g_my += (B * dx + Cc * dy) * dpower;
+            add_geometry_grad(s, dx, dy, ga, g_mx, g_my, g_A, g_B, g_C, g_o);
           }
           for (int c = 0; c < NC; ++c) out[6 + c] += gc[c];
         } else {
@@ -307,14 +316,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o)
           for (int p = p0; p < p1; ++p) {
             const T dx = cx[p] - mx, dy = cy[p] - my;
-            const T ga = gauss[p] * dalpha[p];
-            const T dpower = o * ga;
-            g_o += ga;
-            g_A += T(-0.5) * dx * dx * dpower;
-            g_B += -dx * dy * dpower;
-            g_C += T(-0.5) * dy * dy * dpower;
-            g_mx += (A * dx + B * dy) * dpower;
-            g_my += (B * dx + Cc * dy) * dpower;
+            add_geometry_grad(s, dx, dy, gauss[p] * dalpha[p], g_mx, g_my, g_A, g_B, g_C, g_o);
           }
         }
         out[0] += g_mx, out[1] += g_my, out[2] += g_A, out[3] += g_B, out[4] += g_C, out[5] += g_o;
