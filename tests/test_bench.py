@@ -66,7 +66,7 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     methods["only_instant"] = train.over_seeds([_run(26.0), _run(27.8)])
     assert train.ablation_order(methods) == "holds"
     assert train.ablation_order({"tfp33": methods["tfp33"]}) is None
-    row = {r["method"]: r for r in train._table(methods)}["spikegs"]
+    row = {r["method"]: r for r in train._table(methods, train.paired_gains(methods))}["spikegs"]
     assert row["PSNR"] == "27.20 ± 1.70" and row["gain over tfp33 (dB)"] == "1.20 ± 0.28"
 
 

@@ -187,10 +187,9 @@ def ablation_order(methods: dict) -> str | None:
     return "holds" if tuple(found) == ABLATION_ORDER else " > ".join(found)
 
 
-def _table(methods: dict) -> list[dict]:
-    """The paper's Tables 1-3 analogue for one scene: scores, times, gain over TFP(33) (means
-    over the seeds, ± their standard deviations when there are several)."""
-    gains = paired_gains(methods)
+def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
+    """The paper's Tables 1-3 analogue for one scene: scores, times, `gains` over TFP(33)
+    (`paired_gains`; means over the seeds, ± their standard deviations when there are several)."""
     several = any(len(r["seeds"]) > 1 for r in methods.values())
 
     def spread(mean: float, std: float, digits: int) -> str | float:
@@ -306,7 +305,7 @@ def run(
             f"{scene} ({size}, {len(dataset.test_views)} test views, {iterations} iterations, "
             f"{seeds} seed{'s' if seeds > 1 else ''})"
         )
-        print_table(_table(runs))
+        print_table(_table(runs, results[scene]["gain_over_tfp33_db"]))
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"
