@@ -261,3 +261,22 @@ def test_iterations_override_scales_the_densification_schedule():
     assert (cli.densify.start, cli.densify.every, cli.densify.stop) == (200, 40, 0)
     with pytest.raises(ValueError, match="train.iterations"):
         config.with_iterations(0)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["demo", "--iterations", "0"],
+        ["train", "data", "--out", "run", "--iterations", "0"],
+        ["bench", "all", "--iterations", "0"],
+        ["bench", "train", "--seeds", "-1"],
+        ["sim-train", "data", "--steps", "zero"],
+    ],
+)
+def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
+    """`spikegs demo --iterations 0` once meant "the default" and `bench all` ran its other
+    parts before the config refused the count: every count is now checked while parsing."""
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(argv)
+    assert exit_info.value.code == 2
+    assert "expected a positive integer" in capsys.readouterr().err

@@ -22,6 +22,17 @@ COMMANDS = {
 }
 
 
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1, refused while parsing (before any work starts)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found '{text}'")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="spikegs", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .bench.common import print_table
+from .cli import positive_int
 from .config import load_config
 
 METHODS = ("spikegs", "tfp33")
@@ -32,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default="solids", help="built-in scene (default: solids)")
     parser.add_argument(
         "--iterations",
-        type=int,
+        type=positive_int,
         help="training iterations per method (densification scaled with them)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -47,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     progress = not args.no_progress
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
-    if args.iterations:
+    if args.iterations is not None:
         configs = {m: c.with_iterations(args.iterations) for m, c in configs.items()}
     out = Path(args.out)
     print(f"[1/3] simulating the spike dataset -> {out / 'data'}")

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from .bench.common import print_table
+from .cli import positive_int
 from .config import SimConfig, TrainConfig
 from .data.dataset import load_dataset
 from .sim_train import evaluate_dataset
@@ -16,16 +17,18 @@ from .targets import trained_sim
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sim = SimConfig()
     parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
-    parser.add_argument("--window", type=int, default=sim.window, help="spike window, readouts")
+    parser.add_argument(
+        "--window", type=positive_int, default=sim.window, help="spike window, readouts"
+    )
     parser.add_argument(
         "--target-window",
         type=int,
         default=sim.target_window,
         help="readouts at the window's centre whose TFP SIM learns (0: the whole window)",
     )
-    parser.add_argument("--steps", type=int, default=sim.iterations, help="training steps")
-    parser.add_argument("--batch-size", type=int, default=sim.batch, help="crops per step")
-    parser.add_argument("--crop", type=int, default=sim.crop, help="crop side, pixels")
+    parser.add_argument("--steps", type=positive_int, default=sim.iterations, help="training steps")
+    parser.add_argument("--batch-size", type=positive_int, default=sim.batch, help="crops per step")
+    parser.add_argument("--crop", type=positive_int, default=sim.crop, help="crop side, pixels")
     parser.add_argument("--loss", choices=("l1", "l2"), default=sim.loss, help="loss against TFP")
     parser.add_argument("--seed", type=int, default=TrainConfig().seed)
     parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")

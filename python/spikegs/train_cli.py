@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from .cli import positive_int
 from .config import available_methods, load_config
 
 
@@ -19,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="run folder")
     parser.add_argument(
         "--iterations",
-        type=int,
+        type=positive_int,
         help="override train.iterations; the densification schedule is scaled with it",
     )
     parser.add_argument("--seed", type=int, help="override train.seed")

@@ -7,6 +7,8 @@ import importlib
 import time
 from pathlib import Path
 
+from ..cli import positive_int
+
 # part -> module with `run(quick: bool, out: Path) -> dict`
 PARTS = {
     "rasterizer": "spikegs.bench.rasterizer",
@@ -22,9 +24,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("part", choices=[*PARTS, "all"], help="which benchmark to run")
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
     parser.add_argument("--out", type=Path, default=Path("bench-results"), help="output folder")
-    parser.add_argument("--iterations", type=int, help="training iterations per run (bench train)")
     parser.add_argument(
-        "--seeds", type=int, default=1, help="bench train: runs per method and scene (seeds 0..N-1)"
+        "--iterations", type=positive_int, help="training iterations per run (bench train)"
+    )
+    parser.add_argument(
+        "--seeds",
+        type=positive_int,
+        default=1,
+        help="bench train: runs per method and scene (seeds 0..N-1)",
     )
     parser.add_argument("--scenes", help="bench train: comma-separated scenes (default: all)")
     parser.add_argument("--methods", help="bench train: comma-separated methods (default: all)")
@@ -33,7 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _train_options(args: argparse.Namespace) -> dict:
     """bench train's keyword arguments from the command line."""
     options = {"seeds": args.seeds}
-    if args.iterations:
+    if args.iterations is not None:
         options["iterations"] = args.iterations
     for name in ("scenes", "methods"):
         if getattr(args, name):
