@@ -53,6 +53,21 @@ void fd_check(const std::string& what, std::vector<double>& values,
               worst);
 }
 
+// fd_check of each Gaussian parameter of `s` and of its view matrix against the gradients `g`.
+void fd_check_scene(Scene<double>& s, const Grads<double>& g, const std::function<double()>& loss) {
+  fd_check("means", s.means, g.means, loss);
+  fd_check("quats", s.quats, g.quats, loss);
+  fd_check("scales", s.scales, g.scales, loss);
+  fd_check("opacities", s.opacities, g.opacities, loss);
+  fd_check("colors", s.colors, g.colors, loss);
+  std::vector<double> vm(s.cam.viewmat, s.cam.viewmat + 16);
+  auto vm_loss = [&] {
+    std::copy(vm.begin(), vm.end(), s.cam.viewmat);
+    return loss();
+  };
+  fd_check("viewmat", vm, std::vector<double>(g.viewmat, g.viewmat + 16), vm_loss);
+}
+
 }  // namespace
 
 TEST_CASE(projection) {
@@ -86,17 +101,7 @@ TEST_CASE(projection) {
     ParamGrads<double> view = g.view();
     project_backward(s.params(), s.cam, proj, dp, view);
     std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    fd_check("means", s.means, g.means, loss);
-    fd_check("quats", s.quats, g.quats, loss);
-    fd_check("scales", s.scales, g.scales, loss);
-    fd_check("opacities", s.opacities, g.opacities, loss);
-    fd_check("colors", s.colors, g.colors, loss);
-    std::vector<double> vm(s.cam.viewmat, s.cam.viewmat + 16);
-    auto vm_loss = [&] {
-      std::copy(vm.begin(), vm.end(), s.cam.viewmat);
-      return loss();
-    };
-    fd_check("viewmat", vm, std::vector<double>(g.viewmat, g.viewmat + 16), vm_loss);
+    fd_check_scene(s, g, loss);
   }
 }
 
@@ -142,17 +147,7 @@ TEST_CASE(end_to_end) {
     };
     const Grads<double> g = backward(s, r, w_img, w_alpha);
     std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    fd_check("means", s.means, g.means, loss);
-    fd_check("quats", s.quats, g.quats, loss);
-    fd_check("scales", s.scales, g.scales, loss);
-    fd_check("opacities", s.opacities, g.opacities, loss);
-    fd_check("colors", s.colors, g.colors, loss);
+    fd_check_scene(s, g, loss);
     fd_check("background", s.background, g.background, loss);
-    std::vector<double> vm(s.cam.viewmat, s.cam.viewmat + 16);
-    auto vm_loss = [&] {
-      std::copy(vm.begin(), vm.end(), s.cam.viewmat);
-      return loss();
-    };
-    fd_check("viewmat", vm, std::vector<double>(g.viewmat, g.viewmat + 16), vm_loss);
   }
 }
