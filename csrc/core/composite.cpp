@@ -14,10 +14,6 @@ namespace {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
 constexpr int kSplatHeader = 7;  // floats before the colour in a gathered splat
-// exp's argument is raised to at least this: o·exp(-20) < 1e-8 < kAlphaMin for any opacity o <= 1,
-// so such a pair is skipped either way, and exp stays off its underflow path (glibc's vector expf
-// redoes a whole vector in scalar code when one lane is below about -87).
-constexpr double kPowerMin = -20.0;
 
 // Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width, colour[C].
 template <typename T>
@@ -33,6 +29,16 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
     for (int c = 0; c < channels; ++c) s[kSplatHeader + c] = proj.color[i * channels + c];
   }
   return out;
+}
+
+// G = exp(power), 0 where power > 0 (only from rounding: the pair is skipped). exp's argument is
+// raised to at least kPowerMin: o·exp(-20) < 1e-8 < kAlphaMin for any opacity o <= 1, so such a
+// pair is skipped either way, and exp stays off its underflow path (glibc's vector expf redoes a
+// whole vector in scalar code when one lane is below about -87).
+constexpr double kPowerMin = -20.0;
+template <typename T>
+inline T gaussian(T power) {
+  return power <= 0 ? std::exp(std::max(power, T(kPowerMin))) : T(0);
 }
 
 // Adds one pixel's share of a gathered splat `s`'s geometric gradients: `ga` = G · dL/dalpha is
@@ -125,8 +131,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
           for (int x = 0; x < kTileSize; ++x) {
             const T dx = T(tile.x0 + x) + T(0.5) - mx;
             const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
-            const T G = std::exp(std::max(power, T(kPowerMin)));
-            alpha[x] = power <= 0 ? std::min(T(kAlphaMax), o * G) : T(0);
+            alpha[x] = std::min(T(kAlphaMax), o * gaussian(power));
           }
           int stopped = 0;
 #pragma omp simd reduction(+ : stopped)
@@ -252,7 +257,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
         for (int p = p0; p < p1; ++p) {
           const T dx = cx[p] - mx, dy = cy[p] - my;
           const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
-          gauss[p] = power <= 0 ? std::exp(std::max(power, T(kPowerMin))) : T(0);
+          gauss[p] = gaussian(power);
         }
         T* out = g.data() + std::int64_t(rank) * grad_stride;
         T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
