@@ -7,6 +7,8 @@ import pytest
 import torch
 from spikegs.config import load_config
 from spikegs.data import simulate_dataset
+from spikegs.data.dataset import Dataset
+from spikegs.data.simulate import clean_source
 from spikegs.sim_train import infer_sim
 from spikegs.targets import build_targets, intensity_scale, trained_sim
 from spikegs.train import Trainer
@@ -52,3 +54,22 @@ def test_a_run_computes_only_the_timestamps_it_samples(dataset, tmp_path):
     assert len(trainer.targets.timestamps) > 10
     assert 1 <= trainer.targets.instant.computed <= 10
     assert trainer.targets.exposure.computed == trainer.targets.instant.computed
+
+
+def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tmp_path):
+    targets = build_targets(dataset, load_config("oracle"), progress=False)
+    assert targets.exposure is None and targets.instant.computed == 0
+    view = next(v for v in dataset.test_views if v.readout is not None)  # exact on-path image
+    clean = clean_source(dataset).image_at(dataset.trajectory, view.readout)  # [H, W, 1]
+    np.testing.assert_allclose(clean, view.image / intensity_scale(dataset), atol=1e-6)
+    ts = np.asarray(dataset.train_timestamps)
+    first = clean_source(dataset).image_at(dataset.trajectory, float(ts[0]))
+    np.testing.assert_allclose(targets.instant[0].numpy(), first, atol=1e-6)
+    assert first.std() > 0.01  # a scene, not a flat image
+
+    moved = Dataset(
+        tmp_path, {**dataset.meta, "source": "mitsuba"}, dataset.streams, dataset.trajectory,
+        dataset.train_timestamps, dataset.test_views,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="built-in scene.*mitsuba"):
+        build_targets(moved, load_config("oracle"), progress=False)

@@ -29,7 +29,9 @@ CONFIG_DIR = next(
 
 @dataclass
 class SupervisionConfig:
-    instant: str = "sim"  # sim | tfp | tfi | none: the image compared with render(t)
+    # sim | tfp | tfi | none: the image compared with render(t); clean: the simulator's noise-free
+    # image (built-in synthetic scenes only): the ceiling of perfect instant targets, not a method
+    instant: str = "sim"
     instant_window: int = 33  # TFP window of the instant target when instant = tfp
     instant_weight: float = 1.0
     exposure_weight: float = 1.0  # lambda: weight of L_exposure (0: off)
@@ -94,10 +96,10 @@ class Config:
     def validate(self) -> Config:
         s, t = self.supervision, self.train
         _require(
-            s.instant in ("sim", "tfp", "tfi", "none"),
+            s.instant in ("sim", "tfp", "tfi", "clean", "none"),
             "supervision.instant",
             s.instant,
-            "one of sim, tfp, tfi, none",
+            "one of sim, tfp, tfi, clean, none",
         )
         for name in ("instant_window", "exposure_window"):
             value = getattr(s, name)

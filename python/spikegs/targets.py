@@ -121,6 +121,19 @@ def trained_sim(
     return model, seconds, path
 
 
+def clean_images(dataset) -> TargetImages:
+    """The noise-free instant images at the training timestamps, rendered by the source that a
+    built-in scene's dataset was simulated from (already in intensity units)."""
+    from .data.simulate import clean_source  # here: the data package imports this module
+
+    source = clean_source(dataset)
+    ts = np.asarray(dataset.train_timestamps)
+    render = lambda readouts: np.stack(  # noqa: E731
+        [source.image_at(dataset.trajectory, float(t)) for t in readouts]
+    ).astype(np.float32)
+    return TargetImages(ts, render, 1.0)
+
+
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     """Instant and exposure targets of `config`'s method at the dataset's training timestamps
     (SIM trained, or loaded from its cache, now; the images themselves on first use)."""
@@ -141,6 +154,8 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             )
             fast = fast_inference_model(model)
             instant = images(lambda st, k: predict(fast, st.window(k, fast.window)))
+        elif s.instant == "clean":
+            instant = clean_images(dataset)
         elif s.instant == "tfp":
             instant = images(lambda st, k: st.tfp(k, s.instant_window))
         else:

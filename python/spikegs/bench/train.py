@@ -5,7 +5,9 @@ it with the demo's schedule (DEMO_OVERRIDES, stretched to the chosen iterations)
 over all test views are measured at regular iterations through the trainer's `on_eval` hook,
 outside the timed steps. SIM is trained once per scene (cached with the dataset) and shared by
 the methods that use it; its training time is reported separately and counts for those methods:
-their curves start at their SIM time. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png.
+their curves start at their SIM time. `oracle` (config oracle.yaml) trains on the simulator's clean
+instant images: its gain over TFP(33) is the most that any instant target can give at this
+schedule. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png.
 
 With `seeds` > 1 every run is repeated with train.seed = 0 .. seeds-1 (SIM retrained for each:
 its training is part of a method's randomness): scores and times are means over the seeds, with
@@ -36,12 +38,13 @@ from ..train import Trainer
 from .common import print_table, write_results
 
 BASELINES = ("tfp33", "tfp65", "tfi")
-METHODS = ("spikegs", *BASELINES, "only_instant", "only_exposure", "k9", "k13")
+CEILING = "oracle"  # clean instant targets: what perfect supervision gives this trainer
+METHODS = ("spikegs", *BASELINES, "only_instant", "only_exposure", "k9", "k13", CEILING)
 QUICK_METHODS = ("spikegs", "tfp33")
 ABLATION_ORDER = ("spikegs", "only_instant", "only_exposure")  # the paper's Table 3, best first
 HEADLINE_SCENE = "solids"  # the default scene; the headline plot shows SpikeGS and BASELINES
 POINTS = 8  # evaluations per run
-# per run: a third of the demo's 1800, so that the full benchmark (24 runs) fits in ~16 min
+# per run: a third of the demo's 1800, so that the full benchmark (27 runs) fits in ~17 min
 FULL_ITERATIONS = 600
 QUICK_ITERATIONS = 100
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
@@ -306,6 +309,8 @@ def run(
             f"{seeds} seed{'s' if seeds > 1 else ''})"
         )
         print_table(_table(runs, results[scene]["gain_over_tfp33_db"]))
+        if CEILING in runs:
+            print(f"{CEILING}: trained on the clean instant images, the ceiling of any method")
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"

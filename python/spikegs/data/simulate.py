@@ -32,6 +32,19 @@ DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), l
 MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
 
 
+def clean_source(dataset: Dataset) -> Source:
+    """The noise-free source that `dataset` was simulated from; only a built-in scene can be
+    rebuilt from meta.json, anything else is a ValueError."""
+    scene, kind = dataset.meta.get("scene"), dataset.meta.get("source")
+    if kind != "procedural" or scene not in SCENES:
+        raise ValueError(
+            f"{dataset.root}: clean instant images (supervision.instant: clean) need a dataset "
+            f"simulated from a built-in scene ({', '.join(SCENES)}); this one is "
+            f"{kind or 'not simulated'} '{scene}'"
+        )
+    return make_source(scene, dataset.width, dataset.height, dataset.channels)
+
+
 def make_source(
     scene: str | Path | dict | Source, width: int, height: int, channels: int, *, spp: int = 16
 ) -> Source:
