@@ -12,7 +12,7 @@ from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
 from spikegs.ply import load_ply, save_ply
-from spikegs.targets import intensity_scale
+from spikegs.targets import intensity_scale, median_intensity
 from spikegs.train import Trainer
 from spikegs.train_cli import config_from_args
 
@@ -61,9 +61,28 @@ def test_tiny_scene_trains_end_to_end(dataset, tmp_path):
     summary = trainer.train()
     result = evaluate_run(tmp_path / "run", dataset)
     assert summary["iterations"] == 200
-    # 32x32 from noisy TFP(33): about 10 dB untrained, about 19.7 dB after 150-300 iterations
-    assert result["psnr"] > 18.0 and result["psnr"] > before + 8.0, (before, result["psnr"])
+    # 32x32 from noisy TFP(33): about 18.1 dB untrained (Gaussians start at the intensities the
+    # views show where they project), about 19.7 dB after 200 iterations
+    assert result["psnr"] > 19.0 and result["psnr"] > before + 1.0, (before, result["psnr"])
     assert (tmp_path / "run" / "eval.json").exists() and (tmp_path / "run" / "log.jsonl").exists()
+
+
+def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
+    """The untrained scene is closer to the held-out views than the best constant image (the
+    median intensity, where the background starts): each random Gaussian took the intensity that
+    the training views show where it projects. Measured: 18.1 against 16.8 dB."""
+    trainer = Trainer(dataset, load_config("tfp33", FAST), tmp_path / "run", progress=False)
+    trainer._fresh_state()
+    level = median_intensity(dataset)  # [C]
+    np.testing.assert_allclose(trainer.model.background.detach().numpy(), level, rtol=1e-6)
+    scale = intensity_scale(dataset)
+    constant = np.mean(
+        [
+            view_metrics(np.broadcast_to(level, v.image.shape), v.image / scale, False)["psnr"]
+            for v in dataset.test_views
+        ]
+    )
+    assert _mean_psnr(trainer.model, dataset) > constant + 0.8, constant
 
 
 def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monkeypatch):

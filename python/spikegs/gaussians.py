@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import torch
 
@@ -37,8 +38,10 @@ class GaussianModel:
         channels: int,
         sh_degree: int = 0,
         generator: torch.Generator | None = None,
+        colors: Callable[[torch.Tensor], torch.Tensor] | None = None,
     ) -> GaussianModel:
-        """`n` Gaussians uniform in the ball (center, radius), grey, semi-transparent, isotropic."""
+        """`n` Gaussians uniform in the ball (center, radius), semi-transparent, isotropic, of
+        intensities `colors(means)` [N, C] (default grey 0.5)."""
         g = generator
         direction = torch.randn(n, 3, generator=g)
         direction = direction / direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
@@ -46,7 +49,8 @@ class GaussianModel:
         means = torch.as_tensor(center, dtype=torch.float32) + direction * r
         # scale: about the mean distance between neighbours at this density
         spacing = radius * (4 / 3 * math.pi / max(n, 1)) ** (1 / 3)
-        return cls.from_points(means, torch.full((n, channels), 0.5), spacing, sh_degree)
+        rgb = torch.full((n, channels), 0.5) if colors is None else colors(means)
+        return cls.from_points(means, rgb, spacing, sh_degree)
 
     @classmethod
     def from_points(

@@ -3,6 +3,7 @@ the trainer to place the initial Gaussians (vertices x y z, optional red green b
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -50,22 +51,24 @@ def gaussians_from_points(
     channels: int,
     sh_degree: int,
     generator: torch.Generator,
+    colors_of: Callable[[torch.Tensor], torch.Tensor] | None = None,
 ) -> GaussianModel:
     """Gaussians at the cloud's points (a random subset of `max_points` when it has more), coloured
-    by it (grey without colours; a mono camera takes the mean of r, g, b), sized by the median
-    distance between nearest neighbours."""
+    by it (a mono camera takes the mean of r, g, b; a cloud without colours: `colors_of(points)`
+    [P, C], default grey 0.5), sized by the median distance between nearest neighbours."""
     points, colors = read_points(path)
     if len(points) > max_points:
         keep = torch.randperm(len(points), generator=generator)[:max_points].numpy()
         points, colors = points[keep], None if colors is None else colors[keep]
+    means = torch.from_numpy(points)
     if colors is None:
-        colors = np.full((len(points), 3), 0.5)
-    if channels == 1:
-        colors = colors.mean(axis=1, keepdims=True)  # [P, 1]
+        rgb = torch.full((len(points), channels), 0.5) if colors_of is None else colors_of(means)
+    else:
+        rgb = torch.from_numpy(colors.mean(axis=1, keepdims=True) if channels == 1 else colors)
     spacing = np.median(cKDTree(points).query(points, k=2)[0][:, 1]) if len(points) > 1 else 0.0
     return GaussianModel.from_points(
-        torch.from_numpy(points),
-        torch.from_numpy(colors),
+        means,
+        rgb,
         max(float(spacing), 1e-6),
         sh_degree,
     )

@@ -68,13 +68,26 @@ def _find_key(tree, key: str):
     return None
 
 
+def tfp_sample(dataset) -> tuple[np.ndarray, np.ndarray]:
+    """~16 training timestamps [M] spread over the stream and their TFP(33) firing rates
+    [M, H, W, C]."""
+    ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
+    return ts, _per_channel(dataset.streams, lambda s: s.tfp(ts, 33))
+
+
 def intensity_scale(dataset) -> float:
     """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
     rate = _find_key(dataset.meta, "rate_at_one")
     if rate is not None:
         return float(rate)
-    ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
-    return float(np.percentile(_per_channel(dataset.streams, lambda s: s.tfp(ts, 33)), 99.5)) or 1.0
+    return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0
+
+
+def median_intensity(dataset) -> np.ndarray:
+    """Median intensity [C] of each channel over TFP(33) images spread over the stream: the
+    constant image that fits the views best in L1, whatever the method's target."""
+    rates = tfp_sample(dataset)[1]  # [M, H, W, C]
+    return np.median(rates.reshape(-1, rates.shape[-1]), axis=0) / intensity_scale(dataset)
 
 
 def _per_channel(streams, image_fn) -> np.ndarray:

@@ -20,11 +20,12 @@ from .config import Config
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
+from .initial_intensity import projected_intensity
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
-from .targets import build_targets, intensity_scale
+from .targets import build_targets, intensity_scale, median_intensity
 
 
 def _optimizer(
@@ -67,10 +68,13 @@ class Trainer:
         t = self.config.train
         torch.manual_seed(t.seed)
         gen = torch.Generator().manual_seed(t.seed)
+        # intensities from the data (initial_intensity.py): Gaussians without a colour take what
+        # the views show where they project, the background the views' median intensity
+        colors_of = lambda means: projected_intensity(self.dataset, means)  # noqa: E731
         cloud = Path(self.dataset.root) / POINTS  # a sparse point cloud, e.g. from `spikegs poses`
         if cloud.exists():
             self.model = gaussians_from_points(
-                cloud, t.init_gaussians, self.dataset.channels, t.sh_degree, gen
+                cloud, t.init_gaussians, self.dataset.channels, t.sh_degree, gen, colors_of
             )
         else:
             self.model = GaussianModel.random(
@@ -80,7 +84,10 @@ class Trainer:
                 self.dataset.channels,
                 t.sh_degree,
                 gen,
+                colors_of,
             )
+        with torch.no_grad():
+            self.model.background.copy_(torch.from_numpy(median_intensity(self.dataset)))
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
