@@ -11,8 +11,9 @@ from spikegs.data import simulate_dataset
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
+from spikegs.initial_intensity import median_intensity
 from spikegs.ply import load_ply, save_ply
-from spikegs.targets import intensity_scale, median_intensity
+from spikegs.targets import intensity_scale
 from spikegs.train import Trainer
 from spikegs.train_cli import config_from_args
 

@@ -13,7 +13,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .targets import intensity_scale, median_intensity, tfp_sample
+from .targets import intensity_scale, tfp_sample
+
+
+def median_intensity(dataset) -> np.ndarray:
+    """Median intensity [C] of each channel over TFP(33) images spread over the stream: the
+    constant image that fits the views best in L1, whatever the method's target."""
+    rates = tfp_sample(dataset)[1]  # [M, H, W, C]
+    return np.median(rates.reshape(-1, rates.shape[-1]), axis=0) / intensity_scale(dataset)
 
 
 def projected_intensity(dataset, means: torch.Tensor) -> torch.Tensor:

@@ -83,13 +83,6 @@ def intensity_scale(dataset) -> float:
     return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0
 
 
-def median_intensity(dataset) -> np.ndarray:
-    """Median intensity [C] of each channel over TFP(33) images spread over the stream: the
-    constant image that fits the views best in L1, whatever the method's target."""
-    rates = tfp_sample(dataset)[1]  # [M, H, W, C]
-    return np.median(rates.reshape(-1, rates.shape[-1]), axis=0) / intensity_scale(dataset)
-
-
 def _per_channel(streams, image_fn) -> np.ndarray:
     """`image_fn(stream)` [M, H, W] (or [M, H, W, 1]) of each channel's stream -> [M, H, W, C]."""
     images = [np.asarray(image_fn(s), dtype=np.float32) for s in streams]

@@ -20,12 +20,12 @@ from .config import Config
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
-from .initial_intensity import projected_intensity
+from .initial_intensity import median_intensity, projected_intensity
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
-from .targets import build_targets, intensity_scale, median_intensity
+from .targets import build_targets, intensity_scale
 
 
 def _optimizer(
