@@ -10,28 +10,41 @@ them (BENCHMARKS.md, "Initial intensity").
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 
-from .targets import intensity_scale, tfp_sample
+from .targets import tfp_sample
 
 
-def median_intensity(dataset) -> np.ndarray:
-    """Median intensity [C] of each channel over TFP(33) images spread over the stream: the
-    constant image that fits the views best in L1, whatever the method's target."""
-    rates = tfp_sample(dataset)[1]  # [M, H, W, C]
-    return np.median(rates.reshape(-1, rates.shape[-1]), axis=0) / intensity_scale(dataset)
+@dataclass
+class ViewSample:
+    """TFP(33) images at ~16 training timestamps spread over the stream, read once for both
+    initial intensities."""
+
+    timestamps: np.ndarray  # [M] readouts
+    rates: np.ndarray  # [M, H, W, C] firing rates
+    scale: float  # firing rate of intensity 1.0 (targets.intensity_scale)
+
+    @classmethod
+    def of(cls, dataset, scale: float) -> ViewSample:
+        return cls(*tfp_sample(dataset), scale)
+
+    def median(self) -> np.ndarray:
+        """Median intensity [C] of each channel: the constant image that fits the views best in
+        L1, whatever the method's target."""
+        return np.median(self.rates.reshape(-1, self.rates.shape[-1]), axis=0) / self.scale
 
 
-def projected_intensity(dataset, means: torch.Tensor) -> torch.Tensor:
-    """Median TFP(33) intensity [N, C] at the projections of `means` [N, 3] into ~16 training
-    views (pixel centres at +0.5), the dataset's median intensity where no view sees a point."""
-    timestamps, rates = tfp_sample(dataset)  # [M], [M, H, W, C]
-    images = rates / intensity_scale(dataset)
+def projected_intensity(dataset, sample: ViewSample, means: torch.Tensor) -> torch.Tensor:
+    """Median intensity [N, C] of `sample`'s views at the projections of `means` [N, 3] (pixel
+    centres at +0.5), the sample's median intensity where no view sees a point."""
+    images = sample.rates / sample.scale  # [M, H, W, C]
     points = means.detach().double().numpy()  # [N, 3]
     K = dataset.K.astype(np.float64)
-    seen = np.full((len(timestamps), len(points), images.shape[-1]), np.nan, np.float32)
-    for i, t in enumerate(timestamps):
+    seen = np.full((len(sample.timestamps), len(points), images.shape[-1]), np.nan, np.float32)
+    for i, t in enumerate(sample.timestamps):
         viewmat = dataset.trajectory.pose_at(float(t))  # [4, 4] world to camera
         cam = points @ viewmat[:3, :3].T + viewmat[:3, 3]  # [N, 3]
         z = cam[:, 2]
@@ -41,7 +54,6 @@ def projected_intensity(dataset, means: torch.Tensor) -> torch.Tensor:
         v = np.floor(K[1, 1] * cam[:, 1] / z + K[1, 2])
         inside = ahead & (u >= 0) & (u < dataset.width) & (v >= 0) & (v < dataset.height)
         seen[i, inside] = images[i, v[inside].astype(int), u[inside].astype(int)]
-    level = median_intensity(dataset)  # [C]
     never = np.isnan(seen).all(axis=0)  # [N, C]
     median = np.nanmedian(np.where(never[None], 0.0, seen), axis=0)
-    return torch.from_numpy(np.where(never, level, median)).float()
+    return torch.from_numpy(np.where(never, sample.median(), median)).float()

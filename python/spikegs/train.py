@@ -20,7 +20,7 @@ from .config import Config
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
-from .initial_intensity import median_intensity, projected_intensity
+from .initial_intensity import ViewSample, projected_intensity
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
@@ -70,7 +70,8 @@ class Trainer:
         gen = torch.Generator().manual_seed(t.seed)
         # intensities from the data (initial_intensity.py): Gaussians without a colour take what
         # the views show where they project, the background the views' median intensity
-        colors_of = lambda means: projected_intensity(self.dataset, means)  # noqa: E731
+        sample = ViewSample.of(self.dataset, self.scale)
+        colors_of = lambda means: projected_intensity(self.dataset, sample, means)  # noqa: E731
         cloud = Path(self.dataset.root) / POINTS  # a sparse point cloud, e.g. from `spikegs poses`
         if cloud.exists():
             self.model = gaussians_from_points(
@@ -87,7 +88,7 @@ class Trainer:
                 colors_of,
             )
         with torch.no_grad():
-            self.model.background.copy_(torch.from_numpy(median_intensity(self.dataset)))
+            self.model.background.copy_(torch.from_numpy(sample.median()))
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
