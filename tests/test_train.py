@@ -259,6 +259,35 @@ def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
     assert resets == [3000, 6000, 9000, 12000, 15000]  # as in 3DGS: up to densify's stop
 
 
+def test_default_run_resets_opacity_once_midway_through_densification():
+    """3DGS resets every 3k of 30k iterations; the default 3000-iteration run once, at 1000."""
+    densifier = Densifier(DensifyConfig(), 1.0, iterations=3000)
+    assert [i for i in range(1, 3001) if densifier._resets_opacity(i)] == [1000]
+
+
+@pytest.mark.parametrize("reset_every", [1000, 0])
+def test_size_pruning_starts_after_the_first_opacity_reset(reset_every):
+    """Gaussians larger than max_world_size (fraction of the scene radius) are pruned after the
+    first opacity reset, as in 3DGS (random initial ones may start larger), and never in a run
+    without one (the demo's schedule)."""
+    config = DensifyConfig(start=100, every=100, opacity_reset_every=reset_every)
+    densifier = Densifier(config, scene_radius=2.0, iterations=3000)
+    model = GaussianModel.from_points(torch.zeros(4, 3), torch.full((4, 1), 0.5), 0.05)
+    with torch.no_grad():  # largest axes 0.05, 0.19, 0.21, 0.4 against the cap 0.1 * 2.0
+        model.params["log_scales"][:, 0] = torch.tensor([0.05, 0.19, 0.21, 0.4]).log()
+        model.params["opacity_logits"].fill_(2.0)
+    optimizer = torch.optim.Adam([{"params": [v], "name": k} for k, v in model.params.items()])
+    densifier.step(model, optimizer, 900)  # before the reset: all kept
+    assert len(model) == 4
+    densifier.step(model, optimizer, 1100)
+    kept = model.scales.max(dim=1).values
+    expected = [0.05, 0.19] if reset_every else [0.05, 0.19, 0.21, 0.4]
+    assert torch.allclose(kept, torch.tensor(expected)), kept
+    assert all(
+        group["params"][0] is model.params[group["name"]] for group in optimizer.param_groups
+    )
+
+
 def test_densification_stops_halfway_by_default():
     """3DGS densifies up to 15k of its 30k iterations; the default (stop 0) scales to any run."""
     assert Densifier(DensifyConfig(), 1.0, 3000).stop == 1500

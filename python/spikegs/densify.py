@@ -22,9 +22,15 @@ class DensifyConfig:
     grad_threshold: float = 0.0001
     percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
     min_opacity: float = 0.005  # prune below
-    max_screen_size: float = 0.0  # prune larger than this many pixels (0: never)
-    max_world_size: float = 0.5  # prune larger than this fraction of the scene radius
-    opacity_reset_every: int = 3000  # 0: never
+    # size pruning, as in 3DGS only after the first opacity reset (a run without one never prunes
+    # by size): larger than this many pixels (0: never), larger (largest axis) than this fraction
+    # of the scene radius (0: never). Our cameras sit at ~2.5 radii, so 0.1 is ~1/3 of 3DGS's
+    # 0.1 of the camera extent; at 0.5, faint Gaussians of the views' background colour (harmless
+    # to the loss) stayed and covered 60 % of a 256² render's tile pairs (BENCHMARKS.md)
+    max_screen_size: float = 0.0
+    max_world_size: float = 0.1
+    # 3DGS resets every 3k of its 30k iterations; a 3000-iteration run resets once, at 1000
+    opacity_reset_every: int = 1000  # 0: never
     max_gaussians: int = 200_000  # never grow beyond
 
 
@@ -102,6 +108,13 @@ class Densifier:
             and iteration + every <= self.iterations
         )
 
+    def _after_first_reset(self, iteration: int) -> bool:
+        """Whether a first opacity reset happened before `iteration`: faint Gaussians have then had
+        their chance to fade, and the initial ones (random ones can start larger than the size
+        cap) a reset period to shrink or split."""
+        every = self.config.opacity_reset_every
+        return bool(every) and iteration > every and self._resets_opacity(every)
+
     def _densify_and_prune(self, model: GaussianModel, optimizer, iteration: int) -> None:
         c = self.config
         n = len(model)
@@ -141,11 +154,13 @@ class Densifier:
             )
             remove = torch.cat([split, torch.zeros(added, dtype=torch.bool)])
             remove |= model.opacities < c.min_opacity
-            if c.max_world_size:
-                remove |= model.scales.max(dim=1).values > c.max_world_size * self.scene_radius
-            if c.max_screen_size and iteration > c.opacity_reset_every:
-                radii = torch.cat([self.max_radii, torch.zeros(added)])
-                remove |= radii > c.max_screen_size
+            if self._after_first_reset(iteration):
+                if c.max_world_size:
+                    size = model.scales.max(dim=1).values
+                    remove |= size > c.max_world_size * self.scene_radius
+                if c.max_screen_size:
+                    radii = torch.cat([self.max_radii, torch.zeros(added)])
+                    remove |= radii > c.max_screen_size
             keep = ~remove
             _surgery(model, optimizer, lambda name, v: v[keep], lambda name, m: m[keep])
         self._resize(0)
