@@ -75,7 +75,7 @@ def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
     trainer = Trainer(dataset, load_config("tfp33", FAST), tmp_path / "run", progress=False)
     trainer._fresh_state()
     scale = intensity_scale(dataset)
-    level = ViewSample.of(dataset, scale).median()  # [C]
+    level = ViewSample.of(dataset, scale).median  # [C]
     np.testing.assert_allclose(trainer.model.background.detach().numpy(), level, rtol=1e-6)
     constant = np.mean(
         [
@@ -250,7 +250,7 @@ def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
 
 
 def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
-    """The default config (3000 iterations, reset every 3000) once reset every opacity to 0.01 at
+    """The default config once (3000 iterations, reset every 3000) reset every opacity to 0.01 at
     its last step and ended nearly transparent (256² solids: 28.5 dB at 2500, 17.1 dB at 3000)."""
     config = DensifyConfig(start=10**9, opacity_reset_every=3000, stop=15000)
     assert not Densifier(config, 1.0, iterations=3000)._resets_opacity(3000)

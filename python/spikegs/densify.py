@@ -113,7 +113,7 @@ class Densifier:
         their chance to fade, and the initial ones (random ones can start larger than the size
         cap) a reset period to shrink or split."""
         every = self.config.opacity_reset_every
-        return bool(every) and iteration > every and self._resets_opacity(every)
+        return iteration > every and self._resets_opacity(every)  # every = 0: never
 
     def _densify_and_prune(self, model: GaussianModel, optimizer, iteration: int) -> None:
         c = self.config

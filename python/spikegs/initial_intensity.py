@@ -11,6 +11,7 @@ them (BENCHMARKS.md, "Initial intensity").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -31,9 +32,11 @@ class ViewSample:
     def of(cls, dataset, scale: float) -> ViewSample:
         return cls(*tfp_sample(dataset), scale)
 
+    @cached_property
     def median(self) -> np.ndarray:
         """Median intensity [C] of each channel: the constant image that fits the views best in
-        L1, whatever the method's target."""
+        L1, whatever the method's target (computed once: the unseen-Gaussian fallback and the
+        background both take it)."""
         return np.median(self.rates.reshape(-1, self.rates.shape[-1]), axis=0) / self.scale
 
 
@@ -56,4 +59,4 @@ def projected_intensity(dataset, sample: ViewSample, means: torch.Tensor) -> tor
         seen[i, inside] = images[i, v[inside].astype(int), u[inside].astype(int)]
     never = np.isnan(seen).all(axis=0)  # [N, C]
     median = np.nanmedian(np.where(never[None], 0.0, seen), axis=0)
-    return torch.from_numpy(np.where(never, sample.median(), median)).float()
+    return torch.from_numpy(np.where(never, sample.median, median)).float()

@@ -88,7 +88,7 @@ class Trainer:
                 colors_of,
             )
         with torch.no_grad():
-            self.model.background.copy_(torch.from_numpy(sample.median()))
+            self.model.background.copy_(torch.from_numpy(sample.median))
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
