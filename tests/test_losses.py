@@ -27,25 +27,32 @@ def _fit_constant(norm: str, targets: torch.Tensor) -> float:
     opt = torch.optim.Adam([x], lr=0.01)
     for _ in range(1500):
         opt.zero_grad()
-        loss = sum(exposure_loss([x.expand(4, 4, 1)] * 3, t, norm) for t in targets)
+        loss = sum(exposure_loss([x.expand(4, 4, 1)] * 3, t, norm, 1 / 33) for t in targets)
         loss.backward()
         opt.step()
     return float(x.detach())
 
 
-def test_l2_exposure_learns_the_mean_of_quantised_tfp_where_l1_learns_the_median():
-    """TFP of 33 readouts at 0.1 spikes/readout is 3/33 or 4/33 (3.3 spikes on average): L1 ends
-    at the median count 3/33, L2 at the mean 3.3/33."""
-    counts = torch.tensor([3.0] * 7 + [4.0] * 3) / 33  # 3.3 / 33 on average
-    targets = counts[:, None, None, None].expand(-1, 4, 4, 1)
-    assert _fit_constant("l1", targets) == pytest.approx(3 / 33, abs=2e-3)
-    assert _fit_constant("l2", targets) == pytest.approx(0.1, abs=2e-3)
+@pytest.mark.parametrize("counts", [[3] * 7 + [4] * 3, [3] * 4 + [4] * 6, [5] * 2 + [6] * 3])
+def test_l2_and_smooth_l1_exposure_learn_the_mean_of_quantised_tfp_where_l1_learns_the_median(
+    counts,
+):
+    """TFP of 33 readouts is a whole number of spikes / 33 (at 0.1 spikes/readout 3/33 or 4/33):
+    L1 ends at the median count, L2 and smooth L1 with a one-spike quadratic zone at the mean."""
+    counts = torch.tensor(counts, dtype=torch.float32)
+    targets = (counts / 33)[:, None, None, None].expand(-1, 4, 4, 1)
+    assert _fit_constant("l1", targets) == pytest.approx(float(counts.median()) / 33, abs=2e-3)
+    for norm in ("l2", "smooth_l1"):
+        assert _fit_constant(norm, targets) == pytest.approx(float(counts.mean()) / 33, abs=1e-3)
 
 
 def test_instant_loss_norms():
     render, target = torch.full((2, 3, 1), 0.5), torch.full((2, 3, 1), 0.2)
     assert float(instant_loss(render, target)) == pytest.approx(0.3)
     assert float(instant_loss(render, target, "l2")) == pytest.approx(0.09)
+    # smooth L1: |r| - quantum/2 beyond one quantum, r²/(2·quantum) within it
+    assert float(instant_loss(render, target, "smooth_l1", 0.1)) == pytest.approx(0.25)
+    assert float(instant_loss(render, target, "smooth_l1", 0.6)) == pytest.approx(0.075)
     assert float(exposure_loss([render, target], target)) == pytest.approx(0.15)
 
 

@@ -38,8 +38,10 @@ class SupervisionConfig:
     exposure_window: int = 33  # readouts of the virtual exposure around t
     exposure_poses: int = 5  # K renders averaged over the window
     dssim_weight: float = 0.0  # optional D-SSIM term on the instant loss, as in 3DGS
-    instant_norm: str = "l1"  # l1 (the paper's eq. 6) | l2
-    exposure_norm: str = "l1"  # l1 (the paper's eq. 9) | l2: the mean of a quantised TFP
+    # l1 (the paper's eqs. 6 and 9; over views it fits the median of a quantised TFP) | l2 |
+    # smooth_l1 (quadratic within one spike of the TFP window): both fit the mean
+    instant_norm: str = "l1"
+    exposure_norm: str = "l1"
 
     def total_weight(self) -> float:
         """The sum of the weights of the losses in use (> 0 in a valid config)."""

@@ -6,12 +6,29 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-NORMS = {"l1": F.l1_loss, "l2": F.mse_loss}  # l1: the paper's; l2: unbiased on quantised targets
+
+def _smooth_l1(render: torch.Tensor, target: torch.Tensor, quantum: float) -> torch.Tensor:
+    """L1 with a quadratic zone one `quantum` wide (the target's step, one spike of its TFP
+    window): over views its optimum is the mean of quantised counts, as L2's, with L1's gradient
+    wherever the residual exceeds a spike."""
+    return F.smooth_l1_loss(render, target, beta=quantum)
 
 
-def instant_loss(render: torch.Tensor, target: torch.Tensor, norm: str = "l1") -> torch.Tensor:
-    """L_instant = |render(t) - Ī(t)|₁ (or squared, `norm` l2), mean over pixels; [H, W, C]."""
-    return NORMS[norm](render, target)
+# norm name -> loss(render, target, quantum): l1 the paper's, whose optimum over views is the
+# median of a quantised TFP (biased by up to half a spike); l2 and smooth_l1 the mean
+NORMS = {
+    "l1": lambda render, target, quantum: F.l1_loss(render, target),
+    "l2": lambda render, target, quantum: F.mse_loss(render, target),
+    "smooth_l1": _smooth_l1,
+}
+
+
+def instant_loss(
+    render: torch.Tensor, target: torch.Tensor, norm: str = "l1", quantum: float = 1 / 33
+) -> torch.Tensor:
+    """L_instant = |render(t) - Ī(t)|₁ (or another of NORMS), mean over pixels; [H, W, C];
+    `quantum`: the target's step, one spike of its window (smooth_l1's quadratic zone)."""
+    return NORMS[norm](render, target, quantum)
 
 
 def exposure_times(t: float, window: int, poses: int) -> np.ndarray:
@@ -23,11 +40,14 @@ def exposure_times(t: float, window: int, poses: int) -> np.ndarray:
 
 
 def exposure_loss(
-    renders: list[torch.Tensor], target: torch.Tensor, norm: str = "l1"
+    renders: list[torch.Tensor],
+    target: torch.Tensor,
+    norm: str = "l1",
+    quantum: float = 1 / 33,
 ) -> torch.Tensor:
-    """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or squared, `norm` l2); renders
-    K x [H, W, C], target [H, W, C]."""
-    return NORMS[norm](torch.stack(renders).mean(dim=0), target)
+    """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or another of NORMS); renders
+    K x [H, W, C], target [H, W, C]; `quantum`: one spike of the TFP window in target units."""
+    return NORMS[norm](torch.stack(renders).mean(dim=0), target, quantum)
 
 
 def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:

@@ -142,6 +142,10 @@ class Trainer:
         viewmat = torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
         return viewmat if self.poses is None else self.poses(viewmat, view)
 
+    def _quantum(self, window: int) -> float:
+        """One spike of a `window`-readout TFP in target units (intensity: rates / scale)."""
+        return 1.0 / (window * self.scale)
+
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
         s, targets = self.config.supervision, self.targets
@@ -159,7 +163,10 @@ class Trainer:
             instant = self.model.render(self._pose(t, index), self.K, w, h, screen_points=screen)
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
-                instant.image, targets.instant[index], s.instant_norm
+                instant.image,
+                targets.instant[index],
+                s.instant_norm,
+                self._quantum(s.instant_window),
             )
             if s.dssim_weight:
                 loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
@@ -174,7 +181,7 @@ class Trainer:
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
-                renders, targets.exposure[index], s.exposure_norm
+                renders, targets.exposure[index], s.exposure_norm, self._quantum(s.exposure_window)
             )
         loss.backward()
         self.optimizer.step()
