@@ -53,6 +53,8 @@ def test_instant_loss_norms():
     # smooth L1: |r| - quantum/2 beyond one quantum, r²/(2·quantum) within it
     assert float(instant_loss(render, target, "smooth_l1", 0.1)) == pytest.approx(0.25)
     assert float(instant_loss(render, target, "smooth_l1", 0.6)) == pytest.approx(0.075)
+    with pytest.raises(ValueError, match="quantum"):  # its zone has no default unit
+        instant_loss(render, target, "smooth_l1")
     assert float(exposure_loss([render, target], target)) == pytest.approx(0.15)
 
 

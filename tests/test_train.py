@@ -250,8 +250,9 @@ def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
 
 
 def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
-    """The default config once (3000 iterations, reset every 3000) reset every opacity to 0.01 at
-    its last step and ended nearly transparent (256² solids: 28.5 dB at 2500, 17.1 dB at 3000)."""
+    """A config resetting every 3000 in a 3000-iteration run (once the default) reset every
+    opacity to 0.01 at its last step and ended nearly transparent (256² solids: 28.5 dB at
+    2500, 17.1 dB at 3000)."""
     config = DensifyConfig(start=10**9, opacity_reset_every=3000, stop=15000)
     assert not Densifier(config, 1.0, iterations=3000)._resets_opacity(3000)
     long_run = Densifier(config, 1.0, iterations=30000)

@@ -7,10 +7,12 @@ import torch
 import torch.nn.functional as F
 
 
-def _smooth_l1(render: torch.Tensor, target: torch.Tensor, quantum: float) -> torch.Tensor:
+def _smooth_l1(render: torch.Tensor, target: torch.Tensor, quantum: float | None) -> torch.Tensor:
     """L1 with a quadratic zone one `quantum` wide (the target's step, one spike of its TFP
     window): over views its optimum is the mean of quantised counts, as L2's, with L1's gradient
     wherever the residual exceeds a spike."""
+    if quantum is None:
+        raise ValueError("smooth_l1 expected the target's quantum (one spike of its TFP window)")
     return F.smooth_l1_loss(render, target, beta=quantum)
 
 
@@ -24,7 +26,7 @@ NORMS = {
 
 
 def instant_loss(
-    render: torch.Tensor, target: torch.Tensor, norm: str = "l1", quantum: float = 1 / 33
+    render: torch.Tensor, target: torch.Tensor, norm: str = "l1", quantum: float | None = None
 ) -> torch.Tensor:
     """L_instant = |render(t) - Ī(t)|₁ (or another of NORMS), mean over pixels; [H, W, C];
     `quantum`: the target's step, one spike of its window (smooth_l1's quadratic zone)."""
@@ -43,7 +45,7 @@ def exposure_loss(
     renders: list[torch.Tensor],
     target: torch.Tensor,
     norm: str = "l1",
-    quantum: float = 1 / 33,
+    quantum: float | None = None,
 ) -> torch.Tensor:
     """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or another of NORMS); renders
     K x [H, W, C], target [H, W, C]; `quantum`: one spike of the TFP window in target units."""
