@@ -146,6 +146,13 @@ class Trainer:
         """One spike of a `window`-readout TFP in target units (intensity: rates / scale)."""
         return 1.0 / (window * self.scale)
 
+    def _instant_readouts(self) -> int:
+        """Readouts of the TFP that the instant target estimates: SIM's target window, else the
+        `instant_window` (a TFP's own; for TFI or clean images only the smooth-L1 zone's width)."""
+        if self.config.supervision.instant == "sim":
+            return self.config.sim.target_readouts()
+        return self.config.supervision.instant_window
+
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
         s, targets = self.config.supervision, self.targets
@@ -166,7 +173,7 @@ class Trainer:
                 instant.image,
                 targets.instant[index],
                 s.instant_norm,
-                self._quantum(s.instant_window),
+                self._quantum(self._instant_readouts()),
             )
             if s.dssim_weight:
                 loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
