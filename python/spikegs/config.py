@@ -77,7 +77,10 @@ class TrainConfig:
 class SimConfig:
     window: int = 33  # readouts SIM sees
     target_window: int = 0  # readouts at the window's centre whose TFP SIM learns (0: window)
-    iterations: int = 500  # 1500 gained 0.4 dB for 3x the time (solids)
+    # 1500 (3x the time) gained 0.4 dB a frame on moving views (solids), where motion blur
+    # dominates, and lifted its bias (a still view's mean over windows) from 30.8 dB at 300 steps
+    # to 35.4 (BENCHMARKS.md, "SIM's training length")
+    iterations: int = 500
     crop: int = 64
     batch: int = 8
     loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
