@@ -43,6 +43,19 @@ def test_targets_are_computed_on_first_use_and_match_the_eager_images(dataset):
     assert len(targets.instant) == len(ts)
 
 
+@pytest.mark.parametrize(
+    "method, readouts", [("spikegs", 33), ("sim17", 17), ("tfp33", 33), ("tfp65", 65)]
+)
+def test_instant_smooth_l1_zone_is_one_spike_of_the_targets_window(dataset, method, readouts):
+    """SIM estimates the TFP of its target window (17 readouts for sim17), a TFP baseline is its
+    own window: the instant target's quantum is one spike of that, the exposure's of 33, in
+    intensity units."""
+    targets = build_targets(dataset, load_config(method, SIM_FAST), progress=False)
+    scale = intensity_scale(dataset)
+    assert targets.instant.quantum == pytest.approx(1.0 / (readouts * scale))
+    assert targets.exposure is None or targets.exposure.quantum == pytest.approx(1 / (33 * scale))
+
+
 def test_a_run_computes_only_the_timestamps_it_samples(dataset, tmp_path):
     overrides = {
         **SIM_FAST,

@@ -134,19 +134,6 @@ def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
     assert len(models[0]) == len(models[1]) > FAST["train"]["init_gaussians"]
 
 
-@pytest.mark.parametrize(
-    "method, readouts", [("spikegs", 33), ("sim17", 17), ("tfp33", 33), ("tfp65", 65)]
-)
-def test_instant_smooth_l1_zone_is_one_spike_of_the_targets_window(
-    dataset, tmp_path, method, readouts
-):
-    """SIM estimates the TFP of its target window (17 readouts for sim17), a TFP baseline is its
-    own window: the instant loss's quantum is one spike of that, in training units."""
-    trainer = Trainer(dataset, load_config(method), tmp_path / "run", progress=False)
-    assert trainer._instant_readouts() == readouts
-    assert trainer._quantum(readouts) == pytest.approx(1.0 / (readouts * trainer.scale))
-
-
 def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()

@@ -32,9 +32,8 @@ class SupervisionConfig:
     # sim | tfp | tfi | none: the image compared with render(t); clean: the simulator's noise-free
     # image (built-in synthetic scenes only): the ceiling of perfect instant targets, not a method
     instant: str = "sim"
-    instant_window: int = (
-        33  # TFP window of the instant target when instant = tfp (SIM: sim.target_window)
-    )
+    # TFP window of the instant target when instant = tfp (SIM's: sim.target_window)
+    instant_window: int = 33
     instant_weight: float = 1.0
     exposure_weight: float = 1.0  # lambda: weight of L_exposure (0: off)
     exposure_window: int = 33  # readouts of the virtual exposure around t

@@ -24,12 +24,14 @@ from .sim_train import fast_inference_model, predict, train_or_load
 
 class TargetImages:
     """Images [H, W, C] in intensity units at a run's training timestamps, indexed like them;
-    each computed on first access (`image_fn` of that one readout) and kept."""
+    each computed on first access (`image_fn` of that one readout) and kept. `quantum`: one spike
+    of the TFP window that they count or estimate, in intensity units (smooth L1's zone)."""
 
-    def __init__(self, timestamps: np.ndarray, image_fn: Callable, scale: float):
+    def __init__(self, timestamps: np.ndarray, image_fn: Callable, scale: float, quantum: float):
         self.timestamps = timestamps  # [M] readouts
         self._image_fn = image_fn  # readouts [n] -> firing rates [n, H, W, C]
         self._scale = scale  # firing rate of intensity 1.0
+        self.quantum = quantum
         self._cache: dict[int, torch.Tensor] = {}
 
     def __len__(self) -> int:
@@ -127,9 +129,10 @@ def trained_sim(
     return model, seconds, path
 
 
-def clean_images(dataset) -> TargetImages:
+def clean_images(dataset, quantum: float) -> TargetImages:
     """The noise-free instant images at the training timestamps, rendered by the source that a
-    built-in scene's dataset was simulated from (already in intensity units)."""
+    built-in scene's dataset was simulated from (already in intensity units); `quantum`: the
+    smooth-L1 zone they are compared within (they count no spikes)."""
     from .data.simulate import clean_source  # here: the data package imports this module
 
     source = clean_source(dataset)
@@ -137,7 +140,7 @@ def clean_images(dataset) -> TargetImages:
     render = lambda readouts: np.stack(  # noqa: E731
         [source.image_at(dataset.trajectory, float(t)) for t in readouts]
     ).astype(np.float32)
-    return TargetImages(ts, render, 1.0)
+    return TargetImages(ts, render, 1.0, quantum)
 
 
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
@@ -148,9 +151,15 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     scale = intensity_scale(dataset)
     streams = dataset.streams  # [C] SpikeStreams, one per channel
 
-    def images(stream_fn) -> TargetImages:
-        """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis."""
-        return TargetImages(ts, lambda k: _per_channel(streams, lambda st: stream_fn(st, k)), scale)
+    def spike(window: int) -> float:
+        """One spike of a `window`-readout TFP, in intensity units."""
+        return 1.0 / (window * scale)
+
+    def images(stream_fn, window: int) -> TargetImages:
+        """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
+        that count or estimate the spikes of `window` readouts."""
+        per_channel = lambda k: _per_channel(streams, lambda st: stream_fn(st, k))  # noqa: E731
+        return TargetImages(ts, per_channel, scale, spike(window))
 
     instant, sim_seconds = None, 0.0
     if s.instant_weight > 0 and s.instant != "none":
@@ -159,14 +168,16 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
                 dataset, config.sim, config.train.seed, progress=progress
             )
             fast = fast_inference_model(model)
-            instant = images(lambda st, k: predict(fast, st.window(k, fast.window)))
+            # SIM estimates the TFP of its target window (17 readouts for sim17)
+            window = config.sim.target_readouts()
+            instant = images(lambda st, k: predict(fast, st.window(k, fast.window)), window)
         elif s.instant == "clean":
-            instant = clean_images(dataset)
+            instant = clean_images(dataset, spike(s.instant_window))
         elif s.instant == "tfp":
-            instant = images(lambda st, k: st.tfp(k, s.instant_window))
-        else:
-            instant = images(lambda st, k: st.tfi(k))
+            instant = images(lambda st, k: st.tfp(k, s.instant_window), s.instant_window)
+        else:  # TFI counts no window: instant_window only sets smooth L1's zone
+            instant = images(lambda st, k: st.tfi(k), s.instant_window)
     exposure = None
     if s.exposure_weight > 0:
-        exposure = images(lambda st, k: st.tfp(k, s.exposure_window))
+        exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)
     return Targets(ts, instant, exposure, sim_seconds)

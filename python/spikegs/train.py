@@ -142,17 +142,6 @@ class Trainer:
         viewmat = torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
         return viewmat if self.poses is None else self.poses(viewmat, view)
 
-    def _quantum(self, window: int) -> float:
-        """One spike of a `window`-readout TFP in target units (intensity: rates / scale)."""
-        return 1.0 / (window * self.scale)
-
-    def _instant_readouts(self) -> int:
-        """Readouts of the TFP that the instant target estimates: SIM's target window, else the
-        `instant_window` (a TFP's own; for TFI or clean images only the smooth-L1 zone's width)."""
-        if self.config.supervision.instant == "sim":
-            return self.config.sim.target_readouts()
-        return self.config.supervision.instant_window
-
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
         s, targets = self.config.supervision, self.targets
@@ -173,7 +162,7 @@ class Trainer:
                 instant.image,
                 targets.instant[index],
                 s.instant_norm,
-                self._quantum(self._instant_readouts()),
+                targets.instant.quantum,
             )
             if s.dssim_weight:
                 loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
@@ -188,7 +177,7 @@ class Trainer:
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
-                renders, targets.exposure[index], s.exposure_norm, self._quantum(s.exposure_window)
+                renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
             )
         loss.backward()
         self.optimizer.step()
