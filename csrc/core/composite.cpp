@@ -1,10 +1,9 @@
 // Tile-parallel compositing. Within a tile, each splat is applied to the rows its box covers, 16
-// pixels at a time, so the inner loops (exp included) vectorise. Per-thread buffers, no atomics.
+// pixels at a time, so the inner loops (exp included) vectorise. No atomics: the backward writes
+// each (tile, splat) pair's gradient share to a slot of its own and sums them in a fixed order.
 // The backward takes those rows as one run of pixels, so that its gradient sums are reduced once
 // per (tile, splat) rather than once per row.
 #include "core/composite.hpp"
-
-#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -184,16 +183,15 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   const std::int64_t visible = std::int64_t(bins.order.size());
-  const int threads = omp_get_max_threads();
-  // Per-thread gradients by depth rank: mx, my, A, B, C, opacity, colour[C]; background [C].
-  std::vector<std::vector<T>> thread_grads(threads);
-  std::vector<std::vector<T>> thread_bg(threads, std::vector<T>(C, T(0)));
+  // Each pair's share of its Gaussian's gradients, in rank-major order (bins.rank_major): mx, my,
+  // A, B, C, opacity, colour[C]; and each tile's share of the background's. Every slot is
+  // written by the one thread that owns its tile, and the sums below run in a fixed order, so
+  // the gradients are bitwise the same for any thread count.
+  std::vector<T> pair_grads(bins.ranks.size() * grad_stride);  // [pairs, 6 + C]
+  std::vector<T> tile_bg(tiles * C, T(0));                     // [tiles, C]
 
 #pragma omp parallel
   {
-    std::vector<T>& g = thread_grads[omp_get_thread_num()];
-    g.assign(visible * grad_stride, T(0));
-    T* gbg = thread_bg[omp_get_thread_num()].data();
     // Per tile, [256]: pixel centres, T (running back to front), T_final grad_alpha, position of
     // the last contributor.
     alignas(64) T cx[kTilePixels], cy[kTilePixels], trans[kTilePixels], tg[kTilePixels];
@@ -201,11 +199,12 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     alignas(64) T gauss[kTilePixels];  // G of the current splat (0 where alpha is clamped)
     std::vector<T> behind(std::size_t(C) * kTilePixels),
         gimg(std::size_t(C) * kTilePixels);  // [C, 256]
-// static round-robin: the same tiles meet the same per-thread buffers every call, so the
-// gradient sums (and a resumed training run) are bitwise reproducible
-#pragma omp for schedule(static, 1)
+#pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
+      T* gbg = tile_bg.data() + t * C;
+      for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
+        std::fill_n(pair_grads.data() + bins.rank_major[j] * grad_stride, grad_stride, T(0));
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
       for (int p = 0; p < kTilePixels; ++p) {
         cx[p] = T(tile.x0 + p % kTileSize) + T(0.5);
@@ -259,7 +258,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
           gauss[p] = gaussian(power);
         }
-        T* out = g.data() + std::int64_t(rank) * grad_stride;
+        T* out = pair_grads.data() + bins.rank_major[j] * grad_stride;
         T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
         if constexpr (NC > 0) {
           // alpha, T, the colour and the geometric gradients in one pass: every load is
@@ -342,8 +341,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp parallel for schedule(static)
   for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
-    for (int tid = 0; tid < threads; ++tid) {
-      const T* s = thread_grads[tid].data() + rank * grad_stride;
+    for (std::int64_t k = bins.rank_begin[rank]; k < bins.rank_begin[rank + 1]; ++k) {
+      const T* s = pair_grads.data() + k * grad_stride;
       grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
       grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
       grads.opacity[i] += s[5];
@@ -353,7 +352,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   if (grad_background)
     for (int c = 0; c < C; ++c) {
       grad_background[c] = 0;
-      for (int tid = 0; tid < threads; ++tid) grad_background[c] += thread_bg[tid][c];
+      for (std::int64_t t = 0; t < tiles; ++t) grad_background[c] += tile_bg[t * C + c];
     }
 }
 

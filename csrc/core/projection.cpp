@@ -1,8 +1,6 @@
 // EWA projection, forward and backward; see docs/rasterizer.md for the maths step by step.
 #include "core/projection.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <glm/glm.hpp>
@@ -198,18 +196,20 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
                       const ProjectedGrads<T>& dp, ParamGrads<T>& g) {
   const std::int64_t n = prm.n;
   const int C = prm.channels;
-  const int threads = omp_get_max_threads();
-  std::vector<Mat3<T>> dW_thread(threads, Mat3<T>(T(0)));
-  std::vector<Vec3<T>> dt_thread(threads, Vec3<T>(T(0)));
+  // The view matrix's gradient is summed per block of Gaussians, then over blocks in order: the
+  // same sums for any thread count.
+  constexpr std::int64_t kBlock = 256;
+  const std::int64_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<Mat3<T>> dW_block(blocks, Mat3<T>(T(0)));
+  std::vector<Vec3<T>> dt_block(blocks, Vec3<T>(T(0)));
   const Mat3<T> W = rotation_of(cam.viewmat);
   const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
 
-#pragma omp parallel
-  {
+#pragma omp parallel for schedule(dynamic, 4)
+  for (std::int64_t b = 0; b < blocks; ++b) {
     Mat3<T> dW(T(0));
     Vec3<T> dt(T(0));
-#pragma omp for schedule(static)
-    for (std::int64_t i = 0; i < n; ++i) {
+    for (std::int64_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) {
       if (proj.radius[i] == 0) continue;
       const Splat<T> s = build_splat(prm, cam, i);
       const T* mean = prm.means + 3 * i;
@@ -307,14 +307,13 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       dt += dpc;
       for (int k = 0; k < 3; ++k) g.means[3 * i + k] += dmu[k];
     }
-    const int tid = omp_get_thread_num();
-    dW_thread[tid] = dW;
-    dt_thread[tid] = dt;
+    dW_block[b] = dW;
+    dt_block[b] = dt;
   }
-  for (int tid = 0; tid < threads; ++tid)
+  for (std::int64_t b = 0; b < blocks; ++b)
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) g.viewmat[r * 4 + c] += dW_thread[tid][c][r];
-      g.viewmat[r * 4 + 3] += dt_thread[tid][r];
+      for (int c = 0; c < 3; ++c) g.viewmat[r * 4 + c] += dW_block[b][c][r];
+      g.viewmat[r * 4 + 3] += dt_block[b][r];
     }
 }
 

@@ -13,6 +13,12 @@ struct TileBins {
   std::vector<std::int32_t> order;    // [V] Gaussian index of each depth rank (visible only)
   std::vector<std::int64_t> offsets;  // [tiles + 1] start of each tile's list in `ranks`
   std::vector<std::int32_t> ranks;    // [pairs] depth ranks, ascending within each tile
+  // The same pairs listed by depth rank, each rank's tiles in row-major order: rank r's pairs are
+  // [rank_begin[r], rank_begin[r + 1]), and pair j of the tile lists is number rank_major[j] here.
+  // The backward writes each pair's gradient share to its own slot and sums a rank's slots in
+  // this order, so the sums do not depend on how tiles are split among threads.
+  std::vector<std::int64_t> rank_begin;  // [V + 1]
+  std::vector<std::int64_t> rank_major;  // [pairs]
 };
 
 // Stable: equal depths keep Gaussian index order.
