@@ -137,10 +137,13 @@ class Trainer:
         self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
 
     # -- one step ------------------------------------------------------------------------------
-    def _pose(self, readout: float, view: int) -> torch.Tensor:
-        """Viewmat [4, 4] at `readout`, with training view `view`'s correction when refining."""
-        viewmat = torch.as_tensor(self.dataset.trajectory.pose_at(readout), dtype=torch.float32)
-        return viewmat if self.poses is None else self.poses(viewmat, view)
+    def _poses(self, readouts: list[float], view: int) -> list[torch.Tensor]:
+        """Viewmats [4, 4] at `readouts` (one trajectory lookup), with training view `view`'s
+        correction when refining."""
+        viewmats = torch.as_tensor(
+            self.dataset.trajectory.pose_at(np.asarray(readouts)), dtype=torch.float32
+        )  # [B, 4, 4]
+        return [v if self.poses is None else self.poses(v, view) for v in viewmats]
 
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
@@ -155,8 +158,12 @@ class Trainer:
         screen = torch.zeros(len(self.model), 2, requires_grad=True)
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         loss, instant = torch.zeros(()), None
+        times = [t]  # the instant pose, then the exposure's
+        if targets.exposure is not None:
+            times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
+        viewmats = self._poses(times, index)
         if targets.instant is not None:
-            instant = self.model.render(self._pose(t, index), self.K, w, h, screen_points=screen)
+            instant = self.model.render(viewmats[0], self.K, w, h, screen_points=screen)
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
                 instant.image,
@@ -168,11 +175,10 @@ class Trainer:
                 loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
         if targets.exposure is not None:
             renders = []
-            for k, tk in enumerate(exposure_times(t, s.exposure_window, s.exposure_poses)):
+            for k, viewmat in enumerate(viewmats[1:]):
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
-                viewmat = self._pose(float(tk), index)
                 r = self.model.render(viewmat, self.K, w, h, screen_points=screen)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
