@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 namespace spikegs::raster {
 namespace {
@@ -187,8 +188,9 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   // A, B, C, opacity, colour[C]; and each tile's share of the background's. Every slot is
   // written by the one thread that owns its tile, and the sums below run in a fixed order, so
   // the gradients are bitwise the same for any thread count.
-  std::vector<T> pair_grads(bins.ranks.size() * grad_stride);  // [pairs, 6 + C]
-  std::vector<T> tile_bg(tiles * C, T(0));                     // [tiles, C]
+  // [pairs, 6 + C], left uninitialised: each tile zeroes its own pairs' slots
+  const std::unique_ptr<T[]> pair_grads(new T[bins.ranks.size() * grad_stride]);
+  std::vector<T> tile_bg(tiles * C, T(0));  // [tiles, C]
 
 #pragma omp parallel
   {
@@ -204,7 +206,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
       T* gbg = tile_bg.data() + t * C;
       for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
-        std::fill_n(pair_grads.data() + bins.rank_major[j] * grad_stride, grad_stride, T(0));
+        std::fill_n(pair_grads.get() + bins.rank_major[j] * grad_stride, grad_stride, T(0));
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
       for (int p = 0; p < kTilePixels; ++p) {
         cx[p] = T(tile.x0 + p % kTileSize) + T(0.5);
@@ -258,7 +260,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
           gauss[p] = gaussian(power);
         }
-        T* out = pair_grads.data() + bins.rank_major[j] * grad_stride;
+        T* out = pair_grads.get() + bins.rank_major[j] * grad_stride;
         T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
         if constexpr (NC > 0) {
           // alpha, T, the colour and the geometric gradients in one pass: every load is
@@ -342,7 +344,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
     for (std::int64_t k = bins.rank_begin[rank]; k < bins.rank_begin[rank + 1]; ++k) {
-      const T* s = pair_grads.data() + k * grad_stride;
+      const T* s = pair_grads.get() + k * grad_stride;
       grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
       grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
       grads.opacity[i] += s[5];
