@@ -11,12 +11,12 @@ using namespace test;
 
 namespace {
 
-// Renders and back-propagates `s` (in float, training's precision) with `threads` threads.
 struct Outcome {
   Render<float> render;
   Grads<float> grads;
 };
 
+// Renders and back-propagates `s` (in float, training's precision) with `threads` threads.
 Outcome run(const Scene<float>& s, int threads) {
   omp_set_num_threads(threads);
   Render<float> r = render(s);

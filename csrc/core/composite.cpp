@@ -184,13 +184,17 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   const std::int64_t visible = std::int64_t(bins.order.size());
-  // Each pair's share of its Gaussian's gradients, in rank-major order (bins.rank_major): mx, my,
-  // A, B, C, opacity, colour[C]; and each tile's share of the background's. Every slot is
-  // written by the one thread that owns its tile, and the sums below run in a fixed order, so
-  // the gradients are bitwise the same for any thread count.
-  // [pairs, 6 + C], left uninitialised: each tile zeroes its own pairs' slots
+  // Each pair's share of its Gaussian's gradients, in rank-major order: mx, my, A, B, C,
+  // opacity, colour[C] ([pairs, 6 + C], left uninitialised: each tile zeroes its own pairs'
+  // slots); and each tile's share of the background's. Every slot is written by the one thread
+  // that owns its tile, and the sums below run in a fixed order, so the gradients are bitwise
+  // the same for any thread count.
   const std::unique_ptr<T[]> pair_grads(new T[bins.ranks.size() * grad_stride]);
-  std::vector<T> tile_bg(tiles * C, T(0));  // [tiles, C]
+  std::vector<T> tile_bg(tiles * C, T(0));              // [tiles, C]
+  auto slot = [&](std::int32_t rank, std::int64_t t) {  // pair (t, rank)'s gradient share
+    const std::int32_t* rect = &proj.tile_rect[4 * std::int64_t(bins.order[rank])];
+    return pair_grads.get() + rank_major(bins, rect, rank, t) * grad_stride;
+  };
 
 #pragma omp parallel
   {
@@ -206,7 +210,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
       T* gbg = tile_bg.data() + t * C;
       for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
-        std::fill_n(pair_grads.get() + bins.rank_major[j] * grad_stride, grad_stride, T(0));
+        std::fill_n(slot(bins.ranks[j], t), grad_stride, T(0));
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
       for (int p = 0; p < kTilePixels; ++p) {
         cx[p] = T(tile.x0 + p % kTileSize) + T(0.5);
@@ -260,7 +264,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
           gauss[p] = gaussian(power);
         }
-        T* out = pair_grads.get() + bins.rank_major[j] * grad_stride;
+        T* out = slot(rank, t);
         T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
         if constexpr (NC > 0) {
           // alpha, T, the colour and the geometric gradients in one pass: every load is

@@ -53,30 +53,24 @@ void bin_tiles(const Projected<T>& proj, const Camera<T>& cam, TileBins& bins) {
   }
   radix_sort(key, bins.order);
 
-  // Count pairs per tile, prefix-sum, then fill in depth order.
+  // Count pairs per tile (and per rank), prefix-sum, then fill in depth order.
   bins.offsets.assign(tiles + 1, 0);
+  bins.rank_begin.assign(1, 0);
   for (const std::int32_t i : bins.order) {
     const std::int32_t* r = &proj.tile_rect[4 * std::int64_t(i)];
     for (int ty = r[1]; ty < r[3]; ++ty)
       for (int tx = r[0]; tx < r[2]; ++tx) ++bins.offsets[std::int64_t(ty) * bins.tiles_x + tx + 1];
+    bins.rank_begin.push_back(bins.rank_begin.back() + std::int64_t(r[2] - r[0]) * (r[3] - r[1]));
   }
   for (std::int64_t t = 0; t < tiles; ++t) bins.offsets[t + 1] += bins.offsets[t];
   bins.ranks.resize(bins.offsets[tiles]);
-  bins.rank_major.resize(bins.offsets[tiles]);
-  bins.rank_begin.resize(bins.order.size() + 1);
   std::vector<std::int64_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
-  std::int64_t k = 0;  // pairs listed so far, by rank
   for (std::int32_t rank = 0; rank < std::int32_t(bins.order.size()); ++rank) {
-    bins.rank_begin[rank] = k;
     const std::int32_t* r = &proj.tile_rect[4 * std::int64_t(bins.order[rank])];
     for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx) {
-        const std::int64_t j = cursor[std::int64_t(ty) * bins.tiles_x + tx]++;
-        bins.ranks[j] = rank;
-        bins.rank_major[j] = k++;
-      }
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        bins.ranks[cursor[std::int64_t(ty) * bins.tiles_x + tx]++] = rank;
   }
-  bins.rank_begin[bins.order.size()] = k;
 }
 
 template void bin_tiles<float>(const Projected<float>&, const Camera<float>&, TileBins&);

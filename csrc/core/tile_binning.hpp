@@ -13,13 +13,20 @@ struct TileBins {
   std::vector<std::int32_t> order;    // [V] Gaussian index of each depth rank (visible only)
   std::vector<std::int64_t> offsets;  // [tiles + 1] start of each tile's list in `ranks`
   std::vector<std::int32_t> ranks;    // [pairs] depth ranks, ascending within each tile
-  // The same pairs listed by depth rank, each rank's tiles in row-major order: rank r's pairs are
-  // [rank_begin[r], rank_begin[r + 1]), and pair j of the tile lists is number rank_major[j] here.
-  // The backward writes each pair's gradient share to its own slot and sums a rank's slots in
-  // this order, so the sums do not depend on how tiles are split among threads.
+  // The same pairs listed by depth rank, each rank's tiles in row-major order (`rank_major`):
+  // rank r's pairs are [rank_begin[r], rank_begin[r + 1]). The backward writes each pair's
+  // gradient share to its own slot and sums a rank's slots in this order, so the sums do not
+  // depend on how tiles are split among threads.
   std::vector<std::int64_t> rank_begin;  // [V + 1]
-  std::vector<std::int64_t> rank_major;  // [pairs]
 };
+
+// Position, in the rank-major listing, of the pair (tile t, depth rank `rank`); `rect` is the
+// rank's tile range x0, y0, x1, y1 (Projected::tile_rect), which holds tile t.
+inline std::int64_t rank_major(const TileBins& bins, const std::int32_t* rect, std::int32_t rank,
+                               std::int64_t t) {
+  const std::int64_t tx = t % bins.tiles_x, ty = t / bins.tiles_x;
+  return bins.rank_begin[rank] + (ty - rect[1]) * (rect[2] - rect[0]) + (tx - rect[0]);
+}
 
 // Stable: equal depths keep Gaussian index order.
 template <typename T>
