@@ -18,6 +18,25 @@ bool finite(const std::vector<T>& v) {
   return spikegs::all_finite(v.data(), long(v.size()));
 }
 
+// Every visible Gaussian's tile range is non-empty and on the grid, and the rank-major listing
+// (`TileBins::rank_begin`) counts exactly the binned pairs, by which the backward's slots index.
+template <typename T>
+void check_bins(const RasterState<T>& st, const Camera<T>& cam, const char* label) {
+  const TileBins& b = st.bins;
+  CHECK(b.rank_begin.size() == b.order.size() + 1, label, ": rank_begin size");
+  for (std::size_t rank = 0; rank < b.order.size(); ++rank) {
+    const std::int32_t* r = &st.proj.tile_rect[4 * std::size_t(b.order[rank])];
+    CHECK(0 <= r[0] && r[0] < r[2] && r[2] <= cam.tiles_x() && 0 <= r[1] && r[1] < r[3] &&
+              r[3] <= cam.tiles_y(),
+          label, ": visible Gaussian ", b.order[rank], " has tile range ", r[0], ",", r[1], " - ",
+          r[2], ",", r[3]);
+    CHECK(b.rank_begin[rank + 1] - b.rank_begin[rank] == std::int64_t(r[2] - r[0]) * (r[3] - r[1]),
+          label, ": rank ", rank, "'s pair count");
+  }
+  CHECK(b.rank_begin.back() == std::int64_t(b.ranks.size()), label, ": ", b.rank_begin.back(),
+        " rank-major pairs against ", b.ranks.size(), " binned");
+}
+
 // Renders `s` in double and float with a random upstream gradient; checks finiteness and returns
 // the double gradients. Prints the float-vs-double image error.
 struct Outcome {
@@ -28,10 +47,12 @@ struct Outcome {
 
 Outcome run(const Scene<double>& s, const char* label) {
   Render<double> r = render(s);
+  check_bins(r.state, s.cam, label);  // before the backward, which indexes by the bins
   const auto gi = random_weights(r.image.size(), 7), ga = random_weights(r.alpha.size(), 8);
   Grads<double> g = backward(s, r, gi, ga);
   const Scene<float> sf = s.cast<float>();
   const Render<float> rf = render(sf);
+  check_bins(rf.state, sf.cam, label);
   const Grads<float> gf = backward(sf, rf, std::vector<float>(gi.begin(), gi.end()),
                                    std::vector<float>(ga.begin(), ga.end()));
   CHECK(finite(r.image) && finite(r.alpha), label, ": non-finite double output");
@@ -149,6 +170,30 @@ TEST_CASE(subpixel_and_screen_covering) {
   const Outcome o = run(s, "sub-pixel and screen-covering");
   CHECK(o.render.state.proj.radius[0] > 0, "sub-pixel Gaussian culled");
   CHECK(o.float_error < 1e-3, "float error ", o.float_error);
+}
+
+TEST_CASE(ellipse_beside_the_screen) {
+  // Thin Gaussians just off each side, long along that side: their bounding circle reaches into
+  // the image, their ellipse does not (its tile range was empty, or inverted, and once corrupted
+  // the backward's memory). They must be culled.
+  Scene<double> s = random_scene(12, 14, 64, 48, 1, -1);
+  for (int k = 0; k < 16; ++k) s.cam.viewmat[k] = (k % 5 == 0) ? 1 : 0;
+  s.cam.fx = s.cam.fy = 60, s.cam.cx = 32, s.cam.cy = 24;
+  const std::int64_t keep = 10;
+  const double side[4][2] = {{-30, 24}, {94, 24}, {32, -30}, {32, 78}};  // pixel centres
+  for (std::int64_t i = keep; i < s.n; ++i) {
+    const double* px = side[i - keep];
+    const bool vertical = i - keep < 2;  // long along y beside the left and right edges
+    const double z = 2;
+    s.means[3 * i] = (px[0] - s.cam.cx) * z / s.cam.fx;
+    s.means[3 * i + 1] = (px[1] - s.cam.cy) * z / s.cam.fy;
+    s.means[3 * i + 2] = z;
+    s.quats[4 * i] = 1, s.quats[4 * i + 1] = s.quats[4 * i + 2] = s.quats[4 * i + 3] = 0;
+    s.scales[3 * i] = vertical ? 0.005 : 0.5, s.scales[3 * i + 1] = vertical ? 0.5 : 0.005;
+    s.scales[3 * i + 2] = 0.005;
+    s.opacities[i] = 0.9;
+  }
+  check_culled_tail(s, keep, "ellipse beside the screen");
 }
 
 TEST_CASE(zero_and_nan_quaternions) {

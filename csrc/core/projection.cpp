@@ -155,16 +155,24 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     const T level = T(2) * std::log(T(255) * o);
     const T r = std::ceil(std::sqrt(level * lambda));
     if (!(mx + r > 0 && mx - r < cam.width && my + r > 0 && my - r < cam.height)) continue;
-    // binning uses the ellipse's own x and y half-widths (tighter), plus a pixel of slack
+    // binning uses the ellipse's own x and y half-widths (tighter), plus a pixel of slack; that
+    // box can miss the image where the bounding circle does not, and then the Gaussian is culled
+    // (its tile range would be empty or inverted)
     const T ex = std::sqrt(level * s.a) + 1, ey = std::sqrt(level * s.c) + 1;
+    if (!(mx + ex > 0 && mx - ex < cam.width && my + ey > 0 && my - ey < cam.height)) continue;
     const T ts = T(kTileSize);
+    auto tile = [](T v, int tiles) { return std::int32_t(std::clamp(v, T(0), T(tiles))); };
+    const std::int32_t x0 = tile(std::floor((mx - ex) / ts), tiles_x);
+    const std::int32_t y0 = tile(std::floor((my - ey) / ts), tiles_y);
+    const std::int32_t x1 = tile(std::floor((mx + ex) / ts) + 1, tiles_x);
+    const std::int32_t y1 = tile(std::floor((my + ey) / ts) + 1, tiles_y);
     out.radius[i] = std::int32_t(std::min(r, T(1 << 30)));
     out.extent[2 * i] = ex;
     out.extent[2 * i + 1] = ey;
-    out.tile_rect[4 * i + 0] = std::int32_t(std::max(T(0), std::floor((mx - ex) / ts)));
-    out.tile_rect[4 * i + 1] = std::int32_t(std::max(T(0), std::floor((my - ey) / ts)));
-    out.tile_rect[4 * i + 2] = std::int32_t(std::min(T(tiles_x), std::floor((mx + ex) / ts) + 1));
-    out.tile_rect[4 * i + 3] = std::int32_t(std::min(T(tiles_y), std::floor((my + ey) / ts) + 1));
+    out.tile_rect[4 * i + 0] = x0;
+    out.tile_rect[4 * i + 1] = y0;
+    out.tile_rect[4 * i + 2] = x1;
+    out.tile_rect[4 * i + 3] = y1;
     out.mean2d[2 * i] = mx;
     out.mean2d[2 * i + 1] = my;
     out.conic[3 * i] = s.c / s.det;

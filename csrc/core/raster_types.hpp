@@ -44,7 +44,8 @@ struct Projected {
   std::vector<T> color;              // [N, C]
   std::vector<std::int32_t> radius;  // [N] pixels, 0 = culled
   std::vector<T> extent;  // [N, 2] x, y half-widths of the region where alpha >= 1/255 (+1 px)
-  std::vector<std::int32_t> tile_rect;  // [N, 4] tile range x0, y0, x1, y1 (half-open)
+  std::vector<std::int32_t> tile_rect;  // [N, 4] tile range x0, y0, x1, y1 (half-open; non-empty
+                                        // and on the grid where radius > 0)
 };
 
 // Gradients with respect to the projected quantities, indexed by Gaussian.

@@ -146,9 +146,14 @@ def _project(
         keep = keep & (opacities >= ALPHA_MIN)
         mid = 0.5 * (a + c)
         lam = mid + torch.sqrt(torch.clamp(mid * mid - det, min=0.1))
-        r = torch.ceil(torch.sqrt(2 * torch.log(opacities / ALPHA_MIN) * lam))
+        level = 2 * torch.log(opacities / ALPHA_MIN)  # alpha >= 1/255 where d^T conic d <= level
+        r = torch.ceil(torch.sqrt(level * lam))
         mx, my = means2d.unbind(-1)
         keep = keep & (mx + r > 0) & (mx - r < width) & (my + r > 0) & (my - r < height)
+        # the ellipse's own x and y half-widths (+1 px), the box the C++ binning tiles: it can
+        # miss the image where the circle does not
+        ex, ey = torch.sqrt(level * a) + 1, torch.sqrt(level * c) + 1
+        keep = keep & (mx + ex > 0) & (mx - ex < width) & (my + ey > 0) & (my - ey < height)
         radii = torch.where(keep, torch.clamp(r, max=2.0**30), 0).to(torch.int32)
 
     # 9: colour
