@@ -171,7 +171,7 @@ def test_poses_from_spikes_recover_the_trajectory(textured, capsys):
 def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
-    still = _solids(tmp_path / "still", 64, 400, speed=0.005)  # 2 degrees of orbit: no parallax
+    still = _solids(tmp_path / "still", 64, 400, speed=0.0005)  # 0.2 degrees of orbit: no parallax
     assert main(["poses", str(still.root), "--count", "12"]) == 2
     err = capsys.readouterr().err
     assert "structure from motion failed" in err and "parallax" in err, err
