@@ -102,10 +102,16 @@ def reconstruct(
     level = pycolmap.logging.minloglevel
     pycolmap.logging.minloglevel = 2  # COLMAP's progress log is long: errors only
     try:
+        # one extraction thread: images enter the database, and get their ids, in `names`' order
+        # (threads insert them as they finish, and the ids' order steers matching and mapping)
+        extraction = pycolmap.FeatureExtractionOptions()
+        extraction.num_threads = 1
         pycolmap.extract_features(
-            database, work / "images", names, pycolmap.CameraMode.SINGLE, reader
+            database, work / "images", names, pycolmap.CameraMode.SINGLE, reader, extraction
         )
-        pycolmap.match_exhaustive(database)
+        verification = pycolmap.TwoViewGeometryOptions()
+        verification.ransac.random_seed = seed  # -1 (COLMAP's default) seeds from the clock
+        pycolmap.match_exhaustive(database, verification_options=verification)
         stats = _match_stats(database, len(names))
         if stats["parallax_pairs"] == 0:
             raise ValueError(_failure(stats, None, min_registered))
