@@ -154,12 +154,16 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     // alpha >= 1/255 inside the ellipse d^T conic d <= 2 ln(255 o), whose bounding circle is r
     const T level = T(2) * std::log(T(255) * o);
     const T r = std::ceil(std::sqrt(level * lambda));
-    if (!(mx + r > 0 && mx - r < cam.width && my + r > 0 && my - r < cam.height)) continue;
+    auto reaches_image = [&](T half_x, T half_y) {  // the box mean ± half-widths overlaps it
+      return mx + half_x > 0 && mx - half_x < cam.width && my + half_y > 0 &&
+             my - half_y < cam.height;
+    };
+    if (!reaches_image(r, r)) continue;
     // binning uses the ellipse's own x and y half-widths (tighter), plus a pixel of slack; that
     // box can miss the image where the bounding circle does not, and then the Gaussian is culled
     // (its tile range would be empty or inverted)
     const T ex = std::sqrt(level * s.a) + 1, ey = std::sqrt(level * s.c) + 1;
-    if (!(mx + ex > 0 && mx - ex < cam.width && my + ey > 0 && my - ey < cam.height)) continue;
+    if (!reaches_image(ex, ey)) continue;
     const T ts = T(kTileSize);
     auto tile = [](T v, int tiles) { return std::int32_t(std::clamp(v, T(0), T(tiles))); };
     const std::int32_t x0 = tile(std::floor((mx - ex) / ts), tiles_x);

@@ -149,11 +149,20 @@ def _project(
         level = 2 * torch.log(opacities / ALPHA_MIN)  # alpha >= 1/255 where d^T conic d <= level
         r = torch.ceil(torch.sqrt(level * lam))
         mx, my = means2d.unbind(-1)
-        keep = keep & (mx + r > 0) & (mx - r < width) & (my + r > 0) & (my - r < height)
-        # the ellipse's own x and y half-widths (+1 px), the box the C++ binning tiles: it can
-        # miss the image where the circle does not
+
+        def reaches_image(half_x: torch.Tensor, half_y: torch.Tensor) -> torch.Tensor:
+            """[N] whether the box mean ± half-widths overlaps the image."""
+            return (
+                (mx + half_x > 0)
+                & (mx - half_x < width)
+                & (my + half_y > 0)
+                & (my - half_y < height)
+            )
+
+        # the circle's box, then the ellipse's own x and y half-widths (+1 px), the box the C++
+        # binning tiles: it can miss the image where the circle does not
         ex, ey = torch.sqrt(level * a) + 1, torch.sqrt(level * c) + 1
-        keep = keep & (mx + ex > 0) & (mx - ex < width) & (my + ey > 0) & (my - ey < height)
+        keep = keep & reaches_image(r, r) & reaches_image(ex, ey)
         radii = torch.where(keep, torch.clamp(r, max=2.0**30), 0).to(torch.int32)
 
     # 9: colour
