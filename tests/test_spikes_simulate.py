@@ -60,8 +60,9 @@ def test_dark_pixels_fire_at_dark_rate():
 
 
 def test_never_more_than_one_spike_per_readout():
-    levels = np.array([2.0, 4.0, 8.0, 1e3], np.float32)  # 4.0 = one spike per readout
-    frames = np.repeat(levels[None, :, None], 16, axis=2)  # [1, 4, 16]
+    # 4.0 = one spike per readout; up to float32's largest, whose charge overflows float32
+    levels = np.array([2.0, 4.0, 8.0, 1e3, 1e30, 1e38, np.finfo(np.float32).max], np.float32)
+    frames = np.repeat(levels[None, :, None], 16, axis=2)  # [1, 7, 16]
     r = rates(simulate_spikes(frames, 2000), 16).mean(1)
     assert r[0] == pytest.approx(0.5, rel=0.02)
     assert (r <= 1).all() and (r[2:] == 1).all()
@@ -122,3 +123,6 @@ def test_bad_input_refused():
         simulate_spikes(frames, 10, params=SimParams(rate_at_one=2.0))
     with pytest.raises(ValueError, match="num_readouts"):
         simulate_spikes(frames, 0)
+    for chunk in (0, -1, 2.5):
+        with pytest.raises(ValueError, match="chunk"):
+            simulate_spikes(frames, 10, chunk=chunk)

@@ -116,7 +116,8 @@ def test_truncated_file_refused(tmp_path):
 def test_empty_file(tmp_path):
     path = tmp_path / "empty.dat"
     path.write_bytes(b"")
-    assert len(SpikeStream.open(path, 4, 8)) == 0
+    empty = SpikeStream.open(path, 4, 8)
+    assert len(empty) == 0 and empty.packed().shape == (0, 4, 1)
 
 
 def test_windows_past_either_end_refused():
@@ -132,6 +133,24 @@ def test_windows_past_either_end_refused():
         s.tfp(5, 0)
     with pytest.raises(ValueError, match="integer"):
         s.tfp(5.5, 3)
+    big = np.iinfo(np.int64)
+    for k in (big.max, big.max - 1, big.min):  # k + w would overflow: refused, no crash
+        for read in (s.window, s.counts, s.tfp):
+            with pytest.raises(ValueError, match=r"expected within the stream's \[0, 20\)"):
+                read(k, 3)
+
+
+def test_core_refuses_windows_whose_end_overflows():
+    from spikegs import _C
+
+    s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
+    data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
+    starts = np.array([np.iinfo(np.int64).max - 1], np.int64)
+    for kernel in (_C.spike_counts, _C.spike_tfp):
+        with pytest.raises(ValueError, match="expected within the stream's"):
+            kernel(data, layout, starts, 3)
+    with pytest.raises(ValueError, match="expected within the stream's"):
+        _C.spike_unpack(data, layout, int(starts[0]), 3)
 
 
 def test_bad_shapes_refused(tmp_path):
@@ -141,3 +160,5 @@ def test_bad_shapes_refused(tmp_path):
         save_dat(tmp_path / "x.dat", np.full((2, 2, 8), 2, np.uint8))
     with pytest.raises(ValueError, match=r"\[T, H, W\]"):
         save_dat(tmp_path / "x.dat", np.zeros((2, 8), np.uint8))
+    with pytest.raises(ValueError, match="chunk"):
+        save_dat(tmp_path / "x.dat", np.zeros((2, 2, 8), np.uint8), chunk=0)

@@ -24,8 +24,8 @@ void copy_bits(const uint8_t* src, int64_t src_bit, uint8_t* dst, int64_t dst_bi
 }
 
 void check_range(const PackedStream& s, int64_t t0, int64_t n) {
-  if (n < 0 || t0 < 0 || t0 + n > s.num_frames)
-    fail("readouts [", t0, ", ", t0 + n, ") expected within the stream's [0, ", s.num_frames, ")");
+  if (n < 0 || t0 < 0 || t0 > s.num_frames - n)  // t0 + n could overflow
+    fail(n, " readouts from ", t0, " expected within the stream's [0, ", s.num_frames, ")");
 }
 
 }  // namespace

@@ -171,8 +171,8 @@ void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, in
                    Out* out) {
   if (w < 1) fail("window length expected >= 1, found ", w);
   for (int64_t i = 0; i < num; ++i)
-    if (starts[i] < 0 || starts[i] + w > s.num_frames)
-      fail("window [", starts[i], ", ", starts[i] + w, ") expected within the stream's [0, ",
+    if (starts[i] < 0 || starts[i] > s.num_frames - w)  // starts[i] + w could overflow
+      fail("window of ", w, " readouts from ", starts[i], " expected within the stream's [0, ",
            s.num_frames, ")");
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width;

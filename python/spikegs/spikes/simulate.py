@@ -16,7 +16,7 @@ from typing import Callable, Union
 import numpy as np
 
 from .. import _C
-from .stream import DatWriter, PathLike, SpikeStream
+from .stream import DatWriter, PathLike, SpikeStream, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
 Source = Union[np.ndarray, Callable[[float], np.ndarray]]
@@ -131,6 +131,7 @@ def simulate_spikes(
     if int(num_readouts) != num_readouts or num_readouts < 1:
         raise ValueError(f"num_readouts expected a positive int, found {num_readouts}")
     num_readouts = int(num_readouts)
+    check_chunk(chunk)
     frames = _Frames(source, num_readouts, frame_times, frame_every)
     height, width = frames.shape
     params = params or SimParams()

@@ -125,16 +125,15 @@ class SpikeStream:
         if int(w) != w or w < 1:
             raise ValueError(f"window length expected a positive int, found {w}")
         w = int(w)
-        starts = ks - w // 2
-        bad = np.flatnonzero((starts < 0) | (starts + w > len(self)))
+        lo, hi = w // 2, len(self) - w + w // 2  # k's range (compared before any arithmetic on
+        bad = np.flatnonzero((ks < lo) | (ks > hi))  # k, which could overflow int64)
         if bad.size:
-            i = bad[0]
+            k = int(ks[bad[0]])
             raise ValueError(
-                f"window of {w} readouts centred on k={ks[i]} covers "
-                f"[{starts[i]}, {starts[i] + w}); expected within the stream's [0, {len(self)}), "
-                f"i.e. k in [{w // 2}, {len(self) - w + w // 2}]"
+                f"window of {w} readouts centred on k={k} covers [{k - lo}, {k - lo + w}); "
+                f"expected within the stream's [0, {len(self)}), i.e. k in [{lo}, {hi}]"
             )
-        return starts, single
+        return ks - lo, single
 
     def window(self, k, w: int) -> np.ndarray:
         """Spikes, 0/1 uint8 [w, H, W], of readouts k - w//2 .. k - w//2 + w - 1 ([B, w, H, W])."""
@@ -172,7 +171,7 @@ class SpikeStream:
             raise ValueError(f"readouts [{start}, {stop}) expected within [0, {len(self)})")
         mem = _C.SpikeLayout.memory(self.height, self.width)
         out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
-        return out.reshape(stop - start, self.height, -1)
+        return out.reshape(stop - start, self.height, (self.width + 7) // 8)
 
 
 class DatWriter:
@@ -203,8 +202,15 @@ class DatWriter:
         self.close()
 
 
+def check_chunk(chunk) -> None:
+    """ValueError unless `chunk` (readouts handled at a time) is a positive int."""
+    if not isinstance(chunk, (int, np.integer)) or isinstance(chunk, bool) or chunk < 1:
+        raise ValueError(f"chunk expected a positive int (readouts at a time), found {chunk!r}")
+
+
 def save_dat(path: PathLike, bits: np.ndarray, flip: bool = True, chunk: int = 1024) -> Path:
     """Write bits [T, H, W] (bool or 0/1) as a .dat file, `chunk` readouts at a time."""
+    check_chunk(chunk)
     bits = np.asarray(bits)
     if bits.ndim != 3:
         raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
