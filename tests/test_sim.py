@@ -164,8 +164,15 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
         assert torch.equal(a, b)
     with torch.no_grad():
         torch.testing.assert_close(loaded(x), model(x))  # layouts differ: last-bit changes only
-    reused, seconds = train_or_load(path, object(), [], 33)  # a stream it must not touch
-    assert seconds == 0 and torch.equal(reused.head[-1].bias, model.head[-1].bias)
+    stream, ts = scene[1], [40, 50]
+    tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
+    first, seconds = train_or_load(path, stream, ts, 33, **tiny)  # no fingerprint: trained
+    assert seconds > 0
+    reused, seconds = train_or_load(path, stream, ts, 33, **tiny)
+    assert seconds == 0 and torch.equal(reused.head[-1].bias, first.head[-1].bias)
+    other = BernoulliStream(scene[0], len(stream), seed=1)
+    for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
+        assert train_or_load(path, *changed, 33, **tiny)[1] > 0
 
 
 def test_inference_over_timestamps(scene, trained):
@@ -238,3 +245,16 @@ def test_centred_target_learns_the_light_at_t_not_the_window_mean():
     for bad in (0, 8, 35):
         with pytest.raises(ValueError, match="target window"):
             train_sim(stream, ks, 33, target_window=bad, **fit)
+
+
+def test_bad_input_refused():
+    net = SIM(window=9)
+    for x in (torch.rand(9, 12, 20), torch.rand(1, 7, 12, 20)):  # no batch axis; wrong window
+        for path in (net, net.forward_rotated):
+            with pytest.raises(ValueError, match=r"expected \[B, 9, H, W\]"):
+                path(x)
+    with pytest.raises(ValueError, match="dtype torch.float32"):
+        net(torch.rand(1, 9, 12, 20, dtype=torch.float64))
+    for bad in ({"out_channels": 0}, {"window": 2.5}, {"width": -1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            SIM(**bad)

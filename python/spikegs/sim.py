@@ -68,8 +68,11 @@ class SIM(nn.Module):
         target_window: int | None = None,
     ):
         super().__init__()
-        if window < 1 or shift_layers < 1 or head_layers < 1:
-            raise ValueError("window, shift_layers and head_layers must be positive")
+        sizes = {"window": window, "out_channels": out_channels, "width": width}
+        sizes.update(head_width=head_width, shift_layers=shift_layers, head_layers=head_layers)
+        for name, value in sizes.items():
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"SIM {name} expected a positive int, found {value!r}")
         target_window = window if target_window is None else target_window
         if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
             raise ValueError(
@@ -110,8 +113,18 @@ class SIM(nn.Module):
         y = self.head[-1](y)
         return y if self.training else y.clamp(0.0, 1.0)
 
+    def check_input(self, x: torch.Tensor) -> None:
+        """ValueError unless x is a spike window [B, window, H, W] in the weights' dtype."""
+        dtype = self.head[-1].weight.dtype
+        if not isinstance(x, torch.Tensor) or x.dim() != 4 or x.shape[1] != self.window:
+            found = list(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
+            raise ValueError(f"SIM input expected [B, {self.window}, H, W], found {found}")
+        if x.dtype != dtype:
+            raise ValueError(f"SIM input expected dtype {dtype} (the weights'), found {x.dtype}")
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format."""
+        self.check_input(x)
         # Branch k's map moves one pixel towards its side per shift conv, and once more for the
         # blind spot; all four live on one zero-framed canvas wide enough for that drift.
         pad = len(self.shift) + 1
@@ -137,6 +150,7 @@ class SIM(nn.Module):
         zero-pads H×W to a square and runs all four rotations as one batch, the straightforward
         version (its bottom/right border differs where the padding leaks in).
         """
+        self.check_input(x)
         h, w = x.shape[-2:]
         if square:
             s = max(h, w)

@@ -8,6 +8,7 @@ A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` ->
 from __future__ import annotations
 
 import functools
+import hashlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -135,28 +136,47 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     torch.save({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
 
 
-def load_sim(path: Path) -> SIM:
-    """The SIM saved at `path`, in eval mode."""
-    payload = torch.load(Path(path), map_location="cpu", weights_only=True)
+def _model_of(payload: dict) -> SIM:
     model = SIM(**payload["config"])
     model.load_state_dict(payload["state_dict"])
     return model.eval()
 
 
+def load_sim(path: Path) -> SIM:
+    """The SIM saved at `path`, in eval mode."""
+    return _model_of(torch.load(Path(path), map_location="cpu", weights_only=True))
+
+
+def spikes_fingerprint(stream, timestamps: Sequence[int]) -> str:
+    """A digest of training data: the timestamps, and each stream's size and 16 of its readouts
+    spread over it (`stream`: one or a list)."""
+    streams = stream if isinstance(stream, (list, tuple)) else [stream]
+    digest = hashlib.sha256(np.asarray(timestamps, np.int64).tobytes())
+    for s in streams:
+        digest.update(np.asarray([len(s), s.height, s.width], np.int64).tobytes())
+        for k in np.linspace(0, len(s) - 1, 16).astype(np.int64) if len(s) else []:
+            digest.update(np.ascontiguousarray(s.window(int(k), 1)).tobytes())
+    return digest.hexdigest()
+
+
 def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool = False, **kwargs):
-    """Load the SIM at `path` if it exists for this window (unless `force`), else train, save it.
+    """Load the SIM at `path` if it was trained for this window on these spikes (the same
+    `spikes_fingerprint`), unless `force`; else train one and save it there.
 
     Returns (model, seconds spent training, 0 when loaded).
     """
     path = Path(path)
+    data = spikes_fingerprint(stream, timestamps)
     if path.exists() and not force:
-        model = load_sim(path)
-        if model.window == window:
-            return model, 0.0
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+        if payload["config"]["window"] == window and payload["meta"].get("data") == data:
+            return _model_of(payload), 0.0
+        print(f"{path}: trained on other spikes or another window; training SIM afresh")
     start = time.perf_counter()
     model, losses = train_sim(stream, timestamps, window, **kwargs)
     seconds = time.perf_counter() - start
-    save_sim(model, path, final_loss=float(np.mean(losses[-50:])), seconds=seconds, **kwargs)
+    final_loss = float(np.mean(losses[-50:]))
+    save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, **kwargs)
     return model, seconds
 
 
