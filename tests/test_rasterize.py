@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import spikegs
 import torch
@@ -351,6 +352,12 @@ def _bad_inputs():
         ("colors-n", {"colors": s["colors"][:-1]}, "colors"),
         ("width-0", {"width": 0}, "width"),
         ("height-neg", {"height": -3}, "height"),
+        ("width-huge", {"width": 2**31}, "width"),
+        ("width-float", {"width": 13.0}, "width"),
+        ("viewmat-nan", {"viewmat": s["viewmat"].clone().fill_(float("nan"))}, "viewmat"),
+        ("K-inf", {"K": s["K"] * float("inf")}, "K"),
+        ("K-grad", {"K": s["K"].clone().requires_grad_()}, "K"),
+        ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
         ("sh-k-small", {"sh_degree": 2}, "colors|sh_degree"),
         ("sh-k-not-square", {"colors": s["colors"][:, :3], "sh_degree": None}, "colors|sh_degree"),
         (
@@ -369,6 +376,13 @@ _BAD, _BAD_SCENE = _bad_inputs()
 def test_bad_input_raises(overrides, name):
     with pytest.raises(ValueError, match=name):
         render(spikegs.rasterize, _BAD_SCENE, **overrides)
+
+
+@needs_cpp
+def test_numpy_integer_sizes_accepted():
+    a = render(spikegs.rasterize, _BAD_SCENE)
+    b = render(spikegs.rasterize, _BAD_SCENE, width=np.int64(13), height=np.int32(9))
+    assert torch.equal(a.image, b.image)
 
 
 # ---- stiff and extreme cases (DESIGN §4) ---------------------------------------------------

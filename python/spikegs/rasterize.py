@@ -6,6 +6,7 @@ The maths is in docs/rasterizer.md.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import NamedTuple
 
 import torch
@@ -13,6 +14,7 @@ import torch
 from . import _C
 
 CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
+MAX_SIZE = 1 << 20  # image width and height: the core's tile and pixel indices are 32-bit
 
 
 class RasterizeResult(NamedTuple):
@@ -49,6 +51,8 @@ def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     if colors.dim() != 3:
         raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
     k = colors.shape[1]
+    if isinstance(sh_degree, bool):
+        raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
         if (sh_degree + 1) ** 2 != k:
@@ -168,13 +172,24 @@ def rasterize(
         raise ValueError("colors: expected at least one channel")
     _check("viewmat", viewmat, (4, 4), dtype)
     _check("K", K, (3, 3), dtype)
+    for name, camera in (("viewmat", viewmat), ("K", K)):
+        if not torch.isfinite(camera).all():
+            raise ValueError(f"{name}: expected finite values, got {camera.tolist()}")
+    if K.requires_grad:
+        raise ValueError(
+            "K: gradients with respect to the intrinsics are not computed; pass a K "
+            "that does not require grad (K.detach())"
+        )
     if background is not None:
         _check("background", background, (channels,), dtype)
     if screen_points is not None:
         _check("screen_points", screen_points, (n, 2), dtype)
     for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise ValueError(f"{name}: expected a positive int, got {value!r}")
+        if not 0 < value <= MAX_SIZE:
+            raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")
+    width, height = int(width), int(height)
     if not 0 < near < far:
         raise ValueError(f"near, far: expected 0 < near < far, got near={near}, far={far}")
     degree, coeffs = _sh_layout(colors, sh_degree)
