@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,11 +85,14 @@ def test_determinism_for_a_seed(tmp_path, small):
         np.testing.assert_array_equal(a.image, b.image)
 
 
-def constant_source(level: float, size: int = 16) -> FrameSequenceSource:
-    """A static camera looking at a constant image."""
+def constant_source(level: float, size: int = 16, test_views: bool = True) -> FrameSequenceSource:
+    """A static camera looking at a constant image (and, held out, from beside it)."""
     frames = np.full((2, size, size, 1), level, np.float32)
     viewmat = look_at([0, -3, 0], [0, 0, 0])
-    return FrameSequenceSource("constant", frames, [viewmat, viewmat], intrinsics(size, size, 40))
+    held_out = [("side", look_at([0.1, -3, 0], [0, 0, 0]), frames[0])] if test_views else []
+    return FrameSequenceSource(
+        "constant", frames, [viewmat, viewmat], intrinsics(size, size, 40), test_views=held_out
+    )
 
 
 def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
@@ -100,6 +104,13 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)
     for view in ds.test_views:
         np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
+
+
+def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match="scene 'constant': no held-out test view"):
+        source = constant_source(0.6, test_views=False)
+        simulate_dataset(source, tmp_path / "x", height=16, width=16, readouts=4000)
+    assert not (tmp_path / "x").exists()
 
 
 def test_colour_dataset_has_one_stream_per_channel(tmp_path):
@@ -132,6 +143,33 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         load_dataset(root)
     with pytest.raises(FileNotFoundError, match="nowhere"):
         load_dataset(tmp_path / "nowhere")
+
+
+def _edited_copy(small, root: Path, name: str, edit) -> Path:
+    """A copy of the dataset at `root` with `edit(text) -> text` applied to its file `name`."""
+    shutil.copytree(small.root, root)
+    (root / name).write_text(edit((root / name).read_text()))
+    return root
+
+
+def test_malformed_test_views_and_json_refused(tmp_path, small):
+    def views(edit):
+        return lambda text: json.dumps(edit(json.loads(text)))
+
+    def no_views(doc):
+        return {**doc, "frames": []}
+
+    def same_names(doc):
+        return {**doc, "frames": [{**f, "name": "view"} for f in doc["frames"]]}
+
+    cases = {
+        "none": ("test_views.json", views(no_views), "no held-out test view"),
+        "twice": ("test_views.json", views(same_names), r"found twice: \['view'\]"),
+        "json": ("meta.json", lambda text: text[:-3], r"meta.json: not valid JSON"),
+    }
+    for case, (name, edit, message) in cases.items():
+        with pytest.raises(ValueError, match=message):
+            load_dataset(_edited_copy(small, tmp_path / case, name, edit))
 
 
 def test_existing_dataset_needs_overwrite(tmp_path):

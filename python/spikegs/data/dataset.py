@@ -146,9 +146,28 @@ def _file(root: Path, name: str) -> Path:
     return path
 
 
+def read_json(path: Path):
+    """The JSON document at `path`; ValueError naming the file where it is malformed."""
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path}: not valid JSON ({err})") from None
+
+
+def check_test_views(views: list[TestView], where) -> None:
+    """ValueError unless there is at least one held-out view and their names are unique (each
+    names its scores and images in an evaluation); `where`: the file or scene they come from."""
+    if not views:
+        raise ValueError(f"{where}: no held-out test view; evaluation and training need one")
+    names = [v.name for v in views]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
+
+
 def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
     path = _file(root, TEST_VIEWS)
-    doc = json.loads(path.read_text())
+    doc = read_json(path)
     if doc.get("convention", CONVENTION) != CONVENTION:
         raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
     views = []
@@ -164,6 +183,7 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
             )
         readout = None if frame.get("readout") is None else float(frame["readout"])
         views.append(TestView(frame["name"], np.linalg.inv(c2w), image, readout))
+    check_test_views(views, path)
     return views
 
 
@@ -183,7 +203,7 @@ def load_dataset(path: PathLike) -> Dataset:
         if any((root / name).is_file() for name in TRANSFORMS):
             return load_nerf_layout(root)
     meta_path = _file(root, META)
-    meta = json.loads(meta_path.read_text())
+    meta = read_json(meta_path)
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
     if missing:

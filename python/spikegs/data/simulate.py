@@ -17,6 +17,7 @@ from .dataset import (
     Dataset,
     TestView,
     check_output,
+    check_test_views,
     load_dataset,
     prepare_output,
     spike_files,
@@ -163,10 +164,7 @@ def simulate_dataset(
             f"source '{source.name}' gives {source.height}x{source.width}x{source.channels} "
             f"images, expected {height}x{width}x{channels}"
         )
-    out = prepare_output(out, overwrite)
     trajectory = source.trajectory(readouts, speed)
-    times = source.light_times(readouts, frame_every)  # [F]
-    write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
     rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them
     on_path = source.on_path_times(readouts, test_on_path, 2 * WINDOW_MARGIN)  # [n]
     views = [
@@ -179,6 +177,10 @@ def simulate_dataset(
         TestView(name, viewmat, image * rate, None)
         for name, viewmat, image in source.off_path_views(test_off_path)
     ]
+    check_test_views(views, f"scene '{source.name}'")  # before any work
+    out = prepare_output(out, overwrite)
+    times = source.light_times(readouts, frame_every)  # [F]
+    write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
     K = source.K
     meta = {
         "format_version": FORMAT_VERSION,
