@@ -131,8 +131,10 @@ def test_windows_past_either_end_refused():
             s.tfi(k)
     with pytest.raises(ValueError, match="window length"):
         s.tfp(5, 0)
-    with pytest.raises(ValueError, match="integer"):
-        s.tfp(5.5, 3)
+    for k in (5.5, float("nan"), [5.0, 6.5]):
+        with pytest.raises(ValueError, match="integer"):
+            s.tfp(k, 3)
+    np.testing.assert_array_equal(s.tfp(5.0, 3), s.tfp(5, 3))  # a readout time, e.g. a view's
     big = np.iinfo(np.int64)
     for k in (big.max, big.max - 1, big.min):  # k + w would overflow: refused, no crash
         for read in (s.window, s.counts, s.tfp):

@@ -27,12 +27,15 @@ TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
 
 
 def as_readouts(k) -> tuple[np.ndarray, bool]:
-    """`k` as a 1-D int64 array [B], and whether it was a single index."""
+    """`k` as a 1-D int64 array [B], and whether it was a single index; whole-number floats
+    (a readout time such as `TestView.readout`) are accepted."""
     arr = np.asarray(k)
+    if np.issubdtype(arr.dtype, np.floating) and np.all(np.abs(arr) < 2.0**62):  # NaN: False
+        arr = arr.astype(np.int64) if np.all(arr == np.round(arr)) else arr
     if arr.ndim > 1 or not (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
         raise ValueError(
             f"readout index expected an int or a 1-D integer array, found {arr.dtype} "
-            f"of shape {arr.shape}"
+            f"of shape {arr.shape}" + (f" ({arr.tolist()})" if arr.size < 5 else "")
         )
     return arr.astype(np.int64).reshape(-1), arr.ndim == 0
 
