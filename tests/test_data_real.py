@@ -4,13 +4,16 @@ simulated dataset, pose conventions, windows within one view, bad input, trainin
 from __future__ import annotations
 
 import json
+import pickle
+import re
 import shutil
 
 import numpy as np
 import pytest
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
-from spikegs.data.llff import to_poses_bounds, viewmats_from_llff
+from spikegs.data.llff import llff_sphere, to_poses_bounds, viewmats_from_llff
+from spikegs.data.real_options import read_options
 from spikegs.data.sources import OPENGL_TO_OPENCV
 from spikegs.data.trajectory import look_at
 from spikegs.evaluate import evaluate_run
@@ -107,6 +110,24 @@ def copy(root, tmp_path):
     out = tmp_path / root.name
     shutil.copytree(root, out)
     return out
+
+
+def edit_json(path, edit) -> None:
+    """Rewrite the JSON file at `path` with `edit(doc)` applied (in place)."""
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+
+
+def write_options(root, **options) -> None:
+    (root / "spikegs.json").write_text(json.dumps(options))
+
+
+def edit_poses(root, edit) -> None:
+    """Rewrite ROOT/poses_bounds.npy with `edit(rows)` [N, 17] applied (in place)."""
+    rows = np.load(root / "poses_bounds.npy")
+    edit(rows)
+    np.save(root / "poses_bounds.npy", rows)
 
 
 # -- loading ---------------------------------------------------------------------------------------
@@ -238,9 +259,7 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
 
     root = copy(llff, tmp_path / "nan")
-    rows = np.load(root / "poses_bounds.npy")
-    rows[2, 3] = np.nan
-    np.save(root / "poses_bounds.npy", rows)
+    edit_poses(root, lambda rows: rows.__setitem__((2, 3), np.nan))
     with pytest.raises(ValueError, match="poses_bounds.npy.*NaN"):
         load_dataset(root)
 
@@ -262,7 +281,7 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     with pytest.raises(ValueError, match="readouts.txt: 10 readouts for 14 poses"):
         load_dataset(root)
 
-    (root / "spikegs.json").write_text(json.dumps({"heigth": 3}))
+    write_options(root, heigth=3)
     with pytest.raises(ValueError, match="spikegs.json: unknown options \\['heigth'\\]"):
         load_dataset(root)
 
@@ -274,15 +293,223 @@ def test_nerf_bad_input(nerf, tmp_path):
         load_dataset(root)
 
     root = copy(nerf, tmp_path / "nan")
-    doc = json.loads((root / "transforms_train.json").read_text())
-    doc["frames"][1]["transform_matrix"][0][0] = float("inf")
-    (root / "transforms_train.json").write_text(json.dumps(doc))
+    edit_json(
+        root / "transforms_train.json",
+        lambda doc: doc["frames"][1]["transform_matrix"][0].__setitem__(0, float("inf")),
+    )
     with pytest.raises(ValueError, match="transforms_train.json.*NaN"):
         load_dataset(root)
 
     root = copy(nerf, tmp_path / "noimage")
     (root / "spike_data" / "r_1.dat").unlink()  # test/r_1: no spikes and no image
     with pytest.raises(FileNotFoundError, match="r_1.dat.*no sharp image"):
+        load_dataset(root)
+
+
+def test_llff_spike_files_in_natural_order(sim, llff, tmp_path):
+    """view_1 ... view_10: view_10 is the last pose's, not the second's (string order)."""
+    root = copy(llff, tmp_path)
+    for i in range(VIEWS):
+        (root / "spikes" / f"{i:03d}.dat").rename(root / "spikes" / f"view_{i + 1}.dat")
+    ds = load_dataset(root)
+    assert list(ds.meta["view_readouts"]) == [f"view_{i + 1}" for i in range(VIEWS)]
+    assert [v.name for v in ds.test_views] == ["pseudo_view_1", "pseudo_view_9"]
+    centers = np.arange(VIEWS) * LENGTH + LENGTH // 2
+    np.testing.assert_allclose(ds.trajectory.pose_at(centers), view_poses(sim), atol=1e-6)
+
+
+def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
+    root = copy(llff_stream, tmp_path)
+    hwf = (2 * H, 2 * W, 2 * sim.K[0, 0])  # poses made for images at twice the spikes' size
+    edit_poses(root, lambda rows: rows.__setitem__((slice(None), [4, 9, 14]), hwf))
+    with pytest.raises(ValueError, match="hwf .*set height and width in spikegs.json"):
+        load_dataset(root)  # 64x96 frames: a quarter of the readouts
+    write_options(root, height=H, width=W)
+    assert len(load_dataset(root).stream) == VIEWS * LENGTH
+    (root / "spikes.dat").write_bytes(b"")
+    with pytest.raises(ValueError, match="spikes.dat: empty spike file"):
+        load_dataset(root)
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("rate_at_one", -1),
+        ("rate_at_one", 0),
+        ("scene_radius", -1),
+        ("scene_center", [0, 0]),
+        ("flip", "false"),
+        ("height", "48"),
+        ("width", 0),
+        ("col_offset", -1),
+        ("train_every", 2.5),
+        ("test_views", [0.5]),
+        ("pseudo_gt_window", 64),
+    ],
+)
+def test_options_validated(key, value, tmp_path):
+    write_options(tmp_path, **{key: value})
+    with pytest.raises(
+        ValueError, match=f"spikegs.json: {key} expected .*found {re.escape(repr(value))}"
+    ):
+        read_options(tmp_path, {})
+
+
+def test_options_valid_values_pass(tmp_path):
+    values = dict(height=16, width=24, flip=False, test_views=[1], scene_center=[0, 0.5, 1])
+    write_options(tmp_path, **values, rate_at_one=0.25, scene_radius=2)
+    options = read_options(tmp_path, {"train_every": np.int64(3)})
+    assert options.train_every == 3 and options.scene_radius == 2 and options.flip is False
+
+
+def test_llff_sphere_ignores_loose_far_bounds(sim, llff, tmp_path):
+    """Cameras orbiting the scene: the sphere follows the optical axes and near bounds."""
+    root = copy(llff, tmp_path)
+    edit_poses(root, lambda rows: rows.__setitem__((slice(None), 16), 1000.0))
+    ds = load_dataset(root)
+    assert ds.scene_radius < 2 * sim.scene_radius
+    assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.1 * sim.scene_radius
+    write_options(root, scene_center=[1, 2, 3], scene_radius=7)  # the override stays
+    ds = load_dataset(root)
+    assert ds.meta["scene_center"] == [1, 2, 3] and ds.meta["scene_radius"] == 7
+
+
+def test_llff_sphere_warns_when_loose(sim):
+    """Forward-facing cameras with far bounds 1000 times the near ones: a warning."""
+    viewmats = np.stack([look_at([x, 0, 0], [x, 10, 0]) for x in np.linspace(-0.2, 0.2, 5)])
+    bounds = np.tile([1.0, 8.0], (5, 1))
+    _, radius = llff_sphere(viewmats, bounds, sim.K, W, H)  # no warning
+    assert 4 < radius < 8
+    with pytest.warns(UserWarning, match="far bounds may be loose.*scene_radius in spikegs"):
+        llff_sphere(viewmats, np.tile([1.0, 1000.0], (5, 1)), sim.K, W, H)
+
+
+def test_nerf_absolute_file_paths(nerf, tmp_path):
+    root = copy(nerf, tmp_path / "in")
+    absolute = [str(root / "test" / "r_0"), str(root / "test" / "r_1.png")]
+    edit_json(
+        root / "transforms_test.json",
+        lambda doc: [f.update(file_path=p) for f, p in zip(doc["frames"], absolute)],
+    )
+    ds = load_dataset(root)
+    assert [v.name for v in ds.test_views] == ["test_r_0", "pseudo_test_r_1"]
+    assert ds.test_views[1].readout is not None  # spike_data/r_1.dat found
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (root / "test" / "r_0.exr").rename(elsewhere / "r_0.exr")
+    edit_json(
+        root / "transforms_test.json",
+        lambda doc: doc["frames"][0].update(file_path=str(elsewhere / "r_0")),
+    )
+    assert [v.name for v in load_dataset(root).test_views] == ["r_0", "pseudo_test_r_1"]
+
+
+def test_rounded_poses_accepted_bent_rejected(sim, llff, nerf, tmp_path):
+    root = copy(llff, tmp_path / "llff")
+    edit_poses(root, lambda rows: rows.__setitem__(slice(None), rows.round(4)))
+    ds = load_dataset(root)
+    np.testing.assert_allclose(ds.trajectory.pose_at(LENGTH // 2), view_poses(sim)[0], atol=1e-3)
+    edit_poses(root, lambda rows: rows.__setitem__((3, [0, 5, 10]), rows[3, [0, 5, 10]] * 1.01))
+    with pytest.raises(
+        ValueError, match="poses_bounds.npy: the pose of view 3 is not.*= 0.0[12].*tolerance 0.001"
+    ):
+        load_dataset(root)
+
+    root = copy(nerf, tmp_path / "nerf")
+
+    def round_matrices(doc):
+        for frame in doc["frames"]:
+            frame["transform_matrix"] = np.round(frame["transform_matrix"], 4).tolist()
+
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / name, round_matrices)
+    load_dataset(root)
+    edit_json(
+        root / "transforms_train.json",
+        lambda doc: doc["frames"][2]["transform_matrix"][0].__setitem__(0, 2.0),
+    )
+    with pytest.raises(ValueError, match="transforms_train.json: the pose of frame 2 "):
+        load_dataset(root)
+
+
+def test_pseudo_window_longer_than_stream(llff_stream, tmp_path):
+    root = copy(llff_stream, tmp_path)
+    write_options(root, pseudo_gt_window=VIEWS * LENGTH + 1)
+    with pytest.raises(ValueError, match="pseudo_gt_window of 701 readouts .* 700 readouts"):
+        load_dataset(root)
+
+
+def test_malformed_files(llff, nerf, tmp_path):
+    root = copy(llff, tmp_path / "llff")
+    (root / "spikegs.json").write_text('{"flip": false,')
+    with pytest.raises(ValueError, match="spikegs.json: not valid JSON"):
+        load_dataset(root)
+    (root / "spikegs.json").unlink()
+    (root / "poses_bounds.npy").write_bytes(pickle.dumps([[0.0] * 17]))
+    with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):
+        load_dataset(root)
+    np.save(root / "poses_bounds.npy", np.array([[None] * 17]), allow_pickle=True)
+    with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):
+        load_dataset(root)
+
+    root = copy(nerf, tmp_path / "nerf")
+    edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1]["transform_matrix"].pop())
+    with pytest.raises(ValueError, match="transforms_test.json: frame 1 .*4 rows of 4 numbers"):
+        load_dataset(root)
+    (root / "transforms_train.json").write_text('{"frames": [')
+    with pytest.raises(ValueError, match="transforms_train.json: not valid JSON"):
+        load_dataset(root)
+
+
+def test_llff_stream_and_per_view_spikes_both_present(llff, llff_stream, tmp_path):
+    root = copy(llff_stream, tmp_path)
+    shutil.copytree(llff / "spikes", root / "spikes")
+    with pytest.raises(ValueError, match="both spikes.dat .* and spikes/ .* keep one"):
+        load_dataset(root)
+
+
+def test_nerf_test_views_and_transforms_train_alone(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    write_options(root, test_views=[1])
+    with pytest.raises(ValueError, match="test_views is for a single transforms file"):
+        load_dataset(root)
+    (root / "transforms_test.json").unlink()  # transforms_train.json alone: test_views apply
+    assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_3"]
+    (root / "spikegs.json").unlink()  # default: every 8th frame
+    assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_2"]
+
+
+def test_nerf_height_alone_is_used(sim, nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    write_options(root, height=H // 2)  # the same .dat files read as 16x48 frames
+    ds = load_dataset(root)
+    assert (ds.height, ds.width) == (H // 2, W)
+    np.testing.assert_allclose(ds.K[1, 1], sim.K[1, 1] / 2, rtol=1e-6)
+
+
+def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    fx, fy, cx, cy = (float(sim.K[i, j]) for i, j in ((0, 0), (1, 1), (0, 2), (1, 2)))
+    camera = dict(fl_x=fx, fl_y=fy, cx=cx, cy=cy, w=W, h=H)
+
+    def per_frame(doc):
+        del doc["camera_angle_x"], doc["w"], doc["h"]
+        for frame in doc["frames"]:
+            frame.update(camera)
+
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / name, per_frame)
+    np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
+    edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1].update(fl_x=99.0))
+    with pytest.raises(ValueError, match="transforms_test.json: frame './test/r_1' has intrin"):
+        load_dataset(root)
+    edit_json(
+        root / "transforms_test.json", lambda doc: doc["frames"][1].update(fl_x=camera["fl_x"])
+    )
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.0, p1=0.0))
+    load_dataset(root)  # zero distortion: no warning
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.1))
+    with pytest.warns(UserWarning, match="distortion \\{'k1': 0.1\\} ignored.*pinhole"):
         load_dataset(root)
 
 
@@ -295,3 +522,16 @@ def test_trains_end_to_end(layout, request, tmp_path):
     assert summary["iterations"] == 30 and np.isfinite(summary["intensity_scale"])
     assert np.isfinite(result["psnr"]) and np.isfinite(result["ssim"])
     assert set(result["views"]) == {v.name for v in ds.test_views}
+
+
+def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    (root / "test_r").mkdir()
+    shutil.copy(root / "test" / "r_0.exr", root / "test_r" / "0.exr")  # both named test_r_0
+
+    def add_twin(doc):
+        doc["frames"].append({**doc["frames"][0], "file_path": "./test_r/0"})
+
+    edit_json(root / "transforms_test.json", add_twin)
+    with pytest.raises(ValueError, match=r"found twice: \['test_r_0'\]"):
+        load_dataset(root)

@@ -150,7 +150,7 @@ def read_json(path: Path):
     """The JSON document at `path`; ValueError naming the file where it is malformed."""
     try:
         return json.loads(path.read_text())
-    except json.JSONDecodeError as err:
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise ValueError(f"{path}: not valid JSON ({err})") from None
 
 

@@ -4,23 +4,33 @@ DIR/poses_bounds.npy            [N, 17]: per view a 3x5 matrix, row-major, [R | 
                                 columns: the camera's down, right, backwards axes in the world;
                                 t: its centre; hwf: height, width, focal in pixels), then the near
                                 and far depth bounds
-DIR/spikes/*.dat                one stream per view, sorted file names in pose order; or
+DIR/spikes/*.dat                one stream per view, in pose order by natural sort of the file
+                                names (numbers compared as numbers: view_2 before view_10); or
 DIR/spikes.dat + readouts.txt   one stream and the readout of each pose, one number a line
 DIR/spikegs.json                loader options (real_options.py), all optional
 
-Poses become OpenCV world-to-camera viewmats here; the scene sphere encloses every view's frustum
-between its near and far bound (forward-facing scenes have no orbit centre).
+Poses become OpenCV world-to-camera viewmats here (rotations within 1e-3 of one re-orthonormalised).
+The scene sphere (`llff_sphere`) does not trust the far bounds, which may be loose.
 """
 
 from __future__ import annotations
 
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .dataset import Dataset
-from .real import camera_meta, held_out, scene_sphere, stream_dataset, views_dataset
-from .real_options import open_spikes, read_options
+from .real import (
+    camera_meta,
+    held_out,
+    rigid_c2w,
+    scene_sphere,
+    stream_dataset,
+    views_dataset,
+)
+from .real_options import OPTIONS_FILE, open_spikes, read_options
 from .trajectory import PathLike
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
@@ -31,14 +41,22 @@ POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
 )
 # camera axes [down, right, backwards] <-> [right, down, forward]; the matrix is its own inverse
 LLFF_TO_OPENCV = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+CONVERGING = 0.03  # smallest eigenvalue of mean(I - d d^T) over view directions d: inward-facing
+LOOSE_SPHERE = 20.0  # warn when the sphere is this many times the cameras' spread and near bound
 
 
-def viewmats_from_llff(poses: np.ndarray) -> np.ndarray:
-    """LLFF poses [N, 3, 5] -> OpenCV world-to-camera viewmats [N, 4, 4]."""
+def natural_key(name: str) -> list:
+    """Sort key comparing runs of digits as numbers: view_2 < view_10."""
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
+
+
+def viewmats_from_llff(poses: np.ndarray, source: str = POSES_BOUNDS) -> np.ndarray:
+    """LLFF poses [N, 3, 5] -> OpenCV world-to-camera viewmats [N, 4, 4] (rotations
+    re-orthonormalised; ValueError naming the view if one is not nearly a rotation)."""
     c2w = np.tile(np.eye(4), (len(poses), 1, 1))  # [N, 4, 4]
     c2w[:, :3, :3] = poses[:, :, :3] @ LLFF_TO_OPENCV
     c2w[:, :3, 3] = poses[:, :, 3]
-    return np.linalg.inv(c2w)
+    return np.linalg.inv(rigid_c2w(c2w, source))
 
 
 def to_poses_bounds(viewmats: np.ndarray, hwf, bounds: np.ndarray) -> np.ndarray:
@@ -73,11 +91,49 @@ def frustum_sphere(
     return center, float(np.linalg.norm(world - center, axis=1).max())
 
 
+def llff_sphere(
+    viewmats: np.ndarray, bounds: np.ndarray, K: np.ndarray, width: int, height: int, source=""
+):
+    """Centre [3] and radius of the scene sphere. Inward-facing views (their directions spread,
+    CONVERGING): centred on the point nearest to all optical axes, the radius reaching each
+    camera's near bound (max over views of distance - near), capped by the frustum sphere.
+    Forward-facing: the frustum sphere, each view's far bound capped at the 90th percentile of
+    the far bounds. Warns when the result is LOOSE_SPHERE times the cameras' spread and near bound
+    (loose far bounds): set scene_center and scene_radius in spikegs.json then."""
+    far = np.minimum(bounds[:, 1], np.percentile(bounds[:, 1], 90))
+    center, radius = frustum_sphere(viewmats, np.stack([bounds[:, 0], far], 1), K, width, height)
+    c2w = np.linalg.inv(viewmats)  # [N, 4, 4]
+    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [N, 3] each
+    proj = np.eye(3) - dirs[:, :, None] * dirs[:, None, :]  # [N, 3, 3]
+    if np.linalg.eigvalsh(proj.mean(0))[0] >= CONVERGING:
+        axes = np.linalg.lstsq(proj.sum(0), np.einsum("nij,nj->i", proj, eyes), rcond=None)[0]
+        in_front = np.einsum("ni,ni->n", axes - eyes, dirs) > 0
+        reach = np.linalg.norm(eyes - axes, axis=1) - bounds[:, 0]  # [N]
+        if in_front.all() and reach.max() > 0:
+            center, radius = axes, min(radius, float(reach.max()))
+    spread = np.linalg.norm(eyes - eyes.mean(0), axis=1).max()
+    scale = max(spread, float(np.median(bounds[:, 0])))
+    if radius > LOOSE_SPHERE * scale:
+        warnings.warn(
+            f"{source}: scene sphere radius {radius:.3g} is over {LOOSE_SPHERE:g} times the "
+            f"cameras' spread and near bound ({scale:.3g}): the far bounds may be loose; set "
+            f"scene_center and scene_radius in {OPTIONS_FILE} if the scene is smaller",
+            stacklevel=3,
+        )
+    return center, radius
+
+
 def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Poses [N, 3, 5] and bounds [N, 2] of poses_bounds.npy, checked."""
     if not path.is_file():
         raise FileNotFoundError(f"LLFF poses file not found: {path}")
-    arr = np.load(path)
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as err:
+        raise ValueError(f"{path}: not a numeric .npy array ({err})") from None
+    if not isinstance(arr, np.ndarray) or not np.issubdtype(arr.dtype, np.number):
+        what = "an .npz archive" if not isinstance(arr, np.ndarray) else f"dtype {arr.dtype}"
+        raise ValueError(f"{path}: expected a numeric .npy array [N, 17], found {what}")
     if arr.ndim != 2 or arr.shape[1] != 17 or len(arr) == 0:
         raise ValueError(
             f"{path}: expected [N, 17] (a 3x5 pose and near, far per view), found {list(arr.shape)}"
@@ -118,6 +174,26 @@ def _read_readouts(path: Path, count: int) -> np.ndarray:
     return readouts
 
 
+def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options) -> None:
+    """ValueError if readouts.txt reaches past the stream's end, saying whether the frame size
+    came from hwf (spikes at another resolution than the poses' images read too few readouts)."""
+    if readouts[-1] <= len(stream) - 1:
+        return
+    size = f"{stream.height}x{stream.width}"
+    if options.height and options.width:
+        cause = f"The frame size {size} was set in {OPTIONS_FILE}; check it, or {READOUTS}"
+    else:
+        cause = (
+            f"The frame size {size} was taken from hwf {hwf[:2].tolist()} in {POSES_BOUNDS}: if "
+            f"the spikes are at another resolution, set height and width in {OPTIONS_FILE}; "
+            f"else check {READOUTS}"
+        )
+    raise ValueError(
+        f"{stream.path}: {len(stream)} readouts of {size}, but {READOUTS} places poses up to "
+        f"readout {readouts[-1]:g}. {cause}"
+    )
+
+
 def load_llff(path: PathLike, **overrides) -> Dataset:
     """Open an LLFF-layout directory (module docstring); `overrides` are spikegs.json options.
     Every file is checked before any spike is read."""
@@ -125,29 +201,37 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
     source = root / POSES_BOUNDS
     options = read_options(root, overrides)
     poses, bounds = _read_poses_bounds(source)
-    viewmats = viewmats_from_llff(poses)  # [N, 4, 4]
+    viewmats = viewmats_from_llff(poses, str(source))  # [N, 4, 4]
     h, w, f = poses[0, :, 4]
     height, width = options.height or round(h), options.width or round(w)
     K = np.array([[f * width / w, 0, width / 2], [0, f * height / h, height / 2], [0, 0, 1]])
     test = held_out(len(poses), options.test_views, str(source))
-    sphere = scene_sphere(options, *frustum_sphere(viewmats, bounds, K, width, height))
+    given = options.scene_center is not None and options.scene_radius is not None
+    computed = (None, None) if given else llff_sphere(viewmats, bounds, K, width, height, source)
+    sphere = scene_sphere(options, *computed)
     near_far = {"near": float(bounds[:, 0].min()), "far": float(bounds[:, 1].max())}
+    folder = root / SPIKES_DIR
     if (root / STREAM).is_file():
+        if folder.is_dir():
+            raise ValueError(
+                f"{root}: both {STREAM} (one stream) and {SPIKES_DIR}/ (a stream per view) found; "
+                f"keep one of them"
+            )
         readouts = _read_readouts(root / READOUTS, len(poses))
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
         stream = open_spikes(root / STREAM, height, width, options)
+        _check_stream_length(stream, readouts, poses[0, :, 4], options)
         return stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
-    folder = root / SPIKES_DIR
     if not folder.is_dir():
         raise FileNotFoundError(
             f"spikes not found in {root}: expected {SPIKES_DIR}/ (one .dat per view) or {STREAM} "
             f"with {READOUTS}"
         )
-    files = sorted(folder.glob("*.dat"))
+    files = sorted(folder.glob("*.dat"), key=lambda p: natural_key(p.name))
     if len(files) != len(poses):
         raise ValueError(
             f"{source} holds {len(poses)} poses but {folder} holds {len(files)} .dat files; "
-            f"expected one per pose, in sorted name order"
+            f"expected one per pose, in natural name order"
         )
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
     streams = [open_spikes(p, height, width, options) for p in files]

@@ -1,10 +1,14 @@
 """The NeRF / nerfstudio layout with one spike stream per frame (as USP-Gaussian's data).
 
-DIR/transforms_train.json + transforms_test.json, or DIR/transforms.json (every 8th frame held out)
-    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x; frames with file_path and
-    transform_matrix (camera-to-world, OpenGL unless "convention": "opencv")
+DIR/transforms_train.json + transforms_test.json, or DIR/transforms.json or transforms_train.json
+    alone (every 8th frame, or spikegs.json's test_views, held out)
+    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x, in the file or per frame (nerfstudio:
+    a frame's keys override the file's; every frame must give the same camera; distortion k1..k4,
+    p1, p2 is not modelled: a warning if non-zero); frames with file_path and transform_matrix
+    (camera-to-world, OpenGL unless "convention": "opencv")
 DIR/spike_data/...  a frame's spikes: its "spike_path" (relative to DIR) if it has one, else
-    spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat
+    spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat; an
+    absolute file_path counts relative to DIR if it is inside DIR, else by its file name
 DIR/<file_path>     optional sharp image (extension optional): a test frame's ground truth
 DIR/spikegs.json    loader options (real_options.py), all optional
 
@@ -13,51 +17,79 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
-import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import skimage.transform
 
-from .dataset import Dataset
-from .real import camera_meta, held_out, scene_sphere, views_dataset
-from .real_options import Options, open_spikes, read_options
+from .dataset import Dataset, read_json
+from .real import camera_meta, held_out, rigid_c2w, scene_sphere, views_dataset
+from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import OPENGL_TO_OPENCV, centre_of_view, read_frame, to_channels
 from .trajectory import PathLike
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
+CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 
 
 def _read_doc(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
-    doc = json.loads(path.read_text())
-    for frame in doc.get("frames") or []:
-        if "file_path" not in frame or "transform_matrix" not in frame:
-            raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
+    doc = read_json(path)
+    if not isinstance(doc, dict) or not isinstance(doc.get("frames", []), list):
+        raise ValueError(f"{path}: expected a JSON object with a list of frames")
+    for i, frame in enumerate(doc.get("frames") or []):
+        if not (isinstance(frame, dict) and {"file_path", "transform_matrix"} <= frame.keys()):
+            raise ValueError(f"{path}: frame {i} needs a file_path and a transform_matrix")
     if not doc.get("frames"):
         raise ValueError(f"{path}: no frames")
     return doc
 
 
+def _matrix(path: Path, i: int, frame: dict) -> np.ndarray:
+    """Frame i's transform_matrix [4, 4]; ValueError naming the frame if it is not 4x4 numbers."""
+    try:
+        matrix = np.array(frame["transform_matrix"], np.float64)
+    except (ValueError, TypeError):
+        matrix = None
+    if matrix is None or matrix.shape != (4, 4):
+        raise ValueError(
+            f"{path}: frame {i} ('{frame['file_path']}'): transform_matrix expected 4 rows of 4 "
+            f"numbers, found {frame['transform_matrix']!r}"[:300]
+        )
+    return matrix
+
+
 def _viewmats(path: Path, doc: dict) -> np.ndarray:
     """OpenCV world-to-camera viewmats [F, 4, 4] of a transforms file's frames."""
-    c2w = np.array([f["transform_matrix"] for f in doc["frames"]], np.float64)  # [F, 4, 4]
-    if c2w.shape[1:] != (4, 4):
-        raise ValueError(f"{path}: transform_matrix expected 4x4, found {list(c2w.shape[1:])}")
+    c2w = np.stack([_matrix(path, i, f) for i, f in enumerate(doc["frames"])])  # [F, 4, 4]
     bad = np.flatnonzero(~np.isfinite(c2w).all(axis=(1, 2)))
     if bad.size:
         raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in frames {bad.tolist()}")
     if doc.get("convention", "opengl").lower() != "opencv":
         c2w = c2w @ OPENGL_TO_OPENCV
-    return np.linalg.inv(c2w)
+    return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
 
 
-def _base(file_path: str) -> Path:
-    """A frame's file_path without its image extension (NeRF synthetic gives none)."""
+def _relative(root: Path, file_path: str) -> Path:
+    """A frame's file_path relative to DIR: an absolute one inside DIR relative to it, one outside
+    DIR by its file name."""
     path = Path(file_path)
+    if not path.is_absolute():
+        return path
+    try:
+        return path.resolve().relative_to(root.resolve())
+    except ValueError:
+        return Path(path.name)
+
+
+def _base(root: Path, file_path: str) -> Path:
+    """A frame's file_path relative to DIR without its image extension (NeRF gives none)."""
+    path = _relative(root, file_path)
     return path.with_suffix("") if path.suffix.lower() in IMAGE_EXTENSIONS else path
 
 
@@ -65,7 +97,7 @@ def _spike_candidates(root: Path, frame: dict) -> list[Path]:
     """Where a frame's spike file may be, in order (module docstring)."""
     if "spike_path" in frame:
         return [root / frame["spike_path"]]
-    base = _base(frame["file_path"])
+    base = _base(root, frame["file_path"])
     return [root / SPIKE_DIR / f"{base}.dat", root / SPIKE_DIR / f"{base.name}.dat"]
 
 
@@ -93,32 +125,64 @@ def _image(root: Path, frame: dict) -> np.ndarray | None:
         return None
 
 
+def _camera(docs: list, frames: list, sources: list) -> dict:
+    """The one camera [intrinsics and distortion keys] of all frames: the first file's keys, the
+    frame's own file's, then the frame's (nerfstudio); ValueError naming two frames that differ;
+    a warning for non-zero distortion, which the pinhole rasterizer does not model."""
+    keys = CAMERA_KEYS + DISTORTION_KEYS
+    cameras = [
+        {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
+        for doc, frame in zip(docs, frames)
+    ]
+    for i, camera in enumerate(cameras):
+        if camera.keys() != cameras[0].keys() or not np.allclose(
+            [float(camera[k]) for k in camera], [float(cameras[0][k]) for k in camera], rtol=1e-6
+        ):
+            raise ValueError(
+                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics {camera}, frame "
+                f"'{frames[0]['file_path']}' of {sources[0]} {cameras[0]}: one camera expected"
+            )
+    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if float(cameras[0].get(k, 0)) != 0}
+    if distortion:
+        warnings.warn(
+            f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
+            f"camera (undistort the spikes' frames to model it)",
+            stacklevel=3,
+        )
+    return cameras[0]
+
+
 def _intrinsics(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
-    """K [3, 3] of the file's intrinsics for images of `src` (h, w), scaled to `size` (h, w)."""
+    """K [3, 3] of the camera's intrinsics for images of `src` (h, w), scaled to `size` (h, w)."""
     (src_h, src_w), (height, width) = src, size
     if "fl_x" in doc:
         fx, fy = float(doc["fl_x"]), float(doc.get("fl_y", doc["fl_x"]))
     elif "camera_angle_x" in doc:
         fx = fy = src_w / 2 / np.tan(float(doc["camera_angle_x"]) / 2)
     else:
-        raise ValueError(f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy)")
+        raise ValueError(
+            f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
+            f"in every frame)"
+        )
     cx, cy = float(doc.get("cx", src_w / 2)), float(doc.get("cy", src_h / 2))
     sx, sy = width / src_w, height / src_h
     return np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
 
 
 def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple, tuple]:
-    """(h, w) the intrinsics are for and (h, w) of the spikes: from spikegs.json, the transforms
-    file's w, h, or the first sharp image."""
+    """(h, w) the intrinsics are for and (h, w) of the spikes: each of height, width from
+    spikegs.json, else the camera's w, h, else the first sharp image's."""
     shapes = [im.shape[:2] for im in images if im is not None]
     src = (doc["h"], doc["w"]) if "w" in doc and "h" in doc else (shapes[0] if shapes else None)
-    size = (options.height, options.width) if options.height and options.width else src
-    if size is None:
+    height = options.height or (src and src[0])
+    width = options.width or (src and src[1])
+    if not (height and width):
         raise ValueError(
             f"{path}: image size unknown (no w, h and no sharp image): set height and width in "
-            f"spikegs.json"
+            f"{OPTIONS_FILE}"
         )
-    return tuple(map(int, src or size)), tuple(map(int, size))
+    size = (int(height), int(width))
+    return tuple(map(int, src or size)), size
 
 
 def _mono(image: np.ndarray | None, height: int, width: int) -> np.ndarray | None:
@@ -131,19 +195,30 @@ def _mono(image: np.ndarray | None, height: int, width: int) -> np.ndarray | Non
 
 
 def _frames(root: Path, options: Options):
-    """The file with the intrinsics, its JSON, frames [F], each frame's file [F], viewmats
-    [F, 4, 4] and test mask [F]."""
+    """Frames [F], each frame's file [F] and its file's JSON [F], viewmats [F, 4, 4] and test
+    mask [F]: transforms_train.json + transforms_test.json, else transforms.json or
+    transforms_train.json alone with every 8th frame (or test_views) held out."""
     train, test, single = (root / name for name in TRANSFORMS)
-    if single.is_file() and not train.is_file():
-        doc = _read_doc(single)
-        count = len(doc["frames"])
-        mask = held_out(count, options.test_views, str(single))
-        return single, doc, doc["frames"], [single] * count, _viewmats(single, doc), mask
-    doc, test_doc = _read_doc(train), _read_doc(test)
-    frames = doc["frames"] + test_doc["frames"]
-    sources = [train] * len(doc["frames"]) + [test] * len(test_doc["frames"])
-    viewmats = np.concatenate([_viewmats(train, doc), _viewmats(test, test_doc)])  # [F, 4, 4]
-    return train, doc, frames, sources, viewmats, np.arange(len(frames)) >= len(doc["frames"])
+    if train.is_file() and test.is_file():
+        if options.test_views is not None:
+            raise ValueError(
+                f"{root / OPTIONS_FILE}: test_views is for a single transforms file; {test.name} "
+                f"lists the test frames here (remove one or the other)"
+            )
+        docs = [_read_doc(train), _read_doc(test)]
+        paths = [train, test]
+    else:
+        path = train if train.is_file() else single
+        docs, paths = [_read_doc(path)], [path]
+    frames = [f for doc in docs for f in doc["frames"]]
+    sources = [p for p, doc in zip(paths, docs) for _ in doc["frames"]]
+    frame_docs = [doc for doc in docs for _ in doc["frames"]]
+    viewmats = np.concatenate([_viewmats(p, doc) for p, doc in zip(paths, docs)])  # [F, 4, 4]
+    if len(docs) == 2:
+        mask = np.arange(len(frames)) >= len(docs[0]["frames"])
+    else:
+        mask = held_out(len(frames), options.test_views, str(paths[0]))
+    return frames, sources, frame_docs, viewmats, mask
 
 
 def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
@@ -151,7 +226,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     `overrides` are spikegs.json options. Every file is checked before any spike is read."""
     root = Path(path)
     options = read_options(root, overrides)
-    path, doc, frames, sources, viewmats, test = _frames(root, options)
+    frames, sources, docs, viewmats, test = _frames(root, options)
+    path, camera = sources[0], _camera(docs, frames, sources)
     spikes = _find_spikes(root, frames, sources)
     images = [_image(root, f) if t else None for f, t in zip(frames, test)]
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
@@ -161,12 +237,12 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{source}: spike file of frame '{frame['file_path']}' not found (tried {tried})"
                 + (", and no sharp image either" if is_test else "")
             )
-    src, (height, width) = _sizes(path, doc, images, options)
-    K = _intrinsics(path, doc, src, (height, width))
+    src, (height, width) = _sizes(path, camera, images, options)
+    K = _intrinsics(path, camera, src, (height, width))
     sphere = scene_sphere(options, *centre_of_view(viewmats))
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
-    names = [_base(f["file_path"]).as_posix().replace("/", "_") for f in frames]
+    names = [_base(root, f["file_path"]).as_posix().replace("/", "_") for f in frames]
     images = [_mono(im, height, width) for im in images]  # [H, W, 1] intensity
     return views_dataset(
         root, meta, names, viewmats, streams, images, test, options.pseudo_gt_window, str(path)

@@ -16,7 +16,14 @@ import numpy as np
 
 from ..spikes import SpikeStream
 from ..targets import intensity_scale
-from .dataset import FORMAT_VERSION, READOUT_PERIOD_S, WINDOW_MARGIN, Dataset, TestView
+from .dataset import (
+    FORMAT_VERSION,
+    READOUT_PERIOD_S,
+    WINDOW_MARGIN,
+    Dataset,
+    TestView,
+    check_test_views,
+)
 from .real_options import Options
 from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory
@@ -76,6 +83,34 @@ def held_out(count: int, indices: list[int] | None, source: str) -> np.ndarray:
     return mask
 
 
+RIGID_TOLERANCE = 1e-3  # of |R R^T - I|: accepts poses rounded to 4 decimals
+
+
+def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
+    """Camera-to-world [N, 4, 4] with each rotation replaced by the nearest rotation (SVD), when
+    within RIGID_TOLERANCE of one (rounded poses); else ValueError naming the `item` index and
+    its deviation."""
+    c2w = np.asarray(c2w, np.float64)
+    rot = c2w[:, :3, :3]
+    deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
+    deviation = np.maximum(deviation, np.abs(c2w[:, 3] - [0, 0, 0, 1]).max(axis=1))
+    det = np.linalg.det(rot)  # [N]
+    bad = np.flatnonzero((deviation > RIGID_TOLERANCE) | (det <= 0))
+    if bad.size:
+        i = bad[0]
+        raise ValueError(
+            f"{source}: the pose of {item} {i} is not a rotation and translation: "
+            f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
+            f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}; {item}s beyond it: "
+            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
+        )
+    u, _, vt = np.linalg.svd(rot)
+    out = c2w.copy()
+    out[:, :3, :3] = u @ vt
+    out[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    return out
+
+
 def scene_sphere(options: Options, center, radius: float) -> dict:
     """scene_center, scene_radius: the options' where given, else the computed ones."""
     center = options.scene_center if options.scene_center is not None else center
@@ -107,6 +142,7 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
     }
     if sharp:
         meta["image_scale"] = scale
+    check_test_views(dataset.test_views, root)
     return dataset
 
 
@@ -191,6 +227,14 @@ def stream_dataset(
         for i in np.flatnonzero(test)
         if window // 2 <= round(readouts[i]) <= len(stream) - window + window // 2
     ]
+    held = np.flatnonzero(test)
+    if held.size and not held_out:
+        raise ValueError(
+            f"{source}: none of the {held.size} held-out poses (test_views {held.tolist()}) can "
+            f"be scored: a pseudo_gt_window of {window} readouts centred on its pose does not fit "
+            f"in the stream's {len(stream)} readouts; set a shorter pseudo_gt_window in "
+            f"spikegs.json, or test_views with room around them"
+        )
     meta["spike_files"] = [os.path.relpath(stream.path, root)]
     meta["train_every"] = every
     return _finish(root, meta, stream, trajectory, ks, held_out)

@@ -1,24 +1,30 @@
 """Options of the real-data loaders: DIR/spikegs.json, overridden by keyword arguments.
 
 Every key is optional (docs/datasets.md, "Real data layouts"):
-  height, width          spike resolution; default: from the layout's intrinsics
+  height, width          spike resolution; default: from the layout's intrinsics (each alone)
   flip                   .dat rows stored bottom-up (default true, as the camera writes them)
   raw_width, col_offset  pixels stored per .dat row and the first one kept (the raw 250x400
                          camera's rows carry extra columns); default: width, 0
-  test_views             indices of the held-out poses (LLFF; default every 8th: 0, 8, 16, ...)
+  test_views             indices of the held-out poses (LLFF, or one transforms file; default
+                         every 8th: 0, 8, 16, ...)
   train_every            readouts between training timestamps (LLFF single stream)
   pseudo_gt_window       readouts of the TFP standing in for a held-out view without a sharp image
   scene_center, scene_radius  the scene sphere, instead of the one computed from the poses
   rate_at_one            firing rate of intensity 1.0 when calibrated (else a TFP percentile)
+
+Types and ranges are checked when read: a ValueError names spikegs.json, the key, what was expected
+and what was found.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
+import math
+import numbers
 from pathlib import Path
 
 from ..spikes import SpikeStream
+from .dataset import read_json
 
 OPTIONS_FILE = "spikegs.json"
 
@@ -40,10 +46,49 @@ class Options:
     rate_at_one: float | None = None
 
 
+def _is_int(value) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    return (
+        isinstance(value, numbers.Real)
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+def _positive_int(v) -> bool:
+    return _is_int(v) and v >= 1
+
+
+# key: (check of a non-None value, what it expects)
+CHECKS = {
+    "height": (_positive_int, "a positive integer"),
+    "width": (_positive_int, "a positive integer"),
+    "flip": (lambda v: isinstance(v, bool), "true or false"),
+    "raw_width": (_positive_int, "a positive integer"),
+    "col_offset": (lambda v: _is_int(v) and v >= 0, "an integer >= 0"),
+    "test_views": (
+        lambda v: isinstance(v, (list, tuple)) and all(_is_int(i) and i >= 0 for i in v),
+        "a list of view indices (integers >= 0)",
+    ),
+    "train_every": (_positive_int, "a positive integer"),
+    "pseudo_gt_window": (lambda v: _positive_int(v) and v % 2 == 1, "an odd positive integer"),
+    "scene_center": (
+        lambda v: isinstance(v, (list, tuple)) and len(v) == 3 and all(map(_is_number, v)),
+        "a list of 3 finite numbers",
+    ),
+    "scene_radius": (lambda v: _is_number(v) and v > 0, "a finite number > 0"),
+    "rate_at_one": (lambda v: _is_number(v) and v > 0, "a finite number > 0"),
+}
+
+
 def read_options(root: Path, overrides: dict) -> Options:
-    """ROOT/spikegs.json (if any) with `overrides` on top; ValueError naming an unknown key."""
+    """ROOT/spikegs.json (if any) with `overrides` on top; ValueError naming an unknown key or a
+    value of the wrong type or range."""
     path = root / OPTIONS_FILE
-    values = json.loads(path.read_text()) if path.is_file() else {}
+    values = read_json(path) if path.is_file() else {}
     if not isinstance(values, dict):
         raise ValueError(f"{path}: expected a JSON object of options")
     values.update({k: v for k, v in overrides.items() if v is not None})
@@ -51,20 +96,20 @@ def read_options(root: Path, overrides: dict) -> Options:
     unknown = sorted(set(values) - set(known))
     if unknown:
         raise ValueError(f"{path}: unknown options {unknown}; known: {', '.join(known)}")
-    options = Options(**values)
-    window = options.pseudo_gt_window
-    if window is not None and (window < 1 or window % 2 == 0):
-        raise ValueError(
-            f"{path}: pseudo_gt_window expected an odd positive number, found {window}"
-        )
-    return options
+    for key, value in values.items():
+        check, expected = CHECKS[key]
+        if value is not None and not check(value):
+            raise ValueError(f"{path}: {key} expected {expected}, found {value!r}")
+    return Options(**values)
 
 
 def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:
     """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop;
-    FileNotFoundError or ValueError naming the file and the layout it was expected to have."""
+    FileNotFoundError or ValueError naming the file (empty, or not of the expected layout)."""
     if not path.is_file():
         raise FileNotFoundError(f"spike file not found: {path}")
+    if path.stat().st_size == 0:
+        raise ValueError(f"{path}: empty spike file (no readout)")
     try:
         return SpikeStream.open(
             path, height, width, options.flip, options.raw_width, options.col_offset
