@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from spikegs import SimParams, SpikeStream, simulate_spikes
 
 
@@ -95,6 +96,13 @@ def test_callable_source_matches_frames():
 
     want = simulate_spikes(frames, 300, frame_times=times, seed=3)
     np.testing.assert_array_equal(simulate_spikes(light, 300, frame_every=100, seed=3), want)
+
+
+def test_torch_tensors_are_light_too():
+    frames = torch.full((1, 4, 8), 0.5, requires_grad=True)
+    expected = simulate_spikes(frames.detach().numpy(), 50)
+    np.testing.assert_array_equal(simulate_spikes(frames, 50), expected)
+    np.testing.assert_array_equal(simulate_spikes(lambda t: frames[0], 50), expected)
 
 
 def test_streams_to_dat(tmp_path):

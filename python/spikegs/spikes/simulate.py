@@ -43,7 +43,10 @@ class SimParams:
 
 
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
-    """`frame` as float32, ValueError unless of `shape` (if given), finite and >= 0."""
+    """`frame` (an array or a torch tensor) as float32, ValueError unless of `shape` (if given),
+    finite and >= 0."""
+    if hasattr(frame, "detach"):  # a tensor, perhaps requiring grad or on another device
+        frame = frame.detach().cpu().numpy()
     frame = np.asarray(frame, dtype=np.float32)
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
