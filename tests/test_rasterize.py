@@ -356,7 +356,6 @@ def _bad_inputs():
         ("width-float", {"width": 13.0}, "width"),
         ("viewmat-nan", {"viewmat": s["viewmat"].clone().fill_(float("nan"))}, "viewmat"),
         ("K-inf", {"K": s["K"] * float("inf")}, "K"),
-        ("K-grad", {"K": s["K"].clone().requires_grad_()}, "K"),
         ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
         ("sh-k-small", {"sh_degree": 2}, "colors|sh_degree"),
         ("sh-k-not-square", {"colors": s["colors"][:, :3], "sh_degree": None}, "colors|sh_degree"),

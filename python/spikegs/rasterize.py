@@ -148,7 +148,8 @@ def rasterize(
 
     means [N, 3], quats [N, 4] (w, x, y, z, any norm), scales [N, 3] and opacities [N] (already
     activated), colors [N, C] (direct) or [N, K, C] (SH coefficients, degree `sh_degree` or
-    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV), K [3, 3] intrinsics, background [C].
+    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV), K [3, 3] intrinsics (no gradient:
+    K.grad stays None), background [C].
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
     `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
     projected 2D means (as in 3DGS densification). Culled Gaussians get radius 0 and zero gradient.
@@ -175,11 +176,6 @@ def rasterize(
     for name, camera in (("viewmat", viewmat), ("K", K)):
         if not torch.isfinite(camera).all():
             raise ValueError(f"{name}: expected finite values, got {camera.tolist()}")
-    if K.requires_grad:
-        raise ValueError(
-            "K: gradients with respect to the intrinsics are not computed; pass a K "
-            "that does not require grad (K.detach())"
-        )
     if background is not None:
         _check("background", background, (channels,), dtype)
     if screen_points is not None:
