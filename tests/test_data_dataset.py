@@ -106,6 +106,12 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
         np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
 
 
+def test_negative_view_counts_refused(tmp_path):
+    for counts in ({"test_on_path": -1}, {"test_off_path": -2}):
+        with pytest.raises(ValueError, match="expected counts >= 0"):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, **counts})
+
+
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="scene 'constant': no held-out test view"):
         source = constant_source(0.6, test_views=False)
@@ -162,7 +168,23 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
     def same_names(doc):
         return {**doc, "frames": [{**f, "name": "view"} for f in doc["frames"]]}
 
+    def moved_out(doc):
+        return {**doc, "frames": [{**doc["frames"][0], "readout": 5000.0}]}
+
+    def leak(text):  # the first on-path view's readout becomes a training timestamp
+        on = next(v for v in small.test_views if v.readout is not None)
+        return text + f"{round(on.readout)}\n"
+
+    def rewrite_meta(**changes):
+        return lambda text: json.dumps({**json.loads(text), **changes})
+
     cases = {
+        "outside": ("test_views.json", views(moved_out), "at readout 5000.0, outside"),
+        "leak": ("train_timestamps.txt", leak, "would train on its spikes"),
+        "float": ("train_timestamps.txt", lambda t: t + "40.5\n", r"integer readouts.*40\.5"),
+        "words": ("train_timestamps.txt", lambda t: t + "abc\n", "train_timestamps.txt"),
+        "radius": ("meta.json", rewrite_meta(scene_radius=-1), "scene_radius"),
+        "version": ("meta.json", rewrite_meta(format_version=2), "format_version 2"),
         "none": ("test_views.json", views(no_views), "no held-out test view"),
         "twice": ("test_views.json", views(same_names), r"found twice: \['view'\]"),
         "json": ("meta.json", lambda text: text[:-3], r"meta.json: not valid JSON"),

@@ -208,6 +208,16 @@ def load_dataset(path: PathLike) -> Dataset:
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
     if missing:
         raise ValueError(f"{meta_path}: missing keys {missing}")
+    if meta.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
+        raise ValueError(
+            f"{meta_path}: format_version {meta['format_version']}, this SpikeGS reads "
+            f"{FORMAT_VERSION}"
+        )
+    center, radius = np.asarray(meta["scene_center"], np.float64), meta["scene_radius"]
+    if center.shape != (3,) or not np.isfinite(center).all():
+        raise ValueError(f"{meta_path}: scene_center expected 3 finite numbers, found {center}")
+    if not isinstance(radius, (int, float)) or not 0 < radius < float("inf"):
+        raise ValueError(f"{meta_path}: scene_radius expected a number > 0, found {radius!r}")
     num = int(meta["num_readouts"])
     streams = []
     for name in spike_files(int(meta["channels"])):
@@ -221,10 +231,43 @@ def load_dataset(path: PathLike) -> Dataset:
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
             f"expected [0, {num - 1}]"
         )
-    timestamps = np.loadtxt(_file(root, TIMESTAMPS), dtype=np.int64, ndmin=1)  # [M]
+    timestamps = _read_timestamps(_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0 or timestamps.min() < lo or timestamps.max() > hi:
         raise ValueError(f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}]")
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape)
+    _check_held_out(test_views, timestamps, num, root)
     return Dataset(root, meta, streams, trajectory, timestamps, test_views)
+
+
+def _read_timestamps(path: Path) -> np.ndarray:
+    """The integer readouts [M] of a train_timestamps.txt; ValueError naming the file."""
+    try:
+        values = np.loadtxt(path, dtype=np.float64, ndmin=1)
+    except ValueError as err:
+        raise ValueError(f"{path}: expected one integer readout a line ({err})") from None
+    bad = values[~(values == np.round(values))]  # NaN too
+    if bad.size:
+        raise ValueError(f"{path}: expected integer readouts, found {bad[:5].tolist()}")
+    return values.astype(np.int64)
+
+
+def _check_held_out(views: list[TestView], timestamps: np.ndarray, num: int, root: Path) -> None:
+    """ValueError if an on-path view lies outside the stream, or if a training timestamp's
+    65-readout window reaches an on-path view's: its spikes would be trained on."""
+    for view in views:
+        if view.readout is None:
+            continue
+        if not 0 <= view.readout <= num - 1:
+            raise ValueError(
+                f"{root / TEST_VIEWS}: view '{view.name}' at readout {view.readout}, outside the "
+                f"stream's [0, {num - 1}]"
+            )
+        near = timestamps[np.abs(timestamps - view.readout) <= 2 * WINDOW_MARGIN]
+        if near.size:
+            raise ValueError(
+                f"{root / TIMESTAMPS}: training readouts {near[:5].tolist()} lie within "
+                f"{2 * WINDOW_MARGIN} readouts of held-out view '{view.name}' (readout "
+                f"{view.readout}): their windows would train on its spikes"
+            )

@@ -150,6 +150,11 @@ def simulate_dataset(
     interpolates linearly); `train_every`: readouts between training timestamps (default
     `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
+    if test_on_path < 0 or test_off_path < 0:
+        raise ValueError(
+            f"test_on_path, test_off_path: expected counts >= 0, found {test_on_path}, "
+            f"{test_off_path}"
+        )
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts:
         raise ValueError(f"readouts: expected >= {min_readouts} for {test_on_path} held-out views")
