@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 from skimage import data
+from skimage.metrics import structural_similarity
 from spikegs.metrics import psnr, ssim
 from spikegs.sim import SIM
 from spikegs.sim_train import (
@@ -200,6 +201,14 @@ def test_metrics():
     assert ssim(np.stack([gt] * 3, -1), np.stack([gt] * 3, -1)) == pytest.approx(1.0)
     with pytest.raises(ValueError):
         psnr(gt, gt[:-1])
+    noisy = np.clip(gt + 0.05, 0, 1)
+    assert ssim(noisy, gt) == pytest.approx(structural_similarity(gt, noisy, data_range=1.0))
+    for shape in ((1, 20), (20, 1), (1, 20, 3), (5, 20), (3, 4)):  # line images, small sides
+        image = np.random.default_rng(1).random(shape)
+        assert 0 < ssim(np.clip(image + 0.05, 0, 1), image) < ssim(image, image) == 1.0
+    for shape in ((2, 20), (1, 1)):
+        with pytest.raises(ValueError, match="SSIM needs sides"):
+            ssim(gt[: shape[0], : shape[1]], gt[: shape[0], : shape[1]])
 
 
 def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():
@@ -258,3 +267,15 @@ def test_bad_input_refused():
     for bad in ({"out_channels": 0}, {"window": 2.5}, {"width": -1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             SIM(**bad)
+
+
+def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypatch, capsys):
+    from spikegs.cli import main
+    from spikegs.data import simulate_dataset
+
+    root = tmp_path / "off"
+    small = dict(height=16, width=16, readouts=200, test_on_path=0, test_off_path=1)
+    simulate_dataset("solids", root, progress=False, **small)
+    monkeypatch.setattr("spikegs.sim_cli.trained_sim", lambda *a, **k: pytest.fail("trained"))
+    assert main(["sim-train", str(root)]) == 2
+    assert "no held-out view on the camera path" in capsys.readouterr().err

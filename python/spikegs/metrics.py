@@ -22,7 +22,18 @@ def psnr(pred, gt) -> float:
 
 
 def ssim(pred, gt) -> float:
-    """SSIM with data range 1 (7×7 window; colour channels averaged)."""
+    """SSIM with data range 1 (7×7 window; colour channels averaged). A side shorter than 7
+    pixels takes the largest odd window that fits, a side of one pixel is dropped (a line image:
+    1-D SSIM); a side of 2 pixels, or a single pixel, is a ValueError."""
     pred, gt = _pair(pred, gt)
-    channel_axis = -1 if pred.ndim == 3 else None
-    return float(structural_similarity(gt, pred, data_range=1.0, channel_axis=channel_axis))
+    shape = list(pred.shape[:2])
+    if pred.ndim == 2:
+        pred, gt = pred[..., None], gt[..., None]
+    keep = tuple(n for n in pred.shape[:2] if n > 1) or (1,)
+    pred, gt = pred.reshape(*keep, -1), gt.reshape(*keep, -1)  # [H', W', C] or [L, C]
+    side = min(min(keep), 7)
+    win = side if side % 2 else side - 1
+    if win < 3:
+        raise ValueError(f"SSIM needs sides of 1 or at least 3 pixels (not all 1), got {shape}")
+    value = structural_similarity(gt, pred, data_range=1.0, channel_axis=-1, win_size=win)
+    return float(value)

@@ -10,7 +10,7 @@ from .bench.common import print_table
 from .cli import positive_int
 from .config import SimConfig, TrainConfig
 from .data.dataset import load_dataset
-from .sim_train import evaluate_dataset
+from .sim_train import evaluate_dataset, on_path_views
 from .targets import trained_sim
 
 
@@ -37,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
+    on_path_views(dataset)  # what SIM is scored on, before it is trained
     sim = SimConfig(
         window=args.window,
         target_window=args.target_window,

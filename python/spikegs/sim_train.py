@@ -234,12 +234,19 @@ def compare_methods(
     }
 
 
-def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
-    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
-    mean over channels for a colour camera."""
+def on_path_views(dataset) -> list:
+    """The dataset's held-out views on the camera path (those SIM can be scored on); ValueError
+    when there is none."""
     views = [v for v in dataset.test_views if v.readout is not None]
     if not views:
         raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
+    return views
+
+
+def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
+    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
+    mean over channels for a colour camera."""
+    views = on_path_views(dataset)
     timestamps = np.array([round(v.readout) for v in views])
     per_channel = [
         compare_methods(
