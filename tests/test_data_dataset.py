@@ -202,6 +202,12 @@ def test_existing_dataset_needs_overwrite(tmp_path):
         simulate_dataset("wires", out, **SMALL)
     ds = simulate_dataset("wires", out, overwrite=True, seed=1, **SMALL)
     assert ds.meta["seed"] == 1 and not (out / "sim").exists()
+    (out / "notes.txt").write_text("mine")  # --overwrite deletes the directory: refused
+    with pytest.raises(FileExistsError, match=r"not a dataset's \(notes.txt\)"):
+        simulate_dataset("wires", out, overwrite=True, **SMALL)
+    assert (out / "notes.txt").exists()
+    with pytest.raises(FileExistsError, match=r"not a dataset's \(ds\)"):  # nor mixed in
+        simulate_dataset("wires", tmp_path, **SMALL)
 
 
 def test_unknown_scene_lists_the_known_ones(tmp_path):

@@ -88,13 +88,25 @@ def holds_dataset(out: Path) -> bool:
     return any((out / n).exists() for n in names)
 
 
+# what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
+DERIVED = ("test", "sim", "sfm", "points3d.ply", f"{TRAJECTORY}.bak", TIMESTAMPS)
+
+
 def check_output(out: PathLike, overwrite: bool) -> Path:
-    """FileExistsError if `out` is a file, or holds a dataset and not `overwrite`."""
+    """FileExistsError if `out` is a file, holds a dataset and not `overwrite`, or holds anything
+    that is not a dataset's (a replaced dataset's directory is deleted whole)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"output {out} exists and is not a directory")
     if out.is_dir() and holds_dataset(out) and not overwrite:
         raise FileExistsError(f"{out} already holds a dataset; pass --overwrite to replace it")
+    parts = {META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), *DERIVED}
+    others = sorted(p.name for p in out.iterdir() if p.name not in parts) if out.is_dir() else []
+    if others:
+        raise FileExistsError(
+            f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"
+            f"{', ...' if len(others) > 5 else ''}); give an empty or new directory"
+        )
     return out
 
 
