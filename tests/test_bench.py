@@ -78,6 +78,15 @@ def test_train_selection_names_what_is_unknown():
         train.selection(False, seeds=0)
 
 
+def test_train_selection_accepts_every_method_of_configs():
+    """`--methods sim17` was refused as unknown although configs/sim17.yaml exists."""
+    from spikegs.config import available_methods
+
+    methods = available_methods()
+    assert "sim17" in methods
+    assert train.selection(False, ["solids"], methods) == (["solids"], methods)
+
+
 def test_train_runs_every_seed(tmp_path):
     result = train.run(quick=True, out=tmp_path, seeds=2, methods=["tfp33"])
     tfp33 = result["scenes"][train.HEADLINE_SCENE]["methods"]["tfp33"]

@@ -92,7 +92,9 @@ def test_resume_with_pose_refinement_is_bitwise_identical(tiny, tmp_path):
     resumed.targets = whole.targets
     for _ in range(6):
         whole.step()
-    resumed._load_checkpoint()  # restores the global torch RNG too (densification draws from it)
+    resumed._load_checkpoint(
+        resumed._read_checkpoint()
+    )  # restores the global torch RNG too (densification draws from it)
     for _ in range(6):
         resumed.step()
     assert whole.poses.corrections.abs().sum() > 0

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+import shutil
+
 import numpy as np
 import pytest
 import torch
 from spikegs.cli import build_parser, main
-from spikegs.config import available_methods, load_config
-from spikegs.data import simulate_dataset
+from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
+from spikegs.data import load_dataset, simulate_dataset
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
@@ -191,11 +194,79 @@ def test_every_method_config_loads():
         ("spikegs", {"sim": {"target_window": 8}}, "sim.target_window"),
         ("spikegs", {"sim": {"target_window": 35}}, "sim.target_window"),
         ("spikegs", {"densify": {"stop": -1}}, "densify.stop"),
+        # every float finite: .inf once trained an all-NaN model
+        ("spikegs", {"supervision": {"instant_weight": float("inf")}}, "instant_weight.*finite"),
+        ("spikegs", {"supervision": {"exposure_weight": float("inf")}}, "exposure_weight"),
+        ("spikegs", {"supervision": {"dssim_weight": float("nan")}}, "dssim_weight.*finite"),
+        ("spikegs", {"lr": {"means": float("inf")}}, "lr.means.*finite"),
+        ("spikegs", {"lr": {"background": float("inf")}}, "lr.background"),
+        ("spikegs", {"densify": {"grad_threshold": float("inf")}}, "densify.grad_threshold"),
+        ("spikegs", {"pose_refine": {"lr": float("inf")}}, "pose_refine.lr"),
+        # every count in its range, named: these failed late in torch / numpy, or trained an
+        # untrained SIM
+        ("spikegs", {"sim": {"iterations": 0}}, "sim.iterations"),
+        ("spikegs", {"sim": {"iterations": -5}}, "sim.iterations"),
+        ("spikegs", {"sim": {"batch": 0}}, "sim.batch"),
+        ("spikegs", {"sim": {"crop": 0}}, "sim.crop"),
+        ("spikegs", {"sim": {"crop": -8}}, "sim.crop"),
+        ("spikegs", {"sim": {"window": -1}}, "sim.window"),
+        ("spikegs", {"densify": {"every": -1}}, "densify.every"),
+        ("spikegs", {"densify": {"every": 0}}, "densify.every"),
+        ("spikegs", {"densify": {"start": -1}}, "densify.start"),
+        ("spikegs", {"densify": {"opacity_reset_every": -1}}, "densify.opacity_reset_every"),
+        ("spikegs", {"densify": {"percent_dense": -0.1}}, "densify.percent_dense"),
+        ("spikegs", {"densify": {"min_opacity": 1.0}}, "densify.min_opacity"),
+        ("spikegs", {"densify": {"max_world_size": -1.0}}, "densify.max_world_size"),
+        ("spikegs", {"train": {"init_gaussians": 1}}, "train.init_gaussians"),
+        ("spikegs", {"train": {"seed": -1}}, "train.seed"),
+        ("spikegs", {"train": {"seed": 2**64}}, "train.seed"),
     ],
 )
 def test_config_validation(name, overrides, message):
     with pytest.raises(ValueError, match=message):
         load_config(name, overrides)
+
+
+def test_config_edges_of_the_ranges_are_accepted():
+    edges = {
+        "train": {"seed": 2**64 - 1, "init_gaussians": 16},
+        "sim": {"iterations": 1, "crop": 1, "batch": 1, "window": 1},
+        "densify": {"start": 0, "every": 1, "opacity_reset_every": 0, "min_opacity": 0.0},
+    }
+    config = load_config("spikegs", edges)
+    assert (config.train.seed, config.sim.crop, config.densify.every) == (2**64 - 1, 1, 1)
+
+
+def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
+    """`base: other.yaml` was looked up in the current directory, not next to the config."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "common.yaml").write_text("base: tfp33\ntrain: {iterations: 77}\n")
+    (tmp_path / "sub" / "run.yaml").write_text("base: common.yaml\ntrain: {seed: 3}\n")
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    config = load_config(tmp_path / "sub" / "run.yaml")
+    assert (config.method, config.train.iterations, config.train.seed) == ("tfp33", 77, 3)
+    assert config.supervision.instant == "tfp"
+    monkeypatch.chdir(tmp_path)  # the top file itself is still relative to the current directory
+    assert load_config("sub/run.yaml").train.iterations == 77
+    (tmp_path / "sub" / "loop.yaml").write_text("base: ../sub/loop.yaml\n")
+    with pytest.raises(ValueError, match="loops"):
+        load_config("sub/loop.yaml")
+
+
+def test_a_config_file_names_its_method_unless_it_or_its_base_does(tmp_path):
+    """An empty --config file trained the dataclass defaults (L1, lambda 1) named `spikegs`, which
+    configs/spikegs.yaml is not (smooth L1, lambda 4): now it is named after the file."""
+    (tmp_path / "empty.yaml").write_text("")
+    empty = load_config(tmp_path / "empty.yaml")
+    assert empty.method == "empty" and empty.supervision == Config().supervision
+    (tmp_path / "short.yaml").write_text("base: spikegs\ntrain: {iterations: 100}\n")
+    short, spikegs = load_config(tmp_path / "short.yaml"), load_config("spikegs")
+    assert short.method == "spikegs" and short.supervision == spikegs.supervision
+    assert short.train.iterations == 100 and load_config(None) == spikegs
+    copied = tmp_path / "tfp33.yaml"  # a copy of a method file keeps its method
+    copied.write_text((CONFIG_DIR / "tfp33.yaml").read_text())
+    assert load_config(copied) == load_config("tfp33")
 
 
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
@@ -330,3 +401,67 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
         build_parser().parse_args(argv)
     assert exit_info.value.code == 2
     assert "expected a positive integer" in capsys.readouterr().err
+
+
+def _train_until(dataset, config, run, iteration: int, monkeypatch, error=RuntimeError) -> None:
+    """Train `config` in `run` and die (`error`, e.g. a kill: no checkpoint) at `iteration`."""
+    step = Trainer.step
+
+    def step_then_die(self):
+        loss = step(self)
+        if self.iteration == iteration:
+            raise error
+        return loss
+
+    monkeypatch.setattr(Trainer, "step", step_then_die)
+    with pytest.raises(error):
+        Trainer(dataset, config, run, progress=False).train()
+    monkeypatch.setattr(Trainer, "step", step)
+
+
+def _logged(run) -> list[int]:
+    lines = (run / "log.jsonl").read_text().splitlines()
+    return [json.loads(line)["iteration"] for line in lines]
+
+
+def test_log_holds_each_step_once_after_a_kill(dataset, tmp_path, monkeypatch):
+    train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25, "log_every": 5}
+    config = load_config("tfp33", {**FAST, "train": train})
+    _train_until(dataset, config, tmp_path / "run", 37, monkeypatch)  # last checkpoint: 25
+    assert _logged(tmp_path / "run")[-1] == 35
+    Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    assert _logged(tmp_path / "run") == sorted(set(range(5, 61, 5)) | {50})
+    _train_until(dataset, config, tmp_path / "early", 12, monkeypatch)  # before any checkpoint
+    Trainer(dataset, config, tmp_path / "early", progress=False).train()  # a fresh run
+    assert _logged(tmp_path / "early") == list(range(5, 61, 5))
+
+
+def test_resume_with_other_settings_names_them_before_any_work(dataset, tmp_path, monkeypatch):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    saved = (tmp_path / "run" / "config.yaml").read_bytes()
+    other = load_config("tfp65", {**FAST, "train": {**FAST["train"], "iterations": 4}})
+    monkeypatch.setattr("spikegs.train.build_targets", lambda *a: pytest.fail("targets built"))
+    with pytest.raises(ValueError, match=r"method: 'tfp33' in the run, 'tfp65' now.*iterations"):
+        Trainer(dataset, other, tmp_path / "run", progress=False).train(resume=True)
+    assert (tmp_path / "run" / "config.yaml").read_bytes() == saved
+
+
+def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, monkeypatch):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 20}})
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=False)
+    monkeypatch.setattr("spikegs.train.instant_loss", lambda *a: torch.tensor(float("nan")))
+    with pytest.raises(FloatingPointError, match="iteration 1: the loss is nan"):
+        trainer.train()
+    assert all(torch.isfinite(p).all() for p in trainer.model.params.values())
+
+
+def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    own = evaluate_run(tmp_path / "run", dataset, write_images=False)
+    shutil.copytree(dataset.root, tmp_path / "copy")
+    other = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
+    assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
+    assert other["file"] == str(tmp_path / "run" / "eval-copy.json")
+    assert other["dataset"] == str((tmp_path / "copy").resolve()) != own["dataset"]

@@ -1,14 +1,21 @@
 """Experiment configuration: defaults in dataclasses, one YAML file per method in configs/.
 
-A YAML file overrides only what differs from the defaults, section by section; `base: NAME`
-starts from another method's file. Unknown sections or keys and values of the wrong type or range
-are refused with a message that lists what is allowed.
+A YAML file overrides only what differs from what it starts from, section by section: `base: NAME`
+starts from another method's file, `base: FILE.yaml` from another file (a relative path is taken
+from the directory of the file that names it); without `base`, from the dataclass defaults (the
+paper's equations: L1 norms, lambda = 1; `--method spikegs` is configs/spikegs.yaml, smooth-L1
+norms and lambda = 4). A file that sets no `method` (nor does its base) is named after itself: an
+empty my_run.yaml trains the dataclass defaults as method `my_run`, never under another method's
+name. No file at all is the default method, DEFAULT_METHOD. Unknown sections or keys, values of
+the wrong type or range and non-finite numbers are refused with a message that names the key and
+what is allowed.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +32,12 @@ CONFIG_DIR = next(
     (p for p in (_PACKAGE_DIR / "configs", _PACKAGE_DIR.parents[1] / "configs") if p.is_dir()),
     _PACKAGE_DIR / "configs",
 )
+DEFAULT_METHOD = "spikegs"  # what no config file, or one without `base`, starts from
+# train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
+# steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
+# model), 4 kept 29; the demo starts from 5000
+MIN_GAUSSIANS = 16
+SEED_MAX = 2**64 - 1  # torch.manual_seed's range
 
 
 @dataclass
@@ -100,7 +113,9 @@ class Config:
     pose_refine: PoseRefineConfig = field(default_factory=PoseRefineConfig)
 
     def validate(self) -> Config:
-        s, t = self.supervision, self.train
+        s, t, d, sim = self.supervision, self.train, self.densify, self.sim
+        for name, value in _numbers(self):
+            _require(math.isfinite(value), name, value, "a finite number")
         _require(
             s.instant in ("sim", "tfp", "tfi", "clean", "none"),
             "supervision.instant",
@@ -131,32 +146,54 @@ class Config:
             "exposure_weight > 0 when there is no instant target",
         )
         _require(t.iterations >= 1, "train.iterations", t.iterations, ">= 1")
+        _require(0 <= t.seed <= SEED_MAX, "train.seed", t.seed, f"0..{SEED_MAX} (2**64 - 1)")
         _require(0 <= t.sh_degree <= 3, "train.sh_degree", t.sh_degree, "0..3")
-        _require(t.init_gaussians >= 1, "train.init_gaussians", t.init_gaussians, ">= 1")
+        _require(
+            t.init_gaussians >= MIN_GAUSSIANS,
+            "train.init_gaussians",
+            t.init_gaussians,
+            f">= {MIN_GAUSSIANS} (fewer were pruned to an empty scene)",
+        )
         for name in ("eval_every", "checkpoint_every", "log_every"):
             _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")
         for f in dataclasses.fields(self.lr):
             _require(
                 getattr(self.lr, f.name) >= 0, f"lr.{f.name}", getattr(self.lr, f.name), ">= 0"
             )
+        _require(d.start >= 0, "densify.start", d.start, ">= 0")
+        _require(d.stop >= 0, "densify.stop", d.stop, ">= 0 (0: half the run)")
+        _require(d.every >= 1, "densify.every", d.every, ">= 1")
         _require(
-            self.densify.stop >= 0, "densify.stop", self.densify.stop, ">= 0 (0: half the run)"
+            d.opacity_reset_every >= 0,
+            "densify.opacity_reset_every",
+            d.opacity_reset_every,
+            ">= 0 (0: never)",
+        )
+        for name in ("grad_threshold", "percent_dense", "max_screen_size", "max_world_size"):
+            _require(getattr(d, name) >= 0, f"densify.{name}", getattr(d, name), ">= 0")
+        _require(
+            0 <= d.min_opacity < 1,
+            "densify.min_opacity",
+            d.min_opacity,
+            "0 <= min_opacity < 1 (an opacity is below 1: 1 prunes every Gaussian)",
         )
         _require(
-            self.densify.max_gaussians >= t.init_gaussians,
+            d.max_gaussians >= t.init_gaussians,
             "densify.max_gaussians",
-            self.densify.max_gaussians,
+            d.max_gaussians,
             ">= train.init_gaussians",
         )
-        _require(self.sim.window % 2 == 1, "sim.window", self.sim.window, "odd")
+        _require(sim.window >= 1 and sim.window % 2 == 1, "sim.window", sim.window, "odd, >= 1")
         _require(
-            self.sim.target_window == 0
-            or (1 <= self.sim.target_window <= self.sim.window and self.sim.target_window % 2),
+            sim.target_window == 0
+            or (1 <= sim.target_window <= sim.window and sim.target_window % 2),
             "sim.target_window",
-            self.sim.target_window,
+            sim.target_window,
             "0 (the whole window) or an odd number of readouts <= sim.window",
         )
-        _require(self.sim.loss in ("l1", "l2"), "sim.loss", self.sim.loss, "l1 or l2")
+        for name in ("iterations", "crop", "batch"):
+            _require(getattr(sim, name) >= 1, f"sim.{name}", getattr(sim, name), ">= 1")
+        _require(sim.loss in ("l1", "l2"), "sim.loss", sim.loss, "l1 or l2")
         _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")
         return self
 
@@ -180,6 +217,16 @@ class Config:
 def _require(ok: bool, name: str, value, expected: str) -> None:
     if not ok:
         raise ValueError(f"config: {name} = {value!r}, expected {expected}")
+
+
+def _numbers(section, where: str = ""):
+    """('section.key', value) of every float setting of dataclass `section`, nested ones too."""
+    for f in dataclasses.fields(section):
+        value = getattr(section, f.name)
+        if dataclasses.is_dataclass(value):
+            yield from _numbers(value, f"{where}{f.name}.")
+        elif isinstance(value, float):
+            yield f"{where}{f.name}", value
 
 
 def _apply(target, overrides: dict, where: str) -> None:
@@ -210,17 +257,22 @@ def available_methods() -> list[str]:
 
 
 def load_config(name_or_path: str | Path | None = None, overrides: dict | None = None) -> Config:
-    """The configuration of a method name (configs/NAME.yaml) or a YAML file, validated."""
+    """The configuration of a method name (configs/NAME.yaml) or a YAML file (None: the default
+    method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated."""
     config = Config()
-    if name_or_path is not None:
-        _apply(config, _read(name_or_path, set()), "")
+    read = _read(DEFAULT_METHOD if name_or_path is None else name_or_path, set())
+    if "method" not in read:  # a file that names no method, nor does its base: its own name
+        read["method"] = Path(name_or_path).stem
+    _apply(config, read, "")
     if overrides:
         _apply(config, overrides, "")
     return config.validate()
 
 
-def _read(name_or_path: str | Path, seen: set) -> dict:
-    """The overrides of a config file, with its `base` chain resolved (base first)."""
+def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) -> dict:
+    """The overrides of a config file, with its `base` chain resolved (base first); a relative
+    file path is taken from `relative_to` (the including file's directory), else from the
+    current directory."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         path = CONFIG_DIR / f"{name_or_path}.yaml"
@@ -228,15 +280,20 @@ def _read(name_or_path: str | Path, seen: set) -> dict:
             raise ValueError(
                 f"unknown method '{name_or_path}'; known methods: {', '.join(available_methods())}"
             )
+    elif relative_to is not None and not path.is_absolute():
+        path = relative_to / path
     if not path.exists():
         raise FileNotFoundError(f"config file not found: {path}")
+    path = path.resolve()
     if path in seen:
         raise ValueError(f"config: 'base' chain loops at {path}")
     data = yaml.safe_load(path.read_text()) or {}
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping at the top level")
     base = data.pop("base", None)
-    merged = _read(base, seen | {path}) if base else {}
+    if base is not None and (not isinstance(base, str) or not base.strip()):
+        raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
+    merged = _read(base, seen | {path}, path.parent) if base else {}
     _merge(merged, data)
     return merged
 

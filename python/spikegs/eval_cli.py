@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     result = evaluate_run(args.run, dataset, write_images=not args.no_images)
     print(
         f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
-        f"over {len(result['views'])} test views -> {args.run / 'eval.json'}"
+        f"over {len(result['views'])} test views -> {result['file']}"
     )
     pseudo = [name for name in result["views"] if name.startswith("pseudo_")]
     if pseudo:

@@ -31,9 +31,20 @@ def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> di
     return out
 
 
+def eval_name(run_dir: Path, dataset) -> str:
+    """'eval' for the dataset the run was trained on, else 'eval-DATASETNAME' (RUN/NAME.json and
+    RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores."""
+    train = run_dir / "train.json"
+    own = json.loads(train.read_text()).get("dataset") if train.exists() else None
+    root = Path(dataset.root).resolve()
+    return "eval" if own is None or Path(own).resolve() == root else f"eval-{root.name}"
+
+
 def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
-    """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png."""
+    """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
+    (`eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
     run_dir = Path(run_dir)
+    name = eval_name(run_dir, dataset)
     ply = run_dir / "scene.ply"
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
@@ -47,7 +58,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         views[view.name] = view_metrics(pred, gt)
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
-            write_image(run_dir / "eval" / f"{view.name}.png", side)
+            write_image(run_dir / name / f"{view.name}.png", side)
     train = (
         json.loads((run_dir / "train.json").read_text())
         if (run_dir / "train.json").exists()
@@ -55,6 +66,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     )
     result = {
         "method": train.get("method"),
+        "dataset": str(Path(dataset.root).resolve()),
         "psnr": float(np.mean([v["psnr"] for v in views.values()])),
         "ssim": float(np.mean([v["ssim"] for v in views.values()])),
         "train_seconds": train.get("train_seconds"),
@@ -64,5 +76,6 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
         "views": views,
     }
-    (run_dir / "eval.json").write_text(json.dumps(result, indent=2))
+    result["file"] = str(run_dir / f"{name}.json")
+    (run_dir / f"{name}.json").write_text(json.dumps(result, indent=2))
     return result

@@ -27,6 +27,31 @@ from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
 from .targets import build_targets, intensity_scale
 
+CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
+
+
+def _differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
+    """'key: saved -> now' for every setting of two nested config dicts that differs."""
+    out = []
+    for key in sorted(set(saved) | set(now)):
+        a, b = saved.get(key), now.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += _differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} in the run, {b!r} now")
+    return out
+
+
+def _log_from(path: Path, iteration: int):
+    """`path` opened for appending after its records up to `iteration` (those of steps that a
+    resumed run repeats, or all of a run that never checkpointed, are dropped)."""
+    kept = []
+    if iteration > 0 and path.exists():
+        records = [line for line in path.read_text().splitlines() if line.strip()]
+        kept = [line for line in records if json.loads(line)["iteration"] <= iteration]
+    path.write_text("".join(line + "\n" for line in kept))
+    return path.open("a")
+
 
 def _optimizer(
     model: GaussianModel, config: Config, scene_radius: float, poses: PoseRefiner | None = None
@@ -114,13 +139,20 @@ class Trainer:
         torch.save(state, tmp)
         tmp.replace(self.checkpoint_path)  # atomic: a kill mid-save keeps the previous one
 
-    def _load_checkpoint(self) -> None:
+    def _read_checkpoint(self) -> dict:
+        """The last checkpoint's state; ValueError naming every setting that differs from this
+        trainer's configuration (a run resumes only with its own)."""
         state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
-        if state["config"] != self.config.to_dict():
+        changed = _differences(state["config"], self.config.to_dict())
+        if changed:
             raise ValueError(
-                f"{self.checkpoint_path}: saved with another configuration; "
-                "resume with the same method and settings"
+                f"{self.checkpoint_path}: the run was trained with other settings; resume with "
+                f"the same method and settings (or train into another --out). Differing: "
+                + "; ".join(changed)
             )
+        return state
+
+    def _load_checkpoint(self, state: dict) -> None:
         self.model = GaussianModel.from_state_dict(state["model"])
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
@@ -185,6 +217,11 @@ class Trainer:
             loss = loss + s.exposure_weight * exposure_loss(
                 renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
             )
+        if not torch.isfinite(loss):
+            raise FloatingPointError(
+                f"iteration {self.iteration}: the loss is {loss.item()}; stopped before the update "
+                f"(the last checkpoint is kept). Lower the learning rates or loss weights"
+            )
         loss.backward()
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
@@ -206,9 +243,11 @@ class Trainer:
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
         t = self.config.train
-        if resume:
+        state = None
+        if resume:  # everything checked before any work or any write
             if not self.checkpoint_path.exists():
                 raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+            state = self._read_checkpoint()
         elif self.checkpoint_path.exists():
             raise FileExistsError(f"{self.run_dir} already holds a run; pass resume or another dir")
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -217,10 +256,11 @@ class Trainer:
         )
         self.targets = build_targets(self.dataset, self.config, self.progress)
         if resume:
-            self._load_checkpoint()
+            self._load_checkpoint(state)
         else:
             self._fresh_state()
-        log = (self.run_dir / "log.jsonl").open("a")
+        log = _log_from(self.run_dir / "log.jsonl", self.iteration)
+        saved_at = time.perf_counter()
         bar = tqdm(
             total=t.iterations,
             initial=self.iteration,
@@ -256,8 +296,9 @@ class Trainer:
                         n=len(self.model),
                         s=f"{self.train_seconds:.0f}",
                     )
-                if it % t.checkpoint_every == 0:
+                if it % t.checkpoint_every == 0 or time.perf_counter() - saved_at > CHECKPOINT_S:
                     self.save_checkpoint()
+                    saved_at = time.perf_counter()
                 bar.update(1)
         except KeyboardInterrupt:
             self.save_checkpoint()  # Ctrl-C loses nothing: resume continues from here

@@ -7,7 +7,9 @@ outside the timed steps. SIM is trained once per scene (cached with the dataset)
 the methods that use it; its training time is reported separately and counts for those methods:
 their curves start at their SIM time. `oracle` (config oracle.yaml) trains on the simulator's clean
 instant images: its gain over TFP(33) is the most that any instant target can give at this
-schedule. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png.
+schedule. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png. By default it trains
+METHODS (QUICK_METHODS when quick); `methods` may name any method of configs/ (the variant sim17
+is not in the default set).
 
 With `seeds` > 1 every run is repeated with train.seed = 0 .. seeds-1 (SIM retrained for each:
 its training is part of a method's randomness): scores and times are means over the seeds, with
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import Config, load_config
+from ..config import Config, available_methods, load_config
 from ..data import load_dataset, simulate_dataset
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
@@ -249,15 +251,17 @@ def selection(
     methods: Sequence[str] | None = None,
     seeds: int = 1,
 ) -> tuple[list[str], list[str]]:
-    """The scenes and methods a run trains (defaults filled in); ValueError naming what is
-    unknown, with the known ones, before any work starts."""
+    """The scenes and methods a run trains (defaults filled in: METHODS, or QUICK_METHODS when
+    quick; any method of configs/ may be named, e.g. the variant sim17); ValueError naming what
+    is unknown, with the known ones, before any work starts."""
     scenes = list(scenes or ([HEADLINE_SCENE] if quick else SCENES))
     methods = list(methods or (QUICK_METHODS if quick else METHODS))
-    unknown = [s for s in scenes if s not in SCENES] + [m for m in methods if m not in METHODS]
+    known = [*METHODS, *(m for m in available_methods() if m not in METHODS)]
+    unknown = [s for s in scenes if s not in SCENES] + [m for m in methods if m not in known]
     if unknown or seeds < 1:
         raise ValueError(
             f"bench train: unknown {', '.join(unknown) or f'seeds {seeds}'}; scenes: "
-            f"{', '.join(SCENES)}; methods: {', '.join(METHODS)}; seeds >= 1"
+            f"{', '.join(SCENES)}; methods: {', '.join(known)}; seeds >= 1"
         )
     return scenes, methods
 
