@@ -465,3 +465,10 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
     assert other["file"] == str(tmp_path / "run" / "eval-copy.json")
     assert other["dataset"] == str((tmp_path / "copy").resolve()) != own["dataset"]
+
+
+def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
+    overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    with pytest.raises(RuntimeError, match="pruning removed every Gaussian"):
+        trainer.train()

@@ -228,6 +228,12 @@ class Trainer:
         # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
         self.densifier.observe(radii, screen.grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
+        if len(self.model) == 0:
+            raise RuntimeError(
+                f"iteration {self.iteration}: pruning removed every Gaussian (densify.min_opacity "
+                f"{self.config.densify.min_opacity}, size caps); start from more Gaussians or "
+                f"prune less"
+            )
         return loss.item()
 
     # -- the loop ------------------------------------------------------------------------------
