@@ -86,3 +86,20 @@ def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tm
     )  # fmt: skip
     with pytest.raises(ValueError, match="built-in scene.*mitsuba"):
         build_targets(moved, load_config("oracle"), progress=False)
+
+
+@pytest.mark.parametrize(
+    "method, overrides, name",
+    [
+        ("tfp33", {"supervision": {"instant_window": 67}}, "supervision.instant_window = 67"),
+        ("spikegs", {"supervision": {"exposure_window": 301}}, "supervision.exposure_window"),
+        ("spikegs", {"sim": {"window": 67}}, "sim.window = 67"),
+    ],
+)
+def test_windows_longer_than_the_room_around_the_timestamps_refused_first(
+    dataset, monkeypatch, method, overrides, name
+):
+    monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("trained"))
+    with pytest.raises(ValueError, match=f"{name}.*at most 65"):
+        build_targets(dataset, load_config(method, overrides), progress=False)
+    build_targets(dataset, load_config("tfp65"), progress=False)  # 65 fits

@@ -472,3 +472,13 @@ def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     with pytest.raises(RuntimeError, match="pruning removed every Gaussian"):
         trainer.train()
+
+
+def test_eval_of_a_run_whose_dataset_is_gone_says_to_pass_one(dataset, tmp_path, capsys):
+    shutil.copytree(dataset.root, tmp_path / "data")
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(load_dataset(tmp_path / "data"), config, tmp_path / "run", progress=False).train()
+    shutil.rmtree(tmp_path / "data")
+    assert main(["eval", str(tmp_path / "run")]) == 2
+    assert "pass --dataset" in capsys.readouterr().err
+    assert main(["eval", str(tmp_path / "run"), "--dataset", str(dataset.root)]) == 0

@@ -20,7 +20,10 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     train = run_dir / "train.json"
     if not train.exists():
         raise FileNotFoundError(f"{train} not found: is {run_dir} a finished run?")
-    return Path(json.loads(train.read_text())["dataset"])
+    own = Path(json.loads(train.read_text())["dataset"])
+    if not own.is_dir():
+        raise FileNotFoundError(f"the run's dataset {own} is gone: pass --dataset DIR")
+    return own
 
 
 def run(args: argparse.Namespace) -> int:

@@ -143,11 +143,30 @@ def clean_images(dataset, quantum: float) -> TargetImages:
     return TargetImages(ts, render, 1.0, quantum)
 
 
+def _check_windows(dataset, config: Config) -> None:
+    """ValueError naming the setting whose window, centred on a training timestamp, would reach
+    past the stream (before any work: SIM training, target images)."""
+    s, ts, n = config.supervision, np.asarray(dataset.train_timestamps), len(dataset.streams[0])
+    windows = {"sim.window": config.sim.window} if s.instant == "sim" else {}
+    if s.instant == "tfp":
+        windows["supervision.instant_window"] = s.instant_window
+    if s.exposure_weight > 0:
+        windows["supervision.exposure_window"] = s.exposure_window
+    room = min(int(ts.min()), n - 1 - int(ts.max()))  # readouts beside the outermost timestamps
+    for name, w in windows.items():
+        if ts.min() < w // 2 or ts.max() > n - w + w // 2:  # TFP(k, w) covers k - w//2 .. + w
+            raise ValueError(
+                f"config: {name} = {w} readouts does not fit around the training timestamps of "
+                f"{dataset.root} ({ts.min()}..{ts.max()} of {n} readouts): at most {2 * room + 1}"
+            )
+
+
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     """Instant and exposure targets of `config`'s method at the dataset's training timestamps
     (SIM trained, or loaded from its cache, now; the images themselves on first use)."""
     s = config.supervision
     ts = np.asarray(dataset.train_timestamps)
+    _check_windows(dataset, config)
     scale = intensity_scale(dataset)
     streams = dataset.streams  # [C] SpikeStreams, one per channel
 
