@@ -80,9 +80,6 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
   const int64_t H = height_, W = width_, hw = H * W, row_bytes = (W + 7) / 8;
   const int64_t next_frame = num_frames > 1 ? hw : 0;
   const float gain = float(params_.threshold * params_.rate_at_one);
-  // A charge of a million thresholds a readout fires every readout, as any larger one does; capped
-  // there, it stays finite for any finite light (else inf - inf = NaN through the shot noise).
-  const float max_charge = float(1e6 * params_.threshold);
   const float shot = params_.shot_noise ? 1.0f : 0.0f;
   const float tsig = float(params_.temporal_sigma);
   const uint64_t key = key_;
@@ -104,7 +101,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
         for (int64_t x = 0; x < W; ++x) {
           const NormalPair z = normal_pair(random_bits(key, counter0 + uint64_t(x)));
           const float light = std::max(i0[x] + a * (i1[x] - i0[x]), 0.0f);
-          const float mu = std::min(gain * light, max_charge) + dark[x];
+          const float mu = gain * light + dark[x];
           const float th = theta[x], vx = v[x] + mu + shot * std::sqrt(mu) * z.z0;
           const bool fire = vx >= th * (1.0f + tsig * z.z1);
           v[x] = fire ? std::min(vx - th, th) : vx;

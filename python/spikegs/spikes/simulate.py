@@ -138,13 +138,18 @@ def simulate_spikes(
     frames = _Frames(source, num_readouts, frame_times, frame_every)
     height, width = frames.shape
     params = params or SimParams()
-    sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed) % 2**64)
+    sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed) % 2**64)  # validates
+    # A million times the light that fires every readout fires every readout, as any more does;
+    # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)
+    saturated = np.float32(1e6 / params.rate_at_one)
     writer = DatWriter(out, height, width, flip) if out is not None else None
     packed = None if writer else np.empty((num_readouts, height, (width + 7) // 8), np.uint8)
     try:
         for t0 in range(0, num_readouts, chunk):
             t1 = min(t0 + chunk, num_readouts)
-            spikes = sim.run(*frames.covering(t0, t1), t1 - t0)  # [n, H, ceil(W/8)]
+            light, times = frames.covering(t0, t1)  # [f, H, W] (a new array), [f]
+            np.minimum(light, saturated, out=light)
+            spikes = sim.run(light, times, t1 - t0)  # [n, H, ceil(W/8)]
             if writer:
                 writer.write_packed(spikes)
             else:
