@@ -82,14 +82,21 @@ class Dataset:
         )
 
 
-def holds_dataset(out: Path) -> bool:
-    """Whether `out` holds (a part of) a dataset."""
-    names = [META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3)]
-    return any((out / n).exists() for n in names)
-
-
+PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
 DERIVED = ("test", "sim", "sfm", "points3d.ply", f"{TRAJECTORY}.bak", TIMESTAMPS)
+
+
+def holds_dataset(out: Path) -> bool:
+    """Whether `out` holds (a part of) a dataset."""
+    return any((out / n).exists() for n in PARTS)
+
+
+def near_held_out(timestamps: np.ndarray, held_out: np.ndarray) -> np.ndarray:
+    """[M] whether each training timestamp's 65-readout window reaches an on-path held-out
+    view's (readouts `held_out` [V]): its spikes would be trained on."""
+    gaps = np.abs(np.asarray(timestamps)[:, None] - np.asarray(held_out)[None, :])  # [M, V]
+    return (gaps <= 2 * WINDOW_MARGIN).any(axis=1)
 
 
 def check_output(out: PathLike, overwrite: bool) -> Path:
@@ -100,7 +107,7 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
         raise FileExistsError(f"output {out} exists and is not a directory")
     if out.is_dir() and holds_dataset(out) and not overwrite:
         raise FileExistsError(f"{out} already holds a dataset; pass --overwrite to replace it")
-    parts = {META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), *DERIVED}
+    parts = {*PARTS, *DERIVED}
     others = sorted(p.name for p in out.iterdir() if p.name not in parts) if out.is_dir() else []
     if others:
         raise FileExistsError(
@@ -276,7 +283,7 @@ def _check_held_out(views: list[TestView], timestamps: np.ndarray, num: int, roo
                 f"{root / TEST_VIEWS}: view '{view.name}' at readout {view.readout}, outside the "
                 f"stream's [0, {num - 1}]"
             )
-        near = timestamps[np.abs(timestamps - view.readout) <= 2 * WINDOW_MARGIN]
+        near = timestamps[near_held_out(timestamps, [view.readout])]
         if near.size:
             raise ValueError(
                 f"{root / TIMESTAMPS}: training readouts {near[:5].tolist()} lie within "

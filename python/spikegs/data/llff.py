@@ -31,6 +31,7 @@ from .real import (
     views_dataset,
 )
 from .real_options import OPTIONS_FILE, open_spikes, read_options
+from .sources import centre_of_view, optical_axes
 from .trajectory import PathLike
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
@@ -102,11 +103,9 @@ def llff_sphere(
     (loose far bounds): set scene_center and scene_radius in spikegs.json then."""
     far = np.minimum(bounds[:, 1], np.percentile(bounds[:, 1], 90))
     center, radius = frustum_sphere(viewmats, np.stack([bounds[:, 0], far], 1), K, width, height)
-    c2w = np.linalg.inv(viewmats)  # [N, 4, 4]
-    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [N, 3] each
-    proj = np.eye(3) - dirs[:, :, None] * dirs[:, None, :]  # [N, 3, 3]
+    eyes, dirs, proj = optical_axes(viewmats)  # [N, 3], [N, 3], [N, 3, 3]
     if np.linalg.eigvalsh(proj.mean(0))[0] >= CONVERGING:
-        axes = np.linalg.lstsq(proj.sum(0), np.einsum("nij,nj->i", proj, eyes), rcond=None)[0]
+        axes = centre_of_view(viewmats)[0]
         in_front = np.einsum("ni,ni->n", axes - eyes, dirs) > 0
         reach = np.linalg.norm(eyes - axes, axis=1) - bounds[:, 0]  # [N]
         if in_front.all() and reach.max() > 0:

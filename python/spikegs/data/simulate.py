@@ -19,6 +19,7 @@ from .dataset import (
     check_output,
     check_test_views,
     load_dataset,
+    near_held_out,
     prepare_output,
     spike_files,
     write_parts,
@@ -83,10 +84,7 @@ def train_timestamps(num_readouts: int, held_out: np.ndarray, every: int) -> np.
     """Readouts [M] every `every` within [32, T - 33] (a 65-readout window fits), keeping 65-readout
     windows clear of each held-out on-path readout."""
     ks = np.arange(WINDOW_MARGIN, num_readouts - WINDOW_MARGIN, every)  # [M]
-    if len(held_out):
-        near = np.abs(ks[:, None] - np.asarray(held_out)[None, :]) <= 2 * WINDOW_MARGIN
-        ks = ks[~near.any(axis=1)]
-    return ks.astype(np.int64)
+    return ks[~near_held_out(ks, held_out)].astype(np.int64)
 
 
 def write_spikes(

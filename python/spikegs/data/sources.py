@@ -338,12 +338,18 @@ class FrameSequenceSource(Source):
         return self._test_views[:count]
 
 
+def optical_axes(viewmats: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Camera centres [F, 3], view directions [F, 3] and the projections I - d d^T [F, 3, 3]
+    across each optical axis, of world-to-camera viewmats [F, 4, 4]."""
+    c2w = np.linalg.inv(viewmats)  # [F, 4, 4]
+    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [F, 3] each
+    return eyes, dirs, np.eye(3) - dirs[:, :, None] * dirs[:, None, :]
+
+
 def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
     """The point [3] nearest to all optical axes, and the mean camera distance to it / 2.5
     (the scene radius that the spiral sources see from their distance of 2.5 radii)."""
-    c2w = np.linalg.inv(viewmats)  # [F, 4, 4]
-    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [F, 3] each
-    proj = np.eye(3) - dirs[:, :, None] * dirs[:, None, :]  # [F, 3, 3]
+    eyes, _, proj = optical_axes(viewmats)
     center = np.linalg.lstsq(proj.sum(0), np.einsum("fij,fj->i", proj, eyes), rcond=None)[0]
     return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
 
