@@ -32,7 +32,7 @@ CONFIG_DIR = next(
     (p for p in (_PACKAGE_DIR / "configs", _PACKAGE_DIR.parents[1] / "configs") if p.is_dir()),
     _PACKAGE_DIR / "configs",
 )
-DEFAULT_METHOD = "spikegs"  # what no config file, or one without `base`, starts from
+DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000

@@ -31,20 +31,22 @@ def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> di
     return out
 
 
-def eval_name(run_dir: Path, dataset) -> str:
-    """'eval' for the dataset the run was trained on, else 'eval-DATASETNAME' (RUN/NAME.json and
-    RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores."""
-    train = run_dir / "train.json"
-    own = json.loads(train.read_text()).get("dataset") if train.exists() else None
+def _eval_name(train: dict, dataset) -> str:
+    """'eval' for the dataset the run was trained on (`train`: its train.json), else
+    'eval-DATASETNAME' (RUN/NAME.json and RUN/NAME/*.png), so that scoring another dataset keeps
+    the run's own scores."""
+    own = train.get("dataset")
     root = Path(dataset.root).resolve()
     return "eval" if own is None or Path(own).resolve() == root else f"eval-{root.name}"
 
 
 def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
-    (`eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
+    (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
     run_dir = Path(run_dir)
-    name = eval_name(run_dir, dataset)
+    summary = run_dir / "train.json"
+    train = json.loads(summary.read_text()) if summary.exists() else {}
+    name = _eval_name(train, dataset)
     ply = run_dir / "scene.ply"
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
@@ -59,11 +61,6 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(run_dir / name / f"{view.name}.png", side)
-    train = (
-        json.loads((run_dir / "train.json").read_text())
-        if (run_dir / "train.json").exists()
-        else {}
-    )
     result = {
         "method": train.get("method"),
         "dataset": str(Path(dataset.root).resolve()),

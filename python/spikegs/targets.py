@@ -20,6 +20,7 @@ import torch
 
 from .config import Config, SimConfig
 from .sim_train import fast_inference_model, predict, train_or_load
+from .spikes.stream import centred_range
 
 
 class TargetImages:
@@ -154,7 +155,8 @@ def _check_windows(dataset, config: Config) -> None:
         windows["supervision.exposure_window"] = s.exposure_window
     room = min(int(ts.min()), n - 1 - int(ts.max()))  # readouts beside the outermost timestamps
     for name, w in windows.items():
-        if ts.min() < w // 2 or ts.max() > n - w + w // 2:  # TFP(k, w) covers k - w//2 .. + w
+        lo, hi = centred_range(n, w)
+        if ts.min() < lo or ts.max() > hi:
             raise ValueError(
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
                 f"{dataset.root} ({ts.min()}..{ts.max()} of {n} readouts): at most {2 * room + 1}"

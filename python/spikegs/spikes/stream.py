@@ -40,6 +40,12 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
     return arr.astype(np.int64).reshape(-1), arr.ndim == 0
 
 
+def centred_range(length: int, w: int) -> tuple[int, int]:
+    """[lo, hi]: the readouts k whose window of `w` (k - w//2 .. k - w//2 + w - 1) lies in a
+    stream of `length` readouts."""
+    return w // 2, length - w + w // 2
+
+
 def _frame_count(num_bytes: int, layout: _C.SpikeLayout, what: str) -> int:
     """Readouts in `num_bytes` bytes; ValueError unless a whole number of frames."""
     fb = layout.frame_bytes
@@ -128,8 +134,8 @@ class SpikeStream:
         if int(w) != w or w < 1:
             raise ValueError(f"window length expected a positive int, found {w}")
         w = int(w)
-        lo, hi = w // 2, len(self) - w + w // 2  # k's range (compared before any arithmetic on
-        bad = np.flatnonzero((ks < lo) | (ks > hi))  # k, which could overflow int64)
+        lo, hi = centred_range(len(self), w)  # compared before any arithmetic on k (overflow)
+        bad = np.flatnonzero((ks < lo) | (ks > hi))
         if bad.size:
             k = int(ks[bad[0]])
             raise ValueError(
