@@ -23,12 +23,12 @@ void copy_bits(const uint8_t* src, int64_t src_bit, uint8_t* dst, int64_t dst_bi
     if (get_bit(src, src_bit + i)) set_bit(dst, dst_bit + i);
 }
 
+}  // namespace
+
 void check_range(const PackedStream& s, int64_t t0, int64_t n) {
   if (n < 0 || t0 < 0 || t0 > s.num_frames - n)  // t0 + n could overflow
     fail(n, " readouts from ", t0, " expected within the stream's [0, ", s.num_frames, ")");
 }
-
-}  // namespace
 
 void SpikeLayout::validate() const {
   if (height < 1 || width < 1) fail("height and width expected >= 1, found ", height, "x", width);

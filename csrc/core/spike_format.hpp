@@ -44,6 +44,8 @@ struct PackedStream {
   static PackedStream over(const uint8_t* data, int64_t num_bytes, const SpikeLayout& layout);
 };
 
+// std::invalid_argument unless readouts [t0, t0+n) lie in `s` (n >= 0; no overflow).
+void check_range(const PackedStream& s, int64_t t0, int64_t n);
 // Readouts [t0, t0+n) of `s` as 0/1 bytes: out [n, H, W].
 void unpack_frames(const PackedStream& s, int64_t t0, int64_t n, uint8_t* out);
 // bits [n, H, W] (nonzero = spike) into n frames of `layout` (padding bits zero): out [n,

@@ -5,8 +5,8 @@
 #include <immintrin.h>
 #endif
 #include <cstring>
-#include <sstream>
-#include <stdexcept>
+
+#include "core/errors.hpp"
 
 namespace spikegs {
 namespace {
@@ -19,13 +19,6 @@ using Lanes = uint64_t __attribute__((vector_size(8 * kLaneWords)));
 constexpr int kMaxPlanes = 8;  // bit-sliced counters count up to 255
 constexpr int64_t kMaxBlock = (1 << kMaxPlanes) - 1;
 constexpr int64_t kMaxInterval = int64_t(1) << 30;
-
-template <typename... Args>
-[[noreturn]] void fail(const Args&... args) {
-  std::ostringstream os;
-  (os << ... << args);
-  throw std::invalid_argument(os.str());
-}
 
 // The bytes [byte0, byte0 + nbytes) of every frame that one task handles.
 struct Chunk {
@@ -170,10 +163,7 @@ template <typename Out>
 void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out scale,
                    Out* out) {
   if (w < 1) fail("window length expected >= 1, found ", w);
-  for (int64_t i = 0; i < num; ++i)
-    if (starts[i] < 0 || starts[i] > s.num_frames - w)  // starts[i] + w could overflow
-      fail("window of ", w, " readouts from ", starts[i], " expected within the stream's [0, ",
-           s.num_frames, ")");
+  for (int64_t i = 0; i < num; ++i) check_range(s, starts[i], w);
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width;
 #pragma omp parallel for schedule(dynamic, 4)
