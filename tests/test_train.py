@@ -99,19 +99,7 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
     whole = Trainer(dataset, config, tmp_path / "whole", progress=False)
     whole.train()
 
-    interrupted = Trainer(dataset, config, tmp_path / "cut", progress=False)
-    step = Trainer.step
-
-    def step_then_interrupt(self):
-        loss = step(self)
-        if self.iteration == 37:
-            raise KeyboardInterrupt
-        return loss
-
-    monkeypatch.setattr(Trainer, "step", step_then_interrupt)
-    with pytest.raises(KeyboardInterrupt):
-        interrupted.train()
-    monkeypatch.setattr(Trainer, "step", step)
+    _train_until(dataset, config, tmp_path / "cut", 37, monkeypatch, KeyboardInterrupt)
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
     for name, value in whole.model.params.items():
