@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +105,21 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)
     for view in ds.test_views:
         np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
+
+
+def test_data_that_defeats_every_method_is_flagged(tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the default data: no warning
+        simulate_dataset("solids", tmp_path / "default", **SMALL)
+    cases = [
+        ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0.04"),
+        ("solids", {"speed": 1.0}, "the camera turns up to 32° in 33 readouts"),
+        ("solids", {"speed": 90.0}, "turns up to 2880°"),  # not the 0° between the ends
+        (constant_source(5.0), {"height": 16, "width": 16}, "100% of the held-out views' pixels fire every readout"),
+    ]
+    for i, (scene, options, message) in enumerate(cases):
+        with pytest.warns(UserWarning, match=message):
+            simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})
 
 
 def test_negative_view_counts_refused(tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,12 @@ DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
 DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), linear between
 MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
+# Data that every method fails on gets a warning before simulating: more of the held-out views'
+# pixels saturated than this fraction, dark spikes at this fraction of the light's mean rate, a
+# TFP window of this many readouts turning the camera by more than this many degrees.
+SATURATED_FRACTION = 0.01
+DARK_FRACTION = 0.1
+BLUR_WINDOW, BLUR_DEGREES = 33, 15.0
 
 
 def clean_source(dataset: Dataset) -> Source:
@@ -45,6 +52,42 @@ def clean_source(dataset: Dataset) -> Source:
             f"{kind or 'not simulated'} '{scene}'"
         )
     return make_source(scene, dataset.width, dataset.height, dataset.channels)
+
+
+def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
+    """UserWarnings where the data to be simulated would defeat every method: light that
+    saturates the camera, dark spikes rivalling the light, or a camera that turns so fast that a
+    TFP window blurs. `views`' images are in firing-rate units (spikes per readout)."""
+    rates = np.concatenate([np.ravel(v.image) for v in views])
+    saturated = float(np.mean(rates >= 1.0))
+    if saturated > SATURATED_FRACTION:
+        warnings.warn(
+            f"{saturated:.0%} of the held-out views' pixels fire every readout (intensity >= "
+            f"1/rate_at_one = {1 / params.rate_at_one:.3g}): the camera saturates and their "
+            f"intensity is lost; lower rate_at_one",
+            stacklevel=3,
+        )
+    mean = float(rates.mean())
+    if params.dark_rate >= DARK_FRACTION * mean:
+        warnings.warn(
+            f"dark_rate {params.dark_rate:g} spikes per readout against a mean light rate of "
+            f"{mean:.3g} in the held-out views: dark spikes will bury the scene's darker parts",
+            stacklevel=3,
+        )
+    # the turn summed readout by readout over 16 windows along the path (a turn of more than
+    # 180° between a window's ends would otherwise read as a small one)
+    starts = np.linspace(trajectory.start, max(trajectory.end - BLUR_WINDOW + 1, 0.0), 16)
+    times = np.minimum(starts[:, None] + np.arange(BLUR_WINDOW), trajectory.end)  # [16, w]
+    rot = trajectory.pose_at(times.ravel())[:, :3, :3].reshape(*times.shape, 3, 3)
+    cos = (np.einsum("nkij,nkij->nk", rot[:, 1:], rot[:, :-1]) - 1) / 2  # tr(Rb Ra^T) = 1+2cos
+    degrees = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).sum(1).max())
+    if degrees > BLUR_DEGREES:
+        warnings.warn(
+            f"the camera turns up to {degrees:.0f}° in {BLUR_WINDOW} readouts: TFP and SIM "
+            f"images will be motion-blurred and held-out views far from any training timestamp; "
+            f"slow the camera (speed) or add readouts",
+            stacklevel=3,
+        )
 
 
 def make_source(
@@ -181,6 +224,7 @@ def simulate_dataset(
         for name, viewmat, image in source.off_path_views(test_off_path)
     ]
     check_test_views(views, f"scene '{source.name}'")  # before any work
+    warn_about_data(views, trajectory, params)
     out = prepare_output(out, overwrite)
     times = source.light_times(readouts, frame_every)  # [F]
     write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
