@@ -134,3 +134,17 @@ def test_bad_input_refused():
     for chunk in (0, -1, 2.5):
         with pytest.raises(ValueError, match="chunk"):
             simulate_spikes(frames, 10, chunk=chunk)
+
+
+def test_sim_params_of_the_wrong_type_are_named():
+    for fields, message in (
+        ({"threshold": "100"}, "threshold: expected a number, found '100'"),
+        ({"dark_rate": None}, "dark_rate: expected a number, found None"),
+        ({"rate_at_one": True}, "rate_at_one: expected a number, found True"),
+        ({"shot_noise": "yes"}, "shot_noise: expected True or False, found 'yes'"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            SimParams(**fields)
+    params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
+    assert (params.threshold, params.shot_noise) == (50.0, False)
+    assert type(params.threshold) is float and type(params.shot_noise) is bool

@@ -164,3 +164,17 @@ def test_bad_shapes_refused(tmp_path):
         save_dat(tmp_path / "x.dat", np.zeros((2, 8), np.uint8))
     with pytest.raises(ValueError, match="chunk"):
         save_dat(tmp_path / "x.dat", np.zeros((2, 2, 8), np.uint8), chunk=0)
+    path = tmp_path / "sizes.dat"
+    save_dat(path, np.zeros((3, 4, 16), np.uint8))
+    assert len(SpikeStream.open(path, np.int64(4), 16)) == 3  # numpy integers are sizes
+    for sizes, message in (
+        ((4.0, 16), "height: expected an int, found 4.0"),
+        ((4, "16"), "width: expected an int, found '16'"),
+        ((True, 16), "height: expected an int, found True"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            SpikeStream.open(path, *sizes)
+    with pytest.raises(ValueError, match="raw_width: expected an int, found 16.5"):
+        SpikeStream.open(path, 4, 16, raw_width=16.5)
+    with pytest.raises(ValueError, match="width: expected an int, found 13.0"):
+        SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13.0)

@@ -11,6 +11,7 @@ Deterministic for a seed, whatever the thread count or chunk size.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from typing import Callable, Union
 
 import numpy as np
@@ -34,6 +35,21 @@ class SimParams:
     temporal_sigma: float = _CORE_DEFAULTS.temporal_sigma  # threshold noise per readout (rel.)
     shot_noise: bool = _CORE_DEFAULTS.shot_noise  # photon shot noise on the charge
     random_init: bool = _CORE_DEFAULTS.random_init  # initial voltage uniform in [0, θ_i)
+
+    def __post_init__(self):
+        """ValueError naming a field of the wrong type (ranges are the core's to check)."""
+        for field in dataclasses.fields(self):
+            value, flag = getattr(self, field.name), field.type in (bool, "bool")
+            if flag:
+                if not isinstance(value, (bool, np.bool_)):
+                    raise ValueError(
+                        f"SimParams {field.name}: expected True or False, found {value!r}"
+                    )
+                setattr(self, field.name, bool(value))
+            else:
+                if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+                    raise ValueError(f"SimParams {field.name}: expected a number, found {value!r}")
+                setattr(self, field.name, float(value))
 
     def to_core(self) -> _C.SimParams:
         core = _C.SimParams()

@@ -14,6 +14,7 @@ last readout, reads 1/max_interval: never inf or NaN.
 
 from __future__ import annotations
 
+import numbers
 import os
 from pathlib import Path
 from typing import Union
@@ -38,6 +39,15 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
             f"of shape {arr.shape}" + (f" ({arr.tolist()})" if arr.size < 5 else "")
         )
     return arr.astype(np.int64).reshape(-1), arr.ndim == 0
+
+
+def as_ints(**values) -> list[int]:
+    """`values` (sizes, offsets) as ints, in order; ValueError naming one that is not an integer
+    (numpy integers are; ranges are the core's to check)."""
+    for name, value in values.items():
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+            raise ValueError(f"{name}: expected an int, found {value!r}")
+    return [int(value) for value in values.values()]
 
 
 def centred_range(length: int, w: int) -> tuple[int, int]:
@@ -82,7 +92,11 @@ class SpikeStream:
         """Memory-map a .dat file; `raw_width` stored pixels per row, of which columns
         [col_offset, col_offset + width) are kept (raw camera files with extra columns)."""
         path = Path(path)
-        layout = _C.SpikeLayout.dat(height, width, flip, raw_width or 0, col_offset)
+        raw = 0 if raw_width is None else raw_width
+        height, width, raw, col_offset = as_ints(
+            height=height, width=width, raw_width=raw, col_offset=col_offset
+        )
+        layout = _C.SpikeLayout.dat(height, width, bool(flip), raw, col_offset)
         size = path.stat().st_size
         _frame_count(size, layout, str(path))
         data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
@@ -100,6 +114,7 @@ class SpikeStream:
             )
         height = packed.shape[1] if height is None else height
         width = 8 * packed.shape[2] if width is None else width
+        height, width = as_ints(height=height, width=width)
         if packed.shape[1:] != (height, (width + 7) // 8):
             raise ValueError(
                 f"packed expected [T, {height}, {(width + 7) // 8}] for {height}x{width} frames, "
@@ -188,7 +203,8 @@ class DatWriter:
 
     def __init__(self, path: PathLike, height: int, width: int, flip: bool = True):
         self.path = Path(path)
-        self._layout = _C.SpikeLayout.dat(height, width, flip)
+        height, width = as_ints(height=height, width=width)
+        self._layout = _C.SpikeLayout.dat(height, width, bool(flip))
         self._memory = _C.SpikeLayout.memory(height, width)
         self._file = open(self.path, "wb")
 
