@@ -115,7 +115,11 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0.04"),
         ("solids", {"speed": 1.0}, "the camera turns up to 32° in 33 readouts"),
         ("solids", {"speed": 90.0}, "turns up to 2880°"),  # not the 0° between the ends
-        (constant_source(5.0), {"height": 16, "width": 16}, "100% of the held-out views' pixels fire every readout"),
+        (
+            constant_source(5.0),
+            {"height": 16, "width": 16},
+            "100% of the held-out views' pixels fire every readout",
+        ),
     ]
     for i, (scene, options, message) in enumerate(cases):
         with pytest.warns(UserWarning, match=message):

@@ -511,6 +511,12 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.1))
     with pytest.warns(UserWarning, match="distortion \\{'k1': 0.1\\} ignored.*pinhole"):
         load_dataset(root)
+    for value in ("abc", None, float("nan"), True):
+        edit_json(
+            root / "transforms_train.json", lambda doc, v=value: doc["frames"][0].update(fl_x=v)
+        )
+        with pytest.raises(ValueError, match="transforms_train.json: fl_x expected a finite nu"):
+            load_dataset(root)
 
 
 # -- training end to end ---------------------------------------------------------------------------

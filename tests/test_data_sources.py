@@ -111,6 +111,15 @@ def test_frame_sequence_missing_image(tmp_path):
     )
     with pytest.raises(FileNotFoundError, match="r_0"):
         FrameSequenceSource.from_transforms(path, 8, 8)
+    train_dir = tmp_path / "train"
+    train_dir.mkdir()
+    write_image(train_dir / "r_0.png", np.zeros((8, 8, 3), np.float32))
+    for key, value in (("camera_angle_x", "wide"), ("fl_x", [1, 2]), ("cx", None)):
+        doc = json.loads(path.read_text())
+        doc.update({key: value} if key != "cx" else {"fl_x": 10.0, "cx": value})
+        path.write_text(json.dumps(doc))
+        with pytest.raises(ValueError, match=f"transforms.json: {key} expected a finite number"):
+            FrameSequenceSource.from_transforms(path, 8, 8)
 
 
 def test_mitsuba_missing_says_how_to_install(monkeypatch):

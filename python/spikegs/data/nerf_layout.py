@@ -26,7 +26,14 @@ import skimage.transform
 from .dataset import Dataset, read_json
 from .real import camera_meta, held_out, rigid_c2w, scene_sphere, views_dataset
 from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
-from .sources import OPENGL_TO_OPENCV, centre_of_view, read_frame, to_channels
+from .sources import (
+    OPENGL_TO_OPENCV,
+    camera_matrix,
+    camera_number,
+    centre_of_view,
+    read_frame,
+    to_channels,
+)
 from .trajectory import PathLike
 
 SPIKE_DIR = "spike_data"
@@ -135,14 +142,15 @@ def _camera(docs: list, frames: list, sources: list) -> dict:
         for doc, frame in zip(docs, frames)
     ]
     for i, camera in enumerate(cameras):
+        cameras[i] = camera = {k: camera_number(sources[i], k, v) for k, v in camera.items()}
         if camera.keys() != cameras[0].keys() or not np.allclose(
-            [float(camera[k]) for k in camera], [float(cameras[0][k]) for k in camera], rtol=1e-6
+            [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
         ):
             raise ValueError(
                 f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics {camera}, frame "
                 f"'{frames[0]['file_path']}' of {sources[0]} {cameras[0]}: one camera expected"
             )
-    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if float(cameras[0].get(k, 0)) != 0}
+    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
     if distortion:
         warnings.warn(
             f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
@@ -150,23 +158,6 @@ def _camera(docs: list, frames: list, sources: list) -> dict:
             stacklevel=3,
         )
     return cameras[0]
-
-
-def _intrinsics(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
-    """K [3, 3] of the camera's intrinsics for images of `src` (h, w), scaled to `size` (h, w)."""
-    (src_h, src_w), (height, width) = src, size
-    if "fl_x" in doc:
-        fx, fy = float(doc["fl_x"]), float(doc.get("fl_y", doc["fl_x"]))
-    elif "camera_angle_x" in doc:
-        fx = fy = src_w / 2 / np.tan(float(doc["camera_angle_x"]) / 2)
-    else:
-        raise ValueError(
-            f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
-            f"in every frame)"
-        )
-    cx, cy = float(doc.get("cx", src_w / 2)), float(doc.get("cy", src_h / 2))
-    sx, sy = width / src_w, height / src_h
-    return np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
 
 
 def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple, tuple]:
@@ -238,7 +229,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 + (", and no sharp image either" if is_test else "")
             )
     src, (height, width) = _sizes(path, camera, images, options)
-    K = _intrinsics(path, camera, src, (height, width))
+    K = camera_matrix(path, camera, src, (height, width))
     sphere = scene_sphere(options, *centre_of_view(viewmats))
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]

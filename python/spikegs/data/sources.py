@@ -13,6 +13,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 from __future__ import annotations
 
 import json
+import math
 from abc import ABC, abstractmethod
 from pathlib import Path
 
@@ -377,17 +378,39 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
         raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
     if doc.get("convention", "opengl").lower() != "opencv":
         c2w = c2w @ OPENGL_TO_OPENCV
-    if "fl_x" in doc:
-        fx, fy = float(doc["fl_x"]), float(doc.get("fl_y", doc["fl_x"]))
-        cx, cy = float(doc.get("cx", src_w / 2)), float(doc.get("cy", src_h / 2))
-    elif "camera_angle_x" in doc:
-        fx = fy = src_w / 2 / np.tan(float(doc["camera_angle_x"]) / 2)
-        cx, cy = src_w / 2, src_h / 2
-    else:
-        raise ValueError(f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy)")
-    sx, sy = width / src_w, height / src_h
-    K = np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
+    K = camera_matrix(path, doc, (src_h, src_w), (height, width))
     return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
+
+
+def camera_number(path: Path, key: str, value) -> float:
+    """A transforms file's camera value as a finite float; ValueError naming `key` otherwise."""
+    try:
+        number = float(value) if not isinstance(value, bool) else math.nan
+    except (TypeError, ValueError):
+        number = math.nan
+    if not math.isfinite(number):
+        raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
+    return number
+
+
+def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
+    """K [3, 3] of a transforms file's intrinsics (fl_x, fl_y, cx, cy, or camera_angle_x) for
+    images of `src` (h, w), scaled to `size` (h, w); cx, cy default to the image centre."""
+    (src_h, src_w), (height, width) = src, size
+    get = lambda key, default: camera_number(path, key, doc.get(key, default))  # noqa: E731
+    if "fl_x" in doc:
+        fx = get("fl_x", None)
+        fy = get("fl_y", fx)
+    elif "camera_angle_x" in doc:
+        fx = fy = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
+    else:
+        raise ValueError(
+            f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
+            f"in every frame)"
+        )
+    cx, cy = get("cx", src_w / 2), get("cy", src_h / 2)
+    sx, sy = width / src_w, height / src_h
+    return np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
 
 
 def read_frame(base: Path, background: float) -> np.ndarray:
