@@ -121,6 +121,7 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             "100% of the held-out views' pixels fire every readout",
         ),
     ]
+    cases.append(("fine-texture", {"color": True}, "the scene is grey"))
     for i, (scene, options, message) in enumerate(cases):
         with pytest.warns(UserWarning, match=message):
             simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})

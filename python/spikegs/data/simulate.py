@@ -55,9 +55,18 @@ def clean_source(dataset: Dataset) -> Source:
 
 
 def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
-    """UserWarnings where the data to be simulated would defeat every method: light that
-    saturates the camera, dark spikes rivalling the light, or a camera that turns so fast that a
-    TFP window blurs. `views`' images are in firing-rate units (spikes per readout)."""
+    """UserWarnings where the data to be simulated would defeat every method (light that
+    saturates the camera, dark spikes rivalling the light, a camera that turns so fast that a TFP
+    window blurs) or waste effort (a grey scene for a colour camera). `views`' images [H, W, C]
+    are in firing-rate units (spikes per readout)."""
+    if views[0].image.shape[-1] == 3 and all(
+        np.array_equal(v.image[..., 0], v.image[..., c]) for v in views for c in (1, 2)
+    ):
+        warnings.warn(
+            "the scene is grey (R = G = B in every held-out view): a colour camera records the "
+            "same image three times over; simulate it mono or use a coloured scene",
+            stacklevel=3,
+        )
     rates = np.concatenate([np.ravel(v.image) for v in views])
     saturated = float(np.mean(rates >= 1.0))
     if saturated > SATURATED_FRACTION:
