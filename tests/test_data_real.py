@@ -286,6 +286,26 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
 
 
+def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
+    """Sharp images of training views calibrate the firing rate of intensity 1 (when spikegs.json
+    gives no rate_at_one); the test views' images are scaled by it."""
+    heuristic = load_dataset(nerf).meta["image_scale"]  # TFP(33)'s 99.5th percentile
+    root = copy(nerf, tmp_path)
+    source, viewmats = make_source("solids", W, H, 1), view_poses(sim)
+    for i in range(2, VIEWS - 1):
+        write_image(root / "train" / f"r_{i}.exr", source.render(viewmats[i]))
+    ds = load_dataset(root)
+    rate = sim.meta["sim"]["rate_at_one"]
+    assert ds.meta["rate_at_one"] == pytest.approx(rate, rel=0.03)
+    assert ds.meta["rate_at_one_from"] == "7 training views' sharp images"
+    assert abs(heuristic / rate - 1) > 0.1  # the percentile is off on this scene
+    sharp = source.render(viewmats[0])  # [H, W, 1]
+    view = next(v for v in ds.test_views if v.name == "test_r_0")
+    np.testing.assert_allclose(view.image, sharp * ds.meta["rate_at_one"], rtol=1e-5)
+    write_options(root, rate_at_one=0.2)  # a calibration given wins
+    assert load_dataset(root).meta["rate_at_one"] == 0.2
+
+
 def test_nerf_bad_input(nerf, tmp_path):
     root = copy(nerf, tmp_path / "missing")
     (root / "spike_data" / "train" / "r_3.dat").unlink()

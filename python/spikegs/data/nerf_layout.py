@@ -220,7 +220,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     frames, sources, docs, viewmats, test = _frames(root, options)
     path, camera = sources[0], _camera(docs, frames, sources)
     spikes = _find_spikes(root, frames, sources)
-    images = [_image(root, f) if t else None for f, t in zip(frames, test)]
+    images = [_image(root, f) for f in frames]  # training views' calibrate the intensity scale
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
         if found is None and image is None:
             tried = ", ".join(str(p) for p in _spike_candidates(root, frame))

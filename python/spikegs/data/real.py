@@ -151,6 +151,20 @@ def _longest_odd(length: int) -> int:
     return length - 1 + length % 2
 
 
+def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -> float:
+    """The firing rate of intensity 1.0 from training views that have a sharp image [H, W, C]
+    and a spike stream each: the views' mean firing rate (TFP over each whole view) over their
+    mean intensity. Means, so that motion blur within a view and small misalignments cancel."""
+    rates = [s.tfp(len(s) // 2, _longest_odd(len(s))).mean() for s, _ in views]
+    intensity = float(np.mean([np.mean(image) for _, image in views]))
+    if not intensity > 0:
+        raise ValueError(
+            f"{source}: the training views' sharp images are black (mean {intensity}); set "
+            f"rate_at_one in spikegs.json"
+        )
+    return float(np.mean(rates)) / intensity
+
+
 def views_dataset(
     root: Path,
     meta: dict,
@@ -191,6 +205,12 @@ def views_dataset(
         for i in np.flatnonzero(test)
     ]
     timestamps = [centers[i] for i in present if not test[i]]
+    calibration = [
+        (streams[i], images[i]) for i in present if not test[i] and images[i] is not None
+    ]
+    if calibration and "rate_at_one" not in meta:
+        meta["rate_at_one"] = rate_from_images(calibration, source)
+        meta["rate_at_one_from"] = f"{len(calibration)} training views' sharp images"
     meta["spike_files"] = [os.path.relpath(streams[i].path, root) for i in present]
     meta["view_readouts"] = {
         names[i]: [int(joined.offsets[j]), int(joined.offsets[j + 1])]
