@@ -15,6 +15,7 @@ from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import look_at
+from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
 from spikegs.point_cloud import POINTS, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
@@ -170,6 +171,28 @@ def test_poses_from_spikes_recover_the_trajectory(textured, capsys):
     assert (textured / "trajectory.json.bak").exists() and (textured / POINTS).exists()
     dataset = load_dataset(textured)  # the new trajectory covers every readout
     assert len(dataset.trajectory) >= report["registered"]
+
+
+def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsys):
+    """Spikes and a meta.json without intrinsics, poses, timestamps or held-out views: `spikegs
+    poses` writes them all, held-out views with TFP(65) ground truth, and the result trains."""
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    shutil.copy(textured / "spikes.dat", raw / "spikes.dat")
+    meta = json.loads((textured / "meta.json").read_text())
+    keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
+    (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
+    assert main(["poses", str(raw), "--count", "30"]) == 0
+    assert "3 held-out views at every 8th registered image" in capsys.readouterr().out
+    dataset = load_dataset(raw)
+    views = dataset.test_views
+    assert [v.name[:7] for v in views] == ["pseudo_"] * 3 and dataset.meta["train_every"] == 1
+    for view in views:  # their ground truth: TFP(65) at their readout, never trained on
+        np.testing.assert_array_equal(view.image[..., 0], dataset.stream.tfp(view.readout, 65))
+        assert np.abs(dataset.train_timestamps - view.readout).min() > 64
+    config = load_config("tfp33", {"train": {"iterations": 6, "init_gaussians": 200}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert np.isfinite(evaluate_run(tmp_path / "run", dataset)["psnr"])
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

@@ -5,6 +5,10 @@ motion (pycolmap); the registered poses become DATASET/trajectory.json (an exist
 trajectory.json.bak) and the sparse points DATASET/points3d.ply, which the trainer uses to place
 its initial Gaussians. SfM poses are known up to a similarity: with a known trajectory they are
 aligned to it and their error is reported; without one they stay in SfM's own frame.
+
+A raw recording (a meta.json and the spikes, no train_timestamps.txt or test_views.json) gets
+those too: every 8th registered image held out with TFP(65) of its own spikes as ground truth (as
+the real-data loaders do), training timestamps between the registered images, clear of them.
 """
 
 from __future__ import annotations
@@ -17,7 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .data.dataset import META, TRAJECTORY, spike_files
+from .data.dataset import (
+    META,
+    TEST_VIEWS,
+    TIMESTAMPS,
+    TRAJECTORY,
+    TestView,
+    spike_files,
+    write_parts,
+)
+from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_NOTE, PSEUDO_PREFIX
+from .data.simulate import default_train_every, train_timestamps
 from .data.sources import MissingDependencyError
 from .data.trajectory import Trajectory
 from .point_cloud import POINTS, write_points
@@ -92,6 +106,27 @@ def _complete_meta(meta: dict, recon: Reconstruction) -> list[str]:
         meta.update(scene_center=centre.tolist(), scene_radius=float(np.percentile(distances, 95)))
         messages.append(f"scene_center and scene_radius estimated from the points ({META})")
     return messages
+
+
+def _pseudo_test_views(streams, trajectory: Trajectory, readouts: np.ndarray) -> list[TestView]:
+    """Held-out views at `readouts` whose TFP(65) fits in the stream: that TFP [H, W, C] is their
+    ground truth (a raw recording has no sharp image); ValueError when none fits."""
+    half, num = NEEDED_WINDOW // 2, len(streams[0])
+    fits = [int(k) for k in readouts if half <= k <= num - 1 - half]
+    if not fits:
+        raise ValueError(
+            f"no held-out view: none of the registered images at readouts {readouts.tolist()} has "
+            f"room for a {NEEDED_WINDOW}-readout ground truth in the {num}-readout stream"
+        )
+    return [
+        TestView(
+            f"{PSEUDO_PREFIX}{k:06d}",
+            trajectory.pose_at(float(k)),
+            np.stack([s.tfp(k, NEEDED_WINDOW) for s in streams], axis=-1),  # [H, W, C]
+            float(k),
+        )
+        for k in fits
+    ]
 
 
 def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) -> dict:
@@ -173,11 +208,33 @@ def estimate_poses(
         if not backup.exists():
             shutil.copy2(reference_path, backup)
             messages.append(f"the previous trajectory is kept as {backup.name}")
-    intrinsics = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
-    recon.trajectory(num).save_json(root / TRAJECTORY, **intrinsics, w=w, h=h)
+    trajectory = recon.trajectory(num)
     write_points(root / POINTS, recon.points, recon.colors)
-    meta_path.write_text(json.dumps(meta, indent=1))
-    messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+    if (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists():
+        intrinsics = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
+        trajectory.save_json(root / TRAJECTORY, **intrinsics, w=w, h=h)
+        meta_path.write_text(json.dumps(meta, indent=1))
+        messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+    else:  # a raw recording: held-out views and training timestamps too, so that it trains
+        views = _pseudo_test_views(streams, trajectory, recon.readouts[::HOLDOUT_EVERY])
+        every = default_train_every(num)
+        ks = train_timestamps(num, np.array([v.readout for v in views]), every)
+        ks = ks[(ks >= recon.readouts[0]) & (ks <= recon.readouts[-1])]  # between registered
+        meta.update(
+            train_every=every,
+            test_ground_truth={
+                "sharp_images": 0,
+                "pseudo": len(views),
+                "pseudo_method": PSEUDO_NOTE,
+            },
+        )
+        write_parts(root, meta, trajectory, ks, views)
+        messages.append(
+            f"wrote {TRAJECTORY}, {POINTS}, {META}, {TIMESTAMPS} ({len(ks)} training timestamps) "
+            f"and {TEST_VIEWS}: {len(views)} held-out views at every {HOLDOUT_EVERY}th registered "
+            f"image, their ground truth TFP({NEEDED_WINDOW}) of their own spikes (named "
+            f"{PSEUDO_PREFIX}*)"
+        )
     report["summary"] = "\n".join(messages)
     (root / WORK_DIR / "report.json").write_text(json.dumps(report, indent=1))
     return report
