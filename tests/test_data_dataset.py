@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from spikegs.cli import main
 from spikegs.data import SCENES, FrameSequenceSource, load_dataset, simulate_dataset
-from spikegs.data.sources import intrinsics
+from spikegs.data.sources import camera_matrix, intrinsics
 from spikegs.data.trajectory import look_at
 
 SMALL = dict(height=24, width=32, readouts=400, test_on_path=2, test_off_path=2, progress=False)
@@ -38,6 +38,9 @@ def test_round_trip(small):
     assert ts.dtype == np.int64 and ts.min() >= 32 and ts.max() <= 399 - 32
     assert ds.scene_radius > 0 and ds.scene_center.shape == (3,)
     assert [v.name for v in ds.test_views] == ["on_000", "on_001", "off_000", "off_001"]
+    for name in ("trajectory.json", "test_views.json"):  # both carry the camera, as documented
+        doc = json.loads((small.root / name).read_text())
+        np.testing.assert_allclose(camera_matrix(name, doc, (24, 32), (24, 32)), ds.K, rtol=1e-6)
 
 
 @pytest.mark.parametrize("readouts, every", [(2100, None), (2100, 1)])

@@ -135,11 +135,9 @@ def write_parts(
     test_views: list[TestView],
 ) -> None:
     """Write everything but the spikes; meta.json last, so a dataset without it is incomplete."""
-    K = {k: meta[k] for k in ("fx", "fy", "cx", "cy")}
-    size = {"w": meta["width"], "h": meta["height"]}
-    trajectory.save_json(
-        out / TRAJECTORY, fl_x=K["fx"], fl_y=K["fy"], cx=K["cx"], cy=K["cy"], **size
-    )
+    camera = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
+    camera.update(w=meta["width"], h=meta["height"])
+    trajectory.save_json(out / TRAJECTORY, **camera)
     np.savetxt(out / TIMESTAMPS, np.asarray(train_timestamps, np.int64), fmt="%d")
     frames = []
     for view in test_views:
@@ -153,7 +151,7 @@ def write_parts(
                 "transform_matrix": np.linalg.inv(view.viewmat).tolist(),
             }
         )
-    doc = {"camera_model": "OPENCV", "convention": CONVENTION, **size, "frames": frames}
+    doc = {"camera_model": "OPENCV", "convention": CONVENTION, **camera, "frames": frames}
     (out / TEST_VIEWS).write_text(json.dumps(doc, indent=1))
     (out / META).write_text(json.dumps(meta, indent=1))
 
