@@ -79,17 +79,19 @@ def test_frame_sequence_source(tmp_path):
     np.testing.assert_allclose(half.K[:2], truth.K[:2] / 2, rtol=1e-6)
     assert half.frames.shape == (6, 16, 16, 1)
 
-    # a dataset from the directory: on-path held-out views are exact frames
-    ds = simulate_dataset(
-        tmp_path,
-        tmp_path / "ds",
-        height=32,
-        width=32,
-        readouts=501,
-        test_on_path=2,
-        test_off_path=2,
-        progress=False,
-    )
+    # a dataset from the directory: on-path held-out views are exact frames (the frames are 100
+    # readouts apart, ~1 degree a readout: flagged)
+    with pytest.warns(UserWarning, match="the camera turns up to 32° in 33 readouts"):
+        ds = simulate_dataset(
+            tmp_path,
+            tmp_path / "ds",
+            height=32,
+            width=32,
+            readouts=501,
+            test_on_path=2,
+            test_off_path=2,
+            progress=False,
+        )
     rate = ds.meta["sim"]["rate_at_one"]
     for view in ds.test_views:
         if view.readout is not None:
