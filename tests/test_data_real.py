@@ -304,6 +304,24 @@ def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
     np.testing.assert_allclose(view.image, sharp * ds.meta["rate_at_one"], rtol=1e-5)
     write_options(root, rate_at_one=0.2)  # a calibration given wins
     assert load_dataset(root).meta["rate_at_one"] == 0.2
+    (root / "spike_data" / "train" / "r_3.dat").unlink()  # a training frame needs its spikes,
+    with pytest.raises(FileNotFoundError, match="r_3.dat"):  # whether or not it has an image
+        load_dataset(root)
+
+
+def test_eval_keeps_the_runs_units_when_the_datasets_scale_changes(nerf, tmp_path):
+    """A run scored again after its dataset's intensity scale changed (rate_at_one added, or
+    sharp training images) gets the same scores: a sharp test image is intensity whatever the
+    scale, and a pseudo ground truth (TFP) is put in the units the run was trained in."""
+    root = copy(nerf, tmp_path)
+    ds = load_dataset(root)
+    Trainer(ds, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
+    before = evaluate_run(tmp_path / "run", ds)["views"]
+    assert set(before) == {"test_r_0", "pseudo_test_r_1"}  # one sharp, one pseudo
+    write_options(root, rate_at_one=2 * ds.meta["image_scale"])
+    after = evaluate_run(tmp_path / "run", load_dataset(root))["views"]
+    for name in before:
+        assert after[name]["psnr"] == pytest.approx(before[name]["psnr"], abs=1e-9), name
 
 
 def test_nerf_bad_input(nerf, tmp_path):

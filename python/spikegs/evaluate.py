@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from .data.real import PSEUDO_PREFIX
 from .gaussians import GaussianModel
 from .image_io import write_image
 from .metrics import psnr, ssim
@@ -52,11 +53,15 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
     model = load_ply(ply)
     scale = intensity_scale(dataset)
+    run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
     K = torch.as_tensor(dataset.K, dtype=torch.float32)
     views = {}
     for view in dataset.test_views:
         pred = render_view(model, view, K, dataset.width, dataset.height)
-        gt = np.asarray(view.image, dtype=np.float32) / scale
+        # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
+        # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
+        pseudo = view.name.startswith(PSEUDO_PREFIX)
+        gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         views[view.name] = view_metrics(pred, gt)
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)

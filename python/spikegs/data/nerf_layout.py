@@ -9,7 +9,8 @@ DIR/transforms_train.json + transforms_test.json, or DIR/transforms.json or tran
 DIR/spike_data/...  a frame's spikes: its "spike_path" (relative to DIR) if it has one, else
     spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat; an
     absolute file_path counts relative to DIR if it is inside DIR, else by its file name
-DIR/<file_path>     optional sharp image (extension optional): a test frame's ground truth
+DIR/<file_path>     optional sharp image (extension optional): a test frame's ground truth; a
+    training frame's calibrates the intensity scale when spikegs.json gives no rate_at_one
 DIR/spikegs.json    loader options (real_options.py), all optional
 
 A test frame needs its spikes or its image; one with no image gets a pseudo ground truth (real.py).
@@ -220,21 +221,27 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     frames, sources, docs, viewmats, test = _frames(root, options)
     path, camera = sources[0], _camera(docs, frames, sources)
     spikes = _find_spikes(root, frames, sources)
-    images = [_image(root, f) for f in frames]  # training views' calibrate the intensity scale
+    images = [_image(root, f) if t else None for f, t in zip(frames, test)]
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
-        if found is None and image is None:
+        if found is None and (image is None or not is_test):
             tried = ", ".join(str(p) for p in _spike_candidates(root, frame))
             raise FileNotFoundError(
                 f"{source}: spike file of frame '{frame['file_path']}' not found (tried {tried})"
                 + (", and no sharp image either" if is_test else "")
             )
     src, (height, width) = _sizes(path, camera, images, options)
+    # [H, W, 1] intensity or None; a training frame's image (read one at a time) only calibrates
+    # the intensity scale, when spikegs.json gives none
+    calibrate = options.rate_at_one is None
+    images = [
+        _mono(image if is_test else _image(root, frame) if calibrate else None, height, width)
+        for frame, image, is_test in zip(frames, images, test)
+    ]
     K = camera_matrix(path, camera, src, (height, width))
     sphere = scene_sphere(options, *centre_of_view(viewmats))
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
     names = [_base(root, f["file_path"]).as_posix().replace("/", "_") for f in frames]
-    images = [_mono(im, height, width) for im in images]  # [H, W, 1] intensity
     return views_dataset(
         root, meta, names, viewmats, streams, images, test, options.pseudo_gt_window, str(path)
     )

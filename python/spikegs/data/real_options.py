@@ -10,7 +10,8 @@ Every key is optional (docs/datasets.md, "Real data layouts"):
   train_every            readouts between training timestamps (LLFF single stream)
   pseudo_gt_window       readouts of the TFP standing in for a held-out view without a sharp image
   scene_center, scene_radius  the scene sphere, instead of the one computed from the poses
-  rate_at_one            firing rate of intensity 1.0 when calibrated (else a TFP percentile)
+  rate_at_one            firing rate of intensity 1.0 when calibrated (else fitted to sharp
+                         training images where there are some, else a TFP percentile)
 
 Types and ranges are checked when read: a ValueError names spikegs.json, the key, what was expected
 and what was found.
