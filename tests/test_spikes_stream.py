@@ -174,6 +174,8 @@ def test_bad_shapes_refused(tmp_path):
     ):
         with pytest.raises(ValueError, match=message):
             SpikeStream.open(path, *sizes)
+    with pytest.raises(ValueError, match="flip: expected True or False, found 'false'"):
+        SpikeStream.open(path, 4, 16, flip="false")  # a string in a hand-written meta.json
     with pytest.raises(ValueError, match="raw_width: expected an int, found 16.5"):
         SpikeStream.open(path, 4, 16, raw_width=16.5)
     with pytest.raises(ValueError, match="width: expected an int, found 13.0"):

@@ -17,7 +17,7 @@ from typing import Callable, Union
 import numpy as np
 
 from .. import _C
-from .stream import DatWriter, PathLike, SpikeStream, check_chunk
+from .stream import DatWriter, PathLike, SpikeStream, as_flag, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
 Source = Union[np.ndarray, Callable[[float], np.ndarray]]
@@ -41,11 +41,7 @@ class SimParams:
         for field in dataclasses.fields(self):
             value, flag = getattr(self, field.name), field.type in (bool, "bool")
             if flag:
-                if not isinstance(value, (bool, np.bool_)):
-                    raise ValueError(
-                        f"SimParams {field.name}: expected True or False, found {value!r}"
-                    )
-                setattr(self, field.name, bool(value))
+                setattr(self, field.name, as_flag(f"SimParams {field.name}", value))
             else:
                 if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
                     raise ValueError(f"SimParams {field.name}: expected a number, found {value!r}")

@@ -50,6 +50,13 @@ def as_ints(**values) -> list[int]:
     return [int(value) for value in values.values()]
 
 
+def as_flag(name: str, value) -> bool:
+    """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: expected True or False, found {value!r}")
+    return bool(value)
+
+
 def centred_range(length: int, w: int) -> tuple[int, int]:
     """[lo, hi]: the readouts k whose window of `w` (k - w//2 .. k - w//2 + w - 1) lies in a
     stream of `length` readouts."""
@@ -96,7 +103,7 @@ class SpikeStream:
         height, width, raw, col_offset = as_ints(
             height=height, width=width, raw_width=raw, col_offset=col_offset
         )
-        layout = _C.SpikeLayout.dat(height, width, bool(flip), raw, col_offset)
+        layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
         size = path.stat().st_size
         _frame_count(size, layout, str(path))
         data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
@@ -204,7 +211,7 @@ class DatWriter:
     def __init__(self, path: PathLike, height: int, width: int, flip: bool = True):
         self.path = Path(path)
         height, width = as_ints(height=height, width=width)
-        self._layout = _C.SpikeLayout.dat(height, width, bool(flip))
+        self._layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip))
         self._memory = _C.SpikeLayout.memory(height, width)
         self._file = open(self.path, "wb")
 
