@@ -112,8 +112,10 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
 
 def test_data_that_defeats_every_method_is_flagged(tmp_path):
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # the default data: no warning
-        simulate_dataset("solids", tmp_path / "default", **SMALL)
+        warnings.simplefilter("error")  # the built-in scenes at the defaults: no warning
+        for scene in SCENES:
+            simulate_dataset(scene, tmp_path / scene, **SMALL)
+        simulate_dataset("wires", tmp_path / "rgb", color=True, **SMALL)
     cases = [
         ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0.04"),
         ("solids", {"speed": 1.0}, "the camera turns up to 32° in 33 readouts"),

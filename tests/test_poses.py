@@ -190,9 +190,18 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     for view in views:  # their ground truth: TFP(65) at their readout, never trained on
         np.testing.assert_array_equal(view.image[..., 0], dataset.stream.tfp(view.readout, 65))
         assert np.abs(dataset.train_timestamps - view.readout).min() > 64
+    registered = json.loads((raw / "trajectory.json").read_text())["frames"]
+    first, last = registered[1]["readout"], registered[-2]["readout"]  # past the held ends
+    ts = dataset.train_timestamps
+    assert ts.min() - 32 >= first and ts.max() + 32 <= last  # windows on registered poses
     config = load_config("tfp33", {"train": {"iterations": 6, "init_gaussians": 200}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     assert np.isfinite(evaluate_run(tmp_path / "run", dataset)["psnr"])
+    # run again with other images: the held-out views are made afresh, not kept from the first
+    assert main(["poses", str(raw), "--count", "24"]) == 0
+    again = load_dataset(raw)
+    assert [v.name for v in again.test_views] != [v.name for v in views]
+    assert sorted(p.stem for p in (raw / "test").iterdir()) == [v.name for v in again.test_views]
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

@@ -23,14 +23,17 @@ import numpy as np
 
 from .data.dataset import (
     META,
+    TEST_DIR,
     TEST_VIEWS,
     TIMESTAMPS,
     TRAJECTORY,
+    WINDOW_MARGIN,
     TestView,
+    camera_keys,
     spike_files,
     write_parts,
 )
-from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_NOTE, PSEUDO_PREFIX
+from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
 from .data.simulate import default_train_every, train_timestamps
 from .data.sources import MissingDependencyError
 from .data.trajectory import Trajectory
@@ -40,6 +43,7 @@ from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
 
 MIN_IMAGES = 8
+HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
 
@@ -108,25 +112,40 @@ def _complete_meta(meta: dict, recon: Reconstruction) -> list[str]:
     return messages
 
 
-def _pseudo_test_views(streams, trajectory: Trajectory, readouts: np.ndarray) -> list[TestView]:
-    """Held-out views at `readouts` whose TFP(65) fits in the stream: that TFP [H, W, C] is their
-    ground truth (a raw recording has no sharp image); ValueError when none fits."""
+def _held_out_split(
+    streams, trajectory: Trajectory, registered: np.ndarray
+) -> tuple[list[TestView], np.ndarray]:
+    """A raw recording's held-out views and training timestamps [M]: every HOLDOUT_EVERY-th
+    `registered` readout whose TFP(65) fits in the stream is held out, that TFP [H, W, C] its
+    ground truth; timestamps every default_train_every readouts whose 65-readout windows lie
+    between the first and last registered readouts (the trajectory is held constant outside) and
+    clear of the held-out views'. ValueError when either comes out empty."""
     half, num = NEEDED_WINDOW // 2, len(streams[0])
-    fits = [int(k) for k in readouts if half <= k <= num - 1 - half]
-    if not fits:
+    held = [int(k) for k in registered[::HOLDOUT_EVERY] if half <= k <= num - 1 - half]
+    if not held:
         raise ValueError(
-            f"no held-out view: none of the registered images at readouts {readouts.tolist()} has "
-            f"room for a {NEEDED_WINDOW}-readout ground truth in the {num}-readout stream"
+            f"no held-out view: none of the registered images at readouts "
+            f"{registered[::HOLDOUT_EVERY].tolist()} has room for a {NEEDED_WINDOW}-readout "
+            f"ground truth in the {num}-readout stream"
         )
-    return [
+    ks = train_timestamps(num, np.array(held), default_train_every(num))
+    ks = ks[(ks - WINDOW_MARGIN >= registered[0]) & (ks + WINDOW_MARGIN <= registered[-1])]
+    if not len(ks):
+        raise ValueError(
+            f"no training timestamp: the registered readouts [{registered[0]}, {registered[-1]}] "
+            f"leave no {NEEDED_WINDOW}-readout window clear of the held-out views {held}; record "
+            f"longer or raise --count"
+        )
+    views = [
         TestView(
             f"{PSEUDO_PREFIX}{k:06d}",
             trajectory.pose_at(float(k)),
             np.stack([s.tfp(k, NEEDED_WINDOW) for s in streams], axis=-1),  # [H, W, C]
             float(k),
         )
-        for k in fits
+        for k in held
     ]
+    return views, ks
 
 
 def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) -> dict:
@@ -161,6 +180,9 @@ def estimate_poses(
     if every is not None and every < 1:
         raise ValueError(f"--every: expected >= 1 readout, got {every}")
     h, w, num = int(meta["height"]), int(meta["width"]), int(meta["num_readouts"])
+    # a raw recording (or one this command completed before) gets held-out views and timestamps
+    split = (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists()
+    raw = meta.get("held_out_by") == HELD_OUT_BY or not split
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
         raise ValueError(
@@ -209,25 +231,14 @@ def estimate_poses(
             shutil.copy2(reference_path, backup)
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
-    write_points(root / POINTS, recon.points, recon.colors)
-    if (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists():
-        intrinsics = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
-        trajectory.save_json(root / TRAJECTORY, **intrinsics, w=w, h=h)
-        meta_path.write_text(json.dumps(meta, indent=1))
-        messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
-    else:  # a raw recording: held-out views and training timestamps too, so that it trains
-        views = _pseudo_test_views(streams, trajectory, recon.readouts[::HOLDOUT_EVERY])
-        every = default_train_every(num)
-        ks = train_timestamps(num, np.array([v.readout for v in views]), every)
-        ks = ks[(ks >= recon.readouts[0]) & (ks <= recon.readouts[-1])]  # between registered
+    if raw:  # held-out views and training timestamps too, so that the recording trains
+        views, ks = _held_out_split(streams, trajectory, recon.readouts)  # checked before writing
         meta.update(
-            train_every=every,
-            test_ground_truth={
-                "sharp_images": 0,
-                "pseudo": len(views),
-                "pseudo_method": PSEUDO_NOTE,
-            },
+            train_every=default_train_every(num),
+            test_ground_truth=ground_truth_note(0, len(views)),
+            held_out_by=HELD_OUT_BY,
         )
+        shutil.rmtree(root / TEST_DIR, ignore_errors=True)  # a previous run's held-out images
         write_parts(root, meta, trajectory, ks, views)
         messages.append(
             f"wrote {TRAJECTORY}, {POINTS}, {META}, {TIMESTAMPS} ({len(ks)} training timestamps) "
@@ -235,6 +246,11 @@ def estimate_poses(
             f"image, their ground truth TFP({NEEDED_WINDOW}) of their own spikes (named "
             f"{PSEUDO_PREFIX}*)"
         )
+    else:
+        trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
+        meta_path.write_text(json.dumps(meta, indent=1))
+        messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+    write_points(root / POINTS, recon.points, recon.colors)
     report["summary"] = "\n".join(messages)
     (root / WORK_DIR / "report.json").write_text(json.dumps(report, indent=1))
     return report

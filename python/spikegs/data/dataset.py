@@ -127,6 +127,12 @@ def prepare_output(out: PathLike, overwrite: bool) -> Path:
     return out
 
 
+def camera_keys(meta: dict) -> dict:
+    """The camera of meta.json as trajectory.json and test_views.json state it (nerfstudio keys)."""
+    camera = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
+    return {**camera, "w": meta["width"], "h": meta["height"]}
+
+
 def write_parts(
     out: Path,
     meta: dict,
@@ -135,8 +141,7 @@ def write_parts(
     test_views: list[TestView],
 ) -> None:
     """Write everything but the spikes; meta.json last, so a dataset without it is incomplete."""
-    camera = {"fl_x": meta["fx"], "fl_y": meta["fy"], "cx": meta["cx"], "cy": meta["cy"]}
-    camera.update(w=meta["width"], h=meta["height"])
+    camera = camera_keys(meta)
     trajectory.save_json(out / TRAJECTORY, **camera)
     np.savetxt(out / TIMESTAMPS, np.asarray(train_timestamps, np.int64), fmt="%d")
     frames = []

@@ -72,6 +72,12 @@ def camera_meta(
     return meta
 
 
+def ground_truth_note(sharp: int, pseudo: int) -> dict:
+    """meta["test_ground_truth"]: how many test views have a sharp image, how many a pseudo one."""
+    note = {"sharp_images": sharp, "pseudo": pseudo}
+    return {**note, "pseudo_method": PSEUDO_NOTE} if pseudo else note
+
+
 def held_out(count: int, indices: list[int] | None, source: str) -> np.ndarray:
     """Mask [count] of the test views: `indices`, or every HOLDOUT_EVERY-th from 0."""
     indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
@@ -135,11 +141,7 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
         else:
             image = (np.asarray(h.image) * scale).astype(np.float32)  # [H, W, 1]
             dataset.test_views.append(TestView(h.name, h.viewmat, image, h.readout))
-    meta["test_ground_truth"] = {
-        "sharp_images": len(sharp),
-        "pseudo": len(held_out) - len(sharp),
-        **({"pseudo_method": PSEUDO_NOTE} if len(sharp) < len(held_out) else {}),
-    }
+    meta["test_ground_truth"] = ground_truth_note(len(sharp), len(held_out) - len(sharp))
     if sharp:
         meta["image_scale"] = scale
     check_test_views(dataset.test_views, root)
@@ -152,7 +154,7 @@ def _longest_odd(length: int) -> int:
 
 
 def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -> float:
-    """The firing rate of intensity 1.0 from training views that have a sharp image [H, W, C]
+    """The firing rate of intensity 1.0 from training views that have a sharp image [H, W, 1]
     and a spike stream each: the views' mean firing rate (TFP over each whole view) over their
     mean intensity. Means, so that motion blur within a view and small misalignments cancel."""
     rates = [s.tfp(len(s) // 2, _longest_odd(len(s))).mean() for s, _ in views]

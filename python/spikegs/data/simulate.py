@@ -77,7 +77,7 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             stacklevel=3,
         )
     mean = float(rates.mean())
-    if params.dark_rate >= DARK_FRACTION * mean:
+    if params.dark_rate > 0 and params.dark_rate >= DARK_FRACTION * mean:
         warnings.warn(
             f"dark_rate {params.dark_rate:g} spikes per readout against a mean light rate of "
             f"{mean:.3g} in the held-out views: dark spikes will bury the scene's darker parts",
@@ -85,7 +85,9 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
         )
     # the turn summed readout by readout over 16 windows along the path (a turn of more than
     # 180° between a window's ends would otherwise read as a small one)
-    starts = np.linspace(trajectory.start, max(trajectory.end - BLUR_WINDOW + 1, 0.0), 16)
+    starts = np.linspace(
+        trajectory.start, max(trajectory.end - BLUR_WINDOW + 1, trajectory.start), 16
+    )
     times = np.minimum(starts[:, None] + np.arange(BLUR_WINDOW), trajectory.end)  # [16, w]
     rot = trajectory.pose_at(times.ravel())[:, :3, :3].reshape(*times.shape, 3, 3)
     cos = (np.einsum("nkij,nkij->nk", rot[:, 1:], rot[:, :-1]) - 1) / 2  # tr(Rb Ra^T) = 1+2cos
@@ -94,7 +96,7 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
         warnings.warn(
             f"the camera turns up to {degrees:.0f}° in {BLUR_WINDOW} readouts: TFP and SIM "
             f"images will be motion-blurred and held-out views far from any training timestamp; "
-            f"slow the camera (speed) or add readouts",
+            f"slow the camera: a lower speed (built-in scenes) or more readouts",
             stacklevel=3,
         )
 
