@@ -145,6 +145,8 @@ def test_sim_params_of_the_wrong_type_are_named():
     ):
         with pytest.raises(ValueError, match=message):
             SimParams(**fields)
+    with pytest.raises(ValueError, match="rate_at_one expected in"):  # ranges at construction
+        SimParams(rate_at_one=0.0)
     params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
     assert (params.threshold, params.shot_noise) == (50.0, False)
     assert type(params.threshold) is float and type(params.shot_noise) is bool

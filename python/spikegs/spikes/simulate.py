@@ -37,7 +37,8 @@ class SimParams:
     random_init: bool = _CORE_DEFAULTS.random_init  # initial voltage uniform in [0, θ_i)
 
     def __post_init__(self):
-        """ValueError naming a field of the wrong type (ranges are the core's to check)."""
+        """ValueError naming a field of the wrong type or out of range (the core's ranges, checked
+        here so that an error comes before any work)."""
         for field in dataclasses.fields(self):
             value, flag = getattr(self, field.name), field.type in (bool, "bool")
             if flag:
@@ -46,6 +47,7 @@ class SimParams:
                 if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
                     raise ValueError(f"SimParams {field.name}: expected a number, found {value!r}")
                 setattr(self, field.name, float(value))
+        _C.SpikeSimulator(1, 1, self.to_core(), 0)  # validates the ranges
 
     def to_core(self) -> _C.SimParams:
         core = _C.SimParams()
