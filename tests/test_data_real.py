@@ -302,7 +302,12 @@ def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
     sharp = source.render(viewmats[0])  # [H, W, 1]
     view = next(v for v in ds.test_views if v.name == "test_r_0")
     np.testing.assert_allclose(view.image, sharp * ds.meta["rate_at_one"], rtol=1e-5)
-    write_options(root, rate_at_one=0.2)  # a calibration given wins
+    write_image(root / "train" / "r_4.exr", np.zeros((H, W, 1), np.float32))  # a wrong image
+    assert load_dataset(root).meta["rate_at_one"] == pytest.approx(rate, rel=0.03)  # the median
+    (root / "train" / "r_4.exr").write_bytes(b"not an image")
+    with pytest.raises(ValueError, match="cannot read .*r_4.exr"):  # not taken for absent
+        load_dataset(root)
+    write_options(root, rate_at_one=0.2)  # a calibration given wins (the images are not read)
     assert load_dataset(root).meta["rate_at_one"] == 0.2
     (root / "spike_data" / "train" / "r_3.dat").unlink()  # a training frame needs its spikes,
     with pytest.raises(FileNotFoundError, match="r_3.dat"):  # whether or not it has an image

@@ -81,7 +81,7 @@ def test_frame_sequence_source(tmp_path):
 
     # a dataset from the directory: on-path held-out views are exact frames (the frames are 100
     # readouts apart, ~1 degree a readout: flagged)
-    with pytest.warns(UserWarning, match="the camera turns up to 32° in 33 readouts"):
+    with pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"):
         ds = simulate_dataset(
             tmp_path,
             tmp_path / "ds",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 
 import numpy as np
@@ -184,6 +185,7 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
     assert main(["poses", str(raw), "--count", "30"]) == 0
     assert "3 held-out views at every 8th registered image" in capsys.readouterr().out
+    assert json.loads((raw / "meta.json").read_text())["intrinsics_from"] == "sfm"
     dataset = load_dataset(raw)
     views = dataset.test_views
     assert [v.name[:7] for v in views] == ["pseudo_"] * 3 and dataset.meta["train_every"] == 1
@@ -202,6 +204,29 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     again = load_dataset(raw)
     assert [v.name for v in again.test_views] != [v.name for v in views]
     assert sorted(p.stem for p in (raw / "test").iterdir()) == [v.name for v in again.test_views]
+    out = capsys.readouterr().out  # intrinsics estimated afresh; poses compared, not scored
+    assert "SfM's estimate" in out and "not a pose log" in out and "rotation difference" in out
+
+
+def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsys):
+    meta = json.loads((textured / "meta.json").read_text())
+    keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
+    cases = [
+        ({"flip": None}, r"missing keys \['flip'\]"),
+        ({"height": "128"}, "meta.json: height: expected an int, found '128'"),
+        ({"flip": "false"}, "meta.json: flip: expected True or False, found 'false'"),
+        ({"num_readouts": 500}, "spikes.dat: 1000 readouts, .*meta.json says 500"),
+        ({"spike_files": ["rec.dat"]}, r"spike_files \['rec.dat'\]"),
+    ]
+    for i, (change, message) in enumerate(cases):
+        raw = tmp_path / str(i)
+        raw.mkdir()
+        shutil.copy(textured / "spikes.dat", raw / "spikes.dat")
+        doc = {k: meta[k] for k in keys} | change
+        (raw / "meta.json").write_text(json.dumps({k: v for k, v in doc.items() if v is not None}))
+        assert main(["poses", str(raw), "--count", "30"]) == 2
+        assert re.search(message, capsys.readouterr().err), message
+        assert sorted(p.name for p in raw.iterdir()) == ["meta.json", "spikes.dat"]  # untouched
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

@@ -29,14 +29,18 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
 
 
 def read_image(path: str | Path) -> np.ndarray:
-    """Read an image as float32 [H, W, C] (8-bit files scaled to [0, 1])."""
+    """Read an image as float32 [H, W, C] (8-bit files scaled to [0, 1]); FileNotFoundError when
+    there is no such file, ValueError when there is one that is not a readable image."""
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
-        raise FileNotFoundError(f"cannot read {path}: {oiio.geterror()}")
+        missing = not Path(path).is_file()
+        raise (FileNotFoundError if missing else ValueError)(
+            f"cannot read {path}: {oiio.geterror()}"
+        )
     try:
         image = inp.read_image(oiio.FLOAT)
     finally:
         inp.close()
     if image is None:
-        raise OSError(f"cannot read {path}")
+        raise ValueError(f"cannot read {path}: {oiio.geterror()}")
     return np.asarray(image, dtype=np.float32).reshape(inp.spec().height, inp.spec().width, -1)

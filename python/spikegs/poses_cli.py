@@ -30,6 +30,8 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
+    existing_file,
+    read_json,
     spike_files,
     write_parts,
 )
@@ -41,8 +43,10 @@ from .point_cloud import POINTS, write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
+from .spikes.stream import as_flag, as_ints
 
 MIN_IMAGES = 8
+SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
@@ -94,15 +98,44 @@ def _cached_sim(root: Path):
     return load_sim(cached[-1])
 
 
-def _complete_meta(meta: dict, recon: Reconstruction) -> list[str]:
-    """Fill in what meta.json did not know (intrinsics, scene centre and radius) from SfM."""
+def _recording(root: Path, meta: dict) -> list[SpikeStream]:
+    """The spike streams that meta.json describes; ValueError naming meta.json where a key is
+    missing or of the wrong type, or where the files do not match it."""
+    where = root / META
+    required = ("height", "width", "channels", "num_readouts", "flip")
+    missing = [k for k in required if k not in meta]
+    if missing:
+        raise ValueError(f"{where}: missing keys {missing} (docs/datasets.md, spikegs poses)")
+    try:
+        h, w, channels, num = as_ints(**{k: meta[k] for k in required[:4]})
+        flip = as_flag("flip", meta["flip"])
+    except ValueError as err:
+        raise ValueError(f"{where}: {err}") from None
+    names = spike_files(channels)
+    if channels not in (1, 3) or meta.get("spike_files", names) != names:
+        raise ValueError(
+            f"{where}: expected channels 1 (spikes.dat) or 3 (spikes_r/g/b.dat) and those file "
+            f"names, found channels {channels} and spike_files {meta.get('spike_files')}"
+        )
+    streams = [SpikeStream.open(existing_file(root, name), h, w, flip) for name in names]
+    for name, stream in zip(names, streams):
+        if len(stream) != num:
+            raise ValueError(f"{root / name}: {len(stream)} readouts, {where} says {num}")
+    return streams
+
+
+def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:
+    """Fill in what meta.json did not know from SfM: the intrinsics when SfM `estimated` them
+    (recorded as intrinsics_from: sfm, so that a later run estimates them again), the scene centre
+    and radius when missing."""
     messages = []
-    if not all(k in meta for k in ("fx", "fy", "cx", "cy")):
+    if estimated:
         K = recon.K
-        meta.update(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2], cy=K[1, 2])
+        meta.update(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2], cy=K[1, 2], intrinsics_from=SFM)
         messages.append(
-            f"the intrinsics were unknown: SfM's estimate fx = fy = {K[0, 0]:.2f}, "
-            f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META}"
+            f"the intrinsics were not stated: SfM's estimate fx = fy = {K[0, 0]:.2f}, "
+            f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META} (intrinsics_from: "
+            f"{SFM}; state fx, fy, cx, cy without it to hold a calibration fixed)"
         )
     if "scene_center" not in meta or "scene_radius" not in meta:
         centre = np.median(recon.points, axis=0)  # [3]
@@ -133,8 +166,8 @@ def _held_out_split(
     if not len(ks):
         raise ValueError(
             f"no training timestamp: the registered readouts [{registered[0]}, {registered[-1]}] "
-            f"leave no {NEEDED_WINDOW}-readout window clear of the held-out views {held}; record "
-            f"longer or raise --count"
+            f"leave no {NEEDED_WINDOW}-readout window clear of the held-out views {held} (every "
+            f"{HOLDOUT_EVERY}th image): lower --count (fewer held-out views) or record longer"
         )
     views = [
         TestView(
@@ -174,28 +207,27 @@ def estimate_poses(
     meta_path = root / META
     if not meta_path.is_file():
         raise FileNotFoundError(f"dataset file not found: {meta_path}")
-    meta = json.loads(meta_path.read_text())
+    meta = read_json(meta_path)
     if window < 1 or window % 2 == 0:
         raise ValueError(f"--window: expected an odd window >= 1, got {window}")
     if every is not None and every < 1:
         raise ValueError(f"--every: expected >= 1 readout, got {every}")
-    h, w, num = int(meta["height"]), int(meta["width"]), int(meta["num_readouts"])
+    streams = _recording(root, meta)  # every check before any work or any write
+    num = len(streams[0])
     # a raw recording (or one this command completed before) gets held-out views and timestamps
     split = (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists()
-    raw = meta.get("held_out_by") == HELD_OUT_BY or not split
+    ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
+    raw = ours or not split
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
         raise ValueError(
             f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
             f"{num} readouts with a {window}-readout window: raise --count or lower --every"
         )
-    streams = [
-        SpikeStream.open(root / name, h, w, meta["flip"])
-        for name in spike_files(int(meta["channels"]))
-    ]
     images = spike_images(streams, readouts, window, _cached_sim(root) if sim else None)
+    # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
-    if all(k in meta for k in ("fx", "fy", "cx", "cy")):
+    if meta.get("intrinsics_from") != SFM and all(k in meta for k in ("fx", "fy", "cx", "cy")):
         K = np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]])
     recon = reconstruct(images, readouts, root / WORK_DIR, K, min_registered)
     report = {
@@ -217,15 +249,18 @@ def estimate_poses(
         )
     else:
         recon = align(recon, reference)
-    messages += _complete_meta(meta, recon)
+    messages += _complete_meta(meta, recon, estimated=K is None)
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
+        # a raw recording's reference is the first run's SfM, not a pose log: a difference
+        word = "difference" if ours else "error"
         messages.append(
             f"aligned to {reference_path.name} by a similarity on the camera centres: rotation "
-            f"error median {report['rotation_error_deg_median']:.2f} deg (max "
-            f"{report['rotation_error_deg_max']:.2f}), centre error median "
+            f"{word} median {report['rotation_error_deg_median']:.2f} deg (max "
+            f"{report['rotation_error_deg_max']:.2f}), centre {word} median "
             f"{report['centre_error_median']:.2%} of the scene radius "
             f"(max {report['centre_error_max']:.2%})"
+            + (" — against the first spikegs poses run's poses, not a pose log" if ours else "")
         )
         if not backup.exists():
             shutil.copy2(reference_path, backup)

@@ -161,7 +161,8 @@ def write_parts(
     (out / META).write_text(json.dumps(meta, indent=1))
 
 
-def _file(root: Path, name: str) -> Path:
+def existing_file(root: Path, name: str) -> Path:
+    """ROOT/name; FileNotFoundError naming it when it is not a file."""
     path = root / name
     if not path.is_file():
         raise FileNotFoundError(f"dataset file not found: {path}")
@@ -188,7 +189,7 @@ def check_test_views(views: list[TestView], where) -> None:
 
 
 def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
-    path = _file(root, TEST_VIEWS)
+    path = existing_file(root, TEST_VIEWS)
     doc = read_json(path)
     if doc.get("convention", CONVENTION) != CONVENTION:
         raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
@@ -197,7 +198,7 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
         c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
         if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
             raise ValueError(f"{path}: view '{frame['name']}' has a non-finite or non-4x4 pose")
-        image = read_image(_file(root, frame["file_path"]))  # [H, W, C]
+        image = read_image(existing_file(root, frame["file_path"]))  # [H, W, C]
         if image.shape != shape:
             raise ValueError(
                 f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
@@ -224,7 +225,7 @@ def load_dataset(path: PathLike) -> Dataset:
             return load_llff(root)
         if any((root / name).is_file() for name in TRANSFORMS):
             return load_nerf_layout(root)
-    meta_path = _file(root, META)
+    meta_path = existing_file(root, META)
     meta = read_json(meta_path)
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
@@ -243,17 +244,19 @@ def load_dataset(path: PathLike) -> Dataset:
     num = int(meta["num_readouts"])
     streams = []
     for name in spike_files(int(meta["channels"])):
-        stream = SpikeStream.open(_file(root, name), meta["height"], meta["width"], meta["flip"])
+        stream = SpikeStream.open(
+            existing_file(root, name), meta["height"], meta["width"], meta["flip"]
+        )
         if len(stream) != num:
             raise ValueError(f"{root / name}: {len(stream)} readouts, meta.json says {num}")
         streams.append(stream)
-    trajectory = Trajectory.load_json(_file(root, TRAJECTORY))
+    trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY))
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
             f"expected [0, {num - 1}]"
         )
-    timestamps = _read_timestamps(_file(root, TIMESTAMPS))  # [M]
+    timestamps = _read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0 or timestamps.min() < lo or timestamps.max() > hi:
         raise ValueError(f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}]")

@@ -163,7 +163,7 @@ def _camera(docs: list, frames: list, sources: list) -> dict:
 
 def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple, tuple]:
     """(h, w) the intrinsics are for and (h, w) of the spikes: each of height, width from
-    spikegs.json, else the camera's w, h, else the first sharp image's."""
+    spikegs.json, else the camera's w, h, else the first sharp test image's."""
     shapes = [im.shape[:2] for im in images if im is not None]
     src = (doc["h"], doc["w"]) if "w" in doc and "h" in doc else (shapes[0] if shapes else None)
     height = options.height or (src and src[0])

@@ -155,16 +155,21 @@ def _longest_odd(length: int) -> int:
 
 def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -> float:
     """The firing rate of intensity 1.0 from training views that have a sharp image [H, W, 1]
-    and a spike stream each: the views' mean firing rate (TFP over each whole view) over their
-    mean intensity. Means, so that motion blur within a view and small misalignments cancel."""
-    rates = [s.tfp(len(s) // 2, _longest_odd(len(s))).mean() for s, _ in views]
-    intensity = float(np.mean([np.mean(image) for _, image in views]))
-    if not intensity > 0:
+    and a spike stream each: the median over views of a view's mean firing rate (TFP over the
+    whole view) over its image's mean intensity. Means, so that motion blur within a view and
+    small misalignments cancel; the median, so that a wrong image (black, another view's) does
+    not move it. Black images are left out; ValueError when all are."""
+    ratios = [
+        s.tfp(len(s) // 2, _longest_odd(len(s))).mean() / np.mean(image)
+        for s, image in views
+        if np.mean(image) > 0
+    ]
+    if not ratios:
         raise ValueError(
-            f"{source}: the training views' sharp images are black (mean {intensity}); set "
-            f"rate_at_one in spikegs.json"
+            f"{source}: the training views' sharp images are all black; set rate_at_one in "
+            f"spikegs.json"
         )
-    return float(np.mean(rates)) / intensity
+    return float(np.median(ratios))
 
 
 def views_dataset(

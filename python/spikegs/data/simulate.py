@@ -94,7 +94,7 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
     degrees = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).sum(1).max())
     if degrees > BLUR_DEGREES:
         warnings.warn(
-            f"the camera turns up to {degrees:.0f}° in {BLUR_WINDOW} readouts: TFP and SIM "
+            f"the camera turns up to {degrees:.1f}° in {BLUR_WINDOW} readouts: TFP and SIM "
             f"images will be motion-blurred and held-out views far from any training timestamp; "
             f"slow the camera: a lower speed (built-in scenes) or more readouts",
             stacklevel=3,
@@ -209,7 +209,10 @@ def simulate_dataset(
         )
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts:
-        raise ValueError(f"readouts: expected >= {min_readouts} for {test_on_path} held-out views")
+        raise ValueError(
+            f"readouts: expected >= {min_readouts} for {test_on_path} on-path held-out views "
+            f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
+        )
     train_every = default_train_every(readouts) if train_every is None else train_every
     if height < 1 or width < 1 or frame_every <= 0 or train_every < 1:
         raise ValueError("height, width, frame_every and train_every expected positive")
