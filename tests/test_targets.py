@@ -43,6 +43,15 @@ def test_targets_are_computed_on_first_use_and_match_the_eager_images(dataset):
     assert len(targets.instant) == len(ts)
 
 
+def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):
+    shallow = load_config("spikegs", SIM_FAST).sim
+    deep = load_config("spikegs", {"sim": {**SIM_FAST["sim"], "shift_layers": 5}}).sim
+    model, _, path = trained_sim(dataset, deep, 0, progress=False)
+    assert len(model.shift) == 5 and path.name.endswith("_l2_m5_seed0.pt")
+    model, _, path = trained_sim(dataset, shallow, 0, progress=False)  # not the deep one's cache
+    assert len(model.shift) == 3 and path.name.endswith("_l2_seed0.pt")
+
+
 @pytest.mark.parametrize(
     "method, readouts", [("spikegs", 33), ("sim17", 17), ("tfp33", 33), ("tfp65", 65)]
 )

@@ -197,6 +197,7 @@ def test_every_method_config_loads():
         ("spikegs", {"sim": {"batch": 0}}, "sim.batch"),
         ("spikegs", {"sim": {"crop": 0}}, "sim.crop"),
         ("spikegs", {"sim": {"crop": -8}}, "sim.crop"),
+        ("spikegs", {"sim": {"shift_layers": 0}}, "sim.shift_layers"),
         ("spikegs", {"sim": {"window": -1}}, "sim.window"),
         ("spikegs", {"densify": {"every": -1}}, "densify.every"),
         ("spikegs", {"densify": {"every": 0}}, "densify.every"),

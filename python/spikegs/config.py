@@ -96,6 +96,10 @@ class SimConfig:
     crop: int = 64
     batch: int = 8
     loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
+    # shift convolutions per branch m: the blind spot sees a (2m+1)-wide block on each side. 5
+    # costs ~1.4x the training; at 300 steps it moved SIM's bias by less than the seeds' spread
+    # (BENCHMARKS.md, "SIM's depth")
+    shift_layers: int = 3
 
     def target_readouts(self) -> int:
         """The readouts whose TFP SIM learns: `target_window`, or the whole window when 0."""
@@ -191,7 +195,7 @@ class Config:
             sim.target_window,
             "0 (the whole window) or an odd number of readouts <= sim.window",
         )
-        for name in ("iterations", "crop", "batch"):
+        for name in ("iterations", "crop", "batch", "shift_layers"):
             _require(getattr(sim, name) >= 1, f"sim.{name}", getattr(sim, name), ">= 1")
         _require(sim.loss in ("l1", "l2"), "sim.loss", sim.loss, "l1 or l2")
         _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")

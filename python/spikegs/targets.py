@@ -94,9 +94,10 @@ def _per_channel(streams, image_fn) -> np.ndarray:
 
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
+    depth = "" if sim.shift_layers == SimConfig.shift_layers else f"_m{sim.shift_layers}"
     name = (
         f"sim_w{sim.window}_t{sim.target_readouts()}_it{sim.iterations}_b{sim.batch}"
-        f"_c{sim.crop}_{sim.loss}_seed{seed}.pt"
+        f"_c{sim.crop}_{sim.loss}{depth}_seed{seed}.pt"
     )
     return Path(dataset.root) / "sim" / name
 
@@ -126,6 +127,7 @@ def trained_sim(
         target_window=sim.target_readouts(),
         seed=seed,
         progress=progress,
+        shift_layers=sim.shift_layers,
     )
     return model, seconds, path
 
