@@ -436,6 +436,17 @@ def test_resume_with_other_settings_names_them_before_any_work(dataset, tmp_path
     assert (tmp_path / "run" / "config.yaml").read_bytes() == saved
 
 
+def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    path = tmp_path / "run" / "checkpoints" / "last.pt"
+    state = torch.load(path, weights_only=False)
+    del state["config"]["sim"]["shift_layers"]  # as saved before sim.shift_layers was added
+    torch.save(state, path)
+    longer = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    assert Trainer(dataset, longer, tmp_path / "run", progress=False).train(resume=True)
+
+
 def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, monkeypatch):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 20}})
     trainer = Trainer(dataset, config, tmp_path / "run", progress=False)

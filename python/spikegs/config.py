@@ -302,6 +302,14 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     return merged
 
 
+def with_defaults(saved: dict) -> dict:
+    """A config dict saved by an earlier version, with the keys added since (whose defaults keep
+    the old behaviour) filled in by their defaults."""
+    full = Config().to_dict()
+    _merge(full, saved)
+    return full
+
+
 def _merge(into: dict, update: dict) -> None:
     for key, value in update.items():
         if isinstance(value, dict) and isinstance(into.get(key), dict):

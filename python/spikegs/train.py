@@ -16,7 +16,7 @@ import torch
 import yaml
 from tqdm.auto import tqdm
 
-from .config import Config
+from .config import Config, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
@@ -143,7 +143,7 @@ class Trainer:
         """The last checkpoint's state; ValueError naming every setting that differs from this
         trainer's configuration (a run resumes only with its own)."""
         state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
-        changed = _differences(state["config"], self.config.to_dict())
+        changed = _differences(with_defaults(state["config"]), self.config.to_dict())
         if changed:
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
