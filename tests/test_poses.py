@@ -20,7 +20,8 @@ from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
 from spikegs.point_cloud import POINTS, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
-from spikegs.sfm import reconstruct, spike_images
+from spikegs.poses_cli import _complete_meta
+from spikegs.sfm import Reconstruction, reconstruct, spike_images
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
 
@@ -206,6 +207,15 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     assert sorted(p.stem for p in (raw / "test").iterdir()) == [v.name for v in again.test_views]
     out = capsys.readouterr().out  # intrinsics estimated afresh; poses compared, not scored
     assert "SfM's estimate" in out and "not a pose log" in out and "rotation difference" in out
+
+
+def test_an_implausible_estimated_focal_is_flagged():
+    meta = {"width": 64, "scene_center": [0, 0, 0], "scene_radius": 1.0}
+    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), np.zeros((0, 3)), None, 3)
+    for focal, flagged in ((1671.0, True), (56.0, False), (10.0, True)):  # 2.2, 59.5, 145 deg
+        recon.K = np.array([[focal, 0, 32], [0, focal, 32], [0, 0, 1]])
+        messages = _complete_meta(dict(meta), recon, estimated=True)
+        assert any("field of view" in m for m in messages) == flagged, (focal, messages)
 
 
 def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsys):

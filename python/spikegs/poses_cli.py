@@ -47,6 +47,7 @@ from .spikes.stream import as_flag, as_ints
 
 MIN_IMAGES = 8
 SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
+FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
@@ -137,6 +138,13 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
             f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META} (intrinsics_from: "
             f"{SFM}; state fx, fy, cx, cy without it to hold a calibration fixed)"
         )
+        fov = float(np.degrees(2 * np.arctan(meta["width"] / (2 * K[0, 0]))))
+        if not FOV_PLAUSIBLE[0] <= fov <= FOV_PLAUSIBLE[1]:
+            messages.append(
+                f"warning: that focal length gives a {fov:.1f}° horizontal field of view, outside "
+                f"{FOV_PLAUSIBLE[0]}-{FOV_PLAUSIBLE[1]}°: a poor estimate (few registered images, "
+                f"little parallax?); state the camera's intrinsics in {META} if they are known"
+            )
     if "scene_center" not in meta or "scene_radius" not in meta:
         centre = np.median(recon.points, axis=0)  # [3]
         distances = np.linalg.norm(recon.points - centre, axis=1)  # [P]
