@@ -28,6 +28,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
+    from .data.real import PSEUDO_PREFIX
     from .evaluate import evaluate_run
 
     dataset = load_dataset(run_dataset(args.run, args.dataset))
@@ -36,7 +37,10 @@ def run(args: argparse.Namespace) -> int:
         f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {result['file']}"
     )
-    pseudo = [name for name in result["views"] if name.startswith("pseudo_")]
+    pseudo = [name for name in result["views"] if name.startswith(PSEUDO_PREFIX)]
     if pseudo:
-        print(f"note: {len(pseudo)} views without a sharp image, scored against TFP (pseudo_*)")
+        print(
+            f"note: {len(pseudo)} views without a sharp image, scored against TFP "
+            f"({PSEUDO_PREFIX}*)"
+        )
     return 0

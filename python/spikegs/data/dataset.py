@@ -84,7 +84,7 @@ class Dataset:
 
 PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
-DERIVED = ("test", "sim", "sfm", "points3d.ply", f"{TRAJECTORY}.bak", TIMESTAMPS)
+DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", f"{TRAJECTORY}.bak", TIMESTAMPS)
 
 
 def holds_dataset(out: Path) -> bool:

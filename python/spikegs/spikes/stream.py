@@ -236,7 +236,7 @@ class DatWriter:
 
 def check_chunk(chunk) -> None:
     """ValueError unless `chunk` (readouts handled at a time) is a positive int."""
-    if not isinstance(chunk, (int, np.integer)) or isinstance(chunk, bool) or chunk < 1:
+    if as_ints(chunk=chunk)[0] < 1:
         raise ValueError(f"chunk expected a positive int (readouts at a time), found {chunk!r}")
 
 
