@@ -30,7 +30,7 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
-    existing_file,
+    open_streams,
     read_json,
     spike_files,
     write_parts,
@@ -118,11 +118,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
             f"{where}: expected channels 1 (spikes.dat) or 3 (spikes_r/g/b.dat) and those file "
             f"names, found channels {channels} and spike_files {meta.get('spike_files')}"
         )
-    streams = [SpikeStream.open(existing_file(root, name), h, w, flip) for name in names]
-    for name, stream in zip(names, streams):
-        if len(stream) != num:
-            raise ValueError(f"{root / name}: {len(stream)} readouts, {where} says {num}")
-    return streams
+    return open_streams(root, names, h, w, flip, num)
 
 
 def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:

@@ -169,6 +169,18 @@ def existing_file(root: Path, name: str) -> Path:
     return path
 
 
+def open_streams(
+    root: Path, names: list[str], height: int, width: int, flip: bool, num: int
+) -> list[SpikeStream]:
+    """The spike files ROOT/names, memory-mapped; FileNotFoundError naming a missing one,
+    ValueError naming one that does not hold the `num` readouts meta.json says."""
+    streams = [SpikeStream.open(existing_file(root, n), height, width, flip) for n in names]
+    for name, stream in zip(names, streams):
+        if len(stream) != num:
+            raise ValueError(f"{root / name}: {len(stream)} readouts, {META} says {num}")
+    return streams
+
+
 def read_json(path: Path):
     """The JSON document at `path`; ValueError naming the file where it is malformed."""
     try:
@@ -242,14 +254,8 @@ def load_dataset(path: PathLike) -> Dataset:
     if not isinstance(radius, (int, float)) or not 0 < radius < float("inf"):
         raise ValueError(f"{meta_path}: scene_radius expected a number > 0, found {radius!r}")
     num = int(meta["num_readouts"])
-    streams = []
-    for name in spike_files(int(meta["channels"])):
-        stream = SpikeStream.open(
-            existing_file(root, name), meta["height"], meta["width"], meta["flip"]
-        )
-        if len(stream) != num:
-            raise ValueError(f"{root / name}: {len(stream)} readouts, meta.json says {num}")
-        streams.append(stream)
+    names = spike_files(int(meta["channels"]))
+    streams = open_streams(root, names, meta["height"], meta["width"], meta["flip"], num)
     trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY))
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
