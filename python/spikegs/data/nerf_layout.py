@@ -138,12 +138,14 @@ def _camera(docs: list, frames: list, sources: list) -> dict:
     frame's own file's, then the frame's (nerfstudio); ValueError naming two frames that differ;
     a warning for non-zero distortion, which the pinhole rasterizer does not model."""
     keys = CAMERA_KEYS + DISTORTION_KEYS
-    cameras = [
+    merged = [
         {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
         for doc, frame in zip(docs, frames)
     ]
+    cameras = [
+        {k: camera_number(src, k, v) for k, v in c.items()} for c, src in zip(merged, sources)
+    ]
     for i, camera in enumerate(cameras):
-        cameras[i] = camera = {k: camera_number(sources[i], k, v) for k, v in camera.items()}
         if camera.keys() != cameras[0].keys() or not np.allclose(
             [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
         ):
