@@ -17,7 +17,7 @@ from spikegs.data.real_options import read_options
 from spikegs.data.sources import OPENGL_TO_OPENCV
 from spikegs.data.trajectory import look_at
 from spikegs.evaluate import evaluate_run
-from spikegs.image_io import write_image
+from spikegs.image_io import read_image, write_image
 from spikegs.sim_train import evaluate_dataset, train_sim
 from spikegs.spikes import DatWriter, save_dat
 from spikegs.train import Trainer
@@ -346,6 +346,19 @@ def test_nerf_bad_input(nerf, tmp_path):
     root = copy(nerf, tmp_path / "noimage")
     (root / "spike_data" / "r_1.dat").unlink()  # test/r_1: no spikes and no image
     with pytest.raises(FileNotFoundError, match="r_1.dat.*no sharp image"):
+        load_dataset(root)
+
+
+def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
+    root = copy(nerf, tmp_path / "double")  # twice the size, same aspect: resized
+    sharp = read_image(root / "test" / "r_0.exr")
+    write_image(root / "test" / "r_0.exr", np.repeat(np.repeat(sharp, 2, 0), 2, 1))
+    resized, original = (load_dataset(r).test_views[0].image for r in (root, nerf))  # [H, W, 1]
+    assert resized.shape == original.shape
+    np.testing.assert_allclose(resized.mean(), original.mean(), rtol=0.01)
+    root = copy(nerf, tmp_path / "cropped")
+    write_image(root / "test" / "r_0.exr", sharp[:, : W // 2])
+    with pytest.raises(ValueError, match=rf"r_0: image {W // 2}x{H} .*camera's images are {W}x{H}"):
         load_dataset(root)
 
 

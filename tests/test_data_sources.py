@@ -74,6 +74,14 @@ def test_frame_sequence_source(tmp_path):
     np.testing.assert_allclose(v0, test_poses[0], atol=1e-6)
     np.testing.assert_allclose(im0, test[0], atol=0.01)  # 8-bit sRGB, decoded
 
+    # a frame of another aspect ratio than the first is another crop of the view
+    cropped = tmp_path / "cropped"
+    cropped.mkdir()
+    write_transforms(cropped / "transforms.json", "train", train, train_poses, truth.K, ".exr")
+    write_image(cropped / "train" / "r_3.exr", train[3][:, :20])
+    with pytest.raises(ValueError, match=r"r_3: image 20x32 .*camera's images are 32x32"):
+        FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
+
     # half resolution, mono: intrinsics scale, luma of the frames
     half = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 16, 16)
     np.testing.assert_allclose(half.K[:2], truth.K[:2] / 2, rtol=1e-6)

@@ -32,6 +32,7 @@ from .sources import (
     camera_matrix,
     camera_number,
     centre_of_view,
+    check_aspect,
     read_frame,
     to_channels,
 )
@@ -179,10 +180,13 @@ def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple
     return tuple(map(int, src or size)), size
 
 
-def _mono(image: np.ndarray | None, height: int, width: int) -> np.ndarray | None:
-    """Linear RGB [h, w, 3] -> luma [height, width, 1], resized if need be."""
+def _mono(image: np.ndarray | None, src: tuple, size: tuple, name: str) -> np.ndarray | None:
+    """Linear RGB [h, w, 3] -> luma [height, width, 1] (`size`), resized if need be; ValueError
+    naming the image (`name`) when its aspect ratio is not the camera's (h, w) `src`."""
     if image is None:
         return None
+    check_aspect(image.shape[:2], src, name)
+    height, width = size
     if image.shape[:2] != (height, width):
         image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
     return to_channels(image, 1).astype(np.float32)
@@ -236,7 +240,12 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     # the intensity scale, when spikegs.json gives none
     calibrate = options.rate_at_one is None
     images = [
-        _mono(image if is_test else _image(root, frame) if calibrate else None, height, width)
+        _mono(
+            image if is_test else _image(root, frame) if calibrate else None,
+            src,
+            (height, width),
+            f"{root / frame['file_path']}",
+        )
         for frame, image, is_test in zip(frames, images, test)
     ]
     K = camera_matrix(path, camera, src, (height, width))

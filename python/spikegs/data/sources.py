@@ -363,13 +363,14 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     frames = doc.get("frames") or []
     if not frames:
         raise ValueError(f"{path}: no frames")
-    images, c2ws = [], []
+    images, c2ws, src = [], [], None
     for f in frames:
         if "transform_matrix" not in f or "file_path" not in f:
             raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
-        src_h, src_w = image.shape[:2]
-        if (src_h, src_w) != (height, width):
+        src_h, src_w = src = src or image.shape[:2]  # the first frame's size
+        check_aspect(image.shape[:2], src, f"{path.parent / f['file_path']}")
+        if image.shape[:2] != (height, width):
             image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
         images.append(to_channels(image, channels))
         c2ws.append(np.asarray(f["transform_matrix"], np.float64))
@@ -391,6 +392,19 @@ def camera_number(path: Path, key: str, value) -> float:
     if not math.isfinite(number):
         raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
     return number
+
+
+def check_aspect(shape: tuple, src: tuple, name: str) -> None:
+    """ValueError unless an image of (h, w) `shape` has the aspect ratio of the camera's (h, w)
+    `src` (its width within a pixel or 1 % of the camera's aspect at its height): another
+    aspect ratio is another crop of the view, which resizing to the camera's would stretch."""
+    (h, w), (src_h, src_w) = shape, src
+    if abs(w - h * src_w / src_h) > max(1.0, 0.01 * w):
+        raise ValueError(
+            f"{name}: image {w}x{h} (aspect {w / h:.3f}), the camera's images are {src_w}x"
+            f"{src_h} (aspect {src_w / src_h:.3f}): an image of another aspect ratio shows "
+            f"another crop of the view; crop or pad it to the camera's"
+        )
 
 
 def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
