@@ -2,6 +2,7 @@
 #include <omp.h>
 
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -220,6 +221,14 @@ TEST_CASE(simulator_refuses_bad_input) {
   SimParams bad;
   bad.rate_at_one = 1.5;
   CHECK(throws_invalid([&] { SpikeSimulator(2, 2, bad, 0); }));
+  // infinities too, under -ffast-math (which folds std::isfinite to true)
+  const double inf = std::numeric_limits<double>::infinity();
+  for (double SimParams::* field : {&SimParams::threshold, &SimParams::dark_sigma,
+                                    &SimParams::fpn_sigma, &SimParams::temporal_sigma}) {
+    SimParams infinite;
+    infinite.*field = inf;
+    CHECK(throws_invalid([&] { SpikeSimulator(2, 2, infinite, 0); }), "an infinite parameter");
+  }
   SpikeSimulator sim(2, 2, SimParams{}, 0);
   const std::vector<float> frames(8, 0.5f);
   const std::vector<double> short_times = {0.0, 5.0}, unsorted = {3.0, 1.0};
@@ -227,6 +236,9 @@ TEST_CASE(simulator_refuses_bad_input) {
   CHECK(throws_invalid([&] { sim.run(frames.data(), short_times.data(), 2, 10, out.data()); }),
         "frames must cover every readout");
   CHECK(throws_invalid([&] { sim.run(frames.data(), unsorted.data(), 2, 1, out.data()); }));
+  const std::vector<double> infinite_times = {0.0, inf};
+  CHECK(throws_invalid([&] { sim.run(frames.data(), infinite_times.data(), 2, 1, out.data()); }),
+        "an infinite frame time");
 }
 
 TEST_CASE(simulator_rate_is_calibrated_and_capped) {

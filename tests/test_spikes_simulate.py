@@ -147,6 +147,9 @@ def test_sim_params_of_the_wrong_type_are_named():
             SimParams(**fields)
     with pytest.raises(ValueError, match="rate_at_one expected in"):  # ranges at construction
         SimParams(rate_at_one=0.0)
+    for name in ("threshold", "dark_sigma", "fpn_sigma", "temporal_sigma"):  # not inf either
+        with pytest.raises(ValueError, match=f"{name} expected finite"):
+            SimParams(**{name: float("inf")})
     params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
     assert (params.threshold, params.shot_noise) == (50.0, False)
     assert type(params.threshold) is float and type(params.shot_noise) is bool

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/errors.hpp"
+#include "core/finite.hpp"
 #include "core/spike_rng.hpp"
 
 namespace spikegs {
@@ -27,12 +28,13 @@ void SimParams::validate() const {
   auto check = [](bool ok, const char* name, const char* expected, double found) {
     if (!ok) fail(name, " expected ", expected, ", found ", found);
   };
-  check(threshold > 0 && std::isfinite(threshold), "threshold", "> 0", threshold);
+  // is_finite (bit-level): -ffast-math folds std::isfinite to true, letting inf through
+  check(threshold > 0 && is_finite(threshold), "threshold", "finite, > 0", threshold);
   check(rate_at_one > 0 && rate_at_one <= 1, "rate_at_one", "in (0, 1]", rate_at_one);
   check(dark_rate >= 0 && dark_rate <= 1, "dark_rate", "in [0, 1]", dark_rate);
-  check(dark_sigma >= 0 && std::isfinite(dark_sigma), "dark_sigma", ">= 0", dark_sigma);
-  check(fpn_sigma >= 0 && std::isfinite(fpn_sigma), "fpn_sigma", ">= 0", fpn_sigma);
-  check(temporal_sigma >= 0 && std::isfinite(temporal_sigma), "temporal_sigma", ">= 0",
+  check(dark_sigma >= 0 && is_finite(dark_sigma), "dark_sigma", "finite, >= 0", dark_sigma);
+  check(fpn_sigma >= 0 && is_finite(fpn_sigma), "fpn_sigma", "finite, >= 0", fpn_sigma);
+  check(temporal_sigma >= 0 && is_finite(temporal_sigma), "temporal_sigma", "finite, >= 0",
         temporal_sigma);
 }
 
@@ -62,7 +64,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
   if (n < 0) fail("number of readouts expected >= 0, found ", n);
   if (num_frames < 1) fail("at least one frame expected, found none");
   for (int64_t f = 0; f < num_frames; ++f)
-    if (!std::isfinite(times[f]) || (f > 0 && !(times[f] > times[f - 1])))
+    if (!is_finite(times[f]) || (f > 0 && !(times[f] > times[f - 1])))
       fail("frame times expected finite and strictly increasing, found ", times[f], " at frame ",
            f);
   if (num_frames > 1 && n > 0 && (times[0] > double(t0) || times[num_frames - 1] < double(last)))
