@@ -174,6 +174,10 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     other = BernoulliStream(scene[0], len(stream), seed=1)
     for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
         assert train_or_load(path, *changed, 33, **tiny)[1] > 0
+    path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
+    assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
+    assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
+    assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary file left
 
 
 def test_inference_over_timestamps(scene, trained):

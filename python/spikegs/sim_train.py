@@ -133,7 +133,9 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     """Save weights, architecture and `meta` (seed, steps, ...) to `path`."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, tmp)
+    tmp.replace(path)  # atomic: a kill mid-save leaves no truncated file behind
 
 
 def _model_of(payload: dict) -> SIM:
@@ -168,10 +170,14 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
     if path.exists() and not force:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-        if payload["config"]["window"] == window and payload["meta"].get("data") == data:
-            return _model_of(payload), 0.0
-        print(f"{path}: trained on other spikes or another window; training SIM afresh")
+        try:
+            payload = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
+            print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh")
+        else:
+            if payload["config"]["window"] == window and payload["meta"].get("data") == data:
+                return _model_of(payload), 0.0
+            print(f"{path}: trained on other spikes or another window; training SIM afresh")
     start = time.perf_counter()
     model, losses = train_sim(stream, timestamps, window, **kwargs)
     seconds = time.perf_counter() - start
