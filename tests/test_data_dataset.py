@@ -136,6 +136,8 @@ def test_negative_view_counts_refused(tmp_path):
     for counts in ({"test_on_path": -1}, {"test_off_path": -2}):
         with pytest.raises(ValueError, match="expected counts >= 0"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **counts})
+    with pytest.raises(ValueError, match="a side of 2 pixels cannot be scored"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 2})
 
 
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):
@@ -214,6 +216,16 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "none": ("test_views.json", views(no_views), "no held-out test view"),
         "twice": ("test_views.json", views(same_names), r"found twice: \['view'\]"),
         "json": ("meta.json", lambda text: text[:-3], r"meta.json: not valid JSON"),
+        "keys": (
+            "test_views.json",
+            views(lambda d: {**d, "frames": [{"name": "a"}]}),
+            "frame 0 has no transform_matrix, file_path",
+        ),
+        "trajectory": (
+            "trajectory.json",
+            lambda text: text[:-3],
+            "trajectory.json: not valid JSON",
+        ),
     }
     for case, (name, edit, message) in cases.items():
         with pytest.raises(ValueError, match=message):

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import signal
 
 import numpy as np
 import pytest
@@ -17,7 +19,7 @@ from spikegs.gaussians import GaussianModel
 from spikegs.initial_intensity import ViewSample
 from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
-from spikegs.train import Trainer
+from spikegs.train import Trainer, run_lock
 from spikegs.train_cli import config_from_args
 
 FAST = {
@@ -99,12 +101,71 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
     whole = Trainer(dataset, config, tmp_path / "whole", progress=False)
     whole.train()
 
-    _train_until(dataset, config, tmp_path / "cut", 37, monkeypatch, KeyboardInterrupt)
+    # Ctrl-C as step 40 densifies (a real SIGINT): the step finishes, the run checkpoints at 40
+    # and stops
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
+    with pytest.raises(KeyboardInterrupt):
+        Trainer(dataset, config, tmp_path / "cut", progress=False).train()
+    assert torch.load(tmp_path / "cut" / "checkpoints" / "last.pt")["iteration"] == 40
+    monkeypatch.undo()
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
     assert torch.equal(whole.model.background, resumed.model.background)
+
+
+def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(dataset, tmp_path, monkeypatch):
+    train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
+    config = load_config("tfp33", {**FAST, "train": train})
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=2)
+    with pytest.raises(KeyboardInterrupt):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert torch.load(tmp_path / "run" / "checkpoints" / "last.pt")["iteration"] == 25
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
+    monkeypatch.undo()
+    Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+
+
+def _interrupt_during(owner, method: str, iteration: int, monkeypatch, signals: int) -> None:
+    """Send this process `signals` SIGINTs from inside `owner.method`, at `iteration`."""
+    original = getattr(owner, method)
+
+    def interrupted(self, *args, **kwargs):
+        if args and args[-1] == iteration:  # Densifier.step(model, optimizer, iteration)
+            for _ in range(signals):
+                os.kill(os.getpid(), signal.SIGINT)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(owner, method, interrupted)
+
+
+def test_resume_refuses_other_data(dataset, tmp_path):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    other = simulate_dataset(
+        "wires",
+        tmp_path / "wires",
+        height=32,
+        width=32,
+        readouts=600,
+        test_on_path=1,
+        test_off_path=0,
+        progress=False,
+    )
+    with pytest.raises(ValueError, match="trained on other data"):
+        Trainer(other, config, tmp_path / "run", progress=False).train(resume=True)
+    moved = shutil.copytree(dataset.root, tmp_path / "moved")  # the same data elsewhere: fine
+    Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
+
+
+def test_one_process_trains_in_a_run_directory(dataset, tmp_path):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    (tmp_path / "run").mkdir()
+    with run_lock(tmp_path / "run"):  # as another training process holds it
+        with pytest.raises(FileExistsError, match="being trained by another process"):
+            Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
 
 
 def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
@@ -277,6 +338,48 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "x.avi")]) == 2
 
 
+def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, monkeypatch):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    monkeypatch.setattr("spikegs.render_cli.orbit_frames", lambda *a: pytest.fail("rendered"))
+    monkeypatch.setattr("shutil.which", lambda name: None)  # no ffmpeg
+    (tmp_path / "dir.gif").mkdir()
+    for out, extra in (("dir.gif", []), ("v.mp4", []), ("v.gif", ["--fps", "1000"])):
+        assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
+
+
+def test_cli_names_unreadable_and_unwritable_paths(dataset, tmp_path, capsys):
+    (tmp_path / "afile").write_text("")
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("supervision: {exposure_poses: [5\n")
+    (tmp_path / "latin1.yaml").write_bytes("method: caf\xe9\n".encode("latin-1"))
+    (tmp_path / "cfg.txt").write_text("method: spikegs\n")
+    (tmp_path / "dir.yaml").mkdir()
+    data, out = str(dataset.root), str(tmp_path / "afile" / "run")
+    for args, message in (
+        (["--config", str(bad_yaml)], "bad.yaml: not readable as YAML"),
+        (["--config", str(tmp_path / "latin1.yaml")], "latin1.yaml: not readable as YAML"),
+        (["--config", str(tmp_path / "cfg.txt")], "cfg.txt: expected a .yaml or .yml file"),
+        (["--config", str(tmp_path / "dir.yaml")], "dir.yaml: not a file"),
+        (["--method", "tfp33"], "afile"),  # --out inside a file
+    ):
+        assert main(["train", data, *args, "--out", out]) == 2, args
+        assert message in capsys.readouterr().err, args
+
+
+def test_config_reads_scientific_notation(tmp_path):
+    path = tmp_path / "sci.yaml"
+    path.write_text(
+        "base: tfp33\nlr: {means: 1e-4, opacity_logits: 5E-2}\ndensify: {grad_threshold: 2e-4}\n"
+    )
+    config = load_config(path)
+    assert (config.lr.means, config.lr.opacity_logits, config.densify.grad_threshold) == (
+        1e-4,
+        0.05,
+        2e-4,
+    )
+
+
 def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
     """A colour camera: per-channel targets, one SIM trained on all three streams, RGB renders."""
     data = simulate_dataset(
@@ -418,8 +521,13 @@ def test_log_holds_each_step_once_after_a_kill(dataset, tmp_path, monkeypatch):
     config = load_config("tfp33", {**FAST, "train": train})
     _train_until(dataset, config, tmp_path / "run", 37, monkeypatch)  # last checkpoint: 25
     assert _logged(tmp_path / "run")[-1] == 35
+    log = tmp_path / "run" / "log.jsonl"
+    log.write_bytes(log.read_bytes()[:-20])  # the kill cut the last record short
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert _logged(tmp_path / "run") == sorted(set(range(5, 61, 5)) | {50})
+    log.write_text("{}\n" + log.read_text())  # not a torn last line: named
+    with pytest.raises(ValueError, match="log.jsonl: line 1 is not a log record"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     _train_until(dataset, config, tmp_path / "early", 12, monkeypatch)  # before any checkpoint
     Trainer(dataset, config, tmp_path / "early", progress=False).train()  # a fresh run
     assert _logged(tmp_path / "early") == list(range(5, 61, 5))
@@ -470,7 +578,7 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
-    with pytest.raises(RuntimeError, match="pruning removed every Gaussian"):
+    with pytest.raises(ValueError, match="pruning removed every Gaussian"):
         trainer.train()
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -260,6 +261,18 @@ def available_methods() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
 
 
+class _Loader(yaml.SafeLoader):
+    """yaml.SafeLoader that reads 1e-4 as a float, as YAML 1.2 does (YAML 1.1, PyYAML's, wants
+    a dot, 1.0e-4, and reads 1e-4 as a string)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
 def load_config(name_or_path: str | Path | None = None, overrides: dict | None = None) -> Config:
     """The configuration of a method name (configs/NAME.yaml) or a YAML file (None: the default
     method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated."""
@@ -279,6 +292,8 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     current directory."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
+        if path.is_file() or len(path.parts) > 1:
+            raise ValueError(f"config file {path}: expected a .yaml or .yml file")
         path = CONFIG_DIR / f"{name_or_path}.yaml"
         if not path.exists():
             raise ValueError(
@@ -288,10 +303,15 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
         path = relative_to / path
     if not path.exists():
         raise FileNotFoundError(f"config file not found: {path}")
+    if not path.is_file():
+        raise ValueError(f"config file {path}: not a file")
     path = path.resolve()
     if path in seen:
         raise ValueError(f"config: 'base' chain loops at {path}")
-    data = yaml.safe_load(path.read_text()) or {}
+    try:
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: not readable as YAML: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping at the top level")
     base = data.pop("base", None)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
@@ -48,20 +50,37 @@ def orbit_frames(model, dataset, frames: int) -> np.ndarray:
     return np.stack(out)
 
 
-def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
-    """GIF through Pillow; MP4 through matplotlib's ffmpeg writer (needs ffmpeg on PATH)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+def check_video_output(path: Path, fps: int) -> None:
+    """ValueError, before any rendering, unless `path` can take a video at `fps`: a .gif (at most
+    GIF_MAX_FPS) or an .mp4 with ffmpeg on PATH, not an existing directory."""
     suffix = path.suffix.lower()
-    if suffix == ".gif":
+    if suffix not in (".gif", ".mp4"):
+        raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
+    if path.is_dir():
+        raise ValueError(f"--out {path}: is a directory")
+    if fps < 1:
+        raise ValueError(f"--fps: expected a positive number, got {fps}")
+    if suffix == ".gif" and fps > GIF_MAX_FPS:
+        raise ValueError(
+            f"--fps {fps}: a GIF holds at most {GIF_MAX_FPS} (its frame delays are whole "
+            f"hundredths of a second, and viewers slow delays under 2 of them); use .mp4"
+        )
+    if suffix == ".mp4" and shutil.which("ffmpeg") is None:
+        raise ValueError(
+            "--out .mp4 needs ffmpeg on PATH (apt-get install ffmpeg); .gif works without"
+        )
+
+
+def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
+    """GIF through Pillow; MP4 through matplotlib's ffmpeg writer (`check_video_output` first)."""
+    check_video_output(path, fps)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".gif":
         from PIL import Image
 
         images = [Image.fromarray(f) for f in frames]
         images[0].save(path, save_all=True, append_images=images[1:], duration=1000 // fps, loop=0)
-    elif suffix == ".mp4":
-        if shutil.which("ffmpeg") is None:
-            raise ValueError(
-                "--out .mp4 needs ffmpeg on PATH (apt-get install ffmpeg); .gif works without"
-            )
+    else:
         import matplotlib
 
         matplotlib.use("Agg")
@@ -79,8 +98,6 @@ def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
                 shown.set_data(f)
                 writer.grab_frame()
         plt.close(fig)
-    else:
-        raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -88,8 +105,9 @@ def run(args: argparse.Namespace) -> int:
     from .eval_cli import run_dataset
     from .ply import load_ply
 
-    if args.out.suffix.lower() not in (".gif", ".mp4") or args.frames < 1 or args.fps < 1:
-        raise ValueError("--out must end in .gif or .mp4; --frames and --fps must be positive")
+    check_video_output(args.out, args.fps)
+    if args.frames < 1:
+        raise ValueError(f"--frames: expected a positive number, got {args.frames}")
     ply = args.run / "scene.ply"
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

@@ -6,6 +6,8 @@ end, scene.ply and train.json. Training resumes from the last checkpoint with `r
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import math
 import time
@@ -16,15 +18,22 @@ import torch
 import yaml
 from tqdm.auto import tqdm
 
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None
+
 from .config import Config, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .gaussians import PARAMETER_NAMES, GaussianModel
 from .initial_intensity import ViewSample, projected_intensity
+from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
+from .sim_train import spikes_fingerprint
 from .targets import build_targets, intensity_scale
 
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
@@ -47,8 +56,17 @@ def _log_from(path: Path, iteration: int):
     resumed run repeats, or all of a run that never checkpointed, are dropped)."""
     kept = []
     if iteration > 0 and path.exists():
-        records = [line for line in path.read_text().splitlines() if line.strip()]
-        kept = [line for line in records if json.loads(line)["iteration"] <= iteration]
+        lines = [line for line in path.read_text().splitlines() if line.strip()]
+        for number, line in enumerate(lines, start=1):
+            try:
+                record = json.loads(line)
+                step = record["iteration"]
+            except (ValueError, KeyError, TypeError) as err:
+                if number == len(lines):  # a last line cut short by a kill mid-write
+                    break
+                raise ValueError(f"{path}: line {number} is not a log record ({err})") from None
+            if step <= iteration:
+                kept.append(line)
     path.write_text("".join(line + "\n" for line in kept))
     return path.open("a")
 
@@ -77,6 +95,36 @@ def _means_lr(config: Config, iteration: int, scene_radius: float) -> float:
     return math.exp(math.log(lr0) * (1 - frac) + math.log(lr1) * frac) * scene_radius
 
 
+def data_fingerprint(dataset, scale: float) -> str:
+    """A digest of what training reads from `dataset`: its spikes (`spikes_fingerprint`), the
+    poses at its training timestamps, its intrinsics and the intensity `scale` (not its path: a
+    moved dataset is the same data)."""
+    timestamps = np.asarray(dataset.train_timestamps, np.float64)
+    digest = hashlib.sha256(spikes_fingerprint(dataset.streams, timestamps).encode())
+    digest.update(np.ascontiguousarray(dataset.trajectory.pose_at(timestamps), np.float64).data)
+    digest.update(np.asarray([*np.ravel(dataset.K), scale], np.float64).tobytes())
+    return digest.hexdigest()
+
+
+@contextlib.contextmanager
+def run_lock(run_dir: Path):
+    """Hold an exclusive lock on RUN/.lock for the block (released at its end or when the process
+    dies, however); FileExistsError while another process holds it. No lock where the OS has no
+    fcntl (Windows)."""
+    if fcntl is None:
+        yield
+        return
+    with (run_dir / ".lock").open("w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise FileExistsError(
+                f"{run_dir} is being trained by another process; wait for it to end or train "
+                f"into another --out"
+            ) from None
+        yield
+
+
 class Trainer:
     """Trains a GaussianModel on `dataset` with the supervision of `config`, in `run_dir`."""
 
@@ -87,6 +135,7 @@ class Trainer:
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
         self.radius = float(dataset.scene_radius)
         self.checkpoint_path = self.run_dir / "checkpoints" / "last.pt"
+        self.data = data_fingerprint(dataset, self.scale)
 
     # -- state ---------------------------------------------------------------------------------
     def _fresh_state(self) -> None:
@@ -134,6 +183,8 @@ class Trainer:
             "rng": self.rng.bit_generator.state,
             "torch_rng": torch.get_rng_state(),
             "config": self.config.to_dict(),
+            "data": self.data,
+            "dataset": str(Path(self.dataset.root).resolve()),
         }
         tmp = self.checkpoint_path.with_suffix(".tmp")
         torch.save(state, tmp)
@@ -141,7 +192,8 @@ class Trainer:
 
     def _read_checkpoint(self) -> dict:
         """The last checkpoint's state; ValueError naming every setting that differs from this
-        trainer's configuration (a run resumes only with its own)."""
+        trainer's configuration, or when it was trained on other data (a run resumes only with
+        its own settings and data)."""
         state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
         changed = _differences(with_defaults(state["config"]), self.config.to_dict())
         if changed:
@@ -149,6 +201,12 @@ class Trainer:
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
                 f"the same method and settings (or train into another --out). Differing: "
                 + "; ".join(changed)
+            )
+        if state.get("data", self.data) != self.data:  # checkpoints before it have none
+            raise ValueError(
+                f"{self.checkpoint_path}: the run was trained on other data than "
+                f"{self.dataset.root} (other spikes, poses, intrinsics or intensity scale; it was "
+                f"{state.get('dataset')}); resume it on its own dataset or train into another --out"
             )
         return state
 
@@ -229,7 +287,7 @@ class Trainer:
         self.densifier.observe(radii, screen.grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
-            raise RuntimeError(
+            raise ValueError(
                 f"iteration {self.iteration}: pruning removed every Gaussian (densify.min_opacity "
                 f"{self.config.densify.min_opacity}, size caps); start from more Gaussians or "
                 f"prune less"
@@ -243,12 +301,38 @@ class Trainer:
         image = render_view(self.model, view, self.K, self.dataset.width, self.dataset.height)
         return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
 
+    def _after_step(self, loss: float, psnr: float, log, bar, on_eval) -> float:
+        """Evaluation and log record due after a step; returns the latest held-out PSNR."""
+        t, it = self.config.train, self.iteration
+        evaluate = it % t.eval_every == 0 or it == t.iterations
+        if evaluate:
+            psnr = self.quick_psnr()
+            if on_eval is not None:
+                on_eval(self)
+        if it % t.log_every == 0 or evaluate:
+            record = {
+                "iteration": it,
+                "seconds": round(self.train_seconds, 3),
+                "loss": loss,
+                "gaussians": len(self.model),
+            }
+            if evaluate:
+                record["psnr"] = psnr
+            log.write(json.dumps(record) + "\n")
+            log.flush()
+            bar.set_postfix(
+                loss=f"{loss:.4f}",
+                psnr=f"{psnr:.2f}",
+                n=len(self.model),
+                s=f"{self.train_seconds:.0f}",
+            )
+        return psnr
+
     def train(self, resume: bool = False, on_eval=None) -> dict:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
-        t = self.config.train
         state = None
         if resume:  # everything checked before any work or any write
             if not self.checkpoint_path.exists():
@@ -257,11 +341,17 @@ class Trainer:
         elif self.checkpoint_path.exists():
             raise FileExistsError(f"{self.run_dir} already holds a run; pass resume or another dir")
         self.run_dir.mkdir(parents=True, exist_ok=True)
+        with run_lock(self.run_dir):  # one process trains in a run directory at a time
+            return self._run(state, on_eval)
+
+    def _run(self, state: dict | None, on_eval) -> dict:
+        """`train` once its checks have passed: fresh when `state` is None, else resumed."""
+        t = self.config.train
         (self.run_dir / "config.yaml").write_text(
             yaml.safe_dump(self.config.to_dict(), sort_keys=False)
         )
         self.targets = build_targets(self.dataset, self.config, self.progress)
-        if resume:
+        if state is not None:
             self._load_checkpoint(state)
         else:
             self._fresh_state()
@@ -275,43 +365,30 @@ class Trainer:
             dynamic_ncols=True,
         )
         psnr = float("nan")
-        try:
-            while self.iteration < t.iterations:
-                start = time.perf_counter()
-                loss = self.step()
-                self.train_seconds += time.perf_counter() - start
-                it = self.iteration
-                if it % t.eval_every == 0 or it == t.iterations:
-                    psnr = self.quick_psnr()
-                    if on_eval is not None:
-                        on_eval(self)
-                if it % t.log_every == 0 or it % t.eval_every == 0 or it == t.iterations:
-                    record = {
-                        "iteration": it,
-                        "seconds": round(self.train_seconds, 3),
-                        "loss": loss,
-                        "gaussians": len(self.model),
-                    }
-                    if it % t.eval_every == 0 or it == t.iterations:
-                        record["psnr"] = psnr
-                    log.write(json.dumps(record) + "\n")
-                    log.flush()
-                    bar.set_postfix(
-                        loss=f"{loss:.4f}",
-                        psnr=f"{psnr:.2f}",
-                        n=len(self.model),
-                        s=f"{self.train_seconds:.0f}",
-                    )
-                if it % t.checkpoint_every == 0 or time.perf_counter() - saved_at > CHECKPOINT_S:
-                    self.save_checkpoint()
-                    saved_at = time.perf_counter()
-                bar.update(1)
-        except KeyboardInterrupt:
-            self.save_checkpoint()  # Ctrl-C loses nothing: resume continues from here
-            raise
-        finally:
-            bar.close()
-            log.close()
+        stop_message = (
+            "\nCtrl-C: stopping after this step, with a checkpoint to --resume from (Ctrl-C again "
+            "stops at once, keeping the last checkpoint)"
+        )
+        with deferred_interrupt(stop_message) as interrupted:
+            try:
+                while self.iteration < t.iterations:
+                    start = time.perf_counter()
+                    loss = self.step()
+                    self.train_seconds += time.perf_counter() - start
+                    psnr = self._after_step(loss, psnr, log, bar, on_eval)
+                    if interrupted():  # between steps: the checkpoint is a consistent state
+                        self.save_checkpoint()
+                        raise KeyboardInterrupt
+                    if (
+                        self.iteration % t.checkpoint_every == 0
+                        or time.perf_counter() - saved_at > CHECKPOINT_S
+                    ):
+                        self.save_checkpoint()
+                        saved_at = time.perf_counter()
+                    bar.update(1)
+            finally:
+                bar.close()
+                log.close()
         self.save_checkpoint()
         save_ply(self.model, self.run_dir / "scene.ply")
         summary = {

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..image_io import read_image, write_image
 from ..spikes import SpikeStream
-from .trajectory import CONVENTION, PathLike, Trajectory
+from .trajectory import CONVENTION, PathLike, Trajectory, read_json
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
     "meta.json",
@@ -181,14 +181,6 @@ def open_streams(
     return streams
 
 
-def read_json(path: Path):
-    """The JSON document at `path`; ValueError naming the file where it is malformed."""
-    try:
-        return json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: not valid JSON ({err})") from None
-
-
 def check_test_views(views: list[TestView], where) -> None:
     """ValueError unless there is at least one held-out view and their names are unique (each
     names its scores and images in an evaluation); `where`: the file or scene they come from."""
@@ -206,7 +198,10 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
     if doc.get("convention", CONVENTION) != CONVENTION:
         raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
     views = []
-    for frame in doc.get("frames", []):
+    for i, frame in enumerate(doc.get("frames", [])):
+        missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
+        if missing:
+            raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")
         c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
         if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
             raise ValueError(f"{path}: view '{frame['name']}' has a non-finite or non-4x4 pose")

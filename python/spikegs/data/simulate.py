@@ -216,6 +216,11 @@ def simulate_dataset(
     train_every = default_train_every(readouts) if train_every is None else train_every
     if height < 1 or width < 1 or frame_every <= 0 or train_every < 1:
         raise ValueError("height, width, frame_every and train_every expected positive")
+    if 2 in (height, width):
+        raise ValueError(
+            f"{height}x{width} images: a side of 2 pixels cannot be scored (SSIM, in spikegs eval, "
+            f"needs sides of 1 or at least 3 pixels)"
+        )
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1
     source = make_source(scene, width, height, channels, spp=spp)

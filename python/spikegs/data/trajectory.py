@@ -154,7 +154,9 @@ class Trajectory:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"trajectory file not found: {path}")
-        doc = json.loads(path.read_text())
+        doc = read_json(path)
+        if not isinstance(doc, dict):
+            raise ValueError(f"{path}: expected a JSON object with frames")
         if doc.get("convention", CONVENTION) != CONVENTION:
             raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
         frames = doc.get("frames") or []
@@ -168,6 +170,14 @@ class Trajectory:
         if c2w.shape[1:] != (4, 4):
             raise ValueError(f"{path}: transform_matrix expected 4x4, found {list(c2w.shape[1:])}")
         return cls(readouts, np.linalg.inv(c2w), source=str(path))
+
+
+def read_json(path: Path):
+    """The JSON document at `path`; ValueError naming the file where it is malformed."""
+    try:
+        return json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: not valid JSON ({err})") from None
 
 
 _look_at = look_at  # `spiral` has a parameter of the same name
