@@ -28,19 +28,13 @@ FAST = {
 }
 
 
+TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("tiny") / "data"
-    return simulate_dataset(
-        "solids",
-        root,
-        height=32,
-        width=32,
-        readouts=600,
-        test_on_path=2,
-        test_off_path=2,
-        progress=False,
-    )
+    return simulate_dataset("solids", root, **TINY)
 
 
 def _mean_psnr(model, dataset) -> float:
@@ -143,16 +137,7 @@ def _interrupt_during(owner, method: str, iteration: int, monkeypatch, signals: 
 def test_resume_refuses_other_data(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
-    other = simulate_dataset(
-        "wires",
-        tmp_path / "wires",
-        height=32,
-        width=32,
-        readouts=600,
-        test_on_path=1,
-        test_off_path=0,
-        progress=False,
-    )
+    other = simulate_dataset("wires", tmp_path / "wires", **TINY)
     with pytest.raises(ValueError, match="trained on other data"):
         Trainer(other, config, tmp_path / "run", progress=False).train(resume=True)
     moved = shutil.copytree(dataset.root, tmp_path / "moved")  # the same data elsewhere: fine
