@@ -10,6 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
+from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.llff import llff_sphere, to_poses_bounds, viewmats_from_llff
@@ -218,6 +219,20 @@ def test_nerf_pose_round_trip(sim, nerf):
     ds = load_dataset(nerf)
     np.testing.assert_allclose(ds.test_views[0].viewmat, view_poses(sim)[0], atol=1e-6)
     np.testing.assert_allclose(ds.trajectory.pose_at(0), view_poses(sim)[2], atol=1e-6)
+
+
+def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
+    args = ["sim-train", str(nerf), "--steps", "2", "--crop", "16", "--batch-size", "1"]
+    assert main([*args, "--out", str(tmp_path / "sim.pt")]) == 0
+    assert "note: 1 views without a sharp image" in capsys.readouterr().out
+
+
+def test_nerf_unknown_convention_refused(nerf, tmp_path):
+    for value in (None, "colmap", 3):
+        root = copy(nerf, tmp_path / str(value))
+        edit_json(root / "transforms_train.json", lambda doc, v=value: doc.update(convention=v))
+        with pytest.raises(ValueError, match=rf"transforms_train.json: convention {value!r}"):
+            load_dataset(root)
 
 
 def test_windows_never_straddle_two_views(llff):

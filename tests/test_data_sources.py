@@ -14,6 +14,7 @@ from spikegs.data.sources import (
     MissingDependencyError,
     MitsubaSource,
     import_mitsuba,
+    read_frame,
 )
 from spikegs.image_io import write_image
 
@@ -178,3 +179,20 @@ def test_mitsuba_source_convention_and_dataset(tmp_path):
         progress=False,
     )
     assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3
+
+
+def test_read_frame_composites_alpha_once_in_linear_light(tmp_path):
+    from PIL import Image
+
+    rgba = np.zeros((4, 4, 4), np.uint8)
+    rgba[..., :3], rgba[..., 3] = 255, 128  # white at 50 % alpha (colour unassociated in PNG)
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "rgba.png")
+    np.testing.assert_allclose(read_frame(tmp_path / "rgba", 1.0), 1.0, atol=1e-6)
+    np.testing.assert_allclose(read_frame(tmp_path / "rgba", 0.0), 128 / 255, atol=1e-6)
+    Image.fromarray(np.zeros((4, 4, 2), np.uint8), "LA").save(tmp_path / "la.png")  # transparent
+    np.testing.assert_allclose(read_frame(tmp_path / "la", 0.7), 0.7, atol=1e-6)
+    grey = np.full((4, 4, 2), 0.5, np.float32)  # EXR: linear, colour premultiplied by alpha
+    write_image(tmp_path / "premultiplied.exr", np.concatenate([grey, grey], axis=2))
+    np.testing.assert_allclose(read_frame(tmp_path / "premultiplied", 1.0), 0.5 + 0.5, atol=1e-6)
+    Image.fromarray(np.full((4, 4, 3), 255, np.uint8)).save(tmp_path / "photo.jpeg")
+    np.testing.assert_allclose(read_frame(tmp_path / "photo", 0.0), 1.0, atol=1e-6)

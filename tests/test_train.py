@@ -558,6 +558,12 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
     assert other["file"] == str(tmp_path / "run" / "eval-copy.json")
     assert other["dataset"] == str((tmp_path / "copy").resolve()) != own["dataset"]
+    # another dataset of the same directory name does not overwrite those scores; a re-run does
+    shutil.copytree(dataset.root, tmp_path / "elsewhere" / "copy")
+    second = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "elsewhere" / "copy"), False)
+    assert second["file"] == str(tmp_path / "run" / "eval-copy-2.json")
+    again = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
+    assert again["file"] == other["file"]
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):

@@ -28,7 +28,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
-    from .data.real import PSEUDO_PREFIX
+    from .data.real import pseudo_views_note
     from .evaluate import evaluate_run
 
     dataset = load_dataset(run_dataset(args.run, args.dataset))
@@ -37,10 +37,7 @@ def run(args: argparse.Namespace) -> int:
         f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {result['file']}"
     )
-    pseudo = [name for name in result["views"] if name.startswith(PSEUDO_PREFIX)]
-    if pseudo:
-        print(
-            f"note: {len(pseudo)} views without a sharp image, scored against TFP "
-            f"({PSEUDO_PREFIX}*)"
-        )
+    note = pseudo_views_note(result["views"])
+    if note:
+        print(note)
     return 0

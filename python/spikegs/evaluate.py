@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
@@ -32,13 +33,30 @@ def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> di
     return out
 
 
-def _eval_name(train: dict, dataset) -> str:
+def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     """'eval' for the dataset the run was trained on (`train`: its train.json), else
     'eval-DATASETNAME' (RUN/NAME.json and RUN/NAME/*.png), so that scoring another dataset keeps
-    the run's own scores."""
+    the run's own scores; 'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of
+    the same directory name holds the name."""
     own = train.get("dataset")
     root = Path(dataset.root).resolve()
-    return "eval" if own is None or Path(own).resolve() == root else f"eval-{root.name}"
+    if own is None or Path(own).resolve() == root:
+        return "eval"
+    for i in itertools.count(1):
+        name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")
+        if _scored_dataset(run_dir / f"{name}.json") in (None, str(root)):
+            return name
+
+
+def _scored_dataset(path: Path) -> str | None:
+    """The dataset an evaluation file scored; None where there is no such file ('' where it is
+    unreadable: its name is not reused)."""
+    if not path.exists():
+        return None
+    try:
+        return str(json.loads(path.read_text()).get("dataset", ""))
+    except (ValueError, AttributeError):
+        return ""
 
 
 def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
@@ -47,7 +65,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     run_dir = Path(run_dir)
     summary = run_dir / "train.json"
     train = json.loads(summary.read_text()) if summary.exists() else {}
-    name = _eval_name(train, dataset)
+    name = _eval_name(run_dir, train, dataset)
     ply = run_dir / "scene.ply"
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

@@ -28,10 +28,15 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         raise OSError(f"cannot write {path}: {out.geterror()}")
 
 
-def read_image(path: str | Path) -> np.ndarray:
+def read_image(path: str | Path, unassociated_alpha: bool = False) -> np.ndarray:
     """Read an image as float32 [H, W, C] (8-bit files scaled to [0, 1]); FileNotFoundError when
-    there is no such file, ValueError when there is one that is not a readable image."""
-    inp = oiio.ImageInput.open(str(path))
+    there is no such file, ValueError when there is one that is not a readable image.
+
+    OpenImageIO premultiplies colour by an alpha that a file stores unassociated (PNG);
+    `unassociated_alpha` keeps the file's colour as it is."""
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", int(unassociated_alpha))
+    inp = oiio.ImageInput.open(str(path), config)
     if inp is None:
         missing = not Path(path).is_file()
         raise (FileNotFoundError if missing else ValueError)(

@@ -10,6 +10,7 @@ from .bench.common import print_table
 from .cli import positive_int
 from .config import SimConfig, TrainConfig
 from .data.dataset import load_dataset
+from .data.real import pseudo_views_note
 from .sim_train import evaluate_dataset, on_path_views
 from .targets import trained_sim
 
@@ -51,4 +52,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     scores = evaluate_dataset(model, dataset)
     print_table([{"method": name, **s} for name, s in scores.items()])
+    note = pseudo_views_note(v.name for v in on_path_views(dataset))
+    if note:
+        print(f"{note}: the TFP rows are scored against TFP of the same spikes")
     return 0

@@ -28,11 +28,13 @@ from .dataset import Dataset, read_json
 from .real import camera_meta, held_out, rigid_c2w, scene_sphere, views_dataset
 from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
+    IMAGE_EXTENSIONS,
     OPENGL_TO_OPENCV,
     camera_matrix,
     camera_number,
     centre_of_view,
     check_aspect,
+    is_opengl,
     read_frame,
     to_channels,
 )
@@ -40,7 +42,6 @@ from .trajectory import PathLike
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
-IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".exr")
 CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 
@@ -79,7 +80,7 @@ def _viewmats(path: Path, doc: dict) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(c2w).all(axis=(1, 2)))
     if bad.size:
         raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in frames {bad.tolist()}")
-    if doc.get("convention", "opengl").lower() != "opencv":
+    if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
     return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
 

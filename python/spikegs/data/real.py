@@ -35,6 +35,15 @@ HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
 PSEUDO_NOTE = "TFP of the held-out view's own spikes, not a sharp image: views named pseudo_*"
 
 
+def pseudo_views_note(names) -> str | None:
+    """The line to print under scores over held-out views `names` where some are pseudo ground
+    truths (TFP of their own spikes, which flatters TFP-like methods); None where none is."""
+    pseudo = [name for name in names if name.startswith(PSEUDO_PREFIX)]
+    if not pseudo:
+        return None
+    return f"note: {len(pseudo)} views without a sharp image, scored against TFP ({PSEUDO_PREFIX}*)"
+
+
 @dataclasses.dataclass
 class HeldOut:
     """A test view before its image is final."""

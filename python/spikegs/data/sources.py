@@ -27,6 +27,7 @@ from .scenes import GaussianScene, srgb_to_linear
 from .trajectory import Trajectory, look_at, orbit_eye
 
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
+IMAGE_EXTENSIONS = (".png", ".exr", ".jpg", ".jpeg")  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 
 
@@ -377,7 +378,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     c2w = np.stack(c2ws)  # [F, 4, 4]
     if not np.isfinite(c2w).all():
         raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
-    if doc.get("convention", "opengl").lower() != "opencv":
+    if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
     K = camera_matrix(path, doc, (src_h, src_w), (height, width))
     return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
@@ -392,6 +393,15 @@ def camera_number(path: Path, key: str, value) -> float:
     if not math.isfinite(number):
         raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
     return number
+
+
+def is_opengl(path: Path, doc: dict) -> bool:
+    """Whether a transforms file's camera-to-world matrices are OpenGL's (y up, z back: the
+    default) or OpenCV's ("convention": "opencv"); ValueError naming the file for another value."""
+    convention = doc.get("convention", "opengl")
+    if not isinstance(convention, str) or convention.lower() not in ("opengl", "opencv"):
+        raise ValueError(f"{path}: convention {convention!r}, expected 'opengl' or 'opencv'")
+    return convention.lower() == "opengl"
 
 
 def check_aspect(shape: tuple, src: tuple, name: str) -> None:
@@ -428,16 +438,27 @@ def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
 
 
 def read_frame(base: Path, background: float) -> np.ndarray:
-    """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic)."""
-    candidates = [base] + [base.with_name(base.name + ext) for ext in (".png", ".exr", ".jpg")]
+    """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic), an alpha
+    channel composited over `background` in linear light: 8/16-bit files (sRGB) hold colour
+    unassociated with alpha, EXR (linear) colour premultiplied by it."""
+    candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
     found = next((p for p in candidates if p.is_file()), None)
     if found is None:
-        raise FileNotFoundError(f"frame image not found: {base} (tried .png, .exr, .jpg)")
-    image = read_image(found).astype(np.float64)  # [h, w, c]
-    if found.suffix.lower() != ".exr":
-        image[..., :3] = srgb_to_linear(image[..., :3])
-    if image.shape[2] == 4:
-        image = image[..., :3] * image[..., 3:] + background * (1 - image[..., 3:])
-    elif image.shape[2] < 3:
-        image = np.repeat(image[..., :1], 3, axis=2)
-    return image
+        raise FileNotFoundError(
+            f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
+        )
+    image = read_image(found, unassociated_alpha=True).astype(np.float64)  # [h, w, c]
+    colour, alpha = (
+        (image[..., :3], image[..., 3:4])
+        if image.shape[2] >= 3
+        else (
+            np.repeat(image[..., :1], 3, axis=2),  # grey, grey + alpha
+            image[..., 1:2],
+        )
+    )
+    premultiplied = found.suffix.lower() == ".exr"
+    if not premultiplied:
+        colour = srgb_to_linear(colour)
+    if alpha.shape[2]:
+        colour = (colour if premultiplied else colour * alpha) + background * (1 - alpha)
+    return colour
