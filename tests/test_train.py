@@ -323,6 +323,28 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "x.avi")]) == 2
 
 
+def test_orbit_turns_with_the_world(dataset):
+    """The orbit is the cameras' own: in a rotated world (SfM and LLFF poses have no fixed up)
+    it is the rotated orbit, and on an upright scene it is level (its cameras' up is +z)."""
+    from scipy.spatial.transform import Rotation
+    from spikegs.data import Trajectory
+    from spikegs.render_cli import orbit_viewmats, world_up
+
+    path, center = dataset.trajectory, np.asarray(dataset.scene_center)
+    orbit = orbit_viewmats(path, center, 8)  # [8, 4, 4]
+    c2w = np.linalg.inv(orbit)  # [8, 4, 4]
+    np.testing.assert_allclose(c2w[:, :3, 0] @ [0.0, 0.0, 1.0], 0.0, atol=1e-9)  # level
+    np.testing.assert_allclose(c2w[:, 2, 3], c2w[0, 2, 3])  # at one height
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_euler("xyz", [100, -30, 45], degrees=True).as_matrix()
+    turned = Trajectory(path.readouts, path.viewmats @ np.linalg.inv(turn))
+    np.testing.assert_allclose(
+        orbit_viewmats(turned, turn[:3, :3] @ center, 8), orbit @ np.linalg.inv(turn), atol=1e-9
+    )
+    alike = np.repeat(np.linalg.inv(turn)[None], 5, axis=0)  # forward-facing: all turned alike
+    np.testing.assert_allclose(world_up(alike), -turn[:3, :3].T[:, 1], atol=1e-12)
+
+
 def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, monkeypatch):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()

@@ -8,6 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .data.trajectory import WORLD_UP, look_at
+
+# directions that the cameras' right axes span with less than this fraction of their main spread
+# count as level (roll noise of SfM poses stays below it)
+LEVEL_SPAN = 0.05
 GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
 
 
@@ -21,28 +26,49 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=int, default=20)
 
 
+def world_up(c2w: np.ndarray) -> np.ndarray:
+    """The world's up [3] as cameras c2w [P, 4, 4] (OpenCV) held without roll show it: the
+    direction their right axes span least (a camera's right is level), signed and, where the
+    rights leave it open (cameras all turned alike), completed by their mean up."""
+    rights, ups = c2w[:, :3, 0], -c2w[:, :3, 1]  # OpenCV: y points down the image
+    values, vectors = np.linalg.eigh(rights.T @ rights)  # ascending
+    level = vectors[:, values < LEVEL_SPAN * values[-1]]  # [3, k]: directions no right spans
+    up = level @ (level.T @ ups.mean(axis=0))  # the mean up, within those directions
+    if np.linalg.norm(up) < 1e-6:
+        return np.asarray(WORLD_UP, np.float64)
+    return up / np.linalg.norm(up)
+
+
+def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
+    """Viewmats [F, 4, 4] on a level orbit around `center` at the cameras' mean distance and
+    elevation, starting at the first camera's azimuth, about their `world_up`: real data (SfM,
+    LLFF) has no fixed world up, so +z would tilt or flip the orbit."""
+    center = np.asarray(center, np.float64)
+    up = world_up(np.linalg.inv(trajectory.viewmats))
+    offsets = trajectory.centers - center  # [P, 3]
+    distance = np.linalg.norm(offsets, axis=1)  # [P]
+    elevation = np.arcsin(np.clip(offsets @ up / distance, -1, 1)).mean()
+    first = offsets[0] - (offsets[0] @ up) * up  # the first camera's direction in the orbit plane
+    if np.linalg.norm(first) < 1e-6 * distance[0]:  # straight above the centre: any direction
+        first = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 = first / np.linalg.norm(first)
+    e2 = np.cross(up, e1)
+    angles = 2 * np.pi * np.arange(frames) / frames  # [F]
+    ring = np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2  # [F, 3]
+    eyes = center + distance.mean() * (np.cos(elevation) * ring + np.sin(elevation) * up)
+    return np.stack([look_at(eye, center, up) for eye in eyes])
+
+
 def orbit_frames(model, dataset, frames: int) -> np.ndarray:
-    """uint8 [F, H, W, 3] renders on a level orbit at the cameras' mean radius and elevation."""
+    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit."""
     import torch
 
-    from .data import Trajectory
     from .evaluate import render_view
 
-    center = np.asarray(dataset.scene_center, dtype=np.float64)
-    offsets = dataset.trajectory.centers - center  # [P, 3]
-    radius = float(np.linalg.norm(offsets, axis=1).mean())
-    elevation = float(np.degrees(np.arcsin(offsets[:, 2] / np.linalg.norm(offsets, axis=1))).mean())
-    path = Trajectory.spiral(
-        frames + 1,
-        radius=radius,
-        start_elevation_deg=elevation,
-        end_elevation_deg=elevation,
-        degrees_per_readout=360.0 / frames,
-        look_at=tuple(center),
-    )
+    path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames)
     K = torch.as_tensor(dataset.K, dtype=torch.float32)
     out = []
-    for viewmat in path.viewmats[:frames]:
+    for viewmat in path:
         view = argparse.Namespace(viewmat=viewmat)
         image = render_view(model, view, K, dataset.width, dataset.height)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
