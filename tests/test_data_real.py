@@ -612,3 +612,15 @@ def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
     edit_json(root / "transforms_test.json", add_twin)
     with pytest.raises(ValueError, match=r"found twice: \['test_r_0'\]"):
         load_dataset(root)
+
+
+def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    shutil.copy(root / "custom" / "last.dat", root / "custom" / "twin.dat")
+
+    def add_twin(doc):  # the same image name, other spikes
+        doc["frames"].append({**doc["frames"][1], "spike_path": "custom/twin.dat"})
+
+    edit_json(root / "transforms_train.json", add_twin)
+    with pytest.raises(ValueError, match=r"expected unique, found twice: \['train_r_3'\]"):
+        load_dataset(root)

@@ -194,6 +194,12 @@ def views_dataset(
 ) -> Dataset:
     """One spike stream per view [V] (None: a test view known only by its sharp image): views
     joined on one readout axis, a training timestamp at each training view's centre."""
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(
+            f"{source}: view names (file paths without extension) expected unique, found twice: "
+            f"{twice}"
+        )
     for name, stream in zip(names, streams):
         if stream is not None and len(stream) < NEEDED_WINDOW:
             raise ValueError(
