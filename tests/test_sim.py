@@ -84,6 +84,14 @@ def _spikes(*shape, seed=0):
     return (torch.rand(*shape, generator=torch.Generator().manual_seed(seed)) < 0.3).float()
 
 
+def _random_sim(**kwargs) -> SIM:
+    """A SIM whose output layer has PyTorch's random start: a fresh SIM's is zero (its output 0
+    whatever it sees), which would hide what each pixel's output depends on."""
+    model = SIM(**kwargs)
+    model.head[-1].reset_parameters()
+    return model
+
+
 def test_parameter_count():
     n = SIM().num_parameters()
     print(f"SIM parameters: {n}")
@@ -94,7 +102,7 @@ def test_parameter_count():
 @pytest.mark.parametrize("pixel", [(9, 10), (0, 0), (17, 20)])
 def test_blind_spot_is_exact(path, pixel):
     torch.manual_seed(0)
-    model = SIM()
+    model = _random_sim()
     x = _spikes(2, 33, 18, 21).requires_grad_()
     i, j = pixel
     getattr(model, path)(x)[0, 0, i, j].backward()
@@ -115,7 +123,7 @@ def test_training_path_matches_inference_and_the_rotated_gradients(size):
     """SIM trains through `forward_rotated` and infers through the canvas: the canvas gives the
     same values with and without autograd, and the literal network's weight gradients."""
     torch.manual_seed(2)
-    model = SIM().train()
+    model = _random_sim().train()
     x = _spikes(2, 33, *size)
     y = model(x)
     with torch.no_grad():
@@ -132,7 +140,7 @@ def test_training_path_matches_inference_and_the_rotated_gradients(size):
 @pytest.mark.parametrize("size", [(1, 1), (2, 9), (7, 5), (13, 32), (32, 13)])
 def test_shapes_and_paths_agree(size):
     torch.manual_seed(1)
-    model = SIM(out_channels=3).eval()
+    model = _random_sim(out_channels=3).eval()
     x = _spikes(2, 33, *size)
     with torch.no_grad():
         y = model(x)

@@ -92,7 +92,8 @@ class SimConfig:
     target_window: int = 0  # readouts at the window's centre whose TFP SIM learns (0: window)
     # 1500 (3x the time) gained 0.4 dB a frame on moving views (solids), where motion blur
     # dominates, and lifted its bias (a still view's mean over windows) from 30.8 dB at 300 steps
-    # to 35.4 (BENCHMARKS.md, "SIM's training length")
+    # to 35.4 (BENCHMARKS.md, "SIM's training length"); with the output layer starting at zero,
+    # 300 steps reach 33.1-33.9 ("What decides a 300-step SIM")
     iterations: int = 500
     crop: int = 64
     batch: int = 8
