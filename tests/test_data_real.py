@@ -558,6 +558,13 @@ def test_nerf_height_alone_is_used(sim, nerf, tmp_path):
     np.testing.assert_allclose(ds.K[1, 1], sim.K[1, 1] / 2, rtol=1e-6)
 
 
+def test_nerf_wrong_frame_size_points_at_it(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    write_options(root, height=2 * H)  # the .dat files read as half as many 64x48 frames
+    with pytest.raises(ValueError, match=rf"has 35 readouts.*or its frames are not {2 * H}x{W}"):
+        load_dataset(root)
+
+
 def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
     fx, fy, cx, cy = (float(sim.K[i, j]) for i, j in ((0, 0), (1, 1), (0, 2), (1, 2)))

@@ -204,7 +204,8 @@ def views_dataset(
         if stream is not None and len(stream) < NEEDED_WINDOW:
             raise ValueError(
                 f"{stream.path}: view '{name}' has {len(stream)} readouts; a view needs at least "
-                f"{NEEDED_WINDOW}, the longest window training reads"
+                f"{NEEDED_WINDOW}, the longest window training reads (or its frames are not "
+                f"{stream.height}x{stream.width}, the size the layout states: check it)"
             )
         if stream is not None and pseudo_window and len(stream) < pseudo_window:
             raise ValueError(
