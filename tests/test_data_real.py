@@ -621,6 +621,16 @@ def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
         load_dataset(root)
 
 
+def test_nerf_spike_candidates_listed_once(tmp_path):
+    from spikegs.data.nerf_layout import _spike_candidates
+
+    for file_path in ("r_0", str(tmp_path.parent / "elsewhere" / "r_0.png")):  # no folder in DIR
+        assert _spike_candidates(tmp_path, {"file_path": file_path}) == [
+            tmp_path / "spike_data" / "r_0.dat"
+        ]
+    assert len(_spike_candidates(tmp_path, {"file_path": "./train/r_0"})) == 2
+
+
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
     root = copy(nerf, tmp_path)
     shutil.copy(root / "custom" / "last.dat", root / "custom" / "twin.dat")

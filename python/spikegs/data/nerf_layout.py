@@ -108,7 +108,9 @@ def _spike_candidates(root: Path, frame: dict) -> list[Path]:
     if "spike_path" in frame:
         return [root / frame["spike_path"]]
     base = _base(root, frame["file_path"])
-    return [root / SPIKE_DIR / f"{base}.dat", root / SPIKE_DIR / f"{base.name}.dat"]
+    return list(
+        dict.fromkeys([root / SPIKE_DIR / f"{base}.dat", root / SPIKE_DIR / f"{base.name}.dat"])
+    )
 
 
 def _find_spikes(root: Path, frames: list, sources: list) -> list[Path | None]:
