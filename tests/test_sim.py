@@ -182,6 +182,10 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     other = BernoulliStream(scene[0], len(stream), seed=1)
     for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
         assert train_or_load(path, *changed, 33, **tiny)[1] > 0
+    payload = torch.load(path, weights_only=True)
+    del payload["meta"]["start"]  # a SIM cached before SIM started at zero: retrained
+    torch.save(payload, path)
+    assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
     path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0

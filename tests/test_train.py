@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -17,6 +18,7 @@ from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
 from spikegs.initial_intensity import ViewSample
+from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer, run_lock
@@ -144,6 +146,7 @@ def test_resume_refuses_other_data(dataset, tmp_path):
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
 
 
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
 def test_one_process_trains_in_a_run_directory(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     (tmp_path / "run").mkdir()
@@ -351,7 +354,9 @@ def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, 
     monkeypatch.setattr("spikegs.render_cli.orbit_frames", lambda *a: pytest.fail("rendered"))
     monkeypatch.setattr("shutil.which", lambda name: None)  # no ffmpeg
     (tmp_path / "dir.gif").mkdir()
-    for out, extra in (("dir.gif", []), ("v.mp4", []), ("v.gif", ["--fps", "1000"])):
+    (tmp_path / "afile").write_text("")
+    cases = [("dir.gif", []), ("v.mp4", []), ("v.gif", ["--fps", "1000"]), ("afile/v.gif", [])]
+    for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
 
 
@@ -372,6 +377,41 @@ def test_cli_names_unreadable_and_unwritable_paths(dataset, tmp_path, capsys):
     ):
         assert main(["train", data, *args, "--out", out]) == 2, args
         assert message in capsys.readouterr().err, args
+
+
+def test_a_filesystem_without_locks_trains_with_a_warning(dataset, tmp_path, monkeypatch):
+    def no_flock(*args):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr("fcntl.flock", no_flock)
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    with pytest.warns(UserWarning, match="not locked"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+
+
+def test_an_ignored_sigint_stays_ignored():
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a background job
+    try:
+        with deferred_interrupt("stopping") as interrupted:
+            os.kill(os.getpid(), signal.SIGINT)
+            assert not interrupted()
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_ctrl_c_in_the_last_step_finishes_the_run(dataset, tmp_path, monkeypatch):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert (tmp_path / "run" / "scene.ply").exists()
+
+
+def test_a_base_name_is_a_method_whatever_the_current_directory_holds(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tfp33").write_text("")  # a stray file of a method's name
+    (tmp_path / "mine.yaml").write_text("base: tfp33\n")
+    assert load_config(tmp_path / "mine.yaml").supervision == load_config("tfp33").supervision
 
 
 def test_config_reads_scientific_notation(tmp_path):

@@ -293,7 +293,7 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     current directory."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
-        if path.is_file() or len(path.parts) > 1:
+        if len(path.parts) > 1 or path.suffix:  # a file's path, not a method's name
             raise ValueError(f"config file {path}: expected a .yaml or .yml file")
         path = CONFIG_DIR / f"{name_or_path}.yaml"
         if not path.exists():

@@ -17,8 +17,10 @@ from collections.abc import Callable, Iterator
 def deferred_interrupt(message: str) -> Iterator[Callable[[], bool]]:
     """Within the block the first SIGINT prints `message` and sets a flag, which the yielded
     callable reads; a second one raises KeyboardInterrupt at once. Outside the main thread
-    (where no signal is delivered) the flag stays False."""
-    if threading.current_thread() is not threading.main_thread():
+    (where no signal is delivered), or where SIGINT is ignored (a background job), the flag stays
+    False and the handling as it was."""
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    if ignored or threading.current_thread() is not threading.main_thread():
         yield lambda: False
         return
     hits = []

@@ -84,6 +84,8 @@ def check_video_output(path: Path, fps: int) -> None:
         raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
     if path.is_dir():
         raise ValueError(f"--out {path}: is a directory")
+    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
+        raise ValueError(f"--out {path}: a folder on its path is a file")
     if fps < 1:
         raise ValueError(f"--fps: expected a positive number, got {fps}")
     if suffix == ".gif" and fps > GIF_MAX_FPS:

@@ -24,6 +24,7 @@ from torch import nn
 # 1 right, 2 down, 3 left (torch.rot90 by k = 1 puts the original right side on top).
 _DIRS = ((-1, 0), (0, 1), (1, 0), (0, -1))
 _SLOPE = 0.1  # leaky ReLU slope
+START = "zero-output"  # how a fresh SIM starts (a SIM cached from another start is retrained)
 
 
 def _region(k: int, steps: int, pad: int) -> tuple[int, int]:

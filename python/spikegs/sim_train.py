@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,7 +20,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .metrics import psnr, ssim
-from .sim import SIM
+from .sim import SIM, START
 
 
 @functools.lru_cache(maxsize=1)
@@ -133,7 +134,7 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     """Save weights, architecture and `meta` (seed, steps, ...) to `path`."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # its own: trainers may share a cache
     torch.save({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, tmp)
     tmp.replace(path)  # atomic: a kill mid-save leaves no truncated file behind
 
@@ -175,14 +176,22 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
         except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
             print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh")
         else:
-            if payload["config"]["window"] == window and payload["meta"].get("data") == data:
+            meta = payload["meta"]
+            if (payload["config"]["window"], meta.get("data"), meta.get("start")) == (
+                window,
+                data,
+                START,
+            ):
                 return _model_of(payload), 0.0
-            print(f"{path}: trained on other spikes or another window; training SIM afresh")
+            print(
+                f"{path}: trained on other spikes, for another window or from another start; "
+                f"training SIM afresh"
+            )
     start = time.perf_counter()
     model, losses = train_sim(stream, timestamps, window, **kwargs)
     seconds = time.perf_counter() - start
     final_loss = float(np.mean(losses[-50:]))
-    save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, **kwargs)
+    save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
     return model, seconds
 
 

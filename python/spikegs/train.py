@@ -11,6 +11,7 @@ import hashlib
 import json
 import math
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -101,8 +102,11 @@ def data_fingerprint(dataset, scale: float) -> str:
     moved dataset is the same data)."""
     timestamps = np.asarray(dataset.train_timestamps, np.float64)
     digest = hashlib.sha256(spikes_fingerprint(dataset.streams, timestamps).encode())
-    digest.update(np.ascontiguousarray(dataset.trajectory.pose_at(timestamps), np.float64).data)
-    digest.update(np.asarray([*np.ravel(dataset.K), scale], np.float64).tobytes())
+    # rounded: the last bits of interpolated poses and of a calibrated scale may differ between
+    # machines (BLAS, libm), and the same data moved there must still resume
+    poses = np.round(dataset.trajectory.pose_at(timestamps), 6) + 0.0  # + 0.0: no -0.0
+    digest.update(np.ascontiguousarray(poses, np.float64).data)
+    digest.update(np.asarray([*np.round(np.ravel(dataset.K), 6), float(f"{scale:.6g}")]).tobytes())
     return digest.hexdigest()
 
 
@@ -110,7 +114,7 @@ def data_fingerprint(dataset, scale: float) -> str:
 def run_lock(run_dir: Path):
     """Hold an exclusive lock on RUN/.lock for the block (released at its end or when the process
     dies, however); FileExistsError while another process holds it. No lock where the OS has no
-    fcntl (Windows)."""
+    fcntl (Windows) or the filesystem no flock (some NFS, Lustre and FUSE mounts: a warning)."""
     if fcntl is None:
         yield
         return
@@ -122,6 +126,10 @@ def run_lock(run_dir: Path):
                 f"{run_dir} is being trained by another process; wait for it to end or train "
                 f"into another --out"
             ) from None
+        except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock
+            warnings.warn(
+                f"{run_dir}: not locked ({err}); train into it from one process only", stacklevel=3
+            )
         yield
 
 
@@ -333,15 +341,17 @@ class Trainer:
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
-        state = None
-        if resume:  # everything checked before any work or any write
-            if not self.checkpoint_path.exists():
-                raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
-            state = self._read_checkpoint()
-        elif self.checkpoint_path.exists():
-            raise FileExistsError(f"{self.run_dir} already holds a run; pass resume or another dir")
+        if resume and not self.checkpoint_path.exists():
+            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        with run_lock(self.run_dir):  # one process trains in a run directory at a time
+        # one process trains in a run directory at a time; the checks under the lock, so that
+        # they see the state that this process will train from, before any work
+        with run_lock(self.run_dir):
+            state = self._read_checkpoint() if resume else None
+            if not resume and self.checkpoint_path.exists():
+                raise FileExistsError(
+                    f"{self.run_dir} already holds a run; pass resume or another dir"
+                )
             return self._run(state, on_eval)
 
     def _run(self, state: dict | None, on_eval) -> dict:
@@ -350,12 +360,17 @@ class Trainer:
         (self.run_dir / "config.yaml").write_text(
             yaml.safe_dump(self.config.to_dict(), sort_keys=False)
         )
-        self.targets = build_targets(self.dataset, self.config, self.progress)
-        if state is not None:
-            self._load_checkpoint(state)
-        else:
-            self._fresh_state()
-        log = _log_from(self.run_dir / "log.jsonl", self.iteration)
+        # the log is checked (and cut to the checkpoint) before minutes of SIM training
+        log = _log_from(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
+        try:
+            self.targets = build_targets(self.dataset, self.config, self.progress)
+            if state is not None:
+                self._load_checkpoint(state)
+            else:
+                self._fresh_state()
+        except BaseException:
+            log.close()
+            raise
         saved_at = time.perf_counter()
         bar = tqdm(
             total=t.iterations,
@@ -376,9 +391,9 @@ class Trainer:
                     loss = self.step()
                     self.train_seconds += time.perf_counter() - start
                     psnr = self._after_step(loss, psnr, log, bar, on_eval)
-                    if interrupted():  # between steps: the checkpoint is a consistent state
-                        self.save_checkpoint()
-                        raise KeyboardInterrupt
+                    if interrupted() and self.iteration < t.iterations:
+                        self.save_checkpoint()  # between steps: a consistent state
+                        raise KeyboardInterrupt  # (after the last step the run just finishes)
                     if (
                         self.iteration % t.checkpoint_every == 0
                         or time.perf_counter() - saved_at > CHECKPOINT_S
