@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
-    on_path_views(dataset)  # what SIM is scored on, before it is trained
+    views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     sim = SimConfig(
         window=args.window,
         target_window=args.target_window,
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     scores = evaluate_dataset(model, dataset)
     print_table([{"method": name, **s} for name, s in scores.items()])
-    note = pseudo_views_note(v.name for v in on_path_views(dataset))
+    note = pseudo_views_note(v.name for v in views)
     if note:
         print(f"{note}: the TFP rows are scored against TFP of the same spikes")
     return 0

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,6 +18,7 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
+from .atomic_save import save_atomically
 from .metrics import psnr, ssim
 from .sim import SIM, START
 
@@ -134,9 +134,7 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     """Save weights, architecture and `meta` (seed, steps, ...) to `path`."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # its own: trainers may share a cache
-    torch.save({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, tmp)
-    tmp.replace(path)  # atomic: a kill mid-save leaves no truncated file behind
+    save_atomically({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
 
 
 def _model_of(payload: dict) -> SIM:

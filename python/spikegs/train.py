@@ -24,6 +24,7 @@ try:
 except ImportError:  # Windows
     fcntl = None
 
+from .atomic_save import save_atomically
 from .config import Config, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
@@ -52,9 +53,9 @@ def _differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
     return out
 
 
-def _log_from(path: Path, iteration: int):
-    """`path` opened for appending after its records up to `iteration` (those of steps that a
-    resumed run repeats, or all of a run that never checkpointed, are dropped)."""
+def _cut_log(path: Path, iteration: int) -> None:
+    """Keep `path`'s records up to `iteration` (those of steps that a resumed run repeats, or all
+    of a run that never checkpointed, are dropped)."""
     kept = []
     if iteration > 0 and path.exists():
         lines = [line for line in path.read_text().splitlines() if line.strip()]
@@ -69,7 +70,6 @@ def _log_from(path: Path, iteration: int):
             if step <= iteration:
                 kept.append(line)
     path.write_text("".join(line + "\n" for line in kept))
-    return path.open("a")
 
 
 def _optimizer(
@@ -194,9 +194,7 @@ class Trainer:
             "data": self.data,
             "dataset": str(Path(self.dataset.root).resolve()),
         }
-        tmp = self.checkpoint_path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        tmp.replace(self.checkpoint_path)  # atomic: a kill mid-save keeps the previous one
+        save_atomically(state, self.checkpoint_path)  # a kill mid-save keeps the previous one
 
     def _read_checkpoint(self) -> dict:
         """The last checkpoint's state; ValueError naming every setting that differs from this
@@ -361,16 +359,13 @@ class Trainer:
             yaml.safe_dump(self.config.to_dict(), sort_keys=False)
         )
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
-        log = _log_from(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
-        try:
-            self.targets = build_targets(self.dataset, self.config, self.progress)
-            if state is not None:
-                self._load_checkpoint(state)
-            else:
-                self._fresh_state()
-        except BaseException:
-            log.close()
-            raise
+        _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
+        self.targets = build_targets(self.dataset, self.config, self.progress)
+        if state is not None:
+            self._load_checkpoint(state)
+        else:
+            self._fresh_state()
+        log = (self.run_dir / "log.jsonl").open("a")
         saved_at = time.perf_counter()
         bar = tqdm(
             total=t.iterations,

@@ -12,6 +12,7 @@ DIR/test/NAME.exr          their clean instantaneous images, float, firing-rate 
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import json
 import shutil
@@ -181,13 +182,17 @@ def open_streams(
     return streams
 
 
+def repeated(names) -> list[str]:
+    """The names that occur more than once in `names`, sorted."""
+    return sorted(name for name, count in collections.Counter(names).items() if count > 1)
+
+
 def check_test_views(views: list[TestView], where) -> None:
     """ValueError unless there is at least one held-out view and their names are unique (each
     names its scores and images in an evaluation); `where`: the file or scene they come from."""
     if not views:
         raise ValueError(f"{where}: no held-out test view; evaluation and training need one")
-    names = [v.name for v in views]
-    twice = sorted({n for n in names if names.count(n) > 1})
+    twice = repeated(v.name for v in views)
     if twice:
         raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
 

@@ -22,7 +22,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import skimage.transform
 
 from .dataset import Dataset, read_json
 from .real import camera_meta, held_out, rigid_c2w, scene_sphere, views_dataset
@@ -33,7 +32,7 @@ from .sources import (
     camera_matrix,
     camera_number,
     centre_of_view,
-    check_aspect,
+    fitted,
     is_opengl,
     read_frame,
     to_channels,
@@ -184,15 +183,11 @@ def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple
 
 
 def _mono(image: np.ndarray | None, src: tuple, size: tuple, name: str) -> np.ndarray | None:
-    """Linear RGB [h, w, 3] -> luma [height, width, 1] (`size`), resized if need be; ValueError
-    naming the image (`name`) when its aspect ratio is not the camera's (h, w) `src`."""
+    """Linear RGB [h, w, 3] -> luma [height, width, 1] (`size`), `fitted` to it (ValueError
+    naming the image, `name`, when its aspect ratio is not the camera's (h, w) `src`)."""
     if image is None:
         return None
-    check_aspect(image.shape[:2], src, name)
-    height, width = size
-    if image.shape[:2] != (height, width):
-        image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
-    return to_channels(image, 1).astype(np.float32)
+    return to_channels(fitted(image, src, size, name), 1).astype(np.float32)
 
 
 def _frames(root: Path, options: Options):

@@ -8,7 +8,6 @@ output does too. A sharp image (intensity, [0, 1]) is stored times the trainer's
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import os
 from pathlib import Path
@@ -24,6 +23,7 @@ from .dataset import (
     Dataset,
     TestView,
     check_test_views,
+    repeated,
 )
 from .real_options import Options
 from .simulate import default_train_every, train_timestamps
@@ -195,7 +195,7 @@ def views_dataset(
 ) -> Dataset:
     """One spike stream per view [V] (None: a test view known only by its sharp image): views
     joined on one readout axis, a training timestamp at each training view's centre."""
-    twice = sorted(name for name, count in collections.Counter(names).items() if count > 1)
+    twice = repeated(names)
     if twice:
         raise ValueError(
             f"{source}: view names (file paths without extension) expected unique, found twice: "

@@ -370,9 +370,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
             raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
         src_h, src_w = src = src or image.shape[:2]  # the first frame's size
-        check_aspect(image.shape[:2], src, f"{path.parent / f['file_path']}")
-        if image.shape[:2] != (height, width):
-            image = skimage.transform.resize(image, (height, width), anti_aliasing=True)
+        image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
         c2ws.append(np.asarray(f["transform_matrix"], np.float64))
     c2w = np.stack(c2ws)  # [F, 4, 4]
@@ -404,17 +402,21 @@ def is_opengl(path: Path, doc: dict) -> bool:
     return convention.lower() == "opengl"
 
 
-def check_aspect(shape: tuple, src: tuple, name: str) -> None:
-    """ValueError unless an image of (h, w) `shape` has the aspect ratio of the camera's (h, w)
-    `src` (its width within a pixel or 1 % of the camera's aspect at its height): another
-    aspect ratio is another crop of the view, which resizing to the camera's would stretch."""
-    (h, w), (src_h, src_w) = shape, src
+def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
+    """`image` [h, w, C] resized to (h, w) `size` if need be; ValueError naming it (`name`) unless
+    it has the aspect ratio of the camera's (h, w) `src` (its width within a pixel or 1 % of the
+    camera's aspect at its height): another aspect ratio is another crop of the view, which
+    resizing would stretch."""
+    (h, w), (src_h, src_w) = image.shape[:2], src
     if abs(w - h * src_w / src_h) > max(1.0, 0.01 * w):
         raise ValueError(
             f"{name}: image {w}x{h} (aspect {w / h:.3f}), the camera's images are {src_w}x"
             f"{src_h} (aspect {src_w / src_h:.3f}): an image of another aspect ratio shows "
             f"another crop of the view; crop or pad it to the camera's"
         )
+    if (h, w) == tuple(size):
+        return image
+    return skimage.transform.resize(image, size, anti_aliasing=True)
 
 
 def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
@@ -448,14 +450,9 @@ def read_frame(base: Path, background: float) -> np.ndarray:
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
         )
     image = read_image(found, unassociated_alpha=True).astype(np.float64)  # [h, w, c]
-    colour, alpha = (
-        (image[..., :3], image[..., 3:4])
-        if image.shape[2] >= 3
-        else (
-            np.repeat(image[..., :1], 3, axis=2),  # grey, grey + alpha
-            image[..., 1:2],
-        )
-    )
+    if image.shape[2] < 3:  # grey, grey + alpha -> RGB, RGBA
+        image = np.concatenate([np.repeat(image[..., :1], 3, axis=2), image[..., 1:]], axis=2)
+    colour, alpha = image[..., :3], image[..., 3:4]  # [h, w, 3], [h, w, 0 or 1]
     premultiplied = found.suffix.lower() == ".exr"
     if not premultiplied:
         colour = srgb_to_linear(colour)
