@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 from spikegs.data import SCENES, FrameSequenceSource, ProceduralSource, simulate_dataset
+from spikegs.data.scenes import srgb_to_linear
 from spikegs.data.sources import (
     LUMA_709,
     OPENGL_TO_OPENCV,
@@ -196,3 +197,37 @@ def test_read_frame_composites_alpha_once_in_linear_light(tmp_path):
     np.testing.assert_allclose(read_frame(tmp_path / "premultiplied", 1.0), 0.5 + 0.5, atol=1e-6)
     Image.fromarray(np.full((4, 4, 3), 255, np.uint8)).save(tmp_path / "photo.jpeg")
     np.testing.assert_allclose(read_frame(tmp_path / "photo", 0.0), 1.0, atol=1e-6)
+
+
+def _write_tiff(path, pixels, fmt, unassociated):
+    """A 2x2 RGBA TIFF of `pixels` [2, 2, 4], alpha (un)associated as its ExtraSamples says."""
+    import OpenImageIO as oiio
+
+    spec = oiio.ImageSpec(2, 2, 4, fmt)
+    spec.attribute("oiio:UnassociatedAlpha", int(unassociated))
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    out.write_image(np.ascontiguousarray(pixels, np.float32))
+    out.close()
+
+
+def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path):
+    """The same pixel - 60 % grey at 50 % alpha over black - stored four ways in TIFF files:
+    16-bit sRGB with alpha unassociated or associated (the encoded value times alpha), float
+    linear with alpha associated. Each reads as the same linear colour."""
+    import OpenImageIO as oiio
+
+    linear = float(srgb_to_linear(np.array(0.6)))
+    rgba = lambda c: np.concatenate(  # noqa: E731
+        [np.full((2, 2, 3), c), np.full((2, 2, 1), 0.5)], axis=2
+    )
+    _write_tiff(tmp_path / "unassociated.tif", rgba(0.6), oiio.UINT16, unassociated=True)
+    _write_tiff(tmp_path / "associated.tif", rgba(0.3), oiio.UINT16, unassociated=False)
+    _write_tiff(tmp_path / "linear.tif", rgba(0.5 * linear), oiio.FLOAT, unassociated=False)
+    for name in ("unassociated", "associated", "linear"):
+        np.testing.assert_allclose(
+            read_frame(tmp_path / name, 0.0), 0.5 * linear, atol=1e-4, err_msg=name
+        )
+        np.testing.assert_allclose(
+            read_frame(tmp_path / name, 1.0), 0.5 * linear + 0.5, atol=1e-4, err_msg=name
+        )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import errno
 import json
 import os
@@ -14,6 +15,7 @@ import torch
 from spikegs.cli import build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
 from spikegs.data import load_dataset, simulate_dataset
+from spikegs.data.trajectory import Trajectory
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
@@ -21,7 +23,7 @@ from spikegs.initial_intensity import ViewSample
 from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
-from spikegs.train import Trainer, run_lock
+from spikegs.train import Trainer, data_fingerprint, run_lock
 from spikegs.train_cli import config_from_args
 
 FAST = {
@@ -144,6 +146,23 @@ def test_resume_refuses_other_data(dataset, tmp_path):
         Trainer(other, config, tmp_path / "run", progress=False).train(resume=True)
     moved = shutil.copytree(dataset.root, tmp_path / "moved")  # the same data elsewhere: fine
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
+
+
+def test_data_fingerprint_follows_poses_intrinsics_and_scale(dataset):
+    """Each of what training reads besides the spikes changes the fingerprint; last bits (another
+    machine's interpolation or calibration) do not."""
+
+    def variant(scale=1.0, dK=0.0, shift=0.0):
+        ds = copy.copy(dataset)
+        ds.K = dataset.K + np.float32(dK)
+        viewmats = dataset.trajectory.viewmats.copy()
+        viewmats[:, 0, 3] += shift  # every camera moved along its x axis
+        ds.trajectory = Trajectory(dataset.trajectory.readouts, viewmats)
+        return data_fingerprint(ds, 7.0 * scale)
+
+    same = variant()
+    assert variant(scale=1 + 1e-12) == same and variant(shift=1e-12) == same
+    assert len({same, variant(scale=1.01), variant(dK=0.5), variant(shift=1e-3)}) == 4
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")

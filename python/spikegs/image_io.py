@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,12 +29,17 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         raise OSError(f"cannot write {path}: {out.geterror()}")
 
 
-def read_image(path: str | Path, unassociated_alpha: bool = False) -> np.ndarray:
-    """Read an image as float32 [H, W, C] (8-bit files scaled to [0, 1]); FileNotFoundError when
-    there is no such file, ValueError when there is one that is not a readable image.
+@dataclass(frozen=True)
+class StoredImage:
+    """An image's pixels as its file stores them, with how to read their colour."""
 
-    OpenImageIO premultiplies colour by an alpha that a file stores unassociated (PNG);
-    `unassociated_alpha` keeps the file's colour as it is."""
+    pixels: np.ndarray  # [H, W, C] float32 (8/16-bit files scaled to [0, 1])
+    premultiplied: bool  # colour associated with alpha (EXR, TIFF's associated alpha)
+    srgb: bool  # colour sRGB-encoded (8/16-bit files), not linear (half/float files)
+
+
+def _read(path: str | Path, unassociated_alpha: bool) -> tuple[np.ndarray, oiio.ImageSpec]:
+    """Pixels [H, W, C] float32 and spec of an image file; see `read_image` for the errors."""
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", int(unassociated_alpha))
     inp = oiio.ImageInput.open(str(path), config)
@@ -48,4 +54,23 @@ def read_image(path: str | Path, unassociated_alpha: bool = False) -> np.ndarray
         inp.close()
     if image is None:
         raise ValueError(f"cannot read {path}: {oiio.geterror()}")
-    return np.asarray(image, dtype=np.float32).reshape(inp.spec().height, inp.spec().width, -1)
+    spec = inp.spec()
+    return np.asarray(image, dtype=np.float32).reshape(spec.height, spec.width, -1), spec
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Read an image as float32 [H, W, C] (8-bit files scaled to [0, 1]); FileNotFoundError when
+    there is no such file, ValueError when there is one that is not a readable image."""
+    return _read(path, unassociated_alpha=False)[0]
+
+
+def read_stored_image(path: str | Path) -> StoredImage:
+    """Read an image's colour as its file stores it: OpenImageIO would premultiply colour by an
+    alpha that the file keeps unassociated (PNG, TIFF's unassociated alpha), in sRGB units.
+    The file's metadata, not its extension, says which (errors as `read_image`)."""
+    pixels, spec = _read(path, unassociated_alpha=True)
+    space = spec.get_string_attribute("oiio:ColorSpace").lower()
+    floating = spec.format.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
+    srgb = "srgb" in space or (not floating and "lin" not in space)
+    unassociated = spec.get_int_attribute("oiio:UnassociatedAlpha", 0) == 1
+    return StoredImage(pixels, premultiplied=not unassociated, srgb=srgb)

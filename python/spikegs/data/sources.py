@@ -21,13 +21,20 @@ import numpy as np
 import skimage.transform
 import torch
 
-from ..image_io import read_image
+from ..image_io import read_stored_image
 from ..rasterize import rasterize
 from .scenes import GaussianScene, srgb_to_linear
 from .trajectory import Trajectory, look_at, orbit_eye
 
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
-IMAGE_EXTENSIONS = (".png", ".exr", ".jpg", ".jpeg")  # tried in turn after an extensionless path
+IMAGE_EXTENSIONS = (
+    ".png",
+    ".exr",
+    ".jpg",
+    ".jpeg",
+    ".tif",
+    ".tiff",
+)  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 
 
@@ -441,21 +448,24 @@ def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
 
 def read_frame(base: Path, background: float) -> np.ndarray:
     """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic), an alpha
-    channel composited over `background` in linear light: 8/16-bit files (sRGB) hold colour
-    unassociated with alpha, EXR (linear) colour premultiplied by it."""
+    channel composited over `background` in linear light, colour read as the file's metadata
+    says: sRGB or linear, associated with alpha (EXR) or not (PNG)."""
     candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
     found = next((p for p in candidates if p.is_file()), None)
     if found is None:
         raise FileNotFoundError(
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
         )
-    image = read_image(found, unassociated_alpha=True).astype(np.float64)  # [h, w, c]
+    stored = read_stored_image(found)
+    image = stored.pixels.astype(np.float64)  # [h, w, c]
     if image.shape[2] < 3:  # grey, grey + alpha -> RGB, RGBA
         image = np.concatenate([np.repeat(image[..., :1], 3, axis=2), image[..., 1:]], axis=2)
     colour, alpha = image[..., :3], image[..., 3:4]  # [h, w, 3], [h, w, 0 or 1]
-    premultiplied = found.suffix.lower() == ".exr"
-    if not premultiplied:
+    if stored.srgb:
+        if stored.premultiplied and alpha.shape[2]:  # sRGB units of colour * alpha
+            colour = np.divide(colour, alpha, out=np.zeros_like(colour), where=alpha > 0)
         colour = srgb_to_linear(colour)
     if alpha.shape[2]:
-        colour = (colour if premultiplied else colour * alpha) + background * (1 - alpha)
+        associated = stored.premultiplied and not stored.srgb
+        colour = (colour if associated else colour * alpha) + background * (1 - alpha)
     return colour
