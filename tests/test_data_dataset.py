@@ -226,6 +226,19 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             lambda text: text[:-3],
             "trajectory.json: not valid JSON",
         ),
+        "meta list": ("meta.json", lambda text: "[1, 2]", r"meta.json: expected a JSON object"),
+        "meta number": ("meta.json", lambda text: "3", r"meta.json: expected a JSON object"),
+        "views list": ("test_views.json", lambda text: "[]", r"expected a JSON object \{"),
+        "frames": (
+            "test_views.json",
+            views(lambda d: {**d, "frames": 3}),
+            "'frames' expected a list of objects",
+        ),
+        "frame": (
+            "trajectory.json",
+            lambda text: json.dumps({**json.loads(text), "frames": ["a"]}),
+            "'frames' expected a list of objects",
+        ),
     }
     for case, (name, edit, message) in cases.items():
         with pytest.raises(ValueError, match=message):

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..image_io import read_image, write_image
 from ..spikes import SpikeStream
-from .trajectory import CONVENTION, PathLike, Trajectory, read_json
+from .trajectory import PathLike, Trajectory, camera_doc, read_camera_doc, read_json
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
     "meta.json",
@@ -157,8 +157,7 @@ def write_parts(
                 "transform_matrix": np.linalg.inv(view.viewmat).tolist(),
             }
         )
-    doc = {"camera_model": "OPENCV", "convention": CONVENTION, **camera, "frames": frames}
-    (out / TEST_VIEWS).write_text(json.dumps(doc, indent=1))
+    (out / TEST_VIEWS).write_text(json.dumps(camera_doc(frames, **camera), indent=1))
     (out / META).write_text(json.dumps(meta, indent=1))
 
 
@@ -199,11 +198,8 @@ def check_test_views(views: list[TestView], where) -> None:
 
 def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
     path = existing_file(root, TEST_VIEWS)
-    doc = read_json(path)
-    if doc.get("convention", CONVENTION) != CONVENTION:
-        raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
     views = []
-    for i, frame in enumerate(doc.get("frames", [])):
+    for i, frame in enumerate(read_camera_doc(path)):
         missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
         if missing:
             raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")

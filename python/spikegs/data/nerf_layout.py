@@ -49,7 +49,7 @@ def _read_doc(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
     doc = read_json(path)
-    if not isinstance(doc, dict) or not isinstance(doc.get("frames", []), list):
+    if not isinstance(doc.get("frames", []), list):
         raise ValueError(f"{path}: expected a JSON object with a list of frames")
     for i, frame in enumerate(doc.get("frames") or []):
         if not (isinstance(frame, dict) and {"file_path", "transform_matrix"} <= frame.keys()):

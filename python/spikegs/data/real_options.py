@@ -90,8 +90,6 @@ def read_options(root: Path, overrides: dict) -> Options:
     value of the wrong type or range."""
     path = root / OPTIONS_FILE
     values = read_json(path) if path.is_file() else {}
-    if not isinstance(values, dict):
-        raise ValueError(f"{path}: expected a JSON object of options")
     values.update({k: v for k, v in overrides.items() if v is not None})
     known = [f.name for f in dataclasses.fields(Options)]
     unknown = sorted(set(values) - set(known))

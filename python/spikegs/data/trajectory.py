@@ -145,8 +145,7 @@ class Trajectory:
             {"readout": _number(k), "transform_matrix": c2w.tolist()}
             for k, c2w in zip(self.readouts, np.linalg.inv(self.viewmats))
         ]
-        doc = {"camera_model": "OPENCV", "convention": CONVENTION, **extra, "frames": frames}
-        Path(path).write_text(json.dumps(doc, indent=1))
+        Path(path).write_text(json.dumps(camera_doc(frames, **extra), indent=1))
 
     @classmethod
     def load_json(cls, path: PathLike) -> Trajectory:
@@ -154,12 +153,7 @@ class Trajectory:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"trajectory file not found: {path}")
-        doc = read_json(path)
-        if not isinstance(doc, dict):
-            raise ValueError(f"{path}: expected a JSON object with frames")
-        if doc.get("convention", CONVENTION) != CONVENTION:
-            raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
-        frames = doc.get("frames") or []
+        frames = read_camera_doc(path)
         try:
             readouts = np.array([f["readout"] for f in frames], np.float64)  # [P]
             c2w = np.array([f["transform_matrix"] for f in frames], np.float64)  # [P, 4, 4]
@@ -172,12 +166,34 @@ class Trajectory:
         return cls(readouts, np.linalg.inv(c2w), source=str(path))
 
 
-def read_json(path: Path):
-    """The JSON document at `path`; ValueError naming the file where it is malformed."""
+def camera_doc(frames: list, **extra) -> dict:
+    """The JSON object of a camera file (trajectory.json, test_views.json): OpenCV cameras,
+    `extra` keys at the top level, then `frames`."""
+    return {"camera_model": "OPENCV", "convention": CONVENTION, **extra, "frames": frames}
+
+
+def read_camera_doc(path: Path) -> list:
+    """The frames [P] of `camera_doc`'s file; ValueError naming it unless it is an object in our
+    convention whose frames are a list of objects."""
+    doc = read_json(path)
+    if doc.get("convention", CONVENTION) != CONVENTION:
+        raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
+    frames = doc.get("frames") or []
+    if not isinstance(frames, list) or not all(isinstance(f, dict) for f in frames):
+        raise ValueError(f"{path}: 'frames' expected a list of objects")
+    return frames
+
+
+def read_json(path: Path) -> dict:
+    """The JSON object in the file at `path`; ValueError naming the file where it is malformed
+    or holds something else than an object."""
     try:
-        return json.loads(path.read_text())
+        doc = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise ValueError(f"{path}: not valid JSON ({err})") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: expected a JSON object {{...}}, found {type(doc).__name__}")
+    return doc
 
 
 _look_at = look_at  # `spiral` has a parameter of the same name
