@@ -112,3 +112,17 @@ def test_windows_longer_than_the_room_around_the_timestamps_refused_first(
     with pytest.raises(ValueError, match=f"{name}.*at most 65"):
         build_targets(dataset, load_config(method, overrides), progress=False)
     build_targets(dataset, load_config("tfp65"), progress=False)  # 65 fits
+
+
+@pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25"])
+def test_a_bad_intensity_calibration_is_named(dataset, rate):
+    bad = Dataset(
+        dataset.root,
+        {**dataset.meta, "sim": {**dataset.meta["sim"], "rate_at_one": rate}},
+        dataset.streams,
+        dataset.trajectory,
+        dataset.train_timestamps,
+        dataset.test_views,
+    )
+    with pytest.raises(ValueError, match=r"meta.json: rate_at_one .* expected a finite number"):
+        intensity_scale(bad)

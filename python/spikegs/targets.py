@@ -82,6 +82,11 @@ def intensity_scale(dataset) -> float:
     """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
     rate = _find_key(dataset.meta, "rate_at_one")
     if rate is not None:
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < np.inf:
+            raise ValueError(
+                f"{Path(dataset.root) / 'meta.json'}: rate_at_one (firing rate of intensity 1) "
+                f"expected a finite number > 0, found {rate!r}"
+            )
         return float(rate)
     return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0
 

@@ -235,20 +235,7 @@ def load_dataset(path: PathLike) -> Dataset:
             return load_nerf_layout(root)
     meta_path = existing_file(root, META)
     meta = read_json(meta_path)
-    required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
-    missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
-    if missing:
-        raise ValueError(f"{meta_path}: missing keys {missing}")
-    if meta.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
-        raise ValueError(
-            f"{meta_path}: format_version {meta['format_version']}, this SpikeGS reads "
-            f"{FORMAT_VERSION}"
-        )
-    center, radius = np.asarray(meta["scene_center"], np.float64), meta["scene_radius"]
-    if center.shape != (3,) or not np.isfinite(center).all():
-        raise ValueError(f"{meta_path}: scene_center expected 3 finite numbers, found {center}")
-    if not isinstance(radius, (int, float)) or not 0 < radius < float("inf"):
-        raise ValueError(f"{meta_path}: scene_radius expected a number > 0, found {radius!r}")
+    _check_meta(meta, meta_path)
     num = int(meta["num_readouts"])
     names = spike_files(int(meta["channels"]))
     streams = open_streams(root, names, meta["height"], meta["width"], meta["flip"], num)
@@ -266,6 +253,44 @@ def load_dataset(path: PathLike) -> Dataset:
     test_views = _read_test_views(root, shape)
     _check_held_out(test_views, timestamps, num, root)
     return Dataset(root, meta, streams, trajectory, timestamps, test_views)
+
+
+def _check_meta(meta: dict, path: Path) -> None:
+    """ValueError naming `path` (meta.json) and the key unless every value training reads is
+    there and of its type and range."""
+    required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
+    missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
+    if missing:
+        raise ValueError(f"{path}: missing keys {missing}")
+    if meta.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
+        raise ValueError(
+            f"{path}: format_version {meta['format_version']}, this SpikeGS reads {FORMAT_VERSION}"
+        )
+
+    def number(key: str, low: float = -np.inf, integer: bool = False) -> None:
+        value = meta[key]
+        kind = int if integer else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kind) or not low < value < np.inf:
+            what = "an integer" if integer else "a finite number"
+            raise ValueError(f"{path}: {key} expected {what} > {low}, found {value!r}")
+
+    for key in ("height", "width", "num_readouts"):
+        number(key, 0, integer=True)
+    if meta["channels"] not in (1, 3) or isinstance(meta["channels"], bool):
+        raise ValueError(
+            f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta['channels']!r}"
+        )
+    for key in ("fx", "fy", "scene_radius"):
+        number(key, 0)
+    for key in ("cx", "cy"):
+        number(key)
+    center = meta["scene_center"]
+    if not (
+        isinstance(center, list)
+        and len(center) == 3
+        and all(isinstance(c, (int, float)) and np.isfinite(c) for c in center)
+    ):
+        raise ValueError(f"{path}: scene_center expected 3 finite numbers, found {center!r}")
 
 
 def _read_timestamps(path: Path) -> np.ndarray:
