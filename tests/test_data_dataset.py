@@ -203,6 +203,15 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         on = next(v for v in small.test_views if v.readout is not None)
         return text + f"{round(on.readout)}\n"
 
+    def frame0(**changes):  # the first view's frame edited
+        return lambda d: {**d, "frames": [{**d["frames"][0], **changes}, *d["frames"][1:]]}
+
+    def rename(name):
+        return frame0(name=name)
+
+    def pose(matrix):
+        return frame0(transform_matrix=np.asarray(matrix).tolist() if np.ndim(matrix) else matrix)
+
     def rewrite_meta(**changes):
         return lambda text: json.dumps({**json.loads(text), **changes})
 
@@ -236,6 +245,16 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "meta list": ("meta.json", lambda text: "[1, 2]", r"meta.json: expected a JSON object"),
         "meta number": ("meta.json", lambda text: "3", r"meta.json: expected a JSON object"),
         "views list": ("test_views.json", lambda text: "[]", r"expected a JSON object \{"),
+        "escape": ("test_views.json", views(rename("../../x")), r"name '../../x' expected a file"),
+        "number": ("test_views.json", views(rename(3)), "name 3 expected a file name"),
+        "matrix": (
+            "test_views.json",
+            views(pose("abc")),
+            "transform_matrix or readout not numbers",
+        ),
+        "scaled": ("test_views.json", views(pose(2 * np.eye(4))), "poses expected rigid"),
+        "last row": ("test_views.json", views(pose(np.ones((4, 4)))), "poses expected rigid"),
+        "readout": ("test_views.json", views(frame0(readout="abc")), "view 'on_000'.* not numbers"),
         "frames": (
             "test_views.json",
             views(lambda d: {**d, "frames": 3}),

@@ -22,7 +22,14 @@ import numpy as np
 
 from ..image_io import read_image, write_image
 from ..spikes import SpikeStream
-from .trajectory import PathLike, Trajectory, camera_doc, read_camera_doc, read_json
+from .trajectory import (
+    PathLike,
+    Trajectory,
+    camera_doc,
+    check_rigid,
+    read_camera_doc,
+    read_json,
+)
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
     "meta.json",
@@ -187,10 +194,15 @@ def repeated(names) -> list[str]:
 
 
 def check_test_views(views: list[TestView], where) -> None:
-    """ValueError unless there is at least one held-out view and their names are unique (each
-    names its scores and images in an evaluation); `where`: the file or scene they come from."""
+    """ValueError unless there is at least one held-out view and their names are unique file names
+    (each names its scores and images in an evaluation); `where`: the file or scene they come
+    from."""
     if not views:
         raise ValueError(f"{where}: no held-out test view; evaluation and training need one")
+    for view in views:  # a name names the view's files: RUN/eval/NAME.png
+        name = view.name
+        if not isinstance(name, str) or name in ("", ".", "..") or {"/", "\\"} & set(name):
+            raise ValueError(f"{where}: test view name {name!r} expected a file name (no / or \\)")
     twice = repeated(v.name for v in views)
     if twice:
         raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
@@ -203,16 +215,21 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
         missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
         if missing:
             raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")
-        c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
-        if c2w.shape != (4, 4) or not np.isfinite(c2w).all():
-            raise ValueError(f"{path}: view '{frame['name']}' has a non-finite or non-4x4 pose")
+        where = f"{path}: view {frame['name']!r}"
+        try:
+            c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
+            readout = None if frame.get("readout") is None else float(frame["readout"])
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"{where}: transform_matrix or readout not numbers ({err})") from None
+        if c2w.shape != (4, 4):
+            raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
+        check_rigid(c2w, where)
         image = read_image(existing_file(root, frame["file_path"]))  # [H, W, C]
         if image.shape != shape:
             raise ValueError(
                 f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
                 f"found {list(image.shape)}"
             )
-        readout = None if frame.get("readout") is None else float(frame["readout"])
         views.append(TestView(frame["name"], np.linalg.inv(c2w), image, readout))
     check_test_views(views, path)
     return views

@@ -44,6 +44,20 @@ def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
     return np.asarray(center, np.float64) + radius * offset
 
 
+def check_rigid(matrices: np.ndarray, source: str) -> None:
+    """ValueError naming `source` unless every matrix [..., 4, 4] (a viewmat or its inverse) is
+    finite and rigid: a rotation, a translation and the last row 0 0 0 1."""
+    if not np.isfinite(matrices).all():
+        raise ValueError(f"{source}: non-finite poses (NaN/inf)")
+    rot = matrices[..., :3, :3]
+    if (
+        not np.allclose(rot @ np.swapaxes(rot, -1, -2), np.eye(3), atol=1e-5)
+        or (np.linalg.det(rot) < 0).any()
+        or not np.allclose(matrices[..., 3, :], [0.0, 0.0, 0.0, 1.0], atol=1e-9)
+    ):
+        raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
+
+
 class Trajectory:
     """Camera poses at increasing readouts [P]; `pose_at(t)` interpolates between them."""
 
@@ -55,17 +69,13 @@ class Trajectory:
                 f"{source}: expected readouts [P] and viewmats [P, 4, 4] with P >= 1, found "
                 f"{list(readouts.shape)} and {list(viewmats.shape)}"
             )
-        if not (np.isfinite(readouts).all() and np.isfinite(viewmats).all()):
-            raise ValueError(f"{source}: non-finite readouts or poses (NaN/inf)")
+        if not np.isfinite(readouts).all():
+            raise ValueError(f"{source}: non-finite readouts (NaN/inf)")
         if (np.diff(readouts) <= 0).any():
             raise ValueError(f"{source}: readouts expected strictly increasing")
+        check_rigid(viewmats, source)
         c2w = np.linalg.inv(viewmats)  # [P, 4, 4]
         rot = c2w[:, :3, :3]
-        if (
-            not np.allclose(rot @ rot.transpose(0, 2, 1), np.eye(3), atol=1e-5)
-            or (np.linalg.det(rot) < 0).any()
-        ):
-            raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
         self.readouts = readouts
         self.viewmats = viewmats
         self._rotations = Rotation.from_matrix(rot)  # camera-to-world [P]
