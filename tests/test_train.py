@@ -6,6 +6,7 @@ import copy
 import errno
 import json
 import os
+import re
 import shutil
 import signal
 
@@ -662,3 +663,24 @@ def test_eval_of_a_run_whose_dataset_is_gone_says_to_pass_one(dataset, tmp_path,
     assert main(["eval", str(tmp_path / "run")]) == 2
     assert "pass --dataset" in capsys.readouterr().err
     assert main(["eval", str(tmp_path / "run"), "--dataset", str(dataset.root)]) == 0
+
+
+def test_eval_and_render_name_a_malformed_run_file(dataset, tmp_path, capsys):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    summary = json.loads((tmp_path / "run" / "train.json").read_text())
+    cases = {
+        "list": ("train.json", "[]", r"train.json: expected a JSON object"),
+        "json": ("train.json", "{", r"train.json: not valid JSON"),
+        "scale": ("train.json", {**summary, "intensity_scale": -1}, "intensity_scale expected"),
+        "dataset": ("train.json", {**summary, "dataset": 3}, "dataset expected a path"),
+        "no dataset": ("train.json", {"method": "tfp33"}, "without a dataset: is .* a finished"),
+        "empty ply": ("scene.ply", "", r"scene.ply: not a readable PLY file"),
+        "no vertex": ("scene.ply", "ply\nformat ascii 1.0\nend_header\n", "no 'vertex' element"),
+    }
+    for case, (name, content, message) in cases.items():
+        run = shutil.copytree(tmp_path / "run", tmp_path / case)
+        (run / name).write_text(content if isinstance(content, str) else json.dumps(content))
+        for command in (["eval"], ["render", "--out", str(run / "orbit.gif")]):
+            assert main([command[0], str(run), *command[1:]]) == 2, (case, command)
+            assert re.search(message, capsys.readouterr().err), (case, command)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 
@@ -17,10 +16,14 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     """The dataset a run was trained on, unless one is given."""
     if dataset is not None:
         return dataset
-    train = run_dir / "train.json"
-    if not train.exists():
-        raise FileNotFoundError(f"{train} not found: is {run_dir} a finished run?")
-    own = Path(json.loads(train.read_text())["dataset"])
+    from .run_summary import SUMMARY, read_summary
+
+    summary = read_summary(run_dir)
+    if "dataset" not in summary:
+        raise FileNotFoundError(
+            f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"
+        )
+    own = Path(summary["dataset"])
     if not own.is_dir():
         raise FileNotFoundError(f"the run's dataset {own} is gone: pass --dataset DIR")
     return own

@@ -14,6 +14,7 @@ from .gaussians import GaussianModel
 from .image_io import write_image
 from .metrics import psnr, ssim
 from .ply import load_ply
+from .run_summary import read_summary
 from .targets import intensity_scale
 
 
@@ -63,8 +64,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
     (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
     run_dir = Path(run_dir)
-    summary = run_dir / "train.json"
-    train = json.loads(summary.read_text()) if summary.exists() else {}
+    train = read_summary(run_dir)
     name = _eval_name(run_dir, train, dataset)
     ply = run_dir / "scene.ply"
     if not ply.exists():

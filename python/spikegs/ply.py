@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from plyfile import PlyData, PlyElement
+from plyfile import PlyData, PlyElement, PlyParseError
 
 from .gaussians import GaussianModel
 
@@ -45,10 +45,20 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
 
 
 def load_ply(path: str | Path) -> GaussianModel:
-    """Read a 3DGS `.ply` (ours or another tool's) into a GaussianModel."""
-    ply = PlyData.read(str(path))
+    """Read a 3DGS `.ply` (ours or another tool's) into a GaussianModel; ValueError naming the
+    file where it is not a PLY or lacks a property of the layout."""
+    try:
+        ply = PlyData.read(str(path))
+    except PlyParseError as err:
+        raise ValueError(f"{path}: not a readable PLY file ({err})") from None
+    if "vertex" not in [e.name for e in ply.elements]:
+        raise ValueError(f"{path}: no 'vertex' element: not a Gaussian splat file")
     v = ply["vertex"].data
     names = v.dtype.names
+    needed = ("x", "y", "z", "opacity", *(f"scale_{i}" for i in range(3)))
+    missing = [k for k in (*needed, *(f"rot_{i}" for i in range(4))) if k not in names]
+    if missing:
+        raise ValueError(f"{path}: vertex properties {missing} missing: not a 3DGS splat file")
     tags = dict(c.split(" ", 2)[1:] for c in ply.comments if c.startswith("spikegs "))
     dc_names = sorted((k for k in names if k.startswith("f_dc_")), key=lambda s: int(s[5:]))
     rest_names = sorted((k for k in names if k.startswith("f_rest_")), key=lambda s: int(s[7:]))

@@ -35,6 +35,7 @@ from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
+from .run_summary import SUMMARY
 from .sim_train import spikes_fingerprint
 from .targets import build_targets, intensity_scale
 
@@ -410,5 +411,5 @@ class Trainer:
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
         }
-        (self.run_dir / "train.json").write_text(json.dumps(summary, indent=2))
+        (self.run_dir / SUMMARY).write_text(json.dumps(summary, indent=2))
         return summary

@@ -1,0 +1,26 @@
+"""RUN/train.json, the summary `spikegs train` writes at the end of a run, read back checked."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .data.trajectory import read_json
+
+SUMMARY = "train.json"
+
+
+def read_summary(run_dir: Path) -> dict:
+    """RUN/train.json's object ({} where there is none); ValueError naming the file where it is
+    not JSON, not an object, or holds a dataset that is not a path or a scale that is not a
+    finite number > 0."""
+    path = Path(run_dir) / SUMMARY
+    if not path.exists():
+        return {}
+    summary = read_json(path)
+    if not isinstance(summary.get("dataset", ""), str):
+        raise ValueError(f"{path}: dataset expected a path, found {summary['dataset']!r}")
+    scale = summary.get("intensity_scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < math.inf:
+        raise ValueError(f"{path}: intensity_scale expected a finite number > 0, found {scale!r}")
+    return summary
