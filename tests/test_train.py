@@ -149,6 +149,21 @@ def test_resume_refuses_other_data(dataset, tmp_path):
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
 
 
+@pytest.mark.parametrize("torn", [b"", b"hello", "truncated", "list"])
+def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, torn):
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
+    if torn == "truncated":
+        torn = checkpoint.read_bytes()[:100]
+    elif torn == "list":
+        torch.save([1, 2], checkpoint)
+    if isinstance(torn, bytes):
+        checkpoint.write_bytes(torn)
+    with pytest.raises(ValueError, match=r"last.pt: cannot be resumed \(train afresh"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+
+
 def test_data_fingerprint_follows_poses_intrinsics_and_scale(dataset):
     """Each of what training reads besides the spikes changes the fingerprint; last bits (another
     machine's interpolation or calibration) do not."""

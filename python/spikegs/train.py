@@ -201,7 +201,13 @@ class Trainer:
         """The last checkpoint's state; ValueError naming every setting that differs from this
         trainer's configuration, or when it was trained on other data (a run resumes only with
         its own settings and data)."""
-        state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        unusable = f"{self.checkpoint_path}: cannot be resumed (train afresh into another --out):"
+        try:
+            state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        except Exception as err:  # torch, pickle and zip raise their own kinds for a torn file
+            raise ValueError(f"{unusable} unreadable ({type(err).__name__}: {err})") from None
+        if not (isinstance(state, dict) and "config" in state):
+            raise ValueError(f"{unusable} not a checkpoint of spikegs train")
         changed = _differences(with_defaults(state["config"]), self.config.to_dict())
         if changed:
             raise ValueError(
