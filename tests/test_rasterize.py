@@ -350,6 +350,8 @@ def _bad_inputs():
         ("opacities-meta", {"opacities": s["opacities"].to("meta")}, "opacities"),
         ("scales-n", {"scales": torch.cat([s["scales"], s["scales"][:1]])}, "scales"),
         ("colors-n", {"colors": s["colors"][:-1]}, "colors"),
+        ("opacity-above-1", {"opacities": s["opacities"] + 1}, r"opacities: expected .* \[0, 1\]"),
+        ("opacity-negative", {"opacities": -s["opacities"]}, r"opacities: expected .* \[0, 1\]"),
         ("width-0", {"width": 0}, "width"),
         ("height-neg", {"height": -3}, "height"),
         ("width-huge", {"width": 2**31}, "width"),

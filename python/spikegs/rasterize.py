@@ -163,6 +163,13 @@ def rasterize(
     _check("quats", quats, (n, 4), dtype)
     _check("scales", scales, (n, 3), dtype)
     _check("opacities", opacities, (n,), dtype)
+    o = opacities.detach()
+    outside = o[torch.isfinite(o) & ((o < 0) | (o > 1))]
+    if outside.numel():  # NaN/inf are culled per Gaussian, as documented
+        raise ValueError(
+            f"opacities: expected activated values in [0, 1] (sigmoid of the logits), got "
+            f"{outside.numel()} outside, e.g. {outside[:3].tolist()}"
+        )
     if not isinstance(colors, torch.Tensor) or colors.dim() not in (2, 3):
         raise ValueError(
             f"colors: expected shape [N, C] or [N, K, C], got {getattr(colors, 'shape', colors)}"
