@@ -209,6 +209,11 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
     def rename(name):
         return frame0(name=name)
 
+    def skewed_last_row():  # a rotation and translation, but a last row of 0.5 0 0 1
+        m = np.eye(4)
+        m[3, 0] = 0.5
+        return m
+
     def pose(matrix):
         return frame0(transform_matrix=np.asarray(matrix).tolist() if np.ndim(matrix) else matrix)
 
@@ -253,7 +258,9 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             "transform_matrix or readout not numbers",
         ),
         "scaled": ("test_views.json", views(pose(2 * np.eye(4))), "poses expected rigid"),
-        "last row": ("test_views.json", views(pose(np.ones((4, 4)))), "poses expected rigid"),
+        "last row": ("test_views.json", views(pose(skewed_last_row())), "poses expected rigid"),
+        "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
+        "nan readout": ("test_views.json", views(frame0(readout=float("nan"))), "readout a finite"),
         "readout": ("test_views.json", views(frame0(readout="abc")), "view 'on_000'.* not numbers"),
         "frames": (
             "test_views.json",

@@ -17,6 +17,7 @@ from spikegs.data.sources import (
     import_mitsuba,
     read_frame,
 )
+from spikegs.data.trajectory import check_rigid
 from spikegs.image_io import write_image
 
 
@@ -134,6 +135,33 @@ def test_frame_sequence_missing_image(tmp_path):
             FrameSequenceSource.from_transforms(path, 8, 8)
 
 
+def test_frame_sequence_rounded_poses_made_rigid_and_malformed_files_named(tmp_path):
+    """Poses rounded to 3 decimals (as some exporters write them) become exactly rigid, so a
+    dataset simulated from them loads; a file that is not an object, or frames that are not
+    objects with a path and a matrix, are named."""
+    truth = ProceduralSource("solids", SCENES["solids"](), 8, 8)
+    poses = truth.trajectory(101, 0.5).pose_at(np.array([0.0, 50.0, 100.0]))  # [3, 4, 4]
+    frames = np.stack([truth.render(v) for v in poses])
+    path = tmp_path / "transforms.json"
+    write_transforms(path, "train", frames, poses, truth.K, ".exr")
+    doc = json.loads(path.read_text())
+    for f in doc["frames"]:
+        f["transform_matrix"] = np.round(f["transform_matrix"], 3).tolist()
+    path.write_text(json.dumps(doc))
+    source = FrameSequenceSource.from_transforms(path, 8, 8)
+    check_rigid(source.viewmats, "rounded")  # within 1e-5 of rigid: loadable test views
+    np.testing.assert_allclose(source.viewmats, poses, atol=5e-3)
+    for text, message in (
+        ("[]", "expected a JSON object"),
+        (json.dumps({**doc, "frames": ["train/r_0"]}), "every frame needs a file_path"),
+        (json.dumps({**doc, "frames": [{**doc["frames"][0], "file_path": 3}]}), "every frame"),
+        (json.dumps({**doc, "frames": [{**doc["frames"][0], "transform_matrix": "I"}]}), "4x4"),
+    ):
+        path.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            FrameSequenceSource.from_transforms(path, 8, 8)
+
+
 def test_mitsuba_missing_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "mitsuba", None)  # import mitsuba -> ImportError
     with pytest.raises(MissingDependencyError, match=r"pip install 'spikegs\[mitsuba\]'"):
@@ -199,12 +227,15 @@ def test_read_frame_composites_alpha_once_in_linear_light(tmp_path):
     np.testing.assert_allclose(read_frame(tmp_path / "photo", 0.0), 1.0, atol=1e-6)
 
 
-def _write_tiff(path, pixels, fmt, unassociated):
-    """A 2x2 RGBA TIFF of `pixels` [2, 2, 4], alpha (un)associated as its ExtraSamples says."""
+def _write_tiff(path, pixels, fmt, unassociated, alpha=True):
+    """A 2x2 RGBA TIFF of `pixels` [2, 2, 4], alpha (un)associated as its ExtraSamples says
+    (`alpha` False: the fourth channel an unspecified extra sample, not alpha)."""
     import OpenImageIO as oiio
 
     spec = oiio.ImageSpec(2, 2, 4, fmt)
     spec.attribute("oiio:UnassociatedAlpha", int(unassociated))
+    if not alpha:
+        spec.channelnames, spec.alpha_channel = ("R", "G", "B", "X"), -1
     out = oiio.ImageOutput.create(str(path))
     assert out.open(str(path), spec)
     out.write_image(np.ascontiguousarray(pixels, np.float32))
@@ -212,9 +243,10 @@ def _write_tiff(path, pixels, fmt, unassociated):
 
 
 def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path):
-    """The same pixel - 60 % grey at 50 % alpha over black - stored four ways in TIFF files:
+    """The same pixel - 60 % grey at 50 % alpha over black - stored three ways in TIFF files:
     16-bit sRGB with alpha unassociated or associated (the encoded value times alpha), float
-    linear with alpha associated. Each reads as the same linear colour."""
+    linear with alpha associated. Each reads as the same linear colour; a fourth channel that
+    the file does not call alpha is left out."""
     import OpenImageIO as oiio
 
     linear = float(srgb_to_linear(np.array(0.6)))
@@ -231,3 +263,5 @@ def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path)
         np.testing.assert_allclose(
             read_frame(tmp_path / name, 1.0), 0.5 * linear + 0.5, atol=1e-4, err_msg=name
         )
+    _write_tiff(tmp_path / "extra.tif", rgba(0.6), oiio.UINT16, unassociated=False, alpha=False)
+    np.testing.assert_allclose(read_frame(tmp_path / "extra", 1.0), linear, atol=1e-4)  # no alpha

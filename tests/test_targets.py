@@ -124,5 +124,5 @@ def test_a_bad_intensity_calibration_is_named(dataset, rate):
         dataset.train_timestamps,
         dataset.test_views,
     )
-    with pytest.raises(ValueError, match=r"meta.json: rate_at_one .* expected a finite number"):
+    with pytest.raises(ValueError, match=r"rate_at_one \(firing rate .* expected a finite number"):
         intensity_scale(bad)

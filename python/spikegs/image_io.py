@@ -31,9 +31,10 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
 
 @dataclass(frozen=True)
 class StoredImage:
-    """An image's pixels as its file stores them, with how to read their colour."""
+    """An image's colour and alpha as its file stores them, with how to read the colour."""
 
-    pixels: np.ndarray  # [H, W, C] float32 (8/16-bit files scaled to [0, 1])
+    colour: np.ndarray  # [H, W, 1 or 3] float32, grey or RGB (8/16-bit files scaled to [0, 1])
+    alpha: np.ndarray | None  # [H, W, 1], or None where the file has no alpha channel
     premultiplied: bool  # colour associated with alpha (EXR, TIFF's associated alpha)
     srgb: bool  # colour sRGB-encoded (8/16-bit files), not linear (half/float files)
 
@@ -67,10 +68,16 @@ def read_image(path: str | Path) -> np.ndarray:
 def read_stored_image(path: str | Path) -> StoredImage:
     """Read an image's colour as its file stores it: OpenImageIO would premultiply colour by an
     alpha that the file keeps unassociated (PNG, TIFF's unassociated alpha), in sRGB units.
-    The file's metadata, not its extension, says which (errors as `read_image`)."""
+    The file's metadata, not its extension, says which channel is alpha (an unspecified extra
+    channel is not), whether colour is premultiplied, and whether it is sRGB (errors as
+    `read_image`)."""
     pixels, spec = _read(path, unassociated_alpha=True)
     space = spec.get_string_attribute("oiio:ColorSpace").lower()
     floating = spec.format.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
-    srgb = "srgb" in space or (not floating and "lin" not in space)
+    srgb = "lin" not in space and ("srgb" in space or not floating)
     unassociated = spec.get_int_attribute("oiio:UnassociatedAlpha", 0) == 1
-    return StoredImage(pixels, premultiplied=not unassociated, srgb=srgb)
+    a = spec.alpha_channel
+    alpha = pixels[..., a : a + 1] if a >= 0 else None
+    others = np.delete(pixels, a, axis=2) if a >= 0 else pixels  # [H, W, C - 1 or C]
+    colour = others[..., : 3 if others.shape[2] >= 3 else 1]
+    return StoredImage(colour, alpha, premultiplied=not unassociated, srgb=srgb)

@@ -8,6 +8,7 @@ import gives back exactly one channel.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -60,8 +61,10 @@ def load_ply(path: str | Path) -> GaussianModel:
     if missing:
         raise ValueError(f"{path}: vertex properties {missing} missing: not a 3DGS splat file")
     tags = dict(c.split(" ", 2)[1:] for c in ply.comments if c.startswith("spikegs "))
-    dc_names = sorted((k for k in names if k.startswith("f_dc_")), key=lambda s: int(s[5:]))
-    rest_names = sorted((k for k in names if k.startswith("f_rest_")), key=lambda s: int(s[7:]))
+    dc_names = sorted((k for k in names if re.fullmatch(r"f_dc_\d+", k)), key=lambda s: int(s[5:]))
+    rest_names = sorted(
+        (k for k in names if re.fullmatch(r"f_rest_\d+", k)), key=lambda s: int(s[7:])
+    )
     stored = len(dc_names)
     if stored == 0 or len(rest_names) % stored:
         raise ValueError(f"{path}: expected f_dc_* and a multiple of {stored} f_rest_* properties")

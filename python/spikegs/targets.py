@@ -84,8 +84,8 @@ def intensity_scale(dataset) -> float:
     if rate is not None:
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < np.inf:
             raise ValueError(
-                f"{Path(dataset.root) / 'meta.json'}: rate_at_one (firing rate of intensity 1) "
-                f"expected a finite number > 0, found {rate!r}"
+                f"{dataset.root}: rate_at_one (firing rate of intensity 1: meta.json, or "
+                f"spikegs.json for a real layout) expected a finite number > 0, found {rate!r}"
             )
         return float(rate)
     return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0

@@ -221,6 +221,8 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
             readout = None if frame.get("readout") is None else float(frame["readout"])
         except (TypeError, ValueError) as err:
             raise ValueError(f"{where}: transform_matrix or readout not numbers ({err})") from None
+        if not isinstance(frame["file_path"], str) or not np.isfinite(readout or 0.0):
+            raise ValueError(f"{where}: file_path expected a path and readout a finite number")
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
         check_rigid(c2w, where)

@@ -25,14 +25,13 @@ from .dataset import Dataset
 from .real import (
     camera_meta,
     held_out,
-    rigid_c2w,
     scene_sphere,
     stream_dataset,
     views_dataset,
 )
 from .real_options import OPTIONS_FILE, open_spikes, read_options
 from .sources import centre_of_view, optical_axes
-from .trajectory import PathLike
+from .trajectory import PathLike, rigid_c2w
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
     "poses_bounds.npy",

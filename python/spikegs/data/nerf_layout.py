@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import Dataset, read_json
-from .real import camera_meta, held_out, rigid_c2w, scene_sphere, views_dataset
+from .real import camera_meta, held_out, scene_sphere, views_dataset
 from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
     IMAGE_EXTENSIONS,
@@ -37,7 +37,7 @@ from .sources import (
     read_frame,
     to_channels,
 )
-from .trajectory import PathLike
+from .trajectory import PathLike, rigid_c2w
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")

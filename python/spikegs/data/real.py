@@ -99,34 +99,6 @@ def held_out(count: int, indices: list[int] | None, source: str) -> np.ndarray:
     return mask
 
 
-RIGID_TOLERANCE = 1e-3  # of |R R^T - I|: accepts poses rounded to 4 decimals
-
-
-def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
-    """Camera-to-world [N, 4, 4] with each rotation replaced by the nearest rotation (SVD), when
-    within RIGID_TOLERANCE of one (rounded poses); else ValueError naming the `item` index and
-    its deviation."""
-    c2w = np.asarray(c2w, np.float64)
-    rot = c2w[:, :3, :3]
-    deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
-    deviation = np.maximum(deviation, np.abs(c2w[:, 3] - [0, 0, 0, 1]).max(axis=1))
-    det = np.linalg.det(rot)  # [N]
-    bad = np.flatnonzero((deviation > RIGID_TOLERANCE) | (det <= 0))
-    if bad.size:
-        i = bad[0]
-        raise ValueError(
-            f"{source}: the pose of {item} {i} is not a rotation and translation: "
-            f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
-            f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}; {item}s beyond it: "
-            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
-        )
-    u, _, vt = np.linalg.svd(rot)
-    out = c2w.copy()
-    out[:, :3, :3] = u @ vt
-    out[:, 3] = [0.0, 0.0, 0.0, 1.0]
-    return out
-
-
 def scene_sphere(options: Options, center, radius: float) -> dict:
     """scene_center, scene_radius: the options' where given, else the computed ones."""
     center = options.scene_center if options.scene_center is not None else center
@@ -174,12 +146,13 @@ def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -
         for s, image in views
         if np.mean(image) > 0
     ]
-    if not ratios:
+    rate = float(np.median(ratios)) if ratios else 0.0
+    if not rate > 0:
         raise ValueError(
-            f"{source}: the training views' sharp images are all black; set rate_at_one in "
-            f"spikegs.json"
+            f"{source}: the training views' sharp images are all black or their spikes too few "
+            f"to calibrate intensity; set rate_at_one in spikegs.json"
         )
-    return float(np.median(ratios))
+    return rate
 
 
 def views_dataset(

@@ -12,7 +12,6 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 
 from __future__ import annotations
 
-import json
 import math
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -24,7 +23,7 @@ import torch
 from ..image_io import read_stored_image
 from ..rasterize import rasterize
 from .scenes import GaussianScene, srgb_to_linear
-from .trajectory import Trajectory, look_at, orbit_eye
+from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
 
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
 IMAGE_EXTENSIONS = (
@@ -367,22 +366,28 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] of a transforms JSON."""
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
-    doc = json.loads(path.read_text())
+    doc = read_json(path)
     frames = doc.get("frames") or []
     if not frames:
         raise ValueError(f"{path}: no frames")
     images, c2ws, src = [], [], None
     for f in frames:
-        if "transform_matrix" not in f or "file_path" not in f:
+        if not (isinstance(f, dict) and isinstance(f.get("file_path"), str)) or (
+            "transform_matrix" not in f
+        ):
             raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
         src_h, src_w = src = src or image.shape[:2]  # the first frame's size
         image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
-        c2ws.append(np.asarray(f["transform_matrix"], np.float64))
-    c2w = np.stack(c2ws)  # [F, 4, 4]
-    if not np.isfinite(c2w).all():
-        raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
+        c2ws.append(f["transform_matrix"])
+    try:
+        c2w = np.asarray(c2ws, np.float64)  # [F, 4, 4]
+    except ValueError as err:
+        raise ValueError(f"{path}: transform_matrix expected 4x4 numbers ({err})") from None
+    if c2w.shape[1:] != (4, 4) or not np.isfinite(c2w).all():
+        raise ValueError(f"{path}: transform_matrix expected 4x4 finite numbers in every frame")
+    c2w = rigid_c2w(c2w, str(path), "frame")  # rounded poses made exactly rigid
     if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
     K = camera_matrix(path, doc, (src_h, src_w), (height, width))
@@ -457,15 +462,13 @@ def read_frame(base: Path, background: float) -> np.ndarray:
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
         )
     stored = read_stored_image(found)
-    image = stored.pixels.astype(np.float64)  # [h, w, c]
-    if image.shape[2] < 3:  # grey, grey + alpha -> RGB, RGBA
-        image = np.concatenate([np.repeat(image[..., :1], 3, axis=2), image[..., 1:]], axis=2)
-    colour, alpha = image[..., :3], image[..., 3:4]  # [h, w, 3], [h, w, 0 or 1]
+    colour = np.broadcast_to(stored.colour, (*stored.colour.shape[:2], 3)).astype(np.float64)
+    alpha = None if stored.alpha is None else stored.alpha.astype(np.float64)  # [h, w, 1]
     if stored.srgb:
-        if stored.premultiplied and alpha.shape[2]:  # sRGB units of colour * alpha
+        if stored.premultiplied and alpha is not None:  # sRGB units of colour * alpha
             colour = np.divide(colour, alpha, out=np.zeros_like(colour), where=alpha > 0)
         colour = srgb_to_linear(colour)
-    if alpha.shape[2]:
+    if alpha is not None:
         associated = stored.premultiplied and not stored.srgb
         colour = (colour if associated else colour * alpha) + background * (1 - alpha)
-    return colour
+    return colour  # [h, w, 3]

@@ -58,6 +58,34 @@ def check_rigid(matrices: np.ndarray, source: str) -> None:
         raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
 
 
+RIGID_TOLERANCE = 1e-3  # of |R R^T - I|: accepts poses rounded to 4 decimals
+
+
+def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
+    """Camera-to-world [N, 4, 4] with each rotation replaced by the nearest rotation (SVD), when
+    within RIGID_TOLERANCE of one (rounded poses); else ValueError naming the `item` index and
+    its deviation."""
+    c2w = np.asarray(c2w, np.float64)
+    rot = c2w[:, :3, :3]
+    deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
+    deviation = np.maximum(deviation, np.abs(c2w[:, 3] - [0, 0, 0, 1]).max(axis=1))
+    det = np.linalg.det(rot)  # [N]
+    bad = np.flatnonzero((deviation > RIGID_TOLERANCE) | (det <= 0))
+    if bad.size:
+        i = bad[0]
+        raise ValueError(
+            f"{source}: the pose of {item} {i} is not a rotation and translation: "
+            f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
+            f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}; {item}s beyond it: "
+            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
+        )
+    u, _, vt = np.linalg.svd(rot)
+    out = c2w.copy()
+    out[:, :3, :3] = u @ vt
+    out[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    return out
+
+
 class Trajectory:
     """Camera poses at increasing readouts [P]; `pose_at(t)` interpolates between them."""
 
