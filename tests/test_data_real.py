@@ -617,7 +617,9 @@ def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
         doc["frames"].append({**doc["frames"][0], "file_path": "./test_r/0"})
 
     edit_json(root / "transforms_test.json", add_twin)
-    with pytest.raises(ValueError, match=r"found twice: \['test_r_0'\]"):
+    with pytest.raises(
+        ValueError, match=r"frames \['test/r_0', 'test_r/0'\] both become view 'test_r_0'"
+    ):
         load_dataset(root)
 
 

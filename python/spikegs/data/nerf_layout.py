@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Dataset, read_json
+from .dataset import Dataset, read_json, repeated
 from .real import camera_meta, held_out, scene_sphere, views_dataset
 from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
@@ -250,7 +250,15 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     sphere = scene_sphere(options, *centre_of_view(viewmats))
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
-    names = [_base(root, f["file_path"]).as_posix().replace("/", "_") for f in frames]
+    bases = [_base(root, f["file_path"]).as_posix() for f in frames]
+    names = [b.replace("/", "_") for b in bases]  # a view's name names its files: no folders
+    for name in repeated(names):
+        clash = sorted({b for b, n in zip(bases, names) if n == name})
+        if len(clash) > 1:
+            raise ValueError(
+                f"{path}: frames {clash} both become view '{name}' ('/' turns into '_'); "
+                f"rename one of them"
+            )
     return views_dataset(
         root, meta, names, viewmats, streams, images, test, options.pseudo_gt_window, str(path)
     )
