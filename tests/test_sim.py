@@ -192,6 +192,49 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary file left
 
 
+class _CtrlC:
+    """`stream`, whose `at`-th training window (not a fingerprint's one-readout window) is
+    interrupted by a Ctrl-C."""
+
+    def __init__(self, stream, at: int):
+        self.stream, self.at, self.height, self.width = stream, at, stream.height, stream.width
+
+    def __len__(self) -> int:
+        return len(self.stream)
+
+    def window(self, k, w: int) -> np.ndarray:
+        if w > 1:
+            self.at -= 1
+            if self.at == 0:
+                raise KeyboardInterrupt
+        return self.stream.window(k, w)
+
+
+def test_interrupted_sim_training_resumes_to_the_same_sim(tmp_path, monkeypatch, scene, trained):
+    """Ctrl-C in step 13 of 30: the state saved after step 12 resumes to the SIM (and losses)
+    of a run never interrupted; another setting starts afresh."""
+    monkeypatch.setattr("spikegs.sim_train.CHECKPOINT_S", 0.0)  # state saved every step
+    stream, path = scene[1], tmp_path / "sim.pt"
+    ts = valid_timestamps(stream, 33)
+    with pytest.raises(KeyboardInterrupt):
+        train_or_load(path, _CtrlC(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
+    partial = path.with_name("sim.pt.partial")
+    assert torch.load(partial, weights_only=False)["step"] == 12 and not path.exists()
+    resumed, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
+        assert torch.equal(a, b)
+    assert torch.load(path, weights_only=True)["meta"]["final_loss"] == np.mean(trained[1][-50:])
+    assert not partial.exists()
+    path.unlink()
+    with pytest.raises(KeyboardInterrupt):  # a state saved for crop 16 ...
+        train_or_load(path, _CtrlC(stream, 9), ts, 33, seed=3, **TRAIN)
+    other = dict(TRAIN, crop=12)  # ... is not resumed for crop 12: trained afresh
+    fresh, _ = train_sim(stream, ts, 33, seed=3, **other)
+    afresh, _ = train_or_load(path, stream, ts, 33, seed=3, **other)
+    for a, b in zip(afresh.state_dict().values(), fresh.state_dict().values()):
+        assert torch.equal(a, b)
+
+
 def test_inference_over_timestamps(scene, trained):
     model, stream = trained[0], scene[1]
     ts = np.array([40, 50, 60])

@@ -216,6 +216,10 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
     with pytest.raises(FileNotFoundError):
         Trainer(dataset, config, tmp_path / "other", progress=False).train(resume=True)
+    shutil.rmtree(tmp_path / "run" / "checkpoints")  # as if stopped before its first checkpoint
+    (tmp_path / "run" / "train.json").unlink()
+    summary = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    assert summary["iterations"] == 2 and (tmp_path / "run" / "checkpoints" / "last.pt").exists()
 
 
 @pytest.mark.parametrize("channels, degree", [(1, 0), (3, 2), (1, 3)])

@@ -22,6 +22,8 @@ from .atomic_save import save_atomically
 from .metrics import psnr, ssim
 from .sim import SIM, START
 
+CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
+
 
 @functools.lru_cache(maxsize=1)
 def bf16_is_fast() -> bool:
@@ -67,6 +69,8 @@ def train_sim(
     seed: int = 0,
     bf16: bool | None = None,
     progress: bool = True,
+    checkpoint: Path | None = None,
+    checkpoint_key: dict | None = None,
     **sim_kwargs,
 ) -> tuple[SIM, list[float]]:
     """Train a fresh SIM on random `crop`² crops of windows at random training `timestamps`.
@@ -89,6 +93,9 @@ def train_sim(
     in-place border zeroing) on 64² crops (`spikegs bench sim`); the canvas is the faster inference.
     Deterministic for a given `seed` and thread count. Returns the model (eval mode) and the loss
     of every step.
+    `checkpoint`: a file that holds the training state at least every CHECKPOINT_S seconds; a
+    state there with the same `checkpoint_key` (what the caller's result depends on) is resumed,
+    to the same result as a run never interrupted.
     """
     timestamps = np.asarray(timestamps)
     if timestamps.size == 0:
@@ -106,9 +113,24 @@ def train_sim(
     streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
-    losses = []
-    bar = tqdm(range(steps), desc="SIM", disable=not progress, dynamic_ncols=True)
-    for _ in bar:
+    losses, first = [], 0
+    state = _resumable(checkpoint, checkpoint_key)
+    if state is not None:
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["opt"])
+        sched.load_state_dict(state["sched"])
+        rng.bit_generator.state = state["rng"]
+        losses, first = state["losses"], state["step"]
+    saved = time.monotonic()
+    bar = tqdm(
+        range(first, steps),
+        initial=first,
+        total=steps,
+        desc="SIM",
+        disable=not progress,
+        dynamic_ncols=True,
+    )
+    for step in bar:
         ks = rng.choice(timestamps, batch_size)
         channel = rng.integers(len(streams), size=batch_size) if len(streams) > 1 else [0] * len(ks)
         windows = [streams[c].window(k, window) for c, k in zip(channel, ks)]  # B x [w, H, W]
@@ -127,7 +149,24 @@ def train_sim(
         losses.append(step_loss.item())
         if len(losses) % 50 == 0:
             bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
+        if checkpoint is not None and time.monotonic() - saved >= CHECKPOINT_S:
+            state = {"model": model.state_dict(), "opt": opt.state_dict()}
+            state.update(sched=sched.state_dict(), rng=rng.bit_generator.state, losses=losses)
+            save_atomically({**state, "step": step + 1, "key": checkpoint_key}, checkpoint)
+            saved = time.monotonic()
     return model.eval(), losses
+
+
+def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
+    """The training state saved at `checkpoint` for `key`, or None (no file, another key, or a
+    file that cannot be read: training starts afresh)."""
+    if checkpoint is None or not Path(checkpoint).exists():
+        return None
+    try:
+        state = torch.load(checkpoint, map_location="cpu", weights_only=False)
+    except Exception:  # a torn file: start afresh, as without one
+        return None
+    return state if isinstance(state, dict) and state.get("key") == key else None
 
 
 def save_sim(model: SIM, path: Path, **meta) -> None:
@@ -185,11 +224,19 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
                 f"{path}: trained on other spikes, for another window or from another start; "
                 f"training SIM afresh"
             )
+    partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
+    settings = {k: v for k, v in kwargs.items() if k != "progress"}
+    key = {"data": data, "start": START, "window": window, **settings}
+    if force:
+        partial.unlink(missing_ok=True)
     start = time.perf_counter()
-    model, losses = train_sim(stream, timestamps, window, **kwargs)
+    model, losses = train_sim(
+        stream, timestamps, window, checkpoint=partial, checkpoint_key=key, **kwargs
+    )
     seconds = time.perf_counter() - start
     final_loss = float(np.mean(losses[-50:]))
     save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
+    partial.unlink(missing_ok=True)
     return model, seconds
 
 

@@ -347,7 +347,11 @@ class Trainer:
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
         if resume and not self.checkpoint_path.exists():
-            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+            if not (self.run_dir / "config.yaml").exists():
+                raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+            # a run stopped before its first checkpoint (SIM training, say: SIM resumes itself)
+            print(f"{self.run_dir}: no checkpoint yet; training from the start")
+            resume = False
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks under the lock, so that
         # they see the state that this process will train from, before any work
