@@ -214,7 +214,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(tmp_path, monkeypatch,
     """Ctrl-C in step 13 of 30: the state saved after step 12 resumes to the SIM (and losses)
     of a run never interrupted; another setting starts afresh."""
     monkeypatch.setattr("spikegs.sim_train.CHECKPOINT_S", 0.0)  # state saved every step
-    stream, path = scene[1], tmp_path / "sim.pt"
+    stream, path = scene[1], tmp_path / "sim" / "sim.pt"  # a folder not made yet
     ts = valid_timestamps(stream, 33)
     with pytest.raises(KeyboardInterrupt):
         train_or_load(path, _CtrlC(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)

@@ -10,7 +10,8 @@ import torch
 
 def save_atomically(obj, path: Path) -> None:
     """torch.save `obj` to a temporary file of this process beside `path` (processes may share
-    `path`, as trainers share a SIM cache), then rename it onto `path`."""
+    `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     torch.save(obj, tmp)
     tmp.replace(path)

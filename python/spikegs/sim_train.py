@@ -172,7 +172,6 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
 def save_sim(model: SIM, path: Path, **meta) -> None:
     """Save weights, architecture and `meta` (seed, steps, ...) to `path`."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     save_atomically({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
 
 
