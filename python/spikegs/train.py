@@ -181,7 +181,6 @@ class Trainer:
         self.iteration, self.train_seconds = 0, 0.0
 
     def save_checkpoint(self) -> None:
-        self.checkpoint_path.parent.mkdir(parents=True, exist_ok=True)
         state = {
             "iteration": self.iteration,
             "train_seconds": self.train_seconds,
