@@ -210,7 +210,9 @@ class _CtrlC:
         return self.stream.window(k, w)
 
 
-def test_interrupted_sim_training_resumes_to_the_same_sim(tmp_path, monkeypatch, scene, trained):
+def test_interrupted_sim_training_resumes_to_the_same_sim(
+    tmp_path, monkeypatch, capsys, scene, trained
+):
     """Ctrl-C in step 13 of 30: the state saved after step 12 resumes to the SIM (and losses)
     of a run never interrupted; another setting starts afresh."""
     monkeypatch.setattr("spikegs.sim_train.CHECKPOINT_S", 0.0)  # state saved every step
@@ -221,6 +223,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(tmp_path, monkeypatch,
     partial = path.with_name("sim.pt.partial")
     assert torch.load(partial, weights_only=False)["step"] == 12 and not path.exists()
     resumed, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    assert "resumes at step 12 of 30" in capsys.readouterr().out
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)
     assert torch.load(path, weights_only=True)["meta"]["final_loss"] == np.mean(trained[1][-50:])

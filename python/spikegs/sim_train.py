@@ -121,6 +121,7 @@ def train_sim(
         sched.load_state_dict(state["sched"])
         rng.bit_generator.state = state["rng"]
         losses, first = state["losses"], state["step"]
+        print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}")
     saved = time.monotonic()
     bar = tqdm(
         range(first, steps),
