@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from .data.trajectory import read_json
+from .number_checks import is_number
 
 SUMMARY = "train.json"
 
@@ -21,6 +21,6 @@ def read_summary(run_dir: Path) -> dict:
     if not isinstance(summary.get("dataset", ""), str):
         raise ValueError(f"{path}: dataset expected a path, found {summary['dataset']!r}")
     scale = summary.get("intensity_scale", 1.0)
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < math.inf:
+    if not (is_number(scale) and scale > 0):
         raise ValueError(f"{path}: intensity_scale expected a finite number > 0, found {scale!r}")
     return summary

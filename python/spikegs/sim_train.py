@@ -151,9 +151,16 @@ def train_sim(
         if len(losses) % 50 == 0:
             bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
         if checkpoint is not None and time.monotonic() - saved >= CHECKPOINT_S:
-            state = {"model": model.state_dict(), "opt": opt.state_dict()}
-            state.update(sched=sched.state_dict(), rng=rng.bit_generator.state, losses=losses)
-            save_atomically({**state, "step": step + 1, "key": checkpoint_key}, checkpoint)
+            state = {
+                "model": model.state_dict(),
+                "opt": opt.state_dict(),
+                "sched": sched.state_dict(),
+                "rng": rng.bit_generator.state,
+                "losses": losses,
+                "step": step + 1,
+                "key": checkpoint_key,
+            }
+            save_atomically(state, checkpoint)
             saved = time.monotonic()
     return model.eval(), losses
 

@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from .config import Config, SimConfig
+from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, train_or_load
 from .spikes.stream import centred_range
 
@@ -82,7 +83,7 @@ def intensity_scale(dataset) -> float:
     """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
     rate = _find_key(dataset.meta, "rate_at_one")
     if rate is not None:
-        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < np.inf:
+        if not (is_number(rate) and rate > 0):
             raise ValueError(
                 f"{dataset.root}: rate_at_one (firing rate of intensity 1: meta.json, or "
                 f"spikegs.json for a real layout) expected a finite number > 0, found {rate!r}"

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..image_io import read_image, write_image
+from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
 from .trajectory import (
     PathLike,
@@ -288,8 +289,7 @@ def _check_meta(meta: dict, path: Path) -> None:
 
     def number(key: str, low: float = -np.inf, integer: bool = False) -> None:
         value = meta[key]
-        kind = int if integer else (int, float)
-        if isinstance(value, bool) or not isinstance(value, kind) or not low < value < np.inf:
+        if not ((is_int if integer else is_number)(value) and value > low):
             what = "an integer" if integer else "a finite number"
             raise ValueError(f"{path}: {key} expected {what} > {low}, found {value!r}")
 
@@ -304,11 +304,7 @@ def _check_meta(meta: dict, path: Path) -> None:
     for key in ("cx", "cy"):
         number(key)
     center = meta["scene_center"]
-    if not (
-        isinstance(center, list)
-        and len(center) == 3
-        and all(isinstance(c, (int, float)) and np.isfinite(c) for c in center)
-    ):
+    if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
         raise ValueError(f"{path}: scene_center expected 3 finite numbers, found {center!r}")
 
 

@@ -20,10 +20,9 @@ and what was found.
 from __future__ import annotations
 
 import dataclasses
-import math
-import numbers
 from pathlib import Path
 
+from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
 from .dataset import read_json
 
@@ -47,20 +46,8 @@ class Options:
     rate_at_one: float | None = None
 
 
-def _is_int(value) -> bool:
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
-def _is_number(value) -> bool:
-    return (
-        isinstance(value, numbers.Real)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
-
-
 def _positive_int(v) -> bool:
-    return _is_int(v) and v >= 1
+    return is_int(v) and v >= 1
 
 
 # key: (check of a non-None value, what it expects)
@@ -69,19 +56,19 @@ CHECKS = {
     "width": (_positive_int, "a positive integer"),
     "flip": (lambda v: isinstance(v, bool), "true or false"),
     "raw_width": (_positive_int, "a positive integer"),
-    "col_offset": (lambda v: _is_int(v) and v >= 0, "an integer >= 0"),
+    "col_offset": (lambda v: is_int(v) and v >= 0, "an integer >= 0"),
     "test_views": (
-        lambda v: isinstance(v, (list, tuple)) and all(_is_int(i) and i >= 0 for i in v),
+        lambda v: isinstance(v, (list, tuple)) and all(is_int(i) and i >= 0 for i in v),
         "a list of view indices (integers >= 0)",
     ),
     "train_every": (_positive_int, "a positive integer"),
     "pseudo_gt_window": (lambda v: _positive_int(v) and v % 2 == 1, "an odd positive integer"),
     "scene_center": (
-        lambda v: isinstance(v, (list, tuple)) and len(v) == 3 and all(map(_is_number, v)),
+        lambda v: isinstance(v, (list, tuple)) and len(v) == 3 and all(map(is_number, v)),
         "a list of 3 finite numbers",
     ),
-    "scene_radius": (lambda v: _is_number(v) and v > 0, "a finite number > 0"),
-    "rate_at_one": (lambda v: _is_number(v) and v > 0, "a finite number > 0"),
+    "scene_radius": (lambda v: is_number(v) and v > 0, "a finite number > 0"),
+    "rate_at_one": (lambda v: is_number(v) and v > 0, "a finite number > 0"),
 }
 
 
