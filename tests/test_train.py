@@ -363,6 +363,34 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     with Image.open(gif) as im:
         assert im.n_frames == 3 and im.size == (dataset.width, dataset.height)
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "x.avi")]) == 2
+    mp4 = tmp_path / "orbit.mp4"  # no ffmpeg on PATH needed
+    assert main(["render", str(tmp_path / "run"), "--out", str(mp4), "--frames", "3"]) == 0
+    assert _decoded(mp4).shape == (3, dataset.height, dataset.width, 3)
+
+
+def _decoded(path) -> np.ndarray:
+    """uint8 [F, H, W, 3] frames of a video file."""
+    import av
+
+    with av.open(str(path)) as container:
+        return np.stack([f.to_ndarray(format="rgb24") for f in container.decode(video=0)])
+
+
+def test_mp4_holds_every_frame_of_any_size(tmp_path):
+    """An odd size (yuv420p needs even ones) gains an edge-replicated row / column; the frames come
+    back in order and close to what went in (near-lossless coding)."""
+    from spikegs.render_cli import write_video
+
+    y, x = np.mgrid[0:33, 0:47]  # odd height and width
+    ramps = np.stack([10 + 3 * x, 10 + 4 * y, 70 + x - y], -1)  # [33, 47, 3] within 10..148
+    frames = np.stack([ramps + 20 * i for i in range(6)]).astype(np.uint8)  # [6, 33, 47, 3]
+    write_video(tmp_path / "v.mp4", frames, fps=7)
+    decoded = _decoded(tmp_path / "v.mp4").astype(np.float64)  # [6, 34, 48, 3]
+    assert decoded.shape == (6, 34, 48, 3)
+    error = np.abs(decoded[:, :33, :47] - frames).mean(axis=(1, 2, 3))  # [6] per frame
+    assert error.max() < 4, error  # every frame in its place: one off by one costs ~13
+    edge = np.abs(decoded[:, 33, :47] - frames[:, 32]).mean()  # the replicated row
+    assert edge < 4, edge
 
 
 def test_orbit_turns_with_the_world(dataset):
@@ -391,10 +419,10 @@ def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, 
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     monkeypatch.setattr("spikegs.render_cli.orbit_frames", lambda *a: pytest.fail("rendered"))
-    monkeypatch.setattr("shutil.which", lambda name: None)  # no ffmpeg
     (tmp_path / "dir.gif").mkdir()
     (tmp_path / "afile").write_text("")
-    cases = [("dir.gif", []), ("v.mp4", []), ("v.gif", ["--fps", "1000"]), ("afile/v.gif", [])]
+    cases = [("dir.gif", []), ("v.mp4", ["--fps", "0"]), ("v.gif", ["--fps", "1000"])]
+    cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
 

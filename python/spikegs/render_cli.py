@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -14,13 +13,13 @@ from .data.trajectory import WORLD_UP, look_at
 # count as level (roll noise of SfM poses stays below it)
 LEVEL_SPAN = 0.05
 GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
+MP4_CODECS = ("libx264", "mpeg4")  # H.264 where PyAV's FFmpeg has it, else MPEG-4 part 2
+MP4_QUALITY = {"libx264": {"crf": "18"}, "mpeg4": {"qscale": "2"}}  # near-lossless for both
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
-    parser.add_argument(
-        "--out", type=Path, required=True, help="video file: .gif, or .mp4 (ffmpeg)"
-    )
+    parser.add_argument("--out", type=Path, required=True, help="video file: .gif or .mp4")
     parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
     parser.add_argument("--frames", type=int, default=60, help="frames in one full orbit")
     parser.add_argument("--fps", type=int, default=20)
@@ -78,7 +77,7 @@ def orbit_frames(model, dataset, frames: int) -> np.ndarray:
 
 def check_video_output(path: Path, fps: int) -> None:
     """ValueError, before any rendering, unless `path` can take a video at `fps`: a .gif (at most
-    GIF_MAX_FPS) or an .mp4 with ffmpeg on PATH, not an existing directory."""
+    GIF_MAX_FPS) or an .mp4, not an existing directory."""
     suffix = path.suffix.lower()
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
@@ -93,14 +92,29 @@ def check_video_output(path: Path, fps: int) -> None:
             f"--fps {fps}: a GIF holds at most {GIF_MAX_FPS} (its frame delays are whole "
             f"hundredths of a second, and viewers slow delays under 2 of them); use .mp4"
         )
-    if suffix == ".mp4" and shutil.which("ffmpeg") is None:
-        raise ValueError(
-            "--out .mp4 needs ffmpeg on PATH (apt-get install ffmpeg); .gif works without"
-        )
+
+
+def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
+    """uint8 frames [F, H, W, 3] as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
+    in yuv420p, which every player reads; its chroma needs an even size, so an odd height or
+    width gains one edge-replicated row or column."""
+    import av
+
+    h, w = frames.shape[1:3]
+    frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+    codec = next(c for c in MP4_CODECS if c in av.codecs_available)
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
+        stream.height, stream.width = frames.shape[1:3]
+        stream.pix_fmt = "yuv420p"
+        for frame in frames:
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
+        container.mux(stream.encode())  # flush the encoder's delayed frames
 
 
 def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
-    """GIF through Pillow; MP4 through matplotlib's ffmpeg writer (`check_video_output` first)."""
+    """uint8 frames [F, H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
+    first."""
     check_video_output(path, fps)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
@@ -109,23 +123,7 @@ def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
         images = [Image.fromarray(f) for f in frames]
         images[0].save(path, save_all=True, append_images=images[1:], duration=1000 // fps, loop=0)
     else:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        from matplotlib.animation import FFMpegWriter
-
-        h, w = frames.shape[1:3]
-        fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
-        ax = fig.add_axes([0, 0, 1, 1])
-        ax.axis("off")
-        shown = ax.imshow(frames[0])
-        writer = FFMpegWriter(fps=fps)
-        with writer.saving(fig, str(path), dpi=100):
-            for f in frames:
-                shown.set_data(f)
-                writer.grab_frame()
-        plt.close(fig)
+        write_mp4(path, frames, fps)
 
 
 def run(args: argparse.Namespace) -> int:
