@@ -393,6 +393,30 @@ def test_mp4_holds_every_frame_of_any_size(tmp_path):
     assert edge < 4, edge
 
 
+def test_demo_writes_its_results_table_and_comparison(tmp_path, monkeypatch, capsys):
+    """`spikegs demo` end to end on a tiny scene and schedule: results.json in the issue's layout,
+    the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table."""
+    import spikegs.data
+    from spikegs.image_io import read_image
+
+    simulate = spikegs.data.simulate_dataset
+    monkeypatch.setattr(
+        "spikegs.data.simulate_dataset", lambda *a, **k: simulate(*a, **{**k, **TINY})
+    )
+    monkeypatch.setattr("spikegs.demo.DEMO_OVERRIDES", {**FAST, "sim": {"iterations": 5}})
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--iterations", "40", "--no-progress"]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["methods"]) == {"spikegs", "tfp33"}
+    for scores in results["methods"].values():
+        assert 10 < scores["psnr"] < 60 and 0 < scores["ssim"] <= 1 and scores["train_seconds"] > 0
+    assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
+    views = len(load_dataset(out / "data").test_views)
+    assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
+    printed = capsys.readouterr().out
+    assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
+
+
 def test_orbit_turns_with_the_world(dataset):
     """The orbit is the cameras' own: in a rotated world (SfM and LLFF poses have no fixed up)
     it is the rotated orbit, and on an upright scene it is level (its cameras' up is +z)."""
