@@ -353,6 +353,25 @@ def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
     assert not (tmp_path / "r").exists()
 
 
+def test_dssim_term_is_off_unless_configured(dataset, tmp_path, monkeypatch):
+    """3DGS's D-SSIM term joins the instant loss only with `supervision.dssim_weight` > 0, and
+    then moves the training."""
+    import spikegs.train
+
+    calls = []
+    dssim = spikegs.train.dssim
+    monkeypatch.setattr("spikegs.train.dssim", lambda *a: calls.append(1) or dssim(*a))
+    short = {**FAST, "train": {**FAST["train"], "iterations": 3}}
+    means = {}
+    for weight in (0.0, 0.2):
+        config = load_config("tfp33", {**short, "supervision": {"dssim_weight": weight}})
+        run = tmp_path / f"w{weight}"
+        Trainer(dataset, config, run, progress=False).train()
+        means[weight] = load_ply(run / "scene.ply").params["means"]
+        assert len(calls) == (3 if weight else 0)
+    assert not torch.equal(means[0.0], means[0.2])
+
+
 def test_render_writes_an_orbit_gif(dataset, tmp_path):
     from PIL import Image
 
