@@ -412,9 +412,10 @@ def test_mp4_holds_every_frame_of_any_size(tmp_path):
     assert edge < 4, edge
 
 
-def test_demo_writes_its_results_table_and_comparison(tmp_path, monkeypatch, capsys):
+def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypatch, capsys):
     """`spikegs demo` end to end on a tiny scene and schedule: results.json in the issue's layout,
-    the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table."""
+    the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table; a
+    demo killed in SpikeGS's training, then `--resume`d, ends with the same results."""
     import spikegs.data
     from spikegs.image_io import read_image
 
@@ -424,7 +425,8 @@ def test_demo_writes_its_results_table_and_comparison(tmp_path, monkeypatch, cap
     )
     monkeypatch.setattr("spikegs.demo.DEMO_OVERRIDES", {**FAST, "sim": {"iterations": 5}})
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--iterations", "40", "--no-progress"]) == 0
+    argv = ["demo", "--iterations", "80", "--no-progress", "--out"]
+    assert main([*argv, str(out)]) == 0
     results = json.loads((out / "results.json").read_text())
     assert set(results["methods"]) == {"spikegs", "tfp33"}
     for scores in results["methods"].values():
@@ -434,6 +436,27 @@ def test_demo_writes_its_results_table_and_comparison(tmp_path, monkeypatch, cap
     assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
     printed = capsys.readouterr().out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
+
+    step = Trainer.step
+
+    def killed_at_60(self):  # SpikeGS's checkpoint at 50 is the last
+        loss = step(self)
+        if self.config.method == "spikegs" and self.iteration == 60:
+            raise KeyboardInterrupt
+        return loss
+
+    monkeypatch.setattr(Trainer, "step", killed_at_60)
+    again = tmp_path / "again"
+    assert main([*argv, str(again)]) == 130
+    assert "with --resume continues" in capsys.readouterr().err
+    monkeypatch.setattr(Trainer, "step", step)
+    assert main([*argv, str(again), "--resume", "--scene", "wires"]) == 2  # not its scene
+    assert main([*argv, str(again), "--resume"]) == 0
+    assert "resuming with the spike dataset" in capsys.readouterr().out
+    resumed = json.loads((again / "results.json").read_text())
+    for method, scores in results["methods"].items():
+        for key in ("psnr", "ssim", "gaussians"):
+            assert resumed["methods"][method][key] == scores[key], (method, key)
 
 
 def test_orbit_turns_with_the_world(dataset):

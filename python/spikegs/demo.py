@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -38,29 +39,47 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_int,
         help="training iterations per method (densification scaled with them)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted demo in --out: its dataset, SIM's saved training state and "
+        "each run's last checkpoint (the same results as a demo never interrupted)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def run(args: argparse.Namespace) -> int:
-    from .data import simulate_dataset
+def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
+    """The demo's dataset: simulated into `data`, or, on `resume`, the one a demo already
+    simulated there (meta.json is written last: a folder without it is simulated again)."""
+    from .data import load_dataset, simulate_dataset
+
+    if resume and (data / "meta.json").exists():
+        dataset = load_dataset(data)
+        if dataset.meta.get("scene") != scene:
+            raise ValueError(
+                f"--resume: {data} holds scene '{dataset.meta.get('scene')}', not '{scene}'; "
+                f"pass --scene {dataset.meta.get('scene')} or another --out"
+            )
+        print(f"[1/3] resuming with the spike dataset in {data}")
+        return dataset
+    print(f"[1/3] simulating the spike dataset -> {data}")
+    return simulate_dataset(scene, data, overwrite=True, progress=progress)
+
+
+def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress: bool) -> dict:
+    """{method: scores}: each method of `configs` trained into OUT/runs/METHOD (resumed from its
+    last checkpoint on `resume`, where it had started) and evaluated on the test views."""
     from .evaluate import evaluate_run
-    from .image_io import read_image, write_image
     from .train import Trainer
 
-    start = time.perf_counter()
-    progress = not args.no_progress
-    configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
-    if args.iterations is not None:
-        configs = {m: c.with_iterations(args.iterations) for m, c in configs.items()}
-    out = Path(args.out)
-    print(f"[1/3] simulating the spike dataset -> {out / 'data'}")
-    dataset = simulate_dataset(args.scene, out / "data", overwrite=True, progress=progress)
     results = {}
-    for i, method in enumerate(METHODS, start=2):
+    for i, method in enumerate(configs, start=2):
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
-        shutil.rmtree(run_dir, ignore_errors=True)  # the demo always starts afresh
-        summary = Trainer(dataset, configs[method], run_dir, progress=progress).train()
+        if not resume:
+            shutil.rmtree(run_dir, ignore_errors=True)  # a demo starts afresh unless resumed
+        started = resume and (run_dir / "config.yaml").exists()
+        summary = Trainer(dataset, configs[method], run_dir, progress=progress).train(started)
         ev = evaluate_run(run_dir, dataset)
         results[method] = {
             "psnr": ev["psnr"],
@@ -69,6 +88,24 @@ def run(args: argparse.Namespace) -> int:
             "sim_seconds": summary["sim_seconds"],
             "gaussians": summary["gaussians"],
         }
+    return results
+
+
+def run(args: argparse.Namespace) -> int:
+    from .image_io import read_image, write_image
+
+    start = time.perf_counter()
+    progress = not args.no_progress
+    configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
+    if args.iterations is not None:
+        configs = {m: c.with_iterations(args.iterations) for m, c in configs.items()}
+    out = Path(args.out)
+    try:
+        dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
+        results = train_and_evaluate(dataset, configs, out, args.resume, progress)
+    except KeyboardInterrupt:
+        print("\nthe same command with --resume continues from here", file=sys.stderr)
+        raise
     names = [v.name for v in dataset.test_views]
     rows = []
     for name in names:  # each eval image is GT | render | error; keep GT once, then each render
