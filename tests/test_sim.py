@@ -221,9 +221,13 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     with pytest.raises(KeyboardInterrupt):
         train_or_load(path, _CtrlC(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
     partial = path.with_name("sim.pt.partial")
-    assert torch.load(partial, weights_only=False)["step"] == 12 and not path.exists()
-    resumed, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    state = torch.load(partial, weights_only=False)
+    assert state["step"] == 12 and not path.exists()
+    state["seconds"] = 1000.0  # the interrupted process's training time counts
+    torch.save(state, partial)
+    resumed, seconds = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
     assert "resumes at step 12 of 30" in capsys.readouterr().out
+    assert 1000 < seconds == torch.load(path, weights_only=True)["meta"]["seconds"] < 1100
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)
     assert torch.load(path, weights_only=True)["meta"]["final_loss"] == np.mean(trained[1][-50:])

@@ -113,16 +113,16 @@ def train_sim(
     streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
-    losses, first = [], 0
+    losses, first, earlier = [], 0, 0.0  # earlier: seconds of the steps in a resumed state
     state = _resumable(checkpoint, checkpoint_key)
     if state is not None:
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["opt"])
         sched.load_state_dict(state["sched"])
         rng.bit_generator.state = state["rng"]
-        losses, first = state["losses"], state["step"]
+        losses, first, earlier = state["losses"], state["step"], state.get("seconds", 0.0)
         print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}")
-    saved = time.monotonic()
+    began = saved = time.monotonic()
     bar = tqdm(
         range(first, steps),
         initial=first,
@@ -158,6 +158,7 @@ def train_sim(
                 "rng": rng.bit_generator.state,
                 "losses": losses,
                 "step": step + 1,
+                "seconds": earlier + time.monotonic() - began,  # training time of those steps
                 "key": checkpoint_key,
             }
             save_atomically(state, checkpoint)
@@ -210,7 +211,8 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
     `spikes_fingerprint`), unless `force`; else train one and save it there.
 
-    Returns (model, seconds spent training, 0 when loaded).
+    Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps
+    included).
     """
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
@@ -236,11 +238,12 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     key = {"data": data, "start": START, "window": window, **settings}
     if force:
         partial.unlink(missing_ok=True)
+    earlier = (_resumable(partial, key) or {}).get("seconds", 0.0)  # train_sim resumes it
     start = time.perf_counter()
     model, losses = train_sim(
         stream, timestamps, window, checkpoint=partial, checkpoint_key=key, **kwargs
     )
-    seconds = time.perf_counter() - start
+    seconds = earlier + time.perf_counter() - start
     final_loss = float(np.mean(losses[-50:]))
     save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
     partial.unlink(missing_ok=True)
