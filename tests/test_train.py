@@ -481,7 +481,9 @@ def test_orbit_turns_with_the_world(dataset):
     np.testing.assert_allclose(world_up(alike), -turn[:3, :3].T[:, 1], atol=1e-12)
 
 
-def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, monkeypatch):
+def test_render_refuses_an_unwritable_video_before_rendering(
+    dataset, tmp_path, monkeypatch, capsys
+):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     monkeypatch.setattr("spikegs.render_cli.orbit_frames", lambda *a: pytest.fail("rendered"))
@@ -491,6 +493,9 @@ def test_render_refuses_an_unwritable_video_before_rendering(dataset, tmp_path, 
     cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
+    monkeypatch.setattr("av.codecs_available", set())  # an FFmpeg build without the encoders
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4")]) == 2
+    assert "none of the encoders" in capsys.readouterr().err
 
 
 def test_cli_names_unreadable_and_unwritable_paths(dataset, tmp_path, capsys):

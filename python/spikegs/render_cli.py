@@ -92,6 +92,21 @@ def check_video_output(path: Path, fps: int) -> None:
             f"--fps {fps}: a GIF holds at most {GIF_MAX_FPS} (its frame delays are whole "
             f"hundredths of a second, and viewers slow delays under 2 of them); use .mp4"
         )
+    if suffix == ".mp4":
+        mp4_codec()
+
+
+def mp4_codec() -> str:
+    """The first of MP4_CODECS that PyAV's FFmpeg can write; ValueError if none."""
+    import av
+
+    codec = next((c for c in MP4_CODECS if c in av.codecs_available), None)
+    if codec is None:
+        raise ValueError(
+            f"--out .mp4: this PyAV's FFmpeg has none of the encoders {', '.join(MP4_CODECS)}; "
+            f"install PyAV's own wheel (pip install --force-reinstall av) or write a .gif"
+        )
+    return codec
 
 
 def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
@@ -102,7 +117,7 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
 
     h, w = frames.shape[1:3]
     frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-    codec = next(c for c in MP4_CODECS if c in av.codecs_available)
+    codec = mp4_codec()
     with av.open(str(path), "w") as container:
         stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
         stream.height, stream.width = frames.shape[1:3]
