@@ -19,6 +19,7 @@ import numpy as np
 from .bench.common import print_table
 from .cli import positive_int
 from .config import load_config
+from .data.scenes import SCENES
 
 METHODS = ("spikegs", "tfp33")
 # The demo's shortened schedule: same for both methods, so the comparison is fair. 1800
@@ -33,7 +34,9 @@ DEMO_OVERRIDES = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
-    parser.add_argument("--scene", default="solids", help="built-in scene (default: solids)")
+    parser.add_argument(
+        "--scene", default="solids", choices=sorted(SCENES), help="built-in scene (default: solids)"
+    )
     parser.add_argument(
         "--iterations",
         type=positive_int,
@@ -114,7 +117,13 @@ def run(args: argparse.Namespace) -> int:
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
     write_image(out / "comparison.png", np.concatenate(rows, axis=0))
     total = time.perf_counter() - start
-    payload = {"methods": results, "scene": dataset.meta.get("scene"), "total_seconds": total}
+    # total_seconds: this process's; a resumed demo's runs keep their earlier training time
+    payload = {
+        "methods": results,
+        "scene": dataset.meta.get("scene"),
+        "total_seconds": total,
+        "resumed": bool(args.resume),
+    }
     (out / "results.json").write_text(json.dumps(payload, indent=2))
     print()
     print_table(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,9 @@ from .data.trajectory import WORLD_UP, look_at
 LEVEL_SPAN = 0.05
 GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
 MP4_CODECS = ("libx264", "mpeg4")  # H.264 where PyAV's FFmpeg has it, else MPEG-4 part 2
-MP4_QUALITY = {"libx264": {"crf": "18"}, "mpeg4": {"qscale": "2"}}  # near-lossless for both
+# near-lossless for both: x264's constant quality 18; MPEG-4 at quantiser 2 (global_quality is
+# in lambda units, FF_QP2LAMBDA = 118 a quantiser step)
+MP4_QUALITY = {"libx264": {"crf": "18"}, "mpeg4": {"flags": "+qscale", "global_quality": "236"}}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -97,10 +100,18 @@ def check_video_output(path: Path, fps: int) -> None:
 
 
 def mp4_codec() -> str:
-    """The first of MP4_CODECS that PyAV's FFmpeg can write; ValueError if none."""
+    """The first of MP4_CODECS that PyAV's FFmpeg can encode (`av.codecs_available` lists
+    decoders too); ValueError if none."""
     import av
 
-    codec = next((c for c in MP4_CODECS if c in av.codecs_available), None)
+    def encodes(name: str) -> bool:
+        try:
+            av.Codec(name, "w")
+        except Exception:  # av.codec.codec.UnknownCodecError; its path moved between releases
+            return False
+        return True
+
+    codec = next((c for c in MP4_CODECS if encodes(c)), None)
     if codec is None:
         raise ValueError(
             f"--out .mp4: this PyAV's FFmpeg has none of the encoders {', '.join(MP4_CODECS)}; "
@@ -118,13 +129,18 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
     h, w = frames.shape[1:3]
     frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
     codec = mp4_codec()
-    with av.open(str(path), "w") as container:
-        stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
-        stream.height, stream.width = frames.shape[1:3]
-        stream.pix_fmt = "yuv420p"
-        for frame in frames:
-            container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
-        container.mux(stream.encode())  # flush the encoder's delayed frames
+    partial = path.with_name(f".{path.name}.partial")  # no half-written video at `path`
+    try:
+        with av.open(str(partial), "w", format="mp4") as container:
+            stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
+            stream.height, stream.width = frames.shape[1:3]
+            stream.pix_fmt = "yuv420p"
+            for frame in frames:
+                container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
+            container.mux(stream.encode())  # flush the encoder's delayed frames
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
 
 
 def write_video(path: Path, frames: np.ndarray, fps: int) -> None:

@@ -145,6 +145,7 @@ class Trainer:
         self.radius = float(dataset.scene_radius)
         self.checkpoint_path = self.run_dir / "checkpoints" / "last.pt"
         self.data = data_fingerprint(dataset, self.scale)
+        self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
 
     # -- state ---------------------------------------------------------------------------------
     def _fresh_state(self) -> None:
@@ -184,6 +185,7 @@ class Trainer:
         state = {
             "iteration": self.iteration,
             "train_seconds": self.train_seconds,
+            "sim_seconds": self.sim_seconds,
             "model": self.model.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "densifier": self.densifier.state_dict(),
@@ -371,6 +373,9 @@ class Trainer:
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
         self.targets = build_targets(self.dataset, self.config, self.progress)
+        # SIM's training time for this run: a resumed run's SIM was trained (and is now loaded)
+        # by the process that wrote its checkpoint
+        self.sim_seconds = self.targets.sim_seconds + (state or {}).get("sim_seconds", 0.0)
         if state is not None:
             self._load_checkpoint(state)
         else:
@@ -416,7 +421,7 @@ class Trainer:
             "dataset": str(Path(self.dataset.root).resolve()),
             "iterations": self.iteration,
             "train_seconds": self.train_seconds,
-            "sim_seconds": self.targets.sim_seconds,
+            "sim_seconds": self.sim_seconds,
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
         }
