@@ -71,6 +71,7 @@ def train_sim(
     progress: bool = True,
     checkpoint: Path | None = None,
     checkpoint_key: dict | None = None,
+    resume: dict | None = None,
     **sim_kwargs,
 ) -> tuple[SIM, list[float]]:
     """Train a fresh SIM on random `crop`² crops of windows at random training `timestamps`.
@@ -93,9 +94,9 @@ def train_sim(
     in-place border zeroing) on 64² crops (`spikegs bench sim`); the canvas is the faster inference.
     Deterministic for a given `seed` and thread count. Returns the model (eval mode) and the loss
     of every step.
-    `checkpoint`: a file that holds the training state at least every CHECKPOINT_S seconds; a
-    state there with the same `checkpoint_key` (what the caller's result depends on) is resumed,
-    to the same result as a run never interrupted.
+    `checkpoint`: a file that holds the training state, tagged with `checkpoint_key` (what the
+    caller's result depends on), at least every CHECKPOINT_S seconds; `resume`: such a state
+    (`_resumable`) to continue from, to the same result as a run never interrupted.
     """
     timestamps = np.asarray(timestamps)
     if timestamps.size == 0:
@@ -114,13 +115,12 @@ def train_sim(
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
     losses, first, earlier = [], 0, 0.0  # earlier: seconds of the steps in a resumed state
-    state = _resumable(checkpoint, checkpoint_key)
-    if state is not None:
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"])
-        rng.bit_generator.state = state["rng"]
-        losses, first, earlier = state["losses"], state["step"], state.get("seconds", 0.0)
+    if resume is not None:
+        model.load_state_dict(resume["model"])
+        opt.load_state_dict(resume["opt"])
+        sched.load_state_dict(resume["sched"])
+        rng.bit_generator.state = resume["rng"]
+        losses, first, earlier = resume["losses"], resume["step"], resume.get("seconds", 0.0)
         print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}")
     began = saved = time.monotonic()
     bar = tqdm(
@@ -238,12 +238,12 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     key = {"data": data, "start": START, "window": window, **settings}
     if force:
         partial.unlink(missing_ok=True)
-    earlier = (_resumable(partial, key) or {}).get("seconds", 0.0)  # train_sim resumes it
+    state = _resumable(partial, key)
     start = time.perf_counter()
     model, losses = train_sim(
-        stream, timestamps, window, checkpoint=partial, checkpoint_key=key, **kwargs
+        stream, timestamps, window, checkpoint=partial, checkpoint_key=key, resume=state, **kwargs
     )
-    seconds = earlier + time.perf_counter() - start
+    seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
     final_loss = float(np.mean(losses[-50:]))
     save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
     partial.unlink(missing_ok=True)
