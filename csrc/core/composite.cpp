@@ -1,13 +1,15 @@
 // Tile-parallel compositing. Within a tile, each splat is applied to the rows its box covers, 16
-// pixels at a time, so the inner loops (exp included) vectorise. No atomics: the backward writes
-// each (tile, splat) pair's gradient share to a slot of its own and sums them in a fixed order.
-// The backward takes those rows as one run of pixels, so that its gradient sums are reduced once
-// per (tile, splat) rather than once per row.
+// pixels at a time, so the inner loops (exp included, inlined) vectorise. No atomics: the backward
+// writes each (tile, splat) pair's gradient share to a slot of its own and sums them in a fixed
+// order. The backward takes those rows as one run of pixels, so that its gradient sums are reduced
+// once per (tile, splat) rather than once per row.
 #include "core/composite.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <memory>
+
+#include "core/exp_nonpositive.hpp"
 
 namespace spikegs::raster {
 namespace {
@@ -31,14 +33,15 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
   return out;
 }
 
-// G = exp(power), 0 where power > 0 (only from rounding: the pair is skipped). exp's argument is
-// raised to at least kPowerMin: o·exp(-20) < 1e-8 < kAlphaMin for any opacity o <= 1, so such a
-// pair is skipped either way, and exp stays off its underflow path (glibc's vector expf redoes a
-// whole vector in scalar code when one lane is below about -87).
+// G = exp(power) for power in [kPowerMin, 0]; exp(kPowerMin) outside. o·exp(-20) < 1e-8 <
+// kAlphaMin for any opacity o <= 1, so a pair below kPowerMin is skipped, and so is one with power
+// > 0 (only from rounding: 3DGS skips it). The choice is made on exp's argument, not on its
+// result: GCC then keeps the loop branch-free and vectorises it (a select on the result is sunk
+// into a branch around the float-to-int conversion, which if-conversion will not take).
 constexpr double kPowerMin = -20.0;
 template <typename T>
 inline T gaussian(T power) {
-  return power <= 0 ? std::exp(std::max(power, T(kPowerMin))) : T(0);
+  return exp_nonpositive(power > 0 || power < T(kPowerMin) ? T(kPowerMin) : power);
 }
 
 // Adds one pixel's share of a gathered splat `s`'s geometric gradients: `ga` = G · dL/dalpha is
@@ -141,10 +144,15 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
             const T next = tr[x] * (1 - a);
             const bool stop = valid && next < T(kTransmittanceMin);
             const bool take = valid && !stop;
+            // each store unconditional, its select on a value (GCC turns `m[x] = c ? v : m[x]`
+            // into a masked store behind a branch): pos grows along the tile's list, so the
+            // last contributor is a maximum
             weight[x] = take ? a * tr[x] : T(0);
-            tr[x] = take ? next : tr[x];
-            lst[x] = take ? pos : lst[x];
-            act[x] = stop ? T(0) : act[x];
+            tr[x] *= take ? 1 - a : T(1);
+            const std::int32_t candidate = take ? pos : -1;
+            lst[x] = candidate > lst[x] ? candidate : lst[x];
+            const T keep = stop ? T(0) : T(1);
+            act[x] = keep < act[x] ? keep : act[x];
             stopped += stop ? 1 : 0;
           }
           remaining -= stopped;
@@ -256,8 +264,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
         while (row1 > row0 && pos > row_last[row1 - 1]) --row1;
         if (row0 >= row1) continue;
         const int p0 = row0 * kTileSize, p1 = row1 * kTileSize;
-        // G = exp(power) in a loop of its own, so that the vector exp call has nothing live
-        // around it (a power > 0 only arises from rounding: G = 0, the pair is skipped)
+        // G = exp(power) in a loop of its own (see gaussian: a pair with power > 0 is skipped)
 #pragma omp simd
         for (int p = p0; p < p1; ++p) {
           const T dx = cx[p] - mx, dy = cy[p] - my;
