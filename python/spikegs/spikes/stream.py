@@ -14,7 +14,6 @@ last readout, reads 1/max_interval: never inf or NaN.
 
 from __future__ import annotations
 
-import numbers
 import os
 from pathlib import Path
 from typing import Union
@@ -22,6 +21,7 @@ from typing import Union
 import numpy as np
 
 from .. import _C
+from ..number_checks import is_int
 
 PathLike = Union[str, os.PathLike]
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
@@ -45,7 +45,7 @@ def as_ints(**values) -> list[int]:
     """`values` (sizes, offsets) as ints, in order; ValueError naming one that is not an integer
     (numpy integers are; ranges are the core's to check)."""
     for name, value in values.items():
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        if not is_int(value):
             raise ValueError(f"{name}: expected an int, found {value!r}")
     return [int(value) for value in values.values()]
 
