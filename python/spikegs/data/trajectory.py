@@ -44,22 +44,17 @@ def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
     return np.asarray(center, np.float64) + radius * offset
 
 
-def rigid_deviation(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """How far each matrix [..., 4, 4] is from rigid, each [...]: max |R R^T - I|, max |last row
-    - [0, 0, 0, 1]| and det R."""
-    rot = matrices[..., :3, :3]
-    rotation = np.abs(rot @ np.swapaxes(rot, -1, -2) - np.eye(3)).max(axis=(-2, -1))
-    last_row = np.abs(matrices[..., 3, :] - [0.0, 0.0, 0.0, 1.0]).max(axis=-1)
-    return rotation, last_row, np.linalg.det(rot)
-
-
 def check_rigid(matrices: np.ndarray, source: str) -> None:
     """ValueError naming `source` unless every matrix [..., 4, 4] (a viewmat or its inverse) is
     finite and rigid: a rotation, a translation and the last row 0 0 0 1."""
     if not np.isfinite(matrices).all():
         raise ValueError(f"{source}: non-finite poses (NaN/inf)")
-    rotation, last_row, det = rigid_deviation(matrices)
-    if (rotation > 1e-5).any() or (det < 0).any() or (last_row > 1e-9).any():
+    rot = matrices[..., :3, :3]
+    if (
+        not np.allclose(rot @ np.swapaxes(rot, -1, -2), np.eye(3), atol=1e-5)
+        or (np.linalg.det(rot) < 0).any()
+        or not np.allclose(matrices[..., 3, :], [0.0, 0.0, 0.0, 1.0], atol=1e-9)
+    ):
         raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
 
 
@@ -71,8 +66,10 @@ def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
     within RIGID_TOLERANCE of one (rounded poses); else ValueError naming the `item` index and
     its deviation."""
     c2w = np.asarray(c2w, np.float64)
-    rotation, last_row, det = rigid_deviation(c2w)  # [N] each
-    deviation = np.maximum(rotation, last_row)
+    rot = c2w[:, :3, :3]
+    deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
+    deviation = np.maximum(deviation, np.abs(c2w[:, 3] - [0, 0, 0, 1]).max(axis=1))
+    det = np.linalg.det(rot)  # [N]
     bad = np.flatnonzero((deviation > RIGID_TOLERANCE) | (det <= 0))
     if bad.size:
         i = bad[0]
@@ -82,7 +79,7 @@ def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
             f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}; {item}s beyond it: "
             f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
         )
-    u, _, vt = np.linalg.svd(c2w[:, :3, :3])
+    u, _, vt = np.linalg.svd(rot)
     out = c2w.copy()
     out[:, :3, :3] = u @ vt
     out[:, 3] = [0.0, 0.0, 0.0, 1.0]
