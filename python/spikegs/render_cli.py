@@ -99,19 +99,21 @@ def check_video_output(path: Path, fps: int) -> None:
         mp4_codec()
 
 
-def mp4_codec() -> str:
-    """The first of MP4_CODECS that PyAV's FFmpeg can encode (`av.codecs_available` lists
-    decoders too); ValueError if none."""
+def can_encode(codec: str) -> bool:
+    """Whether PyAV's FFmpeg has an encoder named `codec` (`av.codecs_available` lists decoders
+    too)."""
     import av
 
-    def encodes(name: str) -> bool:
-        try:
-            av.Codec(name, "w")
-        except Exception:  # av.codec.codec.UnknownCodecError; its path moved between releases
-            return False
-        return True
+    try:
+        av.Codec(codec, "w")
+    except Exception:  # av.codec.codec.UnknownCodecError; its path moved between releases
+        return False
+    return True
 
-    codec = next((c for c in MP4_CODECS if encodes(c)), None)
+
+def mp4_codec() -> str:
+    """The first of MP4_CODECS that PyAV's FFmpeg can encode; ValueError if none."""
+    codec = next((c for c in MP4_CODECS if can_encode(c)), None)
     if codec is None:
         raise ValueError(
             f"--out .mp4: this PyAV's FFmpeg has none of the encoders {', '.join(MP4_CODECS)}; "
