@@ -1,4 +1,5 @@
 // The compositing loops' inline exp (core/exp_nonpositive.hpp) against double std::exp.
+#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <vector>
