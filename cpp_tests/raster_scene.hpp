@@ -129,8 +129,9 @@ Grads<T> backward(const Scene<T>& s, const Render<T>& r, const std::vector<T>& g
                   const std::vector<T>& galpha) {
   Grads<T> g(s);
   ParamGrads<T> view = g.view();
-  rasterize_backward(s.params(), s.cam, s.background.data(), r.state, gimg.data(), galpha.data(),
-                     view, g.background.data(), g.mean2d.data());
+  rasterize_backward(s.params(), s.cam, s.background.data(), r.state,
+                     OutputGrads<T>{gimg.data(), galpha.data()}, view, g.background.data(),
+                     g.mean2d.data());
   return g;
 }
 

@@ -79,7 +79,8 @@ TEST_CASE(projection) {
     const auto w_m = random_weights(proj.mean2d.size(), 11),
                w_c = random_weights(proj.conic.size(), 12);
     const auto w_col = random_weights(proj.color.size(), 13),
-               w_o = random_weights(proj.opacity.size(), 14);
+               w_o = random_weights(proj.opacity.size(), 14),
+               w_d = random_weights(proj.depth.size(), 15);
     auto loss = [&] {
       Projected<double> p;
       project_forward(s.params(), s.cam, p);
@@ -90,11 +91,11 @@ TEST_CASE(projection) {
         for (int k = 0; k < 3; ++k) l += w_c[3 * i + k] * p.conic[3 * i + k];
         for (int k = 0; k < c.channels; ++k)
           l += w_col[i * c.channels + k] * p.color[i * c.channels + k];
-        l += w_o[i] * p.opacity[i];
+        l += w_o[i] * p.opacity[i] + w_d[i] * p.depth[i];
       }
       return l;
     };
-    ProjectedGrads<double> dp{w_m, w_c, w_o, w_col};
+    ProjectedGrads<double> dp{w_m, w_c, w_o, w_col, w_d};
     for (std::int64_t i = 0; i < s.n; ++i)
       if (proj.radius[i] == 0) std::printf("  (Gaussian %lld culled)\n", (long long)i);
     Grads<double> g(s);

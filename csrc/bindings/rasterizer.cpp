@@ -84,12 +84,16 @@ template <typename T>
 py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Array<T>& quats,
                    const Array<T>& scales, const Array<T>& opacities, const Array<T>& colors,
                    std::optional<Array<T>> background, const Array<T>& grad_image,
-                   std::optional<Array<T>> grad_alpha) {
+                   std::optional<Array<T>> grad_alpha, std::optional<Array<T>> grad_means2d,
+                   std::optional<Array<T>> grad_depths) {
   const sr::GaussianParams<T> p = params_of(means, quats, scales, opacities, colors, ctx.sh_degree,
                                             ctx.sh_coeffs, ctx.channels);
   const py::ssize_t pixels = py::ssize_t(ctx.cam.width) * ctx.cam.height;
   if (grad_image.size() != pixels * ctx.channels || (grad_alpha && grad_alpha->size() != pixels))
     throw py::value_error("rasterize backward: gradient shapes do not match the image");
+  if ((grad_means2d && grad_means2d->size() != 2 * p.n) ||
+      (grad_depths && grad_depths->size() != p.n))
+    throw py::value_error("rasterize backward: gradient shapes do not match the Gaussians");
   auto zeros_like = [](const Array<T>& a) {
     Array<T> z(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
     std::fill(z.mutable_data(), z.mutable_data() + z.size(), T(0));
@@ -104,9 +108,11 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
                       dopac.mutable_data(),  dcolors.mutable_data(), dviewmat.mutable_data()};
   {
     py::gil_scoped_release release;
-    sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state,
-                           grad_image.data(), grad_alpha ? grad_alpha->data() : nullptr, g,
-                           dbackground.mutable_data(), dmeans2d.mutable_data());
+    const sr::OutputGrads<T> dout{grad_image.data(), grad_alpha ? grad_alpha->data() : nullptr,
+                                  grad_means2d ? grad_means2d->data() : nullptr,
+                                  grad_depths ? grad_depths->data() : nullptr};
+    sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state, dout,
+                           g, dbackground.mutable_data(), dmeans2d.mutable_data());
   }
   return py::make_tuple(dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d);
 }
@@ -130,6 +136,7 @@ void bind_variant(py::module_& m, const std::string& suffix) {
   m.def(("rasterize_backward_" + suffix).c_str(), &backward<T>, py::arg("context"),
         py::arg("means"), py::arg("quats"), py::arg("scales"), py::arg("opacities"),
         py::arg("colors"), py::arg("background"), py::arg("grad_image"), py::arg("grad_alpha"),
+        py::arg("grad_means2d"), py::arg("grad_depths"),
         "-> gradients (means, quats, scales, opacities, colors, viewmat, background, means2d)");
 }
 

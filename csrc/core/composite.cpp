@@ -62,8 +62,9 @@ inline void add_geometry_grad(const T* s, T dx, T dy, T ga, T& g_mx, T& g_my, T&
 // Rows of the tile [row0, row1) that the splat can reach (y half-width `ey`, slack included).
 template <typename T>
 void splat_rows(T my, T ey, int tile_y0, int tile_h, int& row0, int& row1) {
-  row0 = std::max(0, int(std::floor(my - ey)) - tile_y0);
-  row1 = std::min(tile_h, int(std::ceil(my + ey)) - tile_y0);
+  // clamped in T before the conversion to int: a splat 2^31 px tall would overflow it
+  row0 = int(std::min(std::max(std::floor(my - ey) - T(tile_y0), T(0)), T(tile_h)));
+  row1 = int(std::max(std::min(std::ceil(my + ey) - T(tile_y0), T(tile_h)), T(0)));
 }
 
 template <typename T>

@@ -55,6 +55,7 @@ struct ProjectedGrads {
   std::vector<T> conic;    // [N, 3]
   std::vector<T> opacity;  // [N]
   std::vector<T> color;    // [N, C]
+  std::vector<T> depth;    // [N], or empty: no gradient of the depths
 };
 
 // Gradients with respect to the inputs; pointers to caller-owned, zero-initialised arrays.

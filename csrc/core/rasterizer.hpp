@@ -19,11 +19,21 @@ template <typename T>
 void rasterize_forward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
                        T* image, T* alpha, RasterState<T>& state);
 
-// Adds the input gradients to `grads` (zero-initialised arrays); `grad_alpha`, `grad_background`
-// and `grad_mean2d` ([N, 2], the screen-space gradient used for densification) may be null.
+// Gradients of a loss with respect to the forward's outputs; all but `image` may be null.
+template <typename T>
+struct OutputGrads {
+  const T* image;             // [H, W, C]
+  const T* alpha = nullptr;   // [H, W]
+  const T* mean2d = nullptr;  // [N, 2]
+  const T* depth = nullptr;   // [N]
+};
+
+// Adds the input gradients to `grads` (zero-initialised arrays); `grad_background` and
+// `grad_mean2d` ([N, 2], the screen-space gradient used for densification: of the 2D means'
+// every use, the compositing's and `dout.mean2d`'s) may be null.
 template <typename T>
 void rasterize_backward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
-                        const RasterState<T>& state, const T* grad_image, const T* grad_alpha,
+                        const RasterState<T>& state, const OutputGrads<T>& dout,
                         ParamGrads<T>& grads, T* grad_background, T* grad_mean2d);
 
 }  // namespace spikegs::raster

@@ -10,6 +10,7 @@ import numbers
 from typing import NamedTuple
 
 import torch
+from torch.autograd.function import once_differentiable
 
 from . import _C
 
@@ -20,9 +21,9 @@ MAX_SIZE = 1 << 20  # image width and height: the core's tile and pixel indices 
 class RasterizeResult(NamedTuple):
     image: torch.Tensor  # [H, W, C]
     alpha: torch.Tensor  # [H, W] 1 - final transmittance
-    radii: torch.Tensor  # [N] int32 pixels, 0 = culled
-    means2d: torch.Tensor  # [N, 2] projected centres (pixels)
-    depths: torch.Tensor  # [N] camera-space z
+    radii: torch.Tensor  # [N] int32 pixels, 0 = culled (no gradient)
+    means2d: torch.Tensor  # [N, 2] projected centres (pixels), 0 where culled
+    depths: torch.Tensor  # [N] camera-space z, 0 where culled
 
 
 def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
@@ -37,6 +38,20 @@ def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
         want = ", ".join("*" if s is None else str(s) for s in shape)
         raise ValueError(f"{name}: expected shape [{want}], got {list(t.shape)}")
     return t
+
+
+def _check_intrinsics(K: torch.Tensor) -> None:
+    """ValueError unless K is [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0 (the op reads
+    only fx, fy, cx, cy: a skew or another last row would be ignored)."""
+    k = K.detach().double()
+    if not (k[0, 0] > 0 and k[1, 1] > 0):
+        raise ValueError(
+            f"K: expected focal lengths fx = K[0,0], fy = K[1,1] > 0, got {k.tolist()}"
+        )
+    if k[0, 1] != 0 or k[1, 0] != 0 or k[2].tolist() != [0.0, 0.0, 1.0]:
+        raise ValueError(
+            f"K: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {k.tolist()}"
+        )
 
 
 def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
@@ -102,11 +117,12 @@ class _RasterizeFunction(torch.autograd.Function):
         ctx.raster, ctx.core = raster, core
         ctx.save_for_backward(means, quats, scales, opacities, colors, background)
         outputs = tuple(torch.from_numpy(x) for x in (image, alpha, radii, means2d, depths))
-        ctx.mark_non_differentiable(*outputs[2:])
+        ctx.mark_non_differentiable(outputs[2])
         return outputs
 
     @staticmethod
-    def backward(ctx, grad_image, grad_alpha, *_):
+    @once_differentiable
+    def backward(ctx, grad_image, grad_alpha, _grad_radii, grad_means2d, grad_depths):
         means, quats, scales, opacities, colors, background = ctx.saved_tensors
         arrays = [
             t.detach().contiguous().numpy() for t in (means, quats, scales, opacities, colors)
@@ -117,7 +133,10 @@ class _RasterizeFunction(torch.autograd.Function):
             *arrays,
             bg,
             grad_image.contiguous().numpy(),
-            None if grad_alpha is None else grad_alpha.contiguous().numpy(),
+            *(
+                None if g is None else g.contiguous().numpy()
+                for g in (grad_alpha, grad_means2d, grad_depths)
+            ),
         )
         dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d = map(
             torch.from_numpy, grads
@@ -153,6 +172,7 @@ def rasterize(
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
     `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
     projected 2D means (as in 3DGS densification). Culled Gaussians get radius 0 and zero gradient.
+    Every output but `radii` is differentiable (once: no double backward).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
         got = means.dtype if isinstance(means, torch.Tensor) else type(means).__name__
@@ -163,6 +183,13 @@ def rasterize(
     _check("quats", quats, (n, 4), dtype)
     _check("scales", scales, (n, 3), dtype)
     _check("opacities", opacities, (n,), dtype)
+    s = scales.detach()
+    negative = s[s < 0]
+    if negative.numel():  # NaN/inf are culled per Gaussian, as documented
+        raise ValueError(
+            f"scales: expected activated values >= 0 (exp of the log-scales), got "
+            f"{negative.numel()} negative, e.g. {negative[:3].tolist()}"
+        )
     o = opacities.detach()
     outside = o[torch.isfinite(o) & ((o < 0) | (o > 1))]
     if outside.numel():  # NaN/inf are culled per Gaussian, as documented
@@ -183,8 +210,11 @@ def rasterize(
     for name, camera in (("viewmat", viewmat), ("K", K)):
         if not torch.isfinite(camera).all():
             raise ValueError(f"{name}: expected finite values, got {camera.tolist()}")
+    _check_intrinsics(K)
     if background is not None:
         _check("background", background, (channels,), dtype)
+        if not torch.isfinite(background).all():
+            raise ValueError(f"background: expected finite values, got {background.tolist()}")
     if screen_points is not None:
         _check("screen_points", screen_points, (n, 2), dtype)
     for name, value in (("width", width), ("height", height)):
