@@ -297,6 +297,11 @@ def test_every_method_config_loads():
         ("spikegs", {"train": {"init_gaussians": 1}}, "train.init_gaussians"),
         ("spikegs", {"train": {"seed": -1}}, "train.seed"),
         ("spikegs", {"train": {"seed": 2**64}}, "train.seed"),
+        # exponential decay cannot reach 0: lr.means_final 0 kept the rate constant
+        ("spikegs", {"lr": {"means_final": 0.0}}, "lr.means_final"),
+        # a start past the last densifying iteration silently never densified
+        ("spikegs", {"densify": {"start": 2000, "stop": 1000}}, "densify.start"),
+        ("spikegs", {"train": {"iterations": 1000}, "densify": {"start": 800}}, "densify.start"),
     ],
 )
 def test_config_validation(name, overrides, message):
@@ -346,6 +351,40 @@ def test_a_config_file_names_its_method_unless_it_or_its_base_does(tmp_path):
     assert load_config(copied) == load_config("tfp33")
 
 
+def test_a_file_named_like_a_method_must_start_from_it(tmp_path):
+    """my/spikegs.yaml without a base trained the dataclass defaults (L1, lambda 1) recorded as
+    method `spikegs`."""
+    (tmp_path / "spikegs.yaml").write_text("train: {iterations: 600}\n")
+    with pytest.raises(ValueError, match="named like the built-in method 'spikegs'"):
+        load_config(tmp_path / "spikegs.yaml")
+    (tmp_path / "spikegs.yaml").write_text("base: spikegs\ntrain: {iterations: 600}\n")
+    assert load_config(tmp_path / "spikegs.yaml").supervision == load_config("spikegs").supervision
+
+
+def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
+    """train.iterations set in a YAML file left the schedule at its 3000-step defaults: a
+    200-step run never densified (--iterations scaled it)."""
+    (tmp_path / "short.yaml").write_text(
+        "base: spikegs\ntrain: {iterations: 600}\ndensify: {stop: 400}\n"
+    )
+    short = load_config(tmp_path / "short.yaml")
+    d = short.densify
+    assert (d.start, d.stop, d.every, d.opacity_reset_every) == (100, 400, 20, 200)
+    cli = load_config("spikegs").with_iterations(600)
+    assert (cli.densify.start, cli.densify.every) == (d.start, d.every)  # the same as the flag
+    # a YAML length, then --iterations: the schedule follows the final length, not 50x it
+    (tmp_path / "tiny.yaml").write_text("base: spikegs\ntrain: {iterations: 60}\n")
+    again = load_config(tmp_path / "tiny.yaml").with_iterations(3000)
+    assert (again.densify.start, again.densify.every) == (500, 100)
+    assert load_config("spikegs", {"train": {"iterations": 600}}).densify.start == 100
+
+
+def test_a_key_given_twice_in_a_yaml_file_is_refused(tmp_path):
+    (tmp_path / "twice.yaml").write_text("train: {iterations: 200}\ntrain: {seed: 3}\n")
+    with pytest.raises(ValueError, match="'train' given twice"):
+        load_config(tmp_path / "twice.yaml")
+
+
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
     assert main(["train", str(tmp_path), "--method", "nope", "--out", str(tmp_path / "r")]) == 2
     assert "known methods" in capsys.readouterr().err
@@ -385,6 +424,25 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     mp4 = tmp_path / "orbit.mp4"  # no ffmpeg on PATH needed
     assert main(["render", str(tmp_path / "run"), "--out", str(mp4), "--frames", "3"]) == 0
     assert _decoded(mp4).shape == (3, dataset.height, dataset.width, 3)
+
+
+@pytest.mark.parametrize("fps", [20, 24, 40])
+def test_gif_plays_at_its_frame_rate(tmp_path, fps):
+    """A GIF stores delays in hundredths of a second: 40 fps must not play at 50."""
+    from PIL import Image
+    from spikegs.render_cli import write_video
+
+    frames = np.zeros((12, 4, 6, 3), np.uint8)
+    frames[:, 0, 0, 0] = np.arange(12) * 20  # distinct frames: none merged by the writer
+    write_video(tmp_path / "v.gif", frames, fps)
+    with Image.open(tmp_path / "v.gif") as im:
+        delays = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            delays.append(im.info["duration"])
+    ends = np.cumsum(delays)
+    assert len(delays) == 12 and abs(ends[-1] - 12 * 1000 / fps) <= 5
+    assert np.all(np.abs(ends - np.arange(1, 13) * 1000 / fps) <= 5)
 
 
 def _decoded(path) -> np.ndarray:
@@ -760,6 +818,55 @@ def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, mo
     with pytest.raises(FloatingPointError, match="iteration 1: the loss is nan"):
         trainer.train()
     assert all(torch.isfinite(p).all() for p in trainer.model.params.values())
+
+
+def test_non_finite_parameters_stop_the_run(dataset, tmp_path, monkeypatch):
+    """The rasterizer culls a NaN Gaussian, so the loss stayed finite and a run with NaN
+    log-scales finished "successfully"."""
+    import spikegs.train
+
+    make = spikegs.train._optimizer
+
+    def poisoned(*args, **kwargs):
+        optimizer = make(*args, **kwargs)
+        step = optimizer.step
+
+        def step_then_poison(*a, **k):
+            step(*a, **k)
+            with torch.no_grad():
+                next(g for g in optimizer.param_groups if g["name"] == "log_scales")["params"][0][
+                    3, 1
+                ] = float("nan")
+
+        optimizer.step = step_then_poison
+        return optimizer
+
+    monkeypatch.setattr(spikegs.train, "_optimizer", poisoned)
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 5}})
+    with pytest.raises(FloatingPointError, match=r"iteration 1: .*log_scales \(1 of 800\)"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+
+
+def test_resuming_a_finished_run_does_no_work(dataset, tmp_path, monkeypatch):
+    """--resume of a finished run rebuilt its targets (retraining a deleted SIM) and added
+    that time to sim_seconds."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 3}})
+    first = Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    monkeypatch.setattr("spikegs.train.build_targets", lambda *a: pytest.fail("targets built"))
+    again = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    assert again == first
+
+
+def test_eval_names_a_channel_mismatch(dataset, tmp_path):
+    """A mono scene.ply re-saved by another 3DGS tool reads as RGB: eval said only that two
+    image shapes differ."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    gen = torch.Generator().manual_seed(0)
+    rgb = GaussianModel.from_points(torch.zeros(20, 3), torch.rand(20, 3, generator=gen), 0.1)
+    save_ply(rgb, tmp_path / "run" / "scene.ply")
+    with pytest.raises(ValueError, match="renders 3 channel"):
+        evaluate_run(tmp_path / "run", dataset)
 
 
 def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):

@@ -6,9 +6,11 @@ from the directory of the file that names it); without `base`, from the dataclas
 paper's equations: L1 norms, lambda = 1; `--method spikegs` is configs/spikegs.yaml, smooth-L1
 norms and lambda = 4). A file that sets no `method` (nor does its base) is named after itself: an
 empty my_run.yaml trains the dataclass defaults as method `my_run`, never under another method's
-name. No file at all is the default method, DEFAULT_METHOD. Unknown sections or keys, values of
-the wrong type or range and non-finite numbers are refused with a message that names the key and
-what is allowed.
+name (a file named like a built-in method must start from it or name itself). No file at all is
+the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
+train.iterations: a config that sets another gets each schedule key it does not set scaled to it,
+as `--iterations` does. Unknown sections or keys, a key given twice, values of the wrong type or
+range and non-finite numbers are refused with a message that names the key and what is allowed.
 """
 
 from __future__ import annotations
@@ -39,6 +41,9 @@ DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
 # model), 4 kept 29; the demo starts from 5000
 MIN_GAUSSIANS = 16
 SEED_MAX = 2**64 - 1  # torch.manual_seed's range
+# densify keys counted in iterations: their defaults are for TrainConfig.iterations, and a run of
+# another length scales them (0 stays: stop = half the run, no opacity reset)
+SCHEDULE_KEYS = ("start", "stop", "every", "opacity_reset_every")
 
 
 @dataclass
@@ -166,6 +171,12 @@ class Config:
             _require(
                 getattr(self.lr, f.name) >= 0, f"lr.{f.name}", getattr(self.lr, f.name), ">= 0"
             )
+        _require(
+            self.lr.means == 0 or self.lr.means_final > 0,
+            "lr.means_final",
+            self.lr.means_final,
+            "> 0 (the means' rate decays exponentially, never to 0: take a small value)",
+        )
         _require(d.start >= 0, "densify.start", d.start, ">= 0")
         _require(d.stop >= 0, "densify.stop", d.stop, ">= 0 (0: half the run)")
         _require(d.every >= 1, "densify.every", d.every, ">= 1")
@@ -174,6 +185,14 @@ class Config:
             "densify.opacity_reset_every",
             d.opacity_reset_every,
             ">= 0 (0: never)",
+        )
+        last = d.stop or t.iterations // 2  # the Densifier's last densifying iteration
+        _require(
+            d.start >= t.iterations or d.start <= last,
+            "densify.start",
+            d.start,
+            f"<= the last densifying iteration {last} (densify.stop, or half of train.iterations "
+            f"when 0), or >= train.iterations ({t.iterations}) for a run without densification",
         )
         for name in ("grad_threshold", "percent_dense", "max_screen_size", "max_world_size"):
             _require(getattr(d, name) >= 0, f"densify.{name}", getattr(d, name), ">= 0")
@@ -212,12 +231,16 @@ class Config:
         run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
         _require(iterations >= 1, "train.iterations", iterations, ">= 1")
         config = copy.deepcopy(self)
-        factor = iterations / config.train.iterations
+        _scale_schedule(config.densify, SCHEDULE_KEYS, iterations / config.train.iterations)
         config.train.iterations = iterations
-        for key in ("start", "stop", "every", "opacity_reset_every"):
-            value = getattr(config.densify, key)
-            setattr(config.densify, key, max(1, round(value * factor)) if value else 0)
         return config.validate()
+
+
+def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
+    """Scale the iteration counts `keys` of `densify` by `factor` (at least 1; 0 stays 0)."""
+    for key in keys:
+        value = getattr(densify, key)
+        setattr(densify, key, max(1, round(value * factor)) if value else 0)
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
@@ -264,7 +287,21 @@ def available_methods() -> list[str]:
 
 class _Loader(yaml.SafeLoader):
     """yaml.SafeLoader that reads 1e-4 as a float, as YAML 1.2 does (YAML 1.1, PyYAML's, wants
-    a dot, 1.0e-4, and reads 1e-4 as a string)."""
+    a dot, 1.0e-4, and reads 1e-4 as a string), and refuses a key given twice in one mapping
+    (PyYAML keeps the last: a second `train:` section would drop the first)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key '{key}' given twice in one mapping", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep)
 
 
 _Loader.add_implicit_resolver(
@@ -280,11 +317,32 @@ def load_config(name_or_path: str | Path | None = None, overrides: dict | None =
     config = Config()
     read = _read(DEFAULT_METHOD if name_or_path is None else name_or_path, set())
     if "method" not in read:  # a file that names no method, nor does its base: its own name
-        read["method"] = Path(name_or_path).stem
+        read["method"] = _own_name(Path(name_or_path))
     _apply(config, read, "")
     if overrides:
         _apply(config, overrides, "")
+    iterations = config.train.iterations
+    if iterations != TrainConfig.iterations:  # unset schedule keys follow the run's length
+        given = set()
+        for layer in (read, overrides or {}):
+            given |= set(layer.get("densify") or {})
+        unset = [k for k in SCHEDULE_KEYS if k not in given]
+        _scale_schedule(config.densify, unset, iterations / TrainConfig.iterations)
     return config.validate()
+
+
+def _own_name(path: Path) -> str:
+    """The method name of a file that names none: its stem, unless that is a built-in method's
+    name and the file is not that method's (it would train under a name whose settings it lacks)."""
+    builtin = CONFIG_DIR / f"{path.stem}.yaml"
+    is_file = path.suffix in (".yaml", ".yml")
+    if is_file and builtin.exists() and builtin.resolve() != path.resolve():
+        raise ValueError(
+            f"config file {path} is named like the built-in method '{path.stem}' but does not "
+            f"start from it: add 'base: {path.stem}' to change that method, or 'method: NAME' "
+            f"to name yours"
+        )
+    return path.stem
 
 
 def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) -> dict:

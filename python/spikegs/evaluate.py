@@ -70,6 +70,12 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
     model = load_ply(ply)
+    if model.channels != dataset.channels:
+        raise ValueError(
+            f"{ply} renders {model.channels} channel(s), the dataset {dataset.root} has "
+            f"{dataset.channels} (a mono scene.ply re-saved by another tool loses spikegs's "
+            f"'channels' comment and reads as RGB)"
+        )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
     K = torch.as_tensor(dataset.K, dtype=torch.float32)

@@ -145,6 +145,14 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
         partial.unlink(missing_ok=True)
 
 
+def gif_delays_ms(count: int, fps: int) -> list[int]:
+    """Per-frame delays (ms) of `count` GIF frames at `fps`: a GIF stores whole hundredths of a
+    second, so a rate like 40 fps alternates 20 and 30 ms, each frame ending within 5 ms of
+    its time at the exact rate (one delay of 1000 // fps played 40 fps at 50)."""
+    ends = np.round(np.arange(count + 1) * 100.0 / fps)  # [count + 1] centiseconds
+    return [10 * int(d) for d in np.diff(ends)]
+
+
 def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
     """uint8 frames [F, H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
     first."""
@@ -154,7 +162,13 @@ def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
         from PIL import Image
 
         images = [Image.fromarray(f) for f in frames]
-        images[0].save(path, save_all=True, append_images=images[1:], duration=1000 // fps, loop=0)
+        images[0].save(
+            path,
+            save_all=True,
+            append_images=images[1:],
+            duration=gif_delays_ms(len(frames), fps),
+            loop=0,
+        )
     else:
         write_mp4(path, frames, fps)
 

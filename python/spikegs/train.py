@@ -91,9 +91,9 @@ def _optimizer(
 def _means_lr(config: Config, iteration: int, scene_radius: float) -> float:
     """Exponential decay from lr.means to lr.means_final over the run, times the scene radius."""
     frac = min(iteration / max(config.train.iterations, 1), 1.0)
-    lr0, lr1 = config.lr.means, config.lr.means_final
-    if lr0 == 0 or lr1 == 0:
-        return lr0 * scene_radius
+    lr0, lr1 = config.lr.means, config.lr.means_final  # lr1 > 0 where lr0 > 0 (validated)
+    if lr0 == 0:
+        return 0.0
     return math.exp(math.log(lr0) * (1 - frac) + math.log(lr1) * frac) * scene_radius
 
 
@@ -249,6 +249,21 @@ class Trainer:
         )  # [B, 4, 4]
         return [v if self.poses is None else self.poses(v, view) for v in viewmats]
 
+    def _check_parameters(self) -> None:
+        """FloatingPointError naming the parameters that an update made non-finite: the
+        rasterizer culls such Gaussians, so the loss alone would not show it."""
+        named = {**self.model.params, "background": self.model.background}
+        bad = {  # name: rows (Gaussians; background: channels) with a non-finite entry
+            k: (int((~torch.isfinite(p.detach())).reshape(len(p), -1).any(1).sum()), len(p))
+            for k, p in named.items()
+        }
+        listed = ", ".join(f"{k} ({n} of {rows})" for k, (n, rows) in bad.items() if n)
+        if listed:
+            raise FloatingPointError(
+                f"iteration {self.iteration}: the update made parameters non-finite: {listed}; "
+                f"stopped (the last checkpoint is kept). Lower the learning rates or loss weights"
+            )
+
     def step(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
         s, targets = self.config.supervision, self.targets
@@ -297,6 +312,7 @@ class Trainer:
         loss.backward()
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
+        self._check_parameters()
         # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
         self.densifier.observe(radii, screen.grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
@@ -372,10 +388,12 @@ class Trainer:
         )
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
-        self.targets = build_targets(self.dataset, self.config, self.progress)
         # SIM's training time for this run: a resumed run's SIM was trained (and is now loaded)
-        # by the process that wrote its checkpoint
-        self.sim_seconds = self.targets.sim_seconds + (state or {}).get("sim_seconds", 0.0)
+        # by the process that wrote its checkpoint; a finished run needs no targets
+        self.sim_seconds = (state or {}).get("sim_seconds", 0.0)
+        if state is None or state["iteration"] < t.iterations:
+            self.targets = build_targets(self.dataset, self.config, self.progress)
+            self.sim_seconds += self.targets.sim_seconds
         if state is not None:
             self._load_checkpoint(state)
         else:
