@@ -131,6 +131,9 @@ def test_windows_past_either_end_refused():
             s.tfi(k)
     with pytest.raises(ValueError, match="window length"):
         s.tfp(5, 0)
+    for interval in (2.5, 0):  # 2.5 was read as 2
+        with pytest.raises(ValueError, match="max_interval"):
+            s.tfi(5, interval)
     for k in (5.5, float("nan"), [5.0, 6.5]):
         with pytest.raises(ValueError, match="integer"):
             s.tfp(k, 3)

@@ -148,6 +148,8 @@ def simulate_spikes(
     if int(num_readouts) != num_readouts or num_readouts < 1:
         raise ValueError(f"num_readouts expected a positive int, found {num_readouts}")
     num_readouts = int(num_readouts)
+    if int(seed) != seed:
+        raise ValueError(f"seed expected an int, found {seed}")
     check_chunk(chunk)
     frames = _Frames(source, num_readouts, frame_times, frame_every)
     height, width = frames.shape

@@ -192,6 +192,8 @@ class SpikeStream:
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
+        if int(max_interval) != max_interval or max_interval < 1:
+            raise ValueError(f"max_interval expected a positive int, found {max_interval}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
 
