@@ -857,6 +857,18 @@ def test_resuming_a_finished_run_does_no_work(dataset, tmp_path, monkeypatch):
     assert again == first
 
 
+def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_path, capsys):
+    """`spikegs train DATA --out RUN --resume` without --method compared the run with the
+    default method's settings and refused."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 3}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    argv = ["train", str(dataset.root), "--out", str(tmp_path / "run"), "--no-progress"]
+    assert main([*argv, "--resume"]) == 0
+    assert json.loads(capsys.readouterr().out)["method"] == "tfp33"
+    assert main([*argv, "--resume", "--method", "spikegs"]) == 2  # named again: compared
+    assert "other settings" in capsys.readouterr().err
+
+
 def test_eval_names_a_channel_mismatch(dataset, tmp_path):
     """A mono scene.ply re-saved by another 3DGS tool reads as RGB: eval said only that two
     image shapes differ."""

@@ -7,14 +7,16 @@ import json
 from pathlib import Path
 
 from .cli import positive_int
-from .config import available_methods, load_config
+from .config import DEFAULT_METHOD, available_methods, load_config
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
     which = parser.add_mutually_exclusive_group()
     which.add_argument(
-        "--method", default="spikegs", help=f"one of {', '.join(available_methods())}"
+        "--method",
+        help=f"one of {', '.join(available_methods())} (default: {DEFAULT_METHOD}; with --resume, "
+        f"the run's own settings, RUN/config.yaml)",
     )
     which.add_argument("--config", type=Path, help="a YAML config file instead of a method name")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
@@ -29,9 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace):
-    """The validated config of --method/--config with the command-line overrides applied."""
+    """The validated config of --method/--config (neither: DEFAULT_METHOD, or on --resume the
+    run's own RUN/config.yaml) with the command-line overrides applied."""
     seed = None if args.seed is None else {"train": {"seed": args.seed}}
-    config = load_config(args.config or args.method, seed)
+    saved = Path(args.out) / "config.yaml"
+    own = args.resume and saved.is_file()
+    config = load_config(args.config or args.method or (saved if own else DEFAULT_METHOD), seed)
     return config if args.iterations is None else config.with_iterations(args.iterations)
 
 
