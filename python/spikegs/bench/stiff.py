@@ -98,6 +98,24 @@ def _near_plane() -> Case:
     return Case("near plane and behind camera", s, 33, 17, _all(behind))
 
 
+def _needles() -> Case:
+    """Splats 0.2 px wide and 1e2..1e4 px long at random turns (float32 gradients through the
+    conic's inverse lost accuracy with the square of the length)."""
+    s = random_scene(12, 5, 64, 48, channels=1)
+    z, f = s["means"] @ s["viewmat"][2, :3] + s["viewmat"][2, 3], s["K"][0, 0]  # [N] depth
+    length = torch.logspace(2, 4, 5, dtype=torch.float64)  # pixels
+    s["scales"] = torch.stack([0.2 * torch.ones(5), length, 0.3 * torch.ones(5)], -1)
+    s["scales"] *= (z / f)[:, None]
+    return Case("needles 0.2 x 1e2..1e4 px", s, 64, 48)
+
+
+def _huge_extent() -> Case:
+    """Splats ~1e9 px tall: their rows overflowed a 32-bit int and they drew nothing."""
+    s = random_scene(13, 4, 33, 17)
+    s["scales"][:, 1] = 1e8
+    return Case("1e9 px tall", s, 33, 17)
+
+
 def _opacity_logits() -> Case:
     s = random_scene(4, 20, 33, 17, channels=1)
     s["opacities"] = torch.sigmoid(torch.tensor([30.0, -30.0] * 10, dtype=torch.float64))
@@ -160,6 +178,8 @@ def _clamped_alpha() -> Case:
 CASES = (
     _scales,
     _condition,
+    _needles,
+    _huge_extent,
     _near_plane,
     _opacity_logits,
     _stacked,
