@@ -234,6 +234,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "channels": ("meta.json", rewrite_meta(channels=2), "channels expected 1 .mono. or 3"),
         "centre": ("meta.json", rewrite_meta(scene_center="abc"), "scene_center expected 3"),
         "version": ("meta.json", rewrite_meta(format_version=2), "format_version 2"),
+        "flip": ("meta.json", rewrite_meta(flip="true"), "meta.json: flip expected true or false"),
         "none": ("test_views.json", views(no_views), "no held-out test view"),
         "twice": ("test_views.json", views(same_names), r"found twice: \['view'\]"),
         "json": ("meta.json", lambda text: text[:-3], r"meta.json: not valid JSON"),

@@ -227,6 +227,12 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         ({"flip": "false"}, "meta.json: flip: expected True or False, found 'false'"),
         ({"num_readouts": 500}, "spikes.dat: 1000 readouts, .*meta.json says 500"),
         ({"spike_files": ["rec.dat"]}, r"spike_files \['rec.dat'\]"),
+        # what training reads later: SfM ran, wrote every file, and training refused them
+        ({"fx": "175.8", "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number"),
+        ({"fx": -175.8, "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number > 0"),
+        ({"fx": 175.8, "fy": 175.8}, r"states \['fx', 'fy'\] of the intrinsics"),  # replaced
+        ({"scene_center": "origin"}, "scene_center expected 3 finite numbers"),
+        ({"scene_radius": 0}, "scene_radius expected a finite number > 0"),
     ]
     for i, (change, message) in enumerate(cases):
         raw = tmp_path / str(i)
@@ -255,6 +261,9 @@ def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):
 def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
+    for flags, message in ((["--count", "-3"], "--count"), (["--min-registered", "2"], "(0, 1]")):
+        assert main(["poses", str(textured), *flags]) == 2
+        assert message in capsys.readouterr().err
     still = _solids(tmp_path / "still", 64, 400, speed=0.0005)  # 0.2 degrees of orbit: no parallax
     assert main(["poses", str(still.root), "--count", "12"]) == 2
     err = capsys.readouterr().err

@@ -30,6 +30,7 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
+    check_meta_values,
     open_streams,
     read_json,
     spike_files,
@@ -118,6 +119,14 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
             f"{where}: expected channels 1 (spikes.dat) or 3 (spikes_r/g/b.dat) and those file "
             f"names, found channels {channels} and spike_files {meta.get('spike_files')}"
         )
+    intrinsics = [k for k in ("fx", "fy", "cx", "cy") if k in meta]
+    if meta.get("intrinsics_from") != SFM and 0 < len(intrinsics) < 4:
+        raise ValueError(
+            f"{where}: states {intrinsics} of the intrinsics fx, fy, cx, cy: state all four (held "
+            f"fixed) or none (structure from motion estimates them)"
+        )
+    stated = [k for k in (*intrinsics, "scene_center", "scene_radius") if k in meta]
+    check_meta_values(meta, where, stated)  # what training reads later, refused now
     return open_streams(root, names, h, w, flip, num)
 
 
@@ -216,6 +225,10 @@ def estimate_poses(
         raise ValueError(f"--window: expected an odd window >= 1, got {window}")
     if every is not None and every < 1:
         raise ValueError(f"--every: expected >= 1 readout, got {every}")
+    if every is None and count < 1:
+        raise ValueError(f"--count: expected >= 1 image, got {count}")
+    if not 0 < min_registered <= 1:
+        raise ValueError(f"--min-registered: expected a fraction in (0, 1], got {min_registered}")
     streams = _recording(root, meta)  # every check before any work or any write
     num = len(streams[0])
     # a raw recording (or one this command completed before) gets held-out views and timestamps

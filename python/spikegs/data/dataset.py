@@ -286,6 +286,12 @@ def _check_meta(meta: dict, path: Path) -> None:
         raise ValueError(
             f"{path}: format_version {meta['format_version']}, this SpikeGS reads {FORMAT_VERSION}"
         )
+    check_meta_values(meta, path, [*required, "scene_center", "scene_radius"])
+
+
+def check_meta_values(meta: dict, path: Path, keys) -> None:
+    """ValueError naming `path` (meta.json) and the key unless each of `keys` (present in `meta`)
+    holds a value of its type and range."""
 
     def number(key: str, low: float = -np.inf, integer: bool = False) -> None:
         value = meta[key]
@@ -293,19 +299,23 @@ def _check_meta(meta: dict, path: Path) -> None:
             what = "an integer" if integer else "a finite number"
             raise ValueError(f"{path}: {key} expected {what} > {low}, found {value!r}")
 
-    for key in ("height", "width", "num_readouts"):
-        number(key, 0, integer=True)
-    if meta["channels"] not in (1, 3) or isinstance(meta["channels"], bool):
-        raise ValueError(
-            f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta['channels']!r}"
-        )
-    for key in ("fx", "fy", "scene_radius"):
-        number(key, 0)
-    for key in ("cx", "cy"):
-        number(key)
-    center = meta["scene_center"]
-    if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
-        raise ValueError(f"{path}: scene_center expected 3 finite numbers, found {center!r}")
+    for key in keys:
+        if key in ("height", "width", "num_readouts"):
+            number(key, 0, integer=True)
+        elif key == "channels" and (meta[key] not in (1, 3) or isinstance(meta[key], bool)):
+            raise ValueError(f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta[key]!r}")
+        elif key in ("fx", "fy", "scene_radius"):
+            number(key, 0)
+        elif key in ("cx", "cy"):
+            number(key)
+        elif key == "flip" and not isinstance(meta[key], bool):
+            raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
+        elif key == "scene_center":
+            center = meta[key]
+            if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
+                raise ValueError(
+                    f"{path}: scene_center expected 3 finite numbers, found {center!r}"
+                )
 
 
 def _read_timestamps(path: Path) -> np.ndarray:
