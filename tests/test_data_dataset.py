@@ -136,8 +136,11 @@ def test_negative_view_counts_refused(tmp_path):
     for counts in ({"test_on_path": -1}, {"test_off_path": -2}):
         with pytest.raises(ValueError, match="expected counts >= 0"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **counts})
-    with pytest.raises(ValueError, match="a side of 2 pixels cannot be scored"):
-        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 2})
+    for size in ({"height": 2}, {"height": 1, "width": 1}):  # 1x1 was simulated, then unscored
+        with pytest.raises(ValueError, match="images cannot be scored"):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
+    with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
 
 
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):

@@ -214,12 +214,15 @@ def simulate_dataset(
             f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
-    if height < 1 or width < 1 or frame_every <= 0 or train_every < 1:
-        raise ValueError("height, width, frame_every and train_every expected positive")
-    if 2 in (height, width):
+    if height < 1 or width < 1 or not 0 < frame_every < math.inf or train_every < 1:
         raise ValueError(
-            f"{height}x{width} images: a side of 2 pixels cannot be scored (SSIM, in spikegs eval, "
-            f"needs sides of 1 or at least 3 pixels)"
+            f"height, width, frame_every and train_every expected positive (and finite), found "
+            f"{height}, {width}, {frame_every}, {train_every}"
+        )
+    if 2 in (height, width) or (height, width) == (1, 1):
+        raise ValueError(
+            f"{height}x{width} images cannot be scored (SSIM, in spikegs eval, needs sides of 1 or "
+            f"at least 3 pixels, not both 1)"
         )
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1
