@@ -220,6 +220,11 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
     def pose(matrix):
         return frame0(transform_matrix=np.asarray(matrix).tolist() if np.ndim(matrix) else matrix)
 
+    def zero_pose(text):  # an all-zero matrix: refused before inverting
+        doc = json.loads(text)
+        doc["frames"][5]["transform_matrix"] = [[0] * 4] * 4
+        return json.dumps(doc)
+
     def rewrite_meta(**changes):
         return lambda text: json.dumps({**json.loads(text), **changes})
 
@@ -227,7 +232,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "outside": ("test_views.json", views(moved_out), "at readout 5000.0, outside"),
         "leak": ("train_timestamps.txt", leak, "would train on its spikes"),
         "float": ("train_timestamps.txt", lambda t: t + "40.5\n", r"integer readouts.*40\.5"),
-        "words": ("train_timestamps.txt", lambda t: t + "abc\n", "train_timestamps.txt"),
+        "words": ("train_timestamps.txt", lambda t: t + "abc\n", "train_timestamps.txt: line"),
+        "columns": (
+            "train_timestamps.txt",
+            lambda t: "40 41\n" + t,
+            r"line 1: .*'40 41' \(2 fields",
+        ),
         "radius": ("meta.json", rewrite_meta(scene_radius=-1), "scene_radius"),
         "fx nan": ("meta.json", rewrite_meta(fx=float("nan")), r"meta.json: fx expected a finite"),
         "fy 0": ("meta.json", rewrite_meta(fy=0), r"meta.json: fy expected a finite number > 0"),
@@ -261,8 +271,13 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             views(pose("abc")),
             "transform_matrix or readout not numbers",
         ),
-        "scaled": ("test_views.json", views(pose(2 * np.eye(4))), "poses expected rigid"),
-        "last row": ("test_views.json", views(pose(skewed_last_row())), "poses expected rigid"),
+        "scaled": (
+            "test_views.json",
+            views(pose(2 * np.eye(4))),
+            "'on_000': the pose is not rigid",
+        ),
+        "last row": ("test_views.json", views(pose(skewed_last_row())), r"not rigid.* = 0.5 "),
+        "zero": ("trajectory.json", zero_pose, r"trajectory.json: the pose of frame 5 .* = 1 "),
         "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
         "nan readout": ("test_views.json", views(frame0(readout=float("nan"))), "readout a finite"),
         "readout": ("test_views.json", views(frame0(readout="abc")), "view 'on_000'.* not numbers"),
@@ -280,6 +295,30 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
     for case, (name, edit, message) in cases.items():
         with pytest.raises(ValueError, match=message):
             load_dataset(_edited_copy(small, tmp_path / case, name, edit))
+
+
+def test_poses_rounded_to_4_decimals_load(tmp_path, small):
+    """One rigidity rule with the LLFF/NeRF loaders: poses within 1e-3 of rigid are made rigid."""
+
+    def rounded(text):
+        doc = json.loads(text)
+        for frame in doc["frames"]:
+            frame["transform_matrix"] = np.round(frame["transform_matrix"], 4).tolist()
+        return json.dumps(doc)
+
+    root = _edited_copy(small, tmp_path / "rounded", "trajectory.json", rounded)
+    (root / "test_views.json").write_text(rounded((root / "test_views.json").read_text()))
+    ds = load_dataset(root)
+    rot = ds.trajectory.viewmats[:, :3, :3]  # [P, 3, 3]
+    np.testing.assert_allclose(
+        rot @ rot.transpose(0, 2, 1), np.broadcast_to(np.eye(3), rot.shape), atol=1e-12
+    )
+    np.testing.assert_allclose(ds.trajectory.viewmats, small.trajectory.viewmats, atol=1e-3)
+    for view, expected in zip(ds.test_views, small.test_views):
+        np.testing.assert_allclose(
+            view.viewmat[:3, :3] @ view.viewmat[:3, :3].T, np.eye(3), atol=1e-12
+        )
+        np.testing.assert_allclose(view.viewmat, expected.viewmat, atol=1e-3)
 
 
 def test_existing_dataset_needs_overwrite(tmp_path):

@@ -377,16 +377,77 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
         load_dataset(root)
 
 
-def test_llff_spike_files_in_natural_order(sim, llff, tmp_path):
-    """view_1 ... view_10: view_10 is the last pose's, not the second's (string order)."""
+def test_llff_spike_names_of_two_orders_refused(sim, llff, tmp_path):
+    """view_1 ... view_10: LLFF's tools order the poses by names as strings (view_10 second), ours
+    in natural order (view_10 last): ambiguous, refused; zero-padded, both orders agree."""
     root = copy(llff, tmp_path)
     for i in range(VIEWS):
         (root / "spikes" / f"{i:03d}.dat").rename(root / "spikes" / f"view_{i + 1}.dat")
+    with pytest.raises(
+        ValueError,
+        match=r"spikes: the .dat names order differently .*pose 1: view_10.dat as strings, "
+        r"view_2.dat in natural order.*imgs2poses.*Zero-pad",
+    ):
+        load_dataset(root)
+    for i in range(VIEWS):
+        (root / "spikes" / f"view_{i + 1}.dat").rename(root / "spikes" / f"view_{i + 1:02d}.dat")
     ds = load_dataset(root)
-    assert list(ds.meta["view_readouts"]) == [f"view_{i + 1}" for i in range(VIEWS)]
-    assert [v.name for v in ds.test_views] == ["pseudo_view_1", "pseudo_view_9"]
+    assert list(ds.meta["view_readouts"]) == [f"view_{i + 1:02d}" for i in range(VIEWS)]
     centers = np.arange(VIEWS) * LENGTH + LENGTH // 2
     np.testing.assert_allclose(ds.trajectory.pose_at(centers), view_poses(sim), atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "text, found",
+    [
+        ("0 0\n1 50\n", r"line 1: .*found '0 0' \(2 fields\)"),
+        ("0,0\n1,50\n", r"line 1: .*found '0,0' \(2 fields\)"),
+        ("readout\n0\n50\n", r"line 1: .*found 'readout'"),
+    ],
+)
+def test_llff_malformed_readouts_named(llff_stream, tmp_path, text, found):
+    root = copy(llff_stream, tmp_path)
+    (root / "readouts.txt").write_text(text)
+    with pytest.raises(ValueError, match=r"readouts.txt: " + found):
+        load_dataset(root)
+
+
+def test_llff_hwf_of_another_aspect_or_a_raw_crop(sim, llff_stream, tmp_path):
+    """hwf for the stored raw rows, the spikes a crop of them: the focal is kept and cx shifts by
+    col_offset; hwf of another aspect ratio than the spikes' is refused (non-square pixels)."""
+    root = copy(llff_stream, tmp_path)
+    bits = np.unpackbits(sim.stream.packed(), axis=-1, bitorder="little")[..., :W]  # [T, H, W]
+    raw = np.zeros((len(bits), H, W + 16), np.uint8)
+    raw[..., 4 : 4 + W] = bits
+    save_dat(root / "spikes.dat", raw)
+    f = sim.K[0, 0]
+    edit_poses(root, lambda rows: rows.__setitem__((slice(None), [4, 9, 14]), (H, W + 16, f)))
+    write_options(root, width=W)  # no raw_width: hwf 32x64 for 32x48 spikes
+    with pytest.raises(ValueError, match=r"poses_bounds.npy: hwf is for 32x64 .* 32x48 spikes"):
+        load_dataset(root)
+    write_options(root, width=W, raw_width=W + 16, col_offset=4)
+    ds = load_dataset(root)
+    np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
+    np.testing.assert_allclose(ds.K, [[f, 0, W / 2 + 4], [0, f, H / 2], [0, 0, 1]], rtol=1e-6)
+
+
+def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_path):
+    """No spike at all, or every pixel at every readout: PSNR inf against its own TFP."""
+    root = copy(llff, tmp_path / "dark")
+    save_dat(root / "spikes" / "003.dat", np.zeros((LENGTH, H, W), bool))
+    with pytest.raises(ValueError, match=r"003.dat: no spikes in its 70 readouts of 32x48"):
+        load_dataset(root)
+    save_dat(root / "spikes" / "003.dat", np.ones((LENGTH, H, W), bool))
+    with pytest.raises(ValueError, match=r"003.dat: every pixel firing at every readout"):
+        load_dataset(root)
+    root = copy(llff_stream, tmp_path / "stream")
+    save_dat(root / "spikes.dat", np.zeros((VIEWS * LENGTH, H, W), bool))
+    with pytest.raises(ValueError, match=r"spikes.dat: no spikes in its 700 readouts"):
+        load_dataset(root)
+    root = copy(nerf, tmp_path / "nerf")
+    save_dat(root / "spike_data" / "r_1.dat", np.zeros((LENGTH, H, W), bool))
+    with pytest.raises(ValueError, match=r"r_1.dat: no spikes"):
+        load_dataset(root)
 
 
 def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from spikegs.data import Trajectory
-from spikegs.data.trajectory import look_at
+from spikegs.data.trajectory import check_rigid, look_at, rigid_c2w
 
 
 def pose(rotvec, center) -> np.ndarray:
@@ -144,3 +144,54 @@ def test_bad_poses_are_rejected():
         Trajectory(np.array([0.0]), np.diag([2.0, 1, 1, 1])[None])
     with pytest.raises(ValueError, match="parallel"):
         look_at([0, 0, 5], [0, 0, 0])
+
+
+def test_json_rounded_to_4_decimals_is_made_rigid(tmp_path, two_poses):
+    """As the LLFF/NeRF loaders: within 1e-3 of rigid, re-orthonormalised (SVD), centres kept."""
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    turn = pose([0.3, -0.2, 0.7], [1.23456, 0, 0])  # not exact in 4 decimals
+    doc["frames"][1]["transform_matrix"] = np.round(np.linalg.inv(turn), 4).tolist()
+    path.write_text(json.dumps(doc))
+    back = Trajectory.load_json(path)
+    rot = back.viewmats[:, :3, :3]
+    np.testing.assert_allclose(
+        rot @ rot.transpose(0, 2, 1), np.broadcast_to(np.eye(3), rot.shape), atol=1e-12
+    )
+    np.testing.assert_allclose(back.viewmats[1], turn, atol=1e-3)
+    np.testing.assert_allclose(back.centers[1], [1.2346, 0, 0], atol=1e-12)
+
+
+def test_json_singular_or_bent_pose_names_file_frame_and_deviation(tmp_path, two_poses):
+    """Checked before inverting: an all-zero matrix is no "Singular matrix" naming nothing."""
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    doc["frames"][1]["transform_matrix"] = [[0.0] * 4] * 4
+    path.write_text(json.dumps(doc))
+    with pytest.raises(
+        ValueError, match=r"trajectory.json: the pose of frame 1 is not rigid.* = 1 "
+    ):
+        Trajectory.load_json(path)
+
+
+def test_one_rigidity_rule_reports_the_worst_matrix():
+    matrices = np.stack([np.eye(4)] * 4)  # [4, 4, 4]
+    matrices[1, 0, 0] = 1.002  # bent by 4e-3
+    matrices[2, 0, 0] = 1.3  # the worst
+    matrices[3, 0, 0] = 1.0004  # rounding: kept
+    with pytest.raises(ValueError, match=r"src: the pose of view 2 .* = 0.69 .*refused: \[1, 2\]"):
+        rigid_c2w(matrices, "src")
+    with pytest.raises(ValueError, match=r"src: the pose of view 2 "):
+        check_rigid(matrices, "src")
+    np.testing.assert_allclose(
+        rigid_c2w(matrices[[0, 3]], "src"), np.stack([np.eye(4)] * 2), atol=1e-12
+    )
+    check_rigid(matrices[3], "src")
+    for bad, message in (
+        (np.diag([1.0, 1, -1, 1]), "det R = -1"),
+        (np.full((4, 4), np.nan), "NaN"),
+    ):
+        with pytest.raises(ValueError, match=f"src: the pose is not rigid.*{message}"):
+            rigid_c2w(bad, "src")

@@ -27,9 +27,9 @@ from .trajectory import (
     PathLike,
     Trajectory,
     camera_doc,
-    check_rigid,
     read_camera_doc,
     read_json,
+    rigid_c2w,
 )
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
@@ -226,7 +226,7 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
             raise ValueError(f"{where}: file_path expected a path and readout a finite number")
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
-        check_rigid(c2w, where)
+        c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
         image = read_image(existing_file(root, frame["file_path"]))  # [H, W, C]
         if image.shape != shape:
             raise ValueError(
@@ -318,12 +318,32 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 )
 
 
+def read_column(path: Path, what: str) -> np.ndarray:
+    """The numbers [P] of a text file of one `what` a line (blank lines and # comments skipped);
+    ValueError naming the file and the first line that is not one number."""
+    try:
+        lines = path.read_text().splitlines()
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: expected text, one {what} a line; found binary data") from None
+    values = []
+    for number, line in enumerate(lines, 1):
+        text = line.split("#")[0].strip()
+        if not text:
+            continue
+        try:
+            values.append(float(text))
+        except ValueError:
+            fields = len(text.replace(",", " ").split())
+            raise ValueError(
+                f"{path}: line {number}: expected one {what} a line (a number), found {text!r}"
+                f"{f' ({fields} fields)' if fields > 1 else ''}"
+            ) from None
+    return np.array(values, np.float64)
+
+
 def _read_timestamps(path: Path) -> np.ndarray:
     """The integer readouts [M] of a train_timestamps.txt; ValueError naming the file."""
-    try:
-        values = np.loadtxt(path, dtype=np.float64, ndmin=1)
-    except ValueError as err:
-        raise ValueError(f"{path}: expected one integer readout a line ({err})") from None
+    values = read_column(path, "integer readout")  # [M]
     bad = values[~(values == np.round(values))]  # NaN too
     if bad.size:
         raise ValueError(f"{path}: expected integer readouts, found {bad[:5].tolist()}")

@@ -4,8 +4,9 @@ DIR/poses_bounds.npy            [N, 17]: per view a 3x5 matrix, row-major, [R | 
                                 columns: the camera's down, right, backwards axes in the world;
                                 t: its centre; hwf: height, width, focal in pixels), then the near
                                 and far depth bounds
-DIR/spikes/*.dat                one stream per view, in pose order by natural sort of the file
-                                names (numbers compared as numbers: view_2 before view_10); or
+DIR/spikes/*.dat                one stream per view, in pose order by file name (LLFF's tools sort
+                                names as strings: names whose numbers are not zero-padded, view_2
+                                and view_10, are refused as ambiguous); or
 DIR/spikes.dat + readouts.txt   one stream and the readout of each pose, one number a line
 DIR/spikegs.json                loader options (real_options.py), all optional
 
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Dataset
+from .dataset import Dataset, read_column
 from .real import (
     camera_meta,
     held_out,
@@ -29,7 +30,7 @@ from .real import (
     stream_dataset,
     views_dataset,
 )
-from .real_options import OPTIONS_FILE, open_spikes, read_options
+from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import centre_of_view, optical_axes
 from .trajectory import PathLike, rigid_c2w
 
@@ -162,7 +163,7 @@ def _read_readouts(path: Path, count: int) -> np.ndarray:
         raise FileNotFoundError(
             f"readouts file not found: {path} (one readout per pose, for {STREAM})"
         )
-    readouts = np.loadtxt(path, dtype=np.float64, ndmin=1)  # [P]
+    readouts = read_column(path, "readout index")  # [P]
     if len(readouts) != count:
         raise ValueError(
             f"{path}: {len(readouts)} readouts for {count} poses; expected one per pose"
@@ -170,6 +171,57 @@ def _read_readouts(path: Path, count: int) -> np.ndarray:
     if not np.isfinite(readouts).all() or (np.diff(readouts) <= 0).any():
         raise ValueError(f"{path}: readouts expected finite and strictly increasing")
     return readouts
+
+
+def llff_intrinsics(hwf: np.ndarray, options: Options, source: str) -> tuple[np.ndarray, int, int]:
+    """K [3, 3], height and width of the spikes from hwf [3] (height, width, focal of the images
+    the poses were made for) and the options. hwf's image is the spikes' frame, or the stored rows
+    before a raw-row crop (raw_width, when its width is raw_width's at hwf's aspect): scaled to the
+    spikes' height, the crop shifting cx by col_offset and keeping the focal. ValueError naming
+    `source` when the aspect ratios differ by over a pixel (non-square pixels)."""
+    h, w, f = hwf
+    height, width = options.height or round(h), options.width or round(w)
+    scaled = w * height / h  # hwf's width at the spikes' height
+    raw = options.raw_width
+    crop = raw is not None and raw != width and abs(scaled - raw) <= 1
+    frame, shift = (raw, options.col_offset) if crop else (width, 0)
+    if abs(scaled - frame) > 1:
+        stored = f" (or the {raw} stored pixels of a row, raw_width)" if raw else ""
+        raise ValueError(
+            f"{source}: hwf is for {h:g}x{w:g} images (height x width), of another aspect ratio "
+            f"than the {height}x{width} spikes{stored}: {w / h:.4g} vs {width / height:.4g}, the "
+            f"focal would differ in x and y (non-square pixels). Set height and width in "
+            f"{OPTIONS_FILE} to the spikes' size, at hwf's aspect ratio; or, where the .dat rows "
+            f"are hwf's and the spikes some of their columns, raw_width and col_offset"
+        )
+    K = np.array(
+        [[f * frame / w, 0, frame / 2 - shift], [0, f * height / h, height / 2], [0, 0, 1]]
+    )
+    return K, height, width
+
+
+def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
+    """The `count` .dat files [count] of spikes/, in pose order; ValueError when there are not
+    `count`, or when their names order differently as strings (LLFF's order of the poses) and in
+    natural order (ours): which pose is whose would be ambiguous."""
+    files = sorted(folder.glob("*.dat"), key=lambda p: p.name)  # as strings, as LLFF's tools
+    if len(files) != count:
+        raise ValueError(
+            f"{source} holds {count} poses but {folder} holds {len(files)} .dat files; "
+            f"expected one per pose, in name order"
+        )
+    natural = sorted(files, key=lambda p: natural_key(p.name))
+    if natural != files:
+        i = next(i for i, (a, b) in enumerate(zip(natural, files)) if a != b)
+        raise ValueError(
+            f"{folder}: the .dat names order differently as strings and with numbers compared as "
+            f"numbers (pose {i}: {files[i].name} as strings, {natural[i].name} in natural order), "
+            f"so which pose of {POSES_BOUNDS} is whose is ambiguous: LLFF's tools (imgs2poses, "
+            f"load_llff_data) order the poses by names sorted as strings, SpikeGS would pair them "
+            f"in natural order. Zero-pad the numbers in the names (e.g. r_02.dat, r_10.dat) so "
+            f"that both orders agree"
+        )
+    return files
 
 
 def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options) -> None:
@@ -200,9 +252,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
     options = read_options(root, overrides)
     poses, bounds = _read_poses_bounds(source)
     viewmats = viewmats_from_llff(poses, str(source))  # [N, 4, 4]
-    h, w, f = poses[0, :, 4]
-    height, width = options.height or round(h), options.width or round(w)
-    K = np.array([[f * width / w, 0, width / 2], [0, f * height / h, height / 2], [0, 0, 1]])
+    K, height, width = llff_intrinsics(poses[0, :, 4], options, str(source))
     test = held_out(len(poses), options.test_views, str(source))
     given = options.scene_center is not None and options.scene_radius is not None
     computed = (None, None) if given else llff_sphere(viewmats, bounds, K, width, height, source)
@@ -225,12 +275,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
             f"spikes not found in {root}: expected {SPIKES_DIR}/ (one .dat per view) or {STREAM} "
             f"with {READOUTS}"
         )
-    files = sorted(folder.glob("*.dat"), key=lambda p: natural_key(p.name))
-    if len(files) != len(poses):
-        raise ValueError(
-            f"{source} holds {len(poses)} poses but {folder} holds {len(files)} .dat files; "
-            f"expected one per pose, in natural name order"
-        )
+    files = _spike_files(folder, len(poses), source)
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
     streams = [open_spikes(p, height, width, options) for p in files]
     names = [p.stem for p in files]

@@ -91,13 +91,14 @@ def read_options(root: Path, overrides: dict) -> Options:
 
 def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:
     """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop;
-    FileNotFoundError or ValueError naming the file (empty, or not of the expected layout)."""
+    FileNotFoundError or ValueError naming the file (empty, not of the expected layout, or
+    without information: `check_fires`)."""
     if not path.is_file():
         raise FileNotFoundError(f"spike file not found: {path}")
     if path.stat().st_size == 0:
         raise ValueError(f"{path}: empty spike file (no readout)")
     try:
-        return SpikeStream.open(
+        stream = SpikeStream.open(
             path, height, width, options.flip, options.raw_width, options.col_offset
         )
     except ValueError as err:
@@ -108,3 +109,22 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
             f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
             f"if these are wrong)"
         ) from err
+    check_fires(stream)
+    return stream
+
+
+def check_fires(stream: SpikeStream) -> None:
+    """ValueError naming the stream's file when no pixel ever fires, or every pixel at every
+    readout: no image in it (one pass over the spikes)."""
+    counts = stream.counts(len(stream) // 2, len(stream))  # [H, W] spikes per pixel
+    if counts.max() == 0 or counts.min() == len(stream):
+        what, why = (
+            ("no spikes", "a dark recording")
+            if counts.max() == 0
+            else ("every pixel firing at every readout", "a saturated recording")
+        )
+        raise ValueError(
+            f"{stream.path}: {what} in its {len(stream)} readouts of {stream.height}x"
+            f"{stream.width}: nothing to learn from ({why}, a wrong file or a wrong frame size: "
+            f"height, width, raw_width, col_offset in {OPTIONS_FILE})"
+        )

@@ -44,46 +44,48 @@ def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
     return np.asarray(center, np.float64) + radius * offset
 
 
-def check_rigid(matrices: np.ndarray, source: str) -> None:
-    """ValueError naming `source` unless every matrix [..., 4, 4] (a viewmat or its inverse) is
-    finite and rigid: a rotation, a translation and the last row 0 0 0 1."""
-    if not np.isfinite(matrices).all():
-        raise ValueError(f"{source}: non-finite poses (NaN/inf)")
-    rot = matrices[..., :3, :3]
-    if (
-        not np.allclose(rot @ np.swapaxes(rot, -1, -2), np.eye(3), atol=1e-5)
-        or (np.linalg.det(rot) < 0).any()
-        or not np.allclose(matrices[..., 3, :], [0.0, 0.0, 0.0, 1.0], atol=1e-9)
-    ):
-        raise ValueError(f"{source}: poses expected rigid (rotation + translation)")
-
-
 RIGID_TOLERANCE = 1e-3  # of |R R^T - I|: accepts poses rounded to 4 decimals
 
 
-def rigid_c2w(c2w: np.ndarray, source: str, item: str = "view") -> np.ndarray:
-    """Camera-to-world [N, 4, 4] with each rotation replaced by the nearest rotation (SVD), when
-    within RIGID_TOLERANCE of one (rounded poses); else ValueError naming the `item` index and
-    its deviation."""
-    c2w = np.asarray(c2w, np.float64)
-    rot = c2w[:, :3, :3]
-    deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
-    deviation = np.maximum(deviation, np.abs(c2w[:, 3] - [0, 0, 0, 1]).max(axis=1))
-    det = np.linalg.det(rot)  # [N]
+def rigid_c2w(matrices: np.ndarray, source: str, item: str = "view") -> np.ndarray:
+    """`matrices` [N, 4, 4] or [4, 4] (camera-to-world or world-to-camera) with each rotation
+    replaced by the nearest rotation (SVD), translation kept, when within RIGID_TOLERANCE of one
+    (rounded poses); else ValueError naming `source`, the worst `item` index and its deviation.
+    The one rigidity rule of every loader: check here before inverting."""
+    matrices = np.asarray(matrices, np.float64)
+    flat = matrices.reshape(-1, 4, 4)  # [N, 4, 4]
+    rot = flat[:, :3, :3]
+    with np.errstate(invalid="ignore"):
+        deviation = np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))  # [N]
+        deviation = np.maximum(deviation, np.abs(flat[:, 3] - [0, 0, 0, 1]).max(axis=1))
+    deviation[~np.isfinite(flat).all(axis=(1, 2))] = np.inf  # NaN/inf
+    det = np.linalg.det(np.where(np.isfinite(rot), rot, 0.0))  # [N]
     bad = np.flatnonzero((deviation > RIGID_TOLERANCE) | (det <= 0))
     if bad.size:
-        i = bad[0]
+        i = bad[np.argmax(deviation[bad])]
+        batch = matrices.ndim == 3
+        detail = (
+            "non-finite values (NaN/inf)"
+            if np.isinf(deviation[i])
+            else f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
+            f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}"
+        )
+        others = f"; all {item}s refused: {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
         raise ValueError(
-            f"{source}: the pose of {item} {i} is not a rotation and translation: "
-            f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
-            f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}; {item}s beyond it: "
-            f"{bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
+            f"{source}: the pose{f' of {item} {i}' if batch else ''} is not rigid (a rotation and "
+            f"translation): {detail}{others if batch and bad.size > 1 else ''}"
         )
     u, _, vt = np.linalg.svd(rot)
-    out = c2w.copy()
+    out = flat.copy()
     out[:, :3, :3] = u @ vt
     out[:, 3] = [0.0, 0.0, 0.0, 1.0]
-    return out
+    return out.reshape(matrices.shape)
+
+
+def check_rigid(matrices: np.ndarray, source: str, item: str = "view") -> None:
+    """ValueError as `rigid_c2w`'s unless every matrix [..., 4, 4] is within RIGID_TOLERANCE of
+    rigid."""
+    rigid_c2w(matrices, source, item)
 
 
 class Trajectory:
@@ -101,7 +103,7 @@ class Trajectory:
             raise ValueError(f"{source}: non-finite readouts (NaN/inf)")
         if (np.diff(readouts) <= 0).any():
             raise ValueError(f"{source}: readouts expected strictly increasing")
-        check_rigid(viewmats, source)
+        check_rigid(viewmats, source, "index")  # loaders project rounded poses; these stay as given
         c2w = np.linalg.inv(viewmats)  # [P, 4, 4]
         rot = c2w[:, :3, :3]
         self.readouts = readouts
@@ -197,10 +199,9 @@ class Trajectory:
             c2w = np.array([f["transform_matrix"] for f in frames], np.float64)  # [P, 4, 4]
         except (KeyError, TypeError, ValueError) as err:
             raise ValueError(f"{path}: malformed frames ({err})") from err
-        if not np.isfinite(c2w).all():
-            raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in its frames")
         if c2w.shape[1:] != (4, 4):
             raise ValueError(f"{path}: transform_matrix expected 4x4, found {list(c2w.shape[1:])}")
+        c2w = rigid_c2w(c2w, str(path), "frame")  # rounded poses made rigid, before inverting
         return cls(readouts, np.linalg.inv(c2w), source=str(path))
 
 
