@@ -94,8 +94,9 @@ def constant_source(level: float, size: int = 16, test_views: bool = True) -> Fr
     frames = np.full((2, size, size, 1), level, np.float32)
     viewmat = look_at([0, -3, 0], [0, 0, 0])
     held_out = [("side", look_at([0.1, -3, 0], [0, 0, 0]), frames[0])] if test_views else []
-    return FrameSequenceSource(
-        "constant", frames, [viewmat, viewmat], intrinsics(size, size, 40), test_views=held_out
+    K = intrinsics(size, size, 40)
+    return FrameSequenceSource(  # one pose: no axes to converge, the scene sphere given
+        "constant", frames, [viewmat, viewmat], K, test_views=held_out, center=[0, 0, 0], radius=1.0
     )
 
 

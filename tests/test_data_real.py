@@ -611,18 +611,23 @@ def test_nerf_test_views_and_transforms_train_alone(nerf, tmp_path):
     assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_2"]
 
 
-def test_nerf_height_alone_is_used(sim, nerf, tmp_path):
+def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
-    write_options(root, height=H // 2)  # the same .dat files read as 16x48 frames
+    write_options(root, height=H // 2, width=W // 2)  # the same .dat files as 16x24 frames
     ds = load_dataset(root)
-    assert (ds.height, ds.width) == (H // 2, W)
-    np.testing.assert_allclose(ds.K[1, 1], sim.K[1, 1] / 2, rtol=1e-6)
+    assert (ds.height, ds.width) == (H // 2, W // 2)
+    np.testing.assert_allclose(np.diag(ds.K)[:2], np.diag(sim.K)[:2] / 2, rtol=1e-6)
+    write_options(root, height=H // 2)  # 16x48: non-square pixels (fy halved, fx kept)
+    with pytest.raises(ValueError, match="another aspect ratio than the 16x48 spikes"):
+        load_dataset(root)
 
 
 def test_nerf_wrong_frame_size_points_at_it(nerf, tmp_path):
     root = copy(nerf, tmp_path)
     write_options(root, height=2 * H)  # the .dat files read as half as many 64x48 frames
-    with pytest.raises(ValueError, match=rf"has 35 readouts.*or its frames are not {2 * H}x{W}"):
+    with pytest.raises(
+        ValueError, match=rf"is for {H}x{W} images .*{2 * H}x{W} spikes.*set height"
+    ):
         load_dataset(root)
 
 

@@ -7,18 +7,28 @@ import sys
 
 import numpy as np
 import pytest
-from spikegs.data import SCENES, FrameSequenceSource, ProceduralSource, simulate_dataset
+from scipy.spatial.transform import Rotation
+from spikegs.data import (
+    SCENES,
+    FrameSequenceSource,
+    ProceduralSource,
+    load_dataset,
+    simulate_dataset,
+)
 from spikegs.data.scenes import srgb_to_linear
 from spikegs.data.sources import (
     LUMA_709,
     OPENGL_TO_OPENCV,
     MissingDependencyError,
     MitsubaSource,
+    centre_of_view,
+    converging_centre,
     import_mitsuba,
     read_frame,
 )
-from spikegs.data.trajectory import check_rigid
+from spikegs.data.trajectory import check_rigid, look_at
 from spikegs.image_io import write_image
+from spikegs.spikes import save_dat
 
 
 @pytest.mark.parametrize("name", list(SCENES))
@@ -127,10 +137,9 @@ def test_frame_sequence_missing_image(tmp_path):
     train_dir = tmp_path / "train"
     train_dir.mkdir()
     write_image(train_dir / "r_0.png", np.zeros((8, 8, 3), np.float32))
+    doc = json.loads(path.read_text())
     for key, value in (("camera_angle_x", "wide"), ("fl_x", [1, 2]), ("cx", None)):
-        doc = json.loads(path.read_text())
-        doc.update({key: value} if key != "cx" else {"fl_x": 10.0, "cx": value})
-        path.write_text(json.dumps(doc))
+        path.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ValueError, match=f"transforms.json: {key} expected a finite number"):
             FrameSequenceSource.from_transforms(path, 8, 8)
 
@@ -265,3 +274,146 @@ def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path)
         )
     _write_tiff(tmp_path / "extra.tif", rgba(0.6), oiio.UINT16, unassociated=False, alpha=False)
     np.testing.assert_allclose(read_frame(tmp_path / "extra", 1.0), linear, atol=1e-4)  # no alpha
+
+
+# -- camera checks shared by `spikegs simulate --scene FILE` and the NeRF layout ------------------
+def arc_viewmats(n: int = 9) -> np.ndarray:
+    """Viewmats [n, 4, 4] on a quarter circle of radius 4, 1 above the origin, looking at it."""
+    angles = np.linspace(0, np.pi / 2, n)
+    return np.stack([look_at([4 * np.cos(a), 4 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
+
+
+def forward_viewmats(n: int = 9, seed: int = 0) -> np.ndarray:
+    """Viewmats [n, 4, 4] of a forward-facing sweep: cameras 1/8 apart on the x axis, looking
+    along +z with 1° of jitter (the point nearest to their axes lies behind them for seed 0, far
+    ahead for seed 1)."""
+    c2w = np.tile(np.eye(4), (n, 1, 1))
+    jitter = np.radians(1.0) * np.random.default_rng(seed).normal(size=(n, 3))
+    c2w[:, :3, :3] = Rotation.from_rotvec(jitter).as_matrix()
+    c2w[:, 0, 3] = np.arange(n) / 8 - 0.5
+    return np.linalg.inv(c2w)
+
+
+def write_nerf(root, camera, viewmats, *, size=(23, 37), images=None, frame_camera=None):
+    """A NeRF-layout directory: transforms.json (OpenCV poses, the file's `camera` keys and each
+    frame's `frame_camera`), spike_data/f_i.dat of 70 random readouts of `size` (h, w) and
+    images/f_i.png from `images` {i: linear RGB [h, w, 3]}."""
+    rng = np.random.default_rng(0)
+    (root / "spike_data").mkdir(parents=True)
+    for i in range(len(viewmats)):
+        save_dat(root / "spike_data" / f"f_{i}.dat", rng.random((70, *size)) < 0.2)
+    for i, image in (images or {}).items():
+        write_image(root / "images" / f"f_{i}.png", image)
+    frames = [
+        {"file_path": f"./images/f_{i}", "transform_matrix": np.linalg.inv(v).tolist()}
+        | (frame_camera or {})
+        for i, v in enumerate(viewmats)
+    ]
+    doc = {"convention": "opencv", **camera, "frames": frames}
+    (root / "transforms.json").write_text(json.dumps(doc))
+    return root
+
+
+def test_forward_facing_views_need_a_scene_sphere(tmp_path):
+    """The optical axes of a forward-facing sweep meet behind the cameras: refused (the random
+    initial Gaussians would be out of view) unless the scene sphere is given."""
+    forward = forward_viewmats()
+    eyes = np.linalg.inv(forward)[:, :3, 3]
+    assert (centre_of_view(forward)[0][2] < eyes[:, 2]).all()  # behind every camera
+    camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
+    root = write_nerf(tmp_path / "forward", camera, forward)
+    with pytest.raises(
+        ValueError,
+        match=r"forward.transforms.json: the cameras' optical axes do not converge in front of "
+        r"them .*set scene_center and scene_radius in .*spikegs.json .*mean viewing direction",
+    ):
+        load_dataset(root)
+    (root / "spikegs.json").write_text(json.dumps({"scene_center": [0, 0, 3], "scene_radius": 1}))
+    ds = load_dataset(root)
+    assert ds.meta["scene_center"] == [0, 0, 3] and ds.meta["scene_radius"] == 1
+    assert converging_centre(forward_viewmats(seed=1)) is None  # the nearest point far ahead
+    assert converging_centre(arc_viewmats()) is not None
+    frames = np.zeros((len(forward), 4, 4, 1))
+    with pytest.raises(ValueError, match="frame sequence 'fw': .* do not converge.*center and"):
+        FrameSequenceSource("fw", frames, forward, np.eye(3))
+    source = FrameSequenceSource("fw", frames, forward, np.eye(3), center=[0, 0, 3], radius=1)
+    assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
+
+
+@pytest.mark.parametrize(
+    "camera, frame_camera",
+    [
+        ({"fl_x": 60.0, "cx": 24.0, "cy": 16.0, "w": 48, "h": 32}, None),  # for 48x32 originals
+        ({}, {"fl_x": 30.0, "fl_y": 30.0, "cx": 12.0, "cy": 8.0, "w": 24, "h": 16}),  # nerfstudio
+    ],
+)
+def test_simulated_frames_read_the_camera_as_the_nerf_layout(tmp_path, camera, frame_camera):
+    """`spikegs simulate --scene transforms.json`: intrinsics scaled from the file's w, h to the
+    images' size, per-frame intrinsics read."""
+    viewmats = arc_viewmats(3)
+    frames = np.random.default_rng(0).random((3, 16, 24, 3))
+    write_transforms(tmp_path / "transforms.json", "train", frames, viewmats, np.eye(3), ".exr")
+    doc = json.loads((tmp_path / "transforms.json").read_text())
+    del doc["camera_angle_x"]
+    for frame in doc["frames"]:
+        frame.update(frame_camera or {})
+    (tmp_path / "transforms.json").write_text(json.dumps({**doc, **camera}))
+    source = FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 24, 16)
+    np.testing.assert_allclose(source.K, [[30, 0, 12], [0, 30, 8], [0, 0, 1]])
+    half = FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 12, 8)
+    np.testing.assert_allclose(half.K, [[15, 0, 6], [0, 15, 4], [0, 0, 1]])
+
+
+@pytest.mark.parametrize(
+    "key, value, expected",
+    [
+        ("camera_angle_x", 40, r"in \(0, pi\) radians, found 40 \(40 degrees would be 0.698"),
+        ("camera_angle_x", -0.7, r"in \(0, pi\) radians, found -0.7$"),
+        ("fl_x", -50.8, r"> 0 \(pixels\), found -50.8"),
+        ("fl_y", 0, r"> 0 \(pixels\), found 0"),
+        ("w", 0, "a positive integer"),
+        ("h", 23.5, "a positive integer"),
+    ],
+)
+def test_intrinsics_out_of_range_named(tmp_path, key, value, expected):
+    """Checked for both readers: the NeRF layout, `spikegs simulate --scene transforms.json`."""
+    camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
+    camera = {"camera_angle_x": value} if key == "camera_angle_x" else {**camera, key: value}
+    root = write_nerf(tmp_path, camera, arc_viewmats(2), images={0: np.ones((23, 37, 3))})
+    match = f"transforms.json: {key} expected {expected}"
+    with pytest.raises(ValueError, match=match):
+        load_dataset(root)
+    with pytest.raises(ValueError, match=match):
+        FrameSequenceSource.from_transforms(root / "transforms.json", 37, 23)
+
+
+def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
+    """Intrinsics for images of another aspect ratio than the spikes would give non-square
+    pixels: refused. A raw-row crop (raw_width, col_offset) keeps the focal, moves cx and crops
+    the sharp images."""
+    ramp = np.tile(np.linspace(0.1, 0.9, 52)[None, :, None], (25, 1, 3))  # [25, 52, 3]
+    write_nerf(
+        tmp_path / "square", {"camera_angle_x": 0.8}, arc_viewmats(), images={0: ramp[:23, :23]}
+    )
+    (tmp_path / "square" / "spikegs.json").write_text(json.dumps({"height": 23, "width": 37}))
+    with pytest.raises(
+        ValueError,
+        match=r"transforms.json: the camera \(sized as the first sharp image\) is for 23x23 images "
+        r"\(height x width\), of another aspect ratio than the 23x37 spikes.*set height and width",
+    ):
+        load_dataset(tmp_path / "square")
+    camera = {"fl_x": 60.0, "cx": 26.0, "cy": 12.5, "w": 52, "h": 25}
+    root = write_nerf(tmp_path / "raw", camera, arc_viewmats(), size=(25, 52), images={0: ramp})
+    (root / "spikegs.json").write_text(json.dumps({"width": 50}))
+    with pytest.raises(ValueError, match=r"\(its w, h\) is for 25x52 images .*25x50 spikes"):
+        load_dataset(root)
+    (root / "spikegs.json").write_text(json.dumps({"width": 50, "raw_width": 52, "col_offset": 1}))
+    ds = load_dataset(root)
+    np.testing.assert_allclose(ds.K, [[60, 0, 25], [0, 60, 12.5], [0, 0, 1]], rtol=1e-6)
+    sharp = ds.test_views[0].image[..., 0] / ds.meta["image_scale"]  # [25, 50]
+    np.testing.assert_allclose(sharp, srgb_to_linear(ramp[:, 1:51, 0]), atol=0.005)  # 8-bit
+    frames = np.random.default_rng(0).random((3, 16, 24, 3))  # simulate: 24x16 frames
+    K = np.array([[30.0, 0, 12], [0, 30, 8], [0, 0, 1]])
+    write_transforms(tmp_path / "sim.json", "sim", frames, arc_viewmats(3), K, ".exr")
+    with pytest.raises(ValueError, match=r"sim.json: the camera \(sized as its first frame\) is "):
+        FrameSequenceSource.from_transforms(tmp_path / "sim.json", 16, 16)

@@ -31,7 +31,7 @@ from .real import (
     views_dataset,
 )
 from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
-from .sources import centre_of_view, optical_axes
+from .sources import converging_centre, frame_columns, optical_axes
 from .trajectory import PathLike, rigid_c2w
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
@@ -42,7 +42,6 @@ POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
 )
 # camera axes [down, right, backwards] <-> [right, down, forward]; the matrix is its own inverse
 LLFF_TO_OPENCV = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-CONVERGING = 0.03  # smallest eigenvalue of mean(I - d d^T) over view directions d: inward-facing
 LOOSE_SPHERE = 20.0  # warn when the sphere is this many times the cameras' spread and near bound
 
 
@@ -103,13 +102,12 @@ def llff_sphere(
     (loose far bounds): set scene_center and scene_radius in spikegs.json then."""
     far = np.minimum(bounds[:, 1], np.percentile(bounds[:, 1], 90))
     center, radius = frustum_sphere(viewmats, np.stack([bounds[:, 0], far], 1), K, width, height)
-    eyes, dirs, proj = optical_axes(viewmats)  # [N, 3], [N, 3], [N, 3, 3]
-    if np.linalg.eigvalsh(proj.mean(0))[0] >= CONVERGING:
-        axes = centre_of_view(viewmats)[0]
-        in_front = np.einsum("ni,ni->n", axes - eyes, dirs) > 0
-        reach = np.linalg.norm(eyes - axes, axis=1) - bounds[:, 0]  # [N]
-        if in_front.all() and reach.max() > 0:
-            center, radius = axes, min(radius, float(reach.max()))
+    eyes = optical_axes(viewmats)[0]  # [N, 3]
+    converged = converging_centre(viewmats)
+    if converged is not None:
+        reach = np.linalg.norm(eyes - converged[0], axis=1) - bounds[:, 0]  # [N]
+        if reach.max() > 0:
+            center, radius = converged[0], min(radius, float(reach.max()))
     spread = np.linalg.norm(eyes - eyes.mean(0), axis=1).max()
     scale = max(spread, float(np.median(bounds[:, 0])))
     if radius > LOOSE_SPHERE * scale:
@@ -181,19 +179,14 @@ def llff_intrinsics(hwf: np.ndarray, options: Options, source: str) -> tuple[np.
     `source` when the aspect ratios differ by over a pixel (non-square pixels)."""
     h, w, f = hwf
     height, width = options.height or round(h), options.width or round(w)
-    scaled = w * height / h  # hwf's width at the spikes' height
-    raw = options.raw_width
-    crop = raw is not None and raw != width and abs(scaled - raw) <= 1
-    frame, shift = (raw, options.col_offset) if crop else (width, 0)
-    if abs(scaled - frame) > 1:
-        stored = f" (or the {raw} stored pixels of a row, raw_width)" if raw else ""
-        raise ValueError(
-            f"{source}: hwf is for {h:g}x{w:g} images (height x width), of another aspect ratio "
-            f"than the {height}x{width} spikes{stored}: {w / h:.4g} vs {width / height:.4g}, the "
-            f"focal would differ in x and y (non-square pixels). Set height and width in "
-            f"{OPTIONS_FILE} to the spikes' size, at hwf's aspect ratio; or, where the .dat rows "
-            f"are hwf's and the spikes some of their columns, raw_width and col_offset"
-        )
+    fix = (
+        f"set height and width in {OPTIONS_FILE} to the spikes' size, at hwf's aspect ratio; or, "
+        f"where the .dat rows are hwf's and the spikes some of their columns, raw_width and "
+        f"col_offset"
+    )
+    frame, shift = frame_columns(
+        source, "hwf", (h, w), (height, width), fix, options.raw_width, options.col_offset
+    )
     K = np.array(
         [[f * frame / w, 0, frame / 2 - shift], [0, f * height / h, height / 2], [0, 0, 1]]
     )

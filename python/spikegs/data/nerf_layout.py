@@ -2,10 +2,11 @@
 
 DIR/transforms_train.json + transforms_test.json, or DIR/transforms.json or transforms_train.json
     alone (every 8th frame, or spikegs.json's test_views, held out)
-    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x, in the file or per frame (nerfstudio:
-    a frame's keys override the file's; every frame must give the same camera; distortion k1..k4,
-    p1, p2 is not modelled: a warning if non-zero); frames with file_path and transform_matrix
-    (camera-to-world, OpenGL unless "convention": "opencv")
+    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x (radians), in the file or per frame
+    (nerfstudio: a frame's keys override the file's; every frame must give the same camera, at the
+    spikes' aspect ratio; distortion k1..k4, p1, p2 is not modelled: a warning if non-zero); frames
+    with file_path and transform_matrix (camera-to-world, OpenGL unless "convention": "opencv"),
+    converging on the scene unless spikegs.json gives scene_center and scene_radius
 DIR/spike_data/...  a frame's spikes: its "spike_path" (relative to DIR) if it has one, else
     spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat; an
     absolute file_path counts relative to DIR if it is inside DIR, else by its file name
@@ -18,7 +19,6 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,19 +30,24 @@ from .sources import (
     IMAGE_EXTENSIONS,
     OPENGL_TO_OPENCV,
     camera_matrix,
-    camera_number,
-    centre_of_view,
     fitted,
+    frame_columns,
     is_opengl,
+    read_camera,
     read_frame,
+    stated_size,
     to_channels,
+    view_sphere,
 )
 from .trajectory import PathLike, rigid_c2w
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
-CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
-DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+ASPECT_FIX = (
+    f"set height and width in {OPTIONS_FILE} to the spikes' size, at that aspect ratio; or, "
+    f"where the .dat rows are those images' and the spikes some of their columns, raw_width and "
+    f"col_offset"
+)
 
 
 def _read_doc(path: Path) -> dict:
@@ -136,41 +141,13 @@ def _image(root: Path, frame: dict) -> np.ndarray | None:
         return None
 
 
-def _camera(docs: list, frames: list, sources: list) -> dict:
-    """The one camera [intrinsics and distortion keys] of all frames: the first file's keys, the
-    frame's own file's, then the frame's (nerfstudio); ValueError naming two frames that differ;
-    a warning for non-zero distortion, which the pinhole rasterizer does not model."""
-    keys = CAMERA_KEYS + DISTORTION_KEYS
-    merged = [
-        {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
-        for doc, frame in zip(docs, frames)
-    ]
-    cameras = [
-        {k: camera_number(src, k, v) for k, v in c.items()} for c, src in zip(merged, sources)
-    ]
-    for i, camera in enumerate(cameras):
-        if camera.keys() != cameras[0].keys() or not np.allclose(
-            [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
-        ):
-            raise ValueError(
-                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics {camera}, frame "
-                f"'{frames[0]['file_path']}' of {sources[0]} {cameras[0]}: one camera expected"
-            )
-    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
-    if distortion:
-        warnings.warn(
-            f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
-            f"camera (undistort the spikes' frames to model it)",
-            stacklevel=3,
-        )
-    return cameras[0]
-
-
-def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple, tuple]:
-    """(h, w) the intrinsics are for and (h, w) of the spikes: each of height, width from
-    spikegs.json, else the camera's w, h, else the first sharp test image's."""
+def _sizes(path: Path, camera: dict, images: list, options: Options) -> tuple[tuple, tuple, str]:
+    """(h, w) the intrinsics are for, (h, w) of the spikes and what gives the first: the camera's
+    w, h, else the first sharp test image's size; each of height, width from spikegs.json, else the
+    first's."""
     shapes = [im.shape[:2] for im in images if im is not None]
-    src = (doc["h"], doc["w"]) if "w" in doc and "h" in doc else (shapes[0] if shapes else None)
+    stated, what = stated_size(path, camera, "the first sharp image")
+    src = stated or (shapes[0] if shapes else None)
     height = options.height or (src and src[0])
     width = options.width or (src and src[1])
     if not (height and width):
@@ -179,15 +156,18 @@ def _sizes(path: Path, doc: dict, images: list, options: Options) -> tuple[tuple
             f"{OPTIONS_FILE}"
         )
     size = (int(height), int(width))
-    return tuple(map(int, src or size)), size
+    return tuple(map(int, src or size)), size, what
 
 
-def _mono(image: np.ndarray | None, src: tuple, size: tuple, name: str) -> np.ndarray | None:
-    """Linear RGB [h, w, 3] -> luma [height, width, 1] (`size`), `fitted` to it (ValueError
-    naming the image, `name`, when its aspect ratio is not the camera's (h, w) `src`)."""
+def _mono(
+    image: np.ndarray | None, src: tuple, size: tuple, columns: slice, name: str
+) -> np.ndarray | None:
+    """Linear RGB [h, w, 3] -> luma [height, width, 1]: `fitted` to `size` (h, w) (ValueError
+    naming the image, `name`, when its aspect ratio is not the camera's (h, w) `src`), then its
+    `columns` kept (a raw-row crop)."""
     if image is None:
         return None
-    return to_channels(fitted(image, src, size, name), 1).astype(np.float32)
+    return to_channels(fitted(image, src, size, name)[:, columns], 1).astype(np.float32)
 
 
 def _frames(root: Path, options: Options):
@@ -223,7 +203,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     root = Path(path)
     options = read_options(root, overrides)
     frames, sources, docs, viewmats, test = _frames(root, options)
-    path, camera = sources[0], _camera(docs, frames, sources)
+    path, camera = sources[0], read_camera(docs, frames, sources)
     spikes = _find_spikes(root, frames, sources)
     images = [_image(root, f) if t else None for f, t in zip(frames, test)]
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
@@ -233,7 +213,14 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{source}: spike file of frame '{frame['file_path']}' not found (tried {tried})"
                 + (", and no sharp image either" if is_test else "")
             )
-    src, (height, width) = _sizes(path, camera, images, options)
+    src, (height, width), what = _sizes(path, camera, images, options)
+    row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
+        path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
+    )
+    fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
+    center, radius = view_sphere(
+        viewmats, path, fix, center=options.scene_center, radius=options.scene_radius
+    )
     # [H, W, 1] intensity or None; a training frame's image (read one at a time) only calibrates
     # the intensity scale, when spikegs.json gives none
     calibrate = options.rate_at_one is None
@@ -241,13 +228,14 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         _mono(
             image if is_test else _image(root, frame) if calibrate else None,
             src,
-            (height, width),
+            (height, row),
+            slice(shift, shift + width),
             f"{root / frame['file_path']}",
         )
         for frame, image, is_test in zip(frames, images, test)
     ]
-    K = camera_matrix(path, camera, src, (height, width))
-    sphere = scene_sphere(options, *centre_of_view(viewmats))
+    K = camera_matrix(path, camera, src, (height, row), shift)
+    sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
     bases = [_base(root, f["file_path"]).as_posix() for f in frames]

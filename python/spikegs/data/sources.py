@@ -13,6 +13,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 from __future__ import annotations
 
 import math
+import warnings
 from abc import ABC, abstractmethod
 from pathlib import Path
 
@@ -35,6 +36,18 @@ IMAGE_EXTENSIONS = (
     ".tiff",
 )  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
+CONVERGING = 0.03  # smallest eigenvalue of mean(I - d d^T) over view directions d: inward-facing
+SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
+SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
+CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+CAMERA_RANGES = {  # key: (in range, what is expected)
+    "camera_angle_x": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
+    "fl_x": (lambda v: v > 0, "> 0 (pixels)"),
+    "fl_y": (lambda v: v > 0, "> 0 (pixels)"),
+    "w": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
+    "h": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
+}
 
 
 class MissingDependencyError(ImportError):
@@ -262,7 +275,8 @@ class MitsubaSource(RenderSource):
 class FrameSequenceSource(Source):
     """Rendered frames [F, H, W, C] with poses [F, 4, 4] (world-to-camera, OpenCV), spread evenly
     over the readouts; the light in between is the linear interpolation of the two frames.
-    Off-path views are optional test frames with their poses."""
+    Off-path views are optional test frames with their poses. The scene sphere is `center`,
+    `radius` where given, else `view_sphere`'s (views converging on the scene)."""
 
     kind = "frames"
 
@@ -274,6 +288,8 @@ class FrameSequenceSource(Source):
         K: np.ndarray,
         *,
         test_views: list[tuple[str, np.ndarray, np.ndarray]] = (),
+        center=None,
+        radius: float | None = None,
     ):
         frames = np.asarray(frames, np.float32)  # [F, H, W, C]
         viewmats = np.asarray(viewmats, np.float64)  # [F, 4, 4]
@@ -288,7 +304,9 @@ class FrameSequenceSource(Source):
             )
         Trajectory(np.arange(len(frames)), viewmats, source=name)  # validates the poses now
         height, width, channels = frames.shape[1:]
-        center, radius = centre_of_view(viewmats)
+        center, radius = view_sphere(
+            viewmats, f"frame sequence '{name}'", SPHERE_FIX, center=center, radius=radius
+        )
         super().__init__(width, height, channels, K, center, radius)
         self.name, self.frames, self.viewmats = name, frames, viewmats
         self._test_views = list(test_views)
@@ -303,12 +321,15 @@ class FrameSequenceSource(Source):
         *,
         background: float = 1.0,
         test_path: str | Path | None = None,
+        center=None,
+        radius: float | None = None,
     ) -> FrameSequenceSource:
         """Read a NeRF-style transforms JSON (OpenGL camera-to-world unless `"convention":
         "opencv"`), resize the frames to width × height; test frames from `test_path` or a sibling
         transforms_test.json. 8-bit images are sRGB (decoded); alpha composited on `background`."""
         path = Path(path)
         frames, viewmats, K = _read_transforms(path, width, height, channels, background)
+        center, radius = view_sphere(viewmats, path, SPHERE_FIX, center=center, radius=radius)
         sibling = path.with_name("transforms_test.json")
         test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
@@ -317,7 +338,15 @@ class FrameSequenceSource(Source):
                 Path(test_path), width, height, channels, background
             )
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
-        return cls(path.parent.name or path.stem, frames, viewmats, K, test_views=tests)
+        return cls(
+            path.parent.name or path.stem,
+            frames,
+            viewmats,
+            K,
+            test_views=tests,
+            center=center,
+            radius=radius,
+        )
 
     def frame_readouts(self, num_readouts: int) -> np.ndarray:
         """Readout [F] of each frame: evenly over [0, num_readouts - 1]."""
@@ -362,6 +391,45 @@ def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
     return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
 
 
+def converging_centre(viewmats: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """`centre_of_view` of viewmats [F, 4, 4] when their optical axes converge in front of every
+    camera: view directions spread (CONVERGING, about ±20° or more) and the point ahead of each;
+    else None (forward-facing views: the nearest point is set by noise, often behind them)."""
+    eyes, dirs, proj = optical_axes(viewmats)  # [F, 3], [F, 3], [F, 3, 3]
+    center, radius = centre_of_view(viewmats)
+    ahead = np.einsum("fi,fi->f", center - eyes, dirs) > 0  # [F]
+    spread = np.linalg.eigvalsh(proj.mean(0))[0] >= CONVERGING
+    return (center, radius) if spread and ahead.all() else None
+
+
+def view_sphere(
+    viewmats: np.ndarray, source, fix: str, *, center=None, radius: float | None = None
+) -> tuple[np.ndarray, float]:
+    """The scene sphere's centre [3] and radius: `center`, `radius` where given, else
+    `converging_centre`'s; ValueError naming `source` and how to `fix` it when one is needed and
+    the optical axes of viewmats [F, 4, 4] do not converge in front of the cameras."""
+    if center is not None and radius is not None:
+        return np.asarray(center, np.float64), float(radius)
+    converged = converging_centre(viewmats)
+    if converged is None:
+        eyes, dirs, _ = optical_axes(viewmats)  # [F, 3], [F, 3]
+        position, direction = (
+            (np.round(v, 3) + 0.0).tolist()  # + 0.0: no -0.0
+            for v in (eyes.mean(0), dirs.mean(0) / np.linalg.norm(dirs.mean(0)))
+        )
+        raise ValueError(
+            f"{source}: the cameras' optical axes do not converge in front of them (forward-facing "
+            f"views, or view directions within about ±20°), so the scene's centre and size are "
+            f"unknown: the point nearest to the axes may lie behind the cameras; {fix} (the "
+            f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
+            f"scene D ahead of them is centred at position + D * direction)"
+        )
+    return (
+        converged[0] if center is None else np.asarray(center, np.float64),
+        converged[1] if radius is None else float(radius),
+    )
+
+
 def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
     """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] of a transforms JSON."""
     if not path.is_file():
@@ -370,14 +438,19 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     frames = doc.get("frames") or []
     if not frames:
         raise ValueError(f"{path}: no frames")
-    images, c2ws, src = [], [], None
     for f in frames:
         if not (isinstance(f, dict) and isinstance(f.get("file_path"), str)) or (
             "transform_matrix" not in f
         ):
             raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
+    camera = read_camera([doc] * len(frames), frames, [path] * len(frames))
+    src, what = stated_size(path, camera, "its first frame")
+    images, c2ws = [], []
+    for f in frames:
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
-        src_h, src_w = src = src or image.shape[:2]  # the first frame's size
+        src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
+        if not images:  # the aspect ratio checked before any frame is resized (no crop here)
+            frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
         image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
         c2ws.append(f["transform_matrix"])
@@ -390,18 +463,24 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     c2w = rigid_c2w(c2w, str(path), "frame")  # rounded poses made exactly rigid
     if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
-    K = camera_matrix(path, doc, (src_h, src_w), (height, width))
+    K = camera_matrix(path, camera, src, (height, width))
     return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
 
 
 def camera_number(path: Path, key: str, value) -> float:
-    """A transforms file's camera value as a finite float; ValueError naming `key` otherwise."""
+    """A transforms file's camera value as a finite float, in CAMERA_RANGES for its key;
+    ValueError naming `key` otherwise (camera_angle_x over pi: degrees, not radians?)."""
     try:
         number = float(value) if not isinstance(value, bool) else math.nan
     except (TypeError, ValueError):
         number = math.nan
     if not math.isfinite(number):
         raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
+    in_range, expected = CAMERA_RANGES.get(key, (lambda v: True, ""))
+    if not in_range(number):
+        degrees = key == "camera_angle_x" and number >= math.pi
+        hint = f" ({number:g} degrees would be {math.radians(number):.6g})" if degrees else ""
+        raise ValueError(f"{path}: {key} expected {expected}, found {value!r}{hint}")
     return number
 
 
@@ -431,9 +510,74 @@ def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
     return skimage.transform.resize(image, size, anti_aliasing=True)
 
 
-def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
+def read_camera(docs: list, frames: list, sources: list) -> dict:
+    """The one camera {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS): the first frame's
+    file's keys (docs [F], each frame's file's JSON; sources [F], its path), the frame's own file's,
+    then the frame's (nerfstudio), each checked (`camera_number`); ValueError naming two frames that
+    differ; a warning for non-zero distortion, which the pinhole rasterizer does not model."""
+    keys = CAMERA_KEYS + DISTORTION_KEYS
+    merged = [
+        {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
+        for doc, frame in zip(docs, frames)
+    ]
+    cameras = [
+        {k: camera_number(src, k, v) for k, v in c.items()} for c, src in zip(merged, sources)
+    ]
+    for i, camera in enumerate(cameras):
+        if camera.keys() != cameras[0].keys() or not np.allclose(
+            [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
+        ):
+            raise ValueError(
+                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics {camera}, frame "
+                f"'{frames[0]['file_path']}' of {sources[0]} {cameras[0]}: one camera expected"
+            )
+    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
+    if distortion:
+        warnings.warn(
+            f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
+            f"camera (undistort the spikes' frames to model it)",
+            stacklevel=3,
+        )
+    return cameras[0]
+
+
+def stated_size(path: Path, camera: dict, image: str) -> tuple[tuple[int, int] | None, str]:
+    """(h, w) of the images a camera's intrinsics are for, from its w and h (None without them,
+    the size of `image` then), and what gives it (for `frame_columns`); ValueError naming `path`
+    when the camera gives one of w, h alone."""
+    if ("w" in camera) != ("h" in camera):
+        raise ValueError(f"{path}: w and h expected together (the intrinsics' image size)")
+    if "w" not in camera:
+        return None, f"the camera (sized as {image})"
+    return (int(camera["h"]), int(camera["w"])), "the camera (its w, h)"
+
+
+def frame_columns(
+    source, what: str, src: tuple, size: tuple, fix: str, raw_width=None, col_offset: int = 0
+) -> tuple[int, int]:
+    """(width, first column) of frames of `size` (h, w) within images of `src` (h, w) resized to
+    their height: (w, 0), or (raw_width, col_offset) for a raw-row crop (src's width at that height
+    within a pixel of raw_width's, not of w's); a crop keeps the focal. ValueError naming `source`
+    and `what` src is, saying how to `fix` it, when neither is within a pixel: another aspect
+    ratio, the focal would differ in x and y (non-square pixels)."""
+    (src_h, src_w), (height, width) = src, size
+    scaled = src_w * height / src_h  # the images' width at the frames' height
+    crop = raw_width is not None and raw_width != width and abs(scaled - raw_width) <= 1
+    frame, shift = (raw_width, col_offset) if crop else (width, 0)
+    if abs(scaled - frame) > 1:
+        stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
+        raise ValueError(
+            f"{source}: {what} is for {src_h:g}x{src_w:g} images (height x width), of another "
+            f"aspect ratio than the {height}x{width} spikes{stored}: {src_w / src_h:.4g} vs "
+            f"{width / height:.4g}, the focal would differ in x and y (non-square pixels); {fix}"
+        )
+    return frame, shift
+
+
+def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple, shift: float = 0) -> np.ndarray:
     """K [3, 3] of a transforms file's intrinsics (fl_x, fl_y, cx, cy, or camera_angle_x) for
-    images of `src` (h, w), scaled to `size` (h, w); cx, cy default to the image centre."""
+    images of `src` (h, w), scaled to `size` (h, w) and moved `shift` columns left (a crop,
+    `frame_columns`); cx, cy default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, doc.get(key, default))  # noqa: E731
     if "fl_x" in doc:
@@ -448,7 +592,7 @@ def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple) -> np.ndarray:
         )
     cx, cy = get("cx", src_w / 2), get("cy", src_h / 2)
     sx, sy = width / src_w, height / src_h
-    return np.array([[fx * sx, 0.0, cx * sx], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
+    return np.array([[fx * sx, 0.0, cx * sx - shift], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
 
 
 def read_frame(base: Path, background: float) -> np.ndarray:
