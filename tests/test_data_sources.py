@@ -17,6 +17,7 @@ from spikegs.data import (
 )
 from spikegs.data.scenes import srgb_to_linear
 from spikegs.data.sources import (
+    AXES_SPREAD_MIN,
     LUMA_709,
     OPENGL_TO_OPENCV,
     MissingDependencyError,
@@ -25,6 +26,7 @@ from spikegs.data.sources import (
     converging_centre,
     import_mitsuba,
     read_frame,
+    view_sphere,
 )
 from spikegs.data.trajectory import check_rigid, look_at
 from spikegs.image_io import write_image
@@ -332,12 +334,32 @@ def test_forward_facing_views_need_a_scene_sphere(tmp_path):
     ds = load_dataset(root)
     assert ds.meta["scene_center"] == [0, 0, 3] and ds.meta["scene_radius"] == 1
     assert converging_centre(forward_viewmats(seed=1)) is None  # the nearest point far ahead
+    assert converging_centre(forward_viewmats(seed=1), AXES_SPREAD_MIN) is None
     assert converging_centre(arc_viewmats()) is not None
     frames = np.zeros((len(forward), 4, 4, 1))
     with pytest.raises(ValueError, match="frame sequence 'fw': .* do not converge.*center and"):
         FrameSequenceSource("fw", frames, forward, np.eye(3))
     source = FrameSequenceSource("fw", frames, forward, np.eye(3), center=[0, 0, 3], radius=1)
     assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
+
+
+def test_narrow_inward_captures_give_their_scene_sphere():
+    """A 30° arc and a ring seen from 82° elevation, aimed at the origin, were refused when the
+    NeRF layout took LLFF's ±20° spread test (LLFF has depth bounds to fall back on)."""
+    arc = np.radians(np.linspace(-15, 15, 7))
+    ring = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    up = np.radians(82)
+    captures = {
+        "arc 30°": [look_at([4 * np.sin(a), 4 * np.cos(a), 0.5], [0, 0, 0]) for a in arc],
+        "ring at 82°": [
+            look_at(4 * np.array([np.cos(up) * np.cos(a), np.cos(up) * np.sin(a), np.sin(up)]),
+                    [0, 0, 0], up=(1, 0, 0))
+            for a in ring
+        ],
+    }  # fmt: skip
+    for name, viewmats in captures.items():
+        center, radius = view_sphere(np.stack(viewmats), name, "")
+        assert np.abs(center).max() < 1e-6 and radius > 0, name
 
 
 @pytest.mark.parametrize(

@@ -37,6 +37,11 @@ IMAGE_EXTENSIONS = (
 )  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 CONVERGING = 0.03  # smallest eigenvalue of mean(I - d d^T) over view directions d: inward-facing
+# the least spread whose nearest point of the axes a scene sphere is taken from where no depth
+# bounds give another (NeRF layout, simulate): below it (directions within ~2°, forward-facing
+# or parallel) that point is set by the poses' noise. A 30° inward arc, a ring seen from 82°
+# elevation spread 0.02-0.07, forward-facing views jittered by 1° ~3e-4
+AXES_SPREAD_MIN = 1e-3
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
 CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
@@ -391,14 +396,17 @@ def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
     return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
 
 
-def converging_centre(viewmats: np.ndarray) -> tuple[np.ndarray, float] | None:
+def converging_centre(
+    viewmats: np.ndarray, min_spread: float = CONVERGING
+) -> tuple[np.ndarray, float] | None:
     """`centre_of_view` of viewmats [F, 4, 4] when their optical axes converge in front of every
-    camera: view directions spread (CONVERGING, about ±20° or more) and the point ahead of each;
-    else None (forward-facing views: the nearest point is set by noise, often behind them)."""
+    camera: view directions spread (`min_spread`; CONVERGING, about ±20°, for LLFF, which has depth
+    bounds to fall back on) and the point ahead of each; else None (forward-facing views: the
+    nearest point is set by noise, often behind them)."""
     eyes, dirs, proj = optical_axes(viewmats)  # [F, 3], [F, 3], [F, 3, 3]
     center, radius = centre_of_view(viewmats)
     ahead = np.einsum("fi,fi->f", center - eyes, dirs) > 0  # [F]
-    spread = np.linalg.eigvalsh(proj.mean(0))[0] >= CONVERGING
+    spread = np.linalg.eigvalsh(proj.mean(0))[0] >= min_spread
     return (center, radius) if spread and ahead.all() else None
 
 
@@ -410,7 +418,7 @@ def view_sphere(
     the optical axes of viewmats [F, 4, 4] do not converge in front of the cameras."""
     if center is not None and radius is not None:
         return np.asarray(center, np.float64), float(radius)
-    converged = converging_centre(viewmats)
+    converged = converging_centre(viewmats, AXES_SPREAD_MIN)
     if converged is None:
         eyes, dirs, _ = optical_axes(viewmats)  # [F, 3], [F, 3]
         position, direction = (
@@ -419,8 +427,8 @@ def view_sphere(
         )
         raise ValueError(
             f"{source}: the cameras' optical axes do not converge in front of them (forward-facing "
-            f"views, or view directions within about ±20°), so the scene's centre and size are "
-            f"unknown: the point nearest to the axes may lie behind the cameras; {fix} (the "
+            f"or parallel views, directions within about ±2°, or axes whose nearest point lies "
+            f"behind a camera), so the scene's centre and size are unknown; {fix} (the "
             f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
             f"scene D ahead of them is centred at position + D * direction)"
         )
