@@ -343,6 +343,25 @@ def test_forward_facing_views_need_a_scene_sphere(tmp_path):
     assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
 
 
+def test_simulate_takes_a_forward_sweeps_scene_sphere_from_its_transforms_file(tmp_path):
+    """`spikegs simulate --scene transforms.json` of a forward-facing sweep was refused with a fix
+    (pass center and radius to FrameSequenceSource) that the command line cannot apply."""
+    forward = forward_viewmats(4)
+    frames = np.random.default_rng(0).random((4, 16, 24, 3))
+    path = tmp_path / "transforms.json"
+    K = np.array([[30.0, 0, 12], [0, 30, 8], [0, 0, 1]])
+    write_transforms(path, "train", frames, forward, K, ".exr")
+    with pytest.raises(ValueError, match="add scene_center .x, y, z. and scene_radius to transfo"):
+        FrameSequenceSource.from_transforms(path, 24, 16)
+    doc = json.loads(path.read_text())
+    path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3], "scene_radius": "1"}))
+    with pytest.raises(ValueError, match="scene_radius expected a finite number > 0"):
+        FrameSequenceSource.from_transforms(path, 24, 16)
+    path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3], "scene_radius": 1}))
+    source = FrameSequenceSource.from_transforms(path, 24, 16)
+    assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
+
+
 def test_narrow_inward_captures_give_their_scene_sphere():
     """A 30° arc and a ring seen from 82° elevation, aimed at the origin, were refused when the
     NeRF layout took LLFF's ±20° spread test (LLFF has depth bounds to fall back on)."""

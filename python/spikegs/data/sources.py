@@ -23,6 +23,7 @@ import torch
 
 from ..image_io import read_stored_image
 from ..rasterize import rasterize
+from .dataset import check_meta_values
 from .scenes import GaussianScene, srgb_to_linear
 from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
 
@@ -331,10 +332,21 @@ class FrameSequenceSource(Source):
     ) -> FrameSequenceSource:
         """Read a NeRF-style transforms JSON (OpenGL camera-to-world unless `"convention":
         "opencv"`), resize the frames to width × height; test frames from `test_path` or a sibling
-        transforms_test.json. 8-bit images are sRGB (decoded); alpha composited on `background`."""
+        transforms_test.json. 8-bit images are sRGB (decoded); alpha composited on `background`.
+        The scene sphere: `center`, `radius`, else the file's scene_center and scene_radius, else
+        `view_sphere`'s."""
         path = Path(path)
         frames, viewmats, K = _read_transforms(path, width, height, channels, background)
-        center, radius = view_sphere(viewmats, path, SPHERE_FIX, center=center, radius=radius)
+        doc = read_json(path)
+        check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
+        fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
+        center, radius = view_sphere(
+            viewmats,
+            path,
+            fix,
+            center=doc.get("scene_center") if center is None else center,
+            radius=doc.get("scene_radius") if radius is None else radius,
+        )
         sibling = path.with_name("transforms_test.json")
         test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
