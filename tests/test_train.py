@@ -372,10 +372,12 @@ def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
     assert (d.start, d.stop, d.every, d.opacity_reset_every) == (100, 400, 20, 200)
     cli = load_config("spikegs").with_iterations(600)
     assert (cli.densify.start, cli.densify.every) == (d.start, d.every)  # the same as the flag
-    # a YAML length, then --iterations: the schedule follows the final length, not 50x it
-    (tmp_path / "tiny.yaml").write_text("base: spikegs\ntrain: {iterations: 60}\n")
-    again = load_config(tmp_path / "tiny.yaml").with_iterations(3000)
-    assert (again.densify.start, again.densify.every) == (500, 100)
+    # a YAML length, then --iterations: the schedule follows the final length (scaled once: from
+    # a 10-step YAML, rounding twice gave start 600, every 300, reset 900)
+    (tmp_path / "tiny.yaml").write_text("base: spikegs\ntrain: {iterations: 10}\n")
+    args = ["train", "d", "--config", str(tmp_path / "tiny.yaml"), "--out", "r"]
+    again = config_from_args(build_parser().parse_args([*args, "--iterations", "3000"])).densify
+    assert (again.start, again.every, again.opacity_reset_every) == (500, 100, 1000)
     assert load_config("spikegs", {"train": {"iterations": 600}}).densify.start == 100
 
 

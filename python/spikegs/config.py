@@ -237,10 +237,11 @@ class Config:
 
 
 def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
-    """Scale the iteration counts `keys` of `densify` by `factor` (at least 1; 0 stays 0)."""
+    """Scale the iteration counts `keys` of `densify` by `factor` (at least 1; 0 stays 0 and a
+    negative value stays, for `Config.validate` to name)."""
     for key in keys:
         value = getattr(densify, key)
-        setattr(densify, key, max(1, round(value * factor)) if value else 0)
+        setattr(densify, key, max(1, round(value * factor)) if value > 0 else value)
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
@@ -311,9 +312,15 @@ _Loader.add_implicit_resolver(
 )
 
 
-def load_config(name_or_path: str | Path | None = None, overrides: dict | None = None) -> Config:
+def load_config(
+    name_or_path: str | Path | None = None,
+    overrides: dict | None = None,
+    iterations: int | None = None,
+) -> Config:
     """The configuration of a method name (configs/NAME.yaml) or a YAML file (None: the default
-    method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated."""
+    method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated. `iterations`
+    (`--iterations`) sets the run's length as `Config.with_iterations` does, in one rounding with
+    the scaling of the schedule keys that the config leaves unset."""
     config = Config()
     read = _read(DEFAULT_METHOD if name_or_path is None else name_or_path, set())
     if "method" not in read:  # a file that names no method, nor does its base: its own name
@@ -321,13 +328,16 @@ def load_config(name_or_path: str | Path | None = None, overrides: dict | None =
     _apply(config, read, "")
     if overrides:
         _apply(config, overrides, "")
-    iterations = config.train.iterations
-    if iterations != TrainConfig.iterations:  # unset schedule keys follow the run's length
-        given = set()
-        for layer in (read, overrides or {}):
-            given |= set(layer.get("densify") or {})
-        unset = [k for k in SCHEDULE_KEYS if k not in given]
-        _scale_schedule(config.densify, unset, iterations / TrainConfig.iterations)
+    length = config.train.iterations  # the length the config's own schedule keys are for
+    if iterations is not None:
+        _require(iterations >= 1, "train.iterations", iterations, ">= 1")
+        config.train.iterations = iterations
+    given = set()
+    for layer in (read, overrides or {}):
+        given |= set(layer.get("densify") or {})
+    for key in SCHEDULE_KEYS:  # unset keys are for the default length
+        base = length if key in given else TrainConfig.iterations
+        _scale_schedule(config.densify, [key], config.train.iterations / base)
     return config.validate()
 
 

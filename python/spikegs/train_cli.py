@@ -36,8 +36,8 @@ def config_from_args(args: argparse.Namespace):
     seed = None if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / "config.yaml"
     own = args.resume and saved.is_file()
-    config = load_config(args.config or args.method or (saved if own else DEFAULT_METHOD), seed)
-    return config if args.iterations is None else config.with_iterations(args.iterations)
+    name = args.config or args.method or (saved if own else DEFAULT_METHOD)
+    return load_config(name, seed, args.iterations)
 
 
 def run(args: argparse.Namespace) -> int:
