@@ -389,6 +389,20 @@ def test_bad_input_raises(overrides, name):
 
 
 @needs_cpp
+@pytest.mark.parametrize("output", ["alpha", "depths"])
+def test_a_loss_on_one_output_alone(output):
+    """Outputs the loss leaves out reach the backward as None (the image's too)."""
+    scene = make_scene(4, 6, 13, 9)
+    grads = []
+    for fn in (spikegs.rasterize, reference.rasterize):
+        means = scene["means"].clone().requires_grad_()
+        (grad,) = torch.autograd.grad(getattr(render(fn, scene, means=means), output).sum(), means)
+        grads.append(grad)
+    assert grads[1].abs().max() > 0
+    assert_near(grads[0], grads[1], 1e-9, f"grad means of {output}")
+
+
+@needs_cpp
 def test_double_backward_is_refused_clearly():
     scene = make_scene(3, 4, 13, 9)
     means = scene["means"].clone().requires_grad_()

@@ -114,7 +114,8 @@ class _RasterizeFunction(torch.autograd.Function):
             settings["near"],
             settings["far"],
         )
-        ctx.raster, ctx.core = raster, core
+        ctx.raster, ctx.core, ctx.image_shape = raster, core, image.shape
+        ctx.set_materialize_grads(False)  # outputs the loss leaves out: None, not zero arrays
         ctx.save_for_backward(means, quats, scales, opacities, colors, background)
         outputs = tuple(torch.from_numpy(x) for x in (image, alpha, radii, means2d, depths))
         ctx.mark_non_differentiable(outputs[2])
@@ -124,6 +125,8 @@ class _RasterizeFunction(torch.autograd.Function):
     @once_differentiable
     def backward(ctx, grad_image, grad_alpha, _grad_radii, grad_means2d, grad_depths):
         means, quats, scales, opacities, colors, background = ctx.saved_tensors
+        if grad_image is None:
+            grad_image = means.new_zeros(ctx.image_shape)
         arrays = [
             t.detach().contiguous().numpy() for t in (means, quats, scales, opacities, colors)
         ]
