@@ -30,7 +30,7 @@ from .real import (
     stream_dataset,
     views_dataset,
 )
-from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
+from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import converging_centre, frame_columns, optical_axes
 from .trajectory import PathLike, rigid_c2w
 
@@ -179,13 +179,8 @@ def llff_intrinsics(hwf: np.ndarray, options: Options, source: str) -> tuple[np.
     `source` when the aspect ratios differ by over a pixel (non-square pixels)."""
     h, w, f = hwf
     height, width = options.height or round(h), options.width or round(w)
-    fix = (
-        f"set height and width in {OPTIONS_FILE} to the spikes' size, at hwf's aspect ratio; or, "
-        f"where the .dat rows are hwf's and the spikes some of their columns, raw_width and "
-        f"col_offset"
-    )
     frame, shift = frame_columns(
-        source, "hwf", (h, w), (height, width), fix, options.raw_width, options.col_offset
+        source, "hwf", (h, w), (height, width), ASPECT_FIX, options.raw_width, options.col_offset
     )
     K = np.array(
         [[f * frame / w, 0, frame / 2 - shift], [0, f * height / h, height / 2], [0, 0, 1]]

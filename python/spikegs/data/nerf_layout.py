@@ -25,7 +25,7 @@ import numpy as np
 
 from .dataset import Dataset, read_json, repeated
 from .real import camera_meta, held_out, scene_sphere, views_dataset
-from .real_options import OPTIONS_FILE, Options, open_spikes, read_options
+from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
     IMAGE_EXTENSIONS,
     OPENGL_TO_OPENCV,
@@ -43,11 +43,6 @@ from .trajectory import PathLike, rigid_c2w
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
-ASPECT_FIX = (
-    f"set height and width in {OPTIONS_FILE} to the spikes' size, at that aspect ratio; or, "
-    f"where the .dat rows are those images' and the spikes some of their columns, raw_width and "
-    f"col_offset"
-)
 
 
 def _read_doc(path: Path) -> dict:

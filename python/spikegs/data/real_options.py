@@ -27,6 +27,12 @@ from ..spikes import SpikeStream
 from .dataset import read_json
 
 OPTIONS_FILE = "spikegs.json"
+# how to mend a camera whose images have another aspect ratio than the spikes (`frame_columns`)
+ASPECT_FIX = (
+    f"set height and width in {OPTIONS_FILE} to the spikes' size, at that aspect ratio; or, "
+    f"where the .dat rows are those images' and the spikes some of their columns, raw_width and "
+    f"col_offset"
+)
 
 
 @dataclasses.dataclass

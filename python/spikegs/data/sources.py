@@ -336,8 +336,7 @@ class FrameSequenceSource(Source):
         The scene sphere: `center`, `radius`, else the file's scene_center and scene_radius, else
         `view_sphere`'s."""
         path = Path(path)
-        frames, viewmats, K = _read_transforms(path, width, height, channels, background)
-        doc = read_json(path)
+        frames, viewmats, K, doc = _read_transforms(path, width, height, channels, background)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
@@ -351,7 +350,7 @@ class FrameSequenceSource(Source):
         test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
         if test_path:
-            images, poses, _ = _read_transforms(
+            images, poses, *_ = _read_transforms(
                 Path(test_path), width, height, channels, background
             )
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
@@ -451,7 +450,8 @@ def view_sphere(
 
 
 def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
-    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] of a transforms JSON."""
+    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
+    transforms JSON."""
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
     doc = read_json(path)
@@ -484,7 +484,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
     K = camera_matrix(path, camera, src, (height, width))
-    return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K
+    return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K, doc
 
 
 def camera_number(path: Path, key: str, value) -> float:
