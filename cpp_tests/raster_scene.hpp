@@ -100,7 +100,7 @@ Render<T> render(const Scene<T>& s) {
 // Gradients of every input, sized like the inputs.
 template <typename T>
 struct Grads {
-  std::vector<T> means, quats, scales, opacities, colors, background, mean2d;
+  std::vector<T> means, quats, scales, opacities, colors, background, mean2d, mean2d_abs;
   T viewmat[16] = {};
   explicit Grads(const Scene<T>& s)
       : means(s.means.size()),
@@ -109,7 +109,8 @@ struct Grads {
         opacities(s.opacities.size()),
         colors(s.colors.size()),
         background(s.channels),
-        mean2d(2 * s.n) {}
+        mean2d(2 * s.n),
+        mean2d_abs(2 * s.n) {}
   ParamGrads<T> view() {
     return {means.data(), quats.data(), scales.data(), opacities.data(), colors.data(), viewmat};
   }
@@ -131,7 +132,7 @@ Grads<T> backward(const Scene<T>& s, const Render<T>& r, const std::vector<T>& g
   ParamGrads<T> view = g.view();
   rasterize_backward(s.params(), s.cam, s.background.data(), r.state,
                      OutputGrads<T>{gimg.data(), galpha.data()}, view, g.background.data(),
-                     g.mean2d.data());
+                     g.mean2d.data(), g.mean2d_abs.data());
   return g;
 }
 

@@ -135,6 +135,50 @@ TEST_CASE(compositing) {
   }
 }
 
+// mean2d_abs (AbsGS's densification signal) is, per Gaussian and axis, the sum over pixels of the
+// absolute value of that pixel's share of dL/dmean2d: a loss on one pixel alone has that share.
+TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
+  for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
+    const Config& c = kConfigs[seed];
+    Scene<double> s = smooth_scene(c, seed + 301);
+    Render<double> r = render(s);
+    const auto w_img = random_weights(r.image.size(), 41),
+               w_alpha = random_weights(r.alpha.size(), 42);
+    auto backward_with = [&](const std::vector<double>& gi, const std::vector<double>& ga) {
+      ProjectedGrads<double> dp;
+      std::vector<double> dbg(c.channels);
+      composite_backward(r.state.proj, r.state.bins, c.width, c.height, c.channels,
+                         s.background.data(), r.state.composite, gi.data(), ga.data(), dp,
+                         dbg.data());
+      return dp;
+    };
+    const ProjectedGrads<double> full = backward_with(w_img, w_alpha);
+    std::vector<double> summed(full.mean2d_abs.size(), 0.0);
+    const std::size_t pixels = r.alpha.size();
+    for (std::size_t p = 0; p < pixels; ++p) {
+      std::vector<double> gi(r.image.size(), 0.0), ga(pixels, 0.0);
+      for (int k = 0; k < c.channels; ++k) gi[p * c.channels + k] = w_img[p * c.channels + k];
+      ga[p] = w_alpha[p];
+      const ProjectedGrads<double> one = backward_with(gi, ga);
+      for (std::size_t k = 0; k < summed.size(); ++k) summed[k] += std::abs(one.mean2d[k]);
+    }
+    double worst = 0, cancelled = 0;  // largest relative error; largest |sum| / sum of |.|
+    for (std::size_t k = 0; k < summed.size(); ++k) {
+      const double err = std::abs(full.mean2d_abs[k] - summed[k]);
+      worst = std::max(worst, err / (1e-12 + summed[k]));
+      CHECK(err <= 1e-12 + 1e-9 * summed[k], "mean2d_abs[", k, "] ", full.mean2d_abs[k],
+            " per-pixel sum ", summed[k]);
+      CHECK(std::abs(full.mean2d[k]) <= full.mean2d_abs[k] * (1 + 1e-12), "|mean2d[", k, "]| ",
+            full.mean2d[k], " above mean2d_abs ", full.mean2d_abs[k]);
+      if (summed[k] > 0) cancelled = std::max(cancelled, 1 - std::abs(full.mean2d[k]) / summed[k]);
+    }
+    // random pixel weights make shares of both signs: the test would pass for |mean2d| otherwise
+    CHECK(cancelled > 0.1, "no Gaussian's shares cancel (", cancelled, ")");
+    std::printf(" scene %u: %zu pixels, worst relative error %.3g, most cancelled %.3g\n", seed,
+                pixels, worst, cancelled);
+  }
+}
+
 TEST_CASE(end_to_end) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];

@@ -111,6 +111,7 @@ def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
         sh_degree=s["sh_degree"],
         background=s["background"],
         screen_points=s["screen_points"],
+        **({"screen_abs": s["screen_abs"]} if "screen_abs" in s else {}),
     )
 
 
@@ -275,6 +276,40 @@ def test_gradcheck(impl, sh_degree):
     assert torch.autograd.gradcheck(
         outputs, leaves, eps=1e-6, atol=1e-6, rtol=1e-4, fast_mode=impl == "reference"
     )
+
+
+@needs_cpp
+@pytest.mark.parametrize("channels", [1, 3, 4])
+@pytest.mark.parametrize(
+    "dtype, rtol", [(torch.float64, 1e-9), (torch.float32, 1e-4)], ids=["float64", "float32"]
+)
+def test_screen_abs_sums_the_reference_per_pixel_shares(channels, dtype, rtol):
+    """screen_abs (AbsGS) against the float64 reference: the Jacobian of each pixel's loss (image
+    and alpha, random weights) w.r.t. the 2D means, summed over pixels in absolute value. Each
+    backward adds to it: two renders give the sum of their two."""
+    scene = make_scene(31 + channels, 12, 21, 14, channels)
+    gen = torch.Generator().manual_seed(channels)
+    w_img = torch.randn(14, 21, channels, generator=gen, dtype=torch.float64)
+    w_alpha = torch.randn(14, 21, generator=gen, dtype=torch.float64)
+
+    def per_pixel(screen_points):  # [H * W] each pixel's loss
+        out = render(reference.rasterize, scene, screen_points=screen_points)
+        return ((out.image * w_img).sum(-1) + out.alpha * w_alpha).flatten()
+
+    jac = torch.autograd.functional.jacobian(per_pixel, scene["screen_points"])  # [H*W, N, 2]
+    expected = jac.abs().sum(0)
+    assert (expected - jac.sum(0).abs()).max() > 0.1 * expected.max(), "no shares cancel"
+
+    s = {k: v.to(dtype) if torch.is_tensor(v) else v for k, v in scene.items()}
+    screen_abs = torch.zeros(12, 2, dtype=dtype)
+    for _ in range(2):
+        leaves = {k: s[k].clone().requires_grad_() for k in ("means", "colors")}
+        out = render(spikegs.rasterize, s, screen_abs=screen_abs, **leaves)
+        loss = (out.image * w_img.to(dtype)).sum() + (out.alpha * w_alpha.to(dtype)).sum()
+        loss.backward()
+    assert_near(screen_abs, 2 * expected, rtol, "screen_abs after two backwards")
+    with pytest.raises(ValueError, match=r"screen_abs: expected shape \[12, 2\]"):
+        render(spikegs.rasterize, s, screen_abs=torch.zeros(11, 2, dtype=dtype))
 
 
 @needs_cpp

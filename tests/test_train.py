@@ -209,6 +209,26 @@ def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
     assert len(models[0]) == len(models[1]) > FAST["train"]["init_gaussians"]
 
 
+def test_absgrad_densifies_on_the_absolute_per_pixel_gradient(dataset, tmp_path, monkeypatch):
+    """densify.absgrad hands the densifier the per-pixel shares' absolute sum (AbsGS), which
+    bounds the plain screen-space gradient of the same step and exceeds it where shares cancel."""
+    seen = {}
+    for absgrad in (False, True):
+        monkeypatch.setattr(
+            Densifier,
+            "observe",
+            lambda self, radii, grad, w, h, a=absgrad: seen.setdefault(a, grad),
+        )
+        overrides = {
+            "train": {**FAST["train"], "iterations": 1, "checkpoint_every": 1},
+            "densify": {"absgrad": absgrad},
+        }
+        Trainer(dataset, load_config("tfp33", overrides), tmp_path / str(absgrad), False).train()
+    plain, absolute = seen[False].abs(), seen[True]
+    assert torch.all(absolute >= plain * (1 - 1e-5))
+    assert (absolute > 1.5 * plain).float().mean() > 0.5, "most Gaussians' shares cancel"
+
+
 def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
@@ -811,6 +831,28 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
     torch.save(state, path)
     longer = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     assert Trainer(dataset, longer, tmp_path / "run", progress=False).train(resume=True)
+
+
+def test_a_run_saved_before_absgrad_resumes_without_it(dataset, tmp_path):
+    """densify.absgrad came with a default (true) unlike the behaviour before it: a run saved
+    without the key resumes, from its own settings, on the plain gradient it was trained with."""
+    run = tmp_path / "run"
+    old = {**FAST, "train": {**FAST["train"], "iterations": 2}, "densify": {"absgrad": False}}
+    Trainer(dataset, load_config("tfp33", old), run, progress=False).train()
+    path = run / "checkpoints" / "last.pt"
+    state = torch.load(path, weights_only=False)
+    del state["config"]["densify"]["absgrad"]
+    torch.save(state, path)
+    saved = (run / "config.yaml").read_text()
+    (run / "config.yaml").write_text(saved.replace("  absgrad: false\n", ""))
+    assert "absgrad" not in (run / "config.yaml").read_text()
+    args = build_parser().parse_args(["train", str(dataset.root), "--out", str(run), "--resume"])
+    config = config_from_args(args)
+    assert config.densify.absgrad is False
+    assert Trainer(dataset, config, run, progress=False).train(resume=True)
+    now = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    with pytest.raises(ValueError, match="densify.absgrad: False in the run, True now"):
+        Trainer(dataset, now, run, progress=False).train(resume=True)
 
 
 def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, monkeypatch):

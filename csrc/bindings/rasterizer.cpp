@@ -102,7 +102,7 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
   Array<T> dmeans = zeros_like(means), dquats = zeros_like(quats), dscales = zeros_like(scales);
   Array<T> dopac = zeros_like(opacities), dcolors = zeros_like(colors);
   Array<T> dviewmat({4, 4}), dbackground(py::ssize_t(ctx.channels)),
-      dmeans2d({p.n, py::ssize_t(2)});
+      dmeans2d({p.n, py::ssize_t(2)}), dmeans2d_abs({p.n, py::ssize_t(2)});
   std::fill(dviewmat.mutable_data(), dviewmat.mutable_data() + 16, T(0));
   sr::ParamGrads<T> g{dmeans.mutable_data(), dquats.mutable_data(),  dscales.mutable_data(),
                       dopac.mutable_data(),  dcolors.mutable_data(), dviewmat.mutable_data()};
@@ -112,9 +112,11 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
                                   grad_means2d ? grad_means2d->data() : nullptr,
                                   grad_depths ? grad_depths->data() : nullptr};
     sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state, dout,
-                           g, dbackground.mutable_data(), dmeans2d.mutable_data());
+                           g, dbackground.mutable_data(), dmeans2d.mutable_data(),
+                           dmeans2d_abs.mutable_data());
   }
-  return py::make_tuple(dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d);
+  return py::make_tuple(dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d,
+                        dmeans2d_abs);
 }
 
 template <typename T>
@@ -137,7 +139,8 @@ void bind_variant(py::module_& m, const std::string& suffix) {
         py::arg("means"), py::arg("quats"), py::arg("scales"), py::arg("opacities"),
         py::arg("colors"), py::arg("background"), py::arg("grad_image"), py::arg("grad_alpha"),
         py::arg("grad_means2d"), py::arg("grad_depths"),
-        "-> gradients (means, quats, scales, opacities, colors, viewmat, background, means2d)");
+        "-> gradients (means, quats, scales, opacities, colors, viewmat, background, means2d, "
+        "means2d_abs: the compositing's per-pixel shares of means2d's summed in |.|)");
 }
 
 }  // namespace

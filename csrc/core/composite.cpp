@@ -16,6 +16,7 @@ namespace {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
 constexpr int kSplatHeader = 7;  // floats before the colour in a gathered splat
+constexpr int kGradHeader = 8;   // floats before the colour in a pair's gradient share
 
 // Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width, colour[C].
 template <typename T>
@@ -46,17 +47,19 @@ inline T gaussian(T power) {
 
 // Adds one pixel's share of a gathered splat `s`'s geometric gradients: `ga` = G · dL/dalpha is
 // dL/d(opacity); through alpha = o·G, G = exp(power), power = -(A dx² + C dy²)/2 - B dx dy, it
-// reaches the conic (A, B, C) and the 2D mean (dx = pixel - mean).
+// reaches the conic (A, B, C) and the 2D mean (dx = pixel - mean); `g_ax`, `g_ay` sum the
+// absolute values of the 2D mean's shares (AbsGS: shares of opposite sign do not cancel).
 template <typename T>
 inline void add_geometry_grad(const T* s, T dx, T dy, T ga, T& g_mx, T& g_my, T& g_A, T& g_B,
-                              T& g_C, T& g_o) {
+                              T& g_C, T& g_o, T& g_ax, T& g_ay) {
   const T A = s[2], B = s[3], Cc = s[4], dpower = s[5] * ga;
+  const T gx = (A * dx + B * dy) * dpower, gy = (B * dx + Cc * dy) * dpower;
   g_o += ga;
   g_A += T(-0.5) * dx * dx * dpower;
   g_B += -dx * dy * dpower;
   g_C += T(-0.5) * dy * dy * dpower;
-  g_mx += (A * dx + B * dy) * dpower;
-  g_my += (B * dx + Cc * dy) * dpower;
+  g_mx += gx, g_my += gy;
+  g_ax += std::abs(gx), g_ay += std::abs(gy);
 }
 
 // Rows of the tile [row0, row1) that the splat can reach (y half-width `ey`, slack included).
@@ -189,15 +192,15 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
                    const T* grad_image, const T* grad_alpha, ProjectedGrads<T>& grads,
                    T* grad_background) {
   const int C = NC > 0 ? NC : runtime_channels;
-  const int stride = kSplatHeader + C, grad_stride = 6 + C;
+  const int stride = kSplatHeader + C, grad_stride = kGradHeader + C;
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   const std::int64_t visible = std::int64_t(bins.order.size());
   // Each pair's share of its Gaussian's gradients, in rank-major order: mx, my, A, B, C,
-  // opacity, colour[C] ([pairs, 6 + C], left uninitialised: each tile zeroes its own pairs'
-  // slots); and each tile's share of the background's. Every slot is written by the one thread
-  // that owns its tile, and the sums below run in a fixed order, so the gradients are bitwise
-  // the same for any thread count.
+  // opacity, |mx|, |my|, colour[C] ([pairs, 8 + C], left uninitialised: each tile zeroes its own
+  // pairs' slots); and each tile's share of the background's. Every slot is written by the one
+  // thread that owns its tile, and the sums below run in a fixed order, so the gradients are
+  // bitwise the same for any thread count.
   const std::unique_ptr<T[]> pair_grads(new T[bins.ranks.size() * grad_stride]);
   std::vector<T> tile_bg(tiles * C, T(0));              // [tiles, C]
   auto slot = [&](std::int32_t rank, std::int64_t t) {  // pair (t, rank)'s gradient share
@@ -273,13 +276,13 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           gauss[p] = gaussian(power);
         }
         T* out = slot(rank, t);
-        T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0;
+        T g_mx = 0, g_my = 0, g_A = 0, g_B = 0, g_C = 0, g_o = 0, g_ax = 0, g_ay = 0;
         if constexpr (NC > 0) {
           // alpha, T, the colour and the geometric gradients in one pass: every load is
           // unconditional and every conditional a select, so that the loop vectorises
           T col[NC], gc[NC] = {};
           for (int c = 0; c < NC; ++c) col[c] = s[kSplatHeader + c];
-#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o, gc[ : NC])
+#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o, g_ax, g_ay, gc[ : NC])
           for (int p = p0; p < p1; ++p) {
             const T G = gauss[p], raw = o * G, tr = trans[p], tgp = tg[p];
             const std::int32_t lp = last[p];
@@ -301,9 +304,9 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
               bh[p] += al * diff;
             }
             const T ga = valid && raw < T(kAlphaMax) ? G * da : T(0);  // 0 where alpha is clamped
-            add_geometry_grad(s, dx, dy, ga, g_mx, g_my, g_A, g_B, g_C, g_o);
+            add_geometry_grad(s, dx, dy, ga, g_mx, g_my, g_A, g_B, g_C, g_o, g_ax, g_ay);
           }
-          for (int c = 0; c < NC; ++c) out[6 + c] += gc[c];
+          for (int c = 0; c < NC; ++c) out[kGradHeader + c] += gc[c];
         } else {
           // any channel count: the same in three passes, the channels one at a time
           alignas(64) T alph[kTilePixels], tj[kTilePixels], dalpha[kTilePixels];
@@ -334,21 +337,24 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
               sum += alph[p] * w;
               bh[p] += alph[p] * diff;
             }
-            out[6 + c] += sum;
+            out[kGradHeader + c] += sum;
           }
-#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o)
+#pragma omp simd reduction(+ : g_mx, g_my, g_A, g_B, g_C, g_o, g_ax, g_ay)
           for (int p = p0; p < p1; ++p) {
             const T dx = cx[p] - mx, dy = cy[p] - my;
-            add_geometry_grad(s, dx, dy, gauss[p] * dalpha[p], g_mx, g_my, g_A, g_B, g_C, g_o);
+            add_geometry_grad(s, dx, dy, gauss[p] * dalpha[p], g_mx, g_my, g_A, g_B, g_C, g_o, g_ax,
+                              g_ay);
           }
         }
         out[0] += g_mx, out[1] += g_my, out[2] += g_A, out[3] += g_B, out[4] += g_C, out[5] += g_o;
+        out[6] += g_ax, out[7] += g_ay;
       }
     }
   }
 
   const std::int64_t n = std::int64_t(proj.radius.size());
   grads.mean2d.assign(2 * n, T(0));
+  grads.mean2d_abs.assign(2 * n, T(0));
   grads.conic.assign(3 * n, T(0));
   grads.opacity.assign(n, T(0));
   grads.color.assign(n * C, T(0));
@@ -360,7 +366,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
       grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
       grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
       grads.opacity[i] += s[5];
-      for (int c = 0; c < C; ++c) grads.color[i * C + c] += s[6 + c];
+      grads.mean2d_abs[2 * i] += s[6], grads.mean2d_abs[2 * i + 1] += s[7];
+      for (int c = 0; c < C; ++c) grads.color[i * C + c] += s[kGradHeader + c];
     }
   }
   if (grad_background)

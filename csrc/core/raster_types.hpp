@@ -51,11 +51,12 @@ struct Projected {
 // Gradients with respect to the projected quantities, indexed by Gaussian.
 template <typename T>
 struct ProjectedGrads {
-  std::vector<T> mean2d;   // [N, 2]
-  std::vector<T> conic;    // [N, 3]
-  std::vector<T> opacity;  // [N]
-  std::vector<T> color;    // [N, C]
-  std::vector<T> depth;    // [N], or empty: no gradient of the depths
+  std::vector<T> mean2d;      // [N, 2]
+  std::vector<T> conic;       // [N, 3]
+  std::vector<T> opacity;     // [N]
+  std::vector<T> color;       // [N, C]
+  std::vector<T> depth;       // [N], or empty: no gradient of the depths
+  std::vector<T> mean2d_abs;  // [N, 2] the compositing's per-pixel shares of mean2d, in |.|
 };
 
 // Gradients with respect to the inputs; pointers to caller-owned, zero-initialised arrays.

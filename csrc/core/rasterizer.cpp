@@ -16,7 +16,8 @@ void rasterize_forward(const GaussianParams<T>& params, const Camera<T>& cam, co
 template <typename T>
 void rasterize_backward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
                         const RasterState<T>& state, const OutputGrads<T>& dout,
-                        ParamGrads<T>& grads, T* grad_background, T* grad_mean2d) {
+                        ParamGrads<T>& grads, T* grad_background, T* grad_mean2d,
+                        T* grad_mean2d_abs) {
   ProjectedGrads<T> dproj;
   composite_backward(state.proj, state.bins, cam.width, cam.height, params.channels, background,
                      state.composite, dout.image, dout.alpha, dproj, grad_background);
@@ -26,6 +27,7 @@ void rasterize_backward(const GaussianParams<T>& params, const Camera<T>& cam, c
         for (int k = 0; k < 2; ++k) dproj.mean2d[2 * i + k] += dout.mean2d[2 * i + k];
   if (dout.depth) dproj.depth.assign(dout.depth, dout.depth + params.n);
   if (grad_mean2d) std::copy(dproj.mean2d.begin(), dproj.mean2d.end(), grad_mean2d);
+  if (grad_mean2d_abs) std::copy(dproj.mean2d_abs.begin(), dproj.mean2d_abs.end(), grad_mean2d_abs);
   project_backward(params, cam, state.proj, dproj, grads);
 }
 
@@ -36,10 +38,10 @@ template void rasterize_forward<double>(const GaussianParams<double>&, const Cam
 template void rasterize_backward<float>(const GaussianParams<float>&, const Camera<float>&,
                                         const float*, const RasterState<float>&,
                                         const OutputGrads<float>&, ParamGrads<float>&, float*,
-                                        float*);
+                                        float*, float*);
 template void rasterize_backward<double>(const GaussianParams<double>&, const Camera<double>&,
                                          const double*, const RasterState<double>&,
                                          const OutputGrads<double>&, ParamGrads<double>&, double*,
-                                         double*);
+                                         double*, double*);
 
 }  // namespace spikegs::raster

@@ -28,12 +28,14 @@ struct OutputGrads {
   const T* depth = nullptr;   // [N]
 };
 
-// Adds the input gradients to `grads` (zero-initialised arrays); `grad_background` and
-// `grad_mean2d` ([N, 2], the screen-space gradient used for densification: of the 2D means'
-// every use, the compositing's and `dout.mean2d`'s) may be null.
+// Adds the input gradients to `grads` (zero-initialised arrays). Optional (may be null):
+// `grad_background`; `grad_mean2d` [N, 2], the screen-space gradient used for densification (of
+// the 2D means' every use, the compositing's and `dout.mean2d`'s); `grad_mean2d_abs` [N, 2], the
+// compositing's per-pixel shares of it summed in absolute value (AbsGS's densification signal).
 template <typename T>
 void rasterize_backward(const GaussianParams<T>& params, const Camera<T>& cam, const T* background,
                         const RasterState<T>& state, const OutputGrads<T>& dout,
-                        ParamGrads<T>& grads, T* grad_background, T* grad_mean2d);
+                        ParamGrads<T>& grads, T* grad_background, T* grad_mean2d,
+                        T* grad_mean2d_abs);
 
 }  // namespace spikegs::raster

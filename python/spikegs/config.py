@@ -391,10 +391,27 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     return merged
 
 
+# Keys added with a default unlike the behaviour before them: a run's config saved without one
+# was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24).
+LEGACY_VALUES = {"densify": {"absgrad": False}}
+
+
+def legacy_overrides(saved: dict | Path) -> dict:
+    """The LEGACY_VALUES of the keys that a saved run config (a dict, or its YAML file) lacks."""
+    if isinstance(saved, Path):
+        saved = _read(saved, set())
+    return {
+        section: missing
+        for section, values in LEGACY_VALUES.items()
+        if (missing := {k: v for k, v in values.items() if k not in saved.get(section, {})})
+    }
+
+
 def with_defaults(saved: dict) -> dict:
-    """A config dict saved by an earlier version, with the keys added since (whose defaults keep
-    the old behaviour) filled in by their defaults."""
+    """A config dict saved by an earlier version, with the keys added since filled in: by the
+    value that kept its behaviour (LEGACY_VALUES), else by their defaults (which keep it)."""
     full = Config().to_dict()
+    _merge(full, legacy_overrides(saved))
     _merge(full, saved)
     return full
 

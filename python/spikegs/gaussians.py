@@ -94,6 +94,7 @@ class GaussianModel:
         width: int,
         height: int,
         screen_points: torch.Tensor | None = None,
+        screen_abs: torch.Tensor | None = None,
     ) -> RasterizeResult:
         """Render from world-to-camera `viewmat` [4, 4] with intrinsics `K` [3, 3]."""
         return rasterize(
@@ -109,6 +110,7 @@ class GaussianModel:
             sh_degree=self.sh_degree,
             background=self.background,
             screen_points=screen_points,
+            screen_abs=screen_abs,
         )
 
     def state_dict(self) -> dict:

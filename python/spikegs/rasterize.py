@@ -93,6 +93,7 @@ class _RasterizeFunction(torch.autograd.Function):
         viewmat,
         background,
         screen_points,
+        screen_abs,
         K,
         settings,
     ):
@@ -115,6 +116,7 @@ class _RasterizeFunction(torch.autograd.Function):
             settings["far"],
         )
         ctx.raster, ctx.core, ctx.image_shape = raster, core, image.shape
+        ctx.screen_abs = screen_abs
         ctx.set_materialize_grads(False)  # outputs the loss leaves out: None, not zero arrays
         ctx.save_for_backward(means, quats, scales, opacities, colors, background)
         outputs = tuple(torch.from_numpy(x) for x in (image, alpha, radii, means2d, depths))
@@ -141,12 +143,15 @@ class _RasterizeFunction(torch.autograd.Function):
                 for g in (grad_alpha, grad_means2d, grad_depths)
             ),
         )
-        dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d = map(
+        dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d, dabs = map(
             torch.from_numpy, grads
         )
+        if ctx.screen_abs is not None:
+            ctx.screen_abs += dabs
         dbackground = dbackground if ctx.needs_input_grad[6] else None
         dmeans2d = dmeans2d if ctx.needs_input_grad[7] else None
-        return dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d, None, None
+        grads = (dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d)
+        return grads + (None, None, None)
 
 
 def rasterize(
@@ -165,6 +170,7 @@ def rasterize(
     near: float = CONSTANTS["near"],
     far: float = CONSTANTS["far"],
     screen_points: torch.Tensor | None = None,
+    screen_abs: torch.Tensor | None = None,
 ) -> RasterizeResult:
     """Render N Gaussians into one [H, W, C] image, differentiably.
 
@@ -174,7 +180,10 @@ def rasterize(
     K.grad stays None), background [C].
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
     `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
-    projected 2D means (as in 3DGS densification). Culled Gaussians get radius 0 and zero gradient.
+    projected 2D means (as in 3DGS densification). `screen_abs`, an optional [N, 2] tensor, has
+    each backward add the compositing's per-pixel shares of that gradient summed in absolute value
+    (AbsGS's densification signal: shares of opposite sign do not cancel). Culled Gaussians get
+    radius 0 and zero gradient.
     Every output but `radii` is differentiable (once: no double backward).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
@@ -220,6 +229,8 @@ def rasterize(
             raise ValueError(f"background: expected finite values, got {background.tolist()}")
     if screen_points is not None:
         _check("screen_points", screen_points, (n, 2), dtype)
+    if screen_abs is not None:
+        _check("screen_abs", screen_abs, (n, 2), dtype)
     for name, value in (("width", width), ("height", height)):
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise ValueError(f"{name}: expected a positive int, got {value!r}")
@@ -239,6 +250,16 @@ def rasterize(
         far=float(far),
     )
     outputs = _RasterizeFunction.apply(
-        means, quats, scales, opacities, colors, viewmat, background, screen_points, K, settings
+        means,
+        quats,
+        scales,
+        opacities,
+        colors,
+        viewmat,
+        background,
+        screen_points,
+        screen_abs,
+        K,
+        settings,
     )
     return RasterizeResult(*outputs)

@@ -275,6 +275,7 @@ class Trainer:
         t = float(targets.timestamps[index])
         h, w = self.dataset.height, self.dataset.width
         screen = torch.zeros(len(self.model), 2, requires_grad=True)
+        screen_abs = torch.zeros(len(self.model), 2) if self.config.densify.absgrad else None
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         loss, instant = torch.zeros(()), None
         times = [t]  # the instant pose, then the exposure's
@@ -282,7 +283,9 @@ class Trainer:
             times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
         viewmats = self._poses(times, index)
         if targets.instant is not None:
-            instant = self.model.render(viewmats[0], self.K, w, h, screen_points=screen)
+            instant = self.model.render(
+                viewmats[0], self.K, w, h, screen_points=screen, screen_abs=screen_abs
+            )
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
                 instant.image,
@@ -298,7 +301,9 @@ class Trainer:
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
-                r = self.model.render(viewmat, self.K, w, h, screen_points=screen)
+                r = self.model.render(
+                    viewmat, self.K, w, h, screen_points=screen, screen_abs=screen_abs
+                )
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
@@ -314,7 +319,8 @@ class Trainer:
         self.optimizer.zero_grad(set_to_none=True)
         self._check_parameters()
         # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
-        self.densifier.observe(radii, screen.grad / s.total_weight(), w, h)
+        screen_grad = screen.grad if screen_abs is None else screen_abs
+        self.densifier.observe(radii, screen_grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
             raise ValueError(

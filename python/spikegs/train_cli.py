@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from .cli import positive_int
-from .config import DEFAULT_METHOD, available_methods, load_config
+from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,11 +33,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace):
     """The validated config of --method/--config (neither: DEFAULT_METHOD, or on --resume the
     run's own RUN/config.yaml) with the command-line overrides applied."""
-    seed = None if args.seed is None else {"train": {"seed": args.seed}}
+    overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / "config.yaml"
-    own = args.resume and saved.is_file()
+    own = args.resume and saved.is_file() and not (args.config or args.method)
+    if own:  # keys added since the run was saved keep its behaviour
+        overrides = {**legacy_overrides(saved), **overrides}
     name = args.config or args.method or (saved if own else DEFAULT_METHOD)
-    return load_config(name, seed, args.iterations)
+    return load_config(name, overrides, args.iterations)
 
 
 def run(args: argparse.Namespace) -> int:
