@@ -925,6 +925,22 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
         evaluate_run(tmp_path / "run", dataset)
 
 
+def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monkeypatch):
+    """A render identical to its ground truth has an infinite PSNR, which Python's json wrote as
+    the token Infinity, refused by JSON.parse, jq and serde: it is null."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    monkeypatch.setattr("spikegs.evaluate.psnr", lambda pred, gt: float("inf"))
+    assert evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"] == float("inf")
+
+    def refuse(token):
+        raise ValueError(f"non-standard JSON token {token}")
+
+    saved = json.loads((tmp_path / "run" / "eval.json").read_text(), parse_constant=refuse)
+    assert saved["psnr"] is None
+    assert all(v["psnr"] is None and v["ssim"] is not None for v in saved["views"].values())
+
+
 def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()

@@ -8,7 +8,6 @@ DIR/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, sta
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 import time
@@ -16,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import strict_json
 from .bench.common import print_table
 from .cli import positive_int
 from .config import load_config
@@ -124,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
         "total_seconds": total,
         "resumed": bool(args.resume),
     }
-    (out / "results.json").write_text(json.dumps(payload, indent=2))
+    (out / "results.json").write_text(strict_json.dumps(payload, indent=2))
     print()
     print_table(
         [

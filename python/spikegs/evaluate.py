@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from . import strict_json
 from .data.real import PSEUDO_PREFIX
 from .gaussians import GaussianModel
 from .image_io import write_image
@@ -103,5 +104,5 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "views": views,
     }
     result["file"] = str(run_dir / f"{name}.json")
-    (run_dir / f"{name}.json").write_text(json.dumps(result, indent=2))
+    (run_dir / f"{name}.json").write_text(strict_json.dumps(result, indent=2))
     return result

@@ -24,6 +24,7 @@ try:
 except ImportError:  # Windows
     fcntl = None
 
+from . import strict_json
 from .atomic_save import save_atomically
 from .config import Config, with_defaults
 from .densify import Densifier
@@ -354,7 +355,7 @@ class Trainer:
             }
             if evaluate:
                 record["psnr"] = psnr
-            log.write(json.dumps(record) + "\n")
+            log.write(strict_json.dumps(record) + "\n")
             log.flush()
             bar.set_postfix(
                 loss=f"{loss:.4f}",

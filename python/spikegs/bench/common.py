@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import statistics
 import time
 from pathlib import Path
 from typing import Any, Callable
+
+from .. import strict_json
 
 
 def machine_info() -> dict[str, Any]:
@@ -72,5 +73,5 @@ def write_results(out_dir: Path, name: str, results: dict[str, Any]) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.json"
     payload = {"benchmark": name, "machine": machine_info(), **results}
-    path.write_text(json.dumps(payload, indent=2))
+    path.write_text(strict_json.dumps(payload, indent=2))
     return path
