@@ -68,6 +68,17 @@ void fd_check_scene(Scene<double>& s, const Grads<double>& g, const std::functio
   fd_check("viewmat", vm, std::vector<double>(g.viewmat, g.viewmat + 16), vm_loss);
 }
 
+// The compositing's gradients of `r` given those of its image `gi` and alpha `ga`; the
+// background's in `dbg` [C].
+ProjectedGrads<double> composite_grads(const Scene<double>& s, const Render<double>& r,
+                                       const Config& c, const std::vector<double>& gi,
+                                       const std::vector<double>& ga, std::vector<double>& dbg) {
+  ProjectedGrads<double> dp;
+  composite_backward(r.state.proj, r.state.bins, c.width, c.height, c.channels, s.background.data(),
+                     r.state.composite, gi.data(), ga.data(), dp, dbg.data());
+  return dp;
+}
+
 }  // namespace
 
 TEST_CASE(projection) {
@@ -121,10 +132,8 @@ TEST_CASE(compositing) {
                         image.data(), alpha.data(), st);
       return dot(image, w_img) + dot(alpha, w_alpha);
     };
-    ProjectedGrads<double> dp;
     std::vector<double> dbg(c.channels);
-    composite_backward(proj, r.state.bins, c.width, c.height, c.channels, s.background.data(),
-                       r.state.composite, w_img.data(), w_alpha.data(), dp, dbg.data());
+    const ProjectedGrads<double> dp = composite_grads(s, r, c, w_img, w_alpha, dbg);
     std::printf(" scene %u: N=%lld C=%d, %zu visible\n", seed, (long long)c.n, c.channels,
                 r.state.bins.order.size());
     fd_check("mean2d", proj.mean2d, dp.mean2d, loss);
@@ -144,13 +153,9 @@ TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
     Render<double> r = render(s);
     const auto w_img = random_weights(r.image.size(), 41),
                w_alpha = random_weights(r.alpha.size(), 42);
+    std::vector<double> dbg(c.channels);
     auto backward_with = [&](const std::vector<double>& gi, const std::vector<double>& ga) {
-      ProjectedGrads<double> dp;
-      std::vector<double> dbg(c.channels);
-      composite_backward(r.state.proj, r.state.bins, c.width, c.height, c.channels,
-                         s.background.data(), r.state.composite, gi.data(), ga.data(), dp,
-                         dbg.data());
-      return dp;
+      return composite_grads(s, r, c, gi, ga, dbg);
     };
     const ProjectedGrads<double> full = backward_with(w_img, w_alpha);
     std::vector<double> summed(full.mean2d_abs.size(), 0.0);

@@ -249,17 +249,6 @@ def rasterize(
         near=float(near),
         far=float(far),
     )
-    outputs = _RasterizeFunction.apply(
-        means,
-        quats,
-        scales,
-        opacities,
-        colors,
-        viewmat,
-        background,
-        screen_points,
-        screen_abs,
-        K,
-        settings,
-    )
+    scene = (means, quats, scales, opacities, colors, viewmat, background)
+    outputs = _RasterizeFunction.apply(*scene, screen_points, screen_abs, K, settings)
     return RasterizeResult(*outputs)
