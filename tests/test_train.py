@@ -90,7 +90,7 @@ def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
     assert _mean_psnr(trainer.model, dataset) > constant + 0.8, constant
 
 
-def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monkeypatch):
+def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monkeypatch, ctrl_c):
     overrides = {
         **FAST,
         "train": {**FAST["train"], "iterations": 60, "checkpoint_every": 25},
@@ -114,7 +114,9 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
     assert torch.equal(whole.model.background, resumed.model.background)
 
 
-def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(dataset, tmp_path, monkeypatch):
+def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
+    dataset, tmp_path, monkeypatch, ctrl_c
+):
     train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
     config = load_config("tfp33", {**FAST, "train": train})
     _interrupt_during(Densifier, "step", 40, monkeypatch, signals=2)
@@ -124,6 +126,16 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(dataset, tmp_pa
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
     monkeypatch.undo()
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+
+
+@pytest.fixture
+def ctrl_c():
+    """Ctrl-C raising KeyboardInterrupt, as in a terminal, for the test's duration: a process
+    started in the background by a non-interactive shell (`cmd &`) inherits SIGINT ignored, and
+    the trainer rightly keeps it ignored (test_an_ignored_sigint_stays_ignored)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 def _interrupt_during(owner, method: str, iteration: int, monkeypatch, signals: int) -> None:
@@ -631,7 +643,7 @@ def test_an_ignored_sigint_stays_ignored():
         signal.signal(signal.SIGINT, previous)
 
 
-def test_ctrl_c_in_the_last_step_finishes_the_run(dataset, tmp_path, monkeypatch):
+def test_ctrl_c_in_the_last_step_finishes_the_run(dataset, tmp_path, monkeypatch, ctrl_c):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
     _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
