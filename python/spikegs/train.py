@@ -275,8 +275,11 @@ class Trainer:
         index = int(self.rng.integers(len(targets.timestamps)))
         t = float(targets.timestamps[index])
         h, w = self.dataset.height, self.dataset.width
-        screen = torch.zeros(len(self.model), 2, requires_grad=True)
-        screen_abs = torch.zeros(len(self.model), 2) if self.config.densify.absgrad else None
+        # this step's densification signal [N, 2]: AbsGS's absolute per-pixel sums, which each
+        # render's backward adds to, or the plain gradient of a zero tap on the 2D means
+        absgrad = self.config.densify.absgrad
+        screen = torch.zeros(len(self.model), 2, requires_grad=not absgrad)
+        tap = {"screen_abs" if absgrad else "screen_points": screen}
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         loss, instant = torch.zeros(()), None
         times = [t]  # the instant pose, then the exposure's
@@ -284,9 +287,7 @@ class Trainer:
             times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
         viewmats = self._poses(times, index)
         if targets.instant is not None:
-            instant = self.model.render(
-                viewmats[0], self.K, w, h, screen_points=screen, screen_abs=screen_abs
-            )
+            instant = self.model.render(viewmats[0], self.K, w, h, **tap)
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
                 instant.image,
@@ -302,9 +303,7 @@ class Trainer:
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
-                r = self.model.render(
-                    viewmat, self.K, w, h, screen_points=screen, screen_abs=screen_abs
-                )
+                r = self.model.render(viewmat, self.K, w, h, **tap)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
@@ -320,7 +319,7 @@ class Trainer:
         self.optimizer.zero_grad(set_to_none=True)
         self._check_parameters()
         # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
-        screen_grad = screen.grad if screen_abs is None else screen_abs
+        screen_grad = screen if absgrad else screen.grad
         self.densifier.observe(radii, screen_grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
