@@ -142,6 +142,11 @@ def test_negative_view_counts_refused(tmp_path):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
+    # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
+    with pytest.raises(ValueError, match="height, width: expected >= 1 pixel, found 0, 32"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
+    with pytest.raises(ValueError, match="speed: expected a finite"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": float("nan")})
 
 
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):
@@ -181,6 +186,8 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         load_dataset(root)
     with pytest.raises(FileNotFoundError, match="nowhere"):
         load_dataset(tmp_path / "nowhere")
+    with pytest.raises(NotADirectoryError, match="meta.json is a file, not a dataset directory"):
+        load_dataset(small.root / "meta.json")
 
 
 def _edited_copy(small, root: Path, name: str, edit) -> Path:
@@ -233,6 +240,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "outside": ("test_views.json", views(moved_out), "at readout 5000.0, outside"),
         "leak": ("train_timestamps.txt", leak, "would train on its spikes"),
         "float": ("train_timestamps.txt", lambda t: t + "40.5\n", r"integer readouts.*40\.5"),
+        "empty": ("train_timestamps.txt", lambda t: "", "train_timestamps.txt: no training"),
         "words": ("train_timestamps.txt", lambda t: t + "abc\n", "train_timestamps.txt: line"),
         "columns": (
             "train_timestamps.txt",

@@ -166,7 +166,9 @@ def test_poses_from_spikes_recover_the_trajectory(textured, capsys):
     when COLMAP's image order and RANSAC seeds varied)."""
     assert main(["poses", str(textured), "--count", "30"]) == 0
     report = json.loads((textured / "sfm" / "report.json").read_text())
-    assert "rotation error" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "rotation error" in printed.out
+    assert "SfM: 30 images, 435 pairs matched exhaustively\n" in printed.err
     assert report["registered"] >= 0.8 * report["images"], report
     assert report["rotation_error_deg_median"] < 3.0, report
     assert report["centre_error_median"] < 0.07, report
@@ -269,3 +271,20 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "structure from motion failed" in err and "parallax" in err, err
     assert not (still.root / "trajectory.json.bak").exists()
+
+
+def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
+    tmp_path, monkeypatch, capsys
+):
+    """--count 100000 on a 400-readout stream quietly took 368 images and matched their 67k
+    pairs for minutes without a word."""
+    still = _solids(tmp_path / "still", 16, 400, speed=0.0005)
+
+    def stop(*args, **kwargs):
+        raise ValueError("stopped before matching")
+
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", stop)
+    assert main(["poses", str(still.root), "--count", "100000"]) == 2
+    err = capsys.readouterr().err
+    assert "--count 100000: the stream has 368 readouts" in err, err
+    assert "SfM: 368 images, 67528 pairs matched exhaustively (slow:" in err, err

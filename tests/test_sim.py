@@ -345,3 +345,23 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     monkeypatch.setattr("spikegs.sim_cli.trained_sim", lambda *a, **k: pytest.fail("trained"))
     assert main(["sim-train", str(root)]) == 2
     assert "no held-out view on the camera path" in capsys.readouterr().err
+
+
+def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, capsys):
+    """An interrupted `spikegs sim-train` printed only 'interrupted'."""
+    from spikegs.cli import main
+    from spikegs.data import simulate_dataset
+
+    root = tmp_path / "on"
+    small = dict(height=16, width=16, readouts=200, test_on_path=1, test_off_path=0)
+    simulate_dataset("solids", root, progress=False, **small)
+    calls = []
+
+    def ctrl_c(*args, **kwargs):
+        calls.append(kwargs["progress"])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.sim_cli.trained_sim", ctrl_c)
+    assert main(["sim-train", str(root), "--no-progress"]) == 130
+    assert calls == [False]
+    assert "the same command (without --force) continues" in capsys.readouterr().err

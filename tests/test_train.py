@@ -553,7 +553,8 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     monkeypatch.setattr(
         Trainer, "_fresh_state", lambda self: fresh.append(self.config.method) or fresh_state(self)
     )
-    assert main([*argv, str(again), "--resume"]) == 0
+    # without --iterations a resumed demo goes on with those it was started with (80, not 200)
+    assert main(["demo", "--no-progress", "--out", str(again), "--resume"]) == 0
     assert fresh == ["tfp33"]  # SpikeGS went on from its checkpoint; TFP(33) had not started
     assert "resuming with the spike dataset" in capsys.readouterr().out
     resumed = json.loads((again / "results.json").read_text())
@@ -923,6 +924,46 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert json.loads(capsys.readouterr().out)["method"] == "tfp33"
     assert main([*argv, "--resume", "--method", "spikegs"]) == 2  # named again: compared
     assert "other settings" in capsys.readouterr().err
+
+
+def test_a_fresh_run_refuses_a_directory_with_other_files(dataset, tmp_path, capsys):
+    """`spikegs train --out DIR` wrote config.yaml, log.jsonl, scene.ply ... into any directory
+    without a checkpoint, over a user's files of those names and among others."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "config.yaml").write_text("keep")
+    (mine / "notes.txt").write_text("keep")
+    with pytest.raises(FileExistsError, match=r"not a run's \(notes.txt\)"):
+        Trainer(dataset, config, mine, progress=False).train()
+    assert (mine / "config.yaml").read_text() == "keep"
+    (tmp_path / "file").write_text("keep")
+    with pytest.raises(FileExistsError, match="is a file"):
+        Trainer(dataset, config, tmp_path / "file", progress=False).train()
+    # a run stopped before its first checkpoint leaves only its own files: a fresh run starts over
+    started = tmp_path / "started"
+    started.mkdir()
+    for name in ("config.yaml", "log.jsonl", ".lock"):
+        (started / name).write_text("")
+    (started / "checkpoints").mkdir()
+    Trainer(dataset, config, started, progress=False).train()
+    argv = ["train", str(dataset.root), "--no-progress", "--out"]
+    assert main([*argv, str(started)]) == 2  # now a run: refused, naming the flag
+    assert "pass --resume" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flag", ["--method", "--config", "--out"])
+def test_an_empty_name_is_refused(dataset, tmp_path, flag, capsys):
+    """`--method "$M"` with M unset trained the default method; `--config ""` and `--out ""`
+    meant the current directory."""
+    argv = ["train", str(dataset.root), "--out", str(tmp_path / "run"), flag, ""]
+    try:
+        code = main(argv)  # refused by the config
+    except SystemExit as parsing:  # refused by argparse
+        code = parsing.code
+    assert code == 2
+    assert "''" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
 
 
 def test_eval_names_a_channel_mismatch(dataset, tmp_path):

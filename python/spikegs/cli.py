@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from pathlib import Path
 
 # sub-command -> (module implementing it, one-line help)
 COMMANDS = {
@@ -31,6 +32,14 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, found '{text}'")
     return value
+
+
+def file_path(text: str) -> Path:
+    """An argparse type: a path, refused while parsing when empty (Path('') is the current
+    directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a file path, found ''")
+    return Path(text)
 
 
 def build_parser() -> argparse.ArgumentParser:

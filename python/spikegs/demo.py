@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from . import strict_json
 from .bench.common import print_table
@@ -48,7 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--iterations",
         type=positive_int,
-        help="training iterations per method (densification scaled with them)",
+        help="training iterations per method, densification scaled with them (default: "
+        f"{DEMO_OVERRIDES['train']['iterations']}; on --resume, those the demo started with)",
     )
     parser.add_argument(
         "--resume",
@@ -75,6 +77,16 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
         return dataset
     print(f"[1/3] simulating the spike dataset -> {data}")
     return simulate_dataset(scene, data, overwrite=True, progress=progress)
+
+
+def started_iterations(out: Path) -> int | None:
+    """The iterations an interrupted demo in `out` was started with (its first run's
+    config.yaml), None where no run has started."""
+    for method in METHODS:
+        saved = out / "runs" / method / "config.yaml"
+        if saved.is_file():
+            return int(yaml.safe_load(saved.read_text())["train"]["iterations"])
+    return None
 
 
 def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress: bool) -> dict:
@@ -107,10 +119,12 @@ def run(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     progress = not args.no_progress
-    configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
-    if args.iterations is not None:
-        configs = {m: c.with_iterations(args.iterations) for m, c in configs.items()}
     out = Path(args.out)
+    configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
+    # --resume without --iterations goes on with those the demo was started with
+    iterations = args.iterations or (started_iterations(out) if args.resume else None)
+    if iterations is not None:
+        configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
     try:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)

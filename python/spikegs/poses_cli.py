@@ -47,6 +47,7 @@ from .spikes import SpikeStream
 from .spikes.stream import as_flag, as_ints
 
 MIN_IMAGES = 8
+SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
 SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
@@ -241,6 +242,18 @@ def estimate_poses(
             f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
             f"{num} readouts with a {window}-readout window: raise --count or lower --every"
         )
+    if every is None and len(readouts) < count:
+        print(
+            f"--count {count}: the stream has {len(readouts)} readouts to centre a "
+            f"{window}-readout window on; using them all",
+            file=sys.stderr,
+        )
+    pairs = len(readouts) * (len(readouts) - 1) // 2
+    print(
+        f"SfM: {len(readouts)} images, {pairs} pairs matched exhaustively"
+        + (" (slow: --count 40 to 100 suffices for an orbit)" if pairs > SLOW_PAIRS else ""),
+        file=sys.stderr,
+    )
     images = spike_images(streams, readouts, window, _cached_sim(root) if sim else None)
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None

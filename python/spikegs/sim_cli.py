@@ -4,6 +4,7 @@ compare it with TFP(33), TFP(65) and TFI on the held-out on-path views."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from .bench.common import print_table
@@ -34,6 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=TrainConfig().seed)
     parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -47,7 +49,16 @@ def run(args: argparse.Namespace) -> int:
         batch=args.batch_size,
         loss=args.loss,
     )
-    model, seconds, out = trained_sim(dataset, sim, args.seed, path=args.out, force=args.force)
+    try:
+        model, seconds, out = trained_sim(
+            dataset, sim, args.seed, path=args.out, force=args.force, progress=not args.no_progress
+        )
+    except KeyboardInterrupt:
+        print(
+            "\nthe same command (without --force) continues from SIM's state, saved every 30 s",
+            file=sys.stderr,
+        )
+        raise
     done = f"trained in {seconds:.1f} s" if seconds else "reused"
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     scores = evaluate_dataset(model, dataset)

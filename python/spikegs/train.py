@@ -135,6 +135,26 @@ def run_lock(run_dir: Path):
         yield
 
 
+# what a fresh run writes before its first checkpoint: it may start over a run stopped then
+RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
+
+
+def check_fresh_run_dir(run_dir: Path) -> None:
+    """FileExistsError where a fresh run in `run_dir` would overwrite or mix with files that are
+    not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a finished or
+    checkpointed run is refused under the run's lock, with its own message)."""
+    if run_dir.exists() and not run_dir.is_dir():
+        raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
+    if not run_dir.is_dir() or (run_dir / "checkpoints" / "last.pt").exists():
+        return
+    others = sorted(p.name for p in run_dir.iterdir() if p.name not in RUN_STARTED)
+    if others:
+        raise FileExistsError(
+            f"{run_dir} holds files that are not a run's ({', '.join(others[:5])}"
+            f"{', ...' if len(others) > 5 else ''}); give an empty or new --out"
+        )
+
+
 class Trainer:
     """Trains a GaussianModel on `dataset` with the supervision of `config`, in `run_dir`."""
 
@@ -369,7 +389,9 @@ class Trainer:
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
-        if resume and not self.checkpoint_path.exists():
+        if not resume:
+            check_fresh_run_dir(self.run_dir)
+        elif not self.checkpoint_path.exists():
             if not (self.run_dir / "config.yaml").exists():
                 raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
             # a run stopped before its first checkpoint (SIM training, say: SIM resumes itself)
@@ -382,7 +404,8 @@ class Trainer:
             state = self._read_checkpoint() if resume else None
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(
-                    f"{self.run_dir} already holds a run; pass resume or another dir"
+                    f"{self.run_dir} already holds a run; pass --resume to continue it, or "
+                    f"another --out"
                 )
             return self._run(state, on_eval)
 

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from .cli import positive_int
+from .cli import file_path, positive_int
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 
 
@@ -18,8 +18,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"one of {', '.join(available_methods())} (default: {DEFAULT_METHOD}; with --resume, "
         f"the run's own settings, RUN/config.yaml)",
     )
-    which.add_argument("--config", type=Path, help="a YAML config file instead of a method name")
-    parser.add_argument("--out", type=Path, required=True, help="run folder")
+    which.add_argument(
+        "--config", type=file_path, help="a YAML config file instead of a method name"
+    )
+    parser.add_argument("--out", type=file_path, required=True, help="run folder")
     parser.add_argument(
         "--iterations",
         type=positive_int,
@@ -35,10 +37,11 @@ def config_from_args(args: argparse.Namespace):
     run's own RUN/config.yaml) with the command-line overrides applied."""
     overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / "config.yaml"
-    own = args.resume and saved.is_file() and not (args.config or args.method)
+    own = args.resume and saved.is_file() and args.config is None and args.method is None
     if own:  # keys added since the run was saved keep its behaviour
         overrides = {**legacy_overrides(saved), **overrides}
-    name = args.config or args.method or (saved if own else DEFAULT_METHOD)
+    given = args.config if args.config is not None else args.method
+    name = given if given is not None else (saved if own else DEFAULT_METHOD)
     return load_config(name, overrides, args.iterations)
 
 

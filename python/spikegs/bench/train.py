@@ -314,7 +314,10 @@ def run(
         )
         print_table(_table(runs, results[scene]["gain_over_tfp33_db"]))
         if CEILING in runs:
-            print(f"{CEILING}: trained on the clean instant images, the ceiling of any method")
+            print(
+                f"{CEILING}: trained on the clean instant images (one render a step): the "
+                "ceiling of instant targets; the exposure loss renders K poses a step"
+            )
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"

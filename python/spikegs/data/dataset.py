@@ -243,6 +243,8 @@ def load_dataset(path: PathLike) -> Dataset:
     missing file, ValueError a malformed one); the spikes are memory-mapped, not read. Without a
     meta.json, an LLFF (poses_bounds.npy) or NeRF (transforms*.json) layout is opened instead."""
     root = Path(path)
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(f"{root} is a file, not a dataset directory")
     if not root.is_dir():
         raise FileNotFoundError(f"dataset directory not found: {root}")
     if not (root / META).is_file():
@@ -267,7 +269,9 @@ def load_dataset(path: PathLike) -> Dataset:
         )
     timestamps = _read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
-    if len(timestamps) == 0 or timestamps.min() < lo or timestamps.max() > hi:
+    if len(timestamps) == 0:
+        raise ValueError(f"{root / TIMESTAMPS}: no training timestamps (one readout per line)")
+    if timestamps.min() < lo or timestamps.max() > hi:
         raise ValueError(f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}]")
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape)

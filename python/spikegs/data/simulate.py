@@ -202,6 +202,10 @@ def simulate_dataset(
     interpolates linearly); `train_every`: readouts between training timestamps (default
     `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
+    if height < 1 or width < 1:
+        raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
+    if not math.isfinite(speed):
+        raise ValueError(f"speed: expected a finite number of degrees per readout, found {speed}")
     if test_on_path < 0 or test_off_path < 0:
         raise ValueError(
             f"test_on_path, test_off_path: expected counts >= 0, found {test_on_path}, "
@@ -214,10 +218,10 @@ def simulate_dataset(
             f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
-    if height < 1 or width < 1 or not 0 < frame_every < math.inf or train_every < 1:
+    if not 0 < frame_every < math.inf or train_every < 1:
         raise ValueError(
-            f"height, width, frame_every and train_every expected positive (and finite), found "
-            f"{height}, {width}, {frame_every}, {train_every}"
+            f"frame_every and train_every expected positive (and finite), found {frame_every}, "
+            f"{train_every}"
         )
     if 2 in (height, width) or (height, width) == (1, 1):
         raise ValueError(
