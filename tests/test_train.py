@@ -904,14 +904,16 @@ def test_non_finite_parameters_stop_the_run(dataset, tmp_path, monkeypatch):
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
 
 
-def test_resuming_a_finished_run_does_no_work(dataset, tmp_path, monkeypatch):
+def test_resuming_a_finished_run_does_no_work(dataset, tmp_path, monkeypatch, capsys):
     """--resume of a finished run rebuilt its targets (retraining a deleted SIM) and added
-    that time to sim_seconds."""
+    that time to sim_seconds; it now says that there was nothing to train."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 3}})
     first = Trainer(dataset, config, tmp_path / "run", progress=False).train()
     monkeypatch.setattr("spikegs.train.build_targets", lambda *a: pytest.fail("targets built"))
+    capsys.readouterr()
     again = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert again == first
+    assert "finished at iteration 3; nothing to train" in capsys.readouterr().err
 
 
 def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_path, capsys):

@@ -10,6 +10,7 @@ import contextlib
 import hashlib
 import json
 import math
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -378,7 +379,7 @@ class Trainer:
             log.flush()
             bar.set_postfix(
                 loss=f"{loss:.4f}",
-                psnr=f"{psnr:.2f}",
+                psnr=f"{psnr:.2f}" if np.isfinite(psnr) else "-",  # none before the first eval
                 n=len(self.model),
                 s=f"{self.train_seconds:.0f}",
             )
@@ -425,6 +426,11 @@ class Trainer:
             self.sim_seconds += self.targets.sim_seconds
         if state is not None:
             self._load_checkpoint(state)
+            if self.iteration >= t.iterations:
+                print(
+                    f"{self.run_dir}: finished at iteration {self.iteration}; nothing to train",
+                    file=sys.stderr,  # stdout: `spikegs train`'s JSON summary
+                )
         else:
             self._fresh_state()
         log = (self.run_dir / "log.jsonl").open("a")
