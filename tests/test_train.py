@@ -1013,6 +1013,15 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     assert again["file"] == other["file"]
 
 
+def test_eval_on_another_scene_says_so(dataset, tmp_path):
+    """A solids run scored on a wires dataset gave its numbers without a word."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    wires = simulate_dataset("wires", tmp_path / "wires", **TINY)
+    with pytest.warns(UserWarning, match=r"trained on scene 'solids' .*wires, scene 'wires'"):
+        evaluate_run(tmp_path / "run", wires, write_images=False)
+
+
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,13 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
     name = _eval_name(run_dir, train, dataset)
+    trained_on, scored = train.get("scene"), dataset.meta.get("scene")
+    if trained_on and scored and trained_on != scored:
+        warnings.warn(
+            f"{run_dir} was trained on scene '{trained_on}' and is scored on {dataset.root}, "
+            f"scene '{scored}'",
+            stacklevel=2,
+        )
     ply = run_dir / "scene.ply"
     if not ply.exists():
         raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

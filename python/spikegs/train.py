@@ -472,6 +472,7 @@ class Trainer:
         summary = {
             "method": self.config.method,
             "dataset": str(Path(self.dataset.root).resolve()),
+            "scene": self.dataset.meta.get("scene"),
             "iterations": self.iteration,
             "train_seconds": self.train_seconds,
             "sim_seconds": self.sim_seconds,
