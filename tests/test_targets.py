@@ -10,7 +10,7 @@ from spikegs.data import simulate_dataset
 from spikegs.data.dataset import Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.sim_train import infer_sim
-from spikegs.targets import build_targets, intensity_scale, trained_sim
+from spikegs.targets import build_targets, intensity_scale, sim_path, trained_sim
 from spikegs.train import Trainer
 
 SIM_FAST = {"sim": {"iterations": 5, "crop": 16, "batch": 2}}
@@ -50,6 +50,16 @@ def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):
     assert len(model.shift) == 5 and path.name.endswith("_l2_m5_seed0.pt")
     model, _, path = trained_sim(dataset, shallow, 0, progress=False)  # not the deep one's cache
     assert len(model.shift) == 3 and path.name.endswith("_l2_seed0.pt")
+
+
+def test_crops_larger_than_the_image_share_one_cache(dataset):
+    """Training caps the crop at the image (24²): crops 64 and 1000 train the same SIM, which was
+    cached twice, as c64 and c1000."""
+    sims = [load_config("spikegs", {"sim": {**SIM_FAST["sim"], "crop": c}}).sim for c in (64, 1000)]
+    paths = {sim_path(dataset, sim, 0).name for sim in sims}
+    assert len(paths) == 1 and "_c24_" in paths.pop()
+    smaller = load_config("spikegs", {"sim": {**SIM_FAST["sim"], "crop": 20}}).sim
+    assert "_c20_" in sim_path(dataset, smaller, 0).name
 
 
 @pytest.mark.parametrize(

@@ -101,9 +101,10 @@ def _per_channel(streams, image_fn) -> np.ndarray:
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
     depth = "" if sim.shift_layers == SimConfig.shift_layers else f"_m{sim.shift_layers}"
+    crop = min(sim.crop, max(dataset.height, dataset.width))  # the crop that training takes
     name = (
         f"sim_w{sim.window}_t{sim.target_readouts()}_it{sim.iterations}_b{sim.batch}"
-        f"_c{sim.crop}_{sim.loss}{depth}_seed{seed}.pt"
+        f"_c{crop}_{sim.loss}{depth}_seed{seed}.pt"
     )
     return Path(dataset.root) / "sim" / name
 
