@@ -7,8 +7,9 @@ import pytest
 import torch
 from spikegs.config import load_config
 from spikegs.data import simulate_dataset
-from spikegs.data.dataset import Dataset
+from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
+from spikegs.data.trajectory import Trajectory
 from spikegs.sim_train import infer_sim
 from spikegs.targets import build_targets, intensity_scale, sim_path, trained_sim
 from spikegs.train import Trainer
@@ -105,6 +106,33 @@ def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tm
     )  # fmt: skip
     with pytest.raises(ValueError, match="built-in scene.*mitsuba"):
         build_targets(moved, load_config("oracle"), progress=False)
+
+
+def test_clean_targets_stay_at_the_simulated_poses_when_sfm_replaces_them(dataset, tmp_path):
+    """After `spikegs poses` the clean images were rendered at SfM's poses, not at the views
+    the spikes saw; with no pose log kept (a recording's own frame) they are refused."""
+    path = dataset.trajectory
+    shift = np.eye(4)
+    shift[0, 3] = 0.3  # SfM's poses: every camera moved
+    sfm = Trajectory(path.readouts, shift @ path.viewmats)
+
+    def with_poses(root, trajectory, meta):
+        root.mkdir()
+        return Dataset(
+            root, {**dataset.meta, **meta}, dataset.streams, trajectory,
+            dataset.train_timestamps, dataset.test_views,
+        )  # fmt: skip
+
+    replaced = with_poses(tmp_path / "kept", sfm, {})
+    path.save_json(replaced.root / TRAJECTORY_BACKUP)
+    targets = build_targets(replaced, load_config("oracle"), progress=False)
+    first = clean_source(dataset).image_at(path, float(dataset.train_timestamps[0]))
+    np.testing.assert_allclose(targets.instant[0].numpy(), first, atol=1e-6)
+    at_sfm = clean_source(dataset).image_at(sfm, float(dataset.train_timestamps[0]))
+    assert np.abs(at_sfm - first).max() > 0.1  # the test would see the wrong poses
+    own_frame = with_poses(tmp_path / "raw", sfm, {"held_out_by": "spikegs poses"})
+    with pytest.raises(ValueError, match="structure from motion's, in a frame of their own"):
+        build_targets(own_frame, load_config("oracle"), progress=False)
 
 
 @pytest.mark.parametrize(

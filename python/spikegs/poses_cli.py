@@ -27,6 +27,7 @@ from .data.dataset import (
     TEST_VIEWS,
     TIMESTAMPS,
     TRAJECTORY,
+    TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
     TestView,
     camera_keys,
@@ -269,7 +270,7 @@ def estimate_poses(
         f"SfM: {len(recon.readouts)} of {recon.num_images} images registered "
         f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points"
     ]
-    backup = root / f"{TRAJECTORY}.bak"
+    backup = root / TRAJECTORY_BACKUP
     reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     if reference is None:

@@ -141,14 +141,15 @@ def trained_sim(
 
 def clean_images(dataset, quantum: float) -> TargetImages:
     """The noise-free instant images at the training timestamps, rendered by the source that a
-    built-in scene's dataset was simulated from (already in intensity units); `quantum`: the
-    smooth-L1 zone they are compared within (they count no spikes)."""
-    from .data.simulate import clean_source  # here: the data package imports this module
+    built-in scene's dataset was simulated from at the poses it was simulated from (already in
+    intensity units; poses estimated since do not move them); `quantum`: the smooth-L1 zone they
+    are compared within (they count no spikes)."""
+    from .data.simulate import clean_source, simulated_trajectory  # the data package imports us
 
-    source = clean_source(dataset)
+    source, poses = clean_source(dataset), simulated_trajectory(dataset)
     ts = np.asarray(dataset.train_timestamps)
     render = lambda readouts: np.stack(  # noqa: E731
-        [source.image_at(dataset.trajectory, float(t)) for t in readouts]
+        [source.image_at(poses, float(t)) for t in readouts]
     ).astype(np.float32)
     return TargetImages(ts, render, 1.0, quantum)
 

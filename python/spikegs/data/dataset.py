@@ -92,8 +92,9 @@ class Dataset:
 
 
 PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
+TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
-DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", f"{TRAJECTORY}.bak", TIMESTAMPS)
+DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS)
 
 
 def holds_dataset(out: Path) -> bool:

@@ -14,6 +14,7 @@ from ..spikes import SimParams, simulate_spikes
 from .dataset import (
     FORMAT_VERSION,
     READOUT_PERIOD_S,
+    TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
     Dataset,
     TestView,
@@ -52,6 +53,21 @@ def clean_source(dataset: Dataset) -> Source:
             f"{kind or 'not simulated'} '{scene}'"
         )
     return make_source(scene, dataset.width, dataset.height, dataset.channels)
+
+
+def simulated_trajectory(dataset: Dataset) -> Trajectory:
+    """The poses `dataset` was simulated from: its trajectory, or where `spikegs poses` replaced
+    that with SfM's, the pose log it kept; ValueError where SfM's poses replaced no pose log (a
+    recording's own frame, which the source's scene is not in)."""
+    backup = Path(dataset.root) / TRAJECTORY_BACKUP
+    if backup.exists():
+        return Trajectory.load_json(backup)
+    if dataset.meta.get("held_out_by"):
+        raise ValueError(
+            f"{dataset.root}: its poses are structure from motion's, in a frame of their own "
+            f"(no {TRAJECTORY_BACKUP}): the scene's clean images cannot be rendered at them"
+        )
+    return dataset.trajectory
 
 
 def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
