@@ -468,6 +468,7 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
     [
         ("rate_at_one", -1),
         ("rate_at_one", 0),
+        ("rate_at_one", 5),  # more than one spike a readout: accepted and used as the scale
         ("scene_radius", -1),
         ("scene_center", [0, 0]),
         ("flip", "false"),
@@ -655,12 +656,42 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.1))
     with pytest.warns(UserWarning, match="distortion \\{'k1': 0.1\\} ignored.*pinhole"):
         load_dataset(root)
-    for value in ("abc", None, float("nan"), True):
+    for value in ("abc", None, float("nan"), True, str(fx)):  # a number as text was read
         edit_json(
             root / "transforms_train.json", lambda doc, v=value: doc["frames"][0].update(fl_x=v)
         )
         with pytest.raises(ValueError, match="transforms_train.json: fl_x expected a finite nu"):
             load_dataset(root)
+
+
+def test_nerf_focal_given_once_or_twice(sim, nerf, tmp_path):
+    """fl_y alone was refused as 'no intrinsics' (fl_x alone meant fy = fx); fl_x beside a
+    camera_angle_x that disagrees with it was taken silently."""
+    fx = float(sim.K[0, 0])
+    for key, name in (("fl_y", "only_fy"), ("fl_x", "both")):
+        root = copy(nerf, tmp_path / name)
+        for part in ("transforms_train.json", "transforms_test.json"):
+            edit_json(root / part, lambda doc, k=key: doc.update({k: fx}))
+            if name == "only_fy":
+                edit_json(root / part, lambda doc: doc.pop("camera_angle_x"))
+        np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
+    for part in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / part, lambda doc: doc.update(fl_x=0.5 * fx))
+    with pytest.warns(UserWarning, match="fl_x .* and camera_angle_x .* disagree; fl_x is used"):
+        assert load_dataset(root).K[0, 0] == pytest.approx(0.5 * fx)
+
+
+def test_nerf_matrix_of_text_refused(nerf, tmp_path):
+    """A transform_matrix of numbers written as strings loaded (numpy reads '1.0')."""
+    root = copy(nerf, tmp_path)
+    edit_json(
+        root / "transforms_train.json",
+        lambda doc: doc["frames"][0].update(
+            transform_matrix=[[str(v) for v in row] for row in doc["frames"][0]["transform_matrix"]]
+        ),
+    )
+    with pytest.raises(ValueError, match="transform_matrix expected 4 rows of 4 numbers"):
+        load_dataset(root)
 
 
 # -- training end to end ---------------------------------------------------------------------------

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import numbers
 
+import numpy as np
+
 
 def is_int(value) -> bool:
     """Whether `value` is an integer (not a bool)."""
@@ -18,3 +20,12 @@ def is_number(value) -> bool:
         and not isinstance(value, bool)
         and math.isfinite(float(value))
     )
+
+
+def number_array(value) -> np.ndarray:
+    """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls or
+    ragged lists (np.asarray(value, float) would read '1.0' and True as numbers)."""
+    array = np.asarray(value)  # ragged: ValueError
+    if array.dtype.kind not in "iuf":
+        raise ValueError(f"expected numbers, found {array.dtype.name} values")
+    return array.astype(np.float64)

@@ -66,7 +66,9 @@ def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     if colors.dim() != 3:
         raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
     k = colors.shape[1]
-    if isinstance(sh_degree, bool):
+    if sh_degree is not None and (
+        isinstance(sh_degree, bool) or not isinstance(sh_degree, numbers.Integral)
+    ):
         raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
@@ -176,7 +178,8 @@ def rasterize(
 
     means [N, 3], quats [N, 4] (w, x, y, z, any norm), scales [N, 3] and opacities [N] (already
     activated), colors [N, C] (direct) or [N, K, C] (SH coefficients, degree `sh_degree` or
-    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV), K [3, 3] intrinsics (no gradient:
+    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV; its top 3x4 rows read as an affine
+    map, not checked for rigidity), K [3, 3] intrinsics (no gradient:
     K.grad stays None), background [C].
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
     `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
@@ -184,7 +187,7 @@ def rasterize(
     each backward add the compositing's per-pixel shares of that gradient summed in absolute value
     (AbsGS's densification signal: shares of opposite sign do not cancel). Culled Gaussians get
     radius 0 and zero gradient.
-    Every output but `radii` is differentiable (once: no double backward).
+    Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
         got = means.dtype if isinstance(means, torch.Tensor) else type(means).__name__

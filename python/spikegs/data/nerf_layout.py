@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..number_checks import number_array
 from .dataset import Dataset, read_json, repeated
 from .real import camera_meta, held_out, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
@@ -62,7 +63,7 @@ def _read_doc(path: Path) -> dict:
 def _matrix(path: Path, i: int, frame: dict) -> np.ndarray:
     """Frame i's transform_matrix [4, 4]; ValueError naming the frame if it is not 4x4 numbers."""
     try:
-        matrix = np.array(frame["transform_matrix"], np.float64)
+        matrix = number_array(frame["transform_matrix"])
     except (ValueError, TypeError):
         matrix = None
     if matrix is None or matrix.shape != (4, 4):

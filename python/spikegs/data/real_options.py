@@ -74,7 +74,7 @@ CHECKS = {
         "a list of 3 finite numbers",
     ),
     "scene_radius": (lambda v: is_number(v) and v > 0, "a finite number > 0"),
-    "rate_at_one": (lambda v: is_number(v) and v > 0, "a finite number > 0"),
+    "rate_at_one": (lambda v: is_number(v) and 0 < v <= 1, "a number in (0, 1]: spikes a readout"),
 }
 
 

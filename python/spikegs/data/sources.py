@@ -22,6 +22,7 @@ import skimage.transform
 import torch
 
 from ..image_io import read_stored_image
+from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from .dataset import check_meta_values
 from .scenes import GaussianScene, srgb_to_linear
@@ -475,7 +476,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
         images.append(to_channels(image, channels))
         c2ws.append(f["transform_matrix"])
     try:
-        c2w = np.asarray(c2ws, np.float64)  # [F, 4, 4]
+        c2w = number_array(c2ws)  # [F, 4, 4]
     except ValueError as err:
         raise ValueError(f"{path}: transform_matrix expected 4x4 numbers ({err})") from None
     if c2w.shape[1:] != (4, 4) or not np.isfinite(c2w).all():
@@ -490,10 +491,7 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
 def camera_number(path: Path, key: str, value) -> float:
     """A transforms file's camera value as a finite float, in CAMERA_RANGES for its key;
     ValueError naming `key` otherwise (camera_angle_x over pi: degrees, not radians?)."""
-    try:
-        number = float(value) if not isinstance(value, bool) else math.nan
-    except (TypeError, ValueError):
-        number = math.nan
+    number = float(value) if is_number(value) else math.nan  # "0.4" is text, true no number
     if not math.isfinite(number):
         raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
     in_range, expected = CAMERA_RANGES.get(key, (lambda v: True, ""))
@@ -600,9 +598,17 @@ def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple, shift: float =
     `frame_columns`); cx, cy default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, doc.get(key, default))  # noqa: E731
-    if "fl_x" in doc:
-        fx = get("fl_x", None)
+    if "fl_x" in doc or "fl_y" in doc:  # one focal given: square pixels
+        fx = get("fl_x", doc.get("fl_y"))
         fy = get("fl_y", fx)
+        if "camera_angle_x" in doc:
+            from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
+            if abs(from_angle - fx) > 0.01 * fx:
+                warnings.warn(
+                    f"{path}: fl_x {fx:g} and camera_angle_x (a focal of {from_angle:.6g} px at "
+                    f"width {src_w:g}) disagree; fl_x is used",
+                    stacklevel=2,
+                )
     elif "camera_angle_x" in doc:
         fx = fy = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
     else:
