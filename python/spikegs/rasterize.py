@@ -6,13 +6,13 @@ The maths is in docs/rasterizer.md.
 from __future__ import annotations
 
 import math
-import numbers
 from typing import NamedTuple
 
 import torch
 from torch.autograd.function import once_differentiable
 
 from . import _C
+from .number_checks import is_int
 
 CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
 MAX_SIZE = 1 << 20  # image width and height: the core's tile and pixel indices are 32-bit
@@ -66,9 +66,7 @@ def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     if colors.dim() != 3:
         raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
     k = colors.shape[1]
-    if sh_degree is not None and (
-        isinstance(sh_degree, bool) or not isinstance(sh_degree, numbers.Integral)
-    ):
+    if sh_degree is not None and not is_int(sh_degree):
         raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
@@ -235,7 +233,7 @@ def rasterize(
     if screen_abs is not None:
         _check("screen_abs", screen_abs, (n, 2), dtype)
     for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        if not is_int(value):
             raise ValueError(f"{name}: expected a positive int, got {value!r}")
         if not 0 < value <= MAX_SIZE:
             raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")

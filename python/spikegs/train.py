@@ -140,13 +140,13 @@ def run_lock(run_dir: Path):
 RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
 
 
-def check_fresh_run_dir(run_dir: Path) -> None:
+def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
     """FileExistsError where a fresh run in `run_dir` would overwrite or mix with files that are
-    not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a finished or
-    checkpointed run is refused under the run's lock, with its own message)."""
+    not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a run with a
+    `checkpoint` is refused under the run's lock, with its own message)."""
     if run_dir.exists() and not run_dir.is_dir():
         raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
-    if not run_dir.is_dir() or (run_dir / "checkpoints" / "last.pt").exists():
+    if not run_dir.is_dir() or checkpoint.exists():
         return
     others = sorted(p.name for p in run_dir.iterdir() if p.name not in RUN_STARTED)
     if others:
@@ -391,7 +391,7 @@ class Trainer:
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
         if not resume:
-            check_fresh_run_dir(self.run_dir)
+            check_fresh_run_dir(self.run_dir, self.checkpoint_path)
         elif not self.checkpoint_path.exists():
             if not (self.run_dir / "config.yaml").exists():
                 raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")

@@ -37,10 +37,10 @@ def config_from_args(args: argparse.Namespace):
     run's own RUN/config.yaml) with the command-line overrides applied."""
     overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / "config.yaml"
-    own = args.resume and saved.is_file() and args.config is None and args.method is None
+    given = args.config if args.config is not None else args.method  # "" is refused by name
+    own = given is None and args.resume and saved.is_file()
     if own:  # keys added since the run was saved keep its behaviour
         overrides = {**legacy_overrides(saved), **overrides}
-    given = args.config if args.config is not None else args.method
     name = given if given is not None else (saved if own else DEFAULT_METHOD)
     return load_config(name, overrides, args.iterations)
 

@@ -598,19 +598,20 @@ def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple, shift: float =
     `frame_columns`); cx, cy default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, doc.get(key, default))  # noqa: E731
+    from_angle = None  # the focal (px) of camera_angle_x at the images' width
+    if "camera_angle_x" in doc:
+        from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
     if "fl_x" in doc or "fl_y" in doc:  # one focal given: square pixels
         fx = get("fl_x", doc.get("fl_y"))
         fy = get("fl_y", fx)
-        if "camera_angle_x" in doc:
-            from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
-            if abs(from_angle - fx) > 0.01 * fx:
-                warnings.warn(
-                    f"{path}: fl_x {fx:g} and camera_angle_x (a focal of {from_angle:.6g} px at "
-                    f"width {src_w:g}) disagree; fl_x is used",
-                    stacklevel=2,
-                )
-    elif "camera_angle_x" in doc:
-        fx = fy = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
+        if from_angle is not None and abs(from_angle - fx) > 0.01 * fx:
+            warnings.warn(
+                f"{path}: fl_x {fx:g} and camera_angle_x (a focal of {from_angle:.6g} px at "
+                f"width {src_w:g}) disagree; fl_x is used",
+                stacklevel=2,
+            )
+    elif from_angle is not None:
+        fx = fy = from_angle
     else:
         raise ValueError(
             f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
