@@ -1,6 +1,10 @@
 // A minimal test harness: TEST_CASE(name) { ... } registers a case; CHECK(cond, msg...) records a
 // failure. `exe NAME` runs one case (ctest does this, one test per case), `exe` runs them all.
 #pragma once
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -27,6 +31,14 @@ void fail(const char* file, int line, const char* cond, Args&&... args) {
   (os << ... << args);
   std::fprintf(stderr, "%s:%d: CHECK(%s) failed %s\n", file, line, cond, os.str().c_str());
   ++failures();
+}
+// OpenMP's thread count from here on, 0 for one a core; a build without OpenMP has one thread.
+inline void set_threads(int threads) {
+#ifdef _OPENMP
+  omp_set_num_threads(threads > 0 ? threads : omp_get_num_procs());
+#else
+  (void)threads;
+#endif
 }
 }  // namespace harness
 

@@ -1,7 +1,5 @@
 // The rasterizer's outputs and gradients are bitwise the same whatever the OpenMP thread count:
 // a run resumed or repeated on a machine with another core count follows the same path.
-#include <omp.h>
-
 #include <cstdio>
 
 #include "harness.hpp"
@@ -18,12 +16,12 @@ struct Outcome {
 
 // Renders and back-propagates `s` (in float, training's precision) with `threads` threads.
 Outcome run(const Scene<float>& s, int threads) {
-  omp_set_num_threads(threads);
+  harness::set_threads(threads);
   Render<float> r = render(s);
   const auto gi = random_weights(r.image.size(), 3), ga = random_weights(r.alpha.size(), 4);
   Grads<float> g = backward(s, r, std::vector<float>(gi.begin(), gi.end()),
                             std::vector<float>(ga.begin(), ga.end()));
-  omp_set_num_threads(omp_get_num_procs());
+  harness::set_threads(0);
   return {std::move(r), std::move(g)};
 }
 

@@ -1,6 +1,4 @@
 // Spike-stream core: layouts round trip, window counts and TFI against naive loops, simulator.
-#include <omp.h>
-
 #include <cstdint>
 #include <limits>
 #include <random>
@@ -200,7 +198,7 @@ TEST_CASE(simulator_independent_of_threads_and_chunks) {
   const std::vector<float> frames(2 * H * W, 0.7f);
   const std::vector<double> times = {0.0, double(T - 1)};
   auto simulate = [&](int threads, int64_t chunk) {
-    omp_set_num_threads(threads);
+    harness::set_threads(threads);
     SpikeSimulator sim(H, W, SimParams{}, 1234);
     std::vector<uint8_t> out(size_t(T * H * ((W + 7) / 8)));
     for (int64_t t = 0; t < T; t += chunk)
@@ -209,7 +207,7 @@ TEST_CASE(simulator_independent_of_threads_and_chunks) {
     return out;
   };
   const auto a = simulate(1, T), b = simulate(2, 7);
-  omp_set_num_threads(omp_get_num_procs());
+  harness::set_threads(0);
   CHECK(a == b, "same seed, other thread count and chunking");
   SpikeSimulator other(H, W, SimParams{}, 1235);
   std::vector<uint8_t> c(a.size());

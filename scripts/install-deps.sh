@@ -1,14 +1,27 @@
 #!/usr/bin/env bash
-# Installs what building SpikeGS needs and a fresh machine may lack: GLM (system package), the CPU
-# build of torch (pinned: an unpinned torch pulls a multi-GB CUDA build), and the build backend.
+# Installs what building SpikeGS needs and a fresh machine may lack: GLM (system package; on macOS
+# also libomp, the OpenMP runtime Apple's clang lacks), the CPU build of torch (pinned: an unpinned
+# torch pulls a multi-GB CUDA build), and the build backend.
 set -euo pipefail
-if [ ! -f /usr/include/glm/glm.hpp ] && [ ! -f /usr/local/include/glm/glm.hpp ]; then
+has_glm() {
+  local dir
+  for dir in /usr/include /usr/local/include /opt/homebrew/include "${CONDA_PREFIX:-/nonexistent}/include"; do
+    [ -f "$dir/glm/glm.hpp" ] && return 0
+  done
+  return 1
+}
+if ! has_glm; then
   if command -v apt-get >/dev/null; then
     SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
     $SUDO apt-get update -qq && $SUDO apt-get install -y -qq libglm-dev
+  elif command -v brew >/dev/null; then
+    brew install glm
   else
-    echo "GLM is missing: install it with your package manager (brew install glm, conda install glm)" >&2
+    echo "GLM is missing: install it with your package manager (conda install glm, vcpkg glm)" >&2
     exit 1
   fi
+fi
+if [ "$(uname)" = Darwin ] && command -v brew >/dev/null && ! brew list libomp >/dev/null 2>&1; then
+  brew install libomp  # CMakeLists.txt finds it through `brew --prefix libomp`
 fi
 python -m pip install -q "torch==2.13.0" "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja
