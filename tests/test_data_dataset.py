@@ -255,6 +255,11 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "height": ("meta.json", rewrite_meta(height=16.5), r"height expected an integer > 0"),
         "channels": ("meta.json", rewrite_meta(channels=2), "channels expected 1 .mono. or 3"),
         "centre": ("meta.json", rewrite_meta(scene_center="abc"), "scene_center expected 3"),
+        "spike files": (
+            "meta.json",
+            rewrite_meta(spike_files=["rec.dat"]),
+            r"spike_files \['rec.dat'\], but 1 channel\(s\) are read from \['spikes.dat'\]",
+        ),
         "version": ("meta.json", rewrite_meta(format_version=2), "format_version 2"),
         "flip": ("meta.json", rewrite_meta(flip="true"), "meta.json: flip expected true or false"),
         "none": ("test_views.json", views(no_views), "no held-out test view"),

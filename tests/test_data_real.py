@@ -495,6 +495,21 @@ def test_options_valid_values_pass(tmp_path):
     assert options.train_every == 3 and options.scene_radius == 2 and options.flip is False
 
 
+def test_options_scene_center_needs_its_radius(tmp_path):
+    write_options(tmp_path, scene_center=[0, 0, 1])
+    with pytest.raises(ValueError, match="scene_center needs scene_radius"):
+        read_options(tmp_path, {})
+    assert read_options(tmp_path, {"scene_radius": 2.0}).scene_radius == 2.0
+    write_options(tmp_path, scene_radius=2.0)  # about the computed centre
+    assert read_options(tmp_path, {}).scene_center is None
+
+
+def test_options_test_view_listed_twice_warns(tmp_path):
+    write_options(tmp_path, test_views=[3, 1, 3])
+    with pytest.warns(UserWarning, match=r"test_views lists \[3\] more than once"):
+        assert read_options(tmp_path, {}).test_views == [3, 1, 3]
+
+
 def test_llff_sphere_ignores_loose_far_bounds(sim, llff, tmp_path):
     """Cameras orbiting the scene: the sphere follows the optical axes and near bounds."""
     root = copy(llff, tmp_path)
@@ -610,6 +625,32 @@ def test_nerf_test_views_and_transforms_train_alone(nerf, tmp_path):
     assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_3"]
     (root / "spikegs.json").unlink()  # default: every 8th frame
     assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_2"]
+
+
+def test_nerf_transforms_files_left_unread_are_named(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    shutil.copy(root / "transforms_train.json", root / "transforms.json")
+    with pytest.warns(
+        UserWarning,
+        match=r"reading transforms_train.json, transforms_test.json; "
+        r"transforms.json not read",
+    ):
+        load_dataset(root)
+    (root / "transforms_test.json").unlink()
+    with pytest.warns(UserWarning, match=r"reading transforms_train.json; transforms.json not"):
+        load_dataset(root)
+
+
+def test_nerf_image_in_two_formats_named(nerf, tmp_path):
+    root = copy(nerf, tmp_path)
+    sharp = read_image(root / "test" / "r_0.exr")
+    write_image(root / "test" / "r_0.png", np.zeros_like(sharp))
+    with pytest.warns(
+        UserWarning,
+        match=r"test: frame images in several formats \(.png, .exr\): "
+        r".png is read",
+    ):
+        load_dataset(root)
 
 
 def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):

@@ -115,12 +115,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
         flip = as_flag("flip", meta["flip"])
     except ValueError as err:
         raise ValueError(f"{where}: {err}") from None
-    names = spike_files(channels)
-    if channels not in (1, 3) or meta.get("spike_files", names) != names:
-        raise ValueError(
-            f"{where}: expected channels 1 (spikes.dat) or 3 (spikes_r/g/b.dat) and those file "
-            f"names, found channels {channels} and spike_files {meta.get('spike_files')}"
-        )
+    check_meta_values(meta, where, ["channels"])  # 1 or 3, and spike_files as they are named
     intrinsics = [k for k in ("fx", "fy", "cx", "cy") if k in meta]
     if meta.get("intrinsics_from") != SFM and 0 < len(intrinsics) < 4:
         raise ValueError(
@@ -129,7 +124,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
         )
     stated = [k for k in (*intrinsics, "scene_center", "scene_radius") if k in meta]
     check_meta_values(meta, where, stated)  # what training reads later, refused now
-    return open_streams(root, names, h, w, flip, num)
+    return open_streams(root, spike_files(channels), h, w, flip, num)
 
 
 def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:

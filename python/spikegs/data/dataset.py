@@ -321,6 +321,12 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 raise ValueError(
                     f"{path}: scene_center expected 3 finite numbers, found {center!r}"
                 )
+    names = spike_files(meta["channels"]) if "channels" in keys else None
+    if names and meta.get("spike_files", names) != names:  # the files are found by these names
+        raise ValueError(
+            f"{path}: spike_files {meta['spike_files']}, but {meta['channels']} channel(s) are "
+            f"read from {names} (rename the files, or remove the key)"
+        )
 
 
 def read_column(path: Path, what: str) -> np.ndarray:

@@ -19,6 +19,7 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -182,6 +183,13 @@ def _frames(root: Path, options: Options):
     else:
         path = train if train.is_file() else single
         docs, paths = [_read_doc(path)], [path]
+    unread = [p.name for p in (train, test, single) if p.is_file() and p not in paths]
+    if unread:
+        warnings.warn(
+            f"{root}: reading {', '.join(p.name for p in paths)}; {', '.join(unread)} not read "
+            f"(the layout takes transforms_train.json + transforms_test.json, else one file)",
+            stacklevel=2,
+        )
     frames = [f for doc in docs for f in doc["frames"]]
     sources = [p for p, doc in zip(paths, docs) for _ in doc["frames"]]
     frame_docs = [doc for doc in docs for _ in doc["frames"]]

@@ -9,7 +9,8 @@ Every key is optional (docs/datasets.md, "Real data layouts"):
                          every 8th: 0, 8, 16, ...)
   train_every            readouts between training timestamps (LLFF single stream)
   pseudo_gt_window       readouts of the TFP standing in for a held-out view without a sharp image
-  scene_center, scene_radius  the scene sphere, instead of the one computed from the poses
+  scene_center, scene_radius  the scene sphere, instead of the one computed from the poses (a
+                         centre needs its radius; a radius alone is about the computed centre)
   rate_at_one            firing rate of intensity 1.0 when calibrated (else fitted to sharp
                          training images where there are some, else a TFP percentile)
 
@@ -20,6 +21,7 @@ and what was found.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 from ..number_checks import is_int, is_number
@@ -92,6 +94,15 @@ def read_options(root: Path, overrides: dict) -> Options:
         check, expected = CHECKS[key]
         if value is not None and not check(value):
             raise ValueError(f"{path}: {key} expected {expected}, found {value!r}")
+    if values.get("scene_center") is not None and values.get("scene_radius") is None:
+        raise ValueError(
+            f"{path}: scene_center needs scene_radius (the radius computed from the poses is "
+            f"about the centre computed with it)"
+        )
+    views = values.get("test_views") or []
+    twice = sorted({i for i in views if views.count(i) > 1})
+    if twice:
+        warnings.warn(f"{path}: test_views lists {twice} more than once", stacklevel=2)
     return Options(**values)
 
 

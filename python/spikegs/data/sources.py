@@ -627,10 +627,18 @@ def read_frame(base: Path, background: float) -> np.ndarray:
     channel composited over `background` in linear light, colour read as the file's metadata
     says: sRGB or linear, associated with alpha (EXR) or not (PNG)."""
     candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
-    found = next((p for p in candidates if p.is_file()), None)
-    if found is None:
+    files = [p for p in candidates if p.is_file()]
+    if not files:
         raise FileNotFoundError(
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
+        )
+    found = files[0]
+    if len(files) > 1 and found != base:  # one message per folder, not per frame
+        warnings.warn(
+            f"{base.parent}: frame images in several formats "
+            f"({', '.join(p.suffix for p in files)}): {found.suffix} is read, the first of "
+            f"{', '.join(IMAGE_EXTENSIONS)}",
+            stacklevel=2,
         )
     stored = read_stored_image(found)
     colour = np.broadcast_to(stored.colour, (*stored.colour.shape[:2], 3)).astype(np.float64)
