@@ -604,6 +604,10 @@ def test_malformed_files(llff, nerf, tmp_path):
     edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1]["transform_matrix"].pop())
     with pytest.raises(ValueError, match="transforms_test.json: frame 1 .*4 rows of 4 numbers"):
         load_dataset(root)
+    fresh = copy(nerf, tmp_path / "fresh")
+    edit_json(fresh / "transforms_train.json", lambda doc: doc["frames"][0].update(file_path=7))
+    with pytest.raises(ValueError, match=r"frame 0 needs a file_path \(text\)"):
+        load_dataset(fresh)
     (root / "transforms_train.json").write_text('{"frames": [')
     with pytest.raises(ValueError, match="transforms_train.json: not valid JSON"):
         load_dataset(root)

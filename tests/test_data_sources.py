@@ -164,9 +164,12 @@ def test_frame_sequence_rounded_poses_made_rigid_and_malformed_files_named(tmp_p
     np.testing.assert_allclose(source.viewmats, poses, atol=5e-3)
     for text, message in (
         ("[]", "expected a JSON object"),
-        (json.dumps({**doc, "frames": ["train/r_0"]}), "every frame needs a file_path"),
-        (json.dumps({**doc, "frames": [{**doc["frames"][0], "file_path": 3}]}), "every frame"),
-        (json.dumps({**doc, "frames": [{**doc["frames"][0], "transform_matrix": "I"}]}), "4x4"),
+        (json.dumps({**doc, "frames": ["train/r_0"]}), "frame 0 needs a file_path"),
+        (json.dumps({**doc, "frames": [{**doc["frames"][0], "file_path": 3}]}), r"\(text\)"),
+        (
+            json.dumps({**doc, "frames": [{**doc["frames"][0], "transform_matrix": "I"}]}),
+            "frame 0 .*transform_matrix expected 4 rows of 4 numbers",
+        ),
     ):
         path.write_text(text)
         with pytest.raises(ValueError, match=message):

@@ -24,66 +24,26 @@ from pathlib import Path
 
 import numpy as np
 
-from ..number_checks import number_array
-from .dataset import Dataset, read_json, repeated
+from .dataset import Dataset, repeated
 from .real import camera_meta, held_out, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
     IMAGE_EXTENSIONS,
-    OPENGL_TO_OPENCV,
     camera_matrix,
     fitted,
     frame_columns,
-    is_opengl,
     read_camera,
     read_frame,
+    read_transforms_doc,
     stated_size,
     to_channels,
+    transforms_viewmats,
     view_sphere,
 )
-from .trajectory import PathLike, rigid_c2w
+from .trajectory import PathLike
 
 SPIKE_DIR = "spike_data"
 TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
-
-
-def _read_doc(path: Path) -> dict:
-    if not path.is_file():
-        raise FileNotFoundError(f"transforms file not found: {path}")
-    doc = read_json(path)
-    if not isinstance(doc.get("frames", []), list):
-        raise ValueError(f"{path}: expected a JSON object with a list of frames")
-    for i, frame in enumerate(doc.get("frames") or []):
-        if not (isinstance(frame, dict) and {"file_path", "transform_matrix"} <= frame.keys()):
-            raise ValueError(f"{path}: frame {i} needs a file_path and a transform_matrix")
-    if not doc.get("frames"):
-        raise ValueError(f"{path}: no frames")
-    return doc
-
-
-def _matrix(path: Path, i: int, frame: dict) -> np.ndarray:
-    """Frame i's transform_matrix [4, 4]; ValueError naming the frame if it is not 4x4 numbers."""
-    try:
-        matrix = number_array(frame["transform_matrix"])
-    except (ValueError, TypeError):
-        matrix = None
-    if matrix is None or matrix.shape != (4, 4):
-        raise ValueError(
-            f"{path}: frame {i} ('{frame['file_path']}'): transform_matrix expected 4 rows of 4 "
-            f"numbers, found {frame['transform_matrix']!r}"[:300]
-        )
-    return matrix
-
-
-def _viewmats(path: Path, doc: dict) -> np.ndarray:
-    """OpenCV world-to-camera viewmats [F, 4, 4] of a transforms file's frames."""
-    c2w = np.stack([_matrix(path, i, f) for i, f in enumerate(doc["frames"])])  # [F, 4, 4]
-    bad = np.flatnonzero(~np.isfinite(c2w).all(axis=(1, 2)))
-    if bad.size:
-        raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in frames {bad.tolist()}")
-    if is_opengl(path, doc):
-        c2w = c2w @ OPENGL_TO_OPENCV
-    return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
 
 
 def _relative(root: Path, file_path: str) -> Path:
@@ -178,11 +138,11 @@ def _frames(root: Path, options: Options):
                 f"{root / OPTIONS_FILE}: test_views is for a single transforms file; {test.name} "
                 f"lists the test frames here (remove one or the other)"
             )
-        docs = [_read_doc(train), _read_doc(test)]
+        docs = [read_transforms_doc(train), read_transforms_doc(test)]
         paths = [train, test]
     else:
         path = train if train.is_file() else single
-        docs, paths = [_read_doc(path)], [path]
+        docs, paths = [read_transforms_doc(path)], [path]
     unread = [p.name for p in (train, test, single) if p.is_file() and p not in paths]
     if unread:
         warnings.warn(
@@ -193,7 +153,9 @@ def _frames(root: Path, options: Options):
     frames = [f for doc in docs for f in doc["frames"]]
     sources = [p for p, doc in zip(paths, docs) for _ in doc["frames"]]
     frame_docs = [doc for doc in docs for _ in doc["frames"]]
-    viewmats = np.concatenate([_viewmats(p, doc) for p, doc in zip(paths, docs)])  # [F, 4, 4]
+    viewmats = np.concatenate(
+        [transforms_viewmats(p, doc) for p, doc in zip(paths, docs)]
+    )  # [F, 4, 4]
     if len(docs) == 2:
         mask = np.arange(len(frames)) >= len(docs[0]["frames"])
     else:

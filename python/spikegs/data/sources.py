@@ -450,23 +450,62 @@ def view_sphere(
     )
 
 
-def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
-    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
-    transforms JSON."""
+def read_transforms_doc(path: Path) -> dict:
+    """A transforms JSON (NeRF / nerfstudio); FileNotFoundError, or ValueError naming `path`
+    unless it is an object with a non-empty list of frames, each with a file_path (text) and a
+    transform_matrix."""
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
     doc = read_json(path)
-    frames = doc.get("frames") or []
-    if not frames:
-        raise ValueError(f"{path}: no frames")
-    for f in frames:
-        if not (isinstance(f, dict) and isinstance(f.get("file_path"), str)) or (
-            "transform_matrix" not in f
+    if not isinstance(doc.get("frames", []), list):
+        raise ValueError(f"{path}: expected a JSON object with a list of frames")
+    for i, frame in enumerate(doc.get("frames") or []):
+        if not (
+            isinstance(frame, dict)
+            and isinstance(frame.get("file_path"), str)
+            and "transform_matrix" in frame
         ):
-            raise ValueError(f"{path}: every frame needs a file_path and a transform_matrix")
+            raise ValueError(f"{path}: frame {i} needs a file_path (text) and a transform_matrix")
+    if not doc.get("frames"):
+        raise ValueError(f"{path}: no frames")
+    return doc
+
+
+def _transform_matrix(path: Path, i: int, frame: dict) -> np.ndarray:
+    """Frame i's transform_matrix [4, 4]; ValueError naming the frame if it is not 4x4 numbers."""
+    try:
+        matrix = number_array(frame["transform_matrix"])
+    except (ValueError, TypeError):
+        matrix = None
+    if matrix is None or matrix.shape != (4, 4):
+        raise ValueError(
+            f"{path}: frame {i} ('{frame['file_path']}'): transform_matrix expected 4 rows of 4 "
+            f"numbers, found {frame['transform_matrix']!r}"[:300]
+        )
+    return matrix
+
+
+def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
+    """OpenCV world-to-camera viewmats [F, 4, 4] of a transforms document's frames (`path` names
+    it in errors); rounded rotations made exactly rigid, other ones refused."""
+    c2w = np.stack([_transform_matrix(path, i, f) for i, f in enumerate(doc["frames"])])
+    bad = np.flatnonzero(~np.isfinite(c2w).all(axis=(1, 2)))  # c2w [F, 4, 4]
+    if bad.size:
+        raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in frames {bad.tolist()}")
+    if is_opengl(path, doc):
+        c2w = c2w @ OPENGL_TO_OPENCV
+    return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
+
+
+def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
+    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
+    transforms JSON."""
+    doc = read_transforms_doc(path)
+    frames = doc["frames"]
+    viewmats = transforms_viewmats(path, doc)  # [F, 4, 4]
     camera = read_camera([doc] * len(frames), frames, [path] * len(frames))
     src, what = stated_size(path, camera, "its first frame")
-    images, c2ws = [], []
+    images = []
     for f in frames:
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
         src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
@@ -474,18 +513,8 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
             frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
         image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
-        c2ws.append(f["transform_matrix"])
-    try:
-        c2w = number_array(c2ws)  # [F, 4, 4]
-    except ValueError as err:
-        raise ValueError(f"{path}: transform_matrix expected 4x4 numbers ({err})") from None
-    if c2w.shape[1:] != (4, 4) or not np.isfinite(c2w).all():
-        raise ValueError(f"{path}: transform_matrix expected 4x4 finite numbers in every frame")
-    c2w = rigid_c2w(c2w, str(path), "frame")  # rounded poses made exactly rigid
-    if is_opengl(path, doc):
-        c2w = c2w @ OPENGL_TO_OPENCV
     K = camera_matrix(path, camera, src, (height, width))
-    return np.stack(images).astype(np.float32), np.linalg.inv(c2w), K, doc
+    return np.stack(images).astype(np.float32), viewmats, K, doc
 
 
 def camera_number(path: Path, key: str, value) -> float:
