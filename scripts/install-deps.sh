@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what building SpikeGS needs and a fresh machine may lack: GLM (system package; on macOS
-# also libomp, the OpenMP runtime Apple's clang lacks), the CPU build of torch (pinned: an unpinned
-# torch pulls a multi-GB CUDA build), and the build backend.
+# also libomp, the OpenMP runtime Apple's clang lacks), torch 2.13.0 (pinned: on this project's
+# machines a local CPU build, where an unpinned torch pulls a multi-GB CUDA build; elsewhere see the
+# README), and the build backend.
 set -euo pipefail
 has_glm() {
   local dir

@@ -177,6 +177,8 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         (root / name).unlink()
         with pytest.raises(FileNotFoundError, match=name.split("/")[-1]):
             load_dataset(root)
+    with pytest.raises(FileNotFoundError, match=r"no dataset found: none of meta.json .*LLFF"):
+        load_dataset(tmp_path / "meta.json")  # the copy above without its meta.json
     root = tmp_path / "nan"
     shutil.copytree(small.root, root)
     doc = json.loads((root / "trajectory.json").read_text())

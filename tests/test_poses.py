@@ -245,6 +245,9 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         assert main(["poses", str(raw), "--count", "30"]) == 2
         assert re.search(message, capsys.readouterr().err), message
         assert sorted(p.name for p in raw.iterdir()) == ["meta.json", "spikes.dat"]  # untouched
+    (tmp_path / "llff").mkdir()  # a layout with poses of its own, or no dataset at all
+    assert main(["poses", str(tmp_path / "llff")]) == 2
+    assert "an LLFF or NeRF layout brings its own poses" in capsys.readouterr().err
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

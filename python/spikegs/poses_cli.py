@@ -216,7 +216,10 @@ def estimate_poses(
     root = Path(root)
     meta_path = root / META
     if not meta_path.is_file():
-        raise FileNotFoundError(f"dataset file not found: {meta_path}")
+        raise FileNotFoundError(
+            f"dataset file not found: {meta_path} (spikegs poses reads a recording's meta.json and "
+            f"spike files; an LLFF or NeRF layout brings its own poses: docs/datasets.md)"
+        )
     meta = read_json(meta_path)
     if window < 1 or window % 2 == 0:
         raise ValueError(f"--window: expected an odd window >= 1, got {window}")

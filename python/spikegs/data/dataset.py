@@ -256,6 +256,10 @@ def load_dataset(path: PathLike) -> Dataset:
             return load_llff(root)
         if any((root / name).is_file() for name in TRANSFORMS):
             return load_nerf_layout(root)
+        raise FileNotFoundError(
+            f"{root}: no dataset found: none of {META} (simulated or spikegs poses), "
+            f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout); docs/datasets.md"
+        )
     meta_path = existing_file(root, META)
     meta = read_json(meta_path)
     _check_meta(meta, meta_path)
