@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
-# Installs what building SpikeGS needs and a fresh machine may lack: GLM (system package; on macOS
-# also libomp, the OpenMP runtime Apple's clang lacks), torch 2.13.0 (pinned: on this project's
-# machines a local CPU build, where an unpinned torch pulls a multi-GB CUDA build; elsewhere see the
-# README), and the build backend.
+# Installs what building SpikeGS needs and a fresh machine may lack: GLM (system package), torch
+# 2.13.0 (pinned: on this project's machines a local CPU build, where an unpinned torch pulls a
+# multi-GB CUDA build; elsewhere see the README), and the build backend.
 set -euo pipefail
 has_glm() {
   local dir
@@ -21,8 +20,5 @@ if ! has_glm; then
     echo "GLM is missing: install it with your package manager (conda install glm, vcpkg glm)" >&2
     exit 1
   fi
-fi
-if [ "$(uname)" = Darwin ] && command -v brew >/dev/null && ! brew list libomp >/dev/null 2>&1; then
-  brew install libomp  # CMakeLists.txt finds it through `brew --prefix libomp`
 fi
 python -m pip install -q "torch==2.13.0" "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja

@@ -360,6 +360,9 @@ def test_simulate_takes_a_forward_sweeps_scene_sphere_from_its_transforms_file(t
     path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3], "scene_radius": "1"}))
     with pytest.raises(ValueError, match="scene_radius expected a finite number > 0"):
         FrameSequenceSource.from_transforms(path, 24, 16)
+    path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3]}))  # a radius about another centre
+    with pytest.raises(ValueError, match="a scene centre needs its radius"):
+        FrameSequenceSource.from_transforms(path, 24, 16)
     path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3], "scene_radius": 1}))
     source = FrameSequenceSource.from_transforms(path, 24, 16)
     assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1

@@ -425,11 +425,17 @@ def converging_centre(
 def view_sphere(
     viewmats: np.ndarray, source, fix: str, *, center=None, radius: float | None = None
 ) -> tuple[np.ndarray, float]:
-    """The scene sphere's centre [3] and radius: `center`, `radius` where given, else
-    `converging_centre`'s; ValueError naming `source` and how to `fix` it when one is needed and
-    the optical axes of viewmats [F, 4, 4] do not converge in front of the cameras."""
+    """The scene sphere's centre [3] and radius: `center`, `radius` where given (a centre needs
+    its radius; a radius alone keeps the computed centre), else `converging_centre`'s; ValueError
+    naming `source` and how to `fix` it when one is needed and the optical axes of viewmats
+    [F, 4, 4] do not converge in front of the cameras."""
     if center is not None and radius is not None:
         return np.asarray(center, np.float64), float(radius)
+    if center is not None:
+        raise ValueError(
+            f"{source}: a scene centre needs its radius (the radius computed from the views is "
+            f"about the centre computed with it); {fix}"
+        )
     converged = converging_centre(viewmats, AXES_SPREAD_MIN)
     if converged is None:
         eyes, dirs, _ = optical_axes(viewmats)  # [F, 3], [F, 3]
@@ -444,10 +450,7 @@ def view_sphere(
             f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
             f"scene D ahead of them is centred at position + D * direction)"
         )
-    return (
-        converged[0] if center is None else np.asarray(center, np.float64),
-        converged[1] if radius is None else float(radius),
-    )
+    return converged[0], converged[1] if radius is None else float(radius)
 
 
 def read_transforms_doc(path: Path) -> dict:
