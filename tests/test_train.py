@@ -359,7 +359,7 @@ def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
     (tmp_path / "elsewhere").mkdir()
     monkeypatch.chdir(tmp_path / "elsewhere")
     config = load_config(tmp_path / "sub" / "run.yaml")
-    assert (config.method, config.train.iterations, config.train.seed) == ("tfp33", 77, 3)
+    assert (config.method, config.train.iterations, config.train.seed) == ("run", 77, 3)
     assert config.supervision.instant == "tfp"
     monkeypatch.chdir(tmp_path)  # the top file itself is still relative to the current directory
     assert load_config("sub/run.yaml").train.iterations == 77
@@ -368,15 +368,18 @@ def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
         load_config("sub/loop.yaml")
 
 
-def test_a_config_file_names_its_method_unless_it_or_its_base_does(tmp_path):
+def test_a_config_file_names_its_method_unless_it_names_one(tmp_path):
     """An empty --config file trained the dataclass defaults (L1, lambda 1) named `spikegs`, which
-    configs/spikegs.yaml is not (smooth L1, lambda 4): now it is named after the file."""
+    configs/spikegs.yaml is not (smooth L1, lambda 4), and a file based on a method trained under
+    that method's name with other settings: now each is named after the file."""
     (tmp_path / "empty.yaml").write_text("")
     empty = load_config(tmp_path / "empty.yaml")
     assert empty.method == "empty" and empty.supervision == Config().supervision
     (tmp_path / "short.yaml").write_text("base: spikegs\ntrain: {iterations: 100}\n")
     short, spikegs = load_config(tmp_path / "short.yaml"), load_config("spikegs")
-    assert short.method == "spikegs" and short.supervision == spikegs.supervision
+    assert short.method == "short" and short.supervision == spikegs.supervision
+    (tmp_path / "named.yaml").write_text("base: short.yaml\nmethod: lam4\n")
+    assert load_config(tmp_path / "named.yaml").method == "lam4"
     assert short.train.iterations == 100 and load_config(None) == spikegs
     copied = tmp_path / "tfp33.yaml"  # a copy of a method file keeps its method
     copied.write_text((CONFIG_DIR / "tfp33.yaml").read_text())
@@ -390,7 +393,11 @@ def test_a_file_named_like_a_method_must_start_from_it(tmp_path):
     with pytest.raises(ValueError, match="named like the built-in method 'spikegs'"):
         load_config(tmp_path / "spikegs.yaml")
     (tmp_path / "spikegs.yaml").write_text("base: spikegs\ntrain: {iterations: 600}\n")
-    assert load_config(tmp_path / "spikegs.yaml").supervision == load_config("spikegs").supervision
+    mine = load_config(tmp_path / "spikegs.yaml")
+    assert mine.method == "spikegs" and mine.supervision == load_config("spikegs").supervision
+    (tmp_path / "tfp33.yaml").write_text("base: spikegs\n")  # another method's name
+    with pytest.raises(ValueError, match="named like the built-in method 'tfp33'"):
+        load_config(tmp_path / "tfp33.yaml")
 
 
 def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):

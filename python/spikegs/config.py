@@ -4,10 +4,11 @@ A YAML file overrides only what differs from what it starts from, section by sec
 starts from another method's file, `base: FILE.yaml` from another file (a relative path is taken
 from the directory of the file that names it); without `base`, from the dataclass defaults (the
 paper's equations: L1 norms, lambda = 1; `--method spikegs` is configs/spikegs.yaml, smooth-L1
-norms and lambda = 4). A file that sets no `method` (nor does its base) is named after itself: an
-empty my_run.yaml trains the dataclass defaults as method `my_run`, never under another method's
-name (a file named like a built-in method must start from it or name itself). No file at all is
-the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
+norms and lambda = 4). A file that sets no `method` is named after itself, whatever its base: an
+empty my_run.yaml trains the dataclass defaults as method `my_run`, and lam2.yaml (`base: spikegs`,
+another lambda) trains as `lam2`, never under another method's name and settings (a file named
+like a built-in method must start from it, and is then that method, or name itself). No file at
+all is the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
 train.iterations: a config that sets another gets each schedule key it does not set scaled to it,
 as `--iterations` does. Unknown sections or keys, a key given twice, values of the wrong type or
 range and non-finite numbers are refused with a message that names the key and what is allowed.
@@ -323,8 +324,6 @@ def load_config(
     the scaling of the schedule keys that the config leaves unset."""
     config = Config()
     read = _read(DEFAULT_METHOD if name_or_path is None else name_or_path, set())
-    if "method" not in read:  # a file that names no method, nor does its base: its own name
-        read["method"] = _own_name(Path(name_or_path))
     _apply(config, read, "")
     if overrides:
         _apply(config, overrides, "")
@@ -341,12 +340,12 @@ def load_config(
     return config.validate()
 
 
-def _own_name(path: Path) -> str:
-    """The method name of a file that names none: its stem, unless that is a built-in method's
-    name and the file is not that method's (it would train under a name whose settings it lacks)."""
+def _own_name(path: Path, inherited: str | None) -> str:
+    """The method name of a file that names none: its stem; a built-in method's name only for a
+    file that starts from that method (`inherited`: its base's method), else it would train under
+    a name whose settings it lacks."""
     builtin = CONFIG_DIR / f"{path.stem}.yaml"
-    is_file = path.suffix in (".yaml", ".yml")
-    if is_file and builtin.exists() and builtin.resolve() != path.resolve():
+    if builtin.exists() and builtin.resolve() != path.resolve() and inherited != path.stem:
         raise ValueError(
             f"config file {path} is named like the built-in method '{path.stem}' but does not "
             f"start from it: add 'base: {path.stem}' to change that method, or 'method: NAME' "
@@ -387,6 +386,8 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     if base is not None and (not isinstance(base, str) or not base.strip()):
         raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
     merged = _read(base, seen | {path}, path.parent) if base else {}
+    if not seen and "method" not in data:  # the file given names no method: its own name
+        data["method"] = _own_name(path, merged.get("method"))
     _merge(merged, data)
     return merged
 
