@@ -9,6 +9,7 @@ import os
 import re
 import shutil
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -554,6 +555,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     again = tmp_path / "again"
     assert main([*argv, str(again)]) == 130
     assert "with --resume continues" in capsys.readouterr().err
+    interrupted = float((again / ".demo_seconds").read_text())  # that process's wall clock
     monkeypatch.setattr(Trainer, "step", step)
     assert main([*argv, str(again), "--resume", "--scene", "wires"]) == 2  # not its scene
     fresh, fresh_state = [], Trainer._fresh_state
@@ -561,11 +563,16 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         Trainer, "_fresh_state", lambda self: fresh.append(self.config.method) or fresh_state(self)
     )
     # without --iterations a resumed demo goes on with those it was started with (80, not 200)
+    start = time.perf_counter()
     assert main(["demo", "--no-progress", "--out", str(again), "--resume"]) == 0
+    took = time.perf_counter() - start
     assert fresh == ["tfp33"]  # SpikeGS went on from its checkpoint; TFP(33) had not started
     assert "resuming with the spike dataset" in capsys.readouterr().out
     resumed = json.loads((again / "results.json").read_text())
     assert resumed["resumed"] and not results["resumed"]
+    # total_seconds: both processes' (the first up to its Ctrl-C), not the last one's alone
+    assert interrupted + took - 0.2 < resumed["total_seconds"] <= interrupted + took
+    assert interrupted > 0.2 and not (again / ".demo_seconds").exists()
     for method, scores in results["methods"].items():
         for key in ("psnr", "ssim", "gaussians"):
             assert resumed["methods"][method][key] == scores[key], (method, key)

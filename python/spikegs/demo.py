@@ -79,6 +79,17 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
     return simulate_dataset(scene, data, overwrite=True, progress=progress)
 
 
+SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
+
+
+def earlier_seconds(out: Path) -> float:
+    """The seconds that earlier processes of the demo in `out` spent (0 where none recorded)."""
+    try:
+        return float((out / SECONDS_FILE).read_text())
+    except (FileNotFoundError, ValueError):
+        return 0.0
+
+
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
     config.yaml), None where no run has started."""
@@ -120,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     progress = not args.no_progress
     out = Path(args.out)
+    earlier = earlier_seconds(out) if args.resume else 0.0
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
     # --resume without --iterations goes on with those the demo was started with
     iterations = args.iterations or (started_iterations(out) if args.resume else None)
@@ -129,6 +141,8 @@ def run(args: argparse.Namespace) -> int:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
     except KeyboardInterrupt:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
         print("\nthe same command with --resume continues from here", file=sys.stderr)
         raise
     names = [v.name for v in dataset.test_views]
@@ -138,8 +152,8 @@ def run(args: argparse.Namespace) -> int:
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
     write_image(out / "comparison.png", np.concatenate(rows, axis=0))
-    total = time.perf_counter() - start
-    # total_seconds: this process's; a resumed demo's runs keep their earlier training time
+    total = earlier + time.perf_counter() - start  # with the interrupted processes' time
+    (out / SECONDS_FILE).unlink(missing_ok=True)
     payload = {
         "methods": results,
         "scene": dataset.meta.get("scene"),
