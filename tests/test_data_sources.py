@@ -13,6 +13,7 @@ from spikegs.data import (
     FrameSequenceSource,
     ProceduralSource,
     load_dataset,
+    make_source,
     simulate_dataset,
 )
 from spikegs.data.scenes import srgb_to_linear
@@ -366,6 +367,21 @@ def test_simulate_takes_a_forward_sweeps_scene_sphere_from_its_transforms_file(t
     path.write_text(json.dumps({**doc, "scene_center": [0, 0, 3], "scene_radius": 1}))
     source = FrameSequenceSource.from_transforms(path, 24, 16)
     assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
+
+
+def test_simulate_from_a_folder_names_the_transforms_file_it_leaves_unread(tmp_path):
+    """A folder with transforms_train.json and transforms.json simulated from the first silently."""
+    forward = forward_viewmats(4)
+    frames = np.random.default_rng(0).random((4, 16, 24, 3))
+    K = np.array([[30.0, 0, 12], [0, 30, 8], [0, 0, 1]])
+    for name in ("transforms_train.json", "transforms.json"):
+        write_transforms(tmp_path / name, "train", frames, forward, K, ".exr")
+        edit = json.loads((tmp_path / name).read_text())
+        (tmp_path / name).write_text(
+            json.dumps({**edit, "scene_center": [0, 0, 3], "scene_radius": 1})
+        )
+    with pytest.warns(UserWarning, match="reading transforms_train.json; transforms.json not read"):
+        make_source(tmp_path, 24, 16, 1)
 
 
 def test_narrow_inward_captures_give_their_scene_sphere():

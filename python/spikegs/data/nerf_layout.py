@@ -19,7 +19,6 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +28,7 @@ from .real import camera_meta, held_out, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
     IMAGE_EXTENSIONS,
+    TRANSFORMS,
     camera_matrix,
     fitted,
     frame_columns,
@@ -39,11 +39,11 @@ from .sources import (
     to_channels,
     transforms_viewmats,
     view_sphere,
+    warn_unread_transforms,
 )
 from .trajectory import PathLike
 
 SPIKE_DIR = "spike_data"
-TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")
 
 
 def _relative(root: Path, file_path: str) -> Path:
@@ -143,13 +143,7 @@ def _frames(root: Path, options: Options):
     else:
         path = train if train.is_file() else single
         docs, paths = [read_transforms_doc(path)], [path]
-    unread = [p.name for p in (train, test, single) if p.is_file() and p not in paths]
-    if unread:
-        warnings.warn(
-            f"{root}: reading {', '.join(p.name for p in paths)}; {', '.join(unread)} not read "
-            f"(the layout takes transforms_train.json + transforms_test.json, else one file)",
-            stacklevel=2,
-        )
+    warn_unread_transforms(root, paths)
     frames = [f for doc in docs for f in doc["frames"]]
     sources = [p for p, doc in zip(paths, docs) for _ in doc["frames"]]
     frame_docs = [doc for doc in docs for _ in doc["frames"]]

@@ -27,7 +27,14 @@ from .dataset import (
     write_parts,
 )
 from .scenes import SCENES
-from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Source
+from .sources import (
+    TRANSFORMS,
+    FrameSequenceSource,
+    MitsubaSource,
+    ProceduralSource,
+    Source,
+    warn_unread_transforms,
+)
 from .trajectory import Trajectory
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
@@ -129,11 +136,12 @@ def make_source(
     if str(scene) in SCENES:
         return ProceduralSource(str(scene), SCENES[str(scene)](), width, height, channels)
     path = Path(scene)
-    if path.is_dir():
-        found = [
-            path / n for n in ("transforms_train.json", "transforms.json") if (path / n).is_file()
-        ]
-        path = found[0] if found else path
+    if path.is_dir():  # a NeRF layout: its training frames, with transforms_test.json beside
+        root = path
+        train, test, single = (root / name for name in TRANSFORMS)
+        path = train if train.is_file() else single if single.is_file() else root
+        if path != root:
+            warn_unread_transforms(root, [path, test])
     if path.suffix == ".xml":
         return MitsubaSource(path, width, height, channels, spp=spp)
     if path.suffix == ".json" and path.is_file():

@@ -453,6 +453,22 @@ def view_sphere(
     return converged[0], converged[1] if radius is None else float(radius)
 
 
+TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")  # NeRF layout
+
+
+def warn_unread_transforms(root: Path, read: list[Path]) -> None:
+    """A UserWarning naming the TRANSFORMS files in `root` that are not among `read` (the files
+    taken: transforms_train.json + transforms_test.json, else one file)."""
+    unread = [name for name in TRANSFORMS if (root / name).is_file() and root / name not in read]
+    if unread:
+        taken = ", ".join(p.name for p in read if p.is_file())
+        warnings.warn(
+            f"{root}: reading {taken}; {', '.join(unread)} not read (the layout takes "
+            f"transforms_train.json + transforms_test.json, else one file)",
+            stacklevel=3,
+        )
+
+
 def read_transforms_doc(path: Path) -> dict:
     """A transforms JSON (NeRF / nerfstudio); FileNotFoundError, or ValueError naming `path`
     unless it is an object with a non-empty list of frames, each with a file_path (text) and a
