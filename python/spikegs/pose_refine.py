@@ -14,7 +14,9 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
-_SMALL = 1e-8  # theta² below which the series expansions are used
+# theta² below which the series expansions (to theta⁴: truncation < 3e-16) are used; above it the
+# closed forms lose at most ~1e-11 to cancellation in float64
+_SMALL = 1e-4
 
 
 @dataclass
@@ -36,16 +38,21 @@ def se3_exp(xi: torch.Tensor) -> torch.Tensor:
 
     R = I + a W + b W², t = (I + b W + c W²) v with W = hat(omega), theta = |omega| and
     a = sin θ / θ, b = (1 - cos θ) / θ², c = (θ - sin θ) / θ³; Taylor series near θ = 0 keep the
-    value and the gradient finite at zero.
+    value and the gradient finite at zero. Computed in float64 whatever xi's dtype: in float32
+    1 - cos θ and θ - sin θ cancel to 0 for θ ~ 1e-4, where refinement starts.
     """
+    dtype, xi = xi.dtype, xi.double()
     omega, v = xi[..., :3], xi[..., 3:]
     theta2 = (omega * omega).sum(-1, keepdim=True).unsqueeze(-1)  # [..., 1, 1]
     small = theta2 < _SMALL
     theta2_safe = torch.where(small, torch.ones_like(theta2), theta2)
     theta = theta2_safe.sqrt()
-    a = torch.where(small, 1 - theta2 / 6, torch.sin(theta) / theta)
-    b = torch.where(small, 0.5 - theta2 / 24, (1 - torch.cos(theta)) / theta2_safe)
-    c = torch.where(small, 1 / 6 - theta2 / 120, (theta - torch.sin(theta)) / (theta2_safe * theta))
+    t4 = theta2 * theta2
+    a = torch.where(small, 1 - theta2 / 6 + t4 / 120, torch.sin(theta) / theta)
+    b = torch.where(small, 0.5 - theta2 / 24 + t4 / 720, (1 - torch.cos(theta)) / theta2_safe)
+    c = torch.where(
+        small, 1 / 6 - theta2 / 120 + t4 / 5040, (theta - torch.sin(theta)) / (theta2_safe * theta)
+    )
     W = hat(omega)
     WW = W @ W
     eye = torch.eye(3, dtype=xi.dtype).expand_as(W)
@@ -54,7 +61,7 @@ def se3_exp(xi: torch.Tensor) -> torch.Tensor:
     top = torch.cat([rotation, translation.unsqueeze(-1)], dim=-1)  # [..., 3, 4]
     bottom = torch.zeros(*top.shape[:-2], 1, 4, dtype=xi.dtype)
     bottom[..., 0, 3] = 1
-    return torch.cat([top, bottom], dim=-2)
+    return torch.cat([top, bottom], dim=-2).to(dtype)
 
 
 class PoseRefiner(torch.nn.Module):
