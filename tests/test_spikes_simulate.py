@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 from spikegs import SimParams, SpikeStream, simulate_spikes
+from spikegs.spikes.simulate import sample_times
 
 
 def rates(packed: np.ndarray, width: int) -> np.ndarray:
@@ -96,6 +97,18 @@ def test_callable_source_matches_frames():
 
     want = simulate_spikes(frames, 300, frame_times=times, seed=3)
     np.testing.assert_array_equal(simulate_spikes(light, 300, frame_every=100, seed=3), want)
+
+
+def test_frame_every_that_rounds_onto_the_last_readout():
+    """np.arange(0, 21, 0.7) ends at 21.0 by rounding: the last readout was listed twice and
+    refused as not strictly increasing."""
+    light = lambda t: np.full((4, 4), 0.5, np.float32)  # noqa: E731
+    assert simulate_spikes(light, 22, frame_every=0.7).shape[0] == 22
+    for n in range(1, 400):
+        for every in (0.3, 0.7, 1.1, 2.9):
+            times = sample_times(n, every)
+            assert times[0] == 0 and times[-1] == n - 1
+            assert (np.diff(times) > 0).all() and (np.diff(times) <= every + 1e-9).all()
 
 
 def test_torch_tensors_are_light_too():

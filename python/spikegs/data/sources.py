@@ -24,6 +24,7 @@ import torch
 from ..image_io import read_stored_image
 from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
+from ..spikes.simulate import sample_times
 from .dataset import check_meta_values
 from .scenes import GaussianScene, srgb_to_linear
 from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
@@ -74,12 +75,6 @@ def intrinsics(width: int, height: int, fov_x_deg: float) -> np.ndarray:
     """K [3, 3] of a pinhole with horizontal field of view `fov_x_deg`, square pixels, centred."""
     f = width / 2 / np.tan(np.radians(fov_x_deg) / 2)
     return np.array([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
-
-
-def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
-    """Readouts [F] at which the light is rendered: 0, frame_every, … and the last readout."""
-    last = num_readouts - 1
-    return np.append(np.arange(0.0, last, frame_every), float(last))
 
 
 class Source(ABC):

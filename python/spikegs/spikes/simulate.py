@@ -69,6 +69,14 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     return frame
 
 
+def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
+    """Readouts [F] at which the light is rendered: 0, frame_every, … below the last readout, and
+    the last (a multiple that rounds onto it is not repeated)."""
+    last = num_readouts - 1
+    times = np.arange(0.0, last, frame_every)
+    return np.append(times[times < last], float(last))
+
+
 class _Frames:
     """The light: frames [F, H, W] at readout times [F], read lazily from an array or a callable."""
 
@@ -78,7 +86,7 @@ class _Frames:
         if callable(source):
             if frame_every <= 0:
                 raise ValueError(f"frame_every expected > 0, found {frame_every}")
-            self.times = np.append(np.arange(0.0, last, frame_every), float(last))  # [F]
+            self.times = sample_times(num_readouts, frame_every)  # [F]
             self._cache[0] = _checked_frame(source(0.0), None, "frame at t=0")
             self.shape = self._cache[0].shape
             self._get = lambda i: _checked_frame(
