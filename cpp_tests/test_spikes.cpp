@@ -98,7 +98,7 @@ TEST_CASE(bad_shapes_refused) {
   const PackedStream s = PackedStream::over(bytes.data(), 100, l);  // 25 readouts
   std::vector<int32_t> out(32);
   for (int64_t start : {-1, 23}) {
-    CHECK(throws_invalid([&] { window_counts<int32_t>(s, &start, 1, 3, 1, out.data()); }),
+    CHECK(throws_invalid([&] { window_counts<int32_t>(s, &start, 1, 3, out.data()); }),
           "window start ", start);
   }
   std::vector<float> f(32);
@@ -120,32 +120,34 @@ TEST_CASE(window_counts_match_naive) {
       const std::vector<int64_t> starts = {0, 17, T - w};
       std::vector<int32_t> got(starts.size() * H * W);
       std::vector<float> tfp(got.size());
-      window_counts<int32_t>(p.stream, starts.data(), int64_t(starts.size()), w, 1, got.data());
-      window_counts<float>(p.stream, starts.data(), int64_t(starts.size()), w, 1.0f / float(w),
-                           tfp.data());
+      window_counts<int32_t>(p.stream, starts.data(), int64_t(starts.size()), w, got.data());
+      window_counts<float>(p.stream, starts.data(), int64_t(starts.size()), w, tfp.data());
       int bad = 0;
       for (size_t b = 0; b < starts.size(); ++b)
         for (int64_t i = 0; i < H * W; ++i) {
           int32_t want = 0;
           for (int64_t t = starts[b]; t < starts[b] + w; ++t) want += bits[t * H * W + i];
           const size_t o = b * H * W + i;
-          bad += got[o] != want || std::abs(tfp[o] - float(want) / float(w)) > 1e-6f;
+          bad += got[o] != want || tfp[o] != float(want) / float(w);  // correctly rounded
         }
       CHECK(bad == 0, H, "x", W, " w=", w, " mismatches=", bad);
     }
   }
 }
 
+// A spike every readout is a TFP of exactly 1 (41 · float(1/41) is not; nor 47, 55, 61, 82).
 TEST_CASE(window_counts_all_zero_all_one) {
-  const int64_t T = 40, H = 4, W = 77;
+  const int64_t T = 100, H = 4, W = 77;
   for (uint8_t value : {0, 1}) {
     Packed p(Bits(size_t(T * H * W), value), T, SpikeLayout::memory(H, W));
     const int64_t start = 3;
-    std::vector<float> tfp(H * W, -1.0f);
-    window_counts<float>(p.stream, &start, 1, 33, 1.0f / 33, tfp.data());
-    bool ok = true;
-    for (float v : tfp) ok = ok && v == float(value);
-    CHECK(ok, "value ", int(value));
+    for (int64_t w : {33, 41, 47, 55, 61, 82}) {
+      std::vector<float> tfp(H * W, -1.0f);
+      window_counts<float>(p.stream, &start, 1, w, tfp.data());
+      bool ok = true;
+      for (float v : tfp) ok = ok && v == float(value);
+      CHECK(ok, "value ", int(value), " w=", w);
+    }
   }
 }
 
@@ -257,7 +259,7 @@ TEST_CASE(simulator_rate_is_calibrated_and_capped) {
       PackedStream::over(packed.data(), int64_t(packed.size()), SpikeLayout::memory(H, W));
   const int64_t start = 0;
   std::vector<float> rate(H * W);
-  window_counts<float>(s, &start, 1, T, 1.0f / float(T), rate.data());
+  window_counts<float>(s, &start, 1, T, rate.data());
   for (int64_t r = 0; r < 3; ++r) {
     double mean = 0;
     for (int64_t x = 0; x < W; ++x) mean += rate[r * W + x] / double(W);

@@ -141,10 +141,11 @@ def assert_near(actual: torch.Tensor, expected: torch.Tensor, rtol: float, what:
 
 
 def check_finite_and_culled(out, grads) -> None:
-    """Finite outputs and gradients; exactly zero gradients for culled Gaussians."""
+    """Finite outputs and gradients; zero 2D means, depths and gradients for culled Gaussians."""
     for name in ("image", "alpha", "means2d", "depths"):
         assert torch.isfinite(getattr(out, name)).all(), name
     culled = out.radii == 0
+    assert torch.all(out.means2d[culled] == 0) and torch.all(out.depths[culled] == 0)
     for name, g in grads.items():
         assert torch.isfinite(g).all(), f"grad {name}"
         if name not in ("viewmat", "background"):  # per-Gaussian gradients
@@ -488,6 +489,7 @@ EXTREME = {  # name -> (N, (width, height))
     "bad-values": (10, (33, 17)),
     "empty": (0, (33, 17)),
     "huge-extent": (4, (33, 17)),
+    "alpha-min-opacity": (6, (33, 17)),
     "width-1": (10, (1, 17)),
     "height-1": (10, (23, 1)),
     "one-pixel": (10, (1, 1)),
@@ -533,6 +535,9 @@ def _extreme(name: str) -> dict:
         s["means"] = at_camera([[0.1 * i - 0.15, 0.0, 2.0 + 0.1 * i] for i in range(n)])
         s["scales"] = torch.tensor([[0.05, 1e8, 0.05]] * n, dtype=torch.float64)
         s["quats"] = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n, dtype=torch.float64)
+    elif name == "alpha-min-opacity":  # o at 1/255 (alpha reaches 1/255 at most on the centre)
+        s["means"] = at_camera([[0.1 * i - 0.25, 0.0, 2.0] for i in range(n)])
+        s["opacities"] = torch.tensor([1 / 255, 1 / 255 + 1e-12, 1 / 255 - 1e-12] * 2).double()
     elif name == "bad-quats":
         s["quats"][0] = 0.0
         s["quats"][1, 2] = nan

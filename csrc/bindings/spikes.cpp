@@ -144,7 +144,7 @@ void bind_spikes(py::module_& m) {
       [](const Bytes& data, const SpikeLayout& layout, const Indices& starts, int64_t w) {
         return per_index<int32_t>(data, layout, starts, "starts",
                                   [w](const PackedStream& s, const int64_t* k, int64_t B,
-                                      int32_t* o) { window_counts<int32_t>(s, k, B, w, 1, o); });
+                                      int32_t* o) { window_counts<int32_t>(s, k, B, w, o); });
       },
       py::arg("data"), py::arg("layout"), py::arg("starts"), py::arg("w"),
       "spikes in readouts [start, start+w): int32 [B, H, W]");
@@ -153,8 +153,7 @@ void bind_spikes(py::module_& m) {
       [](const Bytes& data, const SpikeLayout& layout, const Indices& starts, int64_t w) {
         return per_index<float>(data, layout, starts, "starts",
                                 [w](const PackedStream& s, const int64_t* k, int64_t B, float* o) {
-                                  window_counts<float>(s, k, B, w, w > 0 ? 1.0f / float(w) : 0.0f,
-                                                       o);
+                                  window_counts<float>(s, k, B, w, o);
                                 });
       },
       py::arg("data"), py::arg("layout"), py::arg("starts"), py::arg("w"),

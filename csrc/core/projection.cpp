@@ -154,6 +154,7 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     // alpha >= 1/255 inside the ellipse d^T conic d <= 2 ln(255 o), whose bounding circle is r
     const T level = T(2) * std::log(T(255) * o);
     const T r = std::ceil(std::sqrt(level * lambda));
+    if (!(r >= T(1))) continue;  // o <= 1/255 (level <= 0): no pixel but its centre reaches 1/255
     auto reaches_image = [&](T half_x, T half_y) {  // the box mean ± half-widths overlaps it
       return mx + half_x > 0 && mx - half_x < cam.width && my + half_y > 0 &&
              my - half_y < cam.height;

@@ -5,6 +5,7 @@
 #include <immintrin.h>
 #endif
 #include <cstring>
+#include <type_traits>
 
 #include "core/errors.hpp"
 
@@ -160,12 +161,12 @@ void nearest_spike(const PackedStream& s, const Chunk& c, const uint64_t* valid,
 }  // namespace
 
 template <typename Out>
-void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out scale,
-                   Out* out) {
+void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out) {
   if (w < 1) fail("window length expected >= 1, found ", w);
   for (int64_t i = 0; i < num; ++i) check_range(s, starts[i], w);
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width;
+  const double inv_w = 1.0 / double(w);
 #pragma omp parallel for schedule(dynamic, 4)
   for (int64_t task = 0; task < num * chunks; ++task) {
     const int64_t i = task / chunks;
@@ -177,15 +178,19 @@ void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, in
     }
     Out* dst = out + i * hw;
     for_each_run(l, c, [&](int64_t r, int64_t x0, int64_t x1, int64_t i0) {
-      for (int64_t x = x0; x < x1; ++x) dst[r * l.width + x] = Out(cnt[i0 + x - x0]) * scale;
+      for (int64_t x = x0; x < x1; ++x) {
+        if constexpr (std::is_integral_v<Out>)
+          dst[r * l.width + x] = cnt[i0 + x - x0];
+        else  // in double, then rounded: counts / w correctly rounded (see the header)
+          dst[r * l.width + x] = Out(double(cnt[i0 + x - x0]) * inv_w);
+      }
     });
   }
 }
 
-template void window_counts<int32_t>(const PackedStream&, const int64_t*, int64_t, int64_t, int32_t,
+template void window_counts<int32_t>(const PackedStream&, const int64_t*, int64_t, int64_t,
                                      int32_t*);
-template void window_counts<float>(const PackedStream&, const int64_t*, int64_t, int64_t, float,
-                                   float*);
+template void window_counts<float>(const PackedStream&, const int64_t*, int64_t, int64_t, float*);
 
 void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out) {
   if (max_interval < 1 || max_interval > kMaxInterval)

@@ -26,12 +26,14 @@ namespace spikegs {
 
 constexpr int64_t kTfiDefaultMaxInterval = 1024;
 
-// out [num, H, W] = scale · (spikes in readouts [starts[i], starts[i] + w)); each window must lie
-// in the stream (std::invalid_argument otherwise). Out is int32_t (counts) or float (TFP, scale
-// 1/w).
+// out [num, H, W] = spikes in readouts [starts[i], starts[i] + w) as int32_t counts, or as float
+// counts / w (TFP), correctly rounded (a spike every readout gives exactly 1): the product with
+// 1/w in double errs by < 3e-16 relatively, and counts / w with w < 2^24 lies at least 2^-49
+// (relatively) from any point halfway between floats, so rounding to float picks the right one
+// whatever -ffast-math does to a division. Each window must lie in the stream
+// (std::invalid_argument otherwise).
 template <typename Out>
-void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out scale,
-                   Out* out);
+void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out);
 
 // out [num, H, W] = TFI at readouts ks[i] (each in [0, T)), defined above.
 void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out);

@@ -162,7 +162,7 @@ def _project(
         # the circle's box, then the ellipse's own x and y half-widths (+1 px), the box the C++
         # binning tiles: it can miss the image where the circle does not
         ex, ey = torch.sqrt(level * a) + 1, torch.sqrt(level * c) + 1
-        keep = keep & reaches_image(r, r) & reaches_image(ex, ey)
+        keep = keep & (r >= 1) & reaches_image(r, r) & reaches_image(ex, ey)
         radii = torch.where(keep, torch.clamp(r, max=2.0**30), 0).to(torch.int32)
 
     # 9: colour
