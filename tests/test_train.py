@@ -542,6 +542,19 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
     printed = capsys.readouterr().out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
+    # --resume on the finished demo trains nothing and keeps its time (was this process's alone)
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0
+    again_results = json.loads((out / "results.json").read_text())
+    assert again_results["total_seconds"] > results["total_seconds"]
+    assert again_results["methods"] == results["methods"]
+
+    # a fresh demo refuses, before any work, to delete a run folder holding a user's files
+    mine = tmp_path / "mine"
+    (mine / "runs" / "spikegs").mkdir(parents=True)
+    (mine / "runs" / "spikegs" / "notes.txt").write_text("mine")
+    assert main([*argv, str(mine)]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+    assert sorted(p.name for p in mine.rglob("*")) == ["notes.txt", "runs", "spikegs"]
 
     step = Trainer.step
 
@@ -558,6 +571,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     interrupted = float((again / ".demo_seconds").read_text())  # that process's wall clock
     monkeypatch.setattr(Trainer, "step", step)
     assert main([*argv, str(again), "--resume", "--scene", "wires"]) == 2  # not its scene
+    capsys.readouterr()
     fresh, fresh_state = [], Trainer._fresh_state
     monkeypatch.setattr(
         Trainer, "_fresh_state", lambda self: fresh.append(self.config.method) or fresh_state(self)

@@ -8,6 +8,7 @@ DIR/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, sta
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 import time
@@ -80,13 +81,20 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
 
 
 SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
+RESULTS = "results.json"
 
 
 def earlier_seconds(out: Path) -> float:
-    """The seconds that earlier processes of the demo in `out` spent (0 where none recorded)."""
+    """The seconds that earlier processes of the demo in `out` spent: those of its interrupted
+    processes, or a finished demo's total_seconds (resumed, it has nothing left to train); 0
+    where none recorded."""
     try:
         return float((out / SECONDS_FILE).read_text())
     except (FileNotFoundError, ValueError):
+        pass
+    try:
+        return float(json.loads((out / RESULTS).read_text())["total_seconds"])
+    except (FileNotFoundError, ValueError, KeyError, TypeError):
         return 0.0
 
 
@@ -98,6 +106,24 @@ def started_iterations(out: Path) -> int | None:
         if saved.is_file():
             return int(yaml.safe_load(saved.read_text())["train"]["iterations"])
     return None
+
+
+def check_run_dirs(out: Path) -> None:
+    """FileExistsError, before any work, where a fresh demo would delete OUT/runs/METHOD holding
+    files that are not a spikegs run's (a user's own run there keeps its notes, renders, ...)."""
+    from .train import foreign_files
+
+    for method in METHODS:
+        run_dir = out / "runs" / method
+        if run_dir.exists() and not run_dir.is_dir():
+            raise FileExistsError(f"{run_dir} is a file; give the demo another --out")
+        others = foreign_files(run_dir)
+        if others:
+            raise FileExistsError(
+                f"{run_dir} holds files that a demo would delete with its run "
+                f"({', '.join(others[:5])}{', ...' if len(others) > 5 else ''}); give the demo "
+                f"another --out"
+            )
 
 
 def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress: bool) -> dict:
@@ -132,11 +158,16 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.no_progress
     out = Path(args.out)
     earlier = earlier_seconds(out) if args.resume else 0.0
+    resumed = args.resume and (out / "data" / "meta.json").exists()  # not a fresh start
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
     # --resume without --iterations goes on with those the demo was started with
     iterations = args.iterations or (started_iterations(out) if args.resume else None)
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
+    if not args.resume:
+        check_run_dirs(out)
+        for stale in (RESULTS, SECONDS_FILE):  # an earlier demo's, until this one writes its own
+            (out / stale).unlink(missing_ok=True)
     try:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
@@ -158,9 +189,9 @@ def run(args: argparse.Namespace) -> int:
         "methods": results,
         "scene": dataset.meta.get("scene"),
         "total_seconds": total,
-        "resumed": bool(args.resume),
+        "resumed": resumed,
     }
-    (out / "results.json").write_text(strict_json.dumps(payload, indent=2))
+    (out / RESULTS).write_text(strict_json.dumps(payload, indent=2))
     print()
     print_table(
         [

@@ -138,6 +138,14 @@ def run_lock(run_dir: Path):
 
 # what a fresh run writes before its first checkpoint: it may start over a run stopped then
 RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
+# what `spikegs train` and `spikegs eval` write in a run (and eval-DATASET*[.json] for others')
+RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", "eval", "eval.json"}
+
+
+def foreign_files(run_dir: Path) -> list[str]:
+    """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted."""
+    names = (p.name for p in run_dir.iterdir()) if run_dir.is_dir() else ()
+    return sorted(n for n in names if n not in RUN_FILES and not n.startswith("eval-"))
 
 
 def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
