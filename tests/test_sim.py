@@ -1,11 +1,14 @@
 """SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
 from skimage import data
 from skimage.metrics import structural_similarity
 from spikegs.metrics import psnr, ssim
+from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
 from spikegs.sim_train import (
     compare_methods,
@@ -175,9 +178,9 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
         torch.testing.assert_close(loaded(x), model(x))  # layouts differ: last-bit changes only
     stream, ts = scene[1], [40, 50]
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
-    first, seconds = train_or_load(path, stream, ts, 33, **tiny)  # no fingerprint: trained
+    first, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)  # no fingerprint: trained
     assert seconds > 0
-    reused, seconds = train_or_load(path, stream, ts, 33, **tiny)
+    reused, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     assert seconds == 0 and torch.equal(reused.head[-1].bias, first.head[-1].bias)
     other = BernoulliStream(scene[0], len(stream), seed=1)
     for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
@@ -190,6 +193,32 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary file left
+
+
+def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path, monkeypatch):
+    """A dataset folder that cannot be written (a read-only mount) ended SIM's training in a
+    traceback from torch.save, and `spikegs train` could not train a SIM method on it at all."""
+    dataset_sim = tmp_path / "dataset" / "sim"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(
+        "spikegs.sim_train.writable_folder", lambda folder: Path(folder) != dataset_sim
+    )
+    stream, ts = scene[1], [40, 50]
+    tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
+    model, seconds, path = train_or_load(dataset_sim / "sim.pt", stream, ts, 33, **tiny)
+    assert seconds > 0 and not dataset_sim.exists()
+    assert path.name == "sim.pt" and path.is_relative_to(tmp_path / "cache" / "spikegs" / "sim")
+    again, seconds, same = train_or_load(dataset_sim / "sim.pt", stream, ts, 33, **tiny)
+    assert seconds == 0 and same == path  # found there the next time
+    assert torch.equal(again.head[-1].bias, model.head[-1].bias)
+    other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
+    assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
+
+
+def test_writable_folder(tmp_path):
+    assert writable_folder(tmp_path) and writable_folder(tmp_path / "new" / "deeper")
+    (tmp_path / "file").write_text("")
+    assert not writable_folder(tmp_path / "file") and not writable_folder(tmp_path / "file" / "x")
 
 
 class _CtrlC:
@@ -225,7 +254,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     assert state["step"] == 12 and not path.exists()
     state["seconds"] = 1000.0  # the interrupted process's training time counts
     torch.save(state, partial)
-    resumed, seconds = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    resumed, seconds, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
     assert "resumes at step 12 of 30" in capsys.readouterr().out
     assert 1000 < seconds == torch.load(path, weights_only=True)["meta"]["seconds"] < 1100
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
@@ -237,7 +266,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
         train_or_load(path, _CtrlC(stream, 9), ts, 33, seed=3, **TRAIN)
     other = dict(TRAIN, crop=12)  # ... is not resumed for crop 12: trained afresh
     fresh, _ = train_sim(stream, ts, 33, seed=3, **other)
-    afresh, _ = train_or_load(path, stream, ts, 33, seed=3, **other)
+    afresh, _, _ = train_or_load(path, stream, ts, 33, seed=3, **other)
     for a, b in zip(afresh.state_dict().values(), fresh.state_dict().values()):
         assert torch.equal(a, b)
 
@@ -345,6 +374,30 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     monkeypatch.setattr("spikegs.sim_cli.trained_sim", lambda *a, **k: pytest.fail("trained"))
     assert main(["sim-train", str(root)]) == 2
     assert "no held-out view on the camera path" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--window", "4"], "sim.window = 4"),
+        (["--target-window", "35"], "sim.target_window = 35"),
+        (["--seed", "-1"], "train.seed = -1"),
+        (["--out", "."], "is a directory"),
+        (["--out", "file/sim.pt"], "a folder on its path is a file"),
+    ],
+)
+def test_sim_train_cli_refuses_bad_options_before_training(
+    args, message, tmp_path, monkeypatch, capsys
+):
+    """An --out that was a directory or under a file was found out after training (and a
+    directory read as an 'unreadable' cache); an even --window was trained."""
+    from spikegs.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setattr("spikegs.sim_cli.load_dataset", lambda *a: pytest.fail("loaded"))
+    assert main(["sim-train", "data", *args]) == 2
+    assert message in capsys.readouterr().err
 
 
 def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, capsys):

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .data.trajectory import WORLD_UP, look_at
+from .output_paths import check_file_output
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
 # count as level (roll noise of SfM poses stays below it)
@@ -84,10 +85,7 @@ def check_video_output(path: Path, fps: int) -> None:
     suffix = path.suffix.lower()
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
-    if path.is_dir():
-        raise ValueError(f"--out {path}: is a directory")
-    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
-        raise ValueError(f"--out {path}: a folder on its path is a file")
+    check_file_output(path)
     if fps < 1:
         raise ValueError(f"--fps: expected a positive number, got {fps}")
     if suffix == ".gif" and fps > GIF_MAX_FPS:

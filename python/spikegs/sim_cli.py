@@ -9,9 +9,10 @@ from pathlib import Path
 
 from .bench.common import print_table
 from .cli import positive_int
-from .config import SimConfig, TrainConfig
+from .config import Config, SimConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
+from .output_paths import check_file_output
 from .sim_train import evaluate_dataset, on_path_views
 from .targets import trained_sim
 
@@ -39,8 +40,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    dataset = load_dataset(args.dataset)
-    views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     sim = SimConfig(
         window=args.window,
         target_window=args.target_window,
@@ -49,6 +48,11 @@ def run(args: argparse.Namespace) -> int:
         batch=args.batch_size,
         loss=args.loss,
     )
+    Config(sim=sim, train=TrainConfig(seed=args.seed)).validate()  # the config's rules
+    if args.out is not None:
+        check_file_output(args.out)
+    dataset = load_dataset(args.dataset)
+    views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     try:
         model, seconds, out = trained_sim(
             dataset, sim, args.seed, path=args.out, force=args.force, progress=not args.no_progress

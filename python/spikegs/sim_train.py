@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -20,6 +21,7 @@ from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically
 from .metrics import psnr, ssim
+from .output_paths import writable_folder
 from .sim import SIM, START
 
 CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
@@ -207,32 +209,51 @@ def spikes_fingerprint(stream, timestamps: Sequence[int]) -> str:
     return digest.hexdigest()
 
 
+def _cached(path: Path, window: int, data: str) -> SIM | None:
+    """The SIM saved at `path` if it was trained for `window` on the spikes of fingerprint `data`
+    from this package's start; None (saying why where a file is there) otherwise."""
+    if not path.exists():
+        return None
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
+        print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh")
+        return None
+    meta = payload["meta"]
+    if (payload["config"]["window"], meta.get("data"), meta.get("start")) == (window, data, START):
+        return _model_of(payload)
+    print(
+        f"{path}: trained on other spikes, for another window or from another start; "
+        f"training SIM afresh"
+    )
+    return None
+
+
+def user_cache(name: str, data: str) -> Path:
+    """Where a SIM for spikes of fingerprint `data` is cached when its dataset's folder cannot be
+    written: $XDG_CACHE_HOME (else ~/.cache)/spikegs/sim/<fingerprint>/name."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "spikegs" / "sim" / data[:16] / name
+
+
 def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool = False, **kwargs):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
-    `spikes_fingerprint`), unless `force`; else train one and save it there.
+    `spikes_fingerprint`), unless `force`; else train one and save it there. Where `path`'s
+    folder cannot be written (a read-only dataset), `user_cache` stands in for it.
 
     Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps
-    included).
+    included, the path it was loaded from or saved at).
     """
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
-    if path.exists() and not force:
-        try:
-            payload = torch.load(path, map_location="cpu", weights_only=True)
-        except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
-            print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh")
-        else:
-            meta = payload["meta"]
-            if (payload["config"]["window"], meta.get("data"), meta.get("start")) == (
-                window,
-                data,
-                START,
-            ):
-                return _model_of(payload), 0.0
-            print(
-                f"{path}: trained on other spikes, for another window or from another start; "
-                f"training SIM afresh"
-            )
+    model = None if force else _cached(path, window, data)
+    if model is None and not writable_folder(path.parent):
+        fallback = user_cache(path.name, data)
+        print(f"{path.parent} cannot be written: SIM is cached in {fallback}")
+        path = fallback
+        model = None if force else _cached(path, window, data)
+    if model is not None:
+        return model, 0.0, path
     partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
     settings = {k: v for k, v in kwargs.items() if k != "progress"}
     key = {"data": data, "start": START, "window": window, **settings}
@@ -247,7 +268,7 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     final_loss = float(np.mean(losses[-50:]))
     save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
     partial.unlink(missing_ok=True)
-    return model, seconds
+    return model, seconds, path
 
 
 def inference_model(model: SIM, dtype: torch.dtype = torch.float32) -> SIM:

@@ -119,10 +119,10 @@ def trained_sim(
     progress: bool = True,
 ):
     """(SIM, seconds spent training it, path): the one cached for `sim`'s settings (at `path`, by
-    default `sim_path`), else trained on every channel's stream at the training timestamps."""
-    path = path or sim_path(dataset, sim, seed)
-    model, seconds = train_or_load(
-        path,
+    default `sim_path`; `train_or_load` may cache elsewhere), else trained on every channel's
+    stream at the training timestamps."""
+    model, seconds, path = train_or_load(
+        path or sim_path(dataset, sim, seed),
         dataset.streams,  # a colour camera's channels share one SIM
         dataset.train_timestamps,
         sim.window,

@@ -1,0 +1,27 @@
+"""Checks, before any work, that the files a command will write can be written."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+def writable_folder(folder: Path) -> bool:
+    """Whether files can be made in `folder`, or in its nearest existing ancestor where it does
+    not exist yet (a read-only mount counts as not writable, for root too)."""
+    folder = Path(folder).absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)
+
+
+def check_file_output(path: Path, flag: str = "--out") -> None:
+    """ValueError unless a file can be written at `path`: not a directory, no file on its folder
+    path, its folder writable."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{flag} {path}: is a directory; give a file name")
+    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
+        raise ValueError(f"{flag} {path}: a folder on its path is a file")
+    if not writable_folder(path.parent):
+        raise ValueError(f"{flag} {path}: its folder is not writable")
