@@ -147,6 +147,10 @@ def test_negative_view_counts_refused(tmp_path):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
     with pytest.raises(ValueError, match="speed: expected a finite"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": float("nan")})
+    for seed in (-1, 2**64):  # wrapped around to another seed's data (a colour one: an empty out)
+        with pytest.raises(ValueError, match="seed"):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, "seed": seed, "color": True})
+    assert not (tmp_path / "x").exists()
 
 
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):

@@ -144,8 +144,9 @@ def test_bad_input_refused():
         simulate_spikes(frames, 10, params=SimParams(rate_at_one=2.0))
     with pytest.raises(ValueError, match="num_readouts"):
         simulate_spikes(frames, 0)
-    with pytest.raises(ValueError, match="seed"):  # 1.5 was read as 1
-        simulate_spikes(frames, 10, seed=1.5)
+    for seed in (1.5, -1, 2**64):  # 1.5 was read as 1, -1 and 2**64 wrapped to 2**64 - 1 and 0
+        with pytest.raises(ValueError, match="seed"):
+            simulate_spikes(frames, 10, seed=seed)
     for chunk in (0, -1, 2.5):
         with pytest.raises(ValueError, match="chunk"):
             simulate_spikes(frames, 10, chunk=chunk)

@@ -28,6 +28,7 @@ import yaml
 
 from .densify import DensifyConfig
 from .losses import NORMS
+from .number_checks import SEED_MAX, is_seed
 from .pose_refine import PoseRefineConfig
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -41,7 +42,6 @@ DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
 MIN_GAUSSIANS = 16
-SEED_MAX = 2**64 - 1  # torch.manual_seed's range
 # densify keys counted in iterations: their defaults are for TrainConfig.iterations, and a run of
 # another length scales them (0 stays: stop = half the run, no opacity reset)
 SCHEDULE_KEYS = ("start", "stop", "every", "opacity_reset_every")
@@ -158,7 +158,7 @@ class Config:
             "exposure_weight > 0 when there is no instant target",
         )
         _require(t.iterations >= 1, "train.iterations", t.iterations, ">= 1")
-        _require(0 <= t.seed <= SEED_MAX, "train.seed", t.seed, f"0..{SEED_MAX} (2**64 - 1)")
+        _require(is_seed(t.seed), "train.seed", t.seed, f"0..{SEED_MAX} (2**64 - 1)")
         _require(0 <= t.sh_degree <= 3, "train.sh_degree", t.sh_degree, "0..3")
         _require(
             t.init_gaussians >= MIN_GAUSSIANS,

@@ -1,4 +1,5 @@
-"""Checks of numbers read from files (JSON, YAML): true and false are not numbers there."""
+"""Checks of numbers read from files (JSON, YAML: true and false are not numbers there) and of
+seeds."""
 
 from __future__ import annotations
 
@@ -11,6 +12,14 @@ import numpy as np
 def is_int(value) -> bool:
     """Whether `value` is an integer (not a bool)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+SEED_MAX = 2**64 - 1  # torch.manual_seed's range, and the simulator's
+
+
+def is_seed(value) -> bool:
+    """Whether `value` is an integer seed in 0..SEED_MAX (one outside would wrap around)."""
+    return is_int(value) and 0 <= value <= SEED_MAX
 
 
 def is_number(value) -> bool:

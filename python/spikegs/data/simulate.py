@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ..number_checks import is_seed
 from ..spikes import SimParams, simulate_spikes
 from .dataset import (
     FORMAT_VERSION,
@@ -228,6 +229,8 @@ def simulate_dataset(
     params = SimParams(**sim_params)
     if height < 1 or width < 1:
         raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
+    if not is_seed(seed):
+        raise ValueError(f"seed (--seed): expected an integer in 0..2**64 - 1, found {seed}")
     if not math.isfinite(speed):
         raise ValueError(f"speed: expected a finite number of degrees per readout, found {speed}")
     if test_on_path < 0 or test_off_path < 0:
@@ -249,8 +252,8 @@ def simulate_dataset(
         )
     if 2 in (height, width) or (height, width) == (1, 1):
         raise ValueError(
-            f"{height}x{width} images cannot be scored (SSIM, in spikegs eval, needs sides of 1 or "
-            f"at least 3 pixels, not both 1)"
+            f"{height}x{width} images cannot be scored (SSIM, in spikegs eval, needs each side 1 "
+            f"or at least 3 pixels, and not 1x1)"
         )
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1

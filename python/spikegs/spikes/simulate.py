@@ -17,6 +17,7 @@ from typing import Callable, Union
 import numpy as np
 
 from .. import _C
+from ..number_checks import is_seed
 from .stream import DatWriter, PathLike, SpikeStream, as_flag, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
@@ -156,13 +157,13 @@ def simulate_spikes(
     if int(num_readouts) != num_readouts or num_readouts < 1:
         raise ValueError(f"num_readouts expected a positive int, found {num_readouts}")
     num_readouts = int(num_readouts)
-    if int(seed) != seed:
-        raise ValueError(f"seed expected an int, found {seed}")
+    if not is_seed(seed):
+        raise ValueError(f"seed expected an integer in 0..2**64 - 1, found {seed}")
     check_chunk(chunk)
     frames = _Frames(source, num_readouts, frame_times, frame_every)
     height, width = frames.shape
     params = params or SimParams()
-    sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed) % 2**64)  # validates
+    sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed))  # validates
     # A million times the light that fires every readout fires every readout, as any more does;
     # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)
     saturated = np.float32(1e6 / params.rate_at_one)
