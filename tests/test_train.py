@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pytest
 import torch
+import yaml
 from spikegs.cli import build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
 from spikegs.data import load_dataset, simulate_dataset
@@ -399,6 +400,24 @@ def test_a_file_named_like_a_method_must_start_from_it(tmp_path):
     (tmp_path / "tfp33.yaml").write_text("base: spikegs\n")  # another method's name
     with pytest.raises(ValueError, match="named like the built-in method 'tfp33'"):
         load_config(tmp_path / "tfp33.yaml")
+
+
+def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
+    """`base: tfp33` with `method: spikegs` trained TFP(33)+3DGS recorded as spikegs; method names
+    that are no names ('', '../x') were taken."""
+    (tmp_path / "j.yaml").write_text("base: tfp33\nmethod: spikegs\n")
+    with pytest.raises(ValueError, match="method 'spikegs' is a built-in method"):
+        load_config(tmp_path / "j.yaml")
+    (tmp_path / "k.yaml").write_text("base: spikegs\nmethod: spikegs\ntrain: {iterations: 90}\n")
+    assert load_config(tmp_path / "k.yaml").method == "spikegs"  # the same supervision
+    saved = tmp_path / "config.yaml"  # a run's saved config states every section
+    old = load_config("spikegs", {"supervision": {"instant_norm": "l1"}})
+    saved.write_text(yaml.safe_dump(old.to_dict()))
+    assert load_config(saved) == old
+    for name in ("''", "../x", "' a'"):
+        (tmp_path / "m.yaml").write_text(f"method: {name}\n")
+        with pytest.raises(ValueError, match="config: method"):
+            load_config(tmp_path / "m.yaml")
 
 
 def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):

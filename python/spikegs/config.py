@@ -7,7 +7,8 @@ paper's equations: L1 norms, lambda = 1; `--method spikegs` is configs/spikegs.y
 norms and lambda = 4). A file that sets no `method` is named after itself, whatever its base: an
 empty my_run.yaml trains the dataclass defaults as method `my_run`, and lam2.yaml (`base: spikegs`,
 another lambda) trains as `lam2`, never under another method's name and settings (a file named
-like a built-in method must start from it, and is then that method, or name itself). No file at
+like a built-in method must start from it, and is then that method, or name itself; a file whose
+`method` names a built-in one must keep its supervision and SIM settings). No file at
 all is the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
 train.iterations: a config that sets another gets each schedule key it does not set scaled to it,
 as `--iterations` does. Unknown sections or keys, a key given twice, values of the wrong type or
@@ -126,6 +127,15 @@ class Config:
 
     def validate(self) -> Config:
         s, t, d, sim = self.supervision, self.train, self.densify, self.sim
+        _require(
+            isinstance(self.method, str)
+            and self.method.strip() == self.method != ""
+            and not set(self.method) & set("/\\:")
+            and self.method.isprintable(),
+            "method",
+            self.method,
+            "a name (no path separators, no surrounding spaces)",
+        )
         for name, value in _numbers(self):
             _require(math.isfinite(value), name, value, "a finite number")
         _require(
@@ -354,6 +364,26 @@ def _own_name(path: Path, inherited: str | None) -> str:
     return path.stem
 
 
+def _check_named(path: Path, read: dict) -> None:
+    """ValueError where a file's own `method: NAME` (`read`: the file with its base chain) names a
+    built-in method whose supervision and SIM it does not have: it would train under that name
+    without that method's settings. (A copy of the method's file and a file with `base: NAME`
+    and another length or learning rate keep the name.)"""
+    name = read["method"]
+    builtin = CONFIG_DIR / f"{name}.yaml" if isinstance(name, str) and name else None
+    if builtin is None or not builtin.is_file() or builtin.resolve() == path.resolve():
+        return
+    mine, theirs = Config(), Config()
+    _apply(mine, read, "")
+    _apply(theirs, _read(builtin, set()), "")
+    if (mine.supervision, mine.sim) != (theirs.supervision, theirs.sim):
+        raise ValueError(
+            f"config file {path}: method '{name}' is a built-in method, whose supervision and "
+            f"SIM settings the file changes: start from it ('base: {name}') without changing "
+            f"them, or name yours otherwise"
+        )
+
+
 def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) -> dict:
     """The overrides of a config file, with its `base` chain resolved (base first); a relative
     file path is taken from `relative_to` (the including file's directory), else from the
@@ -386,9 +416,14 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     if base is not None and (not isinstance(base, str) or not base.strip()):
         raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
     merged = _read(base, seen | {path}, path.parent) if base else {}
-    if not seen and "method" not in data:  # the file given names no method: its own name
+    named = "method" in data
+    if not seen and not named:  # the file given names no method: its own name
         data["method"] = _own_name(path, merged.get("method"))
     _merge(merged, data)
+    # a run's saved config.yaml states every section: its method's settings as they were then
+    whole = base is None and all(f.name in data for f in dataclasses.fields(Config))
+    if not seen and named and not whole:
+        _check_named(path, merged)
     return merged
 
 
