@@ -246,6 +246,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "outside": ("test_views.json", views(moved_out), "at readout 5000.0, outside"),
         "leak": ("train_timestamps.txt", leak, "would train on its spikes"),
         "float": ("train_timestamps.txt", lambda t: t + "40.5\n", r"integer readouts.*40\.5"),
+        "repeated": ("train_timestamps.txt", lambda t: t + t.split()[3] + "\n", "listed twice"),
         "empty": ("train_timestamps.txt", lambda t: "", "train_timestamps.txt: no training"),
         "words": ("train_timestamps.txt", lambda t: t + "abc\n", "train_timestamps.txt: line"),
         "columns": (

@@ -131,6 +131,8 @@ def test_windows_past_either_end_refused():
             s.tfi(k)
     with pytest.raises(ValueError, match="window length"):
         s.tfp(5, 0)
+    with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):  # "k in [10, 9]"
+        s.tfp(5, 21)
     for interval in (2.5, 0):  # 2.5 was read as 2
         with pytest.raises(ValueError, match="max_interval"):
             s.tfi(5, interval)

@@ -451,6 +451,9 @@ def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
     assert "known methods" in capsys.readouterr().err
     assert main(["train", str(tmp_path / "missing"), "--out", str(tmp_path / "r")]) == 2
     assert not (tmp_path / "r").exists()
+    capsys.readouterr()
+    assert main(["train", str(tmp_path), "--config", "tfp33", "--out", str(tmp_path / "r")]) == 2
+    assert "--config tfp33: expected a .yaml or .yml file" in capsys.readouterr().err
 
 
 def test_dssim_term_is_off_unless_configured(dataset, tmp_path, monkeypatch):

@@ -9,6 +9,12 @@ import numpy as np
 import OpenImageIO as oiio
 
 
+def _reason(error: str) -> str:
+    """OpenImageIO's error message, which some failures leave empty (a truncated file, a folder
+    that cannot be written)."""
+    return error.strip() or "OpenImageIO gave no reason (a truncated file, or no permission?)"
+
+
 def write_image(path: str | Path, image: np.ndarray) -> None:
     """Write float `image` [H, W] or [H, W, C]; PNG/JPEG are clipped to [0, 1] and quantised."""
     image = np.asarray(image, dtype=np.float32)
@@ -22,11 +28,11 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         spec.set_format(oiio.UINT8)
     out = oiio.ImageOutput.create(str(path))
     if out is None or not out.open(str(path), spec):
-        raise OSError(f"cannot write {path}: {oiio.geterror()}")
+        raise OSError(f"cannot write {path}: {_reason(oiio.geterror())}")
     ok = out.write_image(np.ascontiguousarray(image))
     out.close()
     if not ok:
-        raise OSError(f"cannot write {path}: {out.geterror()}")
+        raise OSError(f"cannot write {path}: {_reason(out.geterror())}")
 
 
 @dataclass(frozen=True)
@@ -47,14 +53,14 @@ def _read(path: str | Path, unassociated_alpha: bool) -> tuple[np.ndarray, oiio.
     if inp is None:
         missing = not Path(path).is_file()
         raise (FileNotFoundError if missing else ValueError)(
-            f"cannot read {path}: {oiio.geterror()}"
+            f"cannot read {path}: {_reason(oiio.geterror())}"
         )
     try:
         image = inp.read_image(oiio.FLOAT)
     finally:
         inp.close()
     if image is None:
-        raise ValueError(f"cannot read {path}: {oiio.geterror()}")
+        raise ValueError(f"cannot read {path}: {_reason(oiio.geterror())}")
     spec = inp.spec()
     return np.asarray(image, dtype=np.float32).reshape(spec.height, spec.width, -1), spec
 

@@ -37,6 +37,10 @@ def config_from_args(args: argparse.Namespace):
     run's own RUN/config.yaml) with the command-line overrides applied."""
     overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / "config.yaml"
+    if args.config is not None and Path(args.config).suffix not in (".yaml", ".yml"):
+        raise ValueError(
+            f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
+        )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
     if own:  # keys added since the run was saved keep its behaviour

@@ -362,6 +362,9 @@ def _read_timestamps(path: Path) -> np.ndarray:
     bad = values[~(values == np.round(values))]  # NaN too
     if bad.size:
         raise ValueError(f"{path}: expected integer readouts, found {bad[:5].tolist()}")
+    unique, counts = np.unique(values, return_counts=True)
+    if (counts > 1).any():  # sampled twice as often, silently
+        raise ValueError(f"{path}: readouts listed twice: {unique[counts > 1][:5].tolist()}")
     return values.astype(np.int64)
 
 

@@ -157,6 +157,10 @@ class SpikeStream:
             raise ValueError(f"window length expected a positive int, found {w}")
         w = int(w)
         lo, hi = centred_range(len(self), w)  # compared before any arithmetic on k (overflow)
+        if lo > hi:
+            raise ValueError(
+                f"window of {w} readouts: longer than the stream's {len(self)} readouts"
+            )
         bad = np.flatnonzero((ks < lo) | (ks > hi))
         if bad.size:
             k = int(ks[bad[0]])
