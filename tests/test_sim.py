@@ -19,6 +19,7 @@ from spikegs.sim_train import (
     save_sim,
     train_or_load,
     train_sim,
+    user_cache,
     valid_timestamps,
 )
 
@@ -201,7 +202,8 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     dataset_sim = tmp_path / "dataset" / "sim"
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.setattr(
-        "spikegs.sim_train.writable_folder", lambda folder: Path(folder) != dataset_sim
+        "spikegs.sim_train.writable_folder",
+        lambda folder: Path(folder) != dataset_sim and writable_folder(folder),
     )
     stream, ts = scene[1], [40, 50]
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
@@ -213,6 +215,17 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     assert torch.equal(again.head[-1].bias, model.head[-1].bias)
     other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
     assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
+    # a cache that cannot be written either: refused before training (XDG_CACHE_HOME a file)
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "file"))
+    monkeypatch.setattr("spikegs.sim_train.train_sim", lambda *a, **k: pytest.fail("trained"))
+    with pytest.raises(OSError, match="set XDG_CACHE_HOME to a writable folder"):
+        train_or_load(dataset_sim / "sim.pt", other, [41, 50], 33, **tiny)
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative")  # ignored, as the XDG spec says
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert (
+        user_cache("s.pt", "ab") == tmp_path / "home" / ".cache" / "spikegs" / "sim" / "ab" / "s.pt"
+    )
 
 
 def test_writable_folder(tmp_path):
@@ -379,9 +392,9 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--window", "4"], "sim.window = 4"),
+        (["--window", "4"], "--window: config: sim.window = 4"),
         (["--target-window", "35"], "sim.target_window = 35"),
-        (["--seed", "-1"], "train.seed = -1"),
+        (["--seed", "-1"], "--seed: config: train.seed = -1"),
         (["--out", "."], "is a directory"),
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
     ],

@@ -410,10 +410,18 @@ def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
         load_config(tmp_path / "j.yaml")
     (tmp_path / "k.yaml").write_text("base: spikegs\nmethod: spikegs\ntrain: {iterations: 90}\n")
     assert load_config(tmp_path / "k.yaml").method == "spikegs"  # the same supervision
-    saved = tmp_path / "config.yaml"  # a run's saved config states every section
+    (tmp_path / "sims.yaml").write_text("base: tfp33\nmethod: tfp33\nsim: {iterations: 7}\n")
+    assert load_config(tmp_path / "sims.yaml").method == "tfp33"  # tfp33 uses no SIM
+    # a run saved when spikegs meant other settings, before pose_refine existed, resumes as it was
+    (tmp_path / "run").mkdir()
     old = load_config("spikegs", {"supervision": {"instant_norm": "l1"}})
-    saved.write_text(yaml.safe_dump(old.to_dict()))
-    assert load_config(saved) == old
+    saved = {k: v for k, v in old.to_dict().items() if k != "pose_refine"}
+    (tmp_path / "run" / "config.yaml").write_text(yaml.safe_dump(saved))
+    args = build_parser().parse_args(["train", "d", "--out", str(tmp_path / "run"), "--resume"])
+    assert config_from_args(args) == old
+    with pytest.raises(ValueError, match="method 'spikegs' is a built-in method"):
+        load_config(tmp_path / "run" / "config.yaml")  # a copy, edited, is not that method
+    assert load_config(tmp_path / "k.yaml", {"method": "exp:1"}).method == "exp:1"
     for name in ("''", "../x", "' a'"):
         (tmp_path / "m.yaml").write_text(f"method: {name}\n")
         with pytest.raises(ValueError, match="config: method"):
@@ -554,7 +562,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     monkeypatch.setattr("spikegs.demo.DEMO_OVERRIDES", {**FAST, "sim": {"iterations": 5}})
     out = tmp_path / "demo"
     argv = ["demo", "--iterations", "80", "--no-progress", "--out"]
-    assert main([*argv, str(out)]) == 0
+    assert main([*argv, str(out), "--resume"]) == 0  # nothing to resume: a fresh demo
     results = json.loads((out / "results.json").read_text())
     assert set(results["methods"]) == {"spikegs", "tfp33"}
     for scores in results["methods"].values():
@@ -570,13 +578,17 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert again_results["total_seconds"] > results["total_seconds"]
     assert again_results["methods"] == results["methods"]
 
-    # a fresh demo refuses, before any work, to delete a run folder holding a user's files
-    mine = tmp_path / "mine"
-    (mine / "runs" / "spikegs").mkdir(parents=True)
-    (mine / "runs" / "spikegs" / "notes.txt").write_text("mine")
-    assert main([*argv, str(mine)]) == 2
-    assert "notes.txt" in capsys.readouterr().err
-    assert sorted(p.name for p in mine.rglob("*")) == ["notes.txt", "runs", "spikegs"]
+    # a fresh demo refuses, before any work, to delete a run or data folder holding a user's
+    # files; an earlier demo's results stay
+    for part in ("runs/spikegs", "data"):
+        mine = tmp_path / "mine" / part.replace("/", "_")
+        (mine / part).mkdir(parents=True)
+        (mine / part / "notes.txt").write_text("mine")
+        (mine / "results.json").write_text("{}")
+        assert main([*argv, str(mine)]) == 2
+        assert "notes.txt" in capsys.readouterr().err
+        assert (mine / part / "notes.txt").exists() and (mine / "results.json").exists()
+        assert len(list(mine.rglob("*"))) == 3 + part.count("/")
 
     step = Trainer.step
 

@@ -130,11 +130,11 @@ class Config:
         _require(
             isinstance(self.method, str)
             and self.method.strip() == self.method != ""
-            and not set(self.method) & set("/\\:")
+            and not set(self.method) & set("/\\")
             and self.method.isprintable(),
             "method",
             self.method,
-            "a name (no path separators, no surrounding spaces)",
+            "a name: printable, without / or \\ or surrounding spaces",
         )
         for name, value in _numbers(self):
             _require(math.isfinite(value), name, value, "a finite number")
@@ -327,13 +327,17 @@ def load_config(
     name_or_path: str | Path | None = None,
     overrides: dict | None = None,
     iterations: int | None = None,
+    *,
+    saved_run: bool = False,
 ) -> Config:
     """The configuration of a method name (configs/NAME.yaml) or a YAML file (None: the default
     method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated. `iterations`
     (`--iterations`) sets the run's length as `Config.with_iterations` does, in one rounding with
-    the scaling of the schedule keys that the config leaves unset."""
+    the scaling of the schedule keys that the config leaves unset. `saved_run`: the file is a
+    run's own config.yaml, which keeps its method's name with that method's settings of the day."""
     config = Config()
-    read = _read(DEFAULT_METHOD if name_or_path is None else name_or_path, set())
+    name = DEFAULT_METHOD if name_or_path is None else name_or_path
+    read = _read(name, set(), saved_run=saved_run)
     _apply(config, read, "")
     if overrides:
         _apply(config, overrides, "")
@@ -366,9 +370,9 @@ def _own_name(path: Path, inherited: str | None) -> str:
 
 def _check_named(path: Path, read: dict) -> None:
     """ValueError where a file's own `method: NAME` (`read`: the file with its base chain) names a
-    built-in method whose supervision and SIM it does not have: it would train under that name
-    without that method's settings. (A copy of the method's file and a file with `base: NAME`
-    and another length or learning rate keep the name.)"""
+    built-in method whose supervision (and SIM, where it uses one) it does not have: it would
+    train under that name without that method's settings. (A copy of the method's file and a
+    file with `base: NAME` and another length or learning rate keep the name.)"""
     name = read["method"]
     builtin = CONFIG_DIR / f"{name}.yaml" if isinstance(name, str) and name else None
     if builtin is None or not builtin.is_file() or builtin.resolve() == path.resolve():
@@ -376,7 +380,8 @@ def _check_named(path: Path, read: dict) -> None:
     mine, theirs = Config(), Config()
     _apply(mine, read, "")
     _apply(theirs, _read(builtin, set()), "")
-    if (mine.supervision, mine.sim) != (theirs.supervision, theirs.sim):
+    uses_sim = mine.supervision.instant == "sim"
+    if mine.supervision != theirs.supervision or (uses_sim and mine.sim != theirs.sim):
         raise ValueError(
             f"config file {path}: method '{name}' is a built-in method, whose supervision and "
             f"SIM settings the file changes: start from it ('base: {name}') without changing "
@@ -384,10 +389,12 @@ def _check_named(path: Path, read: dict) -> None:
         )
 
 
-def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) -> dict:
+def _read(
+    name_or_path: str | Path, seen: set, relative_to: Path | None = None, saved_run: bool = False
+) -> dict:
     """The overrides of a config file, with its `base` chain resolved (base first); a relative
     file path is taken from `relative_to` (the including file's directory), else from the
-    current directory."""
+    current directory. `saved_run` as in `load_config`."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         if len(path.parts) > 1 or path.suffix:  # a file's path, not a method's name
@@ -420,9 +427,7 @@ def _read(name_or_path: str | Path, seen: set, relative_to: Path | None = None) 
     if not seen and not named:  # the file given names no method: its own name
         data["method"] = _own_name(path, merged.get("method"))
     _merge(merged, data)
-    # a run's saved config.yaml states every section: its method's settings as they were then
-    whole = base is None and all(f.name in data for f in dataclasses.fields(Config))
-    if not seen and named and not whole:
+    if not seen and named and not saved_run:
         _check_named(path, merged)
     return merged
 
@@ -435,7 +440,7 @@ LEGACY_VALUES = {"densify": {"absgrad": False}}
 def legacy_overrides(saved: dict | Path) -> dict:
     """The LEGACY_VALUES of the keys that a saved run config (a dict, or its YAML file) lacks."""
     if isinstance(saved, Path):
-        saved = _read(saved, set())
+        saved = _read(saved, set(), saved_run=True)
     return {
         section: missing
         for section, values in LEGACY_VALUES.items()

@@ -108,11 +108,16 @@ def started_iterations(out: Path) -> int | None:
     return None
 
 
-def check_run_dirs(out: Path) -> None:
-    """FileExistsError, before any work, where a fresh demo would delete OUT/runs/METHOD holding
-    files that are not a spikegs run's (a user's own run there keeps its notes, renders, ...)."""
+def check_fresh_out(out: Path) -> None:
+    """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
+    earlier demo's: OUT a file, OUT/data or OUT/runs/METHOD holding files that are not a dataset's
+    or a spikegs run's (a user's own run there keeps its notes, renders, ...)."""
+    from .data.dataset import check_output
     from .train import foreign_files
 
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file; give the demo a folder")
+    check_output(out / "data", overwrite=True)
     for method in METHODS:
         run_dir = out / "runs" / method
         if run_dir.exists() and not run_dir.is_dir():
@@ -165,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
     if not args.resume:
-        check_run_dirs(out)
+        check_fresh_out(out)
         for stale in (RESULTS, SECONDS_FILE):  # an earlier demo's, until this one writes its own
             (out / stale).unlink(missing_ok=True)
     try:

@@ -16,6 +16,16 @@ from .output_paths import check_file_output
 from .sim_train import evaluate_dataset, on_path_views
 from .targets import trained_sim
 
+# the config keys that the options set, named in the config's messages
+FLAGS = {
+    "sim.window": "--window",
+    "sim.target_window": "--target-window",
+    "sim.iterations": "--steps",
+    "sim.batch": "--batch-size",
+    "sim.crop": "--crop",
+    "train.seed": "--seed",
+}
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sim = SimConfig()
@@ -48,7 +58,11 @@ def run(args: argparse.Namespace) -> int:
         batch=args.batch_size,
         loss=args.loss,
     )
-    Config(sim=sim, train=TrainConfig(seed=args.seed)).validate()  # the config's rules
+    try:  # the config's rules
+        Config(sim=sim, train=TrainConfig(seed=args.seed)).validate()
+    except ValueError as err:
+        key = next((k for k in FLAGS if f"{k} =" in str(err)), None)
+        raise ValueError(f"{FLAGS[key]}: {err}" if key else str(err)) from None
     if args.out is not None:
         check_file_output(args.out)
     dataset = load_dataset(args.dataset)

@@ -229,10 +229,16 @@ def _cached(path: Path, window: int, data: str) -> SIM | None:
     return None
 
 
-def user_cache(name: str, data: str) -> Path:
+def user_cache(name: str, data: str) -> Path | None:
     """Where a SIM for spikes of fingerprint `data` is cached when its dataset's folder cannot be
-    written: $XDG_CACHE_HOME (else ~/.cache)/spikegs/sim/<fingerprint>/name."""
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    written: $XDG_CACHE_HOME (an absolute path, as the XDG spec has it), else ~/.cache, then
+    spikegs/sim/<fingerprint>/name; None where neither is known (no home directory)."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or ".")
+    if not base.is_absolute():
+        try:
+            base = Path.home() / ".cache"
+        except RuntimeError:  # no $HOME and no passwd entry
+            return None
     return base / "spikegs" / "sim" / data[:16] / name
 
 
@@ -249,6 +255,12 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     model = None if force else _cached(path, window, data)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
+        if fallback is None or not writable_folder(fallback.parent):
+            raise OSError(
+                f"SIM cannot be cached: {path.parent} cannot be written, nor the user cache "
+                f"{fallback.parent if fallback else '(no home directory)'}; set XDG_CACHE_HOME "
+                f"to a writable folder"
+            )
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}")
         path = fallback
         model = None if force else _cached(path, window, data)

@@ -46,7 +46,7 @@ def config_from_args(args: argparse.Namespace):
     if own:  # keys added since the run was saved keep its behaviour
         overrides = {**legacy_overrides(saved), **overrides}
     name = given if given is not None else (saved if own else DEFAULT_METHOD)
-    return load_config(name, overrides, args.iterations)
+    return load_config(name, overrides, args.iterations, saved_run=own)
 
 
 def run(args: argparse.Namespace) -> int:
