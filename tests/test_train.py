@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from plyfile import PlyData
 from spikegs.cli import build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
 from spikegs.data import load_dataset, simulate_dataset
@@ -270,6 +271,66 @@ def test_ply_round_trip(tmp_path, channels, degree):
     for name, value in model.params.items():
         assert torch.equal(value, back.params[name]), name
     assert torch.equal(model.background, back.background)
+    names = PlyData.read(str(tmp_path / "s.ply"))["vertex"].data.dtype.names
+    assert len(names) == 62 and names[-8:] == (  # the 3DGS record at degree 3, as SIBR reads it
+        "opacity",
+        "scale_0",
+        "scale_1",
+        "scale_2",
+        "rot_0",
+        "rot_1",
+        "rot_2",
+        "rot_3",
+    )
+
+
+def test_ply_edge_cases(tmp_path):
+    """An empty model could not be saved; a model rendering fewer SH coefficients than it stores
+    (sh_degree below them, as 3DGS's active degree) wrote a file its own import refused; tags
+    and files that are no PLY gave bare errors."""
+    gen = torch.Generator().manual_seed(2)
+    empty = GaussianModel.random(0, (0, 0, 0), 1.0, 3, 1, gen)
+    save_ply(empty, tmp_path / "e.ply")
+    assert len(load_ply(tmp_path / "e.ply")) == 0
+    model = GaussianModel.random(20, (0, 0, 0), 1.0, 3, 3, gen)
+    for p in model.params.values():
+        p.data.normal_()
+    active = GaussianModel(model.params, model.background, 1)  # renders degree 1 of its 16
+    save_ply(active, tmp_path / "a.ply")
+    back = load_ply(tmp_path / "a.ply")
+    assert back.sh_degree == 1 and back.params["sh_rest"].shape == (20, 3, 3)
+    K = torch.tensor([[30.0, 0, 16], [0, 30, 16], [0, 0, 1]])
+    viewmat = torch.eye(4)
+    viewmat[2, 3] = 4.0
+    torch.testing.assert_close(
+        back.render(viewmat, K, 32, 32).image, active.render(viewmat, K, 32, 32).image
+    )
+    two = GaussianModel.random(5, (0, 0, 0), 1.0, 2, 0, gen)
+    with pytest.raises(ValueError, match="1 \\(grey\\) or 3 \\(RGB\\)"):
+        save_ply(two, tmp_path / "two.ply")
+    (tmp_path / "junk.ply").write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(ValueError, match="junk.ply: not a readable PLY"):
+        load_ply(tmp_path / "junk.ply")
+    text = (tmp_path / "a.ply").read_bytes()
+    for old, new, message in (
+        (b"spikegs channels 3", b"spikegs channels one", "spikegs channels one"),
+        (b"spikegs channels 3", b"spikegs channels 0", "expected 1..3"),
+        (b"spikegs sh_degree 1", b"spikegs export", None),  # another tool's comment: ignored
+    ):
+        (tmp_path / "t.ply").write_bytes(text.replace(old, new))
+        if message is None:
+            assert load_ply(tmp_path / "t.ply").sh_degree == 3  # inferred from the 45 f_rest
+        else:
+            with pytest.raises(ValueError, match=message):
+                load_ply(tmp_path / "t.ply")
+
+
+def test_gaussian_model_refuses_sizes_without_gaussians():
+    """radius 0 or scale 0 raised 'math domain error' from log."""
+    with pytest.raises(ValueError, match="radius expected a positive"):
+        GaussianModel.random(10, (0, 0, 0), 0.0, 1)
+    with pytest.raises(ValueError, match="scale expected a positive"):
+        GaussianModel.from_points(torch.zeros(2, 3), torch.ones(2, 1), float("nan"))
 
 
 def test_every_method_config_loads():
@@ -341,6 +402,20 @@ def test_every_method_config_loads():
 def test_config_validation(name, overrides, message):
     with pytest.raises(ValueError, match=message):
         load_config(name, overrides)
+
+
+def test_config_types_are_checked_however_set():
+    """load_config(iterations=3.5) and a float set as an attribute trained a fraction of a step
+    and saved a config.yaml that the run could not resume from."""
+    for bad in (3.5, True, "10"):
+        with pytest.raises(ValueError, match="train.iterations"):
+            load_config("tfp33", iterations=bad)
+    config = load_config("tfp33")
+    config.train.iterations = 2.5
+    with pytest.raises(ValueError, match="'train.iterations' = 2.5 is a float, expected int"):
+        config.validate()
+    config.train.iterations, config.lr.means = 100, 1  # an int where a float goes: made one
+    assert config.validate().lr.means == 1.0 and isinstance(config.lr.means, float)
 
 
 def test_config_edges_of_the_ranges_are_accepted():

@@ -29,7 +29,7 @@ import yaml
 
 from .densify import DensifyConfig
 from .losses import NORMS
-from .number_checks import SEED_MAX, is_seed
+from .number_checks import SEED_MAX, is_int, is_seed
 from .pose_refine import PoseRefineConfig
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -127,6 +127,7 @@ class Config:
 
     def validate(self) -> Config:
         s, t, d, sim = self.supervision, self.train, self.densify, self.sim
+        _check_types(self)
         _require(
             isinstance(self.method, str)
             and self.method.strip() == self.method != ""
@@ -240,7 +241,7 @@ class Config:
         """A copy that trains for `iterations` steps, its densification schedule (start, stop,
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
         run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
-        _require(iterations >= 1, "train.iterations", iterations, ">= 1")
+        _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config = copy.deepcopy(self)
         _scale_schedule(config.densify, SCHEDULE_KEYS, iterations / config.train.iterations)
         config.train.iterations = iterations
@@ -268,6 +269,25 @@ def _numbers(section, where: str = ""):
             yield from _numbers(value, f"{where}{f.name}.")
         elif isinstance(value, float):
             yield f"{where}{f.name}", value
+
+
+def _check_types(section, where: str = "") -> None:
+    """ValueError for a setting of dataclass `section` (nested ones too) whose type is not its
+    default's (an int where a float is expected is made a float): set as attributes or through
+    load_config's `iterations`, a float count ran a fraction of a step and saved a config that
+    could not be read back."""
+    defaults = type(section)()
+    for f in dataclasses.fields(section):
+        value, default = getattr(section, f.name), getattr(defaults, f.name)
+        if dataclasses.is_dataclass(value):
+            _check_types(value, f"{where}{f.name}.")
+        elif isinstance(default, float) and is_int(value):
+            setattr(section, f.name, float(value))
+        elif type(value) is not type(default):
+            raise ValueError(
+                f"config: '{where}{f.name}' = {value!r} is a {type(value).__name__}, expected "
+                f"{type(default).__name__}"
+            )
 
 
 def _apply(target, overrides: dict, where: str) -> None:
@@ -343,7 +363,7 @@ def load_config(
         _apply(config, overrides, "")
     length = config.train.iterations  # the length the config's own schedule keys are for
     if iterations is not None:
-        _require(iterations >= 1, "train.iterations", iterations, ">= 1")
+        _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config.train.iterations = iterations
     given = set()
     for layer in (read, overrides or {}):

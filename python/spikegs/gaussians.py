@@ -42,6 +42,8 @@ class GaussianModel:
     ) -> GaussianModel:
         """`n` Gaussians uniform in the ball (center, radius), semi-transparent, isotropic, of
         intensities `colors(means)` [N, C] (default grey 0.5)."""
+        if not 0 < radius < math.inf:
+            raise ValueError(f"radius expected a positive finite size, found {radius}")
         g = generator
         direction = torch.randn(n, 3, generator=g)
         direction = direction / direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
@@ -57,6 +59,8 @@ class GaussianModel:
         cls, points: torch.Tensor, colors: torch.Tensor, scale: float, sh_degree: int = 0
     ) -> GaussianModel:
         """Gaussians at `points` [N, 3] with colours [N, C] (intensity units) and one scale."""
+        if not 0 < scale < math.inf:
+            raise ValueError(f"scale expected a positive finite size, found {scale}")
         n, channels = colors.shape
         params = {
             "means": points.float(),

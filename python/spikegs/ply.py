@@ -1,9 +1,11 @@
 """`.ply` export and import in the layout the common 3DGS viewers read.
 
-Properties per vertex: x y z, nx ny nz (zero), f_dc_0..2, f_rest_* (channel-major, as 3DGS),
-opacity (logit), scale_0..2 (log), rot_0..3 (w, x, y, z). Viewers expect three colour channels: a
-mono scene is written with its channel repeated and a `spikegs channels 1` comment, so that the
-import gives back exactly one channel.
+Properties per vertex: x y z, nx ny nz (zero), f_dc_0..2, f_rest_0..44 (channel-major, as 3DGS),
+opacity (logit), scale_0..2 (log), rot_0..3 (w, x, y, z): the original 3DGS code's layout at SH
+degree 3, which viewers that read a fixed record (SIBR's) need. A model of a lower degree is
+written with its higher coefficients zero (it renders the same) and a `spikegs sh_degree` comment
+that the import reads back. Viewers expect three colour channels: a mono scene is written with its
+channel repeated and a `spikegs channels 1` comment, so that the import gives back exactly one.
 """
 
 from __future__ import annotations
@@ -17,18 +19,28 @@ from plyfile import PlyData, PlyElement, PlyParseError
 
 from .gaussians import GaussianModel
 
+FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file holds (degree 3)
+
 
 def save_ply(model: GaussianModel, path: str | Path) -> None:
-    """Write `model` to `path`."""
+    """Write `model` to `path`: mono or colour (ValueError for other channel counts, which no
+    viewer reads), the SH coefficients of its degree (`model.sh_degree`)."""
+    channels = model.channels
+    if channels not in (1, 3):
+        raise ValueError(
+            f"save_ply: a model of {channels} channels; a 3DGS .ply holds 1 (grey) or 3 (RGB)"
+        )
     p = {k: v.detach().cpu().numpy() for k, v in model.params.items()}
-    n, rest, channels = len(model), p["sh_rest"].shape[1], model.channels
+    n, used = len(model), (model.sh_degree + 1) ** 2 - 1  # the coefficients that render reads
     reps = 3 if channels == 1 else 1
     dc = np.repeat(p["sh_dc"][:, 0, :], reps, axis=1)  # [N, 3]
-    f_rest = np.repeat(p["sh_rest"], reps, axis=2).transpose(0, 2, 1).reshape(n, -1)  # [N, 3 (K-1)]
+    rest = np.zeros((n, FILE_SH_REST, 3), np.float32)  # [N, 15, 3]
+    rest[:, :used] = np.repeat(p["sh_rest"][:, :used], reps, axis=2)
+    f_rest = rest.transpose(0, 2, 1).reshape(n, 3 * FILE_SH_REST)  # [N, 45] channel-major
     columns = {"x": p["means"][:, 0], "y": p["means"][:, 1], "z": p["means"][:, 2]}
     columns.update({f"n{a}": np.zeros(n, np.float32) for a in "xyz"})
-    columns.update({f"f_dc_{i}": dc[:, i] for i in range(dc.shape[1])})
-    columns.update({f"f_rest_{i}": f_rest[:, i] for i in range(f_rest.shape[1])})
+    columns.update({f"f_dc_{i}": dc[:, i] for i in range(3)})
+    columns.update({f"f_rest_{i}": f_rest[:, i] for i in range(3 * FILE_SH_REST)})
     columns["opacity"] = p["opacity_logits"]
     columns.update({f"scale_{i}": p["log_scales"][:, i] for i in range(3)})
     columns.update({f"rot_{i}": p["quats"][:, i] for i in range(4)})
@@ -39,10 +51,29 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     comments = [
         f"spikegs channels {channels}",
         f"spikegs sh_degree {model.sh_degree}",
-        f"spikegs sh_rest {rest}",
         f"spikegs background {background}",
     ]
     PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(str(path))
+
+
+def _tags(comments: list[str]) -> dict[str, str]:
+    """The `spikegs KEY VALUE` comments of a file (others ignored)."""
+    tags = {}
+    for comment in comments:
+        parts = comment.split(" ", 2)
+        if parts[0] == "spikegs" and len(parts) == 3:
+            tags[parts[1]] = parts[2]
+    return tags
+
+
+def _tag_int(path, tags: dict, key: str, default: int, lo: int, hi: int) -> int:
+    """Integer tag `key` in [lo, hi] (`default` where absent); ValueError naming the file."""
+    text = tags.get(key)
+    if text is None:
+        return default
+    if not re.fullmatch(r"\d+", text.strip()) or not lo <= int(text) <= hi:
+        raise ValueError(f"{path}: comment 'spikegs {key} {text}': expected {lo}..{hi}")
+    return int(text)
 
 
 def load_ply(path: str | Path) -> GaussianModel:
@@ -50,7 +81,7 @@ def load_ply(path: str | Path) -> GaussianModel:
     file where it is not a PLY or lacks a property of the layout."""
     try:
         ply = PlyData.read(str(path))
-    except PlyParseError as err:
+    except (PlyParseError, UnicodeDecodeError, ValueError) as err:
         raise ValueError(f"{path}: not a readable PLY file ({err})") from None
     if "vertex" not in [e.name for e in ply.elements]:
         raise ValueError(f"{path}: no 'vertex' element: not a Gaussian splat file")
@@ -60,7 +91,7 @@ def load_ply(path: str | Path) -> GaussianModel:
     missing = [k for k in (*needed, *(f"rot_{i}" for i in range(4))) if k not in names]
     if missing:
         raise ValueError(f"{path}: vertex properties {missing} missing: not a 3DGS splat file")
-    tags = dict(c.split(" ", 2)[1:] for c in ply.comments if c.startswith("spikegs "))
+    tags = _tags(ply.comments)
     dc_names = sorted((k for k in names if re.fullmatch(r"f_dc_\d+", k)), key=lambda s: int(s[5:]))
     rest_names = sorted(
         (k for k in names if re.fullmatch(r"f_rest_\d+", k)), key=lambda s: int(s[7:])
@@ -68,11 +99,15 @@ def load_ply(path: str | Path) -> GaussianModel:
     stored = len(dc_names)
     if stored == 0 or len(rest_names) % stored:
         raise ValueError(f"{path}: expected f_dc_* and a multiple of {stored} f_rest_* properties")
-    rest = len(rest_names) // stored
-    channels = int(tags.get("channels", stored))
-    sh_degree = int(tags.get("sh_degree", round((rest + 1) ** 0.5) - 1))
-    if (sh_degree + 1) ** 2 != rest + 1:
-        raise ValueError(f"{path}: {rest + 1} SH coefficients per channel is not a square")
+    rest = len(rest_names) // stored  # per channel
+    channels = _tag_int(path, tags, "channels", stored, 1, stored)
+    inferred = round((rest + 1) ** 0.5) - 1
+    if "sh_degree" not in tags and (inferred + 1) ** 2 != rest + 1:
+        raise ValueError(
+            f"{path}: {rest + 1} SH coefficients per channel, which no SH degree has (1, 4, 9, 16)"
+        )
+    sh_degree = _tag_int(path, tags, "sh_degree", inferred, 0, inferred)
+    used = (sh_degree + 1) ** 2 - 1
 
     def col(keys):  # [N, len(keys)]
         if not keys:
@@ -80,17 +115,25 @@ def load_ply(path: str | Path) -> GaussianModel:
         return torch.from_numpy(np.stack([np.asarray(v[k], np.float32) for k in keys], axis=1))
 
     n = len(v)
-    f_rest = col(rest_names).reshape(n, stored, rest).transpose(1, 2)  # [N, K-1, stored]
+    f_rest = col(rest_names).reshape(n, stored, rest).transpose(1, 2)  # [N, rest, stored]
     params = {
         "means": col(["x", "y", "z"]),
         "log_scales": col([f"scale_{i}" for i in range(3)]),
         "quats": col([f"rot_{i}" for i in range(4)]),
         "opacity_logits": col(["opacity"])[:, 0],
         "sh_dc": col(dc_names)[:, None, :channels],
-        "sh_rest": f_rest[:, :, :channels].contiguous(),
+        "sh_rest": f_rest[:, :used, :channels].contiguous(),
     }
     if "background" in tags:
-        background = torch.tensor([float(x) for x in tags["background"].split()])
+        try:
+            background = torch.tensor([float(x) for x in tags["background"].split()])
+        except ValueError:
+            background = None
+        if background is None or background.shape != (channels,):
+            raise ValueError(
+                f"{path}: comment 'spikegs background {tags['background']}': expected "
+                f"{channels} numbers"
+            )
     else:
         background = torch.zeros(channels)
     return GaussianModel(params, background, sh_degree)
