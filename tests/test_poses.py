@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 import torch
+from plyfile import PlyData, PlyElement
 from scipy.spatial.transform import Rotation
 from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
@@ -18,7 +19,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import look_at
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
-from spikegs.point_cloud import POINTS, write_points
+from spikegs.point_cloud import POINTS, read_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import _complete_meta
 from spikegs.sfm import Reconstruction, reconstruct, spike_images
@@ -123,6 +124,29 @@ def test_resume_with_pose_refinement_is_bitwise_identical(tiny, tmp_path):
     assert torch.equal(whole.poses.corrections, resumed.poses.corrections)
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
+
+
+def _points_ply(path, dtype: str, colour_values) -> None:
+    """Two points at the origin whose red, green, blue are `colour_values` [2] of `dtype`."""
+    fields = [(a, "f4") for a in "xyz"] + [(c, dtype) for c in ("red", "green", "blue")]
+    vertex = np.zeros(len(colour_values), fields)
+    for c in ("red", "green", "blue"):
+        vertex[c] = colour_values
+    PlyData([PlyElement.describe(vertex, "vertex")]).write(str(path))
+
+
+def test_point_cloud_colours_by_their_type(tmp_path):
+    """Float (0..1) and 16-bit colours were divided by 255 as if 8-bit: 0.8 became 0.0031."""
+    path = tmp_path / "p.ply"
+    for dtype, stored in (("u1", [204, 51]), ("u2", [52428, 13107]), ("f4", [0.8, 0.2])):
+        _points_ply(path, dtype, stored)
+        np.testing.assert_allclose(read_points(path)[1][:, 0], [0.8, 0.2], rtol=1e-6)
+    _points_ply(path, "i4", [1, 2])
+    with pytest.raises(ValueError, match="of type int32"):
+        read_points(path)
+    path.write_bytes(bytes(range(256)))
+    with pytest.raises(ValueError, match="not a readable PLY"):
+        read_points(path)
 
 
 def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):

@@ -133,6 +133,12 @@ def test_windows_past_either_end_refused():
         s.tfp(5, 0)
     with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):  # "k in [10, 9]"
         s.tfp(5, 21)
+    for w in (float("inf"), float("nan"), None, True):  # OverflowError, bare int() errors
+        with pytest.raises(ValueError, match="window length"):
+            s.tfp(5, w)
+        with pytest.raises(ValueError, match="max_interval"):
+            s.tfi(5, w)
+    np.testing.assert_array_equal(s.tfp(5, 3.0), s.tfp(5, 3))
     for interval in (2.5, 0):  # 2.5 was read as 2
         with pytest.raises(ValueError, match="max_interval"):
             s.tfi(5, interval)

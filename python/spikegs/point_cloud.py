@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from plyfile import PlyData, PlyElement
+from plyfile import PlyData, PlyElement, PlyParseError
 from scipy.spatial import cKDTree
 
 from .gaussians import GaussianModel
@@ -31,8 +31,16 @@ def write_points(path: str | Path, points: np.ndarray, colors: np.ndarray | None
 
 
 def read_points(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """Points [P, 3] float64 and colours [P, 3] in [0, 1] (None when the file has none)."""
-    vertex = PlyData.read(str(path))["vertex"].data
+    """Points [P, 3] float64 and colours [P, 3] in [0, 1] (None when the file has none): 8- or
+    16-bit integers scaled by their range, floats taken as they are (0..1, as PLY writers store
+    them); ValueError naming the file for anything else."""
+    try:
+        ply = PlyData.read(str(path))
+    except (PlyParseError, UnicodeDecodeError, ValueError) as err:
+        raise ValueError(f"{path}: not a readable PLY file ({err})") from None
+    if "vertex" not in [e.name for e in ply.elements]:
+        raise ValueError(f"{path}: no 'vertex' element")
+    vertex = ply["vertex"].data
     names = vertex.dtype.names
     if not {"x", "y", "z"} <= set(names):
         raise ValueError(f"{path}: expected vertex properties x, y, z; found {list(names)}")
@@ -41,7 +49,18 @@ def read_points(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
         raise ValueError(f"{path}: expected at least one point, all finite")
     if not {"red", "green", "blue"} <= set(names):
         return points, None
-    colors = np.stack([vertex[c] for c in ("red", "green", "blue")], axis=1) / 255.0  # [P, 3]
+    colors = np.stack([vertex[c] for c in ("red", "green", "blue")], axis=1)  # [P, 3]
+    if colors.dtype.kind == "f":
+        scale = 1.0
+    elif colors.dtype in (np.uint8, np.uint16):
+        scale = float(np.iinfo(colors.dtype).max)
+    else:
+        raise ValueError(
+            f"{path}: red, green, blue of type {colors.dtype}; expected uint8, uint16 or float"
+        )
+    colors = colors.astype(np.float64) / scale
+    if not (np.isfinite(colors).all() and colors.min() >= 0 and colors.max() <= 1):
+        raise ValueError(f"{path}: colours expected in [0, 1] (floats) or their integer range")
     return points, colors
 
 

@@ -14,6 +14,8 @@ last readout, reads 1/max_interval: never inf or NaN.
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 from pathlib import Path
 from typing import Union
@@ -25,6 +27,16 @@ from ..number_checks import is_int
 
 PathLike = Union[str, os.PathLike]
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
+
+
+def _whole(value) -> bool:
+    """Whether `value` is a whole number (an int, or a float such as 33.0; not inf, NaN, None or
+    a bool)."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, numbers.Integral):
+        return True
+    return isinstance(value, numbers.Real) and math.isfinite(value) and float(value).is_integer()
 
 
 def as_readouts(k) -> tuple[np.ndarray, bool]:
@@ -153,7 +165,7 @@ class SpikeStream:
     def _starts(self, k, w: int) -> tuple[np.ndarray, bool]:
         """First readout [B] of the window of `w` centred on each k; ValueError past either end."""
         ks, single = as_readouts(k)
-        if int(w) != w or w < 1:
+        if not _whole(w) or w < 1:
             raise ValueError(f"window length expected a positive int, found {w}")
         w = int(w)
         lo, hi = centred_range(len(self), w)  # compared before any arithmetic on k (overflow)
@@ -196,7 +208,7 @@ class SpikeStream:
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
-        if int(max_interval) != max_interval or max_interval < 1:
+        if not _whole(max_interval) or max_interval < 1:
             raise ValueError(f"max_interval expected a positive int, found {max_interval}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
