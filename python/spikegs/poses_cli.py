@@ -122,9 +122,11 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
             f"{where}: states {intrinsics} of the intrinsics fx, fy, cx, cy: state all four (held "
             f"fixed) or none (structure from motion estimates them)"
         )
-    stated = [k for k in (*intrinsics, "scene_center", "scene_radius") if k in meta]
+    optional = ("scene_center", "scene_radius", "raw_width", "col_offset")
+    stated = [k for k in (*intrinsics, *optional) if k in meta]
     check_meta_values(meta, where, stated)  # what training reads later, refused now
-    return open_streams(root, spike_files(channels), h, w, flip, num)
+    described = {**meta, "height": h, "width": w, "flip": flip, "num_readouts": num}
+    return open_streams(root, spike_files(channels), described)
 
 
 def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:

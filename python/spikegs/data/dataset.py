@@ -16,6 +16,7 @@ import collections
 import dataclasses
 import json
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -178,12 +179,23 @@ def existing_file(root: Path, name: str) -> Path:
     return path
 
 
-def open_streams(
-    root: Path, names: list[str], height: int, width: int, flip: bool, num: int
-) -> list[SpikeStream]:
-    """The spike files ROOT/names, memory-mapped; FileNotFoundError naming a missing one,
-    ValueError naming one that does not hold the `num` readouts meta.json says."""
-    streams = [SpikeStream.open(existing_file(root, n), height, width, flip) for n in names]
+def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
+    """The spike files ROOT/names, memory-mapped as `meta` (meta.json) describes them (height,
+    width, flip, num_readouts; raw_width and col_offset for a camera's wider rows);
+    FileNotFoundError naming a missing one, ValueError naming one that does not hold the
+    readouts meta.json says."""
+    num = int(meta["num_readouts"])
+    streams = [
+        SpikeStream.open(
+            existing_file(root, n),
+            int(meta["height"]),
+            int(meta["width"]),
+            meta["flip"],
+            meta.get("raw_width"),
+            meta.get("col_offset", 0),
+        )
+        for n in names
+    ]
     for name, stream in zip(names, streams):
         if len(stream) != num:
             raise ValueError(f"{root / name}: {len(stream)} readouts, {META} says {num}")
@@ -265,7 +277,14 @@ def load_dataset(path: PathLike) -> Dataset:
     _check_meta(meta, meta_path)
     num = int(meta["num_readouts"])
     names = spike_files(int(meta["channels"]))
-    streams = open_streams(root, names, meta["height"], meta["width"], meta["flip"], num)
+    streams = open_streams(root, names, meta)
+    if (root / "spikegs.json").is_file():
+        warnings.warn(
+            f"{root / 'spikegs.json'} is not read: it holds the options of the LLFF and NeRF "
+            f"layouts; a {META} dataset states its own (rate_at_one, raw_width, col_offset, ...) "
+            f"in {META}",
+            stacklevel=2,
+        )
     trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY))
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
@@ -295,7 +314,8 @@ def _check_meta(meta: dict, path: Path) -> None:
         raise ValueError(
             f"{path}: format_version {meta['format_version']}, this SpikeGS reads {FORMAT_VERSION}"
         )
-    check_meta_values(meta, path, [*required, "scene_center", "scene_radius"])
+    optional = [k for k in ("raw_width", "col_offset") if k in meta]
+    check_meta_values(meta, path, [*required, "scene_center", "scene_radius", *optional])
 
 
 def check_meta_values(meta: dict, path: Path, keys) -> None:
@@ -319,6 +339,15 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             number(key)
         elif key == "flip" and not isinstance(meta[key], bool):
             raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
+        elif key == "raw_width":
+            need = int(meta.get("width", 1)) + int(meta.get("col_offset", 0))
+            if not (is_int(meta[key]) and meta[key] >= need):
+                raise ValueError(
+                    f"{path}: raw_width (pixels stored per .dat row) expected an integer >= "
+                    f"width + col_offset = {need}, found {meta[key]!r}"
+                )
+        elif key == "col_offset" and not (is_int(meta[key]) and meta[key] >= 0):
+            raise ValueError(f"{path}: col_offset expected an integer >= 0, found {meta[key]!r}")
         elif key == "scene_center":
             center = meta[key]
             if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
