@@ -184,6 +184,8 @@ def test_missing_files_and_nan_poses(tmp_path, small):
             load_dataset(root)
     with pytest.raises(FileNotFoundError, match=r"no dataset found: none of meta.json .*LLFF"):
         load_dataset(tmp_path / "meta.json")  # the copy above without its meta.json
+    with pytest.raises(FileNotFoundError, match="from `spikegs poses"):  # a raw recording's
+        load_dataset(tmp_path / "trajectory.json")
     root = tmp_path / "nan"
     shutil.copytree(small.root, root)
     doc = json.loads((root / "trajectory.json").read_text())

@@ -300,6 +300,22 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     with pytest.raises(ValueError, match="spikegs.json: unknown options \\['heigth'\\]"):
         load_dataset(root)
 
+    root = copy(llff, tmp_path / "every")  # a stream per view: train_every has nothing to space
+    write_options(root, train_every=4)
+    with pytest.warns(UserWarning, match="train_every .* is not used with a spike stream per view"):
+        load_dataset(root)
+
+    # readouts given in seconds (readout x 25 us) sent the user to pseudo_gt_window; a pose log
+    # too dense for the held-out poses' margins said only "no training timestamp left"
+    root = copy(llff_stream, tmp_path / "seconds")
+    poses = len(np.loadtxt(root / "readouts.txt"))
+    np.savetxt(root / "readouts.txt", np.arange(poses) * 50 * 25e-6)
+    with pytest.raises(ValueError, match="readouts are indices, 25 µs apart \\(not seconds\\?\\)"):
+        load_dataset(root)
+    np.savetxt(root / "readouts.txt", np.arange(poses) * 10 + 200, fmt="%d")
+    with pytest.raises(ValueError, match="poses lie 10 readouts apart; hold out fewer"):
+        load_dataset(root)
+
 
 def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
     """Sharp images of training views calibrate the firing rate of intensity 1 (when spikegs.json

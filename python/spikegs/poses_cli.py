@@ -278,6 +278,11 @@ def estimate_poses(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "
             "similarity (arbitrary rotation, translation and scale)"
         )
+        if "scene_center" in meta or "scene_radius" in meta:
+            messages.append(
+                f"warning: scene_center / scene_radius in {META} are kept, but they cannot be in "
+                f"SfM's frame; remove them to have them estimated from the points"
+            )
     else:
         recon = align(recon, reference)
     messages += _complete_meta(meta, recon, estimated=K is None)

@@ -273,6 +273,11 @@ def load_dataset(path: PathLike) -> Dataset:
             f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout); docs/datasets.md"
         )
     meta_path = existing_file(root, META)
+    if not (root / TRAJECTORY).is_file():
+        raise FileNotFoundError(
+            f"dataset file not found: {root / TRAJECTORY} (the camera poses; a raw recording gets "
+            f"them, and what else it lacks, from `spikegs poses {root}`)"
+        )
     meta = read_json(meta_path)
     _check_meta(meta, meta_path)
     num = int(meta["num_readouts"])

@@ -275,6 +275,6 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
         streams,
         [None] * len(files),
         test,
-        options.pseudo_gt_window,
+        options,
         str(source),
     )

@@ -207,6 +207,4 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{path}: frames {clash} both become view '{name}' ('/' turns into '_'); "
                 f"rename one of them"
             )
-    return views_dataset(
-        root, meta, names, viewmats, streams, images, test, options.pseudo_gt_window, str(path)
-    )
+    return views_dataset(root, meta, names, viewmats, streams, images, test, options, str(path))

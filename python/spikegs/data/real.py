@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,7 @@ from .dataset import (
     check_test_views,
     repeated,
 )
-from .real_options import Options
+from .real_options import OPTIONS_FILE, Options
 from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory
 from .view_stream import ViewStreams
@@ -163,11 +164,19 @@ def views_dataset(
     streams: list[SpikeStream | None],
     images: list[np.ndarray | None],
     test: np.ndarray,
-    pseudo_window: int | None,
+    options: Options,
     source: str,
 ) -> Dataset:
     """One spike stream per view [V] (None: a test view known only by its sharp image): views
     joined on one readout axis, a training timestamp at each training view's centre."""
+    pseudo_window = options.pseudo_gt_window
+    if options.train_every is not None:
+        warnings.warn(
+            f"{source}: train_every ({OPTIONS_FILE}) is not used with a spike stream per view "
+            f"(each training view is one timestamp, at its centre); it spaces the timestamps of "
+            f"one continuous stream",
+            stacklevel=3,
+        )
     twice = repeated(names)
     if twice:
         raise ValueError(
@@ -235,9 +244,23 @@ def stream_dataset(
             f"{source}: pose readouts span [{trajectory.start}, {trajectory.end}], outside the "
             f"stream's [0, {len(stream) - 1}] ({stream.path})"
         )
+    if trajectory.end - trajectory.start < 2 * WINDOW_MARGIN:
+        raise ValueError(
+            f"{source}: the poses span readouts [{trajectory.start:g}, {trajectory.end:g}] of the "
+            f"stream's {len(stream)}, less than the {2 * WINDOW_MARGIN + 1} readouts a training "
+            f"window needs: readouts are indices, {READOUT_PERIOD_S * 1e6:g} µs apart (not "
+            f"seconds?)"
+        )
     every = options.train_every or default_train_every(len(stream))
     ks = train_timestamps(len(stream), readouts[test], every)  # [M]
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
+    if not len(ks):
+        spacing = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
+        raise ValueError(
+            f"{source}: no training timestamp left: training windows keep {2 * WINDOW_MARGIN} "
+            f"readouts clear of each of the {int(test.sum())} held-out poses, and the poses lie "
+            f"{spacing:g} readouts apart; hold out fewer (test_views in spikegs.json)"
+        )
     window = options.pseudo_gt_window or NEEDED_WINDOW
     held_out = [
         HeldOut(f"view_{i:03d}", viewmats[i], float(readouts[i]), None, window)
