@@ -76,15 +76,21 @@ def _tag_int(path, tags: dict, key: str, default: int, lo: int, hi: int) -> int:
     return int(text)
 
 
-def load_ply(path: str | Path) -> GaussianModel:
-    """Read a 3DGS `.ply` (ours or another tool's) into a GaussianModel; ValueError naming the
-    file where it is not a PLY or lacks a property of the layout."""
+def read_vertices(path: str | Path) -> PlyData:
+    """A PLY file with a 'vertex' element; ValueError naming the file where it is not one."""
     try:
         ply = PlyData.read(str(path))
     except (PlyParseError, UnicodeDecodeError, ValueError) as err:
         raise ValueError(f"{path}: not a readable PLY file ({err})") from None
     if "vertex" not in [e.name for e in ply.elements]:
-        raise ValueError(f"{path}: no 'vertex' element: not a Gaussian splat file")
+        raise ValueError(f"{path}: no 'vertex' element")
+    return ply
+
+
+def load_ply(path: str | Path) -> GaussianModel:
+    """Read a 3DGS `.ply` (ours or another tool's) into a GaussianModel; ValueError naming the
+    file where it is not a PLY or lacks a property of the layout."""
+    ply = read_vertices(path)
     v = ply["vertex"].data
     names = v.dtype.names
     needed = ("x", "y", "z", "opacity", *(f"scale_{i}" for i in range(3)))

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from plyfile import PlyData, PlyElement, PlyParseError
+from plyfile import PlyData, PlyElement
 from scipy.spatial import cKDTree
 
 from .gaussians import GaussianModel
+from .ply import read_vertices
 
 POINTS = "points3d.ply"
 
@@ -34,13 +35,7 @@ def read_points(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
     """Points [P, 3] float64 and colours [P, 3] in [0, 1] (None when the file has none): 8- or
     16-bit integers scaled by their range, floats taken as they are (0..1, as PLY writers store
     them); ValueError naming the file for anything else."""
-    try:
-        ply = PlyData.read(str(path))
-    except (PlyParseError, UnicodeDecodeError, ValueError) as err:
-        raise ValueError(f"{path}: not a readable PLY file ({err})") from None
-    if "vertex" not in [e.name for e in ply.elements]:
-        raise ValueError(f"{path}: no 'vertex' element")
-    vertex = ply["vertex"].data
+    vertex = read_vertices(path)["vertex"].data
     names = vertex.dtype.names
     if not {"x", "y", "z"} <= set(names):
         raise ValueError(f"{path}: expected vertex properties x, y, z; found {list(names)}")
