@@ -68,6 +68,26 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     assert train.ablation_order({"tfp33": methods["tfp33"]}) is None
     row = {r["method"]: r for r in train._table(methods, train.paired_gains(methods))}["spikegs"]
     assert row["PSNR"] == "27.20 ± 1.70" and row["gain over tfp33 (dB)"] == "1.20 ± 0.28"
+    # the plots draw seed 0's curve: its time axis starts at seed 0's SIM, not the mean's
+    timed = train.over_seeds([_run(26.0, sim_seconds=30.0), _run(27.0, sim_seconds=50.0)])
+    assert timed["sim_seconds"] == 40.0 and timed["curve_sim_seconds"] == 30.0
+    assert isinstance(row["Gaussians"], int)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["bench", "train", "--methods", ","], "--methods ',': expected comma-separated names"),
+        (["bench", "spikes", "--seeds", "3"], "--seeds: options of bench train, not of bench"),
+        (["bench", "sim", "--methods", "tfi"], "--methods: options of bench train"),
+    ],
+)
+def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
+    """`--methods ,` ran the default methods; train's options were ignored by the other parts."""
+    from spikegs.cli import main
+
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
 
 
 def test_train_selection_names_what_is_unknown():

@@ -46,14 +46,21 @@ def _train_options(args: argparse.Namespace) -> dict:
     if args.iterations is not None:
         options["iterations"] = args.iterations
     for name in ("scenes", "methods"):
-        if getattr(args, name):
-            options[name] = [v.strip() for v in getattr(args, name).split(",") if v.strip()]
+        text = getattr(args, name)
+        if text is not None:
+            options[name] = [v.strip() for v in text.split(",") if v.strip()]
+            if not options[name]:  # "," or "": the defaults would run instead
+                raise ValueError(f"--{name} {text!r}: expected comma-separated names")
     return options
 
 
 def run(args: argparse.Namespace) -> int:
     parts = list(PARTS) if args.part == "all" else [args.part]
     train_options = _train_options(args)
+    given = [f"--{k}" for k in ("iterations", "scenes", "methods") if getattr(args, k) is not None]
+    given += ["--seeds"] if args.seeds != 1 else []
+    if given and "train" not in parts:
+        raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     if "train" in parts:  # a bad scene, method or seed count fails before any part runs
         from .train import selection
 

@@ -119,9 +119,12 @@ def _plot(rows: list[dict], errors: dict[str, np.ndarray], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-    axes[0].bar([r["condition"] for r in rows], [r["psnr"] for r in rows], color="C0")
-    low = min(r["psnr"] for r in rows)
-    axes[0].set_ylim(low - 1.0, max(r["psnr"] for r in rows) + 0.5)
+    # points, not bars: an axis that does not start at 0 would exaggerate bars' lengths
+    names, psnrs = [r["condition"] for r in rows], [r["psnr"] for r in rows]
+    axes[0].plot(names, psnrs, "o", color="C0", markersize=8)
+    for name, value in zip(names, psnrs):
+        axes[0].annotate(f"{value:.2f}", (name, value), textcoords="offset points", xytext=(0, 8))
+    axes[0].margins(x=0.2, y=0.3)
     axes[0].set_ylabel("test PSNR (dB), true test poses")
     for name, color in (("before", "C3"), ("after", "C2")):
         values = np.sort(errors[f"rotation_deg_{name}"])

@@ -148,6 +148,10 @@ def run(quick: bool, out: Path) -> dict:
     print_table(step_rows)
     for scene, gain in gains.items():
         print(f"{scene}: SIM PSNR gain over TFP(33) {gain:+.2f} dB")
+    if quick:
+        print(
+            "(--quick: SIM trained a few steps on a small scene; these scores check the run only)"
+        )
     results = {
         "parameters": model.num_parameters(),
         "training": training,

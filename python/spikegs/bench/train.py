@@ -163,6 +163,7 @@ def over_seeds(runs: list[dict]) -> dict:
     with the scores and times replaced by their means, standard deviations and every seed's."""
     keys = ("psnr", "ssim", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
     merged = dict(runs[0])
+    merged["curve_sim_seconds"] = runs[0]["sim_seconds"]  # the curve's own offset: seed 0's SIM
     for key in keys:
         mean, std = _mean_and_std([r[key] for r in runs])
         merged[key] = mean
@@ -207,7 +208,7 @@ def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
             "SSIM": spread(r["ssim"], r["ssim_std"], 3),
             "train s": r["train_seconds"],
             "SIM s": r["sim_seconds"] if r["uses_sim"] else "-",
-            "Gaussians": r["gaussians"],
+            "Gaussians": int(round(r["gaussians"])),
             "gain over tfp33 (dB)": spread(*gains[name], 2) if name in gains else "-",
         }
         for name, r in methods.items()
@@ -217,16 +218,17 @@ def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
     for i, (name, r) in enumerate(methods.items()):
-        seconds = [r["sim_seconds"] + p["train_seconds"] for p in r["curve"]]
+        offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
+        seconds = [offset + p["train_seconds"] for p in r["curve"]]
         sim = r["uses_sim"]
-        label = f"{name} (from SIM {r['sim_seconds']:.0f} s)" if sim else name
+        label = f"{name} (from SIM {offset:.0f} s)" if sim else name
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]
             ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
     for ax, metric in zip(axes, metrics):
         ax.set_xscale("log")
         ax.set_xlabel("seconds (SIM + training)")
-        ax.set_ylabel(metric.upper())
+        ax.set_ylabel("PSNR (dB)" if metric == "psnr" else metric.upper())
         ax.grid(True, which="both", alpha=0.3)
     axes[-1].legend(fontsize=8)
 
