@@ -397,6 +397,15 @@ def test_every_method_config_loads():
         # a start past the last densifying iteration silently never densified
         ("spikegs", {"densify": {"start": 2000, "stop": 1000}}, "densify.start"),
         ("spikegs", {"train": {"iterations": 1000}, "densify": {"start": 800}}, "densify.start"),
+        # accepted and did nothing: no multiple of every in start..stop, D-SSIM without an
+        # instant target, a TFP window for SIM; rates that move parameters by more than their
+        # scale a step finished "successfully" with garbage
+        ("spikegs", {"densify": {"start": 30, "stop": 60, "every": 100}}, "densify.every"),
+        ("spikegs", {"supervision": {"instant": "none", "dssim_weight": 0.5}}, "dssim_weight"),
+        ("spikegs", {"supervision": {"instant_weight": 0.0, "dssim_weight": 0.5}}, "dssim_weight"),
+        ("spikegs", {"supervision": {"instant_window": 1}}, "supervision.instant_window"),
+        ("spikegs", {"lr": {"background": 1e30}}, "lr.background"),
+        ("spikegs", {"pose_refine": {"lr": 5.0}}, "pose_refine.lr"),
     ],
 )
 def test_config_validation(name, overrides, message):
@@ -1012,6 +1021,22 @@ def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, mo
     with pytest.raises(FloatingPointError, match="iteration 1: the loss is nan"):
         trainer.train()
     assert all(torch.isfinite(p).all() for p in trainer.model.params.values())
+
+
+def test_gradients_beyond_float32_stop_the_run(dataset, tmp_path, capsys):
+    """A loss weight of 1e30 overflowed Adam's squared-gradient averages: the parameters froze
+    and the run 'finished' at the reset opacity; the stop printed a traceback claiming a
+    checkpoint that did not exist."""
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 5}}
+    config = tmp_path / "huge.yaml"
+    config.write_text(
+        yaml.safe_dump({"base": "tfp33", **overrides, "supervision": {"instant_weight": 1e30}})
+    )
+    argv = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "r")]
+    assert main([*argv, "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "stopped: iteration 1: gradients too large for float32" in err
+    assert "no checkpoint was written yet" in err and "Traceback" not in err
 
 
 def test_non_finite_parameters_stop_the_run(dataset, tmp_path, monkeypatch):

@@ -39,6 +39,7 @@ CONFIG_DIR = next(
     _PACKAGE_DIR / "configs",
 )
 DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
+MAX_LR = 1.0  # learning rates above it move parameters by more than their own scale a step
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
@@ -66,8 +67,10 @@ class SupervisionConfig:
     exposure_norm: str = "l1"
 
     def total_weight(self) -> float:
-        """The sum of the weights of the losses in use (> 0 in a valid config)."""
-        return (self.instant_weight if self.instant != "none" else 0.0) + self.exposure_weight
+        """The sum of the weights of the losses in use (> 0 in a valid config; D-SSIM's only with
+        an instant target, as validation requires)."""
+        instant = self.instant_weight + self.dssim_weight if self.instant != "none" else 0.0
+        return instant + self.exposure_weight
 
 
 @dataclass
@@ -157,6 +160,20 @@ class Config:
         for name in ("instant_weight", "exposure_weight", "dssim_weight"):
             _require(getattr(s, name) >= 0, f"supervision.{name}", getattr(s, name), ">= 0")
         _require(
+            s.dssim_weight == 0 or (s.instant != "none" and s.instant_weight > 0),
+            "supervision.dssim_weight",
+            s.dssim_weight,
+            "0 without an instant target (the D-SSIM term compares the instant render with it: "
+            "supervision.instant and instant_weight > 0)",
+        )
+        _require(
+            s.instant == "tfp" or s.instant_window == SupervisionConfig.instant_window,
+            "supervision.instant_window",
+            s.instant_window,
+            f"{SupervisionConfig.instant_window} (the default) unless instant is tfp: it is the "
+            f"TFP window (SIM's is sim.window)",
+        )
+        _require(
             s.instant_weight > 0 or s.exposure_weight > 0,
             "supervision",
             "no loss",
@@ -181,7 +198,11 @@ class Config:
             _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")
         for f in dataclasses.fields(self.lr):
             _require(
-                getattr(self.lr, f.name) >= 0, f"lr.{f.name}", getattr(self.lr, f.name), ">= 0"
+                0 <= getattr(self.lr, f.name) <= MAX_LR,
+                f"lr.{f.name}",
+                getattr(self.lr, f.name),
+                f"0..{MAX_LR} (Adam moves a parameter by about its rate a step; 3DGS's are "
+                f"1e-4..5e-2)",
             )
         _require(
             self.lr.means == 0 or self.lr.means_final > 0,
@@ -205,6 +226,14 @@ class Config:
             d.start,
             f"<= the last densifying iteration {last} (densify.stop, or half of train.iterations "
             f"when 0), or >= train.iterations ({t.iterations}) for a run without densification",
+        )
+        first = -(-max(d.start, 1) // d.every) * d.every  # the first densifying iteration
+        _require(
+            d.start >= t.iterations or first <= last,
+            "densify.every",
+            d.every,
+            f"a period with a multiple in densify.start..stop = {d.start}..{last} (densification "
+            f"runs at the multiples of every: none there, the run would never densify)",
         )
         for name in ("grad_threshold", "percent_dense", "max_screen_size", "max_world_size"):
             _require(getattr(d, name) >= 0, f"densify.{name}", getattr(d, name), ">= 0")
@@ -231,7 +260,12 @@ class Config:
         for name in ("iterations", "crop", "batch", "shift_layers"):
             _require(getattr(sim, name) >= 1, f"sim.{name}", getattr(sim, name), ">= 1")
         _require(sim.loss in ("l1", "l2"), "sim.loss", sim.loss, "l1 or l2")
-        _require(self.pose_refine.lr >= 0, "pose_refine.lr", self.pose_refine.lr, ">= 0")
+        _require(
+            0 <= self.pose_refine.lr <= MAX_LR,
+            "pose_refine.lr",
+            self.pose_refine.lr,
+            f"0..{MAX_LR}",
+        )
         return self
 
     def to_dict(self) -> dict[str, Any]:

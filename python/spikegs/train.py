@@ -279,9 +279,23 @@ class Trainer:
         )  # [B, 4, 4]
         return [v if self.poses is None else self.poses(v, view) for v in viewmats]
 
+    def _diverged(self, what: str) -> FloatingPointError:
+        """The error that stops a diverged run: `what` happened, where the run can go on from."""
+        kept = (
+            f"its last checkpoint ({self.checkpoint_path}) is kept"
+            if self.checkpoint_path.exists()
+            else "no checkpoint was written yet"
+        )
+        return FloatingPointError(
+            f"iteration {self.iteration}: {what}; stopped, {kept}. Lower the learning rates or "
+            f"loss weights"
+        )
+
     def _check_parameters(self) -> None:
-        """FloatingPointError naming the parameters that an update made non-finite: the
-        rasterizer culls such Gaussians, so the loss alone would not show it."""
+        """FloatingPointError naming the parameters that an update made non-finite (the
+        rasterizer culls such Gaussians, so the loss alone would not show it), or whose Adam
+        second moments overflowed (squared gradients past float32's range: those parameters
+        would stop moving for good)."""
         named = {**self.model.params, "background": self.model.background}
         bad = {  # name: rows (Gaussians; background: channels) with a non-finite entry
             k: (int((~torch.isfinite(p.detach())).reshape(len(p), -1).any(1).sum()), len(p))
@@ -289,9 +303,18 @@ class Trainer:
         }
         listed = ", ".join(f"{k} ({n} of {rows})" for k, (n, rows) in bad.items() if n)
         if listed:
-            raise FloatingPointError(
-                f"iteration {self.iteration}: the update made parameters non-finite: {listed}; "
-                f"stopped (the last checkpoint is kept). Lower the learning rates or loss weights"
+            raise self._diverged(f"the update made parameters non-finite: {listed}")
+        overflowed = [
+            group["name"]
+            for group in self.optimizer.param_groups
+            for p in group["params"]
+            if "exp_avg_sq" in self.optimizer.state.get(p, {})
+            and not torch.isfinite(self.optimizer.state[p]["exp_avg_sq"]).all()
+        ]
+        if overflowed:
+            raise self._diverged(
+                f"gradients too large for float32 (Adam's squared-gradient averages of "
+                f"{', '.join(overflowed)} overflowed)"
             )
 
     def step(self) -> float:
@@ -339,10 +362,7 @@ class Trainer:
                 renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
             )
         if not torch.isfinite(loss):
-            raise FloatingPointError(
-                f"iteration {self.iteration}: the loss is {loss.item()}; stopped before the update "
-                f"(the last checkpoint is kept). Lower the learning rates or loss weights"
-            )
+            raise self._diverged(f"the loss is {loss.item()}, before the update")
         loss.backward()
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
@@ -352,10 +372,13 @@ class Trainer:
         self.densifier.observe(radii, screen_grad / s.total_weight(), w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
+            d = self.config.densify
             raise ValueError(
-                f"iteration {self.iteration}: pruning removed every Gaussian (densify.min_opacity "
-                f"{self.config.densify.min_opacity}, size caps); start from more Gaussians or "
-                f"prune less"
+                f"iteration {self.iteration}: pruning removed every Gaussian (below "
+                f"densify.min_opacity {d.min_opacity}, or larger than densify.max_world_size "
+                f"{d.max_world_size} of the scene radius, a size Gaussians leave by splitting, "
+                f"which densify.max_gaussians {d.max_gaussians} may leave no room for); prune "
+                f"less, or give the run more room"
             )
         return loss.item()
 
