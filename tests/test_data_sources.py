@@ -16,7 +16,6 @@ from spikegs.data import (
     make_source,
     simulate_dataset,
 )
-from spikegs.data.scenes import srgb_to_linear
 from spikegs.data.sources import (
     AXES_SPREAD_MIN,
     LUMA_709,
@@ -30,7 +29,7 @@ from spikegs.data.sources import (
     view_sphere,
 )
 from spikegs.data.trajectory import check_rigid, look_at
-from spikegs.image_io import write_image
+from spikegs.image_io import srgb_to_linear, write_image
 from spikegs.spikes import save_dat
 
 
@@ -55,16 +54,25 @@ def write_transforms(path, name, frames, viewmats, K, ext):
     entries = []
     for i, (frame, viewmat) in enumerate(zip(frames, viewmats)):
         stem = f"{name}/r_{i}"
-        encoded = (
-            frame
-            if ext == ".exr"
-            else np.where(frame <= 0.0031308, frame * 12.92, 1.055 * frame ** (1 / 2.4) - 0.055)
-        )  # 8-bit files hold sRGB
-        write_image(path.parent / (stem + ext), encoded)
+        write_image(path.parent / (stem + ext), frame)  # linear; an 8-bit file is sRGB-encoded
         c2w = np.linalg.inv(viewmat) @ OPENGL_TO_OPENCV  # OpenCV -> OpenGL camera axes
         entries.append({"file_path": stem, "transform_matrix": c2w.tolist()})
     fov = 2 * np.arctan(K[0, 2] / K[0, 0])
     path.write_text(json.dumps({"camera_angle_x": fov, "frames": entries}))
+
+
+def test_8_bit_images_hold_srgb_as_they_are_tagged(tmp_path):
+    """Eval PNGs, comparison.png and videos held linear values in files tagged sRGB: a mid grey
+    (linear 0.216, sRGB 128) was stored as 55 and shown 5.7x too dark."""
+    from spikegs.data.sources import read_frame
+    from spikegs.image_io import read_image
+
+    grey = np.full((4, 6, 3), 0.2158605, np.float32)  # sRGB 128 / 255
+    write_image(tmp_path / "g.png", grey)
+    np.testing.assert_allclose(read_image(tmp_path / "g.png"), 128 / 255, atol=1e-6)  # stored
+    np.testing.assert_allclose(read_frame(tmp_path / "g", 0.0), grey, atol=2e-3)  # read back
+    write_image(tmp_path / "g.exr", grey)  # float files stay linear
+    np.testing.assert_array_equal(read_image(tmp_path / "g.exr"), grey)
 
 
 def test_frame_sequence_source(tmp_path):
@@ -474,7 +482,7 @@ def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
     ds = load_dataset(root)
     np.testing.assert_allclose(ds.K, [[60, 0, 25], [0, 60, 12.5], [0, 0, 1]], rtol=1e-6)
     sharp = ds.test_views[0].image[..., 0] / ds.meta["image_scale"]  # [25, 50]
-    np.testing.assert_allclose(sharp, srgb_to_linear(ramp[:, 1:51, 0]), atol=0.005)  # 8-bit
+    np.testing.assert_allclose(sharp, ramp[:, 1:51, 0], atol=0.005)  # 8-bit sRGB, decoded
     frames = np.random.default_rng(0).random((3, 16, 24, 3))  # simulate: 24x16 frames
     K = np.array([[30.0, 0, 12], [0, 30, 8], [0, 0, 1]])
     write_transforms(tmp_path / "sim.json", "sim", frames, arc_viewmats(3), K, ".exr")

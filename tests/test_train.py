@@ -629,6 +629,11 @@ def test_mp4_holds_every_frame_of_any_size(codec, tmp_path, monkeypatch):
     assert error.max() < 4, error  # every frame in its place: one off by one costs ~13
     edge = np.abs(decoded[:, 33, :47] - frames[:, 32]).mean()  # the replicated row
     assert edge < 4, edge
+    import av
+
+    with av.open(str(tmp_path / "v.mp4")) as container:  # untagged, players guessed the matrix
+        context = container.streams.video[0].codec_context
+        assert (context.colorspace, context.color_range, context.color_trc) == (6, 1, 13)
     assert [p.name for p in tmp_path.iterdir()] == ["v.mp4"]  # no partial file left
 
 

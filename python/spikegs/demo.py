@@ -157,7 +157,7 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
 
 
 def run(args: argparse.Namespace) -> int:
-    from .image_io import read_image, write_image
+    from .image_io import read_image, srgb_to_linear, write_image
 
     start = time.perf_counter()
     progress = not args.no_progress
@@ -184,7 +184,9 @@ def run(args: argparse.Namespace) -> int:
     names = [v.name for v in dataset.test_views]
     rows = []
     for name in names:  # each eval image is GT | render | error; keep GT once, then each render
-        panels = [read_image(out / "runs" / m / "eval" / f"{name}.png") for m in METHODS]
+        panels = [  # back to linear light: write_image encodes it as sRGB again
+            srgb_to_linear(read_image(out / "runs" / m / "eval" / f"{name}.png")) for m in METHODS
+        ]
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
     write_image(out / "comparison.png", np.concatenate(rows, axis=0))

@@ -9,6 +9,17 @@ import numpy as np
 import OpenImageIO as oiio
 
 
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """Decode sRGB values in [0, 1] to linear light."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """Encode linear light in [0, 1] (clipped) as sRGB values in [0, 1]."""
+    c = np.clip(c, 0.0, 1.0)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
 def _reason(error: str) -> str:
     """OpenImageIO's error message, which some failures leave empty (a truncated file, a folder
     that cannot be written)."""
@@ -16,7 +27,9 @@ def _reason(error: str) -> str:
 
 
 def write_image(path: str | Path, image: np.ndarray) -> None:
-    """Write float `image` [H, W] or [H, W, C]; PNG/JPEG are clipped to [0, 1] and quantised."""
+    """Write linear float `image` [H, W] or [H, W, C]: EXR/TIFF as they are; PNG/JPEG, which
+    OpenImageIO tags as sRGB, sRGB-encoded (clipped to [0, 1]) and quantised to 8 bits, so that
+    viewers show the intensities and `read_frame` decodes them back."""
     image = np.asarray(image, dtype=np.float32)
     if image.ndim == 2:
         image = image[..., None]  # OpenImageIO needs (H, W, 1) for one channel
@@ -24,7 +37,7 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     spec = oiio.ImageSpec(image.shape[1], image.shape[0], image.shape[2], oiio.FLOAT)
     if path.suffix.lower() in (".png", ".jpg", ".jpeg"):
-        image = np.clip(image, 0.0, 1.0)
+        image = linear_to_srgb(image).astype(np.float32)
         spec.set_format(oiio.UINT8)
     out = oiio.ImageOutput.create(str(path))
     if out is None or not out.open(str(path), spec):

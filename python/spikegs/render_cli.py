@@ -63,10 +63,11 @@ def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
 
 
 def orbit_frames(model, dataset, frames: int) -> np.ndarray:
-    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit."""
+    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show)."""
     import torch
 
     from .evaluate import render_view
+    from .image_io import linear_to_srgb
 
     path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames)
     K = torch.as_tensor(dataset.K, dtype=torch.float32)
@@ -75,7 +76,7 @@ def orbit_frames(model, dataset, frames: int) -> np.ndarray:
         view = argparse.Namespace(viewmat=viewmat)
         image = render_view(model, view, K, dataset.width, dataset.height)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
-        out.append((np.clip(image, 0, 1) * 255 + 0.5).astype(np.uint8))
+        out.append((linear_to_srgb(image) * 255 + 0.5).astype(np.uint8))  # sRGB, as shown
     return np.stack(out)
 
 
@@ -120,6 +121,9 @@ def mp4_codec() -> str:
     return codec
 
 
+BT601, SRGB_TRANSFER, LIMITED_RANGE = 6, 13, 1  # FFmpeg's AVColorSpace/Primaries, TRC, Range
+
+
 def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
     """uint8 frames [F, H, W, 3] as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
     in yuv420p, which every player reads; its chroma needs an even size, so an odd height or
@@ -135,6 +139,11 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
             stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
             stream.height, stream.width = frames.shape[1:3]
             stream.pix_fmt = "yuv420p"
+            # what swscale's rgb24 -> yuv420p conversion makes, stated so that players do not
+            # guess: BT.601 (SMPTE 170M) matrix and primaries, limited range, sRGB transfer
+            context = stream.codec_context
+            context.colorspace, context.color_primaries = BT601, BT601
+            context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
             for frame in frames:
                 container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
             container.mux(stream.encode())  # flush the encoder's delayed frames

@@ -182,15 +182,14 @@ class Trainer:
         t = self.config.train
         torch.manual_seed(t.seed)
         gen = torch.Generator().manual_seed(t.seed)
-        # intensities from the data (initial_intensity.py): Gaussians without a colour take what
-        # the views show where they project, the background the views' median intensity
+        # intensities from the data (initial_intensity.py): Gaussians take what the views show
+        # where they project (a point cloud gives positions only), the background the views'
+        # median intensity
         sample = ViewSample.of(self.dataset, self.scale)
         colors_of = lambda means: projected_intensity(self.dataset, sample, means)  # noqa: E731
         cloud = Path(self.dataset.root) / POINTS  # a sparse point cloud, e.g. from `spikegs poses`
         if cloud.exists():
-            self.model = gaussians_from_points(
-                cloud, t.init_gaussians, self.dataset.channels, t.sh_degree, gen, colors_of
-            )
+            self.model = gaussians_from_points(cloud, t.init_gaussians, t.sh_degree, gen, colors_of)
         else:
             self.model = GaussianModel.random(
                 t.init_gaussians,

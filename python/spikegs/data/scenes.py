@@ -20,6 +20,8 @@ import numpy as np
 import skimage.data
 from scipy.spatial.transform import Rotation
 
+from ..image_io import srgb_to_linear
+
 
 @dataclasses.dataclass
 class GaussianScene:
@@ -47,11 +49,6 @@ class GaussianScene:
         fields = ("means", "quats", "scales", "opacities", "colors")
         arrays = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
         return GaussianScene(**arrays, background=np.asarray(background, np.float64))
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """Decode sRGB values in [0, 1] to linear light."""
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def texture(name: str, white: float = 0.95) -> np.ndarray:

@@ -21,12 +21,12 @@ import numpy as np
 import skimage.transform
 import torch
 
-from ..image_io import read_stored_image
+from ..image_io import read_stored_image, srgb_to_linear
 from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
 from .dataset import check_meta_values
-from .scenes import GaussianScene, srgb_to_linear
+from .scenes import GaussianScene
 from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
 
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
