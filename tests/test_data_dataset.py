@@ -390,6 +390,15 @@ def test_existing_dataset_needs_overwrite(tmp_path):
     assert (out / "notes.txt").exists()
     with pytest.raises(FileExistsError, match=r"not a dataset's \(ds\)"):  # nor mixed in
         simulate_dataset("wires", tmp_path, **SMALL)
+    # a simulation killed while rendering leaves its light: the folder was refused for good
+    killed = tmp_path / "killed"
+    killed.mkdir()
+    (killed / ".light.npy").write_bytes(b"\0" * 64)
+    with pytest.raises(FileNotFoundError, match="an interrupted simulation"):
+        load_dataset(killed)
+    with pytest.raises(FileExistsError, match="an interrupted simulation left.*--overwrite"):
+        simulate_dataset("wires", killed, **SMALL)
+    assert simulate_dataset("wires", killed, overwrite=True, **SMALL).meta["scene"] == "wires"
 
 
 def test_unknown_scene_lists_the_known_ones(tmp_path):

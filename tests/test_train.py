@@ -253,8 +253,12 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
         Trainer(dataset, config, tmp_path / "other", progress=False).train(resume=True)
     shutil.rmtree(tmp_path / "run" / "checkpoints")  # as if stopped before its first checkpoint
     (tmp_path / "run" / "train.json").unlink()
+    (tmp_path / "run" / "checkpoints").mkdir()
+    killed = tmp_path / "run" / "checkpoints" / "last.pt.999.tmp"  # a process killed mid-save
+    killed.write_bytes(b"half")
     summary = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert summary["iterations"] == 2 and (tmp_path / "run" / "checkpoints" / "last.pt").exists()
+    assert not killed.exists()  # each such kill left one
 
 
 @pytest.mark.parametrize("channels, degree", [(1, 0), (3, 2), (1, 3)])
@@ -677,7 +681,24 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert main([*argv, str(mine)]) == 2
         assert "notes.txt" in capsys.readouterr().err
         assert (mine / part / "notes.txt").exists() and (mine / "results.json").exists()
-        assert len(list(mine.rglob("*"))) == 3 + part.count("/")
+        assert len([p for p in mine.rglob("*") if p.name != ".lock"]) == 3 + part.count("/")
+    # one demo per OUT: a second one deleted the first one's dataset and run, lock and all
+    from spikegs.train import run_lock
+
+    with run_lock(out):
+        assert main([*argv, str(out)]) == 2
+    assert "another process" in capsys.readouterr().err and (out / "results.json").exists()
+    # stopped while simulating: --resume went on with 1800 iterations, not the 80 asked for
+    from spikegs.demo import started_iterations
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr("spikegs.data.simulate_dataset", ctrl_c)
+        assert main([*argv, str(tmp_path / "early")]) == 130
+    assert started_iterations(tmp_path / "early") == 80
+    capsys.readouterr()
 
     step = Trainer.step
 

@@ -81,6 +81,7 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
 
 
 SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
+ITERATIONS_FILE = ".demo_iterations"  # the --iterations a demo was started with ('' : default)
 RESULTS = "results.json"
 
 
@@ -100,23 +101,24 @@ def earlier_seconds(out: Path) -> float:
 
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
-    config.yaml), None where no run has started."""
+    config.yaml, else what it recorded when it started), None for the default."""
     for method in METHODS:
         saved = out / "runs" / method / "config.yaml"
         if saved.is_file():
             return int(yaml.safe_load(saved.read_text())["train"]["iterations"])
-    return None
+    try:
+        return int((out / ITERATIONS_FILE).read_text()) or None
+    except (FileNotFoundError, ValueError):
+        return None
 
 
 def check_fresh_out(out: Path) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
-    earlier demo's: OUT a file, OUT/data or OUT/runs/METHOD holding files that are not a dataset's
-    or a spikegs run's (a user's own run there keeps its notes, renders, ...)."""
+    earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
+    spikegs run's (a user's own run there keeps its notes, renders, ...)."""
     from .data.dataset import check_output
     from .train import foreign_files
 
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"--out {out} is a file; give the demo a folder")
     check_output(out / "data", overwrite=True)
     for method in METHODS:
         run_dir = out / "runs" / method
@@ -157,11 +159,22 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
 
 
 def run(args: argparse.Namespace) -> int:
+    from .train import run_lock
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"--out {out} is a file; give the demo a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    with run_lock(out):  # one demo per OUT: a second one would delete the first one's files
+        return _demo(args, out)
+
+
+def _demo(args: argparse.Namespace, out: Path) -> int:
+    """`run` once OUT is locked."""
     from .image_io import read_image, srgb_to_linear, write_image
 
     start = time.perf_counter()
     progress = not args.no_progress
-    out = Path(args.out)
     earlier = earlier_seconds(out) if args.resume else 0.0
     resumed = args.resume and (out / "data" / "meta.json").exists()  # not a fresh start
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
@@ -173,6 +186,8 @@ def run(args: argparse.Namespace) -> int:
         check_fresh_out(out)
         for stale in (RESULTS, SECONDS_FILE):  # an earlier demo's, until this one writes its own
             (out / stale).unlink(missing_ok=True)
+        # what --resume goes on with, should this demo stop before its first run's config.yaml
+        (out / ITERATIONS_FILE).write_text(str(iterations or ""))
     try:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)

@@ -432,6 +432,9 @@ class Trainer:
         # one process trains in a run directory at a time; the checks under the lock, so that
         # they see the state that this process will train from, before any work
         with run_lock(self.run_dir):
+            # one process trains here: a temporary checkpoint is a killed process's, half-written
+            for stale in self.checkpoint_path.parent.glob("*.tmp"):
+                stale.unlink()
             state = self._read_checkpoint() if resume else None
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(

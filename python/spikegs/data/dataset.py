@@ -92,7 +92,8 @@ class Dataset:
         )
 
 
-PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
+LIGHT = ".light.npy"  # the rendered light while simulating: left by a killed simulation
+PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), LIGHT)  # any: a dataset
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
 DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS)
@@ -117,7 +118,10 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"output {out} exists and is not a directory")
     if out.is_dir() and holds_dataset(out) and not overwrite:
-        raise FileExistsError(f"{out} already holds a dataset; pass --overwrite to replace it")
+        raise FileExistsError(
+            f"{out} already holds a dataset (or what an interrupted simulation left); pass "
+            f"--overwrite to replace it"
+        )
     parts = {*PARTS, *DERIVED}
     others = sorted(p.name for p in out.iterdir() if p.name not in parts) if out.is_dir() else []
     if others:
@@ -268,9 +272,11 @@ def load_dataset(path: PathLike) -> Dataset:
             return load_llff(root)
         if any((root / name).is_file() for name in TRANSFORMS):
             return load_nerf_layout(root)
+        partial = " (its spikes without a meta.json: an interrupted simulation?)"
         raise FileNotFoundError(
             f"{root}: no dataset found: none of {META} (simulated or spikegs poses), "
-            f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout); docs/datasets.md"
+            f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout)"
+            f"{partial if holds_dataset(root) else ''}; docs/datasets.md"
         )
     meta_path = existing_file(root, META)
     if not (root / TRAJECTORY).is_file():

@@ -14,6 +14,7 @@ from ..number_checks import is_seed
 from ..spikes import SimParams, simulate_spikes
 from .dataset import (
     FORMAT_VERSION,
+    LIGHT,
     READOUT_PERIOD_S,
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
@@ -180,7 +181,7 @@ def write_spikes(
     """Render the light at readouts `times` [F] into a temporary file, then simulate each channel
     into its .dat (mono: `seed`; colour: one seed per channel derived from it)."""
     shape = (len(times), source.height, source.width, source.channels)
-    tmp = out / ".light.npy"
+    tmp = out / LIGHT
     light = np.lib.format.open_memmap(tmp, "w+", np.float32, shape)  # [F, H, W, C] on disk
     try:
         for i, t in enumerate(tqdm(times, desc="render", unit="frame", disable=not progress)):
