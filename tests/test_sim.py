@@ -1,5 +1,7 @@
 """SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
 
+import os
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -250,6 +252,32 @@ class _CtrlC:
             if self.at == 0:
                 raise KeyboardInterrupt
         return self.stream.window(k, w)
+
+
+class _SigInt(_CtrlC):
+    """`stream`, whose `at`-th training window sends this process a SIGINT (a Ctrl-C in the
+    middle of a step)."""
+
+    def window(self, k, w: int) -> np.ndarray:
+        if w > 1:
+            self.at -= 1
+            if self.at == 0:
+                os.kill(os.getpid(), signal.SIGINT)
+        return self.stream.window(k, w)
+
+
+def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained):
+    """A Ctrl-C in SIM's training lost everything since the last 30-second save (a process
+    killed sooner made no progress at all): the step finishes, the state is saved, then it stops."""
+    stream, path = scene[1], tmp_path / "sim.pt"
+    ts = valid_timestamps(stream, 33)
+    with pytest.raises(KeyboardInterrupt):  # the 30 s have not passed: saved for the Ctrl-C
+        train_or_load(path, _SigInt(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
+    assert "SIM's training stops after this step" in capsys.readouterr().err
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=False)["step"] == 13
+    resumed, _, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
+        assert torch.equal(a, b)
 
 
 def test_interrupted_sim_training_resumes_to_the_same_sim(

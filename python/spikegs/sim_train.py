@@ -20,6 +20,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically
+from .interrupt import deferred_interrupt
 from .metrics import psnr, ssim
 from .output_paths import writable_folder
 from .sim import SIM, START
@@ -133,38 +134,49 @@ def train_sim(
         disable=not progress,
         dynamic_ncols=True,
     )
-    for step in bar:
-        ks = rng.choice(timestamps, batch_size)
-        channel = rng.integers(len(streams), size=batch_size) if len(streams) > 1 else [0] * len(ks)
-        windows = [streams[c].window(k, window) for c, k in zip(channel, ks)]  # B x [w, H, W]
-        ys = rng.integers(0, height - ch + 1, batch_size)
-        xs = rng.integers(0, width - cw + 1, batch_size)
-        crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
-        x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
-        target = x[:, model.target].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-            pred = model.forward_rotated(x)  # [B, 1, ch, cw]
-        step_loss = LOSSES[loss](pred.float(), target)
-        opt.zero_grad(set_to_none=True)
-        step_loss.backward()
-        opt.step()
-        sched.step()
-        losses.append(step_loss.item())
-        if len(losses) % 50 == 0:
-            bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
-        if checkpoint is not None and time.monotonic() - saved >= CHECKPOINT_S:
-            state = {
-                "model": model.state_dict(),
-                "opt": opt.state_dict(),
-                "sched": sched.state_dict(),
-                "rng": rng.bit_generator.state,
-                "losses": losses,
-                "step": step + 1,
-                "seconds": earlier + time.monotonic() - began,  # training time of those steps
-                "key": checkpoint_key,
-            }
-            save_atomically(state, checkpoint)
-            saved = time.monotonic()
+
+    def save_state(done: int) -> None:  # after `done` steps
+        state = {
+            "model": model.state_dict(),
+            "opt": opt.state_dict(),
+            "sched": sched.state_dict(),
+            "rng": rng.bit_generator.state,
+            "losses": losses,
+            "step": done,
+            "seconds": earlier + time.monotonic() - began,  # training time of those steps
+            "key": checkpoint_key,
+        }
+        save_atomically(state, checkpoint)
+
+    stop = "\nCtrl-C: SIM's training stops after this step, its state saved (again: at once)"
+    with deferred_interrupt(stop) as interrupted:
+        for step in bar:
+            ks = rng.choice(timestamps, batch_size)
+            channel = (
+                rng.integers(len(streams), size=batch_size) if len(streams) > 1 else [0] * len(ks)
+            )
+            windows = [streams[c].window(k, window) for c, k in zip(channel, ks)]  # B x [w, H, W]
+            ys = rng.integers(0, height - ch + 1, batch_size)
+            xs = rng.integers(0, width - cw + 1, batch_size)
+            crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
+            x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
+            target = x[:, model.target].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
+            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+                pred = model.forward_rotated(x)  # [B, 1, ch, cw]
+            step_loss = LOSSES[loss](pred.float(), target)
+            opt.zero_grad(set_to_none=True)
+            step_loss.backward()
+            opt.step()
+            sched.step()
+            losses.append(step_loss.item())
+            if len(losses) % 50 == 0:
+                bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
+            due = time.monotonic() - saved >= CHECKPOINT_S
+            if checkpoint is not None and (due or interrupted()):
+                save_state(step + 1)
+                saved = time.monotonic()
+            if interrupted() and step + 1 < steps:
+                raise KeyboardInterrupt
     return model.eval(), losses
 
 
