@@ -270,6 +270,7 @@ def test_ply_round_trip(tmp_path, channels, degree):
         p.data.normal_()
     model.background.data.uniform_()
     save_ply(model, tmp_path / "s.ply")
+    assert [p.name for p in tmp_path.iterdir()] == ["s.ply"]  # written aside, renamed: no temp
     back = load_ply(tmp_path / "s.ply")
     assert back.sh_degree == degree and back.channels == channels
     for name, value in model.params.items():

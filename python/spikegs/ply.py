@@ -10,6 +10,7 @@ channel repeated and a `spikegs channels 1` comment, so that the import gives ba
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -23,8 +24,8 @@ FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file hol
 
 
 def save_ply(model: GaussianModel, path: str | Path) -> None:
-    """Write `model` to `path`: mono or colour (ValueError for other channel counts, which no
-    viewer reads), the SH coefficients of its degree (`model.sh_degree`)."""
+    """Write `model` to `path`, atomically: mono or colour (ValueError for other channel counts,
+    which no viewer reads), the SH coefficients of its degree (`model.sh_degree`)."""
     channels = model.channels
     if channels not in (1, 3):
         raise ValueError(
@@ -53,7 +54,13 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         f"spikegs sh_degree {model.sh_degree}",
         f"spikegs background {background}",
     ]
-    PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(str(path))
+    path = Path(path)  # written beside and renamed: a reader never sees half a file
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _tags(comments: list[str]) -> dict[str, str]:
