@@ -278,6 +278,13 @@ def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained):
     resumed, _, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)
+    path.unlink()  # in the last step too: it stops (training went on to the Gaussians)
+    last = (TRAIN["steps"] - 1) * TRAIN["batch_size"] + 1
+    with pytest.raises(KeyboardInterrupt):
+        train_or_load(path, _SigInt(stream, last), ts, 33, seed=3, **TRAIN)
+    assert (
+        torch.load(path.with_name("sim.pt.partial"), weights_only=False)["step"] == TRAIN["steps"]
+    )
 
 
 def test_interrupted_sim_training_resumes_to_the_same_sim(

@@ -430,6 +430,10 @@ def test_config_types_are_checked_however_set():
         config.validate()
     config.train.iterations, config.lr.means = 100, 1  # an int where a float goes: made one
     assert config.validate().lr.means == 1.0 and isinstance(config.lr.means, float)
+    assert load_config("tfp33", iterations=np.int64(120)).train.iterations == 120  # numpy's
+    # instant_window also sets the smooth-L1 zone of TFI's and the clean targets: accepted
+    tfi = load_config("tfi", {"supervision": {"instant_norm": "smooth_l1", "instant_window": 65}})
+    assert tfi.supervision.instant_window == 65
 
 
 def test_config_edges_of_the_ranges_are_accepted():

@@ -29,7 +29,7 @@ import yaml
 
 from .densify import DensifyConfig
 from .losses import NORMS
-from .number_checks import SEED_MAX, is_int, is_seed
+from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -167,11 +167,12 @@ class Config:
             "supervision.instant and instant_weight > 0)",
         )
         _require(
-            s.instant == "tfp" or s.instant_window == SupervisionConfig.instant_window,
+            s.instant not in ("sim", "none")
+            or s.instant_window == SupervisionConfig.instant_window,
             "supervision.instant_window",
             s.instant_window,
-            f"{SupervisionConfig.instant_window} (the default) unless instant is tfp: it is the "
-            f"TFP window (SIM's is sim.window)",
+            f"{SupervisionConfig.instant_window} (the default) with instant {s.instant}: it is the "
+            f"TFP window, and the smooth-L1 zone's spike for tfi and clean (SIM's is sim.window)",
         )
         _require(
             s.instant_weight > 0 or s.exposure_weight > 0,
@@ -315,8 +316,10 @@ def _check_types(section, where: str = "") -> None:
         value, default = getattr(section, f.name), getattr(defaults, f.name)
         if dataclasses.is_dataclass(value):
             _check_types(value, f"{where}{f.name}.")
-        elif isinstance(default, float) and is_int(value):
-            setattr(section, f.name, float(value))
+        elif isinstance(default, float) and is_number(value) and type(value) is not float:
+            setattr(section, f.name, float(value))  # an int or a numpy float
+        elif isinstance(default, int) and not isinstance(default, bool) and is_int(value):
+            setattr(section, f.name, int(value))  # a numpy integer
         elif type(value) is not type(default):
             raise ValueError(
                 f"config: '{where}{f.name}' = {value!r} is a {type(value).__name__}, expected "

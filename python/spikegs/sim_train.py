@@ -175,7 +175,7 @@ def train_sim(
             if checkpoint is not None and (due or interrupted()):
                 save_state(step + 1)
                 saved = time.monotonic()
-            if interrupted() and step + 1 < steps:
+            if interrupted():  # the last step too: the caller would go on to minutes of work
                 raise KeyboardInterrupt
     return model.eval(), losses
 

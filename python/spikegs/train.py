@@ -145,7 +145,17 @@ RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", "eval", "eval.json"}
 def foreign_files(run_dir: Path) -> list[str]:
     """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted."""
     names = (p.name for p in run_dir.iterdir()) if run_dir.is_dir() else ()
-    return sorted(n for n in names if n not in RUN_FILES and not n.startswith("eval-"))
+    return sorted(
+        n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
+        for n in names
+        if n not in RUN_FILES and not n.startswith("eval-") and not n.endswith(".tmp")
+    )
+
+
+def _finite_nonnegative(values: torch.Tensor | None) -> bool:
+    """Whether a tensor of values >= 0 where finite (None or empty: yes) is all finite: its max
+    carries NaN and inf, one reduction (a tenth of isfinite(...).all()'s time)."""
+    return values is None or values.numel() == 0 or bool(torch.isfinite(values.max()))
 
 
 def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
@@ -307,8 +317,7 @@ class Trainer:
             group["name"]
             for group in self.optimizer.param_groups
             for p in group["params"]
-            if "exp_avg_sq" in self.optimizer.state.get(p, {})
-            and not torch.isfinite(self.optimizer.state[p]["exp_avg_sq"]).all()
+            if not _finite_nonnegative(self.optimizer.state.get(p, {}).get("exp_avg_sq"))
         ]
         if overflowed:
             raise self._diverged(
@@ -432,9 +441,10 @@ class Trainer:
         # one process trains in a run directory at a time; the checks under the lock, so that
         # they see the state that this process will train from, before any work
         with run_lock(self.run_dir):
-            # one process trains here: a temporary checkpoint is a killed process's, half-written
-            for stale in self.checkpoint_path.parent.glob("*.tmp"):
-                stale.unlink()
+            # one process trains here: a temporary file is a killed process's, half-written
+            for folder in (self.run_dir, self.checkpoint_path.parent):
+                for stale in folder.glob("*.tmp"):
+                    stale.unlink()
             state = self._read_checkpoint() if resume else None
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(

@@ -351,7 +351,8 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
         elif key == "flip" and not isinstance(meta[key], bool):
             raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
         elif key == "raw_width":
-            need = int(meta.get("width", 1)) + int(meta.get("col_offset", 0))
+            offset = meta.get("col_offset", 0)
+            need = int(meta.get("width", 1)) + (offset if is_int(offset) else 0)
             if not (is_int(meta[key]) and meta[key] >= need):
                 raise ValueError(
                     f"{path}: raw_width (pixels stored per .dat row) expected an integer >= "
