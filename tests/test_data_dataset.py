@@ -352,6 +352,22 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small):
         load_dataset(root)
 
 
+def test_an_8_bit_test_view_is_decoded_from_srgb(tmp_path, small):
+    """A PNG test view was read as stored: sRGB values taken for firing rates."""
+    from spikegs.image_io import write_image
+
+    root = tmp_path / "png"
+    shutil.copytree(small.root, root)
+    doc = json.loads((root / "test_views.json").read_text())
+    first = doc["frames"][0]
+    view = next(v for v in small.test_views if v.name == first["name"])
+    first["file_path"] = first["file_path"].rsplit(".", 1)[0] + ".png"
+    write_image(root / first["file_path"], view.image)  # linear in, sRGB stored
+    (root / "test_views.json").write_text(json.dumps(doc))
+    loaded = next(v for v in load_dataset(root).test_views if v.name == first["name"])
+    np.testing.assert_allclose(loaded.image, view.image, atol=2e-3)
+
+
 def test_poses_rounded_to_4_decimals_load(tmp_path, small):
     """One rigidity rule with the LLFF/NeRF loaders: poses within 1e-3 of rigid are made rigid."""
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..image_io import read_image, write_image
+from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
 from .trajectory import (
@@ -244,7 +244,14 @@ def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
         c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
-        image = read_image(existing_file(root, frame["file_path"]))  # [H, W, C]
+        stored = read_stored_image(existing_file(root, frame["file_path"]))
+        if stored.alpha is not None:
+            raise ValueError(
+                f"{root / frame['file_path']}: a test view with an alpha channel; expected "
+                f"{shape[2]} channel(s) of firing rate"
+            )
+        # 8-bit files hold sRGB (write_image encodes them so): back to linear units
+        image = srgb_to_linear(stored.colour) if stored.srgb else stored.colour  # [H, W, C]
         if image.shape != shape:
             raise ValueError(
                 f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
