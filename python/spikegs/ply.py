@@ -10,7 +10,6 @@ channel repeated and a `spikegs channels 1` comment, so that the import gives ba
 
 from __future__ import annotations
 
-import os
 import re
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 import torch
 from plyfile import PlyData, PlyElement, PlyParseError
 
+from .atomic_save import write_atomically
 from .gaussians import GaussianModel
 
 FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file holds (degree 3)
@@ -54,13 +54,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         f"spikegs sh_degree {model.sh_degree}",
         f"spikegs background {background}",
     ]
-    path = Path(path)  # written beside and renamed: a reader never sees half a file
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    ply = PlyData([PlyElement.describe(vertex, "vertex")], comments=comments)
+    write_atomically(Path(path), lambda tmp: ply.write(str(tmp)))  # never half a file at `path`
 
 
 def _tags(comments: list[str]) -> dict[str, str]:

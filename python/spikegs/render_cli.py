@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
@@ -130,12 +129,14 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
     width gains one edge-replicated row or column."""
     import av
 
+    from .atomic_save import write_atomically
+
     h, w = frames.shape[1:3]
     frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
     codec = mp4_codec()
-    partial = path.with_name(f".{path.name}.partial")  # no half-written video at `path`
-    try:
-        with av.open(str(partial), "w", format="mp4") as container:
+
+    def write(tmp: Path) -> None:
+        with av.open(str(tmp), "w", format="mp4") as container:
             stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
             stream.height, stream.width = frames.shape[1:3]
             stream.pix_fmt = "yuv420p"
@@ -147,9 +148,8 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
             for frame in frames:
                 container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
             container.mux(stream.encode())  # flush the encoder's delayed frames
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
+
+    write_atomically(path, write)  # no half-written video at `path`
 
 
 def gif_delays_ms(count: int, fps: int) -> list[int]:
