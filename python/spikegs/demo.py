@@ -192,7 +192,6 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
     except KeyboardInterrupt:
-        out.mkdir(parents=True, exist_ok=True)
         (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
         print("\nthe same command with --resume continues from here", file=sys.stderr)
         raise

@@ -14,8 +14,6 @@ last readout, reads 1/max_interval: never inf or NaN.
 
 from __future__ import annotations
 
-import math
-import numbers
 import os
 from pathlib import Path
 from typing import Union
@@ -23,7 +21,7 @@ from typing import Union
 import numpy as np
 
 from .. import _C
-from ..number_checks import is_int
+from ..number_checks import is_int, is_number
 
 PathLike = Union[str, os.PathLike]
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
@@ -32,11 +30,7 @@ TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
 def _whole(value) -> bool:
     """Whether `value` is a whole number (an int, or a float such as 33.0; not inf, NaN, None or
     a bool)."""
-    if isinstance(value, bool):
-        return False
-    if isinstance(value, numbers.Integral):
-        return True
-    return isinstance(value, numbers.Real) and math.isfinite(value) and float(value).is_integer()
+    return is_int(value) or (is_number(value) and float(value).is_integer())
 
 
 def as_readouts(k) -> tuple[np.ndarray, bool]:
