@@ -206,6 +206,13 @@ def test_one_process_trains_in_a_run_directory(dataset, tmp_path):
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
 
 
+def test_a_window_past_the_stream_is_refused_before_the_run_folder_is_made(dataset, tmp_path):
+    config = load_config("tfp33", {**FAST, "supervision": {"instant_window": 10001}})
+    with pytest.raises(ValueError, match="supervision.instant_window = 10001"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert not (tmp_path / "run").exists()
+
+
 def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
     """Adam is blind to the loss's scale, and so is densification: weights (1, 1) and (10, 10)
     on the instant and exposure losses grow the same Gaussians (its screen-space gradient is

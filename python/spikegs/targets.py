@@ -154,9 +154,11 @@ def clean_images(dataset, quantum: float) -> TargetImages:
     return TargetImages(ts, render, 1.0, quantum)
 
 
-def _check_windows(dataset, config: Config) -> None:
-    """ValueError naming the setting whose window, centred on a training timestamp, would reach
-    past the stream (before any work: SIM training, target images)."""
+def check_targets(dataset, config: Config) -> None:
+    """ValueError, before any work (SIM training, target images, a run folder), where `config`'s
+    targets cannot be made from `dataset`: a window that, centred on a training timestamp, would
+    reach past the stream (naming the setting), or clean images of a dataset that no built-in
+    scene rendered."""
     s, ts, n = config.supervision, np.asarray(dataset.train_timestamps), len(dataset.streams[0])
     windows = {"sim.window": config.sim.window} if s.instant == "sim" else {}
     if s.instant == "tfp":
@@ -171,6 +173,11 @@ def _check_windows(dataset, config: Config) -> None:
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
                 f"{dataset.root} ({ts.min()}..{ts.max()} of {n} readouts): at most {2 * room + 1}"
             )
+    if s.instant_weight > 0 and s.instant == "clean":
+        from .data.simulate import clean_source, simulated_trajectory  # (imports us)
+
+        clean_source(dataset)
+        simulated_trajectory(dataset)
 
 
 def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
@@ -178,7 +185,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     (SIM trained, or loaded from its cache, now; the images themselves on first use)."""
     s = config.supervision
     ts = np.asarray(dataset.train_timestamps)
-    _check_windows(dataset, config)
+    check_targets(dataset, config)
     scale = intensity_scale(dataset)
     streams = dataset.streams  # [C] SpikeStreams, one per channel
 

@@ -39,7 +39,7 @@ from .point_cloud import POINTS, gaussians_from_points
 from .pose_refine import PoseRefiner, make_refiner
 from .run_summary import SUMMARY
 from .sim_train import spikes_fingerprint
-from .targets import build_targets, intensity_scale
+from .targets import build_targets, check_targets, intensity_scale
 
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
 
@@ -429,6 +429,8 @@ class Trainer:
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`)."""
+        # a config that cannot train on this dataset is refused before the run folder is touched
+        check_targets(self.dataset, self.config)
         if not resume:
             check_fresh_run_dir(self.run_dir, self.checkpoint_path)
         elif not self.checkpoint_path.exists():
