@@ -1,7 +1,10 @@
 """SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
 
 import os
+import shutil
 import signal
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +12,7 @@ import pytest
 import torch
 from skimage import data
 from skimage.metrics import structural_similarity
+from spikegs.file_lock import exclusive_lock
 from spikegs.metrics import psnr, ssim
 from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
@@ -195,7 +199,32 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
-    assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary file left
+    # no temporary file left (the lock file that one process a SIM takes stays, empty)
+    assert sorted(p.name for p in path.parent.iterdir()) == [path.name, f"{path.name}.lock"]
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
+def test_a_sim_that_another_process_trains_is_waited_for_and_loaded(tmp_path, scene, monkeypatch):
+    """Two methods started together on one dataset each trained the same SIM, and the second to
+    finish overwrote the first's."""
+    stream, ts = scene[1], [40, 50]
+    tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
+    elsewhere, _, _ = train_or_load(tmp_path / "other" / "sim.pt", stream, ts, 33, **tiny)
+    monkeypatch.setattr("spikegs.sim_train.train_sim", lambda *a, **k: pytest.fail("trained"))
+    path, holding = tmp_path / "sim.pt", threading.Event()
+
+    def other_process():  # holds the SIM's lock, as a process training it does, then saves it
+        with exclusive_lock(tmp_path / "sim.pt.lock", busy="busy"):
+            holding.set()
+            time.sleep(0.5)
+            shutil.copy(tmp_path / "other" / "sim.pt", path)
+
+    other = threading.Thread(target=other_process)
+    other.start()
+    holding.wait()
+    model, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
+    other.join()
+    assert seconds == 0 and torch.equal(model.head[-1].bias, elsewhere.head[-1].bias)
 
 
 def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path, monkeypatch):

@@ -20,6 +20,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically
+from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
 from .metrics import psnr, ssim
 from .output_paths import writable_folder
@@ -278,20 +279,35 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
         model = None if force else _cached(path, window, data)
     if model is not None:
         return model, 0.0, path
-    partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
-    settings = {k: v for k, v in kwargs.items() if k != "progress"}
-    key = {"data": data, "start": START, "window": window, **settings}
-    if force:
+    # one process trains each SIM: another (a second method on the same dataset) waits for it and
+    # loads what it saved
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with exclusive_lock(path.with_name(f"{path.name}.lock"), busy=None):
+        model = None if force else _cached(path, window, data)
+        if model is not None:
+            return model, 0.0, path
+        partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
+        settings = {k: v for k, v in kwargs.items() if k != "progress"}
+        key = {"data": data, "start": START, "window": window, **settings}
+        if force:
+            partial.unlink(missing_ok=True)
+        state = _resumable(partial, key)
+        start = time.perf_counter()
+        model, losses = train_sim(
+            stream,
+            timestamps,
+            window,
+            checkpoint=partial,
+            checkpoint_key=key,
+            resume=state,
+            **kwargs,
+        )
+        seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
+        final_loss = float(np.mean(losses[-50:]))
+        save_sim(
+            model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs
+        )
         partial.unlink(missing_ok=True)
-    state = _resumable(partial, key)
-    start = time.perf_counter()
-    model, losses = train_sim(
-        stream, timestamps, window, checkpoint=partial, checkpoint_key=key, resume=state, **kwargs
-    )
-    seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
-    final_loss = float(np.mean(losses[-50:]))
-    save_sim(model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs)
-    partial.unlink(missing_ok=True)
     return model, seconds, path
 
 

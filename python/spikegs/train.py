@@ -6,13 +6,11 @@ end, scene.ply and train.json. Training resumes from the last checkpoint with `r
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
 import sys
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,16 +18,12 @@ import torch
 import yaml
 from tqdm.auto import tqdm
 
-try:
-    import fcntl
-except ImportError:  # Windows
-    fcntl = None
-
 from . import strict_json
 from .atomic_save import save_atomically
 from .config import Config, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
+from .file_lock import exclusive_lock
 from .gaussians import PARAMETER_NAMES, GaussianModel
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
@@ -113,27 +107,14 @@ def data_fingerprint(dataset, scale: float) -> str:
     return digest.hexdigest()
 
 
-@contextlib.contextmanager
 def run_lock(run_dir: Path):
-    """Hold an exclusive lock on RUN/.lock for the block (released at its end or when the process
-    dies, however); FileExistsError while another process holds it. No lock where the OS has no
-    fcntl (Windows) or the filesystem no flock (some NFS, Lustre and FUSE mounts: a warning)."""
-    if fcntl is None:
-        yield
-        return
-    with (run_dir / ".lock").open("w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise FileExistsError(
-                f"{run_dir} is being trained by another process; wait for it to end or train "
-                f"into another --out"
-            ) from None
-        except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock
-            warnings.warn(
-                f"{run_dir}: not locked ({err}); train into it from one process only", stacklevel=3
-            )
-        yield
+    """An exclusive lock on RUN/.lock for a `with` block: FileExistsError while another process
+    trains in RUN."""
+    return exclusive_lock(
+        run_dir / ".lock",
+        busy=f"{run_dir} is being trained by another process; wait for it to end or train into "
+        f"another --out",
+    )
 
 
 # what a fresh run writes before its first checkpoint: it may start over a run stopped then
