@@ -32,6 +32,21 @@ Scene<double> smooth_scene(const Config& c, std::uint32_t seed) {
   }
 }
 
+// A smooth scene of config `c`, its render, and the random weights of a linear loss on its image
+// and alpha (of both signs: per-pixel shares cancel as in training).
+struct WeightedScene {
+  Scene<double> scene;
+  Render<double> render;
+  std::vector<double> w_img, w_alpha;
+};
+WeightedScene weighted_scene(const Config& c, std::uint32_t scene_seed, std::uint32_t weight_seed) {
+  WeightedScene ws{smooth_scene(c, scene_seed), {}, {}, {}};
+  ws.render = render(ws.scene);
+  ws.w_img = random_weights(ws.render.image.size(), weight_seed);
+  ws.w_alpha = random_weights(ws.render.alpha.size(), weight_seed + 1);
+  return ws;
+}
+
 // Compares `analytic` with central differences of `loss` in each entry of `values`.
 void fd_check(const std::string& what, std::vector<double>& values,
               const std::vector<double>& analytic, const std::function<double()>& loss) {
@@ -120,10 +135,10 @@ TEST_CASE(projection) {
 TEST_CASE(compositing) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
-    Scene<double> s = smooth_scene(c, seed + 101);
-    Render<double> r = render(s);
-    const auto w_img = random_weights(r.image.size(), 21),
-               w_alpha = random_weights(r.alpha.size(), 22);
+    WeightedScene ws = weighted_scene(c, seed + 101, 21);
+    Scene<double>& s = ws.scene;
+    const Render<double>& r = ws.render;
+    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
     Projected<double> proj = r.state.proj;
     auto loss = [&] {
       std::vector<double> image(r.image.size()), alpha(r.alpha.size());
@@ -149,10 +164,10 @@ TEST_CASE(compositing) {
 TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
-    Scene<double> s = smooth_scene(c, seed + 301);
-    Render<double> r = render(s);
-    const auto w_img = random_weights(r.image.size(), 41),
-               w_alpha = random_weights(r.alpha.size(), 42);
+    WeightedScene ws = weighted_scene(c, seed + 301, 41);
+    Scene<double>& s = ws.scene;
+    const Render<double>& r = ws.render;
+    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
     std::vector<double> dbg(c.channels);
     auto backward_with = [&](const std::vector<double>& gi, const std::vector<double>& ga) {
       return composite_grads(s, r, c, gi, ga, dbg);
@@ -187,10 +202,10 @@ TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
 TEST_CASE(end_to_end) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
-    Scene<double> s = smooth_scene(c, seed + 201);
-    Render<double> r = render(s);
-    const auto w_img = random_weights(r.image.size(), 31),
-               w_alpha = random_weights(r.alpha.size(), 32);
+    WeightedScene ws = weighted_scene(c, seed + 201, 31);
+    Scene<double>& s = ws.scene;
+    const Render<double>& r = ws.render;
+    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
     auto loss = [&] {
       const Render<double> q = render(s);
       return dot(q.image, w_img) + dot(q.alpha, w_alpha);
