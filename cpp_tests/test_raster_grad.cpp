@@ -35,15 +35,15 @@ Scene<double> smooth_scene(const Config& c, std::uint32_t seed) {
 // A smooth scene of config `c`, its render, and the random weights of a linear loss on its image
 // and alpha (of both signs: per-pixel shares cancel as in training).
 struct WeightedScene {
-  Scene<double> scene;
-  Render<double> render;
+  Scene<double> s;
+  Render<double> r;
   std::vector<double> w_img, w_alpha;
 };
 WeightedScene weighted_scene(const Config& c, std::uint32_t scene_seed, std::uint32_t weight_seed) {
   WeightedScene ws{smooth_scene(c, scene_seed), {}, {}, {}};
-  ws.render = render(ws.scene);
-  ws.w_img = random_weights(ws.render.image.size(), weight_seed);
-  ws.w_alpha = random_weights(ws.render.alpha.size(), weight_seed + 1);
+  ws.r = render(ws.s);
+  ws.w_img = random_weights(ws.r.image.size(), weight_seed);
+  ws.w_alpha = random_weights(ws.r.alpha.size(), weight_seed + 1);
   return ws;
 }
 
@@ -136,26 +136,23 @@ TEST_CASE(compositing) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
     WeightedScene ws = weighted_scene(c, seed + 101, 21);
-    Scene<double>& s = ws.scene;
-    const Render<double>& r = ws.render;
-    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
-    Projected<double> proj = r.state.proj;
+    Projected<double> proj = ws.r.state.proj;
     auto loss = [&] {
-      std::vector<double> image(r.image.size()), alpha(r.alpha.size());
+      std::vector<double> image(ws.r.image.size()), alpha(ws.r.alpha.size());
       CompositeState<double> st;
-      composite_forward(proj, r.state.bins, c.width, c.height, c.channels, s.background.data(),
-                        image.data(), alpha.data(), st);
-      return dot(image, w_img) + dot(alpha, w_alpha);
+      composite_forward(proj, ws.r.state.bins, c.width, c.height, c.channels,
+                        ws.s.background.data(), image.data(), alpha.data(), st);
+      return dot(image, ws.w_img) + dot(alpha, ws.w_alpha);
     };
     std::vector<double> dbg(c.channels);
-    const ProjectedGrads<double> dp = composite_grads(s, r, c, w_img, w_alpha, dbg);
+    const ProjectedGrads<double> dp = composite_grads(ws.s, ws.r, c, ws.w_img, ws.w_alpha, dbg);
     std::printf(" scene %u: N=%lld C=%d, %zu visible\n", seed, (long long)c.n, c.channels,
-                r.state.bins.order.size());
+                ws.r.state.bins.order.size());
     fd_check("mean2d", proj.mean2d, dp.mean2d, loss);
     fd_check("conic", proj.conic, dp.conic, loss);
     fd_check("opacity", proj.opacity, dp.opacity, loss);
     fd_check("color", proj.color, dp.color, loss);
-    fd_check("background", s.background, dbg, loss);
+    fd_check("background", ws.s.background, dbg, loss);
   }
 }
 
@@ -165,20 +162,17 @@ TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
     WeightedScene ws = weighted_scene(c, seed + 301, 41);
-    Scene<double>& s = ws.scene;
-    const Render<double>& r = ws.render;
-    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
     std::vector<double> dbg(c.channels);
     auto backward_with = [&](const std::vector<double>& gi, const std::vector<double>& ga) {
-      return composite_grads(s, r, c, gi, ga, dbg);
+      return composite_grads(ws.s, ws.r, c, gi, ga, dbg);
     };
-    const ProjectedGrads<double> full = backward_with(w_img, w_alpha);
+    const ProjectedGrads<double> full = backward_with(ws.w_img, ws.w_alpha);
     std::vector<double> summed(full.mean2d_abs.size(), 0.0);
-    const std::size_t pixels = r.alpha.size();
+    const std::size_t pixels = ws.r.alpha.size();
     for (std::size_t p = 0; p < pixels; ++p) {
-      std::vector<double> gi(r.image.size(), 0.0), ga(pixels, 0.0);
-      for (int k = 0; k < c.channels; ++k) gi[p * c.channels + k] = w_img[p * c.channels + k];
-      ga[p] = w_alpha[p];
+      std::vector<double> gi(ws.r.image.size(), 0.0), ga(pixels, 0.0);
+      for (int k = 0; k < c.channels; ++k) gi[p * c.channels + k] = ws.w_img[p * c.channels + k];
+      ga[p] = ws.w_alpha[p];
       const ProjectedGrads<double> one = backward_with(gi, ga);
       for (std::size_t k = 0; k < summed.size(); ++k) summed[k] += std::abs(one.mean2d[k]);
     }
@@ -203,16 +197,13 @@ TEST_CASE(end_to_end) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
     WeightedScene ws = weighted_scene(c, seed + 201, 31);
-    Scene<double>& s = ws.scene;
-    const Render<double>& r = ws.render;
-    const std::vector<double>&w_img = ws.w_img, &w_alpha = ws.w_alpha;
     auto loss = [&] {
-      const Render<double> q = render(s);
-      return dot(q.image, w_img) + dot(q.alpha, w_alpha);
+      const Render<double> q = render(ws.s);
+      return dot(q.image, ws.w_img) + dot(q.alpha, ws.w_alpha);
     };
-    const Grads<double> g = backward(s, r, w_img, w_alpha);
+    const Grads<double> g = backward(ws.s, ws.r, ws.w_img, ws.w_alpha);
     std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    fd_check_scene(s, g, loss);
-    fd_check("background", s.background, g.background, loss);
+    fd_check_scene(ws.s, g, loss);
+    fd_check("background", ws.s.background, g.background, loss);
   }
 }
