@@ -489,6 +489,7 @@ EXTREME = {  # name -> (N, (width, height))
     "bad-values": (10, (33, 17)),
     "empty": (0, (33, 17)),
     "huge-extent": (4, (33, 17)),
+    "float32-needle": (4, (16, 16)),
     "alpha-min-opacity": (6, (33, 17)),
     "width-1": (10, (1, 17)),
     "height-1": (10, (23, 1)),
@@ -535,6 +536,14 @@ def _extreme(name: str) -> dict:
         s["means"] = at_camera([[0.1 * i - 0.15, 0.0, 2.0 + 0.1 * i] for i in range(n)])
         s["scales"] = torch.tensor([[0.05, 1e8, 0.05]] * n, dtype=torch.float64)
         s["quats"] = torch.tensor([[1.0, 0.0, 0.0, 0.0]] * n, dtype=torch.float64)
+    elif name == "float32-needle":  # 1e18-1e19 px long, 0.03 px wide: rendered in float32,
+        # whose backward made NaN of 1/det^2 (an underflow) and of the conic's terms (overflows)
+        s["viewmat"] = torch.eye(4, dtype=torch.float64)  # the needle across the view
+        s["means"] = torch.tensor([[0.1 * i - 0.15, 0.0, 2.0] for i in range(n)]).double()
+        s["scales"] = torch.full((n, 3), 1e-3 * 2.0 / f, dtype=torch.float64)
+        s["scales"][:, 0] = torch.tensor([3e18, 6e18, 1e19, 1.5e19]) * 2.0 / f
+        c, si = math.cos(0.3), math.sin(0.3)
+        s["quats"] = torch.tensor([[c, 0.0, 0.0, si]] * n, dtype=torch.float64)
     elif name == "alpha-min-opacity":  # o at 1/255 (alpha reaches 1/255 at most on the centre)
         s["means"] = at_camera([[0.1 * i - 0.25, 0.0, 2.0] for i in range(n)])
         s["opacities"] = torch.tensor([1 / 255, 1 / 255 + 1e-12, 1 / 255 - 1e-12] * 2).double()
@@ -571,6 +580,46 @@ def test_extreme_cpp(name, dtype):
     check_finite_and_culled(out, grads)
     if dtype == torch.float64:
         compare_to_reference(scene, dtype, 1e-9)
+
+
+@pytest.mark.parametrize(
+    "op, dtype",
+    [
+        pytest.param(spikegs.rasterize, torch.float32, marks=needs_cpp, id="cpp-float32"),
+        pytest.param(spikegs.rasterize, torch.float64, marks=needs_cpp, id="cpp-float64"),
+        (reference.rasterize, torch.float32),
+        (reference.rasterize, torch.float64),
+    ],
+)
+def test_the_second_of_two_clamped_gaussians_counts(op, dtype):
+    """Two opaque Gaussians (alpha clamped to 0.99) on one pixel leave T = 0.01² = 1e-4, not below
+    the stop: the second counts. float32's 0.99 rounds up (0.99000001) and stopped the pixel
+    before it, unless the clamp takes the float below."""
+    t = lambda x: torch.tensor(x, dtype=dtype)  # noqa: E731
+    background = t([0.5]).requires_grad_()
+    out = op(
+        t([[0.0, 0.0, 2.0], [0.0, 0.0, 3.0]]),
+        t([[1.0, 0, 0, 0]] * 2),
+        t([[5.0, 5.0, 5.0]] * 2),
+        t([1.0, 1.0]),
+        t([[1.0], [0.0]]),  # the front one white, the back one black
+        torch.eye(4, dtype=dtype),
+        t([[8.0, 0, 4], [0, 8.0, 4], [0, 0, 1]]),
+        8,
+        8,
+        background=background,
+    )
+    out.image[4, 4, 0].backward()
+    tol = dict(rtol=1e-5, atol=1e-7)
+    torch.testing.assert_close(
+        out.alpha[4, 4].double(), torch.tensor(1 - 1e-4, dtype=torch.float64), **tol
+    )
+    torch.testing.assert_close(
+        out.image[4, 4, 0].double(), torch.tensor(0.99 + 0.5e-4, dtype=torch.float64), **tol
+    )
+    torch.testing.assert_close(
+        background.grad.double(), torch.tensor([1e-4], dtype=torch.float64), **tol
+    )
 
 
 @needs_cpp

@@ -272,7 +272,9 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       // parallel: float32 gradients of a 1000 x 0.2 px splat were 5 % off.
       const T g0 = dp.conic[3 * i], g1 = dp.conic[3 * i + 1], g2 = dp.conic[3 * i + 2];
       const T idet = T(1) / s.det, eps = T(kDilation);
-      const T ddet = -(g0 * s.c - g1 * s.b + g2 * s.a) * idet * idet;
+      // each term scaled by 1/det before the sum: for a float32 needle of ~1e18 the terms
+      // overflow, or idet^2 underflows to 0 (inf * 0: NaN), while ddet itself is small
+      const T ddet = -(g0 * (s.c * idet) - g1 * (s.b * idet) + g2 * (s.a * idet)) * idet;
       const Vec3<T> cr = glm::cross(s.V0, s.V1);
       const Vec3<T> dV0 = T(2) * g2 * idet * s.V0 - g1 * idet * s.V1 +
                           ddet * (T(2) * glm::cross(s.V1, cr) + T(2) * eps * s.V0);

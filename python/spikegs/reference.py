@@ -177,6 +177,15 @@ def _project(
     return _Splats(keep, radii, means2d, conics, z, opacities, rgb)
 
 
+def _alpha_max(dtype: torch.dtype) -> torch.Tensor:
+    """ALPHA_MAX in `dtype`, rounded down where its nearest value lies above (float32's
+    0.99000001): two clamped Gaussians leave T = T_MIN, which does not stop a pixel (docs)."""
+    nearest = torch.tensor(ALPHA_MAX, dtype=dtype)
+    return (
+        torch.nextafter(nearest, nearest.new_zeros(())) if nearest.item() > ALPHA_MAX else nearest
+    )
+
+
 def _composite(splats: _Splats, width: int, height: int, background: torch.Tensor) -> tuple:
     """Front-to-back alpha compositing over flat pixels, one visible Gaussian at a time."""
     channels = splats.colors.shape[-1]
@@ -185,6 +194,7 @@ def _composite(splats: _Splats, width: int, height: int, background: torch.Tenso
     pixels, contributions = [], []  # per Gaussian: [Q] pixel indices, [Q, C] alpha T c
     visible = torch.nonzero(splats.visible).flatten()
     order = visible[torch.sort(splats.depths[visible], stable=True).indices]
+    alpha_max = _alpha_max(transmittance.dtype)
     boxes = torch.cat([splats.means2d.detach(), splats.radii[:, None].to(splats.means2d)], -1)
     for i, (mx, my, r) in zip(order.tolist(), boxes[order].tolist()):
         # The opacity-aware box (plus a pixel): outside it alpha < 1/255 (docs step 8).
@@ -195,7 +205,7 @@ def _composite(splats: _Splats, width: int, height: int, background: torch.Tenso
         dy = (ys.to(transmittance) + 0.5 - splats.means2d[i, 1])[:, None]  # [Y, 1]
         A, B, C = splats.conics[i]
         power = (-0.5 * (A * dx * dx + C * dy * dy) - B * dx * dy).flatten()  # [Q]
-        alpha = torch.clamp(splats.opacities[i] * torch.exp(power), max=ALPHA_MAX)
+        alpha = torch.minimum(splats.opacities[i] * torch.exp(power), alpha_max)
         live = (power <= 0) & (alpha >= ALPHA_MIN) & ~done[idx]
         t = transmittance[idx]
         t_next = t * (1 - alpha)
