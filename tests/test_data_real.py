@@ -603,6 +603,32 @@ def test_pseudo_window_longer_than_stream(llff_stream, tmp_path):
         load_dataset(root)
 
 
+def test_pseudo_window_bounds_only_the_views_it_scores(sim, llff, tmp_path):
+    """pseudo_gt_window longer than the training views (the held-out ones longer still) was
+    refused by the first training view it did not fit."""
+    root = copy(llff, tmp_path)
+    for i in (0, 8):  # the held-out views, 101 readouts each
+        write_view(sim, root / "spikes" / f"{i:03d}.dat", i, length=101)
+    write_options(root, pseudo_gt_window=101)
+    ds = load_dataset(root)
+    np.testing.assert_allclose(ds.test_views[1].image[..., 0], sim.stream.tfp(8 * LENGTH + 50, 101))
+    write_options(root, pseudo_gt_window=103)
+    with pytest.raises(ValueError, match="held-out view '000' .* 101 readouts, fewer than"):
+        load_dataset(root)
+
+
+def test_a_window_longer_than_a_view_is_refused_before_any_work(llff, tmp_path, monkeypatch):
+    """The per-view check took the joined views for one stream: a window longer than a view
+    passed it where the outermost views were held out, and failed at the first step."""
+    ds = load_dataset(llff)  # views of 70 readouts: windows of 69 at most
+    monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("SIM"))
+    for method, key in (("tfp33", "instant_window"), ("spikegs", "exposure_window")):
+        config = load_config(method, {"supervision": {key: 71}})
+        with pytest.raises(ValueError, match=f"supervision.{key} = 71 .* at most 69"):
+            Trainer(ds, config, tmp_path / "run", progress=False).train()
+        assert not (tmp_path / "run").exists()
+
+
 def test_malformed_files(llff, nerf, tmp_path):
     root = copy(llff, tmp_path / "llff")
     (root / "spikegs.json").write_text('{"flip": false,')

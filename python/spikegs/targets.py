@@ -21,7 +21,6 @@ import torch
 from .config import Config, SimConfig
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, train_or_load
-from .spikes.stream import centred_range
 
 
 class TargetImages:
@@ -159,19 +158,27 @@ def check_targets(dataset, config: Config) -> None:
     targets cannot be made from `dataset`: a window that, centred on a training timestamp, would
     reach past the stream (naming the setting), or clean images of a dataset that no built-in
     scene rendered."""
-    s, ts, n = config.supervision, np.asarray(dataset.train_timestamps), len(dataset.streams[0])
+    from .data.view_stream import ViewStreams  # (the data package imports us)
+
+    s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
     windows = {"sim.window": config.sim.window} if s.instant == "sim" else {}
     if s.instant == "tfp":
         windows["supervision.instant_window"] = s.instant_window
     if s.exposure_weight > 0:
         windows["supervision.exposure_window"] = s.exposure_window
-    room = min(int(ts.min()), n - 1 - int(ts.max()))  # readouts beside the outermost timestamps
+    stream = dataset.streams[0]
+    if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
+        first, end = stream.bounds(ts)
+        where = f"each in its view of {', '.join(map(str, sorted(set(end - first))))} readouts"
+    else:
+        first, end = 0, len(stream)
+        where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
+    room = int(np.minimum(ts - first, end - 1 - ts).min())  # readouts beside, on both sides
     for name, w in windows.items():
-        lo, hi = centred_range(n, w)
-        if ts.min() < lo or ts.max() > hi:
+        if w // 2 > room:
             raise ValueError(
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
-                f"{dataset.root} ({ts.min()}..{ts.max()} of {n} readouts): at most {2 * room + 1}"
+                f"{dataset.root} ({where}): at most {2 * room + 1}"
             )
     if s.instant_weight > 0 and s.instant == "clean":
         from .data.simulate import clean_source, simulated_trajectory  # (imports us)

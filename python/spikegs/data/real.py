@@ -183,17 +183,20 @@ def views_dataset(
             f"{source}: view names (file paths without extension) expected unique, found twice: "
             f"{twice}"
         )
-    for name, stream in zip(names, streams):
+    for name, stream, image, held in zip(names, streams, images, test):
         if stream is not None and len(stream) < NEEDED_WINDOW:
             raise ValueError(
                 f"{stream.path}: view '{name}' has {len(stream)} readouts; a view needs at least "
                 f"{NEEDED_WINDOW}, the longest window training reads (or its frames are not "
                 f"{stream.height}x{stream.width}, the size the layout states: check it)"
             )
-        if stream is not None and pseudo_window and len(stream) < pseudo_window:
+        # the pseudo ground truth scores a held-out view that has no sharp image
+        scored = held and image is None
+        if stream is not None and scored and pseudo_window and len(stream) < pseudo_window:
             raise ValueError(
-                f"{stream.path}: view '{name}' has {len(stream)} readouts, fewer than "
-                f"pseudo_gt_window {pseudo_window}"
+                f"{stream.path}: held-out view '{name}' (no sharp image: scored against the TFP "
+                f"of its spikes) has {len(stream)} readouts, fewer than pseudo_gt_window "
+                f"{pseudo_window}"
             )
     present = [i for i, s in enumerate(streams) if s is not None]
     joined = ViewStreams([streams[i] for i in present], [names[i] for i in present])

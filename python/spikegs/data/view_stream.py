@@ -47,6 +47,15 @@ class ViewStreams:
         """Index [B] of the view holding each readout k [B]."""
         return np.searchsorted(self.offsets, k, side="right") - 1
 
+    def bounds(self, k) -> tuple[np.ndarray, np.ndarray]:
+        """The first readout [B] and the end [B] (one past the last) of the view holding each
+        readout k [B] (of the first or last view for a k before or past the stream)."""
+        views = self.view_of(k)
+        return (
+            self.offsets[np.clip(views, 0, len(self.streams) - 1)],
+            self.offsets[np.clip(views + 1, 1, len(self.streams))],
+        )
+
     def _split(self, k, w: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """Views [B] and view-local readouts [B] of k; ValueError if a window of `w` readouts
         centred on k leaves the stream or its view."""
@@ -54,8 +63,7 @@ class ViewStreams:
         views = self.view_of(ks)
         starts = ks - w // 2
         inside = (ks >= 0) & (ks < len(self))
-        lo = self.offsets[np.clip(views, 0, len(self.streams) - 1)]
-        hi = self.offsets[np.clip(views + 1, 0, len(self.streams))]
+        lo, hi = self.bounds(ks)
         bad = np.flatnonzero(~inside | (starts < lo) | (starts + w > hi))
         if bad.size:
             i = bad[0]
