@@ -134,6 +134,19 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})
 
 
+def test_numpy_integers_simulate_a_dataset_that_loads(tmp_path):
+    """numpy integers (a loop over np.arange, a value read from an array) reached meta.json: a
+    TypeError after the simulation, and a half-written dataset in the way of the next one."""
+    sizes = {"height": np.int64(24), "width": np.int32(32), "readouts": np.int64(400)}
+    ds = simulate_dataset(
+        "solids",
+        tmp_path / "x",
+        **{**SMALL, **sizes, "seed": np.uint64(3), "speed": np.float32(0.1)},
+    )
+    assert (ds.height, ds.width, ds.num_readouts, ds.meta["seed"]) == (24, 32, 400, 3)
+    assert load_dataset(tmp_path / "x").num_readouts == 400
+
+
 def test_negative_view_counts_refused(tmp_path):
     for counts in ({"test_on_path": -1}, {"test_off_path": -2}):
         with pytest.raises(ValueError, match="expected counts >= 0"):
@@ -146,8 +159,13 @@ def test_negative_view_counts_refused(tmp_path):
     # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
     with pytest.raises(ValueError, match="height, width: expected >= 1 pixel, found 0, 32"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
-    with pytest.raises(ValueError, match="speed: expected a finite"):
+    with pytest.raises(ValueError, match="expected finite numbers, found speed=nan"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": float("nan")})
+    # whole floats were simulated, then not loaded; a fractional train_every gave timestamps
+    # inside the held-out windows
+    for bad in ({"readouts": 400.0}, {"height": 16.0}, {"train_every": 2.5}):
+        with pytest.raises(ValueError, match=f"expected integers, found {next(iter(bad))}="):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, **bad})
     for seed in (-1, 2**64):  # wrapped around to another seed's data (a colour one: an empty out)
         with pytest.raises(ValueError, match="seed"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "seed": seed, "color": True})

@@ -233,6 +233,24 @@ def test_mitsuba_source_convention_and_dataset(tmp_path):
     assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3
 
 
+def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path):
+    """No integrator: Mitsuba's raw Exception at the first frame; no shapes: a NaN scene centre,
+    reported as non-rigid poses; a parse error: a traceback."""
+    pytest.importorskip("mitsuba")
+    ball = {"type": "sphere", "radius": 0.5}
+    cases = [
+        ({"type": "scene", "ball": ball}, "has no integrator"),
+        ({"type": "scene", "integrator": {"type": "path"}}, "has no shapes"),
+        ({"type": "scene", "ball": {**ball, "type": "no-such-shape"}}, "does not load"),
+    ]
+    for scene, message in cases:
+        with pytest.raises(ValueError, match=message):
+            MitsubaSource(scene, 16, 16)
+    (tmp_path / "bad.xml").write_text("<scene version='3.0.0'><shape")
+    with pytest.raises(ValueError, match="Mitsuba scene 'bad' does not load"):
+        MitsubaSource(tmp_path / "bad.xml", 16, 16)
+
+
 def test_read_frame_composites_alpha_once_in_linear_light(tmp_path):
     from PIL import Image
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -104,6 +106,9 @@ def test_frame_every_that_rounds_onto_the_last_readout():
     refused as not strictly increasing."""
     light = lambda t: np.full((4, 4), 0.5, np.float32)  # noqa: E731
     assert simulate_spikes(light, 22, frame_every=0.7).shape[0] == 22
+    for bad in (0, -1.0, float("nan"), float("inf")):  # NaN reached numpy's arange
+        with pytest.raises(ValueError, match="frame_every expected a finite number > 0"):
+            simulate_spikes(light, 22, frame_every=bad)
     for n in range(1, 400):
         for every in (0.3, 0.7, 1.1, 2.9):
             times = sample_times(n, every)
@@ -169,3 +174,14 @@ def test_sim_params_of_the_wrong_type_are_named():
     params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
     assert (params.threshold, params.shot_noise) == (50.0, False)
     assert type(params.threshold) is float and type(params.shot_noise) is bool
+
+
+def test_a_threshold_of_a_few_photo_electrons_warns():
+    """Under 2 photo-electrons a spike the normal form of shot noise loses charge (the rate falls
+    below rate_at_one·I): said, not silent."""
+    with pytest.warns(UserWarning, match="under 2 photo-electrons"):
+        SimParams(threshold=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        SimParams(threshold=2.0)
+        SimParams(threshold=0.5, shot_noise=False)

@@ -14,7 +14,9 @@
 // saturated pixel fires every readout without banking charge). Charge is conserved, so a pixel's
 // long-run rate is (rate_at_one · I + dark_i) · θ / θ_i: linear in I.
 // Shot noise uses the moment-matched normal form of the Poisson photon count (same mean and
-// variance); the charge a spike integrates sums many readouts, where the two agree.
+// variance); the charge a spike integrates sums many readouts, where the two agree. Where a spike
+// is a few photo-electrons (θ < 2, warned of in Python's SimParams) a readout's normal draw can
+// overshoot the cap or go negative and the rate falls below linear (-1% at θ = 1, I = 1).
 // Every draw comes from a counter-based generator keyed by the seed, the readout and the pixel:
 // the output does not depend on the thread count or on how readouts are split between calls.
 #pragma once

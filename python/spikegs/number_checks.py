@@ -31,6 +31,24 @@ def is_number(value) -> bool:
     )
 
 
+def whole_numbers(**values) -> list[int]:
+    """`values` as Python ints, in the order given (numpy integers converted); ValueError naming
+    every one that is not an integer (a whole float too: 16.0 pixels is a slip, not a size)."""
+    bad = [f"{k}={v!r}" for k, v in values.items() if not is_int(v)]
+    if bad:
+        raise ValueError(f"expected integers, found {', '.join(bad)}")
+    return [int(v) for v in values.values()]
+
+
+def finite_numbers(**values) -> list[float]:
+    """`values` as Python floats, in the order given; ValueError naming every one that is not a
+    finite real number."""
+    bad = [f"{k}={v!r}" for k, v in values.items() if not is_number(v)]
+    if bad:
+        raise ValueError(f"expected finite numbers, found {', '.join(bad)}")
+    return [float(v) for v in values.values()]
+
+
 def number_array(value) -> np.ndarray:
     """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls or
     ragged lists (np.asarray(value, float) would read '1.0' and True as numbers)."""

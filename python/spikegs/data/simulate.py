@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..number_checks import is_seed
+from ..number_checks import finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams, simulate_spikes
 from .dataset import (
     FORMAT_VERSION,
@@ -228,12 +228,24 @@ def simulate_dataset(
     interpolates linearly); `train_every`: readouts between training timestamps (default
     `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
+    # numpy numbers and whole floats were written into meta.json (a TypeError after the
+    # simulation, or a dataset that does not load): converted or refused before any work
+    height, width, readouts, test_on_path, test_off_path, spp = whole_numbers(
+        height=height,
+        width=width,
+        readouts=readouts,
+        test_on_path=test_on_path,
+        test_off_path=test_off_path,
+        spp=spp,
+    )
+    if train_every is not None:
+        (train_every,) = whole_numbers(train_every=train_every)
+    speed, frame_every = finite_numbers(speed=speed, frame_every=frame_every)
     if height < 1 or width < 1:
         raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
     if not is_seed(seed):
         raise ValueError(f"seed (--seed): expected an integer in 0..2**64 - 1, found {seed}")
-    if not math.isfinite(speed):
-        raise ValueError(f"speed: expected a finite number of degrees per readout, found {speed}")
+    seed = int(seed)
     if test_on_path < 0 or test_off_path < 0:
         raise ValueError(
             f"test_on_path, test_off_path: expected counts >= 0, found {test_on_path}, "
@@ -246,10 +258,9 @@ def simulate_dataset(
             f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
-    if not 0 < frame_every < math.inf or train_every < 1:
+    if frame_every <= 0 or train_every < 1:
         raise ValueError(
-            f"frame_every and train_every expected positive (and finite), found {frame_every}, "
-            f"{train_every}"
+            f"frame_every and train_every expected positive, found {frame_every}, {train_every}"
         )
     if 2 in (height, width) or (height, width) == (1, 1):
         raise ValueError(

@@ -236,15 +236,27 @@ class MitsubaSource(RenderSource):
         radius: float | None = None,
     ):
         mi = import_mitsuba()
-        if isinstance(scene, dict):
-            self.name, self._scene = "mitsuba-dict", mi.load_dict(scene)
-        else:
-            path = Path(scene)
-            if not path.is_file():
-                raise FileNotFoundError(f"Mitsuba scene file not found: {path}")
-            self.name, self._scene = path.stem, mi.load_file(str(path))
+        if not isinstance(scene, dict) and not Path(scene).is_file():
+            raise FileNotFoundError(f"Mitsuba scene file not found: {scene}")
+        self.name = "mitsuba-dict" if isinstance(scene, dict) else Path(scene).stem
+        try:  # Mitsuba's parse errors are plain Exceptions
+            self._scene = (
+                mi.load_dict(scene) if isinstance(scene, dict) else mi.load_file(str(scene))
+            )
+        except Exception as err:
+            raise ValueError(f"Mitsuba scene '{self.name}' does not load: {err}") from err
+        if self._scene.integrator() is None:  # Mitsuba would refuse at the first frame
+            raise ValueError(
+                f"Mitsuba scene '{self.name}' has no integrator: add one, e.g. "
+                f'<integrator type="path"/>'
+            )
         box = self._scene.bbox()
         lo, hi = np.array(box.min, np.float64), np.array(box.max, np.float64)
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all() and (hi >= lo).all()):
+            raise ValueError(
+                f"Mitsuba scene '{self.name}' has no shapes (an empty bounding box): nothing to "
+                f"orbit"
+            )
         center = (lo + hi) / 2 if center is None else center
         radius = np.linalg.norm(hi - lo) / 2 if radius is None else radius
         super().__init__(width, height, channels, center, radius, fov_deg=fov_deg)
