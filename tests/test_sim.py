@@ -332,7 +332,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     state["seconds"] = 1000.0  # the interrupted process's training time counts
     torch.save(state, partial)
     resumed, seconds, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
-    assert "resumes at step 12 of 30" in capsys.readouterr().out
+    assert "resumes at step 12 of 30" in capsys.readouterr().err
     assert 1000 < seconds == torch.load(path, weights_only=True)["meta"]["seconds"] < 1100
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)

@@ -1116,6 +1116,26 @@ def test_resuming_a_finished_run_does_no_work(dataset, tmp_path, monkeypatch, ca
     assert "finished at iteration 3; nothing to train" in capsys.readouterr().err
 
 
+def test_resume_without_a_checkpoint_restarts_a_stopped_run_only(dataset, tmp_path, capsys):
+    """--resume where the checkpoint was missing restarted any folder with a config.yaml: a
+    finished run whose checkpoints were deleted was trained over (its log cut, its scene.ply
+    left beside the new checkpoint), saying so on stdout, where the JSON summary goes."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 3}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    shutil.rmtree(run / "checkpoints")
+    finished = r"holds a finished run \(scene.ply, train.json\) without its checkpoint"
+    for resume in (True, False):
+        with pytest.raises(FileExistsError, match=finished):
+            Trainer(dataset, config, run, progress=False).train(resume=resume)
+    (run / "scene.ply").unlink()
+    (run / "train.json").unlink()  # as a run stopped before its first checkpoint leaves it
+    capsys.readouterr()
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    printed = capsys.readouterr()
+    assert "no checkpoint yet; training from the start" in printed.err and printed.out == ""
+
+
 def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_path, capsys):
     """`spikegs train DATA --out RUN --resume` without --method compared the run with the
     default method's settings and refused."""
@@ -1126,6 +1146,14 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert json.loads(capsys.readouterr().out)["method"] == "tfp33"
     assert main([*argv, "--resume", "--method", "spikegs"]) == 2  # named again: compared
     assert "other settings" in capsys.readouterr().err
+    # config.yaml emptied or deleted: the defaults stood in for the run's settings
+    for lost in ("", None):
+        if lost is None:
+            (tmp_path / "run" / "config.yaml").unlink()
+        else:
+            (tmp_path / "run" / "config.yaml").write_text(lost)
+        assert main([*argv, "--resume"]) == 2
+        assert "config.yaml is missing or empty" in capsys.readouterr().err
 
 
 def test_a_fresh_run_refuses_a_directory_with_other_files(dataset, tmp_path, capsys):

@@ -4,6 +4,7 @@ trains each cached SIM."""
 from __future__ import annotations
 
 import contextlib
+import sys
 import warnings
 from pathlib import Path
 
@@ -28,7 +29,7 @@ def exclusive_lock(path: Path, busy: str | None):
         except BlockingIOError:
             if busy is not None:
                 raise FileExistsError(busy) from None
-            print(f"waiting for another process, which holds {path}")
+            print(f"waiting for another process, which holds {path}", file=sys.stderr)
             fcntl.flock(handle, fcntl.LOCK_EX)
         except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock
             warnings.warn(f"{path}: not locked ({err}); use it from one process only", stacklevel=3)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -125,7 +126,7 @@ def train_sim(
         sched.load_state_dict(resume["sched"])
         rng.bit_generator.state = resume["rng"]
         losses, first, earlier = resume["losses"], resume["step"], resume.get("seconds", 0.0)
-        print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}")
+        print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}", file=sys.stderr)
     began = saved = time.monotonic()
     bar = tqdm(
         range(first, steps),
@@ -230,14 +231,15 @@ def _cached(path: Path, window: int, data: str) -> SIM | None:
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
-        print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh")
+        print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh", file=sys.stderr)
         return None
     meta = payload["meta"]
     if (payload["config"]["window"], meta.get("data"), meta.get("start")) == (window, data, START):
         return _model_of(payload)
     print(
         f"{path}: trained on other spikes, for another window or from another start; "
-        f"training SIM afresh"
+        f"training SIM afresh",
+        file=sys.stderr,
     )
     return None
 
@@ -274,7 +276,7 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
                 f"{fallback.parent if fallback else '(no home directory)'}; set XDG_CACHE_HOME "
                 f"to a writable folder"
             )
-        print(f"{path.parent} cannot be written: SIM is cached in {fallback}")
+        print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
         path = fallback
         model = None if force else _cached(path, window, data)
     if model is not None:

@@ -19,7 +19,7 @@ import yaml
 from tqdm.auto import tqdm
 
 from . import strict_json
-from .atomic_save import save_atomically
+from .atomic_save import save_atomically, write_atomically
 from .config import Config, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
@@ -147,11 +147,20 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
         raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
     if not run_dir.is_dir() or checkpoint.exists():
         return
-    others = sorted(p.name for p in run_dir.iterdir() if p.name not in RUN_STARTED)
-    if others:
+    # temporary files are a killed process's, swept when training starts
+    names = sorted(p.name for p in run_dir.iterdir() if not p.name.endswith(".tmp"))
+    foreign = foreign_files(run_dir)
+    finished = [n for n in names if n not in RUN_STARTED and n not in foreign]
+    if finished:
         raise FileExistsError(
-            f"{run_dir} holds files that are not a run's ({', '.join(others[:5])}"
-            f"{', ...' if len(others) > 5 else ''}); give an empty or new --out"
+            f"{run_dir} holds a finished run ({', '.join(finished)}) without its checkpoint "
+            f"({checkpoint}): nothing to continue, and training afresh would mix with its "
+            f"files; give another --out"
+        )
+    if foreign:
+        raise FileExistsError(
+            f"{run_dir} holds files that are not a run's ({', '.join(foreign[:5])}"
+            f"{', ...' if len(foreign) > 5 else ''}); give an empty or new --out"
         )
 
 
@@ -412,14 +421,14 @@ class Trainer:
         outside the timed steps (its time is not in `train_seconds`)."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
-        if not resume:
+        # --resume of a run stopped before its first checkpoint (in SIM's training, say: SIM
+        # resumes itself) starts it again, as a fresh run in its folder
+        restart = resume and not self.checkpoint_path.exists()
+        if restart and not (self.run_dir / "config.yaml").exists():
+            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+        if not resume or restart:
             check_fresh_run_dir(self.run_dir, self.checkpoint_path)
-        elif not self.checkpoint_path.exists():
-            if not (self.run_dir / "config.yaml").exists():
-                raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
-            # a run stopped before its first checkpoint (SIM training, say: SIM resumes itself)
-            print(f"{self.run_dir}: no checkpoint yet; training from the start")
-            resume = False
+        resume = resume and not restart
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks under the lock, so that
         # they see the state that this process will train from, before any work
@@ -428,6 +437,10 @@ class Trainer:
             for folder in (self.run_dir, self.checkpoint_path.parent):
                 for stale in folder.glob("*.tmp"):
                     stale.unlink()
+            if restart:  # stderr: stdout is `spikegs train`'s JSON summary
+                print(
+                    f"{self.run_dir}: no checkpoint yet; training from the start", file=sys.stderr
+                )
             state = self._read_checkpoint() if resume else None
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(
@@ -439,9 +452,8 @@ class Trainer:
     def _run(self, state: dict | None, on_eval) -> dict:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
-        (self.run_dir / "config.yaml").write_text(
-            yaml.safe_dump(self.config.to_dict(), sort_keys=False)
-        )
+        text = yaml.safe_dump(self.config.to_dict(), sort_keys=False)  # `--resume` reads it
+        write_atomically(self.run_dir / "config.yaml", lambda tmp: tmp.write_text(text))
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
         # SIM's training time for this run: a resumed run's SIM was trained (and is now loaded)

@@ -43,6 +43,13 @@ def config_from_args(args: argparse.Namespace):
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
+    checkpoint = Path(args.out) / "checkpoints" / "last.pt"
+    empty = own and not saved.read_text().strip()  # the defaults would stand in for the run's
+    if given is None and args.resume and (empty or (not own and checkpoint.exists())):
+        raise ValueError(
+            f"--resume: {saved} is missing or empty; name the run's settings again with --method "
+            f"or --config (a checkpoint is checked against them)"
+        )
     if own:  # keys added since the run was saved keep its behaviour
         overrides = {**legacy_overrides(saved), **overrides}
     name = given if given is not None else (saved if own else DEFAULT_METHOD)
