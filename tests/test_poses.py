@@ -296,6 +296,8 @@ def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):
 def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
+    assert main(["poses", str(textured), "--sim"]) == 2  # no SIM cached: said before "SfM: ..."
+    assert capsys.readouterr().err.startswith("spikegs poses: error: --sim: no trained SIM")
     for flags, message in ((["--count", "-3"], "--count"), (["--min-registered", "2"], "(0, 1]")):
         assert main(["poses", str(textured), *flags]) == 2
         assert message in capsys.readouterr().err

@@ -104,8 +104,15 @@ def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tm
         tmp_path, {**dataset.meta, "source": "mitsuba"}, dataset.streams, dataset.trajectory,
         dataset.train_timestamps, dataset.test_views,
     )  # fmt: skip
-    with pytest.raises(ValueError, match="built-in scene.*mitsuba"):
+    with pytest.raises(ValueError, match="built-in scene.*is mitsuba scene 'solids'"):
         build_targets(moved, load_config("oracle"), progress=False)
+    recorded = {k: v for k, v in dataset.meta.items() if k not in ("source", "scene")}
+    recording = Dataset(
+        tmp_path, recorded, dataset.streams, dataset.trajectory, dataset.train_timestamps,
+        dataset.test_views,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="this one is not simulated$"):  # was: "... 'None'"
+        build_targets(recording, load_config("oracle"), progress=False)
 
 
 def test_clean_targets_stay_at_the_simulated_poses_when_sfm_replaces_them(dataset, tmp_path):

@@ -249,13 +249,14 @@ def estimate_poses(
             f"{window}-readout window on; using them all",
             file=sys.stderr,
         )
+    sim_model = _cached_sim(root) if sim else None  # none cached: refused before announcing SfM
     pairs = len(readouts) * (len(readouts) - 1) // 2
     print(
         f"SfM: {len(readouts)} images, {pairs} pairs matched exhaustively"
         + (" (slow: --count 40 to 100 suffices for an orbit)" if pairs > SLOW_PAIRS else ""),
         file=sys.stderr,
     )
-    images = spike_images(streams, readouts, window, _cached_sim(root) if sim else None)
+    images = spike_images(streams, readouts, window, sim_model)
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
     if meta.get("intrinsics_from") != SFM and all(k in meta for k in ("fx", "fy", "cx", "cy")):

@@ -56,10 +56,10 @@ def clean_source(dataset: Dataset) -> Source:
     rebuilt from meta.json, anything else is a ValueError."""
     scene, kind = dataset.meta.get("scene"), dataset.meta.get("source")
     if kind != "procedural" or scene not in SCENES:
+        this = f"{kind} scene '{scene}'" if kind else "not simulated"
         raise ValueError(
             f"{dataset.root}: clean instant images (supervision.instant: clean) need a dataset "
-            f"simulated from a built-in scene ({', '.join(SCENES)}); this one is "
-            f"{kind or 'not simulated'} '{scene}'"
+            f"simulated from a built-in scene ({', '.join(SCENES)}); this one is {this}"
         )
     return make_source(scene, dataset.width, dataset.height, dataset.channels)
 
