@@ -110,6 +110,8 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
         Trainer(dataset, config, tmp_path / "cut", progress=False).train()
     assert torch.load(tmp_path / "cut" / "checkpoints" / "last.pt")["iteration"] == 40
     monkeypatch.undo()
+    with pytest.raises(FileNotFoundError, match="stopped before its end; finish it .* --resume"):
+        evaluate_run(tmp_path / "cut", dataset)  # (it said: train the run first)
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
     for name, value in whole.model.params.items():

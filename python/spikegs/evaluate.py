@@ -16,7 +16,7 @@ from .gaussians import GaussianModel
 from .image_io import write_image
 from .metrics import psnr, ssim
 from .ply import load_ply
-from .run_summary import read_summary
+from .run_summary import read_summary, trained_scene
 from .targets import intensity_scale
 
 
@@ -75,9 +75,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
             f"scene '{scored}'",
             stacklevel=2,
         )
-    ply = run_dir / "scene.ply"
-    if not ply.exists():
-        raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
+    ply = trained_scene(run_dir)
     model = load_ply(ply)
     if model.channels != dataset.channels:
         raise ValueError(

@@ -184,13 +184,12 @@ def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
     from .eval_cli import run_dataset
     from .ply import load_ply
+    from .run_summary import trained_scene
 
     check_video_output(args.out, args.fps)
     if args.frames < 1:
         raise ValueError(f"--frames: expected a positive number, got {args.frames}")
-    ply = args.run / "scene.ply"
-    if not ply.exists():
-        raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
+    ply = trained_scene(args.run)
     dataset = load_dataset(run_dataset(args.run, args.dataset))
     frames = orbit_frames(load_ply(ply), dataset, args.frames)
     write_video(args.out, frames, args.fps)

@@ -24,3 +24,17 @@ def read_summary(run_dir: Path) -> dict:
     if not (is_number(scale) and scale > 0):
         raise ValueError(f"{path}: intensity_scale expected a finite number > 0, found {scale!r}")
     return summary
+
+
+def trained_scene(run_dir: Path) -> Path:
+    """RUN/scene.ply, written when a run finishes; FileNotFoundError saying how to get it where
+    the run has not finished (stopped with a checkpoint: --resume) or not started."""
+    ply = Path(run_dir) / "scene.ply"
+    if ply.exists():
+        return ply
+    if (Path(run_dir) / "checkpoints" / "last.pt").exists():
+        raise FileNotFoundError(
+            f"{ply} not found: the run stopped before its end; finish it with spikegs train "
+            f"DATASET --out {run_dir} --resume"
+        )
+    raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
