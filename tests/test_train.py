@@ -677,7 +677,9 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
     views = len(load_dataset(out / "data").test_views)
     assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "holds no demo to continue; starting one" in printed.err
+    printed = printed.out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
     # --resume on the finished demo trains nothing and keeps its time (was this process's alone)
     assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0

@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--resume",
         action="store_true",
         help="continue an interrupted demo in --out: its dataset, SIM's saved training state and "
-        "each run's last checkpoint (the same results as a demo never interrupted)",
+        "each run's last checkpoint (the same results as a demo never interrupted); where --out "
+        "holds no demo, one starts (said on stderr), so a script may always pass it",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -164,6 +165,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file; give the demo a folder")
+    # a demo writes ITERATIONS_FILE as it starts: a folder without anything holds none
+    if args.resume and not (out.is_dir() and any(p.name != ".lock" for p in out.iterdir())):
+        print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out):  # one demo per OUT: a second one would delete the first one's files
         return _demo(args, out)
