@@ -1243,6 +1243,14 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     assert second["file"] == str(tmp_path / "run" / "eval-copy-2.json")
     again = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
     assert again["file"] == other["file"]
+    # the run's own dataset, moved (its folder gone): its own scores, not eval-moved.json
+    moved = shutil.move(dataset.root, tmp_path / "moved")
+    try:
+        assert evaluate_run(tmp_path / "run", load_dataset(moved), False)["file"].endswith(
+            "eval.json"
+        )
+    finally:
+        shutil.move(moved, dataset.root)  # the module's dataset, for the tests after this one
 
 
 def test_eval_on_another_scene_says_so(dataset, tmp_path):

@@ -37,13 +37,19 @@ def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> di
 
 
 def _eval_name(run_dir: Path, train: dict, dataset) -> str:
-    """'eval' for the dataset the run was trained on (`train`: its train.json), else
-    'eval-DATASETNAME' (RUN/NAME.json and RUN/NAME/*.png), so that scoring another dataset keeps
-    the run's own scores; 'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of
-    the same directory name holds the name."""
+    """'eval' for the dataset the run was trained on (`train`: its train.json; or moved: its
+    folder gone, the data fingerprint the run's), else 'eval-DATASETNAME' (RUN/NAME.json and
+    RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores;
+    'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of the same directory
+    name holds the name."""
+    from .train import data_fingerprint  # (train imports us)
+
     own = train.get("dataset")
     root = Path(dataset.root).resolve()
     if own is None or Path(own).resolve() == root:
+        return "eval"
+    moved = not Path(own).exists() and "data" in train
+    if moved and train["data"] == data_fingerprint(dataset, intensity_scale(dataset)):
         return "eval"
     for i in itertools.count(1):
         name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")

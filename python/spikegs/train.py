@@ -516,6 +516,7 @@ class Trainer:
             "sim_seconds": self.sim_seconds,
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
+            "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
         }
         (self.run_dir / SUMMARY).write_text(json.dumps(summary, indent=2))
         return summary
