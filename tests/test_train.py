@@ -262,6 +262,7 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
         Trainer(dataset, config, tmp_path / "other", progress=False).train(resume=True)
     shutil.rmtree(tmp_path / "run" / "checkpoints")  # as if stopped before its first checkpoint
     (tmp_path / "run" / "train.json").unlink()
+    (tmp_path / "run" / "scene.ply").unlink()
     (tmp_path / "run" / "checkpoints").mkdir()
     killed = tmp_path / "run" / "checkpoints" / "last.pt.999.tmp"  # a process killed mid-save
     killed.write_bytes(b"half")
