@@ -17,7 +17,7 @@ import torch
 import yaml
 from plyfile import PlyData
 from spikegs.cli import build_parser, main
-from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
+from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory
 from spikegs.densify import Densifier, DensifyConfig
@@ -555,6 +555,29 @@ def test_a_key_given_twice_in_a_yaml_file_is_refused(tmp_path):
     (tmp_path / "twice.yaml").write_text("train: {iterations: 200}\ntrain: {seed: 3}\n")
     with pytest.raises(ValueError, match="'train' given twice"):
         load_config(tmp_path / "twice.yaml")
+
+
+def test_yaml_numbers_and_keys_read_as_yaml_1_2(tmp_path):
+    """020 was octal (16 iterations) and 1:20 base 60 (80); a key that is a list a TypeError."""
+    (tmp_path / "n.yaml").write_text("base: tfp33\ntrain: {iterations: 020, seed: 0x10}\n")
+    train = load_config(tmp_path / "n.yaml").train
+    assert (train.iterations, train.seed) == (20, 16)
+    (tmp_path / "s.yaml").write_text("base: tfp33\ntrain: {iterations: 1:20}\n")
+    with pytest.raises(ValueError, match="iterations"):
+        load_config(tmp_path / "s.yaml")
+    (tmp_path / "k.yaml").write_text("train: {[iterations]: 20}\n")
+    with pytest.raises(ValueError, match="a key that is a list"):
+        load_config(tmp_path / "k.yaml")
+
+
+def test_a_method_named_like_a_number_reads_back_from_its_run(tmp_path):
+    """A file 1e5.yaml trained as method 1e5, saved unquoted in config.yaml (PyYAML's dumper
+    knows YAML 1.1 only), and --resume read it back as the float 100000.0."""
+    (tmp_path / "1e5.yaml").write_text("base: tfp33\n")
+    config = load_config(tmp_path / "1e5.yaml")
+    assert config.method == "1e5"
+    (tmp_path / "config.yaml").write_text(dump_yaml(config.to_dict()))
+    assert load_config(tmp_path / "config.yaml", saved_run=True) == config
 
 
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):

@@ -21,6 +21,7 @@ import copy
 import dataclasses
 import math
 import re
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -355,9 +356,10 @@ def available_methods() -> list[str]:
 
 
 class _Loader(yaml.SafeLoader):
-    """yaml.SafeLoader that reads 1e-4 as a float, as YAML 1.2 does (YAML 1.1, PyYAML's, wants
-    a dot, 1.0e-4, and reads 1e-4 as a string), and refuses a key given twice in one mapping
-    (PyYAML keeps the last: a second `train:` section would drop the first)."""
+    """yaml.SafeLoader that reads numbers as YAML 1.2 does: 1e-4 as a float (YAML 1.1, PyYAML's,
+    wants a dot, 1.0e-4, and reads 1e-4 as a string), 020 as 20 (1.1: octal 16) and 1:20 as a
+    string (1.1: base 60, 80); and refuses a key given twice in one mapping (PyYAML keeps the
+    last: a second `train:` section would drop the first) or a key that is a list or mapping."""
 
     def construct_mapping(self, node, deep=False):
         seen = set()
@@ -365,6 +367,10 @@ class _Loader(yaml.SafeLoader):
             if key_node.tag == "tag:yaml.org,2002:merge":
                 continue
             key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, Hashable):
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"a key that is a {type(key).__name__}", key_node.start_mark
+                )
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"key '{key}' given twice in one mapping", key_node.start_mark
@@ -373,11 +379,38 @@ class _Loader(yaml.SafeLoader):
         return super().construct_mapping(node, deep)
 
 
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
+_FLOAT, _INT = "tag:yaml.org,2002:float", "tag:yaml.org,2002:int"
+_FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$")  # 1e-4, 1.5E3
+_INT_12 = re.compile(r"^[-+]?[0-9][0-9_]*$|^0o[0-7_]+$|^0x[0-9a-fA-F_]+$")
+_Loader.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
+_Loader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag != _INT]
+    for first, resolvers in _Loader.yaml_implicit_resolvers.items()
+}
+_Loader.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
+
+
+def _int_12(loader: _Loader, node) -> int:
+    """A YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hexadecimal."""
+    text = loader.construct_scalar(node).replace("_", "")
+    sign, digits = (-1, text[1:]) if text[0] == "-" else (1, text.lstrip("+"))
+    base = {"0o": 8, "0x": 16}.get(digits[:2], 10)
+    return sign * int(digits[2:] if base != 10 else digits, base)
+
+
+_Loader.add_constructor(_INT, _int_12)
+
+
+class _Dumper(yaml.SafeDumper):
+    """yaml.SafeDumper that quotes what `_Loader` would read as a number (a method named 1e5)."""
+
+
+_Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
+
+
+def dump_yaml(data: dict) -> str:
+    """`data` as YAML that `_Loader` reads back as it is (a run's config.yaml)."""
+    return yaml.dump(data, Dumper=_Dumper, sort_keys=False)
 
 
 def load_config(

@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import yaml
 from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import save_atomically, write_atomically
-from .config import Config, with_defaults
+from .config import Config, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .file_lock import exclusive_lock
@@ -452,7 +451,7 @@ class Trainer:
     def _run(self, state: dict | None, on_eval) -> dict:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
-        text = yaml.safe_dump(self.config.to_dict(), sort_keys=False)  # `--resume` reads it
+        text = dump_yaml(self.config.to_dict())  # `--resume` reads it back
         write_atomically(self.run_dir / "config.yaml", lambda tmp: tmp.write_text(text))
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
