@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 import torch
+from plyfile import PlyData, PlyElement
 from scipy.spatial.transform import Rotation
 from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
@@ -144,9 +145,26 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     np.testing.assert_allclose(
         trainer.model.sh[:, 0, :].detach().numpy() * 0.28209479 + 0.5, shown.numpy(), atol=1e-5
     )
+    # one point (or copies of one): Gaussians of scale 1e-6 that never grew (the background's
+    # score); too few to start from, said, and the run starts from random points
+    write_points(root / POINTS, np.zeros((40, 3)))
+    with pytest.warns(UserWarning, match="1 distinct point"):
+        trainer = Trainer(load_dataset(root), load_config("tfp33", TINY), tmp_path / "r2", False)
+        trainer._fresh_state()
+    assert (
+        trainer.model.scales.min() > 1e-3 and len(trainer.model) == TINY["train"]["init_gaussians"]
+    )
+    vertex = np.zeros(21, dtype=[(a, "f8") for a in "xyz"])  # another tool's float64 cloud
+    vertex["x"][-1] = 1e39  # finite in float64, inf as the Gaussians' float32
+    PlyData([PlyElement.describe(vertex, "vertex")]).write(root / POINTS)
+    with pytest.raises(ValueError, match="all finite \\(in float32\\)"):
+        read_points(root / POINTS)
     (root / POINTS).write_bytes(bytes(range(256)))
     with pytest.raises(ValueError, match="not a readable PLY"):
         read_points(root / POINTS)
+    with pytest.raises(ValueError, match="not a readable PLY"):  # before any work
+        Trainer(load_dataset(root), load_config("tfp33", TINY), tmp_path / "r3", False).train()
+    assert not (tmp_path / "r3").exists()
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
-from plyfile import PlyData
+from plyfile import PlyData, PlyElement
 from spikegs.cli import build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
 from spikegs.data import load_dataset, simulate_dataset
@@ -338,6 +338,32 @@ def test_ply_edge_cases(tmp_path):
         else:
             with pytest.raises(ValueError, match=message):
                 load_ply(tmp_path / "t.ply")
+    # loaded, then refused by the renderer without the file's name: a background of NaN, SH
+    # degree 4 (72 f_rest), a tag naming more coefficients than the file holds (21 f_rest: 7 a
+    # channel, degree 1 and 3 over)
+    nan_background = re.sub(rb"spikegs background [^\n]*", b"spikegs background nan 0 0", text)
+    (tmp_path / "t.ply").write_bytes(nan_background)
+    with pytest.raises(ValueError, match="t.ply: comment 'spikegs background nan 0 0'"):
+        load_ply(tmp_path / "t.ply")
+    for rest, comments, message in (
+        (72, [], "SH degree 4 .* renders degrees 0..3"),
+        (21, ["spikegs sh_degree 2"], "spikegs sh_degree 2': expected 0..1"),
+    ):
+        names = [
+            "x",
+            "y",
+            "z",
+            "opacity",
+            *[f"{k}_{i}" for k in ("scale", "rot") for i in range(4)],
+        ]
+        names = [n for n in names if n != "scale_3"]
+        names += [f"f_dc_{i}" for i in range(3)] + [f"f_rest_{i}" for i in range(rest)]
+        vertex = np.zeros(2, dtype=[(n, "f4") for n in names])
+        PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(
+            tmp_path / "o.ply"
+        )
+        with pytest.raises(ValueError, match=f"o.ply: {message}" if not comments else message):
+            load_ply(tmp_path / "o.ply")
 
 
 def test_gaussian_model_refuses_sizes_without_gaussians():

@@ -62,6 +62,11 @@ class GaussianModel:
         if not 0 < scale < math.inf:
             raise ValueError(f"scale expected a positive finite size, found {scale}")
         n, channels = colors.shape
+        if points.shape != (n, 3):
+            raise ValueError(
+                f"points [N, 3] and colours [N, C] of one N expected, found {list(points.shape)} "
+                f"and {list(colors.shape)}"
+            )
         params = {
             "means": points.float(),
             "log_scales": torch.full((n, 3), math.log(scale)),

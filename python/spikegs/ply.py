@@ -10,6 +10,7 @@ channel repeated and a `spikegs channels 1` comment, so that the import gives ba
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from plyfile import PlyData, PlyElement, PlyParseError
 
 from .atomic_save import write_atomically
 from .gaussians import GaussianModel
+from .sh import MAX_DEGREE
 
 FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file holds (degree 3)
 
@@ -109,12 +111,17 @@ def load_ply(path: str | Path) -> GaussianModel:
         raise ValueError(f"{path}: expected f_dc_* and a multiple of {stored} f_rest_* properties")
     rest = len(rest_names) // stored  # per channel
     channels = _tag_int(path, tags, "channels", stored, 1, stored)
-    inferred = round((rest + 1) ** 0.5) - 1
+    inferred = math.isqrt(rest + 1) - 1  # the highest degree whose coefficients the file holds
     if "sh_degree" not in tags and (inferred + 1) ** 2 != rest + 1:
         raise ValueError(
             f"{path}: {rest + 1} SH coefficients per channel, which no SH degree has (1, 4, 9, 16)"
         )
-    sh_degree = _tag_int(path, tags, "sh_degree", inferred, 0, inferred)
+    if "sh_degree" not in tags and inferred > MAX_DEGREE:
+        raise ValueError(
+            f"{path}: SH degree {inferred} ({rest + 1} coefficients per channel); spikegs renders "
+            f"degrees 0..{MAX_DEGREE}"
+        )
+    sh_degree = _tag_int(path, tags, "sh_degree", inferred, 0, min(inferred, MAX_DEGREE))
     used = (sh_degree + 1) ** 2 - 1
 
     def col(keys):  # [N, len(keys)]
@@ -137,10 +144,10 @@ def load_ply(path: str | Path) -> GaussianModel:
             background = torch.tensor([float(x) for x in tags["background"].split()])
         except ValueError:
             background = None
-        if background is None or background.shape != (channels,):
+        if background is None or background.shape != (channels,) or not background.isfinite().all():
             raise ValueError(
                 f"{path}: comment 'spikegs background {tags['background']}': expected "
-                f"{channels} numbers"
+                f"{channels} finite numbers"
             )
     else:
         background = torch.zeros(channels)

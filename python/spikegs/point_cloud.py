@@ -39,24 +39,28 @@ def read_points(path: str | Path) -> np.ndarray:
     if not {"x", "y", "z"} <= set(names):
         raise ValueError(f"{path}: expected vertex properties x, y, z; found {list(names)}")
     points = np.stack([vertex[a] for a in "xyz"], axis=1).astype(np.float64)  # [P, 3]
-    if not len(points) or not np.isfinite(points).all():
-        raise ValueError(f"{path}: expected at least one point, all finite")
+    # finite in float32 too, the Gaussians' precision (1e39 became inf there)
+    if not len(points) or not (np.abs(points) <= np.finfo(np.float32).max).all():  # NaN too
+        raise ValueError(f"{path}: expected at least one point, all finite (in float32)")
     return points
 
 
 def gaussians_from_points(
-    path: str | Path,
+    points: np.ndarray,
     max_points: int,
     sh_degree: int,
     generator: torch.Generator,
     colors_of: Callable[[torch.Tensor], torch.Tensor],
 ) -> GaussianModel:
-    """Gaussians at the cloud's points (a random subset of `max_points` when it has more), of the
-    intensities `colors_of(points)` [P, C] (what the views show there), sized by the median
-    distance between nearest neighbours."""
-    points = read_points(path)
+    """Gaussians at a cloud's distinct points [P, 3] (P >= 2; a random subset of `max_points`
+    when it has more), of the intensities `colors_of(points)` [P, C] (what the views show there),
+    sized by the median distance between nearest neighbours."""
+    first = np.unique(points, axis=0, return_index=True)[1]  # a repeat would make the spacing 0
+    points = points[np.sort(first)]  # in the cloud's order
+    if len(points) < 2:
+        raise ValueError(f"a point cloud of {len(points)} distinct point(s) has no spacing")
     if len(points) > max_points:
         points = points[torch.randperm(len(points), generator=generator)[:max_points].numpy()]
     means = torch.from_numpy(points)
-    spacing = np.median(cKDTree(points).query(points, k=2)[0][:, 1]) if len(points) > 1 else 0.0
-    return GaussianModel.from_points(means, colors_of(means), max(float(spacing), 1e-6), sh_degree)
+    spacing = float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
+    return GaussianModel.from_points(means, colors_of(means), spacing, sh_degree)

@@ -6,11 +6,13 @@ end, scene.ply and train.json. Training resumes from the last checkpoint with `r
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +21,7 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import save_atomically, write_atomically
-from .config import Config, dump_yaml, with_defaults
+from .config import MIN_GAUSSIANS, Config, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .file_lock import exclusive_lock
@@ -28,7 +30,7 @@ from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
-from .point_cloud import POINTS, gaussians_from_points
+from .point_cloud import POINTS, gaussians_from_points, read_points
 from .pose_refine import PoseRefiner, make_refiner
 from .run_summary import SUMMARY
 from .sim_train import spikes_fingerprint
@@ -177,6 +179,25 @@ class Trainer:
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
 
     # -- state ---------------------------------------------------------------------------------
+    @functools.cached_property
+    def cloud_points(self) -> np.ndarray | None:
+        """The dataset's sparse point cloud [P, 3] (DATASET/points3d.ply, e.g. from `spikegs
+        poses`) that the Gaussians start at; None where it has none, or fewer distinct points
+        than a run may start with (warned: they start at random points in the scene bounds)."""
+        cloud = Path(self.dataset.root) / POINTS
+        if not cloud.exists():
+            return None
+        points = read_points(cloud)
+        distinct = len(np.unique(points, axis=0))
+        if distinct < MIN_GAUSSIANS:
+            warnings.warn(
+                f"{cloud}: {distinct} distinct point(s), fewer than {MIN_GAUSSIANS}: the "
+                f"Gaussians start at random points in the scene bounds instead",
+                stacklevel=2,
+            )
+            return None
+        return points
+
     def _fresh_state(self) -> None:
         t = self.config.train
         torch.manual_seed(t.seed)
@@ -186,9 +207,10 @@ class Trainer:
         # median intensity
         sample = ViewSample.of(self.dataset, self.scale)
         colors_of = lambda means: projected_intensity(self.dataset, sample, means)  # noqa: E731
-        cloud = Path(self.dataset.root) / POINTS  # a sparse point cloud, e.g. from `spikegs poses`
-        if cloud.exists():
-            self.model = gaussians_from_points(cloud, t.init_gaussians, t.sh_degree, gen, colors_of)
+        if self.cloud_points is not None:
+            self.model = gaussians_from_points(
+                self.cloud_points, t.init_gaussians, t.sh_degree, gen, colors_of
+            )
         else:
             self.model = GaussianModel.random(
                 t.init_gaussians,
@@ -427,6 +449,7 @@ class Trainer:
             raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
         if not resume or restart:
             check_fresh_run_dir(self.run_dir, self.checkpoint_path)
+            self.cloud_points  # noqa: B018 (read now: a bad point cloud is refused before any work)
         resume = resume and not restart
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks under the lock, so that
