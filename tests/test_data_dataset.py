@@ -141,7 +141,7 @@ def test_numpy_integers_simulate_a_dataset_that_loads(tmp_path):
     ds = simulate_dataset(
         "solids",
         tmp_path / "x",
-        **{**SMALL, **sizes, "seed": np.uint64(3), "speed": np.float32(0.1)},
+        **{**SMALL, **sizes, "seed": np.uint64(3), "speed": np.float32(0.1), "flip": np.bool_(1)},
     )
     assert (ds.height, ds.width, ds.num_readouts, ds.meta["seed"]) == (24, 32, 400, 3)
     assert load_dataset(tmp_path / "x").num_readouts == 400

@@ -173,7 +173,7 @@ def test_training_lowers_the_loss_and_is_deterministic(scene, trained):
         assert torch.equal(a, b)
 
 
-def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
+def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     model = trained[0]
     path = tmp_path / "run" / "sim.pt"
     save_sim(model, path, steps=TRAIN["steps"])
@@ -195,7 +195,9 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained):
     payload = torch.load(path, weights_only=True)
     del payload["meta"]["start"]  # a SIM cached before SIM started at zero: retrained
     torch.save(payload, path)
+    capsys.readouterr()
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
+    assert capsys.readouterr().err.count("training SIM afresh") == 1  # (said twice, with the lock)
     path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0

@@ -93,7 +93,9 @@ def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
     assert _mean_psnr(trainer.model, dataset) > constant + 0.8, constant
 
 
-def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monkeypatch, ctrl_c):
+def test_resume_after_interruption_equals_uninterrupted(
+    dataset, tmp_path, monkeypatch, ctrl_c, capsys
+):
     overrides = {
         **FAST,
         "train": {**FAST["train"], "iterations": 60, "checkpoint_every": 25},
@@ -112,6 +114,9 @@ def test_resume_after_interruption_equals_uninterrupted(dataset, tmp_path, monke
     monkeypatch.undo()
     with pytest.raises(FileNotFoundError, match="stopped before its end; finish it .* --resume"):
         evaluate_run(tmp_path / "cut", dataset)  # (it said: train the run first)
+    for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
+        assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == 2
+        assert "finish it with spikegs train DATASET" in capsys.readouterr().err
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
     for name, value in whole.model.params.items():
@@ -763,7 +768,10 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     with monkeypatch.context() as patch:
         patch.setattr("spikegs.data.simulate_dataset", ctrl_c)
         assert main([*argv, str(tmp_path / "early")]) == 130
+        # --resume where there is nothing to resume starts a demo as a plain one does
+        assert main([*argv, str(tmp_path / "early2"), "--resume"]) == 130
     assert started_iterations(tmp_path / "early") == 80
+    assert started_iterations(tmp_path / "early2") == 80
     capsys.readouterr()
 
     step = Trainer.step

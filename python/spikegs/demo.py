@@ -168,6 +168,7 @@ def run(args: argparse.Namespace) -> int:
     # a demo writes ITERATIONS_FILE as it starts: a folder without anything holds none
     if args.resume and not (out.is_dir() and any(p.name != ".lock" for p in out.iterdir())):
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
+        args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out):  # one demo per OUT: a second one would delete the first one's files
         return _demo(args, out)

@@ -16,10 +16,11 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     """The dataset a run was trained on, unless one is given."""
     if dataset is not None:
         return dataset
-    from .run_summary import SUMMARY, read_summary
+    from .run_summary import SUMMARY, read_summary, trained_scene
 
     summary = read_summary(run_dir)
     if "dataset" not in summary:
+        trained_scene(run_dir)  # a run stopped with a checkpoint: finish it with --resume
         raise FileNotFoundError(
             f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"
         )

@@ -223,24 +223,23 @@ def spikes_fingerprint(stream, timestamps: Sequence[int]) -> str:
     return digest.hexdigest()
 
 
-def _cached(path: Path, window: int, data: str) -> SIM | None:
+def _cached(path: Path, window: int, data: str, say: bool = True) -> SIM | None:
     """The SIM saved at `path` if it was trained for `window` on the spikes of fingerprint `data`
-    from this package's start; None (saying why where a file is there) otherwise."""
+    from this package's start; None (saying why where a file is there, if `say`) otherwise."""
     if not path.exists():
         return None
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
-        print(f"{path}: unreadable ({type(err).__name__}); training SIM afresh", file=sys.stderr)
-        return None
-    meta = payload["meta"]
-    if (payload["config"]["window"], meta.get("data"), meta.get("start")) == (window, data, START):
-        return _model_of(payload)
-    print(
-        f"{path}: trained on other spikes, for another window or from another start; "
-        f"training SIM afresh",
-        file=sys.stderr,
-    )
+        why = f"unreadable ({type(err).__name__})"
+    else:
+        meta = payload["meta"]
+        key = (payload["config"]["window"], meta.get("data"), meta.get("start"))
+        if key == (window, data, START):
+            return _model_of(payload)
+        why = "trained on other spikes, for another window or from another start"
+    if say:
+        print(f"{path}: {why}; training SIM afresh", file=sys.stderr)
     return None
 
 
@@ -267,7 +266,7 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     """
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
-    model = None if force else _cached(path, window, data)
+    model = None if force else _cached(path, window, data, say=False)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):
@@ -278,7 +277,7 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
             )
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
         path = fallback
-        model = None if force else _cached(path, window, data)
+        model = None if force else _cached(path, window, data, say=False)
     if model is not None:
         return model, 0.0, path
     # one process trains each SIM: another (a second method on the same dataset) waits for it and

@@ -442,34 +442,41 @@ class Trainer:
         outside the timed steps (its time is not in `train_seconds`)."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
-        # --resume of a run stopped before its first checkpoint (in SIM's training, say: SIM
-        # resumes itself) starts it again, as a fresh run in its folder
-        restart = resume and not self.checkpoint_path.exists()
-        if restart and not (self.run_dir / "config.yaml").exists():
-            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
-        if not resume or restart:
-            check_fresh_run_dir(self.run_dir, self.checkpoint_path)
+        if not self._from_checkpoint(resume):
             self.cloud_points  # noqa: B018 (read now: a bad point cloud is refused before any work)
-        resume = resume and not restart
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        # one process trains in a run directory at a time; the checks under the lock, so that
-        # they see the state that this process will train from, before any work
+        # one process trains in a run directory at a time; the checks again under the lock, so
+        # that they see the state that this process will train from (another may have trained
+        # here since), before any work
         with run_lock(self.run_dir):
             # one process trains here: a temporary file is a killed process's, half-written
             for folder in (self.run_dir, self.checkpoint_path.parent):
                 for stale in folder.glob("*.tmp"):
                     stale.unlink()
-            if restart:  # stderr: stdout is `spikegs train`'s JSON summary
+            from_checkpoint = self._from_checkpoint(resume)
+            if resume and not from_checkpoint:  # stderr: stdout is `spikegs train`'s summary
                 print(
                     f"{self.run_dir}: no checkpoint yet; training from the start", file=sys.stderr
                 )
-            state = self._read_checkpoint() if resume else None
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(
                     f"{self.run_dir} already holds a run; pass --resume to continue it, or "
                     f"another --out"
                 )
+            state = self._read_checkpoint() if from_checkpoint else None
             return self._run(state, on_eval)
+
+    def _from_checkpoint(self, resume: bool) -> bool:
+        """Whether training goes on from RUN's checkpoint (else from the start); --resume of a run
+        stopped before its first checkpoint (in SIM's training, say: SIM resumes itself) starts
+        it again. FileNotFoundError / FileExistsError where neither can be done: nothing to
+        resume, or a fresh run would mix with files in RUN (`check_fresh_run_dir`)."""
+        restart = resume and not self.checkpoint_path.exists()
+        if restart and not (self.run_dir / "config.yaml").exists():
+            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
+        if not resume or restart:
+            check_fresh_run_dir(self.run_dir, self.checkpoint_path)
+        return resume and not restart
 
     def _run(self, state: dict | None, on_eval) -> dict:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""

@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 from ..number_checks import finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams, simulate_spikes
+from ..spikes.stream import as_flag
 from .dataset import (
     FORMAT_VERSION,
     LIGHT,
@@ -241,6 +242,7 @@ def simulate_dataset(
     if train_every is not None:
         (train_every,) = whole_numbers(train_every=train_every)
     speed, frame_every = finite_numbers(speed=speed, frame_every=frame_every)
+    flip, color = as_flag("flip", flip), as_flag("color", color)
     if height < 1 or width < 1:
         raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
     if not is_seed(seed):
