@@ -453,6 +453,9 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     monkeypatch.setattr("spikegs.sim_cli.trained_sim", lambda *a, **k: pytest.fail("trained"))
     assert main(["sim-train", str(root)]) == 2
     assert "no held-out view on the camera path" in capsys.readouterr().err
+    # a window longer than the room around the timestamps: refused by its flag, not mid-training
+    assert main(["sim-train", str(root), "--window", "201"]) == 2
+    assert "--window: config: sim.window = 201 readouts does not fit" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

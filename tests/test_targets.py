@@ -11,7 +11,7 @@ from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
 from spikegs.sim_train import infer_sim
-from spikegs.targets import build_targets, intensity_scale, sim_path, trained_sim
+from spikegs.targets import build_targets, check_targets, intensity_scale, sim_path, trained_sim
 from spikegs.train import Trainer
 
 SIM_FAST = {"sim": {"iterations": 5, "crop": 16, "batch": 2}}
@@ -157,6 +157,22 @@ def test_windows_longer_than_the_room_around_the_timestamps_refused_first(
     with pytest.raises(ValueError, match=f"{name}.*at most 65"):
         build_targets(dataset, load_config(method, overrides), progress=False)
     build_targets(dataset, load_config("tfp65"), progress=False)  # 65 fits
+
+
+def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
+    """A pose log that does not cover the stream's ends (a real recording's): the exposure's
+    renders reached past it mid-run ('pose_at: t=... outside the trajectory's readouts')."""
+    monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("trained"))
+    ts = np.asarray(dataset.train_timestamps)
+    readouts = np.linspace(ts.min() - 10, ts.max() + 10, 20)  # poses 10 readouts beyond them
+    short = Dataset(
+        dataset.root, dataset.meta, dataset.streams,
+        Trajectory(readouts, dataset.trajectory.pose_at(readouts)),
+        dataset.train_timestamps, dataset.test_views,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="exposure_window = 33 readouts .* reaches past the poses"):
+        build_targets(short, load_config("spikegs"), progress=False)
+    check_targets(short, load_config("spikegs", {"supervision": {"exposure_window": 21}}))
 
 
 @pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25"])

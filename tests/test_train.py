@@ -75,6 +75,17 @@ def test_tiny_scene_trains_end_to_end(dataset, tmp_path):
     assert (tmp_path / "run" / "eval.json").exists() and (tmp_path / "run" / "log.jsonl").exists()
 
 
+def test_few_gaussians_start_below_the_size_that_densification_prunes(dataset, tmp_path):
+    """Fewer than ~4200 random Gaussians started larger than densify.max_world_size of the scene
+    radius and were all pruned after the first opacity reset (an empty scene, or 'pruning
+    removed every Gaussian' minutes in)."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "init_gaussians": 300}})
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=False)
+    trainer._fresh_state()
+    cap = config.densify.max_world_size * trainer.radius
+    assert cap * 0.9 < trainer.model.scales.max().item() < cap
+
+
 def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
     """The untrained scene is closer to the held-out views than the best constant image (the
     median intensity, where the background starts): each random Gaussian took the intensity that
@@ -405,6 +416,12 @@ def test_every_method_config_loads():
         ("spikegs", {"train": {"iterations": "many"}}, "expected int"),
         ("spikegs", {"train": {"iterations": 0}}, "train.iterations"),
         ("spikegs", {"supervision": {"exposure_window": 32}}, "odd window"),
+        # 66 renders over 65 readouts reached past the window, and the trajectory, mid-run
+        (
+            "spikegs",
+            {"supervision": {"exposure_window": 65, "exposure_poses": 66}},
+            "exposure_poses.*at most supervision.exposure_window \\(65\\)",
+        ),
         ("spikegs", {"supervision": {"instant": "magic"}}, "supervision.instant"),
         ("spikegs", {"lr": {"means": -1.0}}, "lr.means"),
         ("spikegs", {"supervision": {"exposure_norm": "huber"}}, "exposure_norm"),
@@ -1276,7 +1293,8 @@ def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monk
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     monkeypatch.setattr("spikegs.evaluate.psnr", lambda pred, gt: float("inf"))
-    assert evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"] == float("inf")
+    with pytest.warns(UserWarning, match="PSNR inf, and so is the mean"):  # said, not hidden
+        assert evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"] == float("inf")
 
     def refuse(token):
         raise ValueError(f"non-standard JSON token {token}")

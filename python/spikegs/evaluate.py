@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import warnings
 from pathlib import Path
 
@@ -103,6 +104,15 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(run_dir / name / f"{view.name}.png", side)
+    exact = [name for name, v in views.items() if v["psnr"] == math.inf]
+    if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
+        listed = ", ".join(exact[:3]) + (", ..." if len(exact) > 3 else "")
+        warnings.warn(
+            f"{len(exact)} test view(s) ({listed}) match the render exactly once both are "
+            f"clipped to [0, 1] (saturated or empty views?): PSNR inf, and so is the mean; each "
+            f"view's score is in {name}.json",
+            stacklevel=2,
+        )
     result = {
         "method": train.get("method"),
         "dataset": str(Path(dataset.root).resolve()),

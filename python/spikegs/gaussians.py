@@ -39,9 +39,10 @@ class GaussianModel:
         sh_degree: int = 0,
         generator: torch.Generator | None = None,
         colors: Callable[[torch.Tensor], torch.Tensor] | None = None,
+        max_scale: float = math.inf,
     ) -> GaussianModel:
         """`n` Gaussians uniform in the ball (center, radius), semi-transparent, isotropic, of
-        intensities `colors(means)` [N, C] (default grey 0.5)."""
+        intensities `colors(means)` [N, C] (default grey 0.5), no larger than `max_scale`."""
         if not 0 < radius < math.inf:
             raise ValueError(f"radius expected a positive finite size, found {radius}")
         g = generator
@@ -52,7 +53,7 @@ class GaussianModel:
         # scale: about the mean distance between neighbours at this density
         spacing = radius * (4 / 3 * math.pi / max(n, 1)) ** (1 / 3)
         rgb = torch.full((n, channels), 0.5) if colors is None else colors(means)
-        return cls.from_points(means, rgb, spacing, sh_degree)
+        return cls.from_points(means, rgb, min(spacing, max_scale), sh_degree)
 
     @classmethod
     def from_points(

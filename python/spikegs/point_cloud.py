@@ -3,6 +3,7 @@ x y z, red green blue as uint8 for viewing), read by the trainer to place the in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 
@@ -51,10 +52,11 @@ def gaussians_from_points(
     sh_degree: int,
     generator: torch.Generator,
     colors_of: Callable[[torch.Tensor], torch.Tensor],
+    max_scale: float = math.inf,
 ) -> GaussianModel:
     """Gaussians at a cloud's distinct points [P, 3] (P >= 2; a random subset of `max_points`
     when it has more), of the intensities `colors_of(points)` [P, C] (what the views show there),
-    sized by the median distance between nearest neighbours."""
+    sized by the median distance between nearest neighbours, at most `max_scale`."""
     first = np.unique(points, axis=0, return_index=True)[1]  # a repeat would make the spacing 0
     points = points[np.sort(first)]  # in the cloud's order
     if len(points) < 2:
@@ -63,4 +65,4 @@ def gaussians_from_points(
         points = points[torch.randperm(len(points), generator=generator)[:max_points].numpy()]
     means = torch.from_numpy(points)
     spacing = float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
-    return GaussianModel.from_points(means, colors_of(means), spacing, sh_degree)
+    return GaussianModel.from_points(means, colors_of(means), min(spacing, max_scale), sh_degree)

@@ -9,12 +9,12 @@ from pathlib import Path
 
 from .bench.common import print_table
 from .cli import positive_int
-from .config import Config, SimConfig, TrainConfig
+from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .output_paths import check_file_output
 from .sim_train import evaluate_dataset, on_path_views
-from .targets import trained_sim
+from .targets import check_targets, trained_sim
 
 # the config keys that the options set, named in the config's messages
 FLAGS = {
@@ -58,14 +58,21 @@ def run(args: argparse.Namespace) -> int:
         batch=args.batch_size,
         loss=args.loss,
     )
-    try:  # the config's rules
-        Config(sim=sim, train=TrainConfig(seed=args.seed)).validate()
+    # SIM alone: no exposure loss, whose window would be checked too
+    config = Config(
+        sim=sim,
+        train=TrainConfig(seed=args.seed),
+        supervision=SupervisionConfig(instant="sim", exposure_weight=0.0),
+    )
+    if args.out is not None:
+        check_file_output(args.out)
+    try:  # the config's rules, and the window around the dataset's timestamps
+        config.validate()
+        dataset = load_dataset(args.dataset)
+        check_targets(dataset, config)
     except ValueError as err:
         key = next((k for k in FLAGS if f"{k} =" in str(err)), None)
         raise ValueError(f"{FLAGS[key]}: {err}" if key else str(err)) from None
-    if args.out is not None:
-        check_file_output(args.out)
-    dataset = load_dataset(args.dataset)
     views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     try:
         model, seconds, out = trained_sim(

@@ -161,8 +161,9 @@ def check_targets(dataset, config: Config) -> None:
     from .data.view_stream import ViewStreams  # (the data package imports us)
 
     s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
-    windows = {"sim.window": config.sim.window} if s.instant == "sim" else {}
-    if s.instant == "tfp":
+    instant = s.instant if s.instant_weight > 0 else "none"  # a weight of 0 reads no target
+    windows = {"sim.window": config.sim.window} if instant == "sim" else {}
+    if instant == "tfp":
         windows["supervision.instant_window"] = s.instant_window
     if s.exposure_weight > 0:
         windows["supervision.exposure_window"] = s.exposure_window
@@ -180,6 +181,22 @@ def check_targets(dataset, config: Config) -> None:
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
                 f"{dataset.root} ({where}): at most {2 * room + 1}"
             )
+    # the exposure's renders lie within the window's readouts (exposure_poses <= its length):
+    # poses there, where they do not cover the stream's ends (a real recording's pose log)
+    reach = s.exposure_window // 2 if s.exposure_weight > 0 else 0
+    trajectory = dataset.trajectory
+    if ts.min() - reach < trajectory.start or ts.max() + reach > trajectory.end:
+        what = (
+            f"config: supervision.exposure_window = {s.exposure_window} readouts around the "
+            f"training timestamps reaches"
+            if reach
+            else "the training timestamps lie"
+        )
+        raise ValueError(
+            f"{what} past the poses of {dataset.root} (timestamps {ts.min()}..{ts.max()}, poses "
+            f"over readouts {trajectory.start:g}..{trajectory.end:g}): a shorter window, or poses "
+            f"over more of the stream"
+        )
     if s.instant_weight > 0 and s.instant == "clean":
         from .data.simulate import clean_source, simulated_trajectory  # (imports us)
 

@@ -207,9 +207,14 @@ class Trainer:
         # median intensity
         sample = ViewSample.of(self.dataset, self.scale)
         colors_of = lambda means: projected_intensity(self.dataset, sample, means)  # noqa: E731
+        # no larger than the size that densification prunes (after the first opacity reset):
+        # fewer than ~4200 random Gaussians, or a sparse cloud, started above it and were all
+        # deleted there
+        cap = self.config.densify.max_world_size * self.radius
+        max_scale = 0.99 * cap if cap else math.inf
         if self.cloud_points is not None:
             self.model = gaussians_from_points(
-                self.cloud_points, t.init_gaussians, t.sh_degree, gen, colors_of
+                self.cloud_points, t.init_gaussians, t.sh_degree, gen, colors_of, max_scale
             )
         else:
             self.model = GaussianModel.random(
@@ -220,6 +225,7 @@ class Trainer:
                 t.sh_degree,
                 gen,
                 colors_of,
+                max_scale,
             )
         with torch.no_grad():
             self.model.background.copy_(torch.from_numpy(sample.median))
