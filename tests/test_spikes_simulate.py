@@ -169,7 +169,7 @@ def test_sim_params_of_the_wrong_type_are_named():
     with pytest.raises(ValueError, match="rate_at_one expected in"):  # ranges at construction
         SimParams(rate_at_one=0.0)
     for name in ("threshold", "dark_sigma", "fpn_sigma", "temporal_sigma"):  # not inf either
-        with pytest.raises(ValueError, match=f"{name} expected finite"):
+        with pytest.raises(ValueError, match=f"{name} expected (finite|in)"):
             SimParams(**{name: float("inf")})
     params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
     assert (params.threshold, params.shot_noise) == (50.0, False)
@@ -185,3 +185,5 @@ def test_a_threshold_of_a_few_photo_electrons_warns():
         warnings.simplefilter("error")
         SimParams(threshold=2.0)
         SimParams(threshold=0.5, shot_noise=False)
+    with pytest.raises(ValueError, match="threshold expected in \\(0, 1e30\\]"):
+        SimParams(threshold=1e38)  # float voltages overflowed: every readout fired

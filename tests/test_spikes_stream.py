@@ -166,6 +166,35 @@ def test_core_refuses_windows_whose_end_overflows():
         _C.spike_unpack(data, layout, int(starts[0]), 3)
 
 
+def test_layouts_whose_sizes_overflow_are_refused(tmp_path):
+    """col_offset + width and height * row_bits wrapped around int64: uninitialised TFPs, a
+    segfault in window(), a division by zero in DatWriter."""
+    from spikegs.spikes import DatWriter
+
+    save_dat(tmp_path / "x.dat", np.zeros((3, 1, 8), np.uint8))
+    with pytest.raises(ValueError, match="col_offset 9223372036854775807"):
+        SpikeStream.open(tmp_path / "x.dat", 1, 1, col_offset=2**63 - 1)
+    with pytest.raises(ValueError, match="below 2\\^63 bits"):
+        SpikeStream.open(tmp_path / "x.dat", 2**61 + 1, 1, raw_width=8)
+    with pytest.raises(ValueError, match="below 2\\^63 bits"):
+        DatWriter(tmp_path / "y.dat", 2**61, 1)
+
+
+def test_dat_writer_refuses_what_it_would_write_wrong(tmp_path):
+    """write_bits wrote 256 as 0 and 0.5 as 0; write_packed wrote a [1, 1, 8] array for an 8x8
+    camera scrambled."""
+    from spikegs.spikes import DatWriter
+
+    with DatWriter(tmp_path / "x.dat", 8, 8) as writer:
+        for bad in (np.full((1, 8, 8), 256), np.full((1, 8, 8), 0.5)):
+            with pytest.raises(ValueError, match="bits expected"):
+                writer.write_bits(bad)
+        with pytest.raises(ValueError, match=r"uint8 \[n, 8, 1\], found uint8 \[1, 1, 8\]"):
+            writer.write_packed(np.zeros((1, 1, 8), np.uint8))
+        writer.write_bits(np.ones((2, 8, 8), np.int64))
+    assert SpikeStream.open(tmp_path / "x.dat", 8, 8).tfp(1, 1).min() == 1
+
+
 def test_bad_shapes_refused(tmp_path):
     with pytest.raises(ValueError, match=r"expected \[T, 4, 2\]"):
         SpikeStream.from_packed(np.zeros((3, 4, 1), np.uint8), 4, 13)

@@ -39,8 +39,15 @@ sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
   p.sh_degree = sh_degree;
   p.sh_coeffs = sh_coeffs;
   const py::ssize_t n = p.n;
-  if (quats.size() != 4 * n || scales.size() != 3 * n || opacities.size() != n ||
-      colors.size() != n * p.color_stride())
+  // the core trusts these (spikegs.rasterize checks them with messages of its own): out of
+  // bounds reads otherwise
+  if (sh_degree < -1 || sh_degree > sr::kMaxShDegree || channels < 1 ||
+      (sh_degree >= 0 && sh_coeffs < (sh_degree + 1) * (sh_degree + 1)))
+    throw py::value_error(
+        "rasterize: sh_degree in -1..3 (with sh_coeffs >= (degree + 1)^2) and "
+        "channels >= 1 expected");
+  if (means.size() != 3 * n || quats.size() != 4 * n || scales.size() != 3 * n ||
+      opacities.size() != n || colors.size() != n * p.color_stride())
     throw py::value_error("rasterize: input sizes do not match N = " + std::to_string(n));
   return p;
 }
@@ -88,6 +95,10 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
                    std::optional<Array<T>> grad_depths) {
   const sr::GaussianParams<T> p = params_of(means, quats, scales, opacities, colors, ctx.sh_degree,
                                             ctx.sh_coeffs, ctx.channels);
+  if (std::int64_t(ctx.state.proj.radius.size()) != p.n)
+    throw py::value_error("rasterize backward: the forward's context holds " +
+                          std::to_string(ctx.state.proj.radius.size()) + " Gaussians, not " +
+                          std::to_string(p.n));
   const py::ssize_t pixels = py::ssize_t(ctx.cam.width) * ctx.cam.height;
   if (grad_image.size() != pixels * ctx.channels || (grad_alpha && grad_alpha->size() != pixels))
     throw py::value_error("rasterize backward: gradient shapes do not match the image");

@@ -3,6 +3,7 @@
 #include <pybind11/pybind11.h>
 
 #include <algorithm>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -104,6 +105,10 @@ py::array_t<uint8_t> run_simulator(
   const double* t = times.data();
   uint8_t* o = out.mutable_data();
   py::gil_scoped_release release;
+  // one run at a time: a simulator's voltages and readout counter are its state (Python threads
+  // running one simulator at once corrupted both), and a run uses every core already
+  static std::mutex running;
+  const std::lock_guard<std::mutex> lock(running);
   sim.run(f, t, frames.shape(0), n, o);
   return out;
 }

@@ -1,6 +1,7 @@
 #include "core/spike_format.hpp"
 
 #include <cstring>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -33,9 +34,12 @@ void check_range(const PackedStream& s, int64_t t0, int64_t n) {
 void SpikeLayout::validate() const {
   if (height < 1 || width < 1) fail("height and width expected >= 1, found ", height, "x", width);
   if (col_offset < 0) fail("column offset expected >= 0, found ", col_offset);
-  if (row_bits < col_offset + width)
-    fail("stored rows of at least col_offset + width = ", col_offset + width,
-         " pixels expected, found ", row_bits);
+  // each comparison free of overflow: col_offset + width, or height * row_bits, may pass int64
+  if (col_offset > row_bits - width)
+    fail("stored rows of at least col_offset + width pixels expected (col_offset ", col_offset,
+         ", width ", width, "), found ", row_bits);
+  if (row_bits > (std::numeric_limits<int64_t>::max() - 7) / height)
+    fail("a frame of ", height, " rows of ", row_bits, " bits expected below 2^63 bits");
 }
 
 SpikeLayout SpikeLayout::memory(int64_t height, int64_t width) {

@@ -217,6 +217,15 @@ class SpikeStream:
         return out.reshape(stop - start, self.height, (self.width + 7) // 8)
 
 
+def _check_bits(bits: np.ndarray) -> None:
+    """ValueError unless `bits` are bool or integers 0/1."""
+    if bits.dtype != np.bool_:
+        if not np.issubdtype(bits.dtype, np.integer):
+            raise ValueError(f"bits expected bool or 0/1 integers, found {bits.dtype}")
+        if bits.size and (bits.min() < 0 or bits.max() > 1):
+            raise ValueError(f"bits expected 0/1, found values in [{bits.min()}, {bits.max()}]")
+
+
 class DatWriter:
     """Appends readouts to a .dat file, chunk by chunk (a context manager)."""
 
@@ -228,11 +237,20 @@ class DatWriter:
         self._file = open(self.path, "wb")
 
     def write_bits(self, bits: np.ndarray) -> None:
-        """Append bits [n, H, W] (bool or 0/1 integers)."""
+        """Append bits [n, H, W] (bool or 0/1 integers; 256 was written as 0, 0.5 as 0)."""
+        bits = np.asarray(bits)
+        _check_bits(bits)
         self._file.write(_C.spike_pack(bits, self._layout).data)
 
     def write_packed(self, packed: np.ndarray) -> None:
-        """Append packed readouts [n, H, ceil(W/8)] in the memory layout."""
+        """Append packed readouts uint8 [n, H, ceil(W/8)] in the memory layout."""
+        packed = np.asarray(packed)
+        shape = (self._memory.height, (self._memory.width + 7) // 8)
+        if packed.dtype != np.uint8 or packed.ndim != 3 or packed.shape[1:] != shape:
+            raise ValueError(
+                f"packed readouts expected uint8 [n, {shape[0]}, {shape[1]}], found "
+                f"{packed.dtype} {list(packed.shape)}"
+            )
         n = len(packed)
         self._file.write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
 
@@ -258,11 +276,7 @@ def save_dat(path: PathLike, bits: np.ndarray, flip: bool = True, chunk: int = 1
     bits = np.asarray(bits)
     if bits.ndim != 3:
         raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
-    if bits.dtype != np.bool_:
-        if not np.issubdtype(bits.dtype, np.integer):
-            raise ValueError(f"bits expected bool or 0/1 integers, found {bits.dtype}")
-        if bits.size and (bits.min() < 0 or bits.max() > 1):
-            raise ValueError(f"bits expected 0/1, found values in [{bits.min()}, {bits.max()}]")
+    _check_bits(bits)  # before the file is made
     with DatWriter(path, bits.shape[1], bits.shape[2], flip) as writer:
         for t in range(0, len(bits), chunk):
             writer.write_bits(bits[t : t + chunk])
