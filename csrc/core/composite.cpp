@@ -94,7 +94,6 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
                   CompositeState<T>& state) {
   const int C = NC > 0 ? NC : runtime_channels;
   const int stride = kSplatHeader + C;
-  const T amax = alpha_max<T>();
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   state.final_T.assign(std::int64_t(width) * height, T(1));
@@ -139,7 +138,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
           for (int x = 0; x < kTileSize; ++x) {
             const T dx = T(tile.x0 + x) + T(0.5) - mx;
             const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
-            alpha[x] = std::min(amax, o * gaussian(power));
+            alpha[x] = std::min(alpha_max<T>(), o * gaussian(power));
           }
           int stopped = 0;
 #pragma omp simd reduction(+ : stopped)
@@ -194,7 +193,6 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
                    T* grad_background) {
   const int C = NC > 0 ? NC : runtime_channels;
   const int stride = kSplatHeader + C, grad_stride = kGradHeader + C;
-  const T amax = alpha_max<T>();
   const std::vector<T> splats = gather_splats(proj, bins, C);
   const std::int64_t tiles = std::int64_t(bins.tiles_x) * bins.tiles_y;
   const std::int64_t visible = std::int64_t(bins.order.size());
@@ -289,7 +287,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             const T G = gauss[p], raw = o * G, tr = trans[p], tgp = tg[p];
             const std::int32_t lp = last[p];
             const T dx = cx[p] - mx, dy = cy[p] - my;
-            const T a = std::min(amax, raw);
+            const T a = std::min(alpha_max<T>(), raw);
             const bool valid = pos <= lp && a >= T(kAlphaMin);
             const T inv = T(1) / (1 - a);  // 1 - a >= 1 - kAlphaMax
             const T before = tr * (valid ? inv : T(1));
@@ -305,7 +303,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
               gc[c] += al * w;
               bh[p] += al * diff;
             }
-            const T ga = valid && raw < amax ? G * da : T(0);  // 0 where alpha is clamped
+            const T ga = valid && raw < alpha_max<T>() ? G * da : T(0);  // 0 where alpha is clamped
             add_geometry_grad(s, dx, dy, ga, g_mx, g_my, g_A, g_B, g_C, g_o, g_ax, g_ay);
           }
           for (int c = 0; c < NC; ++c) out[kGradHeader + c] += gc[c];
@@ -316,7 +314,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           for (int p = p0; p < p1; ++p) {
             const T G = gauss[p], raw = o * G, tr = trans[p], tgp = tg[p];
             const std::int32_t lp = last[p];
-            const T a = std::min(amax, raw);
+            const T a = std::min(alpha_max<T>(), raw);
             const bool valid = pos <= lp && a >= T(kAlphaMin);
             const T inv = T(1) / (1 - a);
             const T before = tr * (valid ? inv : T(1));
@@ -324,7 +322,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             alph[p] = valid ? a : T(0);
             tj[p] = valid ? before : T(0);
             dalpha[p] = valid ? tgp * inv : T(0);
-            gauss[p] = valid && raw < amax ? G : T(0);
+            gauss[p] = valid && raw < alpha_max<T>() ? G : T(0);
           }
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
