@@ -1275,6 +1275,14 @@ def test_an_empty_name_is_refused(dataset, tmp_path, flag, capsys):
     assert not (tmp_path / "run").exists()
 
 
+def test_eval_without_train_json_names_the_configured_method(dataset, tmp_path):
+    """A run folder with scene.ply but no train.json scored as method null."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    (tmp_path / "run" / "train.json").unlink()
+    assert evaluate_run(tmp_path / "run", dataset, write_images=False)["method"] == "tfp33"
+
+
 def test_eval_names_a_channel_mismatch(dataset, tmp_path):
     """A mono scene.ply re-saved by another 3DGS tool reads as RGB: eval said only that two
     image shapes differ."""

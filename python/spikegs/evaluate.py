@@ -69,6 +69,18 @@ def _scored_dataset(path: Path) -> str | None:
         return ""
 
 
+def _configured_method(run_dir: Path) -> str | None:
+    """The method of RUN/config.yaml (a run without train.json: stopped, or another tool's scene
+    in a run folder), None where it has none or cannot be read."""
+    import yaml
+
+    try:
+        method = yaml.safe_load((run_dir / "config.yaml").read_text()).get("method")
+    except (OSError, yaml.YAMLError, AttributeError):
+        return None
+    return method if isinstance(method, str) else None
+
+
 def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
     (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
@@ -114,7 +126,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
             stacklevel=2,
         )
     result = {
-        "method": train.get("method"),
+        "method": train.get("method") or _configured_method(run_dir),
         "dataset": str(Path(dataset.root).resolve()),
         "psnr": float(np.mean([v["psnr"] for v in views.values()])),
         "ssim": float(np.mean([v["ssim"] for v in views.values()])),
