@@ -129,6 +129,10 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         ),
     ]
     cases.append(("fine-texture", {"color": True}, "the scene is grey"))
+    # light too faint to count a spike in a TFP window; a turn a readout that aliases
+    faint = {"rate_at_one": 1e-4, "dark_rate": 0.0}
+    cases.append(("solids", faint, "a 33-readout TFP counts under one spike"))
+    cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
     for i, (scene, options, message) in enumerate(cases):
         with pytest.warns(UserWarning, match=message):
             simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})

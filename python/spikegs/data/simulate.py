@@ -103,6 +103,13 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             stacklevel=3,
         )
     mean = float(rates.mean())
+    if mean * BLUR_WINDOW < 1:
+        warnings.warn(
+            f"the held-out views fire {mean:.3g} spikes per readout on average: a "
+            f"{BLUR_WINDOW}-readout TFP counts under one spike, too few to see the scene by; raise "
+            f"rate_at_one or the light",
+            stacklevel=3,
+        )
     if params.dark_rate > 0 and params.dark_rate >= DARK_FRACTION * mean:
         warnings.warn(
             f"dark_rate {params.dark_rate:g} spikes per readout against a mean light rate of "
@@ -292,6 +299,12 @@ def simulate_dataset(
     ]
     check_test_views(views, f"scene '{source.name}'")  # before any work
     warn_about_data(views, trajectory, params)
+    if abs(speed) >= 180:  # the poses cannot show it: consecutive readouts look still or reversed
+        warnings.warn(
+            f"speed {speed:g}° a readout: the orbit is sampled at most twice a turn, so the "
+            f"camera appears still or turning backwards (aliasing); a speed below 180°",
+            stacklevel=2,
+        )
     out = prepare_output(out, overwrite)
     times = source.light_times(readouts, frame_every)  # [F]
     write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
