@@ -30,7 +30,8 @@ void SimParams::validate() const {
   };
   // is_finite (bit-level): -ffast-math folds std::isfinite to true, letting inf through
   // voltages are float: a threshold near float's range (3.4e38) overflowed them
-  check(threshold > 0 && threshold <= 1e30, "threshold", "in (0, 1e30]", threshold);
+  check(threshold > 0 && threshold <= 1e30 && is_finite(threshold), "threshold", "in (0, 1e30]",
+        threshold);
   check(rate_at_one > 0 && rate_at_one <= 1, "rate_at_one", "in (0, 1]", rate_at_one);
   check(dark_rate >= 0 && dark_rate <= 1, "dark_rate", "in [0, 1]", dark_rate);
   check(dark_sigma >= 0 && is_finite(dark_sigma), "dark_sigma", "finite, >= 0", dark_sigma);
