@@ -414,6 +414,12 @@ class _Dumper(yaml.SafeDumper):
 _Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
 
 
+def read_yaml(path: Path):
+    """A YAML file read by the rules of config files (`_Loader`: YAML 1.2 numbers, no key given
+    twice), as a run's config.yaml was written (`dump_yaml`)."""
+    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)
+
+
 def dump_yaml(data: dict) -> str:
     """`data` as YAML that `_Loader` reads back as it is (a run's config.yaml)."""
     return yaml.dump(data, Dumper=_Dumper, sort_keys=False)
@@ -510,7 +516,7 @@ def _read(
     if path in seen:
         raise ValueError(f"config: 'base' chain loops at {path}")
     try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader) or {}
+        data = read_yaml(path) or {}
     except (yaml.YAMLError, UnicodeDecodeError) as err:
         raise ValueError(f"{path}: not readable as YAML: {err}") from None
     if not isinstance(data, dict):

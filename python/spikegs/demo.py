@@ -15,12 +15,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from . import strict_json
 from .bench.common import print_table
 from .cli import positive_int
-from .config import load_config
+from .config import load_config, read_yaml
 from .data.scenes import SCENES
 
 METHODS = ("spikegs", "tfp33")
@@ -106,7 +105,7 @@ def started_iterations(out: Path) -> int | None:
     for method in METHODS:
         saved = out / "runs" / method / "config.yaml"
         if saved.is_file():
-            return int(yaml.safe_load(saved.read_text())["train"]["iterations"])
+            return int(read_yaml(saved)["train"]["iterations"])
     try:
         return int((out / ITERATIONS_FILE).read_text()) or None
     except (FileNotFoundError, ValueError):

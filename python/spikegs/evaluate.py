@@ -74,9 +74,11 @@ def _configured_method(run_dir: Path) -> str | None:
     in a run folder), None where it has none or cannot be read."""
     import yaml
 
+    from .config import read_yaml
+
     try:
-        method = yaml.safe_load((run_dir / "config.yaml").read_text()).get("method")
-    except (OSError, yaml.YAMLError, AttributeError):
+        method = read_yaml(run_dir / "config.yaml").get("method")
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, AttributeError):
         return None
     return method if isinstance(method, str) else None
 
@@ -116,7 +118,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(run_dir / name / f"{view.name}.png", side)
-    exact = [name for name, v in views.items() if v["psnr"] == math.inf]
+    exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
     if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
         listed = ", ".join(exact[:3]) + (", ..." if len(exact) > 3 else "")
         warnings.warn(

@@ -10,6 +10,11 @@ from .number_checks import is_number
 SUMMARY = "train.json"
 
 
+def last_checkpoint(run_dir: Path) -> Path:
+    """RUN/checkpoints/last.pt, the checkpoint that `--resume` continues from."""
+    return Path(run_dir) / "checkpoints" / "last.pt"
+
+
 def read_summary(run_dir: Path) -> dict:
     """RUN/train.json's object ({} where there is none); ValueError naming the file where it is
     not JSON, not an object, or holds a dataset that is not a path or a scale that is not a
@@ -32,7 +37,7 @@ def trained_scene(run_dir: Path) -> Path:
     ply = Path(run_dir) / "scene.ply"
     if ply.exists():
         return ply
-    if (Path(run_dir) / "checkpoints" / "last.pt").exists():
+    if last_checkpoint(run_dir).exists():
         raise FileNotFoundError(
             f"{ply} not found: the run stopped before its end; finish it with spikegs train "
             f"DATASET --out {run_dir} --resume"

@@ -32,7 +32,7 @@ from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points, read_points
 from .pose_refine import PoseRefiner, make_refiner
-from .run_summary import SUMMARY
+from .run_summary import SUMMARY, last_checkpoint
 from .sim_train import spikes_fingerprint
 from .targets import build_targets, check_targets, intensity_scale
 
@@ -174,7 +174,7 @@ class Trainer:
         self.scale = intensity_scale(dataset)
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
         self.radius = float(dataset.scene_radius)
-        self.checkpoint_path = self.run_dir / "checkpoints" / "last.pt"
+        self.checkpoint_path = last_checkpoint(self.run_dir)
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
 

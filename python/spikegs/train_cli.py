@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .cli import file_path, positive_int
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
+from .run_summary import last_checkpoint
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,7 +44,7 @@ def config_from_args(args: argparse.Namespace):
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
-    checkpoint = Path(args.out) / "checkpoints" / "last.pt"
+    checkpoint = last_checkpoint(args.out)
     empty = own and not saved.read_text().strip()  # the defaults would stand in for the run's
     if given is None and args.resume and (empty or (not own and checkpoint.exists())):
         raise ValueError(
