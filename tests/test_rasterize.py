@@ -4,6 +4,10 @@ reference itself (docs/rasterizer.md is the specification of both)."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -644,3 +648,50 @@ def test_needle_gradients_in_float32(length_px):
         g, r = grads[name].double(), ref_grads[name]
         err = ((g - r).norm() / r.norm().clamp_min(1e-30)).item()
         assert err < 2e-3, f"grad {name}: relative error {err:.2g}"
+
+
+OUT_OF_MEMORY = """
+import resource, torch
+from spikegs.rasterize import rasterize
+
+def limit(extra):  # address space: what the process maps now, plus `extra` bytes
+    size = next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmSize:"))
+    resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + extra, resource.RLIM_INFINITY))
+
+C = 1 << 18  # a tile's accumulators: 256 C floats = 256 MiB a thread, 2 threads
+colors = torch.rand(1, C, requires_grad=True)
+viewmat = torch.eye(4)
+viewmat[2, 3] = 3.0  # the Gaussian 3 units in front of the camera
+args = (torch.zeros(1, 3), torch.tensor([[1.0, 0, 0, 0]]), torch.full((1, 3), 0.1),
+        torch.tensor([0.5]), colors, viewmat, torch.tensor([[10.0, 0, 1], [0, 10, 1], [0, 0, 1]]),
+        2, 2)
+for stage in ("forward", "backward"):
+    image = rasterize(*args).image if stage == "backward" else None
+    limit(1 << 28)  # less than two threads' accumulators
+    try:
+        (rasterize(*args).image if image is None else image).sum().backward()
+        print(stage, "ran")
+    except MemoryError:
+        print(stage, "MemoryError")
+    resource.setrlimit(resource.RLIMIT_AS, (resource.RLIM_INFINITY,) * 2)
+print("after", rasterize(*args[:4], colors[:, :3].detach(), *args[5:]).image.shape)
+"""
+
+
+@needs_cpp
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux's /proc")
+def test_out_of_memory_is_a_memory_error():
+    """Buffers too large for memory (a tile's accumulators, 256 floats a channel and thread) raise
+    MemoryError in the forward and in the backward, and the process goes on; allocated inside
+    the OpenMP region, std::bad_alloc aborted the process. The address space is limited in a
+    subprocess, so that the test does not depend on the machine's memory."""
+    env = {**os.environ, "OMP_NUM_THREADS": "2"}
+    done = subprocess.run(
+        [sys.executable, "-c", OUT_OF_MEMORY], capture_output=True, text=True, env=env
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split("\n")[:3] == [
+        "forward MemoryError",
+        "backward MemoryError",
+        "after torch.Size([2, 2, 3])",
+    ], done.stdout

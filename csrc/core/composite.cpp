@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "core/exp_nonpositive.hpp"
+#include "core/thread_buffers.hpp"
 
 namespace spikegs::raster {
 namespace {
@@ -99,16 +100,17 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
   state.final_T.assign(std::int64_t(width) * height, T(1));
   state.last.assign(std::int64_t(width) * height, -1);
   std::int64_t pairs = 0;
+  ThreadBuffers<T> accumulators(std::size_t(C) * kTilePixels);
 
 #pragma omp parallel reduction(+ : pairs)
   {
     alignas(64) T trans[kTilePixels], active[kTilePixels], weight[kTileSize];
     alignas(64) std::int32_t last[kTilePixels];
-    std::vector<T> acc(std::size_t(C) * kTilePixels);  // [C, 256]
+    T* const acc = accumulators.local();  // [C, 256]
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
-      std::fill(acc.begin(), acc.end(), T(0));
+      std::fill_n(acc, std::size_t(C) * kTilePixels, T(0));
       int row_active[kTileSize];  // pixels of each row still compositing
       for (int p = 0; p < kTilePixels; ++p) {
         const int px = p % kTileSize, py = p / kTileSize;
@@ -164,7 +166,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
           pairs += tile.w;
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
-            T* __restrict ac = acc.data() + std::size_t(c) * kTilePixels + row * kTileSize;
+            T* __restrict ac = acc + std::size_t(c) * kTilePixels + row * kTileSize;
 #pragma omp simd
             for (int x = 0; x < kTileSize; ++x) ac[x] += weight[x] * col;
           }
@@ -207,6 +209,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     const std::int32_t* rect = &proj.tile_rect[4 * std::int64_t(bins.order[rank])];
     return pair_grads.get() + rank_major(bins, rect, rank, t) * grad_stride;
   };
+  ThreadBuffers<T> behind_buffers(std::size_t(C) * kTilePixels),
+      gimg_buffers(std::size_t(C) * kTilePixels);
 
 #pragma omp parallel
   {
@@ -214,9 +218,9 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     // the last contributor.
     alignas(64) T cx[kTilePixels], cy[kTilePixels], trans[kTilePixels], tg[kTilePixels];
     alignas(64) std::int32_t last[kTilePixels];
-    alignas(64) T gauss[kTilePixels];  // G of the current splat (0 where alpha is clamped)
-    std::vector<T> behind(std::size_t(C) * kTilePixels),
-        gimg(std::size_t(C) * kTilePixels);  // [C, 256]
+    alignas(64) T gauss[kTilePixels];          // G of the current splat (0 where alpha is clamped)
+    T* const behind = behind_buffers.local();  // [C, 256]
+    T* const gimg = gimg_buffers.local();      // [C, 256]
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile<T> tile = tile_at<T>(bins, t, width, height);
@@ -231,8 +235,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
       }
       for (int c = 0; c < C; ++c) {
         const T bg = background ? background[c] : T(0);
-        std::fill_n(behind.data() + std::size_t(c) * kTilePixels, kTilePixels, bg);
-        std::fill_n(gimg.data() + std::size_t(c) * kTilePixels, kTilePixels, T(0));
+        std::fill_n(behind + std::size_t(c) * kTilePixels, kTilePixels, bg);
+        std::fill_n(gimg + std::size_t(c) * kTilePixels, kTilePixels, T(0));
       }
       for (int py = 0; py < kTileSize; ++py) {
         row_last[py] = -1;
@@ -296,7 +300,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
             T da = valid ? tgp * inv : T(0);
 #pragma GCC unroll 4
             for (int c = 0; c < NC; ++c) {
-              T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels;
+              T* __restrict bh = behind + std::size_t(c) * kTilePixels;
               const T w = t * gimg[std::size_t(c) * kTilePixels + p];
               const T diff = col[c] - bh[p];
               da += diff * w;
@@ -326,8 +330,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           }
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
-            T* __restrict bh = behind.data() + std::size_t(c) * kTilePixels;
-            const T* __restrict gi = gimg.data() + std::size_t(c) * kTilePixels;
+            T* __restrict bh = behind + std::size_t(c) * kTilePixels;
+            const T* __restrict gi = gimg + std::size_t(c) * kTilePixels;
             T sum = 0;
 #pragma omp simd reduction(+ : sum)
             for (int p = p0; p < p1; ++p) {

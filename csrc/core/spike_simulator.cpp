@@ -8,6 +8,7 @@
 #include "core/errors.hpp"
 #include "core/finite.hpp"
 #include "core/spike_rng.hpp"
+#include "core/thread_buffers.hpp"
 
 namespace spikegs {
 namespace {
@@ -87,10 +88,10 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
   const float shot = params_.shot_noise ? 1.0f : 0.0f;
   const float tsig = float(params_.temporal_sigma);
   const uint64_t key = key_;
+  ThreadBuffers<uint8_t> rows(static_cast<size_t>(8 * row_bytes));
 #pragma omp parallel
   {
-    std::vector<uint8_t> spike(static_cast<size_t>(8 * row_bytes),
-                               0);  // [8·ceil(W/8)] one row's spikes
+    uint8_t* const spike = rows.local();  // [8·ceil(W/8)] one row's spikes
 #pragma omp for schedule(static)
     for (int64_t r = 0; r < H; ++r) {
       float* v = voltage_.data() + r * W;
