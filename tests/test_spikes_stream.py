@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from spikegs import SpikeStream, save_dat
@@ -193,6 +196,39 @@ def test_dat_writer_refuses_what_it_would_write_wrong(tmp_path):
             writer.write_packed(np.zeros((1, 1, 8), np.uint8))
         writer.write_bits(np.ones((2, 8, 8), np.int64))
     assert SpikeStream.open(tmp_path / "x.dat", 8, 8).tfp(1, 1).min() == 1
+
+
+def test_dat_writer_replaces_the_file_when_done(tmp_path):
+    """A stream open on a .dat keeps reading it while a new one is written to the same path (the
+    file was truncated in place: its reader read zeros, or died of SIGBUS past the last page, so
+    the check runs in a subprocess); a failed write leaves the earlier file and no partial one."""
+    script = f"""
+import numpy as np
+from spikegs.spikes import SpikeStream, save_dat, simulate_spikes
+path = {str(tmp_path / "x.dat")!r}
+save_dat(path, np.ones((64, 8, 8), np.uint8))
+old = SpikeStream.open(path, 8, 8)
+new = simulate_spikes(np.zeros((1, 8, 8), np.float32), 3, out=path)
+print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(path, 8, 8)))
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["64", "1.0", "3", "3"]
+
+    from spikegs.spikes import DatWriter
+
+    path = tmp_path / "x.dat"
+    with pytest.raises(ValueError, match="bits expected"):
+        with DatWriter(path, 8, 8) as writer:
+            writer.write_bits(np.zeros((5, 8, 8), np.uint8))
+            writer.write_bits(np.full((1, 8, 8), 2))
+    assert len(SpikeStream.open(path, 8, 8)) == 3
+    writer = DatWriter(tmp_path / "y.dat", 8, 8)
+    writer.write_bits(np.zeros((2, 8, 8), bool))
+    writer.discard()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
+    with pytest.raises(IsADirectoryError, match="a folder"):
+        DatWriter(tmp_path, 8, 8)
 
 
 def test_bad_shapes_refused(tmp_path):

@@ -10,6 +10,7 @@ Deterministic for a seed, whatever the thread count or chunk size.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import numbers
 import warnings
@@ -182,7 +183,7 @@ def simulate_spikes(
     saturated = np.float32(1e6 / params.rate_at_one)
     writer = DatWriter(out, height, width, flip) if out is not None else None
     packed = None if writer else np.empty((num_readouts, height, (width + 7) // 8), np.uint8)
-    try:
+    with writer or contextlib.nullcontext():
         for t0 in range(0, num_readouts, chunk):
             t1 = min(t0 + chunk, num_readouts)
             light, times = frames.covering(t0, t1)  # [f, H, W] (a new array), [f]
@@ -192,7 +193,4 @@ def simulate_spikes(
                 writer.write_packed(spikes)
             else:
                 packed[t0:t1] = spikes
-    finally:
-        if writer:
-            writer.close()
     return SpikeStream.open(out, height, width, flip=flip) if writer else packed

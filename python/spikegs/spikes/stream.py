@@ -15,6 +15,7 @@ last readout, reads 1/max_interval: never inf or NaN.
 from __future__ import annotations
 
 import os
+import uuid
 from pathlib import Path
 from typing import Union
 
@@ -227,14 +228,22 @@ def _check_bits(bits: np.ndarray) -> None:
 
 
 class DatWriter:
-    """Appends readouts to a .dat file, chunk by chunk (a context manager)."""
+    """Appends readouts to a .dat file, chunk by chunk (a context manager).
+
+    The readouts go to a hidden file beside `path`, which replaces `path` when the writer closes:
+    a stream still open on an earlier file there keeps reading it (truncating a memory-mapped file
+    in place crashed its reader with SIGBUS), and writing that fails (an exception in the `with`
+    block, or `discard`) leaves the earlier file, or none, rather than a truncated one."""
 
     def __init__(self, path: PathLike, height: int, width: int, flip: bool = True):
         self.path = Path(path)
         height, width = as_ints(height=height, width=width)
         self._layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip))
         self._memory = _C.SpikeLayout.memory(height, width)
-        self._file = open(self.path, "wb")
+        if self.path.is_dir():
+            raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
+        self._partial = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex}.tmp")
+        self._file = open(self._partial, "xb")
 
     def write_bits(self, bits: np.ndarray) -> None:
         """Append bits [n, H, W] (bool or 0/1 integers; 256 was written as 0, 0.5 as 0)."""
@@ -255,13 +264,22 @@ class DatWriter:
         self._file.write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
 
     def close(self) -> None:
-        self._file.close()
+        """Finish: the readouts written replace `path`."""
+        if not self._file.closed:
+            self._file.close()
+            self._partial.replace(self.path)
+
+    def discard(self) -> None:
+        """Stop without touching `path`: the readouts written so far are deleted."""
+        if not self._file.closed:
+            self._file.close()
+            self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> DatWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, error_type, *exc) -> None:
+        self.discard() if error_type else self.close()
 
 
 def check_chunk(chunk) -> None:
