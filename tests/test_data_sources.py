@@ -112,8 +112,11 @@ def test_frame_sequence_source(tmp_path):
     assert half.frames.shape == (6, 16, 16, 1)
 
     # a dataset from the directory: on-path held-out views are exact frames (the frames are 100
-    # readouts apart, ~1 degree a readout: flagged)
-    with pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"):
+    # readouts apart, ~1 degree a readout, 33 px between frames: flagged twice)
+    with (
+        pytest.warns(UserWarning, match=r"33\.\d pixels between two frames of the sequence"),
+        pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"),
+    ):
         ds = simulate_dataset(
             tmp_path,
             tmp_path / "ds",

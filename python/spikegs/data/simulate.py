@@ -153,10 +153,14 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
     pixels = (cam[..., :2] / z) * np.diag(source.K)[:2]  # [F, 7, 2]
     motion = float(np.linalg.norm(np.diff(pixels, axis=0), axis=-1).max())
     if motion > FRAME_MOTION_PX:
+        # built-in and Mitsuba scenes render a frame every frame_every readouts; a frame
+        # sequence's spacing is its own
+        rendered = source.kind in ("procedural", "mitsuba")
+        frames = "rendered light frames" if rendered else "frames of the sequence"
+        remedy = "a smaller frame_every (--frame-every)" if rendered else "a denser frame sequence"
         warnings.warn(
-            f"the scene moves up to {motion:.1f} pixels between two rendered light frames: the "
-            f"simulator cross-fades them (ghosting) where the held-out views are sharp; a smaller "
-            f"frame_every (--frame-every)",
+            f"the scene moves up to {motion:.1f} pixels between two {frames}: the simulator "
+            f"cross-fades them (ghosting) where the held-out views are sharp; {remedy}",
             stacklevel=3,
         )
 
@@ -327,8 +331,7 @@ def simulate_dataset(
     check_test_views(views, f"scene '{source.name}'")  # before any work
     warn_about_data(views, trajectory, params)
     times = source.light_times(readouts, frame_every)  # [F]
-    if source.kind in ("procedural", "mitsuba"):  # rendered every frame_every: the user's choice
-        warn_about_frames(source, trajectory, times)
+    warn_about_frames(source, trajectory, times)
     if abs(speed) >= 180:  # the poses cannot show it: consecutive readouts look still or reversed
         warnings.warn(
             f"speed {speed:g}° a readout: the orbit is sampled at most twice a turn, so the "

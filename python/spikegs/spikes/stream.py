@@ -294,7 +294,6 @@ def save_dat(path: PathLike, bits: np.ndarray, flip: bool = True, chunk: int = 1
     bits = np.asarray(bits)
     if bits.ndim != 3:
         raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
-    _check_bits(bits)  # before the file is made
     with DatWriter(path, bits.shape[1], bits.shape[2], flip) as writer:
         for t in range(0, len(bits), chunk):
             writer.write_bits(bits[t : t + chunk])
