@@ -22,7 +22,9 @@ _SMALL = 1e-4
 @dataclass
 class PoseRefineConfig:
     enabled: bool = False  # off: the trajectory's poses are used as they are
-    lr: float = 3e-4  # Adam step (radians, scene radii); 1e-4 recovers less, 3e-3 adds noise
+    # Adam step (radians, scene radii); measured: 1e-4 to 3e-4 do equally well, 1e-3 makes the
+    # poses worse (docs/datasets.md)
+    lr: float = 3e-4
 
 
 def hat(omega: torch.Tensor) -> torch.Tensor:
