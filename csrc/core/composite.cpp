@@ -18,6 +18,7 @@ namespace {
 constexpr int kTilePixels = kTileSize * kTileSize;
 constexpr int kSplatHeader = 7;  // floats before the colour in a gathered splat
 constexpr int kGradHeader = 8;   // floats before the colour in a pair's gradient share
+constexpr int kRecount = 16;  // the forward counts a tile's stopped pixels every this many splats
 
 // Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width, colour[C].
 template <typename T>
@@ -121,6 +122,21 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
       for (int row = 0; row < kTileSize; ++row) row_active[row] = row < tile.h ? tile.w : 0;
       int remaining = tile.w * tile.h;
       for (std::int64_t j = tile.begin; j < tile.end && remaining > 0; ++j) {
+        // Pixels that stop are counted every kRecount splats, not in each row: a count per row
+        // (a horizontal sum) cost a quarter of the loop. Until then a stopped pixel is skipped
+        // by its `active` flag, so the result is the same; only fully stopped rows and tiles
+        // are found later.
+        if ((j - tile.begin) % kRecount == kRecount - 1) {
+          remaining = 0;
+          for (int row = 0; row < tile.h; ++row) {
+            int count = 0;
+#pragma omp simd reduction(+ : count)
+            for (int x = 0; x < kTileSize; ++x) count += active[row * kTileSize + x] > 0 ? 1 : 0;
+            row_active[row] = count;
+            remaining += count;
+          }
+          if (remaining == 0) break;
+        }
         const std::int32_t rank = bins.ranks[j];
         const T* s = splats.data() + std::int64_t(rank) * stride;
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
@@ -142,8 +158,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
             const T power = T(-0.5) * (A * dx * dx + Cc * dy * dy) - B * dx * dy;
             alpha[x] = std::min(alpha_max<T>(), o * gaussian(power));
           }
-          int stopped = 0;
-#pragma omp simd reduction(+ : stopped)
+#pragma omp simd
           for (int x = 0; x < kTileSize; ++x) {
             const T a = alpha[x];
             const bool valid = act[x] > 0 && a >= T(kAlphaMin);
@@ -159,10 +174,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
             lst[x] = candidate > lst[x] ? candidate : lst[x];
             const T keep = stop ? T(0) : T(1);
             act[x] = keep < act[x] ? keep : act[x];
-            stopped += stop ? 1 : 0;
           }
-          remaining -= stopped;
-          row_active[row] -= stopped;
           pairs += tile.w;
           for (int c = 0; c < C; ++c) {
             const T col = s[kSplatHeader + c];
