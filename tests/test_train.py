@@ -18,6 +18,7 @@ import yaml
 from plyfile import PlyData, PlyElement
 from spikegs.cli import build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
+from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory
 from spikegs.densify import Densifier, DensifyConfig
@@ -749,6 +750,11 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
     views = len(load_dataset(out / "data").test_views)
     assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
+    # curves.png: error against time, every 50 iterations and at the end
+    assert read_image(out / "curves.png").ndim == 3
+    curve = logged_curve(out / "runs" / "spikegs")
+    assert [p["iteration"] for p in curve] == [50, 80]
+    assert 0 < curve[0]["train_seconds"] < curve[1]["train_seconds"]
     printed = capsys.readouterr()
     assert "holds no demo to continue; starting one" in printed.err
     printed = printed.out
@@ -826,6 +832,8 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         for key in ("psnr", "ssim", "gaussians"):
             assert resumed["methods"][method][key] == scores[key], (method, key)
     assert resumed["methods"]["spikegs"]["sim_seconds"] > 0  # trained before the kill
+    # the curve of the resumed run: its evaluations before the kill, then the rest, once each
+    assert [p["iteration"] for p in logged_curve(again / "runs" / "spikegs")] == [50, 80]
 
 
 def test_orbit_turns_with_the_world(dataset):

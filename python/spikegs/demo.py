@@ -2,7 +2,8 @@
 
 Simulates the small default scene, trains SIM, trains SpikeGS and the TFP(33)+3DGS baseline with
 the same budget, evaluates both on held-out views, prints a table and writes DIR/results.json and
-DIR/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, stacked).
+DIR/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, stacked) and
+DIR/curves.png (a held-out view's PSNR against seconds, SIM's training included).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from . import strict_json
 from .bench.common import print_table
 from .cli import positive_int
 from .config import load_config, read_yaml
+from .curves import logged_curve, save_curves
 from .data.scenes import SCENES
 
 METHODS = ("spikegs", "tfp33")
@@ -208,6 +210,19 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
     write_image(out / "comparison.png", np.concatenate(rows, axis=0))
+    curves = {
+        m: {
+            "curve": logged_curve(out / "runs" / m),
+            "sim_seconds": r["sim_seconds"],
+            "uses_sim": r["sim_seconds"] > 0,
+        }
+        for m, r in results.items()
+    }
+    title = (
+        f"{dataset.meta.get('scene')}: PSNR of the held-out view {names[0]} during training\n"
+        f"(SpikeGS's curve starts after SIM's training)"
+    )
+    save_curves(out / "curves.png", curves, ("psnr",), title)
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)
     payload = {

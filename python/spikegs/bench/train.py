@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from ..config import Config, available_methods, load_config
+from ..curves import save_curves
 from ..data import load_dataset, simulate_dataset
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
@@ -215,38 +216,6 @@ def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
     ]
 
 
-def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
-    """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
-    for i, (name, r) in enumerate(methods.items()):
-        offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
-        seconds = [offset + p["train_seconds"] for p in r["curve"]]
-        sim = r["uses_sim"]
-        label = f"{name} (from SIM {offset:.0f} s)" if sim else name
-        for ax, metric in zip(axes, metrics):
-            values = [p[metric] for p in r["curve"]]
-            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
-    for ax, metric in zip(axes, metrics):
-        ax.set_xscale("log")
-        ax.set_xlabel("seconds (SIM + training)")
-        ax.set_ylabel("PSNR (dB)" if metric == "psnr" else metric.upper())
-        ax.grid(True, which="both", alpha=0.3)
-    axes[-1].legend(fontsize=8)
-
-
-def _save_plot(path: Path, methods: dict, metrics: tuple[str, ...], title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
-    _plot_curves(axes[0], methods, metrics)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
 def selection(
     quick: bool,
     scenes: Sequence[str] | None = None,
@@ -323,12 +292,12 @@ def run(
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"
-        _save_plot(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
+        save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
     if HEADLINE_SCENE in results:
         headline = results[HEADLINE_SCENE]["methods"]
         shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
         title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
-        _save_plot(out / "headline.png", shown, ("psnr",), title)
+        save_curves(out / "headline.png", shown, ("psnr",), title)
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
         "iterations": iterations,

@@ -1,0 +1,63 @@
+"""Error against run time, plotted: held-out scores of training runs against their seconds, the
+runs that train SIM first starting at SIM's training time (matplotlib)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def logged_curve(run_dir: str | Path) -> list[dict]:
+    """The evaluations in RUN/log.jsonl, [{"iteration", "train_seconds", "psnr"}] (the PSNR of
+    the dataset's first test view, as the progress bar shows it), in order."""
+    curve = []
+    for line in (Path(run_dir) / "log.jsonl").read_text().splitlines():
+        record = json.loads(line)
+        if "psnr" in record:
+            curve.append(
+                {
+                    "iteration": record["iteration"],
+                    "train_seconds": record["seconds"],
+                    "psnr": record["psnr"],
+                }
+            )
+    return curve
+
+
+def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
+    """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
+    for i, (name, r) in enumerate(methods.items()):
+        offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
+        seconds = [offset + p["train_seconds"] for p in r["curve"]]
+        sim = r["uses_sim"]
+        label = f"{name} (from SIM {offset:.0f} s)" if sim else name
+        for ax, metric in zip(axes, metrics):
+            values = [p[metric] for p in r["curve"]]
+            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    for ax, metric in zip(axes, metrics):
+        ax.set_xscale("log")  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped)
+        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("seconds (SIM + training)")
+        ax.set_ylabel("PSNR (dB)" if metric == "psnr" else metric.upper())
+        ax.grid(True, which="both", alpha=0.3)
+    axes[-1].legend(fontsize=8)
+
+
+def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str) -> None:
+    """Plot `methods` ({name: {"curve": [{"train_seconds", METRIC, ...}], "sim_seconds",
+    "uses_sim"}}) to `path`, one panel per metric."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
+    _plot_curves(axes[0], methods, metrics)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
