@@ -1,5 +1,6 @@
-// The stiff and extreme cases of DESIGN.md section 4: each renders in float and double, and checks
-// finite outputs and gradients, zero gradient for culled Gaussians, and float-vs-double agreement.
+// The rasterizer's stiff and extreme cases (degenerate, huge, tiny, stacked, non-finite inputs):
+// each renders in float and double, and checks finite outputs and gradients, zero gradient for
+// culled Gaussians, and float-vs-double agreement.
 #include <cstdio>
 #include <limits>
 #include <random>

@@ -480,7 +480,7 @@ def test_numpy_integer_sizes_accepted():
     assert torch.equal(a.image, b.image)
 
 
-# ---- stiff and extreme cases (DESIGN §4) ---------------------------------------------------
+# ---- stiff and extreme cases ------------------------------------------------------------------
 
 EXTREME = {  # name -> (N, (width, height))
     "wide-scales": (12, (33, 17)),

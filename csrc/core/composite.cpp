@@ -230,7 +230,8 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     // the last contributor.
     alignas(64) T cx[kTilePixels], cy[kTilePixels], trans[kTilePixels], tg[kTilePixels];
     alignas(64) std::int32_t last[kTilePixels];
-    alignas(64) T gauss[kTilePixels];          // G of the current splat (0 where alpha is clamped)
+    alignas(64) T gauss[kTilePixels];  // G of the current splat (the any-C path zeroes it where
+                                       // alpha is clamped)
     T* const behind = behind_buffers.local();  // [C, 256]
     T* const gimg = gimg_buffers.local();      // [C, 256]
 #pragma omp for schedule(dynamic, 1)

@@ -11,7 +11,8 @@ from pathlib import Path
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
     `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder. The
-    temporary file is removed when writing fails; a killed process's is swept by the trainer."""
+    temporary file is removed when writing fails; a killed process's is swept by the trainer in a
+    run folder, and elsewhere stays as a hidden .NAME.PID.tmp."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

@@ -179,7 +179,8 @@ class Config:
             "supervision.instant_window",
             s.instant_window,
             f"{SupervisionConfig.instant_window} (the default) with instant {s.instant}: it is the "
-            f"TFP window, and the smooth-L1 zone's spike for tfi and clean (SIM's is sim.window)",
+            f"TFP window, and the smooth-L1 zone's spike for tfi and clean (SIM's is "
+            f"sim.target_window, or sim.window when 0)",
         )
         _require(
             s.instant_weight > 0 or s.exposure_weight > 0,

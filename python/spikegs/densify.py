@@ -18,8 +18,9 @@ class DensifyConfig:
     every: int = 100  # densify and prune every this many iterations
     # mean screen-space gradient (NDC units) that triggers it, of the absolute per-pixel shares
     # with `absgrad` (AbsGS), else of the plain gradient (3DGS: 0.0002 over 150 densify rounds;
-    # our 3000-iteration default has 10, and half that threshold gained 0.0-1.1 dB). AbsGS at
-    # 0.0002 gained SpikeGS another 0.8 dB on solids and 1.1 on fine-texture (BENCHMARKS.md)
+    # our 3000-iteration default has 11, at 500..1500 every 100, and half that threshold gained
+    # 0.0-1.1 dB). AbsGS at 0.0002 gained SpikeGS another 0.8 dB on solids and 1.1 on
+    # fine-texture (BENCHMARKS.md)
     grad_threshold: float = 0.0002
     percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
     min_opacity: float = 0.005  # prune below

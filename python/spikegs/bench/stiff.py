@@ -1,4 +1,4 @@
-"""`spikegs bench stiff`: the stiff and extreme cases of DESIGN.md §4 through `spikegs.rasterize`.
+"""`spikegs bench stiff`: the rasterizer's stiff and extreme cases through `spikegs.rasterize`.
 
 The cases of cpp_tests/test_raster_stiff.cpp, rendered in float32 and float64 with a backward pass
 of a fixed random upstream gradient: per case, the largest |float32 − float64| of the image and

@@ -180,7 +180,7 @@ def solids(seed: int = 0) -> GaussianScene:
 
 
 def wires(seed: int = 0) -> GaussianScene:
-    """Thin structures: a wire-frame cube, three rings and a helix of 1-2 px rods (~4k)."""
+    """Thin structures: a wire-frame cube, three rings and a helix of 1-2 px rods (~1.9k)."""
     rng = np.random.default_rng(seed)
     thick, step = 0.008, 0.02
     rocket, coffee = texture("rocket"), texture("coffee")
