@@ -24,6 +24,7 @@ from spikegs.data.trajectory import Trajectory
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
+from spikegs.image_io import read_image
 from spikegs.initial_intensity import ViewSample
 from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
@@ -733,7 +734,6 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table; a
     demo killed in SpikeGS's training, then `--resume`d, ends with the same results."""
     import spikegs.data
-    from spikegs.image_io import read_image
 
     simulate = spikegs.data.simulate_dataset
     monkeypatch.setattr(
@@ -1231,6 +1231,7 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     argv = ["train", str(dataset.root), "--out", str(tmp_path / "run"), "--no-progress"]
     assert main([*argv, "--resume"]) == 0
     assert json.loads(capsys.readouterr().out)["method"] == "tfp33"
+    assert read_image(tmp_path / "run" / "curve.png").ndim == 3  # the logged PSNR, plotted
     assert main([*argv, "--resume", "--method", "spikegs"]) == 2  # named again: compared
     assert "other settings" in capsys.readouterr().err
     # config.yaml emptied or deleted: the defaults stood in for the run's settings

@@ -24,6 +24,11 @@ def logged_curve(run_dir: str | Path) -> list[dict]:
     return curve
 
 
+def run_entry(run_dir: str | Path, sim_seconds: float) -> dict:
+    """A run's logged curve as `save_curves` takes it, starting after `sim_seconds` of SIM."""
+    return {"curve": logged_curve(run_dir), "sim_seconds": sim_seconds, "uses_sim": sim_seconds > 0}
+
+
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
     for i, (name, r) in enumerate(methods.items()):

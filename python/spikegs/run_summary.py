@@ -8,6 +8,7 @@ from .data.trajectory import read_json
 from .number_checks import is_number
 
 SUMMARY = "train.json"
+CURVE = "curve.png"  # `spikegs train`'s plot of the PSNR it logged against seconds
 
 
 def last_checkpoint(run_dir: Path) -> Path:

@@ -32,7 +32,7 @@ from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import POINTS, gaussians_from_points, read_points
 from .pose_refine import PoseRefiner, make_refiner
-from .run_summary import SUMMARY, last_checkpoint
+from .run_summary import CURVE, SUMMARY, last_checkpoint
 from .sim_train import spikes_fingerprint
 from .targets import build_targets, check_targets, intensity_scale
 
@@ -121,7 +121,7 @@ def run_lock(run_dir: Path):
 # what a fresh run writes before its first checkpoint: it may start over a run stopped then
 RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
 # what `spikegs train` and `spikegs eval` write in a run (and eval-DATASET*[.json] for others')
-RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", "eval", "eval.json"}
+RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", CURVE, "eval", "eval.json"}
 
 
 def foreign_files(run_dir: Path) -> list[str]:
