@@ -31,6 +31,8 @@ def run_entry(run_dir: str | Path, sim_seconds: float) -> dict:
 
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
     for i, (name, r) in enumerate(methods.items()):
         offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
         seconds = [offset + p["train_seconds"] for p in r["curve"]]
@@ -39,8 +41,6 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]
             ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
     for ax, metric in zip(axes, metrics):
         ax.set_xscale("log")  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped)
         ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))

@@ -266,7 +266,11 @@ class DatWriter:
     def close(self) -> None:
         """Finish: the readouts written replace `path`."""
         if not self._file.closed:
-            self._file.close()
+            try:
+                self._file.close()  # flushes: a full disk fails here
+            except BaseException:
+                self._partial.unlink(missing_ok=True)
+                raise
             self._partial.replace(self.path)
 
     def discard(self) -> None:
