@@ -331,6 +331,10 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     partial = path.with_name("sim.pt.partial")
     state = torch.load(partial, weights_only=False)
     assert state["step"] == 12 and not path.exists()
+    # what processes killed while saving the state or the SIM left (swept once the lock is held)
+    killed = [path.with_name(".sim.pt.partial.999999.tmp"), path.with_name(".sim.pt.999998.tmp")]
+    for leftover in killed:
+        leftover.write_bytes(b"half")
     state["seconds"] = 1000.0  # the interrupted process's training time counts
     torch.save(state, partial)
     resumed, seconds, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
@@ -339,7 +343,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)
     assert torch.load(path, weights_only=True)["meta"]["final_loss"] == np.mean(trained[1][-50:])
-    assert not partial.exists()
+    assert not partial.exists() and not any(p.exists() for p in killed)
     path.unlink()
     with pytest.raises(KeyboardInterrupt):  # a state saved for crop 16 ...
         train_or_load(path, _CtrlC(stream, 9), ts, 33, seed=3, **TRAIN)

@@ -3,16 +3,25 @@ one."""
 
 from __future__ import annotations
 
+import glob
 import os
 from collections.abc import Callable
 from pathlib import Path
 
 
+def sweep_killed_writes(path: Path) -> None:
+    """Remove the temporary files that writers of `path` killed mid-write left beside it; call it
+    where no other process can be writing `path` (under the lock that its writers hold)."""
+    path = Path(path)
+    for stale in path.parent.glob(glob.escape(f".{path.name}.") + "*.tmp"):
+        stale.unlink(missing_ok=True)
+
+
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
     `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder. The
-    temporary file is removed when writing fails; a killed process's is swept by the trainer in a
-    run folder, and elsewhere stays as a hidden .NAME.PID.tmp."""
+    temporary file is removed when writing fails; a killed process's stays until
+    `sweep_killed_writes` (the trainer sweeps a run folder's, SIM's cache its own)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

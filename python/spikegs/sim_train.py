@@ -20,7 +20,7 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
-from .atomic_save import save_atomically
+from .atomic_save import save_atomically, sweep_killed_writes
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
 from .metrics import psnr, ssim
@@ -288,6 +288,8 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
         if model is not None:
             return model, 0.0, path
         partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
+        for written in (path, partial):  # only the lock's holder writes them: what another
+            sweep_killed_writes(written)  # process left is a killed one's
         settings = {k: v for k, v in kwargs.items() if k != "progress"}
         key = {"data": data, "start": START, "window": window, **settings}
         if force:
