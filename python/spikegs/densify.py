@@ -83,11 +83,11 @@ class Densifier:
         """Record a step's screen-space gradients [N, 2] (pixels; with `absgrad` the absolute
         per-pixel sums) for the Gaussians visible in it."""
         self._resize(radii.shape[0])
-        visible = radii > 0
-        ndc = screen_grad[visible] * torch.tensor([0.5 * width, 0.5 * height])
-        self.grad_sum[visible] += ndc.norm(dim=1)
-        self.count[visible] += 1
-        self.max_radii[visible] = torch.maximum(self.max_radii[visible], radii[visible].float())
+        visible = radii > 0  # selects by torch.where: boolean indexing took ~1 ms a step
+        ndc = screen_grad * torch.tensor([0.5 * width, 0.5 * height])
+        self.grad_sum += torch.where(visible, ndc.norm(dim=1), 0.0)
+        self.count += visible
+        self.max_radii = torch.maximum(self.max_radii, radii.float())  # radius 0 where hidden
 
     def step(self, model: GaussianModel, optimizer: torch.optim.Optimizer, iteration: int) -> None:
         """Densify/prune and reset opacities at the configured iterations (1-based)."""
