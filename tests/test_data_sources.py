@@ -509,3 +509,29 @@ def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
     write_transforms(tmp_path / "sim.json", "sim", frames, arc_viewmats(3), K, ".exr")
     with pytest.raises(ValueError, match=r"sim.json: the camera \(sized as its first frame\) is "):
         FrameSequenceSource.from_transforms(tmp_path / "sim.json", 16, 16)
+
+
+@pytest.mark.parametrize("radius, warned", [(1.0, False), (5.0, False), (1.0, True)])
+def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
+    """Frames 0.2° apart on an orbit of radius 4 move the scene by a pixel or so; a scene sphere
+    of radius 5 (a user's, enclosing the cameras) put points behind them, whose projection (z
+    clamped to 1e-9) moved 3e8 pixels: a cross-fade warning for still frames. Frames 20° apart
+    are warned of (last case: 23 px)."""
+    import warnings
+
+    from spikegs.data.simulate import warn_about_frames
+
+    step = 20.0 if warned else 0.2
+    angles = np.radians(step * np.arange(10))
+    eyes = np.stack([4 * np.cos(angles), 4 * np.sin(angles), np.zeros(10)], -1)
+    viewmats = np.stack([look_at(eye, np.zeros(3), up=(0.0, 0.0, 1.0)) for eye in eyes])
+    K = np.array([[200.0, 0, 16], [0, 200.0, 16], [0, 0, 1]])
+    frames = np.zeros((10, 32, 32, 1), np.float32)
+    source = FrameSequenceSource("orbit", frames, viewmats, K, center=np.zeros(3), radius=radius)
+    trajectory = source.trajectory(901, 0.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warn_about_frames(source, trajectory, trajectory.readouts)
+    assert [str(w.message)[:30] for w in caught] == (
+        ["the scene moves up to 23.0 pix"] if warned else []
+    ), [str(w.message) for w in caught]

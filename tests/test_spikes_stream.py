@@ -231,6 +231,35 @@ print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(pa
         DatWriter(tmp_path, 8, 8)
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="symlinks, file modes and RLIMIT_FSIZE")
+def test_dat_writer_keeps_links_and_modes_and_cleans_up_a_full_disk(tmp_path):
+    """Written through a symlink, the target gets the readouts and the link stays (renaming
+    onto the link replaced it); an existing file keeps its permissions; a disk that fills up
+    mid-write leaves no hidden partial file (discard's close failed again before deleting it)."""
+    real, link = tmp_path / "real.dat", tmp_path / "link.dat"
+    save_dat(real, np.ones((4, 8, 8), np.uint8))
+    real.chmod(0o640)
+    link.symlink_to(real)
+    save_dat(link, np.zeros((2, 8, 8), np.uint8))
+    assert len(SpikeStream.open(real, 8, 8)) == 2 and link.is_symlink()
+    assert real.stat().st_mode & 0o777 == 0o640
+    script = f"""
+import resource, signal, numpy as np
+from spikegs.spikes import save_dat
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
+resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
+try:
+    save_dat({str(tmp_path / "full" / "x.dat")!r}, np.ones((400, 64, 64), np.uint8), chunk=1)
+except OSError as error:
+    print(error.errno)
+"""
+    (tmp_path / "full").mkdir()
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["27"]  # EFBIG, the write's own error
+    assert list((tmp_path / "full").iterdir()) == []
+
+
 def test_bad_shapes_refused(tmp_path):
     with pytest.raises(ValueError, match=r"expected \[T, 4, 2\]"):
         SpikeStream.from_packed(np.zeros((3, 4, 1), np.uint8), 4, 13)

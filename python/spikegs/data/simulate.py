@@ -149,9 +149,13 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
     points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
     viewmats = trajectory.pose_at(times)  # [F, 4, 4]
     cam = np.einsum("fij,pj->fpi", viewmats[:, :3, :3], points) + viewmats[:, None, :3, 3]
-    z = np.maximum(cam[..., 2:], 1e-9)  # [F, 7, 1]
-    pixels = (cam[..., :2] / z) * np.diag(source.K)[:2]  # [F, 7, 2]
-    motion = float(np.linalg.norm(np.diff(pixels, axis=0), axis=-1).max())
+    z = cam[..., 2]  # [F, 7]
+    pixels = cam[..., :2] / np.maximum(z, 1e-9)[..., None] * np.diag(source.K)[:2]  # [F, 7, 2]
+    steps = np.linalg.norm(np.diff(pixels, axis=0), axis=-1)  # [F - 1, 7]
+    # points in front of both cameras of a pair (a sphere around a camera has some behind it)
+    ahead = z > 0.01 * source.scene_radius
+    seen = ahead[1:] & ahead[:-1]
+    motion = float(steps[seen].max()) if seen.any() else 0.0
     if motion > FRAME_MOTION_PX:
         # built-in and Mitsuba scenes render a frame every frame_every readouts; a frame
         # sequence's spacing is its own

@@ -15,6 +15,7 @@ last readout, reads 1/max_interval: never inf or NaN.
 from __future__ import annotations
 
 import os
+import shutil
 import uuid
 from pathlib import Path
 from typing import Union
@@ -240,10 +241,13 @@ class DatWriter:
         height, width = as_ints(height=height, width=width)
         self._layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip))
         self._memory = _C.SpikeLayout.memory(height, width)
-        if self.path.is_dir():
+        self._target = Path(os.path.realpath(self.path))  # a symlink's target, not the link
+        if self._target.is_dir():
             raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
-        self._partial = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex}.tmp")
+        self._partial = self._target.with_name(f".{self._target.name}.{uuid.uuid4().hex}.tmp")
         self._file = open(self._partial, "xb")
+        if self._target.exists():  # its permissions stay, as when it was overwritten in place
+            shutil.copymode(self._target, self._partial)
 
     def write_bits(self, bits: np.ndarray) -> None:
         """Append bits [n, H, W] (bool or 0/1 integers; 256 was written as 0, 0.5 as 0)."""
@@ -264,19 +268,24 @@ class DatWriter:
         self._file.write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
 
     def close(self) -> None:
-        """Finish: the readouts written replace `path`."""
-        if not self._file.closed:
-            try:
-                self._file.close()  # flushes: a full disk fails here
-            except BaseException:
-                self._partial.unlink(missing_ok=True)
-                raise
-            self._partial.replace(self.path)
+        """Finish: the readouts written replace `path` (a symlink's target)."""
+        if self._file.closed:
+            return
+        try:
+            self._file.close()  # flushes: a full disk fails here
+            self._partial.replace(self._target)
+        finally:
+            self._partial.unlink(missing_ok=True)  # gone once it replaced the target
 
     def discard(self) -> None:
         """Stop without touching `path`: the readouts written so far are deleted."""
-        if not self._file.closed:
-            self._file.close()
+        if self._file.closed:
+            return
+        try:
+            self._file.close()  # flushes again what a full disk refused: fails again
+        except OSError:
+            pass  # the error that led here is the one to report
+        finally:
             self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> DatWriter:
