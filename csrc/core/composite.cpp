@@ -165,11 +165,13 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
             const T next = tr[x] * (1 - a);
             const bool stop = valid && next < T(kTransmittanceMin);
             const bool take = valid && !stop;
-            // each store unconditional, its select on a value (GCC turns `m[x] = c ? v : m[x]`
-            // into a masked store behind a branch): pos grows along the tile's list, so the
-            // last contributor is a maximum
+            // each store unconditional, its select on a value (GCC turns `m[x] = c ? v : m[x]`,
+            // and `m[x] *= c ? v : 1`, into a masked store behind a branch): T only falls (a >=
+            // kAlphaMin), so its update is a minimum with 1 where it stays; pos grows along the
+            // tile's list, so the last contributor is a maximum
             weight[x] = take ? a * tr[x] : T(0);
-            tr[x] *= take ? 1 - a : T(1);
+            const T stays = take ? next : T(1);  // T <= 1
+            tr[x] = stays < tr[x] ? stays : tr[x];
             const std::int32_t candidate = take ? pos : -1;
             lst[x] = candidate > lst[x] ? candidate : lst[x];
             const T keep = stop ? T(0) : T(1);
