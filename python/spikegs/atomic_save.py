@@ -9,11 +9,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 
+def _temporary_name(path: Path, writer: str) -> str:
+    """The name of writer `writer`'s temporary file beside `path`: hidden, ending .tmp."""
+    return f".{path.name}.{writer}.tmp"
+
+
 def sweep_killed_writes(path: Path) -> None:
     """Remove the temporary files that writers of `path` killed mid-write left beside it; call it
     where no other process can be writing `path` (under the lock that its writers hold)."""
     path = Path(path)
-    for stale in path.parent.glob(glob.escape(f".{path.name}.") + "*.tmp"):
+    for stale in path.parent.glob(_temporary_name(Path(glob.escape(path.name)), "*")):
         stale.unlink(missing_ok=True)
 
 
@@ -24,7 +29,7 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     `sweep_killed_writes` (the trainer sweeps a run folder's, SIM's cache its own)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = path.with_name(_temporary_name(path, str(os.getpid())))
     try:
         write(tmp)
         tmp.replace(path)

@@ -24,9 +24,19 @@ def logged_curve(run_dir: str | Path) -> list[dict]:
     return curve
 
 
-def run_entry(run_dir: str | Path, sim_seconds: float) -> dict:
-    """A run's logged curve as `save_curves` takes it, starting after `sim_seconds` of SIM."""
-    return {"curve": logged_curve(run_dir), "sim_seconds": sim_seconds, "uses_sim": sim_seconds > 0}
+def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset) -> None:
+    """Plot the logged PSNR of `runs` ({method: (RUN, SIM's training seconds)}, trained on
+    `dataset`) to `path`, each curve starting after its SIM's training."""
+    methods = {
+        name: {"curve": logged_curve(run_dir), "sim_seconds": sim, "uses_sim": sim > 0}
+        for name, (run_dir, sim) in runs.items()
+    }
+    scene = dataset.meta.get("scene") or Path(dataset.root).name
+    title = (
+        f"{scene}: PSNR of the test view {dataset.test_views[0].name} during training\n"
+        f"(a SIM method's curve starts after SIM's training)"
+    )
+    save_curves(path, methods, ("psnr",), title)
 
 
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:

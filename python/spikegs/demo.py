@@ -21,7 +21,7 @@ from . import strict_json
 from .bench.common import print_table
 from .cli import positive_int
 from .config import load_config, read_yaml
-from .curves import run_entry, save_curves
+from .curves import save_logged_curves
 from .data.scenes import SCENES
 
 METHODS = ("spikegs", "tfp33")
@@ -210,12 +210,8 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
     write_image(out / "comparison.png", np.concatenate(rows, axis=0))
-    curves = {m: run_entry(out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
-    title = (
-        f"{dataset.meta.get('scene')}: PSNR of the held-out view {names[0]} during training\n"
-        f"(SpikeGS's curve starts after SIM's training)"
-    )
-    save_curves(out / "curves.png", curves, ("psnr",), title)
+    runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
+    save_logged_curves(out / "curves.png", runs, dataset)
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)
     payload = {

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .cli import file_path, positive_int
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
-from .curves import run_entry, save_curves
+from .curves import save_logged_curves
 from .run_summary import CURVE, last_checkpoint
 
 
@@ -65,9 +65,7 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)  # bad method or config: refused before any work
     dataset = load_dataset(args.dataset)
     summary = Trainer(dataset, config, args.out, progress=not args.no_progress).train(args.resume)
-    view = dataset.test_views[0].name  # the progress bar's held-out view
-    title = f"{Path(dataset.root).name}: PSNR of the test view {view} during training"
-    entry = run_entry(args.out, summary["sim_seconds"])
-    save_curves(Path(args.out) / CURVE, {config.method: entry}, ("psnr",), title)
+    runs = {config.method: (Path(args.out), summary["sim_seconds"])}
+    save_logged_curves(Path(args.out) / CURVE, runs, dataset)
     print(json.dumps(summary, indent=2))
     return 0
