@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from spikegs.data import Trajectory
-from spikegs.data.trajectory import check_rigid, look_at, rigid_c2w
+from spikegs.data.trajectory import check_rigid, look_at, project_points, rigid_c2w
 
 
 def pose(rotvec, center) -> np.ndarray:
@@ -195,3 +195,19 @@ def test_one_rigidity_rule_reports_the_worst_matrix():
     ):
         with pytest.raises(ValueError, match=f"src: the pose is not rigid.*{message}"):
             rigid_c2w(bad, "src")
+
+
+def test_project_points_pinhole():
+    """A point on the optical axis lands on the principal point, one to the side at f·x/z from
+    it; a point behind the camera or at its centre has no position (NaN), only its depth."""
+    K = np.array([[100.0, 0, 40.5], [0, 120.0, 30.25], [0, 0, 1]])
+    eye, target = np.array([0.0, -5, 1]), np.array([0.0, 0, 1])
+    viewmat = look_at(eye, target)
+    right, down = viewmat[0, :3], viewmat[1, :3]  # the camera's x and y axes in the world
+    points = np.stack([target, target + 0.5 * right - 0.25 * down, 2 * eye - target, eye])  # [4, 3]
+    pixels, depth = project_points(points, np.stack([viewmat, viewmat]), K)  # [2, 4, 2], [2, 4]
+    assert pixels.shape == (2, 4, 2) and depth.shape == (2, 4)
+    np.testing.assert_allclose(depth[0], [5, 5, -5, 0], atol=1e-12)
+    np.testing.assert_allclose(pixels[0, 0], [40.5, 30.25], atol=1e-12)
+    np.testing.assert_allclose(pixels[0, 1], [40.5 + 100 * 0.1, 30.25 - 120 * 0.05], atol=1e-12)
+    assert np.isnan(pixels[:, 2:]).all() and np.array_equal(pixels[0], pixels[1], equal_nan=True)

@@ -16,6 +16,7 @@ from functools import cached_property
 import numpy as np
 import torch
 
+from .data.trajectory import project_points
 from .targets import tfp_sample
 
 
@@ -44,19 +45,13 @@ def projected_intensity(dataset, sample: ViewSample, means: torch.Tensor) -> tor
     """Median intensity [N, C] of `sample`'s views at the projections of `means` [N, 3] (pixel
     centres at +0.5), the sample's median intensity where no view sees a point."""
     images = sample.rates / sample.scale  # [M, H, W, C]
-    points = means.detach().double().numpy()  # [N, 3]
-    K = dataset.K.astype(np.float64)
-    seen = np.full((len(sample.timestamps), len(points), images.shape[-1]), np.nan, np.float32)
-    for i, t in enumerate(sample.timestamps):
-        viewmat = dataset.trajectory.pose_at(float(t))  # [4, 4] world to camera
-        cam = points @ viewmat[:3, :3].T + viewmat[:3, 3]  # [N, 3]
-        z = cam[:, 2]
-        ahead = z > 1e-6
-        z = np.where(ahead, z, 1.0)
-        u = np.floor(K[0, 0] * cam[:, 0] / z + K[0, 2])
-        v = np.floor(K[1, 1] * cam[:, 1] / z + K[1, 2])
-        inside = ahead & (u >= 0) & (u < dataset.width) & (v >= 0) & (v < dataset.height)
-        seen[i, inside] = images[i, v[inside].astype(int), u[inside].astype(int)]
+    viewmats = dataset.trajectory.pose_at(sample.timestamps)  # [M, 4, 4] world to camera
+    pixels, z = project_points(means.detach().double().numpy(), viewmats, dataset.K)
+    u, v = np.floor(pixels[..., 0]), np.floor(pixels[..., 1])  # [M, N], NaN behind a camera
+    inside = (z > 1e-6) & (u >= 0) & (u < dataset.width) & (v >= 0) & (v < dataset.height)
+    seen = np.full((*u.shape, images.shape[-1]), np.nan, np.float32)  # [M, N, C]
+    view = np.nonzero(inside)[0]
+    seen[inside] = images[view, v[inside].astype(int), u[inside].astype(int)]
     never = np.isnan(seen).all(axis=0)  # [N, C]
     median = np.nanmedian(np.where(never[None], 0.0, seen), axis=0)
     return torch.from_numpy(np.where(never, sample.median, median)).float()

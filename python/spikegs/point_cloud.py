@@ -46,6 +46,12 @@ def read_points(path: str | Path) -> np.ndarray:
     return points
 
 
+def distinct_points(points: np.ndarray) -> np.ndarray:
+    """The distinct points of a cloud [P, 3], in its order (a repeat would make the spacing 0)."""
+    first = np.unique(points, axis=0, return_index=True)[1]
+    return points[np.sort(first)]
+
+
 def gaussians_from_points(
     points: np.ndarray,
     max_points: int,
@@ -54,11 +60,9 @@ def gaussians_from_points(
     colors_of: Callable[[torch.Tensor], torch.Tensor],
     max_scale: float = math.inf,
 ) -> GaussianModel:
-    """Gaussians at a cloud's distinct points [P, 3] (P >= 2; a random subset of `max_points`
-    when it has more), of the intensities `colors_of(points)` [P, C] (what the views show there),
-    sized by the median distance between nearest neighbours, at most `max_scale`."""
-    first = np.unique(points, axis=0, return_index=True)[1]  # a repeat would make the spacing 0
-    points = points[np.sort(first)]  # in the cloud's order
+    """Gaussians at distinct points [P, 3] (`distinct_points`, P >= 2; a random subset of
+    `max_points` when it has more), of the intensities `colors_of(points)` [P, C] (what the views
+    show there), sized by the median distance between nearest neighbours, at most `max_scale`."""
     if len(points) < 2:
         raise ValueError(f"a point cloud of {len(points)} distinct point(s) has no spacing")
     if len(points) > max_points:

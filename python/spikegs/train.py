@@ -30,7 +30,7 @@ from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
-from .point_cloud import POINTS, gaussians_from_points, read_points
+from .point_cloud import POINTS, distinct_points, gaussians_from_points, read_points
 from .pose_refine import PoseRefiner, make_refiner
 from .run_summary import CURVE, SUMMARY, last_checkpoint
 from .sim_train import spikes_fingerprint
@@ -181,17 +181,16 @@ class Trainer:
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
     def cloud_points(self) -> np.ndarray | None:
-        """The dataset's sparse point cloud [P, 3] (DATASET/points3d.ply, e.g. from `spikegs
-        poses`) that the Gaussians start at; None where it has none, or fewer distinct points
+        """The distinct points [P, 3] of the dataset's sparse point cloud (DATASET/points3d.ply,
+        e.g. from `spikegs poses`) that the Gaussians start at; None where it has none, or fewer
         than a run may start with (warned: they start at random points in the scene bounds)."""
         cloud = Path(self.dataset.root) / POINTS
         if not cloud.exists():
             return None
-        points = read_points(cloud)
-        distinct = len(np.unique(points, axis=0))
-        if distinct < MIN_GAUSSIANS:
+        points = distinct_points(read_points(cloud))
+        if len(points) < MIN_GAUSSIANS:
             warnings.warn(
-                f"{cloud}: {distinct} distinct point(s), fewer than {MIN_GAUSSIANS}: the "
+                f"{cloud}: {len(points)} distinct point(s), fewer than {MIN_GAUSSIANS}: the "
                 f"Gaussians start at random points in the scene bounds instead",
                 stacklevel=2,
             )

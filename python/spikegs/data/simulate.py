@@ -38,7 +38,7 @@ from .sources import (
     Source,
     warn_unread_transforms,
 )
-from .trajectory import Trajectory
+from .trajectory import Trajectory, project_points
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
@@ -147,10 +147,7 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
         return
     offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
     points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
-    viewmats = trajectory.pose_at(times)  # [F, 4, 4]
-    cam = np.einsum("fij,pj->fpi", viewmats[:, :3, :3], points) + viewmats[:, None, :3, 3]
-    z = cam[..., 2]  # [F, 7]
-    pixels = cam[..., :2] / np.maximum(z, 1e-9)[..., None] * np.diag(source.K)[:2]  # [F, 7, 2]
+    pixels, z = project_points(points, trajectory.pose_at(times), source.K)  # [F, 7, 2], [F, 7]
     steps = np.linalg.norm(np.diff(pixels, axis=0), axis=-1)  # [F - 1, 7]
     # points in front of both cameras of a pair (a sphere around a camera has some behind it)
     ahead = z > 0.01 * source.scene_radius

@@ -47,6 +47,19 @@ def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
 RIGID_TOLERANCE = 1e-3  # of |R R^T - I|: accepts poses rounded to 4 decimals
 
 
+def project_points(points, viewmats, K) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel positions [F, P, 2] (OpenCV: pixel centres at +0.5) and depths [F, P] of world points
+    [P, 3] in the cameras `viewmats` [F, 4, 4] with intrinsics K [3, 3]; NaN positions for points
+    at or behind a camera's centre (depth <= 0)."""
+    points = np.asarray(points, np.float64)
+    viewmats = np.asarray(viewmats, np.float64)
+    cam = np.einsum("fij,pj->fpi", viewmats[:, :3, :3], points) + viewmats[:, None, :3, 3]
+    z = cam[..., 2:]  # [F, P, 1]
+    focal, centre = np.diag(K)[:2].astype(np.float64), np.asarray(K, np.float64)[:2, 2]
+    pixels = cam[..., :2] * focal / np.where(z > 0, z, np.nan) + centre
+    return pixels, z[..., 0]
+
+
 def rigid_c2w(matrices: np.ndarray, source: str, item: str = "view") -> np.ndarray:
     """`matrices` [N, 4, 4] or [4, 4] (camera-to-world or world-to-camera) with each rotation
     replaced by the nearest rotation (SVD), translation kept, when within RIGID_TOLERANCE of one
