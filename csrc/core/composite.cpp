@@ -36,15 +36,18 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
   return out;
 }
 
-// G = exp(power) for power in [kPowerMin, 0]; exp(kPowerMin) outside. o·exp(-20) < 1e-8 <
-// kAlphaMin for any opacity o <= 1, so a pair below kPowerMin is skipped, and so is one with power
-// > 0 (only from rounding: 3DGS skips it). The choice is made on exp's argument, not on its
-// result: GCC then keeps the loop branch-free and vectorises it (a select on the result is sunk
-// into a branch around the float-to-int conversion, which if-conversion will not take).
+// G = exp(power) for power in [kPowerMin, 0]; exp(kPowerMin) below, where o·exp(-20) < 1e-8 <
+// kAlphaMin for any opacity o <= 1 skips the pair. A power > 0 comes only from rounding (the
+// conic is positive definite) and counts as 0, the peak: on the axis of a long, thin splat, where
+// the true power is ~0, float32 rounds it either way, and skipping it (as 3DGS does) left holes
+// of alpha 0 among pixels of alpha ~o. Its gradient is taken as at 0 from below (G). The choice is
+// made on exp's argument, not on its result: GCC then keeps the loop branch-free and vectorises
+// it (a select on the result is sunk into a branch around the float-to-int conversion, which
+// if-conversion will not take).
 constexpr double kPowerMin = -20.0;
 template <typename T>
 inline T gaussian(T power) {
-  return exp_nonpositive(power > 0 || power < T(kPowerMin) ? T(kPowerMin) : power);
+  return exp_nonpositive(power > 0 ? T(0) : power < T(kPowerMin) ? T(kPowerMin) : power);
 }
 
 // Adds one pixel's share of a gathered splat `s`'s geometric gradients: `ga` = G · dL/dalpha is
@@ -149,8 +152,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
           T* __restrict tr = trans + row * kTileSize;
           T* __restrict act = active + row * kTileSize;
           std::int32_t* __restrict lst = last + row * kTileSize;
-          // arithmetic first, in a loop of its own so that exp vectorises (a power > 0 only
-          // arises from rounding and is skipped below)
+          // arithmetic first, in a loop of its own so that exp vectorises
           alignas(64) T alpha[kTileSize];
 #pragma omp simd
           for (int x = 0; x < kTileSize; ++x) {
@@ -287,7 +289,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
         while (row1 > row0 && pos > row_last[row1 - 1]) --row1;
         if (row0 >= row1) continue;
         const int p0 = row0 * kTileSize, p1 = row1 * kTileSize;
-        // G = exp(power) in a loop of its own (see gaussian: a pair with power > 0 is skipped)
+        // G = exp(power) in a loop of its own (see gaussian: a power > 0 counts as 0)
 #pragma omp simd
         for (int p = p0; p < p1; ++p) {
           const T dx = cx[p] - mx, dy = cy[p] - my;

@@ -205,8 +205,10 @@ def _composite(splats: _Splats, width: int, height: int, background: torch.Tenso
         dy = (ys.to(transmittance) + 0.5 - splats.means2d[i, 1])[:, None]  # [Y, 1]
         A, B, C = splats.conics[i]
         power = (-0.5 * (A * dx * dx + C * dy * dy) - B * dx * dy).flatten()  # [Q]
+        # > 0 only by rounding (the conic is positive definite): counts as 0, gradient as below 0
+        power = power - power.detach().clamp(min=0)
         alpha = torch.minimum(splats.opacities[i] * torch.exp(power), alpha_max)
-        live = (power <= 0) & (alpha >= ALPHA_MIN) & ~done[idx]
+        live = (alpha >= ALPHA_MIN) & ~done[idx]
         t = transmittance[idx]
         t_next = t * (1 - alpha)
         stop = live & (t_next < T_MIN)
