@@ -63,6 +63,15 @@ def test_dark_pixels_fire_at_dark_rate():
     assert spread.std() > 2 * r.std()
 
 
+def test_threshold_noise_never_fires_without_charge():
+    """The per-readout threshold θ_i·(1 + temporal_sigma·z) is floored at 0.1·θ_i, like the
+    per-pixel one: at temporal_sigma 0.5 it went below 0 and dark pixels without dark current
+    fired (1130 spikes in 4000 readouts of 32²)."""
+    for sigma in (0.5, 3.0):
+        p = SimParams(temporal_sigma=sigma, dark_rate=0.0, shot_noise=False, random_init=False)
+        assert not simulate_spikes(np.zeros((1, 32, 32), np.float32), 4000, params=p).any()
+
+
 def test_never_more_than_one_spike_per_readout():
     # 4.0 = one spike per readout; up to float32's largest, whose charge overflows float32
     levels = np.array([2.0, 4.0, 8.0, 1e3, 1e30, 1e38, np.finfo(np.float32).max], np.float32)
@@ -109,11 +118,27 @@ def test_frame_every_that_rounds_onto_the_last_readout():
     for bad in (0, -1.0, float("nan"), float("inf")):  # NaN reached numpy's arange
         with pytest.raises(ValueError, match="frame_every expected a finite number > 0"):
             simulate_spikes(light, 22, frame_every=bad)
+    # sampled far more often than once a readout, only the frames around each readout are read
+    # (a frame every 1e-7 readouts stacked 10**7 frames a chunk)
+    calls = []
+    ramp = lambda t: calls.append(t) or np.full((4, 4), 0.1 * t, np.float32)  # noqa: E731
+    spikes = simulate_spikes(ramp, 6, frame_every=1e-6, seed=2)
+    assert len(calls) <= 2 * 6
+    np.testing.assert_array_equal(spikes, simulate_spikes(ramp, 6, frame_every=1, seed=2))
     for n in range(1, 400):
         for every in (0.3, 0.7, 1.1, 2.9):
             times = sample_times(n, every)
             assert times[0] == 0 and times[-1] == n - 1
             assert (np.diff(times) > 0).all() and (np.diff(times) <= every + 1e-9).all()
+
+
+def test_light_beyond_float32_is_saturated_light():
+    """Finite float64 light above float32's largest value fires every readout, as float32's
+    largest does (it became inf and was refused as not finite, naming the frames' minimum)."""
+    light = np.zeros((2, 4, 4))
+    light[1] = 1e39
+    saturated = light.clip(max=np.finfo(np.float32).max).astype(np.float32)
+    np.testing.assert_array_equal(simulate_spikes(light, 20), simulate_spikes(saturated, 20))
 
 
 def test_torch_tensors_are_light_too():
@@ -147,8 +172,19 @@ def test_bad_input_refused():
         simulate_spikes(lambda t: np.ones((4, 4 + int(t > 0))), 10, frame_every=5)
     with pytest.raises(ValueError, match="rate_at_one"):
         simulate_spikes(frames, 10, params=SimParams(rate_at_one=2.0))
-    with pytest.raises(ValueError, match="num_readouts"):
-        simulate_spikes(frames, 0)
+    for n in (0, True, 10.0, float("nan")):
+        with pytest.raises(ValueError, match="num_readouts"):
+            simulate_spikes(frames, n)
+    with pytest.raises(ValueError, match="2 frames spread over 1 readout"):
+        simulate_spikes(frames, 1)  # was: frame times not increasing, found [0.0, 0.0]
+    with pytest.raises(ValueError, match="expected numbers"):
+        simulate_spikes(frames, 10, frame_times=["0", "9"])
+    with pytest.raises(ValueError, match="expected real intensities"):
+        simulate_spikes(frames.astype(np.complex64), 10)
+    with pytest.raises(ValueError, match=r"found nan at \[1, 2, 3\]"):
+        nan = frames.copy()
+        nan[1, 2, 3] = np.nan
+        simulate_spikes(nan, 10)
     for seed in (1.5, -1, 2**64):  # 1.5 was read as 1, -1 and 2**64 wrapped to 2**64 - 1 and 0
         with pytest.raises(ValueError, match="seed"):
             simulate_spikes(frames, 10, seed=seed)
@@ -185,5 +221,6 @@ def test_a_threshold_of_a_few_photo_electrons_warns():
         warnings.simplefilter("error")
         SimParams(threshold=2.0)
         SimParams(threshold=0.5, shot_noise=False)
-    with pytest.raises(ValueError, match="threshold expected in \\(0, 1e30\\]"):
-        SimParams(threshold=1e38)  # float voltages overflowed: every readout fired
+    for threshold in (1e38, 1e-46, 1e-4):  # float voltages overflowed, or the threshold was 0:
+        with pytest.raises(ValueError, match="threshold expected in \\[0.001, 1e30\\]"):
+            SimParams(threshold=threshold)  # every readout fired

@@ -30,9 +30,11 @@ void SimParams::validate() const {
     if (!ok) fail(name, " expected ", expected, ", found ", found);
   };
   // is_finite (bit-level): -ffast-math folds std::isfinite to true, letting inf through
-  // voltages are float: a threshold near float's range (3.4e38) overflowed them
-  check(threshold > 0 && threshold <= 1e30 && is_finite(threshold), "threshold", "in (0, 1e30]",
-        threshold);
+  // voltages are float: a threshold near float's range (3.4e38) overflowed them, one near its
+  // smallest normal (1.2e-38) rounded to 0 and fired every readout (a spike of less than a
+  // thousandth of a photo-electron is no camera's)
+  check(threshold >= 1e-3 && threshold <= 1e30 && is_finite(threshold), "threshold",
+        "in [0.001, 1e30]", threshold);
   check(rate_at_one > 0 && rate_at_one <= 1, "rate_at_one", "in (0, 1]", rate_at_one);
   check(dark_rate >= 0 && dark_rate <= 1, "dark_rate", "in [0, 1]", dark_rate);
   check(dark_sigma >= 0 && is_finite(dark_sigma), "dark_sigma", "finite, >= 0", dark_sigma);
@@ -108,7 +110,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
           const float light = std::max(i0[x] + a * (i1[x] - i0[x]), 0.0f);
           const float mu = gain * light + dark[x];
           const float th = theta[x], vx = v[x] + mu + shot * std::sqrt(mu) * z.z0;
-          const bool fire = vx >= th * (1.0f + tsig * z.z1);
+          const bool fire = vx >= th * std::max(1.0f + tsig * z.z1, 0.1f);
           v[x] = fire ? std::min(vx - th, th) : vx;
           spike[x] = fire;
         }

@@ -5,7 +5,7 @@
 // between the two rendered frames around t:
 //   μ    = θ · (rate_at_one · max(I, 0) + dark_i)                    mean charge this readout
 //   v   += μ + √μ · z₀            (shot_noise; else v += μ)           photon shot noise
-//   θ_t  = θ_i · (1 + temporal_sigma · z₁)                           temporal threshold noise
+//   θ_t  = θ_i · max(1 + temporal_sigma · z₁, 0.1)                   temporal threshold noise
 //   spike if v >= θ_t, then v = min(v - θ_i, θ_i)                    reset by subtraction
 // with z₀, z₁ standard normals, θ_i = θ · max(1 + fpn_sigma · z, 0.1) the pixel's threshold
 // (fixed-pattern mismatch) and dark_i = dark_rate · exp(dark_sigma · z - dark_sigma²/2) its dark

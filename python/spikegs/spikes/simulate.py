@@ -19,7 +19,7 @@ from typing import Callable, Union
 import numpy as np
 
 from .. import _C
-from ..number_checks import is_number, is_seed
+from ..number_checks import is_int, is_number, is_seed, number_array
 from .stream import DatWriter, PathLike, SpikeStream, as_flag, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
@@ -60,7 +60,8 @@ class SimParams:
             warnings.warn(
                 f"SimParams threshold {self.threshold:g}: under {MIN_SHOT_THRESHOLD:g} "
                 f"photo-electrons a spike, the simulator's normal form of shot noise (which can "
-                f"take charge away) fires below rate_at_one·I: -1% at 1, -46% at 0.05 (I = 1)",
+                f"take charge away) distorts the firing rates: at I = 1 below rate_at_one·I, -1% "
+                f"at 1, -46% at 0.05; in the dark above dark_rate",
                 stacklevel=3,
             )
 
@@ -71,16 +72,28 @@ class SimParams:
         return core
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
-    """`frame` (an array or a torch tensor) as float32, ValueError unless of `shape` (if given),
-    finite and >= 0."""
+    """`frame` (an array or a torch tensor) as float32, ValueError unless real, of `shape` (if
+    given), finite and >= 0. Light beyond float32's range (from float64) is taken at its largest
+    value: the simulator caps it far below, where a pixel fires every readout."""
     if hasattr(frame, "detach"):  # a tensor, perhaps requiring grad or on another device
         frame = frame.detach().cpu().numpy()
-    frame = np.asarray(frame, dtype=np.float32)
+    frame = np.asarray(frame)
+    if frame.dtype.kind not in "biuf":
+        raise ValueError(f"{what} expected real intensities, found {frame.dtype.name} values")
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
-    if frame.size and not (np.isfinite(frame).all() and frame.min() >= 0):
-        raise ValueError(f"{what} expected finite intensities >= 0, found min {frame.min()}")
+    bad = ~(np.isfinite(frame) & (frame >= 0)) if frame.dtype.kind == "f" else frame < 0
+    if bad.any():
+        raise ValueError(
+            f"{what} expected finite intensities >= 0, found {frame[bad].ravel()[0]} at "
+            f"{list(map(int, np.argwhere(bad)[0]))}"
+        )
+    if frame.dtype != np.float32:
+        frame = np.minimum(frame, FLOAT32_MAX).astype(np.float32)
     return frame
 
 
@@ -116,8 +129,13 @@ class _Frames:
             self.shape = frames.shape[1:]
             self._get = frames.__getitem__
             if frame_times is None:
+                if len(frames) > 1 and last == 0:
+                    raise ValueError(
+                        f"{len(frames)} frames spread over 1 readout: give one frame, or "
+                        f"frame_times"
+                    )
                 frame_times = np.linspace(0.0, last, len(frames)) if len(frames) > 1 else [0.0]
-            self.times = np.asarray(frame_times, dtype=np.float64)
+            self.times = number_array(frame_times)
             if self.times.shape != (len(frames),):
                 raise ValueError(
                     f"frame_times expected [{len(frames)}], found {list(self.times.shape)}"
@@ -137,14 +155,18 @@ class _Frames:
             raise ValueError(f"frames expected [H, W] each, found {list(self.shape)}")
 
     def covering(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
-        """Frames [f, H, W] and their times [f] that light readouts [t0, t1)."""
+        """Frames [f, H, W] and their times [f] that light readouts [t0, t1): the two around each
+        readout, which it interpolates (with frames sampled more often than once a readout, those
+        between are not read: a millionth of a readout apart, they filled the memory)."""
         i0 = max(int(np.searchsorted(self.times, t0, side="right")) - 1, 0)
         i1 = min(int(np.searchsorted(self.times, t1 - 1, side="left")), len(self.times) - 1)
-        self._cache = {i: self._cache.get(i) for i in range(i0, i1 + 1)}
+        before = np.searchsorted(self.times, np.arange(t0, t1), side="right") - 1  # [t1 - t0]
+        needed = np.unique(np.clip(np.concatenate([before, before + 1]), i0, i1))  # [f]
+        self._cache = {int(i): self._cache.get(int(i)) for i in needed}
         for i, frame in self._cache.items():
             if frame is None:
                 self._cache[i] = self._get(i)
-        return np.stack(list(self._cache.values())), self.times[i0 : i1 + 1]
+        return np.stack(list(self._cache.values())), self.times[needed]
 
 
 def simulate_spikes(
@@ -168,8 +190,8 @@ def simulate_spikes(
     a time. With `out` a path, streams to a .dat file (rows flipped if `flip`) and returns
     `SpikeStream.open(out, ...)`; else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped).
     """
-    if int(num_readouts) != num_readouts or num_readouts < 1:
-        raise ValueError(f"num_readouts expected a positive int, found {num_readouts}")
+    if not (is_int(num_readouts) and num_readouts >= 1):
+        raise ValueError(f"num_readouts expected a positive int, found {num_readouts!r}")
     num_readouts = int(num_readouts)
     if not is_seed(seed):
         raise ValueError(f"seed expected an integer in 0..2**64 - 1, found {seed}")
