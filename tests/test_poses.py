@@ -85,7 +85,7 @@ def test_gradient_reaches_only_the_rendered_views_correction():
     refiner = PoseRefiner(num_views=4, scene_radius=1.0)
     viewmat = torch.as_tensor(look_at((3.0, 1.0, 1.0), (0, 0, 0)), dtype=torch.float32)
     K = torch.tensor([[40.0, 0, 16], [0, 40, 16], [0, 0, 1]])
-    image = model.render(refiner(viewmat, 2), K, 32, 32).image
+    image = model.render(refiner(viewmat, 2), K, 32, 32, near=0.01).image
     (image * torch.linspace(0, 1, 32)[:, None, None]).sum().backward()
     grad = refiner.corrections.grad  # [4, 6]
     assert torch.isfinite(grad).all() and grad[2].abs().sum() > 0

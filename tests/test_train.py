@@ -48,13 +48,12 @@ def dataset(tmp_path_factory):
 
 
 def _mean_psnr(model, dataset) -> float:
-    K = torch.as_tensor(dataset.K)
     scale = intensity_scale(dataset)
     return float(
         np.mean(
             [
                 view_metrics(
-                    render_view(model, v, K, dataset.width, dataset.height),
+                    render_view(model, v.viewmat, dataset),
                     v.image / scale,
                     with_ssim=False,
                 )["psnr"]
@@ -75,6 +74,33 @@ def test_tiny_scene_trains_end_to_end(dataset, tmp_path):
     # views show where they project), about 19.7 dB after 200 iterations
     assert result["psnr"] > 19.0 and result["psnr"] > before + 1.0, (before, result["psnr"])
     assert (tmp_path / "run" / "eval.json").exists() and (tmp_path / "run" / "log.jsonl").exists()
+
+
+def test_renders_do_not_depend_on_the_scene_units(dataset):
+    """A scene and its views 1000 times smaller render the same image: the near plane follows the
+    scene's radius (a fixed 0.01 world units culled every Gaussian of the smaller one, its
+    cameras 0.003 from the centre, and training learnt the background alone)."""
+    gen = torch.Generator().manual_seed(0)
+    center = torch.tensor(dataset.scene_center, dtype=torch.float32)
+    model = GaussianModel.random(300, center, 0.5 * dataset.scene_radius, 1, 0, gen)
+    viewmat = dataset.test_views[0].viewmat
+    image = render_view(model, viewmat, dataset)
+    s = 1e-3
+    small = GaussianModel(
+        {
+            **model.params,
+            "means": model.params["means"] * s,
+            "log_scales": model.params["log_scales"] + np.log(s),
+        },
+        model.background,
+        0,
+    )
+    small_view = viewmat.copy()
+    small_view[:3, 3] *= s
+    small_data = copy.copy(dataset)
+    small_data.scene_radius = dataset.scene_radius * s
+    assert np.abs(image - image.mean()).max() > 0.1  # the Gaussians show
+    np.testing.assert_allclose(render_view(small, small_view, small_data), image, atol=1e-4)
 
 
 def test_few_gaussians_start_below_the_size_that_densification_prunes(dataset, tmp_path):
@@ -336,7 +362,7 @@ def test_ply_edge_cases(tmp_path):
     viewmat = torch.eye(4)
     viewmat[2, 3] = 4.0
     torch.testing.assert_close(
-        back.render(viewmat, K, 32, 32).image, active.render(viewmat, K, 32, 32).image
+        back.render(viewmat, K, 32, 32, 0.01).image, active.render(viewmat, K, 32, 32, 0.01).image
     )
     two = GaussianModel.random(5, (0, 0, 0), 1.0, 2, 0, gen)
     with pytest.raises(ValueError, match="1 \\(grey\\) or 3 \\(RGB\\)"):

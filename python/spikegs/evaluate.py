@@ -13,7 +13,7 @@ import torch
 
 from . import strict_json
 from .data.real import PSEUDO_PREFIX
-from .gaussians import GaussianModel
+from .gaussians import GaussianModel, near_plane
 from .image_io import write_image
 from .metrics import psnr, ssim
 from .ply import load_ply
@@ -21,11 +21,17 @@ from .run_summary import read_summary, trained_scene
 from .targets import intensity_scale
 
 
-def render_view(model: GaussianModel, view, K: torch.Tensor, width: int, height: int) -> np.ndarray:
-    """The model's image [H, W, C] (intensity units) from a test view's pose."""
+def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarray:
+    """The model's image [H, W, C] (intensity units) from world-to-camera `viewmat` [4, 4] in the
+    dataset's camera (its intrinsics, size and scene's near plane)."""
     with torch.no_grad():
-        viewmat = torch.as_tensor(view.viewmat, dtype=torch.float32)
-        return model.render(viewmat, K, width, height).image.numpy()
+        return model.render(
+            torch.as_tensor(viewmat, dtype=torch.float32),
+            torch.as_tensor(dataset.K, dtype=torch.float32),
+            dataset.width,
+            dataset.height,
+            near_plane(dataset.scene_radius),
+        ).image.numpy()
 
 
 def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> dict[str, float]:
@@ -106,10 +112,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
-    K = torch.as_tensor(dataset.K, dtype=torch.float32)
     views = {}
     for view in dataset.test_views:
-        pred = render_view(model, view, K, dataset.width, dataset.height)
+        pred = render_view(model, view.viewmat, dataset)
         # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
         # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
         pseudo = view.name.startswith(PSEUDO_PREFIX)

@@ -63,17 +63,13 @@ def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
 
 def orbit_frames(model, dataset, frames: int) -> np.ndarray:
     """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show)."""
-    import torch
-
     from .evaluate import render_view
     from .image_io import linear_to_srgb
 
     path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames)
-    K = torch.as_tensor(dataset.K, dtype=torch.float32)
     out = []
     for viewmat in path:
-        view = argparse.Namespace(viewmat=viewmat)
-        image = render_view(model, view, K, dataset.width, dataset.height)  # [H, W, C]
+        image = render_view(model, viewmat, dataset)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
         out.append((linear_to_srgb(image) * 255 + 0.5).astype(np.uint8))  # sRGB, as shown
     return np.stack(out)

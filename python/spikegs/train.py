@@ -25,7 +25,7 @@ from .config import MIN_GAUSSIANS, Config, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .file_lock import exclusive_lock
-from .gaussians import PARAMETER_NAMES, GaussianModel
+from .gaussians import PARAMETER_NAMES, GaussianModel, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
@@ -174,6 +174,7 @@ class Trainer:
         self.scale = intensity_scale(dataset)
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
         self.radius = float(dataset.scene_radius)
+        self.near = near_plane(self.radius)
         self.checkpoint_path = last_checkpoint(self.run_dir)
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
@@ -366,7 +367,7 @@ class Trainer:
             times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
         viewmats = self._poses(times, index)
         if targets.instant is not None:
-            instant = self.model.render(viewmats[0], self.K, w, h, **tap)
+            instant = self.model.render(viewmats[0], self.K, w, h, self.near, **tap)
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
                 instant.image,
@@ -382,7 +383,7 @@ class Trainer:
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
-                r = self.model.render(viewmat, self.K, w, h, **tap)
+                r = self.model.render(viewmat, self.K, w, h, self.near, **tap)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
@@ -413,7 +414,7 @@ class Trainer:
     def quick_psnr(self) -> float:
         """PSNR on the first test view (the progress bar's held-out figure)."""
         view = self.dataset.test_views[0]
-        image = render_view(self.model, view, self.K, self.dataset.width, self.dataset.height)
+        image = render_view(self.model, view.viewmat, self.dataset)
         return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
 
     def _after_step(self, loss: float, psnr: float, log, bar, on_eval) -> float:

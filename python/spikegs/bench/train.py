@@ -114,7 +114,7 @@ def held_out_scores(trainer: Trainer) -> dict[str, float]:
     ds = trainer.dataset
     scores = [
         view_metrics(
-            render_view(trainer.model, view, trainer.K, ds.width, ds.height),
+            render_view(trainer.model, view.viewmat, ds),
             np.asarray(view.image, dtype=np.float32) / trainer.scale,
         )
         for view in ds.test_views
