@@ -1372,6 +1372,25 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
         shutil.move(moved, dataset.root)  # the module's dataset, for the tests after this one
 
 
+def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path):
+    """The run's dataset simulated again into the same folder (other poses) is another dataset:
+    it overwrote the run's eval.json without a word."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    Trainer(data, config, tmp_path / "run", progress=False).train()
+    own = evaluate_run(tmp_path / "run", data, write_images=False)
+    again = simulate_dataset("solids", tmp_path / "data", **TINY, speed=0.1, overwrite=True)
+    with pytest.warns(UserWarning, match="holds other data than .* was trained on"):
+        other = evaluate_run(tmp_path / "run", again, write_images=False)
+    assert other["file"] == str(tmp_path / "run" / "eval-data.json")
+    assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
+
+
+def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):
+    with pytest.raises(FileNotFoundError, match="nope: no such run folder"):
+        evaluate_run(tmp_path / "nope", dataset)  # it said: scene.ply not found, train first
+
+
 def test_eval_on_another_scene_says_so(dataset, tmp_path):
     """A solids run scored on a wires dataset gave its numbers without a word."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})

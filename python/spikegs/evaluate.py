@@ -48,15 +48,25 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     folder gone, the data fingerprint the run's), else 'eval-DATASETNAME' (RUN/NAME.json and
     RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores;
     'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of the same directory
-    name holds the name."""
+    name holds the name. The run's folder with other data in it (simulated again, new poses) is
+    another dataset, warned of."""
     from .train import data_fingerprint  # (train imports us)
 
     own = train.get("dataset")
     root = Path(dataset.root).resolve()
-    if own is None or Path(own).resolve() == root:
+    same = "data" not in train or train["data"] == data_fingerprint(
+        dataset, intensity_scale(dataset)
+    )  # runs from before fingerprints: trusted
+    if own is None or (Path(own).resolve() == root and same):
         return "eval"
-    moved = not Path(own).exists() and "data" in train
-    if moved and train["data"] == data_fingerprint(dataset, intensity_scale(dataset)):
+    if Path(own).resolve() == root:
+        warnings.warn(
+            f"{root} holds other data than {run_dir} was trained on (its poses, intrinsics, "
+            f"training timestamps or intensity scale changed since: simulated again, or new "
+            f"poses): scored as another dataset, the run's own eval.json kept",
+            stacklevel=3,
+        )
+    elif not Path(own).exists() and same:  # moved
         return "eval"
     for i in itertools.count(1):
         name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")

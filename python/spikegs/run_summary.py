@@ -43,4 +43,6 @@ def trained_scene(run_dir: Path) -> Path:
             f"{ply} not found: the run stopped before its end; finish it with spikegs train "
             f"DATASET --out {run_dir} --resume"
         )
+    if not Path(run_dir).is_dir():
+        raise FileNotFoundError(f"{run_dir}: no such run folder (spikegs train ... --out RUN)")
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
