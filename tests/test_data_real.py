@@ -379,6 +379,15 @@ def test_nerf_bad_input(nerf, tmp_path):
     with pytest.raises(FileNotFoundError, match="r_1.dat.*no sharp image"):
         load_dataset(root)
 
+    for spike_path, error in ((None, FileNotFoundError), (3, ValueError)):  # null: a TypeError
+        root = copy(nerf, tmp_path / f"spike_path_{spike_path}")
+        edit_json(
+            root / "transforms_train.json",
+            lambda doc: doc["frames"][2].update(spike_path=spike_path),  # noqa: B023
+        )
+        with pytest.raises(error, match=r"frame '\./train/r_\d+'.*spike_path"):
+            load_dataset(root)
+
 
 def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
     root = copy(nerf, tmp_path / "double")  # twice the size, same aspect: resized
@@ -390,6 +399,16 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
     root = copy(nerf, tmp_path / "cropped")
     write_image(root / "test" / "r_0.exr", sharp[:, : W // 2])
     with pytest.raises(ValueError, match=rf"r_0: image {W // 2}x{H} .*camera's images are {W}x{H}"):
+        load_dataset(root)
+
+
+def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):
+    """A NaN firefly in a test view's EXR was loaded, and every score became NaN (null)."""
+    root = copy(nerf, tmp_path / "nan")
+    sharp = read_image(root / "test" / "r_0.exr")
+    sharp[5, 7] = np.nan
+    write_image(root / "test" / "r_0.exr", sharp)
+    with pytest.raises(ValueError, match=r"r_0.exr: 1 pixel\(s\) not finite, .* row 5, column 7"):
         load_dataset(root)
 
 
@@ -811,10 +830,10 @@ def test_nerf_spike_candidates_listed_once(tmp_path):
     from spikegs.data.nerf_layout import _spike_candidates
 
     for file_path in ("r_0", str(tmp_path.parent / "elsewhere" / "r_0.png")):  # no folder in DIR
-        assert _spike_candidates(tmp_path, {"file_path": file_path}) == [
+        assert _spike_candidates(tmp_path, {"file_path": file_path}, "t.json") == [
             tmp_path / "spike_data" / "r_0.dat"
         ]
-    assert len(_spike_candidates(tmp_path, {"file_path": "./train/r_0"})) == 2
+    assert len(_spike_candidates(tmp_path, {"file_path": "./train/r_0"}, "t.json")) == 2
 
 
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):

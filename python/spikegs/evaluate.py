@@ -49,21 +49,22 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores;
     'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of the same directory
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
-    another dataset, warned of."""
+    another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
+    units)."""
     from .train import data_fingerprint  # (train imports us)
 
     own = train.get("dataset")
     root = Path(dataset.root).resolve()
-    same = "data" not in train or train["data"] == data_fingerprint(
-        dataset, intensity_scale(dataset)
-    )  # runs from before fingerprints: trusted
+    run_scale = float(train.get("intensity_scale", intensity_scale(dataset)))
+    # runs from before fingerprints: trusted
+    same = "data" not in train or train["data"] == data_fingerprint(dataset, run_scale)
     if own is None or (Path(own).resolve() == root and same):
         return "eval"
     if Path(own).resolve() == root:
         warnings.warn(
-            f"{root} holds other data than {run_dir} was trained on (its poses, intrinsics, "
-            f"training timestamps or intensity scale changed since: simulated again, or new "
-            f"poses): scored as another dataset, the run's own eval.json kept",
+            f"{root} holds other data than {run_dir} was trained on (its poses, intrinsics or "
+            f"training timestamps changed since: simulated again, or new poses): scored as "
+            f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
     elif not Path(own).exists() and same:  # moved

@@ -89,8 +89,16 @@ def read_stored_image(path: str | Path) -> StoredImage:
     alpha that the file keeps unassociated (PNG, TIFF's unassociated alpha), in sRGB units.
     The file's metadata, not its extension, says which channel is alpha (an unspecified extra
     channel is not), whether colour is premultiplied, and whether it is sRGB (errors as
-    `read_image`)."""
+    `read_image`); ValueError where a value is not finite (a renderer's NaN firefly in an EXR
+    made every score NaN)."""
     pixels, spec = _read(path, unassociated_alpha=True)
+    bad = ~np.isfinite(pixels)
+    if bad.any():
+        y, x, c = map(int, np.argwhere(bad)[0])
+        raise ValueError(
+            f"{path}: {int(bad.any(axis=2).sum())} pixel(s) not finite, the first "
+            f"{pixels[y, x, c]} at row {y}, column {x}, channel {c}: fix the image"
+        )
     space = spec.get_string_attribute("oiio:ColorSpace").lower()
     floating = spec.format.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
     srgb = "lin" not in space and ("srgb" in space or not floating)

@@ -64,10 +64,16 @@ def _base(root: Path, file_path: str) -> Path:
     return path.with_suffix("") if path.suffix.lower() in IMAGE_EXTENSIONS else path
 
 
-def _spike_candidates(root: Path, frame: dict) -> list[Path]:
-    """Where a frame's spike file may be, in order (module docstring)."""
+def _spike_candidates(root: Path, frame: dict, source) -> list[Path]:
+    """Where a frame's spike file may be, in order (module docstring; a null spike_path: none)."""
     if "spike_path" in frame:
-        return [root / frame["spike_path"]]
+        path = frame["spike_path"]
+        if path is not None and not isinstance(path, str):
+            raise ValueError(
+                f"{source}: frame '{frame['file_path']}' spike_path expected a path or null (no "
+                f"spikes), found {path!r}"
+            )
+        return [] if path is None else [root / path]
     base = _base(root, frame["file_path"])
     return list(
         dict.fromkeys([root / SPIKE_DIR / f"{base}.dat", root / SPIKE_DIR / f"{base.name}.dat"])
@@ -78,7 +84,7 @@ def _find_spikes(root: Path, frames: list, sources: list) -> list[Path | None]:
     """Each frame's spike file [F], None where there is none; ValueError if two frames share one."""
     found, owner = [], {}
     for frame, source in zip(frames, sources):
-        path = next((p for p in _spike_candidates(root, frame) if p.is_file()), None)
+        path = next((p for p in _spike_candidates(root, frame, source) if p.is_file()), None)
         if path is not None and path in owner:
             raise ValueError(
                 f"{source}: frames '{owner[path]}' and '{frame['file_path']}' share the spike "
@@ -168,9 +174,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     images = [_image(root, f) if t else None for f, t in zip(frames, test)]
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
         if found is None and (image is None or not is_test):
-            tried = ", ".join(str(p) for p in _spike_candidates(root, frame))
+            tried = [str(p) for p in _spike_candidates(root, frame, source)]
+            where = f"tried {', '.join(tried)}" if tried else "its spike_path is null"
             raise FileNotFoundError(
-                f"{source}: spike file of frame '{frame['file_path']}' not found (tried {tried})"
+                f"{source}: spike file of frame '{frame['file_path']}' not found ({where})"
                 + (", and no sharp image either" if is_test else "")
             )
     src, (height, width), what = _sizes(path, camera, images, options)
