@@ -250,9 +250,13 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     config = load_config("tfp33", {"train": {"iterations": 6, "init_gaussians": 200}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     assert np.isfinite(evaluate_run(tmp_path / "run", dataset)["psnr"])
-    # run again with other images: the held-out views are made afresh, not kept from the first
+    # run again with other images: the held-out views are made afresh, not kept from the first;
+    # a train_every stated in meta.json is kept (it was replaced by the default)
+    doc = json.loads((raw / "meta.json").read_text())
+    (raw / "meta.json").write_text(json.dumps({**doc, "train_every": 3}))
     assert main(["poses", str(raw), "--count", "24"]) == 0
     again = load_dataset(raw)
+    assert again.meta["train_every"] == 3 and np.diff(again.train_timestamps).min() == 3
     assert [v.name for v in again.test_views] != [v.name for v in views]
     assert sorted(p.stem for p in (raw / "test").iterdir()) == [v.name for v in again.test_views]
     out = capsys.readouterr().out  # intrinsics estimated afresh; poses compared, not scored
@@ -283,6 +287,7 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         ({"fx": 175.8, "fy": 175.8}, r"states \['fx', 'fy'\] of the intrinsics"),  # replaced
         ({"scene_center": "origin"}, "scene_center expected 3 finite numbers"),
         ({"scene_radius": 0}, "scene_radius expected a finite number > 0"),
+        ({"train_every": 2.5}, "meta.json: train_every expected a positive integer"),
     ]
     for i, (change, message) in enumerate(cases):
         raw = tmp_path / str(i)

@@ -41,6 +41,7 @@ from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth
 from .data.simulate import default_train_every, train_timestamps
 from .data.sources import MissingDependencyError
 from .data.trajectory import Trajectory
+from .number_checks import is_int
 from .point_cloud import POINTS, write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
@@ -157,12 +158,23 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
     return messages
 
 
+def _train_every(meta: dict, meta_path: Path, num_readouts: int) -> int:
+    """A raw recording's readouts between training timestamps: meta.json's `train_every` where it
+    states one (a positive integer, else ValueError), else default_train_every."""
+    every = meta.get("train_every")
+    if every is None:
+        return default_train_every(num_readouts)
+    if not (is_int(every) and every > 0):
+        raise ValueError(f"{meta_path}: train_every expected a positive integer, found {every!r}")
+    return int(every)
+
+
 def _held_out_split(
-    streams, trajectory: Trajectory, registered: np.ndarray
+    streams, trajectory: Trajectory, registered: np.ndarray, train_every: int
 ) -> tuple[list[TestView], np.ndarray]:
     """A raw recording's held-out views and training timestamps [M]: every HOLDOUT_EVERY-th
     `registered` readout whose TFP(65) fits in the stream is held out, that TFP [H, W, C] its
-    ground truth; timestamps every default_train_every readouts whose 65-readout windows lie
+    ground truth; timestamps every `train_every` readouts whose 65-readout windows lie
     between the first and last registered readouts (the trajectory is held constant outside) and
     clear of the held-out views'. ValueError when either comes out empty."""
     half, num = NEEDED_WINDOW // 2, len(streams[0])
@@ -173,7 +185,7 @@ def _held_out_split(
             f"{registered[::HOLDOUT_EVERY].tolist()} has room for a {NEEDED_WINDOW}-readout "
             f"ground truth in the {num}-readout stream"
         )
-    ks = train_timestamps(num, np.array(held), default_train_every(num))
+    ks = train_timestamps(num, np.array(held), train_every)
     ks = ks[(ks - WINDOW_MARGIN >= registered[0]) & (ks + WINDOW_MARGIN <= registered[-1])]
     if not len(ks):
         raise ValueError(
@@ -237,6 +249,7 @@ def estimate_poses(
     split = (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists()
     ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
     raw = ours or not split
+    train_every = _train_every(meta, meta_path, num) if raw else None
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
         raise ValueError(
@@ -304,9 +317,9 @@ def estimate_poses(
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
     if raw:  # held-out views and training timestamps too, so that the recording trains
-        views, ks = _held_out_split(streams, trajectory, recon.readouts)  # checked before writing
+        views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every)
         meta.update(
-            train_every=default_train_every(num),
+            train_every=train_every,
             test_ground_truth=ground_truth_note(0, len(views)),
             held_out_by=HELD_OUT_BY,
         )
