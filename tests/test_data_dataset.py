@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from spikegs.cli import main
-from spikegs.data import SCENES, FrameSequenceSource, load_dataset, simulate_dataset
+from spikegs.data import (
+    SCENES,
+    Dataset,
+    FrameSequenceSource,
+    Trajectory,
+    load_dataset,
+    simulate_dataset,
+)
 from spikegs.data.sources import camera_matrix, intrinsics
 from spikegs.data.trajectory import look_at
 from spikegs.spikes.stream import save_dat
@@ -473,3 +480,21 @@ def test_cli(tmp_path, capsys):
     assert "--overwrite" in capsys.readouterr().err
     assert main(["simulate", "--scene", "teapot", "--out", str(tmp_path / "t")]) == 2
     assert "solids" in capsys.readouterr().err
+
+
+def test_a_scene_far_from_the_origin_is_warned_of(small):
+    """Poses in UTM-like coordinates: float32 positions round by pixels there (1e6 units away
+    cost 2 dB at 64²), said, not silent; a scene near the origin is not warned of."""
+
+    def moved(offset: float) -> Dataset:
+        c2w = np.linalg.inv(small.trajectory.viewmats)  # [P, 4, 4]
+        c2w[:, :3, 3] += offset
+        meta = {**small.meta, "scene_center": list(small.scene_center + offset)}
+        trajectory = Trajectory(small.trajectory.readouts, np.linalg.inv(c2w))
+        return Dataset(small.root, meta, small.streams, trajectory, small.train_timestamps, [])
+
+    with pytest.warns(UserWarning, match="lies 1.73e\\+06 units from the origin, .* round by"):
+        moved(1e6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        moved(100.0)

@@ -60,6 +60,9 @@ class TestView:
     readout: float | None  # on-path readout time, None off the path
 
 
+FLOAT32_ROUNDING_PX = 0.1  # Dataset: a scene far from the origin rounds by more: warned
+
+
 class Dataset:
     """A loaded dataset. `stream` is the SpikeStream of a mono dataset and the list [r, g, b] of a
     colour one; `streams` is always the list, one SpikeStream per channel."""
@@ -79,6 +82,22 @@ class Dataset:
         self.test_views: list[TestView] = test_views
         self.scene_center = np.asarray(meta["scene_center"], np.float64)  # [3]
         self.scene_radius = float(meta["scene_radius"])
+        self._warn_about_float32_rounding()
+
+    def _warn_about_float32_rounding(self) -> None:
+        """A UserWarning where the scene lies so far from the origin (UTM or GPS coordinates)
+        that float32 positions, the Gaussians' and the cameras', round by more than
+        FLOAT32_ROUNDING_PX pixels there (1e6 units away cost 2 dB at 64²)."""
+        offset = float(np.linalg.norm(self.scene_center))
+        distance = np.median(np.linalg.norm(self.trajectory.centers - self.scene_center, axis=1))
+        pixels = float(self.K[0, 0]) * offset * 2.0**-24 / max(float(distance), 1e-300)
+        if pixels > FLOAT32_ROUNDING_PX:
+            warnings.warn(
+                f"{self.root}: the scene's centre lies {offset:.3g} units from the origin, where "
+                f"float32 positions round by ~{pixels:.2g} pixels in these views: subtract "
+                f"scene_center from the poses (and the point cloud) for full accuracy",
+                stacklevel=3,
+            )
 
     @property
     def num_readouts(self) -> int:
