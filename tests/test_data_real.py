@@ -758,7 +758,13 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
         root / "transforms_test.json", lambda doc: doc["frames"][1].update(fl_x=camera["fl_x"])
     )
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.0, p1=0.0))
-    load_dataset(root)  # zero distortion: no warning
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(camera_model="OPENCV"))
+    load_dataset(root)  # zero distortion, a pinhole model: no warning
+    fisheye = lambda doc: doc["frames"][1].update(camera_model="OPENCV_FISHEYE")  # noqa: E731
+    edit_json(root / "transforms_test.json", fisheye)  # it loaded as a pinhole, without a word
+    with pytest.raises(ValueError, match="camera_model 'OPENCV_FISHEYE' of frame './test/r_1'"):
+        load_dataset(root)
+    edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1].pop("camera_model"))
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.1))
     with pytest.warns(UserWarning, match="distortion \\{'k1': 0.1\\} ignored.*pinhole"):
         load_dataset(root)

@@ -49,6 +49,9 @@ SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
 CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+# nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
+# others (fisheye, equirectangular, ...) a pinhole rasterizer cannot render
+PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "SIMPLE_RADIAL", "RADIAL")
 CAMERA_RANGES = {  # key: (in range, what is expected)
     "camera_angle_x": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
     "fl_x": (lambda v: v > 0, "> 0 (pixels)"),
@@ -587,7 +590,16 @@ def read_camera(docs: list, frames: list, sources: list) -> dict:
     """The one camera {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS): the first frame's
     file's keys (docs [F], each frame's file's JSON; sources [F], its path), the frame's own file's,
     then the frame's (nerfstudio), each checked (`camera_number`); ValueError naming two frames that
-    differ; a warning for non-zero distortion, which the pinhole rasterizer does not model."""
+    differ or a camera_model that is not a pinhole; a warning for non-zero distortion, which the
+    pinhole rasterizer does not model."""
+    for doc, frame, source in zip(docs, frames, sources):
+        model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
+        if model not in PINHOLE_MODELS:
+            raise ValueError(
+                f"{source}: camera_model {model!r} of frame '{frame['file_path']}': the "
+                f"rasterizer renders pinhole cameras ({', '.join(PINHOLE_MODELS)}); rectify the "
+                f"frames to one"
+            )
     keys = CAMERA_KEYS + DISTORTION_KEYS
     merged = [
         {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
