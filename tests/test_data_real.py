@@ -653,6 +653,9 @@ def test_malformed_files(llff, nerf, tmp_path):
     (root / "spikegs.json").write_text('{"flip": false,')
     with pytest.raises(ValueError, match="spikegs.json: not valid JSON"):
         load_dataset(root)
+    (root / "spikegs.json").write_text('{"flip": false, "height": 8, "flip": true}')  # last won
+    with pytest.raises(ValueError, match=r"spikegs.json: keys given twice .* \['flip'\]"):
+        load_dataset(root)
     (root / "spikegs.json").unlink()
     (root / "poses_bounds.npy").write_bytes(pickle.dumps([[0.0] * 17]))
     with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):
