@@ -115,7 +115,7 @@ def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
         sh_degree=s["sh_degree"],
         background=s["background"],
         screen_points=s["screen_points"],
-        **({"screen_abs": s["screen_abs"]} if "screen_abs" in s else {}),
+        **{k: s[k] for k in ("screen_abs", "near", "far") if k in s},
     )
 
 
@@ -416,6 +416,10 @@ def _bad_inputs():
             ("K-last-row", {"K": s["K"] * 2}, "skew"),
             ("background-nan", {"background": s["background"] * float("nan")}, "background"),
             ("scales-log", {"scales": s["scales"].log()}, "scales: expected activated"),
+            # read by the reference, ignored by the op: images that differed silently
+            ("screen-points-non-zero", {"screen_points": torch.ones(6, 2)}, "expected zeros"),
+            ("near-str", {"near": "0.1"}, "near, far: expected"),  # TypeErrors
+            ("far-none", {"far": None}, "near, far: expected"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
             (
                 "sh-degree-float",

@@ -6,6 +6,7 @@ The maths is in docs/rasterizer.md.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import NamedTuple
 
 import torch
@@ -180,8 +181,9 @@ def rasterize(
     map, not checked for rigidity), K [3, 3] intrinsics (no gradient:
     K.grad stays None), background [C].
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
-    `screen_points`, an optional [N, 2] zero tensor requiring grad, receives the gradient of the
-    projected 2D means (as in 3DGS densification). `screen_abs`, an optional [N, 2] tensor, has
+    `screen_points`, an optional [N, 2] tensor of zeros (refused otherwise) requiring grad,
+    receives the gradient of the projected 2D means (as in 3DGS densification; the reference adds
+    its values to them, this op ignores them). `screen_abs`, an optional [N, 2] tensor, has
     each backward add the compositing's per-pixel shares of that gradient summed in absolute value
     (AbsGS's densification signal: shares of opposite sign do not cancel). Culled Gaussians get
     radius 0 and zero gradient.
@@ -230,6 +232,11 @@ def rasterize(
             raise ValueError(f"background: expected finite values, got {background.tolist()}")
     if screen_points is not None:
         _check("screen_points", screen_points, (n, 2), dtype)
+        if screen_points.detach().any():  # the reference adds them to the 2D means
+            raise ValueError(
+                "screen_points: expected zeros, a tap that receives the 2D means' gradient (the "
+                "op does not read its values)"
+            )
     if screen_abs is not None:
         _check("screen_abs", screen_abs, (n, 2), dtype)
     for name, value in (("width", width), ("height", height)):
@@ -238,8 +245,9 @@ def rasterize(
         if not 0 < value <= MAX_SIZE:
             raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")
     width, height = int(width), int(height)
-    if not 0 < near < far:
-        raise ValueError(f"near, far: expected 0 < near < far, got near={near}, far={far}")
+    real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
+    if not (real(near) and real(far) and 0 < near < far):
+        raise ValueError(f"near, far: expected 0 < near < far, got near={near!r}, far={far!r}")
     degree, coeffs = _sh_layout(colors, sh_degree)
     settings = dict(
         width=width,
