@@ -111,7 +111,14 @@ def constant_source(level: float, size: int = 16, test_views: bool = True) -> Fr
 
 def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     ds = simulate_dataset(
-        constant_source(0.6), tmp_path / "const", height=16, width=16, readouts=4000, progress=False
+        constant_source(0.6),
+        tmp_path / "const",
+        height=16,
+        width=16,
+        readouts=4000,
+        test_on_path=0,  # two frames, at the ends: none inside; one view held out
+        test_off_path=1,
+        progress=False,
     )
     p = ds.meta["sim"]
     rate = ds.stream.tfp(2000, 4000).mean()
@@ -133,7 +140,7 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),
         (
             constant_source(5.0),
-            {"height": 16, "width": 16},
+            {"height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1},
             "100% of the held-out views' pixels fire every readout",
         ),
     ]

@@ -134,6 +134,16 @@ def test_frame_sequence_source(tmp_path):
             assert view.readout == traj.readouts[i]
             np.testing.assert_allclose(view.image[..., 0], train[i] @ LUMA_709 * rate, atol=1e-6)
     assert [v.readout for v in ds.test_views][2:] == [None, None]
+    # more test views than the sequence holds: said (2 distinct picks of the 4 frames inside)
+    with (
+        pytest.warns(UserWarning, match="gives 2 on-path and 2 off-path test views of the 3 and 3"),
+        pytest.warns(UserWarning, match=r"33\.\d pixels between two frames of the sequence"),
+        pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"),
+    ):
+        simulate_dataset(
+            tmp_path, tmp_path / "few", height=32, width=32, readouts=501, test_on_path=3,
+            test_off_path=3, progress=False,
+        )  # fmt: skip
 
 
 def test_frame_sequence_missing_image(tmp_path):

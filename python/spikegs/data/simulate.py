@@ -325,11 +325,16 @@ def simulate_dataset(
         )
         for i, t in enumerate(on_path)
     ]
-    views += [
-        TestView(name, viewmat, image * rate, None)
-        for name, viewmat, image in source.off_path_views(test_off_path)
-    ]
+    off_path = source.off_path_views(test_off_path)
+    views += [TestView(name, viewmat, image * rate, None) for name, viewmat, image in off_path]
     check_test_views(views, f"scene '{source.name}'")  # before any work
+    if len(on_path) < test_on_path or len(off_path) < test_off_path:
+        warnings.warn(  # a frame sequence holds so many frames and test views
+            f"scene '{source.name}' gives {len(on_path)} on-path and {len(off_path)} off-path "
+            f"test views of the {test_on_path} and {test_off_path} asked (an on-path view is a "
+            f"frame {2 * WINDOW_MARGIN} readouts or more from the ends, distinct)",
+            stacklevel=2,
+        )
     warn_about_data(views, trajectory, params)
     times = source.light_times(readouts, frame_every)  # [F]
     warn_about_frames(source, trajectory, times)
