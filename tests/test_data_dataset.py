@@ -111,15 +111,8 @@ def constant_source(level: float, size: int = 16, test_views: bool = True) -> Fr
 
 def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     ds = simulate_dataset(
-        constant_source(0.6),
-        tmp_path / "const",
-        height=16,
-        width=16,
-        readouts=4000,
-        test_on_path=0,  # two frames, at the ends: none inside; one view held out
-        test_off_path=1,
-        progress=False,
-    )
+        constant_source(0.6), tmp_path / "const", height=16, width=16, readouts=4000, progress=False
+    )  # the default count of test views: those the source has (two frames, one held-out view)
     p = ds.meta["sim"]
     rate = ds.stream.tfp(2000, 4000).mean()
     assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)

@@ -408,7 +408,9 @@ def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):
     sharp = read_image(root / "test" / "r_0.exr")
     sharp[5, 7] = np.nan
     write_image(root / "test" / "r_0.exr", sharp)
-    with pytest.raises(ValueError, match=r"r_0.exr: 1 pixel\(s\) not finite, .* row 5, column 7"):
+    with pytest.raises(
+        ValueError, match=r"r_0.exr: 1 pixel\(s\) of colour not finite, .* row 5, column 7"
+    ):
         load_dataset(root)
 
 

@@ -134,9 +134,10 @@ def test_frame_sequence_source(tmp_path):
             assert view.readout == traj.readouts[i]
             np.testing.assert_allclose(view.image[..., 0], train[i] @ LUMA_709 * rate, atol=1e-6)
     assert [v.readout for v in ds.test_views][2:] == [None, None]
-    # more test views than the sequence holds: said (2 distinct picks of the 4 frames inside)
+    # more test views than the sequence holds: said; 3 of its 4 frames inside (picks between the
+    # ends gave 2 distinct)
     with (
-        pytest.warns(UserWarning, match="gives 2 on-path and 2 off-path test views of the 3 and 3"),
+        pytest.warns(UserWarning, match="gives 3 on-path and 2 off-path test views of the 3 and 3"),
         pytest.warns(UserWarning, match=r"33\.\d pixels between two frames of the sequence"),
         pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"),
     ):
@@ -319,6 +320,15 @@ def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path)
         )
     _write_tiff(tmp_path / "extra.tif", rgba(0.6), oiio.UINT16, unassociated=False, alpha=False)
     np.testing.assert_allclose(read_frame(tmp_path / "extra", 1.0), linear, atol=1e-4)  # no alpha
+    # a non-finite value in a channel left out (a renderer's depth: inf in the background) is
+    # not the image's; in its colour it is refused, naming the pixel
+    depth = np.concatenate([np.full((2, 2, 3), 0.5 * linear), np.full((2, 2, 1), np.inf)], 2)
+    _write_tiff(tmp_path / "depth.tif", depth, oiio.FLOAT, unassociated=False, alpha=False)
+    np.testing.assert_allclose(read_frame(tmp_path / "depth", 1.0), 0.5 * linear, atol=1e-6)
+    depth[1, 0, 2] = np.nan
+    _write_tiff(tmp_path / "nan.tif", depth, oiio.FLOAT, unassociated=False, alpha=False)
+    with pytest.raises(ValueError, match="nan.tif: 1 pixel.* of colour not finite, .* row 1, col"):
+        read_frame(tmp_path / "nan", 1.0)
 
 
 # -- camera checks shared by `spikegs simulate --scene FILE` and the NeRF layout ------------------

@@ -454,6 +454,13 @@ def test_bad_input_raises(overrides, name):
 
 
 @needs_cpp
+def test_near_and_far_as_numbers_or_scalar_tensors():
+    plain = render(spikegs.rasterize, _BAD_SCENE, near=0.05, far=50)
+    tensors = render(spikegs.rasterize, _BAD_SCENE, near=torch.tensor(0.05), far=torch.tensor(50))
+    assert torch.equal(plain.image, tensors.image)
+
+
+@needs_cpp
 @pytest.mark.parametrize("output", ["alpha", "depths"])
 def test_a_loss_on_one_output_alone(output):
     """Outputs the loss leaves out reach the backward as None (the image's too)."""

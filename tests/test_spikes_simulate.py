@@ -125,6 +125,8 @@ def test_frame_every_that_rounds_onto_the_last_readout():
     spikes = simulate_spikes(ramp, 6, frame_every=1e-6, seed=2)
     assert len(calls) <= 2 * 6
     np.testing.assert_array_equal(spikes, simulate_spikes(ramp, 6, frame_every=1, seed=2))
+    with pytest.raises(ValueError, match="samples the light .* times, over 1e\\+08"):
+        simulate_spikes(ramp, 300, frame_every=1e-7)  # 3e9 times: 24 GB before any frame
     for n in range(1, 400):
         for every in (0.3, 0.7, 1.1, 2.9):
             times = sample_times(n, every)

@@ -55,9 +55,11 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
 
     own = train.get("dataset")
     root = Path(dataset.root).resolve()
-    run_scale = float(train.get("intensity_scale", intensity_scale(dataset)))
-    # runs from before fingerprints: trusted
-    same = "data" not in train or train["data"] == data_fingerprint(dataset, run_scale)
+    known = "data" in train  # runs from before fingerprints: their own folder is trusted
+    if known:
+        scale = train.get("intensity_scale")
+        scale = intensity_scale(dataset) if scale is None else float(scale)
+    same = not known or train["data"] == data_fingerprint(dataset, scale)
     if own is None or (Path(own).resolve() == root and same):
         return "eval"
     if Path(own).resolve() == root:
@@ -67,7 +69,7 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
             f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
-    elif not Path(own).exists() and same:  # moved
+    elif not Path(own).exists() and known and same:  # moved
         return "eval"
     for i in itertools.count(1):
         name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")

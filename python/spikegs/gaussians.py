@@ -11,15 +11,17 @@ from .rasterize import RasterizeResult, rasterize
 from .sh import num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
-# the near plane, a fraction of the scene's radius: the rasterizer's default of 0.01 world units
-# culled every Gaussian of a scene measured in metres a thousand times smaller (cameras 0.003 from
-# its centre), and training learnt the background alone
+# the near plane: the rasterizer's 0.01 world units (3DGS's), lowered in proportion for a scene of
+# radius under 1, whose units are small (at 0.01 every Gaussian of a scene a thousand times
+# smaller, cameras 0.003 from its centre, was culled and training learnt the background alone);
+# not raised for a larger one, whose content may lie far nearer a camera than its radius (a
+# forward-facing capture's loose scene sphere)
 NEAR_FRACTION = 0.01
 
 
 def near_plane(scene_radius: float) -> float:
     """The near plane (world units) for a scene of radius `scene_radius`."""
-    return NEAR_FRACTION * scene_radius
+    return NEAR_FRACTION * min(scene_radius, 1.0)
 
 
 class GaussianModel:

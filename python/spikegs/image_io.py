@@ -92,13 +92,6 @@ def read_stored_image(path: str | Path) -> StoredImage:
     `read_image`); ValueError where a value is not finite (a renderer's NaN firefly in an EXR
     made every score NaN)."""
     pixels, spec = _read(path, unassociated_alpha=True)
-    bad = ~np.isfinite(pixels)
-    if bad.any():
-        y, x, c = map(int, np.argwhere(bad)[0])
-        raise ValueError(
-            f"{path}: {int(bad.any(axis=2).sum())} pixel(s) not finite, the first "
-            f"{pixels[y, x, c]} at row {y}, column {x}, channel {c}: fix the image"
-        )
     space = spec.get_string_attribute("oiio:ColorSpace").lower()
     floating = spec.format.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
     srgb = "lin" not in space and ("srgb" in space or not floating)
@@ -107,4 +100,12 @@ def read_stored_image(path: str | Path) -> StoredImage:
     alpha = pixels[..., a : a + 1] if a >= 0 else None
     others = np.delete(pixels, a, axis=2) if a >= 0 else pixels  # [H, W, C - 1 or C]
     colour = others[..., : 3 if others.shape[2] >= 3 else 1]
+    for name, values in (("colour", colour), ("alpha", alpha)):  # a depth channel may be inf
+        bad = ~np.isfinite(values) if values is not None else None
+        if bad is not None and bad.any():
+            y, x, c = map(int, np.argwhere(bad)[0])
+            raise ValueError(
+                f"{path}: {int(bad.any(axis=2).sum())} pixel(s) of {name} not finite, the first "
+                f"{values[y, x, c]} at row {y}, column {x}: fix the image"
+            )
     return StoredImage(colour, alpha, premultiplied=not unassociated, srgb=srgb)

@@ -245,6 +245,9 @@ def rasterize(
         if not 0 < value <= MAX_SIZE:
             raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")
     width, height = int(width), int(height)
+    near, far = (
+        v.item() if isinstance(v, torch.Tensor) and v.numel() == 1 else v for v in (near, far)
+    )
     real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
     if not (real(near) and real(far) and 0 < near < far):
         raise ValueError(f"near, far: expected 0 < near < far, got near={near!r}, far={far!r}")

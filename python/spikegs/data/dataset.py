@@ -90,7 +90,9 @@ class Dataset:
         FLOAT32_ROUNDING_PX pixels there (1e6 units away cost 2 dB at 64²)."""
         offset = float(np.linalg.norm(self.scene_center))
         distance = np.median(np.linalg.norm(self.trajectory.centers - self.scene_center, axis=1))
-        pixels = float(self.K[0, 0]) * offset * 2.0**-24 / max(float(distance), 1e-300)
+        if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
+            return
+        pixels = float(self.K[0, 0]) * offset * 2.0**-24 / float(distance)
         if pixels > FLOAT32_ROUNDING_PX:
             warnings.warn(
                 f"{self.root}: the scene's centre lies {offset:.3g} units from the origin, where "

@@ -43,6 +43,7 @@ from .trajectory import Trajectory, project_points
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
 DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), linear between
+DEFAULT_TEST_VIEWS = 8  # held-out views on the path, and off it
 MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
 # Data that every method fails on gets a warning before simulating: more of the held-out views'
 # pixels saturated than this fraction, dark spikes at this fraction of the light's mean rate, a
@@ -255,8 +256,8 @@ def simulate_dataset(
     overwrite: bool = False,
     color: bool = False,
     frame_every: float = DEFAULT_FRAME_EVERY,
-    test_on_path: int = 8,
-    test_off_path: int = 8,
+    test_on_path: int | None = None,
+    test_off_path: int | None = None,
     train_every: int | None = None,
     spp: int = 16,
     flip: bool = True,
@@ -265,9 +266,14 @@ def simulate_dataset(
 ) -> Dataset:
     """Simulate a dataset into `out` and return it loaded. `speed`: degrees of orbit per readout
     (spiral sources); `frame_every`: readouts between two rendered light frames (the simulator
-    interpolates linearly); `train_every`: readouts between training timestamps (default
+    interpolates linearly); `test_on_path`, `test_off_path`: held-out views on and off the path
+    (default DEFAULT_TEST_VIEWS each, or as many as a frame sequence has; fewer than a count given
+    are warned of); `train_every`: readouts between training timestamps (default
     `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
+    asked = (test_on_path, test_off_path)
+    test_on_path = DEFAULT_TEST_VIEWS if test_on_path is None else test_on_path
+    test_off_path = DEFAULT_TEST_VIEWS if test_off_path is None else test_off_path
     # numpy numbers and whole floats were written into meta.json (a TypeError after the
     # simulation, or a dataset that does not load): converted or refused before any work
     height, width, readouts, test_on_path, test_off_path, spp = whole_numbers(
@@ -328,7 +334,7 @@ def simulate_dataset(
     off_path = source.off_path_views(test_off_path)
     views += [TestView(name, viewmat, image * rate, None) for name, viewmat, image in off_path]
     check_test_views(views, f"scene '{source.name}'")  # before any work
-    if len(on_path) < test_on_path or len(off_path) < test_off_path:
+    if any(n is not None and got < n for n, got in zip(asked, (len(on_path), len(off_path)))):
         warnings.warn(  # a frame sequence holds so many frames and test views
             f"scene '{source.name}' gives {len(on_path)} on-path and {len(off_path)} off-path "
             f"test views of the {test_on_path} and {test_off_path} asked (an on-path view is a "

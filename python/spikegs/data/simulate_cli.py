@@ -38,8 +38,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="readouts between rendered light frames (linear in between)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
-    parser.add_argument("--test-on-path", type=int, default=8, help="held-out on-path views")
-    parser.add_argument("--test-off-path", type=int, default=8, help="off-path test views")
+    parser.add_argument(
+        "--test-on-path", type=int, help="held-out on-path views (default 8, or a sequence's)"
+    )
+    parser.add_argument(
+        "--test-off-path", type=int, help="off-path test views (default 8, or a sequence's)"
+    )
     parser.add_argument(
         "--train-every",
         type=int,

@@ -51,7 +51,7 @@ CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 # nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
 # others (fisheye, equirectangular, ...) a pinhole rasterizer cannot render
-PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "SIMPLE_RADIAL", "RADIAL")
+PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "FULL_OPENCV", "SIMPLE_RADIAL", "RADIAL")
 CAMERA_RANGES = {  # key: (in range, what is expected)
     "camera_angle_x": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
     "fl_x": (lambda v: v > 0, "> 0 (pixels)"),
@@ -395,8 +395,12 @@ class FrameSequenceSource(Source):
     def on_path_times(self, num_readouts: int, count: int, margin: int) -> np.ndarray:
         readouts = self.frame_readouts(num_readouts)
         inside = readouts[(readouts >= margin) & (readouts <= num_readouts - 1 - margin)]
-        pick = np.round(np.linspace(0, len(inside) - 1, count + 2)[1:-1]).astype(int)
-        return np.unique(inside[pick]) if len(inside) else inside
+        if count >= len(inside):
+            return inside
+        pick = np.unique(np.round(np.linspace(0, len(inside) - 1, count + 2)[1:-1]).astype(int))
+        if len(pick) < count:  # picks between the ends repeat: spread over them all instead
+            pick = np.round(np.linspace(0, len(inside) - 1, count)).astype(int)
+        return inside[pick]
 
     def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
         return self._test_views[:count]

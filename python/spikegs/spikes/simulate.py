@@ -26,6 +26,8 @@ _CORE_DEFAULTS = _C.SimParams()
 Source = Union[np.ndarray, Callable[[float], np.ndarray]]
 
 
+MAX_LIGHT_TIMES = 1e8  # a callable's sampling times: 0.8 GB (a frame every 1e-7 readouts: 24 GB)
+
 # the smallest threshold (photo-electrons a spike) at which the normal form of shot noise keeps
 # the firing rate within 0.5% of rate_at_one·I at the default rate_at_one (I up to 1.5)
 MIN_SHOT_THRESHOLD = 2.0
@@ -114,6 +116,12 @@ class _Frames:
         if callable(source):
             if not (is_number(frame_every) and frame_every > 0):
                 raise ValueError(f"frame_every expected a finite number > 0, found {frame_every}")
+            if (num_readouts - 1) / frame_every > MAX_LIGHT_TIMES:  # their times alone: 8 bytes
+                raise ValueError(
+                    f"frame_every {frame_every:g} samples the light {num_readouts - 1:.0f} / "
+                    f"{frame_every:g} times, over {MAX_LIGHT_TIMES:.0e}: a larger frame_every "
+                    f"(each readout interpolates the two frames around it)"
+                )
             self.times = sample_times(num_readouts, frame_every)  # [F]
             self._cache[0] = _checked_frame(source(0.0), None, "frame at t=0")
             self.shape = self._cache[0].shape
