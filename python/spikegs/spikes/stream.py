@@ -204,14 +204,14 @@ class SpikeStream:
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
-        if not _whole(max_interval) or max_interval < 1:
+        if not _whole(max_interval) or not 1 <= max_interval < 2**63:  # the core's int64
             raise ValueError(f"max_interval expected a positive int, found {max_interval}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]."""
-        stop = len(self) if stop is None else stop
+        start, stop = as_ints(start=start, stop=len(self) if stop is None else stop)
         if not 0 <= start <= stop <= len(self):
             raise ValueError(f"readouts [{start}, {stop}) expected within [0, {len(self)})")
         mem = _C.SpikeLayout.memory(self.height, self.width)
