@@ -308,11 +308,18 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     (tmp_path / "run" / "train.json").unlink()
     (tmp_path / "run" / "scene.ply").unlink()
     (tmp_path / "run" / "checkpoints").mkdir()
-    killed = tmp_path / "run" / "checkpoints" / "last.pt.999.tmp"  # a process killed mid-save
+    killed = tmp_path / "run" / "checkpoints" / ".last.pt.999.tmp"  # a process killed mid-save
     killed.write_bytes(b"half")
     summary = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert summary["iterations"] == 2 and (tmp_path / "run" / "checkpoints" / "last.pt").exists()
     assert not killed.exists()  # each such kill left one
+    # a user's file ending .tmp is not ours to sweep: a fresh run there is refused, as with any
+    # other file (training deleted it)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "results.tmp").write_text("important")
+    with pytest.raises(FileExistsError, match="holds files that are not a run's \\(results.tmp"):
+        Trainer(dataset, config, tmp_path / "mine", progress=False).train()
+    assert (tmp_path / "mine" / "results.tmp").read_text() == "important"
 
 
 @pytest.mark.parametrize("channels, degree", [(1, 0), (3, 2), (1, 3)])
@@ -893,6 +900,7 @@ def test_render_refuses_an_unwritable_video_before_rendering(
     (tmp_path / "dir.gif").mkdir()
     (tmp_path / "afile").write_text("")
     cases = [("dir.gif", []), ("v.mp4", ["--fps", "0"]), ("v.gif", ["--fps", "1000"])]
+    cases += [("v.mp4", ["--fps", "99999999999"])]  # PyAV's OverflowError, after rendering
     cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2

@@ -14,6 +14,19 @@ def _temporary_name(path: Path, writer: str) -> str:
     return f".{path.name}.{writer}.tmp"
 
 
+def is_temporary(name: str) -> bool:
+    """Whether a file name is a temporary file's of ours (`_temporary_name`, DatWriter's): hidden
+    and ending .tmp; a user's `notes.tmp` is not."""
+    return name.startswith(".") and name.endswith(".tmp")
+
+
+def sweep_temporaries(folder: Path) -> None:
+    """Remove every temporary file of ours in `folder`; call it where no other process can be
+    writing there (a run folder, under the run's lock)."""
+    for stale in Path(folder).glob(".*.tmp"):
+        stale.unlink(missing_ok=True)
+
+
 def sweep_killed_writes(path: Path) -> None:
     """Remove the temporary files that writers of `path` killed mid-write left beside it; call it
     where no other process can be writing `path` (under the lock that its writers hold)."""
@@ -35,6 +48,11 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def write_text_atomically(path: Path, text: str) -> None:
+    """`path.write_text(text)` through `write_atomically`."""
+    write_atomically(path, lambda tmp: tmp.write_text(text))
 
 
 def save_atomically(obj, path: Path) -> None:

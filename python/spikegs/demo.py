@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import strict_json
+from .atomic_save import write_text_atomically
 from .bench.common import print_table
 from .cli import positive_int
 from .config import load_config, read_yaml
@@ -220,7 +221,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         "total_seconds": total,
         "resumed": resumed,
     }
-    (out / RESULTS).write_text(strict_json.dumps(payload, indent=2))
+    write_text_atomically(out / RESULTS, strict_json.dumps(payload, indent=2))
     print()
     print_table(
         [

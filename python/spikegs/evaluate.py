@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from . import strict_json
+from .atomic_save import write_text_atomically
 from .data.real import PSEUDO_PREFIX
 from .gaussians import GaussianModel, near_plane
 from .image_io import write_image
@@ -158,5 +159,5 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "views": views,
     }
     result["file"] = str(run_dir / f"{name}.json")
-    (run_dir / f"{name}.json").write_text(strict_json.dumps(result, indent=2))
+    write_text_atomically(run_dir / f"{name}.json", strict_json.dumps(result, indent=2))
     return result

@@ -13,6 +13,7 @@ from .output_paths import check_file_output
 # directions that the cameras' right axes span with less than this fraction of their main spread
 # count as level (roll noise of SfM poses stays below it)
 LEVEL_SPAN = 0.05
+MAX_FPS = 1000  # frames a second of a video (no player shows more)
 GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
 MP4_CODECS = ("libx264", "mpeg4")  # H.264 where PyAV's FFmpeg has it, else MPEG-4 part 2
 # near-lossless for both: x264's constant quality 18; MPEG-4 at quantiser 2 (global_quality is
@@ -82,8 +83,8 @@ def check_video_output(path: Path, fps: int) -> None:
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
     check_file_output(path)
-    if fps < 1:
-        raise ValueError(f"--fps: expected a positive number, got {fps}")
+    if not 1 <= fps <= MAX_FPS:  # PyAV's frame rate is a 32-bit fraction
+        raise ValueError(f"--fps: expected 1 to {MAX_FPS}, got {fps}")
     if suffix == ".gif" and fps > GIF_MAX_FPS:
         raise ValueError(
             f"--fps {fps}: a GIF holds at most {GIF_MAX_FPS} (its frame delays are whole "
@@ -160,17 +161,22 @@ def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
     """uint8 frames [F, H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
     first."""
     check_video_output(path, fps)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
         from PIL import Image
 
+        from .atomic_save import write_atomically
+
         images = [Image.fromarray(f) for f in frames]
-        images[0].save(
+        write_atomically(  # no truncated animation at `path`
             path,
-            save_all=True,
-            append_images=images[1:],
-            duration=gif_delays_ms(len(frames), fps),
-            loop=0,
+            lambda tmp: images[0].save(
+                tmp,
+                format="GIF",
+                save_all=True,
+                append_images=images[1:],
+                duration=gif_delays_ms(len(frames), fps),
+                loop=0,
+            ),
         )
     else:
         write_mp4(path, frames, fps)

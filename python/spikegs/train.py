@@ -20,7 +20,12 @@ import torch
 from tqdm.auto import tqdm
 
 from . import strict_json
-from .atomic_save import save_atomically, write_atomically
+from .atomic_save import (
+    is_temporary,
+    save_atomically,
+    sweep_temporaries,
+    write_text_atomically,
+)
 from .config import MIN_GAUSSIANS, Config, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
@@ -67,7 +72,7 @@ def _cut_log(path: Path, iteration: int) -> None:
                 raise ValueError(f"{path}: line {number} is not a log record ({err})") from None
             if step <= iteration:
                 kept.append(line)
-    path.write_text("".join(line + "\n" for line in kept))
+    write_text_atomically(path, "".join(line + "\n" for line in kept))  # a kill keeps them all
 
 
 def _optimizer(
@@ -130,7 +135,7 @@ def foreign_files(run_dir: Path) -> list[str]:
     return sorted(
         n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
         for n in names
-        if n not in RUN_FILES and not n.startswith("eval-") and not n.endswith(".tmp")
+        if n not in RUN_FILES and not n.startswith("eval-") and not is_temporary(n)
     )
 
 
@@ -149,7 +154,7 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
     if not run_dir.is_dir() or checkpoint.exists():
         return
     # temporary files are a killed process's, swept when training starts
-    names = sorted(p.name for p in run_dir.iterdir() if not p.name.endswith(".tmp"))
+    names = sorted(p.name for p in run_dir.iterdir() if not is_temporary(p.name))
     foreign = foreign_files(run_dir)
     finished = [n for n in names if n not in RUN_STARTED and n not in foreign]
     if finished:
@@ -460,8 +465,7 @@ class Trainer:
         with run_lock(self.run_dir):
             # one process trains here: a temporary file is a killed process's, half-written
             for folder in (self.run_dir, self.checkpoint_path.parent):
-                for stale in folder.glob("*.tmp"):
-                    stale.unlink()
+                sweep_temporaries(folder)
             from_checkpoint = self._from_checkpoint(resume)
             if resume and not from_checkpoint:  # stderr: stdout is `spikegs train`'s summary
                 print(
@@ -491,7 +495,7 @@ class Trainer:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
         text = dump_yaml(self.config.to_dict())  # `--resume` reads it back
-        write_atomically(self.run_dir / "config.yaml", lambda tmp: tmp.write_text(text))
+        write_text_atomically(self.run_dir / "config.yaml", text)
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
         # SIM's training time for this run: a resumed run's SIM was trained (and is now loaded)
@@ -556,5 +560,5 @@ class Trainer:
             "intensity_scale": self.scale,
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
         }
-        (self.run_dir / SUMMARY).write_text(json.dumps(summary, indent=2))
+        write_text_atomically(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
         return summary
