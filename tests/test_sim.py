@@ -201,6 +201,12 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
+    # other training settings at the same path (sim-train --out FILE): retrained, said why (it
+    # was reused, steps and all)
+    capsys.readouterr()
+    assert train_or_load(path, stream, ts, 33, **{**tiny, "steps": 3, "seed": 7})[1] > 0
+    assert "trained with other settings (steps 2, now 3, seed" in capsys.readouterr().err
+    assert torch.load(path, weights_only=True)["meta"]["steps"] == 3
     # no temporary file left (the lock file that one process a SIM takes stays, empty)
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name, f"{path.name}.lock"]
 

@@ -223,9 +223,10 @@ def spikes_fingerprint(stream, timestamps: Sequence[int]) -> str:
     return digest.hexdigest()
 
 
-def _cached(path: Path, window: int, data: str, say: bool = True) -> SIM | None:
+def _cached(path: Path, window: int, data: str, settings: dict, say: bool = True) -> SIM | None:
     """The SIM saved at `path` if it was trained for `window` on the spikes of fingerprint `data`
-    from this package's start; None (saying why where a file is there, if `say`) otherwise."""
+    from this package's start with training `settings` (train_sim's keywords); None (saying why
+    where a file is there, if `say`) otherwise."""
     if not path.exists():
         return None
     try:
@@ -235,9 +236,16 @@ def _cached(path: Path, window: int, data: str, say: bool = True) -> SIM | None:
     else:
         meta = payload["meta"]
         key = (payload["config"]["window"], meta.get("data"), meta.get("start"))
-        if key == (window, data, START):
+        other = {k: (meta.get(k), v) for k, v in settings.items() if meta.get(k) != v}
+        if key == (window, data, START) and not other:
             return _model_of(payload)
-        why = "trained on other spikes, for another window or from another start"
+        why = (
+            "trained with other settings ("
+            + ", ".join(f"{k} {was!r}, now {now!r}" for k, (was, now) in other.items())
+            + ")"
+            if key == (window, data, START)
+            else "trained on other spikes, for another window or from another start"
+        )
     if say:
         print(f"{path}: {why}; training SIM afresh", file=sys.stderr)
     return None
@@ -266,7 +274,8 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
     """
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
-    model = None if force else _cached(path, window, data, say=False)
+    settings = {k: v for k, v in kwargs.items() if k != "progress"}
+    model = None if force else _cached(path, window, data, settings, say=False)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):
@@ -277,20 +286,19 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
             )
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
         path = fallback
-        model = None if force else _cached(path, window, data, say=False)
+        model = None if force else _cached(path, window, data, settings, say=False)
     if model is not None:
         return model, 0.0, path
     # one process trains each SIM: another (a second method on the same dataset) waits for it and
     # loads what it saved
     path.parent.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(path.with_name(f"{path.name}.lock"), busy=None):
-        model = None if force else _cached(path, window, data)
+        model = None if force else _cached(path, window, data, settings)
         if model is not None:
             return model, 0.0, path
         partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
         for written in (path, partial):  # only the lock's holder writes them: what another
             sweep_killed_writes(written)  # process left is a killed one's
-        settings = {k: v for k, v in kwargs.items() if k != "progress"}
         key = {"data": data, "start": START, "window": window, **settings}
         if force:
             partial.unlink(missing_ok=True)

@@ -97,10 +97,15 @@ def _per_channel(streams, image_fn) -> np.ndarray:
     return np.concatenate([i if i.ndim == 4 else i[..., None] for i in images], axis=-1)
 
 
+def sim_crop(dataset, sim: SimConfig) -> int:
+    """The crop that SIM's training takes: `sim.crop`, at most the frames' larger side."""
+    return min(sim.crop, max(dataset.height, dataset.width))
+
+
 def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
     """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
     depth = "" if sim.shift_layers == SimConfig.shift_layers else f"_m{sim.shift_layers}"
-    crop = min(sim.crop, max(dataset.height, dataset.width))  # the crop that training takes
+    crop = sim_crop(dataset, sim)
     name = (
         f"sim_w{sim.window}_t{sim.target_readouts()}_it{sim.iterations}_b{sim.batch}"
         f"_c{crop}_{sim.loss}{depth}_seed{seed}.pt"
@@ -128,7 +133,7 @@ def trained_sim(
         force=force,
         steps=sim.iterations,
         batch_size=sim.batch,
-        crop=sim.crop,
+        crop=sim_crop(dataset, sim),  # as the cache's name has it
         loss=sim.loss,
         target_window=sim.target_readouts(),
         seed=seed,
