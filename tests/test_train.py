@@ -586,6 +586,10 @@ def test_a_file_named_like_a_method_must_start_from_it(tmp_path):
     (tmp_path / "tfp33.yaml").write_text("base: spikegs\n")  # another method's name
     with pytest.raises(ValueError, match="named like the built-in method 'tfp33'"):
         load_config(tmp_path / "tfp33.yaml")
+    # starting from it and changing its supervision: trained TFI targets recorded as tfp33
+    (tmp_path / "tfp33.yaml").write_text("base: tfp33\nsupervision: {instant: tfi}\n")
+    with pytest.raises(ValueError, match="method 'tfp33' is a built-in method, whose supervision"):
+        load_config(tmp_path / "tfp33.yaml")
 
 
 def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
@@ -632,6 +636,17 @@ def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
     again = config_from_args(build_parser().parse_args([*args, "--iterations", "3000"])).densify
     assert (again.start, again.every, again.opacity_reset_every) == (500, 100, 1000)
     assert load_config("spikegs", {"train": {"iterations": 600}}).densify.start == 100
+    # a base's schedule keys are for the base's length: a file that sets another scales them as
+    # --iterations does (they were kept: start 8, every 2 of 200 steps, 3.6x the Gaussians)
+    (tmp_path / "b40.yaml").write_text(
+        "base: tfp33\ntrain: {iterations: 40}\ndensify: {start: 8, every: 2}\n"
+    )
+    (tmp_path / "b200.yaml").write_text("base: b40.yaml\ntrain: {iterations: 200}\n")
+    chained = load_config(tmp_path / "b200.yaml").densify
+    flag = load_config(tmp_path / "b40.yaml", iterations=200).densify
+    assert (chained.start, chained.every) == (flag.start, flag.every) == (40, 10)
+    over = load_config(tmp_path / "b40.yaml", {"train": {"iterations": 200}}).densify  # overrides
+    assert (over.start, over.every) == (40, 10)
 
 
 def test_a_key_given_twice_in_a_yaml_file_is_refused(tmp_path):
@@ -651,16 +666,20 @@ def test_yaml_numbers_and_keys_read_as_yaml_1_2(tmp_path):
     (tmp_path / "k.yaml").write_text("train: {[iterations]: 20}\n")
     with pytest.raises(ValueError, match="a key that is a list"):
         load_config(tmp_path / "k.yaml")
+    (tmp_path / "o.yaml").write_text("base: tfp33\ntrain: {iterations: 0o_}\n")  # no digit
+    with pytest.raises(ValueError, match="'train.iterations' = '0o_' is a str"):  # int('', 8)
+        load_config(tmp_path / "o.yaml")
 
 
 def test_a_method_named_like_a_number_reads_back_from_its_run(tmp_path):
     """A file 1e5.yaml trained as method 1e5, saved unquoted in config.yaml (PyYAML's dumper
     knows YAML 1.1 only), and --resume read it back as the float 100000.0."""
-    (tmp_path / "1e5.yaml").write_text("base: tfp33\n")
-    config = load_config(tmp_path / "1e5.yaml")
-    assert config.method == "1e5"
-    (tmp_path / "config.yaml").write_text(dump_yaml(config.to_dict()))
-    assert load_config(tmp_path / "config.yaml", saved_run=True) == config
+    for name in ("1e5", "0o17", "0x1F"):  # YAML 1.2 octal and hexadecimal too
+        (tmp_path / f"{name}.yaml").write_text("base: tfp33\n")
+        config = load_config(tmp_path / f"{name}.yaml")
+        assert config.method == name
+        (tmp_path / "config.yaml").write_text(dump_yaml(config.to_dict()))
+        assert load_config(tmp_path / "config.yaml", saved_run=True) == config
 
 
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):

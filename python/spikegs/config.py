@@ -388,7 +388,7 @@ class _Loader(yaml.SafeLoader):
 
 _FLOAT, _INT = "tag:yaml.org,2002:float", "tag:yaml.org,2002:int"
 _FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$")  # 1e-4, 1.5E3
-_INT_12 = re.compile(r"^[-+]?[0-9][0-9_]*$|^0o[0-7_]+$|^0x[0-9a-fA-F_]+$")
+_INT_12 = re.compile(r"^[-+]?[0-9][0-9_]*$|^0o_*[0-7][0-7_]*$|^0x_*[0-9a-fA-F][0-9a-fA-F_]*$")
 _Loader.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
 _Loader.yaml_implicit_resolvers = {
     first: [(tag, regexp) for tag, regexp in resolvers if tag != _INT]
@@ -409,10 +409,12 @@ _Loader.add_constructor(_INT, _int_12)
 
 
 class _Dumper(yaml.SafeDumper):
-    """yaml.SafeDumper that quotes what `_Loader` would read as a number (a method named 1e5)."""
+    """yaml.SafeDumper that quotes what `_Loader` would read as a number (a method named 1e5 or
+    0o17)."""
 
 
 _Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
+_Dumper.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
 
 
 def read_yaml(path: Path):
@@ -441,16 +443,14 @@ def load_config(
     config = Config()
     name = DEFAULT_METHOD if name_or_path is None else name_or_path
     read = _read(name, set(), saved_run=saved_run)
-    _apply(config, read, "")
     if overrides:
-        _apply(config, overrides, "")
+        _layer(read, copy.deepcopy(overrides))
+    _apply(config, read, "")
     length = config.train.iterations  # the length the config's own schedule keys are for
     if iterations is not None:
         _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config.train.iterations = iterations
-    given = set()
-    for layer in (read, overrides or {}):
-        given |= set(layer.get("densify") or {})
+    given = set(read.get("densify") or {})
     for key in SCHEDULE_KEYS:  # unset keys are for the default length
         base = length if key in given else TrainConfig.iterations
         _scale_schedule(config.densify, [key], config.train.iterations / base)
@@ -526,11 +526,10 @@ def _read(
     if base is not None and (not isinstance(base, str) or not base.strip()):
         raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
     merged = _read(base, seen | {path}, path.parent) if base else {}
-    named = "method" in data
-    if not seen and not named:  # the file given names no method: its own name
+    if not seen and "method" not in data:  # the file given names no method: its own name
         data["method"] = _own_name(path, merged.get("method"))
-    _merge(merged, data)
-    if not seen and named and not saved_run:
+    _layer(merged, data)
+    if not seen and not saved_run:  # named, or named after itself like a built-in method
         _check_named(path, merged)
     return merged
 
@@ -558,6 +557,27 @@ def with_defaults(saved: dict) -> dict:
     _merge(full, legacy_overrides(saved))
     _merge(full, saved)
     return full
+
+
+def _layer(into: dict, layer: dict) -> None:
+    """Merge a config layer (a file over its base chain, overrides over a file) into `into`; where
+    it sets another train.iterations, the schedule keys that `into` sets and it does not were for
+    `into`'s length and are scaled to the new one (as `--iterations` scales them)."""
+    length = (
+        (layer.get("train") or {}).get("iterations")
+        if isinstance(layer.get("train"), dict)
+        else None
+    )
+    inherited = into.get("densify") if isinstance(into.get("densify"), dict) else {}
+    own = layer.get("densify") if isinstance(layer.get("densify"), dict) else {}
+    train = into.get("train") if isinstance(into.get("train"), dict) else {}
+    old = train.get("iterations", TrainConfig.iterations)
+    if is_int(length) and length >= 1 and is_int(old) and old >= 1 and length != old:
+        for key in SCHEDULE_KEYS:
+            value = inherited.get(key)
+            if key not in own and is_int(value) and value > 0:
+                inherited[key] = max(1, round(value * length / old))
+    _merge(into, layer)
 
 
 def _merge(into: dict, update: dict) -> None:
