@@ -457,6 +457,8 @@ def test_every_method_config_loads():
             {"supervision": {"exposure_window": 65, "exposure_poses": 66}},
             "exposure_poses.*at most supervision.exposure_window \\(65\\)",
         ),
+        # a window of 1 sent exposure_poses to <= 1, then to >= 2
+        ("spikegs", {"supervision": {"exposure_window": 1}}, "exposure_window.* >= 3 with the"),
         ("spikegs", {"supervision": {"instant": "magic"}}, "supervision.instant"),
         ("spikegs", {"lr": {"means": -1.0}}, "lr.means"),
         ("spikegs", {"supervision": {"exposure_norm": "huber"}}, "exposure_norm"),
@@ -509,6 +511,12 @@ def test_every_method_config_loads():
 def test_config_validation(name, overrides, message):
     with pytest.raises(ValueError, match=message):
         load_config(name, overrides)
+
+
+def test_a_method_without_the_exposure_loss_leaves_its_settings_unread():
+    """tfp33 (no exposure loss) refused exposure_window 1 as if it rendered an exposure."""
+    config = load_config("tfp33", {"supervision": {"exposure_window": 1, "exposure_poses": 1}})
+    assert config.supervision.exposure_weight == 0
 
 
 def test_config_types_are_checked_however_set():

@@ -157,13 +157,20 @@ class Config:
         for name in ("instant_norm", "exposure_norm"):
             value = getattr(s, name)
             _require(value in NORMS, f"supervision.{name}", value, " or ".join(NORMS))
-        _require(
-            2 <= s.exposure_poses <= s.exposure_window,
-            "supervision.exposure_poses",
-            s.exposure_poses,
-            f">= 2 and at most supervision.exposure_window ({s.exposure_window}): one render a "
-            f"readout at most (more would reach past the window)",
-        )
+        if s.exposure_weight > 0:  # (a method without the exposure loss leaves them unread)
+            _require(
+                s.exposure_window >= 3,
+                "supervision.exposure_window",
+                s.exposure_window,
+                ">= 3 with the exposure loss (it averages >= 2 renders, one a readout at most)",
+            )
+            _require(
+                2 <= s.exposure_poses <= s.exposure_window,
+                "supervision.exposure_poses",
+                s.exposure_poses,
+                f">= 2 and at most supervision.exposure_window ({s.exposure_window}): one render "
+                f"a readout at most (more would reach past the window)",
+            )
         for name in ("instant_weight", "exposure_weight", "dssim_weight"):
             _require(getattr(s, name) >= 0, f"supervision.{name}", getattr(s, name), ">= 0")
         _require(
