@@ -9,6 +9,7 @@ import os
 import re
 import shutil
 import signal
+import subprocess
 import time
 
 import numpy as np
@@ -297,6 +298,13 @@ def test_absgrad_densifies_on_the_absolute_per_pixel_gradient(dataset, tmp_path,
     assert (absolute > 1.5 * plain).float().mean() > 0.5, "most Gaussians' shares cancel"
 
 
+def _dead_pid() -> int:
+    """The process id of a process that has exited."""
+    process = subprocess.Popen(["true"])
+    process.wait()
+    return process.pid
+
+
 def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
@@ -308,11 +316,15 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     (tmp_path / "run" / "train.json").unlink()
     (tmp_path / "run" / "scene.ply").unlink()
     (tmp_path / "run" / "checkpoints").mkdir()
-    killed = tmp_path / "run" / "checkpoints" / ".last.pt.999.tmp"  # a process killed mid-save
+    dead = _dead_pid()
+    killed = tmp_path / "run" / "checkpoints" / f".last.pt.{dead}.tmp"  # a process killed mid-save
     killed.write_bytes(b"half")
+    alive = tmp_path / "run" / f".eval.json.{os.getpid()}.tmp"  # `spikegs eval` writing now
+    alive.write_bytes(b"half")
     summary = Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert summary["iterations"] == 2 and (tmp_path / "run" / "checkpoints" / "last.pt").exists()
-    assert not killed.exists()  # each such kill left one
+    assert not killed.exists() and alive.exists()  # each such kill left one; eval's is kept
+    alive.unlink()
     # a user's file ending .tmp is not ours to sweep: a fresh run there is refused, as with any
     # other file (training deleted it)
     (tmp_path / "mine").mkdir()
@@ -655,6 +667,15 @@ def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
     assert (chained.start, chained.every) == (flag.start, flag.every) == (40, 10)
     over = load_config(tmp_path / "b40.yaml", {"train": {"iterations": 200}}).densify  # overrides
     assert (over.start, over.every) == (40, 10)
+    # three files, two inexact ratios: scaled once from the length each key was given for
+    (tmp_path / "r40.yaml").write_text(
+        "base: tfp33\ntrain: {iterations: 40}\ndensify: {start: 3, stop: 13, every: 3}\n"
+    )
+    (tmp_path / "r60.yaml").write_text("base: r40.yaml\ntrain: {iterations: 60}\n")
+    (tmp_path / "r90.yaml").write_text("base: r60.yaml\ntrain: {iterations: 90}\n")
+    three = load_config(tmp_path / "r90.yaml").densify
+    once = load_config(tmp_path / "r40.yaml", iterations=90).densify
+    assert (three.start, three.stop, three.every) == (once.start, once.stop, once.every)
 
 
 def test_a_key_given_twice_in_a_yaml_file_is_refused(tmp_path):

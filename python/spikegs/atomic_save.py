@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import glob
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,17 +15,36 @@ def _temporary_name(path: Path, writer: str) -> str:
     return f".{path.name}.{writer}.tmp"
 
 
+_TEMPORARY = re.compile(r"^\..+\.([^.]+)\.tmp$")  # `_temporary_name`'s, DatWriter's
+
+
 def is_temporary(name: str) -> bool:
-    """Whether a file name is a temporary file's of ours (`_temporary_name`, DatWriter's): hidden
-    and ending .tmp; a user's `notes.tmp` is not."""
-    return name.startswith(".") and name.endswith(".tmp")
+    """Whether a file name is a temporary file's of ours (`.NAME.WRITER.tmp`); a user's
+    `notes.tmp` is not."""
+    return _TEMPORARY.match(name) is not None
+
+
+def _writer_alive(name: str) -> bool:
+    """Whether the writer of temporary file `name` is a live process (its WRITER a process id:
+    `write_atomically`'s)."""
+    writer = _TEMPORARY.match(name).group(1)
+    if not writer.isdigit() or int(writer) == 0:  # (0 would signal our process group)
+        return False
+    try:
+        os.kill(int(writer), 0)  # signal 0: only whether it exists
+    except (ProcessLookupError, OverflowError):
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
 
 
 def sweep_temporaries(folder: Path) -> None:
-    """Remove every temporary file of ours in `folder`; call it where no other process can be
-    writing there (a run folder, under the run's lock)."""
-    for stale in Path(folder).glob(".*.tmp"):
-        stale.unlink(missing_ok=True)
+    """Remove the temporary files of ours in `folder` whose writers are dead (killed mid-write);
+    a live process's (`spikegs eval` writing into a run that a resumed training sweeps) stays."""
+    for stale in Path(folder).iterdir() if Path(folder).is_dir() else ():
+        if is_temporary(stale.name) and not _writer_alive(stale.name):
+            stale.unlink(missing_ok=True)
 
 
 def sweep_killed_writes(path: Path) -> None:
@@ -38,8 +58,9 @@ def sweep_killed_writes(path: Path) -> None:
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
     `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder. The
-    temporary file is removed when writing fails; a killed process's stays until
-    `sweep_killed_writes` (the trainer sweeps a run folder's, SIM's cache its own)."""
+    temporary file is removed when writing fails; a killed process's stays until swept
+    (`sweep_temporaries` in a run folder when training starts, `sweep_killed_writes` in SIM's
+    cache)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(_temporary_name(path, str(os.getpid())))

@@ -11,7 +11,8 @@ like a built-in method must start from it, and is then that method, or name itse
 `method` names a built-in one must keep its supervision and SIM settings). No file at
 all is the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
 train.iterations: a config that sets another gets each schedule key it does not set scaled to it,
-as `--iterations` does. Unknown sections or keys, a key given twice, values of the wrong type or
+as `--iterations` does; a key a file (or its base) sets is for that file's length, and scales from
+it to the run's. Unknown sections or keys, a key given twice, values of the wrong type or
 range and non-finite numbers are refused with a message that names the key and what is allowed.
 """
 
@@ -452,14 +453,13 @@ def load_config(
     read = _read(name, set(), saved_run=saved_run)
     if overrides:
         _layer(read, copy.deepcopy(overrides))
-    _apply(config, read, "")
-    length = config.train.iterations  # the length the config's own schedule keys are for
+    lengths = read.get(LENGTHS, {})  # what each schedule key set was given for
+    _apply(config, _settings(read), "")
     if iterations is not None:
         _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config.train.iterations = iterations
-    given = set(read.get("densify") or {})
-    for key in SCHEDULE_KEYS:  # unset keys are for the default length
-        base = length if key in given else TrainConfig.iterations
+    for key in SCHEDULE_KEYS:  # unset keys are for the default length; each scaled once
+        base = lengths.get(key, TrainConfig.iterations)
         _scale_schedule(config.densify, [key], config.train.iterations / base)
     return config.validate()
 
@@ -479,17 +479,18 @@ def _own_name(path: Path, inherited: str | None) -> str:
 
 
 def _check_named(path: Path, read: dict) -> None:
-    """ValueError where a file's own `method: NAME` (`read`: the file with its base chain) names a
-    built-in method whose supervision (and SIM, where it uses one) it does not have: it would
-    train under that name without that method's settings. (A copy of the method's file and a
-    file with `base: NAME` and another length or learning rate keep the name.)"""
+    """ValueError where a file's method (its own `method: NAME`, or its name: `read` is the file
+    with its base chain) is a built-in method whose supervision (and SIM, where it uses one) it
+    does not have: it would train under that name without that method's settings. (A copy of
+    the method's file and a file with `base: NAME` and another length or learning rate keep the
+    name.)"""
     name = read["method"]
     builtin = CONFIG_DIR / f"{name}.yaml" if isinstance(name, str) and name else None
     if builtin is None or not builtin.is_file() or builtin.resolve() == path.resolve():
         return
     mine, theirs = Config(), Config()
-    _apply(mine, read, "")
-    _apply(theirs, _read(builtin, set()), "")
+    _apply(mine, _settings(read), "")
+    _apply(theirs, _settings(_read(builtin, set())), "")
     uses_sim = mine.supervision.instant == "sim"
     if mine.supervision != theirs.supervision or (uses_sim and mine.sim != theirs.sim):
         raise ValueError(
@@ -566,25 +567,31 @@ def with_defaults(saved: dict) -> dict:
     return full
 
 
+# a merged config dict's record of the train.iterations each schedule key it sets was given for
+LENGTHS = "_schedule_lengths"
+
+
+def _length(layer: dict) -> int | None:
+    """The train.iterations a config layer sets, where it is a valid one."""
+    train = layer.get("train")
+    value = train.get("iterations") if isinstance(train, dict) else None
+    return value if is_int(value) and value >= 1 else None
+
+
 def _layer(into: dict, layer: dict) -> None:
-    """Merge a config layer (a file over its base chain, overrides over a file) into `into`; where
-    it sets another train.iterations, the schedule keys that `into` sets and it does not were for
-    `into`'s length and are scaled to the new one (as `--iterations` scales them)."""
-    length = (
-        (layer.get("train") or {}).get("iterations")
-        if isinstance(layer.get("train"), dict)
-        else None
-    )
-    inherited = into.get("densify") if isinstance(into.get("densify"), dict) else {}
+    """Merge a config layer (a file over its base chain, overrides over a file) into `into`,
+    recording under LENGTHS the length its schedule keys are for: its own train.iterations, else
+    the one it inherits (load_config scales each key from there to the run's, once)."""
     own = layer.get("densify") if isinstance(layer.get("densify"), dict) else {}
-    train = into.get("train") if isinstance(into.get("train"), dict) else {}
-    old = train.get("iterations", TrainConfig.iterations)
-    if is_int(length) and length >= 1 and is_int(old) and old >= 1 and length != old:
-        for key in SCHEDULE_KEYS:
-            value = inherited.get(key)
-            if key not in own and is_int(value) and value > 0:
-                inherited[key] = max(1, round(value * length / old))
+    length = _length(layer) or _length(into) or TrainConfig.iterations
+    lengths = into.setdefault(LENGTHS, {})
+    lengths.update({key: length for key in SCHEDULE_KEYS if key in own})
     _merge(into, layer)
+
+
+def _settings(merged: dict) -> dict:
+    """A merged config dict without its LENGTHS record."""
+    return {k: v for k, v in merged.items() if k != LENGTHS}
 
 
 def _merge(into: dict, update: dict) -> None:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic_save import write_text_atomically
 from .data.dataset import (
     META,
     TEST_DIR,
@@ -333,9 +334,9 @@ def estimate_poses(
         )
     else:
         trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
-        meta_path.write_text(json.dumps(meta, indent=1))
+        write_text_atomically(meta_path, json.dumps(meta, indent=1))
         messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
     write_points(root / POINTS, recon.points, recon.colors)
     report["summary"] = "\n".join(messages)
-    (root / WORK_DIR / "report.json").write_text(json.dumps(report, indent=1))
+    write_text_atomically(root / WORK_DIR / "report.json", json.dumps(report, indent=1))
     return report

@@ -266,7 +266,8 @@ def user_cache(name: str, data: str) -> Path | None:
 
 def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool = False, **kwargs):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
-    `spikes_fingerprint`), unless `force`; else train one and save it there. Where `path`'s
+    `spikes_fingerprint`) with these settings (`kwargs`), unless `force`; else train one and save
+    it there. Where `path`'s
     folder cannot be written (a read-only dataset), `user_cache` stands in for it.
 
     Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps

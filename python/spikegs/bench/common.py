@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .. import strict_json
+from ..atomic_save import write_text_atomically
 
 
 def machine_info() -> dict[str, Any]:
@@ -73,5 +74,5 @@ def write_results(out_dir: Path, name: str, results: dict[str, Any]) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.json"
     payload = {"benchmark": name, "machine": machine_info(), **results}
-    path.write_text(strict_json.dumps(payload, indent=2))
+    write_text_atomically(path, strict_json.dumps(payload, indent=2))
     return path

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic_save import write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
@@ -192,8 +193,9 @@ def write_parts(
                 "transform_matrix": np.linalg.inv(view.viewmat).tolist(),
             }
         )
-    (out / TEST_VIEWS).write_text(json.dumps(camera_doc(frames, **camera), indent=1))
-    (out / META).write_text(json.dumps(meta, indent=1))
+    # whole files only (`spikegs poses` rewrites a dataset's: a kill there left it unloadable)
+    write_text_atomically(out / TEST_VIEWS, json.dumps(camera_doc(frames, **camera), indent=1))
+    write_text_atomically(out / META, json.dumps(meta, indent=1))
 
 
 def existing_file(root: Path, name: str) -> Path:

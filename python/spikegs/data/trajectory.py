@@ -15,6 +15,8 @@ from typing import Union
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..atomic_save import write_text_atomically
+
 PathLike = Union[str, os.PathLike]
 CONVENTION = "opencv"
 WORLD_UP = np.array([0.0, 0.0, 1.0])  # the spiral ascends along +z
@@ -198,7 +200,7 @@ class Trajectory:
             {"readout": _number(k), "transform_matrix": c2w.tolist()}
             for k, c2w in zip(self.readouts, np.linalg.inv(self.viewmats))
         ]
-        Path(path).write_text(json.dumps(camera_doc(frames, **extra), indent=1))
+        write_text_atomically(Path(path), json.dumps(camera_doc(frames, **extra), indent=1))
 
     @classmethod
     def load_json(cls, path: PathLike) -> Trajectory:
