@@ -113,3 +113,14 @@ def test_train_runs_every_seed(tmp_path):
     assert len(tfp33["seeds"]) == 2 and result["seeds"] == 2
     assert tfp33["seeds"][0]["psnr"] != tfp33["seeds"][1]["psnr"]  # two runs, not one twice
     assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()
+
+
+def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path, monkeypatch):
+    """bench train deleted OUT/runs/SCENE/METHOD with the user's notes in it."""
+    mine = tmp_path / "runs" / "solids" / "tfp33" / "notes.txt"
+    mine.parent.mkdir(parents=True)
+    mine.write_text("mine")
+    monkeypatch.setattr(train, "dataset_for", lambda *a: pytest.fail("worked"))
+    with pytest.raises(FileExistsError, match="notes.txt"):
+        train.run(True, tmp_path, scenes=["solids"], methods=["tfp33"])
+    assert mine.read_text() == "mine"

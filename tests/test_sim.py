@@ -476,6 +476,8 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
         (["--seed", "-1"], "--seed: config: train.seed = -1"),
         (["--out", "."], "is a directory"),
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
+        # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache
+        (["--out", "file"], "--out file: an existing file that is not a saved SIM"),
     ],
 )
 def test_sim_train_cli_refuses_bad_options_before_training(

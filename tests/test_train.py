@@ -857,6 +857,20 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert "notes.txt" in capsys.readouterr().err
         assert (mine / part / "notes.txt").exists() and (mine / "results.json").exists()
         assert len([p for p in mine.rglob("*") if p.name != ".lock"]) == 3 + part.count("/")
+    # --resume refuses a user's files in a run folder before any work (after SIM and SpikeGS)
+    (out / "runs" / "tfp33" / "notes.txt").write_text("mine")
+    with monkeypatch.context() as patch:
+        patch.setattr("spikegs.demo.demo_dataset", lambda *a: pytest.fail("worked"))
+        assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 2
+        assert "notes.txt" in capsys.readouterr().err
+        (out / "runs" / "tfp33" / "notes.txt").unlink()
+        # a fresh demo deletes every earlier run and figure as it starts: stopped before its
+        # last method, it left that method's finished run, which --resume refused
+        patch.setattr("spikegs.demo.demo_dataset", lambda *a: exec("raise KeyboardInterrupt"))
+        copy_of = tmp_path / "copy"
+        shutil.copytree(out, copy_of)
+        assert main([*argv, str(copy_of)]) == 130
+        assert not (copy_of / "runs" / "tfp33").exists() and not (copy_of / "curves.png").exists()
     # one demo per OUT: a second one deleted the first one's dataset and run, lock and all
     from spikegs.train import run_lock
 

@@ -86,6 +86,7 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
 SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
 ITERATIONS_FILE = ".demo_iterations"  # the --iterations a demo was started with ('' : default)
 RESULTS = "results.json"
+COMPARISON, CURVES = "comparison.png", "curves.png"  # the demo's figures
 
 
 def earlier_seconds(out: Path) -> float:
@@ -120,9 +121,16 @@ def check_fresh_out(out: Path) -> None:
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
     spikegs run's (a user's own run there keeps its notes, renders, ...)."""
     from .data.dataset import check_output
-    from .train import foreign_files
 
     check_output(out / "data", overwrite=True)
+    check_run_dirs(out)
+
+
+def check_run_dirs(out: Path) -> None:
+    """FileExistsError, before any work, where OUT/runs/METHOD holds files that are not a spikegs
+    run's (a fresh demo would delete them, a resumed one refuse them after its first stages)."""
+    from .train import foreign_files
+
     for method in METHODS:
         run_dir = out / "runs" / method
         if run_dir.exists() and not run_dir.is_dir():
@@ -146,8 +154,6 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
     for i, method in enumerate(configs, start=2):
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
-        if not resume:
-            shutil.rmtree(run_dir, ignore_errors=True)  # a demo starts afresh unless resumed
         started = resume and (run_dir / "config.yaml").exists()
         summary = Trainer(dataset, configs[method], run_dir, progress=progress).train(started)
         ev = evaluate_run(run_dir, dataset)
@@ -191,10 +197,16 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
     if not args.resume:
         check_fresh_out(out)
-        for stale in (RESULTS, SECONDS_FILE):  # an earlier demo's, until this one writes its own
+        # an earlier demo's, all at once: a fresh demo stopped before its last method left that
+        # method's finished run, which --resume then refused as trained with other settings
+        for method in METHODS:
+            shutil.rmtree(out / "runs" / method, ignore_errors=True)
+        for stale in (RESULTS, SECONDS_FILE, COMPARISON, CURVES):
             (out / stale).unlink(missing_ok=True)
         # what --resume goes on with, should this demo stop before its first run's config.yaml
         (out / ITERATIONS_FILE).write_text(str(iterations or ""))
+    else:
+        check_run_dirs(out)
     try:
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
@@ -210,9 +222,9 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         ]
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
-    write_image(out / "comparison.png", np.concatenate(rows, axis=0))
+    write_image(out / COMPARISON, np.concatenate(rows, axis=0))
     runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
-    save_logged_curves(out / "curves.png", runs, dataset)
+    save_logged_curves(out / CURVES, runs, dataset)
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)
     payload = {

@@ -13,7 +13,7 @@ from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .output_paths import check_file_output
-from .sim_train import evaluate_dataset, on_path_views
+from .sim_train import evaluate_dataset, is_sim_file, on_path_views
 from .targets import check_targets, trained_sim
 
 # the config keys that the options set, named in the config's messages
@@ -66,6 +66,10 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.out is not None:
         check_file_output(args.out)
+        if Path(args.out).exists() and not is_sim_file(Path(args.out)):
+            raise ValueError(  # (a cache's torn file is retrained over; a file named is not)
+                f"--out {args.out}: an existing file that is not a saved SIM; give another path"
+            )
     try:  # the config's rules, and the window around the dataset's timestamps
         config.validate()
         dataset = load_dataset(args.dataset)

@@ -200,6 +200,15 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     save_atomically({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
 
 
+def is_sim_file(path: Path) -> bool:
+    """Whether `path` holds a SIM saved by `save_sim` (weights, architecture and meta)."""
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # torch raises RuntimeError, EOFError, pickle errors, ...
+        return False
+    return isinstance(payload, dict) and {"config", "state_dict", "meta"} <= set(payload)
+
+
 def _model_of(payload: dict) -> SIM:
     model = SIM(**payload["config"])
     model.load_state_dict(payload["state_dict"])

@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
             train_options.get("methods"),
             train_options["seeds"],
         )
+    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise ValueError(f"--out {args.out} is a file; the benchmarks write into a folder")
     for part in parts:
         try:
             module = importlib.import_module(PARTS[part])

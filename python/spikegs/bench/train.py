@@ -37,7 +37,7 @@ from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
 from ..targets import sim_path
-from ..train import Trainer
+from ..train import Trainer, foreign_files
 from .common import print_table, write_results
 
 BASELINES = ("tfp33", "tfp65", "tfi")
@@ -252,6 +252,18 @@ def run(
     settings = QUICK_DATA if quick else FULL_DATA
     overrides = schedule(iterations, quick)
     configs = {m: load_config(m, overrides) for m in methods}
+    run_dirs = [  # each trained afresh, its folder deleted first: a user's files there refused
+        out / "runs" / scene / (m if seed == 0 else f"{m}-seed{seed}")
+        for scene in scenes
+        for m in methods
+        for seed in range(seeds)
+    ]
+    for run_dir in run_dirs:
+        if foreign_files(run_dir):
+            raise FileExistsError(
+                f"{run_dir} holds files that are not a run's ({', '.join(foreign_files(run_dir))})"
+                f", which the benchmark would delete with its run; give another --out"
+            )
     start = time.perf_counter()
     results = {}
     for scene in scenes:
