@@ -96,11 +96,17 @@ def _image_readouts(num_readouts: int, window: int, every: int | None, count: in
 
 
 def _cached_sim(root: Path):
+    """The dataset's most recently trained SIM (DATASET/sim/*.pt), said which."""
     from .sim_train import load_sim
 
     cached = sorted((root / "sim").glob("*.pt"), key=lambda p: p.stat().st_mtime)
     if not cached:
         raise ValueError(f"--sim: no trained SIM in {root / 'sim'}; run `spikegs sim-train` first")
+    print(
+        f"--sim: the latest of {len(cached)} trained SIM(s), {cached[-1].name} (its name gives "
+        f"its window, steps, ...; `spikegs sim-train` makes another the latest)",
+        file=sys.stderr,
+    )
     return load_sim(cached[-1])
 
 
