@@ -711,6 +711,18 @@ def test_a_method_named_like_a_number_reads_back_from_its_run(tmp_path):
         assert load_config(tmp_path / "config.yaml", saved_run=True) == config
 
 
+def test_cli_says_out_of_memory_without_a_traceback(tmp_path, monkeypatch, capsys):
+    """simulate --height 100000 --width 100000 ended in numpy's traceback (37 GiB); numpy's
+    error stands in for it here (a machine with the memory would simulate for hours)."""
+
+    def too_big(*args, **kwargs):
+        raise MemoryError("Unable to allocate 37.3 GiB for an array")
+
+    monkeypatch.setattr("spikegs.data.simulate_cli.simulate_dataset", too_big)
+    assert main(["simulate", "--out", str(tmp_path / "big")]) == 1
+    assert "out of memory: Unable to allocate 37.3 GiB" in capsys.readouterr().err
+
+
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
     assert main(["train", str(tmp_path), "--method", "nope", "--out", str(tmp_path / "r")]) == 2
     assert "known methods" in capsys.readouterr().err

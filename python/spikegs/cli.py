@@ -70,6 +70,13 @@ def main(argv: list[str] | None = None) -> int:
     except FloatingPointError as err:  # training diverged: the message says where and why
         print(f"spikegs {args.command}: stopped: {err}", file=sys.stderr)
         return 1
+    except MemoryError as err:  # numpy's names the size (a 100000² simulation: 37 GiB)
+        print(
+            f"spikegs {args.command}: out of memory: {err or 'an allocation failed'}; smaller "
+            f"sizes (height, width, readouts, Gaussians)",
+            file=sys.stderr,
+        )
+        return 1
 
 
 if __name__ == "__main__":
