@@ -876,6 +876,11 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 2
         assert "notes.txt" in capsys.readouterr().err
         (out / "runs" / "tfp33" / "notes.txt").unlink()
+        # Ctrl-C while it writes its figures: said how to go on, as in the stages before
+        patch.setattr("spikegs.demo.write_figures", lambda *a: exec("raise KeyboardInterrupt"))
+        patch.setattr("spikegs.demo.demo_dataset", lambda *a: load_dataset(out / "data"))
+        assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
+        assert "with --resume continues" in capsys.readouterr().err
         # a fresh demo deletes every earlier run and figure as it starts: stopped before its
         # last method, it left that method's finished run, which --resume refused
         patch.setattr("spikegs.demo.demo_dataset", lambda *a: exec("raise KeyboardInterrupt"))

@@ -167,6 +167,24 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
     return results
 
 
+def write_figures(out: Path, dataset, results: dict) -> None:
+    """OUT/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, from the
+    runs' evaluation images) and OUT/curves.png (`save_logged_curves`)."""
+    from .image_io import read_image, srgb_to_linear, write_image
+
+    rows = []
+    for view in dataset.test_views:  # each eval image is GT | render | error: GT once, renders
+        panels = [  # back to linear light: write_image encodes it as sRGB again
+            srgb_to_linear(read_image(out / "runs" / m / "eval" / f"{view.name}.png"))
+            for m in METHODS
+        ]
+        w = panels[0].shape[1] // 3
+        rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
+    write_image(out / COMPARISON, np.concatenate(rows, axis=0))
+    runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
+    save_logged_curves(out / CURVES, runs, dataset)
+
+
 def run(args: argparse.Namespace) -> int:
     from .train import run_lock
 
@@ -184,8 +202,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace, out: Path) -> int:
     """`run` once OUT is locked."""
-    from .image_io import read_image, srgb_to_linear, write_image
-
     start = time.perf_counter()
     progress = not args.no_progress
     earlier = earlier_seconds(out) if args.resume else 0.0
@@ -207,24 +223,14 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         (out / ITERATIONS_FILE).write_text(str(iterations or ""))
     else:
         check_run_dirs(out)
-    try:
+    try:  # the figures too: stopped while writing them, it says how to go on as well
         dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
+        write_figures(out, dataset, results)
     except KeyboardInterrupt:
         (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
         print("\nthe same command with --resume continues from here", file=sys.stderr)
         raise
-    names = [v.name for v in dataset.test_views]
-    rows = []
-    for name in names:  # each eval image is GT | render | error; keep GT once, then each render
-        panels = [  # back to linear light: write_image encodes it as sRGB again
-            srgb_to_linear(read_image(out / "runs" / m / "eval" / f"{name}.png")) for m in METHODS
-        ]
-        w = panels[0].shape[1] // 3
-        rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
-    write_image(out / COMPARISON, np.concatenate(rows, axis=0))
-    runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
-    save_logged_curves(out / CURVES, runs, dataset)
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)
     payload = {
