@@ -1523,3 +1523,29 @@ def test_eval_and_render_name_a_malformed_run_file(dataset, tmp_path, capsys):
         for command in (["eval"], ["render", "--out", str(run / "orbit.gif")]):
             assert main([command[0], str(run), *command[1:]]) == 2, (case, command)
             assert re.search(message, capsys.readouterr().err), (case, command)
+
+
+def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
+    """Run files (train.json, eval.json, the log, config.yaml, videos) go through
+    write_atomically: a write that stops partway (a kill, a full disk) leaves the previous file
+    whole and no temporary file; a sweep removes a dead writer's leftovers only."""
+    from spikegs.atomic_save import is_temporary, sweep_temporaries, write_atomically
+
+    path = tmp_path / "train.json"
+    path.write_text('{"whole": true}')
+
+    def torn(tmp):
+        tmp.write_text('{"who')
+        raise OSError("No space left on device")
+
+    with pytest.raises(OSError, match="No space"):
+        write_atomically(path, torn)
+    assert path.read_text() == '{"whole": true}' and sorted(tmp_path.iterdir()) == [path]
+    dead = tmp_path / f".train.json.{_dead_pid()}.tmp"
+    dead.write_text("torn")
+    mine = [tmp_path / "notes.tmp", tmp_path / ".notes.tmp"]  # a user's: not ours
+    for user_file in mine:
+        user_file.write_text("mine")
+    assert [is_temporary(p.name) for p in (dead, *mine)] == [True, False, False]
+    sweep_temporaries(tmp_path)
+    assert not dead.exists() and all(p.exists() for p in mine)
