@@ -10,12 +10,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 
-def _temporary_name(path: Path, writer: str) -> str:
-    """The name of writer `writer`'s temporary file beside `path`: hidden, ending .tmp."""
+def temporary_name(path: Path, writer: str) -> str:
+    """The name of writer `writer`'s temporary file beside `path`: hidden, ending .tmp (a
+    process id for `write_atomically`, a random one for a streaming DatWriter)."""
     return f".{path.name}.{writer}.tmp"
 
 
-_TEMPORARY = re.compile(r"^\..+\.([^.]+)\.tmp$")  # `_temporary_name`'s, DatWriter's
+_TEMPORARY = re.compile(r"^\..+\.([^.]+)\.tmp$")  # `temporary_name`'s
 
 
 def is_temporary(name: str) -> bool:
@@ -35,7 +36,7 @@ def _writer_alive(name: str) -> bool:
     except (ProcessLookupError, OverflowError):
         return False
     except PermissionError:  # another user's live process
-        return True
+        pass
     return True
 
 
@@ -51,7 +52,7 @@ def sweep_killed_writes(path: Path) -> None:
     """Remove the temporary files that writers of `path` killed mid-write left beside it; call it
     where no other process can be writing `path` (under the lock that its writers hold)."""
     path = Path(path)
-    for stale in path.parent.glob(_temporary_name(Path(glob.escape(path.name)), "*")):
+    for stale in path.parent.glob(temporary_name(Path(glob.escape(path.name)), "*")):
         stale.unlink(missing_ok=True)
 
 
@@ -63,7 +64,7 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     cache)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(_temporary_name(path, str(os.getpid())))
+    tmp = path.with_name(temporary_name(path, str(os.getpid())))
     try:
         write(tmp)
         tmp.replace(path)

@@ -129,19 +129,15 @@ def check_fresh_out(out: Path) -> None:
 def check_run_dirs(out: Path) -> None:
     """FileExistsError, before any work, where OUT/runs/METHOD holds files that are not a spikegs
     run's (a fresh demo would delete them, a resumed one refuse them after its first stages)."""
-    from .train import foreign_files
+    from .train import refuse_foreign_files
 
     for method in METHODS:
         run_dir = out / "runs" / method
         if run_dir.exists() and not run_dir.is_dir():
             raise FileExistsError(f"{run_dir} is a file; give the demo another --out")
-        others = foreign_files(run_dir)
-        if others:
-            raise FileExistsError(
-                f"{run_dir} holds files that a demo would delete with its run "
-                f"({', '.join(others[:5])}{', ...' if len(others) > 5 else ''}); give the demo "
-                f"another --out"
-            )
+        refuse_foreign_files(
+            run_dir, ", which a demo would delete with its run; give it another --out"
+        )
 
 
 def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress: bool) -> dict:

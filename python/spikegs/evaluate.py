@@ -55,15 +55,17 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     from .train import data_fingerprint  # (train imports us)
 
     own = train.get("dataset")
+    if own is None:
+        return "eval"
     root = Path(dataset.root).resolve()
     known = "data" in train  # runs from before fingerprints: their own folder is trusted
     if known:
         scale = train.get("intensity_scale")
         scale = intensity_scale(dataset) if scale is None else float(scale)
     same = not known or train["data"] == data_fingerprint(dataset, scale)
-    if own is None or (Path(own).resolve() == root and same):
-        return "eval"
     if Path(own).resolve() == root:
+        if same:
+            return "eval"
         warnings.warn(
             f"{root} holds other data than {run_dir} was trained on (its poses, intrinsics or "
             f"training timestamps changed since: simulated again, or new poses): scored as "

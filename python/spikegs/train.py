@@ -139,6 +139,17 @@ def foreign_files(run_dir: Path) -> list[str]:
     )
 
 
+def refuse_foreign_files(run_dir: Path, remedy: str) -> None:
+    """FileExistsError naming (five of) the files in `run_dir` that are not a run's
+    (`foreign_files`), followed by `remedy`; nothing where there are none."""
+    foreign = foreign_files(run_dir)
+    if foreign:
+        raise FileExistsError(
+            f"{run_dir} holds files that are not a run's ({', '.join(foreign[:5])}"
+            f"{', ...' if len(foreign) > 5 else ''}){remedy}"
+        )
+
+
 def _finite_nonnegative(values: torch.Tensor | None) -> bool:
     """Whether a tensor of values >= 0 where finite (None or empty: yes) is all finite: its max
     carries NaN and inf, one reduction (a tenth of isfinite(...).all()'s time)."""
@@ -163,11 +174,7 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
             f"({checkpoint}): nothing to continue, and training afresh would mix with its "
             f"files; give another --out"
         )
-    if foreign:
-        raise FileExistsError(
-            f"{run_dir} holds files that are not a run's ({', '.join(foreign[:5])}"
-            f"{', ...' if len(foreign) > 5 else ''}); give an empty or new --out"
-        )
+    refuse_foreign_files(run_dir, "; give an empty or new --out")
 
 
 class Trainer:

@@ -37,7 +37,7 @@ from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
 from ..targets import sim_path
-from ..train import Trainer, foreign_files
+from ..train import Trainer, refuse_foreign_files
 from .common import print_table, write_results
 
 BASELINES = ("tfp33", "tfp65", "tfi")
@@ -120,6 +120,11 @@ def held_out_scores(trainer: Trainer) -> dict[str, float]:
         for view in ds.test_views
     ]
     return {k: float(np.mean([s[k] for s in scores])) for k in ("psnr", "ssim")}
+
+
+def run_name(method: str, seed: int) -> str:
+    """The folder of `method`'s run with `seed` in OUT/runs/SCENE (seed 0: the method's name)."""
+    return method if seed == 0 else f"{method}-seed{seed}"
 
 
 def train_method(dataset, config: Config, run_dir: Path) -> dict:
@@ -252,18 +257,15 @@ def run(
     settings = QUICK_DATA if quick else FULL_DATA
     overrides = schedule(iterations, quick)
     configs = {m: load_config(m, overrides) for m in methods}
-    run_dirs = [  # each trained afresh, its folder deleted first: a user's files there refused
-        out / "runs" / scene / (m if seed == 0 else f"{m}-seed{seed}")
-        for scene in scenes
-        for m in methods
-        for seed in range(seeds)
-    ]
-    for run_dir in run_dirs:
-        if foreign_files(run_dir):
-            raise FileExistsError(
-                f"{run_dir} holds files that are not a run's ({', '.join(foreign_files(run_dir))})"
-                f", which the benchmark would delete with its run; give another --out"
-            )
+    # each run is trained afresh, its folder deleted first: a user's files there are refused
+    # before any work
+    for scene in scenes:
+        for m in methods:
+            for seed in range(seeds):
+                refuse_foreign_files(
+                    out / "runs" / scene / run_name(m, seed),
+                    ", which the benchmark would delete with its run; give another --out",
+                )
     start = time.perf_counter()
     results = {}
     for scene in scenes:
@@ -273,8 +275,9 @@ def run(
         for method, config in configs.items():
             per_seed = []
             for seed in range(seeds):
-                name = method if seed == 0 else f"{method}-seed{seed}"
-                r = train_method(dataset, seeded(config, seed), out / "runs" / scene / name)
+                r = train_method(
+                    dataset, seeded(config, seed), out / "runs" / scene / run_name(method, seed)
+                )
                 per_seed.append(r)
                 print(
                     f"  {scene} {method} seed {seed}: {r['psnr']:.2f} dB; "

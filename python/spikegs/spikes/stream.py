@@ -23,6 +23,7 @@ from typing import Union
 import numpy as np
 
 from .. import _C
+from ..atomic_save import temporary_name
 from ..number_checks import is_int, is_number
 
 PathLike = Union[str, os.PathLike]
@@ -244,7 +245,7 @@ class DatWriter:
         self._target = Path(os.path.realpath(self.path))  # a symlink's target, not the link
         if self._target.is_dir():
             raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
-        self._partial = self._target.with_name(f".{self._target.name}.{uuid.uuid4().hex}.tmp")
+        self._partial = self._target.with_name(temporary_name(self._target, uuid.uuid4().hex))
         self._file = open(self._partial, "xb")
         if self._target.exists():  # its permissions stay, as when it was overwritten in place
             shutil.copymode(self._target, self._partial)
