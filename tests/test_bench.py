@@ -107,6 +107,12 @@ def test_train_selection_accepts_every_method_of_configs():
     assert train.selection(False, ["solids"], methods) == (["solids"], methods)
 
 
+def test_train_selection_runs_a_repeated_name_once():
+    """`--scenes solids,solids` trained and wrote solids twice."""
+    chosen = train.selection(False, ["wires", "solids", "wires"], ["tfi", "tfp33", "tfi"])
+    assert chosen == (["wires", "solids"], ["tfi", "tfp33"])
+
+
 def test_train_runs_every_seed(tmp_path):
     result = train.run(quick=True, out=tmp_path, seeds=2, methods=["tfp33"])
     tfp33 = result["scenes"][train.HEADLINE_SCENE]["methods"]["tfp33"]

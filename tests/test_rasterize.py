@@ -506,6 +506,7 @@ EXTREME = {  # name -> (N, (width, height))
     "huge-extent": (4, (33, 17)),
     "float32-needle": (4, (16, 16)),
     "alpha-min-opacity": (6, (33, 17)),
+    "scaled-viewmat": (3, (33, 17)),
     "width-1": (10, (1, 17)),
     "height-1": (10, (23, 1)),
     "one-pixel": (10, (1, 1)),
@@ -562,6 +563,11 @@ def _extreme(name: str) -> dict:
     elif name == "alpha-min-opacity":  # o at 1/255 (alpha reaches 1/255 at most on the centre)
         s["means"] = at_camera([[0.1 * i - 0.25, 0.0, 2.0] for i in range(n)])
         s["opacities"] = torch.tensor([1 / 255, 1 / 255 + 1e-12, 1 / 255 - 1e-12] * 2).double()
+    elif name == "scaled-viewmat":  # not rigid: a mean at -W^T t, in view, has no SH direction
+        s["viewmat"] = torch.diag(torch.tensor([2.0, 2.0, 2.0, 1.0], dtype=torch.float64))
+        s["viewmat"][2, 3] = -1.0  # W = 2 I: -W^T t = (0, 0, 2), at camera z 3, exactly
+        means = [[0.0, 0.0, 2.0], [0.01, 0.0, 2.0], [0.0, -0.02, 2.1]]
+        s["means"] = torch.tensor(means, dtype=torch.float64)
     elif name == "bad-quats":
         s["quats"][0] = 0.0
         s["quats"][1, 2] = nan

@@ -897,14 +897,20 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     # stopped while simulating: --resume went on with 1800 iterations, not the 80 asked for
     from spikegs.demo import started_iterations
 
-    def ctrl_c(*args, **kwargs):
+    simulated = []
+
+    def stop_simulating(scene, *args, **kwargs):
+        simulated.append(scene)
         raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
-        patch.setattr("spikegs.data.simulate_dataset", ctrl_c)
-        assert main([*argv, str(tmp_path / "early")]) == 130
+        patch.setattr("spikegs.data.simulate_dataset", stop_simulating)
+        assert main([*argv, str(tmp_path / "early"), "--scene", "wires"]) == 130
         # --resume where there is nothing to resume starts a demo as a plain one does
         assert main([*argv, str(tmp_path / "early2"), "--resume"]) == 130
+        # and without --scene went on with solids, not the wires it was started with
+        assert main(["demo", "--no-progress", "--out", str(tmp_path / "early"), "--resume"]) == 130
+    assert simulated == ["wires", "solids", "wires"]
     assert started_iterations(tmp_path / "early") == 80
     assert started_iterations(tmp_path / "early2") == 80
     capsys.readouterr()
@@ -1005,6 +1011,22 @@ def test_cli_names_unreadable_and_unwritable_paths(dataset, tmp_path, capsys):
     ):
         assert main(["train", data, *args, "--out", out]) == 2, args
         assert message in capsys.readouterr().err, args
+
+
+def test_every_command_names_an_output_folder_under_a_file(dataset, tmp_path, capsys):
+    """A raw "[Errno 20] Not a directory" came after the benchmark's work, or at its first file."""
+    (tmp_path / "afile").write_text("")
+    out = str(tmp_path / "afile" / "out")
+    for args in (
+        ["simulate", "--scene", "solids", "--out", out],
+        ["demo", "--out", out],
+        ["bench", "rasterizer", "--quick", "--out", out],
+        ["train", str(dataset.root), "--method", "tfp33", "--out", out],
+    ):
+        start = time.perf_counter()
+        assert main(args) == 2, args
+        assert "afile/out: a folder on its path is a file" in capsys.readouterr().err, args
+        assert time.perf_counter() - start < 1, args  # refused before any work
 
 
 def test_a_filesystem_without_locks_trains_with_a_warning(dataset, tmp_path, monkeypatch):

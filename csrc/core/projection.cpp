@@ -117,14 +117,16 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   return s;
 }
 
-// Viewing direction for SH: unit vector from the camera centre to the mean, and that distance.
+// Viewing direction for SH: unit vector from the camera centre to the mean, and that distance;
+// zero at the centre (a mean there is culled unless the viewmat is not rigid: -W^T t is then not
+// the camera's centre), where every SH band above 0 is zero.
 template <typename T>
 Vec3<T> view_direction(const T* mean, const Camera<T>& cam, T& length) {
   const Mat3<T> W = rotation_of(cam.viewmat);
   const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
   const Vec3<T> d = Vec3<T>(mean[0], mean[1], mean[2]) + glm::transpose(W) * t;  // mean - campos
   length = glm::length(d);
-  return d / length;
+  return length > T(0) ? d / length : Vec3<T>(T(0));
 }
 
 }  // namespace
@@ -259,7 +261,8 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
         T ddir[3] = {0, 0, 0};
         sh_basis_vjp(prm.sh_degree, dir.x, dir.y, dir.z, weight, ddir);
         const Vec3<T> gd(ddir[0], ddir[1], ddir[2]);
-        const Vec3<T> dd = (gd - dir * glm::dot(dir, gd)) / length;  // through normalisation
+        const Vec3<T> dd =  // through normalisation; none at the centre, where it has no slope
+            length > T(0) ? (gd - dir * glm::dot(dir, gd)) / length : Vec3<T>(T(0));
         dmu += dd;
         // d = mean + W^T t: d/dW = t dd^T, d/dt = W dd
         dW += glm::outerProduct(t, dd);

@@ -26,6 +26,7 @@ from .curves import save_logged_curves
 from .data.scenes import SCENES
 
 METHODS = ("spikegs", "tfp33")
+DEFAULT_SCENE = "solids"
 # The demo's shortened schedule: same for both methods, so the comparison is fair. 1800
 # iterations fit the 5-minute budget on 2 cores; at 1200 every curve still climbs steeply and the
 # margin moved by 1 dB with float rounding alone (BENCHMARKS.md, "Training"). AbsGS's threshold
@@ -47,7 +48,9 @@ DEMO_OVERRIDES = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
     parser.add_argument(
-        "--scene", default="solids", choices=sorted(SCENES), help="built-in scene (default: solids)"
+        "--scene",
+        choices=sorted(SCENES),
+        help=f"built-in scene (default: {DEFAULT_SCENE}; on --resume, the demo's own)",
     )
     parser.add_argument(
         "--iterations",
@@ -75,7 +78,7 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
         if dataset.meta.get("scene") != scene:
             raise ValueError(
                 f"--resume: {data} holds scene '{dataset.meta.get('scene')}', not '{scene}'; "
-                f"pass --scene {dataset.meta.get('scene')} or another --out"
+                f"leave out --scene to continue it, or give another --out"
             )
         print(f"[1/3] resuming with the spike dataset in {data}")
         return dataset
@@ -84,7 +87,7 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
 
 
 SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
-ITERATIONS_FILE = ".demo_iterations"  # the --iterations a demo was started with ('' : default)
+STARTED_FILE = ".demo_started.json"  # what a demo began with: {"scene": .., "iterations": ..}
 RESULTS = "results.json"
 COMPARISON, CURVES = "comparison.png", "curves.png"  # the demo's figures
 
@@ -103,6 +106,15 @@ def earlier_seconds(out: Path) -> float:
         return 0.0
 
 
+def _started(out: Path) -> dict:
+    """What the demo in `out` recorded as it started (STARTED_FILE); {} where none."""
+    try:
+        started = json.loads((out / STARTED_FILE).read_text())
+    except (FileNotFoundError, ValueError):
+        return {}
+    return started if isinstance(started, dict) else {}
+
+
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
     config.yaml, else what it recorded when it started), None for the default."""
@@ -110,10 +122,18 @@ def started_iterations(out: Path) -> int | None:
         saved = out / "runs" / method / "config.yaml"
         if saved.is_file():
             return int(read_yaml(saved)["train"]["iterations"])
+    iterations = _started(out).get("iterations")
+    return iterations if isinstance(iterations, int) and iterations > 0 else None
+
+
+def started_scene(out: Path) -> str | None:
+    """The scene of the demo in `out` (its dataset's, else what it recorded when it started),
+    None where neither names a built-in one."""
     try:
-        return int((out / ITERATIONS_FILE).read_text()) or None
-    except (FileNotFoundError, ValueError):
-        return None
+        scene = json.loads((out / "data" / "meta.json").read_text()).get("scene")
+    except (FileNotFoundError, ValueError, AttributeError):
+        scene = _started(out).get("scene")
+    return scene if scene in SCENES else None
 
 
 def check_fresh_out(out: Path) -> None:
@@ -182,12 +202,12 @@ def write_figures(out: Path, dataset, results: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from .output_paths import check_folder_output
     from .train import run_lock
 
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"--out {out} is a file; give the demo a folder")
-    # a demo writes ITERATIONS_FILE as it starts: a folder without anything holds none
+    check_folder_output(out)
+    # a demo writes STARTED_FILE as it starts: a folder without anything holds none
     if args.resume and not (out.is_dir() and any(p.name != ".lock" for p in out.iterdir())):
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
         args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
@@ -201,9 +221,9 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     start = time.perf_counter()
     progress = not args.no_progress
     earlier = earlier_seconds(out) if args.resume else 0.0
-    resumed = args.resume and (out / "data" / "meta.json").exists()  # not a fresh start
+    # --resume without --scene or --iterations goes on with those the demo was started with
+    scene = args.scene or (started_scene(out) if args.resume else None) or DEFAULT_SCENE
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
-    # --resume without --iterations goes on with those the demo was started with
     iterations = args.iterations or (started_iterations(out) if args.resume else None)
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
@@ -215,12 +235,13 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
             shutil.rmtree(out / "runs" / method, ignore_errors=True)
         for stale in (RESULTS, SECONDS_FILE, COMPARISON, CURVES):
             (out / stale).unlink(missing_ok=True)
-        # what --resume goes on with, should this demo stop before its first run's config.yaml
-        (out / ITERATIONS_FILE).write_text(str(iterations or ""))
+        # what --resume goes on with, should this demo stop before its dataset and first run
+        started = {"scene": scene, "iterations": iterations}
+        write_text_atomically(out / STARTED_FILE, json.dumps(started))
     else:
         check_run_dirs(out)
     try:  # the figures too: stopped while writing them, it says how to go on as well
-        dataset = demo_dataset(args.scene, out / "data", args.resume, progress)
+        dataset = demo_dataset(scene, out / "data", args.resume, progress)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
         write_figures(out, dataset, results)
     except KeyboardInterrupt:
@@ -233,7 +254,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         "methods": results,
         "scene": dataset.meta.get("scene"),
         "total_seconds": total,
-        "resumed": resumed,
+        "resumed": args.resume,  # finished by more than one process
     }
     write_text_atomically(out / RESULTS, strict_json.dumps(payload, indent=2))
     print()
@@ -243,6 +264,6 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
             for m, r in results.items()
         ]
     )
-    gain = results["spikegs"]["psnr"] - results["tfp33"]["psnr"]
+    gain = round(results["spikegs"]["psnr"] - results["tfp33"]["psnr"], 2) + 0.0  # no -0.00
     print(f"\nSpikeGS - TFP(33)+3DGS: {gain:+.2f} dB; total {total:.0f} s; results in {out}")
     return 0

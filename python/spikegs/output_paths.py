@@ -25,3 +25,15 @@ def check_file_output(path: Path, flag: str = "--out") -> None:
         raise ValueError(f"{flag} {path}: a folder on its path is a file")
     if not writable_folder(path.parent):
         raise ValueError(f"{flag} {path}: its folder is not writable")
+
+
+def check_folder_output(folder: Path, flag: str = "--out") -> None:
+    """ValueError unless files can be written into `folder` (made where missing): not a file,
+    no file on its path, its nearest existing ancestor writable."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{flag} {folder}: is a file; give a folder")
+    if any(parent.exists() and not parent.is_dir() for parent in folder.parents):
+        raise ValueError(f"{flag} {folder}: a folder on its path is a file")
+    if not writable_folder(folder):
+        raise ValueError(f"{flag} {folder}: not writable")

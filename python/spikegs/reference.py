@@ -171,7 +171,9 @@ def _project(
     else:
         d = means + t @ W  # [N, 3] mean - campos, campos = -W^T t
         d = torch.where(_rows(keep, d), d, safe_point)
-        basis = sh_basis(d / d.norm(dim=-1, keepdim=True), sh_degree)  # [N, (d+1)^2]
+        length = d.norm(dim=-1, keepdim=True)  # [N, 1]; 0 at -W^T t (a non-rigid viewmat's)
+        dirs = torch.where(length > 0, d / torch.where(length > 0, length, 1.0), 0.0)  # [N, 3]
+        basis = sh_basis(dirs, sh_degree)  # [N, (d+1)^2]
         rgb = torch.einsum("nk,nkc->nc", basis, colors[:, : basis.shape[1]]) + 0.5
         rgb = torch.clamp(rgb, min=0.0)  # [N, C]
     return _Splats(keep, radii, means2d, conics, z, opacities, rgb)

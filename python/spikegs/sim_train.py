@@ -79,7 +79,8 @@ def train_sim(
     resume: dict | None = None,
     **sim_kwargs,
 ) -> tuple[SIM, list[float]]:
-    """Train a fresh SIM on random `crop`² crops of windows at random training `timestamps`.
+    """Train a fresh SIM on random `crop`² crops (the whole frame along a side shorter than `crop`)
+    of windows at random training `timestamps`.
 
     `stream` may be a list of streams (a colour camera's channels): each crop then comes from a
     random one of them, and the one network serves every channel.

@@ -9,6 +9,7 @@ from pathlib import Path
 from .cli import file_path, positive_int
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 from .curves import save_logged_curves
+from .output_paths import check_folder_output
 from .run_summary import CURVE, last_checkpoint
 
 
@@ -63,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from .train import Trainer
 
     config = config_from_args(args)  # bad method or config: refused before any work
+    check_folder_output(args.out)
     dataset = load_dataset(args.dataset)
     summary = Trainer(dataset, config, args.out, progress=not args.no_progress).train(args.resume)
     runs = {config.method: (Path(args.out), summary["sim_seconds"])}

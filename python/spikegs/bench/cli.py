@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from ..cli import positive_int
+from ..output_paths import check_folder_output
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
 PARTS = {
@@ -70,8 +71,7 @@ def run(args: argparse.Namespace) -> int:
             train_options.get("methods"),
             train_options["seeds"],
         )
-    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
-        raise ValueError(f"--out {args.out} is a file; the benchmarks write into a folder")
+    check_folder_output(args.out)
     for part in parts:
         try:
             module = importlib.import_module(PARTS[part])

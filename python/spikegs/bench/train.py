@@ -229,9 +229,9 @@ def selection(
 ) -> tuple[list[str], list[str]]:
     """The scenes and methods a run trains (defaults filled in: METHODS, or QUICK_METHODS when
     quick; any method of configs/ may be named, e.g. the variant sim17); ValueError naming what
-    is unknown, with the known ones, before any work starts."""
-    scenes = list(scenes or ([HEADLINE_SCENE] if quick else SCENES))
-    methods = list(methods or (QUICK_METHODS if quick else METHODS))
+    is unknown, with the known ones, before any work starts. A name given twice runs once."""
+    scenes = list(dict.fromkeys(scenes or ([HEADLINE_SCENE] if quick else SCENES)))
+    methods = list(dict.fromkeys(methods or (QUICK_METHODS if quick else METHODS)))
     known = [*METHODS, *(m for m in available_methods() if m not in METHODS)]
     unknown = [s for s in scenes if s not in SCENES] + [m for m in methods if m not in known]
     if unknown or seeds < 1:

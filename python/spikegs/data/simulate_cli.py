@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
 from .simulate import DEFAULT_FRAME_EVERY, DEFAULT_READOUTS, DEFAULT_SPEED, simulate_dataset
@@ -63,6 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_folder_output(args.out)
     sim_params = {f.name: getattr(args, f.name) for f in dataclasses.fields(SimParams)}
     start = time.perf_counter()
     try:
