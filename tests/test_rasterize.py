@@ -14,6 +14,7 @@ import pytest
 import spikegs
 import torch
 from spikegs import reference
+from spikegs import sh as sh_module
 from spikegs.sh import num_coeffs, sh_basis
 
 try:
@@ -333,16 +334,6 @@ def test_equal_depths_keep_index_order():
 
 
 @needs_cpp
-def test_reference_reads_the_core_constants():
-    table = spikegs._C.constants
-    assert (reference.ALPHA_MAX, reference.ALPHA_MIN) == (table["alpha_max"], table["alpha_min"])
-    assert (reference.T_MIN, reference.TILE) == (table["transmittance_min"], table["tile_size"])
-    assert (reference.DILATION, reference.CLAMP_MARGIN) == (
-        table["dilation"],
-        table["clamp_margin"],
-    )
-
-
 @needs_cpp
 def test_result_type():
     out = render(spikegs.rasterize, make_scene(6, 5, 13, 9))
@@ -428,6 +419,8 @@ def _bad_inputs():
             ),  # a pybind TypeError
             ("sh-degree-str", {"sh_degree": "1"}, "sh_degree: expected an int"),
             ("sh-k-small", {"sh_degree": 2}, "colors|sh_degree"),
+            # was "sh_degree: expected 0..3, got -1", a degree the caller never passed
+            ("sh-k-zero", {"colors": s["colors"][:, :0], "sh_degree": None}, "at least 1 SH"),
             (
                 "sh-k-not-square",
                 {"colors": s["colors"][:, :3], "sh_degree": None},
@@ -453,6 +446,14 @@ def test_bad_input_raises(overrides, name):
         render(spikegs.rasterize, _BAD_SCENE, **overrides)
 
 
+def test_reference_refuses_what_the_op_refuses():
+    """Both rasterizers check colours and SH degrees with one function (sh.degree_of)."""
+    for overrides, name in [c[1:] for c in _BAD if c[0].startswith("sh-")]:
+        with pytest.raises(ValueError, match=name):
+            render(reference.rasterize, _BAD_SCENE, **overrides)
+    assert sh_module.MAX_DEGREE == spikegs._C.constants["max_sh_degree"]
+
+
 @needs_cpp
 def test_near_and_far_as_numbers_or_scalar_tensors():
     plain = render(spikegs.rasterize, _BAD_SCENE, near=0.05, far=50)
@@ -476,12 +477,21 @@ def test_a_loss_on_one_output_alone(output):
 
 @needs_cpp
 def test_double_backward_is_refused_clearly():
+    """A gradient penalty, and a Hessian-vector product (its zeros came back silently)."""
     scene = make_scene(3, 4, 13, 9)
     means = scene["means"].clone().requires_grad_()
     out = render(spikegs.rasterize, scene, means=means)
-    (g,) = torch.autograd.grad((out.image**2).sum(), means, create_graph=True)  # a penalty's
-    with pytest.raises(RuntimeError, match="once_differentiable"):
-        g.sum().backward()
+    with pytest.raises(RuntimeError, match="differentiable once"):
+        torch.autograd.grad((out.image**2).sum(), means, create_graph=True)
+
+    def loss(m):
+        return render(spikegs.rasterize, scene, means=m).image.square().mean()
+
+    with pytest.raises(RuntimeError, match="differentiable once"):
+        torch.autograd.functional.hvp(loss, means.detach(), torch.ones_like(means))
+    out = render(spikegs.rasterize, scene, means=means)  # a plain backward still works
+    out.image.sum().backward()
+    assert means.grad.abs().sum() > 0
 
 
 @needs_cpp

@@ -200,6 +200,10 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert capsys.readouterr().err.count("training SIM afresh") == 1  # (said twice, with the lock)
     path.write_bytes(path.read_bytes()[:1000])  # cut short (written before saves were atomic)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0  # retrained, and saved whole
+    torch.save({"weights": torch.zeros(3)}, path)  # a readable file of another kind: a KeyError
+    capsys.readouterr()
+    assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
+    assert "not a saved SIM; training SIM afresh" in capsys.readouterr().err
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
     # other training settings at the same path (sim-train --out FILE): retrained, said why (it
     # was reused, steps and all)
@@ -271,6 +275,8 @@ def test_writable_folder(tmp_path):
     assert writable_folder(tmp_path) and writable_folder(tmp_path / "new" / "deeper")
     (tmp_path / "file").write_text("")
     assert not writable_folder(tmp_path / "file") and not writable_folder(tmp_path / "file" / "x")
+    if Path("/proc/self").is_dir():  # os.access says yes to root; creating a file there fails
+        assert not writable_folder(Path("/proc/new"))
 
 
 class _CtrlC:
@@ -311,7 +317,7 @@ def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained):
     with pytest.raises(KeyboardInterrupt):  # the 30 s have not passed: saved for the Ctrl-C
         train_or_load(path, _SigInt(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
     assert "SIM's training stops after this step" in capsys.readouterr().err
-    assert torch.load(path.with_name("sim.pt.partial"), weights_only=False)["step"] == 13
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 13
     resumed, _, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)
@@ -319,9 +325,7 @@ def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained):
     last = (TRAIN["steps"] - 1) * TRAIN["batch_size"] + 1
     with pytest.raises(KeyboardInterrupt):
         train_or_load(path, _SigInt(stream, last), ts, 33, seed=3, **TRAIN)
-    assert (
-        torch.load(path.with_name("sim.pt.partial"), weights_only=False)["step"] == TRAIN["steps"]
-    )
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == TRAIN["steps"]
 
 
 def test_interrupted_sim_training_resumes_to_the_same_sim(
@@ -335,7 +339,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     with pytest.raises(KeyboardInterrupt):
         train_or_load(path, _CtrlC(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
     partial = path.with_name("sim.pt.partial")
-    state = torch.load(partial, weights_only=False)
+    state = torch.load(partial, weights_only=True)
     assert state["step"] == 12 and not path.exists()
     # what processes killed while saving the state or the SIM left (swept once the lock is held)
     killed = [path.with_name(".sim.pt.partial.999999.tmp"), path.with_name(".sim.pt.999998.tmp")]
@@ -451,6 +455,8 @@ def test_bad_input_refused():
     for bad in ({"out_channels": 0}, {"window": 2.5}, {"width": -1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             SIM(**bad)
+    with pytest.raises(ValueError, match="target window expected an int, found 17.0"):
+        SIM(target_window=17.0)  # passed, then failed as a slice index in the first forward
 
 
 def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypatch, capsys):

@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 import pytest
-from spikegs import SpikeStream, save_dat
+from spikegs import _C, SpikeStream, save_dat
 from spikegs.spikes import TFI_DEFAULT_MAX_INTERVAL
 
 
@@ -160,8 +160,6 @@ def test_windows_past_either_end_refused():
 
 
 def test_core_refuses_windows_whose_end_overflows():
-    from spikegs import _C
-
     s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
     data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
     starts = np.array([np.iinfo(np.int64).max - 1], np.int64)
@@ -201,7 +199,7 @@ def test_dat_writer_refuses_what_it_would_write_wrong(tmp_path):
     assert SpikeStream.open(tmp_path / "x.dat", 8, 8).tfp(1, 1).min() == 1
 
 
-def test_dat_writer_replaces_the_file_when_done(tmp_path):
+def test_dat_writer_replaces_the_file_when_done(tmp_path, monkeypatch):
     """A stream open on a .dat keeps reading it while a new one is written to the same path (the
     file was truncated in place: its reader read zeros, or died of SIGBUS past the last page, so
     the check runs in a subprocess); a failed write leaves the earlier file and no partial one."""
@@ -232,6 +230,11 @@ print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
     with pytest.raises(IsADirectoryError, match="a folder"):
         DatWriter(tmp_path, 8, 8)
+    with monkeypatch.context() as patch:  # it left its open partial file behind
+        patch.setattr("shutil.copymode", lambda *a: exec("raise PermissionError('denied')"))
+        with pytest.raises(PermissionError, match="denied"):
+            DatWriter(path, 8, 8)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="symlinks, file modes and RLIMIT_FSIZE")
@@ -264,6 +267,9 @@ except OSError as error:
 
 
 def test_bad_shapes_refused(tmp_path):
+    strided = np.zeros((3, 4, 4), np.uint8)[:, :, ::2]  # was "expected C-contiguous uint8,
+    with pytest.raises(ValueError, match="found uint8, not C-contiguous"):  # found uint8"
+        SpikeStream(strided, _C.SpikeLayout.memory(4, 16))
     with pytest.raises(ValueError, match=r"expected \[T, 4, 2\]"):
         SpikeStream.from_packed(np.zeros((3, 4, 1), np.uint8), 4, 13)
     with pytest.raises(ValueError, match="0/1"):

@@ -25,7 +25,7 @@ from spikegs.data.trajectory import Trajectory
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.gaussians import GaussianModel
-from spikegs.image_io import read_image
+from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample
 from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
@@ -211,8 +211,16 @@ def test_resume_refuses_other_data(dataset, tmp_path):
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
 
 
-@pytest.mark.parametrize("torn", [b"", b"hello", "truncated", "list"])
-def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, torn):
+class _Planted:
+    """An object a checkpoint's unpickling would build, running its code (`__reduce__`)."""
+
+    def __reduce__(self):
+        return (os.remove, ("planted",))
+
+
+@pytest.mark.parametrize("torn", [b"", b"hello", "truncated", "list", "code"])
+def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, monkeypatch, torn):
+    """... and runs no code a planted one carries (was unpickled in full: weights_only=False)."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
@@ -220,10 +228,15 @@ def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, torn):
         torn = checkpoint.read_bytes()[:100]
     elif torn == "list":
         torch.save([1, 2], checkpoint)
+    elif torn == "code":
+        monkeypatch.chdir(tmp_path)
+        (tmp_path / "planted").write_text("")
+        torch.save({"config": {}, "payload": _Planted()}, checkpoint)
     if isinstance(torn, bytes):
         checkpoint.write_bytes(torn)
     with pytest.raises(ValueError, match=r"last.pt: cannot be resumed \(train afresh"):
         Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    assert torn != "code" or (tmp_path / "planted").exists()
 
 
 def test_data_fingerprint_follows_poses_intrinsics_and_scale(dataset):
@@ -411,6 +424,8 @@ def test_ply_edge_cases(tmp_path):
     for rest, comments, message in (
         (72, [], "SH degree 4 .* renders degrees 0..3"),
         (21, ["spikegs sh_degree 2"], "spikegs sh_degree 2': expected 0..1"),
+        ("gap", [], r"f_dc_\* properties \['f_dc_0', 'f_dc_1', 'f_dc_3'\]"),  # read as 3
+        ("points", [], "no f_dc_\\* colour properties"),  # "a multiple of 0 f_rest_*"
     ):
         names = [
             "x",
@@ -420,13 +435,33 @@ def test_ply_edge_cases(tmp_path):
             *[f"{k}_{i}" for k in ("scale", "rot") for i in range(4)],
         ]
         names = [n for n in names if n != "scale_3"]
-        names += [f"f_dc_{i}" for i in range(3)] + [f"f_rest_{i}" for i in range(rest)]
+        if rest == "gap":
+            names += ["f_dc_0", "f_dc_1", "f_dc_3"]
+        elif rest != "points":
+            names += [f"f_dc_{i}" for i in range(3)] + [f"f_rest_{i}" for i in range(rest)]
         vertex = np.zeros(2, dtype=[(n, "f4") for n in names])
         PlyData([PlyElement.describe(vertex, "vertex")], comments=comments).write(
             tmp_path / "o.ply"
         )
         with pytest.raises(ValueError, match=f"o.ply: {message}" if not comments else message):
             load_ply(tmp_path / "o.ply")
+
+
+def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
+    """SH degree 4 built and failed at render; a NaN background was saved in a file that load_ply
+    refused; a degree raised after construction failed save_ply with a numpy broadcast error."""
+    gen = torch.Generator().manual_seed(3)
+    with pytest.raises(ValueError, match="sh_degree expected 0..3, not 4"):
+        GaussianModel.random(4, (0, 0, 0), 1.0, 3, 4, gen)
+    model = GaussianModel.random(4, (0, 0, 0), 1.0, 3, 1, gen)
+    with pytest.raises(ValueError, match=r"sh_degree 2 needs sh_rest \[N, 8, C\], got \[4, 3, 3\]"):
+        GaussianModel(model.params, model.background, 2)
+    with pytest.raises(AttributeError):
+        model.sh_degree = 2
+    model.background.data[0] = float("nan")
+    with pytest.raises(ValueError, match="background .*expected finite"):
+        save_ply(model, tmp_path / "nan.ply")
+    assert not (tmp_path / "nan.ply").exists()
 
 
 def test_gaussian_model_refuses_sizes_without_gaussians():
@@ -954,6 +989,22 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert [p["iteration"] for p in logged_curve(again / "runs" / "spikegs")] == [50, 80]
 
 
+def test_orbit_of_cameras_at_the_centre(dataset):
+    """A capture turning in place gave NaN viewmats (divisions by zero distance); one camera at
+    the centre among others made the whole orbit NaN."""
+    from spikegs.data import Trajectory
+    from spikegs.render_cli import orbit_viewmats
+
+    path, center = dataset.trajectory, np.asarray(dataset.scene_center)
+    at = path.viewmats.copy()  # [P, 4, 4] every camera moved to the centre: t = -R c
+    at[:, :3, 3] = -at[:, :3, :3] @ center
+    with pytest.raises(ValueError, match="every camera sits at the scene centre"):
+        orbit_viewmats(Trajectory(path.readouts, at), center, 4)
+    one = path.viewmats.copy()
+    one[0] = at[0]
+    assert np.isfinite(orbit_viewmats(Trajectory(path.readouts, one), center, 4)).all()
+
+
 def test_orbit_turns_with_the_world(dataset):
     """The orbit is the cameras' own: in a rotated world (SfM and LLFF poses have no fixed up)
     it is the rotated orbit, and on an upright scene it is level (its cameras' up is +z)."""
@@ -1245,7 +1296,7 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     path = tmp_path / "run" / "checkpoints" / "last.pt"
-    state = torch.load(path, weights_only=False)
+    state = torch.load(path, weights_only=True)
     del state["config"]["sim"]["shift_layers"]  # as saved before sim.shift_layers was added
     torch.save(state, path)
     longer = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
@@ -1259,7 +1310,7 @@ def test_a_run_saved_before_absgrad_resumes_without_it(dataset, tmp_path):
     old = {**FAST, "train": {**FAST["train"], "iterations": 2}, "densify": {"absgrad": False}}
     Trainer(dataset, load_config("tfp33", old), run, progress=False).train()
     path = run / "checkpoints" / "last.pt"
-    state = torch.load(path, weights_only=False)
+    state = torch.load(path, weights_only=True)
     del state["config"]["densify"]["absgrad"]
     torch.save(state, path)
     saved = (run / "config.yaml").read_text()
@@ -1563,6 +1614,13 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     with pytest.raises(OSError, match="No space"):
         write_atomically(path, torn)
     assert path.read_text() == '{"whole": true}' and sorted(tmp_path.iterdir()) == [path]
+
+    def refused(tmp):  # the error named the hidden temporary file, not the one asked for
+        raise FileNotFoundError(2, "No such file or directory", str(tmp))
+
+    with pytest.raises(OSError) as raised:
+        write_atomically(tmp_path / "v.gif", refused)
+    assert raised.value.filename == str(tmp_path / "v.gif")
     dead = tmp_path / f".train.json.{_dead_pid()}.tmp"
     dead.write_text("torn")
     mine = [tmp_path / "notes.tmp", tmp_path / ".notes.tmp"]  # a user's: not ours
@@ -1571,3 +1629,32 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     assert [is_temporary(p.name) for p in (dead, *mine)] == [True, False, False]
     sweep_temporaries(tmp_path)
     assert not dead.exists() and all(p.exists() for p in mine)
+
+
+def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
+    """Test views, evaluation images and points3d.ply (which `spikegs poses` rewrites in a
+    dataset) went straight to their path: a kill left a truncated file the dataset refused."""
+    from spikegs import atomic_save
+    from spikegs.point_cloud import read_points, write_points
+
+    written = []
+
+    def spy(path, write):
+        written.append(path.name)
+        atomic_save.write_atomically(path, write)
+
+    monkeypatch.setattr("spikegs.image_io.write_atomically", spy)
+    monkeypatch.setattr("spikegs.point_cloud.write_atomically", spy)
+    image = np.linspace(0.0, 1.0, 5 * 7 * 3, dtype=np.float32).reshape(5, 7, 3)
+    for name in ("view.exr", "view.png", "view.tif"):
+        write_image(tmp_path / name, image * 0.5)
+        write_image(tmp_path / name, image)  # over the first: the format is the name's
+        back = read_image(tmp_path / name)  # [5, 7, 3]; a PNG's sRGB values, 8 bits
+        if name.endswith(".png"):
+            back = srgb_to_linear(back)
+        np.testing.assert_allclose(back, image, atol=0.01 if name.endswith(".png") else 0.0)
+    points = np.arange(12, dtype=np.float64).reshape(4, 3)
+    write_points(tmp_path / "points3d.ply", points)
+    np.testing.assert_array_equal(read_points(tmp_path / "points3d.ply"), points)
+    assert written == ["view.exr"] * 2 + ["view.png"] * 2 + ["view.tif"] * 2 + ["points3d.ply"]
+    assert not [p for p in tmp_path.iterdir() if atomic_save.is_temporary(p.name)]

@@ -68,6 +68,10 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     try:
         write(tmp)
         tmp.replace(path)
+    except OSError as err:  # named by the file asked for, not the hidden temporary one
+        if err.filename in (str(tmp), tmp):
+            err.filename = str(path)
+        raise
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -7,8 +7,9 @@ from collections.abc import Callable
 
 import torch
 
+from .number_checks import is_int
 from .rasterize import RasterizeResult, rasterize
-from .sh import num_coeffs
+from .sh import MAX_DEGREE, num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
 # the near plane: the rasterizer's 0.01 world units (3DGS's), lowered in proportion for a scene of
@@ -36,9 +37,24 @@ class GaussianModel:
         missing = set(PARAMETER_NAMES) - set(params)
         if missing:
             raise ValueError(f"GaussianModel: missing parameters {sorted(missing)}")
+        if not is_int(sh_degree) or not 0 <= sh_degree <= MAX_DEGREE:
+            raise ValueError(
+                f"GaussianModel: sh_degree expected 0..{MAX_DEGREE}, not {sh_degree!r}"
+            )
+        rest = params["sh_rest"]  # [N, K - 1, C]: K the degree's coefficients at least
+        if rest.dim() != 3 or rest.shape[1] < num_coeffs(sh_degree) - 1:
+            raise ValueError(
+                f"GaussianModel: sh_degree {sh_degree} needs sh_rest [N, "
+                f"{num_coeffs(sh_degree) - 1}, C], got {list(rest.shape)}"
+            )
         self.params = {k: torch.nn.Parameter(params[k].detach().clone()) for k in PARAMETER_NAMES}
         self.background = torch.nn.Parameter(background.detach().clone())
-        self.sh_degree = sh_degree
+        self._sh_degree = int(sh_degree)
+
+    @property
+    def sh_degree(self) -> int:
+        """The SH degree the model renders with (fixed: its sh_rest holds that many)."""
+        return self._sh_degree
 
     @classmethod
     def random(

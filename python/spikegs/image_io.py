@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
+from .atomic_save import write_atomically
+
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     """Decode sRGB values in [0, 1] to linear light."""
@@ -39,13 +41,19 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     if path.suffix.lower() in (".png", ".jpg", ".jpeg"):
         image = linear_to_srgb(image).astype(np.float32)
         spec.set_format(oiio.UINT8)
-    out = oiio.ImageOutput.create(str(path))
-    if out is None or not out.open(str(path), spec):
-        raise OSError(f"cannot write {path}: {_reason(oiio.geterror())}")
-    ok = out.write_image(np.ascontiguousarray(image))
-    out.close()
-    if not ok:
-        raise OSError(f"cannot write {path}: {_reason(out.geterror())}")
+
+    def write(tmp: Path) -> None:  # the format is `path`'s: the temporary name has no suffix
+        out = oiio.ImageOutput.create(str(path))
+        if out is None or not out.open(str(tmp), spec):
+            raise OSError(f"cannot write {path}: {_reason(oiio.geterror())}")
+        try:
+            ok = out.write_image(np.ascontiguousarray(image))
+        finally:
+            out.close()
+        if not ok:
+            raise OSError(f"cannot write {path}: {_reason(out.geterror())}")
+
+    write_atomically(path, write)  # a kill mid-write keeps the previous image (or none)
 
 
 @dataclass(frozen=True)

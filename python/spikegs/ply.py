@@ -6,6 +6,8 @@ degree 3, which viewers that read a fixed record (SIBR's) need. A model of a low
 written with its higher coefficients zero (it renders the same) and a `spikegs sh_degree` comment
 that the import reads back. Viewers expect three colour channels: a mono scene is written with its
 channel repeated and a `spikegs channels 1` comment, so that the import gives back exactly one.
+Colours are the model's linear intensities (a viewer, which shows them as display values, shows
+them darker than `spikegs render`); the background is a `spikegs background` comment.
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         raise ValueError(
             f"save_ply: a model of {channels} channels; a 3DGS .ply holds 1 (grey) or 3 (RGB)"
         )
+    if not model.background.isfinite().all():  # load_ply would refuse the file
+        raise ValueError(f"save_ply: background {model.background.tolist()}: expected finite")
     p = {k: v.detach().cpu().numpy() for k, v in model.params.items()}
     n, used = len(model), (model.sh_degree + 1) ** 2 - 1  # the coefficients that render reads
     reps = 3 if channels == 1 else 1
@@ -107,8 +111,13 @@ def load_ply(path: str | Path) -> GaussianModel:
         (k for k in names if re.fullmatch(r"f_rest_\d+", k)), key=lambda s: int(s[7:])
     )
     stored = len(dc_names)
-    if stored == 0 or len(rest_names) % stored:
-        raise ValueError(f"{path}: expected f_dc_* and a multiple of {stored} f_rest_* properties")
+    if stored == 0:
+        raise ValueError(f"{path}: no f_dc_* colour properties: not a 3DGS splat file")
+    for kind, found in (("f_dc", dc_names), ("f_rest", rest_names)):
+        if found != [f"{kind}_{i}" for i in range(len(found))]:  # f_dc_0, f_dc_1, f_dc_3
+            raise ValueError(f"{path}: {kind}_* properties {found}: expected {kind}_0 onwards")
+    if len(rest_names) % stored:
+        raise ValueError(f"{path}: expected a multiple of {stored} f_rest_* properties")
     rest = len(rest_names) // stored  # per channel
     channels = _tag_int(path, tags, "channels", stored, 1, stored)
     inferred = math.isqrt(rest + 1) - 1  # the highest degree whose coefficients the file holds

@@ -12,6 +12,7 @@ import torch
 from plyfile import PlyData, PlyElement
 from scipy.spatial import cKDTree
 
+from .atomic_save import write_atomically
 from .gaussians import GaussianModel
 from .ply import read_vertices
 
@@ -29,7 +30,8 @@ def write_points(path: str | Path, points: np.ndarray, colors: np.ndarray | None
     if colors is not None:
         for i, name in enumerate(("red", "green", "blue")):
             vertex[name] = colors[:, i]
-    PlyData([PlyElement.describe(vertex, "vertex")]).write(str(path))
+    ply = PlyData([PlyElement.describe(vertex, "vertex")])
+    write_atomically(Path(path), lambda tmp: ply.write(str(tmp)))
 
 
 def read_points(path: str | Path) -> np.ndarray:

@@ -5,15 +5,14 @@ The maths is in docs/rasterizer.md.
 
 from __future__ import annotations
 
-import math
 import numbers
 from typing import NamedTuple
 
 import torch
-from torch.autograd.function import once_differentiable
 
 from . import _C
 from .number_checks import is_int
+from .sh import degree_of
 
 CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
 MAX_SIZE = 1 << 20  # image width and height: the core's tile and pixel indices are 32-bit
@@ -57,29 +56,8 @@ def _check_intrinsics(K: torch.Tensor) -> None:
 
 def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     """(sh_degree, coefficients per Gaussian) for `colors`; degree -1 means direct colours."""
-    if colors.dim() == 2:
-        if sh_degree is not None:
-            raise ValueError(
-                f"colors: sh_degree={sh_degree} needs SH coefficients [N, K, C], "
-                f"got {list(colors.shape)}"
-            )
-        return -1, 1
-    if colors.dim() != 3:
-        raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
-    k = colors.shape[1]
-    if sh_degree is not None and not is_int(sh_degree):
-        raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
-    if sh_degree is None:
-        sh_degree = math.isqrt(k) - 1
-        if (sh_degree + 1) ** 2 != k:
-            raise ValueError(f"colors: {k} SH coefficients is not a square; pass sh_degree")
-    if not 0 <= sh_degree <= CONSTANTS["max_sh_degree"]:
-        raise ValueError(f"sh_degree: expected 0..{CONSTANTS['max_sh_degree']}, got {sh_degree}")
-    if k < (sh_degree + 1) ** 2:
-        raise ValueError(
-            f"colors: sh_degree {sh_degree} needs {(sh_degree + 1) ** 2} coefficients, got {k}"
-        )
-    return sh_degree, k
+    degree = degree_of(colors, sh_degree)
+    return (-1, 1) if degree is None else (degree, colors.shape[1])
 
 
 class _RasterizeFunction(torch.autograd.Function):
@@ -125,8 +103,14 @@ class _RasterizeFunction(torch.autograd.Function):
         return outputs
 
     @staticmethod
-    @once_differentiable
     def backward(ctx, grad_image, grad_alpha, _grad_radii, grad_means2d, grad_depths):
+        # grad mode is on in a backward only for create_graph=True: a Hessian, a gradient penalty
+        # (torch's once_differentiable returned their second derivatives as silent zeros)
+        if torch.is_grad_enabled():
+            raise RuntimeError(
+                "spikegs.rasterize is differentiable once: its backward cannot build a graph "
+                "(create_graph=True); spikegs.reference.rasterize has second derivatives"
+            )
         means, quats, scales, opacities, colors, background = ctx.saved_tensors
         if grad_image is None:
             grad_image = means.new_zeros(ctx.image_shape)

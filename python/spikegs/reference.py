@@ -10,43 +10,15 @@ from typing import NamedTuple
 
 import torch
 
-from .rasterize import RasterizeResult
-from .sh import MAX_DEGREE, num_coeffs, sh_basis
+from .rasterize import CONSTANTS, RasterizeResult
+from .sh import degree_of, sh_basis
 
-
-def _load_constants() -> dict[str, float]:
-    """Rasterizer constants: `spikegs._C.constants` where the extension has them, else defaults."""
-    values = {
-        "alpha_max": 0.99,
-        "alpha_min": 1.0 / 255.0,
-        "transmittance_min": 1e-4,
-        "dilation": 0.3,
-        "clamp_margin": 0.3,
-        "tile_size": 16,
-        "near": 0.01,
-        "far": 1e10,
-    }
-    try:
-        from . import _C
-
-        table = _C.constants
-    except (ImportError, AttributeError):
-        return values
-    for name in values:
-        try:
-            values[name] = table[name] if hasattr(table, "__getitem__") else getattr(table, name)
-        except (KeyError, AttributeError):
-            pass
-    return values
-
-
-_CONSTANTS = _load_constants()
-ALPHA_MAX = float(_CONSTANTS["alpha_max"])
-ALPHA_MIN = float(_CONSTANTS["alpha_min"])
-T_MIN = float(_CONSTANTS["transmittance_min"])
-DILATION = float(_CONSTANTS["dilation"])
-CLAMP_MARGIN = float(_CONSTANTS["clamp_margin"])
-TILE = int(_CONSTANTS["tile_size"])
+# the core's constants (spikegs._C.constants): one source for both rasterizers
+ALPHA_MAX = float(CONSTANTS["alpha_max"])
+ALPHA_MIN = float(CONSTANTS["alpha_min"])
+T_MIN = float(CONSTANTS["transmittance_min"])
+DILATION = float(CONSTANTS["dilation"])
+CLAMP_MARGIN = float(CONSTANTS["clamp_margin"])
 
 
 class _Splats(NamedTuple):
@@ -59,23 +31,6 @@ class _Splats(NamedTuple):
     depths: torch.Tensor  # [N]
     opacities: torch.Tensor  # [N]
     colors: torch.Tensor  # [N, C]
-
-
-def _resolve_sh_degree(colors: torch.Tensor, sh_degree: int | None) -> int | None:
-    """SH degree used for `colors`: None for direct colours [N, C]; for [N, K, C] the given degree,
-    or sqrt(K) - 1 when None."""
-    if colors.dim() == 2:
-        if sh_degree is not None:
-            raise ValueError("colors: sh_degree given but colors is [N, C] (direct colours)")
-        return None
-    coeffs = colors.shape[1]
-    if sh_degree is None:
-        sh_degree = math.isqrt(coeffs) - 1
-        if num_coeffs(sh_degree) != coeffs:
-            raise ValueError(f"colors: K = {coeffs} SH coefficients is not a square")
-    if not 0 <= sh_degree <= MAX_DEGREE or num_coeffs(sh_degree) > coeffs:
-        raise ValueError(f"colors: sh_degree {sh_degree} does not fit K = {coeffs} coefficients")
-    return sh_degree
 
 
 def quat_to_rotation(q: torch.Tensor) -> torch.Tensor:
@@ -239,8 +194,8 @@ def rasterize(
     *,
     sh_degree: int | None = None,
     background: torch.Tensor | None = None,
-    near: float = float(_CONSTANTS["near"]),
-    far: float = float(_CONSTANTS["far"]),
+    near: float = float(CONSTANTS["near"]),
+    far: float = float(CONSTANTS["far"]),
     screen_points: torch.Tensor | None = None,
 ) -> RasterizeResult:
     """Render N Gaussians exactly as docs/rasterizer.md says; differentiable through autograd.
@@ -251,7 +206,7 @@ def rasterize(
     gradient is the screen-space gradient of the 2D means, as in `spikegs.rasterize`.
     Culled Gaussians get radius 0, mean2d 0, depth 0 and exactly zero gradient.
     """
-    sh_degree = _resolve_sh_degree(colors, sh_degree)
+    sh_degree = degree_of(colors, sh_degree)
     n = means.shape[0]
     finite = torch.stack(
         [

@@ -50,9 +50,15 @@ def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
     up = world_up(np.linalg.inv(trajectory.viewmats))
     offsets = trajectory.centers - center  # [P, 3]
     distance = np.linalg.norm(offsets, axis=1)  # [P]
-    elevation = np.arcsin(np.clip(offsets @ up / distance, -1, 1)).mean()
+    away = distance > 1e-9 * max(1.0, np.abs(center).max())  # [P] cameras off the centre
+    if not away.any():
+        raise ValueError(
+            "render: every camera sits at the scene centre (a capture turning in place): an "
+            "orbit around it has no radius"
+        )
+    elevation = np.arcsin(np.clip(offsets[away] @ up / distance[away], -1, 1)).mean()
     first = offsets[0] - (offsets[0] @ up) * up  # the first camera's direction in the orbit plane
-    if np.linalg.norm(first) < 1e-6 * distance[0]:  # straight above the centre: any direction
+    if np.linalg.norm(first) <= 1e-6 * distance.max():  # above the centre, or at it: any way
         first = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 = first / np.linalg.norm(first)
     e2 = np.cross(up, e1)

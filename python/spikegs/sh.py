@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
+
+from .number_checks import is_int
 
 MAX_DEGREE = 3
 C0 = 0.28209479177387814
@@ -28,6 +32,36 @@ C3 = (
 def num_coeffs(degree: int) -> int:
     """Number of SH coefficients up to `degree`: (degree + 1)²."""
     return (degree + 1) ** 2
+
+
+def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
+    """The SH degree that renders `colors`: None for direct colours [N, C]; for coefficients
+    [N, K, C], `sh_degree` or, where None, sqrt(K) - 1. ValueError naming what does not fit."""
+    if colors.dim() == 2:
+        if sh_degree is not None:
+            raise ValueError(
+                f"colors: sh_degree={sh_degree} needs SH coefficients [N, K, C], "
+                f"got {list(colors.shape)}"
+            )
+        return None
+    if colors.dim() != 3:
+        raise ValueError(f"colors: expected shape [N, C] or [N, K, C], got {list(colors.shape)}")
+    k = colors.shape[1]
+    if k < 1:
+        raise ValueError(f"colors: expected at least 1 SH coefficient, got {list(colors.shape)}")
+    if sh_degree is not None and not is_int(sh_degree):
+        raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
+    if sh_degree is None:
+        sh_degree = math.isqrt(k) - 1
+        if num_coeffs(sh_degree) != k:
+            raise ValueError(f"colors: {k} SH coefficients is not a square; pass sh_degree")
+    if not 0 <= sh_degree <= MAX_DEGREE:
+        raise ValueError(f"sh_degree: expected 0..{MAX_DEGREE}, got {sh_degree}")
+    if k < num_coeffs(sh_degree):
+        raise ValueError(
+            f"colors: sh_degree {sh_degree} needs {num_coeffs(sh_degree)} coefficients, got {k}"
+        )
+    return int(sh_degree)
 
 
 def sh_basis(dirs: torch.Tensor, degree: int) -> torch.Tensor:

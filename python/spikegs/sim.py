@@ -75,6 +75,8 @@ class SIM(nn.Module):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ValueError(f"SIM {name} expected a positive int, found {value!r}")
         target_window = window if target_window is None else target_window
+        if not isinstance(target_window, int) or isinstance(target_window, bool):
+            raise ValueError(f"SIM target window expected an int, found {target_window!r}")
         if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
             raise ValueError(
                 f"SIM target window {target_window}: expected 1..{window} and centred in the "

@@ -189,7 +189,7 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
     if checkpoint is None or not Path(checkpoint).exists():
         return None
     try:
-        state = torch.load(checkpoint, map_location="cpu", weights_only=False)
+        state = torch.load(checkpoint, map_location="cpu", weights_only=True)
     except Exception:  # a torn file: start afresh, as without one
         return None
     return state if isinstance(state, dict) and state.get("key") == key else None
@@ -201,13 +201,25 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     save_atomically({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
 
 
+def _read_saved(path: Path) -> dict:
+    """What `save_sim` wrote at `path`; ValueError saying why the file is not that."""
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
+        raise ValueError(f"unreadable ({type(err).__name__})") from None
+    parts = ("config", "state_dict", "meta")
+    if not (isinstance(payload, dict) and all(isinstance(payload.get(k), dict) for k in parts)):
+        raise ValueError("not a saved SIM")
+    return payload
+
+
 def is_sim_file(path: Path) -> bool:
     """Whether `path` holds a SIM saved by `save_sim` (weights, architecture and meta)."""
     try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception:  # torch raises RuntimeError, EOFError, pickle errors, ...
+        _read_saved(path)
+    except ValueError:
         return False
-    return isinstance(payload, dict) and {"config", "state_dict", "meta"} <= set(payload)
+    return True
 
 
 def _model_of(payload: dict) -> SIM:
@@ -240,9 +252,9 @@ def _cached(path: Path, window: int, data: str, settings: dict, say: bool = True
     if not path.exists():
         return None
     try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as err:  # torch raises RuntimeError, EOFError, pickle errors, ...
-        why = f"unreadable ({type(err).__name__})"
+        payload = _read_saved(path)
+    except ValueError as err:
+        why = str(err)
     else:
         meta = payload["meta"]
         key = (payload["config"]["window"], meta.get("data"), meta.get("start"))
@@ -327,7 +339,7 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
         seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
         final_loss = float(np.mean(losses[-50:]))
         save_sim(
-            model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **kwargs
+            model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
         )
         partial.unlink(missing_ok=True)
     return model, seconds, path

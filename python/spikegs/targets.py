@@ -72,8 +72,8 @@ def _find_key(tree, key: str):
 
 
 def tfp_sample(dataset) -> tuple[np.ndarray, np.ndarray]:
-    """~16 training timestamps [M] spread over the stream and their TFP(33) firing rates
-    [M, H, W, C]."""
+    """Every (M // 16)-th of the M training timestamps (all of them where M < 32, else 16 to 31) and
+    their TFP(33) firing rates [S, H, W, C]."""
     ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
     return ts, _per_channel(dataset.streams, lambda s: s.tfp(ts, 33))
 

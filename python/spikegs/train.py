@@ -272,7 +272,7 @@ class Trainer:
         its own settings and data)."""
         unusable = f"{self.checkpoint_path}: cannot be resumed (train afresh into another --out):"
         try:
-            state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+            state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=True)
         except Exception as err:  # torch, pickle and zip raise their own kinds for a torn file
             raise ValueError(f"{unusable} unreadable ({type(err).__name__}: {err})") from None
         if not (isinstance(state, dict) and "config" in state):

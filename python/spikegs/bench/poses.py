@@ -156,15 +156,16 @@ def run(quick: bool, out: Path) -> dict:
         )
         for seed in range(setup["repeats"]):
             noisy = noisy_dataset(dataset, seed)
+            trainers = {}
             for condition, data, refine in zip(
                 CONDITIONS, (dataset, noisy, noisy), (False, False, True)
             ):
                 if condition == CONDITIONS[0] and seed > 0:
                     continue  # the true poses do not depend on the noise seed
                 run_dir = tmp / f"{condition.replace(' ', '_')}_{seed}"
-                scores, trainer = _run(data, setup, quick, refine, run_dir)
+                scores, trainers[condition] = _run(data, setup, quick, refine, run_dir)
                 runs[condition].append(scores)
-            errors = refined_pose_errors(trainer, dataset.trajectory)
+            errors = refined_pose_errors(trainers[CONDITIONS[2]], dataset.trajectory)
             runs[CONDITIONS[2]][-1].update({k: float(np.median(v)) for k, v in errors.items()})
             runs[CONDITIONS[2]][-1]["views_improved"] = float(
                 np.mean(errors["rotation_deg_after"] < errors["rotation_deg_before"])

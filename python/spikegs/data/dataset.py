@@ -180,7 +180,7 @@ def write_parts(
     """Write everything but the spikes; meta.json last, so a dataset without it is incomplete."""
     camera = camera_keys(meta)
     trajectory.save_json(out / TRAJECTORY, **camera)
-    np.savetxt(out / TIMESTAMPS, np.asarray(train_timestamps, np.int64), fmt="%d")
+    write_text_atomically(out / TIMESTAMPS, "".join(f"{int(k)}\n" for k in train_timestamps))
     frames = []
     for view in test_views:
         file_path = f"{TEST_DIR}/{view.name}.exr"

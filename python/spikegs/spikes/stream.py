@@ -89,7 +89,10 @@ class SpikeStream:
 
     def __init__(self, data: np.ndarray, layout: _C.SpikeLayout, path: Path | None = None):
         if data.dtype != np.uint8 or not data.flags.c_contiguous:
-            raise ValueError(f"packed data expected C-contiguous uint8, found {data.dtype}")
+            order = "C-contiguous" if data.flags.c_contiguous else "not C-contiguous"
+            raise ValueError(
+                f"packed data expected C-contiguous uint8, found {data.dtype}, {order}"
+            )
         self._data = data  # uint8 bytes of T frames of layout.frame_bytes
         self._layout = layout
         self._len = _frame_count(data.size, layout, str(path or "packed data"))
@@ -247,8 +250,12 @@ class DatWriter:
             raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
         self._partial = self._target.with_name(temporary_name(self._target, uuid.uuid4().hex))
         self._file = open(self._partial, "xb")
-        if self._target.exists():  # its permissions stay, as when it was overwritten in place
-            shutil.copymode(self._target, self._partial)
+        try:
+            if self._target.exists():  # its permissions stay, as when it was overwritten in place
+                shutil.copymode(self._target, self._partial)
+        except OSError:
+            self.discard()
+            raise
 
     def write_bits(self, bits: np.ndarray) -> None:
         """Append bits [n, H, W] (bool or 0/1 integers; 256 was written as 0, 0.5 as 0)."""
