@@ -185,7 +185,7 @@ def test_negative_view_counts_refused(tmp_path):
     # whole floats were simulated, then not loaded; a fractional train_every gave timestamps
     # inside the held-out windows
     for bad in ({"readouts": 400.0}, {"height": 16.0}, {"train_every": 2.5}):
-        with pytest.raises(ValueError, match=f"expected integers, found {next(iter(bad))}="):
+        with pytest.raises(ValueError, match=f"{next(iter(bad))}: expected an int, found"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **bad})
     for seed in (-1, 2**64):  # wrapped around to another seed's data (a colour one: an empty out)
         with pytest.raises(ValueError, match="seed"):

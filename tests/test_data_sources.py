@@ -205,6 +205,21 @@ def test_mitsuba_missing_says_how_to_install(monkeypatch):
         import_mitsuba()
 
 
+def test_every_command_reports_a_missing_extra(monkeypatch, tmp_path, capsys):
+    """Each command caught it itself (simulate and poses did; a third would have shown a
+    traceback): `spikegs` reports it as an error with the install hint."""
+    from spikegs.cli import main
+
+    def missing(*args, **kwargs):
+        raise MissingDependencyError("pycolmap is needed: pip install 'spikegs[sfm]'")
+
+    monkeypatch.setattr("spikegs.poses_cli.estimate_poses", missing)
+    monkeypatch.setattr("spikegs.train_cli.config_from_args", missing)
+    for argv in (["poses", str(tmp_path)], ["train", str(tmp_path), "--out", str(tmp_path / "r")]):
+        assert main(argv) == 2
+        assert "error: pycolmap is needed: pip install 'spikegs[sfm]'" in capsys.readouterr().err
+
+
 def test_mitsuba_source_convention_and_dataset(tmp_path):
     pytest.importorskip("mitsuba")
     target = np.array([0.3, -0.2, 0.1])

@@ -23,6 +23,7 @@ from spikegs.point_cloud import POINTS, read_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import _complete_meta
 from spikegs.sfm import Reconstruction, reconstruct, spike_images
+from spikegs.sh import C0
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
 
@@ -143,7 +144,7 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     np.testing.assert_allclose(means.numpy(), points, atol=1e-6)
     shown = projected_intensity(dataset, ViewSample.of(dataset, trainer.scale), means.double())
     np.testing.assert_allclose(
-        trainer.model.sh[:, 0, :].detach().numpy() * 0.28209479 + 0.5, shown.numpy(), atol=1e-5
+        trainer.model.sh[:, 0, :].detach().numpy() * C0 + 0.5, shown.numpy(), atol=1e-5
     )
     # one point (or copies of one): Gaussians of scale 1e-6 that never grew (the background's
     # score); too few to start from, said, and the run starts from random points

@@ -26,8 +26,14 @@ from spikegs.sim_train import (
     train_or_load,
     train_sim,
     user_cache,
-    valid_timestamps,
 )
+from spikegs.spikes.stream import centred_range
+
+
+def valid_timestamps(stream, window: int) -> np.ndarray:
+    """[M] every readout whose `window` fits in `stream`."""
+    lo, hi = centred_range(len(stream), window)
+    return np.arange(lo, hi + 1)
 
 
 class BernoulliStream:

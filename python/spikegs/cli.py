@@ -7,6 +7,8 @@ import importlib
 import sys
 from pathlib import Path
 
+from .missing_dependency import MissingDependencyError
+
 # sub-command -> (module implementing it, one-line help)
 COMMANDS = {
     "demo": (
@@ -64,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except (ValueError, OSError) as err:  # bad input, missing or unwritable files
+    # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
+    except (ValueError, OSError, MissingDependencyError) as err:
         print(f"spikegs {args.command}: error: {err}", file=sys.stderr)
         return 2
     except FloatingPointError as err:  # training diverged: the message says where and why

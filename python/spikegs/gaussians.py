@@ -9,7 +9,7 @@ import torch
 
 from .number_checks import is_int
 from .rasterize import RasterizeResult, rasterize
-from .sh import MAX_DEGREE, num_coeffs
+from .sh import C0, MAX_DEGREE, num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
 # the near plane: the rasterizer's 0.01 world units (3DGS's), lowered in proportion for a scene of
@@ -100,7 +100,7 @@ class GaussianModel:
             "log_scales": torch.full((n, 3), math.log(scale)),
             "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1),
             "opacity_logits": torch.full((n,), math.log(0.1 / 0.9)),
-            "sh_dc": ((colors.float() - 0.5) / 0.28209479177387814).unsqueeze(1),
+            "sh_dc": ((colors.float() - 0.5) / C0).unsqueeze(1),
             "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels),
         }
         return cls(params, torch.zeros(channels), sh_degree)

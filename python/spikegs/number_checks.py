@@ -34,9 +34,9 @@ def is_number(value) -> bool:
 def whole_numbers(**values) -> list[int]:
     """`values` as Python ints, in the order given (numpy integers converted); ValueError naming
     every one that is not an integer (a whole float too: 16.0 pixels is a slip, not a size)."""
-    bad = [f"{k}={v!r}" for k, v in values.items() if not is_int(v)]
+    bad = [f"{k}: expected an int, found {v!r}" for k, v in values.items() if not is_int(v)]
     if bad:
-        raise ValueError(f"expected integers, found {', '.join(bad)}")
+        raise ValueError("; ".join(bad))
     return [int(v) for v in values.values()]
 
 

@@ -33,6 +33,8 @@ from .data.dataset import (
     TestView,
     camera_keys,
     check_meta_values,
+    intrinsics_keys,
+    intrinsics_matrix,
     open_streams,
     read_json,
     spike_files,
@@ -40,14 +42,13 @@ from .data.dataset import (
 )
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
 from .data.simulate import default_train_every, train_timestamps
-from .data.sources import MissingDependencyError
 from .data.trajectory import Trajectory
-from .number_checks import is_int
+from .number_checks import is_int, whole_numbers
 from .point_cloud import POINTS, write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
-from .spikes.stream import as_flag, as_ints
+from .spikes.stream import as_flag, centred_range
 
 MIN_IMAGES = 8
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
@@ -75,24 +76,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        report = estimate_poses(
-            args.dataset, args.window, args.every, args.count, args.sim, args.min_registered
-        )
-    except MissingDependencyError as err:
-        print(f"spikegs poses: error: {err}", file=sys.stderr)
-        return 2
+    report = estimate_poses(
+        args.dataset, args.window, args.every, args.count, args.sim, args.min_registered
+    )
     print(report["summary"])
     return 0
 
 
 def _image_readouts(num_readouts: int, window: int, every: int | None, count: int) -> np.ndarray:
     """Readouts [N] whose `window` fits in the stream: every `every`, else `count` evenly."""
-    half = window // 2
-    last = num_readouts - 1 - half
+    first, last = centred_range(num_readouts, window)
     if every is not None:
-        return np.arange(half, last + 1, every)
-    return np.unique(np.round(np.linspace(half, last, count)).astype(np.int64))
+        return np.arange(first, last + 1, every)
+    return np.unique(np.round(np.linspace(first, last, count)).astype(np.int64))
 
 
 def _cached_sim(root: Path):
@@ -119,7 +115,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     if missing:
         raise ValueError(f"{where}: missing keys {missing} (docs/datasets.md, spikegs poses)")
     try:
-        h, w, channels, num = as_ints(**{k: meta[k] for k in required[:4]})
+        h, w, channels, num = whole_numbers(**{k: meta[k] for k in required[:4]})
         flip = as_flag("flip", meta["flip"])
     except ValueError as err:
         raise ValueError(f"{where}: {err}") from None
@@ -144,7 +140,7 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
     messages = []
     if estimated:
         K = recon.K
-        meta.update(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2], cy=K[1, 2], intrinsics_from=SFM)
+        meta.update(intrinsics_keys(K), intrinsics_from=SFM)
         messages.append(
             f"the intrinsics were not stated: SfM's estimate fx = fy = {K[0, 0]:.2f}, "
             f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META} (intrinsics_from: "
@@ -184,8 +180,9 @@ def _held_out_split(
     ground truth; timestamps every `train_every` readouts whose 65-readout windows lie
     between the first and last registered readouts (the trajectory is held constant outside) and
     clear of the held-out views'. ValueError when either comes out empty."""
-    half, num = NEEDED_WINDOW // 2, len(streams[0])
-    held = [int(k) for k in registered[::HOLDOUT_EVERY] if half <= k <= num - 1 - half]
+    num = len(streams[0])
+    lo, hi = centred_range(num, NEEDED_WINDOW)  # readouts whose ground-truth window fits
+    held = [int(k) for k in registered[::HOLDOUT_EVERY] if lo <= k <= hi]
     if not held:
         raise ValueError(
             f"no held-out view: none of the registered images at readouts "
@@ -280,7 +277,7 @@ def estimate_poses(
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
     if meta.get("intrinsics_from") != SFM and all(k in meta for k in ("fx", "fy", "cx", "cy")):
-        K = np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]])
+        K = intrinsics_matrix(meta)
     recon = reconstruct(images, readouts, root / WORK_DIR, K, min_registered)
     report = {
         "images": recon.num_images,

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .data.sources import MissingDependencyError
 from .data.trajectory import Trajectory
+from .missing_dependency import MissingDependencyError
 
 GAMMA = 2.2  # images are gamma-encoded for SIFT (contrast in the darks), points linearised back
 MIN_FEATURES = 100  # fewer SIFT features per image than this: the images are the likely problem

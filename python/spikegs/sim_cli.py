@@ -13,7 +13,7 @@ from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .output_paths import check_file_output
-from .sim_train import evaluate_dataset, is_sim_file, on_path_views
+from .sim_train import CHECKPOINT_S, evaluate_dataset, is_sim_file, on_path_views
 from .targets import check_targets, trained_sim
 
 # the config keys that the options set, named in the config's messages
@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt:
         print(
-            "\nthe same command (without --force) continues from SIM's state, saved every 30 s",
+            "\nthe same command (without --force) continues from SIM's state, saved every "
+            f"{CHECKPOINT_S:g} s",
             file=sys.stderr,
         )
         raise

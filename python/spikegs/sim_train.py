@@ -48,12 +48,6 @@ def _fast_dtype(dtype: torch.dtype | None) -> torch.dtype:
 LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}  # SIM's self-supervised loss against TFP
 
 
-def valid_timestamps(stream, window: int) -> np.ndarray:
-    """Readouts k whose window of `window` readouts centred on k lies inside the stream."""
-    half = window // 2
-    return np.arange(half, len(stream) - (window - 1 - half))
-
-
 def _to_input(windows: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
     """uint8 windows [B, w, H, W] -> network input in `dtype`, channels-last."""
     x = torch.from_numpy(np.ascontiguousarray(windows)).to(dtype)

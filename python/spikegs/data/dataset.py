@@ -46,6 +46,16 @@ WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits i
 FORMAT_VERSION = 1
 
 
+def intrinsics_matrix(meta: dict) -> np.ndarray:
+    """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
+    return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
+
+
+def intrinsics_keys(K: np.ndarray) -> dict:
+    """meta.json's fx, fy, cx, cy (floats) of K [3, 3]."""
+    return {"fx": float(K[0, 0]), "fy": float(K[1, 1]), "cx": float(K[0, 2]), "cy": float(K[1, 2])}
+
+
 def spike_files(channels: int) -> list[str]:
     """The .dat file of each channel: spikes.dat (mono) or spikes_r/g/b.dat (colour)."""
     return ["spikes.dat"] if channels == 1 else [f"spikes_{c}.dat" for c in "rgb"]
@@ -73,9 +83,7 @@ class Dataset:
         self.meta = meta
         self.height, self.width = int(meta["height"]), int(meta["width"])
         self.channels = int(meta["channels"])
-        self.K = np.array(
-            [[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], np.float32
-        )
+        self.K = intrinsics_matrix(meta).astype(np.float32)
         self.streams: list[SpikeStream] = streams
         self.stream = streams[0] if self.channels == 1 else streams
         self.trajectory: Trajectory = trajectory

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..spikes import SpikeStream
+from ..spikes.stream import centred_range
 from ..targets import intensity_scale
 from .dataset import (
     FORMAT_VERSION,
@@ -24,6 +25,7 @@ from .dataset import (
     Dataset,
     TestView,
     check_test_views,
+    intrinsics_keys,
     repeated,
 )
 from .real_options import OPTIONS_FILE, Options
@@ -72,10 +74,7 @@ def camera_meta(
         "flip": options.flip,
         "raw_width": options.raw_width or width,
         "col_offset": options.col_offset,
-        "fx": float(K[0, 0]),
-        "fy": float(K[1, 1]),
-        "cx": float(K[0, 2]),
-        "cy": float(K[1, 2]),
+        **intrinsics_keys(K),
         **extra,
     }
     if options.rate_at_one is not None:
@@ -265,10 +264,11 @@ def stream_dataset(
             f"{spacing:g} readouts apart; hold out fewer (test_views in spikegs.json)"
         )
     window = options.pseudo_gt_window or NEEDED_WINDOW
+    lo, hi = centred_range(len(stream), window)  # readouts whose window fits
     held_out = [
         HeldOut(f"view_{i:03d}", viewmats[i], float(readouts[i]), None, window)
         for i in np.flatnonzero(test)
-        if window // 2 <= round(readouts[i]) <= len(stream) - window + window // 2
+        if lo <= round(readouts[i]) <= hi
     ]
     held = np.flatnonzero(test)
     if held.size and not held_out:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 import time
 from pathlib import Path
 
@@ -12,7 +11,6 @@ from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
 from .simulate import DEFAULT_FRAME_EVERY, DEFAULT_READOUTS, DEFAULT_SPEED, simulate_dataset
-from .sources import MissingDependencyError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -67,28 +65,24 @@ def run(args: argparse.Namespace) -> int:
     check_folder_output(args.out)
     sim_params = {f.name: getattr(args, f.name) for f in dataclasses.fields(SimParams)}
     start = time.perf_counter()
-    try:
-        dataset = simulate_dataset(
-            args.scene,
-            args.out,
-            height=args.height,
-            width=args.width,
-            readouts=args.readouts,
-            speed=args.speed,
-            seed=args.seed,
-            overwrite=args.overwrite,
-            color=args.color,
-            frame_every=args.frame_every,
-            test_on_path=args.test_on_path,
-            test_off_path=args.test_off_path,
-            train_every=args.train_every,
-            spp=args.spp,
-            flip=not args.no_flip,
-            progress=not args.quiet,
-            **sim_params,
-        )
-    except MissingDependencyError as err:
-        print(f"spikegs simulate: error: {err}", file=sys.stderr)
-        return 2
+    dataset = simulate_dataset(
+        args.scene,
+        args.out,
+        height=args.height,
+        width=args.width,
+        readouts=args.readouts,
+        speed=args.speed,
+        seed=args.seed,
+        overwrite=args.overwrite,
+        color=args.color,
+        frame_every=args.frame_every,
+        test_on_path=args.test_on_path,
+        test_off_path=args.test_off_path,
+        train_every=args.train_every,
+        spp=args.spp,
+        flip=not args.no_flip,
+        progress=not args.quiet,
+        **sim_params,
+    )
     print(f"{dataset} in {time.perf_counter() - start:.1f} s")
     return 0

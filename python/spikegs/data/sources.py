@@ -22,6 +22,7 @@ import skimage.transform
 import torch
 
 from ..image_io import read_stored_image, srgb_to_linear
+from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
@@ -59,10 +60,6 @@ CAMERA_RANGES = {  # key: (in range, what is expected)
     "w": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
     "h": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
 }
-
-
-class MissingDependencyError(ImportError):
-    """An optional dependency (an extra) is needed and not installed."""
 
 
 def to_channels(rgb: np.ndarray, channels: int) -> np.ndarray:

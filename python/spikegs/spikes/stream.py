@@ -24,7 +24,7 @@ import numpy as np
 
 from .. import _C
 from ..atomic_save import temporary_name
-from ..number_checks import is_int, is_number
+from ..number_checks import is_int, is_number, whole_numbers
 
 PathLike = Union[str, os.PathLike]
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
@@ -48,15 +48,6 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
             f"of shape {arr.shape}" + (f" ({arr.tolist()})" if arr.size < 5 else "")
         )
     return arr.astype(np.int64).reshape(-1), arr.ndim == 0
-
-
-def as_ints(**values) -> list[int]:
-    """`values` (sizes, offsets) as ints, in order; ValueError naming one that is not an integer
-    (numpy integers are; ranges are the core's to check)."""
-    for name, value in values.items():
-        if not is_int(value):
-            raise ValueError(f"{name}: expected an int, found {value!r}")
-    return [int(value) for value in values.values()]
 
 
 def as_flag(name: str, value) -> bool:
@@ -112,7 +103,7 @@ class SpikeStream:
         [col_offset, col_offset + width) are kept (raw camera files with extra columns)."""
         path = Path(path)
         raw = 0 if raw_width is None else raw_width
-        height, width, raw, col_offset = as_ints(
+        height, width, raw, col_offset = whole_numbers(
             height=height, width=width, raw_width=raw, col_offset=col_offset
         )
         layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
@@ -133,7 +124,7 @@ class SpikeStream:
             )
         height = packed.shape[1] if height is None else height
         width = 8 * packed.shape[2] if width is None else width
-        height, width = as_ints(height=height, width=width)
+        height, width = whole_numbers(height=height, width=width)
         if packed.shape[1:] != (height, (width + 7) // 8):
             raise ValueError(
                 f"packed expected [T, {height}, {(width + 7) // 8}] for {height}x{width} frames, "
@@ -215,7 +206,7 @@ class SpikeStream:
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]."""
-        start, stop = as_ints(start=start, stop=len(self) if stop is None else stop)
+        start, stop = whole_numbers(start=start, stop=len(self) if stop is None else stop)
         if not 0 <= start <= stop <= len(self):
             raise ValueError(f"readouts [{start}, {stop}) expected within [0, {len(self)})")
         mem = _C.SpikeLayout.memory(self.height, self.width)
@@ -242,7 +233,7 @@ class DatWriter:
 
     def __init__(self, path: PathLike, height: int, width: int, flip: bool = True):
         self.path = Path(path)
-        height, width = as_ints(height=height, width=width)
+        height, width = whole_numbers(height=height, width=width)
         self._layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip))
         self._memory = _C.SpikeLayout.memory(height, width)
         self._target = Path(os.path.realpath(self.path))  # a symlink's target, not the link
@@ -305,7 +296,7 @@ class DatWriter:
 
 def check_chunk(chunk) -> None:
     """ValueError unless `chunk` (readouts handled at a time) is a positive int."""
-    if as_ints(chunk=chunk)[0] < 1:
+    if whole_numbers(chunk=chunk)[0] < 1:
         raise ValueError(f"chunk expected a positive int (readouts at a time), found {chunk!r}")
 
 
