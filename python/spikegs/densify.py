@@ -65,9 +65,9 @@ class Densifier:
         self.scene_radius = scene_radius
         self.iterations = iterations  # of the whole run: no opacity reset too close to its end
         self.stop = config.stop or iterations // 2  # the last iteration that densifies
-        self.grad_sum = torch.zeros(0)
-        self.count = torch.zeros(0)
-        self.max_radii = torch.zeros(0)
+        self.grad_sum = torch.zeros(0)  # [N] summed NDC screen-gradient norms since the last round
+        self.count = torch.zeros(0)  # [N] steps each Gaussian was visible in
+        self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
 
     def _resize(self, n: int) -> None:
         if self.grad_sum.shape[0] != n:
@@ -126,25 +126,25 @@ class Densifier:
         c = self.config
         n = len(model)
         self._resize(n)
-        grads = self.grad_sum / self.count.clamp_min(1)
-        selected = grads >= c.grad_threshold
+        grads = self.grad_sum / self.count.clamp_min(1)  # [N] mean over the visible steps
+        selected = grads >= c.grad_threshold  # [N] bool
         room = max(c.max_gaussians - n, 0)
         if int(selected.sum()) > room:  # keep the strongest gradients under the cap
             order = torch.argsort(grads, descending=True)
             selected = torch.zeros(n, dtype=torch.bool)
             selected[order[:room]] = True
-        big = model.scales.max(dim=1).values > c.percent_dense * self.scene_radius
-        clone, split = selected & ~big, selected & big
+        big = model.scales.max(dim=1).values > c.percent_dense * self.scene_radius  # [N]
+        clone, split = selected & ~big, selected & big  # [N] bool each; S = split.sum()
 
         with torch.no_grad():
             p = {k: v.detach() for k, v in model.params.items()}
             new = {k: v[clone] for k, v in p.items()}  # clones: exact copies
             # splits: two samples from each Gaussian, 1.6x smaller; the originals are removed
-            std = model.scales[split].repeat(2, 1)
+            std = model.scales[split].repeat(2, 1)  # [2S, 3]
             rot = quat_to_rotation(torch.nn.functional.normalize(p["quats"][split], dim=1)).repeat(
                 2, 1, 1
-            )
-            offsets = (rot @ (torch.randn_like(std) * std).unsqueeze(-1)).squeeze(-1)
+            )  # [2S, 3, 3]
+            offsets = (rot @ (torch.randn_like(std) * std).unsqueeze(-1)).squeeze(-1)  # [2S, 3]
             for k, v in p.items():
                 extra = v[split].repeat(2, *([1] * (v.dim() - 1)))
                 if k == "means":
@@ -152,14 +152,14 @@ class Densifier:
                 elif k == "log_scales":
                     extra = extra - torch.log(torch.tensor(1.6))
                 new[k] = torch.cat([new[k], extra])
-            added = new["means"].shape[0]
+            added = new["means"].shape[0]  # clones + 2S
             _surgery(
                 model,
                 optimizer,
                 lambda name, v: torch.cat([v, new[name]]),
                 lambda name, m: torch.cat([m, torch.zeros_like(new[name])]),
             )
-            remove = torch.cat([split, torch.zeros(added, dtype=torch.bool)])
+            remove = torch.cat([split, torch.zeros(added, dtype=torch.bool)])  # [N + added]
             remove |= model.opacities < c.min_opacity
             if self._after_first_reset(iteration):
                 if c.max_world_size:

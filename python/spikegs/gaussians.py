@@ -73,10 +73,10 @@ class GaussianModel:
         if not 0 < radius < math.inf:
             raise ValueError(f"radius expected a positive finite size, found {radius}")
         g = generator
-        direction = torch.randn(n, 3, generator=g)
+        direction = torch.randn(n, 3, generator=g)  # [N, 3], unit below
         direction = direction / direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
-        r = radius * torch.rand(n, 1, generator=g) ** (1 / 3)
-        means = torch.as_tensor(center, dtype=torch.float32) + direction * r
+        r = radius * torch.rand(n, 1, generator=g) ** (1 / 3)  # [N, 1] uniform in the ball
+        means = torch.as_tensor(center, dtype=torch.float32) + direction * r  # [N, 3]
         # scale: about the mean distance between neighbours at this density
         spacing = radius * (4 / 3 * math.pi / max(n, 1)) ** (1 / 3)
         rgb = torch.full((n, channels), 0.5) if colors is None else colors(means)

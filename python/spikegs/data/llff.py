@@ -25,7 +25,7 @@ import numpy as np
 from .dataset import Dataset, read_column
 from .real import (
     camera_meta,
-    held_out,
+    held_out_mask,
     scene_sphere,
     stream_dataset,
     views_dataset,
@@ -241,7 +241,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
     poses, bounds = _read_poses_bounds(source)
     viewmats = viewmats_from_llff(poses, str(source))  # [N, 4, 4]
     K, height, width = llff_intrinsics(poses[0, :, 4], options, str(source))
-    test = held_out(len(poses), options.test_views, str(source))
+    test = held_out_mask(len(poses), options.test_views, str(source))
     given = options.scene_center is not None and options.scene_radius is not None
     computed = (None, None) if given else llff_sphere(viewmats, bounds, K, width, height, source)
     sphere = scene_sphere(options, *computed)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import Dataset, repeated
-from .real import camera_meta, held_out, scene_sphere, views_dataset
+from .real import camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import (
     IMAGE_EXTENSIONS,
@@ -159,7 +159,7 @@ def _frames(root: Path, options: Options):
     if len(docs) == 2:
         mask = np.arange(len(frames)) >= len(docs[0]["frames"])
     else:
-        mask = held_out(len(frames), options.test_views, str(paths[0]))
+        mask = held_out_mask(len(frames), options.test_views, str(paths[0]))
     return frames, sources, frame_docs, viewmats, mask
 
 

@@ -88,7 +88,7 @@ def ground_truth_note(sharp: int, pseudo: int) -> dict:
     return {**note, "pseudo_method": PSEUDO_NOTE} if pseudo else note
 
 
-def held_out(count: int, indices: list[int] | None, source: str) -> np.ndarray:
+def held_out_mask(count: int, indices: list[int] | None, source: str) -> np.ndarray:
     """Mask [count] of the test views: `indices`, or every HOLDOUT_EVERY-th from 0."""
     indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
     bad = [i for i in indices if not 0 <= i < count]

@@ -660,17 +660,19 @@ def frame_columns(
     return frame, shift
 
 
-def camera_matrix(path: Path, doc: dict, src: tuple, size: tuple, shift: float = 0) -> np.ndarray:
-    """K [3, 3] of a transforms file's intrinsics (fl_x, fl_y, cx, cy, or camera_angle_x) for
-    images of `src` (h, w), scaled to `size` (h, w) and moved `shift` columns left (a crop,
-    `frame_columns`); cx, cy default to the image centre."""
+def camera_matrix(
+    path: Path, camera: dict, src: tuple, size: tuple, shift: float = 0
+) -> np.ndarray:
+    """K [3, 3] of a transforms file's `camera` (`read_camera`'s keys: fl_x, fl_y, cx, cy, or
+    camera_angle_x) for images of `src` (h, w), scaled to `size` (h, w) and moved `shift` columns
+    left (a crop, `frame_columns`); cx, cy default to the image centre."""
     (src_h, src_w), (height, width) = src, size
-    get = lambda key, default: camera_number(path, key, doc.get(key, default))  # noqa: E731
+    get = lambda key, default: camera_number(path, key, camera.get(key, default))  # noqa: E731
     from_angle = None  # the focal (px) of camera_angle_x at the images' width
-    if "camera_angle_x" in doc:
+    if "camera_angle_x" in camera:
         from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
-    if "fl_x" in doc or "fl_y" in doc:  # one focal given: square pixels
-        fx = get("fl_x", doc.get("fl_y"))
+    if "fl_x" in camera or "fl_y" in camera:  # one focal given: square pixels
+        fx = get("fl_x", camera.get("fl_y"))
         fy = get("fl_y", fx)
         if from_angle is not None and abs(from_angle - fx) > 0.01 * fx:
             warnings.warn(
