@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import copy
 import errno
 import json
@@ -1025,6 +1026,14 @@ def test_orbit_turns_with_the_world(dataset):
     )
     alike = np.repeat(np.linalg.inv(turn)[None], 5, axis=0)  # forward-facing: all turned alike
     np.testing.assert_allclose(world_up(alike), -turn[:3, :3].T[:, 1], atol=1e-12)
+    # --up: an axis the cameras leave open (a top-down capture's) given by the user
+    from spikegs.render_cli import direction
+
+    side = np.linalg.inv(orbit_viewmats(path, center, 8, direction("0,2,0")))  # [8, 4, 4] c2w
+    np.testing.assert_allclose(side[:, :3, 0] @ [0.0, 1.0, 0.0], 0.0, atol=1e-9)  # level in y
+    for bad in ("0,0,0", "1,2", "x,y,z", "nan,0,1"):
+        with pytest.raises(argparse.ArgumentTypeError, match="non-zero direction"):
+            direction(bad)
 
 
 def test_render_refuses_an_unwritable_video_before_rendering(

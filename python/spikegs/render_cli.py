@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli import positive_int
 from .data.trajectory import WORLD_UP, look_at
 from .output_paths import check_file_output
 
@@ -25,8 +26,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
     parser.add_argument("--out", type=Path, required=True, help="video file: .gif or .mp4")
     parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
-    parser.add_argument("--frames", type=int, default=60, help="frames in one full orbit")
+    parser.add_argument("--frames", type=positive_int, default=60, help="frames in one orbit")
     parser.add_argument("--fps", type=int, default=20)
+    parser.add_argument(
+        "--up",
+        type=direction,
+        help="the world's up as X,Y,Z, the orbit's axis (default: as the cameras show it, "
+        "`world_up`; a top-down or forward-facing capture leaves it open)",
+    )
+
+
+def direction(text: str) -> np.ndarray:
+    """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3]."""
+    try:
+        v = np.array([float(x) for x in text.split(",")])
+    except ValueError:
+        v = np.zeros(0)
+    norm = np.linalg.norm(v) if v.shape == (3,) else 0.0
+    if not (np.isfinite(norm) and norm > 0):
+        raise argparse.ArgumentTypeError(f"expected a non-zero direction X,Y,Z, found '{text}'")
+    return v / norm
 
 
 def world_up(c2w: np.ndarray) -> np.ndarray:
@@ -42,12 +61,12 @@ def world_up(c2w: np.ndarray) -> np.ndarray:
     return up / np.linalg.norm(up)
 
 
-def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
+def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None) -> np.ndarray:
     """Viewmats [F, 4, 4] on a level orbit around `center` at the cameras' mean distance and
-    elevation, starting at the first camera's azimuth, about their `world_up`: real data (SfM,
-    LLFF) has no fixed world up, so +z would tilt or flip the orbit."""
+    elevation, starting at the first camera's azimuth, about unit `up` [3] (default: their
+    `world_up`: real data (SfM, LLFF) has no fixed world up, so +z would tilt or flip the orbit)."""
     center = np.asarray(center, np.float64)
-    up = world_up(np.linalg.inv(trajectory.viewmats))
+    up = world_up(np.linalg.inv(trajectory.viewmats)) if up is None else np.asarray(up, float)
     offsets = trajectory.centers - center  # [P, 3]
     distance = np.linalg.norm(offsets, axis=1)  # [P]
     away = distance > 1e-9 * max(1.0, np.abs(center).max())  # [P] cameras off the centre
@@ -68,12 +87,12 @@ def orbit_viewmats(trajectory, center, frames: int) -> np.ndarray:
     return np.stack([look_at(eye, center, up) for eye in eyes])
 
 
-def orbit_frames(model, dataset, frames: int) -> np.ndarray:
+def orbit_frames(model, dataset, frames: int, up: np.ndarray | None = None) -> np.ndarray:
     """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show)."""
     from .evaluate import render_view
     from .image_io import linear_to_srgb
 
-    path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames)
+    path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up)
     out = []
     for viewmat in path:
         image = render_view(model, viewmat, dataset)  # [H, W, C]
@@ -195,11 +214,9 @@ def run(args: argparse.Namespace) -> int:
     from .run_summary import trained_scene
 
     check_video_output(args.out, args.fps)
-    if args.frames < 1:
-        raise ValueError(f"--frames: expected a positive number, got {args.frames}")
     ply = trained_scene(args.run)
     dataset = load_dataset(run_dataset(args.run, args.dataset))
-    frames = orbit_frames(load_ply(ply), dataset, args.frames)
+    frames = orbit_frames(load_ply(ply), dataset, args.frames, args.up)
     write_video(args.out, frames, args.fps)
     print(f"{len(frames)} frames -> {args.out}")
     return 0
