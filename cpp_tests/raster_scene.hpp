@@ -1,5 +1,6 @@
 // Random Gaussian scenes and a rasterizer runner for the C++ tests.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>

@@ -760,3 +760,41 @@ def test_out_of_memory_is_a_memory_error():
         "backward MemoryError",
         "after torch.Size([2, 2, 3])",
     ], done.stdout
+
+
+@needs_cpp
+def test_the_core_binding_checks_what_the_core_assumes():
+    """Direct `_C` callers (spikegs.rasterize checks all of this first): a backward on inputs that
+    are not the forward's read an unset projection (valgrind: uninitialised values in the
+    gradients), and a short background past its end; a negative near, an opacity above 1, a zero
+    focal length broke the binning's order, the alpha cut-off, the projection."""
+    s = {k: v.numpy() if torch.is_tensor(v) else v for k, v in make_scene(7, 6, 13, 9).items()}
+    arrays = [s[k] for k in ("means", "quats", "scales", "opacities", "colors")]
+
+    def forward(**changes):
+        a = {"viewmat": s["viewmat"], "K": s["K"], "near": 0.01, "opacities": s["opacities"]}
+        a.update(changes)
+        inputs = [*arrays[:3], a["opacities"], arrays[4], a["viewmat"], a["K"]]
+        return spikegs._C.rasterize_forward_float64(
+            *inputs, 13, 9, -1, 1, 3, s["background"], a["near"], 1e10
+        )
+
+    for changes, message in (
+        ({"near": -0.5}, "0 < near < far"),
+        ({"opacities": s["opacities"] * 3}, "opacities in \\[0, 1\\]"),
+        ({"K": s["K"] * np.array([0.0, 1, 1])[:, None]}, "focal lengths"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            forward(**changes)
+    *out, ctx = forward()
+    assert (out[2] > 0).any()
+    W, t = s["viewmat"][:3, :3], s["viewmat"][:3, 3]
+    camera = arrays[0] @ W.T + t  # [N, 3] camera-space means, z > 0
+    behind = (-camera - t) @ W  # [N, 3] world means at -camera: behind the camera
+    backward = spikegs._C.rasterize_backward_float64
+    image_grad = np.ones((9, 13, 3))
+    grads = backward(ctx, behind, *arrays[1:], s["background"], image_grad, None, None, None)
+    for g in grads[:5]:  # every Gaussian culled there: no gradient, not garbage
+        assert np.isfinite(g).all() and not g.any()
+    with pytest.raises(ValueError, match="background must have C entries"):
+        backward(ctx, *arrays, np.zeros(1), image_grad, None, None, None)

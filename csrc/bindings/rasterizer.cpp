@@ -5,6 +5,10 @@
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -49,7 +53,17 @@ sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
   if (means.size() != 3 * n || quats.size() != 4 * n || scales.size() != 3 * n ||
       opacities.size() != n || colors.size() != n * p.color_stride())
     throw py::value_error("rasterize: input sizes do not match N = " + std::to_string(n));
+  if (n > std::numeric_limits<std::int32_t>::max())  // the binning's depth ranks are 32-bit
+    throw py::value_error("rasterize: at most 2^31 - 1 Gaussians");
   return p;
+}
+
+constexpr int kMaxImageSize = 1 << 20;  // spikegs.rasterize's MAX_SIZE
+
+template <typename T>
+void check_background(const std::optional<Array<T>>& background, int channels) {
+  if (background && background->size() != channels)
+    throw py::value_error("rasterize: background must have C entries");
 }
 
 template <typename T>
@@ -65,10 +79,20 @@ py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& 
   std::copy(viewmat.data(), viewmat.data() + 16, cam.viewmat);
   cam.fx = K.data()[0], cam.fy = K.data()[4], cam.cx = K.data()[2], cam.cy = K.data()[5];
   cam.width = width, cam.height = height, cam.near_plane = near_plane, cam.far_plane = far_plane;
+  // what the core assumes (spikegs.rasterize checks each with its own message): depths sorted by
+  // their bits need 0 < near; the alpha cut-off needs opacities <= 1; tile counts fit an int
+  if (!(cam.fx > 0 && cam.fy > 0 && std::isfinite(cam.fx) && std::isfinite(cam.fy)))
+    throw py::value_error("rasterize: focal lengths fx, fy > 0 expected");
+  if (!(T(0) < cam.near_plane && cam.near_plane < cam.far_plane))
+    throw py::value_error("rasterize: 0 < near < far expected");
+  if (width < 1 || height < 1 || width > kMaxImageSize || height > kMaxImageSize)
+    throw py::value_error("rasterize: width and height in 1..2^20 expected");
   const sr::GaussianParams<T> p =
       params_of(means, quats, scales, opacities, colors, sh_degree, sh_coeffs, channels);
-  if (background && background->size() != channels)
-    throw py::value_error("rasterize: background must have C entries");
+  auto outside = [](T o) { return std::isfinite(o) && (o < T(0) || o > T(1)); };
+  if (std::any_of(p.opacities, p.opacities + p.n, outside))
+    throw py::value_error("rasterize: opacities in [0, 1] expected (NaN and inf culled)");
+  check_background(background, channels);
   const T* bg = background ? background->data() : nullptr;
 
   Array<T> image({py::ssize_t(height), py::ssize_t(width), py::ssize_t(channels)});
@@ -105,6 +129,7 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
   if ((grad_means2d && grad_means2d->size() != 2 * p.n) ||
       (grad_depths && grad_depths->size() != p.n))
     throw py::value_error("rasterize backward: gradient shapes do not match the Gaussians");
+  check_background(background, ctx.channels);  // the backward reads C entries too
   auto zeros_like = [](const Array<T>& a) {
     Array<T> z(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
     std::fill(z.mutable_data(), z.mutable_data() + z.size(), T(0));

@@ -54,6 +54,7 @@ py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const Ind
 
 py::array_t<uint8_t> unpack(const Bytes& data, const SpikeLayout& layout, int64_t t0, int64_t n) {
   const PackedStream s = stream_of(data, layout);
+  check_range(s, t0, n);  // before allocating: a bad n is named, not a numpy MemoryError
   py::array_t<uint8_t> out({std::max<int64_t>(n, 0), layout.height, layout.width});
   uint8_t* o = out.mutable_data();
   py::gil_scoped_release release;
@@ -81,6 +82,7 @@ py::array_t<uint8_t> repack(const Bytes& data, const SpikeLayout& layout, int64_
                             const SpikeLayout& dst) {
   const PackedStream s = stream_of(data, layout);
   dst.validate();
+  check_range(s, t0, n);  // before allocating, as unpack
   py::array_t<uint8_t> out({std::max<int64_t>(n, 0), dst.frame_bytes()});
   uint8_t* o = out.mutable_data();
   py::gil_scoped_release release;

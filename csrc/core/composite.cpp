@@ -75,15 +75,13 @@ void splat_rows(T my, T ey, int tile_y0, int tile_h, int& row0, int& row1) {
   row1 = int(std::max(std::min(std::ceil(my + ey) - T(tile_y0), T(tile_h)), T(0)));
 }
 
-template <typename T>
 struct Tile {
   int x0, y0, w, h;
   std::int64_t begin, end;  // range in bins.ranks
 };
 
-template <typename T>
-Tile<T> tile_at(const TileBins& bins, std::int64_t t, int width, int height) {
-  Tile<T> tile;
+Tile tile_at(const TileBins& bins, std::int64_t t, int width, int height) {
+  Tile tile;
   tile.x0 = int(t % bins.tiles_x) * kTileSize;
   tile.y0 = int(t / bins.tiles_x) * kTileSize;
   tile.w = std::min(kTileSize, width - tile.x0);
@@ -113,7 +111,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
     T* const acc = accumulators.local();  // [C, 256]
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
-      const Tile<T> tile = tile_at<T>(bins, t, width, height);
+      const Tile tile = tile_at(bins, t, width, height);
       std::fill_n(acc, std::size_t(C) * kTilePixels, T(0));
       int row_active[kTileSize];  // pixels of each row still compositing
       for (int p = 0; p < kTilePixels; ++p) {
@@ -240,7 +238,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     T* const gimg = gimg_buffers.local();      // [C, 256]
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
-      const Tile<T> tile = tile_at<T>(bins, t, width, height);
+      const Tile tile = tile_at(bins, t, width, height);
       T* gbg = tile_bg.data() + t * C;
       for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
         std::fill_n(slot(bins.ranks[j], t), grad_stride, T(0));

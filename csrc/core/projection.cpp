@@ -227,6 +227,7 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
     for (std::int64_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) {
       if (proj.radius[i] == 0) continue;
       const Splat<T> s = build_splat(prm, cam, i);
+      if (!s.visible) continue;  // inputs not the forward's (a direct caller): s is unset
       const T* mean = prm.means + 3 * i;
       const T* scale = prm.scales + 3 * i;
       const Vec3<T> mu(mean[0], mean[1], mean[2]);

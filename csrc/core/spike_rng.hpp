@@ -19,9 +19,10 @@ inline uint64_t random_bits(uint64_t key, uint64_t counter) {
   return mix64(key + counter * 0x9E3779B97F4A7C15ull);
 }
 
-// A uniform in (0, 1) from 32 random bits (24 of them used).
+// A uniform in (0, 1) from 32 random bits (24 of them used); the top value, whose + 0.5 rounds
+// up to 2^24 in float, kept below 1.
 inline float uniform_open(uint32_t bits) {
-  return (float(bits >> 8) + 0.5f) * (1.0f / 16777216.0f);
+  return std::min((float(bits >> 8) + 0.5f) * (1.0f / 16777216.0f), 0x1.fffffep-1f);
 }
 
 struct NormalPair {

@@ -199,8 +199,8 @@ class SpikeStream:
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
-        if not _whole(max_interval) or not 1 <= max_interval < 2**63:  # the core's int64
-            raise ValueError(f"max_interval expected a positive int, found {max_interval}")
+        if not _whole(max_interval) or not 1 <= max_interval <= 2**30:  # the core's bound
+            raise ValueError(f"max_interval expected an int in [1, 2^30], found {max_interval}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
 
