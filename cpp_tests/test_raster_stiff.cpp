@@ -171,6 +171,7 @@ TEST_CASE(subpixel_and_screen_covering) {
     s.scales[k] = 1e-5, s.scales[3 + k] = 1e-7, s.scales[6 + k] = 1e3, s.scales[9 + k] = 50;
   const Outcome o = run(s, "sub-pixel and screen-covering");
   CHECK(o.render.state.proj.radius[0] > 0, "sub-pixel Gaussian culled");
+  CHECK(o.render.state.proj.radius[2] > 0, "screen-covering Gaussian culled");
   CHECK(o.float_error < 1e-3, "float error ", o.float_error);
 }
 
@@ -253,6 +254,8 @@ TEST_CASE(clamped_alpha_has_no_opacity_gradient) {
   for (int k = 0; k < 3; ++k) s.scales[k] = 1e3;  // G ~ 1 on every pixel
   s.opacities[0] = 1.0;                           // so alpha = min(0.99, G) is clamped everywhere
   const Outcome o = run(s, "clamped alpha");
+  // drawn and clamped: a culled Gaussian would pass the zero-gradient checks below vacuously
+  CHECK(o.render.state.proj.radius[0] > 0 && o.render.alpha[0] == 0.99, "not drawn clamped");
   CHECK(o.grads.opacities[0] == 0, "opacity gradient ", o.grads.opacities[0]);
   CHECK(o.grads.means[0] == 0 && o.grads.scales[0] == 0, "gradient through a clamped alpha");
 }

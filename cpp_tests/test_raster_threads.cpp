@@ -44,7 +44,8 @@ TEST_CASE(forward_and_backward_independent_of_threads) {
             "C=", channels, ": forward differs with ", threads, " threads");
       CHECK(a.means == b.means && a.quats == b.quats && a.scales == b.scales &&
                 a.opacities == b.opacities && a.colors == b.colors && a.mean2d == b.mean2d &&
-                a.background == b.background && std::equal(a.viewmat, a.viewmat + 16, b.viewmat),
+                a.mean2d_abs == b.mean2d_abs && a.background == b.background &&
+                std::equal(a.viewmat, a.viewmat + 16, b.viewmat),
             "C=", channels, ": gradients differ with ", threads, " threads");
     }
   }

@@ -53,6 +53,7 @@ def test_small_gaussians_are_cloned_large_ones_split():
     model, optimizer = _model([0.05, 0.5, 0.05], [0.5, 0.5, 0.5])
     before = {k: v.detach().clone() for k, v in model.params.items()}
     means_moments = _moments(model, optimizer, "means").clone()
+    torch.manual_seed(0)  # the split's offsets come from torch's global generator
     _densifier([1.0, 1.0, 0.1]).step(model, optimizer, 7)
     # kept 0 and 2, then the clone of 0, then the two halves of 1 (removed)
     assert len(model) == 5
@@ -116,3 +117,16 @@ def test_large_gaussians_are_pruned_only_after_the_first_reset():
     model, optimizer = _model([0.05, 0.8], [0.5, 0.5])
     _densifier([0.0, 0.0], max_world_size=0.5, opacity_reset_every=0).step(model, optimizer, 28)
     assert len(model) == 2  # no reset in the run: never pruned by size
+
+
+def test_observe_averages_over_the_steps_a_gaussian_was_seen_in_ndc_units():
+    """Counting every step (not the visible ones) and swapping width and height both passed
+    every test: the tests called observe once, all visible, on a 2x2 image."""
+    densifier = Densifier(DensifyConfig(), scene_radius=1.0, iterations=100)
+    pixels = torch.tensor([[1.0, 0.0], [0.0, 1.0]])  # [2, 2] screen gradients (per pixel)
+    densifier.observe(torch.tensor([3, 2]), pixels, width=8, height=4)
+    densifier.observe(torch.tensor([5, 0]), 3 * pixels, width=8, height=4)  # the second hidden
+    # NDC = pixels x (width/2, height/2): (1, 0) -> 4, (0, 1) -> 2; (3, 0) -> 12
+    torch.testing.assert_close(densifier.grad_sum, torch.tensor([4.0 + 12.0, 2.0]))
+    torch.testing.assert_close(densifier.count, torch.tensor([2.0, 1.0]))
+    torch.testing.assert_close(densifier.max_radii, torch.tensor([5.0, 2.0]))

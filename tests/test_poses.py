@@ -58,7 +58,8 @@ def test_exp_map_matches_the_matrix_exponential(xi):
 
 
 def test_exp_map_gradient_is_finite_at_zero_and_matches_finite_differences():
-    for xi in (torch.zeros(6), torch.tensor([1e-6, 0, 0, 0, 0, 0]), torch.randn(6)):
+    random = torch.randn(6, generator=torch.Generator().manual_seed(0))
+    for xi in (torch.zeros(6), torch.tensor([1e-6, 0, 0, 0, 0, 0]), random):
         assert torch.autograd.gradcheck(se3_exp, (xi.double().requires_grad_(),))
 
 

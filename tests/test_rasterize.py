@@ -446,6 +446,25 @@ def test_bad_input_raises(overrides, name):
         render(spikegs.rasterize, _BAD_SCENE, **overrides)
 
 
+@needs_cpp
+def test_the_core_has_the_documented_constants():
+    """The reference writes docs/rasterizer.md's constants; it read them from the core, so a
+    changed clamp margin (0.3 -> 1.0) passed every test."""
+    documented = {
+        "alpha_max": reference.ALPHA_MAX,
+        "alpha_min": reference.ALPHA_MIN,
+        "transmittance_min": reference.T_MIN,
+        "dilation": reference.DILATION,
+        "clamp_margin": reference.CLAMP_MARGIN,
+        "tile_size": 16,
+        "near": reference.NEAR,
+        "far": reference.FAR,
+        "max_sh_degree": 3,
+    }
+    core = spikegs._C.constants
+    assert {k: core[k] for k in documented} == pytest.approx(documented, rel=1e-7)
+
+
 def test_reference_refuses_what_the_op_refuses():
     """Both rasterizers check colours and SH degrees with one function (sh.degree_of)."""
     for overrides, name in [c[1:] for c in _BAD if c[0].startswith("sh-")]:

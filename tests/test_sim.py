@@ -383,9 +383,19 @@ def test_inference_over_timestamps(scene, trained):
 def test_compare_methods_reports_all(scene, trained):
     rates, stream = scene
     ts = np.array([40, 70])
-    scores = compare_methods(trained[0], stream, ts, np.stack([rates(k) for k in ts]))
+    gt = np.stack([rates(k) for k in ts])  # [2, H, W]
+    scores = compare_methods(trained[0], stream, ts, gt)
     assert set(scores) == {"SIM", "TFP(33)", "TFP(65)", "TFI"}
     assert all(np.isfinite(s["psnr"]) and -1 <= s["ssim"] <= 1 for s in scores.values())
+    # each row the images it names (TFP(65) computed over 33 readouts passed)
+    for name, images in (
+        ("TFP(33)", stream.tfp(ts, 33)),
+        ("TFP(65)", stream.tfp(ts, 65)),
+        ("TFI", stream.tfi(ts)),
+    ):
+        expected = np.mean([psnr(p, g) for p, g in zip(images, gt)])
+        assert scores[name]["psnr"] == pytest.approx(expected, rel=1e-12), name
+    assert scores["TFP(65)"]["psnr"] != scores["TFP(33)"]["psnr"]
 
 
 def test_metrics():

@@ -10,15 +10,17 @@ from typing import NamedTuple
 
 import torch
 
-from .rasterize import CONSTANTS, RasterizeResult
+from .rasterize import RasterizeResult
 from .sh import degree_of, sh_basis
 
-# the core's constants (spikegs._C.constants): one source for both rasterizers
-ALPHA_MAX = float(CONSTANTS["alpha_max"])
-ALPHA_MIN = float(CONSTANTS["alpha_min"])
-T_MIN = float(CONSTANTS["transmittance_min"])
-DILATION = float(CONSTANTS["dilation"])
-CLAMP_MARGIN = float(CONSTANTS["clamp_margin"])
+# docs/rasterizer.md's constants, written here, not read from the core: the reference checks the
+# core's values too (a test compares them with spikegs._C.constants)
+ALPHA_MAX = 0.99  # alpha clamp
+ALPHA_MIN = 1.0 / 255.0  # a pair below is skipped
+T_MIN = 1e-4  # a pixel stops below this transmittance
+DILATION = 0.3  # added to the 2D covariance's diagonal (pixels²)
+CLAMP_MARGIN = 0.3  # the Jacobian's clamp, beyond the image, in tan(fov/2) units
+NEAR, FAR = 0.01, 1e10  # the default clipping planes (world units)
 
 
 class _Splats(NamedTuple):
@@ -194,8 +196,8 @@ def rasterize(
     *,
     sh_degree: int | None = None,
     background: torch.Tensor | None = None,
-    near: float = float(CONSTANTS["near"]),
-    far: float = float(CONSTANTS["far"]),
+    near: float = NEAR,
+    far: float = FAR,
     screen_points: torch.Tensor | None = None,
 ) -> RasterizeResult:
     """Render N Gaussians exactly as docs/rasterizer.md says; differentiable through autograd.
