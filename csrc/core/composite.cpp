@@ -239,7 +239,6 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile tile = tile_at(bins, t, width, height);
-      T* gbg = tile_bg.data() + t * C;
       for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
         std::fill_n(slot(bins.ranks[j], t), grad_stride, T(0));
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
@@ -269,10 +268,18 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
           for (int c = 0; c < C; ++c) {
             const T gi = grad_image[pix * C + c];
             gimg[std::size_t(c) * kTilePixels + p] = gi;
-            gbg[c] += tf * gi;
           }
         }
         max_last = std::max(max_last, row_last[py]);
+      }
+      // the background's share, T_final · dL/dimage, summed in a register and stored once (a
+      // sum into tile_bg, pixel by pixel, shared its cache line with the neighbouring tiles',
+      // which the other threads were writing); pixels outside the image add 1 · 0
+      for (int c = 0; c < C; ++c) {
+        const T* gc = gimg + std::size_t(c) * kTilePixels;
+        T sum = 0;
+        for (int p = 0; p < kTilePixels; ++p) sum += trans[p] * gc[p];
+        tile_bg[t * C + c] = sum;
       }
       for (std::int64_t j = tile.begin + max_last; j >= tile.begin; --j) {
         const std::int32_t rank = bins.ranks[j];
