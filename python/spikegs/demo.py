@@ -30,8 +30,8 @@ DEFAULT_SCENE = "solids"
 # The demo's shortened schedule: same for both methods, so the comparison is fair. 1800
 # iterations fit the 5-minute budget on 2 cores; at 1200 every curve still climbs steeply and the
 # margin moved by 1 dB with float rounding alone (BENCHMARKS.md, "Training"). AbsGS's threshold
-# at 0.0003, not the default 0.0002: 0.0002 grew a third more Gaussians and the demo took 5 min 43 s
-# (SpikeGS 31.55 dB instead of 31.27 on solids, TFP(33)+3DGS 29.02 instead of 28.94).
+# at 0.0003, not the default 0.0002: 0.0002 grew a quarter more Gaussians and the demo took 5 min
+# 43 s (SpikeGS 31.58 dB instead of 31.35 on solids, TFP(33)+3DGS 29.38 instead of 28.84).
 DEMO_OVERRIDES = {
     "train": {"iterations": 1800, "eval_every": 300, "checkpoint_every": 300},
     "densify": {
