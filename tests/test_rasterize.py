@@ -460,6 +460,7 @@ def test_the_core_has_the_documented_constants():
         "near": reference.NEAR,
         "far": reference.FAR,
         "max_sh_degree": 3,
+        "max_image_size": 2**20,
     }
     core = spikegs._C.constants
     assert {k: core[k] for k in documented} == pytest.approx(documented, rel=1e-7)

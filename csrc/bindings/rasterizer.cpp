@@ -58,7 +58,7 @@ sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
   return p;
 }
 
-constexpr int kMaxImageSize = 1 << 20;  // spikegs.rasterize's MAX_SIZE
+constexpr int kMaxImageSize = 1 << 20;  // width and height: tile and pixel indices are 32-bit
 
 template <typename T>
 void check_background(const std::optional<Array<T>>& background, int channels) {
@@ -194,6 +194,7 @@ void bind_rasterizer(py::module_& m) {
   constants["near"] = sr::kDefaultNear;
   constants["far"] = sr::kDefaultFar;
   constants["max_sh_degree"] = sr::kMaxShDegree;
+  constants["max_image_size"] = kMaxImageSize;
   m.attr("constants") = constants;
 }
 

@@ -36,7 +36,6 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     if image.ndim == 2:
         image = image[..., None]  # OpenImageIO needs (H, W, 1) for one channel
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     spec = oiio.ImageSpec(image.shape[1], image.shape[0], image.shape[2], oiio.FLOAT)
     if path.suffix.lower() in (".png", ".jpg", ".jpeg"):
         image = linear_to_srgb(image).astype(np.float32)

@@ -22,14 +22,19 @@ def writable_folder(folder: Path) -> bool:
         return False
 
 
+def _check_no_file_on_path(path: Path, flag: str) -> None:
+    """ValueError where a folder on `path`'s way is a file."""
+    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
+        raise ValueError(f"{flag} {path}: a folder on its path is a file")
+
+
 def check_file_output(path: Path, flag: str = "--out") -> None:
     """ValueError unless a file can be written at `path`: not a directory, no file on its folder
     path, its folder writable."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{flag} {path}: is a directory; give a file name")
-    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
-        raise ValueError(f"{flag} {path}: a folder on its path is a file")
+    _check_no_file_on_path(path, flag)
     if not writable_folder(path.parent):
         raise ValueError(f"{flag} {path}: its folder is not writable")
 
@@ -40,7 +45,6 @@ def check_folder_output(folder: Path, flag: str = "--out") -> None:
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{flag} {folder}: is a file; give a folder")
-    if any(parent.exists() and not parent.is_dir() for parent in folder.parents):
-        raise ValueError(f"{flag} {folder}: a folder on its path is a file")
+    _check_no_file_on_path(folder, flag)
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")

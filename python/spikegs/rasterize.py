@@ -15,7 +15,7 @@ from .number_checks import is_int
 from .sh import degree_of
 
 CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
-MAX_SIZE = 1 << 20  # image width and height: the core's tile and pixel indices are 32-bit
+MAX_SIZE = CONSTANTS["max_image_size"]  # image width and height (the core's 32-bit indices)
 
 
 class RasterizeResult(NamedTuple):

@@ -10,7 +10,13 @@ from pathlib import Path
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
-from .simulate import DEFAULT_FRAME_EVERY, DEFAULT_READOUTS, DEFAULT_SPEED, simulate_dataset
+from .simulate import (
+    DEFAULT_FRAME_EVERY,
+    DEFAULT_READOUTS,
+    DEFAULT_SPEED,
+    DEFAULT_TEST_VIEWS,
+    simulate_dataset,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,12 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="readouts between rendered light frames (linear in between)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
-    parser.add_argument(
-        "--test-on-path", type=int, help="held-out on-path views (default 8, or a sequence's)"
-    )
-    parser.add_argument(
-        "--test-off-path", type=int, help="off-path test views (default 8, or a sequence's)"
-    )
+    default = f"(default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has)"
+    parser.add_argument("--test-on-path", type=int, help=f"held-out on-path views {default}")
+    parser.add_argument("--test-off-path", type=int, help=f"off-path test views {default}")
     parser.add_argument(
         "--train-every",
         type=int,
