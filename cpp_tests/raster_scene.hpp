@@ -8,6 +8,7 @@
 
 #include "core/finite.hpp"
 #include "core/rasterizer.hpp"
+#include "harness.hpp"
 
 namespace test {
 using namespace spikegs::raster;
@@ -79,6 +80,42 @@ inline Scene<double> random_scene(std::uint32_t seed, std::int64_t n, int width,
   }
   for (int c = 0; c < channels; ++c) s.background.push_back(u(rng));
   return s;
+}
+
+// Every visible Gaussian's tile range is non-empty, on the grid and gathered by its depth rank;
+// each tile lists exactly the ranks whose range holds it, ascending (a serial pass rebuilds the
+// lists); the rank-major listing (`TileBins::rank_begin`) counts exactly the binned pairs, by
+// which the backward's slots index.
+template <typename T>
+void check_bins(const RasterState<T>& st, const Camera<T>& cam, const char* label) {
+  const TileBins& b = st.bins;
+  CHECK(b.rank_begin.size() == b.order.size() + 1, label, ": rank_begin size");
+  CHECK(b.rect.size() == 4 * b.order.size(), label, ": rect size");
+  for (std::size_t rank = 0; rank < b.order.size(); ++rank) {
+    const std::int32_t* r = &st.proj.tile_rect[4 * std::size_t(b.order[rank])];
+    CHECK(std::equal(r, r + 4, &b.rect[4 * rank]), label, ": rank ", rank,
+          "'s gathered tile range differs from its Gaussian's");
+    CHECK(0 <= r[0] && r[0] < r[2] && r[2] <= cam.tiles_x() && 0 <= r[1] && r[1] < r[3] &&
+              r[3] <= cam.tiles_y(),
+          label, ": visible Gaussian ", b.order[rank], " has tile range ", r[0], ",", r[1], " - ",
+          r[2], ",", r[3]);
+    CHECK(b.rank_begin[rank + 1] - b.rank_begin[rank] == std::int64_t(r[2] - r[0]) * (r[3] - r[1]),
+          label, ": rank ", rank, "'s pair count");
+  }
+  CHECK(b.rank_begin.back() == std::int64_t(b.ranks.size()), label, ": ", b.rank_begin.back(),
+        " rank-major pairs against ", b.ranks.size(), " binned");
+  std::vector<std::vector<std::int32_t>> lists(std::size_t(cam.tiles_x()) * cam.tiles_y());
+  for (std::size_t rank = 0; rank < b.order.size(); ++rank) {
+    const std::int32_t* r = &b.rect[4 * rank];
+    for (int ty = r[1]; ty < r[3]; ++ty)
+      for (int tx = r[0]; tx < r[2]; ++tx)
+        lists[std::size_t(ty) * cam.tiles_x() + tx].push_back(std::int32_t(rank));
+  }
+  CHECK(b.offsets.size() == lists.size() + 1, label, ": offsets size");
+  for (std::size_t t = 0; t < lists.size(); ++t)
+    CHECK(std::equal(lists[t].begin(), lists[t].end(), b.ranks.begin() + b.offsets[t],
+                     b.ranks.begin() + b.offsets[t + 1]),
+          label, ": tile ", t, "'s list differs from a serial binning's");
 }
 
 template <typename T>

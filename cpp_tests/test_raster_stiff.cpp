@@ -1,6 +1,7 @@
 // The rasterizer's stiff and extreme cases (degenerate, huge, tiny, stacked, non-finite inputs):
 // each renders in float and double, and checks finite outputs and gradients, zero gradient for
 // culled Gaussians, and float-vs-double agreement.
+#include <algorithm>
 #include <cstdio>
 #include <limits>
 #include <random>
@@ -18,25 +19,6 @@ const double kInf = std::numeric_limits<double>::infinity();
 template <typename T>
 bool finite(const std::vector<T>& v) {
   return spikegs::all_finite(v.data(), long(v.size()));
-}
-
-// Every visible Gaussian's tile range is non-empty and on the grid, and the rank-major listing
-// (`TileBins::rank_begin`) counts exactly the binned pairs, by which the backward's slots index.
-template <typename T>
-void check_bins(const RasterState<T>& st, const Camera<T>& cam, const char* label) {
-  const TileBins& b = st.bins;
-  CHECK(b.rank_begin.size() == b.order.size() + 1, label, ": rank_begin size");
-  for (std::size_t rank = 0; rank < b.order.size(); ++rank) {
-    const std::int32_t* r = &st.proj.tile_rect[4 * std::size_t(b.order[rank])];
-    CHECK(0 <= r[0] && r[0] < r[2] && r[2] <= cam.tiles_x() && 0 <= r[1] && r[1] < r[3] &&
-              r[3] <= cam.tiles_y(),
-          label, ": visible Gaussian ", b.order[rank], " has tile range ", r[0], ",", r[1], " - ",
-          r[2], ",", r[3]);
-    CHECK(b.rank_begin[rank + 1] - b.rank_begin[rank] == std::int64_t(r[2] - r[0]) * (r[3] - r[1]),
-          label, ": rank ", rank, "'s pair count");
-  }
-  CHECK(b.rank_begin.back() == std::int64_t(b.ranks.size()), label, ": ", b.rank_begin.back(),
-        " rank-major pairs against ", b.ranks.size(), " binned");
 }
 
 // Renders `s` in double and float with a random upstream gradient; checks finiteness and returns

@@ -2,6 +2,7 @@
 // a run resumed or repeated on a machine with another core count follows the same path.
 #include <cstdio>
 
+#include "core/thread_buffers.hpp"
 #include "harness.hpp"
 #include "raster_scene.hpp"
 
@@ -48,5 +49,26 @@ TEST_CASE(forward_and_backward_independent_of_threads) {
                 std::equal(a.viewmat, a.viewmat + 16, b.viewmat),
             "C=", channels, ": gradients differ with ", threads, " threads");
     }
+  }
+}
+
+TEST_CASE(parallel_binning_independent_of_threads) {
+  // enough Gaussians and tile pairs that the binning runs in parallel (kParallelMinItems): its
+  // lists are a serial pass's (check_bins) and the same for every thread count
+  const Scene<float> s = random_scene(11, 24000, 203, 157, 1, -1).cast<float>();
+  const Outcome one = run(s, 1);
+  const TileBins& a = one.render.state.bins;
+  std::printf("  %zu visible, %zu tile pairs\n", a.order.size(), a.ranks.size());
+  CHECK(std::int64_t(a.order.size()) >= spikegs::kParallelMinItems, "too few visible");
+  check_bins(one.render.state, s.cam, "one thread");
+  for (const int threads : {2, 3, 7}) {
+    const Outcome other = run(s, threads);
+    const TileBins& b = other.render.state.bins;
+    CHECK(a.order == b.order && a.rect == b.rect && a.offsets == b.offsets && a.ranks == b.ranks &&
+              a.rank_begin == b.rank_begin,
+          "bins differ with ", threads, " threads");
+    CHECK(one.render.image == other.render.image && one.grads.means == other.grads.means &&
+              one.grads.opacities == other.grads.opacities,
+          "forward or backward differs with ", threads, " threads");
   }
 }

@@ -170,6 +170,17 @@ def test_core_refuses_windows_whose_end_overflows():
         _C.spike_unpack(data, layout, int(starts[0]), 3)
 
 
+def test_core_kernels_refuse_float_indices():
+    """The core's index arrays take integers only (int32 converted); float readouts were
+    truncated (0.7 read readout 0) for a direct `_C` caller."""
+    s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
+    data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
+    for kernel in (_C.spike_counts, _C.spike_tfp, _C.spike_tfi):
+        with pytest.raises(TypeError):
+            kernel(data, layout, np.array([0.7]), 3)
+        assert kernel(data, layout, np.array([2], np.int32), 3).shape == (1, 2, 8)
+
+
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):
     """col_offset + width and height * row_bits wrapped around int64: uninitialised TFPs, a
     segfault in window(), a division by zero in DatWriter."""

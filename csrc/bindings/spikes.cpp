@@ -19,7 +19,8 @@ namespace spikegs {
 namespace {
 
 using Bytes = py::array_t<uint8_t, py::array::c_style>;
-using Indices = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
+// Integer arrays only (numpy's safe casts, int32 to int64): forcecast truncated float indices.
+using Indices = py::array_t<int64_t, py::array::c_style>;
 
 std::string shape_of(const py::array& a) {
   std::ostringstream os;

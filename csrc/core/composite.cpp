@@ -7,9 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
 
 #include "core/exp_nonpositive.hpp"
+#include "core/scratch.hpp"
 #include "core/thread_buffers.hpp"
 
 namespace spikegs::raster {
@@ -24,8 +24,10 @@ constexpr int kRecount = 16;  // the forward counts a tile's stopped pixels ever
 template <typename T>
 std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int channels) {
   const int stride = kSplatHeader + channels;
-  std::vector<T> out(bins.order.size() * stride);
-  for (std::size_t rank = 0; rank < bins.order.size(); ++rank) {
+  const std::int64_t visible = std::int64_t(bins.order.size());
+  std::vector<T> out(visible * stride);
+#pragma omp parallel for schedule(static) if (visible >= kParallelMinItems)
+  for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
     T* s = out.data() + rank * stride;
     s[0] = proj.mean2d[2 * i], s[1] = proj.mean2d[2 * i + 1];
@@ -217,11 +219,10 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
   // pairs' slots); and each tile's share of the background's. Every slot is written by the one
   // thread that owns its tile, and the sums below run in a fixed order, so the gradients are
   // bitwise the same for any thread count.
-  const std::unique_ptr<T[]> pair_grads(new T[bins.ranks.size() * grad_stride]);
+  const Scratch<T> pair_grads(bins.ranks.size() * grad_stride);
   std::vector<T> tile_bg(tiles * C, T(0));              // [tiles, C]
   auto slot = [&](std::int32_t rank, std::int64_t t) {  // pair (t, rank)'s gradient share
-    const std::int32_t* rect = &proj.tile_rect[4 * std::int64_t(bins.order[rank])];
-    return pair_grads.get() + rank_major(bins, rect, rank, t) * grad_stride;
+    return pair_grads.get() + rank_major(bins, rank, t) * grad_stride;
   };
   ThreadBuffers<T> behind_buffers(std::size_t(C) * kTilePixels),
       gimg_buffers(std::size_t(C) * kTilePixels);

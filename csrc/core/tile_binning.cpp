@@ -1,8 +1,11 @@
 #include "core/tile_binning.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 #include <type_traits>
+
+#include "core/thread_buffers.hpp"
 
 namespace spikegs::raster {
 namespace {
@@ -53,24 +56,63 @@ void bin_tiles(const Projected<T>& proj, const Camera<T>& cam, TileBins& bins) {
   }
   radix_sort(key, bins.order);
 
-  // Count pairs per tile (and per rank), prefix-sum, then fill in depth order.
-  bins.offsets.assign(tiles + 1, 0);
-  bins.rank_begin.assign(1, 0);
-  for (const std::int32_t i : bins.order) {
-    const std::int32_t* r = &proj.tile_rect[4 * std::int64_t(i)];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx) ++bins.offsets[std::int64_t(ty) * bins.tiles_x + tx + 1];
-    bins.rank_begin.push_back(bins.rank_begin.back() + std::int64_t(r[2] - r[0]) * (r[3] - r[1]));
-  }
-  for (std::int64_t t = 0; t < tiles; ++t) bins.offsets[t + 1] += bins.offsets[t];
-  bins.ranks.resize(bins.offsets[tiles]);
-  std::vector<std::int64_t> cursor(bins.offsets.begin(), bins.offsets.end() - 1);
-  for (std::int32_t rank = 0; rank < std::int32_t(bins.order.size()); ++rank) {
+  // Each rank's tile range, gathered once (read randomly by Gaussian, it was the cost of the
+  // passes below), and its pair count, prefix-summed into rank_begin.
+  const std::int64_t visible = std::int64_t(bins.order.size());
+  bins.rect.resize(4 * visible);
+  bins.rank_begin.resize(visible + 1);
+  bins.rank_begin[0] = 0;
+#pragma omp parallel for schedule(static) if (visible >= kParallelMinItems)
+  for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int32_t* r = &proj.tile_rect[4 * std::int64_t(bins.order[rank])];
-    for (int ty = r[1]; ty < r[3]; ++ty)
-      for (int tx = r[0]; tx < r[2]; ++tx)
-        bins.ranks[cursor[std::int64_t(ty) * bins.tiles_x + tx]++] = rank;
+    std::copy_n(r, 4, &bins.rect[4 * rank]);
+    bins.rank_begin[rank + 1] = std::int64_t(r[2] - r[0]) * (r[3] - r[1]);
   }
+  for (std::int64_t rank = 0; rank < visible; ++rank)
+    bins.rank_begin[rank + 1] += bins.rank_begin[rank];
+
+  // The ranks in `parts` runs of about equal pair counts: each run counts its pairs per tile, the
+  // counts give each run its first slot in each tile's list, and each run fills its slots in
+  // depth order. Runs follow depth order, so the lists are those of one serial pass whatever the
+  // number of runs.
+  const std::int64_t pairs = bins.rank_begin[visible];
+  const std::int64_t parts = pairs >= kParallelMinItems ? max_threads() : 1;
+  std::vector<std::int64_t> run_begin(parts + 1);  // [parts + 1] first rank of each run
+  for (std::int64_t part = 0; part <= parts; ++part)
+    run_begin[part] =
+        std::lower_bound(bins.rank_begin.begin(), bins.rank_begin.end() - 1, pairs * part / parts) -
+        bins.rank_begin.begin();
+  std::vector<std::int64_t> cursor(parts * tiles, 0);  // [parts, tiles]
+  const std::int64_t tiles_x = bins.tiles_x;
+  auto run = [&](std::int64_t part, auto&& visit) {
+    std::int64_t* c = &cursor[part * tiles];
+    for (std::int64_t rank = run_begin[part]; rank < run_begin[part + 1]; ++rank) {
+      // copied: the fill's stores into int32 `ranks` could alias the range
+      const std::int64_t x0 = bins.rect[4 * rank], y0 = bins.rect[4 * rank + 1],
+                         x1 = bins.rect[4 * rank + 2], y1 = bins.rect[4 * rank + 3];
+      for (std::int64_t ty = y0; ty < y1; ++ty)
+        for (std::int64_t t = ty * tiles_x + x0; t < ty * tiles_x + x1; ++t)
+          visit(c[t], std::int32_t(rank));
+    }
+  };
+#pragma omp parallel for schedule(static, 1) if (parts > 1)
+  for (std::int64_t part = 0; part < parts; ++part)
+    run(part, [](std::int64_t& count, std::int32_t) { ++count; });
+  bins.offsets.resize(tiles + 1);
+  bins.offsets[0] = 0;
+  for (std::int64_t t = 0; t < tiles; ++t) {
+    std::int64_t slot = bins.offsets[t];
+    for (std::int64_t part = 0; part < parts; ++part) {
+      const std::int64_t count = cursor[part * tiles + t];
+      cursor[part * tiles + t] = slot;
+      slot += count;
+    }
+    bins.offsets[t + 1] = slot;
+  }
+  bins.ranks.resize(bins.offsets[tiles]);
+#pragma omp parallel for schedule(static, 1) if (parts > 1)
+  for (std::int64_t part = 0; part < parts; ++part)
+    run(part, [&](std::int64_t& slot, std::int32_t rank) { bins.ranks[slot++] = rank; });
 }
 
 template void bin_tiles<float>(const Projected<float>&, const Camera<float>&, TileBins&);

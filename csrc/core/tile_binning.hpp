@@ -1,5 +1,6 @@
 // Tile binning: per-tile lists of visible Gaussians in front-to-back order, without a comparison
-// sort: a radix sort by depth, then a counting pass by tile in that order.
+// sort: a radix sort by depth, then a counting pass by tile in that order (parallel over runs of
+// depth ranks; the lists do not depend on the thread count).
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -11,6 +12,7 @@ namespace spikegs::raster {
 struct TileBins {
   int tiles_x = 0, tiles_y = 0;
   std::vector<std::int32_t> order;    // [V] Gaussian index of each depth rank (visible only)
+  std::vector<std::int32_t> rect;     // [V, 4] tile range of each depth rank (Projected::tile_rect)
   std::vector<std::int64_t> offsets;  // [tiles + 1] start of each tile's list in `ranks`
   std::vector<std::int32_t> ranks;    // [pairs] depth ranks, ascending within each tile
   // The same pairs listed by depth rank, each rank's tiles in row-major order (`rank_major`):
@@ -20,10 +22,10 @@ struct TileBins {
   std::vector<std::int64_t> rank_begin;  // [V + 1]
 };
 
-// Position, in the rank-major listing, of the pair (tile t, depth rank `rank`); `rect` is the
-// rank's tile range x0, y0, x1, y1 (Projected::tile_rect), which holds tile t.
-inline std::int64_t rank_major(const TileBins& bins, const std::int32_t* rect, std::int32_t rank,
-                               std::int64_t t) {
+// Position, in the rank-major listing, of the pair (tile t, depth rank `rank`); the rank's tile
+// range holds tile t.
+inline std::int64_t rank_major(const TileBins& bins, std::int32_t rank, std::int64_t t) {
+  const std::int32_t* rect = &bins.rect[4 * std::int64_t(rank)];
   const std::int64_t tx = t % bins.tiles_x, ty = t / bins.tiles_x;
   return bins.rank_begin[rank] + (ty - rect[1]) * (rect[2] - rect[0]) + (tx - rect[0]);
 }

@@ -1,0 +1,44 @@
+// A scratch array for one call whose memory the calling thread keeps for its next call.
+#pragma once
+#include <cstddef>
+#include <memory>
+
+namespace spikegs {
+
+// Scratch arrays up to this size are kept by the calling thread for its next call.
+constexpr std::size_t kKeptScratchBytes = std::size_t(512) << 20;
+
+// `size` uninitialised elements for one call, for a large array needed once a call (the
+// backward's per-pair gradient shares, 53 MB at 200k Gaussians on 256²): allocated afresh, its
+// pages were mapped and zeroed by the kernel on every call (13k page faults, a third of the
+// backward). Up to kKeptScratchBytes the calling thread keeps the memory for its next call (and
+// holds its largest such array until it exits); a larger array is freed after the call, so that
+// one huge render does not hold its memory for the life of the process. One Scratch<T> at a time
+// per thread; its contents do not survive it.
+template <typename T>
+class Scratch {
+ public:
+  explicit Scratch(std::size_t size) {
+    if (size > kKeptScratchBytes / sizeof(T)) {
+      owned_.reset(new T[size]);
+      data_ = owned_.get();
+      return;
+    }
+    static thread_local std::unique_ptr<T[]> kept;
+    static thread_local std::size_t capacity = 0;
+    if (size > capacity) {
+      kept.reset();  // the old array freed before the new one is allocated
+      capacity = 0;  // and forgotten, should the allocation throw
+      kept.reset(new T[size]);
+      capacity = size;
+    }
+    data_ = kept.get();
+  }
+  T* get() const { return data_; }
+
+ private:
+  std::unique_ptr<T[]> owned_;
+  T* data_ = nullptr;
+};
+
+}  // namespace spikegs
