@@ -220,19 +220,30 @@ def test_every_command_reports_a_missing_extra(monkeypatch, tmp_path, capsys):
         assert "error: pycolmap is needed: pip install 'spikegs[sfm]'" in capsys.readouterr().err
 
 
+def glowing_ball(center, radius: float, rgb=(1.0, 1.0, 1.0)) -> dict:
+    """A Mitsuba scene of one emitting sphere."""
+    emitter = {"type": "area", "radiance": {"type": "rgb", "value": list(rgb)}}
+    return {
+        "type": "scene",
+        "integrator": {"type": "path"},
+        "ball": {"type": "sphere", "center": list(center), "radius": radius, "emitter": emitter},
+    }
+
+
+def assert_drawn_where_projected(source, viewmat, mask, point) -> np.ndarray:
+    """The centroid of `mask` [H, W] is where the source's K projects `point` (pixel centres at
+    +0.5), within a pixel; returns `point` in camera coordinates."""
+    cam = viewmat[:3, :3] @ point + viewmat[:3, 3]
+    expected = (source.K @ cam)[:2] / cam[2]
+    rows, cols = np.nonzero(mask)
+    np.testing.assert_allclose([cols.mean() + 0.5, rows.mean() + 0.5], expected, atol=1.0)
+    return cam
+
+
 def test_mitsuba_source_convention_and_dataset(tmp_path):
     pytest.importorskip("mitsuba")
     target = np.array([0.3, -0.2, 0.1])
-    scene = {
-        "type": "scene",
-        "integrator": {"type": "path"},
-        "ball": {
-            "type": "sphere",
-            "center": target.tolist(),
-            "radius": 0.25,
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 0.5, 0.25]}},
-        },
-    }
+    scene = glowing_ball(target, 0.25, (1.0, 0.5, 0.25))
     source = MitsubaSource(scene, 16, 16, channels=3, spp=1, center=[0, 0, 0], radius=1.0)
     traj = source.trajectory(101, 1.0)
     viewmat = traj.pose_at(60.0)
@@ -241,11 +252,7 @@ def test_mitsuba_source_convention_and_dataset(tmp_path):
     mask = image[..., 0] > 0.5
     assert mask.sum() > 3
     np.testing.assert_allclose(image[mask], [[1.0, 0.5, 0.25]] * mask.sum(), atol=1e-5)
-    # the ball is where the OpenCV camera model projects its centre (pixel centres at +0.5)
-    cam = viewmat[:3, :3] @ target + viewmat[:3, 3]
-    expected = (source.K @ cam)[:2] / cam[2]
-    rows, cols = np.nonzero(mask)
-    np.testing.assert_allclose([cols.mean() + 0.5, rows.mean() + 0.5], expected, atol=1.0)
+    assert_drawn_where_projected(source, viewmat, mask, target)  # the OpenCV camera model
 
     ds = simulate_dataset(
         scene,
@@ -260,6 +267,26 @@ def test_mitsuba_source_convention_and_dataset(tmp_path):
         progress=False,
     )
     assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3
+
+
+def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():
+    """MitsubaSource's fov_deg (no caller passes it) sets K and the sensor alike."""
+    pytest.importorskip("mitsuba")
+    target, ball = np.array([0.15, -0.1, 0.05]), 0.3
+    areas = {}
+    for fov in (30.0, 60.0):
+        source = MitsubaSource(
+            glowing_ball(target, ball), 32, 32, spp=1, fov_deg=fov, center=[0, 0, 0], radius=1.0
+        )
+        focal = 16.0 / np.tan(np.radians(fov / 2))
+        assert source.K[0, 0] == pytest.approx(focal) and source.K[1, 1] == pytest.approx(focal)
+        viewmat = source.trajectory(2, 1.0).pose_at(0.0)
+        mask = source.render(viewmat)[..., 0] > 0.5  # [32, 32]
+        cam = assert_drawn_where_projected(source, viewmat, mask, target)
+        areas[fov] = mask.sum()
+        assert areas[fov] == pytest.approx(np.pi * (focal * ball / cam[2]) ** 2, rel=0.3)
+    focal_ratio = np.tan(np.radians(30.0)) / np.tan(np.radians(15.0))
+    assert areas[30.0] / areas[60.0] == pytest.approx(focal_ratio**2, rel=0.25)
 
 
 def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path):

@@ -358,9 +358,15 @@ class FrameSequenceSource(Source):
         test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
         if test_path:
-            images, poses, *_ = _read_transforms(
+            images, poses, test_K, _ = _read_transforms(
                 Path(test_path), width, height, channels, background
             )
+            if not np.allclose(test_K, K, rtol=1e-6, atol=0):  # both at width × height
+                raise ValueError(
+                    f"{test_path}: its camera (fx, fy, cx, cy at {width}x{height}: "
+                    f"{_intrinsics_text(test_K)}) differs from {path}'s "
+                    f"({_intrinsics_text(K)}); one camera expected"
+                )
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
         return cls(
             path.parent.name or path.stem,
@@ -440,8 +446,17 @@ def view_sphere(
     its radius; a radius alone keeps the computed centre), else `converging_centre`'s; ValueError
     naming `source` and how to `fix` it when one is needed and the optical axes of viewmats
     [F, 4, 4] do not converge in front of the cameras."""
+    if radius is not None and not (is_number(radius) and radius > 0):
+        raise ValueError(f"{source}: scene radius expected a finite number > 0, found {radius!r}")
+    if center is not None:
+        try:
+            given = number_array(center)
+        except ValueError:  # text, booleans, ragged lists
+            given = np.full(1, np.nan)
+        if given.shape != (3,) or not np.isfinite(given).all():
+            raise ValueError(f"{source}: scene centre expected 3 finite numbers, found {center!r}")
     if center is not None and radius is not None:
-        return np.asarray(center, np.float64), float(radius)
+        return given, float(radius)
     if center is not None:
         raise ValueError(
             f"{source}: a scene centre needs its radius (the radius computed from the views is "
@@ -525,6 +540,11 @@ def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
     if is_opengl(path, doc):
         c2w = c2w @ OPENGL_TO_OPENCV
     return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
+
+
+def _intrinsics_text(K: np.ndarray) -> str:
+    """fx, fy, cx, cy of a camera matrix [3, 3], for a message."""
+    return ", ".join(f"{v:.6g}" for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2]))
 
 
 def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
