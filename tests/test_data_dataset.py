@@ -225,6 +225,10 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         load_dataset(tmp_path / "meta.json")  # the copy above without its meta.json
     with pytest.raises(FileNotFoundError, match="from `spikegs poses"):  # a raw recording's
         load_dataset(tmp_path / "trajectory.json")
+    spaced = tmp_path / "my recording"  # the command it suggests pastes into a shell
+    shutil.move(tmp_path / "trajectory.json", spaced)
+    with pytest.raises(FileNotFoundError, match=f"from `spikegs poses '{spaced}'`"):
+        load_dataset(spaced)
     root = tmp_path / "nan"
     shutil.copytree(small.root, root)
     doc = json.loads((root / "trajectory.json").read_text())

@@ -7,6 +7,7 @@ import json
 import pickle
 import re
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.llff import llff_sphere, to_poses_bounds, viewmats_from_llff
 from spikegs.data.real_options import read_options
 from spikegs.data.sources import OPENGL_TO_OPENCV
-from spikegs.data.trajectory import look_at
+from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.evaluate import evaluate_run
 from spikegs.image_io import read_image, write_image
 from spikegs.sim_train import evaluate_dataset, train_sim
@@ -265,6 +266,11 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     root = copy(llff, tmp_path / "count")
     (root / "spikes" / "009.dat").unlink()
     with pytest.raises(ValueError, match="poses_bounds.npy holds 10 poses .* 9 .dat"):
+        load_dataset(root)
+    shutil.copy(llff / "spikes" / "009.dat", root / "spikes" / "009.DAT")  # named otherwise
+    with pytest.raises(
+        ValueError, match=r"9 .dat files; .* \(not read, not named \*.dat: 009.DAT\)"
+    ):
         load_dataset(root)
 
     root = copy(llff, tmp_path / "size")
@@ -708,6 +714,78 @@ def test_nerf_transforms_files_left_unread_are_named(nerf, tmp_path):
         load_dataset(root)
     (root / "transforms_test.json").unlink()
     with pytest.warns(UserWarning, match=r"reading transforms_train.json; transforms.json not"):
+        load_dataset(root)
+
+
+def test_files_of_another_layout_are_named(sim, llff_stream, tmp_path):
+    """A stray meta.json (a camera vendor's) hid an LLFF folder's poses_bounds.npy behind "no
+    trajectory.json", and a transforms.json beside poses_bounds.npy was passed over in silence."""
+    root = copy(llff_stream, tmp_path)
+    shutil.copy(sim.root / "trajectory.json", root / "transforms.json")
+    with pytest.warns(UserWarning, match=r"transforms.json not read: with poses_bounds.npy here"):
+        load_dataset(root)
+    (root / "meta.json").write_text(json.dumps({"camera": "Vidar-1"}))
+    with pytest.raises(
+        FileNotFoundError,
+        match=r"trajectory.json .*; poses_bounds.npy, transforms.json here belong to the LLFF / "
+        r"NeRF layouts, read only where there is no meta.json",
+    ):
+        load_dataset(root)
+    dataset = copy(sim.root, tmp_path / "own")  # spikegs's layout says what it does not read
+    shutil.copy(llff_stream / "poses_bounds.npy", dataset / "poses_bounds.npy")
+    with pytest.warns(UserWarning, match=r"poses_bounds.npy here belong to the LLFF / NeRF"):
+        assert load_dataset(dataset).num_readouts == sim.num_readouts
+
+
+def test_gap_in_the_pose_log_is_named(llff_stream, tmp_path):
+    """Training timestamps in a dropout of the pose log got poses interpolated across it without
+    a word."""
+    root = copy(llff_stream, tmp_path)
+    readouts = np.loadtxt(root / "readouts.txt")  # a pose every 50 readouts
+    keep = (readouts <= 100) | (readouts >= 400)
+    np.savetxt(root / "readouts.txt", readouts[keep], fmt="%d")
+    np.save(root / "poses_bounds.npy", np.load(root / "poses_bounds.npy")[keep])
+    with pytest.warns(
+        UserWarning,
+        match=r"training timestamps in gaps of the poses .* \[100, 400\] \(\d+\), against a "
+        r"median spacing of 50 readouts",
+    ) as caught:
+        dataset = load_dataset(root)
+    inside = np.sum((dataset.train_timestamps > 100) & (dataset.train_timestamps < 400))
+    assert f"[100, 400] ({inside})" in str(caught[0].message) and inside > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no gap, no warning
+        load_dataset(llff_stream)
+
+
+def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, tmp_path):
+    root = copy(llff_stream, tmp_path)
+    frame = H * W // 8
+    with open(root / "spikes.dat", "ab") as f:
+        f.write(b"\0" * 7)  # a recording cut off 7 bytes into a frame
+    whole = VIEWS * LENGTH * frame
+    with pytest.raises(
+        ValueError,
+        match=rf"{VIEWS * LENGTH} frames and 7 bytes over: .*truncated to {whole} bytes.* "
+        rf"\(expected frames of {H}x{W} pixels",
+    ):
+        load_dataset(root)
+    shutil.copy(llff_stream / "spikes.dat", root / "spikes.dat")
+    readouts = np.loadtxt(root / "readouts.txt")
+    readouts[3] = readouts[1]
+    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
+    with pytest.raises(
+        ValueError, match=r"strictly increasing, found 50 for pose 3 after 100 \(0-based"
+    ):
+        load_dataset(root)
+
+
+def test_partial_trajectory_points_to_the_llff_layout(sim, tmp_path):
+    root = copy(sim.root, tmp_path)
+    part = Trajectory.load_json(root / "trajectory.json")
+    keep = part.readouts >= 100
+    Trajectory(part.readouts[keep], part.viewmats[keep]).save_json(root / "trajectory.json")
+    with pytest.raises(ValueError, match=r"poses cover readouts \[1\d\d.*readouts.txt"):
         load_dataset(root)
 
 

@@ -125,6 +125,26 @@ def test_json_round_trip_states_the_convention(tmp_path, two_poses):
     np.testing.assert_allclose(back.viewmats, two_poses.viewmats, atol=1e-12)
 
 
+def test_json_must_state_the_opencv_convention(tmp_path, two_poses):
+    """A hand-written trajectory.json without "convention" (NeRF exports are OpenGL) was read as
+    OpenCV: cameras facing away from the scene, trained without a word."""
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    for convention in (None, "opengl", 1):
+        if convention is None:
+            doc.pop("convention")
+        else:
+            doc["convention"] = convention
+        path.write_text(json.dumps(doc))
+        found = "no convention" if convention is None else f"convention {convention!r}"
+        with pytest.raises(ValueError, match=rf"trajectory.json: {found}; expected .*diag\(1, -1"):
+            Trajectory.load_json(path)
+    doc["convention"] = "OpenCV"  # as the NeRF layout reads it, in any case
+    path.write_text(json.dumps(doc))
+    np.testing.assert_allclose(Trajectory.load_json(path).viewmats, two_poses.viewmats, atol=1e-12)
+
+
 def test_json_with_nan_or_missing_file_is_an_error(tmp_path, two_poses):
     path = tmp_path / "trajectory.json"
     two_poses.save_json(path)

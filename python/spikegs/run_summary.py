@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 from .data.trajectory import read_json
@@ -41,7 +42,7 @@ def trained_scene(run_dir: Path) -> Path:
     if last_checkpoint(run_dir).exists():
         raise FileNotFoundError(
             f"{ply} not found: the run stopped before its end; finish it with spikegs train "
-            f"DATASET --out {run_dir} --resume"
+            f"DATASET --out {shlex.quote(str(run_dir))} --resume"
         )
     if not Path(run_dir).is_dir():
         raise FileNotFoundError(f"{run_dir}: no such run folder (spikegs train ... --out RUN)")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import json
+import shlex
 import shutil
 import warnings
 from pathlib import Path
@@ -302,13 +303,21 @@ def load_dataset(path: PathLike) -> Dataset:
         raise NotADirectoryError(f"{root} is a file, not a dataset directory")
     if not root.is_dir():
         raise FileNotFoundError(f"dataset directory not found: {root}")
-    if not (root / META).is_file():
-        from .llff import POSES_BOUNDS, load_llff
-        from .nerf_layout import TRANSFORMS, load_nerf_layout
+    from .llff import POSES_BOUNDS, load_llff
+    from .nerf_layout import TRANSFORMS, load_nerf_layout
 
+    others = [name for name in (POSES_BOUNDS, *TRANSFORMS) if (root / name).is_file()]
+    if not (root / META).is_file():
         if (root / POSES_BOUNDS).is_file():
+            if len(others) > 1:
+                unread = ", ".join(name for name in others if name != POSES_BOUNDS)
+                warnings.warn(
+                    f"{root}: {unread} not read: with {POSES_BOUNDS} here the LLFF layout is "
+                    f"taken (docs/datasets.md)",
+                    stacklevel=2,
+                )
             return load_llff(root)
-        if any((root / name).is_file() for name in TRANSFORMS):
+        if others:
             return load_nerf_layout(root)
         partial = " (its spikes without a meta.json: an interrupted simulation?)"
         raise FileNotFoundError(
@@ -316,11 +325,17 @@ def load_dataset(path: PathLike) -> Dataset:
             f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout)"
             f"{partial if holds_dataset(root) else ''}; docs/datasets.md"
         )
+    # a meta.json marks spikegs's own layout; another layout's files beside it are not read
+    not_read = (
+        f"{', '.join(others)} here belong to the LLFF / NeRF layouts, read only where there is "
+        f"no {META} (move {META} away, e.g. a camera's own, to read them)"
+    )
     meta_path = existing_file(root, META)
     if not (root / TRAJECTORY).is_file():
         raise FileNotFoundError(
             f"dataset file not found: {root / TRAJECTORY} (the camera poses; a raw recording gets "
-            f"them, and what else it lacks, from `spikegs poses {root}`)"
+            f"them, and what else it lacks, from `spikegs poses {shlex.quote(str(root))}`)"
+            + (f"; {not_read}" if others else "")
         )
     meta = read_json(meta_path)
     _check_meta(meta, meta_path)
@@ -334,11 +349,14 @@ def load_dataset(path: PathLike) -> Dataset:
             f"in {META}",
             stacklevel=2,
         )
+    if others:
+        warnings.warn(f"{root}: {not_read}", stacklevel=2)
     trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY))
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
-            f"expected [0, {num - 1}]"
+            f"expected [0, {num - 1}] (poses for part of a recording: the LLFF layout, one "
+            f"spikes.dat with readouts.txt; docs/datasets.md)"
         )
     timestamps = _read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN

@@ -166,8 +166,16 @@ def _read_readouts(path: Path, count: int) -> np.ndarray:
         raise ValueError(
             f"{path}: {len(readouts)} readouts for {count} poses; expected one per pose"
         )
-    if not np.isfinite(readouts).all() or (np.diff(readouts) <= 0).any():
-        raise ValueError(f"{path}: readouts expected finite and strictly increasing")
+    bad = np.flatnonzero(~np.isfinite(readouts))
+    if not bad.size:
+        bad = np.flatnonzero(np.diff(readouts) <= 0) + 1
+    if bad.size:
+        i = int(bad[0])
+        after = f" after {readouts[i - 1]:g}" if i and np.isfinite(readouts[i]) else ""
+        raise ValueError(
+            f"{path}: readouts expected finite and strictly increasing, found {readouts[i]:g} "
+            f"for pose {i}{after} (0-based indices into the spike stream)"
+        )
     return readouts
 
 
@@ -194,9 +202,12 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
     natural order (ours): which pose is whose would be ambiguous."""
     files = sorted(folder.glob("*.dat"), key=lambda p: p.name)  # as strings, as LLFF's tools
     if len(files) != count:
+        others = sorted(p.name for p in folder.iterdir() if p.suffix != ".dat")
+        shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
         raise ValueError(
             f"{source} holds {count} poses but {folder} holds {len(files)} .dat files; "
             f"expected one per pose, in name order"
+            + (f" (not read, not named *.dat: {shown})" if others else "")
         )
     natural = sorted(files, key=lambda p: natural_key(p.name))
     if natural != files:

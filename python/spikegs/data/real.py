@@ -227,6 +227,31 @@ def views_dataset(
     return _finish(root, meta, joined, trajectory, timestamps, held_out)
 
 
+GAP_FACTOR = 4  # poses further apart than this many median spacings leave a gap
+
+
+def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) -> None:
+    """A UserWarning naming the gaps in a pose log (readouts [P], sorted) wider than GAP_FACTOR
+    median spacings that training timestamps [M] fall into: their poses are interpolated across
+    the gap (a motion-capture dropout), which a curved path does not follow."""
+    spacing = np.diff(readouts)  # [P - 1]
+    if not len(spacing):
+        return
+    wide = np.flatnonzero(spacing > GAP_FACTOR * np.median(spacing))
+    gaps = []
+    for i in wide:
+        inside = int(np.sum((timestamps > readouts[i]) & (timestamps < readouts[i + 1])))
+        if inside:
+            gaps.append(f"[{readouts[i]:g}, {readouts[i + 1]:g}] ({inside})")
+    if gaps:
+        warnings.warn(
+            f"{source}: training timestamps in gaps of the poses (readouts, timestamps inside) "
+            f"{', '.join(gaps)}, against a median spacing of {np.median(spacing):g} readouts: "
+            f"their poses are interpolated across each gap; check the pose log",
+            stacklevel=3,
+        )
+
+
 def stream_dataset(
     root: Path,
     meta: dict,
@@ -263,6 +288,7 @@ def stream_dataset(
             f"readouts clear of each of the {int(test.sum())} held-out poses, and the poses lie "
             f"{spacing:g} readouts apart; hold out fewer (test_views in spikegs.json)"
         )
+    warn_pose_gaps(readouts, ks, source)
     window = options.pseudo_gt_window or NEEDED_WINDOW
     lo, hi = centred_range(len(stream), window)  # readouts whose window fits
     held_out = [

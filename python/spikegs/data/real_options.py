@@ -122,7 +122,7 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
         where = "" if str(path) in str(err) else f"{path}: "
         raw = options.raw_width or width
         raise ValueError(
-            f"{where}{err} (expected {height}x{width} readouts, rows of {raw} pixels from column "
+            f"{where}{err} (expected frames of {height}x{width} pixels, rows of {raw} from column "
             f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
             f"if these are wrong)"
         ) from err

@@ -230,8 +230,15 @@ def read_camera_doc(path: Path) -> list:
     """The frames [P] of `camera_doc`'s file; ValueError naming it unless it is an object in our
     convention whose frames are a list of objects."""
     doc = read_json(path)
-    if doc.get("convention", CONVENTION) != CONVENTION:
-        raise ValueError(f"{path}: convention '{doc['convention']}', expected '{CONVENTION}'")
+    convention = doc.get("convention")  # unstated: NeRF exports are OpenGL, ours OpenCV
+    if not (isinstance(convention, str) and convention.lower() == CONVENTION):
+        found = f"convention {doc['convention']!r}" if "convention" in doc else "no convention"
+        raise ValueError(
+            f'{path}: {found}; expected "convention": "{CONVENTION}" (camera-to-world '
+            f"matrices with x right, y down, z forward). NeRF/Blender (OpenGL: y up, z back) "
+            f"matrices become OpenCV's right-multiplied by diag(1, -1, -1, 1); or keep them in "
+            f"the NeRF layout (transforms.json), which reads OpenGL (docs/datasets.md)"
+        )
     frames = doc.get("frames") or []
     if not isinstance(frames, list) or not all(isinstance(f, dict) for f in frames):
         raise ValueError(f"{path}: 'frames' expected a list of objects")

@@ -70,7 +70,9 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, what: str) -> int:
         raise ValueError(
             f"{what}: a whole number of {layout.height}x{layout.row_bits}-bit frames of {fb} bytes "
             f"expected, found {num_bytes} bytes ({num_bytes // fb} frames and {num_bytes % fb} "
-            f"bytes over)"
+            f"bytes over: a recording cut off mid-frame keeps its whole frames if truncated to "
+            f"{num_bytes // fb * fb} bytes, e.g. `truncate -s {num_bytes // fb * fb} FILE`; else "
+            f"the frame size is wrong)"
         )
     return num_bytes // fb
 
