@@ -323,6 +323,25 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
 
 
+def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
+    """A wrong `flip` trained the scene upside down without a word, though the training views'
+    sharp images showed it."""
+    root = copy(nerf, tmp_path)
+    source, viewmats = make_source("solids", W, H, 1), view_poses(sim)
+    for i in range(2, VIEWS - 1):
+        write_image(root / "train" / f"r_{i}.exr", source.render(viewmats[i]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the right way up: nothing to say
+        load_dataset(root)
+    (root / "spikegs.json").write_text(json.dumps({"flip": False}))
+    with pytest.warns(
+        UserWarning,
+        match=r"better upside down \(median correlation 0\.\d+ flipped against -?0\.\d+ as "
+        r"read, over 7 views\): flip \(False, in spikegs.json\) is likely wrong",
+    ):
+        load_dataset(root)
+
+
 def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
     """Sharp images of training views calibrate the firing rate of intensity 1 (when spikegs.json
     gives no rate_at_one); the test views' images are scaled by it."""

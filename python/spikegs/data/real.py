@@ -135,17 +135,18 @@ def _longest_odd(length: int) -> int:
     return length - 1 + length % 2
 
 
-def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -> float:
-    """The firing rate of intensity 1.0 from training views that have a sharp image [H, W, 1]
-    and a spike stream each: the median over views of a view's mean firing rate (TFP over the
-    whole view) over its image's mean intensity. Means, so that motion blur within a view and
-    small misalignments cancel; the median, so that a wrong image (black, another view's) does
-    not move it. Black images are left out; ValueError when all are."""
-    ratios = [
-        s.tfp(len(s) // 2, _longest_odd(len(s))).mean() / np.mean(image)
-        for s, image in views
-        if np.mean(image) > 0
-    ]
+def view_tfps(views: list[tuple[SpikeStream, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each view's TFP over its whole stream [H, W] with its sharp image [H, W, C]."""
+    return [(s.tfp(len(s) // 2, _longest_odd(len(s))), image) for s, image in views]
+
+
+def rate_from_images(views: list[tuple[np.ndarray, np.ndarray]], source: str) -> float:
+    """The firing rate of intensity 1.0 from training views' TFPs over the whole view [H, W]
+    and sharp images [H, W, 1] (`view_tfps`): the median over views of a view's mean firing
+    rate over its image's mean intensity. Means, so that motion blur within a view and small
+    misalignments cancel; the median, so that a wrong image (black, another view's) does not
+    move it. Black images are left out; ValueError when all are."""
+    ratios = [tfp.mean() / np.mean(image) for tfp, image in views if np.mean(image) > 0]
     rate = float(np.median(ratios)) if ratios else 0.0
     if not rate > 0:
         raise ValueError(
@@ -153,6 +154,34 @@ def rate_from_images(views: list[tuple[SpikeStream, np.ndarray]], source: str) -
             f"to calibrate intensity; set rate_at_one in spikegs.json"
         )
     return rate
+
+
+FLIP_MARGIN = 0.2  # correlation by which the other orientation must match better, to warn
+
+
+def check_orientation(views: list[tuple[np.ndarray, np.ndarray]], flip: bool, source: str):
+    """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] (`view_tfps`)
+    better upside down than as read, in most views (by FLIP_MARGIN in correlation): `flip` is
+    likely wrong, and the scene would train upside down."""
+
+    def correlation(a: np.ndarray, b: np.ndarray) -> float:
+        a, b = a - a.mean(), b - b.mean()
+        norm = np.sqrt((a * a).sum() * (b * b).sum())
+        return float((a * b).sum() / norm) if norm > 0 else 0.0
+
+    pairs = [
+        (correlation(tfp, image.mean(-1)), correlation(tfp, image.mean(-1)[::-1]))
+        for tfp, image in views
+    ]
+    better = [flipped - kept > FLIP_MARGIN for kept, flipped in pairs]
+    if pairs and sum(better) > len(pairs) / 2:
+        kept, flipped = np.median(np.asarray(pairs), axis=0)
+        warnings.warn(
+            f"{source}: the spikes match their views' sharp images better upside down (median "
+            f"correlation {flipped:.2f} flipped against {kept:.2f} as read, over {len(pairs)} "
+            f"views): flip ({flip}, in {OPTIONS_FILE}) is likely wrong",
+            stacklevel=3,
+        )
 
 
 def views_dataset(
@@ -213,12 +242,14 @@ def views_dataset(
         for i in np.flatnonzero(test)
     ]
     timestamps = [centers[i] for i in present if not test[i]]
-    calibration = [
-        (streams[i], images[i]) for i in present if not test[i] and images[i] is not None
-    ]
-    if calibration and "rate_at_one" not in meta:
-        meta["rate_at_one"] = rate_from_images(calibration, source)
-        meta["rate_at_one_from"] = f"{len(calibration)} training views' sharp images"
+    # training views with a sharp image: their TFPs [H, W] and images
+    sharp = view_tfps(
+        [(streams[i], images[i]) for i in present if not test[i] and images[i] is not None]
+    )
+    check_orientation(sharp, options.flip, source)
+    if sharp and "rate_at_one" not in meta:
+        meta["rate_at_one"] = rate_from_images(sharp, source)
+        meta["rate_at_one_from"] = f"{len(sharp)} training views' sharp images"
     meta["spike_files"] = [os.path.relpath(streams[i].path, root) for i in present]
     meta["view_readouts"] = {
         names[i]: [int(joined.offsets[j]), int(joined.offsets[j + 1])]
