@@ -72,3 +72,27 @@ TEST_CASE(parallel_binning_independent_of_threads) {
           "forward or backward differs with ", threads, " threads");
   }
 }
+
+TEST_CASE(parallel_binning_of_few_gaussians_over_many_tiles) {
+  // 0, 1, 6, 9 Gaussians each covering thousands of tiles: fewer ranks than threads, runs of one
+  // rank, and no Gaussian at all
+  for (const int n : {0, 1, 6, 9}) {
+    Scene<float> s = random_scene(5 + n, n, 1024, 768, 1, -1).cast<float>();
+    for (float& scale : s.scales) scale *= 400;
+    const Outcome one = run(s, 1);
+    const TileBins& a = one.render.state.bins;
+    std::printf("  n=%d: %zu visible, %zu tile pairs\n", n, a.order.size(), a.ranks.size());
+    CHECK(n < 6 || std::int64_t(a.ranks.size()) >= spikegs::kParallelMinItems, "n=", n,
+          ": too few pairs to bin in parallel");
+    check_bins(one.render.state, s.cam, "few Gaussians");
+    for (const int threads : {2, 7, 16}) {
+      const Outcome other = run(s, threads);
+      const TileBins& b = other.render.state.bins;
+      CHECK(a.order == b.order && a.offsets == b.offsets && a.ranks == b.ranks &&
+                a.rank_begin == b.rank_begin,
+            "n=", n, ": bins differ with ", threads, " threads");
+      CHECK(one.render.image == other.render.image && one.grads.means == other.grads.means, "n=", n,
+            ": forward or backward differs with ", threads, " threads");
+    }
+  }
+}

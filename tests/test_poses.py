@@ -303,6 +303,17 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     (tmp_path / "llff").mkdir()  # a layout with poses of its own, or no dataset at all
     assert main(["poses", str(tmp_path / "llff")]) == 2
     assert "an LLFF or NeRF layout brings its own poses" in capsys.readouterr().err
+    # the pose log SfM's poses are aligned to, read after SfM had run for minutes
+    raw = tmp_path / "log"
+    raw.mkdir()
+    shutil.copy(textured / "spikes.dat", raw / "spikes.dat")
+    (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
+    doc = json.loads((textured / "trajectory.json").read_text())
+    doc.pop("convention")  # a hand-written log, OpenGL or not
+    (raw / "trajectory.json").write_text(json.dumps(doc))
+    assert main(["poses", str(raw), "--count", "30"]) == 2
+    assert "trajectory.json: no convention" in capsys.readouterr().err
+    assert not (raw / "sfm").exists()
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

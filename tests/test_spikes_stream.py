@@ -110,8 +110,21 @@ def test_truncated_file_refused(tmp_path):
     path = save_dat(tmp_path / "s.dat", random_bits((4, 8, 16)))
     with open(path, "ab") as f:
         f.write(b"\0" * 5)
-    with pytest.raises(ValueError, match="16 bytes expected, found 69 bytes"):
+    with pytest.raises(
+        ValueError, match=r"16 bytes expected, found 69 bytes \(4 frames and 5 bytes over: else"
+    ):
+        SpikeStream.open(path, 8, 16)  # 4 frames: rather a wrong size than a cut (not advised)
+    path = save_dat(tmp_path / "my recording.dat", random_bits((20, 8, 16)))
+    with open(path, "ab") as f:
+        f.write(b"\0" * 5)
+    with pytest.raises(
+        ValueError,
+        match=rf"keeps its 20 whole frames truncated to 320 bytes "
+        rf"\(`truncate -s 320 '{path}'`\); else",
+    ):
         SpikeStream.open(path, 8, 16)
+    with pytest.raises(ValueError, match=r"packed data: .*\(0 frames and 5 bytes over: else"):
+        SpikeStream(np.zeros(5, np.uint8), _C.SpikeLayout.memory(8, 16))  # no file to cut
     with pytest.raises(ValueError, match="expected"):
         SpikeStream.open(path, 8, 16, raw_width=12)  # raw rows narrower than the image
 
@@ -171,14 +184,17 @@ def test_core_refuses_windows_whose_end_overflows():
 
 
 def test_core_kernels_refuse_float_indices():
-    """The core's index arrays take integers only (int32 converted); float readouts were
-    truncated (0.7 read readout 0) for a direct `_C` caller."""
+    """The core's index arrays take integers only (arrays or lists; int32, uint16 converted);
+    float readouts were truncated (0.7 read readout 0) and booleans read as 0/1 for a direct `_C`
+    caller."""
     s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
     data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
     for kernel in (_C.spike_counts, _C.spike_tfp, _C.spike_tfi):
-        with pytest.raises(TypeError):
-            kernel(data, layout, np.array([0.7]), 3)
-        assert kernel(data, layout, np.array([2], np.int32), 3).shape == (1, 2, 8)
+        for bad in (np.array([0.7]), [0.7], [5.7], [True], np.array([True])):
+            with pytest.raises(TypeError, match="expected integers, found dtype"):
+                kernel(data, layout, bad, 3)
+        for good in (np.array([2], np.int32), np.array([2], np.uint16), [2]):
+            assert kernel(data, layout, good, 3).shape == (1, 2, 8)
 
 
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):

@@ -19,8 +19,7 @@ namespace spikegs {
 namespace {
 
 using Bytes = py::array_t<uint8_t, py::array::c_style>;
-// Integer arrays only (numpy's safe casts, int32 to int64): forcecast truncated float indices.
-using Indices = py::array_t<int64_t, py::array::c_style>;
+using Indices = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
 
 std::string shape_of(const py::array& a) {
   std::ostringstream os;
@@ -35,11 +34,19 @@ PackedStream stream_of(const Bytes& data, const SpikeLayout& layout) {
   return PackedStream::over(data.data(), int64_t(data.size()), layout);
 }
 
-// out [B, H, W] of T from kernel(stream, idx, B, out), run without the GIL.
+// out [B, H, W] of T from kernel(stream, idx, B, out), run without the GIL. `indices`: integers
+// only (an array or a list): a cast truncated floats (0.7 read readout 0) and read booleans.
 template <typename T, typename Kernel>
-py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const Indices& idx,
+py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py::object& given,
                          const char* what, Kernel&& kernel) {
   const PackedStream s = stream_of(data, layout);
+  const py::array indices = py::array::ensure(given);
+  if (!indices) throw py::type_error(std::string(what) + " expected an array of integers");
+  const char kind = indices.dtype().kind();
+  if (kind != 'i' && kind != 'u')
+    throw py::type_error(std::string(what) + " expected integers, found dtype " +
+                         std::string(py::str(indices.dtype())));
+  const Indices idx = Indices::ensure(indices);
   if (idx.ndim() != 1)
     throw std::invalid_argument(std::string(what) + " expected 1-D, found shape " + shape_of(idx));
   const int64_t B = idx.shape(0);
@@ -149,7 +156,7 @@ void bind_spikes(py::module_& m) {
         py::arg("dst"), "readouts [t0, t0+n) re-encoded in layout dst: [n, dst.frame_bytes]");
   m.def(
       "spike_counts",
-      [](const Bytes& data, const SpikeLayout& layout, const Indices& starts, int64_t w) {
+      [](const Bytes& data, const SpikeLayout& layout, const py::object& starts, int64_t w) {
         return per_index<int32_t>(data, layout, starts, "starts",
                                   [w](const PackedStream& s, const int64_t* k, int64_t B,
                                       int32_t* o) { window_counts<int32_t>(s, k, B, w, o); });
@@ -158,7 +165,7 @@ void bind_spikes(py::module_& m) {
       "spikes in readouts [start, start+w): int32 [B, H, W]");
   m.def(
       "spike_tfp",
-      [](const Bytes& data, const SpikeLayout& layout, const Indices& starts, int64_t w) {
+      [](const Bytes& data, const SpikeLayout& layout, const py::object& starts, int64_t w) {
         return per_index<float>(data, layout, starts, "starts",
                                 [w](const PackedStream& s, const int64_t* k, int64_t B, float* o) {
                                   window_counts<float>(s, k, B, w, o);
@@ -168,7 +175,7 @@ void bind_spikes(py::module_& m) {
       "mean spike rate over readouts [start, start+w): float32 [B, H, W]");
   m.def(
       "spike_tfi",
-      [](const Bytes& data, const SpikeLayout& layout, const Indices& ks, int64_t max_interval) {
+      [](const Bytes& data, const SpikeLayout& layout, const py::object& ks, int64_t max_interval) {
         return per_index<float>(data, layout, ks, "readouts",
                                 [max_interval](const PackedStream& s, const int64_t* k, int64_t B,
                                                float* o) { tfi(s, k, B, max_interval, o); });

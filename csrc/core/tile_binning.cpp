@@ -76,7 +76,8 @@ void bin_tiles(const Projected<T>& proj, const Camera<T>& cam, TileBins& bins) {
   // depth order. Runs follow depth order, so the lists are those of one serial pass whatever the
   // number of runs.
   const std::int64_t pairs = bins.rank_begin[visible];
-  const std::int64_t parts = pairs >= kParallelMinItems ? max_threads() : 1;
+  const std::int64_t parts =
+      pairs >= kParallelMinItems ? std::min<std::int64_t>(max_threads(), visible) : 1;
   std::vector<std::int64_t> run_begin(parts + 1);  // [parts + 1] first rank of each run
   for (std::int64_t part = 0; part <= parts; ++part)
     run_begin[part] =

@@ -248,6 +248,9 @@ def estimate_poses(
     if not 0 < min_registered <= 1:
         raise ValueError(f"--min-registered: expected a fraction in (0, 1], got {min_registered}")
     streams = _recording(root, meta)  # every check before any work or any write
+    backup = root / TRAJECTORY_BACKUP
+    reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
+    reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
     # a raw recording (or one this command completed before) gets held-out views and timestamps
     split = (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists()
@@ -288,9 +291,6 @@ def estimate_poses(
         f"SfM: {len(recon.readouts)} of {recon.num_images} images registered "
         f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points"
     ]
-    backup = root / TRAJECTORY_BACKUP
-    reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
-    reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     if reference is None:
         messages.append(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "

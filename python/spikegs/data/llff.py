@@ -32,7 +32,7 @@ from .real import (
 )
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .sources import converging_centre, frame_columns, optical_axes
-from .trajectory import PathLike, rigid_c2w
+from .trajectory import PathLike, readout_number, rigid_c2w
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
     "poses_bounds.npy",
@@ -171,10 +171,13 @@ def _read_readouts(path: Path, count: int) -> np.ndarray:
         bad = np.flatnonzero(np.diff(readouts) <= 0) + 1
     if bad.size:
         i = int(bad[0])
-        after = f" after {readouts[i - 1]:g}" if i and np.isfinite(readouts[i]) else ""
+        after = (
+            f" after {readout_number(readouts[i - 1])}" if i and np.isfinite(readouts[i]) else ""
+        )
         raise ValueError(
-            f"{path}: readouts expected finite and strictly increasing, found {readouts[i]:g} "
-            f"for pose {i}{after} (0-based indices into the spike stream)"
+            f"{path}: readouts expected finite and strictly increasing, found "
+            f"{readout_number(readouts[i])} for pose {i}{after} (0-based indices into the spike "
+            f"stream)"
         )
     return readouts
 
@@ -202,7 +205,11 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
     natural order (ours): which pose is whose would be ambiguous."""
     files = sorted(folder.glob("*.dat"), key=lambda p: p.name)  # as strings, as LLFF's tools
     if len(files) != count:
-        others = sorted(p.name for p in folder.iterdir() if p.suffix != ".dat")
+        others = sorted(
+            p.name
+            for p in folder.iterdir()
+            if p.is_file() and p.suffix != ".dat" and not p.name.startswith(".")
+        )
         shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
         raise ValueError(
             f"{source} holds {count} poses but {folder} holds {len(files)} .dat files; "

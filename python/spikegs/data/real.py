@@ -30,7 +30,7 @@ from .dataset import (
 )
 from .real_options import OPTIONS_FILE, Options
 from .simulate import default_train_every, train_timestamps
-from .trajectory import Trajectory
+from .trajectory import Trajectory, readout_number
 from .view_stream import ViewStreams
 
 NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
@@ -259,26 +259,31 @@ def views_dataset(
 
 
 GAP_FACTOR = 4  # poses further apart than this many median spacings leave a gap
+GAPS_SHOWN = 5
 
 
 def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) -> None:
     """A UserWarning naming the gaps in a pose log (readouts [P], sorted) wider than GAP_FACTOR
-    median spacings that training timestamps [M] fall into: their poses are interpolated across
-    the gap (a motion-capture dropout), which a curved path does not follow."""
+    median spacings and than a training window, that training timestamps [M] fall into: their
+    poses are interpolated across the gap (a motion-capture dropout), which a curved path does
+    not follow."""
     spacing = np.diff(readouts)  # [P - 1]
     if not len(spacing):
         return
-    wide = np.flatnonzero(spacing > GAP_FACTOR * np.median(spacing))
+    wide = (spacing > GAP_FACTOR * np.median(spacing)) & (spacing > NEEDED_WINDOW)
     gaps = []
-    for i in wide:
+    for i in np.flatnonzero(wide):
         inside = int(np.sum((timestamps > readouts[i]) & (timestamps < readouts[i + 1])))
         if inside:
-            gaps.append(f"[{readouts[i]:g}, {readouts[i + 1]:g}] ({inside})")
+            a, b = readout_number(readouts[i]), readout_number(readouts[i + 1])
+            gaps.append(f"[{a}, {b}] ({inside})")
     if gaps:
+        more = len(gaps) - GAPS_SHOWN
         warnings.warn(
             f"{source}: training timestamps in gaps of the poses (readouts, timestamps inside) "
-            f"{', '.join(gaps)}, against a median spacing of {np.median(spacing):g} readouts: "
-            f"their poses are interpolated across each gap; check the pose log",
+            f"{', '.join(gaps[:GAPS_SHOWN])}{f' and {more} more' if more > 0 else ''}, against "
+            f"a median spacing of {readout_number(np.median(spacing))} readouts: their poses are "
+            f"interpolated across each gap; check the pose log",
             stacklevel=3,
         )
 

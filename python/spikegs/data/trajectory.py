@@ -197,7 +197,7 @@ class Trajectory:
         """Write the nerfstudio-like trajectory JSON (camera-to-world, OpenCV); `extra` keys
         (e.g. intrinsics fl_x, fl_y, cx, cy, w, h) go to the top level."""
         frames = [
-            {"readout": _number(k), "transform_matrix": c2w.tolist()}
+            {"readout": readout_number(k), "transform_matrix": c2w.tolist()}
             for k, c2w in zip(self.readouts, np.linalg.inv(self.viewmats))
         ]
         write_text_atomically(Path(path), json.dumps(camera_doc(frames, **extra), indent=1))
@@ -277,6 +277,7 @@ def read_json(path: Path) -> dict:
 _look_at = look_at  # `spiral` has a parameter of the same name
 
 
-def _number(k: float):
-    """An integral readout as int (cleaner JSON), else float."""
+def readout_number(k: float):
+    """An integral readout as int (cleaner JSON and messages: `:g` printed 1000001 as 1e+06),
+    else float."""
     return int(k) if float(k).is_integer() else float(k)

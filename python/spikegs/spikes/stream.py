@@ -15,6 +15,7 @@ last readout, reads 1/max_interval: never inf or NaN.
 from __future__ import annotations
 
 import os
+import shlex
 import shutil
 import uuid
 from pathlib import Path
@@ -63,16 +64,22 @@ def centred_range(length: int, w: int) -> tuple[int, int]:
     return w // 2, length - w + w // 2
 
 
-def _frame_count(num_bytes: int, layout: _C.SpikeLayout, what: str) -> int:
-    """Readouts in `num_bytes` bytes; ValueError unless a whole number of frames."""
+def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> int:
+    """Readouts in `num_bytes` bytes (of the file at `path`, or in memory); ValueError unless a
+    whole number of frames."""
     fb = layout.frame_bytes
     if num_bytes % fb:
+        whole, over = divmod(num_bytes, fb)
+        cut = (  # a recording cut off mid-frame, not a wrong frame size: many frames, one part
+            f"a recording cut off mid-frame keeps its {whole} whole frames truncated to "
+            f"{whole * fb} bytes (`truncate -s {whole * fb} {shlex.quote(str(path))}`); "
+            if path is not None and whole >= 16
+            else ""
+        )
         raise ValueError(
-            f"{what}: a whole number of {layout.height}x{layout.row_bits}-bit frames of {fb} bytes "
-            f"expected, found {num_bytes} bytes ({num_bytes // fb} frames and {num_bytes % fb} "
-            f"bytes over: a recording cut off mid-frame keeps its whole frames if truncated to "
-            f"{num_bytes // fb * fb} bytes, e.g. `truncate -s {num_bytes // fb * fb} FILE`; else "
-            f"the frame size is wrong)"
+            f"{path or 'packed data'}: a whole number of {layout.height}x{layout.row_bits}-bit "
+            f"frames of {fb} bytes expected, found {num_bytes} bytes ({whole} frames and {over} "
+            f"bytes over: {cut}else the frame size is wrong)"
         )
     return num_bytes // fb
 
@@ -88,7 +95,7 @@ class SpikeStream:
             )
         self._data = data  # uint8 bytes of T frames of layout.frame_bytes
         self._layout = layout
-        self._len = _frame_count(data.size, layout, str(path or "packed data"))
+        self._len = _frame_count(data.size, layout, path)
         self.path = path
 
     @classmethod
@@ -110,7 +117,7 @@ class SpikeStream:
         )
         layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
         size = path.stat().st_size
-        _frame_count(size, layout, str(path))
+        _frame_count(size, layout, path)
         data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
         return cls(data, layout, path)
 
