@@ -15,6 +15,7 @@ from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.llff import llff_sphere, to_poses_bounds, viewmats_from_llff
+from spikegs.data.real import warn_pose_gaps
 from spikegs.data.real_options import read_options
 from spikegs.data.sources import OPENGL_TO_OPENCV
 from spikegs.data.trajectory import Trajectory, look_at
@@ -797,6 +798,23 @@ def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, 
         ValueError, match=r"strictly increasing, found 50 for pose 3 after 100 \(0-based"
     ):
         load_dataset(root)
+
+
+def test_pose_gap_warning_ignores_short_gaps_and_stays_short():
+    dense = np.arange(0, 2000, 2.0)  # a pose every 2 readouts, 12 missing: within one window
+    dense = dense[(dense <= 998) | (dense >= 1012)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_pose_gaps(dense, np.arange(40, 1960, 3), "log")
+    starts = 1_000_000 + 1000 * np.arange(8)  # eight 200-readout dropouts, poses 10 apart
+    readouts = np.concatenate([np.arange(a, a + 800, 10) for a in starts] + [[starts[-1] + 1000]])
+    with pytest.warns(UserWarning) as caught:
+        warn_pose_gaps(readouts, readouts[:-1] + 195, "log")
+    message = str(caught[0].message)
+    assert "[1000790, 1001000] (20), [1001790, 1002000] (20)" in message  # whole readouts
+    assert (
+        message.count("] (20)") == 5 and " and 3 more, against a median spacing of 10 " in message
+    )
 
 
 def test_partial_trajectory_points_to_the_llff_layout(sim, tmp_path):
