@@ -541,6 +541,7 @@ def test_intrinsics_out_of_range_named(tmp_path, key, value, expected):
         FrameSequenceSource.from_transforms(root / "transforms.json", 37, 23)
 
 
+@pytest.mark.filterwarnings("ignore:.*sharp images are put in firing-rate units")
 def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
     """Intrinsics for images of another aspect ratio than the spikes would give non-square
     pixels: refused. A raw-row crop (raw_width, col_offset) keeps the focal, moves cx and crops

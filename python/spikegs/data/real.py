@@ -116,6 +116,14 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
     dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
     sharp = [h for h in held_out if h.image is not None]
     scale = intensity_scale(dataset) if sharp else 1.0
+    if sharp and "rate_at_one" not in meta:
+        warnings.warn(
+            f"{root}: the test views' sharp images are put in firing-rate units by a guess, "
+            f"TFP(33)'s 99.5th percentile ({scale:.4g} spikes a readout for intensity 1), and "
+            f"their PSNR depends on it: set rate_at_one in {OPTIONS_FILE} (the camera's firing "
+            f"rate of intensity 1), or give training views sharp images to calibrate it",
+            stacklevel=3,
+        )
     for h in held_out:
         if h.image is None:
             image = stream.tfp(round(h.readout), h.window)[..., None]  # [H, W, 1]
