@@ -537,6 +537,11 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
         load_dataset(root)  # 64x96 frames: a quarter of the readouts
     write_options(root, height=H, width=W)
     assert len(load_dataset(root).stream) == VIEWS * LENGTH
+    readouts = np.loadtxt(root / "readouts.txt")
+    np.savetxt(root / "readouts.txt", readouts + 50100, fmt="%d")  # the camera's own counter
+    with pytest.raises(ValueError, match=r"the first at 50100\): readouts.txt holds 0-based"):
+        load_dataset(root)
+    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
     (root / "spikes.dat").write_bytes(b"")
     with pytest.raises(ValueError, match="spikes.dat: empty spike file"):
         load_dataset(root)

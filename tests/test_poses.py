@@ -341,6 +341,7 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(still.root), "--count", "12"]) == 2
     err = capsys.readouterr().err
     assert "structure from motion failed" in err and "parallax" in err, err
+    assert f"Look at the images in {still.root / 'sfm' / 'images'}: scrambled" in err, err
     assert not (still.root / "trajectory.json.bak").exists()
 
 

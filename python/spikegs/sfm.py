@@ -111,10 +111,14 @@ def reconstruct(
         )
         verification = pycolmap.TwoViewGeometryOptions()
         verification.ransac.random_seed = seed  # -1 (COLMAP's default) seeds from the clock
-        pycolmap.match_exhaustive(database, verification_options=verification)
+        matching = pycolmap.FeatureMatchingOptions()
+        matching.num_threads = 1  # threaded matching once gave other poses in a CI run
+        pycolmap.match_exhaustive(
+            database, matching_options=matching, verification_options=verification
+        )
         stats = _match_stats(database, len(names))
         if stats["parallax_pairs"] == 0:
-            raise ValueError(_failure(stats, None, min_registered))
+            raise ValueError(_failure(stats, None, min_registered, work / "images"))
         models = pycolmap.incremental_mapping(
             database, work / "images", work / "sparse", _mapper_options(K is None, seed)
         )
@@ -123,7 +127,7 @@ def reconstruct(
     model = max(models.values(), key=lambda m: m.num_reg_images(), default=None)
     registered = 0 if model is None else model.num_reg_images()
     if registered < max(3, min_registered * len(names)):
-        raise ValueError(_failure(stats, registered, min_registered))
+        raise ValueError(_failure(stats, registered, min_registered, work / "images"))
     return _read_model(model, names, readouts)
 
 
@@ -201,9 +205,9 @@ def _match_stats(database: Path, num_images: int) -> dict:
         db.close()
 
 
-def _failure(stats: dict, registered: int | None, min_registered: float) -> str:
+def _failure(stats: dict, registered: int | None, min_registered: float, images: Path) -> str:
     """The failure message: what SfM managed (`registered` None: mapping not tried), in numbers,
-    and the likely reasons."""
+    the likely reasons, and where its `images` are to look at."""
     n = stats["images"]
     need = max(3, int(np.ceil(min_registered * n)))
     outcome = (
@@ -234,7 +238,8 @@ def _failure(stats: dict, registered: int | None, min_registered: float) -> str:
         f"matches ({stats['parallax_pairs']} of them with parallax, {stats['inliers']} inlier "
         "matches in all). Likely: "
         + "; ".join(reasons or ["a hard scene for SIFT at this resolution"])
-        + "."
+        + f". Look at the images in {images}: scrambled or sheared ones mean a wrong height, "
+        "width or raw_width in meta.json."
     )
 
 

@@ -236,7 +236,13 @@ def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options)
     if readouts[-1] <= len(stream) - 1:
         return
     size = f"{stream.height}x{stream.width}"
-    if options.height and options.width:
+    if readouts[0] > len(stream) - 1:  # every pose past the end: a counter, not an index
+        cause = (
+            f"Every pose lies past the end (the first at {readout_number(readouts[0])}): "
+            f"{READOUTS} holds 0-based readout indices into the spike file, not the camera's own "
+            f"counter or timestamps (subtract the counter at the file's first readout)"
+        )
+    elif options.height and options.width:
         cause = f"The frame size {size} was set in {OPTIONS_FILE}; check it, or {READOUTS}"
     else:
         cause = (
@@ -246,7 +252,7 @@ def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options)
         )
     raise ValueError(
         f"{stream.path}: {len(stream)} readouts of {size}, but {READOUTS} places poses up to "
-        f"readout {readouts[-1]:g}. {cause}"
+        f"readout {readout_number(readouts[-1])}. {cause}"
     )
 
 
