@@ -1,5 +1,6 @@
 // Scratch: kept by the thread up to kKeptScratchBytes (the same memory from call to call, grown
-// when a call needs more), a larger array owned by its call only.
+// when a call needs more), a larger array, or one made while the kept one is held, owned by its
+// call only.
 #include "core/scratch.hpp"
 #include "harness.hpp"
 
@@ -35,6 +36,15 @@ TEST_CASE(scratch_kept_up_to_the_cap_and_freed_above) {
   {
     const Scratch<double> f(10);
     CHECK(f.get() == grown, "an array above the cap replaced the kept one");
+  }
+  {
+    const Scratch<double> outer(10);  // the kept array
+    const Scratch<double> inner(10);  // made while it is held: its own
+    CHECK(outer.get() == grown && inner.get() != grown, "a nested Scratch shared the kept array");
+  }
+  {
+    const Scratch<double> h(10);  // released by the outer one: kept again
+    CHECK(h.get() == grown, "the kept array was not released");
   }
   {
     const Scratch<float> g(10);  // one kept array per element type
