@@ -312,6 +312,37 @@ def test_absgrad_densifies_on_the_absolute_per_pixel_gradient(dataset, tmp_path,
     assert (absolute > 1.5 * plain).float().mean() > 0.5, "most Gaussians' shares cancel"
 
 
+@pytest.mark.parametrize("poses", [4, 5])  # K even, and odd (its centre render is the instant's)
+def test_instant_only_densifies_on_the_instant_render(dataset, tmp_path, monkeypatch, poses):
+    """densify.instant_only: only the instant render carries the screen tap, and the signal is
+    divided by the instant losses' weight (L_instant's + D-SSIM's), not the step's total."""
+    taps, seen = [], {}
+    render = GaussianModel.render
+
+    def tracked(self, *args, **kwargs):
+        taps.append(kwargs.get("screen_abs"))
+        return render(self, *args, **kwargs)
+
+    monkeypatch.setattr(GaussianModel, "render", tracked)
+    monkeypatch.setattr(Densifier, "observe", lambda self, radii, grad, w, h: seen.update(g=grad))
+    for instant_only in (False, True):
+        taps.clear()
+        overrides = {
+            "train": {**FAST["train"], "iterations": 1, "checkpoint_every": 1},
+            "densify": {"instant_only": instant_only},
+            "supervision": {"instant": "clean", "exposure_poses": poses, "dssim_weight": 0.5},
+        }
+        config = load_config("spikegs", overrides)
+        Trainer(dataset, config, tmp_path / f"{poses}{instant_only}", False).train()
+        step = taps[: 1 + poses - poses % 2]  # the step's renders: instant, then the exposure's
+        tapped = [t for t in step if t is not None]
+        assert len(tapped) == (1 if instant_only else len(step)), (instant_only, len(step))
+        assert all(t is tapped[0] for t in tapped)  # one signal, summed over the tapped renders
+        s = config.supervision
+        weight = s.instant_weight + s.dssim_weight if instant_only else s.total_weight()
+        torch.testing.assert_close(seen["g"], tapped[0] / weight, rtol=0, atol=0)
+
+
 def _dead_pid() -> int:
     """The process id of a process that has exited."""
     process = subprocess.Popen(["true"])

@@ -68,11 +68,15 @@ class SupervisionConfig:
     instant_norm: str = "l1"
     exposure_norm: str = "l1"
 
+    def instant_total_weight(self) -> float:
+        """The weight of the losses on the instant render: L_instant's and D-SSIM's (0 without
+        an instant target)."""
+        return self.instant_weight + self.dssim_weight if self.instant != "none" else 0.0
+
     def total_weight(self) -> float:
         """The sum of the weights of the losses in use (> 0 in a valid config; D-SSIM's only with
         an instant target, as validation requires)."""
-        instant = self.instant_weight + self.dssim_weight if self.instant != "none" else 0.0
-        return instant + self.exposure_weight
+        return self.instant_total_weight() + self.exposure_weight
 
 
 @dataclass

@@ -38,6 +38,12 @@ class DensifyConfig:
     # which do not cancel over a Gaussian that straddles an edge or a texture; false: 3DGS's plain
     # gradient (then 0.0001 was our best threshold)
     absgrad: bool = True
+    # the instant render's screen-space gradient alone, over its losses' weight, where a
+    # method has both losses: the step's whole loss over its total weight (1 + λ) counts the
+    # instant render a fifth and the exposure's smooth, blurred residuals the rest, and SpikeGS
+    # grew the fewest Gaussians. An experiment (BENCHMARKS.md): +0.28 to +0.84 dB for SpikeGS
+    # in three runs; off until the tables are re-run with it
+    instant_only: bool = False
 
 
 def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, state_fn) -> None:

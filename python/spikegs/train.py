@@ -373,6 +373,10 @@ class Trainer:
         screen = torch.zeros(len(self.model), 2, requires_grad=not absgrad)
         tap = {"screen_abs" if absgrad else "screen_points": screen}
         radii = torch.zeros(len(self.model), dtype=torch.int32)
+        # densify.instant_only: the exposure's renders (but for one it shares with the instant
+        # pose, an odd K's centre) give the signal nothing
+        instant_only = self.config.densify.instant_only and targets.instant is not None
+        exposure_tap = {} if instant_only else tap
         loss, instant = torch.zeros(()), None
         times = [t]  # the instant pose, then the exposure's
         if targets.exposure is not None:
@@ -395,7 +399,7 @@ class Trainer:
                 if instant is not None and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
-                r = self.model.render(viewmat, self.K, w, h, self.near, **tap)
+                r = self.model.render(viewmat, self.K, w, h, self.near, **exposure_tap)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
             loss = loss + s.exposure_weight * exposure_loss(
@@ -409,7 +413,8 @@ class Trainer:
         self._check_parameters()
         # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
         screen_grad = screen if absgrad else screen.grad
-        self.densifier.observe(radii, screen_grad / s.total_weight(), w, h)
+        weight = s.instant_total_weight() if instant_only else s.total_weight()
+        self.densifier.observe(radii, screen_grad / weight, w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
             d = self.config.densify
