@@ -1383,25 +1383,26 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
     assert Trainer(dataset, longer, tmp_path / "run", progress=False).train(resume=True)
 
 
-def test_a_run_saved_before_absgrad_resumes_without_it(dataset, tmp_path):
-    """densify.absgrad came with a default (true) unlike the behaviour before it: a run saved
-    without the key resumes, from its own settings, on the plain gradient it was trained with."""
+@pytest.mark.parametrize("key", ["absgrad", "instant_only"])
+def test_a_run_saved_before_a_densify_key_resumes_without_it(dataset, tmp_path, key):
+    """densify.absgrad and densify.instant_only came with defaults (true) unlike the behaviour
+    before them: a run saved without the key resumes, from its own settings, as it was trained."""
     run = tmp_path / "run"
-    old = {**FAST, "train": {**FAST["train"], "iterations": 2}, "densify": {"absgrad": False}}
+    old = {**FAST, "train": {**FAST["train"], "iterations": 2}, "densify": {key: False}}
     Trainer(dataset, load_config("tfp33", old), run, progress=False).train()
     path = run / "checkpoints" / "last.pt"
     state = torch.load(path, weights_only=True)
-    del state["config"]["densify"]["absgrad"]
+    del state["config"]["densify"][key]
     torch.save(state, path)
     saved = (run / "config.yaml").read_text()
-    (run / "config.yaml").write_text(saved.replace("  absgrad: false\n", ""))
-    assert "absgrad" not in (run / "config.yaml").read_text()
+    (run / "config.yaml").write_text(saved.replace(f"  {key}: false\n", ""))
+    assert key not in (run / "config.yaml").read_text()
     args = build_parser().parse_args(["train", str(dataset.root), "--out", str(run), "--resume"])
     config = config_from_args(args)
-    assert config.densify.absgrad is False
+    assert getattr(config.densify, key) is False
     assert Trainer(dataset, config, run, progress=False).train(resume=True)
     now = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
-    with pytest.raises(ValueError, match="densify.absgrad: False in the run, True now"):
+    with pytest.raises(ValueError, match=f"densify.{key}: False in the run, True now"):
         Trainer(dataset, now, run, progress=False).train(resume=True)
 
 

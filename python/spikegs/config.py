@@ -547,8 +547,9 @@ def _read(
 
 
 # Keys added with a default unlike the behaviour before them: a run's config saved without one
-# was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24).
-LEGACY_VALUES = {"densify": {"absgrad": False}}
+# was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24;
+# densify.instant_only: the whole step's signal, before 2026-11-25).
+LEGACY_VALUES = {"densify": {"absgrad": False, "instant_only": False}}
 
 
 def legacy_overrides(saved: dict | Path) -> dict:
