@@ -16,19 +16,10 @@ from spikegs.data.sources import (
     OPENGL_TO_OPENCV,
     FrameSequenceSource,
     RenderSource,
+    optical_axes,
 )
 from spikegs.data.trajectory import Trajectory, look_at, orbit_eye
 from spikegs.image_io import write_image
-
-
-def camera_centres(viewmats) -> np.ndarray:
-    """Camera centres [P, 3] of world-to-camera viewmats [P, 4, 4]."""
-    return np.linalg.inv(np.asarray(viewmats))[:, :3, 3]
-
-
-def view_directions(viewmats) -> np.ndarray:
-    """Unit viewing directions (OpenCV +z) [P, 3] of viewmats [P, 4, 4]."""
-    return np.linalg.inv(np.asarray(viewmats))[:, :3, 2]
 
 
 def azimuth_elevation(points, center) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -43,7 +34,7 @@ def azimuth_elevation(points, center) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def assert_look_at(viewmats, target) -> None:
     """Each camera's optical axis passes through `target`."""
-    eyes, dirs = camera_centres(viewmats), view_directions(viewmats)
+    eyes, dirs, _ = optical_axes(np.asarray(viewmats))
     to_target = np.asarray(target) - eyes
     to_target /= np.linalg.norm(to_target, axis=1, keepdims=True)
     np.testing.assert_allclose(dirs, to_target, atol=1e-9)
@@ -117,7 +108,7 @@ def test_render_source_distance_is_in_scene_radii():
     assert_look_at(traj.viewmats, CENTER)
     views = source.off_path_views(3)  # on a circle 1.2 times as wide
     viewmats = np.stack([v for _, v, _ in views])
-    np.testing.assert_allclose(azimuth_elevation(camera_centres(viewmats), CENTER)[2], 9.6)
+    np.testing.assert_allclose(azimuth_elevation(optical_axes(viewmats)[0], CENTER)[2], 9.6)
     assert_look_at(viewmats, CENTER)
     # the default: 2.5 radii
     default = ProbeSource(16, 16, 1, CENTER, 2.0).trajectory(101, 1.5)
@@ -132,7 +123,7 @@ def test_render_source_elevation_bounds_the_spiral():
     np.testing.assert_allclose(elevation, -15.0 + 80.0 * traj.readouts / 100, atol=1e-9)
     views = source.off_path_views(4)  # at mid elevation
     viewmats = np.stack([v for _, v, _ in views])
-    _, off_elevation, _ = azimuth_elevation(camera_centres(viewmats), CENTER)
+    _, off_elevation, _ = azimuth_elevation(optical_axes(viewmats)[0], CENTER)
     np.testing.assert_allclose(off_elevation, 25.0, atol=1e-9)
     assert [name for name, _, _ in views] == ["off_000", "off_001", "off_002", "off_003"]
 

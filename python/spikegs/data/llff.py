@@ -25,6 +25,7 @@ import numpy as np
 from .dataset import Dataset, read_column
 from .real import (
     camera_meta,
+    first_of,
     held_out_mask,
     scene_sphere,
     stream_dataset,
@@ -210,11 +211,10 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
             for p in folder.iterdir()
             if p.is_file() and p.suffix != ".dat" and not p.name.startswith(".")
         )
-        shown = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
         raise ValueError(
             f"{source} holds {count} poses but {folder} holds {len(files)} .dat files; "
             f"expected one per pose, in name order"
-            + (f" (not read, not named *.dat: {shown})" if others else "")
+            + (f" (not read, not named *.dat: {first_of(others)})" if others else "")
         )
     natural = sorted(files, key=lambda p: natural_key(p.name))
     if natural != files:

@@ -267,7 +267,13 @@ def views_dataset(
 
 
 GAP_FACTOR = 4  # poses further apart than this many median spacings leave a gap
-GAPS_SHOWN = 5
+
+
+def first_of(items: list[str], shown: int = 5) -> str:
+    """The first `shown` of `items` joined by commas, then how many more there are, for a
+    message."""
+    more = len(items) - shown
+    return ", ".join(items[:shown]) + (f" and {more} more" if more > 0 else "")
 
 
 def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) -> None:
@@ -286,12 +292,11 @@ def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) ->
             a, b = readout_number(readouts[i]), readout_number(readouts[i + 1])
             gaps.append(f"[{a}, {b}] ({inside})")
     if gaps:
-        more = len(gaps) - GAPS_SHOWN
         warnings.warn(
             f"{source}: training timestamps in gaps of the poses (readouts, timestamps inside) "
-            f"{', '.join(gaps[:GAPS_SHOWN])}{f' and {more} more' if more > 0 else ''}, against "
-            f"a median spacing of {readout_number(np.median(spacing))} readouts: their poses are "
-            f"interpolated across each gap; check the pose log",
+            f"{first_of(gaps)}, against a median spacing of "
+            f"{readout_number(np.median(spacing))} readouts: their poses are interpolated across "
+            f"each gap; check the pose log",
             stacklevel=3,
         )
 

@@ -26,7 +26,7 @@ from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
-from .dataset import check_meta_values
+from .dataset import check_meta_values, intrinsics_keys
 from .scenes import GaussianScene
 from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
 
@@ -544,7 +544,7 @@ def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
 
 def _intrinsics_text(K: np.ndarray) -> str:
     """fx, fy, cx, cy of a camera matrix [3, 3], for a message."""
-    return ", ".join(f"{v:.6g}" for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2]))
+    return ", ".join(f"{v:.6g}" for v in intrinsics_keys(K).values())
 
 
 def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
