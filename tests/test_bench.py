@@ -4,6 +4,7 @@ schedule is the demo's (CI also runs `spikegs bench all --quick`)."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
@@ -32,6 +33,9 @@ def test_train_schedule_is_the_demo_one_stretched():
     assert half["densify"]["stop"] == round(DEMO_OVERRIDES["densify"]["stop"] / 2)
     evals = math.ceil(half["train"]["iterations"] / half["train"]["eval_every"])
     assert evals == train.POINTS  # the last evaluation is at the end
+    # --grad-threshold replaces the threshold alone, the stretched schedule kept
+    dense = train.schedule(demo // 2, quick=False, grad_threshold=1e-4)
+    assert dense["densify"] == {**half["densify"], "grad_threshold": 1e-4}
 
 
 def test_sim_train_step_rows_time_the_same_gradients():
@@ -80,6 +84,7 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
         (["bench", "train", "--methods", ","], "--methods ',': expected comma-separated names"),
         (["bench", "spikes", "--seeds", "3"], "--seeds: options of bench train, not of bench"),
         (["bench", "sim", "--methods", "tfi"], "--methods: options of bench train"),
+        (["bench", "rasterizer", "--grad-threshold", "1e-4"], "--grad-threshold: options of"),
     ],
 )
 def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
@@ -119,6 +124,31 @@ def test_train_runs_every_seed(tmp_path):
     assert len(tfp33["seeds"]) == 2 and result["seeds"] == 2
     assert tfp33["seeds"][0]["psnr"] != tfp33["seeds"][1]["psnr"]  # two runs, not one twice
     assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()
+
+
+@pytest.mark.parametrize("text", ["0", "-0.0001", "nan", "inf", "x"])
+def test_bench_grad_threshold_is_checked_while_parsing(text, capsys):
+    from spikegs.cli import build_parser
+
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(["bench", "train", "--grad-threshold", text])
+    assert exit_info.value.code == 2
+    assert f"expected a finite number > 0, found '{text}'" in capsys.readouterr().err
+
+
+def test_train_grad_threshold_reaches_every_run(tmp_path):
+    """`spikegs bench train --grad-threshold X` trains every method at X and records it."""
+    from spikegs.cli import main
+    from spikegs.config import load_config
+
+    argv = ["bench", "train", "--quick", "--methods", "tfp33,tfi", "--grad-threshold", "0.0005"]
+    assert main([*argv, "--out", str(tmp_path)]) == 0
+    result = json.loads((tmp_path / "train.json").read_text())
+    assert result["schedule"]["densify"]["grad_threshold"] == 0.0005
+    for method in ("tfp33", "tfi"):
+        run = tmp_path / "runs" / train.HEADLINE_SCENE / method
+        saved = load_config(run / "config.yaml", saved_run=True)
+        assert saved.densify.grad_threshold == 0.0005
 
 
 def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path, monkeypatch):

@@ -7,7 +7,7 @@ import importlib
 import time
 from pathlib import Path
 
-from ..cli import positive_int
+from ..cli import positive_float, positive_int
 from ..output_paths import check_folder_output
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
@@ -39,13 +39,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--methods",
         help="bench train: comma-separated methods (default: all but the variant sim17)",
     )
+    parser.add_argument(
+        "--grad-threshold",
+        type=positive_float,
+        help="bench train: densification threshold for every method (default: the demo's)",
+    )
 
 
 def _train_options(args: argparse.Namespace) -> dict:
     """bench train's keyword arguments from the command line."""
     options = {"seeds": args.seeds}
-    if args.iterations is not None:
-        options["iterations"] = args.iterations
+    for name in ("iterations", "grad_threshold"):
+        if getattr(args, name) is not None:
+            options[name] = getattr(args, name)
     for name in ("scenes", "methods"):
         text = getattr(args, name)
         if text is not None:
@@ -58,7 +64,8 @@ def _train_options(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     parts = list(PARTS) if args.part == "all" else [args.part]
     train_options = _train_options(args)
-    given = [f"--{k}" for k in ("iterations", "scenes", "methods") if getattr(args, k) is not None]
+    named = ("iterations", "scenes", "methods", "grad_threshold")
+    given = [f"--{k.replace('_', '-')}" for k in named if getattr(args, k) is not None]
     given += ["--seeds"] if args.seeds != 1 else []
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")

@@ -56,9 +56,10 @@ QUICK_SIM_ITERATIONS = 20
 SIM_NOTE = "SIM methods start at their SIM training time"
 
 
-def schedule(iterations: int, quick: bool) -> dict:
+def schedule(iterations: int, quick: bool, grad_threshold: float | None = None) -> dict:
     """Config overrides: the demo's schedule with its densification stretched to `iterations`,
-    evaluated at POINTS regular iterations, one checkpoint at the end."""
+    evaluated at POINTS regular iterations, one checkpoint at the end; `grad_threshold` replaces
+    the demo's densification threshold (every method alike)."""
     overrides = copy.deepcopy(DEMO_OVERRIDES)
     overrides["train"].update(
         iterations=iterations,
@@ -67,6 +68,8 @@ def schedule(iterations: int, quick: bool) -> dict:
     )
     stretched = load_config(None, DEMO_OVERRIDES).with_iterations(iterations).densify
     overrides["densify"] = {k: getattr(stretched, k) for k in DEMO_OVERRIDES["densify"]}
+    if grad_threshold is not None:
+        overrides["densify"]["grad_threshold"] = grad_threshold
     if quick:
         overrides["sim"]["iterations"] = QUICK_SIM_ITERATIONS
     return overrides
@@ -249,13 +252,15 @@ def run(
     seeds: int = 1,
     scenes: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
+    grad_threshold: float | None = None,
 ) -> dict:
     """Train `methods` (default: all) on `scenes` (default: every built-in one) with `seeds`
-    seeds each; print a table per scene, write JSON and plots."""
+    seeds each, densifying at the demo's threshold or `grad_threshold`; print a table per scene,
+    write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds)
     settings = QUICK_DATA if quick else FULL_DATA
-    overrides = schedule(iterations, quick)
+    overrides = schedule(iterations, quick, grad_threshold)
     configs = {m: load_config(m, overrides) for m in methods}
     # each run is trained afresh, its folder deleted first: a user's files there are refused
     # before any work
