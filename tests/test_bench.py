@@ -122,6 +122,8 @@ def test_train_runs_every_seed(tmp_path):
     result = train.run(quick=True, out=tmp_path, seeds=2, methods=["tfp33"])
     tfp33 = result["scenes"][train.HEADLINE_SCENE]["methods"]["tfp33"]
     assert len(tfp33["seeds"]) == 2 and result["seeds"] == 2
+    demo_threshold = DEMO_OVERRIDES["densify"]["grad_threshold"]
+    assert result["schedule"]["densify"]["grad_threshold"] == demo_threshold  # the default
     assert tfp33["seeds"][0]["psnr"] != tfp33["seeds"][1]["psnr"]  # two runs, not one twice
     assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()
 
@@ -136,16 +138,18 @@ def test_bench_grad_threshold_is_checked_while_parsing(text, capsys):
     assert f"expected a finite number > 0, found '{text}'" in capsys.readouterr().err
 
 
-def test_train_grad_threshold_reaches_every_run(tmp_path):
-    """`spikegs bench train --grad-threshold X` trains every method at X and records it."""
+def test_train_grad_threshold_reaches_every_run(tmp_path, capsys):
+    """`spikegs bench train --grad-threshold X` trains every method at X (a SIM method and a
+    baseline here), records it and says so in its table's heading."""
     from spikegs.cli import main
     from spikegs.config import load_config
 
-    argv = ["bench", "train", "--quick", "--methods", "tfp33,tfi", "--grad-threshold", "0.0005"]
+    argv = ["bench", "train", "--quick", "--methods", "spikegs,tfp33", "--grad-threshold", "5e-4"]
     assert main([*argv, "--out", str(tmp_path)]) == 0
+    assert "100 iterations, densify threshold 0.0005, 1 seed" in capsys.readouterr().out
     result = json.loads((tmp_path / "train.json").read_text())
     assert result["schedule"]["densify"]["grad_threshold"] == 0.0005
-    for method in ("tfp33", "tfi"):
+    for method in ("spikegs", "tfp33"):
         run = tmp_path / "runs" / train.HEADLINE_SCENE / method
         saved = load_config(run / "config.yaml", saved_run=True)
         assert saved.densify.grad_threshold == 0.0005

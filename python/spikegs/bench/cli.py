@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from ..cli import positive_float, positive_int
+from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
@@ -42,7 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--grad-threshold",
         type=positive_float,
-        help="bench train: densification threshold for every method (default: the demo's)",
+        help="bench train: densification threshold for every method (default: the demo's "
+        f"{DEMO_OVERRIDES['densify']['grad_threshold']})",
     )
 
 

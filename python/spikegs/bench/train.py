@@ -1,7 +1,8 @@
 """`spikegs bench train`: PSNR and SSIM against wall-clock training time, every method and scene.
 
 Each built-in scene is simulated once (cached under OUT/data/SCENE) and every method is trained on
-it with the demo's schedule (DEMO_OVERRIDES, stretched to the chosen iterations). PSNR and SSIM
+it with the demo's schedule (DEMO_OVERRIDES, stretched to the chosen iterations; `grad_threshold`
+replaces its densification threshold for every method). PSNR and SSIM
 over all test views are measured at regular iterations through the trainer's `on_eval` hook,
 outside the timed steps. SIM is trained once per scene (cached with the dataset) and shared by
 the methods that use it; its training time is reported separately and counts for those methods:
@@ -261,6 +262,9 @@ def run(
     scenes, methods = selection(quick, scenes, methods, seeds)
     settings = QUICK_DATA if quick else FULL_DATA
     overrides = schedule(iterations, quick, grad_threshold)
+    length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
+    if grad_threshold is not None:
+        length += f", densify threshold {grad_threshold:g}"
     configs = {m: load_config(m, overrides) for m in methods}
     # each run is trained afresh, its folder deleted first: a user's files there are refused
     # before any work
@@ -300,7 +304,7 @@ def run(
         }
         size = f"{dataset.width}x{dataset.height}"
         print(
-            f"{scene} ({size}, {len(dataset.test_views)} test views, {iterations} iterations, "
+            f"{scene} ({size}, {len(dataset.test_views)} test views, {length}, "
             f"{seeds} seed{'s' if seeds > 1 else ''})"
         )
         print_table(_table(runs, results[scene]["gain_over_tfp33_db"]))
@@ -311,12 +315,12 @@ def run(
             )
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
-        title = f"{scene} {size}, {iterations} iterations per method; {SIM_NOTE}"
+        title = f"{scene} {size}, {length} per method; {SIM_NOTE}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
     if HEADLINE_SCENE in results:
         headline = results[HEADLINE_SCENE]["methods"]
         shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
-        title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {iterations} iterations\n{SIM_NOTE}"
+        title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {length}\n{SIM_NOTE}"
         save_curves(out / "headline.png", shown, ("psnr",), title)
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
