@@ -66,8 +66,8 @@ def _train_options(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     parts = list(PARTS) if args.part == "all" else [args.part]
     train_options = _train_options(args)
-    named = ("iterations", "scenes", "methods", "grad_threshold")
-    given = [f"--{k.replace('_', '-')}" for k in named if getattr(args, k) is not None]
+    # the options given of bench train's (`seeds` always there: given when not its default 1)
+    given = [f"--{k.replace('_', '-')}" for k in train_options if k != "seeds"]
     given += ["--seeds"] if args.seeds != 1 else []
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
