@@ -575,6 +575,8 @@ def test_every_method_config_loads():
         ("spikegs", {"lr": {"means": float("inf")}}, "lr.means.*finite"),
         ("spikegs", {"lr": {"background": float("inf")}}, "lr.background"),
         ("spikegs", {"densify": {"grad_threshold": float("inf")}}, "densify.grad_threshold"),
+        # 0 cloned or split every Gaussian each round (the CLI's --grad-threshold refused it)
+        ("spikegs", {"densify": {"grad_threshold": 0.0}}, "densify.grad_threshold.*> 0"),
         ("spikegs", {"pose_refine": {"lr": float("inf")}}, "pose_refine.lr"),
         # every count in its range, named: these failed late in torch / numpy, or trained an
         # untrained SIM

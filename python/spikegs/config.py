@@ -256,7 +256,13 @@ class Config:
             f"a period with a multiple in densify.start..stop = {d.start}..{last} (densification "
             f"runs at the multiples of every: none there, the run would never densify)",
         )
-        for name in ("grad_threshold", "percent_dense", "max_screen_size", "max_world_size"):
+        _require(
+            d.grad_threshold > 0,
+            "densify.grad_threshold",
+            d.grad_threshold,
+            "> 0 (at 0 every Gaussian is cloned or split each round, up to max_gaussians)",
+        )
+        for name in ("percent_dense", "max_screen_size", "max_world_size"):
             _require(getattr(d, name) >= 0, f"densify.{name}", getattr(d, name), ">= 0")
         _require(
             0 <= d.min_opacity < 1,
