@@ -19,7 +19,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import look_at
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
-from spikegs.point_cloud import POINTS, read_points, write_points
+from spikegs.point_cloud import POINTS, read_points, seen_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import _complete_meta
 from spikegs.sfm import Reconstruction, reconstruct, spike_images
@@ -126,6 +126,34 @@ def test_resume_with_pose_refinement_is_bitwise_identical(tiny, tmp_path):
     assert torch.equal(whole.poses.corrections, resumed.poses.corrections)
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
+
+
+def test_a_point_cloud_out_of_the_views_is_said(tiny, tmp_path):
+    """A cloud in another frame than the poses (an unaligned SfM model, other units) started the
+    Gaussians where no view sees them: the run learnt the background alone, without a word. Now
+    a cloud with fewer than 16 points in the training views starts from random points, and one
+    with most of its points outside them is kept, warned of."""
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    dataset = load_dataset(root)
+    rng = np.random.default_rng(0)
+    inside = dataset.scene_center + 0.3 * dataset.scene_radius * rng.uniform(-1, 1, (40, 3))
+    far = inside + 1000 * dataset.scene_radius  # [40, 3] behind or beside every camera
+    assert seen_points(inside, dataset).all() and not seen_points(far, dataset).any()
+    config = load_config("tfp33", TINY)
+    write_points(root / POINTS, far)
+    with pytest.warns(UserWarning, match="40 of its 40 distinct points lie in none.*random"):
+        trainer = Trainer(load_dataset(root), config, tmp_path / "r", False)
+        trainer._fresh_state()
+    assert len(trainer.model) == TINY["train"]["init_gaussians"]  # random, in the scene bounds
+    assert (trainer.model.params["means"] - torch.tensor(dataset.scene_center)).norm(
+        dim=1
+    ).max() <= (dataset.scene_radius * 1.001)
+    write_points(root / POINTS, np.concatenate([inside[:20], far]))  # 40 of 60 out of view
+    with pytest.warns(UserWarning, match="40 of its 60 .* get no gradient"):
+        trainer = Trainer(load_dataset(root), config, tmp_path / "r2", False)
+        trainer._fresh_state()
+    assert len(trainer.model) == 60
 
 
 def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):

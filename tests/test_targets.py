@@ -175,7 +175,7 @@ def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
     check_targets(short, load_config("spikegs", {"supervision": {"exposure_window": 21}}))
 
 
-@pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25"])
+@pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25", 2.0])  # 2: over a spike a readout
 def test_a_bad_intensity_calibration_is_named(dataset, rate):
     bad = Dataset(
         dataset.root,
@@ -185,5 +185,7 @@ def test_a_bad_intensity_calibration_is_named(dataset, rate):
         dataset.train_timestamps,
         dataset.test_views,
     )
-    with pytest.raises(ValueError, match=r"rate_at_one \(firing rate .* expected a finite number"):
+    with pytest.raises(
+        ValueError, match=r"rate_at_one \(firing rate .* expected a number in \(0, 1\]"
+    ):
         intensity_scale(bad)

@@ -462,6 +462,8 @@ def test_ply_edge_cases(tmp_path):
     for old, new, message in (
         (b"spikegs channels 3", b"spikegs channels one", "spikegs channels one"),
         (b"spikegs channels 3", b"spikegs channels 0", "expected 1..3"),
+        # a 2-channel scene rendered a video that Pillow read as grey and alpha
+        (b"spikegs channels 3", b"spikegs channels 2", "2 colour channels .* 1 \\(grey\\) or 3"),
         (b"spikegs sh_degree 1", b"spikegs export", None),  # another tool's comment: ignored
     ):
         (tmp_path / "t.ply").write_bytes(text.replace(old, new))
@@ -470,6 +472,13 @@ def test_ply_edge_cases(tmp_path):
         else:
             with pytest.raises(ValueError, match=message):
                 load_ply(tmp_path / "t.ply")
+    # another tool's NaN: said how many, and kept
+    model = load_ply(tmp_path / "a.ply")
+    model.params["means"].data[1, 0] = float("nan")
+    model.params["opacity_logits"].data[2] = float("inf")
+    save_ply(model, tmp_path / "nan.ply")
+    with pytest.warns(UserWarning, match="nan.ply: 2 of its 20 Gaussians hold a NaN or infinite"):
+        assert len(load_ply(tmp_path / "nan.ply")) == 20
     # loaded, then refused by the renderer without the file's name: a background of NaN, SH
     # degree 4 (72 f_rest), a tag naming more coefficients than the file holds (21 f_rest: 7 a
     # channel, degree 1 and 3 over)
@@ -814,6 +823,27 @@ def test_cli_says_out_of_memory_without_a_traceback(tmp_path, monkeypatch, capsy
     monkeypatch.setattr("spikegs.data.simulate_cli.simulate_dataset", too_big)
     assert main(["simulate", "--out", str(tmp_path / "big")]) == 1
     assert "out of memory: Unable to allocate 37.3 GiB" in capsys.readouterr().err
+
+
+def test_cli_prints_our_warnings_as_messages(tmp_path, monkeypatch, capsys):
+    """A warning came out as 'functools.py:1001: UserWarning: ...' and the source line that
+    raised it (a cached property's); now 'spikegs COMMAND: warning: ...', others as Python has
+    them, and the filters restored after the command."""
+    import warnings
+
+    def warns(*args, **kwargs):
+        warnings.warn("a cloud out of view", stacklevel=2)
+        warnings.warn("numpy's own", RuntimeWarning, stacklevel=2)
+        raise ValueError("stop here")
+
+    monkeypatch.setattr("spikegs.data.simulate_cli.simulate_dataset", warns)
+    with pytest.warns(RuntimeWarning, match="numpy's own") as caught:  # shown as before
+        before = warnings.showwarning
+        assert main(["simulate", "--out", str(tmp_path / "d")]) == 2
+        assert warnings.showwarning is before
+    assert [w.category for w in caught] == [RuntimeWarning]
+    err = capsys.readouterr().err
+    assert "spikegs simulate: warning: a cloud out of view\n" in err and "UserWarning" not in err
 
 
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):

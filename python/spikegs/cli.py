@@ -6,6 +6,7 @@ import argparse
 import importlib
 import math
 import sys
+import warnings
 from pathlib import Path
 
 from .missing_dependency import MissingDependencyError
@@ -71,8 +72,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _warning_printer(command: str, default):
+    """A `warnings.showwarning` that prints our warnings (UserWarning) as `spikegs COMMAND:
+    warning: MESSAGE`, without the source line they were raised at; others as `default` does."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, UserWarning):
+            return default(message, category, filename, lineno, file, line)
+        print(f"spikegs {command}: warning: {message}", file=file or sys.stderr)
+
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.showwarning = _warning_printer(args.command, warnings.showwarning)
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed command; its errors as messages and exit codes."""
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:

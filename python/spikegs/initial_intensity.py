@@ -16,7 +16,7 @@ from functools import cached_property
 import numpy as np
 import torch
 
-from .data.trajectory import project_points
+from .data.trajectory import pixels_in_view
 from .targets import tfp_sample
 
 
@@ -46,9 +46,8 @@ def projected_intensity(dataset, sample: ViewSample, means: torch.Tensor) -> tor
     centres at +0.5), the sample's median intensity where no view sees a point."""
     images = sample.rates / sample.scale  # [M, H, W, C]
     viewmats = dataset.trajectory.pose_at(sample.timestamps)  # [M, 4, 4] world to camera
-    pixels, z = project_points(means.detach().double().numpy(), viewmats, dataset.K)
-    u, v = np.floor(pixels[..., 0]), np.floor(pixels[..., 1])  # [M, N], NaN behind a camera
-    inside = (z > 1e-6) & (u >= 0) & (u < dataset.width) & (v >= 0) & (v < dataset.height)
+    points = means.detach().double().numpy()
+    u, v, inside = pixels_in_view(points, viewmats, dataset.K, dataset.width, dataset.height)
     seen = np.full((*u.shape, images.shape[-1]), np.nan, np.float32)  # [M, N, C]
     view = np.nonzero(inside)[0]
     seen[inside] = images[view, v[inside].astype(int), u[inside].astype(int)]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +121,11 @@ def load_ply(path: str | Path) -> GaussianModel:
         raise ValueError(f"{path}: expected a multiple of {stored} f_rest_* properties")
     rest = len(rest_names) // stored  # per channel
     channels = _tag_int(path, tags, "channels", stored, 1, stored)
+    if channels not in (1, 3):  # as save_ply writes: the renderer would draw 2, a video refuse
+        raise ValueError(
+            f"{path}: {channels} colour channels (its f_dc_* or comment 'spikegs channels'): a "
+            f"3DGS .ply holds 1 (grey) or 3 (RGB)"
+        )
     inferred = math.isqrt(rest + 1) - 1  # the highest degree whose coefficients the file holds
     if "sh_degree" not in tags and (inferred + 1) ** 2 != rest + 1:
         raise ValueError(
@@ -160,4 +166,12 @@ def load_ply(path: str | Path) -> GaussianModel:
             )
     else:
         background = torch.zeros(channels)
+    rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params.values()]  # [N, *]
+    broken = int((~torch.cat(rows, 1).isfinite()).any(1).sum())
+    if broken:
+        warnings.warn(
+            f"{path}: {broken} of its {n} Gaussians hold a NaN or infinite property: kept (the "
+            f"renderer culls a Gaussian whose activated values are not finite)",
+            stacklevel=2,
+        )
     return GaussianModel(params, background, sh_degree)

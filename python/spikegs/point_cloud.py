@@ -13,8 +13,10 @@ from plyfile import PlyData, PlyElement
 from scipy.spatial import cKDTree
 
 from .atomic_save import write_atomically
+from .data.trajectory import pixels_in_view
 from .gaussians import GaussianModel
 from .ply import read_vertices
+from .targets import sample_timestamps
 
 POINTS = "points3d.ply"
 
@@ -46,6 +48,17 @@ def read_points(path: str | Path) -> np.ndarray:
     if not len(points) or not (np.abs(points) <= np.finfo(np.float32).max).all():  # NaN too
         raise ValueError(f"{path}: expected at least one point, all finite (in float32)")
     return points
+
+
+def seen_points(points: np.ndarray, dataset, chunk: int = 65536) -> np.ndarray:
+    """Whether each point [P, 3] lies inside one or more of the dataset's training views at
+    `sample_timestamps` (16-31 spread over the stream) [P] bool; `chunk` points at a time."""
+    viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
+    parts = np.array_split(points, max(1, -(-len(points) // chunk)))
+    size = dataset.width, dataset.height
+    return np.concatenate(
+        [pixels_in_view(part, viewmats, dataset.K, *size)[2].any(axis=0) for part in parts]
+    )
 
 
 def distinct_points(points: np.ndarray) -> np.ndarray:

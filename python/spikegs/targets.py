@@ -71,10 +71,14 @@ def _find_key(tree, key: str):
     return None
 
 
+def sample_timestamps(dataset) -> np.ndarray:
+    """Every (M // 16)-th of the M training timestamps: all of them where M < 32, else 16 to 31."""
+    return np.asarray(dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)])
+
+
 def tfp_sample(dataset) -> tuple[np.ndarray, np.ndarray]:
-    """Every (M // 16)-th of the M training timestamps (all of them where M < 32, else 16 to 31) and
-    their TFP(33) firing rates [S, H, W, C]."""
-    ts = dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)]
+    """`sample_timestamps` and their TFP(33) firing rates [S, H, W, C]."""
+    ts = sample_timestamps(dataset)
     return ts, _per_channel(dataset.streams, lambda s: s.tfp(ts, 33))
 
 
@@ -82,10 +86,11 @@ def intensity_scale(dataset) -> float:
     """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
     rate = _find_key(dataset.meta, "rate_at_one")
     if rate is not None:
-        if not (is_number(rate) and rate > 0):
+        if not (is_number(rate) and 0 < rate <= 1):  # a pixel fires at most once a readout
             raise ValueError(
                 f"{dataset.root}: rate_at_one (firing rate of intensity 1: meta.json, or "
-                f"spikegs.json for a real layout) expected a finite number > 0, found {rate!r}"
+                f"spikegs.json for a real layout) expected a number in (0, 1], spikes a readout; "
+                f"found {rate!r}"
             )
         return float(rate)
     return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0

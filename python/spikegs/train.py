@@ -35,7 +35,13 @@ from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
-from .point_cloud import POINTS, distinct_points, gaussians_from_points, read_points
+from .point_cloud import (
+    POINTS,
+    distinct_points,
+    gaussians_from_points,
+    read_points,
+    seen_points,
+)
 from .pose_refine import PoseRefiner, make_refiner
 from .run_summary import CURVE, SUMMARY, last_checkpoint
 from .sim_train import spikes_fingerprint
@@ -196,18 +202,30 @@ class Trainer:
     def cloud_points(self) -> np.ndarray | None:
         """The distinct points [P, 3] of the dataset's sparse point cloud (DATASET/points3d.ply,
         e.g. from `spikegs poses`) that the Gaussians start at; None where it has none, or fewer
-        than a run may start with (warned: they start at random points in the scene bounds)."""
+        than a run may start with, or with fewer inside the training views (warned: they start
+        at random points in the scene bounds); warned where most lie in no training view."""
         cloud = Path(self.dataset.root) / POINTS
         if not cloud.exists():
             return None
         points = distinct_points(read_points(cloud))
+        instead = "the Gaussians start at random points in the scene bounds instead"
         if len(points) < MIN_GAUSSIANS:
             warnings.warn(
-                f"{cloud}: {len(points)} distinct point(s), fewer than {MIN_GAUSSIANS}: the "
-                f"Gaussians start at random points in the scene bounds instead",
+                f"{cloud}: {len(points)} distinct point(s), fewer than {MIN_GAUSSIANS}: {instead}",
                 stacklevel=2,
             )
             return None
+        seen = int(seen_points(points, self.dataset).sum())
+        unseen = (
+            f"{cloud}: {len(points) - seen} of its {len(points)} distinct points lie in none of "
+            f"the training views sampled along the stream (a cloud in another frame or unit than "
+            f"the poses?)"
+        )
+        if seen < MIN_GAUSSIANS:
+            warnings.warn(f"{unseen}: {instead}", stacklevel=2)
+            return None
+        if seen < len(points) / 2:
+            warnings.warn(f"{unseen}: Gaussians started there get no gradient", stacklevel=2)
         return points
 
     def _fresh_state(self) -> None:

@@ -204,7 +204,8 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
     """The `count` .dat files [count] of spikes/, in pose order; ValueError when there are not
     `count`, or when their names order differently as strings (LLFF's order of the poses) and in
     natural order (ours): which pose is whose would be ambiguous."""
-    files = sorted(folder.glob("*.dat"), key=lambda p: p.name)  # as strings, as LLFF's tools
+    # as strings, as LLFF's tools; a folder named *.dat is not a view's spikes
+    files = sorted((p for p in folder.glob("*.dat") if p.is_file()), key=lambda p: p.name)
     if len(files) != count:
         others = sorted(
             p.name

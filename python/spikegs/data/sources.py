@@ -547,6 +547,11 @@ def _intrinsics_text(K: np.ndarray) -> str:
     return ", ".join(f"{v:.6g}" for v in intrinsics_keys(K).values())
 
 
+def _camera_text(camera: dict) -> str:
+    """A transforms file's camera keys and their numbers, for a message: 'w 48, fl_x 40.5'."""
+    return ", ".join(f"{key} {value:.6g}" for key, value in camera.items())
+
+
 def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
     """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
     transforms JSON."""
@@ -634,8 +639,9 @@ def read_camera(docs: list, frames: list, sources: list) -> dict:
             [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
         ):
             raise ValueError(
-                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics {camera}, frame "
-                f"'{frames[0]['file_path']}' of {sources[0]} {cameras[0]}: one camera expected"
+                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
+                f"{_camera_text(camera)}, frame '{frames[0]['file_path']}' of {sources[0]} "
+                f"{_camera_text(cameras[0])}: one camera expected"
             )
     distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
     if distortion:

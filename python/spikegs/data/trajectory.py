@@ -62,6 +62,16 @@ def project_points(points, viewmats, K) -> tuple[np.ndarray, np.ndarray]:
     return pixels, z[..., 0]
 
 
+def pixels_in_view(points, viewmats, K, width: int, height: int):
+    """Pixel columns u and rows v [F, P] (whole numbers as floats; NaN behind a camera) of world
+    points [P, 3] in the cameras `viewmats` [F, 4, 4], and whether each lands in front of the
+    camera inside its width x height image [F, P] bool."""
+    pixels, z = project_points(points, viewmats, K)
+    u, v = np.floor(pixels[..., 0]), np.floor(pixels[..., 1])
+    inside = (z > 1e-6) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+    return u, v, inside
+
+
 def rigid_c2w(matrices: np.ndarray, source: str, item: str = "view") -> np.ndarray:
     """`matrices` [N, 4, 4] or [4, 4] (camera-to-world or world-to-camera) with each rotation
     replaced by the nearest rotation (SVD), translation kept, when within RIGID_TOLERANCE of one
