@@ -41,8 +41,9 @@ def test_train_schedule_is_the_demo_one_stretched():
 def test_sim_train_step_rows_time_the_same_gradients():
     rows = sim._train_step_rows(SIM(), batch=2, crop=16, repeats=1)
     assert [r["variant"] for r in rows] == [
-        "train step rotated pairs (literal)",
-        "train step canvas",
+        "train step rotated pairs (literal), channels-first",
+        "train step rotated pairs (literal), channels-last",
+        "train step canvas, channels-last",
     ]
     for row in rows:
         assert row["seconds"] > 0 and row["grad_err"] < 1e-4, row

@@ -12,6 +12,7 @@ import pytest
 import torch
 from skimage import data
 from skimage.metrics import structural_similarity
+from spikegs import sim_train
 from spikegs.file_lock import exclusive_lock
 from spikegs.metrics import psnr, ssim
 from spikegs.output_paths import writable_folder
@@ -177,6 +178,20 @@ def test_training_lowers_the_loss_and_is_deterministic(scene, trained):
     assert losses_again == losses
     for a, b in zip(model.parameters(), again.parameters()):
         assert torch.equal(a, b)
+
+
+def test_float32_training_runs_channels_first_to_the_same_sim(scene, monkeypatch):
+    """Without bfloat16 SIM trains channels-first (faster on AVX2); channels-last, the layout
+    of bfloat16 training and of inference, learns the same network but for the last bits."""
+    ts = valid_timestamps(scene[1], 33)
+    first, losses = train_sim(scene[1], ts, 33, seed=3, bf16=False, **TRAIN)
+    assert next(first.parameters()).is_contiguous()
+    monkeypatch.setattr(sim_train, "training_layout", lambda bf16: torch.channels_last)
+    last, losses_last = train_sim(scene[1], ts, 33, seed=3, bf16=False, **TRAIN)
+    assert last.shift[0].weight.is_contiguous(memory_format=torch.channels_last)
+    np.testing.assert_allclose(losses_last, losses, rtol=1e-4)
+    for a, b in zip(first.parameters(), last.parameters()):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-6)
 
 
 def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):

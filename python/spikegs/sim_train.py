@@ -48,10 +48,19 @@ def _fast_dtype(dtype: torch.dtype | None) -> torch.dtype:
 LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}  # SIM's self-supervised loss against TFP
 
 
-def _to_input(windows: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
-    """uint8 windows [B, w, H, W] -> network input in `dtype`, channels-last."""
+def training_layout(bf16: bool) -> torch.memory_format:
+    """The memory layout SIM trains in: channels-last under bfloat16 autocast (oneDNN's bf16
+    kernels), channels-first in float32, where a step is ~1.4× faster than channels-last on an
+    AVX2 CPU (batch 8, 64² crops; BENCHMARKS.md, "SIM"). Inference keeps channels-last."""
+    return torch.channels_last if bf16 else torch.contiguous_format
+
+
+def _to_input(
+    windows: np.ndarray, dtype: torch.dtype, layout: torch.memory_format = torch.channels_last
+) -> torch.Tensor:
+    """uint8 windows [B, w, H, W] -> network input in `dtype` and `layout`."""
     x = torch.from_numpy(np.ascontiguousarray(windows)).to(dtype)
-    return x.contiguous(memory_format=torch.channels_last)
+    return x.contiguous(memory_format=layout)
 
 
 def train_sim(
@@ -107,8 +116,9 @@ def train_sim(
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         model = SIM(window=window, target_window=target_window, **sim_kwargs)
-    model = model.to(memory_format=torch.channels_last).train()
     bf16 = bf16_is_fast() if bf16 is None else bf16
+    layout = training_layout(bf16)
+    model = model.to(memory_format=layout).train()
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps)
     streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
@@ -156,7 +166,7 @@ def train_sim(
             ys = rng.integers(0, height - ch + 1, batch_size)
             xs = rng.integers(0, width - cw + 1, batch_size)
             crops = np.stack([s[:, y : y + ch, x : x + cw] for s, y, x in zip(windows, ys, xs)])
-            x = _to_input(crops, torch.float32)  # [B, w, ch, cw]
+            x = _to_input(crops, torch.float32, layout)  # [B, w, ch, cw]
             target = x[:, model.target].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
             with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
                 pred = model.forward_rotated(x)  # [B, 1, ch, cw]

@@ -4,8 +4,9 @@ Quality: SIM is trained on each built-in scene (simulated at 250×400 with the p
 simulator) and compared with TFP(33), TFP(65) and TFI on the held-out on-path views. Speed: the
 straightforward SIM (square padding, four rotations stacked on the batch, channels first,
 autograd on) is the named alternative that the fast path (rotated kernels on one canvas,
-channels-last, inference mode, float32 or bfloat16) is timed against, in the same run; a training
-step (batch 8, 64² crops) of the canvas network against the literal rotated one.
+channels-last, inference mode, float32 or bfloat16) is timed against, in the same run; a float32
+training step (batch 8, 64² crops) of the literal rotated network channels-first (how SIM trains
+without native bfloat16) against it channels-last and against the canvas network.
 """
 
 from __future__ import annotations
@@ -65,20 +66,27 @@ def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
 
 
 def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
-    """Time one training step (forward, L2 loss, backward) of the canvas network against the
-    literal rotate-the-data one on the same crops; error = max |Δ weight gradient| / max |grad|."""
+    """Time one float32 training step (forward, L2 loss, backward) of the literal rotate-the-data
+    network channels-first (SIM's training here without native bfloat16) against it
+    channels-last and against the canvas network, on the same crops; error = max |Δ weight
+    gradient| / max |grad|."""
     rng = np.random.default_rng(2)
-    x = torch.from_numpy(rng.random((batch, model.window, crop, crop)) < 0.15).float()
-    x = x.contiguous(memory_format=torch.channels_last)
-    target = x.mean(dim=1, keepdim=True)  # [B, 1, crop, crop]
-    net = SIM(**model.config).to(memory_format=torch.channels_last).train()
-    net.load_state_dict(model.state_dict())
+    spikes = torch.from_numpy(rng.random((batch, model.window, crop, crop)) < 0.15).float()
+    target = spikes.mean(dim=1, keepdim=True)  # [B, 1, crop, crop]
+    variants = (
+        ("rotated pairs (literal), channels-first", "forward_rotated", torch.contiguous_format),
+        ("rotated pairs (literal), channels-last", "forward_rotated", torch.channels_last),
+        ("canvas, channels-last", "forward", torch.channels_last),
+    )
     grads, rows = [], []
-    for name, fn in (("rotated pairs (literal)", net.forward_rotated), ("canvas", net.forward)):
+    for name, forward, layout in variants:
+        net = SIM(**model.config).to(memory_format=layout).train()
+        net.load_state_dict(model.state_dict())
+        x = spikes.contiguous(memory_format=layout)
 
-        def step(fn=fn):
+        def step(net=net, x=x, forward=forward):
             net.zero_grad(set_to_none=True)
-            ((fn(x) - target) ** 2).mean().backward()
+            ((getattr(net, forward)(x) - target) ** 2).mean().backward()
 
         seconds = median_seconds(step, repeats=repeats)
         grads.append(torch.cat([p.grad.flatten() for p in net.parameters()]))
