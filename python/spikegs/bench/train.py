@@ -48,7 +48,7 @@ QUICK_METHODS = ("spikegs", "tfp33")
 ABLATION_ORDER = ("spikegs", "only_instant", "only_exposure")  # the paper's Table 3, best first
 HEADLINE_SCENE = "solids"  # the default scene; the headline plot shows SpikeGS and BASELINES
 POINTS = 8  # evaluations per run
-# per run: a third of the demo's 1800, so that the full benchmark (27 runs) fits in ~17 min
+# per run: 600 (the demo has 1500), so that the full benchmark (27 runs) fits in ~17 min
 FULL_ITERATIONS = 600
 QUICK_ITERATIONS = 100
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
