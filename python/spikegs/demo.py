@@ -29,7 +29,7 @@ METHODS = ("spikegs", "tfp33")
 DEFAULT_SCENE = "solids"
 # The demo's shortened schedule: same for both methods, so the comparison is fair, sized for the
 # 5-minute budget on 2 cores of the slower (AVX2, no native bfloat16) machine (BENCHMARKS.md,
-# "Training"): 1500 iterations, the densification of 1800 scaled to them (1800 took 6.5 minutes
+# "Training"): 1500 iterations, the densification of 1800 scaled to them (1800 took 6 min 35-55 s
 # there with SIM's batch of 8). AbsGS's threshold at 0.0003, not the default 0.0002: 0.0002 grew
 # a quarter more Gaussians. SIM trains 300 steps on batches of 2 crops: as good a SIM as 8 crops
 # (on-path views, seeds 0-2: 41.60 dB against 41.66 for 8, seeds 0-1) in a quarter of the time.

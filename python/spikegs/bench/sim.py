@@ -21,7 +21,7 @@ import torch
 from ..data import simulate_dataset
 from ..data.scenes import SCENES
 from ..sim import SIM
-from ..sim_train import evaluate_dataset, inference_model, train_sim
+from ..sim_train import evaluate_dataset, inference_model, train_sim, training_layout
 from .common import median_seconds, print_table, write_results
 
 STEPS = 500  # SIM training steps per scene: +0.4 dB more at 1500 (solids), 3× the time
@@ -74,7 +74,7 @@ def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
     spikes = torch.from_numpy(rng.random((batch, model.window, crop, crop)) < 0.15).float()
     target = spikes.mean(dim=1, keepdim=True)  # [B, 1, crop, crop]
     variants = (
-        ("rotated pairs (literal), channels-first", "forward_rotated", torch.contiguous_format),
+        ("rotated pairs (literal), channels-first", "forward_rotated", training_layout(False)),
         ("rotated pairs (literal), channels-last", "forward_rotated", torch.channels_last),
         ("canvas, channels-last", "forward", torch.channels_last),
     )
