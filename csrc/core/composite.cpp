@@ -1,8 +1,8 @@
-// Tile-parallel compositing. Within a tile, each splat is applied to the rows its box covers, 16
-// pixels at a time, so the inner loops (exp included, inlined) vectorise. No atomics: the backward
-// writes each (tile, splat) pair's gradient share to a slot of its own and sums them in a fixed
-// order. The backward takes those rows as one run of pixels, so that its gradient sums are reduced
-// once per (tile, splat) rather than once per row.
+// Tile-parallel compositing. Within a tile, each splat is applied to the rows of its box that its
+// ellipse reaches, 16 pixels at a time, so the inner loops (exp included, inlined) vectorise. No
+// atomics: the backward writes each (tile, splat) pair's gradient share to a slot of its own and
+// sums them in a fixed order. The backward takes those rows as one run of pixels, so that its
+// gradient sums are reduced once per (tile, splat) rather than once per row.
 #include "core/composite.hpp"
 
 #include <algorithm>
@@ -16,13 +16,17 @@ namespace spikegs::raster {
 namespace {
 
 constexpr int kTilePixels = kTileSize * kTileSize;
-constexpr int kSplatHeader = 7;  // floats before the colour in a gathered splat
-constexpr int kGradHeader = 8;   // floats before the colour in a pair's gradient share
+constexpr int kSplatHeader = 11;  // floats before the colour in a gathered splat
+constexpr int kGradHeader = 8;    // floats before the colour in a pair's gradient share
 constexpr int kRecount = 16;  // the forward counts a tile's stopped pixels every this many splats
 
-// Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width, colour[C].
+// Splat parameters gathered in depth order: mx, my, A, B, C, opacity, y half-width; for
+// splat_rows, its ellipse's bottom point's dx, -B/C, level/C and det/C²; then colour[C]. Never
+// inlined: the forward and the backward must agree on every splat's rows, and under -ffast-math
+// two inlined copies may round differently.
 template <typename T>
-std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int channels) {
+[[gnu::noinline]] std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins,
+                                               int channels) {
   const int stride = kSplatHeader + channels;
   const std::int64_t visible = std::int64_t(bins.order.size());
   std::vector<T> out(visible * stride);
@@ -30,9 +34,21 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
   for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
     T* s = out.data() + rank * stride;
+    const T A = proj.conic[3 * i], B = proj.conic[3 * i + 1], C = proj.conic[3 * i + 2];
     s[0] = proj.mean2d[2 * i], s[1] = proj.mean2d[2 * i + 1];
-    s[2] = proj.conic[3 * i], s[3] = proj.conic[3 * i + 1], s[4] = proj.conic[3 * i + 2];
+    s[2] = A, s[3] = B, s[4] = C;
     s[5] = proj.opacity[i], s[6] = proj.extent[2 * i + 1];
+    // The ellipse alpha >= 1/255 is A dx² + 2B dx dy + C dy² <= level, det = AC - B² of the
+    // conic as rounded, taken in double (products of floats are exact there: no cancellation but
+    // the last rounding); its bottom point lies at dy = sqrt(level A / det), dx = -B dy / A. A
+    // conic that rounding left indefinite (a needle) gets det = 0: splat_rows keeps its box.
+    const double det = double(A) * C - double(B) * B;
+    const double level = 2 * std::log(255 * double(proj.opacity[i]));
+    const bool ellipse = det > 0 && A > 0 && C > 0;
+    s[7] = ellipse ? T(-double(B) / A * std::sqrt(level * A / det)) : T(0);
+    s[8] = ellipse ? T(-double(B) / C) : T(0);
+    s[9] = ellipse ? T(level / C) : T(0);
+    s[10] = ellipse ? T(det / (double(C) * C)) : T(0);
     for (int c = 0; c < channels; ++c) s[kSplatHeader + c] = proj.color[i * channels + c];
   }
   return out;
@@ -69,14 +85,6 @@ inline void add_geometry_grad(const T* s, T dx, T dy, T ga, T& g_mx, T& g_my, T&
   g_ax += std::abs(gx), g_ay += std::abs(gy);
 }
 
-// Rows of the tile [row0, row1) that the splat can reach (y half-width `ey`, slack included).
-template <typename T>
-void splat_rows(T my, T ey, int tile_y0, int tile_h, int& row0, int& row1) {
-  // clamped in T before the conversion to int: a splat 2^31 px tall would overflow it
-  row0 = int(std::min(std::max(std::floor(my - ey) - T(tile_y0), T(0)), T(tile_h)));
-  row1 = int(std::max(std::min(std::ceil(my + ey) - T(tile_y0), T(tile_h)), T(0)));
-}
-
 struct Tile {
   int x0, y0, w, h;
   std::int64_t begin, end;  // range in bins.ranks
@@ -91,6 +99,36 @@ Tile tile_at(const TileBins& bins, std::int64_t t, int width, int height) {
   tile.begin = bins.offsets[t];
   tile.end = bins.offsets[t + 1];
   return tile;
+}
+
+// Rows of the tile [row0, row1) that a gathered splat `s` can reach: within its box, those whose
+// centres lie within a pixel of its ellipse over the tile's columns widened by a pixel (slack
+// for rounding). The ellipse's chord at dx spans dy = -(B/C) dx ± sqrt(level/C - (det/C²) dx²);
+// its largest dy is at the bottom point (dx = s[7]) or the column nearest it, its smallest at
+// the top point (dx = -s[7]) or the column nearest that. A third of the rows in a trained
+// scene's splats' boxes lie outside their ellipses there. Never inlined, as gather_splats.
+template <typename T>
+[[gnu::noinline]] void splat_rows(const T* s, const Tile& tile, int& row0, int& row1) {
+  const T mx = s[0], my = s[1], slope = s[8], reach = s[9], narrowing = s[10];
+  // the box's rows, clamped in T before the conversion to int: a splat 2^31 px tall would
+  // overflow it
+  T top = std::floor(my - s[6]) - T(tile.y0), bottom = std::ceil(my + s[6]) - T(tile.y0);
+  if (narrowing > 0) {
+    const T left = T(tile.x0) - T(0.5) - mx, right = T(tile.x0 + tile.w) + T(0.5) - mx;
+    const T at_bottom = std::clamp(s[7], left, right), at_top = std::clamp(-s[7], left, right);
+    const T q_bottom = reach - narrowing * at_bottom * at_bottom;
+    const T q_top = reach - narrowing * at_top * at_top;
+    if (q_bottom >= 0 && q_top >= 0) {
+      const T dy_top = slope * at_top - std::sqrt(q_top);
+      const T dy_bottom = slope * at_bottom + std::sqrt(q_bottom);
+      top = std::max(top, std::ceil(my + dy_top - T(tile.y0) - T(1.5)));
+      bottom = std::min(bottom, std::floor(my + dy_bottom - T(tile.y0) + T(0.5)) + T(1));
+    } else {
+      bottom = top;  // the tile's columns miss the ellipse
+    }
+  }
+  row0 = int(std::min(std::max(top, T(0)), T(tile.h)));
+  row1 = int(std::max(std::min(bottom, T(tile.h)), T(0)));
 }
 
 template <typename T, int NC>
@@ -144,7 +182,7 @@ void forward_impl(const Projected<T>& proj, const TileBins& bins, int width, int
         const T* s = splats.data() + std::int64_t(rank) * stride;
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
         int row0, row1;
-        splat_rows(my, s[6], tile.y0, tile.h, row0, row1);
+        splat_rows(s, tile, row0, row1);
         const std::int32_t pos = std::int32_t(j - tile.begin);
         for (int row = row0; row < row1; ++row) {
           if (row_active[row] == 0) continue;
@@ -288,7 +326,7 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
         const T mx = s[0], my = s[1], A = s[2], B = s[3], Cc = s[4], o = s[5];
         const std::int32_t pos = std::int32_t(j - tile.begin);
         int row0, row1;
-        splat_rows(my, s[6], tile.y0, tile.h, row0, row1);
+        splat_rows(s, tile, row0, row1);
         // rows whose pixels all stopped before this splat are left out at both ends; the rest
         // are done as one run of pixels, so that the sums below are reduced once per splat
         while (row0 < row1 && pos > row_last[row0]) ++row0;
