@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/exp_nonpositive.hpp"
 #include "core/scratch.hpp"
@@ -45,10 +46,18 @@ template <typename T>
     const double det = double(A) * C - double(B) * B;
     const double level = 2 * std::log(255 * double(proj.opacity[i]));
     const bool ellipse = det > 0 && A > 0 && C > 0;
-    s[7] = ellipse ? T(-double(B) / A * std::sqrt(level * A / det)) : T(0);
-    s[8] = ellipse ? T(-double(B) / C) : T(0);
-    s[9] = ellipse ? T(level / C) : T(0);
-    s[10] = ellipse ? T(det / (double(C) * C)) : T(0);
+    const double bottom_dx = ellipse ? -double(B) / A * std::sqrt(level * A / det) : 0;
+    const double slope = ellipse ? -double(B) / C : 0, reach = ellipse ? level / C : 0;
+    const double narrowing = ellipse ? det / (double(C) * C) : 0;
+    // values past T's range (a splat 1e10 px wide) would turn splat_rows's products infinite:
+    // such a splat keeps its box's rows
+    const double limit = double(std::numeric_limits<T>::max()) * 1e-8;
+    const bool fits = std::abs(bottom_dx) < limit && std::abs(slope) < limit && reach < limit &&
+                      narrowing < limit;
+    s[7] = fits ? T(bottom_dx) : T(0);
+    s[8] = fits ? T(slope) : T(0);
+    s[9] = fits ? T(reach) : T(0);
+    s[10] = fits ? T(narrowing) : T(0);
     for (int c = 0; c < channels; ++c) s[kSplatHeader + c] = proj.color[i * channels + c];
   }
   return out;
