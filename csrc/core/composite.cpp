@@ -40,9 +40,10 @@ template <typename T>
     s[2] = A, s[3] = B, s[4] = C;
     s[5] = proj.opacity[i], s[6] = proj.extent[2 * i + 1];
     // The ellipse alpha >= 1/255 is A dx² + 2B dx dy + C dy² <= level, det = AC - B² of the
-    // conic as rounded, taken in double (products of floats are exact there: no cancellation but
-    // the last rounding); its bottom point lies at dy = sqrt(level A / det), dx = -B dy / A. A
-    // conic that rounding left indefinite (a needle) gets det = 0: splat_rows keeps its box.
+    // conic as rounded, taken in double (for float, products exact there: a needle's det loses
+    // nothing to cancellation but the last rounding); its bottom point lies at
+    // dy = sqrt(level A / det), dx = -B dy / A. A conic that rounding left indefinite gets no
+    // chord values: splat_rows keeps its box's rows.
     const double det = double(A) * C - double(B) * B;
     const double level = 2 * std::log(255 * double(proj.opacity[i]));
     const bool ellipse = det > 0 && A > 0 && C > 0;
