@@ -45,7 +45,7 @@ template <typename T>
     // dy = sqrt(level A / det), dx = -B dy / A. A conic that rounding left indefinite gets no
     // chord values: splat_rows keeps its box's rows.
     const double det = double(A) * C - double(B) * B;
-    const double level = 2 * std::log(255 * double(proj.opacity[i]));
+    const double level = support_level(double(proj.opacity[i]));
     const bool ellipse = det > 0 && A > 0 && C > 0;
     const double bottom_dx = ellipse ? -double(B) / A * std::sqrt(level * A / det) : 0;
     const double slope = ellipse ? -double(B) / C : 0, reach = ellipse ? level / C : 0;

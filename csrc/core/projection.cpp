@@ -154,7 +154,7 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     const T mid = T(0.5) * (s.a + s.c);
     const T lambda = mid + std::sqrt(std::max(T(0.1), mid * mid - s.det));
     // alpha >= 1/255 inside the ellipse d^T conic d <= 2 ln(255 o), whose bounding circle is r
-    const T level = T(2) * std::log(T(255) * o);
+    const T level = support_level(o);
     const T r = std::ceil(std::sqrt(level * lambda));
     if (!(r >= T(1))) continue;  // o <= 1/255 (level <= 0): no pixel but its centre reaches 1/255
     auto reaches_image = [&](T half_x, T half_y) {  // the box mean ± half-widths overlaps it

@@ -2,6 +2,7 @@
 // them from here. See docs/rasterizer.md.
 #pragma once
 
+#include <cmath>
 #include <limits>
 
 namespace spikegs::raster {
@@ -14,6 +15,13 @@ constexpr double kClampMargin = 0.3;        // frustum margin for the Jacobian, 
 constexpr double kDefaultNear = 0.01;
 constexpr double kDefaultFar = 1e10;
 constexpr int kMaxShDegree = 3;
+
+// 2 ln(o / kAlphaMin) for opacity o: alpha = o·exp(-d^T conic d / 2) >= 1/255 inside the ellipse
+// d^T conic d <= this level (the projection's radius and box, the compositing's rows).
+template <typename T>
+inline T support_level(T opacity) {
+  return T(2) * std::log(T(1.0 / kAlphaMin) * opacity);
+}
 
 // kAlphaMax in T, rounded down where T's nearest value lies above it (float's 0.99000001): two
 // clamped Gaussians leave T = (1 - alpha)^2, not below kTransmittanceMin, as in exact arithmetic,
