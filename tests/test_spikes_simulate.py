@@ -187,6 +187,8 @@ def test_bad_input_refused():
         simulate_spikes(lambda t: np.ones((4, 4 + int(t > 0))), 10, frame_every=5)
     with pytest.raises(ValueError, match="rate_at_one"):
         simulate_spikes(frames, 10, params=SimParams(rate_at_one=2.0))
+    with pytest.raises(ValueError, match="params expected a SimParams or None, found dict"):
+        simulate_spikes(frames, 10, params={"rate_at_one": 0.2})  # was an AttributeError
     for n in (0, True, 10.0, float("nan")):
         with pytest.raises(ValueError, match="num_readouts"):
             simulate_spikes(frames, n)

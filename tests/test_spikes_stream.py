@@ -149,7 +149,7 @@ def test_windows_past_either_end_refused():
         s.tfp(5, 0)
     with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):  # "k in [10, 9]"
         s.tfp(5, 21)
-    for w in (float("inf"), float("nan"), None, True):  # OverflowError, bare int() errors
+    for w in (float("inf"), float("nan"), None, True, np.array([3])):  # array: "found [3]"
         with pytest.raises(ValueError, match="window length"):
             s.tfp(5, w)
         with pytest.raises(ValueError, match="max_interval"):
@@ -170,6 +170,8 @@ def test_windows_past_either_end_refused():
         for read in (s.window, s.counts, s.tfp):
             with pytest.raises(ValueError, match=r"expected within the stream's \[0, 20\)"):
                 read(k, 3)
+    with pytest.raises(ValueError, match="below 2\\^63, found 9223372036854775811"):
+        s.tfp(np.uint64(2**63 + 3), 3)  # was reported as k=-9223372036854775805
 
 
 def test_core_refuses_windows_whose_end_overflows():
@@ -319,5 +321,7 @@ def test_bad_shapes_refused(tmp_path):
         SpikeStream.open(path, 4, 16, flip="false")  # a string in a hand-written meta.json
     with pytest.raises(ValueError, match="raw_width: expected an int, found 16.5"):
         SpikeStream.open(path, 4, 16, raw_width=16.5)
+    with pytest.raises(ValueError, match="raw_width expected a positive int or None, found 0"):
+        SpikeStream.open(path, 4, 16, raw_width=0)  # the core's sentinel for "= width"
     with pytest.raises(ValueError, match="width: expected an int, found 13.0"):
         SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13.0)

@@ -223,6 +223,14 @@ def rasterize(
             )
     if screen_abs is not None:
         _check("screen_abs", screen_abs, (n, 2), dtype)
+        overlapping = any(
+            st == 0 and sz > 1 for st, sz in zip(screen_abs.stride(), screen_abs.shape)
+        )
+        if screen_abs.is_inference() or overlapping:
+            raise ValueError(
+                "screen_abs: expected a tensor the backward can add to in place, found "
+                + ("an inference-mode tensor" if screen_abs.is_inference() else "an expanded view")
+            )
     for name, value in (("width", width), ("height", height)):
         if not is_int(value):
             raise ValueError(f"{name}: expected a positive int, got {value!r}")
@@ -235,6 +243,12 @@ def rasterize(
     real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
     if not (real(near) and real(far) and 0 < near < far):
         raise ValueError(f"near, far: expected 0 < near < far, got near={near!r}, far={far!r}")
+    near_t, far_t = torch.tensor([float(near), float(far)], dtype=dtype).tolist()  # the core's
+    if not 0 < near_t < far_t:
+        raise ValueError(
+            f"near, far: {near!r}, {far!r} round to {near_t!r}, {far_t!r} in {dtype}, the "
+            "inputs' dtype; expected 0 < near < far there"
+        )
     degree, coeffs = _sh_layout(colors, sh_degree)
     settings = dict(
         width=width,

@@ -216,7 +216,8 @@ def rasterize(
             for t in (means, quats, scales, opacities, colors)
         ]
     ).all(0)
-    keep = finite & (quats != 0).any(-1)  # [N]
+    qq = (quats * quats).sum(-1)  # [N]; as the core: |q|^2 that overflows or underflows culls
+    keep = finite & (qq > 0) & qq.isfinite()  # [N]
     args = (
         means,
         quats,

@@ -206,7 +206,9 @@ def simulate_spikes(
     check_chunk(chunk)
     frames = _Frames(source, num_readouts, frame_times, frame_every)
     height, width = frames.shape
-    params = params or SimParams()
+    params = SimParams() if params is None else params
+    if not isinstance(params, SimParams):
+        raise ValueError(f"params expected a SimParams or None, found {type(params).__name__}")
     sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed))  # validates
     # A million times the light that fires every readout fires every readout, as any more does;
     # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)

@@ -41,6 +41,8 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
     """`k` as a 1-D int64 array [B], and whether it was a single index; whole-number floats
     (a readout time such as `TestView.readout`) are accepted."""
     arr = np.asarray(k)
+    if arr.dtype.kind == "u" and arr.size and arr.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"readout index expected below 2^63, found {arr.max()}")
     if np.issubdtype(arr.dtype, np.floating) and np.all(np.abs(arr) < 2.0**62):  # NaN: False
         arr = arr.astype(np.int64) if np.all(arr == np.round(arr)) else arr
     if arr.ndim > 1 or not (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
@@ -111,10 +113,12 @@ class SpikeStream:
         """Memory-map a .dat file; `raw_width` stored pixels per row, of which columns
         [col_offset, col_offset + width) are kept (raw camera files with extra columns)."""
         path = Path(path)
-        raw = 0 if raw_width is None else raw_width
+        raw = 0 if raw_width is None else raw_width  # 0: the core's "raw_width = width"
         height, width, raw, col_offset = whole_numbers(
             height=height, width=width, raw_width=raw, col_offset=col_offset
         )
+        if raw_width is not None and raw < 1:
+            raise ValueError(f"raw_width expected a positive int or None, found {raw_width!r}")
         layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
         size = path.stat().st_size
         _frame_count(size, layout, path)
@@ -166,7 +170,7 @@ class SpikeStream:
         """First readout [B] of the window of `w` centred on each k; ValueError past either end."""
         ks, single = as_readouts(k)
         if not _whole(w) or w < 1:
-            raise ValueError(f"window length expected a positive int, found {w}")
+            raise ValueError(f"window length expected a positive int, found {w!r}")
         w = int(w)
         lo, hi = centred_range(len(self), w)  # compared before any arithmetic on k (overflow)
         if lo > hi:
@@ -209,7 +213,7 @@ class SpikeStream:
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
         if not _whole(max_interval) or not 1 <= max_interval <= 2**30:  # the core's bound
-            raise ValueError(f"max_interval expected an int in [1, 2^30], found {max_interval}")
+            raise ValueError(f"max_interval expected an int in [1, 2^30], found {max_interval!r}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
 
