@@ -358,10 +358,37 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             lambda text: json.dumps({**json.loads(text), "frames": ["a"]}),
             "'frames' expected a list of objects",
         ),
+        # each of these trained silently: ignored, garbage, or a numpy warning before the error
+        "frames dict": (
+            "trajectory.json",
+            lambda text: json.dumps({**json.loads(text), "frames": {}}),
+            "'frames' expected a list of objects",
+        ),
+        "no poses": (
+            "trajectory.json",
+            lambda text: json.dumps({**json.loads(text), "frames": []}),
+            r"trajectory.json: no frames \(poses\)",
+        ),
+        "cx off": ("meta.json", rewrite_meta(cx=1000), r"cx \(the principal point.* found 1000"),
+        "cy off": ("meta.json", rewrite_meta(cy=-100), r"cy \(the principal point.* found -100"),
+        "focal copy": (
+            "trajectory.json",
+            lambda text: json.dumps({**json.loads(text), "fl_x": 100.0}),
+            r"trajectory.json: fl_x 100.0, the dataset's camera has",
+        ),
+        "size copy": ("test_views.json", views(lambda d: {**d, "w": 64}), "test_views.json: w 64"),
+        "inf": ("train_timestamps.txt", lambda t: t + "1e400\n", r"integer readouts.*inf"),
+        "past the end": (
+            "train_timestamps.txt",
+            lambda t: t + "5\n",
+            r"expected timestamps within \[32, .*found \[5\]",
+        ),
     }
     for case, (name, edit, message) in cases.items():
-        with pytest.raises(ValueError, match=message):
-            load_dataset(_edited_copy(small, tmp_path / case, name, edit))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # inf's cast warned before the error
+            with pytest.raises(ValueError, match=message):
+                load_dataset(_edited_copy(small, tmp_path / case, name, edit))
 
 
 def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small):
@@ -502,3 +529,18 @@ def test_a_scene_far_from_the_origin_is_warned_of(small):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         moved(100.0)
+
+
+def test_test_images_without_their_units_warn(tmp_path, small):
+    """A hand-written meta.json without sim.rate_at_one or image_scale: the trainer guesses the
+    test images' units, which sets their PSNR; that was silent for this layout."""
+    root = _edited_copy(
+        small,
+        tmp_path / "units",
+        "meta.json",
+        lambda text: json.dumps(
+            {k: v for k, v in json.loads(text).items() if k not in ("sim", "image_scale")}
+        ),
+    )
+    with pytest.warns(UserWarning, match="neither image_scale nor sim.rate_at_one"):
+        load_dataset(root)

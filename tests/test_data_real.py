@@ -238,6 +238,16 @@ def test_nerf_unknown_convention_refused(nerf, tmp_path):
         edit_json(root / "transforms_train.json", lambda doc, v=value: doc.update(convention=v))
         with pytest.raises(ValueError, match=rf"transforms_train.json: convention {value!r}"):
             load_dataset(root)
+    # one file relabelled: its OpenGL matrices read as OpenCV "do not converge" (set a centre)
+    root = copy(nerf, tmp_path / "mixed")
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(convention="opencv"))
+    with pytest.raises(
+        ValueError, match="convention opencv, .* opengl .unstated.: expected"
+    ):
+        load_dataset(root)
+    (root / "transforms_train.json").unlink()  # was "transforms file not found: transforms.json"
+    with pytest.raises(FileNotFoundError, match="transforms_test.json without training frames"):
+        load_dataset(root)
 
 
 def test_windows_never_straddle_two_views(llff):
@@ -328,6 +338,11 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
     np.savetxt(root / "readouts.txt", np.arange(poses) * 10 + 200, fmt="%d")
     with pytest.raises(ValueError, match="poses lie 10 readouts apart; hold out fewer"):
+        load_dataset(root)
+    # a frame size a quarter of the file's: 4x the readouts, the poses on the first quarter
+    np.savetxt(root / "readouts.txt", np.arange(poses) * 8 + 40, fmt="%d")
+    write_options(root, height=16, width=24, test_views=[0], pseudo_gt_window=33)
+    with pytest.warns(UserWarning, match=r"poses span readouts \[40, .* of the 2800 .* at 16x24"):
         load_dataset(root)
 
 

@@ -159,6 +159,8 @@ def test_frame_sequence_missing_image(tmp_path):
     )
     with pytest.raises(FileNotFoundError, match="r_0"):
         FrameSequenceSource.from_transforms(path, 8, 8)
+    with pytest.raises(FileNotFoundError, match="transforms file not found: .*nope.json"):
+        make_source(tmp_path / "nope.json", 8, 8, 1)  # was "unknown scene", a .xml "not found"
     train_dir = tmp_path / "train"
     train_dir.mkdir()
     write_image(train_dir / "r_0.png", np.zeros((8, 8, 3), np.float32))

@@ -189,3 +189,19 @@ def test_a_bad_intensity_calibration_is_named(dataset, rate):
         ValueError, match=r"rate_at_one \(firing rate .* expected a number in \(0, 1\]"
     ):
         intensity_scale(bad)
+
+
+def test_image_scale_states_the_calibration_and_must_agree(dataset):
+    """meta.json's image_scale was documented as the test images' units and never read: without
+    sim.rate_at_one a guess (TFP's percentile) scored the same scene ~4 dB lower, silently."""
+
+    def with_meta(meta: dict) -> Dataset:
+        d = dataset
+        return Dataset(d.root, meta, d.streams, d.trajectory, d.train_timestamps, d.test_views)
+
+    no_rate = {k: v for k, v in dataset.meta.items() if k not in ("sim", "image_scale")}
+    assert intensity_scale(with_meta({**no_rate, "image_scale": 0.3})) == 0.3
+    with pytest.raises(ValueError, match="image_scale .* expected a number in"):
+        intensity_scale(with_meta({**no_rate, "image_scale": 0}))
+    with pytest.raises(ValueError, match="rate_at_one 0.25 and image_scale 0.3: .* differ"):
+        intensity_scale(with_meta({**dataset.meta, "image_scale": 0.3}))

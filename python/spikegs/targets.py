@@ -83,16 +83,24 @@ def tfp_sample(dataset) -> tuple[np.ndarray, np.ndarray]:
 
 
 def intensity_scale(dataset) -> float:
-    """Firing rate of intensity 1.0: the simulator's calibration, else TFP(33)'s 99.5 percentile."""
-    rate = _find_key(dataset.meta, "rate_at_one")
-    if rate is not None:
+    """Firing rate of intensity 1.0: the simulator's calibration (rate_at_one) or meta.json's
+    image_scale (which must agree), else TFP(33)'s 99.5 percentile."""
+    stated = {k: _find_key(dataset.meta, k) for k in ("rate_at_one", "image_scale")}
+    stated = {k: v for k, v in stated.items() if v is not None}
+    for key, rate in stated.items():
         if not (is_number(rate) and 0 < rate <= 1):  # a pixel fires at most once a readout
             raise ValueError(
-                f"{dataset.root}: rate_at_one (firing rate of intensity 1: meta.json, or "
-                f"spikegs.json for a real layout) expected a number in (0, 1], spikes a readout; "
-                f"found {rate!r}"
+                f"{dataset.root}: {key} (firing rate of intensity 1: meta.json, or "
+                f"spikegs.json's rate_at_one for a real layout) expected a number in (0, 1], "
+                f"spikes a readout; found {rate!r}"
             )
-        return float(rate)
+    if len(stated) == 2 and abs(stated["rate_at_one"] - stated["image_scale"]) > 1e-6:
+        raise ValueError(
+            f"{dataset.root}: rate_at_one {stated['rate_at_one']!r} and image_scale "
+            f"{stated['image_scale']!r}: both state the firing rate of intensity 1, and differ"
+        )
+    if stated:
+        return float(next(iter(stated.values())))
     return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0
 
 

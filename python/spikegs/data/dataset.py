@@ -45,6 +45,7 @@ TEST_DIR = "test"
 READOUT_PERIOD_S = 25e-6
 WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits in the stream
 FORMAT_VERSION = 1
+PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
 
 
 def intrinsics_matrix(meta: dict) -> np.ndarray:
@@ -234,7 +235,10 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     ]
     for name, stream in zip(names, streams):
         if len(stream) != num:
-            raise ValueError(f"{root / name}: {len(stream)} readouts, {META} says {num}")
+            raise ValueError(
+                f"{root / name}: {len(stream)} readouts of {meta['height']}x{meta['width']}, "
+                f"{META} says {num} (or its height and width are wrong)"
+            )
     return streams
 
 
@@ -258,10 +262,10 @@ def check_test_views(views: list[TestView], where) -> None:
         raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
 
 
-def _read_test_views(root: Path, shape: tuple) -> list[TestView]:
+def _read_test_views(root: Path, shape: tuple, camera: dict) -> list[TestView]:
     path = existing_file(root, TEST_VIEWS)
     views = []
-    for i, frame in enumerate(read_camera_doc(path)):
+    for i, frame in enumerate(read_camera_doc(path, camera)):
         missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
         if missing:
             raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")
@@ -351,7 +355,7 @@ def load_dataset(path: PathLike) -> Dataset:
         )
     if others:
         warnings.warn(f"{root}: {not_read}", stacklevel=2)
-    trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY))
+    trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY), camera_keys(meta))
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
@@ -362,11 +366,25 @@ def load_dataset(path: PathLike) -> Dataset:
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0:
         raise ValueError(f"{root / TIMESTAMPS}: no training timestamps (one readout per line)")
-    if timestamps.min() < lo or timestamps.max() > hi:
-        raise ValueError(f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}]")
+    outside = timestamps[(timestamps < lo) | (timestamps > hi)]
+    if outside.size:
+        raise ValueError(
+            f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}] (a "
+            f"{2 * WINDOW_MARGIN + 1}-readout window around each inside the stream's {num}), "
+            f"found {outside[:5].tolist()}"
+        )
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
-    test_views = _read_test_views(root, shape)
+    test_views = _read_test_views(root, shape, camera_keys(meta))
     _check_held_out(test_views, timestamps, num, root)
+    sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
+    stated = "image_scale" in meta or "rate_at_one" in {**meta, **(meta.get("sim") or {})}
+    if sharp and not stated:
+        warnings.warn(
+            f"{meta_path}: neither image_scale nor sim.rate_at_one (the firing rate of intensity "
+            f"1, the test images' units): the trainer guesses it from TFP(33)'s 99.5th "
+            f"percentile, and the test views' PSNR depends on it",
+            stacklevel=2,
+        )
     return Dataset(root, meta, streams, trajectory, timestamps, test_views)
 
 
@@ -404,6 +422,12 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             number(key, 0)
         elif key in ("cx", "cy"):
             number(key)
+            size = meta.get("width" if key == "cx" else "height")
+            if is_number(size) and not -size <= meta[key] <= 2 * size:  # a view off the image
+                raise ValueError(
+                    f"{path}: {key} (the principal point, pixels) expected within the image "
+                    f"widened by its size each side, [{-size}, {2 * size}], found {meta[key]!r}"
+                )
         elif key == "flip" and not isinstance(meta[key], bool):
             raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
         elif key == "raw_width":
@@ -456,12 +480,13 @@ def read_column(path: Path, what: str) -> np.ndarray:
 def _read_timestamps(path: Path) -> np.ndarray:
     """The integer readouts [M] of a train_timestamps.txt; ValueError naming the file."""
     values = read_column(path, "integer readout")  # [M]
-    bad = values[~(values == np.round(values))]  # NaN too
+    bad = values[~(np.isfinite(values) & (values == np.round(values)))]  # NaN, inf too
     if bad.size:
         raise ValueError(f"{path}: expected integer readouts, found {bad[:5].tolist()}")
     unique, counts = np.unique(values, return_counts=True)
     if (counts > 1).any():  # sampled twice as often, silently
-        raise ValueError(f"{path}: readouts listed twice: {unique[counts > 1][:5].tolist()}")
+        twice = unique[counts > 1][:5].astype(np.int64).tolist()
+        raise ValueError(f"{path}: readouts listed twice: {twice}")
     return values.astype(np.int64)
 
 

@@ -257,6 +257,19 @@ def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options)
     )
 
 
+def _warn_partial_span(stream, readouts: np.ndarray) -> None:
+    """Warn where the poses span less than half of the stream: a frame size too small, which
+    reads the file as more readouts (scrambled), does that too."""
+    if readouts[-1] - readouts[0] < len(stream) / 2:
+        warnings.warn(
+            f"{stream.path}: {READOUTS}'s poses span readouts [{readout_number(readouts[0])}, "
+            f"{readout_number(readouts[-1])}] of the {len(stream)} that the file holds at "
+            f"{stream.height}x{stream.width}: the rest is not trained on; if that frame size is "
+            f"wrong (set height and width in {OPTIONS_FILE}), the frames are read scrambled",
+            stacklevel=3,
+        )
+
+
 def load_llff(path: PathLike, **overrides) -> Dataset:
     """Open an LLFF-layout directory (module docstring); `overrides` are spikegs.json options.
     Every file is checked before any spike is read."""
@@ -282,7 +295,9 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
         stream = open_spikes(root / STREAM, height, width, options)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
-        return stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
+        dataset = stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
+        _warn_partial_span(stream, readouts)
+        return dataset
     if not folder.is_dir():
         raise FileNotFoundError(
             f"spikes not found in {root}: expected {SPIKES_DIR}/ (one .dat per view) or {STREAM} "

@@ -32,6 +32,7 @@ from .sources import (
     camera_matrix,
     fitted,
     frame_columns,
+    is_opengl,
     read_camera,
     read_frame,
     read_transforms_doc,
@@ -146,7 +147,19 @@ def _frames(root: Path, options: Options):
             )
         docs = [read_transforms_doc(train), read_transforms_doc(test)]
         paths = [train, test]
+        if is_opengl(train, docs[0]) != is_opengl(test, docs[1]):
+            stated = [doc.get("convention", "opengl (unstated)") for doc in docs]
+            raise ValueError(
+                f"{root}: {train.name} states convention {stated[0]}, {test.name} {stated[1]}: "
+                f"expected one camera convention in both (a file whose matrices were converted "
+                f"and its label not, or the reverse, reads as poses that do not converge)"
+            )
     else:
+        if test.is_file() and not train.is_file() and not single.is_file():
+            raise FileNotFoundError(
+                f"{root}: {test.name} without training frames: add {train.name} (or a "
+                f"{single.name} whose every 8th frame is held out)"
+            )
         path = train if train.is_file() else single
         docs, paths = [read_transforms_doc(path)], [path]
     warn_unread_transforms(root, paths)

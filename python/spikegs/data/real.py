@@ -20,6 +20,7 @@ from ..spikes.stream import centred_range
 from ..targets import intensity_scale
 from .dataset import (
     FORMAT_VERSION,
+    PSEUDO_PREFIX,
     READOUT_PERIOD_S,
     WINDOW_MARGIN,
     Dataset,
@@ -34,7 +35,6 @@ from .trajectory import Trajectory, readout_number
 from .view_stream import ViewStreams
 
 NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
-PSEUDO_PREFIX = "pseudo_"
 HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
 PSEUDO_NOTE = "TFP of the held-out view's own spikes, not a sharp image: views named pseudo_*"
 

@@ -188,7 +188,7 @@ def make_source(
             warn_unread_transforms(root, [path, test])
     if path.suffix == ".xml":
         return MitsubaSource(path, width, height, channels, spp=spp)
-    if path.suffix == ".json" and path.is_file():
+    if path.suffix == ".json":  # a missing file: from_transforms names it
         return FrameSequenceSource.from_transforms(path, width, height, channels)
     raise ValueError(
         f"unknown scene '{scene}': expected a built-in scene ({', '.join(SCENES)}), a Mitsuba "

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..atomic_save import write_text_atomically
+from ..number_checks import is_number
 
 PathLike = Union[str, os.PathLike]
 CONVENTION = "opencv"
@@ -213,12 +214,15 @@ class Trajectory:
         write_text_atomically(Path(path), json.dumps(camera_doc(frames, **extra), indent=1))
 
     @classmethod
-    def load_json(cls, path: PathLike) -> Trajectory:
-        """Read `save_json`'s file; ValueError naming the file when it is malformed."""
+    def load_json(cls, path: PathLike, camera: dict | None = None) -> Trajectory:
+        """Read `save_json`'s file; ValueError naming the file when it is malformed or states
+        another camera than `camera` (`read_camera_doc`)."""
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"trajectory file not found: {path}")
-        frames = read_camera_doc(path)
+        frames = read_camera_doc(path, camera)
+        if not frames:
+            raise ValueError(f"{path}: no frames (poses)")
         try:
             readouts = np.array([f["readout"] for f in frames], np.float64)  # [P]
             c2w = np.array([f["transform_matrix"] for f in frames], np.float64)  # [P, 4, 4]
@@ -236,10 +240,18 @@ def camera_doc(frames: list, **extra) -> dict:
     return {"camera_model": "OPENCV", "convention": CONVENTION, **extra, "frames": frames}
 
 
-def read_camera_doc(path: Path) -> list:
+def read_camera_doc(path: Path, camera: dict | None = None) -> list:
     """The frames [P] of `camera_doc`'s file; ValueError naming it unless it is an object in our
-    convention whose frames are a list of objects."""
+    convention whose frames are a list of objects, and, given `camera` (nerfstudio keys: the
+    camera training uses), unless each of its keys that the file states has that value."""
     doc = read_json(path)
+    for key, value in (camera or {}).items():
+        stated = doc.get(key, value)
+        if not (is_number(stated) and abs(stated - value) <= 1e-6 * max(1.0, abs(value))):
+            raise ValueError(
+                f"{path}: {key} {stated!r}, the dataset's camera has {value!r} (meta.json states "
+                f"the camera training uses; this file's copy must agree or be left out)"
+            )
     convention = doc.get("convention")  # unstated: NeRF exports are OpenGL, ours OpenCV
     if not (isinstance(convention, str) and convention.lower() == CONVENTION):
         found = f"convention {doc['convention']!r}" if "convention" in doc else "no convention"
@@ -249,7 +261,7 @@ def read_camera_doc(path: Path) -> list:
             f"matrices become OpenCV's right-multiplied by diag(1, -1, -1, 1); or keep them in "
             f"the NeRF layout (transforms.json), which reads OpenGL (docs/datasets.md)"
         )
-    frames = doc.get("frames") or []
+    frames = doc.get("frames", [])
     if not isinstance(frames, list) or not all(isinstance(f, dict) for f in frames):
         raise ValueError(f"{path}: 'frames' expected a list of objects")
     return frames
