@@ -110,9 +110,15 @@ def constant_source(level: float, size: int = 16, test_views: bool = True) -> Fr
 
 
 def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
-    ds = simulate_dataset(
-        constant_source(0.6), tmp_path / "const", height=16, width=16, readouts=4000, progress=False
-    )  # the default count of test views: those the source has (two frames, one held-out view)
+    with pytest.warns(UserWarning, match="the camera turns 0°"):  # a still camera, said
+        ds = simulate_dataset(
+            constant_source(0.6),
+            tmp_path / "const",
+            height=16,
+            width=16,
+            readouts=4000,
+            progress=False,
+        )  # the default count of test views: those the source has (two frames, one held-out view)
     p = ds.meta["sim"]
     rate = ds.stream.tfp(2000, 4000).mean()
     assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)
@@ -134,7 +140,7 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         (
             constant_source(5.0),
             {"height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1},
-            "100% of the held-out views' pixels fire every readout",
+            ("100% of the held-out views' pixels fire every readout", "the camera turns 0°"),
         ),
     ]
     cases.append(("fine-texture", {"color": True}, "the scene is grey"))
@@ -190,6 +196,8 @@ def test_negative_view_counts_refused(tmp_path):
     for seed in (-1, 2**64):  # wrapped around to another seed's data (a colour one: an empty out)
         with pytest.raises(ValueError, match="seed"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "seed": seed, "color": True})
+    with pytest.raises(ValueError, match="spp .* expected samples per pixel >= 1, found 0"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 0})
     assert not (tmp_path / "x").exists()
 
 

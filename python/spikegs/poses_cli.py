@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic_save import write_text_atomically
+from .config import SupervisionConfig
 from .data.dataset import (
     META,
     TEST_DIR,
@@ -36,6 +37,7 @@ from .data.dataset import (
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
+    read_column,
     read_json,
     spike_files,
     write_parts,
@@ -55,6 +57,7 @@ SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 core
 SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
+TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
 
@@ -170,6 +173,42 @@ def _train_every(meta: dict, meta_path: Path, num_readouts: int) -> int:
     if not (is_int(every) and every > 0):
         raise ValueError(f"{meta_path}: train_every expected a positive integer, found {every!r}")
     return int(every)
+
+
+def _registered_timestamps(root: Path, registered: np.ndarray):
+    """The dataset's training timestamps [M] (as before any `spikegs poses` run: its .bak where
+    one kept them) and which [M] have their window between the first and last registered
+    readouts, give or take half an exposure window (outside, the poses are held constant: wrong
+    by as much as the camera turns there); None where all do and none was dropped before.
+    ValueError where none does."""
+    backup = root / TIMESTAMPS_BACKUP
+    ks = read_column(backup if backup.exists() else root / TIMESTAMPS, "integer readout")
+    ks = ks.astype(np.int64)  # [M]
+    reach = SupervisionConfig.exposure_window // 2  # the exposure renders reach t ± 16 (default)
+    inside = (ks - reach >= registered[0]) & (ks + reach <= registered[-1])
+    if inside.all() and not backup.exists():
+        return None
+    if not inside.any():
+        raise ValueError(
+            f"{root / TIMESTAMPS}: no training timestamp has its window within the registered "
+            f"readouts [{registered[0]:g}, {registered[-1]:g}], where the poses are known: more "
+            f"images (--count) or a lower --min-registered"
+        )
+    return ks, inside
+
+
+def _keep_timestamps(root: Path, ks: np.ndarray, inside: np.ndarray, registered) -> str:
+    """Rewrite the training timestamps to those `inside` (the list before any run kept as a
+    .bak); the line that says so."""
+    backup = root / TIMESTAMPS_BACKUP
+    if not backup.exists():
+        shutil.copy2(root / TIMESTAMPS, backup)
+    write_text_atomically(root / TIMESTAMPS, "".join(f"{k}\n" for k in ks[inside]))
+    return (
+        f"kept {inside.sum()} of {len(ks)} training timestamps in {TIMESTAMPS}, those whose "
+        f"windows lie within the registered readouts [{registered[0]:g}, {registered[-1]:g}] (the "
+        f"poses are held constant outside them); the full list is {backup.name}"
+    )
 
 
 def _held_out_split(
@@ -309,7 +348,8 @@ def estimate_poses(
         # a raw recording's reference is the first run's SfM, not a pose log: a difference
         word = "difference" if ours else "error"
         messages.append(
-            f"aligned to {reference_path.name} by a similarity on the camera centres: rotation "
+            f"aligned to {reference_path.name} by a similarity on the camera centres and "
+            f"orientations: rotation "
             f"{word} median {report['rotation_error_deg_median']:.2f} deg (max "
             f"{report['rotation_error_deg_max']:.2f}), centre {word} median "
             f"{report['centre_error_median']:.2%} of the scene radius "
@@ -320,6 +360,7 @@ def estimate_poses(
             shutil.copy2(reference_path, backup)
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
+    kept = None if raw else _registered_timestamps(root, recon.readouts)  # checked before writes
     if raw:  # held-out views and training timestamps too, so that the recording trains
         views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every)
         meta.update(
@@ -339,6 +380,8 @@ def estimate_poses(
         trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
         write_text_atomically(meta_path, json.dumps(meta, indent=1))
         messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+        if kept is not None:
+            messages.append(_keep_timestamps(root, *kept, recon.readouts))
     write_points(root / POINTS, recon.points, recon.colors)
     report["summary"] = "\n".join(messages)
     write_text_atomically(root / WORK_DIR / "report.json", json.dumps(report, indent=1))

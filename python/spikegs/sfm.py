@@ -2,9 +2,9 @@
 with pycolmap (`pip install 'spikegs[sfm]'`), poses as OpenCV world-to-camera viewmats.
 
 SfM recovers poses and points up to a similarity (rotation, translation and scale of the world);
-`align` maps them onto a known trajectory by a least-squares similarity on the camera centres
-(Umeyama). COLMAP's camera is OpenCV's (x right, y down, z forward; pixel centres at +0.5), so
-its `cam_from_world` is our viewmat as it is.
+`align` maps them onto a known trajectory by the similarity that fits the camera centres and
+orientations (`similarity`). COLMAP's camera is OpenCV's (x right, y down, z forward; pixel
+centres at +0.5), so its `cam_from_world` is our viewmat as it is.
 """
 
 from __future__ import annotations
@@ -243,23 +243,38 @@ def _failure(stats: dict, registered: int | None, min_registered: float, images:
     )
 
 
-def umeyama(source: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """The similarity (scale, rotation [3, 3], shift [3]) that maps points `source` [N, 3] onto
-    `target` [N, 3] in the least-squares sense: target ≈ scale · rotation @ source + shift."""
-    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
-    s, t = source - mu_s, target - mu_t
-    u, d, vt = np.linalg.svd(t.T @ s / len(source))
-    flip = np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))])
-    rotation = u @ flip @ vt
-    scale = float(np.trace(np.diag(d) @ flip) / (s * s).sum(axis=1).mean())
+def similarity(
+    centres: np.ndarray,
+    rotations: np.ndarray,
+    known_centres: np.ndarray,
+    known_rotations: np.ndarray,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """The similarity (scale, rotation [3, 3], shift [3]) taking cameras with centres [N, 3] and
+    camera-to-world rotations [N, 3, 3] onto `known_*`: X' = scale · rotation @ X + shift.
+
+    The rotation maximises, in one SVD (Kabsch), the agreement of both the centres (as Umeyama's
+    fit, scaled) and the camera orientations, weighted alike (each term in squared distances of
+    the known world): centres alone leave the turn about a short arc's chord free (a 40° arc:
+    10° off); the scale and shift then fit the centres.
+    """
+    mu_s, mu_t = centres.mean(axis=0), known_centres.mean(axis=0)
+    s, t = centres - mu_s, known_centres - mu_t  # [N, 3]
+    spread_s, spread_t = (s * s).sum(axis=1).mean(), (t * t).sum(axis=1).mean()
+    cross = t.T @ s / len(s)  # [3, 3]; the centres' term: maximise tr(R^T cross)
+    orient = np.einsum("nij,nkj->ik", known_rotations, rotations) / len(s)  # sum R_t R_s^T / N
+    # tr(R^T cross) ~ spread of the centres; tr(R^T orient) <= 3: weighted to the same scale
+    u, _, vt = np.linalg.svd(cross + orient * np.sqrt(spread_s * spread_t) / 3.0)
+    rotation = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
+    scale = float(np.einsum("ni,ni->", t, s @ rotation.T) / len(s) / spread_s)
     return scale, rotation, mu_t - scale * rotation @ mu_s
 
 
 def align(recon: Reconstruction, trajectory: Trajectory) -> Reconstruction:
-    """`recon` moved into `trajectory`'s world by the similarity that best maps its camera centres
-    onto the trajectory's centres at the same readouts."""
+    """`recon` moved into `trajectory`'s world by the similarity that best maps its cameras (their
+    centres and orientations: `similarity`) onto the trajectory's at the same readouts."""
     if len(recon.readouts) < 3:
         raise ValueError(f"align: needs >= 3 registered images, found {len(recon.readouts)}")
-    centres = np.linalg.inv(recon.viewmats)[:, :3, 3]  # [R, 3]
-    known = np.linalg.inv(trajectory.pose_at(recon.readouts))[:, :3, 3]  # [R, 3]
-    return recon.transformed(*umeyama(centres, known))
+    c2w = np.linalg.inv(recon.viewmats)  # [R, 4, 4]
+    known = np.linalg.inv(trajectory.pose_at(recon.readouts))  # [R, 4, 4]
+    fit = similarity(c2w[:, :3, 3], c2w[:, :3, :3], known[:, :3, 3], known[:, :3, :3])
+    return recon.transformed(*fit)

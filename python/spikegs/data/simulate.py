@@ -52,6 +52,7 @@ MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at mos
 SATURATED_FRACTION = 0.01
 DARK_FRACTION = 0.1
 BLUR_WINDOW, BLUR_DEGREES = 33, 15.0
+STILL_DEGREES = 1.0  # a path whose optical axis turns less than this sees one side of the scene
 
 
 def clean_source(dataset: Dataset) -> Source:
@@ -80,6 +81,12 @@ def simulated_trajectory(dataset: Dataset) -> Trajectory:
             f"(no {TRAJECTORY_BACKUP}): the scene's clean images cannot be rendered at them"
         )
     return dataset.trajectory
+
+
+def largest_turn(trajectory: Trajectory) -> float:
+    """The largest angle, in degrees, between the first pose's optical axis and another's."""
+    axes = trajectory.viewmats[:, 2, :3]  # [P, 3] optical axes in world coordinates
+    return float(np.degrees(np.arccos(np.clip(axes @ axes[0], -1.0, 1.0))).max())
 
 
 def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
@@ -291,6 +298,8 @@ def simulate_dataset(
     flip, color = as_flag("flip", flip), as_flag("color", color)
     if height < 1 or width < 1:
         raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
+    if spp < 1:
+        raise ValueError(f"spp (--spp): expected samples per pixel >= 1, found {spp}")
     if not is_seed(seed):
         raise ValueError(f"seed (--seed): expected an integer in 0..2**64 - 1, found {seed}")
     seed = int(seed)
@@ -349,6 +358,13 @@ def simulate_dataset(
         warnings.warn(
             f"speed {speed:g}° a readout: the orbit is sampled at most twice a turn, so the "
             f"camera appears still or turning backwards (aliasing); a speed below 180°",
+            stacklevel=2,
+        )
+    elif (turned := largest_turn(trajectory)) < STILL_DEGREES:
+        warnings.warn(
+            f"the camera turns {turned:.2g}° over the {readouts} readouts: every training view "
+            f"sees the scene from one side, and the views off the path cannot be reconstructed "
+            f"(poses that move around the scene can)",
             stacklevel=2,
         )
     out = prepare_output(out, overwrite)
