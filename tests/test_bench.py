@@ -165,3 +165,17 @@ def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path
     with pytest.raises(FileExistsError, match="notes.txt"):
         train.run(True, tmp_path, scenes=["solids"], methods=["tfp33"])
     assert mine.read_text() == "mine"
+
+
+def test_bench_all_refuses_a_users_files_in_its_data_folders_before_any_part(tmp_path, capsys):
+    """OUT/data/SCENE holding a user's file was found by bench train, after the rasterizer,
+    spikes and SIM parts had run (~70 s); stiff and poses then never ran."""
+    from spikegs.cli import main
+
+    mine = tmp_path / "data" / "solids" / "notes.txt"
+    mine.parent.mkdir(parents=True)
+    mine.write_text("mine")
+    assert main(["bench", "all", "--quick", "--out", str(tmp_path)]) == 2
+    printed = capsys.readouterr()
+    assert "notes.txt" in printed.err and "== rasterizer" not in printed.out
+    assert mine.read_text() == "mine"

@@ -4,6 +4,7 @@ simulated dataset, pose conventions, windows within one view, bad input, trainin
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import re
 import shutil
@@ -228,8 +229,13 @@ def test_nerf_pose_round_trip(sim, nerf):
 
 def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
     args = ["sim-train", str(nerf), "--steps", "2", "--crop", "16", "--batch-size", "1"]
-    assert main([*args, "--out", str(tmp_path / "sim.pt")]) == 0
-    assert "note: 1 views without a sharp image" in capsys.readouterr().out
+    out = tmp_path / "sim.pt"
+    assert main([*args, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "note: 1 views without a sharp image" in printed
+    os.utime(out, (0, 0))
+    assert main([*args, "--out", str(out)]) == 0  # reused: the latest SIM for poses --sim
+    assert "reused" in capsys.readouterr().out and out.stat().st_mtime > 0
 
 
 def test_nerf_unknown_convention_refused(nerf, tmp_path):

@@ -346,6 +346,18 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     assert main(["poses", str(raw), "--count", "30"]) == 2
     assert "trajectory.json: no convention" in capsys.readouterr().err
     assert not (raw / "sfm").exists()
+    # each of these ran SfM (or announced it) before failing, or failed only in training
+    (raw / "trajectory.json").unlink()
+    assert main(["poses", str(raw), "--window", "1001"]) == 2  # was "too few images: 2"
+    assert "--window 1001: longer than the stream's 1000 readouts" in capsys.readouterr().err
+    shutil.copy(textured / "test_views.json", raw / "test_views.json")
+    assert main(["poses", str(raw)]) == 2  # was: poses, then train found no timestamps
+    assert "test_views.json without train_timestamps.txt" in capsys.readouterr().err
+    (raw / "test_views.json").unlink()
+    (raw / "spikes.dat").write_bytes(bytes((raw / "spikes.dat").stat().st_size))  # dark
+    assert main(["poses", str(raw)]) == 2  # was a generic SfM failure, after SfM
+    assert re.search(r"spikes.dat: no spikes .* height, .* in meta.json", capsys.readouterr().err)
+    assert not (raw / "sfm").exists()
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

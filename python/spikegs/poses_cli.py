@@ -43,6 +43,7 @@ from .data.dataset import (
     write_parts,
 )
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
+from .data.real_options import check_fires
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int, whole_numbers
@@ -89,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
 def _image_readouts(num_readouts: int, window: int, every: int | None, count: int) -> np.ndarray:
     """Readouts [N] whose `window` fits in the stream: every `every`, else `count` evenly."""
     first, last = centred_range(num_readouts, window)
+    if first > last:
+        raise ValueError(f"--window {window}: longer than the stream's {num_readouts} readouts")
     if every is not None:
         return np.arange(first, last + 1, every)
     return np.unique(np.round(np.linspace(first, last, count)).astype(np.int64))
@@ -103,7 +106,8 @@ def _cached_sim(root: Path):
         raise ValueError(f"--sim: no trained SIM in {root / 'sim'}; run `spikegs sim-train` first")
     print(
         f"--sim: the latest of {len(cached)} trained SIM(s), {cached[-1].name} (its name gives "
-        f"its window, steps, ...; `spikegs sim-train` makes another the latest)",
+        f"its window, steps, ...; `spikegs sim-train`, training or reusing one, makes it the "
+        f"latest)",
         file=sys.stderr,
     )
     return load_sim(cached[-1])
@@ -133,7 +137,10 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     stated = [k for k in (*intrinsics, *optional) if k in meta]
     check_meta_values(meta, where, stated)  # what training reads later, refused now
     described = {**meta, "height": h, "width": w, "flip": flip, "num_readouts": num}
-    return open_streams(root, spike_files(channels), described)
+    streams = open_streams(root, spike_files(channels), described)
+    for stream in streams:  # a dark or saturated file: said before SfM, not after it
+        check_fires(stream, META)
+    return streams
 
 
 def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:
@@ -292,7 +299,14 @@ def estimate_poses(
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
     # a raw recording (or one this command completed before) gets held-out views and timestamps
-    split = (root / TIMESTAMPS).exists() or (root / TEST_VIEWS).exists()
+    present = [name for name in (TIMESTAMPS, TEST_VIEWS) if (root / name).exists()]
+    if len(present) == 1:
+        raise ValueError(
+            f"{root}: {present[0]} without {({TIMESTAMPS, TEST_VIEWS} - set(present)).pop()}: a "
+            f"dataset's split needs both (remove {present[0]} to have them made from the "
+            f"registered images)"
+        )
+    split = bool(present)
     ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
     raw = ours or not split
     train_every = _train_every(meta, meta_path, num) if raw else None

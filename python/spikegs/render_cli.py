@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -209,13 +210,16 @@ def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
+    from .data.dataset import GuessedUnitsWarning
     from .eval_cli import run_dataset
     from .ply import load_ply
     from .run_summary import trained_scene
 
     check_video_output(args.out, args.fps)
     ply = trained_scene(args.run)
-    dataset = load_dataset(run_dataset(args.run, args.dataset))
+    with warnings.catch_warnings():  # the test images' units matter to scores, not to an orbit
+        warnings.simplefilter("ignore", GuessedUnitsWarning)
+        dataset = load_dataset(run_dataset(args.run, args.dataset))
     frames = orbit_frames(load_ply(ply), dataset, args.frames, args.up)
     write_video(args.out, frames, args.fps)
     print(f"{len(frames)} frames -> {args.out}")

@@ -25,7 +25,13 @@ PARTS = {
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("part", choices=[*PARTS, "all"], help="which benchmark to run")
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
-    parser.add_argument("--out", type=Path, default=Path("bench-results"), help="output folder")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default bench-results, or bench-results-quick with --quick: a quick "
+        "run does not replace a full one's files)",
+    )
     parser.add_argument(
         "--iterations", type=positive_int, help="training iterations per run (bench train)"
     )
@@ -64,6 +70,7 @@ def _train_options(args: argparse.Namespace) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    args.out = args.out or Path("bench-results-quick" if args.quick else "bench-results")
     parts = list(PARTS) if args.part == "all" else [args.part]
     train_options = _train_options(args)
     # the options given of bench train's (`seeds` always there: given when not its default 1)
@@ -71,16 +78,15 @@ def run(args: argparse.Namespace) -> int:
     given += ["--seeds"] if args.seeds != 1 else []
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
-    if "train" in parts:  # a bad scene, method or seed count fails before any part runs
-        from .train import selection
-
-        selection(
-            args.quick,
-            train_options.get("scenes"),
-            train_options.get("methods"),
-            train_options["seeds"],
-        )
     check_folder_output(args.out)
+    if "train" in parts:  # a bad scene, method, seed count or output fails before any part runs
+        from .train import check_outputs, selection
+
+        seeds = train_options["seeds"]
+        scenes, methods = selection(
+            args.quick, train_options.get("scenes"), train_options.get("methods"), seeds
+        )
+        check_outputs(Path(args.out), scenes, methods, seeds)
     for part in parts:
         try:
             module = importlib.import_module(PARTS[part])

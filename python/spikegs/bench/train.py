@@ -33,6 +33,7 @@ import torch
 from ..config import Config, available_methods, load_config
 from ..curves import save_curves
 from ..data import load_dataset, simulate_dataset
+from ..data.dataset import check_output
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
@@ -97,6 +98,8 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
             return dataset, 0.0
     except (FileNotFoundError, ValueError, KeyError):
         pass
+    if root.is_dir() and any(root.iterdir()):
+        print(f"{root}: simulated with other settings than this benchmark's; replaced")
     start = time.perf_counter()
     dataset = simulate_dataset(scene, root, overwrite=True, progress=False, **settings)
     return dataset, time.perf_counter() - start
@@ -246,6 +249,19 @@ def selection(
     return scenes, methods
 
 
+def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seeds: int) -> None:
+    """Refuse, before any work, a user's files where the benchmark writes: each run is trained
+    afresh, its folder deleted first, and a scene's dataset folder replaced unless it matches."""
+    for scene in scenes:
+        check_output(Path(out) / "data" / scene, overwrite=True)
+        for m in methods:
+            for seed in range(seeds):
+                refuse_foreign_files(
+                    Path(out) / "runs" / scene / run_name(m, seed),
+                    ", which the benchmark would delete with its run; give another --out",
+                )
+
+
 def run(
     quick: bool,
     out: Path,
@@ -266,15 +282,7 @@ def run(
     if grad_threshold is not None:
         length += f", densify threshold {grad_threshold:g}"
     configs = {m: load_config(m, overrides) for m in methods}
-    # each run is trained afresh, its folder deleted first: a user's files there are refused
-    # before any work
-    for scene in scenes:
-        for m in methods:
-            for seed in range(seeds):
-                refuse_foreign_files(
-                    out / "runs" / scene / run_name(m, seed),
-                    ", which the benchmark would delete with its run; give another --out",
-                )
+    check_outputs(out, scenes, methods, seeds)
     start = time.perf_counter()
     results = {}
     for scene in scenes:

@@ -48,6 +48,10 @@ FORMAT_VERSION = 1
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
 
 
+class GuessedUnitsWarning(UserWarning):
+    """The test images' units (firing rate of intensity 1) are guessed: their PSNR depends on it."""
+
+
 def intrinsics_matrix(meta: dict) -> np.ndarray:
     """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
@@ -383,6 +387,7 @@ def load_dataset(path: PathLike) -> Dataset:
             f"{meta_path}: neither image_scale nor sim.rate_at_one (the firing rate of intensity "
             f"1, the test images' units): the trainer guesses it from TFP(33)'s 99.5th "
             f"percentile, and the test views' PSNR depends on it",
+            GuessedUnitsWarning,
             stacklevel=2,
         )
     return Dataset(root, meta, streams, trajectory, timestamps, test_views)
@@ -410,8 +415,10 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
     def number(key: str, low: float = -np.inf, integer: bool = False) -> None:
         value = meta[key]
         if not ((is_int if integer else is_number)(value) and value > low):
-            what = "an integer" if integer else "a finite number"
-            raise ValueError(f"{path}: {key} expected {what} > {low}, found {value!r}")
+            what = ("an integer" if integer else "a finite number") + (
+                f" > {low}" if low > -np.inf else ""
+            )
+            raise ValueError(f"{path}: {key} expected {what}, found {value!r}")
 
     for key in keys:
         if key in ("height", "width", "num_readouts"):

@@ -24,6 +24,7 @@ from .dataset import (
     READOUT_PERIOD_S,
     WINDOW_MARGIN,
     Dataset,
+    GuessedUnitsWarning,
     TestView,
     check_test_views,
     intrinsics_keys,
@@ -122,6 +123,7 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
             f"TFP(33)'s 99.5th percentile ({scale:.4g} spikes a readout for intensity 1), and "
             f"their PSNR depends on it: set rate_at_one in {OPTIONS_FILE} (the camera's firing "
             f"rate of intensity 1), or give training views sharp images to calibrate it",
+            GuessedUnitsWarning,
             stacklevel=3,
         )
     for h in held_out:

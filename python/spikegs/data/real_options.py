@@ -130,9 +130,10 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
     return stream
 
 
-def check_fires(stream: SpikeStream) -> None:
+def check_fires(stream: SpikeStream, settings: str = OPTIONS_FILE) -> None:
     """ValueError naming the stream's file when no pixel ever fires, or every pixel at every
-    readout: no image in it (one pass over the spikes)."""
+    readout: no image in it (one pass over the spikes); `settings` names the file of its frame
+    size."""
     counts = stream.counts(len(stream) // 2, len(stream))  # [H, W] spikes per pixel
     if counts.max() == 0 or counts.min() == len(stream):
         what, why = (
@@ -143,5 +144,5 @@ def check_fires(stream: SpikeStream) -> None:
         raise ValueError(
             f"{stream.path}: {what} in its {len(stream)} readouts of {stream.height}x"
             f"{stream.width}: nothing to learn from ({why}, a wrong file or a wrong frame size: "
-            f"height, width, raw_width, col_offset in {OPTIONS_FILE})"
+            f"height, width, raw_width, col_offset in {settings})"
         )
