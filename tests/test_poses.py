@@ -16,6 +16,7 @@ from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
+from spikegs.data.dataset import check_output
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
@@ -309,6 +310,7 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     cases = [
         ({"flip": None}, r"missing keys \['flip'\]"),
         ({"height": "128"}, "meta.json: height: expected an int, found '128'"),
+        ({"height": 0}, "meta.json: height expected an integer > 0, found 0"),
         ({"flip": "false"}, "meta.json: flip: expected True or False, found 'false'"),
         (
             {"num_readouts": 500},
@@ -430,15 +432,17 @@ def test_alignment_uses_the_cameras_orientations_on_a_short_arc():
         noisy.append(np.linalg.inv(sfm_c2w))
     recon = Reconstruction(readouts, np.stack(noisy), np.eye(3), np.zeros((0, 3)), None, 40)
     aligned = align(recon, Trajectory(readouts, truth))
-    rotation_error, _ = pose_errors(aligned.viewmats, truth)
-    assert np.median(rotation_error) < 3.0, np.median(rotation_error)  # the jitter's size
+    # the world turn the fit undid (aligned = fit(world(truth))): 0.4-0.8° here, 2.7-6.3° from
+    # the centres alone over seeds 0-2
+    fitted = np.linalg.inv(aligned.viewmats[0])[:3, :3] @ np.linalg.inv(noisy[0])[:3, :3].T
+    residual = Rotation.from_matrix(fitted @ turn).magnitude()  # fit ∘ turn = identity
+    assert np.degrees(residual) < 1.5, np.degrees(residual)
 
 
 def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_path):
     """Where the first images did not register, the trajectory holds the first registered pose
     back to readout 0: a third of fine-texture's training views trained on poses 10-31 degrees
-    off, silently. Those timestamps are dropped (the full list kept), and a later run with more
-    images registered takes them back from the full list."""
+    off, silently. Those timestamps are dropped, the original list kept."""
     (tmp_path / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in range(40, 961, 40)))
     ks, inside = _registered_timestamps(tmp_path, np.array([220, 500, 900]))
     assert ks[inside].tolist() == list(range(240, 881, 40))  # windows of 33 within [220, 900]
@@ -446,7 +450,7 @@ def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_pat
     assert "kept 17 of 24 training timestamps" in said
     kept = np.loadtxt(tmp_path / "train_timestamps.txt").tolist()
     assert kept == list(range(240, 881, 40))
-    ks, inside = _registered_timestamps(tmp_path, np.array([0, 500, 999]))  # all registered
-    assert inside.all() and len(ks) == 24
+    assert _registered_timestamps(tmp_path, np.array([0, 500, 999])) is None  # all inside
+    check_output(tmp_path, overwrite=True)  # the .bak is a dataset's part: simulate replaces it
     with pytest.raises(ValueError, match=r"no training timestamp .* readouts \[400, 420\]"):
         _registered_timestamps(tmp_path, np.array([400, 420]))

@@ -28,6 +28,7 @@ from .data.dataset import (
     TEST_DIR,
     TEST_VIEWS,
     TIMESTAMPS,
+    TIMESTAMPS_BACKUP,
     TRAJECTORY,
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
@@ -37,8 +38,8 @@ from .data.dataset import (
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
-    read_column,
     read_json,
+    read_timestamps,
     spike_files,
     write_parts,
 )
@@ -58,7 +59,6 @@ SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 core
 SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
-TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
 
@@ -126,7 +126,8 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
         flip = as_flag("flip", meta["flip"])
     except ValueError as err:
         raise ValueError(f"{where}: {err}") from None
-    check_meta_values(meta, where, ["channels"])  # 1 or 3, and spike_files as they are named
+    # sizes > 0 (a 0 was refused later, by the stream, without naming meta.json); channels 1 or 3
+    check_meta_values(meta, where, ["height", "width", "num_readouts", "channels"])
     intrinsics = [k for k in ("fx", "fy", "cx", "cy") if k in meta]
     if meta.get("intrinsics_from") != SFM and 0 < len(intrinsics) < 4:
         raise ValueError(
@@ -183,38 +184,36 @@ def _train_every(meta: dict, meta_path: Path, num_readouts: int) -> int:
 
 
 def _registered_timestamps(root: Path, registered: np.ndarray):
-    """The dataset's training timestamps [M] (as before any `spikegs poses` run: its .bak where
-    one kept them) and which [M] have their window between the first and last registered
-    readouts, give or take half an exposure window (outside, the poses are held constant: wrong
-    by as much as the camera turns there); None where all do and none was dropped before.
-    ValueError where none does."""
-    backup = root / TIMESTAMPS_BACKUP
-    ks = read_column(backup if backup.exists() else root / TIMESTAMPS, "integer readout")
-    ks = ks.astype(np.int64)  # [M]
-    reach = SupervisionConfig.exposure_window // 2  # the exposure renders reach t ± 16 (default)
+    """The dataset's training timestamps [M] and which [M] have the exposure loss's default window
+    (t ± 16) between the first and last registered readouts (outside them the poses are held
+    constant: wrong by as much as the camera turns there); None where all do. ValueError where
+    none does, or where the file is malformed."""
+    ks = read_timestamps(root / TIMESTAMPS)  # [M]
+    reach = SupervisionConfig.exposure_window // 2
     inside = (ks - reach >= registered[0]) & (ks + reach <= registered[-1])
-    if inside.all() and not backup.exists():
+    if inside.all():
         return None
     if not inside.any():
         raise ValueError(
             f"{root / TIMESTAMPS}: no training timestamp has its window within the registered "
             f"readouts [{registered[0]:g}, {registered[-1]:g}], where the poses are known: more "
-            f"images (--count) or a lower --min-registered"
+            f"images (--count), a longer --window or --sim; or remove {TIMESTAMPS} and "
+            f"{TEST_VIEWS} to have a split made from the registered images"
         )
     return ks, inside
 
 
 def _keep_timestamps(root: Path, ks: np.ndarray, inside: np.ndarray, registered) -> str:
-    """Rewrite the training timestamps to those `inside` (the list before any run kept as a
-    .bak); the line that says so."""
+    """Rewrite the training timestamps to those `inside` (the list before kept once, as a .bak:
+    the original); the line that says so."""
     backup = root / TIMESTAMPS_BACKUP
     if not backup.exists():
         shutil.copy2(root / TIMESTAMPS, backup)
     write_text_atomically(root / TIMESTAMPS, "".join(f"{k}\n" for k in ks[inside]))
     return (
         f"kept {inside.sum()} of {len(ks)} training timestamps in {TIMESTAMPS}, those whose "
-        f"windows lie within the registered readouts [{registered[0]:g}, {registered[-1]:g}] (the "
-        f"poses are held constant outside them); the full list is {backup.name}"
+        f"windows lie within the registered readouts [{registered[0]:g}, {registered[-1]:g}] "
+        f"(the poses are held constant outside them); the original list is {backup.name}"
     )
 
 

@@ -255,7 +255,8 @@ def similarity(
     The rotation maximises, in one SVD (Kabsch), the agreement of both the centres (as Umeyama's
     fit, scaled) and the camera orientations, weighted alike (each term in squared distances of
     the known world): centres alone leave the turn about a short arc's chord free (a 40° arc:
-    10° off); the scale and shift then fit the centres.
+    12° off); the scale and shift then fit the centres. ValueError where the fit would mirror
+    the world (a scale <= 0: centres that do not correlate) or the centres coincide.
     """
     mu_s, mu_t = centres.mean(axis=0), known_centres.mean(axis=0)
     s, t = centres - mu_s, known_centres - mu_t  # [N, 3]
@@ -266,6 +267,11 @@ def similarity(
     u, _, vt = np.linalg.svd(cross + orient * np.sqrt(spread_s * spread_t) / 3.0)
     rotation = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
     scale = float(np.einsum("ni,ni->", t, s @ rotation.T) / len(s) / spread_s)
+    if not scale > 0:  # NaN too (one centre)
+        raise ValueError(
+            f"align: the registered cameras' centres do not follow the trajectory's (scale "
+            f"{scale:.3g}): no similarity maps them onto it"
+        )
     return scale, rotation, mu_t - scale * rotation @ mu_s
 
 

@@ -59,18 +59,6 @@ class Targets:
     sim_seconds: float = 0.0  # time spent training SIM (0 when it was cached)
 
 
-def _find_key(tree, key: str):
-    """The first value stored under `key` anywhere in nested dicts, or None."""
-    if isinstance(tree, dict):
-        if key in tree:
-            return tree[key]
-        for value in tree.values():
-            found = _find_key(value, key)
-            if found is not None:
-                return found
-    return None
-
-
 def sample_timestamps(dataset) -> np.ndarray:
     """Every (M // 16)-th of the M training timestamps: all of them where M < 32, else 16 to 31."""
     return np.asarray(dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)])
@@ -85,8 +73,9 @@ def tfp_sample(dataset) -> tuple[np.ndarray, np.ndarray]:
 def intensity_scale(dataset) -> float:
     """Firing rate of intensity 1.0: the simulator's calibration (rate_at_one) or meta.json's
     image_scale (which must agree), else TFP(33)'s 99.5 percentile."""
-    stated = {k: _find_key(dataset.meta, k) for k in ("rate_at_one", "image_scale")}
-    stated = {k: v for k, v in stated.items() if v is not None}
+    from .data.dataset import stated_scales  # data.real imports this module
+
+    stated = stated_scales(dataset.meta)
     for key, rate in stated.items():
         if not (is_number(rate) and 0 < rate <= 1):  # a pixel fires at most once a readout
             raise ValueError(

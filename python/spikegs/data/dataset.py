@@ -45,7 +45,18 @@ TEST_DIR = "test"
 READOUT_PERIOD_S = 25e-6
 WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits in the stream
 FORMAT_VERSION = 1
+MAX_OFF_AXIS_DEG = 60  # the image centre's angle off the optical axis: a crop's, not a typo's
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
+
+
+def stated_scales(meta: dict) -> dict:
+    """The firing rate of intensity 1 (the test images' units) as `meta` states it: {key: value}
+    of rate_at_one (top level, as the real layouts' options put it, or under sim, as the
+    simulator does) and image_scale, those present."""
+    sim = meta.get("sim")
+    rate = meta.get("rate_at_one", sim.get("rate_at_one") if isinstance(sim, dict) else None)
+    stated = {"rate_at_one": rate, "image_scale": meta.get("image_scale")}
+    return {k: v for k, v in stated.items() if v is not None}
 
 
 class GuessedUnitsWarning(UserWarning):
@@ -131,8 +142,9 @@ class Dataset:
 LIGHT = ".light.npy"  # the rendered light while simulating: left by a killed simulation
 PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), LIGHT)  # any: a dataset
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
+TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
-DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS)
+DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS, TIMESTAMPS_BACKUP)
 
 
 def holds_dataset(out: Path) -> bool:
@@ -266,7 +278,7 @@ def check_test_views(views: list[TestView], where) -> None:
         raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
 
 
-def _read_test_views(root: Path, shape: tuple, camera: dict) -> list[TestView]:
+def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[TestView]:
     path = existing_file(root, TEST_VIEWS)
     views = []
     for i, frame in enumerate(read_camera_doc(path, camera)):
@@ -359,14 +371,16 @@ def load_dataset(path: PathLike) -> Dataset:
         )
     if others:
         warnings.warn(f"{root}: {not_read}", stacklevel=2)
-    trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY), camera_keys(meta))
+    # the files' copies of the camera predate intrinsics that `spikegs poses` estimated
+    camera = None if meta.get("intrinsics_from") == "sfm" else camera_keys(meta)
+    trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY), camera)
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
             f"expected [0, {num - 1}] (poses for part of a recording: the LLFF layout, one "
             f"spikes.dat with readouts.txt; docs/datasets.md)"
         )
-    timestamps = _read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
+    timestamps = read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0:
         raise ValueError(f"{root / TIMESTAMPS}: no training timestamps (one readout per line)")
@@ -378,11 +392,10 @@ def load_dataset(path: PathLike) -> Dataset:
             f"found {outside[:5].tolist()}"
         )
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
-    test_views = _read_test_views(root, shape, camera_keys(meta))
+    test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
-    stated = "image_scale" in meta or "rate_at_one" in {**meta, **(meta.get("sim") or {})}
-    if sharp and not stated:
+    if sharp and not stated_scales(meta):
         warnings.warn(
             f"{meta_path}: neither image_scale nor sim.rate_at_one (the firing rate of intensity "
             f"1, the test images' units): the trainer guesses it from TFP(33)'s 99.5th "
@@ -429,12 +442,17 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             number(key, 0)
         elif key in ("cx", "cy"):
             number(key)
-            size = meta.get("width" if key == "cx" else "height")
-            if is_number(size) and not -size <= meta[key] <= 2 * size:  # a view off the image
-                raise ValueError(
-                    f"{path}: {key} (the principal point, pixels) expected within the image "
-                    f"widened by its size each side, [{-size}, {2 * size}], found {meta[key]!r}"
-                )
+            size, focal = (
+                meta.get(k) for k in (("width", "fx") if key == "cx" else ("height", "fy"))
+            )
+            if is_number(size) and is_number(focal) and focal > 0:  # a crop is off-axis, not off
+                angle = np.degrees(np.arctan(abs(meta[key] - size / 2) / focal))
+                if angle > MAX_OFF_AXIS_DEG:  # a principal point 30 widths away trained nothing
+                    raise ValueError(
+                        f"{path}: {key} {meta[key]!r} puts the image centre {angle:.0f}° off the "
+                        f"optical axis (|{key} - {size}/2| over the focal length {focal}); "
+                        f"expected under {MAX_OFF_AXIS_DEG}°"
+                    )
         elif key == "flip" and not isinstance(meta[key], bool):
             raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
         elif key == "raw_width":
@@ -484,7 +502,7 @@ def read_column(path: Path, what: str) -> np.ndarray:
     return np.array(values, np.float64)
 
 
-def _read_timestamps(path: Path) -> np.ndarray:
+def read_timestamps(path: Path) -> np.ndarray:
     """The integer readouts [M] of a train_timestamps.txt; ValueError naming the file."""
     values = read_column(path, "integer readout")  # [M]
     bad = values[~(np.isfinite(values) & (values == np.round(values)))]  # NaN, inf too

@@ -257,10 +257,12 @@ def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options)
     )
 
 
-def _warn_partial_span(stream, readouts: np.ndarray) -> None:
-    """Warn where the poses span less than half of the stream: a frame size too small, which
-    reads the file as more readouts (scrambled), does that too."""
-    if readouts[-1] - readouts[0] < len(stream) / 2:
+def _warn_partial_span(stream, readouts: np.ndarray, hwf: np.ndarray) -> None:
+    """Warn where the poses span less than half of the stream read at another frame size than
+    hwf's: a frame size too small reads the file as more (scrambled) readouts. (Poses over part
+    of a recording at hwf's size are this layout's use.)"""
+    size_of_hwf = (stream.height, stream.width) == tuple(np.round(hwf[:2]).astype(int))
+    if not size_of_hwf and readouts[-1] - readouts[0] < len(stream) / 2:
         warnings.warn(
             f"{stream.path}: {READOUTS}'s poses span readouts [{readout_number(readouts[0])}, "
             f"{readout_number(readouts[-1])}] of the {len(stream)} that the file holds at "
@@ -296,7 +298,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
         stream = open_spikes(root / STREAM, height, width, options)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
-        _warn_partial_span(stream, readouts)
+        _warn_partial_span(stream, readouts, poses[0, :, 4])
         return dataset
     if not folder.is_dir():
         raise FileNotFoundError(

@@ -19,6 +19,7 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -149,10 +150,11 @@ def _frames(root: Path, options: Options):
         paths = [train, test]
         if is_opengl(train, docs[0]) != is_opengl(test, docs[1]):
             stated = [doc.get("convention", "opengl (unstated)") for doc in docs]
-            raise ValueError(
+            warnings.warn(  # each file is read in its own; one relabelled, not converted, is not
                 f"{root}: {train.name} states convention {stated[0]}, {test.name} {stated[1]}: "
-                f"expected one camera convention in both (a file whose matrices were converted "
-                f"and its label not, or the reverse, reads as poses that do not converge)"
+                f"each file's matrices are read in its own; a file whose matrices were converted "
+                f"and its label not, or the reverse, reads as poses that do not converge",
+                stacklevel=3,
             )
     else:
         if test.is_file() and not train.is_file() and not single.is_file():

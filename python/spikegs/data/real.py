@@ -29,6 +29,7 @@ from .dataset import (
     check_test_views,
     intrinsics_keys,
     repeated,
+    stated_scales,
 )
 from .real_options import OPTIONS_FILE, Options
 from .simulate import default_train_every, train_timestamps
@@ -117,7 +118,7 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
     dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
     sharp = [h for h in held_out if h.image is not None]
     scale = intensity_scale(dataset) if sharp else 1.0
-    if sharp and "rate_at_one" not in meta:
+    if sharp and not stated_scales(meta):
         warnings.warn(
             f"{root}: the test views' sharp images are put in firing-rate units by a guess, "
             f"TFP(33)'s 99.5th percentile ({scale:.4g} spikes a readout for intensity 1), and "

@@ -52,7 +52,9 @@ MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at mos
 SATURATED_FRACTION = 0.01
 DARK_FRACTION = 0.1
 BLUR_WINDOW, BLUR_DEGREES = 33, 15.0
-STILL_DEGREES = 1.0  # a path whose optical axis turns less than this sees one side of the scene
+# a path turning less than this many degrees and moving less than this fraction of the scene
+# radius sees the scene from one place (a camera that translates without turning is not still)
+STILL_DEGREES, STILL_MOVE = 1.0, 0.01
 
 
 def clean_source(dataset: Dataset) -> Source:
@@ -83,10 +85,12 @@ def simulated_trajectory(dataset: Dataset) -> Trajectory:
     return dataset.trajectory
 
 
-def largest_turn(trajectory: Trajectory) -> float:
-    """The largest angle, in degrees, between the first pose's optical axis and another's."""
+def camera_motion(trajectory: Trajectory) -> tuple[float, float]:
+    """The largest angle, in degrees, between the first pose's optical axis and another's, and
+    the largest distance of a camera centre from the first's."""
     axes = trajectory.viewmats[:, 2, :3]  # [P, 3] optical axes in world coordinates
-    return float(np.degrees(np.arccos(np.clip(axes @ axes[0], -1.0, 1.0))).max())
+    turn = float(np.degrees(np.arccos(np.clip(axes @ axes[0], -1.0, 1.0))).max())
+    return turn, float(np.linalg.norm(trajectory.centers - trajectory.centers[0], axis=1).max())
 
 
 def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
@@ -360,10 +364,13 @@ def simulate_dataset(
             f"camera appears still or turning backwards (aliasing); a speed below 180°",
             stacklevel=2,
         )
-    elif (turned := largest_turn(trajectory)) < STILL_DEGREES:
+    elif (motion := camera_motion(trajectory))[0] < STILL_DEGREES and motion[1] < (
+        STILL_MOVE * source.scene_radius
+    ):
         warnings.warn(
-            f"the camera turns {turned:.2g}° over the {readouts} readouts: every training view "
-            f"sees the scene from one side, and the views off the path cannot be reconstructed "
+            f"the camera turns {motion[0]:.2g}° and moves {motion[1]:.2g} (scene radius "
+            f"{source.scene_radius:.3g}) over the {readouts} readouts: every training view sees "
+            f"the scene from one place, and the views off the path cannot be reconstructed "
             f"(poses that move around the scene can)",
             stacklevel=2,
         )
