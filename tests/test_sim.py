@@ -5,6 +5,7 @@ import shutil
 import signal
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -411,6 +412,17 @@ def test_compare_methods_reports_all(scene, trained):
         expected = np.mean([psnr(p, g) for p, g in zip(images, gt)])
         assert scores[name]["psnr"] == pytest.approx(expected, rel=1e-12), name
     assert scores["TFP(65)"]["psnr"] != scores["TFP(33)"]["psnr"]
+    # a pseudo ground truth, TFP(65) of the view's own spikes, scored TFP(65) inf (with a numpy
+    # warning): that method leaves out that view, and a method left no view is left out
+    pseudo = gt.copy()
+    pseudo[1] = stream.tfp(ts[1], 65)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mixed = compare_methods(trained[0], stream, ts, pseudo)
+    assert mixed["TFP(65)"]["psnr"] == pytest.approx(psnr(stream.tfp(ts[0], 65), gt[0]))
+    assert mixed["TFP(33)"] != scores["TFP(33)"]  # scored on both views, one ground truth new
+    alone = compare_methods(trained[0], stream, ts, stream.tfp(ts, 65))
+    assert set(alone) == {"SIM", "TFP(33)", "TFI"}
 
 
 def test_metrics():
