@@ -24,6 +24,7 @@ import numpy as np
 from .atomic_save import write_text_atomically
 from .config import SupervisionConfig
 from .data.dataset import (
+    INTRINSICS_FROM_SFM,
     META,
     TEST_DIR,
     TEST_VIEWS,
@@ -56,7 +57,6 @@ from .spikes.stream import as_flag, centred_range
 
 MIN_IMAGES = 8
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
-SFM = "sfm"  # meta.json's intrinsics_from when SfM estimated them
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
@@ -129,7 +129,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     # sizes > 0 (a 0 was refused later, by the stream, without naming meta.json); channels 1 or 3
     check_meta_values(meta, where, ["height", "width", "num_readouts", "channels"])
     intrinsics = [k for k in ("fx", "fy", "cx", "cy") if k in meta]
-    if meta.get("intrinsics_from") != SFM and 0 < len(intrinsics) < 4:
+    if meta.get("intrinsics_from") != INTRINSICS_FROM_SFM and 0 < len(intrinsics) < 4:
         raise ValueError(
             f"{where}: states {intrinsics} of the intrinsics fx, fy, cx, cy: state all four (held "
             f"fixed) or none (structure from motion estimates them)"
@@ -151,11 +151,11 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
     messages = []
     if estimated:
         K = recon.K
-        meta.update(intrinsics_keys(K), intrinsics_from=SFM)
+        meta.update(intrinsics_keys(K), intrinsics_from=INTRINSICS_FROM_SFM)
         messages.append(
             f"the intrinsics were not stated: SfM's estimate fx = fy = {K[0, 0]:.2f}, "
             f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META} (intrinsics_from: "
-            f"{SFM}; state fx, fy, cx, cy without it to hold a calibration fixed)"
+            f"{INTRINSICS_FROM_SFM}; state fx, fy, cx, cy without it to hold a calibration fixed)"
         )
         fov = float(np.degrees(2 * np.arctan(meta["width"] / (2 * K[0, 0]))))
         if not FOV_PLAUSIBLE[0] <= fov <= FOV_PLAUSIBLE[1]:
@@ -331,7 +331,9 @@ def estimate_poses(
     images = spike_images(streams, readouts, window, sim_model)
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
-    if meta.get("intrinsics_from") != SFM and all(k in meta for k in ("fx", "fy", "cx", "cy")):
+    if meta.get("intrinsics_from") != INTRINSICS_FROM_SFM and all(
+        k in meta for k in ("fx", "fy", "cx", "cy")
+    ):
         K = intrinsics_matrix(meta)
     recon = reconstruct(images, readouts, root / WORK_DIR, K, min_registered)
     report = {

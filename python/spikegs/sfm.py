@@ -258,21 +258,21 @@ def similarity(
     12° off); the scale and shift then fit the centres. ValueError where the fit would mirror
     the world (a scale <= 0: centres that do not correlate) or the centres coincide.
     """
-    mu_s, mu_t = centres.mean(axis=0), known_centres.mean(axis=0)
-    s, t = centres - mu_s, known_centres - mu_t  # [N, 3]
-    spread_s, spread_t = (s * s).sum(axis=1).mean(), (t * t).sum(axis=1).mean()
-    cross = t.T @ s / len(s)  # [3, 3]; the centres' term: maximise tr(R^T cross)
-    orient = np.einsum("nij,nkj->ik", known_rotations, rotations) / len(s)  # sum R_t R_s^T / N
+    mu_src, mu_dst = centres.mean(axis=0), known_centres.mean(axis=0)
+    src, dst = centres - mu_src, known_centres - mu_dst  # [N, 3] centred
+    spread_src, spread_dst = (src * src).sum(axis=1).mean(), (dst * dst).sum(axis=1).mean()
+    cross = dst.T @ src / len(src)  # [3, 3]; the centres' term: maximise tr(R^T cross)
+    orient = np.einsum("nij,nkj->ik", known_rotations, rotations) / len(src)  # sum R_t R_s^T / N
     # tr(R^T cross) ~ spread of the centres; tr(R^T orient) <= 3: weighted to the same scale
-    u, _, vt = np.linalg.svd(cross + orient * np.sqrt(spread_s * spread_t) / 3.0)
+    u, _, vt = np.linalg.svd(cross + orient * np.sqrt(spread_src * spread_dst) / 3.0)
     rotation = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
-    scale = float(np.einsum("ni,ni->", t, s @ rotation.T) / len(s) / spread_s)
+    scale = float(np.einsum("ni,ni->", dst, src @ rotation.T) / len(src) / spread_src)
     if not scale > 0:  # NaN too (one centre)
         raise ValueError(
             f"align: the registered cameras' centres do not follow the trajectory's (scale "
             f"{scale:.3g}): no similarity maps them onto it"
         )
-    return scale, rotation, mu_t - scale * rotation @ mu_s
+    return scale, rotation, mu_dst - scale * rotation @ mu_src
 
 
 def align(recon: Reconstruction, trajectory: Trajectory) -> Reconstruction:

@@ -99,7 +99,7 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
     except (FileNotFoundError, ValueError, KeyError):
         pass
     if root.is_dir() and any(root.iterdir()):
-        print(f"{root}: simulated with other settings than this benchmark's; replaced")
+        print(f"{root}: not this benchmark's dataset (other settings, or incomplete); replaced")
     start = time.perf_counter()
     dataset = simulate_dataset(scene, root, overwrite=True, progress=False, **settings)
     return dataset, time.perf_counter() - start

@@ -47,6 +47,7 @@ WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits i
 FORMAT_VERSION = 1
 MAX_OFF_AXIS_DEG = 60  # the image centre's angle off the optical axis: a crop's, not a typo's
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
+INTRINSICS_FROM_SFM = "sfm"  # meta.json's intrinsics_from where `spikegs poses` estimated them
 
 
 def stated_scales(meta: dict) -> dict:
@@ -372,7 +373,7 @@ def load_dataset(path: PathLike) -> Dataset:
     if others:
         warnings.warn(f"{root}: {not_read}", stacklevel=2)
     # the files' copies of the camera predate intrinsics that `spikegs poses` estimated
-    camera = None if meta.get("intrinsics_from") == "sfm" else camera_keys(meta)
+    camera = None if meta.get("intrinsics_from") == INTRINSICS_FROM_SFM else camera_keys(meta)
     trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY), camera)
     if trajectory.start > 0 or trajectory.end < num - 1:
         raise ValueError(
