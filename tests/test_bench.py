@@ -84,6 +84,7 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     [
         (["bench", "train", "--methods", ","], "--methods ',': expected comma-separated names"),
         (["bench", "spikes", "--seeds", "3"], "--seeds: options of bench train, not of bench"),
+        (["bench", "rasterizer", "--seeds", "1"], "--seeds: options of bench train"),
         (["bench", "sim", "--methods", "tfi"], "--methods: options of bench train"),
         (["bench", "rasterizer", "--grad-threshold", "1e-4"], "--grad-threshold: options of"),
     ],

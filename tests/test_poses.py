@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ import scipy.linalg
 import torch
 from plyfile import PlyData, PlyElement
 from scipy.spatial.transform import Rotation
+from spikegs import sfm
 from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
 from spikegs.config import load_config
@@ -389,6 +391,13 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert "structure from motion failed" in err and "parallax" in err, err
     assert f"Look at the images in {still.root / 'sfm' / 'images'}: scrambled" in err, err
     assert not (still.root / "trajectory.json.bak").exists()
+
+
+def test_the_failure_hint_offers_sim_only_where_the_images_are_not_sims():
+    stats = {"images": 20, "features": 10, "pairs": 30, "parallax_pairs": 30, "inliers": 100}
+    tfp, sims = (sfm._failure(stats, 4, 0.5, Path("x"), from_sim=s) for s in (False, True))
+    assert "a longer --window, or --sim, gives cleaner images" in tfp
+    assert "a longer --window gives cleaner images" in sims and "--sim" not in sims
 
 
 def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(

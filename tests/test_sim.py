@@ -116,6 +116,29 @@ def test_parameter_count():
     assert 15_000 <= n <= 45_000
 
 
+@pytest.mark.parametrize("layers", [1, 3])
+def test_field_is_the_square_an_output_depends_on(layers):
+    torch.manual_seed(0)
+    model = _random_sim(window=3, shift_layers=layers)
+    x = _spikes(1, 3, 31, 31).requires_grad_()
+    model(x)[0, 0, 15, 15].backward()
+    rows, cols = (x.grad.abs().sum((0, 1)) > 0).nonzero().T
+    assert rows.max() - rows.min() + 1 == cols.max() - cols.min() + 1 == model.field()
+
+
+def test_a_crop_under_the_field_is_warned_of(scene):
+    """A 4² crop trains on the zero border, inferred on whole frames: said, once."""
+    stream, ts = scene[1], valid_timestamps(scene[1], 33)
+    with pytest.warns(UserWarning, match="SIM crop 4: under the 15-pixel square") as caught:
+        train_sim(stream, ts, 33, steps=1, batch_size=1, crop=4, progress=False)
+    assert len(caught) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a crop of the field, or the whole of a smaller frame
+        train_sim(stream, ts, 33, steps=1, batch_size=1, crop=15, progress=False)
+        small = BernoulliStream(lambda k: np.full((8, 6), 0.2), 60)
+        train_sim(small, valid_timestamps(small, 33), 33, steps=1, crop=64, progress=False)
+
+
 @pytest.mark.parametrize("path", ["forward", "forward_rotated"])
 @pytest.mark.parametrize("pixel", [(9, 10), (0, 0), (17, 20)])
 def test_blind_spot_is_exact(path, pixel):
@@ -379,7 +402,7 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     path.unlink()
     with pytest.raises(KeyboardInterrupt):  # a state saved for crop 16 ...
         train_or_load(path, _CtrlC(stream, 9), ts, 33, seed=3, **TRAIN)
-    other = dict(TRAIN, crop=12)  # ... is not resumed for crop 12: trained afresh
+    other = dict(TRAIN, crop=20)  # ... is not resumed for crop 20: trained afresh
     fresh, _ = train_sim(stream, ts, 33, seed=3, **other)
     afresh, _, _ = train_or_load(path, stream, ts, 33, seed=3, **other)
     for a, b in zip(afresh.state_dict().values(), fresh.state_dict().values()):

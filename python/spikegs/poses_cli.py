@@ -335,7 +335,9 @@ def estimate_poses(
         k in meta for k in ("fx", "fy", "cx", "cy")
     ):
         K = intrinsics_matrix(meta)
-    recon = reconstruct(images, readouts, root / WORK_DIR, K, min_registered)
+    recon = reconstruct(
+        images, readouts, root / WORK_DIR, K, min_registered, from_sim=sim_model is not None
+    )
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),

@@ -77,11 +77,12 @@ def reconstruct(
     K: np.ndarray | None = None,
     min_registered: float = 0.5,
     seed: int = 0,
+    from_sim: bool = False,
 ) -> Reconstruction:
     """Incremental SfM on grey images [N, H, W] taken at `readouts` [N], in `work_dir` (replaced:
     images/, database.db, sparse/). Known intrinsics `K` are held fixed, else a pinhole camera is
     estimated. ValueError, with the numbers and the likely cause, when fewer than `min_registered`
-    of the images are registered."""
+    of the images are registered (`from_sim`: the images are SIM's, which its hints then know)."""
     pycolmap = import_pycolmap()
     work = Path(work_dir)
     shutil.rmtree(work, ignore_errors=True)
@@ -118,7 +119,7 @@ def reconstruct(
         )
         stats = _match_stats(database, len(names))
         if stats["parallax_pairs"] == 0:
-            raise ValueError(_failure(stats, None, min_registered, work / "images"))
+            raise ValueError(_failure(stats, None, min_registered, work / "images", from_sim))
         models = pycolmap.incremental_mapping(
             database, work / "images", work / "sparse", _mapper_options(K is None, seed)
         )
@@ -127,7 +128,7 @@ def reconstruct(
     model = max(models.values(), key=lambda m: m.num_reg_images(), default=None)
     registered = 0 if model is None else model.num_reg_images()
     if registered < max(3, min_registered * len(names)):
-        raise ValueError(_failure(stats, registered, min_registered, work / "images"))
+        raise ValueError(_failure(stats, registered, min_registered, work / "images", from_sim))
     return _read_model(model, names, readouts)
 
 
@@ -205,9 +206,11 @@ def _match_stats(database: Path, num_images: int) -> dict:
         db.close()
 
 
-def _failure(stats: dict, registered: int | None, min_registered: float, images: Path) -> str:
+def _failure(
+    stats: dict, registered: int | None, min_registered: float, images: Path, from_sim: bool
+) -> str:
     """The failure message: what SfM managed (`registered` None: mapping not tried), in numbers,
-    the likely reasons, and where its `images` are to look at."""
+    the likely reasons, and where its `images` (SIM's where `from_sim`) are to look at."""
     n = stats["images"]
     need = max(3, int(np.ceil(min_registered * n)))
     outcome = (
@@ -220,8 +223,9 @@ def _failure(stats: dict, registered: int | None, min_registered: float, images:
         reasons.append(f"too few images ({n}): raise --count or lower --every")
     if stats["features"] < MIN_FEATURES:
         reasons.append(
-            "few features: textureless or noisy images (a longer --window, or --sim, gives "
-            "cleaner images)"
+            "few features: textureless or noisy images (a longer --window"
+            + ("" if from_sim else ", or --sim,")
+            + " gives cleaner images)"
         )
     if stats["pairs"] < n:
         reasons.append(

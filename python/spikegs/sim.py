@@ -108,6 +108,11 @@ class SIM(nn.Module):
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
 
+    def field(self) -> int:
+        """Side in pixels of the square an output pixel depends on: 2(2m + 1) + 1, as each
+        branch's m shift convolutions and the blind spot's shift reach 2m + 1 rows out."""
+        return 4 * len(self.shift) + 3
+
     def num_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
 

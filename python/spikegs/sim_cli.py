@@ -42,7 +42,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--steps", type=positive_int, default=sim.iterations, help="training steps")
     parser.add_argument("--batch-size", type=positive_int, default=sim.batch, help="crops per step")
-    parser.add_argument("--crop", type=positive_int, default=sim.crop, help="crop side, pixels")
+    parser.add_argument(
+        "--crop",
+        type=positive_int,
+        default=sim.crop,
+        help="crop side, pixels (at most a frame side)",
+    )
     parser.add_argument("--loss", choices=("l1", "l2"), default=sim.loss, help="loss against TFP")
     parser.add_argument("--seed", type=int, default=TrainConfig().seed)
     parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")

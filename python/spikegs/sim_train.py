@@ -12,6 +12,7 @@ import hashlib
 import os
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -125,6 +126,12 @@ def train_sim(
     streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
+    if crop < min(model.field(), max(height, width)):
+        warnings.warn(
+            f"SIM crop {crop}: under the {model.field()}-pixel square an output sees, so training "
+            f"sees the zero border where inference sees the frame; crop {model.field()} or more",
+            stacklevel=2,
+        )
     losses, first, earlier = [], 0, 0.0  # earlier: seconds of the steps in a resumed state
     if resume is not None:
         model.load_state_dict(resume["model"])

@@ -38,8 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--seeds",
         type=positive_int,
-        default=1,
-        help="bench train: runs per method and scene (seeds 0..N-1)",
+        help="bench train: runs per method and scene (seeds 0..N-1; default 1)",
     )
     parser.add_argument("--scenes", help="bench train: comma-separated scenes (default: all)")
     parser.add_argument(
@@ -56,8 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _train_options(args: argparse.Namespace) -> dict:
     """bench train's keyword arguments from the command line."""
-    options = {"seeds": args.seeds}
-    for name in ("iterations", "grad_threshold"):
+    options = {}
+    for name in ("seeds", "iterations", "grad_threshold"):
         if getattr(args, name) is not None:
             options[name] = getattr(args, name)
     for name in ("scenes", "methods"):
@@ -73,16 +72,14 @@ def run(args: argparse.Namespace) -> int:
     args.out = args.out or Path("bench-results-quick" if args.quick else "bench-results")
     parts = list(PARTS) if args.part == "all" else [args.part]
     train_options = _train_options(args)
-    # the options given of bench train's (`seeds` always there: given when not its default 1)
-    given = [f"--{k.replace('_', '-')}" for k in train_options if k != "seeds"]
-    given += ["--seeds"] if args.seeds != 1 else []
+    given = [f"--{k.replace('_', '-')}" for k in train_options]  # the options of bench train's
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out)
     if "train" in parts:  # a bad scene, method, seed count or output fails before any part runs
         from .train import check_outputs, selection
 
-        seeds = train_options["seeds"]
+        seeds = train_options.get("seeds", 1)
         scenes, methods = selection(
             args.quick, train_options.get("scenes"), train_options.get("methods"), seeds
         )
