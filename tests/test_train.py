@@ -18,7 +18,7 @@ import pytest
 import torch
 import yaml
 from plyfile import PlyData, PlyElement
-from spikegs.cli import build_parser, main
+from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
@@ -812,6 +812,15 @@ def test_a_method_named_like_a_number_reads_back_from_its_run(tmp_path):
         assert config.method == name
         (tmp_path / "config.yaml").write_text(dump_yaml(config.to_dict()))
         assert load_config(tmp_path / "config.yaml", saved_run=True) == config
+
+
+def test_the_help_pages_example_commands_parse():
+    """`spikegs --help` shows a command line per step: each is one the parser takes."""
+    examples = [line.strip().split("  ")[0].split()[1:] for line in USAGE.splitlines()]
+    examples = [words for words in examples if words and words[0] in COMMANDS]
+    assert {words[0] for words in examples} == set(COMMANDS) - {"sim-train", "bench"}
+    for words in examples:
+        assert build_parser().parse_args(words).command == words[0]
 
 
 def test_cli_says_out_of_memory_without_a_traceback(tmp_path, monkeypatch, capsys):

@@ -57,8 +57,23 @@ def file_path(text: str) -> Path:
     return Path(text)
 
 
+# what `spikegs --help` says above the commands: the path through them
+USAGE = """3D Gaussian Splatting trained from spike-camera streams.
+
+  spikegs demo --out DIR                     the main job, a few minutes on 2 cores
+  spikegs simulate --out DATASET             a synthetic dataset (or bring a recording;
+  spikegs poses DATASET                        poses from its spikes where it has none)
+  spikegs train DATASET --method spikegs --out RUN
+  spikegs eval RUN                           PSNR/SSIM on the test views, side-by-sides
+  spikegs render RUN --out orbit.mp4         a novel-view orbit
+
+`spikegs COMMAND --help` for each command's options."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="spikegs", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="spikegs", description=USAGE, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
         try:
