@@ -47,7 +47,12 @@ DEMO_OVERRIDES = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("spikegs-demo"),
+        help="output folder (default: spikegs-demo)",
+    )
     parser.add_argument(
         "--scene",
         choices=sorted(SCENES),
