@@ -823,6 +823,21 @@ def test_the_help_pages_example_commands_parse():
         assert build_parser().parse_args(words).command == words[0]
 
 
+def test_option_help_gives_the_defaults(capsys):
+    """Options' defaults were in the code only (simulate --height, the simulator's parameters)."""
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["simulate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--height HEIGHT image rows, pixels (default: 128)" in text
+    assert (
+        "--threshold THRESHOLD photo-electrons a spike θ (shot noise ~ 1/√θ) (default: 100.0)"
+        in text
+    )
+    assert "--overwrite replace a dataset in --out --quiet" in text  # flags: no default said
+    assert "(default: None)" not in text and "(default: False)" not in text
+    assert "(default: solids) (default" not in text  # where the text says it, not again
+
+
 def test_cli_says_out_of_memory_without_a_traceback(tmp_path, monkeypatch, capsys):
     """simulate --height 100000 --width 100000 ended in numpy's traceback (37 GiB); numpy's
     error stands in for it here (a machine with the memory would simulate for hours)."""

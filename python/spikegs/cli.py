@@ -70,6 +70,18 @@ USAGE = """3D Gaussian Splatting trained from spike-camera streams.
 `spikegs COMMAND --help` for each command's options."""
 
 
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Help that ends an option's text with its default, where it has one (not None or off) and
+    the text does not already say it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        none = action.default is None or action.default is False
+        if none or action.default is argparse.SUPPRESS or not action.option_strings:
+            return text
+        return text if "default" in text else f"{text} (default: %(default)s)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="spikegs", description=USAGE, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -82,7 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
             if err.name is None or not module_name.startswith(err.name):
                 raise  # a dependency is missing, not the command's own module
             continue  # a command whose module (or package) is not part of this build
-        module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
+        command = sub.add_parser(
+            name, help=help_text, description=help_text, formatter_class=_DefaultsFormatter
+        )
+        module.add_arguments(command)
         sub.choices[name].set_defaults(_run=module.run)
     return parser
 

@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         type=Path,
         default=Path("spikegs-demo"),
-        help="output folder (default: spikegs-demo)",
+        help="output folder",
     )
     parser.add_argument(
         "--scene",

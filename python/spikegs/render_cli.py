@@ -27,14 +27,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
     parser.add_argument("--out", type=Path, required=True, help="video file: .gif or .mp4")
     parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
-    parser.add_argument(
-        "--frames", type=positive_int, default=60, help="frames in one orbit (default: 60)"
-    )
+    parser.add_argument("--frames", type=positive_int, default=60, help="frames in one orbit")
     parser.add_argument(
         "--fps",
         type=int,
         default=20,
-        help=f"frames a second (default: 20; a .gif {GIF_MAX_FPS} at most)",
+        help=f"frames a second (a .gif {GIF_MAX_FPS} at most)",
     )
     parser.add_argument(
         "--up",

@@ -49,7 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="crop side, pixels (at most a frame side)",
     )
     parser.add_argument("--loss", choices=("l1", "l2"), default=sim.loss, help="loss against TFP")
-    parser.add_argument("--seed", type=int, default=TrainConfig().seed)
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=TrainConfig().seed,
+        help="seed of SIM's training (a training run's train.seed picks the SIM of its seed)",
+    )
     parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -27,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "transforms JSON / a directory holding transforms_train.json (default: solids)",
     )
     parser.add_argument("--out", type=Path, required=True, help="output dataset directory")
-    parser.add_argument("--height", type=int, default=128)
-    parser.add_argument("--width", type=int, default=128)
+    parser.add_argument("--height", type=int, default=128, help="image rows, pixels")
+    parser.add_argument("--width", type=int, default=128, help="image columns, pixels")
     parser.add_argument(
         "--readouts", type=int, default=DEFAULT_READOUTS, help="readouts (25 µs each)"
     )
@@ -59,9 +59,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for field in dataclasses.fields(SimParams):
         flag = "--" + field.name.replace("_", "-")
         if field.type in (bool, "bool"):
-            sim.add_argument(flag, action=argparse.BooleanOptionalAction, default=field.default)
+            sim.add_argument(
+                flag,
+                action=argparse.BooleanOptionalAction,
+                default=field.default,
+                help=field.metadata["help"],
+            )
         else:
-            sim.add_argument(flag, type=float, default=field.default)
+            sim.add_argument(flag, type=float, default=field.default, help=field.metadata["help"])
 
 
 def run(args: argparse.Namespace) -> int:

@@ -33,18 +33,23 @@ MAX_LIGHT_TIMES = 1e8  # a callable's sampling times: 0.8 GB (a frame every 1e-7
 MIN_SHOT_THRESHOLD = 2.0
 
 
+def _param(name: str, meaning: str):
+    """A SimParams field: the core's default, and what it means (the CLI's help)."""
+    return dataclasses.field(default=getattr(_CORE_DEFAULTS, name), metadata={"help": meaning})
+
+
 @dataclasses.dataclass
 class SimParams:
     """Simulator parameters; the defaults are the C++ core's (spike_simulator.hpp)."""
 
-    threshold: float = _CORE_DEFAULTS.threshold  # photo-electrons per spike θ (shot noise ~ 1/√θ)
-    rate_at_one: float = _CORE_DEFAULTS.rate_at_one  # spikes per readout at intensity 1.0
-    dark_rate: float = _CORE_DEFAULTS.dark_rate  # mean dark spikes per readout (5e-4 = 20 Hz)
-    dark_sigma: float = _CORE_DEFAULTS.dark_sigma  # log-normal spread of dark current per pixel
-    fpn_sigma: float = _CORE_DEFAULTS.fpn_sigma  # fixed-pattern threshold mismatch (relative)
-    temporal_sigma: float = _CORE_DEFAULTS.temporal_sigma  # threshold noise per readout (rel.)
-    shot_noise: bool = _CORE_DEFAULTS.shot_noise  # photon shot noise on the charge
-    random_init: bool = _CORE_DEFAULTS.random_init  # initial voltage uniform in [0, θ_i)
+    threshold: float = _param("threshold", "photo-electrons a spike θ (shot noise ~ 1/√θ)")
+    rate_at_one: float = _param("rate_at_one", "spikes a readout at intensity 1.0")
+    dark_rate: float = _param("dark_rate", "mean dark spikes a readout (5e-4 = 20 Hz)")
+    dark_sigma: float = _param("dark_sigma", "log-normal spread of the dark current over pixels")
+    fpn_sigma: float = _param("fpn_sigma", "fixed-pattern threshold mismatch, relative std")
+    temporal_sigma: float = _param("temporal_sigma", "threshold noise a readout, relative std")
+    shot_noise: bool = _param("shot_noise", "photon shot noise on the charge")
+    random_init: bool = _param("random_init", "initial voltage uniform in [0, θ_i), else 0")
 
     def __post_init__(self):
         """ValueError naming a field of the wrong type or out of range (the core's ranges, checked
