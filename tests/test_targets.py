@@ -46,7 +46,8 @@ def test_targets_are_computed_on_first_use_and_match_the_eager_images(dataset):
 
 def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):
     shallow = load_config("spikegs", SIM_FAST).sim
-    deep = load_config("spikegs", {"sim": {**SIM_FAST["sim"], "shift_layers": 5}}).sim
+    deep = {**SIM_FAST["sim"], "shift_layers": 5, "crop": 24}  # the frame: over 5 layers' field
+    deep = load_config("spikegs", {"sim": deep}).sim
     model, _, path = trained_sim(dataset, deep, 0, progress=False)
     assert len(model.shift) == 5 and path.name.endswith("_l2_m5_seed0.pt")
     model, _, path = trained_sim(dataset, shallow, 0, progress=False)  # not the deep one's cache
