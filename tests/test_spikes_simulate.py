@@ -85,6 +85,39 @@ def test_threshold_noise_never_fires_without_charge():
         assert not simulate_spikes(np.zeros((1, 32, 32), np.float32), 4000, params=p).any()
 
 
+def test_an_overexposed_pixel_banks_no_charge():
+    """v = min(v - θ_i, θ_i): light 10 spikes' worth a readout for 100 readouts, then dark, fires
+    at most once more. Uncapped, the banked charge fired every one of the 300 dark readouts (an
+    after-image of every bright flash); constant light cannot tell the two apart."""
+    frames = np.zeros((4, 8, 16), np.float32)
+    frames[:2] = 40.0  # 40 x rate_at_one 0.25 = 10 spikes a readout, readouts [0, 100)
+    times = np.array([0.0, 99.0, 100.0, 399.0])
+    packed = simulate_spikes(frames, 400, frame_times=times, params=SimParams(dark_rate=0.0))
+    s = SpikeStream.from_packed(packed, 8, 16)
+    assert (s.counts(50, 100) == 100).all()  # saturated: a spike every readout of [0, 100)
+    assert s.counts(250, 300).max() <= 1  # readouts [100, 400): no light, no dark current
+
+
+def test_fixed_pattern_noise_spreads_and_is_floored_and_independent_of_the_dark_current():
+    """θ_i = θ·max(1 + fpn_sigma·z, 0.1) sets a pixel's rate to rate·θ/θ_i, so with no other noise
+    the rates' relative spread is ~fpn_sigma (0.105 at 0.1; fpn_sigma was once unused, unseen);
+    at fpn_sigma 3 the floor caps a pixel at 10x its rate (0.25 at light 0.1; 1.0 without it);
+    and the dark current's draw is not the threshold's (correlation 0.93 when it was)."""
+    quiet = dict(dark_rate=0.0, temporal_sigma=0.0, shot_noise=False)
+    light = np.ones((1, 32, 32), np.float32)
+    for sigma, lo, hi in ((0.1, 0.08, 0.12), (0.0, 0.0, 0.01)):
+        r = rates(simulate_spikes(light, 3000, params=SimParams(fpn_sigma=sigma, **quiet)), 32)
+        assert lo <= r.std() / r.mean() <= hi, sigma
+    floored = SimParams(fpn_sigma=3.0, **quiet)
+    assert rates(simulate_spikes(0.1 * light, 2000, params=floored), 32).max() <= 0.26
+    # the same seed's thresholds: a lit run gives θ/θ_i, a dark one dark_i·θ/θ_i
+    mismatch = dict(quiet, fpn_sigma=0.2)
+    lit = rates(simulate_spikes(light, 2000, seed=5, params=SimParams(**mismatch)), 32)
+    dark = dict(mismatch, dark_rate=0.05)
+    unlit = rates(simulate_spikes(0 * light, 4000, seed=5, params=SimParams(**dark)), 32)
+    assert abs(np.corrcoef(1 / lit.ravel(), (unlit / lit).ravel())[0, 1]) < 0.15
+
+
 def test_never_more_than_one_spike_per_readout():
     # 4.0 = one spike per readout; up to float32's largest, whose charge overflows float32
     levels = np.array([2.0, 4.0, 8.0, 1e3, 1e30, 1e38, np.finfo(np.float32).max], np.float32)
