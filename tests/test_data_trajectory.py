@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from spikegs.data import Trajectory
-from spikegs.data.trajectory import check_rigid, look_at, project_points, rigid_c2w
+from spikegs.data.trajectory import (
+    check_rigid,
+    look_at,
+    pixels_in_view,
+    project_points,
+    rigid_c2w,
+)
 
 
 def pose(rotvec, center) -> np.ndarray:
@@ -231,3 +237,13 @@ def test_project_points_pinhole():
     np.testing.assert_allclose(pixels[0, 0], [40.5, 30.25], atol=1e-12)
     np.testing.assert_allclose(pixels[0, 1], [40.5 + 100 * 0.1, 30.25 - 120 * 0.05], atol=1e-12)
     assert np.isnan(pixels[:, 2:]).all() and np.array_equal(pixels[0], pixels[1], equal_nan=True)
+
+
+def test_a_point_lands_in_the_pixel_that_contains_its_projection():
+    """Pixel centres at +0.5: a projection at (4.7, 2.6) lies in column 4, row 2 (rounding took
+    column 5, row 3, and passed every test)."""
+    viewmat = look_at((0.0, -5.0, 0.0), (0.0, 0.0, 0.0))  # camera x = world x, y = world -z
+    K = np.array([[5.0, 0.0, 4.0], [0.0, 5.0, 2.0], [0.0, 0.0, 1.0]])
+    point = np.array([[0.7, 0.0, -0.6]])  # x/z·f + cx = 4.7, y/z·f + cy = 2.6
+    u, v, inside = pixels_in_view(point, viewmat[None], K, 8, 4)
+    assert (u[0, 0], v[0, 0], inside[0, 0]) == (4.0, 2.0, True)

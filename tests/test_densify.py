@@ -13,14 +13,16 @@ from spikegs.gaussians import PARAMETER_NAMES, GaussianModel
 RULES = dict(start=7, every=7, stop=50, grad_threshold=0.5, percent_dense=0.1, min_opacity=0.005)
 
 
-def _model(scales, opacities):
-    """Isotropic Gaussians of `scales` and `opacities`, each with its own means, colour and Adam
+def _model(scales, opacities, quats=None, means=None):
+    """Gaussians of `scales` ([N] isotropic, or [N, 3] along their axes), `opacities`, `quats`
+    (default: unrotated) and `means` (default: each its own), each with its own colour and Adam
     moments (one Adam step, at a zero rate, on a loss whose gradient differs for every entry)."""
     n = len(scales)
+    scales = torch.tensor(scales, dtype=torch.float32)
     params = {
-        "means": torch.arange(3.0 * n).reshape(n, 3),
-        "log_scales": torch.log(torch.tensor(scales)).unsqueeze(1).repeat(1, 3),
-        "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1),
+        "means": torch.arange(3.0 * n).reshape(n, 3) if means is None else means,
+        "log_scales": torch.log(scales if scales.dim() == 2 else scales[:, None].repeat(1, 3)),
+        "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1) if quats is None else quats,
         "opacity_logits": torch.logit(torch.tensor(opacities)),
         "sh_dc": torch.arange(float(n)).reshape(n, 1, 1),
         "sh_rest": torch.zeros(n, 0, 1),
@@ -40,13 +42,20 @@ def _moments(model, optimizer, name):
     return optimizer.state[model.params[name]]["exp_avg"]
 
 
-def _densifier(gradients, **rules) -> Densifier:
-    """A Densifier that has seen one render with these screen-space gradient norms [N]."""
-    densifier = Densifier(DensifyConfig(**{**RULES, **rules}), scene_radius=1.0, iterations=100)
+def _densifier(gradients, radius: float = 1.0, **rules) -> Densifier:
+    """A Densifier for a scene of `radius` that has seen one render with these screen-space
+    gradient norms [N]."""
+    densifier = Densifier(DensifyConfig(**{**RULES, **rules}), scene_radius=radius, iterations=100)
+    _observe(densifier, gradients)
+    return densifier
+
+
+def _observe(densifier: Densifier, gradients, times: int = 1) -> None:
+    """`times` renders in which every Gaussian is seen with these screen gradient norms [N]."""
     grads = torch.tensor(gradients)
     screen = torch.stack([grads, torch.zeros_like(grads)], 1)  # [N, 2] pixels
-    densifier.observe(torch.ones(len(grads)), screen, width=2, height=2)  # NDC = pixels here
-    return densifier
+    for _ in range(times):
+        densifier.observe(torch.ones(len(grads)), screen, width=2, height=2)  # NDC = pixels
 
 
 def test_small_gaussians_are_cloned_large_ones_split():
@@ -130,3 +139,71 @@ def test_observe_averages_over_the_steps_a_gaussian_was_seen_in_ndc_units():
     torch.testing.assert_close(densifier.grad_sum, torch.tensor([4.0 + 12.0, 2.0]))
     torch.testing.assert_close(densifier.count, torch.tensor([2.0, 1.0]))
     torch.testing.assert_close(densifier.max_radii, torch.tensor([5.0, 2.0]))
+
+
+def test_the_threshold_applies_to_the_mean_gradient_over_the_steps_seen():
+    """Three steps at 0.3: the mean (0.3) is under the 0.5 threshold, the sum (0.9) over it; then
+    each round averages only its own steps (0.6 clones). A summed gradient, and statistics kept
+    over a round, passed every test, which observed once a round."""
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = _densifier([0.3, 0.3])
+    _observe(densifier, [0.3, 0.3], times=2)
+    densifier.step(model, optimizer, 7)
+    assert len(model) == 2
+    _observe(densifier, [0.0, 0.6])
+    densifier.step(model, optimizer, 14)
+    assert len(model) == 3  # the second one cloned
+
+
+def test_clone_or_split_and_size_pruning_are_in_units_of_the_scene_radius():
+    """percent_dense 0.1 of a scene of radius 10: scale 0.5 is cloned, 2.0 split (its halves 2/1.6);
+    max_world_size 0.5 of radius 4: scale 1.0 stays, 3.0 goes. Every test's radius was 1."""
+    model, optimizer = _model([0.5, 2.0], [0.5, 0.5])
+    _densifier([1.0, 1.0], radius=10.0).step(model, optimizer, 7)
+    assert len(model) == 4  # kept 0, its clone, the two halves of 1
+    assert torch.allclose(model.scales[:2], torch.full((2, 3), 0.5))
+    assert torch.allclose(model.scales[2:], torch.full((2, 3), 2.0 / 1.6))
+    model, optimizer = _model([1.0, 3.0], [0.5, 0.5])
+    rules = dict(opacity_reset_every=20, max_world_size=0.5)
+    _densifier([0.0, 0.0], radius=4.0, **rules).step(model, optimizer, 28)
+    assert len(model) == 1 and model.scales.max().item() == pytest.approx(1.0)
+
+
+def test_split_halves_are_samples_of_the_gaussian_along_its_axes():
+    """The halves of a split are drawn from N(mean, Σ): 400 splits of scale 0.5 at the origin
+    spread 0.5 per axis (both halves at the mean passed every test), and a needle (1, 0.01, 0.01)
+    turned 90 degrees about z spreads along world y (offsets left unrotated passed too)."""
+    torch.manual_seed(0)  # the split's offsets come from torch's global generator
+    model, optimizer = _model([0.5] * 400, [0.5] * 400, means=torch.zeros(400, 3))
+    _densifier([1.0] * 400).step(model, optimizer, 7)
+    std = model.params["means"].detach().std(dim=0)  # [3]
+    assert len(model) == 800 and torch.allclose(std, torch.full((3,), 0.5), rtol=0.15), std
+    turned = torch.tensor([math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]).repeat(200, 1)
+    model, optimizer = _model([[1.0, 0.01, 0.01]] * 200, [0.5] * 200, turned, torch.zeros(200, 3))
+    _densifier([1.0] * 200).step(model, optimizer, 7)
+    std = model.params["means"].detach().std(dim=0)
+    assert std[1] > 0.8 and std[0] < 0.05 and std[2] < 0.05, std
+
+
+def test_size_pruning_waits_for_the_round_after_the_reset():
+    """step() densifies before it resets: the round at the reset's own iteration prunes nothing
+    by size, the next one does (pruning already there passed every test)."""
+    rules = dict(every=10, opacity_reset_every=20, max_world_size=0.5)
+    model, optimizer = _model([0.05, 0.8], [0.5, 0.5])
+    densifier = _densifier([0.0, 0.0], **rules)
+    densifier.step(model, optimizer, 20)  # a round, then the first reset
+    assert len(model) == 2
+    _observe(densifier, [0.0, 0.0])
+    densifier.step(model, optimizer, 30)
+    assert len(model) == 1
+
+
+def test_screen_size_pruning_removes_the_gaussians_larger_than_the_cap():
+    """densify.max_screen_size 3 px, after the first reset: of radii 2 and 5 px the 5 goes (no
+    test set it; a flipped comparison passed them all)."""
+    rules = dict(RULES, opacity_reset_every=20, max_world_size=0.0, max_screen_size=3.0)
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = Densifier(DensifyConfig(**rules), scene_radius=1.0, iterations=100)
+    densifier.observe(torch.tensor([2, 5]), torch.zeros(2, 2), width=2, height=2)
+    densifier.step(model, optimizer, 28)
+    assert model.params["sh_dc"].flatten().tolist() == [0.0]

@@ -19,13 +19,19 @@ from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.dataset import check_output
-from spikegs.data.trajectory import Trajectory, look_at
+from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import GaussianModel
 from spikegs.point_cloud import POINTS, read_points, seen_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
-from spikegs.poses_cli import _complete_meta, _keep_timestamps, _registered_timestamps
-from spikegs.sfm import Reconstruction, align, reconstruct, spike_images
+from spikegs.poses_cli import (
+    _complete_meta,
+    _image_readouts,
+    _keep_timestamps,
+    _pose_report,
+    _registered_timestamps,
+)
+from spikegs.sfm import Reconstruction, align, reconstruct, similarity, spike_images
 from spikegs.sh import C0
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
@@ -463,3 +469,114 @@ def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_pat
     check_output(tmp_path, overwrite=True)  # the .bak is a dataset's part: simulate replaces it
     with pytest.raises(ValueError, match=r"no training timestamp .* readouts \[400, 420\]"):
         _registered_timestamps(tmp_path, np.array([400, 420]))
+
+
+def test_similarity_never_mirrors_the_world():
+    """Centres mirrored in z (spread mostly along z) with agreeing orientations: the SVD's best
+    orthogonal fit is the mirror diag(1, 1, -1); the fit must still be a rotation (det +1; the
+    determinant guard dropped returned det -1, a mirrored world, with a positive scale)."""
+    rng = np.random.default_rng(0)
+    known = rng.normal(size=(30, 3)) * [1.0, 1.0, 4.0]
+    eye = np.tile(np.eye(3), (30, 1, 1))
+    _, rotation, _ = similarity(known * [1.0, 1.0, -1.0], eye, known, eye)
+    np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), atol=1e-9)
+    assert np.linalg.det(rotation) == pytest.approx(1.0)
+
+
+def test_similarity_recovers_an_exact_similarity():
+    """Noise-free cameras in a world scaled by 0.5, turned and moved: the fit is its inverse."""
+    rng = np.random.default_rng(1)
+    known = rng.normal(size=(12, 3))
+    known_rot = Rotation.random(12, random_state=2).as_matrix()
+    turn = Rotation.from_euler("xyz", [30, -50, 80], degrees=True).as_matrix()
+    src = 0.5 * known @ turn.T + [1.0, -2.0, 0.5]
+    src_rot = turn @ known_rot
+    scale, rotation, shift = similarity(src, src_rot, known, known_rot)
+    assert scale == pytest.approx(2.0)
+    np.testing.assert_allclose(rotation, turn.T, atol=1e-9)
+    np.testing.assert_allclose(scale * src @ rotation.T + shift, known, atol=1e-9)
+
+
+def test_aligned_reconstruction_moves_its_points_with_its_cameras():
+    """A reconstruction in a frame scaled by 0.5, turned and moved from the trajectory's: after
+    `align` its points are back in the trajectory's world (where points3d.ply places the first
+    Gaussians) and project to the same pixels as before (a cloud left unshifted passed every
+    test: up to 4.3 world units off here), and its trajectory spans readouts 0..num-1."""
+    rng = np.random.default_rng(3)
+    angles = np.radians(np.linspace(0, 90, 10))
+    eyes = 3 * np.stack([np.cos(angles), np.sin(angles), 0.5 * np.ones(10)], -1)
+    truth = np.stack([look_at(e, [0.0, 0.0, 0.0]) for e in eyes])  # [10, 4, 4]
+    readouts = np.arange(10.0) * 10 + 5
+    points = rng.uniform(-0.5, 0.5, (50, 3))
+    turn = Rotation.from_euler("xyz", [30, -50, 80], degrees=True).as_matrix()
+    world = np.eye(4)
+    world[:3, :3], world[:3, 3] = 0.5 * turn, [1.0, -2.0, 0.5]  # SfM's X = world @ X_true
+    sfm_c2w = world @ np.linalg.inv(truth)
+    sfm_c2w[:, :3, :3] /= 0.5
+    recon = Reconstruction(
+        readouts,
+        np.linalg.inv(sfm_c2w),
+        np.diag([50.0, 50.0, 1.0]),
+        points @ world[:3, :3].T + world[:3, 3],
+        None,
+        10,
+    )
+    aligned = align(recon, Trajectory(readouts, truth))
+    np.testing.assert_allclose(aligned.points, points, atol=1e-9)
+    np.testing.assert_allclose(aligned.viewmats, truth, atol=1e-9)
+    before, _ = project_points(recon.points, recon.viewmats, recon.K)
+    after, _ = project_points(aligned.points, aligned.viewmats, recon.K)
+    np.testing.assert_allclose(after, before, atol=1e-6)
+    trajectory = aligned.trajectory(120)
+    assert (trajectory.start, trajectory.end) == (0.0, 119.0)
+
+
+def test_scene_bounds_from_points_are_robust_to_outliers():
+    """198 points uniform in the unit ball around (2, 0, 0) and 2 stray points 50 away: the scene
+    centre is their median (within 0.1 of (2, 0, 0); the mean was 0.46 off) and the radius the 95th
+    percentile of the distances (0.99 here, against 0.76 at the 50th)."""
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(198, 3))
+    ball = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.random((198, 1)) ** (1 / 3)
+    points = np.concatenate([ball + [2.0, 0, 0], [[52.0, 0, 0], [52.0, 0.5, 0]]])
+    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
+    meta = {"width": 64, "height": 64}
+    _complete_meta(meta, recon, estimated=False)
+    np.testing.assert_allclose(meta["scene_center"], [2.0, 0, 0], atol=0.1)
+    assert 0.93 < meta["scene_radius"] < 1.05, meta["scene_radius"]
+
+
+def test_pose_report_gives_centre_errors_in_scene_radii():
+    """Cameras 0.1 world units off their reference in a scene of radius 2: a centre error of 0.05
+    radii, as the report's message prints it (a percentage of the radius); unscaled world units
+    passed every test (the suite's scenes have radius ~1)."""
+    eyes = [(3.0, 0.0, 1.0), (0.0, 3.0, 1.0), (-3.0, 0.0, 1.0)]
+    truth = np.stack([look_at(e, (0, 0, 0)) for e in eyes])
+    moved = np.stack([look_at(np.add(e, (0, 0, 0.1)), (0, 0, 0.1)) for e in eyes])
+    recon = Reconstruction(np.array([0.0, 1, 2]), moved, np.eye(3), np.zeros((0, 3)), None, 3)
+    report = _pose_report(recon, Trajectory(np.array([0.0, 1, 2]), truth), radius=2.0)
+    assert report["centre_error_median"] == pytest.approx(0.05)
+    assert report["rotation_error_deg_max"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_corrections_translation_is_in_units_of_the_scene_radius():
+    """A correction of 0.1 along x, in a scene of radius 2, moves the camera-side translation by
+    0.2 world units (the module's stated unit; world units passed every test): one learning
+    rate then suits rotations and translations whatever the scene's size."""
+    refiner = PoseRefiner(num_views=2, scene_radius=2.0)
+    with torch.no_grad():
+        refiner.corrections[1] = torch.tensor([0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    viewmat = torch.eye(4)
+    viewmat[:3, 3] = torch.tensor([0.5, -0.25, 3.0])
+    np.testing.assert_allclose(refiner(viewmat, 0).detach().numpy(), viewmat.numpy(), atol=1e-7)
+    moved = refiner(viewmat, 1).detach().numpy()
+    np.testing.assert_allclose(moved[:3, 3] - viewmat[:3, 3].numpy(), [0.2, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(moved[:3, :3], np.eye(3), atol=1e-7)
+
+
+def test_image_readouts_reach_both_ends_of_the_stream():
+    """Windows of 33 in 100 readouts are centred on 16..83: --every 1 takes all 68, --count 3 the
+    two ends and the middle (an --every range that stopped one short passed every test)."""
+    assert _image_readouts(100, 33, 1, 0).tolist() == list(range(16, 84))
+    assert _image_readouts(100, 33, None, 3).tolist() == [16, 50, 83]
+    assert _image_readouts(100, 33, 10, 0).tolist() == [16, 26, 36, 46, 56, 66, 76]

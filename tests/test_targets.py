@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import torch
@@ -11,7 +13,14 @@ from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
 from spikegs.sim_train import infer_sim
-from spikegs.targets import build_targets, check_targets, intensity_scale, sim_path, trained_sim
+from spikegs.targets import (
+    build_targets,
+    check_targets,
+    intensity_scale,
+    sample_timestamps,
+    sim_path,
+    trained_sim,
+)
 from spikegs.train import Trainer
 
 SIM_FAST = {"sim": {"iterations": 5, "crop": 16, "batch": 2}}
@@ -206,3 +215,50 @@ def test_image_scale_states_the_calibration_and_must_agree(dataset):
         intensity_scale(with_meta({**no_rate, "image_scale": 0}))
     with pytest.raises(ValueError, match="rate_at_one 0.25 and image_scale 0.3: .* differ"):
         intensity_scale(with_meta({**dataset.meta, "image_scale": 0.3}))
+
+
+def test_the_view_sample_spans_16_to_31_timestamps_over_the_stream():
+    """Every (M // 16)-th training timestamp, first to last: 16 to 31 of them (every M // 8-th,
+    8 to 15, passed every test)."""
+    for m in (16, 31, 32, 278, 1000):
+        ts = sample_timestamps(SimpleNamespace(train_timestamps=list(range(m))))
+        assert 16 <= len(ts) <= 32 and ts[0] == 0 and ts[-1] >= m - m // 16, (m, len(ts))
+
+
+def test_the_exposure_target_is_tfp_of_the_exposure_window(dataset):
+    """exposure_window 65 with a 33-readout instant TFP: the exposure target counts 65 readouts
+    (every method's default has both at 33, where taking the instant window passed every test)."""
+    config = load_config("tfp33", {"supervision": {"exposure_weight": 1.0, "exposure_window": 65}})
+    targets = build_targets(dataset, config, progress=False)
+    ts, scale = np.asarray(dataset.train_timestamps), intensity_scale(dataset)
+    i = len(ts) // 2
+    expected = dataset.streams[0].tfp(ts[i : i + 1], 65)[0, ..., None] / scale
+    np.testing.assert_allclose(targets.exposure[i].numpy(), expected, atol=1e-7)
+    assert targets.exposure.quantum == pytest.approx(1 / (65 * scale))
+
+
+def test_a_window_past_the_streams_end_is_refused(dataset):
+    """One training timestamp 33 readouts before the stream's end (readout len - 1 is its last):
+    a 65-readout window fits, 67 does not (room counted to len, not len - 1, accepted 67, whose
+    TFP reads past the stream)."""
+    last = len(dataset.streams[0]) - 33
+    late = Dataset(
+        dataset.root,
+        dataset.meta,
+        dataset.streams,
+        dataset.trajectory,
+        np.array([last]),
+        dataset.test_views,
+    )
+    build_targets(late, load_config("tfp65"), progress=False)
+    with pytest.raises(ValueError, match="at most 65"):
+        build_targets(late, load_config("tfp33", {"supervision": {"instant_window": 67}}), False)
+
+
+def test_a_sim_with_a_shorter_target_window_has_that_windows_quantum(dataset):
+    """SIM over 33 readouts trained to estimate TFP of the central 17 (sim.target_window): its
+    images count 17-readout spikes, so smooth L1's zone is 1/17 (no shipped config sets a
+    target_window, and the input window's 1/33 passed every test)."""
+    sim = {"iterations": 5, "crop": 16, "batch": 2, "window": 33, "target_window": 17}
+    targets = build_targets(dataset, load_config("spikegs", {"sim": sim}), progress=False)
+    assert targets.instant.quantum == pytest.approx(1 / (17 * intensity_scale(dataset)))
