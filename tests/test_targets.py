@@ -19,6 +19,7 @@ from spikegs.targets import (
     intensity_scale,
     sample_timestamps,
     sim_path,
+    tfp_sample,
     trained_sim,
 )
 from spikegs.train import Trainer
@@ -215,6 +216,11 @@ def test_image_scale_states_the_calibration_and_must_agree(dataset):
         intensity_scale(with_meta({**no_rate, "image_scale": 0}))
     with pytest.raises(ValueError, match="rate_at_one 0.25 and image_scale 0.3: .* differ"):
         intensity_scale(with_meta({**dataset.meta, "image_scale": 0.3}))
+    # neither: TFP(33)'s 99.5th percentile over the view sample, the brightest light it saw (the
+    # 90th, which passed every test, is 0.09 here against the true 0.25)
+    guess = intensity_scale(with_meta(no_rate))
+    assert guess == pytest.approx(np.percentile(tfp_sample(dataset)[1], 99.5))
+    assert 0.5 * dataset.meta["sim"]["rate_at_one"] < guess <= 1
 
 
 def test_the_view_sample_spans_16_to_31_timestamps_over_the_stream():
