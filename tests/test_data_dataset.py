@@ -19,7 +19,8 @@ from spikegs.data import (
     load_dataset,
     simulate_dataset,
 )
-from spikegs.data.dataset import check_meta_values
+from spikegs.data.dataset import TestView as View
+from spikegs.data.dataset import check_meta_values, write_parts
 from spikegs.data.sources import camera_matrix, intrinsics
 from spikegs.data.trajectory import look_at
 from spikegs.spikes.stream import save_dat
@@ -581,3 +582,67 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
     check_meta_values(meta, tmp_path / "meta.json", ["cx", "cy"])
     with pytest.raises(ValueError, match="cx 1200.0 puts the image centre 71° off"):
         check_meta_values({**meta, "cx": 1200.0}, tmp_path / "meta.json", ["cx"])
+
+
+# a dataset written by hand (no simulation): readouts, rows, columns
+T, H, W = 100, 6, 8
+
+
+def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=None):
+    """A mono dataset of T readouts (no spike), two poses at `readouts`, training `timestamps`,
+    one held-out view (off the path, or on it at `view_readout`)."""
+    root.mkdir(parents=True, exist_ok=True)
+    poses = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0.0, 3.0, 1.0], [0, 0, 0])])
+    meta = {
+        "format_version": 1,
+        "height": H,
+        "width": W,
+        "channels": 1,
+        "num_readouts": T,
+        "flip": True,
+        "fx": 8.0,
+        "fy": 8.0,
+        "cx": W / 2,
+        "cy": H / 2,
+        "scene_center": [0.0, 0.0, 0.0],
+        "scene_radius": 1.0,
+        "image_scale": 0.25,
+    }
+    view = View("v", poses[0], np.full((H, W, 1), 0.1, np.float32), view_readout)
+    write_parts(root, meta, Trajectory(np.array(readouts), poses), np.array(timestamps), [view])
+    save_dat(root / "spikes.dat", np.zeros((T, H, W), np.uint8))
+    return root
+
+
+def test_the_tiny_dataset_loads(tmp_path):
+    ds = load_dataset(write_tiny(tmp_path / "d", timestamps=(32, T - 33)))
+    assert ds.train_timestamps.tolist() == [32, T - 33]
+
+
+def test_a_timestamp_whose_65_readout_window_leaves_the_stream_is_refused(tmp_path):
+    """Readout T - 32's window [T - 64, T] reaches one readout past the end: refused on load
+    (an upper bound of T - 32 accepted it; the stream then refuses TFP(65) at 68, mid-training)."""
+    with pytest.raises(ValueError, match=r"expected timestamps within \[32, 67\].*\[68\]"):
+        load_dataset(write_tiny(tmp_path / "d", timestamps=(40, T - 32)))
+
+
+def test_poses_that_stop_a_readout_short_of_the_end_are_refused(tmp_path):
+    """trajectory.json must cover [0, T - 1]: poses ending at T - 2 leave the last readout
+    without a pose (pose_at(T - 1) raises); refused on load."""
+    with pytest.raises(ValueError, match=r"poses cover readouts \[0.0, 98.0\], expected \[0, 99\]"):
+        load_dataset(write_tiny(tmp_path / "d", readouts=(0.0, T - 2.0)))
+
+
+def test_an_on_path_view_past_the_last_readout_is_refused(tmp_path):
+    """A held-out view at readout T (one past the last) is outside the stream: refused."""
+    with pytest.raises(ValueError, match=r"at readout 100.0, outside the stream's \[0, 99\]"):
+        load_dataset(write_tiny(tmp_path / "d", view_readout=float(T)))
+
+
+def test_camera_files_state_width_and_height_as_nerfstudio_reads_them(tmp_path):
+    """trajectory.json and test_views.json carry the camera in nerfstudio's keys: w the width
+    (8 here), h the height (6); swapped, every tool that reads them sized the images 6 wide."""
+    root = write_tiny(tmp_path / "d")
+    for name in ("trajectory.json", "test_views.json"):
+        doc = json.loads((root / name).read_text())
+        assert (doc["w"], doc["h"], doc["cx"], doc["cy"]) == (W, H, W / 2, H / 2)

@@ -12,14 +12,23 @@ import warnings
 
 import numpy as np
 import pytest
+from spikegs import SpikeStream
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
-from spikegs.data.llff import llff_sphere, to_poses_bounds, viewmats_from_llff
-from spikegs.data.real import warn_pose_gaps
-from spikegs.data.real_options import read_options
+from spikegs.data.llff import llff_intrinsics, llff_sphere, to_poses_bounds, viewmats_from_llff
+from spikegs.data.real import (
+    check_orientation,
+    held_out_mask,
+    rate_from_images,
+    stream_dataset,
+    view_tfps,
+    warn_pose_gaps,
+)
+from spikegs.data.real_options import Options, read_options
 from spikegs.data.sources import OPENGL_TO_OPENCV
 from spikegs.data.trajectory import Trajectory, look_at
+from spikegs.data.view_stream import ViewStreams
 from spikegs.evaluate import evaluate_run
 from spikegs.image_io import read_image, write_image
 from spikegs.sim_train import evaluate_dataset, train_sim
@@ -1017,3 +1026,128 @@ def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
     edit_json(root / "transforms_train.json", add_twin)
     with pytest.raises(ValueError, match=r"expected unique, found twice: \['train_r_3'\]"):
         load_dataset(root)
+
+
+def test_llff_intrinsics_scale_with_the_spikes_frame_size():
+    """hwf (64, 96, focal 80) for spikes of 32x48 (half the poses' images): K is hwf's halved,
+    fx = fy = 40, cx = 24, cy = 16 (an unscaled fx read 80, a cy of hwf's h / 2 read 32)."""
+    K, height, width = llff_intrinsics(
+        np.array([64.0, 96.0, 80.0]), Options(height=32, width=48), "x"
+    )
+    assert (height, width) == (32, 48)
+    np.testing.assert_allclose(K, [[40, 0, 24], [0, 40, 16], [0, 0, 1]])
+
+
+def test_llff_intrinsics_of_a_raw_row_crop_keep_the_focal_and_shift_cx():
+    """hwf for the 64 stored pixels of a row, spikes its 48 columns from col_offset 8: the focal
+    stays 50, cx = 64 / 2 - 8 = 24, cy = 16."""
+    options = Options(height=32, width=48, raw_width=64, col_offset=8)
+    K, _, _ = llff_intrinsics(np.array([32.0, 64.0, 50.0]), options, "x")
+    np.testing.assert_allclose(K, [[50, 0, 24], [0, 50, 16], [0, 0, 1]])
+
+
+def stream_of(bits) -> SpikeStream:
+    """A stream of these bits [T, H, W], in memory."""
+    bits = np.asarray(bits, np.uint8)
+    return SpikeStream.from_packed(
+        np.packbits(bits, axis=-1, bitorder="little"), bits.shape[1], bits.shape[2]
+    )
+
+
+def test_llff_holds_out_every_8th_view_from_view_0():
+    """LLFF's convention: views 0, 8, 16, ... (a mask from 1 held out 1, 9 instead)."""
+    assert np.flatnonzero(held_out_mask(17, None, "x")).tolist() == [0, 8, 16]
+    assert np.flatnonzero(held_out_mask(5, [1, 3], "x")).tolist() == [1, 3]
+
+
+def test_view_tfp_spans_the_whole_odd_view():
+    """A view's TFP (intensity calibration, and the pseudo ground truth's default window) spans
+    all of an odd-length view, and all but one readout of an even one: spikes only at a 5-readout
+    view's first and last readouts read 2/5 (a window of 3 read 0)."""
+    bits = np.zeros((5, 2, 8), np.uint8)
+    bits[[0, 4]] = 1
+    ((tfp, _),) = view_tfps([(stream_of(bits), None)])
+    np.testing.assert_allclose(tfp, 0.4)
+    bits6 = np.zeros((6, 2, 8), np.uint8)
+    bits6[[1, 5]] = 1  # the 5 readouts [1, 6) centred on 3
+    ((tfp6, _),) = view_tfps([(stream_of(bits6), None)])
+    np.testing.assert_allclose(tfp6, 0.4)
+
+
+def test_intensity_calibration_is_the_median_over_views():
+    """rate_from_images: the median of the views' rate / intensity ratios, so one wrong image
+    (another view's, five times darker) does not move it: 0.25 (the mean read 0.583)."""
+    image = np.linspace(0.2, 1.0, 48, dtype=np.float32).reshape(6, 8, 1)
+    views = [(0.25 * image[..., 0], image), (0.25 * image[..., 0], image)]
+    views.append((0.25 * image[..., 0], image / 5))  # a wrong, darker image: ratio 1.25
+    assert rate_from_images(views, "x") == pytest.approx(0.25)
+
+
+def test_spikes_upside_down_against_their_images_warn_of_flip():
+    """check_orientation compares each TFP with its image turned upside down (rows reversed):
+    spikes read with the wrong flip warn, spikes mirrored left-right do not (comparing with the
+    image mirrored left-right instead missed the upside-down case)."""
+    rows, cols = np.mgrid[0:12, 0:16].astype(np.float32)
+    image = (rows / 11 + 0.3 * (cols > 10))[..., None]  # dark top, bright bottom, a right stripe
+    upside_down = [(image[::-1, :, 0] * 0.25, image)] * 3
+    with pytest.warns(UserWarning, match="better upside down"):
+        check_orientation(upside_down, True, "x")
+    mirrored = [(image[:, ::-1, 0] * 0.25, image)] * 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_orientation(mirrored, True, "x")
+
+
+def test_view_streams_put_a_views_first_readout_in_that_view():
+    """Views of 3 and 4 readouts: readout 3 is view 1's first (not view 0's), TFP(1) there reads
+    view 1's spikes, and the held trajectory gives readout 3 view 1's pose (the last readout of
+    view 0 is 2; holding view 0 to readout 3 gave readout 3 view 0's pose)."""
+    a = np.zeros((3, 2, 8), np.uint8)
+    b = np.ones((4, 2, 8), np.uint8)
+    views = ViewStreams([stream_of(a), stream_of(b)], ["a", "b"])
+    assert views.view_of(np.array([0, 2, 3, 6])).tolist() == [0, 0, 1, 1]
+    np.testing.assert_array_equal(views.tfp(3, 1), 1.0)
+    np.testing.assert_array_equal(views.tfp(2, 1), 0.0)
+    poses = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0.0, 3.0, 1.0], [0, 0, 0])])
+    trajectory = views.held_trajectory(poses, "x")
+    assert trajectory.readouts.tolist() == [0, 2, 3, 6]
+    np.testing.assert_allclose(trajectory.pose_at(3.0), poses[1], atol=1e-12)
+    np.testing.assert_allclose(trajectory.pose_at(2.0), poses[0], atol=1e-12)
+
+
+def test_a_held_out_pose_whose_window_just_fits_is_scored(tmp_path):
+    """One stream of 200 readouts, poses at 0, 32, 100, 167, 199, the ones at 32 and 167 held
+    out: TFP(65) centred there covers [0, 65) and [135, 200), inside the stream, so both are
+    scored (pseudo ground truth); a strict bound dropped both and refused the dataset."""
+    T, H, W = 200, 4, 8
+    bits = (np.random.default_rng(0).random((T, H, W)) < 0.3).astype(np.uint8)
+    save_dat(tmp_path / "spikes.dat", bits)
+    stream = SpikeStream.open(tmp_path / "spikes.dat", H, W)
+    readouts = np.array([0.0, 32.0, 100.0, 167.0, 199.0])
+    angles = np.radians(readouts / 4)
+    viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
+    meta = {
+        "height": H,
+        "width": W,
+        "channels": 1,
+        "fx": 8.0,
+        "fy": 8.0,
+        "cx": 4.0,
+        "cy": 2.0,
+        "scene_center": [0.0, 0.0, 0.0],
+        "scene_radius": 1.0,
+    }
+    test = np.array([False, True, False, True, False])
+    ds = stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+    assert [v.name for v in ds.test_views] == ["pseudo_view_001", "pseudo_view_003"]
+    np.testing.assert_allclose(ds.test_views[0].image[..., 0], stream.tfp(32, 65))
+
+
+def test_a_window_one_readout_into_the_next_view_names_the_view():
+    """A window of 3 centred on readout 2 (view 0's last) reaches readout 3, view 1's first: the
+    view streams refuse it themselves, naming the view (a bound one readout loose left it to the
+    view's own stream, whose message speaks of its local readouts)."""
+    views = ViewStreams([stream_of(np.zeros((3, 2, 8))), stream_of(np.ones((4, 2, 8)))], ["a", "b"])
+    np.testing.assert_array_equal(views.tfp(1, 3), 0.0)  # [0, 3): inside view a
+    with pytest.raises(ValueError, match=r"covers \[1, 4\), outside view 'a' at readouts \[0, 3\)"):
+        views.tfp(2, 3)

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 from spikegs.data import Trajectory
 from spikegs.data.trajectory import (
+    CONVENTION,
     check_rigid,
     look_at,
     pixels_in_view,
     project_points,
+    read_camera_doc,
     rigid_c2w,
 )
 
@@ -239,11 +242,39 @@ def test_project_points_pinhole():
     assert np.isnan(pixels[:, 2:]).all() and np.array_equal(pixels[0], pixels[1], equal_nan=True)
 
 
-def test_a_point_lands_in_the_pixel_that_contains_its_projection():
-    """Pixel centres at +0.5: a projection at (4.7, 2.6) lies in column 4, row 2 (rounding took
-    column 5, row 3, and passed every test)."""
-    viewmat = look_at((0.0, -5.0, 0.0), (0.0, 0.0, 0.0))  # camera x = world x, y = world -z
-    K = np.array([[5.0, 0.0, 4.0], [0.0, 5.0, 2.0], [0.0, 0.0, 1.0]])
-    point = np.array([[0.7, 0.0, -0.6]])  # x/z·f + cx = 4.7, y/z·f + cy = 2.6
-    u, v, inside = pixels_in_view(point, viewmat[None], K, 8, 4)
-    assert (u[0, 0], v[0, 0], inside[0, 0]) == (4.0, 2.0, True)
+def test_pixels_in_view_floors_to_the_pixel_holding_the_point():
+    """OpenCV pixel centres at +0.5: a point projected at u = 3.7 lies in pixel column 3, one at
+    u = -0.3 left of the image and one at u = width + 0.5 right of it (round() put the first in
+    column 4 and the second in column 0; `u <= width` counted the third as inside)."""
+    K = np.array([[10.0, 0.0, 0.0], [0.0, 10.0, 0.0], [0.0, 0.0, 1.0]])  # pixel = 10 * x / z
+    width, height = 8, 6
+    # at depth 1, pixel (u, v) = (10 x, 10 y)
+    points = np.array(
+        [
+            [0.37, 0.22, 1.0],  # (3.7, 2.2): pixel (3, 2)
+            [-0.03, 0.22, 1.0],  # u = -0.3: outside (left)
+            [0.85, 0.22, 1.0],  # u = 8.5 = width + 0.5: outside (right)
+            [0.797, 0.597, 1.0],  # (7.97, 5.97): the last pixel (7, 5), inside
+            [0.37, 0.22, -1.0],  # behind the camera
+        ]
+    )
+    u, v, inside = pixels_in_view(points, np.eye(4)[None], K, width, height)
+    assert (u[0, 0], v[0, 0]) == (3.0, 2.0)
+    assert (u[0, 3], v[0, 3]) == (7.0, 5.0)
+    assert inside[0].tolist() == [True, False, False, True, False]
+
+
+def test_a_camera_file_stating_another_focal_by_one_percent_warns(tmp_path):
+    """read_camera_doc warns where trajectory.json / test_views.json state a camera 1 % off the
+    dataset's (a wrong file edited); rounding (1e-3 relative) passes. A tolerance of 10 % let
+    the 1 % one through silently."""
+    path = tmp_path / "trajectory.json"
+    doc = {"convention": CONVENTION, "fl_x": 101.0, "cx": 32.02, "frames": []}
+    path.write_text(json.dumps(doc))
+    with pytest.warns(UserWarning, match="fl_x 101.0"):
+        read_camera_doc(path, {"fl_x": 100.0, "cx": 32.0})
+    doc["fl_x"] = 100.04  # rounding: silent
+    path.write_text(json.dumps(doc))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_camera_doc(path, {"fl_x": 100.0, "cx": 32.0})

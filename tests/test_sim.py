@@ -465,6 +465,20 @@ def test_metrics():
             ssim(gt[: shape[0], : shape[1]], gt[: shape[0], : shape[1]])
 
 
+def test_ssim_uses_a_7x7_window_and_shrinks_it_only_for_small_images():
+    """The reported SSIM is scikit-image's with a 7x7 window on images of 7 px or more a side,
+    the largest odd window on smaller ones (5 on a 5x12 image). A fixed 3x3 window moved this
+    pair's score from 0.8232 to 0.7957."""
+    rng = np.random.default_rng(0)
+    gt = rng.random((16, 16, 3))
+    pred = np.clip(gt + 0.2 * rng.standard_normal(gt.shape), 0, 1)
+    want = structural_similarity(gt, pred, data_range=1.0, channel_axis=-1, win_size=7)
+    assert ssim(pred, gt) == pytest.approx(want, abs=1e-12)
+    small_gt, small_pred = gt[:5, :12, 0], pred[:5, :12, 0]
+    want = structural_similarity(small_gt, small_pred, data_range=1.0, win_size=5)
+    assert ssim(small_pred, small_gt) == pytest.approx(want, abs=1e-12)
+
+
 def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():
     """A flat scene firing 0.1 spikes/readout, 9-readout windows: the count is mostly 0 or 1, so
     the L1 optimum (a median, 0 or 1/9) misses the rate that the L2 optimum (the mean) finds."""

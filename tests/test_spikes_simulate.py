@@ -274,3 +274,14 @@ def test_a_threshold_of_a_few_photo_electrons_warns():
     for threshold in (1e38, 1e-46, 1e-4):  # float voltages overflowed, or the threshold was 0:
         with pytest.raises(ValueError, match="threshold expected in \\[0.001, 1e30\\]"):
             SimParams(threshold=threshold)  # every readout fired
+
+
+def test_frames_without_times_span_readouts_0_to_the_last():
+    """Frames without frame_times are spread evenly over readouts [0, T - 1]: the same spikes,
+    bit for bit, as frame_times [0, T - 1] given (spread over [0, T] the ramp reached 1 a readout
+    late: 346 of the 800 packed bytes differ here)."""
+    ramp = np.stack([np.zeros((8, 16)), np.ones((8, 16))]).astype(np.float32)
+    params = SimParams(dark_rate=0.0)
+    got = simulate_spikes(ramp, 50, seed=4, params=params)
+    want = simulate_spikes(ramp, 50, frame_times=[0.0, 49.0], seed=4, params=params)
+    np.testing.assert_array_equal(got, want)

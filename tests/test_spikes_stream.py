@@ -329,3 +329,13 @@ def test_bad_shapes_refused(tmp_path):
         SpikeStream.open(path, 4, 16, raw_width=0)  # the core's sentinel for "= width"
     with pytest.raises(ValueError, match="width: expected an int, found 13.0"):
         SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13.0)
+
+
+def test_from_packed_defaults_to_the_full_packed_width():
+    """from_packed(packed) without height/width: every bit of the last byte is a column
+    (width 8 * last dim); a default one short dropped the last column of every frame."""
+    bits = np.zeros((3, 2, 16), np.uint8)
+    bits[:, :, -1] = 1  # the last column fires every readout
+    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"))
+    assert (s.height, s.width) == (2, 16)
+    np.testing.assert_array_equal(s.window(1, 3), bits)

@@ -648,6 +648,19 @@ def test_ply_edge_cases(tmp_path):
             load_ply(tmp_path / "o.ply")
 
 
+def test_a_ply_without_a_background_comment_loads_on_black(tmp_path):
+    """Another tool's 3DGS .ply (no `spikegs background` comment) renders on black, as 3DGS's
+    viewers do (a default of ones put it on white)."""
+    names = ["x", "y", "z", "opacity", *(f"scale_{i}" for i in range(3))]
+    names += [f"rot_{i}" for i in range(4)] + [f"f_dc_{i}" for i in range(3)]
+    vertex = np.zeros(2, dtype=[(n, "f4") for n in names])
+    vertex["rot_0"] = 1.0
+    path = tmp_path / "other.ply"
+    PlyData([PlyElement.describe(vertex, "vertex")]).write(str(path))
+    model = load_ply(path)
+    assert model.background.tolist() == [0.0, 0.0, 0.0]
+
+
 def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     """SH degree 4 built and failed at render; a NaN background was saved in a file that load_ply
     refused; a degree raised after construction failed save_ply with a numpy broadcast error."""
