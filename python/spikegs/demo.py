@@ -47,12 +47,7 @@ DEMO_OVERRIDES = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=Path("spikegs-demo"),
-        help="output folder",
-    )
+    parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
     parser.add_argument(
         "--scene",
         choices=sorted(SCENES),
