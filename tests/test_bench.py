@@ -42,8 +42,8 @@ def test_sim_train_step_rows_time_the_same_gradients():
     rows = sim._train_step_rows(SIM(), batch=2, crop=16, repeats=1)
     assert [r["variant"] for r in rows] == [
         "train step rotated pairs (literal), channels-first",
-        "train step rotated pairs (literal), channels-last",
-        "train step canvas, channels-last",
+        "train step per-branch, channels-first",
+        "train step per-branch, channels-last",
     ]
     for row in rows:
         assert row["seconds"] > 0 and row["grad_err"] < 1e-4, row

@@ -161,7 +161,7 @@ def test_blind_spot_is_exact(path, pixel):
 
 @pytest.mark.parametrize("size", [(1, 1), (7, 5), (13, 32)])
 def test_training_path_matches_inference_and_the_rotated_gradients(size):
-    """SIM trains through `forward_rotated` and infers through the canvas: the canvas gives the
+    """SIM trains through `forward_rotated` and infers through `forward`: `forward` gives the
     same values with and without autograd, and the literal network's weight gradients."""
     torch.manual_seed(2)
     model = _random_sim().train()

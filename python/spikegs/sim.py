@@ -5,13 +5,13 @@ convolutions (receptive field only at or above the pixel) and a final one-row sh
 itself excluded in every time channel); the un-rotated branches are merged by `n` 1×1 convolutions.
 
 `SIM.forward` computes the same function without rotating any data: a convolution of a rotated
-input equals the rotation of a convolution with the rotated kernel, so the four branches become
-four channel groups of one (grouped) convolution on a zero-framed canvas of the unrotated window;
-each group's map drifts one pixel towards its side per layer and is zeroed outside its region
-(its zero padding). Any H×W works, with no square padding, no transposes and no per-layer copies.
+input equals the rotation of a convolution with the rotated kernel, so each branch runs dense
+convolutions with its rotated kernels on the unrotated window, zero-padded on its own side only.
+Any H×W works, with no square padding and no transposes. (One grouped convolution of the four
+branches on a shared zero-framed canvas, the form before, ran 1.2-1.4× slower on an AVX2 CPU:
+oneDNN's grouped kernels reach less of the FMA units than its dense ones, BENCHMARKS.md, "SIM".)
 `SIM.forward_rotated` is the literal rotate-the-data formulation, the reference the fast path is
-tested against; SIM training steps through it (its backward is faster than the grouped
-convolutions' on training crops), inference through the canvas.
+tested against.
 """
 
 from __future__ import annotations
@@ -27,27 +27,22 @@ _SLOPE = 0.1  # leaky ReLU slope
 START = "zero-output"  # how a fresh SIM starts (a SIM cached from another start is retrained)
 
 
-def _region(k: int, steps: int, pad: int) -> tuple[int, int]:
-    """Top-left corner in the canvas of branch k's H×W feature map after `steps` one-pixel moves."""
-    return pad + steps * _DIRS[k][0], pad + steps * _DIRS[k][1]
+def _side_pad(k: int, near: int, across: int) -> tuple[int, int, int, int]:
+    """F.pad's (left, right, top, bottom) for branch k: `near` pixels on the side it looks
+    towards, none opposite, `across` on either side across."""
+    dr, dc = _DIRS[k]
+    top, bottom = (near, 0) if dr < 0 else (0, near) if dr > 0 else (across, across)
+    left, right = (near, 0) if dc < 0 else (0, near) if dc > 0 else (across, across)
+    return left, right, top, bottom
 
 
-def _clear_outside(y: torch.Tensor, steps: int, pad: int) -> None:
-    """Zero, in place, each channel group of the canvas y [B, 4C, H+2p, W+2p] outside its region."""
-    h, w = y.shape[-2] - 2 * pad, y.shape[-1] - 2 * pad
-    c = y.shape[1] // 4
-    for k in range(4):
-        g = y.narrow(1, k * c, c)
-        r0, c0 = _region(k, steps, pad)
-        g[..., :r0, :].zero_()
-        g[..., r0 + h :, :].zero_()
-        g[..., :, :c0].zero_()
-        g[..., :, c0 + w :].zero_()
-
-
-def _shift_down(y: torch.Tensor) -> torch.Tensor:
-    """Move `y` [B, C, H, W] down by one row, zeros entering at the top."""
-    return F.pad(y, (0, 0, 1, 0))[..., :-1, :]
+def _shift_from_side(y: torch.Tensor, k: int) -> torch.Tensor:
+    """Each pixel of `y` [B, C, H, W] takes its neighbour's value on branch k's side (zeros past
+    the image): the blind spot, in the unrotated frame."""
+    h, w = y.shape[-2:]
+    dr, dc = _DIRS[k]
+    r0, c0 = int(dr > 0), int(dc > 0)
+    return F.pad(y, _side_pad(k, 1, 0))[..., r0 : r0 + h, c0 : c0 + w]
 
 
 class SIM(nn.Module):
@@ -139,23 +134,15 @@ class SIM(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format."""
         self.check_input(x)
-        # Branch k's map moves one pixel towards its side per shift conv, and once more for the
-        # blind spot; all four live on one zero-framed canvas wide enough for that drift.
-        pad = len(self.shift) + 1
-        y = F.pad(x, (pad, pad, pad, pad))  # [B, T, H+2p, W+2p]
-        for i, conv in enumerate(self.shift):
-            # branch k's kernel, seen from the unrotated frame: [4·width, C_in, 3, 3]
-            w = torch.cat([torch.rot90(conv.weight, -k, dims=(2, 3)) for k in range(4)])
-            y = F.conv2d(y, w, conv.bias.repeat(4), padding=1, groups=1 if i == 0 else 4)
-            _clear_outside(y, i + 1, pad)  # the zero padding each branch's next layer sees
-            y = F.leaky_relu(y, _SLOPE, inplace=True)  # in place: no new page-faulted canvas
-        h, w = x.shape[-2:]
-        crops = [
-            g[..., r : r + h, c : c + w]
-            for k, g in enumerate(y.chunk(4, dim=1))
-            for r, c in [_region(k, pad, pad)]  # the blind spot: one more pixel outwards
-        ]
-        return self._merge(torch.cat(crops, dim=1))  # [B, 4·width, H, W] -> [B, C, H, W]
+        branches = []
+        for k in range(4):
+            y = x
+            for conv in self.shift:  # sees the pixel's row (column) and those on side k only
+                kernel = torch.rot90(conv.weight, -k, dims=(2, 3))  # seen from the unrotated frame
+                y = F.conv2d(F.pad(y, _side_pad(k, 2, 1)), kernel, conv.bias)
+                y = F.leaky_relu(y, _SLOPE, inplace=True)
+            branches.append(_shift_from_side(y, k))
+        return self._merge(torch.cat(branches, dim=1))  # [B, 4·width, H, W] -> [B, C, H, W]
 
     def forward_rotated(self, x: torch.Tensor, square: bool = False) -> torch.Tensor:
         """The literal formulation: rotate the data, shift-convolve, un-rotate, merge.
@@ -175,7 +162,7 @@ class SIM(nn.Module):
             y = torch.cat([torch.rot90(x, k, dims=(2, 3)) for k in group])  # [len·B, T, H', W']
             for conv in self.shift:
                 y = F.leaky_relu(conv(F.pad(y, (1, 1, 2, 0))), _SLOPE)  # rows at or above only
-            y = _shift_down(y)
+            y = F.pad(y, (0, 0, 1, 0))[..., :-1, :]  # the blind spot: down one row
             for k, part in zip(group, y.chunk(len(group))):
                 branches[k] = torch.rot90(part, -k, dims=(2, 3))[..., :h, :w]
         return self._merge(torch.cat([branches[k] for k in range(4)], dim=1))

@@ -101,8 +101,8 @@ def train_sim(
     window on `solids`).
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
     default where native. Steps run the rotate-the-data network (`SIM.forward_rotated`, the same
-    function as `forward`): its backward is ~1.6× faster than the canvas's (grouped convolutions,
-    in-place border zeroing) on 64² crops (`spikegs bench sim`); the canvas is the faster inference.
+    function as `forward`, which infers): on 64² crops in float32 a step takes as long as through
+    `forward` (`spikegs bench sim`), and the SIMs trained so far are reproduced bit for bit.
     Deterministic for a given `seed` and thread count. Returns the model (eval mode) and the loss
     of every step.
     `checkpoint`: a file that holds the training state, tagged with `checkpoint_key` (what the

@@ -3,10 +3,10 @@
 Quality: SIM is trained on each built-in scene (simulated at 250×400 with the project's spike
 simulator) and compared with TFP(33), TFP(65) and TFI on the held-out on-path views. Speed: the
 straightforward SIM (square padding, four rotations stacked on the batch, channels first,
-autograd on) is the named alternative that the fast path (rotated kernels on one canvas,
-channels-last, inference mode, float32 or bfloat16) is timed against, in the same run; a float32
-training step (batch 8, 64² crops) of the literal rotated network channels-first (how SIM trains
-without native bfloat16) against it channels-last and against the canvas network.
+autograd on) is the named alternative that the fast path (each branch's rotated kernels on the
+unrotated window, channels-last, inference mode, float32 or bfloat16) is timed against, in the
+same run; a float32 training step (batch 8, 64² crops) of the literal rotate-the-data network
+channels-first (how SIM trains without native bfloat16) against the per-branch network.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
         ),
     }
     for dtype in (torch.float32, torch.bfloat16):
-        name = f"canvas {str(dtype)[6:]} (channels-last, inference)"
+        name = f"per-branch {str(dtype)[6:]} (channels-last, inference)"
         fast = inference_model(model, dtype)
         x = spikes.to(dtype).contiguous(memory_format=torch.channels_last)
         variants[name] = (fast, x, lambda m, x: m(x))
@@ -67,16 +67,16 @@ def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
 
 def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
     """Time one float32 training step (forward, L2 loss, backward) of the literal rotate-the-data
-    network channels-first (SIM's training here without native bfloat16) against it
-    channels-last and against the canvas network, on the same crops; error = max |Δ weight
-    gradient| / max |grad|."""
+    network channels-first (SIM's training without native bfloat16) against the per-branch
+    network (the inference path) channels-first and channels-last, on the same crops; error =
+    max |Δ weight gradient| / max |grad|."""
     rng = np.random.default_rng(2)
     spikes = torch.from_numpy(rng.random((batch, model.window, crop, crop)) < 0.15).float()
     target = spikes.mean(dim=1, keepdim=True)  # [B, 1, crop, crop]
     variants = (
         ("rotated pairs (literal), channels-first", "forward_rotated", training_layout(False)),
-        ("rotated pairs (literal), channels-last", "forward_rotated", torch.channels_last),
-        ("canvas, channels-last", "forward", torch.channels_last),
+        ("per-branch, channels-first", "forward", training_layout(False)),
+        ("per-branch, channels-last", "forward", torch.channels_last),
     )
     grads, rows = [], []
     for name, forward, layout in variants:
