@@ -106,13 +106,15 @@ class TrainConfig:
 class SimConfig:
     window: int = 33  # readouts SIM sees
     target_window: int = 0  # readouts at the window's centre whose TFP SIM learns (0: window)
-    # 1500 (3x the time) gained 0.4 dB a frame on moving views (solids), where motion blur
-    # dominates, and lifted its bias (a still view's mean over windows) from 30.8 dB at 300 steps
-    # to 35.4 (BENCHMARKS.md, "SIM's training length"); with the output layer starting at zero,
-    # 300 steps reach 33.1-33.9 ("What decides a 300-step SIM")
-    iterations: int = 500
+    # SIM's quality follows its number of steps more than its batch: at 256², 1000 steps of 2
+    # crops score 0.1-0.3 dB a frame above 500 steps of 8 (the default until 2026-11-28) in half
+    # the time, ~100 s against ~200 on 2 cores (BENCHMARKS.md, "SIM's steps and batch at 256²").
+    # 1500 steps of 8 lifted its bias (a still view's mean over windows) from 30.8 dB at 300 steps
+    # to 35.4 ("SIM's training length"); with the output layer starting at zero, 300 steps reach
+    # 33.1-33.9 ("What decides a 300-step SIM")
+    iterations: int = 1000
     crop: int = 64
-    batch: int = 8
+    batch: int = 2
     loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
     # shift convolutions per branch m: the blind spot sees a (2m+1)-wide block on each side. 5
     # costs ~1.4x the training; at 300 steps it moved SIM's bias by less than the seeds' spread
