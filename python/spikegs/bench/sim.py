@@ -18,13 +18,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..config import SimConfig
 from ..data import simulate_dataset
 from ..data.scenes import SCENES
 from ..sim import SIM
 from ..sim_train import evaluate_dataset, inference_model, train_sim, training_layout
 from .common import median_seconds, print_table, write_results
 
-STEPS = 500  # SIM training steps per scene: +0.4 dB more at 1500 (solids), 3× the time
+TRAINING = SimConfig()  # SIM trains as `spikegs train` trains it: steps, batch
 
 
 def _fps_rows(model, height: int, width: int, repeats: int) -> list[dict]:
@@ -103,7 +104,7 @@ def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
 def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
     """Simulate `scene`, train SIM on it, score every method: (quality rows, training, model)."""
     height, width, readouts, views = (64, 96, 400, 2) if quick else (250, 400, 1200, 4)
-    steps = 30 if quick else STEPS
+    steps = 30 if quick else TRAINING.iterations
     dataset = simulate_dataset(
         scene,
         root / scene,
@@ -115,7 +116,9 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
         progress=False,
     )
     start = time.perf_counter()
-    model, losses = train_sim(dataset.stream, dataset.train_timestamps, steps=steps, seed=0)
+    model, losses = train_sim(
+        dataset.stream, dataset.train_timestamps, steps=steps, batch_size=TRAINING.batch, seed=0
+    )
     seconds = time.perf_counter() - start
     rows = []
     for dtype in (torch.float32, torch.bfloat16):
@@ -127,6 +130,7 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
         "scene": scene,
         "size": f"{height}x{width}",
         "steps": steps,
+        "batch": TRAINING.batch,
         "seconds": seconds,
         "s_per_step": seconds / steps,
         "final_loss": float(np.mean(losses[-20:])),
