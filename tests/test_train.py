@@ -1721,6 +1721,28 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
         assert "config.yaml is missing or empty" in capsys.readouterr().err
 
 
+def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys):
+    """`spikegs train --no-progress` printed nothing until its summary (a batch job's log showed
+    no progress through minutes of training); it prints one line to stderr per evaluation."""
+    config = tmp_path / "quick.yaml"
+    config.write_text(
+        "base: tfp33\ntrain: {iterations: 100, eval_every: 50, init_gaussians: 800}\n"
+        "densify: {start: 20, stop: 80, every: 20}\n"
+    )
+    argv = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "run")]
+    assert main([*argv, "--no-progress"]) == 0
+    printed = capsys.readouterr()
+    lines = [line for line in printed.err.splitlines() if line.startswith("quick: iteration")]
+    assert [line.split(",")[0] for line in lines] == [
+        "quick: iteration 50/100",
+        "quick: iteration 100/100",
+    ]
+    logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    last = logged[-1]
+    assert f"held-out PSNR {last['psnr']:.2f} dB, {last['gaussians']:,} Gaussians" in lines[-1]
+    assert json.loads(printed.out)["iterations"] == 100  # stdout: the summary alone
+
+
 def test_a_fresh_run_refuses_a_directory_with_other_files(dataset, tmp_path, capsys):
     """`spikegs train --out DIR` wrote config.yaml, log.jsonl, scene.ply ... into any directory
     without a checkpoint, over a user's files of those names and among others."""

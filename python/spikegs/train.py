@@ -457,7 +457,7 @@ class Trainer:
         t, it = self.config.train, self.iteration
         evaluate = it % t.eval_every == 0 or it == t.iterations
         if evaluate:
-            psnr = self.quick_psnr()
+            psnr = self.held_out_psnr = self.quick_psnr()
             if on_eval is not None:
                 on_eval(self)
         if it % t.log_every == 0 or evaluate:
@@ -483,7 +483,8 @@ class Trainer:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
-        outside the timed steps (its time is not in `train_seconds`)."""
+        outside the timed steps (its time is not in `train_seconds`), `trainer.held_out_psnr`
+        then the first test view's PSNR."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from .cli import file_path, positive_int
@@ -32,7 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, help="override train.seed")
     parser.add_argument("--resume", action="store_true", help="continue from RUN's last checkpoint")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar: a line to stderr at each evaluation instead (for logs)",
+    )
 
 
 def config_from_args(args: argparse.Namespace):
@@ -59,6 +64,17 @@ def config_from_args(args: argparse.Namespace):
     return load_config(name, overrides, args.iterations, saved_run=own)
 
 
+def print_evaluation(trainer) -> None:
+    """--no-progress's progress: one line to stderr at each evaluation (a bar garbles logs)."""
+    print(
+        f"{trainer.config.method}: iteration {trainer.iteration}/{trainer.config.train.iterations}"
+        f", held-out PSNR {trainer.held_out_psnr:.2f} dB, {len(trainer.model):,} Gaussians, "
+        f"{trainer.train_seconds:.0f} s",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
     from .train import Trainer
@@ -66,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)  # bad method or config: refused before any work
     check_folder_output(args.out)
     dataset = load_dataset(args.dataset)
-    summary = Trainer(dataset, config, args.out, progress=not args.no_progress).train(args.resume)
+    trainer = Trainer(dataset, config, args.out, progress=not args.no_progress)
+    summary = trainer.train(args.resume, on_eval=print_evaluation if args.no_progress else None)
     runs = {config.method: (Path(args.out), summary["sim_seconds"])}
     save_logged_curves(Path(args.out) / CURVE, runs, dataset)
     print(json.dumps(summary, indent=2))
