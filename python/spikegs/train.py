@@ -452,12 +452,12 @@ class Trainer:
         image = render_view(self.model, view.viewmat, self.dataset)
         return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
 
-    def _after_step(self, loss: float, psnr: float, log, bar, on_eval) -> float:
-        """Evaluation and log record due after a step; returns the latest held-out PSNR."""
+    def _after_step(self, loss: float, log, bar, on_eval) -> None:
+        """Evaluation (into `held_out_psnr`) and log record due after a step."""
         t, it = self.config.train, self.iteration
         evaluate = it % t.eval_every == 0 or it == t.iterations
         if evaluate:
-            psnr = self.held_out_psnr = self.quick_psnr()
+            self.held_out_psnr = self.quick_psnr()
             if on_eval is not None:
                 on_eval(self)
         if it % t.log_every == 0 or evaluate:
@@ -468,16 +468,15 @@ class Trainer:
                 "gaussians": len(self.model),
             }
             if evaluate:
-                record["psnr"] = psnr
+                record["psnr"] = self.held_out_psnr
             log.write(strict_json.dumps(record) + "\n")
             log.flush()
             bar.set_postfix(
                 loss=f"{loss:.4f}",
-                psnr=f"{psnr:.2f}" if np.isfinite(psnr) else "-",  # none before the first eval
+                psnr=f"{self.held_out_psnr:.2f}" if np.isfinite(self.held_out_psnr) else "-",
                 n=len(self.model),
                 s=f"{self.train_seconds:.0f}",
             )
-        return psnr
 
     def train(self, resume: bool = False, on_eval=None) -> dict:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
@@ -553,7 +552,7 @@ class Trainer:
             desc=self.config.method,
             dynamic_ncols=True,
         )
-        psnr = float("nan")
+        self.held_out_psnr = float("nan")  # none before the first evaluation
         stop_message = (
             "\nCtrl-C: stopping after this step, with a checkpoint to --resume from (Ctrl-C again "
             "stops at once, keeping the last checkpoint)"
@@ -564,7 +563,7 @@ class Trainer:
                     start = time.perf_counter()
                     loss = self.step()
                     self.train_seconds += time.perf_counter() - start
-                    psnr = self._after_step(loss, psnr, log, bar, on_eval)
+                    self._after_step(loss, log, bar, on_eval)
                     if interrupted() and self.iteration < t.iterations:
                         self.save_checkpoint()  # between steps: a consistent state
                         raise KeyboardInterrupt  # (after the last step the run just finishes)
