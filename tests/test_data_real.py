@@ -1046,14 +1046,6 @@ def test_llff_intrinsics_of_a_raw_row_crop_keep_the_focal_and_shift_cx():
     np.testing.assert_allclose(K, [[50, 0, 24], [0, 50, 16], [0, 0, 1]])
 
 
-def stream_of(bits) -> SpikeStream:
-    """A stream of these bits [T, H, W], in memory."""
-    bits = np.asarray(bits, np.uint8)
-    return SpikeStream.from_packed(
-        np.packbits(bits, axis=-1, bitorder="little"), bits.shape[1], bits.shape[2]
-    )
-
-
 def test_llff_holds_out_every_8th_view_from_view_0():
     """LLFF's convention: views 0, 8, 16, ... (a mask from 1 held out 1, 9 instead)."""
     assert np.flatnonzero(held_out_mask(17, None, "x")).tolist() == [0, 8, 16]
@@ -1066,11 +1058,11 @@ def test_view_tfp_spans_the_whole_odd_view():
     view's first and last readouts read 2/5 (a window of 3 read 0)."""
     bits = np.zeros((5, 2, 8), np.uint8)
     bits[[0, 4]] = 1
-    ((tfp, _),) = view_tfps([(stream_of(bits), None)])
+    ((tfp, _),) = view_tfps([(SpikeStream.from_bits(bits), None)])
     np.testing.assert_allclose(tfp, 0.4)
     bits6 = np.zeros((6, 2, 8), np.uint8)
     bits6[[1, 5]] = 1  # the 5 readouts [1, 6) centred on 3
-    ((tfp6, _),) = view_tfps([(stream_of(bits6), None)])
+    ((tfp6, _),) = view_tfps([(SpikeStream.from_bits(bits6), None)])
     np.testing.assert_allclose(tfp6, 0.4)
 
 
@@ -1104,7 +1096,7 @@ def test_view_streams_put_a_views_first_readout_in_that_view():
     view 0 is 2; holding view 0 to readout 3 gave readout 3 view 0's pose)."""
     a = np.zeros((3, 2, 8), np.uint8)
     b = np.ones((4, 2, 8), np.uint8)
-    views = ViewStreams([stream_of(a), stream_of(b)], ["a", "b"])
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
     assert views.view_of(np.array([0, 2, 3, 6])).tolist() == [0, 0, 1, 1]
     np.testing.assert_array_equal(views.tfp(3, 1), 1.0)
     np.testing.assert_array_equal(views.tfp(2, 1), 0.0)
@@ -1147,7 +1139,8 @@ def test_a_window_one_readout_into_the_next_view_names_the_view():
     """A window of 3 centred on readout 2 (view 0's last) reaches readout 3, view 1's first: the
     view streams refuse it themselves, naming the view (a bound one readout loose left it to the
     view's own stream, whose message speaks of its local readouts)."""
-    views = ViewStreams([stream_of(np.zeros((3, 2, 8))), stream_of(np.ones((4, 2, 8)))], ["a", "b"])
+    a, b = np.zeros((3, 2, 8), bool), np.ones((4, 2, 8), bool)
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
     np.testing.assert_array_equal(views.tfp(1, 3), 0.0)  # [0, 3): inside view a
     with pytest.raises(ValueError, match=r"covers \[1, 4\), outside view 'a' at readouts \[0, 3\)"):
         views.tfp(2, 3)

@@ -230,10 +230,14 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
         torch.testing.assert_close(loaded(x), model(x))  # layouts differ: last-bit changes only
     stream, ts = scene[1], [40, 50]
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
+    capsys.readouterr()
     first, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)  # no fingerprint: trained
     assert seconds > 0
+    said = capsys.readouterr().err  # no progress bar: a line as SIM's training starts and ends
+    assert f"SIM: training -> {path}\nSIM: trained 2 steps in " in said
     reused, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     assert seconds == 0 and torch.equal(reused.head[-1].bias, first.head[-1].bias)
+    assert "SIM:" not in capsys.readouterr().err  # loaded: nothing said
     other = BernoulliStream(scene[0], len(stream), seed=1)
     for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
         assert train_or_load(path, *changed, 33, **tiny)[1] > 0

@@ -68,7 +68,7 @@ def test_raw_width_crop(tmp_path):
 @pytest.mark.parametrize("w", [1, 4, 33, 300])
 def test_counts_and_tfp_match_numpy(w):
     bits = random_bits((400, 7, 37), seed=w)
-    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"), 7, 37)
+    s = SpikeStream.from_bits(bits)
     ks = np.array([w // 2, 150, 400 - w + w // 2])
     want = np.stack([bits[k - w // 2 : k - w // 2 + w].sum(0) for k in ks])  # [B, H, W]
     np.testing.assert_array_equal(s.counts(ks, w), want)
@@ -91,7 +91,7 @@ def test_all_zero_and_all_one_windows():
 
 def test_tfi_matches_definition():
     bits = random_bits((200, 4, 19), p=0.05, seed=3)
-    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"), 4, 19)
+    s = SpikeStream.from_bits(bits)
     ks = [0, 1, 57, 198, 199]
     got = s.tfi(ks, max_interval=40)
     for i, k in enumerate(ks):
@@ -102,7 +102,7 @@ def test_tfi_matches_definition():
 def test_tfi_edge_cases():
     train = np.zeros((12, 1, 1), np.uint8)
     train[[0, 5], 0, 0] = 1
-    s = SpikeStream.from_packed(np.packbits(train, axis=-1, bitorder="little"), 1, 1)
+    s = SpikeStream.from_bits(train)
     assert s.tfi(0)[0, 0] == pytest.approx(1 / 5)  # the spike at readout 0 is t_prev
     assert s.tfi(4)[0, 0] == pytest.approx(1 / 5)
     assert s.tfi(5)[0, 0] == pytest.approx(1 / TFI_DEFAULT_MAX_INTERVAL)  # nothing after 5
@@ -329,6 +329,22 @@ def test_bad_shapes_refused(tmp_path):
         SpikeStream.open(path, 4, 16, raw_width=0)  # the core's sentinel for "= width"
     with pytest.raises(ValueError, match="width: expected an int, found 13.0"):
         SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13.0)
+
+
+def test_from_bits_packs_a_stream_in_memory():
+    """from_bits(bits [T, H, W]) reads back its bits, for any width (a partial last byte), and
+    refuses what is not 0/1 bits in three dimensions."""
+    bits = random_bits((40, 3, 13), seed=5)
+    s = SpikeStream.from_bits(bits.astype(bool))
+    assert (len(s), s.height, s.width) == (40, 3, 13)
+    np.testing.assert_array_equal(s.window(20, 40), bits)
+    np.testing.assert_array_equal(s.packed(), np.packbits(bits, axis=-1, bitorder="little"))
+    with pytest.raises(ValueError, match=r"bits expected 0/1, found values in \[0, 2\]"):
+        SpikeStream.from_bits(bits * 2)
+    with pytest.raises(ValueError, match="bits expected bool or 0/1 integers, found float64"):
+        SpikeStream.from_bits(bits.astype(float))
+    with pytest.raises(ValueError, match=r"bits expected \[T, H, W\], found shape \[3, 13\]"):
+        SpikeStream.from_bits(bits[0])
 
 
 def test_from_packed_defaults_to_the_full_packed_width():

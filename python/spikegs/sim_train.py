@@ -22,6 +22,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically, sweep_killed_writes
+from .config import SimConfig
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
 from .metrics import psnr, ssim
@@ -68,13 +69,13 @@ def _to_input(
 def train_sim(
     stream,
     timestamps: Sequence[int],
-    window: int = 33,
+    window: int = SimConfig.window,
     *,
-    steps: int = 1500,
-    batch_size: int = 8,
-    crop: int = 64,
+    steps: int = SimConfig.iterations,
+    batch_size: int = SimConfig.batch,
+    crop: int = SimConfig.crop,
     lr: float = 2e-3,
-    loss: str = "l2",
+    loss: str = SimConfig.loss,
     target_window: int | None = None,
     seed: int = 0,
     bf16: bool | None = None,
@@ -85,7 +86,8 @@ def train_sim(
     **sim_kwargs,
 ) -> tuple[SIM, list[float]]:
     """Train a fresh SIM on random `crop`² crops (the whole frame along a side shorter than `crop`)
-    of windows at random training `timestamps`.
+    of windows at random training `timestamps`. The window, steps, batch, crop and loss default
+    to `SimConfig`'s, what `spikegs train` trains.
 
     `stream` may be a list of streams (a colour camera's channels): each crop then comes from a
     random one of them, and the one network serves every channel.
@@ -298,7 +300,9 @@ def user_cache(name: str, data: str) -> Path | None:
     return base / "spikegs" / "sim" / data[:16] / name
 
 
-def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool = False, **kwargs):
+def train_or_load(
+    path: Path, stream, timestamps, window: int = SimConfig.window, force: bool = False, **kwargs
+):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
     `spikes_fingerprint`) with these settings (`kwargs`), unless `force`; else train one and save
     it there. Where `path`'s
@@ -338,6 +342,9 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
         if force:
             partial.unlink(missing_ok=True)
         state = _resumable(partial, key)
+        quiet = not kwargs.get("progress", True)  # no bar: a line at each end instead (for logs)
+        if quiet:
+            print(f"SIM: training -> {path}", file=sys.stderr, flush=True)
         start = time.perf_counter()
         model, losses = train_sim(
             stream,
@@ -354,6 +361,13 @@ def train_or_load(path: Path, stream, timestamps, window: int = 33, force: bool 
             model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
         )
         partial.unlink(missing_ok=True)
+        if quiet:
+            print(
+                f"SIM: trained {len(losses):,} steps in {seconds:.0f} s, "
+                f"final loss {final_loss:.4g}",
+                file=sys.stderr,
+                flush=True,
+            )
     return model, seconds, path
 
 

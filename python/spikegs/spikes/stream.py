@@ -145,6 +145,16 @@ class SpikeStream:
             )
         return cls(np.ascontiguousarray(packed), _C.SpikeLayout.memory(height, width))
 
+    @classmethod
+    def from_bits(cls, bits: np.ndarray) -> SpikeStream:
+        """An in-memory stream of bits [T, H, W] (bool or 0/1 integers; row 0 on top), packed."""
+        bits = np.asarray(bits)
+        if bits.ndim != 3:
+            raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
+        _check_bits(bits)
+        layout = _C.SpikeLayout.memory(bits.shape[1], bits.shape[2])
+        return cls(_C.spike_pack(bits, layout), layout)
+
     def __len__(self) -> int:
         return self._len
 
