@@ -148,9 +148,7 @@ class SpikeStream:
     @classmethod
     def from_bits(cls, bits: np.ndarray) -> SpikeStream:
         """An in-memory stream of bits [T, H, W] (bool or 0/1 integers; row 0 on top), packed."""
-        bits = np.asarray(bits)
-        if bits.ndim != 3:
-            raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
+        bits = _readouts_of(bits)
         _check_bits(bits)
         layout = _C.SpikeLayout.memory(bits.shape[1], bits.shape[2])
         return cls(_C.spike_pack(bits, layout), layout)
@@ -235,6 +233,14 @@ class SpikeStream:
         mem = _C.SpikeLayout.memory(self.height, self.width)
         out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
         return out.reshape(stop - start, self.height, (self.width + 7) // 8)
+
+
+def _readouts_of(bits) -> np.ndarray:
+    """`bits` as an array of readouts [T, H, W]; ValueError for another number of dimensions."""
+    bits = np.asarray(bits)
+    if bits.ndim != 3:
+        raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
+    return bits
 
 
 def _check_bits(bits: np.ndarray) -> None:
@@ -326,9 +332,7 @@ def check_chunk(chunk) -> None:
 def save_dat(path: PathLike, bits: np.ndarray, flip: bool = True, chunk: int = 1024) -> Path:
     """Write bits [T, H, W] (bool or 0/1) as a .dat file, `chunk` readouts at a time."""
     check_chunk(chunk)
-    bits = np.asarray(bits)
-    if bits.ndim != 3:
-        raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
+    bits = _readouts_of(bits)
     with DatWriter(path, bits.shape[1], bits.shape[2], flip) as writer:
         for t in range(0, len(bits), chunk):
             writer.write_bits(bits[t : t + chunk])
