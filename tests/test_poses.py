@@ -21,7 +21,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.dataset import check_output
 from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
-from spikegs.gaussians import GaussianModel
+from spikegs.gaussians import MIN_START_INTENSITY, GaussianModel
 from spikegs.point_cloud import POINTS, read_points, seen_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import (
@@ -181,8 +181,10 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     means = trainer.model.params["means"].detach()
     np.testing.assert_allclose(means.numpy(), points, atol=1e-6)
     shown = projected_intensity(dataset, ViewSample.of(dataset, trainer.scale), means.double())
+    start = shown.clamp_min(MIN_START_INTENSITY)  # a black point starts at 1/255
+    assert (start > shown).any()  # one here
     np.testing.assert_allclose(
-        trainer.model.sh[:, 0, :].detach().numpy() * C0 + 0.5, shown.numpy(), atol=1e-5
+        trainer.model.sh[:, 0, :].detach().numpy() * C0 + 0.5, start.numpy(), atol=1e-5
     )
     # one point (or copies of one): Gaussians of scale 1e-6 that never grew (the background's
     # score); too few to start from, said, and the run starts from random points

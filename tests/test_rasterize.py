@@ -3,6 +3,7 @@ reference itself (docs/rasterizer.md is the specification of both)."""
 
 from __future__ import annotations
 
+import decimal
 import math
 import os
 import subprocess
@@ -424,6 +425,10 @@ def _bad_inputs():
             ("far-none", {"far": None}, "near, far: expected"),
             ("near-float32-zero", {"near": 1e-300}, "round to 0.0, .* in torch.float32"),
             ("far-float32-inf", {"near": 1e39, "far": 1e40}, "round to inf, inf"),
+            ("far-int-overflow", {"far": 10**400}, "overflow a float"),  # an OverflowError
+            ("near-decimal", {"near": decimal.Decimal("0.01")}, "near, far: expected real"),
+            ("means-sparse", {"means": s["means"].to_sparse()}, "means: expected a dense"),
+            ("K-sparse", {"K": s["K"].to_sparse()}, "K: expected a dense"),  # NotImplementedError
             # failed only in the backward's in-place sum, with torch's message
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
@@ -512,6 +517,30 @@ def test_a_clamped_alpha_passes_no_gradient_for_any_channel_count(channels):
     scene["scales"][0] *= 20.0
     assert (render(reference.rasterize, scene).alpha >= 0.99).sum() > 20  # clamped there
     compare_to_reference(scene, torch.float64, 1e-9)
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_an_alpha_exactly_at_the_clamp_passes_no_gradient(dtype):
+    """o·G equal to the clamp (o = 0.99 rounded down in the dtype, centred on a pixel: G = 1) is
+    clamped, no gradient, in both rasterizers (the reference's torch.minimum gave half, 0.5)."""
+    t = lambda x: torch.tensor(x, dtype=dtype)  # noqa: E731
+    alpha_max = reference._alpha_max(dtype).item()  # float32: 0.98999995
+    for fn in (spikegs.rasterize, reference.rasterize):
+        o = t([alpha_max]).requires_grad_()
+        out = fn(
+            t([[0.0, 0.0, 2.0]]),
+            t([[1.0, 0.0, 0.0, 0.0]]),
+            t([[0.3, 0.3, 0.3]]),
+            o,
+            t([[1.0]]),
+            torch.eye(4, dtype=dtype),
+            t([[8.0, 0.0, 4.5], [0.0, 8.0, 4.5], [0.0, 0.0, 1.0]]),
+            9,
+            9,
+        )
+        out.alpha[4, 4].backward()
+        assert out.alpha[4, 4].item() == pytest.approx(0.99, abs=1e-7), fn
+        assert o.grad.item() == 0.0, fn
 
 
 def test_near_and_far_as_numbers_or_scalar_tensors():

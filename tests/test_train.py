@@ -186,6 +186,22 @@ def test_random_gaussians_fill_the_ball_uniformly_at_the_neighbour_spacing():
     assert model.params["sh_dc"].abs().max().item() < 1e-6
 
 
+@pytest.mark.parametrize("sh_degree", [0, 1])
+def test_a_black_start_colour_learns(sh_degree):
+    """A Gaussian started at intensity 0 (a dark pixel's TFP, a black point of a cloud) gets a
+    colour gradient from the core: at exactly 0 its colour sat on the render's clamp, where the
+    core's fused 0.5 + C0·dc rounded to −7e-9 and masked the gradient at SH degree 0 (the
+    reference's clamp, on its exact 0, let it through; degree 1 did too)."""
+    model = GaussianModel.from_points(
+        torch.tensor([[0.0, 0.0, 2.0]]), torch.zeros(1, 1), 0.3, sh_degree
+    )
+    K = torch.tensor([[8.0, 0.0, 4.5], [0.0, 8.0, 4.5], [0.0, 0.0, 1.0]])
+    image = model.render(torch.eye(4), K, 9, 9, near=0.01).image  # [9, 9, 1]
+    image.sum().backward()
+    assert model.params["sh_dc"].grad.item() > 0
+    assert 0 < image.max().item() <= 0.1 / 255  # opacity 0.1 of the start intensity, 1/255
+
+
 def test_a_gaussian_starts_at_the_median_of_the_pixels_it_projects_to():
     """An 8-wide, 4-high camera: a point at the origin lands on column 4, row 2, one a unit along
     x on column 5; each takes the median over three views of the value at [row, column] (a

@@ -18,6 +18,11 @@ PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "s
 # not raised for a larger one, whose content may lie far nearer a camera than its radius (a
 # forward-facing capture's loose scene sphere)
 NEAR_FRACTION = 0.01
+# the lowest starting intensity: a colour of exactly 0 sits on the render's clamp at 0, where the
+# rounding of its SH evaluation (the core's fused 0.5 + C0·dc: −7e-9) decides whether any
+# gradient reaches it, and a black start (a dark pixel's TFP, a black point of a cloud) never
+# learnt a colour; 1/255, an 8-bit image's step, is well clear of that rounding
+MIN_START_INTENSITY = 1 / 255
 
 
 def near_plane(scene_radius: float) -> float:
@@ -86,7 +91,8 @@ class GaussianModel:
     def from_points(
         cls, points: torch.Tensor, colors: torch.Tensor, scale: float, sh_degree: int = 0
     ) -> GaussianModel:
-        """Gaussians at `points` [N, 3] with colours [N, C] (intensity units) and one scale."""
+        """Gaussians at `points` [N, 3] with colours [N, C] (intensity units; those below
+        MIN_START_INTENSITY start there) and one scale."""
         if not 0 < scale < math.inf:
             raise ValueError(f"scale expected a positive finite size, found {scale}")
         n, channels = colors.shape
@@ -100,7 +106,7 @@ class GaussianModel:
             "log_scales": torch.full((n, 3), math.log(scale)),
             "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1),
             "opacity_logits": torch.full((n,), math.log(0.1 / 0.9)),
-            "sh_dc": ((colors.float() - 0.5) / C0).unsqueeze(1),
+            "sh_dc": ((colors.float().clamp_min(MIN_START_INTENSITY) - 0.5) / C0).unsqueeze(1),
             "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels),
         }
         return cls(params, torch.zeros(channels), sh_degree)

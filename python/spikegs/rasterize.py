@@ -32,6 +32,8 @@ def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
         raise ValueError(f"{name}: expected a torch.Tensor, got {type(t).__name__}")
     if t.device.type != "cpu":
         raise ValueError(f"{name}: expected a CPU tensor, got one on device '{t.device}'")
+    if t.layout != torch.strided:
+        raise ValueError(f"{name}: expected a dense tensor, got layout {t.layout}")
     if t.dtype != dtype:
         raise ValueError(f"{name}: expected dtype {dtype} (the dtype of means), got {t.dtype}")
     if t.dim() != len(shape) or any(s is not None and s != d for s, d in zip(shape, t.shape)):
@@ -242,8 +244,13 @@ def rasterize(
     )
     real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
     if not (real(near) and real(far) and 0 < near < far):
-        raise ValueError(f"near, far: expected 0 < near < far, got near={near!r}, far={far!r}")
-    near_t, far_t = torch.tensor([float(near), float(far)], dtype=dtype).tolist()  # the core's
+        raise ValueError(
+            f"near, far: expected real numbers with 0 < near < far, got near={near!r}, far={far!r}"
+        )
+    try:  # an int beyond float's range: OverflowError
+        near_t, far_t = torch.tensor([float(near), float(far)], dtype=dtype).tolist()  # the core's
+    except OverflowError:
+        raise ValueError(f"near, far: {near!r}, {far!r} overflow a float") from None
     if not 0 < near_t < far_t:
         raise ValueError(
             f"near, far: {near!r}, {far!r} round to {near_t!r}, {far_t!r} in {dtype}, the "

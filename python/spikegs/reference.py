@@ -166,7 +166,9 @@ def _composite(splats: _Splats, width: int, height: int, background: torch.Tenso
         power = (-0.5 * (A * dx * dx + C * dy * dy) - B * dx * dy).flatten()  # [Q]
         # > 0 only by rounding (the conic is positive definite): counts as 0, gradient as below 0
         power = power - power.detach().clamp(min=0)
-        alpha = torch.minimum(splats.opacities[i] * torch.exp(power), alpha_max)
+        raw = splats.opacities[i] * torch.exp(power)  # [Q]
+        # min(raw, alpha_max) with no gradient at a tie (torch.minimum splits it: 0.5 there)
+        alpha = torch.where(raw < alpha_max, raw, alpha_max)
         live = (alpha >= ALPHA_MIN) & ~done[idx]
         t = transmittance[idx]
         t_next = t * (1 - alpha)
