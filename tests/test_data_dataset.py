@@ -188,6 +188,8 @@ def test_negative_view_counts_refused(tmp_path):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
+    with pytest.raises(ValueError, match="frame_every expected >= 1, found 1e-05"):  # 2e7 poses
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": 1e-5})
     # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
     with pytest.raises(ValueError, match="height, width: expected >= 1 pixel, found 0, 32"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
@@ -536,6 +538,27 @@ def test_a_scene_far_from_the_origin_is_warned_of(small):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         moved(100.0)
+
+
+def test_a_scene_radius_out_of_scale_with_the_cameras_is_warned_of(small):
+    """meta.json's scene_radius 1e4 or 1e-20 with cameras ~3 units away trained without a word
+    (1e300 ended in a traceback from Adam); within 100x of their distance nothing is said."""
+    distance = np.median(np.linalg.norm(small.trajectory.centers - small.scene_center, axis=1))
+
+    def sized(radius: float) -> Dataset:
+        meta = {**small.meta, "scene_radius": radius}
+        trajectory, timestamps = small.trajectory, small.train_timestamps
+        return Dataset(small.root, meta, small.streams, trajectory, timestamps, [])
+
+    for radius in (1e4, 1e-20, 101 * distance):
+        said = re.escape(f"scene_radius {radius:.3g} is ")
+        with pytest.warns(UserWarning, match=said + ".* times the cameras"):
+            sized(radius)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sized(99 * distance)
+        sized(distance / 99)
+        sized(small.scene_radius)
 
 
 def test_test_images_without_their_units_warn(tmp_path, small):

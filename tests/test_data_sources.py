@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -106,6 +107,18 @@ def test_frame_sequence_source(tmp_path):
     with pytest.raises(ValueError, match=r"r_3: image 20x32 .*camera's images are 32x32"):
         FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
 
+    # a float frame's round-off below 0 (-1e-7 in one channel: colour was refused, by index into
+    # the resized stack, after the output folder was made; mono passed, its luma positive) is
+    # set to 0 with one warning naming the file
+    for value, file in ((-1e-7, "r_5"), (-0.02, "r_2")):
+        write_transforms(cropped / "transforms.json", "train", train, train_poses, truth.K, ".exr")
+        frame = train[int(file[-1])].copy()
+        frame[10, 20, 0] = value
+        write_image(cropped / "train" / f"{file}.exr", frame)
+        with pytest.warns(UserWarning, match=rf"1 frame\(s\) hold 1 values below 0 .*{file}"):
+            low = FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
+        assert low.frames.min() >= 0 and low.frames[int(file[-1]), 10, 20, 0] == 0
+
     # half resolution, mono: intrinsics scale, luma of the frames
     half = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 16, 16)
     np.testing.assert_allclose(half.K[:2], truth.K[:2] / 2, rtol=1e-6)
@@ -161,6 +174,19 @@ def test_frame_sequence_missing_image(tmp_path):
         FrameSequenceSource.from_transforms(path, 8, 8)
     with pytest.raises(FileNotFoundError, match="transforms file not found: .*nope.json"):
         make_source(tmp_path / "nope.json", 8, 8, 1)  # was "unknown scene", a .xml "not found"
+    # each was "unknown scene 'PATH': expected a built-in scene ..."
+    with pytest.raises(FileNotFoundError, match="scene .*nope not found; expected a built-in"):
+        make_source(tmp_path / "nope", 8, 8, 1)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="scene folder .*empty holds no transforms_train.json"):
+        make_source(tmp_path / "empty", 8, 8, 1)
+    (tmp_path / "r_0.png").touch()
+    with pytest.raises(ValueError, match=r"scene file .*r_0\.png is neither \.xml nor \.json"):
+        make_source(tmp_path / "r_0.png", 8, 8, 1)
+    with pytest.raises(ValueError, match="unknown scene 'teapot': expected a built-in"):
+        make_source("teapot", 8, 8, 1)
+    with pytest.raises(FileNotFoundError, match="transforms file not found: .*T.JSON"):
+        make_source(tmp_path / "T.JSON", 8, 8, 1)  # an upper-case suffix: was "unknown scene"
     train_dir = tmp_path / "train"
     train_dir.mkdir()
     write_image(train_dir / "r_0.png", np.zeros((8, 8, 3), np.float32))
@@ -582,8 +608,6 @@ def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
     of radius 5 (a user's, enclosing the cameras) put points behind them, whose projection (z
     clamped to 1e-9) moved 3e8 pixels: a cross-fade warning for still frames. Frames 20° apart
     are warned of (last case: 23 px)."""
-    import warnings
-
     from spikegs.data.simulate import warn_about_frames
 
     step = 20.0 if warned else 0.2
@@ -600,3 +624,21 @@ def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
     assert [str(w.message)[:30] for w in caught] == (
         ["the scene moves up to 23.0 pix"] if warned else []
     ), [str(w.message) for w in caught]
+
+
+def test_frames_between_two_readouts_are_warned_of():
+    """20 frames over 7 readouts: 7 of them lie between the two frames around a readout, unread,
+    and were dropped without a word; 10 frames over 7 readouts are all read (each readout reads
+    the frame before it and the one after)."""
+    from spikegs.data.simulate import warn_about_frames
+
+    viewmats = np.stack([look_at((4.0, 0.0, 0.0), np.zeros(3), up=(0.0, 0.0, 1.0))] * 10)
+    K = np.array([[200.0, 0, 16], [0, 200.0, 16], [0, 0, 1]])
+    frames = np.zeros((10, 32, 32, 1), np.float32)
+    source = FrameSequenceSource("still", frames, viewmats, K, center=np.zeros(3), radius=1.0)
+    trajectory = source.trajectory(7, 0.0)
+    with pytest.warns(UserWarning, match="7 of 20 light frames lie between two readouts"):
+        warn_about_frames(source, trajectory, np.linspace(0, 6, 20))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_about_frames(source, trajectory, np.linspace(0, 6, 10))

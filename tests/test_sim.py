@@ -1,5 +1,6 @@
 """SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
 
+import hashlib
 import os
 import shutil
 import signal
@@ -49,6 +50,9 @@ class BernoulliStream:
 
     def __len__(self) -> int:
         return len(self.spikes)
+
+    def digest(self) -> bytes:
+        return hashlib.sha256(self.spikes.tobytes()).digest()
 
     def _each(self, k, fn) -> np.ndarray:
         return np.stack([fn(int(i)) for i in k]) if np.ndim(k) else fn(int(k))
@@ -337,6 +341,9 @@ class _CtrlC:
 
     def __len__(self) -> int:
         return len(self.stream)
+
+    def digest(self) -> bytes:
+        return self.stream.digest()
 
     def window(self, k, w: int) -> np.ndarray:
         if w > 1:

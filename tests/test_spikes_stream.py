@@ -51,6 +51,27 @@ def test_round_trip(tmp_path, height, width, flip):
     np.testing.assert_array_equal(SpikeStream.from_packed(packed, height, width).window(4, 9), bits)
 
 
+def test_digest_covers_every_readout_whatever_the_layout(tmp_path, monkeypatch):
+    """digest() changes with any one bit of any readout (a fingerprint of 16 sampled readouts
+    kept a SIM trained on spikes edited between them) and not with the file layout holding
+    them (flipped or not, extra raw columns), nor with its chunk size (3 readouts here)."""
+    bits = random_bits((11, 5, 13))
+    digest = SpikeStream.from_bits(bits).digest()
+    for flip in (True, False):
+        path = save_dat(tmp_path / f"s{flip}.dat", bits, flip=flip)  # other bytes on disk
+        assert SpikeStream.open(path, 5, 13, flip=flip).digest() == digest
+    raw = np.pad(bits, ((0, 0), (0, 0), (2, 1)), constant_values=1)  # raw rows of 16
+    crop = SpikeStream.open(save_dat(tmp_path / "raw.dat", raw), 5, 13, raw_width=16, col_offset=2)
+    assert crop.digest() == digest
+    monkeypatch.setattr("spikegs.spikes.stream._DIGEST_CHUNK_BYTES", 3 * 5 * 2)
+    assert SpikeStream.from_bits(bits).digest() == digest
+    for t, y, x in [(0, 0, 0), (5, 2, 12), (10, 4, 7)]:
+        edited = bits.copy()
+        edited[t, y, x] ^= 1
+        assert SpikeStream.from_bits(edited).digest() != digest, (t, y, x)
+    assert SpikeStream.from_bits(bits[:10]).digest() != digest
+
+
 def test_unflipped_file_read_flipped(tmp_path):
     bits = random_bits((3, 4, 16))
     path = save_dat(tmp_path / "s.dat", bits, flip=False)

@@ -841,6 +841,13 @@ def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
     (tmp_path / "sub" / "loop.yaml").write_text("base: ../sub/loop.yaml\n")
     with pytest.raises(ValueError, match="loops"):
         load_config("sub/loop.yaml")
+    # a missing base is said with the file naming it (was "unknown method 'nosuch'" alone)
+    (tmp_path / "sub" / "typo.yaml").write_text("base: nosuch\n")
+    with pytest.raises(ValueError, match=r"typo\.yaml: base: unknown method 'nosuch'; known"):
+        load_config("sub/typo.yaml")
+    (tmp_path / "sub" / "gone.yaml").write_text("base: missing.yaml\n")
+    with pytest.raises(FileNotFoundError, match=r"gone\.yaml: base: config file not found: .*/sub"):
+        load_config("sub/gone.yaml")
 
 
 def test_a_config_file_names_its_method_unless_it_names_one(tmp_path):
@@ -1530,6 +1537,24 @@ def test_iterations_override_scales_the_densification_schedule():
         config.with_iterations(0)
 
 
+@pytest.mark.parametrize("iterations", [50, 77, 200, 300, 500, 1234, 5000])
+def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path, iterations):
+    """start = stop = 1000 every 100, valid as written, was refused at most lengths: each key
+    rounded alone (500 iterations: 167..167 every 17, no multiple there); now one round, within
+    a period of the scaled start. A schedule of stop 0 (half the run) likewise."""
+    path = tmp_path / "once.yaml"
+    for densify in ({"start": 1000, "stop": 1000, "every": 100}, {"start": 1450, "stop": 0}):
+        path.write_text(yaml.safe_dump({"base": "spikegs", "densify": densify}))
+        d = load_config(path, iterations=iterations).densify
+        rounds = [i for i in range(1, iterations) if d.start <= i <= (d.stop or iterations // 2)]
+        rounds = [i for i in rounds if i % d.every == 0]
+        assert len(rounds) == 1, (densify, d)
+        expected = densify["start"] * iterations / 3000
+        assert abs(rounds[0] - expected) <= d.every, (densify, d)
+    written = load_config(path)  # unscaled: as the user wrote it
+    assert (written.densify.start, written.densify.stop) == (1450, 0)
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -1878,6 +1903,9 @@ def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path):
 def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):
     with pytest.raises(FileNotFoundError, match="nope: no such run folder"):
         evaluate_run(tmp_path / "nope", dataset)  # it said: scene.ply not found, train first
+    (tmp_path / "tiny.yaml").write_text("base: spikegs\n")  # was "no such run folder" too
+    with pytest.raises(FileNotFoundError, match="tiny.yaml: a file, not a run folder"):
+        evaluate_run(tmp_path / "tiny.yaml", dataset)
 
 
 def test_eval_on_another_scene_says_so(dataset, tmp_path):

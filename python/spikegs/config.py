@@ -306,8 +306,11 @@ class Config:
         run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
         _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config = copy.deepcopy(self)
-        _scale_schedule(config.densify, SCHEDULE_KEYS, iterations / config.train.iterations)
+        factor = iterations / config.train.iterations
+        _scale_schedule(config.densify, SCHEDULE_KEYS, factor)
         config.train.iterations = iterations
+        if factor != 1:
+            _keep_a_round(config.densify, iterations)
         return config.validate()
 
 
@@ -317,6 +320,21 @@ def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
     for key in keys:
         value = getattr(densify, key)
         setattr(densify, key, max(1, round(value * factor)) if value > 0 else value)
+
+
+def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
+    """A scaled schedule whose rounding left no multiple of `every` in start..stop (start = stop
+    = 1000 every 100 at 500 of 3000 iterations: 167..167 every 17) densifies once: stop is
+    raised to the first multiple, or, with stop 0 (half the run), start lowered to the last."""
+    d = densify
+    last = d.stop or iterations // 2
+    first = -(-max(d.start, 1) // d.every) * d.every if d.every >= 1 else 0
+    if d.every < 1 or not 0 <= d.start <= last < first or d.start >= iterations:
+        return
+    if d.stop:
+        d.stop = first
+    else:
+        d.start = last // d.every * d.every
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
@@ -470,9 +488,12 @@ def load_config(
     if iterations is not None:
         _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
         config.train.iterations = iterations
+    factors = {}
     for key in SCHEDULE_KEYS:  # unset keys are for the default length; each scaled once
-        base = lengths.get(key, TrainConfig.iterations)
-        _scale_schedule(config.densify, [key], config.train.iterations / base)
+        factors[key] = config.train.iterations / lengths.get(key, TrainConfig.iterations)
+        _scale_schedule(config.densify, [key], factors[key])
+    if any(f != 1 for f in factors.values()):
+        _keep_a_round(config.densify, config.train.iterations)
     return config.validate()
 
 
@@ -545,7 +566,14 @@ def _read(
     base = data.pop("base", None)
     if base is not None and (not isinstance(base, str) or not base.strip()):
         raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
-    merged = _read(base, seen | {path}, path.parent) if base else {}
+    try:
+        merged = _read(base, seen | {path}, path.parent) if base else {}
+    except FileNotFoundError as err:  # its message named the base, not the file naming it
+        raise FileNotFoundError(f"{path}: base: {err}") from None
+    except ValueError as err:
+        if "unknown method" not in str(err):  # errors inside the base's own file name it
+            raise
+        raise ValueError(f"{path}: base: {err}") from None
     if not seen and "method" not in data:  # the file given names no method: its own name
         data["method"] = _own_name(path, merged.get("method"))
     _layer(merged, data)

@@ -45,5 +45,6 @@ def trained_scene(run_dir: Path) -> Path:
             f"DATASET --out {shlex.quote(str(run_dir))} --resume"
         )
     if not Path(run_dir).is_dir():
-        raise FileNotFoundError(f"{run_dir}: no such run folder (spikegs train ... --out RUN)")
+        what = "a file, not a run folder" if Path(run_dir).exists() else "no such run folder"
+        raise FileNotFoundError(f"{run_dir}: {what} (spikegs train ... --out RUN)")
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

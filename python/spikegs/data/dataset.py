@@ -90,6 +90,10 @@ class TestView:
 
 
 FLOAT32_ROUNDING_PX = 0.1  # Dataset: a scene far from the origin rounds by more: warned
+# Dataset: a scene radius over this many times the cameras' median distance from the scene
+# centre, or under its inverse, is warned of (Gaussians start in that ball, the near plane and
+# the means' learning rate follow it; 1e4 against cameras 3 units away trained unsaid)
+SCENE_SIZE_RATIO = 100.0
 
 
 class Dataset:
@@ -110,13 +114,35 @@ class Dataset:
         self.scene_center = np.asarray(meta["scene_center"], np.float64)  # [3]
         self.scene_radius = float(meta["scene_radius"])
         self._warn_about_float32_rounding()
+        self._warn_about_scene_size()
+
+    def _camera_distance(self) -> float:
+        """The cameras' median distance from the scene centre."""
+        return float(np.median(np.linalg.norm(self.trajectory.centers - self.scene_center, axis=1)))
+
+    def _warn_about_scene_size(self) -> None:
+        """A UserWarning where scene_radius is over SCENE_SIZE_RATIO times the cameras' median
+        distance from scene_center, or under its inverse: a radius in other units or a typo."""
+        distance = self._camera_distance()
+        if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
+            return
+        ratio = self.scene_radius / distance
+        if not 1 / SCENE_SIZE_RATIO <= ratio <= SCENE_SIZE_RATIO:
+            warnings.warn(
+                f"{self.root}: scene_radius {self.scene_radius:.3g} is {ratio:.3g} times the "
+                f"cameras' median distance from scene_center ({distance:.3g}): Gaussians start "
+                f"in that ball and the near plane and the means' learning rate follow it; "
+                f"check meta.json's scene_radius (expected within {SCENE_SIZE_RATIO:g}x either "
+                f"way of that distance)",
+                stacklevel=3,
+            )
 
     def _warn_about_float32_rounding(self) -> None:
         """A UserWarning where the scene lies so far from the origin (UTM or GPS coordinates)
         that float32 positions, the Gaussians' and the cameras', round by more than
         FLOAT32_ROUNDING_PX pixels there (1e6 units away cost 2 dB at 64²)."""
         offset = float(np.linalg.norm(self.scene_center))
-        distance = np.median(np.linalg.norm(self.trajectory.centers - self.scene_center, axis=1))
+        distance = self._camera_distance()
         if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
             return
         pixels = float(self.K[0, 0]) * offset * 2.0**-24 / float(distance)

@@ -158,6 +158,16 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
     held-out views are sharp."""
     if len(times) < 2:
         return
+    readouts = np.arange(int(times[-1]) + 1)  # [R]
+    before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
+    read = np.unique(np.clip(np.concatenate([before, before + 1]), 0, len(times) - 1))
+    if len(read) < len(times):  # a readout interpolates the two frames around it
+        warnings.warn(
+            f"{len(times) - len(read)} of {len(times)} light frames lie between two readouts "
+            f"and are never read (each of the {len(readouts)} readouts interpolates the frame "
+            f"at or before it and the next): more readouts, or fewer frames",
+            stacklevel=3,
+        )
     offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
     points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
     pixels, z = project_points(points, trajectory.pose_at(times), source.K)  # [F, 7, 2], [F, 7]
@@ -197,14 +207,21 @@ def make_source(
         path = train if train.is_file() else single if single.is_file() else root
         if path != root:
             warn_unread_transforms(root, [path, test])
-    if path.suffix == ".xml":
+    if path.suffix.lower() == ".xml":
         return MitsubaSource(path, width, height, channels, spp=spp)
-    if path.suffix == ".json":  # a missing file: from_transforms names it
+    if path.suffix.lower() == ".json":  # a missing file: from_transforms names it
         return FrameSequenceSource.from_transforms(path, width, height, channels)
-    raise ValueError(
-        f"unknown scene '{scene}': expected a built-in scene ({', '.join(SCENES)}), a Mitsuba "
-        f".xml file, or a transforms JSON (or a directory holding transforms_train.json)"
+    expected = (
+        f"expected a built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a transforms "
+        f"JSON (or a directory holding transforms_train.json or transforms.json)"
     )
+    if path.is_dir():
+        raise ValueError(f"scene folder {path} holds no {' or '.join(TRANSFORMS[::2])}; {expected}")
+    if path.exists():
+        raise ValueError(f"scene file {path} is neither .xml nor .json; {expected}")
+    if len(path.parts) > 1:  # a path, not a name
+        raise FileNotFoundError(f"scene {path} not found; {expected}")
+    raise ValueError(f"unknown scene '{scene}': {expected}")
 
 
 def default_train_every(num_readouts: int) -> int:
@@ -322,6 +339,11 @@ def simulate_dataset(
     if frame_every <= 0 or train_every < 1:
         raise ValueError(
             f"frame_every and train_every expected positive, found {frame_every}, {train_every}"
+        )
+    if frame_every < 1:  # 1e-5 over 200 readouts: 2e7 poses, 3.6 GB, before any spike
+        raise ValueError(
+            f"frame_every expected >= 1, found {frame_every:g}: each readout reads the light "
+            f"from the two frames around it, so frames closer than a readout are never read"
         )
     if 2 in (height, width) or (height, width) == (1, 1):
         raise ValueError(

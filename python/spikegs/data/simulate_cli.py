@@ -24,7 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scene",
         default="solids",
         help=f"built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a NeRF-style "
-        "transforms JSON / a directory holding transforms_train.json (default: solids)",
+        "transforms JSON / a directory holding transforms_train.json or transforms.json (default: "
+        "solids)",
     )
     parser.add_argument("--out", type=Path, required=True, help="output dataset directory")
     parser.add_argument("--height", type=int, default=128, help="image rows, pixels")
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frame-every",
         type=float,
         default=DEFAULT_FRAME_EVERY,
-        help="readouts between rendered light frames (linear in between)",
+        help="readouts between rendered light frames, >= 1 (linear in between)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
     default = f"(default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has)"

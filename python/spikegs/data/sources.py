@@ -560,14 +560,24 @@ def _read_transforms(path: Path, width: int, height: int, channels: int, backgro
     viewmats = transforms_viewmats(path, doc)  # [F, 4, 4]
     camera = read_camera([doc] * len(frames), frames, [path] * len(frames))
     src, what = stated_size(path, camera, "its first frame")
-    images = []
+    images, negative = [], []  # negative: (file, values below 0, the lowest) of each frame
     for f in frames:
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
+        if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
+            negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
+            image = np.maximum(image, 0.0)
         src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
         if not images:  # the aspect ratio checked before any frame is resized (no crop here)
             frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
         image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
+    if negative:
+        warnings.warn(
+            f"{path}: {len(negative)} frame(s) hold {sum(n for _, n, _ in negative)} values below "
+            f"0 (the lowest {min(low for *_, low in negative):.3g}, first in "
+            f"{negative[0][0]}), set to 0: light is not negative",
+            stacklevel=3,
+        )
     K = camera_matrix(path, camera, src, (height, width))
     return np.stack(images).astype(np.float32), viewmats, K, doc
 

@@ -7,6 +7,8 @@ ValueError, so no target ever mixes two views.
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from ..spikes import TFI_DEFAULT_MAX_INTERVAL, SpikeStream
@@ -38,6 +40,10 @@ class ViewStreams:
     def __repr__(self) -> str:
         size = f"{self.height}x{self.width}"
         return f"ViewStreams(views={len(self.streams)}, readouts={len(self)}, {size})"
+
+    def digest(self) -> bytes:
+        """SHA-256 of the views' digests in order (`SpikeStream.digest`)."""
+        return hashlib.sha256(b"".join(s.digest() for s in self.streams)).digest()
 
     def centers(self) -> np.ndarray:
         """The centre readout [V] of each view: a 65-readout window there stays in the view."""

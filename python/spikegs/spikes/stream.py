@@ -14,6 +14,7 @@ last readout, reads 1/max_interval: never inf or NaN.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shlex
 import shutil
@@ -84,6 +85,9 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
             f"bytes over: {cut}else the frame size is wrong)"
         )
     return num_bytes // fb
+
+
+_DIGEST_CHUNK_BYTES = 64 << 20  # readouts hashed at a time by SpikeStream.digest
 
 
 class SpikeStream:
@@ -224,6 +228,15 @@ class SpikeStream:
             raise ValueError(f"max_interval expected an int in [1, 2^30], found {max_interval!r}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
+
+    def digest(self) -> bytes:
+        """SHA-256 of the size and every readout, in the memory layout (the same spikes give the
+        same digest from any file layout); read in chunks of ~64 MiB, ~0.1 s a 100 MB here."""
+        digest = hashlib.sha256(np.asarray([len(self), self.height, self.width], np.int64).data)
+        chunk = max(1, _DIGEST_CHUNK_BYTES // (self.height * ((self.width + 7) // 8)))
+        for start in range(0, len(self), chunk):
+            digest.update(self.packed(start, min(start + chunk, len(self))).data)
+        return digest.digest()
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]."""
