@@ -386,6 +386,8 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         ),
         "cx off": ("meta.json", rewrite_meta(cx=1000), r"cx 1000 puts the image centre \d\d° off"),
         "cy off": ("meta.json", rewrite_meta(cy=-100), r"cy -100 puts the image centre \d\d° off"),
+        # a 180° pinhole trained without a word
+        "fx tiny": ("meta.json", rewrite_meta(fx=1e-9), r"fx 1e-09 gives a 180° field of view"),
         "inf": ("train_timestamps.txt", lambda t: t + "1e400\n", r"integer readouts.*inf"),
         "past the end": (
             "train_timestamps.txt",

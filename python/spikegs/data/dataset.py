@@ -46,6 +46,7 @@ READOUT_PERIOD_S = 25e-6
 WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits in the stream
 FORMAT_VERSION = 1
 MAX_OFF_AXIS_DEG = 60  # the image centre's angle off the optical axis: a crop's, not a typo's
+MAX_FIELD_DEG = 170  # a pinhole's field of view across the image (fx 1e-9: 180°, trained unsaid)
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
 INTRINSICS_FROM_SFM = "sfm"  # meta.json's intrinsics_from where `spikegs poses` estimated them
 
@@ -465,8 +466,18 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             number(key, 0, integer=True)
         elif key == "channels" and (meta[key] not in (1, 3) or isinstance(meta[key], bool)):
             raise ValueError(f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta[key]!r}")
-        elif key in ("fx", "fy", "scene_radius"):
+        elif key == "scene_radius":
             number(key, 0)
+        elif key in ("fx", "fy"):
+            number(key, 0)
+            size = meta.get("width" if key == "fx" else "height")
+            field = 2 * np.degrees(np.arctan(size / 2 / meta[key])) if is_number(size) else 0
+            if field > MAX_FIELD_DEG:
+                raise ValueError(
+                    f"{path}: {key} {meta[key]!r} gives a {field:.0f}° field of view across "
+                    f"{size} pixels; a pinhole camera's focal length in pixels expected, under "
+                    f"{MAX_FIELD_DEG}° of view"
+                )
         elif key in ("cx", "cy"):
             number(key)
             size, focal = (

@@ -181,7 +181,12 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
         # sequence's spacing is its own
         rendered = source.kind in ("procedural", "mitsuba")
         frames = "rendered light frames" if rendered else "frames of the sequence"
-        remedy = "a smaller frame_every (--frame-every)" if rendered else "a denser frame sequence"
+        remedy = (
+            "a smaller frame_every (--frame-every)"
+            if rendered
+            else "a denser frame sequence, or its frames in order (a file listing frame_10 "
+            "before frame_2, sorted as text, jumps back and forth)"
+        )
         warnings.warn(
             f"the scene moves up to {motion:.1f} pixels between two {frames}: the simulator "
             f"cross-fades them (ghosting) where the held-out views are sharp; {remedy}",
