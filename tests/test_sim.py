@@ -365,9 +365,10 @@ class _SigInt(_CtrlC):
         return self.stream.window(k, w)
 
 
-def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained):
+def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained, ctrl_c):
     """A Ctrl-C in SIM's training lost everything since the last 30-second save (a process
-    killed sooner made no progress at all): the step finishes, the state is saved, then it stops."""
+    killed sooner made no progress at all): the step finishes, the state is saved, then it stops
+    (`ctrl_c`: run from a background job, the suite inherited SIGINT ignored and this failed)."""
     stream, path = scene[1], tmp_path / "sim.pt"
     ts = valid_timestamps(stream, 33)
     with pytest.raises(KeyboardInterrupt):  # the 30 s have not passed: saved for the Ctrl-C

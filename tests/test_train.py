@@ -331,16 +331,6 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
-@pytest.fixture
-def ctrl_c():
-    """Ctrl-C raising KeyboardInterrupt, as in a terminal, for the test's duration: a process
-    started in the background by a non-interactive shell (`cmd &`) inherits SIGINT ignored, and
-    the trainer rightly keeps it ignored (test_an_ignored_sigint_stays_ignored)."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, previous)
-
-
 def _interrupt_during(owner, method: str, iteration: int, monkeypatch, signals: int) -> None:
     """Send this process `signals` SIGINTs from inside `owner.method`, at `iteration`."""
     original = getattr(owner, method)
