@@ -26,6 +26,7 @@ from spikegs.sim_train import (
     load_sim,
     predict,
     save_sim,
+    spikes_fingerprint,
     train_or_load,
     train_sim,
     user_cache,
@@ -242,6 +243,10 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     reused, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     assert seconds == 0 and torch.equal(reused.head[-1].bias, first.head[-1].bias)
     assert "SIM:" not in capsys.readouterr().err  # loaded: nothing said
+    payload = torch.load(path, weights_only=True)  # a SIM saved before every readout was hashed
+    payload["meta"]["data"] = spikes_fingerprint(stream, ts, sampled=True)
+    torch.save(payload, path)
+    assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0  # still its spikes': reused
     other = BernoulliStream(scene[0], len(stream), seed=1)
     for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
         assert train_or_load(path, *changed, 33, **tiny)[1] > 0

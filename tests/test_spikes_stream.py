@@ -154,6 +154,12 @@ def test_truncated_file_refused(tmp_path):
         SpikeStream.open(path, 8, 16, raw_width=12)  # raw rows narrower than the image
 
 
+def test_a_folder_is_not_opened_as_a_stream(tmp_path):
+    """A folder's size read as a cut-off recording's: the message said to truncate it."""
+    with pytest.raises(IsADirectoryError, match="a folder, not a spike .dat file"):
+        SpikeStream.open(tmp_path, 4, 20)
+
+
 def test_empty_file(tmp_path):
     path = tmp_path / "empty.dat"
     path.write_bytes(b"")
@@ -172,6 +178,8 @@ def test_windows_past_either_end_refused():
             s.tfi(k)
     with pytest.raises(ValueError, match="window length"):
         s.tfp(5, 0)
+    with pytest.raises(ValueError, match=r"window length expected an int in 1\.\.2147483647"):
+        s.counts(5, 2**31)  # int32 counts: a stream that long read TFP -1 (15 h at 40 kHz)
     with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):  # "k in [10, 9]"
         s.tfp(5, 21)
     for w in (float("inf"), float("nan"), None, True, np.array([3])):  # array: "found [3]"

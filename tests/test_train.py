@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import time
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -34,7 +35,7 @@ from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
-from spikegs.train import Trainer, _means_lr, data_fingerprint, run_lock
+from spikegs.train import Trainer, _means_lr, data_fingerprint, run_lock, same_data
 from spikegs.train_cli import config_from_args
 
 FAST = {
@@ -354,6 +355,27 @@ def test_resume_refuses_other_data(dataset, tmp_path):
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
 
 
+def test_a_run_fingerprinted_before_every_readout_was_hashed_is_its_datas(dataset, tmp_path):
+    """Runs trained before 2026-11-28 carry the fingerprint of 16 sampled readouts: they were
+    refused on resume and scored as another dataset's; still recognised, and nothing else is."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    scale = json.loads((run / "train.json").read_text())["intensity_scale"]
+    old = data_fingerprint(dataset, scale, sampled=True)
+    assert old != data_fingerprint(dataset, scale)
+    assert same_data(old, dataset, scale) and not same_data("0" * 64, dataset, scale)
+    checkpoint = run / "checkpoints" / "last.pt"
+    state = torch.load(checkpoint, weights_only=False)
+    torch.save({**state, "data": old}, checkpoint)
+    summary = json.loads((run / "train.json").read_text())
+    (run / "train.json").write_text(json.dumps({**summary, "data": old}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # not "holds other data"
+        assert evaluate_run(run, dataset, write_images=False)["file"] == str(run / "eval.json")
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+
+
 class _Planted:
     """An object a checkpoint's unpickling would build, running its code (`__reduce__`)."""
 
@@ -656,14 +678,16 @@ def test_ply_edge_cases(tmp_path):
 
 def test_a_ply_without_a_background_comment_loads_on_black(tmp_path):
     """Another tool's 3DGS .ply (no `spikegs background` comment) renders on black, as 3DGS's
-    viewers do (a default of ones put it on white)."""
+    viewers do (a default of ones put it on white), said: a run's scene.ply re-saved by a viewer
+    lost its trained background without a word (3.3 dB in eval)."""
     names = ["x", "y", "z", "opacity", *(f"scale_{i}" for i in range(3))]
     names += [f"rot_{i}" for i in range(4)] + [f"f_dc_{i}" for i in range(3)]
     vertex = np.zeros(2, dtype=[(n, "f4") for n in names])
     vertex["rot_0"] = 1.0
     path = tmp_path / "other.ply"
     PlyData([PlyElement.describe(vertex, "vertex")]).write(str(path))
-    model = load_ply(path)
+    with pytest.warns(UserWarning, match="no 'spikegs background' comment .* over black"):
+        model = load_ply(path)
     assert model.background.tolist() == [0.0, 0.0, 0.0]
 
 
@@ -679,9 +703,19 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     with pytest.raises(AttributeError):
         model.sh_degree = 2
     model.background.data[0] = float("nan")
-    with pytest.raises(ValueError, match="background .*expected finite"):
+    with pytest.raises(ValueError, match="background .*expected 3 finite values"):
         save_ply(model, tmp_path / "nan.ply")
     assert not (tmp_path / "nan.ply").exists()
+    # a background of another channel count was saved, then refused by load_ply; Gaussians of
+    # two counts N made a model of the means' count
+    model.background = torch.nn.Parameter(torch.zeros(1))
+    with pytest.raises(ValueError, match=r"background \[0.0\]: expected 3 finite values"):
+        save_ply(model, tmp_path / "bg.ply")
+    for name, part in (("background", slice(0, 1)), ("means", slice(0, 3))):
+        given = {**model.params, "background": torch.zeros(3)}
+        given[name] = given[name][part]
+        with pytest.raises(ValueError, match=rf"of one N and C; found {name} \["):
+            GaussianModel({**given}, given["background"], 1)
 
 
 def test_gaussian_model_refuses_sizes_without_gaussians():

@@ -52,7 +52,7 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
     another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
     units)."""
-    from .train import data_fingerprint  # (train imports us)
+    from .train import same_data  # (train imports us)
 
     own = train.get("dataset")
     if own is None:
@@ -62,7 +62,7 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     if known:
         scale = train.get("intensity_scale")
         scale = intensity_scale(dataset) if scale is None else float(scale)
-    same = not known or train["data"] == data_fingerprint(dataset, scale)
+    same = not known or same_data(train["data"], dataset, scale)
     if Path(own).resolve() == root:
         if same:
             return "eval"
@@ -124,7 +124,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         raise ValueError(
             f"{ply} renders {model.channels} channel(s), the dataset {dataset.root} has "
             f"{dataset.channels} (a mono scene.ply re-saved by another tool loses spikegs's "
-            f"'channels' comment and reads as RGB)"
+            f"'channels' comment and reads as RGB: add the header line 'comment spikegs "
+            f"channels 1' after 'format' to read it as mono again)"
         )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in

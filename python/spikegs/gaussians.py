@@ -52,6 +52,20 @@ class GaussianModel:
                 f"GaussianModel: sh_degree {sh_degree} needs sh_rest [N, "
                 f"{num_coeffs(sh_degree) - 1}, C], got {list(rest.shape)}"
             )
+        counts = [params[k].shape[0] if params[k].dim() else -1 for k in PARAMETER_NAMES]
+        n, dc = max(counts, key=counts.count), params["sh_dc"]  # the odd one out is named
+        c = dc.shape[-1] if dc.dim() == 3 else -1
+        wanted = {"means": (n, 3), "log_scales": (n, 3), "quats": (n, 4)}
+        wanted.update({"opacity_logits": (n,), "sh_dc": (n, 1, c), "background": (c,)})
+        given = {**params, "background": background}
+        wrong = [f"{k} {list(given[k].shape)}" for k, w in wanted.items() if given[k].shape != w]
+        wrong += [f"sh_rest {list(rest.shape)}"] if (rest.shape[0], rest.shape[2]) != (n, c) else []
+        if wrong:  # unchecked, a background of 3 for 1 channel was saved and then refused
+            raise ValueError(
+                f"GaussianModel: means [N, 3], log_scales [N, 3], quats [N, 4], opacity_logits "
+                f"[N], sh_dc [N, 1, C], sh_rest [N, K - 1, C] and background [C] expected, of "
+                f"one N and C; found {', '.join(wrong)}"
+            )
         self.params = {k: torch.nn.Parameter(params[k].detach().clone()) for k in PARAMETER_NAMES}
         self.background = torch.nn.Parameter(background.detach().clone())
         self._sh_degree = int(sh_degree)

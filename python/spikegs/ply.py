@@ -36,8 +36,10 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         raise ValueError(
             f"save_ply: a model of {channels} channels; a 3DGS .ply holds 1 (grey) or 3 (RGB)"
         )
-    if not model.background.isfinite().all():  # load_ply would refuse the file
-        raise ValueError(f"save_ply: background {model.background.tolist()}: expected finite")
+    if model.background.shape != (channels,) or not model.background.isfinite().all():
+        raise ValueError(  # load_ply would refuse the file
+            f"save_ply: background {model.background.tolist()}: expected {channels} finite values"
+        )
     p = {k: v.detach().cpu().numpy() for k, v in model.params.items()}
     n, used = len(model), (model.sh_degree + 1) ** 2 - 1  # the coefficients that render reads
     reps = 3 if channels == 1 else 1
@@ -164,8 +166,14 @@ def load_ply(path: str | Path) -> GaussianModel:
                 f"{path}: comment 'spikegs background {tags['background']}': expected "
                 f"{channels} finite numbers"
             )
-    else:
+    else:  # another tool's file, or ours re-saved by one: 3DGS's black (3.3 dB lost unsaid)
         background = torch.zeros(channels)
+        warnings.warn(
+            f"{path}: no 'spikegs background' comment (another tool's file, or re-saved by one): "
+            f"rendered over black; add 'comment spikegs background V' after 'format' to restore "
+            f"a trained background",
+            stacklevel=2,
+        )
     rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params.values()]  # [N, *]
     broken = int((~torch.cat(rows, 1).isfinite()).any(1).sum())
     if broken:

@@ -247,20 +247,32 @@ def load_sim(path: Path) -> SIM:
     return _model_of(torch.load(Path(path), map_location="cpu", weights_only=True))
 
 
-def spikes_fingerprint(stream, timestamps: Sequence[int]) -> str:
+def spikes_fingerprint(stream, timestamps: Sequence[int], sampled: bool = False) -> str:
     """A digest of training data: the timestamps and each stream's `digest()`, of every readout
-    (`stream`: one or a list; a sample of readouts kept a SIM trained on spikes since edited)."""
+    (`stream`: one or a list). `sampled`: the digest of SIMs and runs saved before 2026-11-28,
+    of each stream's size and 16 of its readouts (which missed spikes edited between them), by
+    which those are still recognised."""
     streams = stream if isinstance(stream, (list, tuple)) else [stream]
     digest = hashlib.sha256(np.asarray(timestamps, np.int64).tobytes())
     for s in streams:
-        digest.update(s.digest())
+        digest.update(_sampled_readouts(s) if sampled else s.digest())
     return digest.hexdigest()
 
 
-def _cached(path: Path, window: int, data: str, settings: dict, say: bool = True) -> SIM | None:
-    """The SIM saved at `path` if it was trained for `window` on the spikes of fingerprint `data`
-    from this package's start with training `settings` (train_sim's keywords); None (saying why
-    where a file is there, if `say`) otherwise."""
+def _sampled_readouts(stream) -> bytes:
+    """A stream's size and 16 of its readouts spread over it, as bytes."""
+    parts = [np.asarray([len(stream), stream.height, stream.width], np.int64).tobytes()]
+    for k in np.linspace(0, len(stream) - 1, 16).astype(np.int64) if len(stream) else []:
+        parts.append(np.ascontiguousarray(stream.window(int(k), 1)).tobytes())
+    return b"".join(parts)
+
+
+def _cached(
+    path: Path, window: int, data: tuple[str, ...], settings: dict, say: bool = True
+) -> SIM | None:
+    """The SIM saved at `path` if it was trained for `window` on spikes of a fingerprint in
+    `data` from this package's start with training `settings` (train_sim's keywords); None
+    (saying why where a file is there, if `say`) otherwise."""
     if not path.exists():
         return None
     try:
@@ -269,15 +281,16 @@ def _cached(path: Path, window: int, data: str, settings: dict, say: bool = True
         why = str(err)
     else:
         meta = payload["meta"]
-        key = (payload["config"]["window"], meta.get("data"), meta.get("start"))
+        same = (payload["config"]["window"], meta.get("start")) == (window, START)
+        same = same and meta.get("data") in data
         other = {k: (meta.get(k), v) for k, v in settings.items() if meta.get(k) != v}
-        if key == (window, data, START) and not other:
+        if same and not other:
             return _model_of(payload)
         why = (
             "trained with other settings ("
             + ", ".join(f"{k} {was!r}, now {now!r}" for k, (was, now) in other.items())
             + ")"
-            if key == (window, data, START)
+            if same
             else "trained on other spikes, for another window or from another start"
         )
     if say:
@@ -311,8 +324,9 @@ def train_or_load(
     """
     path = Path(path)
     data = spikes_fingerprint(stream, timestamps)
+    known = (data, spikes_fingerprint(stream, timestamps, sampled=True))  # a SIM's of today, before
     settings = {k: v for k, v in kwargs.items() if k != "progress"}
-    model = None if force else _cached(path, window, data, settings, say=False)
+    model = None if force else _cached(path, window, known, settings, say=False)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):
@@ -323,14 +337,14 @@ def train_or_load(
             )
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
         path = fallback
-        model = None if force else _cached(path, window, data, settings, say=False)
+        model = None if force else _cached(path, window, known, settings, say=False)
     if model is not None:
         return model, 0.0, path
     # one process trains each SIM: another (a second method on the same dataset) waits for it and
     # loads what it saved
     path.parent.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(path.with_name(f"{path.name}.lock"), busy=None):
-        model = None if force else _cached(path, window, data, settings)
+        model = None if force else _cached(path, window, known, settings)
         if model is not None:
             return model, 0.0, path
         partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted

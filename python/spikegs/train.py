@@ -105,18 +105,26 @@ def _means_lr(config: Config, iteration: int, scene_radius: float) -> float:
     return math.exp(math.log(lr0) * (1 - frac) + math.log(lr1) * frac) * scene_radius
 
 
-def data_fingerprint(dataset, scale: float) -> str:
-    """A digest of what training reads from `dataset`: its spikes (`spikes_fingerprint`), the
-    poses at its training timestamps, its intrinsics and the intensity `scale` (not its path: a
-    moved dataset is the same data)."""
+def data_fingerprint(dataset, scale: float, sampled: bool = False) -> str:
+    """A digest of what training reads from `dataset`: its spikes (`spikes_fingerprint`, with
+    `sampled` as there), the poses at its training timestamps, its intrinsics and the intensity
+    `scale` (not its path: a moved dataset is the same data)."""
     timestamps = np.asarray(dataset.train_timestamps, np.float64)
-    digest = hashlib.sha256(spikes_fingerprint(dataset.streams, timestamps).encode())
+    spikes = spikes_fingerprint(dataset.streams, timestamps, sampled)
+    digest = hashlib.sha256(spikes.encode())
     # rounded: the last bits of interpolated poses and of a calibrated scale may differ between
     # machines (BLAS, libm), and the same data moved there must still resume
     poses = np.round(dataset.trajectory.pose_at(timestamps), 6) + 0.0  # + 0.0: no -0.0
     digest.update(np.ascontiguousarray(poses, np.float64).data)
     digest.update(np.asarray([*np.round(np.ravel(dataset.K), 6), float(f"{scale:.6g}")]).tobytes())
     return digest.hexdigest()
+
+
+def same_data(saved: str, dataset, scale: float, current: str | None = None) -> bool:
+    """Whether a run's fingerprint `saved` is `dataset`'s: today's (`current` where known), or
+    the sampled one of runs trained before 2026-11-28."""
+    current = data_fingerprint(dataset, scale) if current is None else current
+    return saved in (current, data_fingerprint(dataset, scale, sampled=True))
 
 
 def run_lock(run_dir: Path):
@@ -302,7 +310,8 @@ class Trainer:
                 f"the same method and settings (or train into another --out). Differing: "
                 + "; ".join(changed)
             )
-        if state.get("data", self.data) != self.data:  # checkpoints before it have none
+        saved = state.get("data", self.data)  # checkpoints before fingerprints have none
+        if not same_data(saved, self.dataset, self.scale, self.data):
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained on other data than "
                 f"{self.dataset.root} (other spikes, poses, intrinsics or intensity scale; it was "

@@ -88,6 +88,7 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
 
 
 _DIGEST_CHUNK_BYTES = 64 << 20  # readouts hashed at a time by SpikeStream.digest
+MAX_WINDOW = 2**31 - 1  # the core counts spikes in int32 (2^31 readouts: -1 as TFP, unsaid)
 
 
 class SpikeStream:
@@ -124,6 +125,8 @@ class SpikeStream:
         if raw_width is not None and raw < 1:
             raise ValueError(f"raw_width expected a positive int or None, found {raw_width!r}")
         layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
+        if path.is_dir():  # its size was read as a cut-off recording's, to truncate
+            raise IsADirectoryError(f"{path}: a folder, not a spike .dat file")
         size = path.stat().st_size
         _frame_count(size, layout, path)
         data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
@@ -181,8 +184,8 @@ class SpikeStream:
     def _starts(self, k, w: int) -> tuple[np.ndarray, bool]:
         """First readout [B] of the window of `w` centred on each k; ValueError past either end."""
         ks, single = as_readouts(k)
-        if not _whole(w) or w < 1:
-            raise ValueError(f"window length expected a positive int, found {w!r}")
+        if not _whole(w) or not 1 <= w <= MAX_WINDOW:
+            raise ValueError(f"window length expected an int in 1..{MAX_WINDOW}, found {w!r}")
         w = int(w)
         lo, hi = centred_range(len(self), w)  # compared before any arithmetic on k (overflow)
         if lo > hi:
