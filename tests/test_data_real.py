@@ -178,16 +178,6 @@ def test_llff_stream_loads(sim, llff_stream):
     np.testing.assert_allclose(ds.trajectory.pose_at(375), sim.trajectory.pose_at(375), atol=1e-2)
 
 
-def test_llff_stream_timestamps_start_inside_the_first_pose(llff_stream, tmp_path):
-    """Poses from readout 20: timestamps every train_every from 32 inside the first pose, as
-    docs/datasets.md says (the grid started at the stream's readout 32, here 132, 232, ...)."""
-    root = copy(llff_stream, tmp_path)
-    readouts = np.loadtxt(root / "readouts.txt") + 20  # 20 .. 670 of 700
-    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
-    write_options(root, train_every=100, test_views=[12])  # readout 620
-    np.testing.assert_array_equal(load_dataset(root).train_timestamps, np.arange(52, 553, 100))
-
-
 def test_nerf_layout_loads(sim, nerf):
     ds = load_dataset(nerf)
     assert ds.meta["layout"] == "nerf"

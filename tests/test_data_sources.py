@@ -627,9 +627,9 @@ def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
 
 
 def test_frames_between_two_readouts_are_warned_of():
-    """20 frames over 7 readouts: 7 of them lie between the two frames around a readout, unread,
-    and were dropped without a word; 10 frames over 7 readouts are all read (each readout reads
-    the frame before it and the one after)."""
+    """20 frames over 7 readouts: 8 of them are neither the frame at or before a readout nor the
+    next (none where the readout falls on a frame), unread, and were dropped without a word; 13
+    frames half a readout apart leave 6 unread; 10 frames over 7 readouts are all read."""
     from spikegs.data.simulate import warn_about_frames
 
     viewmats = np.stack([look_at((4.0, 0.0, 0.0), np.zeros(3), up=(0.0, 0.0, 1.0))] * 10)
@@ -637,8 +637,9 @@ def test_frames_between_two_readouts_are_warned_of():
     frames = np.zeros((10, 32, 32, 1), np.float32)
     source = FrameSequenceSource("still", frames, viewmats, K, center=np.zeros(3), radius=1.0)
     trajectory = source.trajectory(7, 0.0)
-    with pytest.warns(UserWarning, match="7 of 20 light frames lie between two readouts"):
-        warn_about_frames(source, trajectory, np.linspace(0, 6, 20))
+    for frames, unread in ((20, 8), (13, 6)):
+        with pytest.warns(UserWarning, match=f"{unread} of {frames} light frames lie between two"):
+            warn_about_frames(source, trajectory, np.linspace(0, 6, frames))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_about_frames(source, trajectory, np.linspace(0, 6, 10))

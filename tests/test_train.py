@@ -1561,22 +1561,36 @@ def test_iterations_override_scales_the_densification_schedule():
         config.with_iterations(0)
 
 
-@pytest.mark.parametrize("iterations", [50, 77, 200, 300, 500, 1234, 5000])
-def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path, iterations):
-    """start = stop = 1000 every 100, valid as written, was refused at most lengths: each key
-    rounded alone (500 iterations: 167..167 every 17, no multiple there); now one round, within
-    a period of the scaled start. A schedule of stop 0 (half the run) likewise."""
+def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
+    """One round as written (start = stop = 1000 every 100; start 1450 or 1500 with stop 0, half
+    the run; start 0 every 1500) was refused at most --iterations: each key rounded alone (500:
+    167..167 every 17; 1003: start 502 past half, 501). Now a round at every length (two where
+    every rounds to 1), within a period of the scaled start; a file's own schedule, unscaled, is
+    checked as written."""
     path = tmp_path / "once.yaml"
-    for densify in ({"start": 1000, "stop": 1000, "every": 100}, {"start": 1450, "stop": 0}):
+    schedules = [
+        {"start": 1000, "stop": 1000, "every": 100},
+        {"start": 1450, "stop": 0},
+        {"start": 1500, "stop": 0},
+        {"start": 0, "stop": 0, "every": 1500},
+    ]
+    for densify in schedules:
         path.write_text(yaml.safe_dump({"base": "spikegs", "densify": densify}))
-        d = load_config(path, iterations=iterations).densify
-        rounds = [i for i in range(1, iterations) if d.start <= i <= (d.stop or iterations // 2)]
-        rounds = [i for i in rounds if i % d.every == 0]
-        assert len(rounds) == 1, (densify, d)
-        expected = densify["start"] * iterations / 3000
-        assert abs(rounds[0] - expected) <= d.every, (densify, d)
-    written = load_config(path)  # unscaled: as the user wrote it
-    assert (written.densify.start, written.densify.stop) == (1450, 0)
+        config = load_config(path)
+        for iterations in [*range(2, 120), *range(120, 6001, 37)]:
+            d = config.with_iterations(iterations).densify
+            last = d.stop or iterations // 2
+            rounds = [i for i in range(1, iterations) if d.start <= i <= last and i % d.every == 0]
+            assert 1 <= len(rounds) <= 2, (densify, iterations, d)  # 2: every rounded to 1
+            expected = max(densify["start"], densify.get("every", 100)) * iterations / 3000
+            assert abs(rounds[0] - expected) <= d.every + 1, (densify, iterations, d)
+        assert load_config(path, iterations=500).densify == config.with_iterations(500).densify
+    own = {"start": 150, "stop": 150, "every": 100}  # no round at its own length: refused,
+    path.write_text(  # whatever else (opacity_reset_every) it inherits scaled
+        yaml.safe_dump({"base": "spikegs", "train": {"iterations": 500}, "densify": own})
+    )
+    with pytest.raises(ValueError, match="densify.every"):
+        load_config(path, iterations=500)
 
 
 @pytest.mark.parametrize(

@@ -324,17 +324,18 @@ def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
 
 def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
     """A scaled schedule whose rounding left no multiple of `every` in start..stop (start = stop
-    = 1000 every 100 at 500 of 3000 iterations: 167..167 every 17) densifies once: stop is
-    raised to the first multiple, or, with stop 0 (half the run), start lowered to the last."""
+    = 1000 every 100 at 500 of 3000 iterations: 167..167 every 17), or, with stop 0, a start past
+    half the run (1500 at 1003: 502 > 501), densifies once: start no later than the last
+    densifying iteration, stop at the first multiple of every from start."""
     d = densify
+    if d.every < 1 or not 0 <= d.start < iterations or d.stop < 0:
+        return  # for validate to name
     last = d.stop or iterations // 2
-    first = -(-max(d.start, 1) // d.every) * d.every if d.every >= 1 else 0
-    if d.every < 1 or not 0 <= d.start <= last < first or d.start >= iterations:
-        return
-    if d.stop:
+    if not d.stop and d.start == last + 1:  # round(start·f) against floor(iterations / 2)
+        d.start = last
+    first = -(-max(d.start, 1) // d.every) * d.every
+    if d.start <= last < first < iterations:
         d.stop = first
-    else:
-        d.start = last // d.every * d.every
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
@@ -492,7 +493,7 @@ def load_config(
     for key in SCHEDULE_KEYS:  # unset keys are for the default length; each scaled once
         factors[key] = config.train.iterations / lengths.get(key, TrainConfig.iterations)
         _scale_schedule(config.densify, [key], factors[key])
-    if any(f != 1 for f in factors.values()):
+    if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
     return config.validate()
 

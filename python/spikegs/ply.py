@@ -170,8 +170,8 @@ def load_ply(path: str | Path) -> GaussianModel:
         background = torch.zeros(channels)
         warnings.warn(
             f"{path}: no 'spikegs background' comment (another tool's file, or re-saved by one): "
-            f"rendered over black; add 'comment spikegs background V' after 'format' to restore "
-            f"a trained background",
+            f"rendered over black; add 'comment spikegs background V' (a value per channel, as "
+            f"the run's own scene.ply has it) after 'format' to restore a trained background",
             stacklevel=2,
         )
     rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params.values()]  # [N, *]

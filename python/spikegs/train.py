@@ -314,7 +314,8 @@ class Trainer:
         if not same_data(saved, self.dataset, self.scale, self.data):
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained on other data than "
-                f"{self.dataset.root} (other spikes, poses, intrinsics or intensity scale; it was "
+                f"{self.dataset.root} (other spikes, training timestamps, poses, intrinsics or "
+                f"intensity scale; it was "
                 f"{state.get('dataset')}); resume it on its own dataset or train into another --out"
             )
         return state

@@ -129,12 +129,17 @@ class Dataset:
             return
         ratio = self.scene_radius / distance
         if not 1 / SCENE_SIZE_RATIO <= ratio <= SCENE_SIZE_RATIO:
+            where = (  # a real layout's sphere: computed from its views, or set in spikegs.json
+                "meta.json's scene_radius"
+                if "layout" not in self.meta
+                else "the scene sphere: set scene_center and scene_radius in spikegs.json"
+            )
             warnings.warn(
                 f"{self.root}: scene_radius {self.scene_radius:.3g} is {ratio:.3g} times the "
                 f"cameras' median distance from scene_center ({distance:.3g}): Gaussians start "
                 f"in that ball and the near plane and the means' learning rate follow it; "
-                f"check meta.json's scene_radius (expected within {SCENE_SIZE_RATIO:g}x either "
-                f"way of that distance)",
+                f"check {where} (expected within {SCENE_SIZE_RATIO:g}x either way of that "
+                f"distance)",
                 stacklevel=3,
             )
 

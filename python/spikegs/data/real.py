@@ -9,7 +9,6 @@ output does too. A sharp image (intensity, [0, 1]) is stored times the trainer's
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import warnings
 from pathlib import Path
@@ -331,20 +330,18 @@ def stream_dataset(
             f"window needs: readouts are indices, {READOUT_PERIOD_S * 1e6:g} µs apart (not "
             f"seconds?)"
         )
-    # a grid from 32 readouts inside the first pose (it started at the stream's readout 32)
-    first = math.ceil(trajectory.start)
-    span = math.floor(trajectory.end) - first + 1
-    every = options.train_every or default_train_every(span)
-    ks = first + train_timestamps(span, readouts[test] - first, every)  # [M]
+    every = options.train_every or default_train_every(len(stream))
+    ks = train_timestamps(len(stream), readouts[test], every)  # [M]
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
     if not len(ks):
         spacing = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
-            f"(train_every) from {first + WINDOW_MARGIN} to {first + span - 1 - WINDOW_MARGIN}, "
-            f"{WINDOW_MARGIN} inside the poses' ends, keep {2 * WINDOW_MARGIN} readouts clear of "
-            f"each of the {int(test.sum())} held-out poses, which lie {spacing:g} readouts "
-            f"apart; a smaller train_every, or hold out fewer (test_views), in spikegs.json"
+            f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
+            f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
+            f"clear of each of the {int(test.sum())} held-out poses, which lie {spacing:g} "
+            f"readouts apart; a smaller train_every, or hold out fewer (test_views), in "
+            f"spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)
     window = options.pseudo_gt_window or NEEDED_WINDOW

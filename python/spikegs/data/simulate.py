@@ -160,7 +160,8 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
         return
     readouts = np.arange(int(times[-1]) + 1)  # [R]
     before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
-    read = np.unique(np.clip(np.concatenate([before, before + 1]), 0, len(times) - 1))
+    after = (before + 1)[times[before] != readouts]  # the next, unless the readout is on a frame
+    read = np.unique(np.clip(np.concatenate([before, after]), 0, len(times) - 1))
     if len(read) < len(times):  # a readout interpolates the two frames around it
         warnings.warn(
             f"{len(times) - len(read)} of {len(times)} light frames lie between two readouts "
