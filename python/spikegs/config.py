@@ -540,6 +540,36 @@ def _read(
     """The overrides of a config file, with its `base` chain resolved (base first); a relative
     file path is taken from `relative_to` (the including file's directory), else from the
     current directory. `saved_run` as in `load_config`."""
+    path = _config_path(name_or_path, relative_to)
+    if path in seen:
+        raise ValueError(f"config: 'base' chain loops at {path}")
+    try:
+        data = read_yaml(path) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: not readable as YAML: {err}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping at the top level")
+    base = data.pop("base", None)
+    if base is not None and (not isinstance(base, str) or not base.strip()):
+        raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
+    merged = {}
+    if base:
+        try:
+            base_path = _config_path(base, path.parent)
+        except (ValueError, FileNotFoundError) as err:  # it named the base, not the file naming it
+            raise type(err)(f"{path}: base: {err}") from None
+        merged = _read(base_path, seen | {path})
+    if not seen and "method" not in data:  # the file given names no method: its own name
+        data["method"] = _own_name(path, merged.get("method"))
+    _layer(merged, data)
+    if not seen and not saved_run:  # named, or named after itself like a built-in method
+        _check_named(path, merged)
+    return merged
+
+
+def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
+    """The resolved path of a config file or a built-in method's name (relative to
+    `relative_to`, else to the current directory); ValueError or FileNotFoundError naming it."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         if len(path.parts) > 1 or path.suffix:  # a file's path, not a method's name
@@ -555,32 +585,7 @@ def _read(
         raise FileNotFoundError(f"config file not found: {path}")
     if not path.is_file():
         raise ValueError(f"config file {path}: not a file")
-    path = path.resolve()
-    if path in seen:
-        raise ValueError(f"config: 'base' chain loops at {path}")
-    try:
-        data = read_yaml(path) or {}
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: not readable as YAML: {err}") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping at the top level")
-    base = data.pop("base", None)
-    if base is not None and (not isinstance(base, str) or not base.strip()):
-        raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
-    try:
-        merged = _read(base, seen | {path}, path.parent) if base else {}
-    except FileNotFoundError as err:  # its message named the base, not the file naming it
-        raise FileNotFoundError(f"{path}: base: {err}") from None
-    except ValueError as err:
-        if "unknown method" not in str(err):  # errors inside the base's own file name it
-            raise
-        raise ValueError(f"{path}: base: {err}") from None
-    if not seen and "method" not in data:  # the file given names no method: its own name
-        data["method"] = _own_name(path, merged.get("method"))
-    _layer(merged, data)
-    if not seen and not saved_run:  # named, or named after itself like a built-in method
-        _check_named(path, merged)
-    return merged
+    return path.resolve()
 
 
 # Keys added with a default unlike the behaviour before them: a run's config saved without one
