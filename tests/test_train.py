@@ -715,7 +715,7 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
         given = {**model.params, "background": torch.zeros(3)}
         given[name] = given[name][part]
         with pytest.raises(ValueError, match=rf"of one N and C; found {name} \["):
-            GaussianModel({**given}, given["background"], 1)
+            GaussianModel(given, given["background"], 1)
 
 
 def test_gaussian_model_refuses_sizes_without_gaussians():

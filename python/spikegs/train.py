@@ -124,7 +124,7 @@ def same_data(saved: str, dataset, scale: float, current: str | None = None) -> 
     """Whether a run's fingerprint `saved` is `dataset`'s: today's (`current` where known), or
     the sampled one of runs trained before 2026-11-28."""
     current = data_fingerprint(dataset, scale) if current is None else current
-    return saved in (current, data_fingerprint(dataset, scale, sampled=True))
+    return saved == current or saved == data_fingerprint(dataset, scale, sampled=True)
 
 
 def run_lock(run_dir: Path):
