@@ -351,7 +351,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "matrix": (
             "test_views.json",
             views(pose("abc")),
-            "transform_matrix or readout not numbers",
+            "transform_matrix not numbers",
         ),
         "scaled": (
             "test_views.json",
@@ -362,7 +362,25 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "zero": ("trajectory.json", zero_pose, r"trajectory.json: the pose of frame 5 .* = 1 "),
         "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
         "nan readout": ("test_views.json", views(frame0(readout=float("nan"))), "readout a finite"),
-        "readout": ("test_views.json", views(frame0(readout="abc")), "view 'on_000'.* not numbers"),
+        "readout": (
+            "test_views.json",
+            views(frame0(readout="abc")),
+            "view 'on_000'.* finite number",
+        ),
+        # a number written as a string was read as one (the docs refuse it, as in transforms files)
+        "string readout": ("test_views.json", views(frame0(readout="200")), "readout a finite"),
+        "string trajectory": (
+            "trajectory.json",
+            lambda text: json.dumps(
+                {
+                    **json.loads(text),
+                    "frames": [
+                        {**f, "readout": str(f["readout"])} for f in json.loads(text)["frames"]
+                    ],
+                }
+            ),
+            "trajectory.json: malformed frames",
+        ),
         "frames": (
             "test_views.json",
             views(lambda d: {**d, "frames": 3}),

@@ -317,6 +317,19 @@ def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():
     assert areas[30.0] / areas[60.0] == pytest.approx(focal_ratio**2, rel=0.25)
 
 
+def test_mitsuba_negative_light_is_set_to_0_with_one_warning():
+    """A negative emitter's radiance was set to 0 without a word of ours (as frame files warn)."""
+    pytest.importorskip("mitsuba")
+    source = MitsubaSource(glowing_ball([0, 0, 0], 0.5, (-1.0, 0.5, 0.5)), 8, 8, spp=1)
+    viewmat = source.trajectory(2, 1.0).pose_at(0.0)
+    with pytest.warns(UserWarning, match=r"renders \d+ values below 0 .* lowest -1;.* set to 0"):
+        image = source.render(viewmat)
+    assert image.min() == 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        source.render(viewmat)  # said once
+
+
 def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path):
     """No integrator: Mitsuba's raw Exception at the first frame; no shapes: a NaN scene centre,
     reported as non-rigid poses; a parse error: a traceback."""

@@ -191,9 +191,10 @@ def test_windows_past_either_end_refused():
     for interval in (2.5, 0, 2**30 + 1, 2**63, 1e300):  # 2.5 was read as 2; 2**63: a TypeError
         with pytest.raises(ValueError, match="max_interval"):
             s.tfi(5, interval)
-    for start, stop in ((1.5, None), ("1", None), (0, 2.0)):  # TypeErrors
+    for start, stop in ((1.5, None), ("1", None), (0, 2.5), (True, None)):  # TypeErrors
         with pytest.raises(ValueError, match="(start|stop): expected an int"):
             s.packed(start, stop)
+    np.testing.assert_array_equal(s.packed(1.0, 3.0), s.packed(1, 3))  # as windows take them
     for k in (5.5, float("nan"), [5.0, 6.5]):
         with pytest.raises(ValueError, match="integer"):
             s.tfp(k, 3)

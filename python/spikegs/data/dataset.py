@@ -24,7 +24,7 @@ import numpy as np
 
 from ..atomic_save import write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
-from ..number_checks import is_int, is_number
+from ..number_checks import is_int, is_number, number_array
 from ..spikes import SpikeStream
 from .trajectory import (
     PathLike,
@@ -320,11 +320,11 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
             raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")
         where = f"{path}: view {frame['name']!r}"
         try:
-            c2w = np.asarray(frame["transform_matrix"], np.float64)  # [4, 4]
-            readout = None if frame.get("readout") is None else float(frame["readout"])
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"{where}: transform_matrix or readout not numbers ({err})") from None
-        if not isinstance(frame["file_path"], str) or not np.isfinite(readout or 0.0):
+            c2w = number_array(frame["transform_matrix"])  # [4, 4]
+        except ValueError as err:
+            raise ValueError(f"{where}: transform_matrix not numbers ({err})") from None
+        readout = frame.get("readout")
+        if not isinstance(frame["file_path"], str) or not (readout is None or is_number(readout)):
             raise ValueError(f"{where}: file_path expected a path and readout a finite number")
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
@@ -342,7 +342,14 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
                 f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
                 f"found {list(image.shape)}"
             )
-        views.append(TestView(frame["name"], np.linalg.inv(c2w), image, readout))
+        views.append(
+            TestView(
+                frame["name"],
+                np.linalg.inv(c2w),
+                image,
+                None if readout is None else float(readout),
+            )
+        )
     check_test_views(views, path)
     return views
 

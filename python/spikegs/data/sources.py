@@ -277,12 +277,21 @@ class MitsubaSource(RenderSource):
             }
         )
         self._params = mi.traverse(self._sensor)
+        self._negative_warned = False
 
     def render(self, viewmat: np.ndarray) -> np.ndarray:
         c2w = np.linalg.inv(viewmat) @ np.diag([-1.0, -1.0, 1.0, 1.0])  # OpenCV -> Mitsuba axes
         self._params["to_world"] = self._mi.ScalarTransform4f(c2w.tolist())
         self._params.update()
         rgb = np.array(self._mi.render(self._scene, sensor=self._sensor, spp=self._spp, seed=0))
+        if not self._negative_warned and (rgb < 0).any():  # a negative emitter's radiance
+            self._negative_warned = True
+            warnings.warn(
+                f"Mitsuba scene '{self.name}' renders {int((rgb < 0).sum())} values below 0 in a "
+                f"frame (the lowest {float(rgb.min()):.3g}; a negative emitter?), set to 0: light "
+                f"is not negative (said once)",
+                stacklevel=2,
+            )
         return to_channels(np.maximum(rgb, 0.0), self.channels).astype(np.float32)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..atomic_save import write_text_atomically
-from ..number_checks import is_number
+from ..number_checks import is_number, number_array
 
 PathLike = Union[str, os.PathLike]
 CONVENTION = "opencv"
@@ -225,8 +225,8 @@ class Trajectory:
         if not frames:
             raise ValueError(f"{path}: no frames (poses)")
         try:
-            readouts = np.array([f["readout"] for f in frames], np.float64)  # [P]
-            c2w = np.array([f["transform_matrix"] for f in frames], np.float64)  # [P, 4, 4]
+            readouts = number_array([f["readout"] for f in frames])  # [P]
+            c2w = number_array([f["transform_matrix"] for f in frames])  # [P, 4, 4]
         except (KeyError, TypeError, ValueError) as err:
             raise ValueError(f"{path}: malformed frames ({err})") from err
         if c2w.shape[1:] != (4, 4):

@@ -242,8 +242,10 @@ class SpikeStream:
         return digest.digest()
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]."""
-        start, stop = whole_numbers(start=start, stop=len(self) if stop is None else stop)
+        """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]; whole-number
+        floats are accepted, as readouts everywhere (a window's, a view's)."""
+        bounds = {"start": start, "stop": len(self) if stop is None else stop}
+        start, stop = whole_numbers(**{k: int(v) if _whole(v) else v for k, v in bounds.items()})
         if not 0 <= start <= stop <= len(self):
             raise ValueError(f"readouts [{start}, {stop}) expected within [0, {len(self)})")
         mem = _C.SpikeLayout.memory(self.height, self.width)
