@@ -2055,10 +2055,14 @@ def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
     assert not [p for p in tmp_path.iterdir() if atomic_save.is_temporary(p.name)]
 
 
-def test_a_step_renders_the_instant_and_the_exposure_poses(dataset, tmp_path, monkeypatch):
+@pytest.mark.parametrize("method, offset", [("tfp33", 0.0), ("tfi", 0.5)])
+def test_a_step_renders_the_instant_and_the_exposure_poses(
+    dataset, tmp_path, monkeypatch, method, offset
+):
     """The exposure loss's K renders are at the window's K midpoints of the continuous
     trajectory (an odd K's centre is the instant pose, rendered once): rendering all K at t, no
-    blur model at all, passed every test."""
+    blur model at all, passed every test. TFI's instant pose is half a readout on, where its
+    image shows the light (its interval straddles readouts t and t + 1; it rendered at t)."""
     from spikegs.gaussians import GaussianModel
     from spikegs.losses import exposure_times
 
@@ -2067,7 +2071,7 @@ def test_a_step_renders_the_instant_and_the_exposure_poses(dataset, tmp_path, mo
         "train": {**FAST["train"], "iterations": 3},
         "supervision": {"exposure_weight": 1.0, "exposure_poses": 5, "exposure_window": 33},
     }
-    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    trainer = Trainer(dataset, load_config(method, overrides), tmp_path / "run", progress=False)
     rendered, stepped, render, step = [], [], GaussianModel.render, Trainer.step
 
     def recording_render(model, viewmat, *args, **kwargs):
@@ -2091,7 +2095,8 @@ def test_a_step_renders_the_instant_and_the_exposure_poses(dataset, tmp_path, mo
     assert len(stepped) == len(spans) == 3
     for t, views in zip(spans, stepped):
         times = exposure_times(t, 33, 5)  # [5] readouts, times[2] == t
-        expected = dataset.trajectory.pose_at(np.array([t, *times[[0, 1, 3, 4]]]))  # [5, 4, 4]
-        assert len(views) == 5
+        exposure = times if offset else times[[0, 1, 3, 4]]  # the centre shared at offset 0
+        expected = dataset.trajectory.pose_at(np.array([t + offset, *exposure]))  # [5|6, 4, 4]
+        assert len(views) == 1 + len(exposure)
         np.testing.assert_allclose(torch.stack(views).numpy(), expected, atol=1e-6)
         assert not np.allclose(expected[1], expected[0], atol=1e-4)  # the camera moves

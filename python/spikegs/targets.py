@@ -26,10 +26,20 @@ from .sim_train import fast_inference_model, predict, train_or_load
 class TargetImages:
     """Images [H, W, C] in intensity units at a run's training timestamps, indexed like them;
     each computed on first access (`image_fn` of that one readout) and kept. `quantum`: one spike
-    of the TFP window that they count or estimate, in intensity units (smooth L1's zone)."""
+    of the TFP window that they count or estimate, in intensity units (smooth L1's zone).
+    `time_offset`: readouts from a timestamp to the time its image shows (TFI's: +0.5), where the
+    trainer renders the instant pose."""
 
-    def __init__(self, timestamps: np.ndarray, image_fn: Callable, scale: float, quantum: float):
+    def __init__(
+        self,
+        timestamps: np.ndarray,
+        image_fn: Callable,
+        scale: float,
+        quantum: float,
+        time_offset: float = 0.0,
+    ):
         self.timestamps = timestamps  # [M] readouts
+        self.time_offset = time_offset
         self._image_fn = image_fn  # readouts [n] -> firing rates [n, H, W, C]
         self._scale = scale  # firing rate of intensity 1.0
         self.quantum = quantum
@@ -224,11 +234,11 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         """One spike of a `window`-readout TFP, in intensity units."""
         return 1.0 / (window * scale)
 
-    def images(stream_fn, window: int) -> TargetImages:
+    def images(stream_fn, window: int, time_offset: float = 0.0) -> TargetImages:
         """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
         that count or estimate the spikes of `window` readouts."""
         per_channel = lambda k: _per_channel(streams, lambda st: stream_fn(st, k))  # noqa: E731
-        return TargetImages(ts, per_channel, scale, spike(window))
+        return TargetImages(ts, per_channel, scale, spike(window), time_offset)
 
     instant, sim_seconds = None, 0.0
     if s.instant_weight > 0 and s.instant != "none":
@@ -245,7 +255,9 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         elif s.instant == "tfp":
             instant = images(lambda st, k: st.tfp(k, s.instant_window), s.instant_window)
         else:  # TFI counts no window: instant_window only sets smooth L1's zone
-            instant = images(lambda st, k: st.tfi(k), s.instant_window)
+            # TFI(k)'s inter-spike interval straddles readouts k and k + 1: it shows the light
+            # at k + 0.5 (a time ramp measures +0.50), so its pose is rendered there
+            instant = images(lambda st, k: st.tfi(k), s.instant_window, time_offset=0.5)
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)

@@ -406,7 +406,10 @@ class Trainer:
         instant_only = self.config.densify.instant_only and targets.instant is not None
         exposure_tap = {} if instant_only else tap
         loss, instant = torch.zeros(()), None
-        times = [t]  # the instant pose, then the exposure's
+        # the instant pose (at the time its target shows: TFI's is half a readout on), then the
+        # exposure's
+        offset = targets.instant.time_offset if targets.instant is not None else 0.0
+        times = [t + offset]
         if targets.exposure is not None:
             times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
         viewmats = self._poses(times, index)
@@ -424,7 +427,7 @@ class Trainer:
         if targets.exposure is not None:
             renders = []
             for k, viewmat in enumerate(viewmats[1:]):
-                if instant is not None and 2 * k + 1 == s.exposure_poses:
+                if instant is not None and not offset and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
                     continue
                 r = self.model.render(viewmat, self.K, w, h, self.near, **exposure_tap)

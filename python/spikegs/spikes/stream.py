@@ -10,6 +10,10 @@ TFI(k) = 1 / min(t_next - t_prev, max_interval): t_prev is the last readout <= k
 spike at k, or at readout 0, counts), t_next the first readout > k with one, and a side with no
 spike is infinitely far. A pixel with no spike pair within max_interval, and every pixel at the
 last readout, reads 1/max_interval: never inf or NaN.
+
+Times, where readout k reads the light at time k (the simulator's convention, pose_at(k)): TFP(k,
+w) shows the light at k for odd w and at k - 1/2 for even w (the middle of its readouts); TFI(k)
+at k + 1/2 (its interval always straddles readouts k and k + 1).
 """
 
 from __future__ import annotations
