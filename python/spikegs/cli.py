@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -114,6 +115,19 @@ def _warning_printer(command: str, default):
     return show
 
 
+INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells'
+
+
+def console() -> None:
+    """The `spikegs` command: `main`, then exit with its status. Once interrupted, further
+    Ctrl-Cs are ignored while the interpreter exits (a second one, pressed as people do, printed
+    'Exception ignored in atexit callback ... KeyboardInterrupt' from its clean-up)."""
+    status = main()
+    if status == INTERRUPTED:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(status)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     with warnings.catch_warnings():
@@ -127,7 +141,7 @@ def _run(args: argparse.Namespace) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return INTERRUPTED
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
         print(f"spikegs {args.command}: error: {err}", file=sys.stderr)
@@ -145,4 +159,4 @@ def _run(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

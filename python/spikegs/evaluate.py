@@ -72,12 +72,26 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
             f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
-    elif not Path(own).exists() and known and same:  # moved
+    elif known and same and not _holds_run_data(Path(own), train["data"], scale):  # moved
         return "eval"
     for i in itertools.count(1):
         name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")
         if _scored_dataset(run_dir / f"{name}.json") in (None, str(root)):
             return name
+
+
+def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
+    """Whether `folder`, the run's dataset folder, still holds the data of fingerprint `data`
+    (False where it is gone, or holds another dataset or none: the run's data moved)."""
+    from .data import load_dataset
+    from .train import same_data
+
+    if not folder.exists():
+        return False
+    try:
+        return same_data(data, load_dataset(folder), scale)
+    except (OSError, ValueError, KeyError):
+        return False
 
 
 def _scored_dataset(path: Path) -> str | None:
@@ -89,6 +103,16 @@ def _scored_dataset(path: Path) -> str | None:
         return str(json.loads(path.read_text()).get("dataset", ""))
     except (ValueError, AttributeError):
         return ""
+
+
+def _scored_views(path: Path) -> set[str]:
+    """The names of the views an evaluation file scored (none where there is no such file, or
+    it is unreadable)."""
+    try:
+        views = set(json.loads(path.read_text())["views"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    return {v for v in views if isinstance(v, str) and v and not {"/", "\\"} & set(v)}
 
 
 def _configured_method(run_dir: Path) -> str | None:
@@ -129,6 +153,10 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
+    folder = run_dir / name
+    # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
+    for gone in _scored_views(run_dir / f"{name}.json") - {v.name for v in dataset.test_views}:
+        (folder / f"{gone}.png").unlink(missing_ok=True)
     views = {}
     for view in dataset.test_views:
         pred = render_view(model, view.viewmat, dataset)
@@ -139,7 +167,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         views[view.name] = view_metrics(pred, gt)
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
-            write_image(run_dir / name / f"{view.name}.png", side)
+            write_image(folder / f"{view.name}.png", side)
     exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
     if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
         listed = ", ".join(exact[:3]) + (", ..." if len(exact) > 3 else "")

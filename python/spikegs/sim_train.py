@@ -26,6 +26,7 @@ from .config import SimConfig
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
 from .metrics import psnr, ssim
+from .number_checks import is_number
 from .output_paths import writable_folder
 from .sim import SIM, START
 
@@ -225,6 +226,16 @@ def _read_saved(path: Path) -> dict:
     if not (isinstance(payload, dict) and all(isinstance(payload.get(k), dict) for k in parts)):
         raise ValueError("not a saved SIM")
     return payload
+
+
+def recorded_seconds(path: Path) -> float:
+    """The training seconds that the SIM saved at `path` recorded (0 where it records none or
+    is no saved SIM)."""
+    try:
+        seconds = _read_saved(path)["meta"].get("seconds", 0.0)
+    except ValueError:
+        return 0.0
+    return float(seconds) if is_number(seconds) and seconds > 0 else 0.0
 
 
 def is_sim_file(path: Path) -> bool:

@@ -20,7 +20,7 @@ import torch
 
 from .config import Config, SimConfig
 from .number_checks import is_number
-from .sim_train import fast_inference_model, predict, train_or_load
+from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 
 class TargetImages:
@@ -66,7 +66,7 @@ class Targets:
     timestamps: np.ndarray  # [M] readouts
     instant: TargetImages | None  # M images [H, W, C], or None
     exposure: TargetImages | None  # M images [H, W, C], or None
-    sim_seconds: float = 0.0  # time spent training SIM (0 when it was cached)
+    sim_seconds: float = 0.0  # SIM's training time (loaded from its cache: the time it recorded)
 
 
 def sample_timestamps(dataset) -> np.ndarray:
@@ -243,9 +243,11 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     instant, sim_seconds = None, 0.0
     if s.instant_weight > 0 and s.instant != "none":
         if s.instant == "sim":
-            model, sim_seconds, _ = trained_sim(
+            model, sim_seconds, path = trained_sim(
                 dataset, config.sim, config.train.seed, progress=progress
             )
+            if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
+                sim_seconds = recorded_seconds(path)
             fast = fast_inference_model(model)
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()

@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from ..config import Config, available_methods, load_config
 from ..curves import save_curves
@@ -38,6 +37,7 @@ from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
+from ..sim_train import recorded_seconds
 from ..targets import sim_path
 from ..train import Trainer, refuse_foreign_files
 from .common import print_table, write_results
@@ -112,8 +112,7 @@ def uses_sim(config: Config) -> bool:
 
 def sim_seconds(dataset, config: Config) -> float:
     """Training time of the dataset's cached SIM for `config` (recorded when it was trained)."""
-    path = sim_path(dataset, config.sim, config.train.seed)
-    return float(torch.load(path, map_location="cpu", weights_only=True)["meta"]["seconds"])
+    return recorded_seconds(sim_path(dataset, config.sim, config.train.seed))
 
 
 def held_out_scores(trainer: Trainer) -> dict[str, float]:

@@ -1,0 +1,79 @@
+"""What a researcher gets out of a run: times, evaluation files and images (an output audit)."""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import sys
+
+import pytest
+from spikegs.cli import console, main
+from spikegs.config import load_config
+from spikegs.data import load_dataset, simulate_dataset
+from spikegs.evaluate import evaluate_run
+from spikegs.train import Trainer
+
+FAST = {
+    "train": {"iterations": 2, "init_gaussians": 800, "eval_every": 50, "checkpoint_every": 50},
+    "densify": {"start": 40, "stop": 160, "every": 40, "opacity_reset_every": 0},
+}
+TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
+
+
+def test_a_run_on_a_cached_sim_counts_sims_training_time(tmp_path):
+    """A second SIM method on a dataset loads SIM from DATASET/sim: its train.json said
+    sim_seconds 0 and its curve.png drew it from 0 s as a method without SIM, where `bench
+    train` counts the cached SIM's recorded time."""
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    config = load_config("spikegs", {**FAST, "sim": {"iterations": 3, "crop": 16, "batch": 1}})
+    first = Trainer(data, config, tmp_path / "a", progress=False).train()
+    second = Trainer(data, config, tmp_path / "b", progress=False).train()
+    assert first["sim_seconds"] > 0
+    assert second["sim_seconds"] == first["sim_seconds"]
+
+
+def test_eval_images_are_those_of_the_views_scored(tmp_path):
+    """Scored again after its dataset was simulated again with fewer test views, eval-DATA/ kept
+    the side-by-sides of the views no longer there next to the new ones."""
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    Trainer(data, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
+    other = simulate_dataset("solids", tmp_path / "other" / "data", **TINY)
+    evaluate_run(tmp_path / "run", other)
+    fewer = {**TINY, "test_on_path": 1, "test_off_path": 1, "seed": 1}
+    other = simulate_dataset("solids", tmp_path / "other" / "data", **fewer, overwrite=True)
+    result = evaluate_run(tmp_path / "run", other)
+    folder = tmp_path / "run" / "eval-data"
+    assert sorted(p.stem for p in folder.glob("*.png")) == sorted(result["views"])
+
+
+def test_eval_of_its_moved_dataset_writes_eval_json_where_another_took_its_place(tmp_path):
+    """The run's dataset moved and another simulated into its old folder: scoring the moved one,
+    the run's own data, wrote eval-moved.json, as if it were another dataset."""
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    Trainer(data, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
+    moved = shutil.move(tmp_path / "data", tmp_path / "moved")
+    simulate_dataset("solids", tmp_path / "data", **{**TINY, "seed": 1})
+    result = evaluate_run(tmp_path / "run", load_dataset(moved), write_images=False)
+    assert result["file"] == str(tmp_path / "run" / "eval.json")
+
+
+def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):
+    """After 'interrupted', a second Ctrl-C (pressed twice, as people do) landed in the
+    interpreter's exit and printed 'Exception ignored in atexit callback ... KeyboardInterrupt':
+    the `spikegs` command ignores SIGINT once interrupted, until it has exited."""
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    previous = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr("spikegs.eval_cli.run", interrupted)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
+    try:
+        with pytest.raises(SystemExit) as exit:
+            console()
+        assert exit.value.code == 130
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert main(["eval", "RUN"]) == 130  # main, which tests call, leaves SIGINT alone
+    assert signal.getsignal(signal.SIGINT) is previous
