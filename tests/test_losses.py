@@ -78,3 +78,16 @@ def test_dssim_matches_scikit_image():
         full=True,
     )
     assert abs(ours - (1 - full.mean()) / 2) < 1e-5, (ours, (1 - full.mean()) / 2)
+
+
+def test_dssim_of_colour_is_the_mean_of_its_channels_and_its_gradient_checks():
+    """The channels' moments are blurred together: each channel's map must come from its own
+    moments (a mix-up of the stacked maps scores other numbers), and the gradient is autograd's
+    through the two 1-D passes (float64 finite differences)."""
+    gen = torch.Generator().manual_seed(0)
+    a, b = torch.rand(2, 20, 24, 3, generator=gen, dtype=torch.float64)
+    per_channel = torch.stack([dssim(a[..., i : i + 1], b[..., i : i + 1]) for i in range(3)])
+    assert float(dssim(a, b)) == pytest.approx(float(per_channel.mean()), abs=1e-12)
+    assert len(set(per_channel.tolist())) == 3
+    x = a[:9, :10].clone().requires_grad_()
+    assert torch.autograd.gradcheck(lambda x: dssim(x, b[:9, :10]), (x,))

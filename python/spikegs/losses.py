@@ -52,24 +52,31 @@ def exposure_loss(
     return NORMS[norm](torch.stack(renders).mean(dim=0), target, quantum)
 
 
-def _gaussian_window(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
+def _gaussian_taps(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
+    """The normalised 1-D Gaussian [size]; SSIM's 2-D window is its outer product."""
     x = torch.arange(size, dtype=torch.float32) - (size - 1) / 2
     g = torch.exp(-(x**2) / (2 * sigma**2))
-    g = g / g.sum()
-    return g[:, None] * g[None, :]  # [size, size]
+    return g / g.sum()
+
+
+def _gaussian_blur(maps: torch.Tensor) -> torch.Tensor:
+    """Each of `maps` [1, n, H, W] blurred by SSIM's window (zero padding), as two 1-D passes of
+    one grouped convolution each: the 11x11 window in one convolution a map took 20x as long
+    (79 against 3.6 ms forward and backward at 128², one map's own convolution is no depthwise
+    kernel in oneDNN)."""
+    n, g = maps.shape[1], _gaussian_taps().to(maps)
+    r = g.numel() // 2
+    rows = F.conv2d(maps, g.view(1, 1, 1, -1).expand(n, 1, 1, -1), padding=(0, r), groups=n)
+    return F.conv2d(rows, g.view(1, 1, -1, 1).expand(n, 1, -1, 1), padding=(r, 0), groups=n)
 
 
 def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]."""
     c = render.shape[-1]
     x, y = render.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None]  # [1, C, H, W]
-    w = _gaussian_window().to(render)[None, None].expand(c, 1, -1, -1)
-
-    def blur(t):
-        return F.conv2d(t, w, padding=w.shape[-1] // 2, groups=c)
-
-    mx, my = blur(x), blur(y)
-    vx, vy, cxy = blur(x * x) - mx**2, blur(y * y) - my**2, blur(x * y) - mx * my
+    # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
+    mx, my, xx, yy, xy = _gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1)).split(c, 1)
+    vx, vy, cxy = xx - mx**2, yy - my**2, xy - mx * my
     c1, c2 = 0.01**2, 0.03**2
     s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx**2 + my**2 + c1) * (vx + vy + c2))
     return (1 - s.mean()) / 2
