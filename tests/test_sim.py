@@ -314,6 +314,15 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     again, seconds, same = train_or_load(dataset_sim / "sim.pt", stream, ts, 33, **tiny)
     assert seconds == 0 and same == path  # found there the next time
     assert torch.equal(again.head[-1].bias, model.head[-1].bias)
+    # a SIM cached there before every readout was hashed: under its sampled fingerprint's folder
+    sampled = spikes_fingerprint(stream, ts, sampled=True)
+    legacy = user_cache("sim.pt", sampled)
+    legacy.parent.mkdir(parents=True)
+    payload = torch.load(path, weights_only=True)
+    payload["meta"]["data"] = sampled
+    torch.save(payload, legacy)
+    path.unlink()
+    assert train_or_load(dataset_sim / "sim.pt", stream, ts, 33, **tiny)[1:] == (0, legacy)
     other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
     assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
     # a cache that cannot be written either: refused before training (XDG_CACHE_HOME a file)

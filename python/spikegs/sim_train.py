@@ -347,8 +347,14 @@ def train_or_load(
                 f"to a writable folder"
             )
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
+        # a SIM cached there before 2026-11-28 lies under the sampled fingerprint's folder
+        legacy = user_cache(path.name, known[1])
         path = fallback
-        model = None if force else _cached(path, window, known, settings, say=False)
+        for cached in (fallback, legacy) if not force else ():
+            model = _cached(cached, window, known, settings, say=False)
+            if model is not None:
+                path = cached
+                break
     if model is not None:
         return model, 0.0, path
     # one process trains each SIM: another (a second method on the same dataset) waits for it and
