@@ -1505,7 +1505,15 @@ def test_opacity_is_never_reset_within_a_reset_period_of_the_end():
     assert not Densifier(config, 1.0, iterations=3000)._resets_opacity(3000)
     long_run = Densifier(config, 1.0, iterations=30000)
     resets = [i for i in range(1, 30001) if long_run._resets_opacity(i)]
-    assert resets == [3000, 6000, 9000, 12000, 15000]  # as in 3DGS: up to densify's stop
+    assert resets == [3000, 6000, 9000, 12000]  # as in 3DGS: while densifying (< 15000)
+
+
+def test_no_opacity_reset_without_a_pruning_round_after_it():
+    """A reset at densify's last round (stop a multiple of the reset period) left every
+    Gaussian at opacity <= 0.01 with no pruning round to remove those that never recovered."""
+    config = DensifyConfig(start=100, every=100, stop=1500, opacity_reset_every=500)
+    densifier = Densifier(config, 1.0, iterations=3000)
+    assert [i for i in range(1, 3001) if densifier._resets_opacity(i)] == [500, 1000]
 
 
 def test_default_run_resets_opacity_once_midway_through_densification():

@@ -111,14 +111,16 @@ class Densifier:
             )
 
     def _resets_opacity(self, iteration: int) -> bool:
-        """Opacities are reset every `opacity_reset_every` iterations up to `stop`, and only with
-        a whole reset period left to recover from it (3DGS: last reset at 15k of 30k); a reset at
-        the end of a run would leave a nearly transparent scene."""
+        """Opacities are reset every `opacity_reset_every` iterations before `stop`, so that a
+        pruning round follows (3DGS and gsplat reset only while densifying, `iteration <
+        densify_until_iter`: 3k..12k of 30k; a reset at `stop` was never pruned after), and only
+        with a whole reset period left to recover from it; a reset at the end of a run would
+        leave a nearly transparent scene."""
         every = self.config.opacity_reset_every
         return bool(
             every
             and iteration % every == 0
-            and iteration <= self.stop
+            and iteration < self.stop
             and iteration + every <= self.iterations
         )
 

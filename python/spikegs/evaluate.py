@@ -89,7 +89,9 @@ def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
     if not folder.exists():
         return False
     try:
-        return same_data(data, load_dataset(folder), scale)
+        with warnings.catch_warnings():  # of a dataset not scored: not the user's concern here
+            warnings.simplefilter("ignore")
+            return same_data(data, load_dataset(folder), scale)
     except (OSError, ValueError, KeyError):
         return False
 
