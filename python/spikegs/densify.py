@@ -22,7 +22,9 @@ class DensifyConfig:
     # 0.0-1.1 dB). AbsGS at 0.0002 gained SpikeGS another 0.8 dB on solids and 1.1 on
     # fine-texture (BENCHMARKS.md)
     grad_threshold: float = 0.0002
-    percent_dense: float = 0.01  # clone below this size (fraction of the scene radius), else split
+    # clone below this size (fraction of the scene radius), else split: 3DGS's 0.01 of the camera
+    # extent, ~3 scene radii on our orbits (see lr.means)
+    percent_dense: float = 0.03
     min_opacity: float = 0.005  # prune below
     # size pruning, as in 3DGS only after the first opacity reset (a run without one never prunes
     # by size): larger than this many pixels (0: never), larger (largest axis) than this fraction
