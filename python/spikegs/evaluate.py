@@ -13,6 +13,7 @@ import torch
 
 from . import strict_json
 from .atomic_save import write_text_atomically
+from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
 from .gaussians import GaussianModel, near_plane
 from .image_io import write_image
@@ -109,12 +110,12 @@ def _scored_dataset(path: Path) -> str | None:
 
 def _scored_views(path: Path) -> set[str]:
     """The names of the views an evaluation file scored (none where there is no such file, or
-    it is unreadable)."""
+    it is unreadable; a name that is no view's, e.g. a path, is left out)."""
     try:
         views = set(json.loads(path.read_text())["views"])
     except (OSError, ValueError, KeyError, TypeError):
         return set()
-    return {v for v in views if isinstance(v, str) and v and not {"/", "\\"} & set(v)}
+    return {v for v in views if is_view_name(v)}
 
 
 def _configured_method(run_dir: Path) -> str | None:

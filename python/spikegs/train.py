@@ -541,14 +541,13 @@ class Trainer:
         write_text_atomically(self.run_dir / "config.yaml", text)
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
-        # SIM's training time for this run: trained now or loaded from the dataset's cache (its
-        # recorded time, as `bench train` counts it); a resumed run's is its checkpoint's; a
-        # finished run needs no targets
-        self.sim_seconds = (state or {}).get("sim_seconds", 0.0)
+        # a finished run needs no targets; SIM's training time for this run: trained now or
+        # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
         if state is None or state["iteration"] < t.iterations:
             self.targets = build_targets(self.dataset, self.config, self.progress)
-            if state is None:
-                self.sim_seconds = self.targets.sim_seconds
+        self.sim_seconds = (
+            self.targets.sim_seconds if state is None else state.get("sim_seconds", 0.0)
+        )
         if state is not None:
             self._load_checkpoint(state)
             if self.iteration >= t.iterations:

@@ -37,8 +37,6 @@ from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
-from ..sim_train import recorded_seconds
-from ..targets import sim_path
 from ..train import Trainer, refuse_foreign_files
 from .common import print_table, write_results
 
@@ -110,11 +108,6 @@ def uses_sim(config: Config) -> bool:
     return s.instant == "sim" and s.instant_weight > 0
 
 
-def sim_seconds(dataset, config: Config) -> float:
-    """Training time of the dataset's cached SIM for `config` (recorded when it was trained)."""
-    return recorded_seconds(sim_path(dataset, config.sim, config.train.seed))
-
-
 def held_out_scores(trainer: Trainer) -> dict[str, float]:
     """Mean PSNR and SSIM of the trainer's model over every test view of its dataset."""
     ds = trainer.dataset
@@ -144,12 +137,11 @@ def train_method(dataset, config: Config, run_dir: Path) -> dict:
         curve.append({**point, **held_out_scores(trainer), "gaussians": len(trainer.model)})
 
     summary = Trainer(dataset, config, run_dir, progress=False).train(on_eval=record)
-    sim_s = sim_seconds(dataset, config) if uses_sim(config) else 0.0
     return {
         "psnr": curve[-1]["psnr"],
         "ssim": curve[-1]["ssim"],
         "train_seconds": summary["train_seconds"],
-        "sim_seconds": sim_s,
+        "sim_seconds": summary["sim_seconds"],  # trained now, or the cached SIM's recorded time
         "uses_sim": uses_sim(config),
         "gaussians": summary["gaussians"],
         "iterations": summary["iterations"],

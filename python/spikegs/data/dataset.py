@@ -296,6 +296,11 @@ def repeated(names) -> list[str]:
     return sorted(name for name, count in collections.Counter(names).items() if count > 1)
 
 
+def is_view_name(name) -> bool:
+    """Whether `name` can name a test view: a file name (RUN/eval/NAME.png), not a path."""
+    return isinstance(name, str) and name not in ("", ".", "..") and not {"/", "\\"} & set(name)
+
+
 def check_test_views(views: list[TestView], where) -> None:
     """ValueError unless there is at least one held-out view and their names are unique file names
     (each names its scores and images in an evaluation); `where`: the file or scene they come
@@ -303,9 +308,10 @@ def check_test_views(views: list[TestView], where) -> None:
     if not views:
         raise ValueError(f"{where}: no held-out test view; evaluation and training need one")
     for view in views:  # a name names the view's files: RUN/eval/NAME.png
-        name = view.name
-        if not isinstance(name, str) or name in ("", ".", "..") or {"/", "\\"} & set(name):
-            raise ValueError(f"{where}: test view name {name!r} expected a file name (no / or \\)")
+        if not is_view_name(view.name):
+            raise ValueError(
+                f"{where}: test view name {view.name!r} expected a file name (no / or \\)"
+            )
     twice = repeated(v.name for v in views)
     if twice:
         raise ValueError(f"{where}: test view names expected unique, found twice: {twice}")
