@@ -54,7 +54,17 @@ def test_eval_of_its_moved_dataset_writes_eval_json_where_another_took_its_place
     moved = shutil.move(tmp_path / "data", tmp_path / "moved")
     simulate_dataset("solids", tmp_path / "data", **{**TINY, "seed": 1})
     result = evaluate_run(tmp_path / "run", load_dataset(moved), write_images=False)
-    assert result["file"] == str(tmp_path / "run" / "eval.json")
+    assert result["file"] == str((tmp_path / "run" / "eval.json").resolve())
+
+
+def test_eval_json_names_where_it_lies_for_a_run_named_relative(tmp_path, monkeypatch):
+    """`spikegs eval run` wrote "file": "run/eval.json" into eval.json, a path that means
+    nothing read from another folder (its "dataset" was already absolute)."""
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    Trainer(data, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
+    monkeypatch.chdir(tmp_path)
+    result = evaluate_run("run", data, write_images=False)
+    assert result["file"] == str(tmp_path.resolve() / "run" / "eval.json")
 
 
 def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):

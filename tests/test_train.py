@@ -395,7 +395,9 @@ def test_a_run_fingerprinted_before_every_readout_was_hashed_is_its_datas(datase
     (run / "train.json").write_text(json.dumps({**summary, "data": old}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # not "holds other data"
-        assert evaluate_run(run, dataset, write_images=False)["file"] == str(run / "eval.json")
+        assert evaluate_run(run, dataset, write_images=False)["file"] == str(
+            (run / "eval.json").resolve()
+        )
     Trainer(dataset, config, run, progress=False).train(resume=True)
 
 
@@ -1937,12 +1939,12 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     shutil.copytree(dataset.root, tmp_path / "copy")
     other = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
-    assert other["file"] == str(tmp_path / "run" / "eval-copy.json")
+    assert other["file"] == str((tmp_path / "run" / "eval-copy.json").resolve())
     assert other["dataset"] == str((tmp_path / "copy").resolve()) != own["dataset"]
     # another dataset of the same directory name does not overwrite those scores; a re-run does
     shutil.copytree(dataset.root, tmp_path / "elsewhere" / "copy")
     second = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "elsewhere" / "copy"), False)
-    assert second["file"] == str(tmp_path / "run" / "eval-copy-2.json")
+    assert second["file"] == str((tmp_path / "run" / "eval-copy-2.json").resolve())
     again = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
     assert again["file"] == other["file"]
     # the run's own dataset, moved (its folder gone): its own scores, not eval-moved.json
@@ -1965,7 +1967,7 @@ def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path):
     again = simulate_dataset("solids", tmp_path / "data", **TINY, speed=0.1, overwrite=True)
     with pytest.warns(UserWarning, match="holds other data than .* was trained on"):
         other = evaluate_run(tmp_path / "run", again, write_images=False)
-    assert other["file"] == str(tmp_path / "run" / "eval-data.json")
+    assert other["file"] == str((tmp_path / "run" / "eval-data.json").resolve())
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
 
 

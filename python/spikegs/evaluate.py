@@ -192,6 +192,6 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
         "views": views,
     }
-    result["file"] = str(run_dir / f"{name}.json")
+    result["file"] = str((run_dir / f"{name}.json").resolve())  # not as typed: where it lies
     write_text_atomically(run_dir / f"{name}.json", strict_json.dumps(result, indent=2))
     return result
