@@ -25,6 +25,7 @@ from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
+from spikegs.data.sources import optical_axes
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.demo import DEMO_OVERRIDES
 from spikegs.densify import Densifier, DensifyConfig
@@ -109,8 +110,7 @@ def test_means_rate_and_clone_size_are_3dgs_per_camera_extent(tmp_path):
         test_off_path=0,
         progress=False,
     )
-    poses = data.trajectory.pose_at(np.asarray(data.train_timestamps))  # [T, 4, 4] world-to-cam
-    centres = -np.einsum("tji,tj->ti", poses[:, :3, :3], poses[:, :3, 3])
+    centres = optical_axes(data.trajectory.pose_at(np.asarray(data.train_timestamps)))[0]  # [T, 3]
     extent = 1.1 * np.linalg.norm(centres - centres.mean(0), axis=1).max()
     config = load_config("tfi")
     ratio = data.scene_radius / extent  # ~1/3

@@ -156,9 +156,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
-    folder = run_dir / name
+    folder, scores_file = run_dir / name, run_dir / f"{name}.json"
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
-    for gone in _scored_views(run_dir / f"{name}.json") - {v.name for v in dataset.test_views}:
+    for gone in _scored_views(scores_file) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)
     views = {}
     for view in dataset.test_views:
@@ -192,6 +192,6 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
         "views": views,
     }
-    result["file"] = str((run_dir / f"{name}.json").resolve())  # not as typed: where it lies
-    write_text_atomically(run_dir / f"{name}.json", strict_json.dumps(result, indent=2))
+    result["file"] = str(scores_file.resolve())  # not as typed: where it lies
+    write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
     return result
