@@ -15,6 +15,8 @@ struct CompositeState {
   std::vector<std::int32_t>
       last;                // [H, W] position in the tile's list of the last contributor, -1: none
   std::int64_t pairs = 0;  // (pixel, Gaussian) pairs evaluated
+  std::vector<T> splats;   // [visible, 11 + C] the splats as the forward gathered them, in depth
+                           // order; the backward reads them (both then take the same rows)
 };
 
 // image [H, W, C] = sum alpha T c + T_final background; alpha [H, W] = 1 - T_final.

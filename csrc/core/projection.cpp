@@ -192,8 +192,9 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     if (prm.sh_degree < 0) {
       for (int c = 0; c < C; ++c) dst[c] = col[c];
     } else {
-      T length;
-      const Vec3<T> dir = view_direction(prm.means + 3 * i, cam, length);
+      T length = 0;  // degree 0's one band does not depend on the direction
+      const Vec3<T> dir =
+          prm.sh_degree > 0 ? view_direction(prm.means + 3 * i, cam, length) : Vec3<T>(T(0));
       T basis[16];
       sh_basis(prm.sh_degree, dir.x, dir.y, dir.z, basis);
       const int K = (prm.sh_degree + 1) * (prm.sh_degree + 1);
@@ -242,8 +243,8 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       if (prm.sh_degree < 0) {
         for (int c = 0; c < C; ++c) dcol[c] += dcolor[c];
       } else {
-        T length;
-        const Vec3<T> dir = view_direction(mean, cam, length);
+        T length = 0;  // degree 0: no direction, and no gradient through it
+        const Vec3<T> dir = prm.sh_degree > 0 ? view_direction(mean, cam, length) : Vec3<T>(T(0));
         T basis[16], weight[16];
         sh_basis(prm.sh_degree, dir.x, dir.y, dir.z, basis);
         const int K = (prm.sh_degree + 1) * (prm.sh_degree + 1);
@@ -259,15 +260,17 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
             weight[k] += col[k * C + c] * dcolor[c];
           }
         }
-        T ddir[3] = {0, 0, 0};
-        sh_basis_vjp(prm.sh_degree, dir.x, dir.y, dir.z, weight, ddir);
-        const Vec3<T> gd(ddir[0], ddir[1], ddir[2]);
-        const Vec3<T> dd =  // through normalisation; none at the centre, where it has no slope
-            length > T(0) ? (gd - dir * glm::dot(dir, gd)) / length : Vec3<T>(T(0));
-        dmu += dd;
-        // d = mean + W^T t: d/dW = t dd^T, d/dt = W dd
-        dW += glm::outerProduct(t, dd);
-        dt += W * dd;
+        if (prm.sh_degree > 0) {
+          T ddir[3] = {0, 0, 0};
+          sh_basis_vjp(prm.sh_degree, dir.x, dir.y, dir.z, weight, ddir);
+          const Vec3<T> gd(ddir[0], ddir[1], ddir[2]);
+          const Vec3<T> dd =  // through normalisation; none at the centre, where it has no slope
+              length > T(0) ? (gd - dir * glm::dot(dir, gd)) / length : Vec3<T>(T(0));
+          dmu += dd;
+          // d = mean + W^T t: d/dW = t dd^T, d/dt = W dd
+          dW += glm::outerProduct(t, dd);
+          dt += W * dd;
+        }
       }
 
       // conic = (c, -b, a) / det, det = |V0 x V1|^2 + eps (n0 + n1) + eps^2, differentiated as

@@ -6,8 +6,9 @@ itself excluded in every time channel); the un-rotated branches are merged by `n
 
 `SIM.forward` computes the same function without rotating any data: a convolution of a rotated
 input equals the rotation of a convolution with the rotated kernel, so each branch runs dense
-convolutions with its rotated kernels on the unrotated window, zero-padded on its own side only.
-Any H×W works, with no square padding and no transposes. (One grouped convolution of the four
+convolutions with its rotated kernels on the unrotated window (padded within the convolution, on
+both sides: the margin on the far side is computed and never read). Any H×W works, with no
+square padding and no transposes. (One grouped convolution of the four
 branches on a shared zero-framed canvas, the form before, ran 1.2-1.4× slower on an AVX2 CPU:
 oneDNN's grouped kernels reach less of the FMA units than its dense ones, BENCHMARKS.md, "SIM".)
 `SIM.forward_rotated` is the literal rotate-the-data formulation, the reference the fast path is
@@ -27,22 +28,25 @@ _SLOPE = 0.1  # leaky ReLU slope
 START = "zero-output"  # how a fresh SIM starts (a SIM cached from another start is retrained)
 
 
-def _side_pad(k: int, near: int, across: int) -> tuple[int, int, int, int]:
-    """F.pad's (left, right, top, bottom) for branch k: `near` pixels on the side it looks
-    towards, none opposite, `across` on either side across."""
+def _into_blind_spot(out: torch.Tensor, y: torch.Tensor, k: int, m: int) -> None:
+    """Write branch k's output into `out` [B, width, H, W]: from `y`, its last convolution's
+    output with 2m rows (columns) of margin along k's axis (`SIM.forward`), each pixel takes its
+    neighbour's value on k's side (zeros past the image), the blind spot, in the unrotated frame."""
+    h, w = out.shape[-2:]
     dr, dc = _DIRS[k]
-    top, bottom = (near, 0) if dr < 0 else (0, near) if dr > 0 else (across, across)
-    left, right = (near, 0) if dc < 0 else (0, near) if dc > 0 else (across, across)
-    return left, right, top, bottom
-
-
-def _shift_from_side(y: torch.Tensor, k: int) -> torch.Tensor:
-    """Each pixel of `y` [B, C, H, W] takes its neighbour's value on branch k's side (zeros past
-    the image): the blind spot, in the unrotated frame."""
-    h, w = y.shape[-2:]
-    dr, dc = _DIRS[k]
-    r0, c0 = int(dr > 0), int(dc > 0)
-    return F.pad(y, _side_pad(k, 1, 0))[..., r0 : r0 + h, c0 : c0 + w]
+    r0, c0 = 2 * m * int(dr > 0), 2 * m * int(dc > 0)  # where the image lies in y
+    if dr < 0:
+        out[..., 1:, :].copy_(y[..., r0 : r0 + h - 1, :])
+        out[..., 0, :].zero_()
+    elif dr > 0:
+        out[..., :-1, :].copy_(y[..., r0 + 1 : r0 + h, :])
+        out[..., -1, :].zero_()
+    elif dc < 0:
+        out[..., 1:].copy_(y[..., :, c0 : c0 + w - 1])
+        out[..., 0].zero_()
+    else:
+        out[..., :-1].copy_(y[..., :, c0 + 1 : c0 + w])
+        out[..., -1].zero_()
 
 
 class SIM(nn.Module):
@@ -132,17 +136,33 @@ class SIM(nn.Module):
             raise ValueError(f"SIM input expected dtype {dtype} (the weights'), found {x.dtype}")
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format."""
+        """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format.
+
+        Each shift convolution pads 2 on both sides along its branch's axis (1 across) within
+        the convolution, not as a copy: a branch that sees the pixel's row and those above it
+        (k = 0) reads its output from rows [0, H), the rows past them hold values that no output
+        pixel reads, and each layer adds two (k = 2 reads rows [2m, 2m + H)). The branches are
+        written into one tensor, not concatenated. (The padding copies and the concatenation
+        were 29 % of a 256² frame's time, BENCHMARKS.md, "SIM".)
+        """
         self.check_input(x)
-        branches = []
-        for k in range(4):
+        b, _, h, w = x.shape
+        m, width = len(self.shift), self.shift[0].out_channels
+        layout = (
+            torch.channels_last
+            if x.is_contiguous(memory_format=torch.channels_last)
+            else torch.contiguous_format
+        )
+        shape = (b, 4 * width, h, w)
+        merged = torch.empty(shape, dtype=x.dtype, memory_format=layout)  # [B, 4·width, H, W]
+        for k, (dr, _) in enumerate(_DIRS):
             y = x
             for conv in self.shift:  # sees the pixel's row (column) and those on side k only
                 kernel = torch.rot90(conv.weight, -k, dims=(2, 3))  # seen from the unrotated frame
-                y = F.conv2d(F.pad(y, _side_pad(k, 2, 1)), kernel, conv.bias)
+                y = F.conv2d(y, kernel, conv.bias, padding=(2, 1) if dr else (1, 2))
                 y = F.leaky_relu(y, _SLOPE, inplace=True)
-            branches.append(_shift_from_side(y, k))
-        return self._merge(torch.cat(branches, dim=1))  # [B, 4·width, H, W] -> [B, C, H, W]
+            _into_blind_spot(merged[:, k * width : (k + 1) * width], y, k, m)
+        return self._merge(merged)
 
     def forward_rotated(self, x: torch.Tensor, square: bool = False) -> torch.Tensor:
         """The literal formulation: rotate the data, shift-convolve, un-rotate, merge.
