@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <functional>
+#include <stdexcept>
 #include <string>
 
 #include "harness.hpp"
@@ -154,6 +155,24 @@ TEST_CASE(compositing) {
     fd_check("color", proj.color, dp.color, loss);
     fd_check("background", ws.s.background, dbg, loss);
   }
+}
+
+// The backward reads the splats that its forward gathered: a state that holds none (not a
+// forward's of these splats) is refused, not read past its end.
+TEST_CASE(backward_refuses_a_state_without_its_forward) {
+  const Config& c = kConfigs[0];
+  WeightedScene ws = weighted_scene(c, 1, 21);
+  CHECK(!ws.r.state.bins.order.empty(), "the scene shows no Gaussian");
+  Render<double> stale = ws.r;
+  stale.state.composite.splats.clear();
+  std::vector<double> dbg(c.channels);
+  bool refused = false;
+  try {
+    composite_grads(ws.s, stale, c, ws.w_img, ws.w_alpha, dbg);
+  } catch (const std::invalid_argument&) {
+    refused = true;
+  }
+  CHECK(refused, "a composite state without its forward's splats was accepted");
 }
 
 // mean2d_abs (AbsGS's densification signal) is, per Gaussian and axis, the sum over pixels of the

@@ -8,9 +8,9 @@ itself excluded in every time channel); the un-rotated branches are merged by `n
 input equals the rotation of a convolution with the rotated kernel, so each branch runs dense
 convolutions with its rotated kernels on the unrotated window (padded within the convolution, on
 both sides: the margin on the far side is computed and never read). Any H×W works, with no
-square padding and no transposes. (One grouped convolution of the four
-branches on a shared zero-framed canvas, the form before, ran 1.2-1.4× slower on an AVX2 CPU:
-oneDNN's grouped kernels reach less of the FMA units than its dense ones, BENCHMARKS.md, "SIM".)
+square padding and no transposes. (One grouped convolution of the four branches on a shared
+zero-framed canvas, the form before, ran 1.2-1.4× slower on an AVX2 CPU: oneDNN's grouped
+kernels reach less of the FMA units than its dense ones, BENCHMARKS.md, "SIM".)
 `SIM.forward_rotated` is the literal rotate-the-data formulation, the reference the fast path is
 tested against.
 """
@@ -153,8 +153,8 @@ class SIM(nn.Module):
             if x.is_contiguous(memory_format=torch.channels_last)
             else torch.contiguous_format
         )
-        shape = (b, 4 * width, h, w)
-        merged = torch.empty(shape, dtype=x.dtype, memory_format=layout)  # [B, 4·width, H, W]
+        shape = (b, 4 * width, h, w)  # the branches side by side
+        merged = torch.empty(shape, dtype=x.dtype, device=x.device, memory_format=layout)
         for k, (dr, _) in enumerate(_DIRS):
             y = x
             for conv in self.shift:  # sees the pixel's row (column) and those on side k only
