@@ -98,8 +98,9 @@ inline void add_geometry_grad(const T* s, T dx, T dy, T ga, T& g_mx, T& g_my, T&
 // Pairs ahead in a tile's list whose splats (and, in the backward, the ranks' tile ranges that
 // locate their gradient slots) are prefetched: the splats lie in depth order and a tile reads
 // them scattered, a cache miss a pair. On a trained 256² scene (34k Gaussians) fwd+bwd took
-// ×0.84-0.86 the time with 4 to 32 pairs ahead (×0.91 on the demo's 128² scene), bitwise the same
-// images and gradients (BENCHMARKS.md, "Rasterizer").
+// ×0.84-0.92 the time (the less, the busier the machine's memory; 4 to 32 pairs ahead alike),
+// ×0.91 on the demo's 128² scene; the images and gradients bitwise the same (BENCHMARKS.md,
+// "Rasterizer").
 constexpr int kPrefetchAhead = 8;
 
 template <typename T>
