@@ -28,13 +28,15 @@ _SLOPE = 0.1  # leaky ReLU slope
 START = "zero-output"  # how a fresh SIM starts (a SIM cached from another start is retrained)
 
 
-def _into_blind_spot(out: torch.Tensor, y: torch.Tensor, k: int, m: int) -> None:
+def _into_blind_spot(out: torch.Tensor, y: torch.Tensor, k: int) -> None:
     """Write branch k's output into `out` [B, width, H, W]: from `y`, its last convolution's
-    output with 2m rows (columns) of margin along k's axis (`SIM.forward`), each pixel takes its
-    neighbour's value on k's side (zeros past the image), the blind spot, in the unrotated frame."""
+    output with a margin of rows (columns) on the far side of k's axis (`SIM.forward`), each pixel
+    takes its neighbour's value on k's side (zeros past the image), the blind spot, in the
+    unrotated frame."""
     h, w = out.shape[-2:]
     dr, dc = _DIRS[k]
-    r0, c0 = 2 * m * int(dr > 0), 2 * m * int(dc > 0)  # where the image lies in y
+    # where the image lies in y: after the margin, for a branch that looks down (right)
+    r0, c0 = (y.shape[-2] - h) * int(dr > 0), (y.shape[-1] - w) * int(dc > 0)
     if dr < 0:
         out[..., 1:, :].copy_(y[..., r0 : r0 + h - 1, :])
         out[..., 0, :].zero_()
@@ -147,7 +149,7 @@ class SIM(nn.Module):
         """
         self.check_input(x)
         b, _, h, w = x.shape
-        m, width = len(self.shift), self.shift[0].out_channels
+        width = self.shift[0].out_channels
         layout = (
             torch.channels_last
             if x.is_contiguous(memory_format=torch.channels_last)
@@ -161,7 +163,7 @@ class SIM(nn.Module):
                 kernel = torch.rot90(conv.weight, -k, dims=(2, 3))  # seen from the unrotated frame
                 y = F.conv2d(y, kernel, conv.bias, padding=(2, 1) if dr else (1, 2))
                 y = F.leaky_relu(y, _SLOPE, inplace=True)
-            _into_blind_spot(merged[:, k * width : (k + 1) * width], y, k, m)
+            _into_blind_spot(merged[:, k * width : (k + 1) * width], y, k)
         return self._merge(merged)
 
     def forward_rotated(self, x: torch.Tensor, square: bool = False) -> torch.Tensor:
