@@ -3,6 +3,7 @@
 
 PYBIND11_MODULE(_C, m) {
   m.doc() = "SpikeGS C++ core: Gaussian rasterizer and spike-stream kernels";
+  spikegs::require_cpu_features(m);  // before any of the core's code runs
   spikegs::bind_rasterizer(m);
   spikegs::bind_spikes(m);
 }
