@@ -186,6 +186,11 @@ def test_negative_view_counts_refused(tmp_path):
     for size in ({"height": 2}, {"height": 1, "width": 1}):  # 1x1 was simulated, then unscored
         with pytest.raises(ValueError, match="images cannot be scored"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
+    # a frame 40 times as tall as wide (its focal length set by the width) was written whole,
+    # then refused by its own meta.json
+    with pytest.raises(ValueError, match=r"--height 128 --width 3: fy 4.12\d* gives a 173°"):
+        simulate_dataset("solids", tmp_path / "tall", **{**SMALL, "height": 128, "width": 3})
+    assert not (tmp_path / "tall").exists()
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
     with pytest.raises(ValueError, match="frame_every expected >= 1, found 1e-05"):  # 2e7 poses
@@ -329,6 +334,21 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             r"spike_files \['rec.dat'\], but 1 channel\(s\) are read from \['spikes.dat'\]",
         ),
         "version": ("meta.json", rewrite_meta(format_version=2), "format_version 2"),
+        # a name that was not a string crashed the oracle's lookup (TypeError: unhashable); a
+        # value of the wrong JSON type was printed so that it looked right ("format_version 1,
+        # this SpikeGS reads 1")
+        "scene list": ("meta.json", rewrite_meta(scene=["solids"]), r"scene expected a name"),
+        "source dict": ("meta.json", rewrite_meta(source={"a": 1}), r"source expected a name"),
+        "version text": (
+            "meta.json",
+            rewrite_meta(format_version="1"),
+            r"format_version '1', this SpikeGS reads 1 \(an integer\)",
+        ),
+        "spike files text": (
+            "meta.json",
+            rewrite_meta(spike_files="spikes.dat"),
+            r"spike_files 'spikes.dat', .* \(a list of file names;",
+        ),
         "flip": ("meta.json", rewrite_meta(flip="true"), "meta.json: flip expected true or false"),
         "none": ("test_views.json", views(no_views), "no held-out test view"),
         "twice": ("test_views.json", views(same_names), r"found twice: \['view'\]"),

@@ -344,15 +344,27 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
 
     # readouts given in seconds (readout x 25 us) sent the user to pseudo_gt_window; a pose log
-    # too dense for the held-out poses' margins said only "no training timestamp left"
+    # too dense for the held-out poses' margins said only "no training timestamp left", then
+    # gave the spacing of all poses for the held-out ones' and advised a train_every below 1
     root = copy(llff_stream, tmp_path / "seconds")
     poses = len(np.loadtxt(root / "readouts.txt"))
     np.savetxt(root / "readouts.txt", np.arange(poses) * 50 * 25e-6)
     with pytest.raises(ValueError, match="readouts are indices, 25 µs apart \\(not seconds\\?\\)"):
         load_dataset(root)
     np.savetxt(root / "readouts.txt", np.arange(poses) * 10 + 200, fmt="%d")
-    with pytest.raises(ValueError, match="poses, which lie 10 readouts apart; .* hold out fewer"):
+    dense = (
+        r"the 2 held-out poses, every 8th pose by default, which lie 80 readouts apart; fewer "
+        r"held-out poses further apart \(test_views, pose indices, e.g. every 13th: 130 readouts"
+    )
+    with pytest.raises(ValueError, match=dense):  # train_every is 1 here
         load_dataset(root)
+    write_options(root, train_every=3, test_views=list(range(0, poses, 2)))
+    with pytest.raises(
+        ValueError,
+        match=r"\d held-out poses, which lie 20 readouts apart; a smaller train_every, or",
+    ):
+        load_dataset(root)
+    (root / "spikegs.json").unlink()
     # a frame size a quarter of the file's: 4x the readouts, the poses on the first quarter
     np.savetxt(root / "readouts.txt", np.arange(poses) * 8 + 40, fmt="%d")
     write_options(root, height=16, width=24, test_views=[0], pseudo_gt_window=33)

@@ -87,3 +87,17 @@ def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):
         signal.signal(signal.SIGINT, previous)
     assert main(["eval", "RUN"]) == 130  # main, which tests call, leaves SIGINT alone
     assert signal.getsignal(signal.SIGINT) is previous
+
+
+def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):
+    """matplotlib reads $...$ as TeX: a config naming its method "lam$^$2" trained to the end,
+    then failed at its curve.png with a parse error (exit status 2, the run complete)."""
+    from spikegs.curves import save_curves
+
+    curve = [{"train_seconds": s, "psnr": p} for s, p in ((1.0, 20.0), (2.0, 21.0))]
+    methods = {
+        "lam$^$2": {"curve": curve, "sim_seconds": 0.0, "uses_sim": False},
+        "sim$": {"curve": curve, "sim_seconds": 3.0, "uses_sim": True},
+    }
+    save_curves(tmp_path / "curves.png", methods, ("psnr",), "scene $^$: view $a_{b$")
+    assert (tmp_path / "curves.png").stat().st_size > 0

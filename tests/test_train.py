@@ -668,6 +668,18 @@ def test_ply_edge_cases(tmp_path):
     save_ply(model, tmp_path / "nan.ply")
     with pytest.warns(UserWarning, match="nan.ply: 2 of its 20 Gaussians hold a NaN or infinite"):
         assert len(load_ply(tmp_path / "nan.ply")) == 20
+    # no Gaussians, or none with an orientation: the renderer draws the background alone, which
+    # eval scored without a word
+    model.params["means"].data[1, 0] = 0.0
+    model.params["opacity_logits"].data[2] = 0.0
+    model.params["quats"].data[:3] = 0.0
+    save_ply(model, tmp_path / "q.ply")
+    with pytest.warns(UserWarning, match=r"q.ply: 3 of its 20 Gaussians have the rotation quat"):
+        load_ply(tmp_path / "q.ply")
+    empty = {k: v.detach()[:0] for k, v in model.params.items()}
+    save_ply(GaussianModel(empty, model.background, model.sh_degree), tmp_path / "e.ply")
+    with pytest.warns(UserWarning, match="e.ply: no Gaussians: it renders the background alone"):
+        assert len(load_ply(tmp_path / "e.ply")) == 0
     # loaded, then refused by the renderer without the file's name: a background of NaN, SH
     # degree 4 (72 f_rest), a tag naming more coefficients than the file holds (21 f_rest: 7 a
     # channel, degree 1 and 3 over)
@@ -1910,9 +1922,29 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     gen = torch.Generator().manual_seed(0)
     rgb = GaussianModel.from_points(torch.zeros(20, 3), torch.rand(20, 3, generator=gen), 0.1)
-    save_ply(rgb, tmp_path / "run" / "scene.ply")
-    with pytest.raises(ValueError, match="renders 3 channel"):
+    save_ply(rgb, tmp_path / "run" / "scene.ply")  # an RGB run's own file, which says so
+    with pytest.raises(ValueError, match="renders 3 .* has 1: score a run on a dataset with as"):
         evaluate_run(tmp_path / "run", dataset)
+    text = (tmp_path / "run" / "scene.ply").read_bytes()  # re-saved by another tool: no tags
+    (tmp_path / "run" / "scene.ply").write_bytes(re.sub(rb"comment spikegs [^\n]*\n", b"", text))
+    with pytest.raises(ValueError, match="has 1: a mono scene.ply re-saved by another tool"):
+        evaluate_run(tmp_path / "run", dataset)
+
+
+def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):
+    """A folder where eval.json goes (or a file where its images go) failed with a bare errno
+    message, after every side-by-side image had been rendered and written."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    (tmp_path / "run" / "eval.json").mkdir()
+    with pytest.raises(ValueError, match="eval.json: is a directory"):
+        evaluate_run(tmp_path / "run", dataset)
+    assert not (tmp_path / "run" / "eval").exists()
+    (tmp_path / "run" / "eval.json").rmdir()
+    (tmp_path / "run" / "eval").write_text("")
+    with pytest.raises(ValueError, match="eval: is a file; give a folder"):
+        evaluate_run(tmp_path / "run", dataset)
+    assert evaluate_run(tmp_path / "run", dataset, write_images=False)["method"] == "tfp33"
 
 
 def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monkeypatch):

@@ -39,6 +39,12 @@ def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset)
     save_curves(path, methods, ("psnr",), title)
 
 
+def _as_text(text: str) -> str:
+    """`text` (a method, scene or view name) drawn as written: matplotlib reads $...$ as TeX and
+    refused a method named "lam$^$2" at the end of its run."""
+    return text.replace("$", r"\$")
+
+
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
@@ -50,7 +56,7 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
         label = f"{name} (from SIM {offset:.0f} s)" if sim else name
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]
-            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=label)
+            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=_as_text(label))
     for ax, metric in zip(axes, metrics):
         ax.set_xscale("log")  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped)
         ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
@@ -72,7 +78,7 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
 
     fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
     _plot_curves(axes[0], methods, metrics)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(_as_text(title), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -37,8 +37,9 @@ def run(args: argparse.Namespace) -> int:
 
     dataset = load_dataset(run_dataset(args.run, args.dataset))
     result = evaluate_run(args.run, dataset, write_images=not args.no_images)
+    method = result["method"] or args.run.name  # a scene folder of another tool names none
     print(
-        f"{result['method']}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
+        f"{method}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {result['file']}"
     )
     note = pseudo_views_note(result["views"])

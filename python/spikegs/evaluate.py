@@ -18,7 +18,8 @@ from .data.real import PSEUDO_PREFIX
 from .gaussians import GaussianModel, near_plane
 from .image_io import write_image
 from .metrics import psnr, ssim
-from .ply import load_ply
+from .output_paths import check_file_output, check_folder_output
+from .ply import declares_channels, load_ply
 from .run_summary import read_summary, trained_scene
 from .targets import intensity_scale
 
@@ -148,15 +149,25 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     ply = trained_scene(run_dir)
     model = load_ply(ply)
     if model.channels != dataset.channels:
+        resaved = model.channels == 3 and dataset.channels == 1 and not declares_channels(ply)
         raise ValueError(
             f"{ply} renders {model.channels} channel(s), the dataset {dataset.root} has "
-            f"{dataset.channels} (a mono scene.ply re-saved by another tool loses spikegs's "
-            f"'channels' comment and reads as RGB: add the header line 'comment spikegs "
-            f"channels 1' after 'format' to read it as mono again)"
+            f"{dataset.channels}: "
+            + (
+                "a mono scene.ply re-saved by another tool loses spikegs's 'channels' comment "
+                "and reads as RGB: add the header line 'comment spikegs channels 1' after "
+                "'format' to read it as mono again"
+                if resaved
+                else "score a run on a dataset with as many channels as it was trained on"
+            )
         )
     scale = intensity_scale(dataset)
     run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
+    # refused before any view is rendered, not after the images are written
+    check_file_output(scores_file, "eval's scores")
+    if write_images:
+        check_folder_output(folder, "eval's images")
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
     for gone in _scored_views(scores_file) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)

@@ -182,4 +182,19 @@ def load_ply(path: str | Path) -> GaussianModel:
             f"renderer culls a Gaussian whose activated values are not finite)",
             stacklevel=2,
         )
+    unrotated = int((params["quats"] == 0).all(1).sum())
+    if unrotated:
+        warnings.warn(
+            f"{path}: {unrotated} of its {n} Gaussians have the rotation quaternion (0, 0, 0, 0), "
+            f"no orientation: kept, and culled by the renderer",
+            stacklevel=2,
+        )
+    if not n:
+        warnings.warn(f"{path}: no Gaussians: it renders the background alone", stacklevel=2)
     return GaussianModel(params, background, sh_degree)
+
+
+def declares_channels(path: str | Path) -> bool:
+    """Whether a .ply states its channel count (`comment spikegs channels N`, which save_ply writes
+    and another tool's re-save drops)."""
+    return "channels" in _tags(read_vertices(path).comments)

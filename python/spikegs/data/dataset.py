@@ -459,11 +459,12 @@ def _check_meta(meta: dict, path: Path) -> None:
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
     if missing:
         raise ValueError(f"{path}: missing keys {missing}")
-    if meta.get("format_version", FORMAT_VERSION) != FORMAT_VERSION:
+    version = meta.get("format_version", FORMAT_VERSION)
+    if version != FORMAT_VERSION or not is_int(version):
         raise ValueError(
-            f"{path}: format_version {meta['format_version']}, this SpikeGS reads {FORMAT_VERSION}"
+            f"{path}: format_version {version!r}, this SpikeGS reads {FORMAT_VERSION} (an integer)"
         )
-    optional = [k for k in ("raw_width", "col_offset") if k in meta]
+    optional = [k for k in ("raw_width", "col_offset", "scene", "source") if k in meta]
     check_meta_values(meta, path, [*required, "scene_center", "scene_radius", *optional])
 
 
@@ -521,6 +522,8 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 )
         elif key == "col_offset" and not (is_int(meta[key]) and meta[key] >= 0):
             raise ValueError(f"{path}: col_offset expected an integer >= 0, found {meta[key]!r}")
+        elif key in ("scene", "source") and not isinstance(meta[key], str):
+            raise ValueError(f"{path}: {key} expected a name (a string), found {meta[key]!r}")
         elif key == "scene_center":
             center = meta[key]
             if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
@@ -530,8 +533,8 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
     names = spike_files(meta["channels"]) if "channels" in keys else None
     if names and meta.get("spike_files", names) != names:  # the files are found by these names
         raise ValueError(
-            f"{path}: spike_files {meta['spike_files']}, but {meta['channels']} channel(s) are "
-            f"read from {names} (rename the files, or remove the key)"
+            f"{path}: spike_files {meta['spike_files']!r}, but {meta['channels']} channel(s) are "
+            f"read from {names} (a list of file names; rename the files, or remove the key)"
         )
 
 

@@ -9,6 +9,7 @@ output does too. A sharp image (intensity, [0, 1]) is stored times the trainer's
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import warnings
 from pathlib import Path
@@ -334,13 +335,19 @@ def stream_dataset(
     ks = train_timestamps(len(stream), readouts[test], every)  # [M]
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
     if not len(ks):
-        spacing = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
+        held = readouts[test]
+        spacing = float(np.median(np.diff(held))) if len(held) > 1 else 0.0
+        which = "" if options.test_views else f", every {HOLDOUT_EVERY}th pose by default"
+        smaller = "a smaller train_every, or " if every > 1 else ""
+        step = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
+        apart = max(HOLDOUT_EVERY, math.ceil(4 * WINDOW_MARGIN / step)) if step else HOLDOUT_EVERY
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
             f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
             f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
-            f"clear of each of the {int(test.sum())} held-out poses, which lie {spacing:g} "
-            f"readouts apart; a smaller train_every, or hold out fewer (test_views), in "
+            f"clear of each of the {held.size} held-out poses{which}, which lie {spacing:g} "
+            f"readouts apart; {smaller}fewer held-out poses further apart (test_views, pose "
+            f"indices, e.g. every {apart}th: {readout_number(apart * step)} readouts apart), in "
             f"spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)

@@ -21,6 +21,7 @@ from .dataset import (
     WINDOW_MARGIN,
     Dataset,
     TestView,
+    check_meta_values,
     check_output,
     check_test_views,
     intrinsics_keys,
@@ -364,6 +365,11 @@ def simulate_dataset(
             f"source '{source.name}' gives {source.height}x{source.width}x{source.channels} "
             f"images, expected {height}x{width}x{channels}"
         )
+    # the camera as load_dataset will check it, before any work (a frame 40 times as tall as
+    # wide, its focal length set by the width, was written whole and then refused)
+    camera = {"height": height, "width": width, **intrinsics_keys(source.K)}
+    where = f"scene '{source.name}' at --height {height} --width {width}"
+    check_meta_values(camera, where, ["fx", "fy", "cx", "cy"])
     trajectory = source.trajectory(readouts, speed)
     rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them
     on_path = source.on_path_times(readouts, test_on_path, 2 * WINDOW_MARGIN)  # [n]
