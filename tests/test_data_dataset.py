@@ -339,6 +339,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         # this SpikeGS reads 1")
         "scene list": ("meta.json", rewrite_meta(scene=["solids"]), r"scene expected a name"),
         "source dict": ("meta.json", rewrite_meta(source={"a": 1}), r"source expected a name"),
+        "scene null": ("meta.json", rewrite_meta(scene=None, fx=0), r"fx expected"),  # no name
         "version text": (
             "meta.json",
             rewrite_meta(format_version="1"),

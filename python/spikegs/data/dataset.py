@@ -522,8 +522,10 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 )
         elif key == "col_offset" and not (is_int(meta[key]) and meta[key] >= 0):
             raise ValueError(f"{path}: col_offset expected an integer >= 0, found {meta[key]!r}")
-        elif key in ("scene", "source") and not isinstance(meta[key], str):
-            raise ValueError(f"{path}: {key} expected a name (a string), found {meta[key]!r}")
+        elif key in ("scene", "source") and not (meta[key] is None or isinstance(meta[key], str)):
+            raise ValueError(
+                f"{path}: {key} expected a name (a string) or null, found {meta[key]!r}"
+            )
         elif key == "scene_center":
             center = meta[key]
             if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
