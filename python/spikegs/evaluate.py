@@ -15,7 +15,7 @@ from . import strict_json
 from .atomic_save import write_text_atomically
 from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
-from .gaussians import GaussianModel, near_plane
+from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import write_image
 from .metrics import psnr, ssim
 from .output_paths import check_file_output, check_folder_output
@@ -26,10 +26,12 @@ from .targets import intensity_scale
 
 def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarray:
     """The model's image [H, W, C] (intensity units) from world-to-camera `viewmat` [4, 4] in the
-    dataset's camera (its intrinsics, size and scene's near plane)."""
+    dataset's camera (its intrinsics, size and scene's near plane), rendered about the origin
+    that training uses for the dataset (`frame_origin`)."""
+    model = model.centred_at(frame_origin(dataset.scene_center, dataset.scene_radius))
     with torch.no_grad():
         return model.render(
-            torch.as_tensor(viewmat, dtype=torch.float32),
+            model.view_of(viewmat),
             torch.as_tensor(dataset.K, dtype=torch.float32),
             dataset.width,
             dataset.height,

@@ -47,7 +47,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     rest = np.zeros((n, FILE_SH_REST, 3), np.float32)  # [N, 15, 3]
     rest[:, :used] = np.repeat(p["sh_rest"][:, :used], reps, axis=2)
     f_rest = rest.transpose(0, 2, 1).reshape(n, 3 * FILE_SH_REST)  # [N, 45] channel-major
-    columns = {"x": p["means"][:, 0], "y": p["means"][:, 1], "z": p["means"][:, 2]}
+    means = model.world_means().numpy()  # [N, 3] the world frame, as every viewer reads it
+    columns = {"x": means[:, 0], "y": means[:, 1], "z": means[:, 2]}
     columns.update({f"n{a}": np.zeros(n, np.float32) for a in "xyz"})
     columns.update({f"f_dc_{i}": dc[:, i] for i in range(3)})
     columns.update({f"f_rest_{i}": f_rest[:, i] for i in range(3 * FILE_SH_REST)})

@@ -30,7 +30,7 @@ from .config import MIN_GAUSSIANS, Config, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .file_lock import exclusive_lock
-from .gaussians import PARAMETER_NAMES, GaussianModel, near_plane
+from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
@@ -244,7 +244,11 @@ class Trainer:
         # where they project (a point cloud gives positions only), the background the views'
         # median intensity
         sample = ViewSample.of(self.dataset, self.scale)
-        colors_of = lambda means: projected_intensity(self.dataset, sample, means)  # noqa: E731
+        # the means about frame_origin (the scene's centre, for a scene far from the world's)
+        origin = frame_origin(self.dataset.scene_center, self.radius)
+        colors_of = lambda means: projected_intensity(  # noqa: E731
+            self.dataset, sample, means.double() + torch.from_numpy(origin)
+        )
         # no larger than the size that densification prunes (after the first opacity reset):
         # fewer than ~4200 random Gaussians, or a sparse cloud, started above it and were all
         # deleted there
@@ -252,12 +256,12 @@ class Trainer:
         max_scale = 0.99 * cap if cap else math.inf
         if self.cloud_points is not None:
             self.model = gaussians_from_points(
-                self.cloud_points, t.init_gaussians, t.sh_degree, gen, colors_of, max_scale
+                self.cloud_points - origin, t.init_gaussians, t.sh_degree, gen, colors_of, max_scale
             )
         else:
             self.model = GaussianModel.random(
                 t.init_gaussians,
-                self.dataset.scene_center,
+                self.dataset.scene_center - origin,
                 self.radius,
                 self.dataset.channels,
                 t.sh_degree,
@@ -265,6 +269,7 @@ class Trainer:
                 colors_of,
                 max_scale,
             )
+        self.model.origin = origin
         with torch.no_grad():
             self.model.background.copy_(torch.from_numpy(sample.median))
         self.poses = make_refiner(
@@ -340,9 +345,7 @@ class Trainer:
     def _poses(self, readouts: list[float], view: int) -> list[torch.Tensor]:
         """Viewmats [4, 4] at `readouts` (one trajectory lookup), with training view `view`'s
         correction when refining."""
-        viewmats = torch.as_tensor(
-            self.dataset.trajectory.pose_at(np.asarray(readouts)), dtype=torch.float32
-        )  # [B, 4, 4]
+        viewmats = self.model.view_of(self.dataset.trajectory.pose_at(np.asarray(readouts)))
         return [v if self.poses is None else self.poses(v, view) for v in viewmats]
 
     def _diverged(self, what: str) -> FloatingPointError:

@@ -145,8 +145,9 @@ class Dataset:
 
     def _warn_about_float32_rounding(self) -> None:
         """A UserWarning where the scene lies so far from the origin (UTM or GPS coordinates)
-        that float32 positions, the Gaussians' and the cameras', round by more than
-        FLOAT32_ROUNDING_PX pixels there (1e6 units away cost 2 dB at 64²)."""
+        that float32 world positions round by more than FLOAT32_ROUNDING_PX pixels there: the
+        trainer and evaluation work about the scene's centre (gaussians.frame_origin), but a
+        run's scene.ply holds float32 world positions, as the 3DGS viewers read them."""
         offset = float(np.linalg.norm(self.scene_center))
         distance = self._camera_distance()
         if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
@@ -155,8 +156,10 @@ class Dataset:
         if pixels > FLOAT32_ROUNDING_PX:
             warnings.warn(
                 f"{self.root}: the scene's centre lies {offset:.3g} units from the origin, where "
-                f"float32 positions round by ~{pixels:.2g} pixels in these views: subtract "
-                f"scene_center from the poses (and the point cloud) for full accuracy",
+                f"float32 positions round by ~{pixels:.2g} pixels in these views: training and "
+                f"evaluation work about the centre, but a run's scene.ply (float32 world "
+                f"positions, as viewers read them) rounds so; subtract scene_center from the "
+                f"poses (and the point cloud) to keep it exact",
                 stacklevel=3,
             )
 

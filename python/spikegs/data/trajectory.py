@@ -70,7 +70,7 @@ def pixels_in_view(points, viewmats, K, width: int, height: int):
     camera inside its width x height image [F, P] bool."""
     pixels, z = project_points(points, viewmats, K)
     u, v = np.floor(pixels[..., 0]), np.floor(pixels[..., 1])
-    inside = (z > 1e-6) & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+    inside = (z > 0) & (u >= 0) & (u < width) & (v >= 0) & (v < height)  # any unit: no 1e-6
     return u, v, inside
 
 
