@@ -30,7 +30,7 @@ from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.demo import DEMO_OVERRIDES
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
-from spikegs.gaussians import GaussianModel
+from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import deferred_interrupt
@@ -2216,3 +2216,15 @@ def test_a_model_renders_about_its_origin():
         assert (image - expected).abs().max() > 1e-3
     assert far.centred_at(origin) is far
     assert torch.allclose(far.world_means() - torch.from_numpy(origin), local.world_means())
+
+
+def test_a_model_renders_at_any_distance():
+    """A scene in units that put its cameras 3e10 away lay past the rasterizer's default far
+    plane (1e10): every render was the background, and training learnt nothing, unsaid."""
+    gen = torch.Generator().manual_seed(4)
+    model = GaussianModel.random(300, (0, 0, 0), 1e10, 1, 0, gen)
+    K = torch.tensor([[40.0, 0, 16], [0, 40.0, 16], [0, 0, 1]])
+    view = model.view_of(look_at(np.array([0.0, -1e10, 3e10]), np.zeros(3)))
+    with torch.no_grad():
+        image = model.render(view, K, 32, 32, near_plane(1e10)).image
+    assert image.std() > 0.05, image.std()

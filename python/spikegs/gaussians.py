@@ -220,6 +220,9 @@ class GaussianModel:
             sh_degree=self.sh_degree,
             background=self.background,
             near=near,
+            # no far plane: the rasterizer's default (1e10) culled a whole scene whose units put
+            # its cameras 3e10 away, which then trained to its background alone, unsaid
+            far=math.inf,
             screen_points=screen_points,
             screen_abs=screen_abs,
         )
