@@ -188,7 +188,7 @@ def test_negative_view_counts_refused(tmp_path):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
     # a frame 40 times as tall as wide (its focal length set by the width) was written whole,
     # then refused by its own meta.json
-    with pytest.raises(ValueError, match=r"--height 128 --width 3: fy 4.12\d* gives a 173°"):
+    with pytest.raises(ValueError, match=r"fy 4.12\d* gives a 173° .*--height 128 --width 3: a"):
         simulate_dataset("solids", tmp_path / "tall", **{**SMALL, "height": 128, "width": 3})
     assert not (tmp_path / "tall").exists()
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
@@ -340,6 +340,8 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "scene list": ("meta.json", rewrite_meta(scene=["solids"]), r"scene expected a name"),
         "source dict": ("meta.json", rewrite_meta(source={"a": 1}), r"source expected a name"),
         "scene null": ("meta.json", rewrite_meta(scene=None, fx=0), r"fx expected"),  # no name
+        "scene id": ("meta.json", rewrite_meta(scene=24, fx=0), r"fx expected"),  # a scan id
+        "version 1.0": ("meta.json", rewrite_meta(format_version=1.0, fx=0), r"fx expected"),
         "version text": (
             "meta.json",
             rewrite_meta(format_version="1"),

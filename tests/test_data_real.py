@@ -359,11 +359,13 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     with pytest.raises(ValueError, match=dense):  # train_every is 1 here
         load_dataset(root)
     write_options(root, train_every=3, test_views=list(range(0, poses, 2)))
-    with pytest.raises(
-        ValueError,
-        match=r"\d held-out poses, which lie 20 readouts apart; a smaller train_every, or",
-    ):
+    with pytest.raises(ValueError, match=r"\d held-out poses, which lie 20 readouts apart; fewer"):
+        load_dataset(root)  # 20 apart: no train_every helps
+    write_options(root, train_every=7, test_views=[0, 13])  # 130 apart: one readout between
+    with pytest.raises(ValueError, match=r"130 readouts apart; a smaller train_every, or fewer"):
         load_dataset(root)
+    write_options(root, train_every=1, test_views=[0, 13])  # readout 265 trains
+    assert load_dataset(root).train_timestamps.tolist() == [265]
     (root / "spikegs.json").unlink()
     # a frame size a quarter of the file's: 4x the readouts, the poses on the first quarter
     np.savetxt(root / "readouts.txt", np.arange(poses) * 8 + 40, fmt="%d")

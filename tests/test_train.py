@@ -2199,6 +2199,44 @@ def test_a_scene_far_from_the_origin_trains_as_at_the_origin(dataset, tmp_path):
     assert abs(psnrs[1] - psnrs[0]) < 0.01, psnrs
 
 
+@pytest.mark.filterwarnings("ignore:.*units from the origin")
+def test_a_far_scene_is_saved_and_resumed_about_its_centre(dataset, tmp_path):
+    """scene.ply of a scene 2e6 radii out held float32 world positions, which eval and render
+    read back rounded (-0.9 dB at 4e6 radii): it holds them about the centre, the origin in a
+    comment; a checkpoint from before origins (world means) resumes about the centre too."""
+    offset = np.array([1e6, -2e6, 5e5]) * dataset.scene_radius
+    far = _moved(dataset, offset)
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 4}})
+    trainer = Trainer(far, config, tmp_path / "run", progress=False)
+    trainer.train()
+    ply = tmp_path / "run" / "scene.ply"
+    assert "spikegs origin " in PlyData.read(str(ply)).comments[-1]
+    loaded = load_ply(ply)
+    np.testing.assert_array_equal(loaded.origin, trainer.model.origin)
+    assert torch.equal(loaded.params["means"], trainer.model.params["means"])  # exact
+    assert evaluate_run(tmp_path / "run", far, write_images=False)["psnr"] == pytest.approx(
+        _mean_psnr(trainer.model, far), abs=1e-4
+    )
+    near = tmp_path / "near.ply"  # a scene near the world's origin: the layout as before
+    save_ply(loaded.centred_at(np.zeros(3)), near)
+    assert not any("origin" in c for c in PlyData.read(str(near)).comments)
+    text = ply.read_bytes()
+    ply.write_bytes(re.sub(rb"spikegs origin [^\n]*", b"spikegs origin 1 nan 2", text))
+    with pytest.raises(ValueError, match="comment 'spikegs origin 1 nan 2': expected 3 finite"):
+        load_ply(ply)
+    # a checkpoint written before origins: world float32 means, no "origin"
+    checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
+    state = torch.load(checkpoint, weights_only=True)
+    state["model"]["params"]["means"] = trainer.model.world_means().float()
+    del state["model"]["origin"]
+    state["iteration"] = 2  # as if stopped there
+    torch.save(state, checkpoint)
+    resumed = Trainer(far, config, tmp_path / "run", progress=False)
+    resumed.train(resume=True)
+    np.testing.assert_array_equal(resumed.model.origin, far.scene_center)
+    assert resumed.model.params["means"].abs().max() < 3 * dataset.scene_radius
+
+
 def test_a_model_renders_about_its_origin():
     """A model whose means are measured from an origin far out renders what the same model at
     the world's origin does; its float32 world means and viewmats would cancel to error."""

@@ -19,6 +19,7 @@ PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "s
 # not raised for a larger one, whose content may lie far nearer a camera than its radius (a
 # forward-facing capture's loose scene sphere)
 NEAR_FRACTION = 0.01
+FAR_PLANE = float(torch.finfo(torch.float32).max)  # none: any depth beyond `near` renders
 # the lowest starting intensity: a colour of exactly 0 sits on the render's clamp at 0, where the
 # rounding of its SH evaluation (the core's fused 0.5 + C0·dc: −7e-9) decides whether any
 # gradient reaches it, and a black start (a dark pixel's TFP, a black point of a cloud) never
@@ -32,9 +33,9 @@ def near_plane(scene_radius: float) -> float:
 
 
 # a scene whose centre lies further than this many radii from the world's origin is trained and
-# rendered about its centre (GaussianModel.origin): at 16,000 radii the float32 means' steps
-# rounded away (−0.65 dB, unsaid), at 160,000 none moved; within it float32 world coordinates
-# lose under 1e-6 of the radius, and runs stay what they were
+# rendered about its centre (GaussianModel.origin): at 23,000 radii the float32 means' steps
+# rounded to whole ulps (−0.65 dB, unsaid), at 230,000 none moved; within it float32 world
+# coordinates lose under 1e-6 of the radius, and runs stay what they were
 FAR_SCENE_RADII = 10.0
 
 
@@ -205,8 +206,9 @@ class GaussianModel:
         screen_points: torch.Tensor | None = None,
         screen_abs: torch.Tensor | None = None,
     ) -> RasterizeResult:
-        """Render from world-to-camera `viewmat` [4, 4] with intrinsics `K` [3, 3], culling what
-        lies nearer than `near` (world units: `near_plane` of the scene's radius)."""
+        """Render from `viewmat` [4, 4], camera from this model's frame (`view_of` of a world-to-
+        camera viewmat), with intrinsics `K` [3, 3], culling what lies nearer than `near` (world
+        units: `near_plane` of the scene's radius)."""
         return rasterize(
             self.params["means"],
             self.params["quats"],
@@ -221,8 +223,9 @@ class GaussianModel:
             background=self.background,
             near=near,
             # no far plane: the rasterizer's default (1e10) culled a whole scene whose units put
-            # its cameras 3e10 away, which then trained to its background alone, unsaid
-            far=math.inf,
+            # its cameras 3e10 away, which then trained to its background alone, unsaid (float's
+            # largest, not inf, which a -ffast-math core may not compare)
+            far=FAR_PLANE,
             screen_points=screen_points,
             screen_abs=screen_abs,
         )

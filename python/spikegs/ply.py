@@ -47,7 +47,11 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     rest = np.zeros((n, FILE_SH_REST, 3), np.float32)  # [N, 15, 3]
     rest[:, :used] = np.repeat(p["sh_rest"][:, :used], reps, axis=2)
     f_rest = rest.transpose(0, 2, 1).reshape(n, 3 * FILE_SH_REST)  # [N, 45] channel-major
-    means = model.world_means().numpy()  # [N, 3] the world frame, as every viewer reads it
+    # the world frame, as every viewer reads it; a model about a far origin (a scene over
+    # FAR_SCENE_RADII radii out) keeps its float32 means about it, the origin in a comment: its
+    # world positions would round in float32 (in a viewer's too), by pixels at 1e6 radii
+    far = model.origin.any()
+    means = (model.params["means"].detach() if far else model.world_means()).numpy()  # [N, 3]
     columns = {"x": means[:, 0], "y": means[:, 1], "z": means[:, 2]}
     columns.update({f"n{a}": np.zeros(n, np.float32) for a in "xyz"})
     columns.update({f"f_dc_{i}": dc[:, i] for i in range(3)})
@@ -64,6 +68,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         f"spikegs sh_degree {model.sh_degree}",
         f"spikegs background {background}",
     ]
+    if far:
+        comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
     ply = PlyData([PlyElement.describe(vertex, "vertex")], comments=comments)
     write_atomically(Path(path), lambda tmp: ply.write(str(tmp)))  # never half a file at `path`
 
@@ -192,7 +198,17 @@ def load_ply(path: str | Path) -> GaussianModel:
         )
     if not n:
         warnings.warn(f"{path}: no Gaussians: it renders the background alone", stacklevel=2)
-    return GaussianModel(params, background, sh_degree)
+    origin = None
+    if "origin" in tags:  # x, y, z are about it (save_ply, a scene far from the world's origin)
+        try:
+            origin = [float(x) for x in tags["origin"].split()]
+        except ValueError:
+            origin = []
+        if len(origin) != 3 or not np.isfinite(origin).all():
+            raise ValueError(
+                f"{path}: comment 'spikegs origin {tags['origin']}': expected 3 finite numbers"
+            )
+    return GaussianModel(params, background, sh_degree, origin)
 
 
 def declares_channels(path: str | Path) -> bool:

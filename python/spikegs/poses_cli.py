@@ -134,7 +134,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
             f"{where}: states {intrinsics} of the intrinsics fx, fy, cx, cy: state all four (held "
             f"fixed) or none (structure from motion estimates them)"
         )
-    optional = ("scene_center", "scene_radius", "raw_width", "col_offset")
+    optional = ("scene_center", "scene_radius", "raw_width", "col_offset", "scene", "source")
     stated = [k for k in (*intrinsics, *optional) if k in meta]
     check_meta_values(meta, where, stated)  # what training reads later, refused now
     described = {**meta, "height": h, "width": w, "flip": flip, "num_readouts": num}

@@ -327,6 +327,9 @@ class Trainer:
 
     def _load_checkpoint(self, state: dict) -> None:
         self.model = GaussianModel.from_state_dict(state["model"])
+        if "origin" not in state["model"]:  # saved before origins: world means, moved about the
+            # origin a fresh run takes (Adam's moments do not depend on it)
+            self.model = self.model.centred_at(frame_origin(self.dataset.scene_center, self.radius))
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )

@@ -145,9 +145,9 @@ class Dataset:
 
     def _warn_about_float32_rounding(self) -> None:
         """A UserWarning where the scene lies so far from the origin (UTM or GPS coordinates)
-        that float32 world positions round by more than FLOAT32_ROUNDING_PX pixels there: the
-        trainer and evaluation work about the scene's centre (gaussians.frame_origin), but a
-        run's scene.ply holds float32 world positions, as the 3DGS viewers read them."""
+        that float32 world positions round by more than FLOAT32_ROUNDING_PX pixels there: runs
+        work about the scene's centre (gaussians.frame_origin) and their scene.ply holds
+        positions about it, which another tool must offset to place the scene in the world."""
         offset = float(np.linalg.norm(self.scene_center))
         distance = self._camera_distance()
         if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
@@ -156,10 +156,9 @@ class Dataset:
         if pixels > FLOAT32_ROUNDING_PX:
             warnings.warn(
                 f"{self.root}: the scene's centre lies {offset:.3g} units from the origin, where "
-                f"float32 positions round by ~{pixels:.2g} pixels in these views: training and "
-                f"evaluation work about the centre, but a run's scene.ply (float32 world "
-                f"positions, as viewers read them) rounds so; subtract scene_center from the "
-                f"poses (and the point cloud) to keep it exact",
+                f"float32 positions round by ~{pixels:.2g} pixels in these views: a run trains "
+                f"about the centre, and its scene.ply holds positions about it (its comment "
+                f"'spikegs origin X Y Z' is the offset to add for another tool)",
                 stacklevel=3,
             )
 
@@ -463,7 +462,7 @@ def _check_meta(meta: dict, path: Path) -> None:
     if missing:
         raise ValueError(f"{path}: missing keys {missing}")
     version = meta.get("format_version", FORMAT_VERSION)
-    if version != FORMAT_VERSION or not is_int(version):
+    if version != FORMAT_VERSION or isinstance(version, (bool, str)):  # 1.0 is 1
         raise ValueError(
             f"{path}: format_version {version!r}, this SpikeGS reads {FORMAT_VERSION} (an integer)"
         )
@@ -525,10 +524,8 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 )
         elif key == "col_offset" and not (is_int(meta[key]) and meta[key] >= 0):
             raise ValueError(f"{path}: col_offset expected an integer >= 0, found {meta[key]!r}")
-        elif key in ("scene", "source") and not (meta[key] is None or isinstance(meta[key], str)):
-            raise ValueError(
-                f"{path}: {key} expected a name (a string) or null, found {meta[key]!r}"
-            )
+        elif key in ("scene", "source") and isinstance(meta[key], (list, dict)):
+            raise ValueError(f"{path}: {key} expected a name or number, found {meta[key]!r}")
         elif key == "scene_center":
             center = meta[key]
             if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):

@@ -336,19 +336,21 @@ def stream_dataset(
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
     if not len(ks):
         held = readouts[test]
-        spacing = float(np.median(np.diff(held))) if len(held) > 1 else 0.0
+        spacing = float(np.median(np.diff(held))) if len(held) > 1 else math.inf
         which = "" if options.test_views else f", every {HOLDOUT_EVERY}th pose by default"
-        smaller = "a smaller train_every, or " if every > 1 else ""
+        apart = f", which lie {spacing:g} readouts apart" if len(held) > 1 else ""
+        # a timestamp between two held-out poses lies over 2·WINDOW_MARGIN from each
+        gap = 4 * WINDOW_MARGIN + 1
+        smaller = "a smaller train_every, or " if every > 1 and spacing > gap else ""
         step = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
-        apart = max(HOLDOUT_EVERY, math.ceil(4 * WINDOW_MARGIN / step)) if step else HOLDOUT_EVERY
+        nth = max(HOLDOUT_EVERY, math.ceil((gap + every) / step)) if step else HOLDOUT_EVERY
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
             f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
             f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
-            f"clear of each of the {held.size} held-out poses{which}, which lie {spacing:g} "
-            f"readouts apart; {smaller}fewer held-out poses further apart (test_views, pose "
-            f"indices, e.g. every {apart}th: {readout_number(apart * step)} readouts apart), in "
-            f"spikegs.json"
+            f"clear of each of the {held.size} held-out poses{which}{apart}; {smaller}fewer "
+            f"held-out poses further apart (test_views, pose indices, e.g. every {nth}th: "
+            f"{readout_number(nth * step)} readouts apart), in spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)
     window = options.pseudo_gt_window or NEEDED_WINDOW

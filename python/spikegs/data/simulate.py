@@ -368,8 +368,12 @@ def simulate_dataset(
     # the camera as load_dataset will check it, before any work (a frame 40 times as tall as
     # wide, its focal length set by the width, was written whole and then refused)
     camera = {"height": height, "width": width, **intrinsics_keys(source.K)}
-    where = f"scene '{source.name}' at --height {height} --width {width}"
-    check_meta_values(camera, where, ["fx", "fy", "cx", "cy"])
+    try:
+        check_meta_values(camera, f"scene '{source.name}'", ["fx", "fy", "cx", "cy"])
+    except ValueError as err:
+        raise ValueError(
+            f"{err}; --height {height} --width {width}: a frame less tall for its width"
+        ) from None
     trajectory = source.trajectory(readouts, speed)
     rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them
     on_path = source.on_path_times(readouts, test_on_path, 2 * WINDOW_MARGIN)  # [n]
