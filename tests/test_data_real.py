@@ -242,6 +242,7 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
     assert main([*args, "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "note: 1 views without a sharp image" in printed
+    assert "(PSNR of firing rates, spikes a readout, over a data range of 1: " in printed
     os.utime(out, (0, 0))
     assert main([*args, "--out", str(out)]) == 0  # reused: the latest SIM for poses --sim
     assert "reused" in capsys.readouterr().out and out.stat().st_mtime > 0

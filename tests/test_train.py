@@ -334,8 +334,10 @@ def test_resume_after_interruption_equals_uninterrupted(
     for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
         assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == 2
         assert "finish it with spikegs train DATASET" in capsys.readouterr().err
+    capsys.readouterr()
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
+    assert "cut: resuming at iteration 40 of 60" in capsys.readouterr().err  # it said nothing
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
     assert torch.equal(whole.model.background, resumed.model.background)

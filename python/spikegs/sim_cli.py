@@ -4,6 +4,7 @@ compare it with TFP(33), TFP(65) and TFI on the held-out on-path views."""
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -15,7 +16,7 @@ from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .output_paths import check_file_output
 from .sim_train import CHECKPOINT_S, evaluate_dataset, is_sim_file, on_path_views
-from .targets import check_targets, trained_sim
+from .targets import check_targets, intensity_scale, trained_sim
 
 # the config keys that the options set, named in the config's messages
 FLAGS = {
@@ -106,6 +107,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     scores = evaluate_dataset(model, dataset)
     print_table([{"method": name, **s} for name, s in scores.items()])
+    units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
+    print(
+        f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
+        f"the same error in the intensity units of spikegs eval)"
+    )
     note = pseudo_views_note(v.name for v in views)
     if note:
         print(

@@ -526,6 +526,12 @@ class Trainer:
                     f"another --out"
                 )
             state = self._read_checkpoint() if from_checkpoint else None
+            if state is not None:  # said: a resumed run printed nothing before its next line
+                print(
+                    f"{self.run_dir}: resuming at iteration {state['iteration']} of "
+                    f"{self.config.train.iterations}",
+                    file=sys.stderr,
+                )
             return self._run(state, on_eval)
 
     def _from_checkpoint(self, resume: bool) -> bool:
