@@ -1200,6 +1200,34 @@ def test_mp4_holds_every_frame_of_any_size(codec, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["v.mp4"]  # no partial file left
 
 
+def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys):
+    """`simulate` and `train` took a colour camera and the demo could not (`--color`); --resume
+    goes on with the camera the demo started with and refuses the other one."""
+    import spikegs.data
+
+    simulate = spikegs.data.simulate_dataset
+    monkeypatch.setattr(
+        "spikegs.data.simulate_dataset", lambda *a, **k: simulate(*a, **{**k, **TINY})
+    )
+    fast = {k: {**v, **FAST.get(k, {})} for k, v in DEMO_OVERRIDES.items()}
+    monkeypatch.setattr(
+        "spikegs.demo.DEMO_OVERRIDES", {**fast, "sim": {**fast["sim"], "iterations": 3}}
+    )
+    out = tmp_path / "demo"
+    assert main(["demo", "--color", "--iterations", "20", "--no-progress", "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert load_dataset(out / "data").channels == 3
+    assert all(10 < scores["psnr"] < 60 for scores in results["methods"].values())
+    assert load_ply(out / "runs" / "spikegs" / "scene.ply").channels == 3
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0  # colour kept
+    assert json.loads((out / "results.json").read_text())["methods"] == results["methods"]
+    mono = tmp_path / "mono"
+    assert main(["demo", "--iterations", "20", "--no-progress", "--out", str(mono)]) == 0
+    capsys.readouterr()
+    assert main(["demo", "--color", "--no-progress", "--resume", "--out", str(mono)]) == 2
+    assert "holds a mono dataset; leave out --color" in capsys.readouterr().err
+
+
 def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypatch, capsys):
     """`spikegs demo` end to end on a tiny scene and schedule: results.json in the issue's layout,
     the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table; a

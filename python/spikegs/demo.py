@@ -66,12 +66,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "each run's last checkpoint (the same results as a demo never interrupted); where --out "
         "holds no demo, one starts (said on stderr), so a script may always pass it",
     )
+    parser.add_argument(
+        "--color",
+        action="store_true",
+        help="a colour spike camera, a stream per channel (on --resume, the demo's own camera)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
-    """The demo's dataset: simulated into `data`, or, on `resume`, the one a demo already
-    simulated there (meta.json is written last: a folder without it is simulated again)."""
+def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):
+    """The demo's dataset: simulated into `data` (`color`: an RGB camera), or, on `resume`, the
+    one a demo already simulated there (meta.json is written last: a folder without it is
+    simulated again)."""
     from .data import load_dataset, simulate_dataset
 
     if resume and (data / "meta.json").exists():
@@ -81,14 +87,19 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool):
                 f"--resume: {data} holds scene '{dataset.meta.get('scene')}', not '{scene}'; "
                 f"leave out --scene to continue it, or give another --out"
             )
+        if dataset.channels != (3 if color else 1):
+            raise ValueError(
+                f"--resume: {data} holds a {'colour' if dataset.channels == 3 else 'mono'} "
+                f"dataset; leave out --color to continue it, or give another --out"
+            )
         print(f"[1/3] resuming with the spike dataset in {data}")
         return dataset
     print(f"[1/3] simulating the spike dataset -> {data}")
-    return simulate_dataset(scene, data, overwrite=True, progress=progress)
+    return simulate_dataset(scene, data, overwrite=True, progress=progress, color=color)
 
 
 SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted processes
-STARTED_FILE = ".demo_started.json"  # what a demo began with: {"scene": .., "iterations": ..}
+STARTED_FILE = ".demo_started.json"  # what a demo began with: {"scene", "iterations", "color"}
 RESULTS = "results.json"
 COMPARISON, CURVES = "comparison.png", "curves.png"  # the demo's figures
 
@@ -135,6 +146,15 @@ def started_scene(out: Path) -> str | None:
     except (FileNotFoundError, ValueError, AttributeError):
         scene = _started(out).get("scene")
     return scene if scene in SCENES else None
+
+
+def started_color(out: Path) -> bool:
+    """Whether the demo in `out` is a colour camera's (its dataset's channels, else what it
+    recorded when it started)."""
+    try:
+        return json.loads((out / "data" / "meta.json").read_text()).get("channels") == 3
+    except (FileNotFoundError, ValueError, AttributeError):
+        return _started(out).get("color") is True
 
 
 def check_fresh_out(out: Path) -> None:
@@ -226,6 +246,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     scene = args.scene or (started_scene(out) if args.resume else None) or DEFAULT_SCENE
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
     iterations = args.iterations or (started_iterations(out) if args.resume else None)
+    color = args.color or (started_color(out) if args.resume else False)
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
     if not args.resume:
@@ -237,12 +258,12 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         for stale in (RESULTS, SECONDS_FILE, COMPARISON, CURVES):
             (out / stale).unlink(missing_ok=True)
         # what --resume goes on with, should this demo stop before its dataset and first run
-        started = {"scene": scene, "iterations": iterations}
+        started = {"scene": scene, "iterations": iterations, "color": color}
         write_text_atomically(out / STARTED_FILE, json.dumps(started))
     else:
         check_run_dirs(out)
     try:  # the figures too: stopped while writing them, it says how to go on as well
-        dataset = demo_dataset(scene, out / "data", args.resume, progress)
+        dataset = demo_dataset(scene, out / "data", args.resume, progress, color)
         results = train_and_evaluate(dataset, configs, out, args.resume, progress)
         write_figures(out, dataset, results)
     except KeyboardInterrupt:
