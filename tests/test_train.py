@@ -1200,19 +1200,27 @@ def test_mp4_holds_every_frame_of_any_size(codec, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["v.mp4"]  # no partial file left
 
 
-def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys):
-    """`simulate` and `train` took a colour camera and the demo could not (`--color`); --resume
-    goes on with the camera the demo started with and refuses the other one."""
+def _tiny_demo(monkeypatch, sim_iterations: int) -> None:
+    """`spikegs demo` on TINY datasets with FAST's schedule and a SIM of `sim_iterations`."""
     import spikegs.data
 
     simulate = spikegs.data.simulate_dataset
     monkeypatch.setattr(
         "spikegs.data.simulate_dataset", lambda *a, **k: simulate(*a, **{**k, **TINY})
     )
+    # the demo's overrides with FAST's schedule, every key of theirs kept (bench's help reads the
+    # threshold from the module that a first import binds)
     fast = {k: {**v, **FAST.get(k, {})} for k, v in DEMO_OVERRIDES.items()}
     monkeypatch.setattr(
-        "spikegs.demo.DEMO_OVERRIDES", {**fast, "sim": {**fast["sim"], "iterations": 3}}
+        "spikegs.demo.DEMO_OVERRIDES",
+        {**fast, "sim": {**fast["sim"], "iterations": sim_iterations}},
     )
+
+
+def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys):
+    """`simulate` and `train` took a colour camera and the demo could not (`--color`); --resume
+    goes on with the camera the demo started with and refuses the other one."""
+    _tiny_demo(monkeypatch, sim_iterations=3)
     out = tmp_path / "demo"
     assert main(["demo", "--color", "--iterations", "20", "--no-progress", "--out", str(out)]) == 0
     results = json.loads((out / "results.json").read_text())
@@ -1232,18 +1240,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     """`spikegs demo` end to end on a tiny scene and schedule: results.json in the issue's layout,
     the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table; a
     demo killed in SpikeGS's training, then `--resume`d, ends with the same results."""
-    import spikegs.data
-
-    simulate = spikegs.data.simulate_dataset
-    monkeypatch.setattr(
-        "spikegs.data.simulate_dataset", lambda *a, **k: simulate(*a, **{**k, **TINY})
-    )
-    # the demo's overrides with FAST's schedule, every key of theirs kept (bench's help reads the
-    # threshold from the module that a first import binds)
-    fast = {k: {**v, **FAST.get(k, {})} for k, v in DEMO_OVERRIDES.items()}
-    monkeypatch.setattr(
-        "spikegs.demo.DEMO_OVERRIDES", {**fast, "sim": {**fast["sim"], "iterations": 5}}
-    )
+    _tiny_demo(monkeypatch, sim_iterations=5)
     out = tmp_path / "demo"
     argv = ["demo", "--iterations", "80", "--no-progress", "--out"]
     assert main([*argv, str(out), "--resume"]) == 0  # nothing to resume: a fresh demo

@@ -138,23 +138,29 @@ def started_iterations(out: Path) -> int | None:
     return iterations if isinstance(iterations, int) and iterations > 0 else None
 
 
+def _dataset_meta(out: Path) -> dict | None:
+    """The meta.json of the demo's dataset in `out`; None where there is none (or not an
+    object)."""
+    try:
+        meta = json.loads((out / "data" / "meta.json").read_text())
+    except (FileNotFoundError, ValueError):
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
 def started_scene(out: Path) -> str | None:
     """The scene of the demo in `out` (its dataset's, else what it recorded when it started),
     None where neither names a built-in one."""
-    try:
-        scene = json.loads((out / "data" / "meta.json").read_text()).get("scene")
-    except (FileNotFoundError, ValueError, AttributeError):
-        scene = _started(out).get("scene")
+    meta = _dataset_meta(out)
+    scene = _started(out).get("scene") if meta is None else meta.get("scene")
     return scene if scene in SCENES else None
 
 
 def started_color(out: Path) -> bool:
     """Whether the demo in `out` is a colour camera's (its dataset's channels, else what it
     recorded when it started)."""
-    try:
-        return json.loads((out / "data" / "meta.json").read_text()).get("channels") == 3
-    except (FileNotFoundError, ValueError, AttributeError):
-        return _started(out).get("color") is True
+    meta = _dataset_meta(out)
+    return _started(out).get("color") is True if meta is None else meta.get("channels") == 3
 
 
 def check_fresh_out(out: Path) -> None:

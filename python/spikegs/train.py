@@ -201,6 +201,9 @@ class Trainer:
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
         self.radius = float(dataset.scene_radius)
         self.near = near_plane(self.radius)
+        # where the model's means are measured from (the scene's centre, for a scene far from
+        # the world's origin)
+        self.origin = frame_origin(dataset.scene_center, self.radius)
         self.checkpoint_path = last_checkpoint(self.run_dir)
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
@@ -244,8 +247,7 @@ class Trainer:
         # where they project (a point cloud gives positions only), the background the views'
         # median intensity
         sample = ViewSample.of(self.dataset, self.scale)
-        # the means about frame_origin (the scene's centre, for a scene far from the world's)
-        origin = frame_origin(self.dataset.scene_center, self.radius)
+        origin = self.origin
         colors_of = lambda means: projected_intensity(  # noqa: E731
             self.dataset, sample, means.double() + torch.from_numpy(origin)
         )
@@ -329,7 +331,7 @@ class Trainer:
         self.model = GaussianModel.from_state_dict(state["model"])
         if "origin" not in state["model"]:  # saved before origins: world means, moved about the
             # origin a fresh run takes (Adam's moments do not depend on it)
-            self.model = self.model.centred_at(frame_origin(self.dataset.scene_center, self.radius))
+            self.model = self.model.centred_at(self.origin)
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
