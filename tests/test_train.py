@@ -44,6 +44,8 @@ FAST = {
     "densify": {"start": 40, "stop": 160, "every": 40, "opacity_reset_every": 0},
 }
 
+# a one-step run that densifies (the densifier observes only the steps that do)
+ONE_DENSIFYING_STEP = {"start": 1, "stop": 1, "every": 1, "opacity_reset_every": 0}
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
 
@@ -192,6 +194,34 @@ def test_the_step_loss_adds_the_weighted_dssim_term(few_views, tmp_path, monkeyp
     term = {k: float(v.detach()) for k, v in parts.items()}
     expected = config.supervision.instant_weight * term["l1"] + 0.5 * term["d"]
     assert term["d"] > 0.01 and loss == pytest.approx(expected, rel=1e-5)
+
+
+@pytest.mark.parametrize("until, instant_steps", [("run", 6), ("densify", 3)])
+def test_the_instant_loss_trains_until_densification_stops_where_configured(
+    few_views, tmp_path, monkeypatch, until, instant_steps
+):
+    """supervision.instant_until: densify computes L_instant on the steps that densify (1-3 of
+    6) and the exposure loss alone on every step after; run on every step. Either way the
+    densifier observes only the steps that densify."""
+    calls = {"instant": 0, "exposure": 0, "observe": 0}
+    instant, exposure = train_module.instant_loss, train_module.exposure_loss
+    observe = Densifier.observe
+
+    def counted(name, fn):
+        def call(*args, **kwargs):
+            calls[name] += 1
+            return fn(*args, **kwargs)
+
+        return call
+
+    monkeypatch.setattr(train_module, "instant_loss", counted("instant", instant))
+    monkeypatch.setattr(train_module, "exposure_loss", counted("exposure", exposure))
+    monkeypatch.setattr(Densifier, "observe", counted("observe", observe))
+    supervision = {"exposure_weight": 1.0, "exposure_poses": 3, "instant_until": until}
+    overrides = _few_steps(6, supervision=supervision)
+    overrides["densify"] = {"start": 2, "stop": 3, "every": 2, "opacity_reset_every": 0}
+    Trainer(few_views, load_config("tfp33", overrides), tmp_path / "run", False).train()
+    assert calls == {"instant": instant_steps, "exposure": 6, "observe": 3}
 
 
 def test_random_gaussians_fill_the_ball_uniformly_at_the_neighbour_spacing():
@@ -495,7 +525,7 @@ def test_absgrad_densifies_on_the_absolute_per_pixel_gradient(dataset, tmp_path,
         )
         overrides = {
             "train": {**FAST["train"], "iterations": 1, "checkpoint_every": 1},
-            "densify": {"absgrad": absgrad},
+            "densify": {**ONE_DENSIFYING_STEP, "absgrad": absgrad},
         }
         Trainer(dataset, load_config("tfp33", overrides), tmp_path / str(absgrad), False).train()
     plain, absolute = seen[False].abs(), seen[True]
@@ -520,7 +550,7 @@ def test_instant_only_densifies_on_the_instant_render(dataset, tmp_path, monkeyp
         taps.clear()
         overrides = {
             "train": {**FAST["train"], "iterations": 1, "checkpoint_every": 1},
-            "densify": {"instant_only": instant_only},
+            "densify": {**ONE_DENSIFYING_STEP, "instant_only": instant_only},
             "supervision": {"instant": "clean", "exposure_poses": poses, "dssim_weight": 0.5},
         }
         config = load_config("spikegs", overrides)
@@ -842,6 +872,9 @@ def test_every_method_config_loads():
         ("spikegs", {"supervision": {"instant": "none", "dssim_weight": 0.5}}, "dssim_weight"),
         ("spikegs", {"supervision": {"instant_weight": 0.0, "dssim_weight": 0.5}}, "dssim_weight"),
         ("spikegs", {"supervision": {"instant_window": 1}}, "supervision.instant_window"),
+        ("spikegs", {"supervision": {"instant_until": "forever"}}, "instant_until.*run or densify"),
+        # without the exposure loss the steps after densification would train on no loss
+        ("only_instant", {"supervision": {"instant_until": "densify"}}, "instant_until.*exposure"),
         ("spikegs", {"lr": {"background": 1e30}}, "lr.background"),
         ("spikegs", {"pose_refine": {"lr": 5.0}}, "pose_refine.lr"),
     ],

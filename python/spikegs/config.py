@@ -41,6 +41,7 @@ CONFIG_DIR = next(
     _PACKAGE_DIR / "configs",
 )
 DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
+INSTANT_UNTIL = ("run", "densify")  # supervision.instant_until: every step, or while densifying
 MAX_LR = 1.0  # learning rates above it move parameters by more than their own scale a step
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
@@ -60,6 +61,10 @@ class SupervisionConfig:
     instant_window: int = 33
     instant_weight: float = 1.0
     exposure_weight: float = 1.0  # lambda: weight of L_exposure (0: off)
+    # how long L_instant trains: "run", every step (the paper), or "densify", while the model
+    # densifies (densify.stop), after which L_exposure alone, free of SIM's blind-spot bias,
+    # finishes the run (needs the exposure loss)
+    instant_until: str = "run"
     exposure_window: int = 33  # readouts of the virtual exposure around t
     exposure_poses: int = 5  # K renders averaged over the window
     dssim_weight: float = 0.0  # optional D-SSIM term on the instant loss, as in 3DGS
@@ -167,6 +172,19 @@ class Config:
             _require(
                 value >= 1 and value % 2 == 1, f"supervision.{name}", value, "an odd window >= 1"
             )
+        _require(
+            s.instant_until in INSTANT_UNTIL,
+            "supervision.instant_until",
+            s.instant_until,
+            " or ".join(INSTANT_UNTIL),
+        )
+        _require(
+            s.instant_until == "run" or s.exposure_weight > 0 or s.instant == "none",
+            "supervision.instant_until",
+            s.instant_until,
+            "run without the exposure loss (densify leaves the steps after densification "
+            "without a loss: exposure_weight > 0 finishes the run)",
+        )
         for name in ("instant_norm", "exposure_norm"):
             value = getattr(s, name)
             _require(value in NORMS, f"supervision.{name}", value, " or ".join(NORMS))

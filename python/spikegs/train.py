@@ -403,15 +403,19 @@ class Trainer:
         index = int(self.rng.integers(len(targets.timestamps)))
         t = float(targets.timestamps[index])
         h, w = self.dataset.height, self.dataset.width
-        # this step's densification signal [N, 2]: AbsGS's absolute per-pixel sums, which each
-        # render's backward adds to, or the plain gradient of a zero tap on the 2D means
+        densifying = self.iteration <= self.densifier.stop
+        # the instant loss trains every step, or (instant_until: densify) while densifying
+        instant_trains = targets.instant is not None and (s.instant_until == "run" or densifying)
+        # this step's densification signal [N, 2], while the model densifies: AbsGS's absolute
+        # per-pixel sums, which each render's backward adds to, or the plain gradient of a zero
+        # tap on the 2D means
         absgrad = self.config.densify.absgrad
         screen = torch.zeros(len(self.model), 2, requires_grad=not absgrad)
-        tap = {"screen_abs" if absgrad else "screen_points": screen}
+        tap = {"screen_abs" if absgrad else "screen_points": screen} if densifying else {}
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         # densify.instant_only: the exposure's renders (but for one it shares with the instant
         # pose, an odd K's centre) give the signal nothing
-        instant_only = self.config.densify.instant_only and targets.instant is not None
+        instant_only = self.config.densify.instant_only and instant_trains
         exposure_tap = {} if instant_only else tap
         loss, instant = torch.zeros(()), None
         # the instant pose (at the time its target shows: TFI's is half a readout on), then the
@@ -421,7 +425,7 @@ class Trainer:
         if targets.exposure is not None:
             times += [float(tk) for tk in exposure_times(t, s.exposure_window, s.exposure_poses)]
         viewmats = self._poses(times, index)
-        if targets.instant is not None:
+        if instant_trains:
             instant = self.model.render(viewmats[0], self.K, w, h, self.near, **tap)
             radii = torch.maximum(radii, instant.radii)
             loss = loss + s.instant_weight * instant_loss(
@@ -450,10 +454,11 @@ class Trainer:
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
         self._check_parameters()
-        # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the methods' weights
-        screen_grad = screen if absgrad else screen.grad
-        weight = s.instant_total_weight() if instant_only else s.total_weight()
-        self.densifier.observe(radii, screen_grad / weight, w, h)
+        if densifying:
+            # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the weights
+            screen_grad = screen if absgrad else screen.grad
+            weight = s.instant_total_weight() if instant_only else s.total_weight()
+            self.densifier.observe(radii, screen_grad / weight, w, h)
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
             d = self.config.densify
