@@ -200,10 +200,11 @@ def test_the_step_loss_adds_the_weighted_dssim_term(few_views, tmp_path, monkeyp
 def test_the_instant_loss_trains_until_densification_stops_where_configured(
     few_views, tmp_path, monkeypatch, until, instant_steps
 ):
-    """supervision.instant_until: densify computes L_instant on the steps that densify (1-3 of
-    6) and the exposure loss alone on every step after; run on every step. Either way the
-    densifier observes only the steps that densify."""
-    calls = {"instant": 0, "exposure": 0, "observe": 0}
+    """supervision.instant_until: densify computes L_instant on the steps up to densify.stop (1-3
+    of 6) and the exposure loss alone on every step after; run on every step. Either way the
+    densifier observes, and one render a step (the instant's) carries the screen tap on, only
+    the steps up to densify.stop."""
+    calls = {"instant": 0, "exposure": 0, "observe": 0, "tapped": 0}
     instant, exposure = train_module.instant_loss, train_module.exposure_loss
     observe = Densifier.observe
 
@@ -217,11 +218,18 @@ def test_the_instant_loss_trains_until_densification_stops_where_configured(
     monkeypatch.setattr(train_module, "instant_loss", counted("instant", instant))
     monkeypatch.setattr(train_module, "exposure_loss", counted("exposure", exposure))
     monkeypatch.setattr(Densifier, "observe", counted("observe", observe))
+    render = GaussianModel.render
+
+    def tapped(self, *args, **kwargs):
+        calls["tapped"] += any(k.startswith("screen_") for k in kwargs)
+        return render(self, *args, **kwargs)
+
+    monkeypatch.setattr(GaussianModel, "render", tapped)
     supervision = {"exposure_weight": 1.0, "exposure_poses": 3, "instant_until": until}
     overrides = _few_steps(6, supervision=supervision)
     overrides["densify"] = {"start": 2, "stop": 3, "every": 2, "opacity_reset_every": 0}
     Trainer(few_views, load_config("tfp33", overrides), tmp_path / "run", False).train()
-    assert calls == {"instant": instant_steps, "exposure": 6, "observe": 3}
+    assert calls == {"instant": instant_steps, "exposure": 6, "observe": 3, "tapped": 3}
 
 
 def test_random_gaussians_fill_the_ball_uniformly_at_the_neighbour_spacing():
@@ -346,7 +354,9 @@ def test_resume_after_interruption_equals_uninterrupted(
     overrides = {
         **FAST,
         "train": {**FAST["train"], "iterations": 60, "checkpoint_every": 25},
-        "supervision": {"exposure_weight": 0.5, "exposure_poses": 3},
+        # the instant loss ends at 50: the resumed run crosses it
+        "densify": {**FAST["densify"], "stop": 50},
+        "supervision": {"exposure_weight": 0.5, "exposure_poses": 3, "instant_until": "densify"},
     }
     config = load_config("tfp33", overrides)
     whole = Trainer(dataset, config, tmp_path / "whole", progress=False)
@@ -1773,26 +1783,39 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
     assert Trainer(dataset, longer, tmp_path / "run", progress=False).train(resume=True)
 
 
-@pytest.mark.parametrize("key", ["absgrad", "instant_only"])
-def test_a_run_saved_before_a_densify_key_resumes_without_it(dataset, tmp_path, key):
-    """densify.absgrad and densify.instant_only came with defaults (true) unlike the behaviour
-    before them: a run saved without the key resumes, from its own settings, as it was trained."""
+@pytest.mark.parametrize(
+    "section, key, old, new",
+    [
+        ("densify", "absgrad", False, True),
+        ("densify", "instant_only", False, True),
+        ("supervision", "instant_until", "run", "densify"),
+    ],
+)
+def test_a_run_saved_before_a_key_with_a_new_behaviour_resumes_as_trained(
+    dataset, tmp_path, section, key, old, new
+):
+    """densify.absgrad, densify.instant_only and supervision.instant_until came with settings
+    (the first two their defaults, the third spikegs's) unlike the behaviour before them: a run
+    saved without the key resumes, from its own settings, as it was trained."""
     run = tmp_path / "run"
-    old = {**FAST, "train": {**FAST["train"], "iterations": 2}, "densify": {key: False}}
-    Trainer(dataset, load_config("tfp33", old), run, progress=False).train()
+    exposure = {"supervision": {"exposure_weight": 1.0, "exposure_poses": 3}}
+    base = {**FAST, **exposure, "train": {**FAST["train"], "iterations": 2}}
+    trained = {**base, section: {**base.get(section, {}), key: old}}
+    Trainer(dataset, load_config("tfp33", trained), run, progress=False).train()
     path = run / "checkpoints" / "last.pt"
     state = torch.load(path, weights_only=True)
-    del state["config"]["densify"][key]
+    assert state["config"][section][key] == old
+    del state["config"][section][key]
     torch.save(state, path)
     saved = (run / "config.yaml").read_text()
-    (run / "config.yaml").write_text(saved.replace(f"  {key}: false\n", ""))
+    (run / "config.yaml").write_text(saved.replace(f"  {key}: {yaml.safe_dump(old)[:-4]}", ""))
     assert key not in (run / "config.yaml").read_text()
     args = build_parser().parse_args(["train", str(dataset.root), "--out", str(run), "--resume"])
     config = config_from_args(args)
-    assert getattr(config.densify, key) is False
+    assert getattr(getattr(config, section), key) == old
     assert Trainer(dataset, config, run, progress=False).train(resume=True)
-    now = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
-    with pytest.raises(ValueError, match=f"densify.{key}: False in the run, True now"):
+    now = load_config("tfp33", {**base, section: {**base.get(section, {}), key: new}})
+    with pytest.raises(ValueError, match=f"{section}.{key}: {old!r} in the run, {new!r} now"):
         Trainer(dataset, now, run, progress=False).train(resume=True)
 
 

@@ -61,9 +61,9 @@ class SupervisionConfig:
     instant_window: int = 33
     instant_weight: float = 1.0
     exposure_weight: float = 1.0  # lambda: weight of L_exposure (0: off)
-    # how long L_instant trains: "run", every step (the paper), or "densify", while the model
-    # densifies (densify.stop), after which L_exposure alone, free of SIM's blind-spot bias,
-    # finishes the run (needs the exposure loss)
+    # how long L_instant (and its D-SSIM term) trains: "run", every step (the paper), or
+    # "densify", the steps up to densify.stop, after which L_exposure alone, free of SIM's
+    # blind-spot bias, finishes the run (needs the exposure loss)
     instant_until: str = "run"
     exposure_window: int = 33  # readouts of the virtual exposure around t
     exposure_poses: int = 5  # K renders averaged over the window
@@ -614,8 +614,12 @@ def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
 
 # Keys added with a default unlike the behaviour before them: a run's config saved without one
 # was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24;
-# densify.instant_only: the whole step's signal, before 2026-11-25).
-LEGACY_VALUES = {"densify": {"absgrad": False, "instant_only": False}}
+# densify.instant_only: the whole step's signal, before 2026-11-25; supervision.instant_until:
+# both losses to the end, before 2026-11-29, as the dataclass default still is but spikegs not).
+LEGACY_VALUES = {
+    "densify": {"absgrad": False, "instant_only": False},
+    "supervision": {"instant_until": "run"},
+}
 
 
 def legacy_overrides(saved: dict | Path) -> dict:
