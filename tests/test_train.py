@@ -1005,8 +1005,11 @@ def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
     (tmp_path / "run" / "config.yaml").write_text(yaml.safe_dump(saved))
     args = build_parser().parse_args(["train", "d", "--out", str(tmp_path / "run"), "--resume"])
     assert config_from_args(args) == old
-    with pytest.raises(ValueError, match="method 'spikegs' is a built-in method"):
-        load_config(tmp_path / "run" / "config.yaml")  # a copy, edited, is not that method
+    # a copy, edited, is not that method: the message names what differs (it said only "the
+    # supervision and SIM settings")
+    changed = "supervision.instant_norm: 'l1' in the file, 'smooth_l1' in spikegs"
+    with pytest.raises(ValueError, match=f"method 'spikegs' is a built-in method.*{changed}"):
+        load_config(tmp_path / "run" / "config.yaml")
     assert load_config(tmp_path / "k.yaml", {"method": "exp:1"}).method == "exp:1"
     for name in ("''", "../x", "' a'"):
         (tmp_path / "m.yaml").write_text(f"method: {name}\n")

@@ -536,6 +536,19 @@ def _own_name(path: Path, inherited: str | None) -> str:
     return path.stem
 
 
+def differences(first: dict, second: dict, labels: tuple[str, str], prefix: str = "") -> list[str]:
+    """'key: first LABEL0, second LABEL1' for every setting of two nested config dicts that
+    differs."""
+    out = []
+    for key in sorted(set(first) | set(second)):
+        a, b = first.get(key), second.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += differences(a, b, labels, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} {labels[0]}, {b!r} {labels[1]}")
+    return out
+
+
 def _check_named(path: Path, read: dict) -> None:
     """ValueError where a file's method (its own `method: NAME`, or its name: `read` is the file
     with its base chain) is a built-in method whose supervision (and SIM, where it uses one) it
@@ -550,11 +563,17 @@ def _check_named(path: Path, read: dict) -> None:
     _apply(mine, _settings(read), "")
     _apply(theirs, _settings(_read(builtin, set())), "")
     uses_sim = mine.supervision.instant == "sim"
-    if mine.supervision != theirs.supervision or (uses_sim and mine.sim != theirs.sim):
+    sections = ("supervision", "sim") if uses_sim else ("supervision",)
+    changed = differences(
+        {k: dataclasses.asdict(getattr(mine, k)) for k in sections},
+        {k: dataclasses.asdict(getattr(theirs, k)) for k in sections},
+        ("in the file", f"in {name}"),
+    )
+    if changed:
         raise ValueError(
             f"config file {path}: method '{name}' is a built-in method, whose supervision and "
-            f"SIM settings the file changes: start from it ('base: {name}') without changing "
-            f"them, or name yours otherwise"
+            f"SIM settings the file changes ({'; '.join(changed)}): start from it ('base: "
+            f"{name}') without changing them, or name yours otherwise"
         )
 
 

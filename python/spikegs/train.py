@@ -26,7 +26,7 @@ from .atomic_save import (
     sweep_temporaries,
     write_text_atomically,
 )
-from .config import MIN_GAUSSIANS, Config, dump_yaml, with_defaults
+from .config import MIN_GAUSSIANS, Config, differences, dump_yaml, with_defaults
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
 from .file_lock import exclusive_lock
@@ -48,18 +48,6 @@ from .sim_train import spikes_fingerprint
 from .targets import build_targets, check_targets, intensity_scale
 
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
-
-
-def _differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
-    """'key: saved -> now' for every setting of two nested config dicts that differs."""
-    out = []
-    for key in sorted(set(saved) | set(now)):
-        a, b = saved.get(key), now.get(key)
-        if isinstance(a, dict) and isinstance(b, dict):
-            out += _differences(a, b, f"{prefix}{key}.")
-        elif a != b:
-            out.append(f"{prefix}{key}: {a!r} in the run, {b!r} now")
-    return out
 
 
 def _cut_log(path: Path, iteration: int) -> None:
@@ -310,7 +298,9 @@ class Trainer:
             raise ValueError(f"{unusable} unreadable ({type(err).__name__}: {err})") from None
         if not (isinstance(state, dict) and "config" in state):
             raise ValueError(f"{unusable} not a checkpoint of spikegs train")
-        changed = _differences(with_defaults(state["config"]), self.config.to_dict())
+        changed = differences(
+            with_defaults(state["config"]), self.config.to_dict(), ("in the run", "now")
+        )
         if changed:
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
