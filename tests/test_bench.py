@@ -157,6 +157,19 @@ def test_train_grad_threshold_reaches_every_run(tmp_path, capsys):
         assert saved.densify.grad_threshold == 0.0005
 
 
+def test_train_draws_the_headline_only_with_spikegs_or_a_baseline(tmp_path, capsys):
+    """`--methods oracle` drew an empty headline.png, with matplotlib's 'No artists with labels'
+    warning; a baseline alone draws it."""
+    from spikegs.cli import main
+
+    for methods, drawn in (("oracle", False), ("tfp33", True)):
+        out = tmp_path / methods
+        argv = ["bench", "train", "--quick", "--scenes", "solids", "--methods", methods]
+        assert main([*argv, "--out", str(out)]) == 0
+        assert (out / "headline.png").exists() == drawn
+        assert "legend" not in capsys.readouterr().err
+
+
 def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path, monkeypatch):
     """bench train deleted OUT/runs/SCENE/METHOD with the user's notes in it."""
     mine = tmp_path / "runs" / "solids" / "tfp33" / "notes.txt"

@@ -8,7 +8,8 @@ outside the timed steps. SIM is trained once per scene (cached with the dataset)
 the methods that use it; its training time is reported separately and counts for those methods:
 their curves start at their SIM time. `oracle` (config oracle.yaml) trains on the simulator's clean
 instant images: its gain over TFP(33) is the most that any instant target can give at this
-schedule. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png. By default it trains
+schedule. Writes OUT/train.json, OUT/train_SCENE.png, OUT/headline.png (SpikeGS and the baselines
+on solids, where any of them ran). By default it trains
 METHODS (QUICK_METHODS when quick); `methods` may name any method of configs/ (the variant sim17
 is not in the default set).
 
@@ -316,9 +317,9 @@ def run(
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
         title = f"{scene} {size}, {length} per method; {SIM_NOTE}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
-    if HEADLINE_SCENE in results:
-        headline = results[HEADLINE_SCENE]["methods"]
-        shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
+    headline = results.get(HEADLINE_SCENE, {}).get("methods", {})
+    shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
+    if shown:  # (an ablation or the oracle alone has no headline: an empty plot, before)
         title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {length}\n{SIM_NOTE}"
         save_curves(out / "headline.png", shown, ("psnr",), title)
     payload = {
