@@ -47,12 +47,10 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     rest = np.zeros((n, FILE_SH_REST, 3), np.float32)  # [N, 15, 3]
     rest[:, :used] = np.repeat(p["sh_rest"][:, :used], reps, axis=2)
     f_rest = rest.transpose(0, 2, 1).reshape(n, 3 * FILE_SH_REST)  # [N, 45] channel-major
-    # the world frame, as every viewer reads it; a model about a far origin (a scene over
-    # FAR_SCENE_RADII radii out) keeps its float32 means about it, the origin in a comment: its
-    # world positions would round in float32 (in a viewer's too), by pixels at 1e6 radii
-    far = model.origin.any()
-    means = (model.params["means"].detach() if far else model.world_means()).numpy()  # [N, 3]
-    columns = {"x": means[:, 0], "y": means[:, 1], "z": means[:, 2]}
+    # the means of the model's frame: the world's, as every viewer reads it, or, about a far
+    # origin (a scene over FAR_SCENE_RADII radii out), the origin's, given in a comment: world
+    # positions would round in float32 (in a viewer's too), by pixels at 1e6 radii
+    columns = {"x": p["means"][:, 0], "y": p["means"][:, 1], "z": p["means"][:, 2]}
     columns.update({f"n{a}": np.zeros(n, np.float32) for a in "xyz"})
     columns.update({f"f_dc_{i}": dc[:, i] for i in range(3)})
     columns.update({f"f_rest_{i}": f_rest[:, i] for i in range(3 * FILE_SH_REST)})
@@ -68,7 +66,7 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         f"spikegs sh_degree {model.sh_degree}",
         f"spikegs background {background}",
     ]
-    if far:
+    if model.origin.any():
         comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
     ply = PlyData([PlyElement.describe(vertex, "vertex")], comments=comments)
     write_atomically(Path(path), lambda tmp: ply.write(str(tmp)))  # never half a file at `path`
