@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 
+import numpy as np
 import pytest
 
 
@@ -15,3 +16,27 @@ def ctrl_c():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
+
+
+@pytest.fixture
+def moved_world():
+    """`moved_world(dataset, offset)`: `dataset` with its world moved by `offset` [3] (poses, test
+    views and scene centre), as if captured there (UTM or GPS coordinates)."""
+    from spikegs.data.dataset import Dataset, TestView
+    from spikegs.data.trajectory import Trajectory
+
+    def moved(dataset, offset) -> Dataset:
+        offset = np.asarray(offset, np.float64)
+
+        def move(viewmats):  # world-to-camera [..., 4, 4]: t - R·offset
+            out = np.array(viewmats, np.float64)
+            out[..., :3, 3] -= out[..., :3, :3] @ offset
+            return out
+
+        trajectory = Trajectory(dataset.trajectory.readouts, move(dataset.trajectory.viewmats))
+        views = [TestView(v.name, move(v.viewmat), v.image, v.readout) for v in dataset.test_views]
+        meta = {**dataset.meta, "scene_center": list(dataset.scene_center + offset)}
+        timestamps = dataset.train_timestamps
+        return Dataset(dataset.root, meta, dataset.streams, trajectory, timestamps, views)
+
+    return moved

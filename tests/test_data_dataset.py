@@ -565,22 +565,14 @@ def test_cli(tmp_path, capsys):
     assert "solids" in capsys.readouterr().err
 
 
-def test_a_scene_far_from_the_origin_is_warned_of(small):
+def test_a_scene_far_from_the_origin_is_warned_of(small, moved_world):
     """Poses in UTM-like coordinates: float32 positions round by pixels there (1e6 units away
     cost 2 dB at 64²), said, not silent; a scene near the origin is not warned of."""
-
-    def moved(offset: float) -> Dataset:
-        c2w = np.linalg.inv(small.trajectory.viewmats)  # [P, 4, 4]
-        c2w[:, :3, 3] += offset
-        meta = {**small.meta, "scene_center": list(small.scene_center + offset)}
-        trajectory = Trajectory(small.trajectory.readouts, np.linalg.inv(c2w))
-        return Dataset(small.root, meta, small.streams, trajectory, small.train_timestamps, [])
-
     with pytest.warns(UserWarning, match="lies 1.73e\\+06 units from the origin, .* round by"):
-        moved(1e6)
+        moved_world(small, np.full(3, 1e6))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        moved(100.0)
+        moved_world(small, np.full(3, 100.0))
 
 
 def test_a_scene_radius_out_of_scale_with_the_cameras_is_warned_of(small):

@@ -2250,29 +2250,14 @@ def test_a_step_renders_the_instant_and_the_exposure_poses(
         assert not np.allclose(expected[1], expected[0], atol=1e-4)  # the camera moves
 
 
-def _moved(dataset, offset: np.ndarray):
-    """`dataset` with its world moved by `offset` [3]: poses, test views and scene centre."""
-    from spikegs.data.dataset import Dataset, TestView
-
-    def move(viewmats):  # world-to-camera [..., 4, 4]: t - R·offset
-        out = np.array(viewmats, np.float64)
-        out[..., :3, 3] -= out[..., :3, :3] @ offset
-        return out
-
-    trajectory = Trajectory(dataset.trajectory.readouts, move(dataset.trajectory.viewmats))
-    views = [TestView(v.name, move(v.viewmat), v.image, v.readout) for v in dataset.test_views]
-    meta = {**dataset.meta, "scene_center": list(dataset.scene_center + offset)}
-    return Dataset(dataset.root, meta, dataset.streams, trajectory, dataset.train_timestamps, views)
-
-
 @pytest.mark.filterwarnings("ignore:.*units from the origin")
-def test_a_scene_far_from_the_origin_trains_as_at_the_origin(dataset, tmp_path):
+def test_a_scene_far_from_the_origin_trains_as_at_the_origin(dataset, tmp_path, moved_world):
     """A scene 23,000 radii from the world's origin (UTM or GPS coordinates) lost 0.65 dB
     unsaid: its float32 means' Adam steps rounded to whole ulps, 1.4e-3 of the radius (at 230,000
     radii none moved). The trainer and evaluation work about the scene's centre: the run there
     is the run at the origin, moved, its score the same."""
     offset = np.array([1e4, -2e4, 5e3]) * dataset.scene_radius
-    far = _moved(dataset, offset)
+    far = moved_world(dataset, offset)
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 20}})
     models, psnrs = [], []
     for name, data in (("near", dataset), ("far", far)):
@@ -2286,12 +2271,12 @@ def test_a_scene_far_from_the_origin_trains_as_at_the_origin(dataset, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore:.*units from the origin")
-def test_a_far_scene_is_saved_and_resumed_about_its_centre(dataset, tmp_path):
+def test_a_far_scene_is_saved_and_resumed_about_its_centre(dataset, tmp_path, moved_world):
     """scene.ply of a scene 2e6 radii out held float32 world positions, which eval and render
     read back rounded (-0.9 dB at 4e6 radii): it holds them about the centre, the origin in a
     comment; a checkpoint from before origins (world means) resumes about the centre too."""
     offset = np.array([1e6, -2e6, 5e5]) * dataset.scene_radius
-    far = _moved(dataset, offset)
+    far = moved_world(dataset, offset)
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 4}})
     trainer = Trainer(far, config, tmp_path / "run", progress=False)
     trainer.train()
