@@ -183,17 +183,20 @@ def test_densification_sees_the_radii_of_every_render_of_the_step(few_views, tmp
 
 def test_the_step_loss_adds_the_weighted_dssim_term(few_views, tmp_path, monkeypatch):
     """With supervision.dssim_weight 0.5 a step's logged loss is instant_weight x L1 + 0.5 x
-    D-SSIM (a subtracted D-SSIM, training towards dissimilar images, passed every test)."""
+    D-SSIM (a subtracted D-SSIM, training towards dissimilar images, passed every test), and
+    the log holds both terms unweighted."""
     parts = {}
     l1, dssim = train_module.instant_loss, train_module.dssim
     monkeypatch.setattr(train_module, "instant_loss", lambda *a: parts.setdefault("l1", l1(*a)))
     monkeypatch.setattr(train_module, "dssim", lambda *a: parts.setdefault("d", dssim(*a)))
     config = load_config("tfp33", _few_steps(1, supervision={"dssim_weight": 0.5}))
     Trainer(few_views, config, tmp_path / "run", False).train()
-    loss = json.loads((tmp_path / "run" / "log.jsonl").read_text().splitlines()[0])["loss"]
+    record = json.loads((tmp_path / "run" / "log.jsonl").read_text().splitlines()[0])
     term = {k: float(v.detach()) for k, v in parts.items()}
     expected = config.supervision.instant_weight * term["l1"] + 0.5 * term["d"]
-    assert term["d"] > 0.01 and loss == pytest.approx(expected, rel=1e-5)
+    assert term["d"] > 0.01 and record["loss"] == pytest.approx(expected, rel=1e-5)
+    assert (record["loss_instant"], record["loss_dssim"]) == (term["l1"], term["d"])
+    assert "loss_exposure" not in record
 
 
 @pytest.mark.parametrize("until, instant_steps", [("run", 6), ("densify", 3)])
@@ -203,7 +206,7 @@ def test_the_instant_loss_trains_until_densification_stops_where_configured(
     """supervision.instant_until: densify computes L_instant on the steps up to densify.stop (1-3
     of 6) and the exposure loss alone on every step after; run on every step. Either way the
     densifier observes, and one render a step (the instant's) carries the screen tap on, only
-    the steps up to densify.stop."""
+    the steps up to densify.stop. The log names the terms each step computed."""
     calls = {"instant": 0, "exposure": 0, "observe": 0, "tapped": 0}
     instant, exposure = train_module.instant_loss, train_module.exposure_loss
     observe = Densifier.observe
@@ -228,8 +231,15 @@ def test_the_instant_loss_trains_until_densification_stops_where_configured(
     supervision = {"exposure_weight": 1.0, "exposure_poses": 3, "instant_until": until}
     overrides = _few_steps(6, supervision=supervision)
     overrides["densify"] = {"start": 2, "stop": 3, "every": 2, "opacity_reset_every": 0}
+    overrides["train"]["log_every"] = 1
     Trainer(few_views, load_config("tfp33", overrides), tmp_path / "run", False).train()
     assert calls == {"instant": instant_steps, "exposure": 6, "observe": 3, "tapped": 3}
+    log = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    terms = [sorted(k for k in r if k.startswith("loss_")) for r in log]
+    both, alone = ["loss_exposure", "loss_instant"], ["loss_exposure"]
+    assert terms == [both] * instant_steps + [alone] * (6 - instant_steps)
+    weighted = [r["loss_instant"] + r["loss_exposure"] for r in log[:instant_steps]]
+    assert [r["loss"] for r in log[:instant_steps]] == pytest.approx(weighted, rel=1e-5)
 
 
 def test_random_gaussians_fill_the_ball_uniformly_at_the_neighbour_spacing():

@@ -408,6 +408,7 @@ class Trainer:
         instant_only = self.config.densify.instant_only and instant_trains
         exposure_tap = {} if instant_only else tap
         loss, instant = torch.zeros(()), None
+        terms = {}  # the step's unweighted loss terms by name
         # the instant pose (at the time its target shows: TFI's is half a readout on), then the
         # exposure's
         offset = targets.instant.time_offset if targets.instant is not None else 0.0
@@ -418,14 +419,16 @@ class Trainer:
         if instant_trains:
             instant = self.model.render(viewmats[0], self.K, w, h, self.near, **tap)
             radii = torch.maximum(radii, instant.radii)
-            loss = loss + s.instant_weight * instant_loss(
+            terms["instant"] = instant_loss(
                 instant.image,
                 targets.instant[index],
                 s.instant_norm,
                 targets.instant.quantum,
             )
+            loss = loss + s.instant_weight * terms["instant"]
             if s.dssim_weight:
-                loss = loss + s.dssim_weight * dssim(instant.image, targets.instant[index])
+                terms["dssim"] = dssim(instant.image, targets.instant[index])
+                loss = loss + s.dssim_weight * terms["dssim"]
         if targets.exposure is not None:
             renders = []
             for k, viewmat in enumerate(viewmats[1:]):
@@ -435,15 +438,17 @@ class Trainer:
                 r = self.model.render(viewmat, self.K, w, h, self.near, **exposure_tap)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
-            loss = loss + s.exposure_weight * exposure_loss(
+            terms["exposure"] = exposure_loss(
                 renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
             )
+            loss = loss + s.exposure_weight * terms["exposure"]
         if not torch.isfinite(loss):
             raise self._diverged(f"the loss is {loss.item()}, before the update")
         loss.backward()
         self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
         self._check_parameters()
+        self.loss_terms = {name: term.item() for name, term in terms.items()}
         if densifying:
             # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the weights
             screen_grad = screen if absgrad else screen.grad
@@ -481,6 +486,7 @@ class Trainer:
                 "iteration": it,
                 "seconds": round(self.train_seconds, 3),
                 "loss": loss,
+                **{f"loss_{name}": term for name, term in self.loss_terms.items()},
                 "gaussians": len(self.model),
             }
             if evaluate:
@@ -576,6 +582,7 @@ class Trainer:
             dynamic_ncols=True,
         )
         self.held_out_psnr = float("nan")  # none before the first evaluation
+        self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
         stop_message = (
             "\nCtrl-C: stopping after this step, with a checkpoint to --resume from (Ctrl-C again "
             "stops at once, keeping the last checkpoint)"
