@@ -139,14 +139,6 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         ("solids", {"speed": 1.0}, r"the camera turns up to 32\.\d° in 33 readouts"),
         # not the 0° between the ends; and 90° a readout crosses pixels between the light frames
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),
-        (
-            constant_source(5.0),
-            {"height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1},
-            (
-                "100% of the held-out views' pixels fire every readout",
-                "the camera turns 0° and moves 0",
-            ),
-        ),
     ]
     cases.append(("fine-texture", {"color": True}, "the scene is grey"))
     # light too faint to count a spike in a TFP window; a turn a readout that aliases
@@ -154,11 +146,21 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases.append(("solids", faint, "a 33-readout TFP counts under one spike"))
     cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them"))  # 18.9 dB against 21.4
+    # light that saturates every pixel: flagged while simulating, then refused on loading
+    saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
+    views = {"test_on_path": 0, "test_off_path": 1}
+    cases.append((constant_source(5.0), {"height": 16, "width": 16, **views}, saturated))
     for i, (scene, options, messages) in enumerate(cases):
         messages = (messages,) if isinstance(messages, str) else messages
+        error = ""
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})
+            try:
+                simulate_dataset(scene, tmp_path / str(i), **{**SMALL, **options})
+            except ValueError as err:
+                error = str(err)
+        assert ("every pixel firing at every readout" in error) == (messages is saturated), error
+        assert error == "" or messages is saturated, error
         said = [str(w.message) for w in caught if w.category is UserWarning]
         assert len(said) == len(caught), [w.category for w in caught]
         # each expected warning given, and no other
@@ -668,7 +670,7 @@ def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=
     }
     view = View("v", poses[0], np.full((H, W, 1), 0.1, np.float32), view_readout)
     write_parts(root, meta, Trajectory(np.array(readouts), poses), np.array(timestamps), [view])
-    save_dat(root / "spikes.dat", np.zeros((T, H, W), np.uint8))
+    save_dat(root / "spikes.dat", np.random.default_rng(0).random((T, H, W)) < 0.1)
     return root
 
 

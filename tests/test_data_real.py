@@ -559,7 +559,8 @@ def test_llff_hwf_of_another_aspect_or_a_raw_crop(sim, llff_stream, tmp_path):
 
 
 def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_path):
-    """No spike at all, or every pixel at every readout: PSNR inf against its own TFP."""
+    """No spike at all, or every pixel at every readout: PSNR inf against its own TFP; in every
+    layout."""
     root = copy(llff, tmp_path / "dark")
     save_dat(root / "spikes" / "003.dat", np.zeros((LENGTH, H, W), bool))
     with pytest.raises(ValueError, match=r"003.dat: no spikes in its 70 readouts of 32x48"):
@@ -574,6 +575,21 @@ def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_p
     root = copy(nerf, tmp_path / "nerf")
     save_dat(root / "spike_data" / "r_1.dat", np.zeros((LENGTH, H, W), bool))
     with pytest.raises(ValueError, match=r"r_1.dat: no spikes"):
+        load_dataset(root)
+    # a simulated (meta.json) dataset's stream was not checked at all; nor does a hot pixel in
+    # a dark stream, or a dead one in a saturated stream, make an image
+    root = copy(sim.root, tmp_path / "meta")
+    hot = np.zeros((VIEWS * LENGTH, H, W), bool)
+    hot[:, 3, 5] = True
+    save_dat(root / "spikes.dat", hot)
+    with pytest.raises(
+        ValueError,
+        match=r"spikes.dat: spikes at 0.07% of the pixels only .*"
+        r"dark recording.* in meta.json",
+    ):
+        load_dataset(root)
+    save_dat(root / "spikes.dat", ~hot)
+    with pytest.raises(ValueError, match=r"spikes.dat: 99.93% of the pixels firing at every"):
         load_dataset(root)
 
 

@@ -35,6 +35,7 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
+    check_fires,
     check_meta_values,
     intrinsics_keys,
     intrinsics_matrix,
@@ -45,7 +46,6 @@ from .data.dataset import (
     write_parts,
 )
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
-from .data.real_options import check_fires
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int, whole_numbers

@@ -293,6 +293,32 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     return streams
 
 
+SILENT_SHARE = 0.01  # check_fires: a stream with fewer pixels that ever fire (or never
+# stop firing) than this share holds no image (a hot or a dead pixel does not make one)
+
+
+def check_fires(stream: SpikeStream, settings: str) -> None:
+    """ValueError naming the stream's file when under SILENT_SHARE of its pixels ever fire, or
+    all but that share fire at every readout: no image in it (one pass over the spikes);
+    `settings` names the file of its frame size."""
+    n = len(stream)
+    counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
+    firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
+    if firing >= SILENT_SHARE and saturated <= 1 - SILENT_SHARE:
+        return
+    dark = firing < SILENT_SHARE
+    if dark:
+        what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
+    else:
+        every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
+        what = f"{every} firing at every readout"
+    raise ValueError(
+        f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: nothing "
+        f"to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong file or a "
+        f"wrong frame size: height, width, raw_width, col_offset in {settings})"
+    )
+
+
 def repeated(names) -> list[str]:
     """The names that occur more than once in `names`, sorted."""
     return sorted(name for name, count in collections.Counter(names).items() if count > 1)
@@ -410,6 +436,8 @@ def load_dataset(path: PathLike) -> Dataset:
     num = int(meta["num_readouts"])
     names = spike_files(int(meta["channels"]))
     streams = open_streams(root, names, meta)
+    for stream in streams:
+        check_fires(stream, META)
     if (root / "spikegs.json").is_file():
         warnings.warn(
             f"{root / 'spikegs.json'} is not read: it holds the options of the LLFF and NeRF "

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
-from .dataset import read_json
+from .dataset import check_fires, read_json
 
 OPTIONS_FILE = "spikegs.json"
 # how to mend a camera whose images have another aspect ratio than the spikes (`frame_columns`)
@@ -126,23 +126,5 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
             f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
             f"if these are wrong)"
         ) from err
-    check_fires(stream)
+    check_fires(stream, OPTIONS_FILE)
     return stream
-
-
-def check_fires(stream: SpikeStream, settings: str = OPTIONS_FILE) -> None:
-    """ValueError naming the stream's file when no pixel ever fires, or every pixel at every
-    readout: no image in it (one pass over the spikes); `settings` names the file of its frame
-    size."""
-    counts = stream.counts(len(stream) // 2, len(stream))  # [H, W] spikes per pixel
-    if counts.max() == 0 or counts.min() == len(stream):
-        what, why = (
-            ("no spikes", "a dark recording")
-            if counts.max() == 0
-            else ("every pixel firing at every readout", "a saturated recording")
-        )
-        raise ValueError(
-            f"{stream.path}: {what} in its {len(stream)} readouts of {stream.height}x"
-            f"{stream.width}: nothing to learn from ({why}, a wrong file or a wrong frame size: "
-            f"height, width, raw_width, col_offset in {settings})"
-        )
