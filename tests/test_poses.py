@@ -165,6 +165,34 @@ def test_a_point_cloud_out_of_the_views_is_said(tiny, tmp_path):
     assert len(trainer.model) == 60
 
 
+@pytest.mark.parametrize("mistake", ["world-to-camera", "opengl as opencv"])
+def test_poses_that_see_none_of_the_scene_sphere_are_refused_before_any_work(
+    tiny, tmp_path, mistake
+):
+    """World-to-camera matrices given as camera-to-world (every camera centre at one point), or
+    OpenGL axes labelled OpenCV (every camera looking away): the Gaussians started in the scene
+    sphere out of every view and the run trained the background alone, without a word."""
+    from spikegs.data.dataset import Dataset
+
+    viewmats = tiny.trajectory.viewmats  # [P, 4, 4] world-to-camera, OpenCV
+    if mistake == "world-to-camera":
+        wrong = np.linalg.inv(viewmats)
+    else:
+        wrong = np.diag([1.0, -1.0, -1.0, 1.0]) @ viewmats
+    trajectory = Trajectory(tiny.trajectory.readouts, wrong)
+    broken = Dataset(
+        tiny.root, tiny.meta, tiny.streams, trajectory, tiny.train_timestamps, tiny.test_views
+    )
+    run = tmp_path / "run"
+    with pytest.raises(
+        ValueError,
+        match=r"\d+ of \d+ training views .* see any of the scene sphere .*camera-to-world",
+    ):
+        Trainer(broken, load_config("tfp33", TINY), run, False).train()
+    assert not run.exists()  # refused before the run folder, SIM or a step
+    Trainer(tiny, load_config("tfp33", TINY), run, False)._check_scene_in_view()  # right poses
+
+
 def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     """At its points, with what the views show there: the cloud's colours (from spikegs poses,
     relative to its images' 99.5th percentile and grey for a colour camera; a photo's sRGB for

@@ -50,15 +50,30 @@ def read_points(path: str | Path) -> np.ndarray:
     return points
 
 
-def seen_points(points: np.ndarray, dataset, chunk: int = 65536) -> np.ndarray:
-    """Whether each point [P, 3] lies inside one or more of the dataset's training views at
-    `sample_timestamps` (16-31 spread over the stream) [P] bool; `chunk` points at a time."""
+def in_training_views(points: np.ndarray, dataset, chunk: int = 65536) -> np.ndarray:
+    """Whether each point [P, 3] lies inside each of the dataset's training views at
+    `sample_timestamps` (16-31 spread over the stream) [M, P] bool; `chunk` points at a time."""
     viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
     parts = np.array_split(points, max(1, -(-len(points) // chunk)))
     size = dataset.width, dataset.height
     return np.concatenate(
-        [pixels_in_view(part, viewmats, dataset.K, *size)[2].any(axis=0) for part in parts]
+        [pixels_in_view(part, viewmats, dataset.K, *size)[2] for part in parts], axis=1
     )
+
+
+def seen_points(points: np.ndarray, dataset) -> np.ndarray:
+    """Whether each point [P, 3] lies inside one or more of the dataset's training views at
+    `sample_timestamps` [P] bool."""
+    return in_training_views(points, dataset).any(axis=0)
+
+
+def ball_points(center, radius: float, count: int) -> np.ndarray:
+    """`count` points [count, 3] spread uniformly through the ball (center, radius), the same
+    ones on every call (a fixed seed)."""
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(count, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return np.asarray(center, np.float64) + directions * radius * rng.random((count, 1)) ** (1 / 3)
 
 
 def distinct_points(points: np.ndarray) -> np.ndarray:

@@ -37,8 +37,10 @@ from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import (
     POINTS,
+    ball_points,
     distinct_points,
     gaussians_from_points,
+    in_training_views,
     read_points,
     seen_points,
 )
@@ -47,6 +49,7 @@ from .run_summary import CURVE, SUMMARY, last_checkpoint
 from .sim_train import spikes_fingerprint
 from .targets import build_targets, check_targets, intensity_scale
 
+SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views must see one
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
 
 
@@ -226,6 +229,25 @@ class Trainer:
         if seen < len(points) / 2:
             warnings.warn(f"{unseen}: Gaussians started there get no gradient", stacklevel=2)
         return points
+
+    def _check_scene_in_view(self) -> None:
+        """ValueError where under half of the training views sampled along the stream see any
+        of SPHERE_PROBES points spread through the scene sphere (each sees most of it in a
+        capture of the scene): Gaussians start there, and poses given as world-to-camera
+        matrices, or in the other axis convention, trained the background alone unsaid."""
+        d = self.dataset
+        probes = ball_points(d.scene_center, self.radius, SPHERE_PROBES)  # [P, 3]
+        seeing = in_training_views(probes, d).any(axis=1)  # [M]
+        if seeing.mean() >= 0.5:
+            return
+        center = ", ".join(f"{c:.4g}" for c in d.scene_center)
+        raise ValueError(
+            f"{d.root}: {seeing.sum()} of {len(seeing)} training views (sampled along the stream) "
+            f"see any of the scene sphere (centre [{center}], radius {self.radius:.4g}) where "
+            f"the Gaussians start: check that the poses are camera-to-world (not world-to-camera) "
+            f"in the convention the layout states (OpenCV: x right, y down, z forward; OpenGL: "
+            f"y up, z back), and the scene sphere (docs/datasets.md)"
+        )
 
     def _fresh_state(self) -> None:
         t = self.config.train
@@ -509,7 +531,9 @@ class Trainer:
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
-            self.cloud_points  # noqa: B018 (read now: a bad point cloud is refused before any work)
+            # poses, or a point cloud, that cannot train are refused before any work
+            self._check_scene_in_view()
+            self.cloud_points  # noqa: B018
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained
