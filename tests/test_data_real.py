@@ -593,6 +593,28 @@ def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_p
         load_dataset(root)
 
 
+def test_intrinsics_that_meta_json_refuses_are_refused_in_every_layout(llff, nerf, tmp_path):
+    """A focal of 0.01 px (180° of view) or a principal point 50 widths off the image loaded and
+    trained in the LLFF and NeRF layouts, where meta.json's fx, fy, cx, cy refuse them."""
+    root = copy(llff, tmp_path / "llff")
+    edit_poses(root, lambda rows: rows.__setitem__((slice(None), 14), 0.01))
+    with pytest.raises(ValueError, match=r"poses_bounds.npy \(hwf 32, 48, 0.01\): fx 0.01 gives"):
+        load_dataset(root)
+    cases = {"fl_x": (0.01, "fx 0.01 gives a 180° field"), "cx": (50 * W, "cx 2400.0 puts the")}
+    for key, (value, message) in cases.items():
+        root = copy(nerf, tmp_path / key)
+
+        def edit(doc, key=key, value=value):
+            doc[key] = value
+            if key == "fl_x":  # the focal alone: camera_angle_x would disagree (warned)
+                del doc["camera_angle_x"]
+
+        for name in ("train", "test"):
+            edit_json(root / f"transforms_{name}.json", edit)
+        with pytest.raises(ValueError, match=r"transforms_train.json: " + message):
+            load_dataset(root)
+
+
 def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
     root = copy(llff_stream, tmp_path)
     hwf = (2 * H, 2 * W, 2 * sim.K[0, 0])  # poses made for images at twice the spikes' size

@@ -75,6 +75,13 @@ def intrinsics_keys(K: np.ndarray) -> dict:
     return {"fx": float(K[0, 0]), "fy": float(K[1, 1]), "cx": float(K[0, 2]), "cy": float(K[1, 2])}
 
 
+def check_intrinsics(K: np.ndarray, height: int, width: int, source) -> None:
+    """ValueError naming `source` where K [3, 3] of a height x width frame gives a field of view
+    or an image centre off the optical axis that meta.json's fx, fy, cx, cy are refused for."""
+    keys = {**intrinsics_keys(K), "height": height, "width": width}
+    check_meta_values(keys, source, ("fx", "fy", "cx", "cy"))
+
+
 def spike_files(channels: int) -> list[str]:
     """The .dat file of each channel: spikes.dat (mono) or spikes_r/g/b.dat (colour)."""
     return ["spikes.dat"] if channels == 1 else [f"spikes_{c}.dat" for c in "rgb"]

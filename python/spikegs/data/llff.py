@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Dataset, read_column
+from .dataset import Dataset, check_intrinsics, read_column
 from .real import (
     camera_meta,
     first_of,
@@ -197,6 +197,7 @@ def llff_intrinsics(hwf: np.ndarray, options: Options, source: str) -> tuple[np.
     K = np.array(
         [[f * frame / w, 0, frame / 2 - shift], [0, f * height / h, height / 2], [0, 0, 1]]
     )
+    check_intrinsics(K, height, width, f"{source} (hwf {h:g}, {w:g}, {f:g})")
     return K, height, width
 
 

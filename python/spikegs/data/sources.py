@@ -26,7 +26,7 @@ from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
-from .dataset import check_meta_values, intrinsics_keys
+from .dataset import check_intrinsics, check_meta_values, intrinsics_keys
 from .scenes import GaussianScene
 from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
 
@@ -734,7 +734,9 @@ def camera_matrix(
         )
     cx, cy = get("cx", src_w / 2), get("cy", src_h / 2)
     sx, sy = width / src_w, height / src_h
-    return np.array([[fx * sx, 0.0, cx * sx - shift], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
+    K = np.array([[fx * sx, 0.0, cx * sx - shift], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
+    check_intrinsics(K, height, width, path)
+    return K
 
 
 def read_frame(base: Path, background: float) -> np.ndarray:
