@@ -677,6 +677,10 @@ def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=
 def test_the_tiny_dataset_loads(tmp_path):
     ds = load_dataset(write_tiny(tmp_path / "d", timestamps=(32, T - 33)))
     assert ds.train_timestamps.tolist() == [32, T - 33]
+    # a byte-order mark (a Windows editor's) is not a line's text: "'\ufeff32' is not a number"
+    timestamps = ds.root / "train_timestamps.txt"
+    timestamps.write_bytes(b"\xef\xbb\xbf" + timestamps.read_bytes())
+    assert load_dataset(ds.root).train_timestamps.tolist() == [32, T - 33]
 
 
 def test_a_timestamp_whose_65_readout_window_leaves_the_stream_is_refused(tmp_path):

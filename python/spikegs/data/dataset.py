@@ -579,7 +579,7 @@ def read_column(path: Path, what: str) -> np.ndarray:
     """The numbers [P] of a text file of one `what` a line (blank lines and # comments skipped);
     ValueError naming the file and the first line that is not one number."""
     try:
-        lines = path.read_text().splitlines()
+        lines = path.read_text(encoding="utf-8-sig").splitlines()  # a byte-order mark skipped
     except UnicodeDecodeError:
         raise ValueError(f"{path}: expected text, one {what} a line; found binary data") from None
     values = []
