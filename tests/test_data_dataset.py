@@ -135,7 +135,11 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             simulate_dataset(scene, tmp_path / scene, **SMALL)
         simulate_dataset("wires", tmp_path / "rgb", color=True, **SMALL)
     cases = [
-        ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0.04"),
+        (
+            "solids",
+            {"dark_rate": 0.9},
+            (r"dark_rate 0.9 spikes per readout against .* 0.04", r"test images average 0.05"),
+        ),
         ("solids", {"speed": 1.0}, r"the camera turns up to 32\.\d° in 33 readouts"),
         # not the 0° between the ends; and 90° a readout crosses pixels between the light frames
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),
@@ -672,6 +676,22 @@ def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=
     write_parts(root, meta, Trajectory(np.array(readouts), poses), np.array(timestamps), [view])
     save_dat(root / "spikes.dat", np.random.default_rng(0).random((T, H, W)) < 0.1)
     return root
+
+
+def test_test_images_in_other_units_than_firing_rates_are_warned_of(tmp_path):
+    """Test images written as intensities (a rate of 0.25 at 1) scored 5.6 dB where 18.7 was
+    due, without a word; firing rates (the simulator's) load unsaid."""
+    from spikegs.image_io import read_image, write_image
+
+    root = simulate_dataset("solids", tmp_path / "d", **SMALL).root
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dataset = load_dataset(root)
+    for frame in json.loads((root / "test_views.json").read_text())["frames"]:
+        path = root / frame["file_path"]
+        write_image(path, read_image(path) / dataset.meta["image_scale"])
+    with pytest.warns(UserWarning, match=r"test images average [34]\.\d+ times their spikes'"):
+        load_dataset(root)
 
 
 def test_the_tiny_dataset_loads(tmp_path):

@@ -477,6 +477,7 @@ def load_dataset(path: PathLike) -> Dataset:
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)
+    _warn_about_test_units(streams, test_views, root / TEST_VIEWS)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if sharp and not stated_scales(meta):
         warnings.warn(
@@ -487,6 +488,39 @@ def load_dataset(path: PathLike) -> Dataset:
             stacklevel=2,
         )
     return Dataset(root, meta, streams, trajectory, timestamps, test_views)
+
+
+UNITS_RATIO = 2.0  # on-path test images whose mean is over this factor from their spikes' are
+# warned of: test images are firing rates (intensity 1 at rate_at_one; intensities in [0, 1] read
+# as rates scored 5.6 dB where 18.7 was due, unsaid)
+UNITS_MIN_SPIKES = 1000  # spikes (per channel) those views' TFP must count to judge by
+
+
+def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], path: Path) -> None:
+    """A UserWarning where the on-path test views' images [H, W, C] average over UNITS_RATIO
+    times more, or less, than the firing rate of their spikes (TFP(33) at their readouts, each
+    channel its stream's): images in intensity or 8-bit units, not spikes a readout."""
+    half = WINDOW_MARGIN // 2  # TFP(33)'s half window
+    images, rates = [], []
+    for view in views:
+        k = None if view.readout is None else round(view.readout)
+        if k is None or not half <= k < len(streams[0]) - half:
+            continue
+        images.append(float(np.mean(view.image)))
+        rates.append(float(np.mean([s.tfp(k, 2 * half + 1) for s in streams])))
+    counted = sum(rates) * (2 * half + 1) * streams[0].height * streams[0].width  # spikes
+    if counted < UNITS_MIN_SPIKES:  # too faint to tell units from shot noise
+        return
+    ratio = sum(images) / sum(rates)
+    if not 1 / UNITS_RATIO <= ratio <= UNITS_RATIO:
+        warnings.warn(
+            f"{path}: the on-path test images average {ratio:.3g} times their spikes' firing "
+            f"rate (TFP(33) at their readouts: {np.mean(rates):.3g} spikes a readout, the "
+            f"images {np.mean(images):.3g}): test images are expected in firing-rate units "
+            f"(intensity x image_scale), and PSNR against images in other units means nothing "
+            f"(or the spikes are not the images': dark current, another recording)",
+            stacklevel=3,
+        )
 
 
 def _check_meta(meta: dict, path: Path) -> None:
