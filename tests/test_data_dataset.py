@@ -717,6 +717,13 @@ def test_poses_that_stop_a_readout_short_of_the_end_are_refused(tmp_path):
         load_dataset(write_tiny(tmp_path / "d", readouts=(0.0, T - 2.0)))
 
 
+def test_poses_past_the_last_readout_are_said_to_be_unused(tmp_path):
+    """A trajectory longer than the stream (a pose log that ran on, a recording cut short) was
+    read without a word, where one a readout short is refused."""
+    with pytest.warns(UserWarning, match=r"poses cover readouts \[0, 150\], the stream holds 100"):
+        load_dataset(write_tiny(tmp_path / "d", readouts=(0.0, T + 50.0)))
+
+
 def test_an_on_path_view_past_the_last_readout_is_refused(tmp_path):
     """A held-out view at readout T (one past the last) is outside the stream: refused."""
     with pytest.raises(ValueError, match=r"at readout 100.0, outside the stream's \[0, 99\]"):

@@ -463,6 +463,13 @@ def load_dataset(path: PathLike) -> Dataset:
             f"expected [0, {num - 1}] (poses for part of a recording: the LLFF layout, one "
             f"spikes.dat with readouts.txt; docs/datasets.md)"
         )
+    if trajectory.end > num - 1:  # a pose log that ran on, or a stream cut short: said
+        warnings.warn(
+            f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start:g}, "
+            f"{trajectory.end:g}], the stream holds {num}: those past readout {num - 1} are not "
+            f"used (a pose log that ran on after the recording, or a recording cut short?)",
+            stacklevel=2,
+        )
     timestamps = read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0:
