@@ -1131,7 +1131,8 @@ def test_intensity_calibration_is_the_median_over_views():
 def test_spikes_upside_down_against_their_images_warn_of_flip():
     """check_orientation compares each TFP with its image turned upside down (rows reversed):
     spikes read with the wrong flip warn, spikes mirrored left-right do not (comparing with the
-    image mirrored left-right instead missed the upside-down case)."""
+    image mirrored left-right instead missed the upside-down case); spikes that match neither
+    way warn of the reading (loaded unsaid before)."""
     rows, cols = np.mgrid[0:12, 0:16].astype(np.float32)
     image = (rows / 11 + 0.3 * (cols > 10))[..., None]  # dark top, bright bottom, a right stripe
     upside_down = [(image[::-1, :, 0] * 0.25, image)] * 3
@@ -1141,6 +1142,10 @@ def test_spikes_upside_down_against_their_images_warn_of_flip():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_orientation(mirrored, True, "x")
+    # spikes that match neither way up (a .dat packed most significant bit first, say)
+    scrambled = np.random.default_rng(0).permutation(image.reshape(-1)).reshape(image.shape)
+    with pytest.warns(UserWarning, match=r"hardly match .* \(median correlation -?0\.\d\d over 3"):
+        check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, True, "x")
 
 
 def test_view_streams_put_a_views_first_readout_in_that_view():

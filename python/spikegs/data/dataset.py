@@ -102,6 +102,11 @@ FLOAT32_ROUNDING_PX = 0.1  # Dataset: a scene far from the origin rounds by more
 # centre, or under its inverse, is warned of (Gaussians start in that ball, the near plane and
 # the means' learning rate follow it; 1e4 against cameras 3 units away trained unsaid)
 SCENE_SIZE_RATIO = 100.0
+# Dataset: camera centres all within this share of their distance from the scene centre of one
+# point while the views turn by TURN_DEG or more are warned of (world-to-camera matrices read as
+# camera-to-world put an orbit's cameras within 2 % of one point; a turn on the spot has no
+# parallax either)
+ONE_POINT_SHARE, TURN_DEG = 0.05, 10.0
 
 
 class Dataset:
@@ -123,6 +128,7 @@ class Dataset:
         self.scene_radius = float(meta["scene_radius"])
         self._warn_about_float32_rounding()
         self._warn_about_scene_size()
+        self._warn_about_one_viewpoint()
 
     def _camera_distance(self) -> float:
         """The cameras' median distance from the scene centre."""
@@ -147,6 +153,24 @@ class Dataset:
                 f"in that ball and the near plane and the means' learning rate follow it; "
                 f"check {where} (expected within {SCENE_SIZE_RATIO:g}x either way of that "
                 f"distance)",
+                stacklevel=3,
+            )
+
+    def _warn_about_one_viewpoint(self) -> None:
+        """A UserWarning where every camera centre lies within ONE_POINT_SHARE of their median
+        distance from the scene centre of their mean while the cameras turn TURN_DEG or more
+        (their rotations; an orbit's matrices inverted keep one optical axis)."""
+        distance = self._camera_distance()
+        centers = self.trajectory.centers  # [P, 3]
+        spread = float(np.linalg.norm(centers - centers.mean(0), axis=1).max())
+        turn = float(np.degrees(self.trajectory.turns().max()))
+        if spread <= ONE_POINT_SHARE * distance and turn >= TURN_DEG:
+            warnings.warn(
+                f"{self.root}: every camera centre lies within {spread:.3g} of one point, "
+                f"{spread / distance:.2g} of their distance from the scene centre, while the "
+                f"cameras turn {turn:.0f}°: world-to-camera matrices given where camera-to-world "
+                f"ones belong put an orbit's cameras at one point (and a camera turning on the "
+                f"spot shows no parallax to place Gaussians in depth)",
                 stacklevel=3,
             )
 

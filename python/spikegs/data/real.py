@@ -169,12 +169,15 @@ def rate_from_images(views: list[tuple[np.ndarray, np.ndarray]], source: str) ->
 
 
 FLIP_MARGIN = 0.2  # correlation by which the other orientation must match better, to warn
+MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images under this is warned
+# of (0.99 for a well-read view; 0.25 for a .dat packed most significant bit first)
 
 
 def check_orientation(views: list[tuple[np.ndarray, np.ndarray]], flip: bool, source: str):
     """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] (`view_tfps`)
     better upside down than as read, in most views (by FLIP_MARGIN in correlation): `flip` is
-    likely wrong, and the scene would train upside down."""
+    likely wrong, and the scene would train upside down; and when they match neither way (median
+    correlation under MATCH_MIN): the spikes are not read as the images show them."""
 
     def correlation(a: np.ndarray, b: np.ndarray) -> float:
         a, b = a - a.mean(), b - b.mean()
@@ -185,6 +188,16 @@ def check_orientation(views: list[tuple[np.ndarray, np.ndarray]], flip: bool, so
         (correlation(tfp, image.mean(-1)), correlation(tfp, image.mean(-1)[::-1]))
         for tfp, image in views
     ]
+    best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
+    if best < MATCH_MIN:
+        warnings.warn(
+            f"{source}: the spikes hardly match their views' sharp images (median correlation "
+            f"{best:.2f} over {len(pairs)} views, either way up): a .dat written in another bit "
+            f"order (least significant bit first expected) or pixel order, the wrong frame size "
+            f"(height, width, raw_width, col_offset in {OPTIONS_FILE}), or images of other views?",
+            stacklevel=3,
+        )
+        return
     better = [flipped - kept > FLIP_MARGIN for kept, flipped in pairs]
     if pairs and sum(better) > len(pairs) / 2:
         kept, flipped = np.median(np.asarray(pairs), axis=0)

@@ -154,6 +154,10 @@ class Trajectory:
         """Camera centres [P, 3] in world coordinates."""
         return self._centers
 
+    def turns(self) -> np.ndarray:
+        """Each pose's rotation from the first [P], radians."""
+        return (self._rotations[0].inv() * self._rotations).magnitude()
+
     def pose_at(self, t) -> np.ndarray:
         """Viewmat [4, 4] (or [B, 4, 4] for t [B]) at readout time t: camera-to-world rotation
         slerped and camera centre interpolated linearly between the two bracketing poses."""
