@@ -91,3 +91,29 @@ def test_dssim_of_colour_is_the_mean_of_its_channels_and_its_gradient_checks():
     assert len(set(per_channel.tolist())) == 3
     x = a[:9, :10].clone().requires_grad_()
     assert torch.autograd.gradcheck(lambda x: dssim(x, b[:9, :10]), (x,))
+
+
+def test_images_of_other_shapes_or_types_than_the_render_are_refused():
+    """A mono target [H, W] (SpikeStream.tfp's) broadcast against a square render [H, W, 1] to
+    [H, W, W]: a wrong loss with torch's warning only; integer images gave D-SSIM 0 for any pair
+    (the window's taps cast to integers); a numpy target or an unknown norm failed obscurely."""
+    gen = torch.Generator().manual_seed(0)
+    render, target = torch.rand(8, 8, 1, generator=gen), torch.rand(8, 8, 1, generator=gen)
+    mono = "a mono target \\[H, W\\] needs its channel axis"
+    for loss in (instant_loss, lambda r, t: exposure_loss([r, r], t)):
+        with pytest.raises(ValueError, match=r"render \[8, 8, 1\] and target \[8, 8\] .*" + mono):
+            loss(render, target[..., 0])
+        with pytest.raises(ValueError, match="target expected a torch tensor, got ndarray"):
+            loss(render, target.numpy())
+        assert float(loss(render, target)) == pytest.approx(float((render - target).abs().mean()))
+    with pytest.raises(ValueError, match="render expected floating point, got torch.uint8"):
+        dssim((render * 255).to(torch.uint8), (target * 255).to(torch.uint8))
+    with pytest.raises(ValueError, match=r"dssim: render \[8, 8\] and target \[8, 8\]"):
+        dssim(render[..., 0], target[..., 0])
+    with pytest.raises(ValueError, match="unknown norm 'L1': one of l1, l2, smooth_l1"):
+        instant_loss(render, target, "L1")
+    with pytest.raises(ValueError, match="expected one render or more"):
+        exposure_loss([], target)
+    for poses in (0, 2.5):
+        with pytest.raises(ValueError, match=f"integer number of poses >= 1 .* poses {poses}"):
+            exposure_times(100.0, 33, poses)

@@ -6,6 +6,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from .number_checks import is_int, is_number
+
 
 def _smooth_l1(render: torch.Tensor, target: torch.Tensor, quantum: float | None) -> torch.Tensor:
     """L1 with a quadratic zone one `quantum` wide (the target's step, one spike of its TFP
@@ -25,18 +27,52 @@ NORMS = {
 }
 
 
+def check_images(render, target, what: str) -> None:
+    """ValueError unless `render` and `target` are floating-point torch tensors of one shape
+    [H, W, C]: torch broadcast a mono target [H, W] (SpikeStream.tfp's) against a square [H, W,
+    1] render to [H, W, W] and returned a wrong loss with a warning."""
+    for name, image in (("render", render), ("target", target)):
+        if not isinstance(image, torch.Tensor):
+            raise ValueError(
+                f"{what}: {name} expected a torch tensor, got {type(image).__name__} "
+                f"(torch.from_numpy converts an array)"
+            )
+        if not image.is_floating_point():
+            raise ValueError(f"{what}: {name} expected floating point, got {image.dtype}")
+    if render.dim() != 3 or render.shape != target.shape:
+        mono = " (a mono target [H, W] needs its channel axis: target[..., None])"
+        hint = mono if target.dim() == 2 else ""
+        raise ValueError(
+            f"{what}: render {list(render.shape)} and target {list(target.shape)} expected one "
+            f"shape [H, W, C]{hint}"
+        )
+
+
+def _norm(norm: str):
+    """NORMS[norm]; ValueError naming the known norms."""
+    if norm not in NORMS:
+        raise ValueError(f"unknown norm {norm!r}: one of {', '.join(NORMS)}")
+    return NORMS[norm]
+
+
 def instant_loss(
     render: torch.Tensor, target: torch.Tensor, norm: str = "l1", quantum: float | None = None
 ) -> torch.Tensor:
     """L_instant = |render(t) - Ī(t)|₁ (or another of NORMS), mean over pixels; [H, W, C];
     `quantum`: the target's step, one spike of its window (smooth_l1's quadratic zone)."""
-    return NORMS[norm](render, target, quantum)
+    check_images(render, target, "instant_loss")
+    return _norm(norm)(render, target, quantum)
 
 
 def exposure_times(t: float, window: int, poses: int) -> np.ndarray:
     """The K = `poses` readout times whose renders average to the exposure of the `window`
     readouts centred on t: the midpoints of K equal parts of [t - window/2, t + window/2] (the
     midpoint rule for paper eq. 8; K samples from end to end would spread the blur wider)."""
+    if not (is_int(poses) and poses >= 1 and is_number(window) and window > 0):
+        raise ValueError(
+            f"exposure_times: expected an integer number of poses >= 1 and a window > 0, got "
+            f"poses {poses!r}, window {window!r}"
+        )
     step = window / poses
     return t - window / 2 + step * (np.arange(poses) + 0.5)  # [K]
 
@@ -49,7 +85,11 @@ def exposure_loss(
 ) -> torch.Tensor:
     """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or another of NORMS); renders
     K x [H, W, C], target [H, W, C]; `quantum`: one spike of the TFP window in target units."""
-    return NORMS[norm](torch.stack(renders).mean(dim=0), target, quantum)
+    if not len(renders):
+        raise ValueError("exposure_loss: expected one render or more")
+    for render in renders:
+        check_images(render, target, "exposure_loss")
+    return _norm(norm)(torch.stack(renders).mean(dim=0), target, quantum)
 
 
 def _gaussian_taps(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
@@ -71,7 +111,9 @@ def _gaussian_blur(maps: torch.Tensor) -> torch.Tensor:
 
 
 def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]."""
+    """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]
+    (floating point: integer images blurred by integer taps gave 0 for any pair)."""
+    check_images(render, target, "dssim")
     c = render.shape[-1]
     x, y = render.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None]  # [1, C, H, W]
     # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
