@@ -803,6 +803,31 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
             GaussianModel(given, given["background"], 1)
 
 
+def test_gaussian_models_start_in_float32_whatever_the_default_dtype():
+    """Under torch.set_default_dtype(float64) (for gradcheck) `random` and `from_points` built
+    float32 means beside float64 scales, rotations and opacities, which `render` refused; a
+    model of mixed dtypes is refused where it is built, naming them."""
+    previous = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    try:
+        model = GaussianModel.random(50, (0, 0, 0), 1.0, 1, 1, torch.Generator().manual_seed(0))
+        viewmat = torch.as_tensor(look_at([0.0, -4.0, 0.0], [0, 0, 0]), dtype=torch.float32)
+        K = torch.tensor([[20.0, 0, 8], [0, 20, 8], [0, 0, 1]], dtype=torch.float32)
+        image = model.render(viewmat, K, 16, 16, 0.01).image
+    finally:
+        torch.set_default_dtype(previous)
+    assert {p.dtype for p in (*model.params.values(), model.background, image)} == {torch.float32}
+    reference = GaussianModel.random(50, (0, 0, 0), 1.0, 1, 1, torch.Generator().manual_seed(0))
+    assert all(torch.equal(model.params[k], reference.params[k]) for k in model.params)
+    given = {**model.params, "quats": model.params["quats"].double()}
+    with pytest.raises(
+        ValueError,
+        match=r"one floating dtype expected; means float32, .*quats "
+        r"float64",
+    ):
+        GaussianModel(given, model.background, 1)
+
+
 def test_gaussian_model_refuses_sizes_without_gaussians():
     """radius 0 or scale 0 raised 'math domain error' from log."""
     with pytest.raises(ValueError, match="radius expected a positive"):

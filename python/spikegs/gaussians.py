@@ -88,6 +88,10 @@ class GaussianModel:
         given = {**params, "background": background}
         wrong = [f"{k} {list(given[k].shape)}" for k, w in wanted.items() if given[k].shape != w]
         wrong += [f"sh_rest {list(rest.shape)}"] if (rest.shape[0], rest.shape[2]) != (n, c) else []
+        dtypes = {k: given[k].dtype for k in wanted} | {"sh_rest": rest.dtype}
+        if len(set(dtypes.values())) > 1 or not given["means"].is_floating_point():
+            found = ", ".join(f"{k} {str(d).removeprefix('torch.')}" for k, d in dtypes.items())
+            raise ValueError(f"GaussianModel: parameters of one floating dtype expected; {found}")
         if wrong:  # unchecked, a background of 3 for 1 channel was saved and then refused
             raise ValueError(
                 f"GaussianModel: means [N, 3], log_scales [N, 3], quats [N, 4], opacity_logits "
@@ -123,13 +127,13 @@ class GaussianModel:
         if not 0 < radius < math.inf:
             raise ValueError(f"radius expected a positive finite size, found {radius}")
         g = generator
-        direction = torch.randn(n, 3, generator=g)  # [N, 3], unit below
+        direction = torch.randn(n, 3, generator=g, dtype=torch.float32)  # [N, 3], unit below
         direction = direction / direction.norm(dim=1, keepdim=True).clamp_min(1e-12)
-        r = radius * torch.rand(n, 1, generator=g) ** (1 / 3)  # [N, 1] uniform in the ball
+        r = radius * torch.rand(n, 1, generator=g, dtype=torch.float32) ** (1 / 3)  # [N, 1]
         means = torch.as_tensor(center, dtype=torch.float32) + direction * r  # [N, 3]
         # scale: about the mean distance between neighbours at this density
         spacing = radius * (4 / 3 * math.pi / max(n, 1)) ** (1 / 3)
-        rgb = torch.full((n, channels), 0.5) if colors is None else colors(means)
+        rgb = torch.full((n, channels), 0.5) if colors is None else colors(means)  # any dtype
         return cls.from_points(means, rgb, min(spacing, max_scale), sh_degree)
 
     @classmethod
@@ -137,7 +141,8 @@ class GaussianModel:
         cls, points: torch.Tensor, colors: torch.Tensor, scale: float, sh_degree: int = 0
     ) -> GaussianModel:
         """Gaussians at `points` [N, 3] with colours [N, C] (intensity units; those below
-        MIN_START_INTENSITY start there) and one scale."""
+        MIN_START_INTENSITY start there) and one scale; float32 whatever torch's default dtype
+        (float64 mixed the two, which `render` refused)."""
         if not 0 < scale < math.inf:
             raise ValueError(f"scale expected a positive finite size, found {scale}")
         n, channels = colors.shape
@@ -146,15 +151,16 @@ class GaussianModel:
                 f"points [N, 3] and colours [N, C] of one N expected, found {list(points.shape)} "
                 f"and {list(colors.shape)}"
             )
+        f32 = {"dtype": torch.float32}
         params = {
             "means": points.float(),
-            "log_scales": torch.full((n, 3), math.log(scale)),
-            "quats": torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(n, 1),
-            "opacity_logits": torch.full((n,), math.log(0.1 / 0.9)),
+            "log_scales": torch.full((n, 3), math.log(scale), **f32),
+            "quats": torch.tensor([1.0, 0.0, 0.0, 0.0], **f32).repeat(n, 1),
+            "opacity_logits": torch.full((n,), math.log(0.1 / 0.9), **f32),
             "sh_dc": ((colors.float().clamp_min(MIN_START_INTENSITY) - 0.5) / C0).unsqueeze(1),
-            "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels),
+            "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels, **f32),
         }
-        return cls(params, torch.zeros(channels), sh_degree)
+        return cls(params, torch.zeros(channels, **f32), sh_degree)
 
     def __len__(self) -> int:
         return self.params["means"].shape[0]
