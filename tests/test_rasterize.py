@@ -604,6 +604,7 @@ EXTREME = {  # name -> (N, (width, height))
     "huge-extent": (4, (33, 17)),
     "float32-needle": (4, (16, 16)),
     "alpha-min-opacity": (6, (33, 17)),
+    "capped-radius": (3, (16, 12)),
     "scaled-viewmat": (3, (33, 17)),
     "width-1": (10, (1, 17)),
     "height-1": (10, (23, 1)),
@@ -658,6 +659,13 @@ def _extreme(name: str) -> dict:
         s["scales"][:, 0] = torch.tensor([3e18, 6e18, 1e19, 1.5e19]) * 2.0 / f
         c, si = math.cos(0.3), math.sin(0.3)
         s["quats"] = torch.tensor([[c, 0.0, 0.0, si]] * n, dtype=torch.float64)
+    elif name == "capped-radius":  # radii over the 2^30 px cap about centres 1e11 px off the
+        # image, whose tails still cover it: the reference composited the capped box (nothing, or
+        # torch.arange's inverted or int64-overflowing range) where the core renders the tails
+        s["K"] = torch.tensor([[1e12, 0, 8.0], [0, 1e12, 6.0], [0, 0, 1]], dtype=torch.float64)
+        s["means"] = at_camera([[0.42, 0.145, 3.15], [-0.3, 0.2, 2.5], [0.0, 0.0, 3.0]])
+        s["scales"] = torch.full((n, 3), 0.15, dtype=torch.float64)
+        s["opacities"] = torch.full((n,), 0.9, dtype=torch.float64)
     elif name == "alpha-min-opacity":  # o at 1/255 (alpha reaches 1/255 at most on the centre)
         s["means"] = at_camera([[0.1 * i - 0.25, 0.0, 2.0] for i in range(n)])
         s["opacities"] = torch.tensor([1 / 255, 1 / 255 + 1e-12, 1 / 255 - 1e-12] * 2).double()

@@ -27,7 +27,8 @@ class _Splats(NamedTuple):
     """Per-Gaussian projection results (all N rows; only rows with `visible` are meaningful)."""
 
     visible: torch.Tensor  # [N] bool
-    radii: torch.Tensor  # [N] int32
+    radii: torch.Tensor  # [N] int32, capped at 2^30 as the core's output
+    reach: torch.Tensor  # [N] the radius uncapped (float): the compositing box
     means2d: torch.Tensor  # [N, 2]
     conics: torch.Tensor  # [N, 3] (A, B, C)
     depths: torch.Tensor  # [N]
@@ -133,7 +134,7 @@ def _project(
         basis = sh_basis(dirs, sh_degree)  # [N, (d+1)^2]
         rgb = torch.einsum("nk,nkc->nc", basis, colors[:, : basis.shape[1]]) + 0.5
         rgb = torch.clamp(rgb, min=0.0)  # [N, C]
-    return _Splats(keep, radii, means2d, conics, z, opacities, rgb)
+    return _Splats(keep, radii, torch.where(keep, r, 0), means2d, conics, z, opacities, rgb)
 
 
 def _alpha_max(dtype: torch.dtype) -> torch.Tensor:
@@ -154,11 +155,16 @@ def _composite(splats: _Splats, width: int, height: int, background: torch.Tenso
     visible = torch.nonzero(splats.visible).flatten()
     order = visible[torch.sort(splats.depths[visible], stable=True).indices]
     alpha_max = _alpha_max(transmittance.dtype)
-    boxes = torch.cat([splats.means2d.detach(), splats.radii[:, None].to(splats.means2d)], -1)
+    boxes = torch.cat([splats.means2d.detach(), splats.reach[:, None].to(splats.means2d)], -1)
     for i, (mx, my, r) in zip(order.tolist(), boxes[order].tolist()):
-        # The opacity-aware box (plus a pixel): outside it alpha < 1/255 (docs step 8).
-        xs = torch.arange(max(0, math.floor(mx - r)), min(width - 1, math.ceil(mx + r)) + 1)
-        ys = torch.arange(max(0, math.floor(my - r)), min(height - 1, math.ceil(my + r)) + 1)
+        # The opacity-aware box (plus a pixel): outside it alpha < 1/255 (docs step 8); its
+        # integer ends clamped to the image before torch sees them (a far centre's can exceed
+        # int64)
+        x0, x1 = max(0, math.floor(mx - r)), min(width - 1, math.ceil(mx + r))
+        y0, y1 = max(0, math.floor(my - r)), min(height - 1, math.ceil(my + r))
+        if x1 < x0 or y1 < y0:
+            continue
+        xs, ys = torch.arange(x0, x1 + 1), torch.arange(y0, y1 + 1)
         idx = (ys[:, None] * width + xs[None, :]).flatten()  # [Q]
         dx = (xs.to(transmittance) + 0.5 - splats.means2d[i, 0])[None, :]  # [1, X]
         dy = (ys.to(transmittance) + 0.5 - splats.means2d[i, 1])[:, None]  # [Y, 1]
