@@ -829,11 +829,20 @@ def test_gaussian_models_start_in_float32_whatever_the_default_dtype():
 
 
 def test_gaussian_model_refuses_sizes_without_gaussians():
-    """radius 0 or scale 0 raised 'math domain error' from log."""
+    """radius 0 or scale 0 raised 'math domain error' from log; points or colours of the wrong
+    kind or shape, and a viewmat requiring grad for view_of, failed obscurely."""
     with pytest.raises(ValueError, match="radius expected a positive"):
         GaussianModel.random(10, (0, 0, 0), 0.0, 1)
     with pytest.raises(ValueError, match="scale expected a positive"):
         GaussianModel.from_points(torch.zeros(2, 3), torch.ones(2, 1), float("nan"))
+    # colours [N] and numpy points failed inside the unpacking and at numpy's missing .float()
+    with pytest.raises(ValueError, match=r"colours \[N, C\] expected, found \[2\]"):
+        GaussianModel.from_points(torch.zeros(2, 3), torch.ones(2), 0.1)
+    with pytest.raises(ValueError, match="expected torch tensors, got ndarray and Tensor"):
+        GaussianModel.from_points(np.zeros((2, 3)), torch.ones(2, 1), 0.1)
+    model = GaussianModel.from_points(torch.zeros(2, 3), torch.ones(2, 1), 0.1)
+    with pytest.raises(ValueError, match="require grad .*detach"):
+        model.view_of(torch.eye(4, requires_grad=True))
 
 
 def test_every_method_config_loads():

@@ -145,6 +145,11 @@ class GaussianModel:
         (float64 mixed the two, which `render` refused)."""
         if not 0 < scale < math.inf:
             raise ValueError(f"scale expected a positive finite size, found {scale}")
+        if not (isinstance(points, torch.Tensor) and isinstance(colors, torch.Tensor)):
+            kinds = f"{type(points).__name__} and {type(colors).__name__}"
+            raise ValueError(f"points and colours expected torch tensors, got {kinds}")
+        if colors.dim() != 2:
+            raise ValueError(f"colours [N, C] expected, found {list(colors.shape)}")
         n, channels = colors.shape
         if points.shape != (n, 3):
             raise ValueError(
@@ -167,7 +172,11 @@ class GaussianModel:
 
     def view_of(self, viewmats) -> torch.Tensor:
         """World-to-camera `viewmats` [..., 4, 4] (world frame; float64 keeps a far one exact)
-        as float32 viewmats of this model's frame: t + R·origin, summed in float64."""
+        as float32 viewmats of this model's frame: t + R·origin, summed in float64; not
+        differentiable (a tensor that requires grad is refused: apply a learnt correction to
+        the result)."""
+        if isinstance(viewmats, torch.Tensor) and viewmats.requires_grad:
+            raise ValueError("view_of: viewmats that require grad (not differentiable: detach)")
         local = np.array(viewmats, np.float64)
         local[..., :3, 3] += local[..., :3, :3] @ self.origin
         return torch.as_tensor(local, dtype=torch.float32)
