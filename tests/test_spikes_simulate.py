@@ -194,6 +194,14 @@ def test_torch_tensors_are_light_too():
     expected = simulate_spikes(frames.detach().numpy(), 50)
     np.testing.assert_array_equal(simulate_spikes(frames, 50), expected)
     np.testing.assert_array_equal(simulate_spikes(lambda t: frames[0], 50), expected)
+    # half-precision light is exact in float32: bfloat16 (no numpy type) raised a TypeError,
+    # float16 an overflow warning while capping it at float32's largest value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for half in (torch.bfloat16, torch.float16):
+            light = frames.detach().to(half)
+            assert np.array_equal(simulate_spikes(light, 50), expected)
+        assert np.array_equal(simulate_spikes(light.numpy(), 50), expected)
 
 
 def test_streams_to_dat(tmp_path):

@@ -87,7 +87,10 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     given), finite and >= 0. Light beyond float32's range (from float64) is taken at its largest
     value: the simulator caps it far below, where a pixel fires every readout."""
     if hasattr(frame, "detach"):  # a tensor, perhaps requiring grad or on another device
-        frame = frame.detach().cpu().numpy()
+        frame = frame.detach().cpu()
+        if frame.is_floating_point() and frame.dtype.itemsize < 4:  # bfloat16: none in numpy
+            frame = frame.float()
+        frame = frame.numpy()
     frame = np.asarray(frame)
     if frame.dtype.kind not in "biuf":
         raise ValueError(f"{what} expected real intensities, found {frame.dtype.name} values")
@@ -99,6 +102,8 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
             f"{what} expected finite intensities >= 0, found {frame[bad].ravel()[0]} at "
             f"{list(map(int, np.argwhere(bad)[0]))}"
         )
+    if frame.dtype.kind == "f" and frame.dtype.itemsize < 4:  # float16: exact in float32 (its
+        frame = frame.astype(np.float32)  # minimum with FLOAT32_MAX overflowed, with a warning)
     if frame.dtype != np.float32:
         frame = np.minimum(frame, FLOAT32_MAX).astype(np.float32)
     return frame
