@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -184,6 +185,15 @@ def test_poses_that_see_none_of_the_scene_sphere_are_refused_before_any_work(
     if mistake == "world-to-camera":  # the orbit's cameras at one point: said on loading
         with pytest.warns(UserWarning, match=r"every camera centre lies within .* turn \d+°"):
             broken = Dataset(*args)
+        # and the cameras turning on the scene centre itself (no distance to scale by)
+        on_centre = broken.trajectory.viewmats.copy()  # [P, 4, 4]: t = -R·centre
+        on_centre[:, :3, 3] = -on_centre[:, :3, :3] @ tiny.scene_center
+        spot = Trajectory(tiny.trajectory.readouts, on_centre)
+        with warnings.catch_warnings(record=True) as caught:  # (with the scene-size warnings)
+            warnings.simplefilter("always")
+            Dataset(*args[:3], spot, *args[4:])
+        said = [str(w.message) for w in caught]
+        assert any(re.search(r"lies within .* \(\S+ from the scene centre\)", m) for m in said)
     else:
         broken = Dataset(*args)
     run = tmp_path / "run"

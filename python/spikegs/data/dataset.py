@@ -158,19 +158,22 @@ class Dataset:
 
     def _warn_about_one_viewpoint(self) -> None:
         """A UserWarning where every camera centre lies within ONE_POINT_SHARE of their median
-        distance from the scene centre of their mean while the cameras turn TURN_DEG or more
-        (their rotations; an orbit's matrices inverted keep one optical axis)."""
+        distance from the scene centre (of the scene radius where they sit on the centre) of
+        their mean while the cameras turn TURN_DEG or more (their rotations; an orbit's
+        matrices inverted keep one optical axis)."""
         distance = self._camera_distance()
+        on_centre = not distance > 1e-6 * self.scene_radius  # cameras at the scene's centre
+        scale = self.scene_radius if on_centre else distance
         centers = self.trajectory.centers  # [P, 3]
         spread = float(np.linalg.norm(centers - centers.mean(0), axis=1).max())
         turn = float(np.degrees(self.trajectory.turns().max()))
-        if spread <= ONE_POINT_SHARE * distance and turn >= TURN_DEG:
+        if spread <= ONE_POINT_SHARE * scale and turn >= TURN_DEG:
             warnings.warn(
-                f"{self.root}: every camera centre lies within {spread:.3g} of one point, "
-                f"{spread / distance:.2g} of their distance from the scene centre, while the "
-                f"cameras turn {turn:.0f}°: world-to-camera matrices given where camera-to-world "
-                f"ones belong put an orbit's cameras at one point (and a camera turning on the "
-                f"spot shows no parallax to place Gaussians in depth)",
+                f"{self.root}: every camera centre lies within {spread:.3g} of one point "
+                f"({distance:.3g} from the scene centre) while the cameras turn {turn:.0f}°: "
+                f"world-to-camera matrices given where camera-to-world ones belong put an "
+                f"orbit's cameras at one point (and a camera turning on the spot shows no "
+                f"parallax to place Gaussians in depth)",
                 stacklevel=3,
             )
 
