@@ -131,8 +131,12 @@ class Dataset:
         self._warn_about_one_viewpoint()
 
     def _camera_distance(self) -> float:
-        """The cameras' median distance from the scene centre."""
-        return float(np.median(np.linalg.norm(self.trajectory.centers - self.scene_center, axis=1)))
+        """The cameras' median distance from the scene centre; 0 where it is rounding alone
+        (cameras on the centre: ~1e-17, which the scale checks divided by)."""
+        centers = self.trajectory.centers  # [P, 3]
+        distance = float(np.median(np.linalg.norm(centers - self.scene_center, axis=1)))
+        size = max(1.0, float(np.abs(centers).max()), float(np.abs(self.scene_center).max()))
+        return distance if distance > 1e-12 * size else 0.0
 
     def _warn_about_scene_size(self) -> None:
         """A UserWarning where scene_radius is over SCENE_SIZE_RATIO times the cameras' median
@@ -162,8 +166,7 @@ class Dataset:
         their mean while the cameras turn TURN_DEG or more (their rotations; an orbit's
         matrices inverted keep one optical axis)."""
         distance = self._camera_distance()
-        on_centre = not distance > 1e-6 * self.scene_radius  # cameras at the scene's centre
-        scale = self.scene_radius if on_centre else distance
+        scale = distance if distance > 0 else self.scene_radius  # 0: cameras on the centre
         centers = self.trajectory.centers  # [P, 3]
         spread = float(np.linalg.norm(centers - centers.mean(0), axis=1).max())
         turn = float(np.degrees(self.trajectory.turns().max()))
