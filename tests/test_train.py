@@ -242,6 +242,24 @@ def test_the_instant_loss_trains_until_densification_stops_where_configured(
     assert [r["loss"] for r in log[:instant_steps]] == pytest.approx(weighted, rel=1e-5)
 
 
+def test_a_run_that_never_trains_the_instant_loss_trains_no_sim(few_views, monkeypatch):
+    """spikegs (instant_until: densify) for 1 iteration densifies until iteration 0, so no step
+    trains L_instant: SIM was trained (minutes at 256²) and never used."""
+    import spikegs.targets as targets_module
+
+    def no_sim(*args, **kwargs):
+        raise AssertionError("SIM trained for a run without an instant loss")
+
+    monkeypatch.setattr(targets_module, "trained_sim", no_sim)
+    overrides = {"train": {"iterations": 1}, "densify": {"start": 1000, "stop": 0}}
+    targets = targets_module.build_targets(few_views, load_config("spikegs", overrides), False)
+    assert targets.instant is None and targets.sim_seconds == 0.0
+    assert targets.exposure is not None
+    overrides["densify"]["stop"] = 1  # one densifying step: its instant loss needs SIM
+    with pytest.raises(AssertionError, match="SIM trained"):
+        targets_module.build_targets(few_views, load_config("spikegs", overrides), False)
+
+
 def test_random_gaussians_fill_the_ball_uniformly_at_the_neighbour_spacing():
     """20000 Gaussians in a ball of radius 2: all inside, an eighth within half the radius
     (uniform in volume: radius·u^(1/2) put a quarter there and passed every test), scales the

@@ -266,7 +266,7 @@ class Config:
             d.opacity_reset_every,
             ">= 0 (0: never)",
         )
-        last = d.stop or t.iterations // 2  # the Densifier's last densifying iteration
+        last = d.last_iteration(t.iterations)
         _require(
             d.start >= t.iterations or d.start <= last,
             "densify.start",
@@ -354,7 +354,7 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
     d = densify
     if d.every < 1 or not 0 <= d.start < iterations or d.stop < 0:
         return  # for validate to name
-    last = d.stop or iterations // 2
+    last = d.last_iteration(iterations)
     if not d.stop and d.start == last + 1:  # round(start·f) against floor(iterations / 2)
         d.start = last
     first = -(-max(d.start, 1) // d.every) * d.every

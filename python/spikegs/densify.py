@@ -48,6 +48,10 @@ class DensifyConfig:
     # (BENCHMARKS.md)
     instant_only: bool = True
 
+    def last_iteration(self, iterations: int) -> int:
+        """The last iteration that densifies in a run of `iterations`: stop, or half the run."""
+        return self.stop or iterations // 2
+
 
 def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, state_fn) -> None:
     """Replace each Gaussian parameter p by param_fn(name, p), its Adam moments m by state_fn(m)."""
@@ -73,7 +77,7 @@ class Densifier:
         self.config = config
         self.scene_radius = scene_radius
         self.iterations = iterations  # of the whole run: no opacity reset too close to its end
-        self.stop = config.stop or iterations // 2  # the last iteration that densifies
+        self.stop = config.last_iteration(iterations)
         self.grad_sum = torch.zeros(0)  # [N] summed NDC screen-gradient norms since the last round
         self.count = torch.zeros(0)  # [N] steps each Gaussian was visible in
         self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
