@@ -2134,7 +2134,7 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
         shutil.move(moved, dataset.root)  # the module's dataset, for the tests after this one
 
 
-def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path):
+def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path, capsys):
     """The run's dataset simulated again into the same folder (other poses) is another dataset:
     it overwrote the run's eval.json without a word."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
@@ -2146,6 +2146,31 @@ def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path):
         other = evaluate_run(tmp_path / "run", again, write_images=False)
     assert other["file"] == str((tmp_path / "run" / "eval-data.json").resolve())
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == own
+    # an orbit took that dataset's cameras without a word; eval and render now say so alike
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # printed by the CLI, whatever the test run's filters
+        assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif")]) == 0
+    said = capsys.readouterr().err
+    assert re.search(r"render: warning: .* holds other data .*: the orbit follows", said), said
+
+
+def test_eval_without_images_removes_the_side_by_sides_its_scores_no_longer_match(tmp_path):
+    """Scored again with --no-images after the data changed, the earlier scoring's images stayed
+    beside the new scores; the same scores keep them."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    Trainer(data, config, tmp_path / "run", progress=False).train()
+    scored = evaluate_run(tmp_path / "run", data)["views"]
+    images = {name: tmp_path / "run" / "eval" / f"{name}.png" for name in scored}
+    assert evaluate_run(tmp_path / "run", data, write_images=False)["views"] == scored
+    assert all(png.exists() for png in images.values())  # the same scoring: kept
+    changed = next(iter(images))
+    file = tmp_path / "run" / "eval.json"
+    doc = json.loads(file.read_text())
+    doc["views"][changed]["psnr"] += 1.0  # an earlier scoring of other data, for this view
+    file.write_text(json.dumps(doc))
+    evaluate_run(tmp_path / "run", data, write_images=False)
+    assert [name for name, png in images.items() if not png.exists()] == [changed]
 
 
 def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):

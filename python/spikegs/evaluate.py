@@ -63,16 +63,13 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
         return "eval"
     root = Path(dataset.root).resolve()
     known = "data" in train  # runs from before fingerprints: their own folder is trusted
-    if known:
-        scale = train.get("intensity_scale")
-        scale = intensity_scale(dataset) if scale is None else float(scale)
+    scale = _run_scale(train, dataset)
     same = not known or same_data(train["data"], dataset, scale)
     if Path(own).resolve() == root:
         if same:
             return "eval"
         warnings.warn(
-            f"{root} holds other data than {run_dir} was trained on (its poses, intrinsics or "
-            f"training timestamps changed since: simulated again, or new poses): scored as "
+            f"{root} holds other data than {run_dir} was trained on ({OTHER_DATA}): scored as "
             f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
@@ -82,6 +79,31 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
         name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")
         if _scored_dataset(run_dir / f"{name}.json") in (None, str(root)):
             return name
+
+
+OTHER_DATA = (
+    "its spikes, poses, intrinsics or training timestamps differ: simulated again, or new poses"
+)
+
+
+def _run_scale(train: dict, dataset) -> float:
+    """The intensity scale the run trained in (train.json's), else the dataset's."""
+    scale = train.get("intensity_scale")
+    return intensity_scale(dataset) if scale is None else float(scale)
+
+
+def other_data(run_dir: Path, dataset) -> str | None:
+    """What tells `dataset` from the data the finished run RUN was trained on (another scene,
+    or other data than train.json's fingerprint); None where nothing does."""
+    from .train import same_data  # (train imports us)
+
+    train = read_summary(run_dir)
+    trained_on, holds = train.get("scene"), dataset.meta.get("scene")
+    if trained_on and holds and trained_on != holds:
+        return f"{run_dir} was trained on scene '{trained_on}', {dataset.root} holds '{holds}'"
+    if "data" in train and not same_data(train["data"], dataset, _run_scale(train, dataset)):
+        return f"{dataset.root} holds other data than {run_dir} was trained on ({OTHER_DATA})"
+    return None
 
 
 def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
@@ -111,14 +133,16 @@ def _scored_dataset(path: Path) -> str | None:
         return ""
 
 
-def _scored_views(path: Path) -> set[str]:
+def _scored_views(path: Path, with_scores: bool = False) -> set[str] | dict:
     """The names of the views an evaluation file scored (none where there is no such file, or
-    it is unreadable; a name that is no view's, e.g. a path, is left out)."""
+    it is unreadable; a name that is no view's, e.g. a path, is left out), or with their scores
+    {name: {"psnr", "ssim"}} (`with_scores`)."""
     try:
-        views = set(json.loads(path.read_text())["views"])
+        views = json.loads(path.read_text())["views"]
+        named = {v: views[v] for v in views if is_view_name(v)}
     except (OSError, ValueError, KeyError, TypeError):
-        return set()
-    return {v for v in views if is_view_name(v)}
+        named = {}
+    return named if with_scores else set(named)
 
 
 def _configured_method(run_dir: Path) -> str | None:
@@ -173,6 +197,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
     for gone in _scored_views(scores_file) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)
+    earlier = _scored_views(scores_file, with_scores=True)  # {view: its scores then}
     views = {}
     for view in dataset.test_views:
         pred = render_view(model, view.viewmat, dataset)
@@ -184,6 +209,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         if write_images:  # ground truth | render | 4 x absolute error
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(folder / f"{view.name}.png", side)
+    if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
+        for view in (v for v, scores in views.items() if earlier.get(v, scores) != scores):
+            (folder / f"{view}.png").unlink(missing_ok=True)
     exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
     if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
         listed = ", ".join(exact[:3]) + (", ..." if len(exact) > 3 else "")

@@ -217,6 +217,7 @@ def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
     from .data.dataset import GuessedUnitsWarning
     from .eval_cli import run_dataset
+    from .evaluate import other_data
     from .ply import load_ply
     from .run_summary import trained_scene
 
@@ -225,6 +226,12 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():  # the test images' units matter to scores, not to an orbit
         warnings.simplefilter("ignore", GuessedUnitsWarning)
         dataset = load_dataset(run_dataset(args.run, args.dataset))
+    mismatch = other_data(args.run, dataset)
+    if mismatch:  # eval scores such a dataset as another; an orbit took its cameras unsaid
+        warnings.warn(
+            f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",
+            stacklevel=2,
+        )
     frames = orbit_frames(load_ply(ply), dataset, args.frames, args.up)
     write_video(args.out, frames, args.fps)
     print(f"{len(frames)} frames -> {args.out}")
