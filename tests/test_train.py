@@ -30,6 +30,7 @@ from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.demo import DEMO_OVERRIDES
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
+from spikegs.file_lock import exclusive_lock
 from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
@@ -402,6 +403,10 @@ def test_resume_after_interruption_equals_uninterrupted(
     for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
         assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == 2
         assert "finish it with spikegs train DATASET" in capsys.readouterr().err
+    # while another process trains it, --resume would be refused: eval says so instead
+    with exclusive_lock(tmp_path / "cut" / ".lock", "held"):
+        with pytest.raises(FileNotFoundError, match="being trained by another process; score it"):
+            evaluate_run(tmp_path / "cut", dataset)
     capsys.readouterr()
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)

@@ -6,6 +6,7 @@ import shlex
 from pathlib import Path
 
 from .data.trajectory import read_json
+from .file_lock import exclusive_lock
 from .number_checks import is_number
 
 SUMMARY = "train.json"
@@ -39,6 +40,16 @@ def trained_scene(run_dir: Path) -> Path:
     ply = Path(run_dir) / "scene.ply"
     if ply.exists():
         return ply
+    lock = Path(run_dir) / ".lock"
+    if lock.is_file():  # a run being trained holds it (`spikegs train`): --resume would fail
+        busy = f"{ply} not found yet: {run_dir} is being trained by another process"
+        try:
+            with exclusive_lock(lock, busy):
+                pass
+        except FileExistsError:
+            raise FileNotFoundError(f"{busy}; score it once it has finished") from None
+        except OSError:  # a folder this process cannot write: not known to be busy
+            pass
     if last_checkpoint(run_dir).exists():
         raise FileNotFoundError(
             f"{ply} not found: the run stopped before its end; finish it with spikegs train "
