@@ -56,7 +56,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=TrainConfig().seed,
         help="seed of SIM's training (a training run's train.seed picks the SIM of its seed)",
     )
-    parser.add_argument("--out", type=Path, help="weights (default: where spikegs train looks)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help="weights (default: the dataset's SIM cache, where spikegs train looks; the file name "
+        "holds every setting, and train reuses a SIM made with its config's own)",
+    )
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -392,8 +392,8 @@ def train_or_load(
         partial.unlink(missing_ok=True)
         if quiet:
             print(
-                f"SIM: trained {len(losses):,} steps in {seconds:.0f} s, "
-                f"final loss {final_loss:.4g}",
+                f"SIM: trained {len(losses):,} step{'s' if len(losses) != 1 else ''} in "
+                f"{seconds:.0f} s, final loss {final_loss:.4g}",
                 file=sys.stderr,
                 flush=True,
             )
