@@ -324,6 +324,14 @@ class Config:
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
 
+    def last_instant_iteration(self) -> int:
+        """The last iteration that trains L_instant: the run's last, or (instant_until: densify)
+        the last that densifies (0 in a run that densifies none: L_instant never trains)."""
+        t = self.train
+        if self.supervision.instant_until == "run":
+            return t.iterations
+        return self.densify.last_iteration(t.iterations)
+
     def with_iterations(self, iterations: int) -> Config:
         """A copy that trains for `iterations` steps, its densification schedule (start, stop,
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer

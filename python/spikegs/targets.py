@@ -241,9 +241,8 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         return TargetImages(ts, per_channel, scale, spike(window), time_offset)
 
     instant, sim_seconds = None, 0.0
-    # instant_until: densify in a run whose densification ends at 0 (1 iteration) trains none
-    last = config.densify.last_iteration(config.train.iterations)
-    if s.instant_weight > 0 and s.instant != "none" and (s.instant_until == "run" or last >= 1):
+    # (instant_until: densify in a run whose densification ends at 0, 1 iteration: none)
+    if s.instant_weight > 0 and s.instant != "none" and config.last_instant_iteration() >= 1:
         if s.instant == "sim":
             model, sim_seconds, path = trained_sim(
                 dataset, config.sim, config.train.seed, progress=progress

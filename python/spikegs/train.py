@@ -417,7 +417,8 @@ class Trainer:
         h, w = self.dataset.height, self.dataset.width
         densifying = self.iteration <= self.densifier.stop
         # the instant loss trains every step, or (instant_until: densify) while densifying
-        instant_trains = targets.instant is not None and (s.instant_until == "run" or densifying)
+        last_instant = self.config.last_instant_iteration()
+        instant_trains = targets.instant is not None and self.iteration <= last_instant
         # this step's densification signal [N, 2], while the model densifies: AbsGS's absolute
         # per-pixel sums, which each render's backward adds to, or the plain gradient of a zero
         # tap on the 2D means
