@@ -92,15 +92,27 @@ def _run_scale(train: dict, dataset) -> float:
     return intensity_scale(dataset) if scale is None else float(scale)
 
 
+def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
+    """'RUN was trained on scene A and `use` DATASET, scene B' where train.json's scene and the
+    dataset's differ; None where they agree or either is unnamed."""
+    trained_on, holds = train.get("scene"), dataset.meta.get("scene")
+    if trained_on and holds and trained_on != holds:
+        return (
+            f"{run_dir} was trained on scene '{trained_on}' and {use} {dataset.root}, scene "
+            f"'{holds}'"
+        )
+    return None
+
+
 def other_data(run_dir: Path, dataset) -> str | None:
     """What tells `dataset` from the data the finished run RUN was trained on (another scene,
     or other data than train.json's fingerprint); None where nothing does."""
     from .train import same_data  # (train imports us)
 
     train = read_summary(run_dir)
-    trained_on, holds = train.get("scene"), dataset.meta.get("scene")
-    if trained_on and holds and trained_on != holds:
-        return f"{run_dir} was trained on scene '{trained_on}', {dataset.root} holds '{holds}'"
+    scene = _other_scene(run_dir, train, dataset, "renders along")
+    if scene:
+        return scene
     if "data" in train and not same_data(train["data"], dataset, _run_scale(train, dataset)):
         return f"{dataset.root} holds other data than {run_dir} was trained on ({OTHER_DATA})"
     return None
@@ -165,13 +177,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
     name = _eval_name(run_dir, train, dataset)
-    trained_on, scored = train.get("scene"), dataset.meta.get("scene")
-    if trained_on and scored and trained_on != scored:
-        warnings.warn(
-            f"{run_dir} was trained on scene '{trained_on}' and is scored on {dataset.root}, "
-            f"scene '{scored}'",
-            stacklevel=2,
-        )
+    scene = _other_scene(run_dir, train, dataset, "is scored on")
+    if scene:
+        warnings.warn(scene, stacklevel=2)
     ply = trained_scene(run_dir)
     model = load_ply(ply)
     if model.channels != dataset.channels:
