@@ -145,16 +145,15 @@ def _scored_dataset(path: Path) -> str | None:
         return ""
 
 
-def _scored_views(path: Path, with_scores: bool = False) -> set[str] | dict:
-    """The names of the views an evaluation file scored (none where there is no such file, or
-    it is unreadable; a name that is no view's, e.g. a path, is left out), or with their scores
-    {name: {"psnr", "ssim"}} (`with_scores`)."""
+def _scored_views(path: Path) -> dict:
+    """The views an evaluation file scored, with their scores {name: {"psnr", "ssim"}} (none
+    where there is no such file, or it is unreadable; a name that is no view's, e.g. a path, is
+    left out)."""
     try:
         views = json.loads(path.read_text())["views"]
-        named = {v: views[v] for v in views if is_view_name(v)}
+        return {v: views[v] for v in views if is_view_name(v)}
     except (OSError, ValueError, KeyError, TypeError):
-        named = {}
-    return named if with_scores else set(named)
+        return {}
 
 
 def _configured_method(run_dir: Path) -> str | None:
@@ -203,9 +202,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     if write_images:
         check_folder_output(folder, "eval's images")
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
-    for gone in _scored_views(scores_file) - {v.name for v in dataset.test_views}:
+    earlier = _scored_views(scores_file)  # {view: its scores then}
+    for gone in set(earlier) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)
-    earlier = _scored_views(scores_file, with_scores=True)  # {view: its scores then}
     views = {}
     for view in dataset.test_views:
         pred = render_view(model, view.viewmat, dataset)
