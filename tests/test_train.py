@@ -1793,6 +1793,17 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
     assert "expected a positive integer" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "argv", [["render", "run", "--out", "orbit.mp4/"], ["sim-train", "data", "--out", "sim.pt/"]]
+)
+def test_a_file_output_named_as_a_folder_is_refused_while_parsing(argv, capsys):
+    """`render --out orbit.mp4/` wrote orbit.mp4: Path drops the trailing separator."""
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser().parse_args(argv)
+    assert exit_info.value.code == 2
+    assert f"found the folder name '{argv[-1]}'" in capsys.readouterr().err
+
+
 def _train_until(dataset, config, run, iteration: int, monkeypatch, error=RuntimeError) -> None:
     """Train `config` in `run` and die (`error`, e.g. a kill: no checkpoint) at `iteration`."""
     step = Trainer.step
@@ -2236,7 +2247,8 @@ def test_eval_and_render_name_a_malformed_run_file(dataset, tmp_path, capsys):
 def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     """Run files (train.json, eval.json, the log, config.yaml, videos) go through
     write_atomically: a write that stops partway (a kill, a full disk) leaves the previous file
-    whole and no temporary file; a sweep removes a dead writer's leftovers only."""
+    whole and no temporary file; a sweep removes a dead writer's leftovers only; a symbolic link
+    is written through."""
     from spikegs.atomic_save import is_temporary, sweep_temporaries, write_atomically
 
     path = tmp_path / "train.json"
@@ -2264,6 +2276,11 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     assert [is_temporary(p.name) for p in (dead, *mine)] == [True, False, False]
     sweep_temporaries(tmp_path)
     assert not dead.exists() and all(p.exists() for p in mine)
+    (tmp_path / "kept").mkdir()  # a symbolic link (an eval.json kept elsewhere) stays one
+    link = tmp_path / "eval.json"
+    link.symlink_to(tmp_path / "kept" / "eval.json")
+    write_atomically(link, lambda tmp: tmp.write_text("scores"))
+    assert link.is_symlink() and (tmp_path / "kept" / "eval.json").read_text() == "scores"
 
 
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):

@@ -58,11 +58,11 @@ def sweep_killed_writes(path: Path) -> None:
 
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
-    `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder. The
-    temporary file is removed when writing fails; a killed process's stays until swept
-    (`sweep_temporaries` in a run folder when training starts, `sweep_killed_writes` in SIM's
-    cache)."""
-    path = Path(path)
+    `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder.
+    Where `path` is a symbolic link, its target is written and the link stays. The temporary file
+    is removed when writing fails; a killed process's stays until swept (`sweep_temporaries` in
+    a run folder when training starts, `sweep_killed_writes` in SIM's cache)."""
+    path = Path(path).resolve() if Path(path).is_symlink() else Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(temporary_name(path, str(os.getpid())))
     try:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import signal
 import sys
 import warnings
@@ -56,6 +57,15 @@ def file_path(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a file path, found ''")
     return Path(text)
+
+
+def output_file(text: str) -> Path:
+    """An argparse type: a file to write, refused while parsing when its name ends in a path
+    separator (a folder's: Path drops the separator, and the file would be written)."""
+    path = file_path(text)
+    if text.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep)):
+        raise argparse.ArgumentTypeError(f"expected a file name, found the folder name '{text}'")
+    return path
 
 
 # what `spikegs --help` says above the commands: the path through them

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import positive_int
+from .cli import output_file, positive_int
 from .data.trajectory import WORLD_UP, look_at
 from .output_paths import check_file_output
 
@@ -25,7 +25,7 @@ MP4_QUALITY = {"libx264": {"crf": "18"}, "mpeg4": {"flags": "+qscale", "global_q
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
-    parser.add_argument("--out", type=Path, required=True, help="video file: .gif or .mp4")
+    parser.add_argument("--out", type=output_file, required=True, help="video file: .gif or .mp4")
     parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
     parser.add_argument("--frames", type=positive_int, default=60, help="frames in one orbit")
     parser.add_argument(

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from .bench.common import print_table
-from .cli import positive_int
+from .cli import output_file, positive_int
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_file,
         help="weights (default: the dataset's SIM cache, where spikegs train looks; the file name "
         "holds every setting, and train reuses a SIM made with its config's own)",
     )
