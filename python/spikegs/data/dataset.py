@@ -65,6 +65,11 @@ class GuessedUnitsWarning(UserWarning):
     """The test images' units (firing rate of intensity 1) are guessed: their PSNR depends on it."""
 
 
+class ImageUnitsWarning(UserWarning):
+    """The test images' mean is far from their spikes' firing rate: other units, or spikes that
+    are not the images' (dark current)."""
+
+
 def intrinsics_matrix(meta: dict) -> np.ndarray:
     """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
@@ -556,6 +561,7 @@ def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], pa
             f"images {np.mean(images):.3g}): test images are expected in firing-rate units "
             f"(intensity x image_scale), and PSNR against images in other units means nothing "
             f"(or the spikes are not the images': dark current, another recording)",
+            ImageUnitsWarning,
             stacklevel=3,
         )
 

@@ -20,6 +20,7 @@ from .dataset import (
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
     Dataset,
+    ImageUnitsWarning,
     TestView,
     check_meta_values,
     check_output,
@@ -441,4 +442,6 @@ def simulate_dataset(
     write_parts(
         out, meta, trajectory, train_timestamps(readouts, np.array(held_out), train_every), views
     )
-    return load_dataset(out)
+    with warnings.catch_warnings():  # its units are the spikes' (a dim scene's dark current
+        warnings.simplefilter("ignore", ImageUnitsWarning)  # is warned of above)
+        return load_dataset(out)
