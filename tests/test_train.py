@@ -405,7 +405,7 @@ def test_resume_after_interruption_equals_uninterrupted(
         assert "finish it with spikegs train DATASET" in capsys.readouterr().err
     # while another process trains it, --resume would be refused: eval says so instead
     with exclusive_lock(tmp_path / "cut" / ".lock", "held"):
-        with pytest.raises(FileNotFoundError, match="being trained by another process; score it"):
+        with pytest.raises(FileNotFoundError, match="being trained by another process; try again"):
             evaluate_run(tmp_path / "cut", dataset)
     capsys.readouterr()
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)

@@ -41,7 +41,8 @@ CONFIG_DIR = next(
     _PACKAGE_DIR / "configs",
 )
 DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
-INSTANT_UNTIL = ("run", "densify")  # supervision.instant_until: every step, or while densifying
+# supervision.instant_until: every step, or until densification ends
+INSTANT_UNTIL = ("run", "densify")
 MAX_LR = 1.0  # learning rates above it move parameters by more than their own scale a step
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
@@ -62,7 +63,8 @@ class SupervisionConfig:
     instant_weight: float = 1.0
     exposure_weight: float = 1.0  # lambda: weight of L_exposure (0: off)
     # how long L_instant (and its D-SSIM term) trains: "run", every step (the paper), or
-    # "densify", the steps up to densify.stop, after which L_exposure alone, free of SIM's
+    # "densify", until densification's window ends (densify.stop, or half the run where stop is
+    # 0, whether or not a round falls in it), after which L_exposure alone, free of SIM's
     # blind-spot bias, finishes the run (needs the exposure loss)
     instant_until: str = "run"
     exposure_window: int = 33  # readouts of the virtual exposure around t
@@ -326,7 +328,8 @@ class Config:
 
     def last_instant_iteration(self) -> int:
         """The last iteration that trains L_instant: the run's last, or (instant_until: densify)
-        the last that densifies (0 in a run that densifies none: L_instant never trains)."""
+        the end of densification's window, `DensifyConfig.last_iteration` (0 in a run of one
+        iteration: L_instant never trains)."""
         t = self.train
         if self.supervision.instant_until == "run":
             return t.iterations

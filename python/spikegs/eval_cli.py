@@ -9,7 +9,12 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
     parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
-    parser.add_argument("--no-images", action="store_true", help="write eval.json only")
+    parser.add_argument(
+        "--no-images",
+        action="store_true",
+        help="write the scores only, no side-by-side images (an earlier scoring's images of views "
+        "whose scores changed are removed)",
+    )
 
 
 def run_dataset(run_dir: Path, dataset: Path | None) -> Path:

@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--fps",
         type=int,
         default=20,
-        help=f"frames a second (a .gif {GIF_MAX_FPS} at most)",
+        help=f"frames a second, 1 to {MAX_FPS} (a .gif {GIF_MAX_FPS} at most)",
     )
     parser.add_argument(
         "--up",

@@ -47,7 +47,7 @@ def trained_scene(run_dir: Path) -> Path:
             with exclusive_lock(lock, busy):
                 pass
         except FileExistsError:
-            raise FileNotFoundError(f"{busy}; score it once it has finished") from None
+            raise FileNotFoundError(f"{busy}; try again once it has finished") from None
         except OSError:  # a folder this process cannot write: not known to be busy
             pass
     if last_checkpoint(run_dir).exists():

@@ -416,7 +416,7 @@ class Trainer:
         t = float(targets.timestamps[index])
         h, w = self.dataset.height, self.dataset.width
         densifying = self.iteration <= self.densifier.stop
-        # the instant loss trains every step, or (instant_until: densify) while densifying
+        # the instant loss trains every step, or (instant_until: densify) until densification ends
         last_instant = self.config.last_instant_iteration()
         instant_trains = targets.instant is not None and self.iteration <= last_instant
         # this step's densification signal [N, 2], while the model densifies: AbsGS's absolute

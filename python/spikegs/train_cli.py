@@ -32,7 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="override train.iterations; the densification schedule is scaled with it",
     )
     parser.add_argument("--seed", type=int, help="override train.seed")
-    parser.add_argument("--resume", action="store_true", help="continue from RUN's last checkpoint")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from RUN's last checkpoint (a run stopped before its first one starts over)",
+    )
     parser.add_argument(
         "--no-progress",
         action="store_true",

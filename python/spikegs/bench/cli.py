@@ -10,6 +10,7 @@ from pathlib import Path
 from ..cli import positive_float, positive_int
 from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
+from .train import FULL_ITERATIONS, QUICK_ITERATIONS
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
 PARTS = {
@@ -33,7 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "run does not replace a full one's files)",
     )
     parser.add_argument(
-        "--iterations", type=positive_int, help="training iterations per run (bench train)"
+        "--iterations",
+        type=positive_int,
+        help=f"training iterations per run (bench train; default {FULL_ITERATIONS}, "
+        f"{QUICK_ITERATIONS} with --quick)",
     )
     parser.add_argument(
         "--seeds",
