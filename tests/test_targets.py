@@ -13,6 +13,7 @@ from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
 from spikegs.sim_train import infer_sim
+from spikegs.spikes import SpikeStream
 from spikegs.targets import (
     build_targets,
     check_targets,
@@ -225,6 +226,12 @@ def test_image_scale_states_the_calibration_and_must_agree(dataset):
     guess = intensity_scale(with_meta(no_rate))
     assert guess == pytest.approx(np.percentile(tfp_sample(dataset)[1], 99.5))
     assert 0.5 * dataset.meta["sim"]["rate_at_one"] < guess <= 1
+    # spikes too sparse in the sample to guess by: 1, said (it was silent)
+    d = dataset
+    dark = SpikeStream.from_bits(np.zeros((len(d.stream), d.height, d.width), bool))
+    dark = Dataset(d.root, no_rate, [dark], d.trajectory, d.train_timestamps, d.test_views)
+    with pytest.warns(UserWarning, match=r"TFP\(33\) is 0 at 99.5 % .*: the intensity scale"):
+        assert intensity_scale(dark) == 1.0
 
 
 def test_the_view_sample_spans_16_to_31_timestamps_over_the_stream():

@@ -2249,7 +2249,12 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     write_atomically: a write that stops partway (a kill, a full disk) leaves the previous file
     whole and no temporary file; a sweep removes a dead writer's leftovers only; a symbolic link
     is written through."""
-    from spikegs.atomic_save import is_temporary, sweep_temporaries, write_atomically
+    from spikegs.atomic_save import (
+        is_temporary,
+        sweep_killed_writes,
+        sweep_temporaries,
+        write_atomically,
+    )
 
     path = tmp_path / "train.json"
     path.write_text('{"whole": true}')
@@ -2281,6 +2286,10 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     link.symlink_to(tmp_path / "kept" / "eval.json")
     write_atomically(link, lambda tmp: tmp.write_text("scores"))
     assert link.is_symlink() and (tmp_path / "kept" / "eval.json").read_text() == "scores"
+    killed = tmp_path / "kept" / f".eval.json.{_dead_pid()}.tmp"  # beside the target, swept there
+    killed.write_text("torn")
+    sweep_killed_writes(link)
+    assert not killed.exists() and link.is_symlink()
 
 
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):

@@ -48,10 +48,17 @@ def sweep_temporaries(folder: Path) -> None:
             stale.unlink(missing_ok=True)
 
 
-def sweep_killed_writes(path: Path) -> None:
-    """Remove the temporary files that writers of `path` killed mid-write left beside it; call it
-    where no other process can be writing `path` (under the lock that its writers hold)."""
+def written_path(path: Path) -> Path:
+    """Where a write of `path` lands: `path`, or the target of a symbolic link (the link stays)."""
     path = Path(path)
+    return path.resolve() if path.is_symlink() else path
+
+
+def sweep_killed_writes(path: Path) -> None:
+    """Remove the temporary files that writers of `path` killed mid-write left beside it (beside
+    its target, for a symbolic link); call it where no other process can be writing `path` (under
+    the lock that its writers hold)."""
+    path = written_path(path)
     for stale in path.parent.glob(temporary_name(Path(glob.escape(path.name)), "*")):
         stale.unlink(missing_ok=True)
 
@@ -62,7 +69,7 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     Where `path` is a symbolic link, its target is written and the link stays. The temporary file
     is removed when writing fails; a killed process's stays until swept (`sweep_temporaries` in
     a run folder when training starts, `sweep_killed_writes` in SIM's cache)."""
-    path = Path(path).resolve() if Path(path).is_symlink() else Path(path)
+    path = written_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(temporary_name(path, str(os.getpid())))
     try:

@@ -276,7 +276,7 @@ class Config:
             f"<= the last densifying iteration {last} (densify.stop, or half of train.iterations "
             f"when 0), or >= train.iterations ({t.iterations}) for a run without densification",
         )
-        first = -(-max(d.start, 1) // d.every) * d.every  # the first densifying iteration
+        first = d.first_iteration()
         _require(
             d.start >= t.iterations or first <= last,
             "densify.every",
@@ -335,6 +335,12 @@ class Config:
             return t.iterations
         return self.densify.last_iteration(t.iterations)
 
+    def instant_target(self) -> str:
+        """The instant target the run reads: supervision.instant, or "none" where its weight is 0
+        or it trains on no iteration (`last_instant_iteration` 0)."""
+        s = self.supervision
+        return s.instant if s.instant_weight > 0 and self.last_instant_iteration() >= 1 else "none"
+
     def with_iterations(self, iterations: int) -> Config:
         """A copy that trains for `iterations` steps, its densification schedule (start, stop,
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
@@ -368,7 +374,7 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
     last = d.last_iteration(iterations)
     if not d.stop and d.start == last + 1:  # round(start·f) against floor(iterations / 2)
         d.start = last
-    first = -(-max(d.start, 1) // d.every) * d.every
+    first = d.first_iteration()
     if d.start <= last < first < iterations:
         d.stop = first
 

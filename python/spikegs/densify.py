@@ -48,13 +48,19 @@ class DensifyConfig:
     # (BENCHMARKS.md)
     instant_only: bool = True
 
+    def first_iteration(self) -> int:
+        """The first iteration that may densify: the first multiple of `every` from `start`."""
+        return -(-max(self.start, 1) // self.every) * self.every
+
     def last_iteration(self, iterations: int) -> int:
-        """The last iteration that densifies in a run of `iterations`: stop, or half the run."""
+        """The end of densification's window in a run of `iterations`: stop, or half the run
+        (its rounds fall on the multiples of `every` from `first_iteration` up to it)."""
         return self.stop or iterations // 2
 
 
 def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, state_fn) -> None:
-    """Replace each Gaussian parameter p by param_fn(name, p), its Adam moments m by state_fn(m)."""
+    """Replace each Gaussian parameter p by param_fn(name, p), its Adam moments m by
+    state_fn(name, m)."""
     for group in optimizer.param_groups:
         name = group["name"]
         if name not in model.params:

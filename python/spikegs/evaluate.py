@@ -195,7 +195,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
             )
         )
     scale = intensity_scale(dataset)
-    run_scale = float(train.get("intensity_scale", scale))  # the units the run renders in
+    run_scale = _run_scale(train, dataset)  # the units the run renders in
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
     # refused before any view is rendered, not after the images are written
     check_file_output(scores_file, "eval's scores")

@@ -205,7 +205,8 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
         return None
     try:
         state = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    except Exception:  # a torn file: start afresh, as without one
+    except Exception as err:  # a torn file: start afresh, as without one
+        print(f"{checkpoint}: unreadable ({err}); training SIM from the start", file=sys.stderr)
         return None
     return state if isinstance(state, dict) and state.get("key") == key else None
 

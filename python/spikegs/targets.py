@@ -11,6 +11,7 @@ puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS def
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,7 +101,17 @@ def intensity_scale(dataset) -> float:
         )
     if stated:
         return float(next(iter(stated.values())))
-    return float(np.percentile(tfp_sample(dataset)[1], 99.5)) or 1.0
+    ts, rates = tfp_sample(dataset)
+    guess = float(np.percentile(rates, 99.5))
+    if guess == 0:
+        warnings.warn(
+            f"{dataset.root}: TFP(33) is 0 at 99.5 % of the pixels of {len(ts)} training windows "
+            f"spread over the stream: the intensity scale (the firing rate of intensity 1) is "
+            f"taken as 1; state it (meta.json's image_scale)",
+            stacklevel=2,
+        )
+        return 1.0
+    return guess
 
 
 def _per_channel(streams, image_fn) -> np.ndarray:
@@ -178,7 +189,7 @@ def check_targets(dataset, config: Config) -> None:
     from .data.view_stream import ViewStreams  # (the data package imports us)
 
     s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
-    instant = s.instant if s.instant_weight > 0 else "none"  # a weight of 0 reads no target
+    instant = config.instant_target()
     windows = {"sim.window": config.sim.window} if instant == "sim" else {}
     if instant == "tfp":
         windows["supervision.instant_window"] = s.instant_window
@@ -214,7 +225,7 @@ def check_targets(dataset, config: Config) -> None:
             f"over readouts {trajectory.start:g}..{trajectory.end:g}): a shorter window, or poses "
             f"over more of the stream"
         )
-    if s.instant_weight > 0 and s.instant == "clean":
+    if instant == "clean":
         from .data.simulate import clean_source, simulated_trajectory  # (imports us)
 
         clean_source(dataset)
@@ -241,8 +252,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         return TargetImages(ts, per_channel, scale, spike(window), time_offset)
 
     instant, sim_seconds = None, 0.0
-    # (instant_until: densify in a run whose densification ends at 0, 1 iteration: none)
-    if s.instant_weight > 0 and s.instant != "none" and config.last_instant_iteration() >= 1:
+    if config.instant_target() != "none":
         if s.instant == "sim":
             model, sim_seconds, path = trained_sim(
                 dataset, config.sim, config.train.seed, progress=progress

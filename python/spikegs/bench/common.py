@@ -13,6 +13,13 @@ from .. import strict_json
 from ..atomic_save import write_text_atomically
 
 
+def uniform(gen, lo: float, hi: float, *shape: int):
+    """float64 draws [*shape] uniform in [lo, hi) from the torch Generator `gen`."""
+    import torch
+
+    return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
+
+
 def machine_info() -> dict[str, Any]:
     """Cores, CPU model and library versions of the machine the figures come from."""
     import numpy

@@ -24,7 +24,7 @@ import torch
 
 from .. import reference
 from ..rasterize import rasterize
-from .common import median_seconds, print_table, write_results
+from .common import median_seconds, print_table, uniform, write_results
 
 REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
 # The reference is a Python loop of small ops: one torch thread is its fastest setting (threads
@@ -39,16 +39,13 @@ def standard_scene(n: int, width: int, height: int, channels: int, seed: int = 0
     opacities in [0.05, 0.95], random direct colours. float64 tensors."""
     gen = torch.Generator().manual_seed(seed)
 
-    def uniform(lo: float, hi: float, *shape: int) -> torch.Tensor:
-        return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
-
     quats = torch.randn(n, 4, generator=gen, dtype=torch.float64)
     return {
-        "means": uniform(-0.5, 0.5, n, 3) + torch.tensor([0.0, 0.0, 2.0], dtype=torch.float64),
+        "means": uniform(gen, -0.5, 0.5, n, 3) + torch.tensor([0.0, 0.0, 2.0], dtype=torch.float64),
         "quats": quats / quats.norm(dim=-1, keepdim=True),
-        "scales": uniform(0.01, 0.05, n, 3),
-        "opacities": uniform(0.05, 0.95, n),
-        "colors": uniform(0.0, 1.0, n, channels),
+        "scales": uniform(gen, 0.01, 0.05, n, 3),
+        "opacities": uniform(gen, 0.05, 0.95, n),
+        "colors": uniform(gen, 0.0, 1.0, n, channels),
         "viewmat": torch.eye(4, dtype=torch.float64),
         "K": torch.tensor(
             [[256.0, 0.0, width / 2], [0.0, 256.0, height / 2], [0.0, 0.0, 1.0]],

@@ -17,7 +17,7 @@ from typing import Callable
 import torch
 
 from ..rasterize import rasterize
-from .common import print_table, write_results
+from .common import print_table, uniform, write_results
 
 PER_GAUSSIAN = ("means", "quats", "scales", "opacities", "colors", "means2d")
 GRADS = (*PER_GAUSSIAN, "background", "viewmat")
@@ -39,13 +39,10 @@ def random_scene(seed: int, n: int, width: int, height: int, channels: int = 3) 
     few pixels, opacities in [0.1, 0.7], direct colours, a background (as cpp_tests)."""
     gen = torch.Generator().manual_seed(seed)
 
-    def uniform(lo: float, hi: float, *shape: int) -> torch.Tensor:
-        return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
-
     f = 1.2 * max(width, height)
     K = torch.tensor(
-        [[f * uniform(0.9, 1.1, 1).item(), 0, width * uniform(0.4, 0.6, 1).item()],
-         [0, f * uniform(0.9, 1.1, 1).item(), height * uniform(0.4, 0.6, 1).item()],
+        [[f * uniform(gen, 0.9, 1.1, 1).item(), 0, width * uniform(gen, 0.4, 0.6, 1).item()],
+         [0, f * uniform(gen, 0.9, 1.1, 1).item(), height * uniform(gen, 0.4, 0.6, 1).item()],
          [0, 0, 1]],
         dtype=torch.float64,
     )  # fmt: skip
@@ -55,16 +52,16 @@ def random_scene(seed: int, n: int, width: int, height: int, channels: int = 3) 
     viewmat = torch.eye(4, dtype=torch.float64)
     viewmat[:3, :3] = torch.linalg.matrix_exp(skew - skew.T)
     viewmat[:3, 3] = 0.1 * torch.randn(3, generator=gen, dtype=torch.float64)
-    z = uniform(2, 4, n)
-    cam = torch.stack([uniform(-0.5, 0.5, n) * width, uniform(-0.5, 0.5, n) * height], -1)
+    z = uniform(gen, 2, 4, n)
+    cam = torch.stack([uniform(gen, -0.5, 0.5, n) * width, uniform(gen, -0.5, 0.5, n) * height], -1)
     cam = torch.cat([cam * z[:, None] / f, z[:, None]], -1)  # [N, 3] camera space
     return {
         "means": (cam - viewmat[:3, 3]) @ viewmat[:3, :3],  # [N, 3] = R^T (p - t)
         "quats": torch.randn(n, 4, generator=gen, dtype=torch.float64),
-        "scales": (z / f * uniform(1, 4, n))[:, None] * uniform(0.5, 1.5, n, 3),
-        "opacities": uniform(0.1, 0.7, n),
-        "colors": uniform(0, 1, n, channels),
-        "background": uniform(0, 1, channels),
+        "scales": (z / f * uniform(gen, 1, 4, n))[:, None] * uniform(gen, 0.5, 1.5, n, 3),
+        "opacities": uniform(gen, 0.1, 0.7, n),
+        "colors": uniform(gen, 0, 1, n, channels),
+        "background": uniform(gen, 0, 1, channels),
         "viewmat": viewmat,
         "K": K,
     }

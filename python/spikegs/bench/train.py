@@ -105,8 +105,7 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
 
 
 def uses_sim(config: Config) -> bool:
-    s = config.supervision
-    return s.instant == "sim" and s.instant_weight > 0
+    return config.instant_target() == "sim"
 
 
 def held_out_scores(trainer: Trainer) -> dict[str, float]:

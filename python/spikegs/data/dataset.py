@@ -536,13 +536,14 @@ UNITS_RATIO = 2.0  # on-path test images whose mean is over this factor from the
 # warned of: test images are firing rates (intensity 1 at rate_at_one; intensities in [0, 1] read
 # as rates scored 5.6 dB where 18.7 was due, unsaid)
 UNITS_MIN_SPIKES = 1000  # spikes (per channel) those views' TFP must count to judge by
+UNITS_WINDOW = 33  # readouts of the TFP that the test images are compared with
 
 
 def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], path: Path) -> None:
     """A UserWarning where the on-path test views' images [H, W, C] average over UNITS_RATIO
     times more, or less, than the firing rate of their spikes (TFP(33) at their readouts, each
     channel its stream's): images in intensity or 8-bit units, not spikes a readout."""
-    half = WINDOW_MARGIN // 2  # TFP(33)'s half window
+    half = UNITS_WINDOW // 2
     images, rates = [], []
     for view in views:
         k = None if view.readout is None else round(view.readout)

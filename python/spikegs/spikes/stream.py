@@ -300,7 +300,7 @@ class DatWriter:
             raise
 
     def write_bits(self, bits: np.ndarray) -> None:
-        """Append bits [n, H, W] (bool or 0/1 integers; 256 was written as 0, 0.5 as 0)."""
+        """Append bits [n, H, W], bool or 0/1 integers (other values refused: 256 wrapped to 0)."""
         bits = np.asarray(bits)
         _check_bits(bits)
         self._file.write(_C.spike_pack(bits, self._layout).data)
