@@ -256,7 +256,12 @@ def test_a_run_that_never_trains_the_instant_loss_trains_no_sim(few_views, monke
     targets = targets_module.build_targets(few_views, load_config("spikegs", overrides), False)
     assert targets.instant is None and targets.sim_seconds == 0.0
     assert targets.exposure is not None
+    # nor is SIM's window checked against the stream: it reads no spikes (it was refused)
+    wide = {**overrides, "sim": {"window": 2 * len(few_views.stream) + 1}}
+    targets_module.check_targets(few_views, load_config("spikegs", wide))
     overrides["densify"]["stop"] = 1  # one densifying step: its instant loss needs SIM
+    with pytest.raises(ValueError, match="sim.window = .* does not fit"):
+        targets_module.check_targets(few_views, load_config("spikegs", wide))  # (shares densify)
     with pytest.raises(AssertionError, match="SIM trained"):
         targets_module.build_targets(few_views, load_config("spikegs", overrides), False)
 
