@@ -27,6 +27,7 @@ from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.sources import optical_axes
 from spikegs.data.trajectory import Trajectory, look_at
+from spikegs.data_fingerprint import data_fingerprint, same_data
 from spikegs.demo import DEMO_OVERRIDES
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
@@ -36,8 +37,9 @@ from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import deferred_interrupt
 from spikegs.ply import load_ply, save_ply
+from spikegs.run_folder import run_lock
 from spikegs.targets import intensity_scale
-from spikegs.train import Trainer, _means_lr, data_fingerprint, run_lock, same_data
+from spikegs.train import Trainer, _means_lr
 from spikegs.train_cli import config_from_args
 
 FAST = {
@@ -1415,7 +1417,6 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert main([*argv, str(copy_of)]) == 130
         assert not (copy_of / "runs" / "tfp33").exists() and not (copy_of / "curves.png").exists()
     # one demo per OUT: a second one deleted the first one's dataset and run, lock and all
-    from spikegs.train import run_lock
 
     with run_lock(out):
         assert main([*argv, str(out)]) == 2

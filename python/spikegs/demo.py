@@ -24,6 +24,7 @@ from .cli import positive_int
 from .config import load_config, read_yaml
 from .curves import save_logged_curves
 from .data.scenes import SCENES
+from .run_folder import refuse_foreign_files, run_lock
 
 METHODS = ("spikegs", "tfp33")
 DEFAULT_SCENE = "solids"
@@ -176,8 +177,6 @@ def check_fresh_out(out: Path) -> None:
 def check_run_dirs(out: Path) -> None:
     """FileExistsError, before any work, where OUT/runs/METHOD holds files that are not a spikegs
     run's (a fresh demo would delete them, a resumed one refuse them after its first stages)."""
-    from .train import refuse_foreign_files
-
     for method in METHODS:
         run_dir = out / "runs" / method
         if run_dir.exists() and not run_dir.is_dir():
@@ -230,7 +229,6 @@ def write_figures(out: Path, dataset, results: dict) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .output_paths import check_folder_output
-    from .train import run_lock
 
     out = Path(args.out)
     check_folder_output(out)

@@ -15,6 +15,7 @@ from . import strict_json
 from .atomic_save import write_text_atomically
 from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
+from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import write_image
 from .metrics import psnr, ssim
@@ -56,7 +57,6 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
     another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
     units)."""
-    from .train import same_data  # (train imports us)
 
     own = train.get("dataset")
     if own is None:
@@ -107,7 +107,6 @@ def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
 def other_data(run_dir: Path, dataset) -> str | None:
     """What tells `dataset` from the data the finished run RUN was trained on (another scene,
     or other data than train.json's fingerprint); None where nothing does."""
-    from .train import same_data  # (train imports us)
 
     train = read_summary(run_dir)
     scene = _other_scene(run_dir, train, dataset, "renders along")
@@ -122,7 +121,6 @@ def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
     """Whether `folder`, the run's dataset folder, still holds the data of fingerprint `data`
     (False where it is gone, or holds another dataset or none: the run's data moved)."""
     from .data import load_dataset
-    from .train import same_data
 
     if not folder.exists():
         return False

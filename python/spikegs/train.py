@@ -7,7 +7,6 @@ end, scene.ply and train.json. Training resumes from the last checkpoint with `r
 from __future__ import annotations
 
 import functools
-import hashlib
 import json
 import math
 import sys
@@ -20,16 +19,11 @@ import torch
 from tqdm.auto import tqdm
 
 from . import strict_json
-from .atomic_save import (
-    is_temporary,
-    save_atomically,
-    sweep_temporaries,
-    write_text_atomically,
-)
+from .atomic_save import save_atomically, sweep_temporaries, write_text_atomically
 from .config import MIN_GAUSSIANS, Config, differences, dump_yaml, with_defaults
+from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
-from .file_lock import exclusive_lock
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
@@ -45,8 +39,8 @@ from .point_cloud import (
     seen_points,
 )
 from .pose_refine import PoseRefiner, make_refiner
-from .run_summary import CURVE, SUMMARY, last_checkpoint
-from .sim_train import spikes_fingerprint
+from .run_folder import check_fresh_run_dir, run_lock
+from .run_summary import SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
 
 SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views must see one
@@ -96,90 +90,10 @@ def _means_lr(config: Config, iteration: int, scene_radius: float) -> float:
     return math.exp(math.log(lr0) * (1 - frac) + math.log(lr1) * frac) * scene_radius
 
 
-def data_fingerprint(dataset, scale: float, sampled: bool = False) -> str:
-    """A digest of what training reads from `dataset`: its spikes (`spikes_fingerprint`, with
-    `sampled` as there), the poses at its training timestamps, its intrinsics and the intensity
-    `scale` (not its path: a moved dataset is the same data)."""
-    timestamps = np.asarray(dataset.train_timestamps, np.float64)
-    spikes = spikes_fingerprint(dataset.streams, timestamps, sampled)
-    digest = hashlib.sha256(spikes.encode())
-    # rounded: the last bits of interpolated poses and of a calibrated scale may differ between
-    # machines (BLAS, libm), and the same data moved there must still resume
-    poses = np.round(dataset.trajectory.pose_at(timestamps), 6) + 0.0  # + 0.0: no -0.0
-    digest.update(np.ascontiguousarray(poses, np.float64).data)
-    digest.update(np.asarray([*np.round(np.ravel(dataset.K), 6), float(f"{scale:.6g}")]).tobytes())
-    return digest.hexdigest()
-
-
-def same_data(saved: str, dataset, scale: float, current: str | None = None) -> bool:
-    """Whether a run's fingerprint `saved` is `dataset`'s: today's (`current` where known), or
-    the sampled one of runs trained before 2026-11-28."""
-    current = data_fingerprint(dataset, scale) if current is None else current
-    return saved == current or saved == data_fingerprint(dataset, scale, sampled=True)
-
-
-def run_lock(run_dir: Path):
-    """An exclusive lock on RUN/.lock for a `with` block: FileExistsError while another process
-    trains in RUN."""
-    return exclusive_lock(
-        run_dir / ".lock",
-        busy=f"{run_dir} is being trained by another process; wait for it to end or train into "
-        f"another --out",
-    )
-
-
-# what a fresh run writes before its first checkpoint: it may start over a run stopped then
-RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
-# what `spikegs train` and `spikegs eval` write in a run (and eval-DATASET*[.json] for others')
-RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", CURVE, "eval", "eval.json"}
-
-
-def foreign_files(run_dir: Path) -> list[str]:
-    """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted."""
-    names = (p.name for p in run_dir.iterdir()) if run_dir.is_dir() else ()
-    return sorted(
-        n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
-        for n in names
-        if n not in RUN_FILES and not n.startswith("eval-") and not is_temporary(n)
-    )
-
-
-def refuse_foreign_files(run_dir: Path, remedy: str) -> None:
-    """FileExistsError naming (five of) the files in `run_dir` that are not a run's
-    (`foreign_files`), followed by `remedy`; nothing where there are none."""
-    foreign = foreign_files(run_dir)
-    if foreign:
-        raise FileExistsError(
-            f"{run_dir} holds files that are not a run's ({', '.join(foreign[:5])}"
-            f"{', ...' if len(foreign) > 5 else ''}){remedy}"
-        )
-
-
 def _finite_nonnegative(values: torch.Tensor | None) -> bool:
     """Whether a tensor of values >= 0 where finite (None or empty: yes) is all finite: its max
     carries NaN and inf, one reduction (a tenth of isfinite(...).all()'s time)."""
     return values is None or values.numel() == 0 or bool(torch.isfinite(values.max()))
-
-
-def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
-    """FileExistsError where a fresh run in `run_dir` would overwrite or mix with files that are
-    not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a run with a
-    `checkpoint` is refused under the run's lock, with its own message)."""
-    if run_dir.exists() and not run_dir.is_dir():
-        raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
-    if not run_dir.is_dir() or checkpoint.exists():
-        return
-    # temporary files are a killed process's, swept when training starts
-    names = sorted(p.name for p in run_dir.iterdir() if not is_temporary(p.name))
-    foreign = foreign_files(run_dir)
-    finished = [n for n in names if n not in RUN_STARTED and n not in foreign]
-    if finished:
-        raise FileExistsError(
-            f"{run_dir} holds a finished run ({', '.join(finished)}) without its checkpoint "
-            f"({checkpoint}): nothing to continue, and training afresh would mix with its "
-            f"files; give another --out"
-        )
-    refuse_foreign_files(run_dir, "; give an empty or new --out")
 
 
 class Trainer:

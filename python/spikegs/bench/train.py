@@ -38,7 +38,8 @@ from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import render_view, view_metrics
-from ..train import Trainer, refuse_foreign_files
+from ..run_folder import refuse_foreign_files
+from ..train import Trainer
 from .common import print_table, write_results
 
 BASELINES = ("tfp33", "tfp65", "tfi")

@@ -1,0 +1,68 @@
+"""A run folder's rules: one process trains in it (its lock), what a run writes there, and the
+files that are not a run's, which no run overwrites."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .atomic_save import is_temporary
+from .file_lock import exclusive_lock
+from .run_summary import CURVE
+
+
+def run_lock(run_dir: Path):
+    """An exclusive lock on RUN/.lock for a `with` block: FileExistsError while another process
+    trains in RUN."""
+    return exclusive_lock(
+        run_dir / ".lock",
+        busy=f"{run_dir} is being trained by another process; wait for it to end or train into "
+        f"another --out",
+    )
+
+
+# what a fresh run writes before its first checkpoint: it may start over a run stopped then
+RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
+# what `spikegs train` and `spikegs eval` write in a run (and eval-DATASET*[.json] for others')
+RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", CURVE, "eval", "eval.json"}
+
+
+def foreign_files(run_dir: Path) -> list[str]:
+    """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted."""
+    names = (p.name for p in run_dir.iterdir()) if run_dir.is_dir() else ()
+    return sorted(
+        n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
+        for n in names
+        if n not in RUN_FILES and not n.startswith("eval-") and not is_temporary(n)
+    )
+
+
+def refuse_foreign_files(run_dir: Path, remedy: str) -> None:
+    """FileExistsError naming (five of) the files in `run_dir` that are not a run's
+    (`foreign_files`), followed by `remedy`; nothing where there are none."""
+    foreign = foreign_files(run_dir)
+    if foreign:
+        raise FileExistsError(
+            f"{run_dir} holds files that are not a run's ({', '.join(foreign[:5])}"
+            f"{', ...' if len(foreign) > 5 else ''}){remedy}"
+        )
+
+
+def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
+    """FileExistsError where a fresh run in `run_dir` would overwrite or mix with files that are
+    not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a run with a
+    `checkpoint` is refused under the run's lock, with its own message)."""
+    if run_dir.exists() and not run_dir.is_dir():
+        raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
+    if not run_dir.is_dir() or checkpoint.exists():
+        return
+    # temporary files are a killed process's, swept when training starts
+    names = sorted(p.name for p in run_dir.iterdir() if not is_temporary(p.name))
+    foreign = foreign_files(run_dir)
+    finished = [n for n in names if n not in RUN_STARTED and n not in foreign]
+    if finished:
+        raise FileExistsError(
+            f"{run_dir} holds a finished run ({', '.join(finished)}) without its checkpoint "
+            f"({checkpoint}): nothing to continue, and training afresh would mix with its "
+            f"files; give another --out"
+        )
+    refuse_foreign_files(run_dir, "; give an empty or new --out")
