@@ -1269,7 +1269,7 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
 def test_gif_plays_at_its_frame_rate(tmp_path, fps):
     """A GIF stores delays in hundredths of a second: 40 fps must not play at 50."""
     from PIL import Image
-    from spikegs.render_cli import write_video
+    from spikegs.video import write_video
 
     frames = np.zeros((12, 4, 6, 3), np.uint8)
     frames[:, 0, 0, 0] = np.arange(12) * 20  # distinct frames: none merged by the writer
@@ -1296,11 +1296,11 @@ def _decoded(path) -> np.ndarray:
 def test_mp4_holds_every_frame_of_any_size(codec, tmp_path, monkeypatch):
     """An odd size (yuv420p needs even ones) gains an edge-replicated row / column; the frames come
     back in order and close to what went in (near-lossless coding), with either encoder."""
-    from spikegs.render_cli import can_encode, write_video
+    from spikegs.video import can_encode, write_video
 
     if not can_encode(codec):
         pytest.skip(f"this PyAV's FFmpeg has no {codec} encoder")
-    monkeypatch.setattr("spikegs.render_cli.MP4_CODECS", (codec,))
+    monkeypatch.setattr("spikegs.video.MP4_CODECS", (codec,))
 
     y, x = np.mgrid[0:33, 0:47]  # odd height and width
     ramps = np.stack([10 + 3 * x, 10 + 4 * y, 70 + x - y], -1)  # [33, 47, 3] within 10..148
@@ -1540,7 +1540,7 @@ def test_render_refuses_an_unwritable_video_before_rendering(
     cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
-    monkeypatch.setattr("spikegs.render_cli.MP4_CODECS", ("vp6",))  # FFmpeg decodes it only
+    monkeypatch.setattr("spikegs.video.MP4_CODECS", ("vp6",))  # FFmpeg decodes it only
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4")]) == 2
     assert "none of the encoders" in capsys.readouterr().err
 

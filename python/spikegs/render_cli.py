@@ -10,17 +10,11 @@ import numpy as np
 
 from .cli import output_file, positive_int
 from .data.trajectory import WORLD_UP, look_at
-from .output_paths import check_file_output
+from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
 # count as level (roll noise of SfM poses stays below it)
 LEVEL_SPAN = 0.05
-MAX_FPS = 1000  # frames a second of a video (no player shows more)
-GIF_MAX_FPS = 50  # GIF delays are hundredths of a second; most viewers slow those under 2
-MP4_CODECS = ("libx264", "mpeg4")  # H.264 where PyAV's FFmpeg has it, else MPEG-4 part 2
-# near-lossless for both: x264's constant quality 18; MPEG-4 at quantiser 2 (global_quality is
-# in lambda units, FF_QP2LAMBDA = 118 a quantiser step)
-MP4_QUALITY = {"libx264": {"crf": "18"}, "mpeg4": {"flags": "+qscale", "global_quality": "236"}}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,112 +99,6 @@ def orbit_frames(model, dataset, frames: int, up: np.ndarray | None = None) -> n
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
         out.append((linear_to_srgb(image) * 255 + 0.5).astype(np.uint8))  # sRGB, as shown
     return np.stack(out)
-
-
-def check_video_output(path: Path, fps: int) -> None:
-    """ValueError, before any rendering, unless `path` can take a video at `fps`: a .gif (at most
-    GIF_MAX_FPS) or an .mp4, not an existing directory."""
-    suffix = path.suffix.lower()
-    if suffix not in (".gif", ".mp4"):
-        raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
-    check_file_output(path)
-    if not 1 <= fps <= MAX_FPS:  # PyAV's frame rate is a 32-bit fraction
-        raise ValueError(f"--fps: expected 1 to {MAX_FPS}, got {fps}")
-    if suffix == ".gif" and fps > GIF_MAX_FPS:
-        raise ValueError(
-            f"--fps {fps}: a GIF holds at most {GIF_MAX_FPS} (its frame delays are whole "
-            f"hundredths of a second, and viewers slow delays under 2 of them); use .mp4"
-        )
-    if suffix == ".mp4":
-        mp4_codec()
-
-
-def can_encode(codec: str) -> bool:
-    """Whether PyAV's FFmpeg has an encoder named `codec` (`av.codecs_available` lists decoders
-    too)."""
-    import av
-
-    try:
-        av.Codec(codec, "w")
-    except Exception:  # av.codec.codec.UnknownCodecError; its path moved between releases
-        return False
-    return True
-
-
-def mp4_codec() -> str:
-    """The first of MP4_CODECS that PyAV's FFmpeg can encode; ValueError if none."""
-    codec = next((c for c in MP4_CODECS if can_encode(c)), None)
-    if codec is None:
-        raise ValueError(
-            f"--out .mp4: this PyAV's FFmpeg has none of the encoders {', '.join(MP4_CODECS)}; "
-            f"install PyAV's own wheel (pip install --force-reinstall av) or write a .gif"
-        )
-    return codec
-
-
-BT601, SRGB_TRANSFER, LIMITED_RANGE = 6, 13, 1  # FFmpeg's AVColorSpace/Primaries, TRC, Range
-
-
-def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
-    """uint8 frames [F, H, W, 3] as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
-    in yuv420p, which every player reads; its chroma needs an even size, so an odd height or
-    width gains one edge-replicated row or column."""
-    import av
-
-    from .atomic_save import write_atomically
-
-    h, w = frames.shape[1:3]
-    frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-    codec = mp4_codec()
-
-    def write(tmp: Path) -> None:
-        with av.open(str(tmp), "w", format="mp4") as container:
-            stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
-            stream.height, stream.width = frames.shape[1:3]
-            stream.pix_fmt = "yuv420p"
-            # what swscale's rgb24 -> yuv420p conversion makes, stated so that players do not
-            # guess: BT.601 (SMPTE 170M) matrix and primaries, limited range, sRGB transfer
-            context = stream.codec_context
-            context.colorspace, context.color_primaries = BT601, BT601
-            context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
-            for frame in frames:
-                container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
-            container.mux(stream.encode())  # flush the encoder's delayed frames
-
-    write_atomically(path, write)  # no half-written video at `path`
-
-
-def gif_delays_ms(count: int, fps: int) -> list[int]:
-    """Per-frame delays (ms) of `count` GIF frames at `fps`: a GIF stores whole hundredths of a
-    second, so a rate like 40 fps alternates 20 and 30 ms, each frame ending within 5 ms of
-    its time at the exact rate (one delay of 1000 // fps played 40 fps at 50)."""
-    ends = np.round(np.arange(count + 1) * 100.0 / fps)  # [count + 1] centiseconds
-    return [10 * int(d) for d in np.diff(ends)]
-
-
-def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
-    """uint8 frames [F, H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
-    first."""
-    check_video_output(path, fps)
-    if path.suffix.lower() == ".gif":
-        from PIL import Image
-
-        from .atomic_save import write_atomically
-
-        images = [Image.fromarray(f) for f in frames]
-        write_atomically(  # no truncated animation at `path`
-            path,
-            lambda tmp: images[0].save(
-                tmp,
-                format="GIF",
-                save_all=True,
-                append_images=images[1:],
-                duration=gif_delays_ms(len(frames), fps),
-                loop=0,
-            ),
-        )
-    else:
-        write_mp4(path, frames, fps)
 
 
 def run(args: argparse.Namespace) -> int:
