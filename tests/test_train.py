@@ -1320,6 +1320,13 @@ def test_mp4_holds_every_frame_of_any_size(codec, tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["v.mp4"]  # no partial file left
 
 
+def _ctrl_c(*args) -> None:
+    """A Ctrl-C where it is called. (Not `exec("raise KeyboardInterrupt")`: a KeyboardInterrupt
+    out of exec'd text marks the interpreter, which then kills itself with SIGINT at exit unless
+    a later exec resets the mark: pytest exited 130 after every test passed, in a fresh venv.)"""
+    raise KeyboardInterrupt
+
+
 def _tiny_demo(monkeypatch, sim_iterations: int) -> None:
     """`spikegs demo` on TINY datasets with FAST's schedule and a SIM of `sim_iterations`."""
     import spikegs.data
@@ -1405,13 +1412,13 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert "notes.txt" in capsys.readouterr().err
         (out / "runs" / "tfp33" / "notes.txt").unlink()
         # Ctrl-C while it writes its figures: said how to go on, as in the stages before
-        patch.setattr("spikegs.demo.write_figures", lambda *a: exec("raise KeyboardInterrupt"))
+        patch.setattr("spikegs.demo.write_figures", _ctrl_c)
         patch.setattr("spikegs.demo.demo_dataset", lambda *a: load_dataset(out / "data"))
         assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
         assert "with --resume continues" in capsys.readouterr().err
         # a fresh demo deletes every earlier run and figure as it starts: stopped before its
         # last method, it left that method's finished run, which --resume refused
-        patch.setattr("spikegs.demo.demo_dataset", lambda *a: exec("raise KeyboardInterrupt"))
+        patch.setattr("spikegs.demo.demo_dataset", _ctrl_c)
         copy_of = tmp_path / "copy"
         shutil.copytree(out, copy_of)
         assert main([*argv, str(copy_of)]) == 130
