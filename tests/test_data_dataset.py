@@ -21,8 +21,9 @@ from spikegs.data import (
 )
 from spikegs.data.dataset import TestView as View
 from spikegs.data.dataset import check_meta_values, write_parts
-from spikegs.data.sources import camera_matrix, intrinsics
+from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
+from spikegs.data.transforms_file import camera_matrix
 from spikegs.spikes.stream import save_dat
 
 SMALL = dict(height=24, width=32, readouts=400, test_on_path=2, test_off_path=2, progress=False)

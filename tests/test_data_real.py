@@ -26,8 +26,8 @@ from spikegs.data.real import (
     warn_pose_gaps,
 )
 from spikegs.data.real_options import Options, read_options
-from spikegs.data.sources import OPENGL_TO_OPENCV
 from spikegs.data.trajectory import Trajectory, look_at
+from spikegs.data.transforms_file import OPENGL_TO_OPENCV
 from spikegs.data.view_stream import ViewStreams
 from spikegs.evaluate import evaluate_run
 from spikegs.image_io import read_image, write_image

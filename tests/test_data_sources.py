@@ -17,20 +17,16 @@ from spikegs.data import (
     make_source,
     simulate_dataset,
 )
-from spikegs.data.sources import (
+from spikegs.data.sources import MissingDependencyError, MitsubaSource, import_mitsuba
+from spikegs.data.trajectory import check_rigid, look_at
+from spikegs.data.transforms_file import OPENGL_TO_OPENCV, read_frame
+from spikegs.data.view_geometry import (
     AXES_SPREAD_MIN,
-    LUMA_709,
-    OPENGL_TO_OPENCV,
-    MissingDependencyError,
-    MitsubaSource,
     centre_of_view,
     converging_centre,
-    import_mitsuba,
-    read_frame,
     view_sphere,
 )
-from spikegs.data.trajectory import check_rigid, look_at
-from spikegs.image_io import srgb_to_linear, write_image
+from spikegs.image_io import LUMA_709, srgb_to_linear, write_image
 from spikegs.spikes import save_dat
 
 
@@ -65,7 +61,6 @@ def write_transforms(path, name, frames, viewmats, K, ext):
 def test_8_bit_images_hold_srgb_as_they_are_tagged(tmp_path):
     """Eval PNGs, comparison.png and videos held linear values in files tagged sRGB: a mid grey
     (linear 0.216, sRGB 128) was stored as 55 and shown 5.7x too dark."""
-    from spikegs.data.sources import read_frame
     from spikegs.image_io import read_image
 
     grey = np.full((4, 6, 3), 0.2158605, np.float32)  # sRGB 128 / 255

@@ -12,13 +12,10 @@ import json
 import numpy as np
 import pytest
 from spikegs.data import SCENES, ProceduralSource
-from spikegs.data.sources import (
-    OPENGL_TO_OPENCV,
-    FrameSequenceSource,
-    RenderSource,
-    optical_axes,
-)
+from spikegs.data.sources import FrameSequenceSource, RenderSource
 from spikegs.data.trajectory import Trajectory, look_at, orbit_eye
+from spikegs.data.transforms_file import OPENGL_TO_OPENCV
+from spikegs.data.view_geometry import optical_axes
 from spikegs.image_io import write_image
 
 

@@ -25,8 +25,8 @@ from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.data.sources import optical_axes
 from spikegs.data.trajectory import Trajectory, look_at
+from spikegs.data.view_geometry import optical_axes
 from spikegs.data_fingerprint import data_fingerprint, same_data
 from spikegs.demo import DEMO_OVERRIDES
 from spikegs.densify import Densifier, DensifyConfig

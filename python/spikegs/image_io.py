@@ -1,4 +1,5 @@
-"""Image files through OpenImageIO: float [H, W, C] arrays in and out (EXR exact, PNG 8-bit)."""
+"""Image files through OpenImageIO: float [H, W, C] arrays in and out (EXR exact, PNG 8-bit); the
+colour conversions of linear light (sRGB, Rec. 709 luma)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,18 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     """Encode linear light in [0, 1] (clipped) as sRGB values in [0, 1]."""
     c = np.clip(c, 0.0, 1.0)
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
+
+
+def to_channels(rgb: np.ndarray, channels: int) -> np.ndarray:
+    """Linear RGB [..., 3] -> [..., channels]: Rec. 709 luma for 1, unchanged for 3."""
+    if channels == 3:
+        return rgb
+    if channels == 1:
+        return rgb @ LUMA_709[:, None]
+    raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
 
 
 def _reason(error: str) -> str:

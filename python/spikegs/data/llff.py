@@ -32,8 +32,9 @@ from .real import (
     views_dataset,
 )
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
-from .sources import converging_centre, frame_columns, optical_axes
 from .trajectory import PathLike, readout_number, rigid_c2w
+from .transforms_file import frame_columns
+from .view_geometry import converging_centre, optical_axes
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
     "poses_bounds.npy",

@@ -24,10 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..image_io import to_channels
 from .dataset import Dataset, repeated
 from .real import camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
-from .sources import (
+from .trajectory import PathLike
+from .transforms_file import (
     IMAGE_EXTENSIONS,
     TRANSFORMS,
     camera_matrix,
@@ -38,12 +40,10 @@ from .sources import (
     read_frame,
     read_transforms_doc,
     stated_size,
-    to_channels,
     transforms_viewmats,
-    view_sphere,
     warn_unread_transforms,
 )
-from .trajectory import PathLike
+from .view_geometry import view_sphere
 
 SPIKE_DIR = "spike_data"
 

@@ -33,15 +33,9 @@ from .dataset import (
     write_parts,
 )
 from .scenes import SCENES
-from .sources import (
-    TRANSFORMS,
-    FrameSequenceSource,
-    MitsubaSource,
-    ProceduralSource,
-    Source,
-    warn_unread_transforms,
-)
+from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Source
 from .trajectory import Trajectory, project_points
+from .transforms_file import TRANSFORMS, warn_unread_transforms
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all

@@ -12,63 +12,24 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 
 from __future__ import annotations
 
-import math
 import warnings
 from abc import ABC, abstractmethod
 from pathlib import Path
 
 import numpy as np
-import skimage.transform
 import torch
 
-from ..image_io import read_stored_image, srgb_to_linear
+from ..image_io import to_channels
 from ..missing_dependency import MissingDependencyError
-from ..number_checks import is_number, number_array
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
-from .dataset import check_intrinsics, check_meta_values, intrinsics_keys
+from .dataset import check_meta_values
 from .scenes import GaussianScene
-from .trajectory import Trajectory, look_at, orbit_eye, read_json, rigid_c2w
+from .trajectory import Trajectory, look_at, orbit_eye
+from .transforms_file import intrinsics_text, read_transforms
+from .view_geometry import view_sphere
 
-LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
-IMAGE_EXTENSIONS = (
-    ".png",
-    ".exr",
-    ".jpg",
-    ".jpeg",
-    ".tif",
-    ".tiff",
-)  # tried in turn after an extensionless path
-OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
-CONVERGING = 0.03  # smallest eigenvalue of mean(I - d d^T) over view directions d: inward-facing
-# the least spread whose nearest point of the axes a scene sphere is taken from where no depth
-# bounds give another (NeRF layout, simulate): below it (directions within ~2°, forward-facing
-# or parallel) that point is set by the poses' noise. A 30° inward arc, a ring seen from 82°
-# elevation spread 0.02-0.07, forward-facing views jittered by 1° ~3e-4
-AXES_SPREAD_MIN = 1e-3
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
-SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
-CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
-DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
-# nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
-# others (fisheye, equirectangular, ...) a pinhole rasterizer cannot render
-PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "FULL_OPENCV", "SIMPLE_RADIAL", "RADIAL")
-CAMERA_RANGES = {  # key: (in range, what is expected)
-    "camera_angle_x": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
-    "fl_x": (lambda v: v > 0, "> 0 (pixels)"),
-    "fl_y": (lambda v: v > 0, "> 0 (pixels)"),
-    "w": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
-    "h": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
-}
-
-
-def to_channels(rgb: np.ndarray, channels: int) -> np.ndarray:
-    """Linear RGB [..., 3] -> [..., channels]: Rec. 709 luma for 1, unchanged for 3."""
-    if channels == 3:
-        return rgb
-    if channels == 1:
-        return rgb @ LUMA_709[:, None]
-    raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
 
 
 def intrinsics(width: int, height: int, fov_x_deg: float) -> np.ndarray:
@@ -353,7 +314,7 @@ class FrameSequenceSource(Source):
         The scene sphere: `center`, `radius`, else the file's scene_center and scene_radius, else
         `view_sphere`'s."""
         path = Path(path)
-        frames, viewmats, K, doc = _read_transforms(path, width, height, channels, background)
+        frames, viewmats, K, doc = read_transforms(path, width, height, channels, background)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
@@ -367,14 +328,14 @@ class FrameSequenceSource(Source):
         test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
         if test_path:
-            images, poses, test_K, _ = _read_transforms(
+            images, poses, test_K, _ = read_transforms(
                 Path(test_path), width, height, channels, background
             )
             if not np.allclose(test_K, K, rtol=1e-6, atol=0):  # both at width × height
                 raise ValueError(
                     f"{test_path}: its camera (fx, fy, cx, cy at {width}x{height}: "
-                    f"{_intrinsics_text(test_K)}) differs from {path}'s "
-                    f"({_intrinsics_text(K)}); one camera expected"
+                    f"{intrinsics_text(test_K)}) differs from {path}'s "
+                    f"({intrinsics_text(K)}); one camera expected"
                 )
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
         return cls(
@@ -416,355 +377,3 @@ class FrameSequenceSource(Source):
 
     def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
         return self._test_views[:count]
-
-
-def optical_axes(viewmats: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Camera centres [F, 3], view directions [F, 3] and the projections I - d d^T [F, 3, 3]
-    across each optical axis, of world-to-camera viewmats [F, 4, 4]."""
-    c2w = np.linalg.inv(viewmats)  # [F, 4, 4]
-    eyes, dirs = c2w[:, :3, 3], c2w[:, :3, 2]  # [F, 3] each
-    return eyes, dirs, np.eye(3) - dirs[:, :, None] * dirs[:, None, :]
-
-
-def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
-    """The point [3] nearest to all optical axes, and the mean camera distance to it / 2.5
-    (the scene radius that the spiral sources see from their distance of 2.5 radii)."""
-    eyes, _, proj = optical_axes(viewmats)
-    center = np.linalg.lstsq(proj.sum(0), np.einsum("fij,fj->i", proj, eyes), rcond=None)[0]
-    return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
-
-
-def converging_centre(
-    viewmats: np.ndarray, min_spread: float = CONVERGING
-) -> tuple[np.ndarray, float] | None:
-    """`centre_of_view` of viewmats [F, 4, 4] when their optical axes converge in front of every
-    camera: view directions spread (`min_spread`; CONVERGING, about ±20°, for LLFF, which has depth
-    bounds to fall back on) and the point ahead of each; else None (forward-facing views: the
-    nearest point is set by noise, often behind them)."""
-    eyes, dirs, proj = optical_axes(viewmats)  # [F, 3], [F, 3], [F, 3, 3]
-    center, radius = centre_of_view(viewmats)
-    ahead = np.einsum("fi,fi->f", center - eyes, dirs) > 0  # [F]
-    spread = np.linalg.eigvalsh(proj.mean(0))[0] >= min_spread
-    return (center, radius) if spread and ahead.all() else None
-
-
-def view_sphere(
-    viewmats: np.ndarray, source, fix: str, *, center=None, radius: float | None = None
-) -> tuple[np.ndarray, float]:
-    """The scene sphere's centre [3] and radius: `center`, `radius` where given (a centre needs
-    its radius; a radius alone keeps the computed centre), else `converging_centre`'s; ValueError
-    naming `source` and how to `fix` it when one is needed and the optical axes of viewmats
-    [F, 4, 4] do not converge in front of the cameras."""
-    if radius is not None and not (is_number(radius) and radius > 0):
-        raise ValueError(f"{source}: scene radius expected a finite number > 0, found {radius!r}")
-    if center is not None:
-        try:
-            given = number_array(center)
-        except ValueError:  # text, booleans, ragged lists
-            given = np.full(1, np.nan)
-        if given.shape != (3,) or not np.isfinite(given).all():
-            raise ValueError(f"{source}: scene centre expected 3 finite numbers, found {center!r}")
-    if center is not None and radius is not None:
-        return given, float(radius)
-    if center is not None:
-        raise ValueError(
-            f"{source}: a scene centre needs its radius (the radius computed from the views is "
-            f"about the centre computed with it); {fix}"
-        )
-    converged = converging_centre(viewmats, AXES_SPREAD_MIN)
-    if converged is None:
-        eyes, dirs, _ = optical_axes(viewmats)  # [F, 3], [F, 3]
-        position, direction = (
-            (np.round(v, 3) + 0.0).tolist()  # + 0.0: no -0.0
-            for v in (eyes.mean(0), dirs.mean(0) / np.linalg.norm(dirs.mean(0)))
-        )
-        raise ValueError(
-            f"{source}: the cameras' optical axes do not converge in front of them (forward-facing "
-            f"or parallel views, directions within about ±2°, or axes whose nearest point lies "
-            f"behind a camera), so the scene's centre and size are unknown; {fix} (the "
-            f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
-            f"scene D ahead of them is centred at position + D * direction)"
-        )
-    return converged[0], converged[1] if radius is None else float(radius)
-
-
-TRANSFORMS = ("transforms_train.json", "transforms_test.json", "transforms.json")  # NeRF layout
-
-
-def warn_unread_transforms(root: Path, read: list[Path]) -> None:
-    """A UserWarning naming the TRANSFORMS files in `root` that are not among `read` (the files
-    taken: transforms_train.json + transforms_test.json, else one file)."""
-    unread = [name for name in TRANSFORMS if (root / name).is_file() and root / name not in read]
-    if unread:
-        taken = ", ".join(p.name for p in read if p.is_file())
-        warnings.warn(
-            f"{root}: reading {taken}; {', '.join(unread)} not read (the layout takes "
-            f"transforms_train.json + transforms_test.json, else one file)",
-            stacklevel=3,
-        )
-
-
-def read_transforms_doc(path: Path) -> dict:
-    """A transforms JSON (NeRF / nerfstudio); FileNotFoundError, or ValueError naming `path`
-    unless it is an object with a non-empty list of frames, each with a file_path (text) and a
-    transform_matrix."""
-    if not path.is_file():
-        raise FileNotFoundError(f"transforms file not found: {path}")
-    doc = read_json(path)
-    if not isinstance(doc.get("frames", []), list):
-        raise ValueError(f"{path}: expected a JSON object with a list of frames")
-    for i, frame in enumerate(doc.get("frames") or []):
-        if not (
-            isinstance(frame, dict)
-            and isinstance(frame.get("file_path"), str)
-            and "transform_matrix" in frame
-        ):
-            raise ValueError(f"{path}: frame {i} needs a file_path (text) and a transform_matrix")
-    if not doc.get("frames"):
-        raise ValueError(f"{path}: no frames")
-    return doc
-
-
-def _transform_matrix(path: Path, i: int, frame: dict) -> np.ndarray:
-    """Frame i's transform_matrix [4, 4]; ValueError naming the frame if it is not 4x4 numbers."""
-    try:
-        matrix = number_array(frame["transform_matrix"])
-    except (ValueError, TypeError):
-        matrix = None
-    if matrix is None or matrix.shape != (4, 4):
-        raise ValueError(
-            f"{path}: frame {i} ('{frame['file_path']}'): transform_matrix expected 4 rows of 4 "
-            f"numbers, found {frame['transform_matrix']!r}"[:300]
-        )
-    return matrix
-
-
-def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
-    """OpenCV world-to-camera viewmats [F, 4, 4] of a transforms document's frames (`path` names
-    it in errors); rounded rotations made exactly rigid, other ones refused."""
-    c2w = np.stack([_transform_matrix(path, i, f) for i, f in enumerate(doc["frames"])])
-    bad = np.flatnonzero(~np.isfinite(c2w).all(axis=(1, 2)))  # c2w [F, 4, 4]
-    if bad.size:
-        raise ValueError(f"{path}: non-finite (NaN/inf) transform_matrix in frames {bad.tolist()}")
-    if is_opengl(path, doc):
-        c2w = c2w @ OPENGL_TO_OPENCV
-    return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
-
-
-def _intrinsics_text(K: np.ndarray) -> str:
-    """fx, fy, cx, cy of a camera matrix [3, 3], for a message."""
-    return ", ".join(f"{v:.6g}" for v in intrinsics_keys(K).values())
-
-
-def _camera_text(camera: dict) -> str:
-    """A transforms file's camera keys and their numbers, for a message: 'w 48, fl_x 40.5'."""
-    return ", ".join(f"{key} {value:.6g}" for key, value in camera.items())
-
-
-def _read_transforms(path: Path, width: int, height: int, channels: int, background: float):
-    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
-    transforms JSON."""
-    doc = read_transforms_doc(path)
-    frames = doc["frames"]
-    viewmats = transforms_viewmats(path, doc)  # [F, 4, 4]
-    camera = read_camera([doc] * len(frames), frames, [path] * len(frames))
-    src, what = stated_size(path, camera, "its first frame")
-    images, negative = [], []  # negative: (file, values below 0, the lowest) of each frame
-    for f in frames:
-        image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
-        if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
-            negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
-            image = np.maximum(image, 0.0)
-        src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
-        if not images:  # the aspect ratio checked before any frame is resized (no crop here)
-            frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
-        image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
-        images.append(to_channels(image, channels))
-    if negative:
-        warnings.warn(
-            f"{path}: {len(negative)} frame(s) hold {sum(n for _, n, _ in negative)} values below "
-            f"0 (the lowest {min(low for *_, low in negative):.3g}, first in "
-            f"{negative[0][0]}), set to 0: light is not negative",
-            stacklevel=3,
-        )
-    K = camera_matrix(path, camera, src, (height, width))
-    return np.stack(images).astype(np.float32), viewmats, K, doc
-
-
-def camera_number(path: Path, key: str, value) -> float:
-    """A transforms file's camera value as a finite float, in CAMERA_RANGES for its key;
-    ValueError naming `key` otherwise (camera_angle_x over pi: degrees, not radians?)."""
-    number = float(value) if is_number(value) else math.nan  # "0.4" is text, true no number
-    if not math.isfinite(number):
-        raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
-    in_range, expected = CAMERA_RANGES.get(key, (lambda v: True, ""))
-    if not in_range(number):
-        degrees = key == "camera_angle_x" and number >= math.pi
-        hint = f" ({number:g} degrees would be {math.radians(number):.6g})" if degrees else ""
-        raise ValueError(f"{path}: {key} expected {expected}, found {value!r}{hint}")
-    return number
-
-
-def is_opengl(path: Path, doc: dict) -> bool:
-    """Whether a transforms file's camera-to-world matrices are OpenGL's (y up, z back: the
-    default) or OpenCV's ("convention": "opencv"); ValueError naming the file for another value."""
-    convention = doc.get("convention", "opengl")
-    if not isinstance(convention, str) or convention.lower() not in ("opengl", "opencv"):
-        raise ValueError(f"{path}: convention {convention!r}, expected 'opengl' or 'opencv'")
-    return convention.lower() == "opengl"
-
-
-def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
-    """`image` [h, w, C] resized to (h, w) `size` if need be; ValueError naming it (`name`) unless
-    it has the aspect ratio of the camera's (h, w) `src` (its width within a pixel or 1 % of the
-    camera's aspect at its height): another aspect ratio is another crop of the view, which
-    resizing would stretch."""
-    (h, w), (src_h, src_w) = image.shape[:2], src
-    if abs(w - h * src_w / src_h) > max(1.0, 0.01 * w):
-        raise ValueError(
-            f"{name}: image {w}x{h} (aspect {w / h:.3f}), the camera's images are {src_w}x"
-            f"{src_h} (aspect {src_w / src_h:.3f}): an image of another aspect ratio shows "
-            f"another crop of the view; crop or pad it to the camera's"
-        )
-    if (h, w) == tuple(size):
-        return image
-    return skimage.transform.resize(image, size, anti_aliasing=True)
-
-
-def read_camera(docs: list, frames: list, sources: list) -> dict:
-    """The one camera {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS): the first frame's
-    file's keys (docs [F], each frame's file's JSON; sources [F], its path), the frame's own file's,
-    then the frame's (nerfstudio), each checked (`camera_number`); ValueError naming two frames that
-    differ or a camera_model that is not a pinhole; a warning for non-zero distortion, which the
-    pinhole rasterizer does not model."""
-    for doc, frame, source in zip(docs, frames, sources):
-        model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
-        if model not in PINHOLE_MODELS:
-            raise ValueError(
-                f"{source}: camera_model {model!r} of frame '{frame['file_path']}': the "
-                f"rasterizer renders pinhole cameras ({', '.join(PINHOLE_MODELS)}); rectify the "
-                f"frames to one"
-            )
-    keys = CAMERA_KEYS + DISTORTION_KEYS
-    merged = [
-        {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
-        for doc, frame in zip(docs, frames)
-    ]
-    cameras = [
-        {k: camera_number(src, k, v) for k, v in c.items()} for c, src in zip(merged, sources)
-    ]
-    for i, camera in enumerate(cameras):
-        if camera.keys() != cameras[0].keys() or not np.allclose(
-            [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
-        ):
-            raise ValueError(
-                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
-                f"{_camera_text(camera)}, frame '{frames[0]['file_path']}' of {sources[0]} "
-                f"{_camera_text(cameras[0])}: one camera expected"
-            )
-    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
-    if distortion:
-        warnings.warn(
-            f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
-            f"camera (undistort the spikes' frames to model it)",
-            stacklevel=3,
-        )
-    return cameras[0]
-
-
-def stated_size(path: Path, camera: dict, image: str) -> tuple[tuple[int, int] | None, str]:
-    """(h, w) of the images a camera's intrinsics are for, from its w and h (None without them,
-    the size of `image` then), and what gives it (for `frame_columns`); ValueError naming `path`
-    when the camera gives one of w, h alone."""
-    if ("w" in camera) != ("h" in camera):
-        raise ValueError(f"{path}: w and h expected together (the intrinsics' image size)")
-    if "w" not in camera:
-        return None, f"the camera (sized as {image})"
-    return (int(camera["h"]), int(camera["w"])), "the camera (its w, h)"
-
-
-def frame_columns(
-    source, what: str, src: tuple, size: tuple, fix: str, raw_width=None, col_offset: int = 0
-) -> tuple[int, int]:
-    """(width, first column) of frames of `size` (h, w) within images of `src` (h, w) resized to
-    their height: (w, 0), or (raw_width, col_offset) for a raw-row crop (src's width at that height
-    within a pixel of raw_width's, not of w's); a crop keeps the focal. ValueError naming `source`
-    and `what` src is, saying how to `fix` it, when neither is within a pixel: another aspect
-    ratio, the focal would differ in x and y (non-square pixels)."""
-    (src_h, src_w), (height, width) = src, size
-    scaled = src_w * height / src_h  # the images' width at the frames' height
-    crop = raw_width is not None and raw_width != width and abs(scaled - raw_width) <= 1
-    frame, shift = (raw_width, col_offset) if crop else (width, 0)
-    if abs(scaled - frame) > 1:
-        stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
-        raise ValueError(
-            f"{source}: {what} is for {src_h:g}x{src_w:g} images (height x width), of another "
-            f"aspect ratio than the {height}x{width} spikes{stored}: {src_w / src_h:.4g} vs "
-            f"{width / height:.4g}, the focal would differ in x and y (non-square pixels); {fix}"
-        )
-    return frame, shift
-
-
-def camera_matrix(
-    path: Path, camera: dict, src: tuple, size: tuple, shift: float = 0
-) -> np.ndarray:
-    """K [3, 3] of a transforms file's `camera` (`read_camera`'s keys: fl_x, fl_y, cx, cy, or
-    camera_angle_x) for images of `src` (h, w), scaled to `size` (h, w) and moved `shift` columns
-    left (a crop, `frame_columns`); cx, cy default to the image centre."""
-    (src_h, src_w), (height, width) = src, size
-    get = lambda key, default: camera_number(path, key, camera.get(key, default))  # noqa: E731
-    from_angle = None  # the focal (px) of camera_angle_x at the images' width
-    if "camera_angle_x" in camera:
-        from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
-    if "fl_x" in camera or "fl_y" in camera:  # one focal given: square pixels
-        fx = get("fl_x", camera.get("fl_y"))
-        fy = get("fl_y", fx)
-        if from_angle is not None and abs(from_angle - fx) > 0.01 * fx:
-            warnings.warn(
-                f"{path}: fl_x {fx:g} and camera_angle_x (a focal of {from_angle:.6g} px at "
-                f"width {src_w:g}) disagree; fl_x is used",
-                stacklevel=2,
-            )
-    elif from_angle is not None:
-        fx = fy = from_angle
-    else:
-        raise ValueError(
-            f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
-            f"in every frame)"
-        )
-    cx, cy = get("cx", src_w / 2), get("cy", src_h / 2)
-    sx, sy = width / src_w, height / src_h
-    K = np.array([[fx * sx, 0.0, cx * sx - shift], [0.0, fy * sy, cy * sy], [0.0, 0.0, 1.0]])
-    check_intrinsics(K, height, width, path)
-    return K
-
-
-def read_frame(base: Path, background: float) -> np.ndarray:
-    """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic), an alpha
-    channel composited over `background` in linear light, colour read as the file's metadata
-    says: sRGB or linear, associated with alpha (EXR) or not (PNG)."""
-    candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
-    files = [p for p in candidates if p.is_file()]
-    if not files:
-        raise FileNotFoundError(
-            f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
-        )
-    found = files[0]
-    if len(files) > 1 and found != base:  # one message per folder, not per frame
-        warnings.warn(
-            f"{base.parent}: frame images in several formats "
-            f"({', '.join(p.suffix for p in files)}): {found.suffix} is read, the first of "
-            f"{', '.join(IMAGE_EXTENSIONS)}",
-            stacklevel=2,
-        )
-    stored = read_stored_image(found)
-    colour = np.broadcast_to(stored.colour, (*stored.colour.shape[:2], 3)).astype(np.float64)
-    alpha = None if stored.alpha is None else stored.alpha.astype(np.float64)  # [h, w, 1]
-    if stored.srgb:
-        if stored.premultiplied and alpha is not None:  # sRGB units of colour * alpha
-            colour = np.divide(colour, alpha, out=np.zeros_like(colour), where=alpha > 0)
-        colour = srgb_to_linear(colour)
-    if alpha is not None:
-        associated = stored.premultiplied and not stored.srgb
-        colour = (colour if associated else colour * alpha) + background * (1 - alpha)
-    return colour  # [h, w, 3]
