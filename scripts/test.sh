@@ -14,4 +14,7 @@ cmake -S . -B build/ctest-serial -DSPIKEGS_PYTHON=OFF -DSPIKEGS_TESTS=ON \
 cmake --build build/ctest-serial -j"$(nproc)" >/dev/null
 ctest --test-dir build/ctest-serial --output-on-failure -j"$(nproc)"
 python -m pytest -q tests
-spikegs bench all --quick --out "${TMPDIR:-/tmp}/spikegs-bench-quick"
+# the quick benchmarks into a folder of this run's own (a shared one mixed two runs' files)
+bench_out="$(mktemp -d)"
+trap 'rm -rf "$bench_out"' EXIT
+spikegs bench all --quick --out "$bench_out"

@@ -11,6 +11,7 @@ import re
 import shutil
 import signal
 import subprocess
+import sys
 import time
 import warnings
 from types import SimpleNamespace
@@ -1377,7 +1378,9 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert 10 < scores["psnr"] < 60 and 0 < scores["ssim"] <= 1 and scores["train_seconds"] > 0
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
     views = len(load_dataset(out / "data").test_views)
-    assert read_image(out / "comparison.png").shape[:2] == (views * 32, 3 * 32)
+    comparison = read_image(out / "comparison.png")  # [16 + views * 32, 3 * 32, C]
+    assert comparison.shape[:2] == (16 + views * 32, 3 * 32)
+    assert comparison[:16].max() > 0.9 and comparison[:16].mean() < 0.5  # titles: white on black
     # curves.png: error against time, every 50 iterations and at the end
     assert read_image(out / "curves.png").ndim == 3
     curve = logged_curve(out / "runs" / "spikegs")
@@ -1804,6 +1807,15 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
         build_parser().parse_args(argv)
     assert exit_info.value.code == 2
     assert "expected a positive integer" in capsys.readouterr().err
+
+
+def test_python_dash_m_spikegs_is_the_command():
+    """`python -m spikegs` (where the console script is not on PATH) said 'No module named
+    spikegs.__main__'."""
+    done = subprocess.run(
+        [sys.executable, "-m", "spikegs", "train", "--help"], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and done.stdout.startswith("usage: spikegs train"), done.stderr
 
 
 @pytest.mark.parametrize(

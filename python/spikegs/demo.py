@@ -209,9 +209,26 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
     return results
 
 
+def column_titles(titles: list[str], width: int, height: int = 16) -> np.ndarray:
+    """A header [height, len(titles) * width, 1] of white titles on black, each centred over its
+    column of `width` pixels (and cut to it), in linear light."""
+    from PIL import Image, ImageDraw
+
+    from .image_io import srgb_to_linear
+
+    columns = []
+    for title in titles:
+        column = Image.new("L", (width, height))
+        draw = ImageDraw.Draw(column)
+        left, top, right, bottom = draw.textbbox((0, 0), title)
+        draw.text(((width - right - left) / 2, (height - bottom - top) / 2), title, fill=255)
+        columns.append(np.asarray(column, np.float64) / 255)  # sRGB values, antialiased
+    return srgb_to_linear(np.concatenate(columns, axis=1))[..., None]
+
+
 def write_figures(out: Path, dataset, results: dict) -> None:
     """OUT/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, from the
-    runs' evaluation images) and OUT/curves.png (`save_logged_curves`)."""
+    runs' evaluation images, under those titles) and OUT/curves.png (`save_logged_curves`)."""
     from .image_io import read_image, srgb_to_linear, write_image
 
     rows = []
@@ -222,7 +239,9 @@ def write_figures(out: Path, dataset, results: dict) -> None:
         ]
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
-    write_image(out / COMPARISON, np.concatenate(rows, axis=0))
+    header = column_titles(["ground truth", "TFP(33)+3DGS", "SpikeGS"], w)  # METHODS reversed
+    header = np.broadcast_to(header, (*header.shape[:2], rows[0].shape[2]))
+    write_image(out / COMPARISON, np.concatenate([header, *rows], axis=0))
     runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
     save_logged_curves(out / CURVES, runs, dataset)
 
