@@ -105,9 +105,9 @@ def intensity_scale(dataset) -> float:
     guess = float(np.percentile(rates, 99.5))
     if guess == 0:
         warnings.warn(
-            f"{dataset.root}: TFP(33) is 0 at 99.5 % of the pixels of {len(ts)} training windows "
-            f"spread over the stream: the intensity scale (the firing rate of intensity 1) is "
-            f"taken as 1; state it (meta.json's image_scale)",
+            f"{dataset.root}: TFP(33) is 0 at 99.5 % or more of the pixels of {len(ts)} training "
+            f"windows spread over the stream: the intensity scale (the firing rate of intensity "
+            f"1) is taken as 1; state it (meta.json's image_scale)",
             stacklevel=2,
         )
         return 1.0
