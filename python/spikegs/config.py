@@ -3,17 +3,18 @@
 A YAML file overrides only what differs from what it starts from, section by section: `base: NAME`
 starts from another method's file, `base: FILE.yaml` from another file (a relative path is taken
 from the directory of the file that names it); without `base`, from the dataclass defaults (the
-paper's equations: L1 norms, lambda = 1; `--method spikegs` is configs/spikegs.yaml, smooth-L1
-norms and lambda = 4). A file that sets no `method` is named after itself, whatever its base: an
-empty my_run.yaml trains the dataclass defaults as method `my_run`, and lam2.yaml (`base: spikegs`,
-another lambda) trains as `lam2`, never under another method's name and settings (a file named
-like a built-in method must start from it, and is then that method, or name itself; a file whose
-`method` names a built-in one must keep its supervision and SIM settings). No file at
-all is the default method, DEFAULT_METHOD. The densification schedule's defaults are for the default
-train.iterations: a config that sets another gets each schedule key it does not set scaled to it,
-as `--iterations` does; a key a file (or its base) sets is for that file's length, and scales from
-it to the run's. Unknown sections or keys, a key given twice, values of the wrong type or
-range and non-finite numbers are refused with a message that names the key and what is allowed.
+paper's losses, eqs. 6 and 9: L1 norms, lambda = 1, which the paper leaves unstated; but SIM's loss
+is L2, where the paper's eq. 13 has L1: `sim: {loss: l1}`; `--method spikegs` is
+configs/spikegs.yaml, smooth-L1 norms and lambda = 4). A file that sets no `method` is named after
+itself, whatever its base: an empty my_run.yaml trains the dataclass defaults as method `my_run`,
+and lam2.yaml (`base: spikegs`, another lambda) trains as `lam2`, never under another method's name
+and settings (a file named like a built-in method must start from it, and is then that method, or
+name itself; a file whose `method` names a built-in one must keep its supervision and SIM settings).
+No file at all is the default method, DEFAULT_METHOD. The densification schedule's defaults are for
+the default train.iterations: a config that sets another gets each schedule key it does not set
+scaled to it, as `--iterations` does; a key a file (or its base) sets is for that file's length, and
+scales from it to the run's. Unknown sections or keys, a key given twice, values of the wrong type
+or range and non-finite numbers are refused with a message that names the key and what is allowed.
 """
 
 from __future__ import annotations

@@ -23,7 +23,9 @@ def psnr(pred, gt) -> float:
 
 
 def ssim(pred, gt) -> float:
-    """SSIM with data range 1 (7×7 window; colour channels averaged). A side shorter than 7
+    """SSIM with data range 1 (scikit-image's 7×7 uniform window, where 3DGS's evaluation takes an
+    11×11 Gaussian one: values comparable with this package's, not the paper's; colour channels
+    averaged). A side shorter than 7
     pixels takes the largest odd window that fits, a side of one pixel is dropped (a line image:
     1-D SSIM); a side of 2 pixels, or a single pixel, is a ValueError."""
     pred, gt = _pair(pred, gt)
