@@ -89,6 +89,24 @@ def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):
     assert signal.getsignal(signal.SIGINT) is previous
 
 
+def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys):
+    """Ctrl-C in the first seconds, while Python imported torch for the command, printed a
+    30-60-line traceback ending in KeyboardInterrupt."""
+
+    def importing(*args):
+        raise KeyboardInterrupt
+
+    previous = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr("spikegs.cli.build_parser", importing)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "train", "DATA", "--out", "RUN"])
+    try:
+        with pytest.raises(SystemExit) as exit:
+            console()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+
 def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):
     """matplotlib reads $...$ as TeX: a config naming its method "lam$^$2" trained to the end,
     then failed at its curve.png with a parse error (exit status 2, the run complete)."""

@@ -627,8 +627,6 @@ def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     with pytest.raises(FileExistsError):
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
-    with pytest.raises(FileNotFoundError):
-        Trainer(dataset, config, tmp_path / "other", progress=False).train(resume=True)
     shutil.rmtree(tmp_path / "run" / "checkpoints")  # as if stopped before its first checkpoint
     (tmp_path / "run" / "train.json").unlink()
     (tmp_path / "run" / "scene.ply").unlink()
@@ -2007,6 +2005,11 @@ def test_resume_without_a_checkpoint_restarts_a_stopped_run_only(dataset, tmp_pa
     Trainer(dataset, config, run, progress=False).train(resume=True)
     printed = capsys.readouterr()
     assert "no checkpoint yet; training from the start" in printed.err and printed.out == ""
+    # stopped before it wrote anything (Ctrl-C while Python imported): started, not refused
+    shutil.rmtree(run)
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    assert "no checkpoint yet; training from the start" in capsys.readouterr().err
+    assert (run / "scene.ply").exists()
 
 
 def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_path, capsys):
@@ -2028,6 +2031,11 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
             (tmp_path / "run" / "config.yaml").write_text(lost)
         assert main([*argv, "--resume"]) == 2
         assert "config.yaml is missing or empty" in capsys.readouterr().err
+    # nothing in RUN at all: its settings unknown, the default method does not stand in for them
+    argv[argv.index("--out") + 1] = str(tmp_path / "stopped_at_once")
+    assert main([*argv, "--resume"]) == 2
+    assert "config.yaml is missing or empty" in capsys.readouterr().err
+    assert main([*argv, "--resume", "--method", "tfp33", "--iterations", "3"]) == 0  # named: starts
 
 
 def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys):

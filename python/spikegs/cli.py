@@ -131,8 +131,13 @@ INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGIN
 def console() -> None:
     """The `spikegs` command: `main`, then exit with its status. Once interrupted, further
     Ctrl-Cs are ignored while the interpreter exits (a second one, pressed as people do, printed
-    'Exception ignored in atexit callback ... KeyboardInterrupt' from its clean-up)."""
-    status = main()
+    'Exception ignored in atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C
+    before the command runs (Python importing torch) says 'interrupted' too, not a traceback."""
+    try:
+        status = main()
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        status = INTERRUPTED
     if status == INTERRUPTED:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.exit(status)

@@ -478,12 +478,10 @@ class Trainer:
 
     def _from_checkpoint(self, resume: bool) -> bool:
         """Whether training goes on from RUN's checkpoint (else from the start); --resume of a run
-        stopped before its first checkpoint (in SIM's training, say: SIM resumes itself) starts
-        it again. FileNotFoundError / FileExistsError where neither can be done: nothing to
-        resume, or a fresh run would mix with files in RUN (`check_fresh_run_dir`)."""
+        stopped before its first checkpoint (in SIM's training, say: SIM resumes itself), or
+        before it wrote anything, starts it again. FileExistsError where a fresh run would mix
+        with files in RUN (`check_fresh_run_dir`)."""
         restart = resume and not self.checkpoint_path.exists()
-        if restart and not (self.run_dir / "config.yaml").exists():
-            raise FileNotFoundError(f"nothing to resume: {self.checkpoint_path} does not exist")
         if not resume or restart:
             check_fresh_run_dir(self.run_dir, self.checkpoint_path)
         return resume and not restart

@@ -11,7 +11,7 @@ from .cli import file_path, positive_int
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
-from .run_summary import CURVE, last_checkpoint
+from .run_summary import CURVE
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -55,12 +55,12 @@ def config_from_args(args: argparse.Namespace):
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
-    checkpoint = last_checkpoint(args.out)
     empty = own and not saved.read_text().strip()  # the defaults would stand in for the run's
-    if given is None and args.resume and (empty or (not own and checkpoint.exists())):
+    if given is None and args.resume and (empty or not own):
         raise ValueError(
             f"--resume: {saved} is missing or empty; name the run's settings again with --method "
-            f"or --config (a checkpoint is checked against them)"
+            f"or --config (a checkpoint is checked against them; a run stopped before its first "
+            f"one starts over)"
         )
     if own:  # keys added since the run was saved keep its behaviour
         overrides = {**legacy_overrides(saved), **overrides}
