@@ -889,6 +889,11 @@ def test_every_method_config_loads():
     assert load_config("k13").supervision.exposure_poses == 13
     assert load_config("only_exposure").supervision.instant == "none"
     assert load_config("tfp65").supervision.instant_window == 65
+    # the baseline at SpikeGS's norm: tfp33 but for its norm
+    mean_fitting = load_config("tfp33_smooth_l1")
+    assert mean_fitting.supervision.instant_norm == "smooth_l1"
+    mean_fitting.supervision.instant_norm, mean_fitting.method = "l1", "tfp33"
+    assert mean_fitting == load_config("tfp33")
 
 
 @pytest.mark.parametrize(

@@ -42,7 +42,7 @@ from ..run_folder import refuse_foreign_files
 from ..train import Trainer
 from .common import print_table, write_results
 
-BASELINES = ("tfp33", "tfp65", "tfi")
+BASELINES = ("tfp33", "tfp65", "tfi", "tfp33_smooth_l1")  # the last: TFP(33)+3DGS at our norm
 CEILING = "oracle"  # clean instant targets: what perfect supervision gives this trainer
 METHODS = ("spikegs", *BASELINES, "only_instant", "only_exposure", "k9", "k13", CEILING)
 QUICK_METHODS = ("spikegs", "tfp33")
