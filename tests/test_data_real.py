@@ -31,7 +31,8 @@ from spikegs.data.transforms_file import OPENGL_TO_OPENCV
 from spikegs.data.view_stream import ViewStreams
 from spikegs.evaluate import evaluate_run
 from spikegs.image_io import read_image, write_image
-from spikegs.sim_train import evaluate_dataset, train_sim
+from spikegs.sim_scores import evaluate_dataset
+from spikegs.sim_train import train_sim
 from spikegs.spikes import DatWriter, save_dat
 from spikegs.train import Trainer
 

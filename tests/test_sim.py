@@ -15,18 +15,18 @@ import torch
 from skimage import data
 from skimage.metrics import structural_similarity
 from spikegs import sim_train
+from spikegs.data_fingerprint import spikes_fingerprint
 from spikegs.file_lock import exclusive_lock
 from spikegs.metrics import psnr, ssim
 from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
+from spikegs.sim_scores import compare_methods
 from spikegs.sim_train import (
-    compare_methods,
     infer_sim,
     inference_model,
     load_sim,
     predict,
     save_sim,
-    spikes_fingerprint,
     train_or_load,
     train_sim,
     user_cache,

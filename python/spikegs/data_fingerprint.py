@@ -1,13 +1,32 @@
-"""The identity of a run's data: a digest of what training reads from a dataset, to tell a moved
-dataset from another one."""
+"""The identity of training data: digests of the spikes (a SIM's cache key) and of what a run reads
+from a dataset, to tell a moved dataset from another one."""
 
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 
 import numpy as np
 
-from .sim_train import spikes_fingerprint
+
+def spikes_fingerprint(stream, timestamps: Sequence[int], sampled: bool = False) -> str:
+    """A digest of training data: the timestamps and each stream's `digest()`, of every readout
+    (`stream`: one or a list). `sampled`: the digest of SIMs and runs saved before 2026-11-28,
+    of each stream's size and 16 of its readouts (which missed spikes edited between them), by
+    which those are still recognised."""
+    streams = stream if isinstance(stream, (list, tuple)) else [stream]
+    digest = hashlib.sha256(np.asarray(timestamps, np.int64).tobytes())
+    for s in streams:
+        digest.update(_sampled_readouts(s) if sampled else s.digest())
+    return digest.hexdigest()
+
+
+def _sampled_readouts(stream) -> bytes:
+    """A stream's size and 16 of its readouts spread over it, as bytes."""
+    parts = [np.asarray([len(stream), stream.height, stream.width], np.int64).tobytes()]
+    for k in np.linspace(0, len(stream) - 1, 16).astype(np.int64) if len(stream) else []:
+        parts.append(np.ascontiguousarray(stream.window(int(k), 1)).tobytes())
+    return b"".join(parts)
 
 
 def data_fingerprint(dataset, scale: float, sampled: bool = False) -> str:

@@ -15,7 +15,8 @@ from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .output_paths import check_file_output
-from .sim_train import CHECKPOINT_S, evaluate_dataset, is_sim_file, on_path_views
+from .sim_scores import evaluate_dataset, on_path_views
+from .sim_train import CHECKPOINT_S, is_sim_file
 from .targets import check_targets, intensity_scale, trained_sim
 
 # the config keys that the options set, named in the config's messages

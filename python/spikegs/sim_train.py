@@ -1,4 +1,5 @@
-"""Per-scene self-supervised SIM training (against TFP of the window centre), save/load, inference.
+"""Per-scene self-supervised SIM training (against TFP of the window centre), its cache, save/load,
+inference.
 
 A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` -> uint8 0/1
 [w, H, W] ([B, w, H, W] for an array of k), `.tfp(k, w)` and `.tfi(k)` -> float32 [H, W]
@@ -8,7 +9,6 @@ A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` ->
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import sys
 import time
@@ -23,9 +23,9 @@ from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically, sweep_killed_writes
 from .config import SimConfig
+from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
-from .metrics import psnr, ssim
 from .number_checks import is_number
 from .output_paths import writable_folder
 from .sim import SIM, START
@@ -259,26 +259,6 @@ def load_sim(path: Path) -> SIM:
     return _model_of(torch.load(Path(path), map_location="cpu", weights_only=True))
 
 
-def spikes_fingerprint(stream, timestamps: Sequence[int], sampled: bool = False) -> str:
-    """A digest of training data: the timestamps and each stream's `digest()`, of every readout
-    (`stream`: one or a list). `sampled`: the digest of SIMs and runs saved before 2026-11-28,
-    of each stream's size and 16 of its readouts (which missed spikes edited between them), by
-    which those are still recognised."""
-    streams = stream if isinstance(stream, (list, tuple)) else [stream]
-    digest = hashlib.sha256(np.asarray(timestamps, np.int64).tobytes())
-    for s in streams:
-        digest.update(_sampled_readouts(s) if sampled else s.digest())
-    return digest.hexdigest()
-
-
-def _sampled_readouts(stream) -> bytes:
-    """A stream's size and 16 of its readouts spread over it, as bytes."""
-    parts = [np.asarray([len(stream), stream.height, stream.width], np.int64).tobytes()]
-    for k in np.linspace(0, len(stream) - 1, 16).astype(np.int64) if len(stream) else []:
-        parts.append(np.ascontiguousarray(stream.window(int(k), 1)).tobytes())
-    return b"".join(parts)
-
-
 def _cached(
     path: Path, window: int, data: tuple[str, ...], settings: dict, say: bool = True
 ) -> SIM | None:
@@ -432,55 +412,3 @@ def infer_sim(
         for i in range(0, len(timestamps), batch_size)
     ]
     return np.concatenate(chunks)
-
-
-def compare_methods(
-    model: SIM, stream, timestamps: Sequence[int], gt: np.ndarray, dtype=None
-) -> dict[str, dict[str, float]]:
-    """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
-    view whose ground truth is a method's own image (a pseudo ground truth: TFP of the view's
-    spikes) is left out of that method's mean (PSNR inf), and a method left no view is left out."""
-    timestamps = np.asarray(timestamps)
-    images = {
-        "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
-        "TFP(33)": stream.tfp(timestamps, 33),
-        "TFP(65)": stream.tfp(timestamps, 65),
-        "TFI": stream.tfi(timestamps),
-    }
-    gt = np.asarray(gt, dtype=np.float32)
-    scores = {}
-    for name, pred in images.items():
-        pairs = [(p, g) for p, g in zip(pred, gt) if not np.array_equal(p, g)]
-        if pairs:
-            scores[name] = {
-                "psnr": float(np.mean([psnr(p, g) for p, g in pairs])),
-                "ssim": float(np.mean([ssim(p, g) for p, g in pairs])),
-            }
-    return scores
-
-
-def on_path_views(dataset) -> list:
-    """The dataset's held-out views on the camera path (those SIM can be scored on); ValueError
-    when there is none."""
-    views = [v for v in dataset.test_views if v.readout is not None]
-    if not views:
-        raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
-    return views
-
-
-def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
-    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
-    mean over channels for a colour camera."""
-    views = on_path_views(dataset)
-    timestamps = np.array([round(v.readout) for v in views])
-    per_channel = [
-        compare_methods(
-            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype
-        )
-        for c, stream in enumerate(dataset.streams)
-    ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates
-    return {
-        name: {m: float(np.mean([r[name][m] for r in per_channel])) for m in scores}
-        for name, scores in per_channel[0].items()
-        if all(name in r for r in per_channel)
-    }

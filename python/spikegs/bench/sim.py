@@ -22,7 +22,8 @@ from ..config import SimConfig
 from ..data import simulate_dataset
 from ..data.scenes import SCENES
 from ..sim import SIM
-from ..sim_train import evaluate_dataset, inference_model, train_sim, training_layout
+from ..sim_scores import evaluate_dataset
+from ..sim_train import inference_model, train_sim, training_layout
 from .common import median_seconds, print_table, write_results
 
 TRAINING = SimConfig()  # SIM trains as `spikegs train` trains it: steps, batch

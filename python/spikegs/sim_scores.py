@@ -1,0 +1,64 @@
+"""SIM scored against the other spike decoders (TFP(33), TFP(65), TFI) on a dataset's held-out
+views on the camera path: PSNR and SSIM against their clean images."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .metrics import psnr, ssim
+from .sim import SIM
+from .sim_train import infer_sim
+
+
+def compare_methods(
+    model: SIM, stream, timestamps: Sequence[int], gt: np.ndarray, dtype=None
+) -> dict[str, dict[str, float]]:
+    """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
+    view whose ground truth is a method's own image (a pseudo ground truth: TFP of the view's
+    spikes) is left out of that method's mean (PSNR inf), and a method left no view is left out."""
+    timestamps = np.asarray(timestamps)
+    images = {
+        "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
+        "TFP(33)": stream.tfp(timestamps, 33),
+        "TFP(65)": stream.tfp(timestamps, 65),
+        "TFI": stream.tfi(timestamps),
+    }
+    gt = np.asarray(gt, dtype=np.float32)
+    scores = {}
+    for name, pred in images.items():
+        pairs = [(p, g) for p, g in zip(pred, gt) if not np.array_equal(p, g)]
+        if pairs:
+            scores[name] = {
+                "psnr": float(np.mean([psnr(p, g) for p, g in pairs])),
+                "ssim": float(np.mean([ssim(p, g) for p, g in pairs])),
+            }
+    return scores
+
+
+def on_path_views(dataset) -> list:
+    """The dataset's held-out views on the camera path (those SIM can be scored on); ValueError
+    when there is none."""
+    views = [v for v in dataset.test_views if v.readout is not None]
+    if not views:
+        raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
+    return views
+
+
+def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
+    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
+    mean over channels for a colour camera."""
+    views = on_path_views(dataset)
+    timestamps = np.array([round(v.readout) for v in views])
+    per_channel = [
+        compare_methods(
+            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype
+        )
+        for c, stream in enumerate(dataset.streams)
+    ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates
+    return {
+        name: {m: float(np.mean([r[name][m] for r in per_channel])) for m in scores}
+        for name, scores in per_channel[0].items()
+        if all(name in r for r in per_channel)
+    }
