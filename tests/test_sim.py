@@ -586,7 +586,7 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
         (["--window", "4"], "--window: config: sim.window = 4"),
         (["--target-window", "35"], "sim.target_window = 35"),
         (["--seed", "-1"], "--seed: config: train.seed = -1"),
-        (["--out", "."], "is a directory"),
+        (["--out", "adir"], "is a directory"),  # ('.' is refused while parsing)
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
         # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache
         (["--out", "file"], "--out file: an existing file that is not a saved SIM"),
@@ -601,6 +601,7 @@ def test_sim_train_cli_refuses_bad_options_before_training(
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "file").write_text("")
+    (tmp_path / "adir").mkdir()
     monkeypatch.setattr("spikegs.sim_cli.load_dataset", lambda *a: pytest.fail("loaded"))
     assert main(["sim-train", "data", *args]) == 2
     assert message in capsys.readouterr().err

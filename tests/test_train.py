@@ -1822,7 +1822,13 @@ def test_python_dash_m_spikegs_is_the_command():
 
 
 @pytest.mark.parametrize(
-    "argv", [["render", "run", "--out", "orbit.mp4/"], ["sim-train", "data", "--out", "sim.pt/"]]
+    "argv",
+    [
+        ["render", "run", "--out", "orbit.mp4/"],
+        ["render", "run", "--out", "orbit.mp4/."],
+        ["sim-train", "data", "--out", "sim.pt/"],
+        ["sim-train", "data", "--out", "."],
+    ],
 )
 def test_a_file_output_named_as_a_folder_is_refused_while_parsing(argv, capsys):
     """`render --out orbit.mp4/` wrote orbit.mp4: Path drops the trailing separator."""
@@ -2010,10 +2016,11 @@ def test_resume_without_a_checkpoint_restarts_a_stopped_run_only(dataset, tmp_pa
     Trainer(dataset, config, run, progress=False).train(resume=True)
     printed = capsys.readouterr()
     assert "no checkpoint yet; training from the start" in printed.err and printed.out == ""
-    # stopped before it wrote anything (Ctrl-C while Python imported): started, not refused
+    # stopped before it wrote anything (Ctrl-C while Python imported): started, not refused, and
+    # said not to be a run resumed (a mistyped --out gets here too)
     shutil.rmtree(run)
     Trainer(dataset, config, run, progress=False).train(resume=True)
-    assert "no checkpoint yet; training from the start" in capsys.readouterr().err
+    assert "no run to continue, nothing written; training from" in capsys.readouterr().err
     assert (run / "scene.ply").exists()
 
 
@@ -2036,10 +2043,10 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
             (tmp_path / "run" / "config.yaml").write_text(lost)
         assert main([*argv, "--resume"]) == 2
         assert "config.yaml is missing or empty" in capsys.readouterr().err
-    # nothing in RUN at all: its settings unknown, the default method does not stand in for them
+    # no RUN at all (a mistyped path): said; the default method does not stand in for its settings
     argv[argv.index("--out") + 1] = str(tmp_path / "stopped_at_once")
     assert main([*argv, "--resume"]) == 2
-    assert "config.yaml is missing or empty" in capsys.readouterr().err
+    assert "stopped_at_once does not exist: nothing to resume" in capsys.readouterr().err
     assert main([*argv, "--resume", "--method", "tfp33", "--iterations", "3"]) == 0  # named: starts
 
 
@@ -2328,6 +2335,10 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     killed.write_text("torn")
     sweep_killed_writes(link)
     assert not killed.exists() and link.is_symlink()
+    loop = tmp_path / "loop.json"  # a link to itself (resolve() raised RuntimeError): replaced
+    loop.symlink_to(loop)
+    write_atomically(loop, lambda tmp: tmp.write_text("scores"))
+    assert loop.read_text() == "scores"
 
 
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):

@@ -50,8 +50,8 @@ def sweep_temporaries(folder: Path) -> None:
 
 def written_path(path: Path) -> Path:
     """Where a write of `path` lands: `path`, or the target of a symbolic link (the link stays)."""
-    path = Path(path)
-    return path.resolve() if path.is_symlink() else path
+    path = Path(path)  # (realpath, not resolve: a link loop is the path itself, not an error)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
 def sweep_killed_writes(path: Path) -> None:

@@ -63,7 +63,8 @@ def output_file(text: str) -> Path:
     """An argparse type: a file to write, refused while parsing when its name ends in a path
     separator (a folder's: Path drops the separator, and the file would be written)."""
     path = file_path(text)
-    if text.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep)):
+    last = text.replace(os.altsep or os.sep, os.sep).rsplit(os.sep, 1)[-1]  # its last part
+    if last in ("", ".", ".."):
         raise argparse.ArgumentTypeError(f"expected a file name, found the folder name '{text}'")
     return path
 
@@ -132,7 +133,8 @@ def console() -> None:
     """The `spikegs` command: `main`, then exit with its status. Once interrupted, further
     Ctrl-Cs are ignored while the interpreter exits (a second one, pressed as people do, printed
     'Exception ignored in atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C
-    before the command runs (Python importing torch) says 'interrupted' too, not a traceback."""
+    while the command's modules import says 'interrupted' too, not a traceback (one during the
+    package's own import, torch's, before this runs, still ends in Python's traceback)."""
     try:
         status = main()
     except KeyboardInterrupt:

@@ -459,9 +459,9 @@ class Trainer:
                 sweep_temporaries(folder)
             from_checkpoint = self._from_checkpoint(resume)
             if resume and not from_checkpoint:  # stderr: stdout is `spikegs train`'s summary
-                print(
-                    f"{self.run_dir}: no checkpoint yet; training from the start", file=sys.stderr
-                )
+                started = (self.run_dir / "config.yaml").exists()  # (a mistyped --out: not)
+                what = "no checkpoint yet" if started else "no run to continue, nothing written"
+                print(f"{self.run_dir}: {what}; training from the start", file=sys.stderr)
             if not resume and self.checkpoint_path.exists():
                 raise FileExistsError(
                     f"{self.run_dir} already holds a run; pass --resume to continue it, or "

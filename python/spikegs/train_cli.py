@@ -56,6 +56,11 @@ def config_from_args(args: argparse.Namespace):
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
     empty = own and not saved.read_text().strip()  # the defaults would stand in for the run's
+    if given is None and args.resume and not Path(args.out).exists():
+        raise ValueError(
+            f"--resume: {args.out} does not exist: nothing to resume (check the path; a new run "
+            f"needs no --resume)"
+        )
     if given is None and args.resume and (empty or not own):
         raise ValueError(
             f"--resume: {saved} is missing or empty; name the run's settings again with --method "

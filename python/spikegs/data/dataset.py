@@ -65,11 +65,6 @@ class GuessedUnitsWarning(UserWarning):
     """The test images' units (firing rate of intensity 1) are guessed: their PSNR depends on it."""
 
 
-class ImageUnitsWarning(UserWarning):
-    """The test images' mean is far from their spikes' firing rate: other units, or spikes that
-    are not the images' (dark current)."""
-
-
 def intrinsics_matrix(meta: dict) -> np.ndarray:
     """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
@@ -519,7 +514,9 @@ def load_dataset(path: PathLike) -> Dataset:
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)
-    _warn_about_test_units(streams, test_views, root / TEST_VIEWS)
+    sim = meta.get("sim")
+    dark = sim.get("dark_rate", 0.0) if isinstance(sim, dict) else 0.0  # the simulator's
+    _warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if sharp and not stated_scales(meta):
         warnings.warn(
@@ -539,10 +536,13 @@ UNITS_MIN_SPIKES = 1000  # spikes (per channel) those views' TFP must count to j
 UNITS_WINDOW = 33  # readouts of the TFP that the test images are compared with
 
 
-def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], path: Path) -> None:
+def _warn_about_test_units(
+    streams: list[SpikeStream], views: list[TestView], path: Path, dark_rate: float
+) -> None:
     """A UserWarning where the on-path test views' images [H, W, C] average over UNITS_RATIO
-    times more, or less, than the firing rate of their spikes (TFP(33) at their readouts, each
-    channel its stream's): images in intensity or 8-bit units, not spikes a readout."""
+    times more, or less, than the firing rate of their spikes' light (TFP(33) at their readouts,
+    each channel its stream's, less the stated `dark_rate`, which the images leave out): images
+    in intensity or 8-bit units, not spikes a readout."""
     half = UNITS_WINDOW // 2
     images, rates = [], []
     for view in views:
@@ -550,8 +550,8 @@ def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], pa
         if k is None or not half <= k < len(streams[0]) - half:
             continue
         images.append(float(np.mean(view.image)))
-        rates.append(float(np.mean([s.tfp(k, 2 * half + 1) for s in streams])))
-    counted = sum(rates) * (2 * half + 1) * streams[0].height * streams[0].width  # spikes
+        rates.append(float(np.mean([s.tfp(k, 2 * half + 1) for s in streams])) - dark_rate)
+    counted = sum(rates) * (2 * half + 1) * streams[0].height * streams[0].width  # light's spikes
     if counted < UNITS_MIN_SPIKES:  # too faint to tell units from shot noise
         return
     ratio = sum(images) / sum(rates)
@@ -562,7 +562,6 @@ def _warn_about_test_units(streams: list[SpikeStream], views: list[TestView], pa
             f"images {np.mean(images):.3g}): test images are expected in firing-rate units "
             f"(intensity x image_scale), and PSNR against images in other units means nothing "
             f"(or the spikes are not the images': dark current, another recording)",
-            ImageUnitsWarning,
             stacklevel=3,
         )
 

@@ -20,7 +20,6 @@ from .dataset import (
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
     Dataset,
-    ImageUnitsWarning,
     TestView,
     check_meta_values,
     check_output,
@@ -436,6 +435,4 @@ def simulate_dataset(
     write_parts(
         out, meta, trajectory, train_timestamps(readouts, np.array(held_out), train_every), views
     )
-    with warnings.catch_warnings():  # its units are the spikes' (a dim scene's dark current
-        warnings.simplefilter("ignore", ImageUnitsWarning)  # is warned of above)
-        return load_dataset(out)
+    return load_dataset(out)
