@@ -17,7 +17,7 @@ from skimage.metrics import structural_similarity
 from spikegs import sim_train
 from spikegs.data_fingerprint import spikes_fingerprint
 from spikegs.file_lock import exclusive_lock
-from spikegs.metrics import psnr, ssim
+from spikegs.metrics import psnr, ssim, ssim_3dgs
 from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
 from spikegs.sim_scores import compare_methods
@@ -503,6 +503,33 @@ def test_ssim_uses_a_7x7_window_and_shrinks_it_only_for_small_images():
     small_gt, small_pred = gt[:5, :12, 0], pred[:5, :12, 0]
     want = structural_similarity(small_gt, small_pred, data_range=1.0, win_size=5)
     assert ssim(small_pred, small_gt) == pytest.approx(want, abs=1e-12)
+
+
+def test_ssim_3dgs_is_3dgs_evaluations_ssim():
+    """eval.json's ssim_3dgs: 3DGS's formula (11x11 Gaussian window, sigma 1.5, zero padding, the
+    mean over every pixel and channel), checked against scipy's correlation of the same window;
+    the scikit-image SSIM beside it is another number (a 7x7 uniform window, borders cropped)."""
+    from scipy.ndimage import correlate
+
+    rng = np.random.default_rng(0)
+    gt = rng.random((20, 24, 3))
+    pred = np.clip(gt + 0.2 * rng.standard_normal(gt.shape), 0, 1)
+    g = np.exp(-((np.arange(11) - 5.0) ** 2) / (2 * 1.5**2))
+    window = np.outer(g, g) / np.outer(g, g).sum()  # [11, 11]
+
+    def blur(x):  # [H, W] -> [H, W], zeros outside
+        return correlate(x, window, mode="constant", cval=0.0)
+
+    maps = []
+    for c in range(3):
+        x, y = pred[..., c], gt[..., c]
+        mx, my = blur(x), blur(y)
+        vx, vy, cxy = blur(x * x) - mx**2, blur(y * y) - my**2, blur(x * y) - mx * my
+        c1, c2 = 0.01**2, 0.03**2
+        maps.append((2 * mx * my + c1) * (2 * cxy + c2) / ((mx**2 + my**2 + c1) * (vx + vy + c2)))
+    assert ssim_3dgs(pred, gt) == pytest.approx(np.mean(maps), abs=1e-7)  # (float32 window taps)
+    assert ssim_3dgs(gt[..., 0], gt[..., 0]) == pytest.approx(1.0, abs=1e-12)
+    assert abs(ssim_3dgs(pred, gt) - ssim(pred, gt)) > 0.01
 
 
 def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():

@@ -18,7 +18,7 @@ from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import write_image
-from .metrics import psnr, ssim
+from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output
 from .ply import declares_channels, load_ply
 from .run_summary import read_summary, trained_scene
@@ -41,11 +41,12 @@ def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarra
 
 
 def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> dict[str, float]:
-    """PSNR (and SSIM) of `pred` against `gt`, both [H, W, C] intensities, clipped to [0, 1]."""
+    """PSNR (and SSIM, scikit-image's and 3DGS's) of `pred` against `gt`, both [H, W, C]
+    intensities, clipped to [0, 1]."""
     pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)
     out = {"psnr": psnr(pred, gt)}
     if with_ssim:
-        out["ssim"] = ssim(pred, gt)
+        out["ssim"], out["ssim_3dgs"] = ssim(pred, gt), ssim_3dgs(pred, gt)
     return out
 
 
@@ -154,6 +155,14 @@ def _scored_views(path: Path) -> dict:
         return {}
 
 
+def _changed(old, new: dict) -> bool:
+    """Whether a view's scores `new` differ from an earlier scoring's `old` (a score that scoring
+    did not record, ssim_3dgs before 2026-11-29, is no change)."""
+    if not isinstance(old, dict):
+        return True
+    return any(old.get(key, value) != value for key, value in new.items())
+
+
 def _configured_method(run_dir: Path) -> str | None:
     """The method of RUN/config.yaml (a run without train.json: stopped, or another tool's scene
     in a run folder), None where it has none or cannot be read."""
@@ -215,7 +224,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(folder / f"{view.name}.png", side)
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
-        for view in (v for v, scores in views.items() if earlier.get(v, scores) != scores):
+        for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
             (folder / f"{view}.png").unlink(missing_ok=True)
     exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
     if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
@@ -231,6 +240,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         "dataset": str(Path(dataset.root).resolve()),
         "psnr": float(np.mean([v["psnr"] for v in views.values()])),
         "ssim": float(np.mean([v["ssim"] for v in views.values()])),
+        "ssim_3dgs": float(np.mean([v["ssim_3dgs"] for v in views.values()])),
         "train_seconds": train.get("train_seconds"),
         "sim_seconds": train.get("sim_seconds"),
         "gaussians": len(model),

@@ -1,4 +1,5 @@
-"""PSNR and SSIM (scikit-image) against ground truth, on [H, W] or [H, W, C] images in [0, 1]."""
+"""PSNR and SSIM (scikit-image's, and 3DGS's) against ground truth, on [H, W] or [H, W, C] images
+in [0, 1]."""
 
 from __future__ import annotations
 
@@ -24,8 +25,7 @@ def psnr(pred, gt) -> float:
 
 def ssim(pred, gt) -> float:
     """SSIM with data range 1 (scikit-image's 7×7 uniform window, where 3DGS's evaluation takes an
-    11×11 Gaussian one: values comparable with this package's, not the paper's; colour channels
-    averaged). A side shorter than 7
+    11×11 Gaussian one, `ssim_3dgs`; colour channels averaged). A side shorter than 7
     pixels takes the largest odd window that fits, a side of one pixel is dropped (a line image:
     1-D SSIM); a side of 2 pixels, or a single pixel, is a ValueError."""
     pred, gt = _pair(pred, gt)
@@ -40,3 +40,17 @@ def ssim(pred, gt) -> float:
         raise ValueError(f"SSIM needs sides of 1 or at least 3 pixels (not all 1), got {shape}")
     value = structural_similarity(gt, pred, data_range=1.0, channel_axis=-1, win_size=win)
     return float(value)
+
+
+def ssim_3dgs(pred, gt) -> float:
+    """SSIM as 3DGS's evaluation computes it (its `ssim`, which most 3DGS papers report): an 11×11
+    Gaussian window (σ = 1.5) with zero padding, the mean over every pixel and channel; data
+    range 1, images [H, W] or [H, W, C]. Not scikit-image's `ssim` above: compare with papers."""
+    import torch
+
+    from .losses import dssim  # (1 - SSIM) / 2 with this window
+
+    pred, gt = _pair(pred, gt)
+    if pred.ndim == 2:
+        pred, gt = pred[..., None], gt[..., None]
+    return float(1 - 2 * dssim(torch.from_numpy(pred), torch.from_numpy(gt)))
