@@ -68,7 +68,7 @@ def _mean_psnr(model, dataset) -> float:
                 view_metrics(
                     render_view(model, v.viewmat, dataset),
                     v.image / scale,
-                    with_ssim=False,
+                    ssims=(),
                 )["psnr"]
                 for v in dataset.test_views
             ]
@@ -159,7 +159,7 @@ def test_a_run_steps_at_the_scheduled_rates_visits_every_timestamp_and_logs_in_i
     record = json.loads((tmp_path / "run" / "log.jsonl").read_text().splitlines()[-1])
     view = few_views.test_views[0]
     image = render_view(trainer.model, view.viewmat, few_views)
-    expected = view_metrics(image, view.image / trainer.scale, with_ssim=False)["psnr"]
+    expected = view_metrics(image, view.image / trainer.scale, ssims=())["psnr"]
     assert record["iteration"] == 60 and record["psnr"] == pytest.approx(expected, abs=1e-6)
 
 
@@ -378,7 +378,7 @@ def test_gaussians_start_at_the_intensities_the_views_show(dataset, tmp_path):
     np.testing.assert_allclose(trainer.model.background.detach().numpy(), level, rtol=1e-6)
     constant = np.mean(
         [
-            view_metrics(np.broadcast_to(level, v.image.shape), v.image / scale, False)["psnr"]
+            view_metrics(np.broadcast_to(level, v.image.shape), v.image / scale, ())["psnr"]
             for v in dataset.test_views
         ]
     )

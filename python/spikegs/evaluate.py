@@ -40,14 +40,16 @@ def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarra
         ).image.numpy()
 
 
-def view_metrics(pred: np.ndarray, gt: np.ndarray, with_ssim: bool = True) -> dict[str, float]:
-    """PSNR (and SSIM, scikit-image's and 3DGS's) of `pred` against `gt`, both [H, W, C]
-    intensities, clipped to [0, 1]."""
+SSIMS = {"ssim": ssim, "ssim_3dgs": ssim_3dgs}  # scikit-image's, 3DGS's evaluation's
+
+
+def view_metrics(
+    pred: np.ndarray, gt: np.ndarray, ssims: tuple[str, ...] = tuple(SSIMS)
+) -> dict[str, float]:
+    """PSNR and the SSIMS named in `ssims` (none: PSNR alone) of `pred` against `gt`, both
+    [H, W, C] intensities, clipped to [0, 1]."""
     pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)
-    out = {"psnr": psnr(pred, gt)}
-    if with_ssim:
-        out["ssim"], out["ssim_3dgs"] = ssim(pred, gt), ssim_3dgs(pred, gt)
-    return out
+    return {"psnr": psnr(pred, gt), **{name: SSIMS[name](pred, gt) for name in ssims}}
 
 
 def _eval_name(run_dir: Path, train: dict, dataset) -> str:

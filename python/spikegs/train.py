@@ -408,7 +408,7 @@ class Trainer:
         """PSNR on the first test view (the progress bar's held-out figure)."""
         view = self.dataset.test_views[0]
         image = render_view(self.model, view.viewmat, self.dataset)
-        return view_metrics(image, np.asarray(view.image) / self.scale, with_ssim=False)["psnr"]
+        return view_metrics(image, np.asarray(view.image) / self.scale, ssims=())["psnr"]
 
     def _after_step(self, loss: float, log, bar, on_eval) -> None:
         """Evaluation (into `held_out_psnr`) and log record due after a step."""

@@ -116,6 +116,7 @@ def held_out_scores(trainer: Trainer) -> dict[str, float]:
         view_metrics(
             render_view(trainer.model, view.viewmat, ds),
             np.asarray(view.image, dtype=np.float32) / trainer.scale,
+            ssims=("ssim",),  # (the tables' SSIM, scikit-image's)
         )
         for view in ds.test_views
     ]
