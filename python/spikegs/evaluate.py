@@ -60,7 +60,6 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
     another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
     units)."""
-
     own = train.get("dataset")
     if own is None:
         return "eval"
@@ -110,7 +109,6 @@ def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
 def other_data(run_dir: Path, dataset) -> str | None:
     """What tells `dataset` from the data the finished run RUN was trained on (another scene,
     or other data than train.json's fingerprint); None where nothing does."""
-
     train = read_summary(run_dir)
     scene = _other_scene(run_dir, train, dataset, "renders along")
     if scene:
