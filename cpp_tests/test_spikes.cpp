@@ -105,6 +105,13 @@ TEST_CASE(bad_shapes_refused) {
   for (int64_t k : {-1, 25}) CHECK(throws_invalid([&] { tfi(s, &k, 1, 8, f.data()); }), "k=", k);
   std::vector<uint8_t> u(32 * 3);
   CHECK(throws_invalid([&] { unpack_frames(s, 23, 3, u.data()); }));
+  // A window past int32's counts, in a stream that long (said to be: refused before any read).
+  const PackedStream huge =
+      PackedStream::over(bytes.data(), kMaxWindow + 1, SpikeLayout::dat(1, 8, false));
+  const int64_t first = 0;
+  CHECK(
+      throws_invalid([&] { window_counts<int32_t>(huge, &first, 1, kMaxWindow + 1, out.data()); }),
+      "a window of 2^31 readouts");
 }
 
 TEST_CASE(window_counts_match_naive) {

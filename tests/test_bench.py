@@ -50,7 +50,7 @@ def test_sim_train_step_rows_time_the_same_gradients():
 
 
 def _run(psnr: float, **extra) -> dict:
-    keys = ("ssim", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
+    keys = ("ssim", "ssim_3dgs", "train_seconds", "sim_seconds", "gaussians", "wall_seconds")
     return {"psnr": psnr, **{k: 1.0 for k in keys}, "uses_sim": False, "curve": [], **extra}
 
 
@@ -151,6 +151,10 @@ def test_train_grad_threshold_reaches_every_run(tmp_path, capsys):
     assert "100 iterations, densify threshold 0.0005, 1 seed" in capsys.readouterr().out
     result = json.loads((tmp_path / "train.json").read_text())
     assert result["schedule"]["densify"]["grad_threshold"] == 0.0005
+    for scores in result["scenes"][train.HEADLINE_SCENE]["methods"].values():
+        # both SSIMs at the end (3DGS's, the papers', beside scikit-image's), the curve one
+        assert 0 < scores["ssim_3dgs"] <= 1 and scores["ssim_3dgs"] != scores["ssim"]
+        assert [("ssim_3dgs" in p) for p in scores["curve"]][-2:] == [False, True]
     for method in ("spikegs", "tfp33"):
         run = tmp_path / "runs" / train.HEADLINE_SCENE / method
         saved = load_config(run / "config.yaml", saved_run=True)

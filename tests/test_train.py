@@ -1377,8 +1377,10 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert main([*argv, str(out), "--resume"]) == 0  # nothing to resume: a fresh demo
     results = json.loads((out / "results.json").read_text())
     assert set(results["methods"]) == {"spikegs", "tfp33"}
-    for scores in results["methods"].values():
+    for method, scores in results["methods"].items():
         assert 10 < scores["psnr"] < 60 and 0 < scores["ssim"] <= 1 and scores["train_seconds"] > 0
+        evaluated = json.loads((out / "runs" / method / "eval.json").read_text())
+        assert scores["ssim_3dgs"] == evaluated["ssim_3dgs"]  # the papers' SSIM, reported too
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
     views = len(load_dataset(out / "data").test_views)
     comparison = read_image(out / "comparison.png")  # [16 + views * 32, 3 * 32, C]

@@ -148,6 +148,8 @@ void bind_spikes(py::module_& m) {
       .def_property_readonly("frame_bytes", &SpikeLayout::frame_bytes);
 
   m.attr("TFI_DEFAULT_MAX_INTERVAL") = kTfiDefaultMaxInterval;
+  m.attr("TFI_MAX_INTERVAL") = kTfiMaxInterval;
+  m.attr("MAX_WINDOW") = kMaxWindow;
   m.def("spike_unpack", &unpack, py::arg("data"), py::arg("layout"), py::arg("t0"), py::arg("n"),
         "readouts [t0, t0+n) as 0/1 uint8 [n, H, W]");
   m.def("spike_pack", &pack, py::arg("bits"), py::arg("layout"),

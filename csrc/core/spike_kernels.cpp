@@ -19,7 +19,6 @@ constexpr int64_t kLaneWords = 8;                 // words counted together (one
 using Lanes = uint64_t __attribute__((vector_size(8 * kLaneWords)));
 constexpr int kMaxPlanes = 8;  // bit-sliced counters count up to 255
 constexpr int64_t kMaxBlock = (1 << kMaxPlanes) - 1;
-constexpr int64_t kMaxInterval = int64_t(1) << 30;
 
 // The bytes [byte0, byte0 + nbytes) of every frame that one task handles.
 struct Chunk {
@@ -162,7 +161,7 @@ void nearest_spike(const PackedStream& s, const Chunk& c, const uint64_t* valid,
 
 template <typename Out>
 void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out) {
-  if (w < 1) fail("window length expected >= 1, found ", w);
+  if (w < 1 || w > kMaxWindow) fail("window length expected in [1, ", kMaxWindow, "], found ", w);
   for (int64_t i = 0; i < num; ++i) check_range(s, starts[i], w);
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width;
@@ -193,8 +192,8 @@ template void window_counts<int32_t>(const PackedStream&, const int64_t*, int64_
 template void window_counts<float>(const PackedStream&, const int64_t*, int64_t, int64_t, float*);
 
 void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out) {
-  if (max_interval < 1 || max_interval > kMaxInterval)
-    fail("max_interval expected in [1, ", kMaxInterval, "], found ", max_interval);
+  if (max_interval < 1 || max_interval > kTfiMaxInterval)
+    fail("max_interval expected in [1, ", kTfiMaxInterval, "], found ", max_interval);
   for (int64_t i = 0; i < num; ++i)
     if (ks[i] < 0 || ks[i] >= s.num_frames)
       fail("TFI readout expected in [0, ", s.num_frames, "), found ", ks[i]);

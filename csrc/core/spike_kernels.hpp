@@ -25,13 +25,16 @@
 namespace spikegs {
 
 constexpr int64_t kTfiDefaultMaxInterval = 1024;
+constexpr int64_t kTfiMaxInterval = int64_t(1) << 30;  // TFI's bound on max_interval
+constexpr int64_t kMaxWindow = INT32_MAX;  // window_counts' bound on w: it counts in int32
 
 // out [num, H, W] = spikes in readouts [starts[i], starts[i] + w) as int32_t counts, or as float
 // counts / w (TFP), correctly rounded (a spike every readout gives exactly 1): the product with
 // 1/w in double errs by < 3e-16 relatively, and counts / w with w < 2^24 lies at least 2^-49
 // (relatively) from any point halfway between floats, so rounding to float picks the right one
 // whatever -ffast-math does to a division (a window of 2^24 readouts or more, 7 minutes at 40 kHz,
-// within an ulp). Each window must lie in the stream (std::invalid_argument otherwise).
+// within an ulp). Each window must lie in the stream and w in [1, kMaxWindow]
+// (std::invalid_argument otherwise).
 template <typename Out>
 void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out);
 

@@ -202,7 +202,8 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
         ev = evaluate_run(run_dir, dataset)
         results[method] = {
             "psnr": ev["psnr"],
-            "ssim": ev["ssim"],
+            "ssim": ev["ssim"],  # scikit-image's; 3DGS's evaluation's, the papers':
+            "ssim_3dgs": ev["ssim_3dgs"],
             "train_seconds": summary["train_seconds"],
             "sim_seconds": summary["sim_seconds"],
             "gaussians": summary["gaussians"],

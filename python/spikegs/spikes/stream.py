@@ -92,7 +92,7 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
 
 
 _DIGEST_CHUNK_BYTES = 64 << 20  # readouts hashed at a time by SpikeStream.digest
-MAX_WINDOW = 2**31 - 1  # the core counts spikes in int32 (2^31 readouts: -1 as TFP, unsaid)
+MAX_WINDOW = _C.MAX_WINDOW  # the core counts spikes in int32
 
 
 class SpikeStream:
@@ -231,8 +231,10 @@ class SpikeStream:
         bad = np.flatnonzero((ks < 0) | (ks >= len(self)))
         if bad.size:
             raise ValueError(f"readout expected in [0, {len(self)}), found k={ks[bad[0]]}")
-        if not _whole(max_interval) or not 1 <= max_interval <= 2**30:  # the core's bound
-            raise ValueError(f"max_interval expected an int in [1, 2^30], found {max_interval!r}")
+        bound = _C.TFI_MAX_INTERVAL  # the core's
+        if not _whole(max_interval) or not 1 <= max_interval <= bound:
+            found = f"found {max_interval!r}"
+            raise ValueError(f"max_interval expected an int in [1, {bound}], {found}")
         out = _C.spike_tfi(self._data, self._layout, ks, int(max_interval))
         return out[0] if single else out
 
