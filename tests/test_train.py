@@ -1367,6 +1367,8 @@ def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys)
     assert "holds a mono dataset; leave out --color" in capsys.readouterr().err
 
 
+# SIM trained 5 steps: its output is half as bright as the exposure's targets, which is said
+@pytest.mark.filterwarnings("ignore:.*differ in brightness from the exposure targets")
 def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypatch, capsys):
     """`spikegs demo` end to end on a tiny scene and schedule: results.json in the issue's layout,
     the comparison image (ground truth | TFP(33)+3DGS | SpikeGS per test view) and the table; a
@@ -2172,6 +2174,27 @@ def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monk
     assert all(v["psnr"] is None and v["ssim"] is not None for v in saved["views"].values())
 
 
+def test_eval_images_show_the_error_that_was_scored(dataset, tmp_path, monkeypatch):
+    """The error panel showed 4 |render - truth| before clipping: a lamp rendered at 3 against a
+    truth of 8 showed a full-scale error where the scores, which clip both to [0, 1], saw none."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    view = dataset.test_views[0]
+    truth = np.asarray(view.image, dtype=np.float32) / intensity_scale(dataset)  # [H, W, C]
+    lamp = (slice(0, 4), slice(0, 4))  # a saturated patch, over 1 in both
+    truth[lamp], render = 8.0, truth.copy()
+    render[lamp] = 3.0
+    monkeypatch.setattr(view, "image", truth * intensity_scale(dataset))
+    monkeypatch.setattr("spikegs.evaluate.render_view", lambda *args: render)
+    with pytest.warns(UserWarning, match="match the render exactly once both are clipped"):
+        scores = evaluate_run(tmp_path / "run", dataset)["views"][view.name]
+    assert scores["psnr"] == float("inf")  # identical once clipped
+    side = read_image(tmp_path / "run" / "eval" / f"{view.name}.png")  # [H, 3 W, C]
+    w = side.shape[1] // 3
+    assert side[lamp[0], :w][:, lamp[1]].min() > 0.99  # the lamp, white in the truth
+    assert np.abs(side[:, 2 * w :]).max() < 1e-3  # and no error anywhere
+
+
 def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
@@ -2251,6 +2274,58 @@ def test_eval_on_another_scene_says_so(dataset, tmp_path):
     wires = simulate_dataset("wires", tmp_path / "wires", **TINY)
     with pytest.warns(UserWarning, match=r"trained on scene 'solids' .*wires, scene 'wires'"):
         evaluate_run(tmp_path / "run", wires, write_images=False)
+
+
+def test_a_fit_far_darker_than_its_targets_is_said(dataset, tmp_path):
+    """tfp33 (L1 on TFP(33)'s whole spike counts) on a dim recording learnt a black scene (1
+    Gaussian, the background's PSNR) in silence; on the same scene at the simulator's default
+    brightness it fits its targets."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (simulate warns of the dim light itself)
+        dim = simulate_dataset("solids", tmp_path / "dim", **TINY, rate_at_one=0.02)
+    for data, said in ((dim, True), (dataset, False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            Trainer(data, load_config("tfp33", FAST), tmp_path / f"{said}", progress=False).train()
+        texts = [str(w.message) for w in caught if "brightness" in str(w.message)]
+        assert len(texts) == said, texts
+        if said:
+            assert "% of their instant targets' brightness over the last 100 steps" in texts[0]
+            assert "instant_norm l1 fits the median of the TFP's whole spike counts" in texts[0]
+
+
+def test_fit_brightness_judges_each_term_over_its_last_steps():
+    """The ratio of each term's renders' mean to its targets' over its last STEPS steps; a term
+    seen on fewer than MIN_STEPS steps, or with black targets, is not judged."""
+    from spikegs.config import SupervisionConfig
+    from spikegs.fit_brightness import MIN_STEPS, STEPS, FitBrightness, biased_fit
+
+    record, one = FitBrightness(), torch.ones(2, 2, 1)
+    for step in range(STEPS + 20):  # the first 20 steps (renders at 9x) fall out
+        record.observe("exposure", [one * (9 if step < 20 else 0.5), one * 0.7], one)
+    for _ in range(MIN_STEPS - 1):
+        record.observe("instant", [one * 0.1], one)
+    record.observe("black", [one], 0 * one)
+    assert record.ratios() == {"exposure": (pytest.approx(0.6), STEPS)}
+    said = biased_fit(record, SupervisionConfig(exposure_norm="l1"))
+    assert said.startswith("the renders hold 60 % of their exposure targets' brightness")
+    assert "exposure_norm l1 fits the median" in said
+    assert "median" not in biased_fit(record, SupervisionConfig(exposure_norm="smooth_l1"))
+    record.observe("instant", [one * 0.1], one)  # MIN_STEPS now: judged, a TFI target's L1
+    said = biased_fit(record, SupervisionConfig(instant="tfi"))
+    assert "10 % of their instant targets'" in said and "instant_norm" not in said
+    # beside a term the same renders fit: the two terms' targets differ in brightness
+    fitted = FitBrightness()
+    for _ in range(MIN_STEPS):
+        fitted.observe("instant", [one * 2], one)
+        fitted.observe("exposure", [one], one)
+    said = biased_fit(fitted, SupervisionConfig(instant="sim", exposure_norm="l1"))
+    assert said.endswith(
+        "200 % of their instant targets' brightness over the last 50 steps: a biased or "
+        "unconverged fit (its exposure renders hold 100 % of theirs: the instant targets, SIM's "
+        "output, differ in brightness from the exposure targets; a SIM trained too briefly? "
+        "sim.iterations)"
+    )
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):

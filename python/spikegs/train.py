@@ -24,6 +24,7 @@ from .config import MIN_GAUSSIANS, Config, differences, dump_yaml, with_defaults
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
+from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt
@@ -112,6 +113,7 @@ class Trainer:
         self.checkpoint_path = last_checkpoint(self.run_dir)
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
+        self.brightness = FitBrightness()  # of the steps this process takes
 
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
@@ -363,6 +365,7 @@ class Trainer:
                 targets.instant.quantum,
             )
             loss = loss + s.instant_weight * terms["instant"]
+            self.brightness.observe("instant", [instant.image], targets.instant[index])
             if s.dssim_weight:
                 terms["dssim"] = dssim(instant.image, targets.instant[index])
                 loss = loss + s.dssim_weight * terms["dssim"]
@@ -378,6 +381,7 @@ class Trainer:
             terms["exposure"] = exposure_loss(
                 renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
             )
+            self.brightness.observe("exposure", renders, targets.exposure[index])
             loss = loss + s.exposure_weight * terms["exposure"]
         if not torch.isfinite(loss):
             raise self._diverged(f"the loss is {loss.item()}, before the update")
@@ -394,12 +398,13 @@ class Trainer:
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
             d = self.config.densify
+            biased = biased_fit(self.brightness, s)
             raise ValueError(
                 f"iteration {self.iteration}: pruning removed every Gaussian (below "
                 f"densify.min_opacity {d.min_opacity}, or larger than densify.max_world_size "
                 f"{d.max_world_size} of the scene radius, a size Gaussians leave by splitting, "
                 f"which densify.max_gaussians {d.max_gaussians} may leave no room for); prune "
-                f"less, or give the run more room"
+                f"less, or give the run more room" + (f". Before: {biased}" if biased else "")
             )
         return loss.item()
 
@@ -546,6 +551,9 @@ class Trainer:
                 log.close()
         self.save_checkpoint()
         save_ply(self.model, self.run_dir / "scene.ply")
+        biased = biased_fit(self.brightness, self.config.supervision)
+        if biased:
+            warnings.warn(f"{self.run_dir}: {biased}", stacklevel=2)
         summary = {
             "method": self.config.method,
             "dataset": str(Path(self.dataset.root).resolve()),
