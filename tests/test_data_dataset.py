@@ -101,9 +101,14 @@ def test_determinism_for_a_seed(tmp_path, small):
         np.testing.assert_array_equal(a.image, b.image)
 
 
-def constant_source(level: float, size: int = 16, test_views: bool = True) -> FrameSequenceSource:
-    """A static camera looking at a constant image (and, held out, from beside it)."""
+def constant_source(
+    level: float, size: int = 16, test_views: bool = True, lit: int | None = None
+) -> FrameSequenceSource:
+    """A static camera looking at a constant image (and, held out, from beside it); `lit`: at a
+    square of that many pixels a side, on black."""
     frames = np.full((2, size, size, 1), level, np.float32)
+    if lit is not None:
+        frames[:, lit:] = frames[:, :, lit:] = 0.0
     viewmat = look_at([0, -3, 0], [0, 0, 0])
     held_out = [("side", look_at([0.1, -3, 0], [0, 0, 0]), frames[0])] if test_views else []
     K = intrinsics(size, size, 40)
@@ -147,12 +152,15 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     # light too faint to count a spike in a TFP window; a turn a readout that aliases
     faint = {"rate_at_one": 1e-4, "dark_rate": 0.0}
     cases.append(("solids", faint, "a 33-readout TFP counts under one spike"))
+    # a small object on black is not faint light (the views' mean, 1/28 of the object's, was)
+    still = {"height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    cases.append((constant_source(0.6, lit=3), still, "turns 0° and moves 0"))
+    cases.append((constant_source(0.1, lit=3), still, ("turns 0° and", "lit pixels .* fire 0.025")))
     cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them"))  # 18.9 dB against 21.4
     # light that saturates every pixel: flagged while simulating, then refused on loading
     saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
-    views = {"test_on_path": 0, "test_off_path": 1}
-    cases.append((constant_source(5.0), {"height": 16, "width": 16, **views}, saturated))
+    cases.append((constant_source(5.0), still, saturated))
     for i, (scene, options, messages) in enumerate(cases):
         messages = (messages,) if isinstance(messages, str) else messages
         error = ""

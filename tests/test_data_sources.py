@@ -153,6 +153,17 @@ def test_frame_sequence_source(tmp_path):
             tmp_path, tmp_path / "few", height=32, width=32, readouts=501, test_on_path=3,
             test_off_path=3, progress=False,
         )  # fmt: skip
+    # the orbit's settings, which a frame sequence's frames and poses set: said to be ignored
+    with (
+        pytest.warns(UserWarning, match=r"is a frame sequence, .*: speed, up \(a built-in or Mi"),
+        pytest.warns(UserWarning, match=r"33\.\d pixels between two frames of the sequence"),
+        pytest.warns(UserWarning, match=r"the camera turns up to 32\.\d° in 33 readouts"),
+    ):
+        again = simulate_dataset(
+            tmp_path, tmp_path / "ds2", height=32, width=32, readouts=501, test_on_path=2,
+            test_off_path=2, progress=False, speed=0.5, up=[0, 1, 0],
+        )  # fmt: skip
+    assert again.meta["up"] is None and again.meta["degrees_per_readout"] is None
 
 
 def test_frame_sequence_missing_image(tmp_path):
@@ -290,6 +301,58 @@ def test_mitsuba_source_convention_and_dataset(tmp_path):
         progress=False,
     )
     assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3
+
+
+def test_up_rotation_turns_z_into_up():
+    """The identity, exactly, for +z (the built-in scenes' datasets stay bit for bit), a proper
+    rotation taking +z to any other unit vector, -z a half turn."""
+    from spikegs.data.trajectory import WORLD_UP, up_rotation
+
+    assert (up_rotation(WORLD_UP) == np.eye(3)).all()
+    for up in ([0, 1, 0], [0, 0, -1], [-1, 0, 0], np.array([1.0, -2.0, 0.5]) / np.sqrt(5.25)):
+        rot = up_rotation(np.asarray(up, np.float64))
+        np.testing.assert_allclose(rot @ WORLD_UP, up, atol=1e-12)
+        np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(rot) == pytest.approx(1.0)
+
+
+def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path):
+    """A y-up Mitsuba scene (its Cornell box's convention) orbited about +z showed its floor as a
+    wall, every view sideways; `up` turns the spiral: the ball above the other (along +y) is
+    above it in every view, which it is not about +z."""
+    pytest.importorskip("mitsuba")
+    emitter = lambda value: {"type": "area", "radiance": {"type": "rgb", "value": value}}  # noqa: E731
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "path"},
+        "top": {"type": "sphere", "center": [0, 0.6, 0], "radius": 0.3, "emitter": emitter(1.0)},
+        "low": {"type": "sphere", "center": [0, -0.6, 0], "radius": 0.3, "emitter": emitter(0.3)},
+    }
+
+    def heights(up) -> list[float]:
+        """The top ball's centroid row minus the low one's, in 6 views along the spiral."""
+        source = MitsubaSource(scene, 24, 24, spp=1, center=[0, 0, 0], radius=1.0, up=up)
+        trajectory = source.trajectory(100, 3.0)
+        rows = np.arange(24)[:, None]
+        out = []
+        for t in np.linspace(0, 99, 6):
+            image = source.render(trajectory.pose_at(t))[..., 0]
+            top, low = image > 0.6, (image > 0.1) & (image < 0.6)
+            out.append(float((rows * top).sum() / top.sum() - (rows * low).sum() / low.sum()))
+        return out
+
+    assert max(heights([0, 1, 0])) < -4  # above, in every view
+    assert max(heights([0, 0, 1])) > 0  # about +z: beside it, or below, in some
+    ds = simulate_dataset(
+        scene, tmp_path / "yup", height=8, width=8, readouts=330, spp=1, test_on_path=1,
+        test_off_path=1, frame_every=60, up=[0, 2, 0], progress=False,
+    )  # fmt: skip
+    assert ds.meta["up"] == [0.0, 1.0, 0.0]
+    with pytest.raises(ValueError, match=r"up: expected a non-zero direction \[x, y, z\]"):
+        simulate_dataset(scene, tmp_path / "bad", up=[0, 0, 0], progress=False)
+    source = MitsubaSource(scene, 8, 8, spp=1)
+    with pytest.raises(ValueError, match="up: the source 'mitsuba-dict' given sets its own"):
+        simulate_dataset(source, tmp_path / "bad", height=8, width=8, up=[0, 1, 0])
 
 
 def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():

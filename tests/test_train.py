@@ -1535,7 +1535,7 @@ def test_orbit_turns_with_the_world(dataset):
     alike = np.repeat(np.linalg.inv(turn)[None], 5, axis=0)  # forward-facing: all turned alike
     np.testing.assert_allclose(world_up(alike), -turn[:3, :3].T[:, 1], atol=1e-12)
     # --up: an axis the cameras leave open (a top-down capture's) given by the user
-    from spikegs.render_cli import direction
+    from spikegs.cli import direction
 
     side = np.linalg.inv(orbit_viewmats(path, center, 8, direction("0,2,0")))  # [8, 4, 4] c2w
     np.testing.assert_allclose(side[:, :3, 0] @ [0.0, 1.0, 0.0], 0.0, atol=1e-9)  # level in y

@@ -11,6 +11,8 @@ import sys
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from .missing_dependency import MissingDependencyError
 
 # sub-command -> (module implementing it, one-line help)
@@ -49,6 +51,18 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, found '{text}'")
     return value
+
+
+def direction(text: str) -> np.ndarray:
+    """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3]."""
+    try:
+        v = np.array([float(x) for x in text.split(",")])
+    except ValueError:
+        v = np.zeros(0)
+    norm = np.linalg.norm(v) if v.shape == (3,) else 0.0
+    if not (np.isfinite(norm) and norm > 0):
+        raise argparse.ArgumentTypeError(f"expected a non-zero direction X,Y,Z, found '{text}'")
+    return v / norm
 
 
 def file_path(text: str) -> Path:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import output_file, positive_int
+from .cli import direction, output_file, positive_int
 from .data.trajectory import WORLD_UP, look_at
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
@@ -34,18 +34,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the world's up as X,Y,Z, the orbit's axis (default: as the cameras show it, "
         "`world_up`; a top-down or forward-facing capture leaves it open)",
     )
-
-
-def direction(text: str) -> np.ndarray:
-    """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3]."""
-    try:
-        v = np.array([float(x) for x in text.split(",")])
-    except ValueError:
-        v = np.zeros(0)
-    norm = np.linalg.norm(v) if v.shape == (3,) else 0.0
-    if not (np.isfinite(norm) and norm > 0):
-        raise argparse.ArgumentTypeError(f"expected a non-zero direction X,Y,Z, found '{text}'")
-    return v / norm
 
 
 def world_up(c2w: np.ndarray) -> np.ndarray:

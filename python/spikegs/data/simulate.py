@@ -32,8 +32,8 @@ from .dataset import (
     write_parts,
 )
 from .scenes import SCENES
-from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Source
-from .trajectory import Trajectory, project_points
+from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, RenderSource, Source
+from .trajectory import WORLD_UP, Trajectory, project_points
 from .transforms_file import TRANSFORMS, warn_unread_transforms
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
@@ -45,6 +45,7 @@ MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at mos
 # pixels saturated than this fraction, dark spikes at this fraction of the light's mean rate, a
 # TFP window of this many readouts turning the camera by more than this many degrees.
 SATURATED_FRACTION = 0.01
+LIT_INTENSITY = 0.01  # pixels brighter than this are the scene's, when judging its light
 DARK_FRACTION = 0.1
 BLUR_WINDOW, BLUR_DEGREES = 33, 15.0
 # a path turning less than this many degrees and moving less than this fraction of the scene
@@ -110,18 +111,21 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             f"intensity is lost; lower rate_at_one",
             stacklevel=3,
         )
-    mean = float(rates.mean())
-    if mean * BLUR_WINDOW < 1:
+    # the scene's own pixels: a small object on black (most of the frame) is not a dim scene
+    lit = rates[rates > LIT_INTENSITY * params.rate_at_one]
+    lit_mean = float(lit.mean()) if lit.size else 0.0
+    if lit_mean * BLUR_WINDOW < 1:
         warnings.warn(
-            f"the held-out views fire {mean:.3g} spikes per readout on average: a "
-            f"{BLUR_WINDOW}-readout TFP counts under one spike, too few to see the scene by; raise "
-            f"rate_at_one or the light",
+            f"the held-out views' lit pixels (intensity over {LIT_INTENSITY:g}) fire "
+            f"{lit_mean:.3g} spikes per readout on average: a {BLUR_WINDOW}-readout TFP counts "
+            f"under one spike, too few to see the scene by; raise rate_at_one or the light",
             stacklevel=3,
         )
-    if params.dark_rate > 0 and params.dark_rate >= DARK_FRACTION * mean:
+    if params.dark_rate > 0 and params.dark_rate >= DARK_FRACTION * lit_mean:
         warnings.warn(
             f"dark_rate {params.dark_rate:g} spikes per readout against a mean light rate of "
-            f"{mean:.3g} in the held-out views: dark spikes will bury the scene's darker parts",
+            f"{lit_mean:.3g} in the held-out views' lit pixels: dark spikes will bury the "
+            f"scene's darker parts",
             stacklevel=3,
         )
     # the turn summed readout by readout over 16 windows along the path (a turn of more than
@@ -191,16 +195,23 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
 
 
 def make_source(
-    scene: str | Path | dict | Source, width: int, height: int, channels: int, *, spp: int = 16
+    scene: str | Path | dict | Source,
+    width: int,
+    height: int,
+    channels: int,
+    *,
+    spp: int = 16,
+    up=WORLD_UP,
 ) -> Source:
     """The source of `scene`: a built-in name (SCENES), a Mitsuba .xml file or dict, a NeRF-style
-    transforms JSON (or a directory holding transforms_train.json / transforms.json) or a Source."""
+    transforms JSON (or a directory holding transforms_train.json / transforms.json) or a Source.
+    `up` [3]: the axis a built-in or Mitsuba scene's spiral ascends along (a unit vector)."""
     if isinstance(scene, Source):
         return scene
     if isinstance(scene, dict):
-        return MitsubaSource(scene, width, height, channels, spp=spp)
+        return MitsubaSource(scene, width, height, channels, spp=spp, up=up)
     if str(scene) in SCENES:
-        return ProceduralSource(str(scene), SCENES[str(scene)](), width, height, channels)
+        return ProceduralSource(str(scene), SCENES[str(scene)](), width, height, channels, up)
     path = Path(scene)
     if path.is_dir():  # a NeRF layout: its training frames, with transforms_test.json beside
         root = path
@@ -209,7 +220,7 @@ def make_source(
         if path != root:
             warn_unread_transforms(root, [path, test])
     if path.suffix.lower() == ".xml":
-        return MitsubaSource(path, width, height, channels, spp=spp)
+        return MitsubaSource(path, width, height, channels, spp=spp, up=up)
     if path.suffix.lower() == ".json":  # a missing file: from_transforms names it
         return FrameSequenceSource.from_transforms(path, width, height, channels)
     expected = (
@@ -223,6 +234,19 @@ def make_source(
     if len(path.parts) > 1:  # a path, not a name
         raise FileNotFoundError(f"scene {path} not found; {expected}")
     raise ValueError(f"unknown scene '{scene}': {expected}")
+
+
+def unit_vector(name: str, value) -> np.ndarray:
+    """`value` as a unit vector [3]; ValueError naming `name` unless it is a finite, non-zero
+    vector of 3 numbers."""
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = np.zeros(0)
+    norm = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
+    if not (math.isfinite(norm) and norm > 0):
+        raise ValueError(f"{name}: expected a non-zero direction [x, y, z], found {value!r}")
+    return v / norm
 
 
 def default_train_every(num_readouts: int) -> int:
@@ -281,27 +305,35 @@ def simulate_dataset(
     height: int = 128,
     width: int = 128,
     readouts: int = DEFAULT_READOUTS,
-    speed: float = DEFAULT_SPEED,
+    speed: float | None = None,
     seed: int = 0,
     overwrite: bool = False,
     color: bool = False,
-    frame_every: float = DEFAULT_FRAME_EVERY,
+    frame_every: float | None = None,
     test_on_path: int | None = None,
     test_off_path: int | None = None,
     train_every: int | None = None,
     spp: int = 16,
     flip: bool = True,
     progress: bool = True,
+    up=None,
     **sim_params,
 ) -> Dataset:
     """Simulate a dataset into `out` and return it loaded. `speed`: degrees of orbit per readout
-    (spiral sources); `frame_every`: readouts between two rendered light frames (the simulator
-    interpolates linearly); `test_on_path`, `test_off_path`: held-out views on and off the path
-    (default DEFAULT_TEST_VIEWS each, or as many as a frame sequence has; fewer than a count given
-    are warned of); `train_every`: readouts between training timestamps (default
+    (default DEFAULT_SPEED), `up`: the unit axis [3] its spiral ascends along (default +z; +y for a
+    y-up Mitsuba scene), `frame_every`: readouts between two rendered light frames (default
+    DEFAULT_FRAME_EVERY; the simulator interpolates linearly), each for a built-in or Mitsuba
+    scene (a frame sequence's frames and poses set them: given, they are warned of);
+    `test_on_path`, `test_off_path`: held-out views on and off the path (default
+    DEFAULT_TEST_VIEWS each, or as many as a frame sequence has; fewer than a count given are
+    warned of); `train_every`: readouts between training timestamps (default
     `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
     asked = (test_on_path, test_off_path)
+    motion = {"speed": speed, "frame_every": frame_every, "up": up}  # a frame sequence has its own
+    speed = DEFAULT_SPEED if speed is None else speed
+    frame_every = DEFAULT_FRAME_EVERY if frame_every is None else frame_every
+    up = WORLD_UP if up is None else unit_vector("up", up)
     test_on_path = DEFAULT_TEST_VIEWS if test_on_path is None else test_on_path
     test_off_path = DEFAULT_TEST_VIEWS if test_off_path is None else test_off_path
     # numpy numbers and whole floats were written into meta.json (a TypeError after the
@@ -353,7 +385,16 @@ def simulate_dataset(
         )
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1
-    source = make_source(scene, width, height, channels, spp=spp)
+    source = make_source(scene, width, height, channels, spp=spp, up=up)
+    if isinstance(scene, RenderSource) and motion["up"] is not None:
+        raise ValueError(f"up: the source '{source.name}' given sets its own (its up)")
+    given = [name for name, value in motion.items() if value is not None]
+    if source.kind == "frames" and given:  # (dropped in silence, before)
+        warnings.warn(
+            f"scene '{source.name}' is a frame sequence, whose frames and poses set the camera's "
+            f"motion: {', '.join(given)} (a built-in or Mitsuba scene's orbit) ignored",
+            stacklevel=2,
+        )
     if (source.height, source.width, source.channels) != (height, width, channels):
         raise ValueError(
             f"source '{source.name}' gives {source.height}x{source.width}x{source.channels} "
@@ -427,6 +468,7 @@ def simulate_dataset(
         "scene_radius": source.scene_radius,
         "degrees_per_readout": speed if source.kind != "frames" else None,
         "frame_every": frame_every if source.kind != "frames" else None,
+        "up": source.up.tolist() if isinstance(source, RenderSource) else None,  # the spiral's
         "luma": "rec709-linear" if channels == 1 else None,
         "image_scale": rate,
         "train_every": train_every,

@@ -7,6 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
+from ..cli import direction
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
@@ -33,15 +34,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--readouts", type=int, default=DEFAULT_READOUTS, help="readouts (25 µs each)"
     )
+    orbit = "a built-in or Mitsuba scene's orbit; a frame sequence's frames set it"
     parser.add_argument(
-        "--speed", type=float, default=DEFAULT_SPEED, help="degrees of orbit per readout"
+        "--speed",
+        type=float,
+        help=f"degrees of orbit per readout (default {DEFAULT_SPEED}; {orbit})",
+    )
+    parser.add_argument(
+        "--up",
+        type=direction,
+        help=f"the scene's up as X,Y,Z, the axis the orbit ascends along (default 0,0,1; 0,1,0 "
+        f"for a y-up Mitsuba scene, such as its Cornell box; {orbit})",
     )
     parser.add_argument("--seed", type=int, default=0, help="simulator seed")
     parser.add_argument(
         "--frame-every",
         type=float,
-        default=DEFAULT_FRAME_EVERY,
-        help="readouts between rendered light frames, >= 1 (linear in between)",
+        help=f"readouts between rendered light frames, >= 1 (linear in between; default "
+        f"{DEFAULT_FRAME_EVERY}; a built-in or Mitsuba scene's)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
     default = f"(default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has)"
@@ -85,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         color=args.color,
         frame_every=args.frame_every,
+        up=args.up,
         test_on_path=args.test_on_path,
         test_off_path=args.test_off_path,
         train_every=args.train_every,

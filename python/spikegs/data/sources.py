@@ -25,7 +25,7 @@ from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
 from .dataset import check_meta_values
 from .scenes import GaussianScene
-from .trajectory import Trajectory, look_at, orbit_eye
+from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye
 from .transforms_file import intrinsics_text, read_transforms
 from .view_geometry import view_sphere
 
@@ -75,8 +75,9 @@ class Source(ABC):
 
 
 class RenderSource(Source):
-    """A source that renders any pose: an ascending spiral around the scene, off-path views on
-    a wider circle at mid elevation."""
+    """A source that renders any pose: a spiral around the scene ascending along `up` (the
+    scene's up, unit [3]: +z by default, +y for a y-up scene), off-path views on a wider circle
+    at mid elevation."""
 
     def __init__(
         self,
@@ -89,12 +90,14 @@ class RenderSource(Source):
         fov_deg: float = 40.0,
         distance: float = 2.5,
         elevation_deg: tuple[float, float] = (10.0, 50.0),
+        up=WORLD_UP,
     ):
         super().__init__(
             width, height, channels, intrinsics(width, height, fov_deg), center, radius
         )
         self.distance = distance * self.scene_radius  # camera to scene centre
         self.elevation_deg = elevation_deg
+        self.up = np.asarray(up, np.float64)
 
     @abstractmethod
     def render(self, viewmat: np.ndarray) -> np.ndarray:
@@ -108,6 +111,7 @@ class RenderSource(Source):
             end_elevation_deg=self.elevation_deg[1],
             degrees_per_readout=degrees_per_readout,
             look_at=tuple(self.scene_center),
+            up=self.up,
         )
 
     def image_at(self, trajectory: Trajectory, t: float) -> np.ndarray:
@@ -124,9 +128,9 @@ class RenderSource(Source):
         elevation = float(np.mean(self.elevation_deg))
         for i in range(count):
             eye = orbit_eye(
-                self.scene_center, 1.2 * self.distance, 360 * (i + 0.5) / count, elevation
+                self.scene_center, 1.2 * self.distance, 360 * (i + 0.5) / count, elevation, self.up
             )
-            viewmat = look_at(eye, self.scene_center)
+            viewmat = look_at(eye, self.scene_center, self.up)
             views.append((f"off_{i:03d}", viewmat, self.render(viewmat)))
         return views
 
@@ -136,8 +140,16 @@ class ProceduralSource(RenderSource):
 
     kind = "procedural"
 
-    def __init__(self, name: str, scene: GaussianScene, width: int, height: int, channels: int = 1):
-        super().__init__(width, height, channels, scene.center, scene.radius)
+    def __init__(
+        self,
+        name: str,
+        scene: GaussianScene,
+        width: int,
+        height: int,
+        channels: int = 1,
+        up=WORLD_UP,
+    ):
+        super().__init__(width, height, channels, scene.center, scene.radius, up=up)
         self.name = name
         tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
         self._gaussians = [
@@ -195,6 +207,7 @@ class MitsubaSource(RenderSource):
         fov_deg: float = 40.0,
         center=None,
         radius: float | None = None,
+        up=WORLD_UP,
     ):
         mi = import_mitsuba()
         if not isinstance(scene, dict) and not Path(scene).is_file():
@@ -220,7 +233,7 @@ class MitsubaSource(RenderSource):
             )
         center = (lo + hi) / 2 if center is None else center
         radius = np.linalg.norm(hi - lo) / 2 if radius is None else radius
-        super().__init__(width, height, channels, center, radius, fov_deg=fov_deg)
+        super().__init__(width, height, channels, center, radius, fov_deg=fov_deg, up=up)
         self._mi, self._spp = mi, int(spp)
         self._sensor = mi.load_dict(
             {

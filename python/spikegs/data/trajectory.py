@@ -41,10 +41,26 @@ def look_at(eye, target, up=WORLD_UP) -> np.ndarray:
     return np.linalg.inv(c2w)
 
 
-def orbit_eye(center, radius: float, azimuth_deg, elevation_deg) -> np.ndarray:
-    """Camera centres [..., 3] on a sphere of `radius` around `center` (+z up)."""
+def up_rotation(up) -> np.ndarray:
+    """The rotation [3, 3] that turns +z into the unit vector `up` [3] by the shortest arc (the
+    identity, exactly, for +z; a half turn about x for -z)."""
+    up = np.asarray(up, np.float64)
+    cos = float(up @ WORLD_UP)
+    if cos <= -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    axis = np.cross(WORLD_UP, up)  # sin times the unit axis
+    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + cross + cross @ cross / (1 + cos)  # Rodrigues' formula
+
+
+def orbit_eye(center, radius: float, azimuth_deg, elevation_deg, up=WORLD_UP) -> np.ndarray:
+    """Camera centres [..., 3] on a sphere of `radius` around `center`, at `elevation_deg` above
+    the plane normal to unit `up` [3] (+z: azimuth from +x towards +y; another up turns that
+    frame by `up_rotation`)."""
     az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
     offset = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+    if not np.array_equal(up, WORLD_UP):
+        offset = offset @ up_rotation(up).T
     return np.asarray(center, np.float64) + radius * offset
 
 
@@ -193,9 +209,11 @@ class Trajectory:
         look_at: tuple = (0.0, 0.0, 0.0),
         start_azimuth_deg: float = 0.0,
         every: int = 1,
+        up=WORLD_UP,
     ) -> Trajectory:
-        """An ascending spiral around `look_at`: azimuth grows by `degrees_per_readout`, elevation
-        linearly from start to end; poses at readouts 0, every, 2·every, … and the last one."""
+        """A spiral around `look_at`, ascending along unit `up` [3]: azimuth grows by
+        `degrees_per_readout`, elevation linearly from start to end; poses at readouts 0, every,
+        2·every, … and the last one."""
         if num_readouts < 2 or every < 1:
             raise ValueError(
                 f"spiral: num_readouts >= 2 and every >= 1 expected, found {num_readouts}, {every}"
@@ -205,8 +223,8 @@ class Trajectory:
         frac = readouts / last
         azimuth = start_azimuth_deg + degrees_per_readout * readouts  # [P]
         elevation = start_elevation_deg + (end_elevation_deg - start_elevation_deg) * frac  # [P]
-        eyes = orbit_eye(look_at, radius, azimuth, elevation)  # [P, 3]
-        viewmats = np.stack([_look_at(eye, look_at) for eye in eyes])  # [P, 4, 4]
+        eyes = orbit_eye(look_at, radius, azimuth, elevation, up)  # [P, 3]
+        viewmats = np.stack([_look_at(eye, look_at, up) for eye in eyes])  # [P, 4, 4]
         return cls(readouts, viewmats, source="spiral")
 
     def save_json(self, path: PathLike, **extra) -> None:
