@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 from spikegs import SimParams, SpikeStream, simulate_spikes
-from spikegs.spikes.simulate import sample_times
+from spikegs.spikes.simulate import fpn_gain, sample_times
 
 
 def rates(packed: np.ndarray, width: int) -> np.ndarray:
@@ -108,7 +108,8 @@ def test_fixed_pattern_noise_spreads_and_is_floored_and_independent_of_the_dark_
     for sigma, lo, hi in ((0.1, 0.08, 0.12), (0.0, 0.0, 0.01)):
         r = rates(simulate_spikes(light, 3000, params=SimParams(fpn_sigma=sigma, **quiet)), 32)
         assert lo <= r.std() / r.mean() <= hi, sigma
-    floored = SimParams(fpn_sigma=3.0, **quiet)
+    with pytest.warns(UserWarning, match="fpn_sigma 3: .* fire 4.32 times"):  # (said)
+        floored = SimParams(fpn_sigma=3.0, **quiet)
     assert rates(simulate_spikes(0.1 * light, 2000, params=floored), 32).max() <= 0.26
     # the same seed's thresholds: a lit run gives θ/θ_i, a dark one dark_i·θ/θ_i
     mismatch = dict(quiet, fpn_sigma=0.2)
@@ -272,9 +273,12 @@ def test_sim_params_of_the_wrong_type_are_named():
 
 def test_a_threshold_of_a_few_photo_electrons_warns():
     """Under 2 photo-electrons a spike the normal form of shot noise loses charge (the rate falls
-    below rate_at_one·I): said, not silent."""
-    with pytest.warns(UserWarning, match="under 2 photo-electrons"):
+    below rate_at_one·I at I = 1, rises above it in dim light): said, with the errors measured
+    at this threshold (the same two figures were quoted whatever the threshold)."""
+    with pytest.warns(UserWarning, match=r"under 2 .*measured -1% at I = 1, \+2% at I = 0\.05"):
         SimParams(threshold=1.0)
+    with pytest.warns(UserWarning, match=r"measured -72% at I = 1, \+56% at I = 0\.05"):
+        SimParams(threshold=0.01)  # (an audit measured -71.5 % and +51 % on a flat field)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         SimParams(threshold=2.0)
@@ -282,6 +286,22 @@ def test_a_threshold_of_a_few_photo_electrons_warns():
     for threshold in (1e38, 1e-46, 1e-4):  # float voltages overflowed, or the threshold was 0:
         with pytest.raises(ValueError, match="threshold expected in \\[0.001, 1e30\\]"):
             SimParams(threshold=threshold)  # every readout fired
+
+
+def test_a_fixed_pattern_spread_that_moves_the_mean_rate_warns():
+    """fpn_sigma 5 was taken in silence, the spikes then 4.6 times the test images' units (a
+    units warning blamed the images); the gain said is the simulated one."""
+    with pytest.warns(UserWarning, match=r"fpn_sigma 5: .* fire 4.62 times rate_at_one·I"):
+        SimParams(fpn_sigma=5.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        SimParams(fpn_sigma=0.2)  # +4.6 %
+    with pytest.warns(UserWarning, match=r"fpn_sigma 0.5: .* fire 1.62 times"):
+        params = SimParams(fpn_sigma=0.5, dark_rate=0.0, shot_noise=False, temporal_sigma=0.0)
+    light = np.full((1, 64, 64), 0.4, np.float32)  # 0.1 spikes a readout at gain 1
+    spikes = simulate_spikes(light, 2000, params=params)
+    rate = np.unpackbits(spikes, axis=-1).mean()  # 64 columns: whole bytes
+    assert rate / (0.4 * params.rate_at_one) == pytest.approx(fpn_gain(0.5), rel=0.03)
 
 
 def test_frames_without_times_span_readouts_0_to_the_last():

@@ -1793,8 +1793,15 @@ def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
     path.write_text(  # whatever else (opacity_reset_every) it inherits scaled
         yaml.safe_dump({"base": "spikegs", "train": {"iterations": 500}, "densify": own})
     )
-    with pytest.raises(ValueError, match="densify.every"):
+    with pytest.raises(ValueError, match="densify.every") as refused:
         load_config(path, iterations=500)
+    assert "scaled" not in str(refused.value)  # the values named are those written
+    # every 100000 (3000 iterations') at --iterations 60: the error named every = 2000, a value
+    # nobody wrote; it says that it is scaled, and from what
+    path.write_text(yaml.safe_dump({"base": "tfp33", "densify": {"every": 100000}}))
+    scaled = r"densify.every = 2000, .*; scaled to train.iterations = 60 from the lengths they "
+    with pytest.raises(ValueError, match=scaled + r"were written for \(densify.every x 0.02\)"):
+        load_config(path, iterations=60)
 
 
 @pytest.mark.parametrize(

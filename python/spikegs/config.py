@@ -353,7 +353,24 @@ class Config:
         config.train.iterations = iterations
         if factor != 1:
             _keep_a_round(config.densify, iterations)
+        return _validated_scaled(config, dict.fromkeys(SCHEDULE_KEYS, factor))
+
+
+def _validated_scaled(config: Config, factors: dict[str, float]) -> Config:
+    """`config.validate()`, where an error names a densification value scaled to the run's length
+    (by `factors`, per schedule key) saying so: the value named is not the one written."""
+    try:
         return config.validate()
+    except ValueError as err:
+        named = {key: f for key, f in factors.items() if f"densify.{key} = " in str(err)}
+        scaled = {key: f for key, f in named.items() if f != 1}
+        if not scaled:
+            raise
+        listed = ", ".join(f"densify.{key} x {f:.3g}" for key, f in scaled.items())
+        raise ValueError(
+            f"{err}; scaled to train.iterations = {config.train.iterations} from the lengths "
+            f"they were written for ({listed})"
+        ) from None
 
 
 def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
@@ -537,7 +554,7 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
-    return config.validate()
+    return _validated_scaled(config, factors)
 
 
 def _own_name(path: Path, inherited: str | None) -> str:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import numbers
+import statistics
 import warnings
 from typing import Callable, Union
 
@@ -31,6 +33,12 @@ MAX_LIGHT_TIMES = 1e8  # a callable's sampling times: 0.8 GB (a frame every 1e-7
 # the smallest threshold (photo-electrons a spike) at which the normal form of shot noise keeps
 # the firing rate within 0.5% of rate_at_one·I at the default rate_at_one (I up to 1.5)
 MIN_SHOT_THRESHOLD = 2.0
+# under it, the rates' error is measured at these intensities over so many pixels and readouts
+# (12,800 spikes at I = 0.05 and the default rate_at_one: ~1 % statistical error)
+BIAS_INTENSITIES, BIAS_PIXELS, BIAS_READOUTS = (1.0, 0.05), 256, 4000
+# a fixed-pattern spread whose mean gain over the pixels, θ/θ_i, is off 1 by more than this
+# (fpn_sigma 0.2: +4.6 %, 0.25: +8.1 %, 5: x4.6) is warned of: the rates leave rate_at_one·I
+FPN_GAIN_TOLERANCE = 0.05
 
 
 def _param(name: str, meaning: str):
@@ -64,11 +72,24 @@ class SimParams:
                 setattr(self, field.name, float(value))
         _C.SpikeSimulator(1, 1, self.to_core(), 0)  # validates the ranges
         if self.shot_noise and self.threshold < MIN_SHOT_THRESHOLD:
+            errors = ", ".join(
+                f"{error:+.0%} at I = {i:g}" for i, error in zip(BIAS_INTENSITIES, rate_bias(self))
+            )
             warnings.warn(
                 f"SimParams threshold {self.threshold:g}: under {MIN_SHOT_THRESHOLD:g} "
                 f"photo-electrons a spike, the simulator's normal form of shot noise (which can "
-                f"take charge away) distorts the firing rates: at I = 1 below rate_at_one·I, -1% "
-                f"at 1, -46% at 0.05; in the dark above dark_rate",
+                f"take charge away, or add more than a spike's) distorts the firing rates: "
+                f"measured {errors} against rate_at_one·I (the dark current's rate likewise)",
+                stacklevel=3,
+            )
+
+        gain = fpn_gain(self.fpn_sigma)
+        if abs(gain - 1) > FPN_GAIN_TOLERANCE:
+            warnings.warn(
+                f"SimParams fpn_sigma {self.fpn_sigma:g}: pixels whose thresholds spread as "
+                f"θ·max(1 + fpn_sigma·z, 0.1) fire {gain:.3g} times rate_at_one·I on average "
+                f"(their mean θ/θ_i), so the spikes leave the test images' units; a spread "
+                f"under ~0.2 keeps that within {FPN_GAIN_TOLERANCE:.0%}",
                 stacklevel=3,
             )
 
@@ -77,6 +98,33 @@ class SimParams:
         for field in dataclasses.fields(self):
             setattr(core, field.name, getattr(self, field.name))
         return core
+
+
+def fpn_gain(fpn_sigma: float) -> float:
+    """The pixels' mean firing-rate gain θ/θ_i under fixed-pattern threshold mismatch,
+    θ_i = θ·max(1 + fpn_sigma·z, 0.1) with z standard normal (the mean over 20,000 quantiles)."""
+    return float(np.mean(1 / np.maximum(1 + fpn_sigma * _normal_quantiles(), 0.1)))
+
+
+@functools.cache
+def _normal_quantiles(count: int = 20000) -> np.ndarray:
+    """The standard normal's quantiles at the midpoints of `count` equal probability bins."""
+    inverse = statistics.NormalDist().inv_cdf
+    return np.array([inverse((i + 0.5) / count) for i in range(count)])
+
+
+def rate_bias(params: SimParams) -> list[float]:
+    """The simulated firing rate's relative error against rate_at_one·I at each of
+    BIAS_INTENSITIES under `params`, the shot noise's alone (no dark current, fixed-pattern or
+    temporal noise), over BIAS_PIXELS pixels and BIAS_READOUTS readouts."""
+    core = params.to_core()
+    core.dark_rate = core.fpn_sigma = core.temporal_sigma = 0.0
+    light = np.repeat(np.float32(BIAS_INTENSITIES)[:, None], BIAS_PIXELS, axis=1)  # [I, P]
+    sim = _C.SpikeSimulator(len(BIAS_INTENSITIES), BIAS_PIXELS, core, 0)
+    packed = sim.run(light[None], np.zeros(1), BIAS_READOUTS)  # [T, I, P / 8]: whole bytes
+    rates = np.unpackbits(packed, axis=-1).mean(axis=(0, 2))  # [I] spikes a readout
+    expected = np.minimum(params.rate_at_one * np.asarray(BIAS_INTENSITIES), 1.0)
+    return (rates / expected - 1).tolist()
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
