@@ -158,6 +158,10 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases.append((constant_source(0.1, lit=3), still, ("turns 0° and", "lit pixels .* fire 0.025")))
     cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them"))  # 18.9 dB against 21.4
+    # one training view, which cannot place a scene in depth (it trained in silence)
+    cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
+    one = {"readouts": 194, "test_on_path": 1, "train_every": 1}  # the held-out view's margins
+    cases.append(("solids", one, r"one training timestamp \(readout 161;.*--test-on-path"))
     # light that saturates every pixel: flagged while simulating, then refused on loading
     saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
     cases.append((constant_source(5.0), still, saturated))

@@ -447,6 +447,20 @@ def simulate_dataset(
             f"(poses that move around the scene can)",
             stacklevel=2,
         )
+    held_out = [v.readout for v in views if v.readout is not None]
+    timestamps = train_timestamps(readouts, np.array(held_out), train_every)
+    if len(timestamps) == 1:
+        warnings.warn(
+            f"one training timestamp (readout {timestamps[0]}; train_every {train_every} over "
+            f"{readouts} readouts): every step trains on one view, which cannot place the scene "
+            f"in depth; "
+            + (
+                "a smaller train_every (--train-every)"
+                if train_every > 1
+                else "more readouts, or fewer on-path held-out views (--test-on-path)"
+            ),
+            stacklevel=2,
+        )
     out = prepare_output(out, overwrite)
     write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
     K = source.K
@@ -473,8 +487,5 @@ def simulate_dataset(
         "image_scale": rate,
         "train_every": train_every,
     }
-    held_out = [v.readout for v in views if v.readout is not None]
-    write_parts(
-        out, meta, trajectory, train_timestamps(readouts, np.array(held_out), train_every), views
-    )
+    write_parts(out, meta, trajectory, timestamps, views)
     return load_dataset(out)
