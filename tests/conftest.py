@@ -40,3 +40,15 @@ def moved_world():
         return Dataset(dataset.root, meta, dataset.streams, trajectory, timestamps, views)
 
     return moved
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """One torch thread for a module's tests: their tensors are tiny, and one thread beats OpenMP
+    hand-offs, most of all on a busy machine."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

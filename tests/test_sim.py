@@ -22,10 +22,12 @@ from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
 from spikegs.sim_scores import compare_methods
 from spikegs.sim_train import (
+    fast_inference_model,
     infer_sim,
     inference_model,
     load_sim,
     predict,
+    recorded_seconds,
     save_sim,
     train_or_load,
     train_sim,
@@ -82,13 +84,7 @@ def sliding_camera(height: int, width: int, gain: float = 0.25):
 TRAIN = {"steps": 30, "batch_size": 4, "crop": 16, "progress": False}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    """These tensors are tiny: one thread beats OpenMP hand-offs, most of all on a busy machine."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.fixture(scope="module")
@@ -348,10 +344,11 @@ def test_writable_folder(tmp_path):
 
 class _CtrlC:
     """`stream`, whose `at`-th training window (not a fingerprint's one-readout window) is
-    interrupted by a Ctrl-C."""
+    interrupted by a Ctrl-C (None: none is); `calls` counts them."""
 
-    def __init__(self, stream, at: int):
+    def __init__(self, stream, at: int | None):
         self.stream, self.at, self.height, self.width = stream, at, stream.height, stream.width
+        self.calls = 0
 
     def __len__(self) -> int:
         return len(self.stream)
@@ -361,8 +358,8 @@ class _CtrlC:
 
     def window(self, k, w: int) -> np.ndarray:
         if w > 1:
-            self.at -= 1
-            if self.at == 0:
+            self.calls += 1
+            if self.calls == self.at:
                 raise KeyboardInterrupt
         return self.stream.window(k, w)
 
@@ -373,8 +370,8 @@ class _SigInt(_CtrlC):
 
     def window(self, k, w: int) -> np.ndarray:
         if w > 1:
-            self.at -= 1
-            if self.at == 0:
+            self.calls += 1
+            if self.calls == self.at:
                 os.kill(os.getpid(), signal.SIGINT)
         return self.stream.window(k, w)
 
@@ -652,3 +649,224 @@ def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, 
     assert main(["sim-train", str(root), "--no-progress"]) == 130
     assert calls == [False]
     assert "the same command (without --force) continues" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("path", ["forward", "forward_rotated"])
+def test_a_fresh_sim_outputs_zero_whatever_it_sees(path):
+    """The output layer starts at zero, weights and bias (sim.py, BENCHMARKS.md "What decides a
+    300-step SIM"): a fresh SIM's first output is exactly 0, in training too (no clamp there)."""
+    torch.manual_seed(0)
+    model = SIM(window=9).train()
+    y = getattr(model, path)(_spikes(2, 9, 11, 13))
+    assert y.shape == (2, 1, 11, 13)
+    assert torch.equal(y, torch.zeros_like(y))
+
+
+def _constant_features_sim() -> SIM:
+    """window 1, width 1, one shift layer, two head layers of width 1: the shift convolution
+    outputs its bias -1 everywhere (weights 0), the head sums the four branches (weights 1,
+    bias 0), the output layer adds 1 (weight 1, bias 1)."""
+    model = SIM(window=1, width=1, head_width=1, shift_layers=1, head_layers=2)
+    with torch.no_grad():
+        model.shift[0].weight.zero_()
+        model.shift[0].bias.fill_(-1.0)
+        model.head[0].weight.fill_(1.0)
+        model.head[0].bias.zero_()
+        model.head[1].weight.fill_(1.0)
+        model.head[1].bias.fill_(1.0)
+    return model
+
+
+@pytest.mark.parametrize("path", ["forward", "forward_rotated"])
+def test_the_activation_is_a_leaky_relu_of_slope_0_1(path):
+    """Every branch reads leaky(-1) = -0.1 at a neighbour inside the image; an interior pixel sums
+    its four branches, -0.4, the head's leaky ReLU makes it -0.04, the output 1 - 0.04 = 0.96.
+    A corner pixel has two neighbours (the blind spot reads zeros past the image): 1 - 0.02.
+    (A slope s gives 1 - 4 s^2: a saved SIM depends on it; a plain ReLU in the head gives 1.)"""
+    model = _constant_features_sim().train()  # training: no clamp
+    with torch.no_grad():
+        y = getattr(model, path)(torch.zeros(1, 1, 5, 6))[0, 0]  # [5, 6]
+    slope = 0.1
+    torch.testing.assert_close(y[2, 3], torch.tensor(1 - 4 * slope * slope), rtol=0, atol=1e-6)
+    torch.testing.assert_close(y[0, 0], torch.tensor(1 - 2 * slope * slope), rtol=0, atol=1e-6)
+
+
+def test_inference_clamps_to_0_1_and_training_does_not():
+    """Outside training the output is clamped to [0, 1] (firing rates); in training it is not
+    (a saturating output dies under L1 on low rates, `SIM._merge`)."""
+    model = SIM(window=3)
+    x = _spikes(1, 3, 7, 8)
+    for bias, clamped in ((1.5, 1.0), (-0.5, 0.0), (0.25, 0.25)):
+        with torch.no_grad():
+            model.head[-1].bias.fill_(bias)  # the weights are zero: the output is the bias
+            assert torch.equal(model.train()(x), torch.full((1, 1, 7, 8), bias))
+            assert torch.equal(model.eval()(x), torch.full((1, 1, 7, 8), clamped))
+            assert torch.equal(model.forward_rotated(x), torch.full((1, 1, 7, 8), clamped))
+
+
+class SpikeArray:
+    """A stand-in spike stream held whole: Bernoulli spikes of `rate`, uint8 [T, H, W]."""
+
+    def __init__(self, height: int, width: int, length: int, rate: float = 0.2, seed: int = 0):
+        rng = np.random.default_rng(seed)
+        self.spikes = (rng.random((length, height, width)) < rate).astype(np.uint8)
+        self.height, self.width = height, width
+
+    def __len__(self) -> int:
+        return len(self.spikes)
+
+    def digest(self) -> bytes:
+        return hashlib.sha256(self.spikes.tobytes()).digest()
+
+    def window(self, k, w: int) -> np.ndarray:  # [w, H, W] ([B, w, H, W])
+        one = lambda i: self.spikes[int(i) - w // 2 : int(i) - w // 2 + w]  # noqa: E731
+        return np.stack([one(i) for i in k]) if np.ndim(k) else one(k)
+
+
+TINY = dict(steps=2, batch_size=1, crop=16, progress=False)
+W = 9  # the SIM window of these tests (a short one: fast)
+
+
+def _ts(stream, w=W):
+    lo, hi = centred_range(len(stream), w)
+    return np.arange(lo, hi + 1)
+
+
+def test_the_crop_warning_names_crops_under_the_field_that_miss_part_of_the_frame():
+    """The warning is for a crop under the 15-pixel field that is smaller than the frame along a
+    side (training sees a zero border where inference sees the frame), not for a crop as large
+    as the frame: on an 8x14 frame crop 10 (8x10 crops) warns, crop 14 and crop 16 (the whole
+    frame) do not, and a crop taller than the frame crops the full height."""
+    stream = SpikeArray(8, 14, 30)
+    ts = _ts(stream)
+    with pytest.warns(UserWarning, match="SIM crop 10: under the 15-pixel square"):
+        train_sim(stream, ts, W, steps=1, batch_size=2, crop=10, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for crop in (14, 16):
+            model, losses = train_sim(
+                stream, ts, W, steps=1, batch_size=2, crop=crop, progress=False
+            )
+            assert len(losses) == 1 and np.isfinite(losses[0])
+
+
+def test_a_sim_cached_from_another_start_is_retrained(tmp_path, capsys):
+    """A SIM cached with another `start` (trained before SIM started at zero) is not reused, with
+    everything else the same: its data, window and settings."""
+    stream = SpikeArray(12, 12, 40)
+    path, ts = tmp_path / "sim.pt", [20, 21]
+    assert train_or_load(path, stream, ts, W, **TINY)[1] > 0
+    assert train_or_load(path, stream, ts, W, **TINY)[1] == 0  # the same: reused
+    payload = torch.load(path, weights_only=True)
+    payload["meta"]["start"] = "pytorch-default"
+    torch.save(payload, path)
+    capsys.readouterr()
+    assert train_or_load(path, stream, ts, W, **TINY)[1] > 0
+    assert "from another start; training SIM afresh" in capsys.readouterr().err
+
+
+def test_progress_is_not_a_setting_of_a_cached_sim(tmp_path):
+    """A SIM trained with a progress bar is the one trained without: `spikegs sim-train` then
+    `spikegs train --no-progress` reuse it (progress is not in its meta)."""
+    stream = SpikeArray(12, 12, 40)
+    path, ts = tmp_path / "sim.pt", [20, 21]
+    assert train_or_load(path, stream, ts, W, **{**TINY, "progress": False})[1] > 0
+    assert "progress" not in torch.load(path, weights_only=True)["meta"]
+    assert train_or_load(path, stream, ts, W, **{**TINY, "progress": True})[1] == 0
+
+
+def test_user_cache_folder_is_the_fingerprints_first_16_hex_digits(tmp_path, monkeypatch):
+    """SIMs cached in the user cache lie under spikegs/sim/<16 hex digits>/: where earlier SIMs
+    were saved, and found again (a longer name would retrain each of them)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    digest = hashlib.sha256(b"spikes").hexdigest()  # 64 hex digits, as spikes_fingerprint's
+    assert user_cache("sim.pt", digest) == tmp_path / "spikegs" / "sim" / digest[:16] / "sim.pt"
+
+
+def _read_only(monkeypatch, tmp_path) -> Path:
+    """A dataset's sim folder that cannot be written (as test_sim.py's read-only test), and a
+    user cache in tmp_path."""
+    dataset_sim = tmp_path / "dataset" / "sim"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(
+        "spikegs.sim_train.writable_folder",
+        lambda folder: Path(folder) != dataset_sim and writable_folder(folder),
+    )
+    return dataset_sim / "sim.pt"
+
+
+def test_force_retrains_a_sim_cached_in_the_users_cache(tmp_path, monkeypatch):
+    """--force retrains a read-only dataset's SIM too (it is cached in the user's cache), and
+    saves it where it was found."""
+    path = _read_only(monkeypatch, tmp_path)
+    stream, ts = SpikeArray(12, 12, 40), [20, 21]
+    _, seconds, cached = train_or_load(path, stream, ts, W, **TINY)
+    assert seconds > 0 and cached.is_relative_to(tmp_path / "cache")
+    assert train_or_load(path, stream, ts, W, **TINY)[1:] == (0, cached)
+    _, seconds, again = train_or_load(path, stream, ts, W, force=True, **TINY)
+    assert seconds > 0 and again == cached
+
+
+def test_force_trains_afresh_instead_of_resuming(tmp_path, monkeypatch, capsys):
+    """--force does not resume an interrupted training's state: it trains from step 0, to the
+    SIM of a training never interrupted."""
+    monkeypatch.setattr("spikegs.sim_train.CHECKPOINT_S", 0.0)  # state saved every step
+    stream, path = SpikeArray(12, 12, 40), tmp_path / "sim.pt"
+    ts, settings = _ts(stream), dict(steps=4, batch_size=1, crop=12, progress=False, seed=1)
+    with pytest.raises(KeyboardInterrupt):
+        train_or_load(path, _CtrlC(stream, at=3), ts, W, **settings)
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 2
+    capsys.readouterr()
+    forced, _, _ = train_or_load(path, stream, ts, W, force=True, **settings)
+    assert "resumes" not in capsys.readouterr().err
+    fresh, _ = train_sim(stream, ts, W, **settings)
+    for a, b in zip(forced.state_dict().values(), fresh.state_dict().values()):
+        assert torch.equal(a, b)
+
+
+def test_a_resumed_trainings_earlier_seconds_are_saved_again(tmp_path, monkeypatch):
+    """Interrupted twice, the second state saved holds the seconds of the first process too
+    (the SIM's recorded training time counts every process's steps)."""
+    monkeypatch.setattr("spikegs.sim_train.CHECKPOINT_S", 0.0)
+    stream, path = SpikeArray(12, 12, 40), tmp_path / "sim.pt"
+    ts, settings = _ts(stream), dict(steps=6, batch_size=1, crop=12, progress=False)
+    partial = path.with_name("sim.pt.partial")
+    with pytest.raises(KeyboardInterrupt):
+        train_or_load(path, _CtrlC(stream, at=2), ts, W, **settings)
+    state = torch.load(partial, weights_only=True)
+    state["seconds"] = 1000.0  # as if the first process trained for 1000 s
+    torch.save(state, partial)
+    with pytest.raises(KeyboardInterrupt):
+        train_or_load(path, _CtrlC(stream, at=3), ts, W, **settings)
+    state = torch.load(partial, weights_only=True)
+    assert state["step"] == 3 and 1000.0 <= state["seconds"] < 1100.0
+
+
+def test_a_colour_sim_trains_on_crops_of_every_channel():
+    """With a list of streams (a colour camera's channels) each crop comes from a random one of
+    them: 24 crops of 2 channels all from the first has probability 2^-24."""
+    channels = [_CtrlC(SpikeArray(12, 12, 40, seed=c), at=None) for c in range(2)]
+    train_sim(channels, _ts(channels[0]), W, steps=6, batch_size=4, crop=12, progress=False)
+    assert sum(c.calls for c in channels) == 24 and all(c.calls > 0 for c in channels)
+
+
+def test_fast_inference_is_bfloat16_only_where_the_cpu_has_it(monkeypatch):
+    """bfloat16 where the CPU computes it natively, float32 elsewhere (an emulated bfloat16 is
+    slower); a dtype given is kept."""
+    model = SIM(window=W)
+    for native, dtype in ((True, torch.bfloat16), (False, torch.float32)):
+        monkeypatch.setattr(sim_train, "bf16_is_fast", lambda native=native: native)
+        assert next(fast_inference_model(model).parameters()).dtype == dtype
+        assert next(fast_inference_model(model, torch.float64).parameters()).dtype == torch.float64
+
+
+def test_recorded_seconds_are_positive_numbers_or_zero(tmp_path):
+    """A saved SIM's training seconds count towards a run's time only as a positive number."""
+    model, path = SIM(window=W), tmp_path / "sim.pt"
+    for seconds, recorded in ((12.5, 12.5), (-3.0, 0.0), (0.0, 0.0), ("12", 0.0)):
+        save_sim(model, path, seconds=seconds)
+        assert recorded_seconds(path) == recorded, seconds
+    save_sim(model, path)  # none recorded
+    assert recorded_seconds(path) == 0.0
+    path.write_bytes(b"not a SIM")
+    assert recorded_seconds(path) == 0.0

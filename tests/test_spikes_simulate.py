@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 from spikegs import SimParams, SpikeStream, simulate_spikes
+from spikegs.spikes import simulate
 from spikegs.spikes.simulate import fpn_gain, sample_times
 
 
@@ -313,3 +314,38 @@ def test_frames_without_times_span_readouts_0_to_the_last():
     got = simulate_spikes(ramp, 50, seed=4, params=params)
     want = simulate_spikes(ramp, 50, frame_times=[0.0, 49.0], seed=4, params=params)
     np.testing.assert_array_equal(got, want)
+
+
+def test_slightly_negative_light_is_refused():
+    """Light is >= 0: -0.25 (not only -1) is refused, naming the value and where."""
+    frames = np.ones((2, 4, 4), np.float32)
+    frames[1, 2, 3] = -0.25
+    with pytest.raises(ValueError, match=r"finite intensities >= 0, found -0.25 at \[1, 2, 3\]"):
+        simulate_spikes(frames, 10)
+
+
+def test_frame_times_must_start_at_readout_0():
+    """Frames from readout 1 on leave readout 0 unlit: refused as frames ending early are."""
+    frames = np.ones((2, 4, 4), np.float32)
+    with pytest.raises(ValueError, match=r"covering readouts \[0, 9\]"):
+        simulate_spikes(frames, 10, frame_times=[1.0, 9.0])
+
+
+def test_light_beyond_float32_fires_every_readout_without_a_warning():
+    """float64 light past float32's range is taken at float32's largest value (then capped where
+    a pixel fires every readout): every readout fires, and no overflow warning."""
+    frames = np.full((1, 2, 8), 1e300, np.float64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        packed = simulate_spikes(frames, 20)
+    assert (packed == 0xFF).all()
+
+
+def test_a_callable_is_sampled_at_most_max_light_times(monkeypatch):
+    """(num_readouts - 1) / frame_every sampling times over MAX_LIGHT_TIMES (here 100) are
+    refused before any frame is asked for; exactly MAX_LIGHT_TIMES are not."""
+    monkeypatch.setattr(simulate, "MAX_LIGHT_TIMES", 100)
+    light = lambda t: np.ones((2, 8), np.float32)  # noqa: E731
+    with pytest.raises(ValueError, match="frame_every 0.05 samples the light 10 / 0.05 times"):
+        simulate_spikes(light, 11, frame_every=0.05)  # 200 times
+    assert simulate_spikes(light, 11, frame_every=0.125).shape[0] == 11  # 80 times

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 from spikegs import _C, SpikeStream, save_dat
-from spikegs.spikes import TFI_DEFAULT_MAX_INTERVAL
+from spikegs.spikes import TFI_DEFAULT_MAX_INTERVAL, DatWriter
 
 
 def random_bits(shape, p=0.3, seed=0) -> np.ndarray:
@@ -385,3 +385,14 @@ def test_from_packed_defaults_to_the_full_packed_width():
     s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"))
     assert (s.height, s.width) == (2, 16)
     np.testing.assert_array_equal(s.window(1, 3), bits)
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int64])
+def test_negative_bits_are_refused(tmp_path, dtype):
+    bits = np.zeros((2, 2, 8), dtype)
+    bits[1, 0, 3] = -1
+    with pytest.raises(ValueError, match=r"bits expected 0/1, found values in \[-1, 0\]"):
+        SpikeStream.from_bits(bits)
+    with DatWriter(tmp_path / "s.dat", 2, 8) as writer:
+        with pytest.raises(ValueError, match="bits expected 0/1"):
+            writer.write_bits(bits)

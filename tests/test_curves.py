@@ -1,0 +1,70 @@
+"""Error-against-time curves (curves.py): what log.jsonl gives, and where each method's curve
+lies on the time axis (a SIM method's after SIM's training)."""
+
+import json
+from types import SimpleNamespace
+
+from spikegs import curves
+from spikegs.curves import _plot_curves, logged_curve, save_logged_curves
+
+
+def _log(run_dir, records):
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    return run_dir
+
+
+LOG = [  # a training step's record has no psnr; an evaluation's has
+    {"iteration": 10, "seconds": 0.5, "loss": 0.3},
+    {"iteration": 50, "seconds": 2.25, "loss": 0.1, "psnr": 21.0},
+    {"iteration": 60, "seconds": 2.75, "loss": 0.1},
+    {"iteration": 80, "seconds": 3.5, "psnr": 22.5},
+]
+
+
+def test_logged_curve_is_the_evaluations_with_their_training_seconds(tmp_path):
+    assert logged_curve(_log(tmp_path / "run", LOG)) == [
+        {"iteration": 50, "train_seconds": 2.25, "psnr": 21.0},
+        {"iteration": 80, "train_seconds": 3.5, "psnr": 22.5},
+    ]
+
+
+def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
+    """save_logged_curves: a run with 0 s of SIM is no SIM method (drawn from 0 s, dashed, without
+    "from SIM"); one with SIM seconds is, and keeps them."""
+    drawn = {}
+    monkeypatch.setattr(curves, "save_curves", lambda path, methods, *a: drawn.update(methods))
+    runs = {"tfp33": (_log(tmp_path / "a", LOG), 0.0), "spikegs": (_log(tmp_path / "b", LOG), 12.0)}
+    dataset = SimpleNamespace(
+        meta={"scene": "solids"}, root=tmp_path, test_views=[SimpleNamespace(name="view_000")]
+    )
+    save_logged_curves(tmp_path / "curves.png", runs, dataset)
+    assert drawn["tfp33"]["uses_sim"] is False and drawn["tfp33"]["sim_seconds"] == 0.0
+    assert drawn["spikegs"]["uses_sim"] is True and drawn["spikegs"]["sim_seconds"] == 12.0
+
+
+def test_a_sim_methods_curve_starts_after_sims_training():
+    """Each point at SIM's seconds + its training seconds; a curve of its own offset
+    (`curve_sim_seconds`: seed 0's SIM in `bench train`) takes that one, not `sim_seconds`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curve = [{"train_seconds": 1.0, "psnr": 20.0}, {"train_seconds": 3.0, "psnr": 21.0}]
+    methods = {
+        "tfp33": {"curve": curve, "sim_seconds": 0.0, "uses_sim": False},
+        "spikegs": {"curve": curve, "sim_seconds": 10.0, "uses_sim": True},
+        "bench": {"curve": curve, "sim_seconds": 40.0, "curve_sim_seconds": 30.0, "uses_sim": True},
+    }
+    fig, ax = plt.subplots()
+    try:
+        _plot_curves([ax], methods, ("psnr",))
+        lines = {line.get_label(): list(line.get_xdata()) for line in ax.lines}
+    finally:
+        plt.close(fig)
+    assert lines == {
+        "tfp33": [1.0, 3.0],
+        "spikegs (from SIM 10 s)": [11.0, 13.0],
+        "bench (from SIM 30 s)": [31.0, 33.0],
+    }

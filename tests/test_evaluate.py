@@ -1,0 +1,126 @@
+"""eval (evaluate.py): the scores' means, the side-by-side images' error panel, and what an earlier
+eval.json may remove (its images of views whose scores changed; never a path it names), runs
+and datasets without a scene name or a data fingerprint."""
+
+import copy
+import json
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+from spikegs.config import load_config
+from spikegs.data import simulate_dataset
+from spikegs.evaluate import evaluate_run, other_data, render_view
+from spikegs.image_io import linear_to_srgb, read_image
+from spikegs.ply import load_ply
+from spikegs.targets import intensity_scale
+from spikegs.train import Trainer
+
+FAST = {
+    "train": {"iterations": 2, "init_gaussians": 800, "eval_every": 50, "checkpoint_every": 50},
+    "densify": {"start": 40, "stop": 160, "every": 40, "opacity_reset_every": 0},
+}
+TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny dataset and a 2-step run on it (scored badly: every view's error is visible)."""
+    root = tmp_path_factory.mktemp("eval")
+    data = simulate_dataset("solids", root / "data", **TINY)
+    Trainer(data, load_config("tfp33", FAST), root / "run", progress=False).train()
+    return data, root / "run"
+
+
+@pytest.fixture
+def run(trained, tmp_path):
+    """A copy of the trained run, for a test to score and edit."""
+    return shutil.copytree(trained[1], tmp_path / "run")
+
+
+def test_the_scores_are_the_means_over_the_views(trained, run):
+    """eval.json's psnr, ssim and ssim_3dgs: each the mean of the views' scores (4 views whose
+    scores differ, so a median or another statistic differs too)."""
+    result = evaluate_run(run, trained[0], write_images=False)
+    views = result["views"]
+    assert len(views) == 4
+    for metric in ("psnr", "ssim", "ssim_3dgs"):
+        values = [v[metric] for v in views.values()]
+        assert len(set(values)) == 4
+        assert result[metric] == pytest.approx(np.mean(values), rel=1e-12), metric
+    assert json.loads((run / "eval.json").read_text())["ssim_3dgs"] == result["ssim_3dgs"]
+
+
+def test_side_by_side_is_ground_truth_render_and_four_times_the_error(trained, run):
+    """RUN/eval/VIEW.png: ground truth | render | 4 x |render - ground truth|, linear intensities
+    written sRGB-encoded in 8 bits (`write_image`): read back within one 8-bit step."""
+    data = trained[0]
+    evaluate_run(run, data)
+    model, scale = load_ply(run / "scene.ply"), intensity_scale(data)
+    for view in data.test_views:
+        gt = np.asarray(view.image, np.float32) / scale  # synthetic views: sharp images
+        pred = render_view(model, view.viewmat, data)
+        side = read_image(run / "eval" / f"{view.name}.png")  # [H, 3W, C] sRGB values
+        w = data.width
+        assert side.shape == (data.height, 3 * w, data.channels)
+        for panel, linear in enumerate((gt, pred, 4 * np.abs(pred - gt))):
+            np.testing.assert_allclose(
+                side[:, panel * w : (panel + 1) * w], linear_to_srgb(linear), atol=1.01 / 255
+            )
+
+
+def test_scores_without_a_later_metric_do_not_count_as_changed(trained, run):
+    """An eval.json written before ssim_3dgs was scored: the same psnr and ssim again with
+    --no-images are no change, and the earlier side-by-sides are kept."""
+    data = trained[0]
+    evaluate_run(run, data)
+    pngs = sorted((run / "eval").glob("*.png"))
+    assert len(pngs) == 4
+    doc = json.loads((run / "eval.json").read_text())
+    for scores in doc["views"].values():
+        del scores["ssim_3dgs"]
+    (run / "eval.json").write_text(json.dumps(doc))
+    evaluate_run(run, data, write_images=False)
+    assert all(png.exists() for png in pngs)
+
+
+def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run):
+    """An eval.json whose views name paths (hand-edited, another tool's): eval removes the images
+    of views the dataset no longer has, and must not follow such a name out of RUN/eval."""
+    data = trained[0]
+    (run / "keep.png").write_bytes(b"the user's")
+    (run / "eval").mkdir(exist_ok=True)
+    views = {"../keep": {"psnr": 1.0, "ssim": 0.5}, "gone_view": {"psnr": 1.0, "ssim": 0.5}}
+    (run / "eval" / "gone_view.png").write_bytes(b"an earlier side-by-side")
+    (run / "eval.json").write_text(json.dumps({"dataset": str(data.root), "views": views}))
+    evaluate_run(run, data)
+    assert (run / "keep.png").read_bytes() == b"the user's"
+    assert not (run / "eval" / "gone_view.png").exists()  # a view no longer there: removed
+
+
+def test_an_unnamed_scene_is_no_other_scene(trained, run):
+    """A dataset without a scene name (real data) or a run without one is not 'trained on scene A
+    and scored on scene B': no warning, other_data finds nothing."""
+    data = trained[0]
+    unnamed = copy.copy(data)
+    unnamed.meta = {k: v for k, v in data.meta.items() if k != "scene"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert other_data(run, unnamed) is None
+        evaluate_run(run, unnamed, write_images=False)
+        summary = json.loads((run / "train.json").read_text())
+        del summary["scene"]
+        (run / "train.json").write_text(json.dumps(summary))
+        assert other_data(run, data) is None
+        evaluate_run(run, data, write_images=False)
+
+
+def test_a_run_from_before_data_fingerprints_scores_its_own_folder_as_eval(trained, run):
+    """A train.json without "data" (runs before fingerprints): its own dataset folder is trusted,
+    scored into RUN/eval.json."""
+    summary = json.loads((run / "train.json").read_text())
+    del summary["data"]
+    (run / "train.json").write_text(json.dumps(summary))
+    result = evaluate_run(run, trained[0], write_images=False)
+    assert result["file"] == str((run / "eval.json").resolve())

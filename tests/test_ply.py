@@ -1,0 +1,75 @@
+"""load_ply (ply.py): files it must refuse by name, rather than load wrongly or fail in torch,
+and the comments it reads (only spikegs's own)."""
+
+import numpy as np
+import pytest
+import torch
+from plyfile import PlyData, PlyElement
+from spikegs.gaussians import GaussianModel
+from spikegs.ply import load_ply, save_ply
+
+BASE = [
+    "x",
+    "y",
+    "z",
+    "opacity",
+    *(f"scale_{i}" for i in range(3)),
+    *(f"rot_{i}" for i in range(4)),
+]
+
+
+def _write(path, dc: int, rest: int, comments=()):
+    """A 2-Gaussian PLY with `dc` f_dc_* and `rest` f_rest_* properties (rotation (1, 0, 0, 0))
+    and `comments`."""
+    names = BASE + [f"f_dc_{i}" for i in range(dc)] + [f"f_rest_{i}" for i in range(rest)]
+    vertex = np.zeros(2, dtype=[(n, "f4") for n in names])
+    vertex["rot_0"] = 1.0
+    PlyData([PlyElement.describe(vertex, "vertex")], comments=list(comments)).write(str(path))
+    return path
+
+
+OURS = ["spikegs background 0 0 0"]  # no warning about the background
+
+
+@pytest.mark.parametrize(
+    "dc, rest, comments, message",
+    [
+        # 46 = 3 x 15 + 1: not whole coefficients per channel (46 // 3 = 15 would pass as degree 3)
+        (3, 46, OURS, "o.ply: expected a multiple of 3 f_rest_\\* properties"),
+        # 2 coefficients a channel past the DC one: no degree has 3 (1, 4, 9, 16); not read as 0
+        (3, 6, OURS, "o.ply: 3 SH coefficients per channel, which no SH degree has"),
+        # one f_dc: a grey file cannot declare 3 channels
+        (1, 0, ["spikegs background 0", "spikegs channels 3"], "expected 1..1"),
+        # a background of 1 value for 3 channels, of 4 for 3
+        (3, 0, ["spikegs background 0.5"], "'spikegs background 0.5': expected 3 finite numbers"),
+        (3, 0, ["spikegs background 0 0 0 0"], "expected 3 finite numbers"),
+        # an origin of 2 coordinates, of 4
+        (3, 0, [*OURS, "spikegs origin 1 2"], "'spikegs origin 1 2': expected 3 finite numbers"),
+        (3, 0, [*OURS, "spikegs origin 1 2 3 4"], "expected 3 finite numbers"),
+    ],
+)
+def test_load_ply_refuses_by_name(tmp_path, dc, rest, comments, message):
+    path = _write(tmp_path / "o.ply", dc, rest, comments)
+    with pytest.raises(ValueError, match=message):
+        load_ply(path)
+
+
+def test_only_spikegs_comments_are_read(tmp_path):
+    """Another tool's `KEY VALUE` comments with spikegs's keys are not spikegs's: a file of 45
+    f_rest is degree 3 whatever "viewer sh_degree 1" says, and its 3 channels stay 3."""
+    path = _write(tmp_path / "o.ply", 3, 45, [*OURS, "viewer sh_degree 1", "viewer channels 1"])
+    model = load_ply(path)
+    assert model.sh_degree == 3 and model.channels == 3
+    assert model.params["sh_rest"].shape == (2, 15, 3)
+
+
+def test_a_grey_scene_round_trips_as_grey(tmp_path):
+    """A mono model is written as 3 equal channels with `spikegs channels 1` and read back as one
+    (the channel count comes from the comment, bounded by the f_dc count)."""
+    gen = torch.Generator().manual_seed(0)
+    model = GaussianModel.random(5, (0, 0, 0), 1.0, 1, 1, gen)
+    save_ply(model, tmp_path / "g.ply")
+    v = PlyData.read(str(tmp_path / "g.ply"))["vertex"].data
+    np.testing.assert_array_equal(v["f_dc_0"], v["f_dc_2"])
+    back = load_ply(tmp_path / "g.ply")
+    assert back.channels == 1 and back.params["sh_dc"].shape == (5, 1, 1)

@@ -1,0 +1,28 @@
+"""A run folder's files (run_folder.py): another dataset's evaluations (eval-DATASET*) are a run's
+own, not foreign files that block training into it."""
+
+from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files
+
+
+def test_evaluations_of_other_datasets_are_a_runs_files(tmp_path):
+    """`spikegs eval RUN --dataset OTHER` writes RUN/eval-OTHER.json and RUN/eval-OTHER/: not
+    foreign (a resumed or retrained run may keep them); a user's notes.txt is."""
+    run = tmp_path / "run"
+    (run / "eval-other").mkdir(parents=True)
+    (run / "eval-other.json").write_text("{}")
+    (run / "eval-other-2.json").write_text("{}")
+    (run / "config.yaml").write_text("")
+    assert foreign_files(run) == []
+    refuse_foreign_files(run, "")  # nothing to refuse
+    (run / "notes.txt").write_text("mine")
+    assert foreign_files(run) == ["notes.txt"]
+
+
+def test_a_started_run_without_a_checkpoint_may_be_trained_over(tmp_path):
+    """A run stopped before its first checkpoint (config.yaml, log.jsonl, .lock, checkpoints/)
+    is no finished run: a fresh one starts there."""
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    for name in ("config.yaml", "log.jsonl", ".lock"):
+        (run / name).write_text("")
+    check_fresh_run_dir(run, run / "checkpoints" / "last.pt")

@@ -1,0 +1,57 @@
+"""SIM's scores on a dataset (sim_scores.evaluate_dataset): a colour camera's scores are the mean
+over its channels, each channel against its own ground truth, and a method a channel cannot
+score (its pseudo ground truth) is left out."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from spikegs.sim import SIM
+from spikegs.sim_scores import compare_methods, evaluate_dataset
+from spikegs.spikes.stream import SpikeStream
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+
+def _colour_dataset(tmp_path, pseudo_channel: int | None = None):
+    """Two channels of Bernoulli spikes (rates 0.1 and 0.4 a readout over a ramp), two on-path
+    views at readouts 40 and 60 with each channel's rates as ground truth, one off-path view;
+    `pseudo_channel`: that channel's ground truth is TFP(65) of its own spikes instead."""
+    h, w, length = 10, 12, 100
+    ramp = np.linspace(0.5, 1.0, w, dtype=np.float32)[None, :] * np.ones((h, 1), np.float32)
+    rates = [0.2 * ramp, 0.8 * ramp]  # [H, W] per channel
+    rng = np.random.default_rng(0)
+    streams = [SpikeStream.from_bits(rng.random((length, h, w)) < r) for r in rates]
+    views = []
+    for name, readout in (("view_000", 40.0), ("view_001", 60.0), ("view_002", None)):
+        channels = [r.copy() for r in rates]
+        if pseudo_channel is not None and readout is not None:
+            channels[pseudo_channel] = streams[pseudo_channel].tfp(int(readout), 65)
+        views.append(SimpleNamespace(name=name, image=np.stack(channels, -1), readout=readout))
+    return SimpleNamespace(root=tmp_path, streams=streams, test_views=views)
+
+
+def test_a_colour_datasets_scores_are_the_channels_mean(tmp_path):
+    dataset, model = _colour_dataset(tmp_path), SIM(window=33)
+    ts = np.array([40, 60])  # the on-path views' readouts
+    per_channel = [
+        compare_methods(model, s, ts, np.stack([v.image[..., c] for v in dataset.test_views[:2]]))
+        for c, s in enumerate(dataset.streams)
+    ]
+    scores = evaluate_dataset(model, dataset)
+    assert set(scores) == {"SIM", "TFP(33)", "TFP(65)", "TFI"}
+    for name, metrics in scores.items():
+        for m, value in metrics.items():
+            want = (per_channel[0][name][m] + per_channel[1][name][m]) / 2
+            assert value == pytest.approx(want, rel=1e-12), (name, m)
+    # the channels' scores differ (other rates), so the mean is neither channel's alone
+    assert per_channel[0]["TFP(33)"]["psnr"] != pytest.approx(per_channel[1]["TFP(33)"]["psnr"])
+
+
+def test_a_method_that_a_channel_cannot_score_is_left_out(tmp_path):
+    """Channel 1's ground truth is its own TFP(65) (a pseudo ground truth) at every view: TFP(65)
+    has no score there, and no mean over the channels: it is left out, the others kept."""
+    dataset, model = _colour_dataset(tmp_path, pseudo_channel=1), SIM(window=33)
+    with np.errstate(divide="raise"):
+        scores = evaluate_dataset(model, dataset)
+    assert set(scores) == {"SIM", "TFP(33)", "TFI"}
