@@ -162,6 +162,8 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
     one = {"readouts": 194, "test_on_path": 1, "train_every": 1}  # the held-out view's margins
     cases.append(("solids", one, r"one training timestamp \(readout 161;.*--test-on-path"))
+    with pytest.raises(ValueError, match=r"no training timestamp: .*; a smaller train_every"):
+        simulate_dataset("solids", tmp_path / "none", **{**SMALL, **one, "train_every": 7})
     # light that saturates every pixel: flagged while simulating, then refused on loading
     saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
     cases.append((constant_source(5.0), still, saturated))

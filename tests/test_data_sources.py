@@ -309,7 +309,8 @@ def test_up_rotation_turns_z_into_up():
     from spikegs.data.trajectory import WORLD_UP, up_rotation
 
     assert (up_rotation(WORLD_UP) == np.eye(3)).all()
-    for up in ([0, 1, 0], [0, 0, -1], [-1, 0, 0], np.array([1.0, -2.0, 0.5]) / np.sqrt(5.25)):
+    near = [np.sin(1.5e-6), 0.0, -np.cos(1.5e-6)]  # 1 + cos cancelled to 2e-5 there
+    for up in ([0, 1, 0], [0, 0, -1], [-1, 0, 0], np.array([1.0, -2.0, 0.5]) / np.sqrt(5.25), near):
         rot = up_rotation(np.asarray(up, np.float64))
         np.testing.assert_allclose(rot @ WORLD_UP, up, atol=1e-12)
         np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-12)
@@ -350,7 +351,8 @@ def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path):
     assert ds.meta["up"] == [0.0, 1.0, 0.0]
     with pytest.raises(ValueError, match=r"up: expected a non-zero direction \[x, y, z\]"):
         simulate_dataset(scene, tmp_path / "bad", up=[0, 0, 0], progress=False)
-    source = MitsubaSource(scene, 8, 8, spp=1)
+    source = MitsubaSource(scene, 8, 8, spp=1, up=[0, 3, 0])  # a direction: made a unit one
+    np.testing.assert_array_equal(source.up, [0, 1, 0])
     with pytest.raises(ValueError, match="up: the source 'mitsuba-dict' given sets its own"):
         simulate_dataset(source, tmp_path / "bad", height=8, width=8, up=[0, 1, 0])
 

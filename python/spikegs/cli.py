@@ -11,8 +11,6 @@ import sys
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from .missing_dependency import MissingDependencyError
 
 # sub-command -> (module implementing it, one-line help)
@@ -53,8 +51,10 @@ def positive_float(text: str) -> float:
     return value
 
 
-def direction(text: str) -> np.ndarray:
-    """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3]."""
+def direction(text: str):
+    """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3] (numpy)."""
+    import numpy as np  # (not at import: every spikegs start, --help too, would pay for it)
+
     try:
         v = np.array([float(x) for x in text.split(",")])
     except ValueError:

@@ -368,8 +368,8 @@ def _validated_scaled(config: Config, factors: dict[str, float]) -> Config:
             raise
         listed = ", ".join(f"densify.{key} x {f:.3g}" for key, f in scaled.items())
         raise ValueError(
-            f"{err}; scaled to train.iterations = {config.train.iterations} from the lengths "
-            f"they were written for ({listed})"
+            f"{err}; scaled to train.iterations = {config.train.iterations} from the run length "
+            f"each was set for, the default {TrainConfig.iterations} where unset ({listed})"
         ) from None
 
 

@@ -33,7 +33,7 @@ from .dataset import (
 )
 from .scenes import SCENES
 from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, RenderSource, Source
-from .trajectory import WORLD_UP, Trajectory, project_points
+from .trajectory import WORLD_UP, Trajectory, project_points, unit_vector
 from .transforms_file import TRANSFORMS, warn_unread_transforms
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
@@ -115,10 +115,15 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
     lit = rates[rates > LIT_INTENSITY * params.rate_at_one]
     lit_mean = float(lit.mean()) if lit.size else 0.0
     if lit_mean * BLUR_WINDOW < 1:
+        fire = (
+            f"lit pixels (intensity over {LIT_INTENSITY:g}) fire {lit_mean:.3g} spikes per "
+            f"readout on average: a {BLUR_WINDOW}-readout TFP counts under one spike"
+            if lit.size
+            else f"pixels are all under intensity {LIT_INTENSITY:g}: black"
+        )
         warnings.warn(
-            f"the held-out views' lit pixels (intensity over {LIT_INTENSITY:g}) fire "
-            f"{lit_mean:.3g} spikes per readout on average: a {BLUR_WINDOW}-readout TFP counts "
-            f"under one spike, too few to see the scene by; raise rate_at_one or the light",
+            f"the held-out views' {fire}, too few to see the scene by; raise rate_at_one or the "
+            f"light",
             stacklevel=3,
         )
     if params.dark_rate > 0 and params.dark_rate >= DARK_FRACTION * lit_mean:
@@ -234,19 +239,6 @@ def make_source(
     if len(path.parts) > 1:  # a path, not a name
         raise FileNotFoundError(f"scene {path} not found; {expected}")
     raise ValueError(f"unknown scene '{scene}': {expected}")
-
-
-def unit_vector(name: str, value) -> np.ndarray:
-    """`value` as a unit vector [3]; ValueError naming `name` unless it is a finite, non-zero
-    vector of 3 numbers."""
-    try:
-        v = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        v = np.zeros(0)
-    norm = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
-    if not (math.isfinite(norm) and norm > 0):
-        raise ValueError(f"{name}: expected a non-zero direction [x, y, z], found {value!r}")
-    return v / norm
 
 
 def default_train_every(num_readouts: int) -> int:
@@ -449,16 +441,21 @@ def simulate_dataset(
         )
     held_out = [v.readout for v in views if v.readout is not None]
     timestamps = train_timestamps(readouts, np.array(held_out), train_every)
+    remedy = (  # what gives more: a denser stride, or room beside the held-out views
+        "a smaller train_every (--train-every)"
+        if len(train_timestamps(readouts, np.array(held_out), 1)) > len(timestamps)
+        else "more readouts, or fewer on-path held-out views (--test-on-path)"
+    )
+    if not len(timestamps):  # (was refused on loading, after the simulation)
+        raise ValueError(
+            f"no training timestamp: train_every {train_every} over {readouts} readouts, around "
+            f"{len(held_out)} on-path held-out views; {remedy}"
+        )
     if len(timestamps) == 1:
         warnings.warn(
             f"one training timestamp (readout {timestamps[0]}; train_every {train_every} over "
             f"{readouts} readouts): every step trains on one view, which cannot place the scene "
-            f"in depth; "
-            + (
-                "a smaller train_every (--train-every)"
-                if train_every > 1
-                else "more readouts, or fewer on-path held-out views (--test-on-path)"
-            ),
+            f"in depth; {remedy}",
             stacklevel=2,
         )
     out = prepare_output(out, overwrite)

@@ -25,7 +25,7 @@ from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
 from .dataset import check_meta_values
 from .scenes import GaussianScene
-from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye
+from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
 from .transforms_file import intrinsics_text, read_transforms
 from .view_geometry import view_sphere
 
@@ -97,7 +97,7 @@ class RenderSource(Source):
         )
         self.distance = distance * self.scene_radius  # camera to scene centre
         self.elevation_deg = elevation_deg
-        self.up = np.asarray(up, np.float64)
+        self.up = unit_vector("up", up)
 
     @abstractmethod
     def render(self, viewmat: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ nerfstudio-like layout with a `readout` per frame and `"convention": "opencv"` s
 from __future__ import annotations
 
 import json
+import math
 import os
 import warnings
 from pathlib import Path
@@ -41,16 +42,30 @@ def look_at(eye, target, up=WORLD_UP) -> np.ndarray:
     return np.linalg.inv(c2w)
 
 
+def unit_vector(name: str, value) -> np.ndarray:
+    """`value` as a unit vector [3]; ValueError naming `name` unless it is a finite, non-zero
+    vector of 3 numbers."""
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = np.zeros(0)
+    norm = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
+    if not (math.isfinite(norm) and norm > 0):
+        raise ValueError(f"{name}: expected a non-zero direction [x, y, z], found {value!r}")
+    return v / norm
+
+
 def up_rotation(up) -> np.ndarray:
-    """The rotation [3, 3] that turns +z into the unit vector `up` [3] by the shortest arc (the
+    """The rotation [3, 3] that turns +z into the direction `up` [3] by the shortest arc (the
     identity, exactly, for +z; a half turn about x for -z)."""
-    up = np.asarray(up, np.float64)
-    cos = float(up @ WORLD_UP)
-    if cos <= -1 + 1e-12:
-        return np.diag([1.0, -1.0, -1.0])
-    axis = np.cross(WORLD_UP, up)  # sin times the unit axis
-    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + cross + cross @ cross / (1 + cos)  # Rodrigues' formula
+    up = unit_vector("up", up)
+    if np.array_equal(up, WORLD_UP):
+        return np.eye(3)
+    cross = np.cross(WORLD_UP, up)  # sin times the unit axis
+    sin = float(np.linalg.norm(cross))
+    axis = cross / sin if sin > 0 else np.array([1.0, 0.0, 0.0])  # -z: about x
+    angle = math.atan2(sin, float(up @ WORLD_UP))  # accurate near -z too, unlike 1 / (1 + cos)
+    return Rotation.from_rotvec(angle * axis).as_matrix()
 
 
 def orbit_eye(center, radius: float, azimuth_deg, elevation_deg, up=WORLD_UP) -> np.ndarray:
