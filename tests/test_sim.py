@@ -244,8 +244,12 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     torch.save(payload, path)
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0  # still its spikes': reused
     other = BernoulliStream(scene[0], len(stream), seed=1)
-    for changed in ((other, ts), (stream, [40, 51])):  # other spikes, other timestamps
+    # other spikes, other timestamps, each against the cache of (stream, ts)'s SIM (against the
+    # other spikes' SIM, other timestamps were retrained whether they were hashed or not)
+    for changed in ((other, ts), (stream, [40, 51])):
+        train_or_load(path, stream, ts, 33, **tiny)
         assert train_or_load(path, *changed, 33, **tiny)[1] > 0
+    train_or_load(path, stream, ts, 33, **tiny)
     payload = torch.load(path, weights_only=True)
     del payload["meta"]["start"]  # a SIM cached before SIM started at zero: retrained
     torch.save(payload, path)
