@@ -1539,9 +1539,11 @@ def test_orbit_turns_with_the_world(dataset):
 
     side = np.linalg.inv(orbit_viewmats(path, center, 8, direction("0,2,0")))  # [8, 4, 4] c2w
     np.testing.assert_allclose(side[:, :3, 0] @ [0.0, 1.0, 0.0], 0.0, atol=1e-9)  # level in y
-    for bad in ("0,0,0", "1,2", "x,y,z", "nan,0,1"):
+    for bad in ("0,0,0", "1,2", "x,y,z", "nan,0,1", "inf,0,0"):
         with pytest.raises(argparse.ArgumentTypeError, match="non-zero direction"):
             direction(bad)
+    huge = direction("1e308,1e308,0")  # refused when its norm overflowed
+    np.testing.assert_allclose(huge, [2**-0.5, 2**-0.5, 0.0], rtol=1e-15)
 
 
 def test_render_refuses_an_unwritable_video_before_rendering(

@@ -53,16 +53,14 @@ def positive_float(text: str) -> float:
 
 def direction(text: str):
     """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3] (numpy)."""
-    import numpy as np  # (not at import: every spikegs start, --help too, would pay for it)
+    from .data.trajectory import unit_vector  # (numpy: not at every spikegs start, --help too)
 
     try:
-        v = np.array([float(x) for x in text.split(",")])
+        return unit_vector("", [float(x) for x in text.split(",")])
     except ValueError:
-        v = np.zeros(0)
-    norm = np.linalg.norm(v) if v.shape == (3,) else 0.0
-    if not (np.isfinite(norm) and norm > 0):
-        raise argparse.ArgumentTypeError(f"expected a non-zero direction X,Y,Z, found '{text}'")
-    return v / norm
+        raise argparse.ArgumentTypeError(
+            f"expected a non-zero direction X,Y,Z, found '{text}'"
+        ) from None
 
 
 def file_path(text: str) -> Path:

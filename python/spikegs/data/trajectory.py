@@ -49,10 +49,11 @@ def unit_vector(name: str, value) -> np.ndarray:
         v = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         v = np.zeros(0)
-    norm = float(np.linalg.norm(v)) if v.shape == (3,) else 0.0
-    if not (math.isfinite(norm) and norm > 0):
+    largest = float(np.abs(v).max()) if v.shape == (3,) else 0.0
+    if not (math.isfinite(largest) and largest > 0):
         raise ValueError(f"{name}: expected a non-zero direction [x, y, z], found {value!r}")
-    return v / norm
+    v = v / largest  # (1e308 components: their norm overflowed)
+    return v / np.linalg.norm(v)
 
 
 def up_rotation(up) -> np.ndarray:
