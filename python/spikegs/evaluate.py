@@ -219,9 +219,9 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
         pseudo = view.name.startswith(PSEUDO_PREFIX)
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
+        pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
         views[view.name] = view_metrics(pred, gt)
         if write_images:  # ground truth | render | 4 x the absolute error that was scored
-            pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # (as view_metrics compares them)
             side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
             write_image(folder / f"{view.name}.png", side)
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match

@@ -172,8 +172,15 @@ def _mean_and_std(values: list[float]) -> tuple[float, float]:
 def over_seeds(runs: list[dict]) -> dict:
     """One method's runs on one scene, one per seed -> seed 0's run (its curve, for the plots)
     with the scores and times replaced by their means, standard deviations and every seed's."""
-    keys = ("psnr", "ssim", "ssim_3dgs", "train_seconds", "sim_seconds", "gaussians")
-    keys += ("wall_seconds",)
+    keys = (
+        "psnr",
+        "ssim",
+        "ssim_3dgs",
+        "train_seconds",
+        "sim_seconds",
+        "gaussians",
+        "wall_seconds",
+    )
     merged = dict(runs[0])
     merged["curve_sim_seconds"] = runs[0]["sim_seconds"]  # the curve's own offset: seed 0's SIM
     for key in keys:

@@ -441,17 +441,17 @@ def simulate_dataset(
         )
     held_out = [v.readout for v in views if v.readout is not None]
     timestamps = train_timestamps(readouts, np.array(held_out), train_every)
-    remedy = (  # what gives more: a denser stride, or room beside the held-out views
-        "a smaller train_every (--train-every)"
-        if len(train_timestamps(readouts, np.array(held_out), 1)) > len(timestamps)
-        else "more readouts, or fewer on-path held-out views (--test-on-path)"
-    )
-    if not len(timestamps):  # (was refused on loading, after the simulation)
-        raise ValueError(
-            f"no training timestamp: train_every {train_every} over {readouts} readouts, around "
-            f"{len(held_out)} on-path held-out views; {remedy}"
+    if len(timestamps) < 2:
+        remedy = (  # what gives more: a denser stride, or room beside the held-out views
+            "a smaller train_every (--train-every)"
+            if len(train_timestamps(readouts, np.array(held_out), 1)) > len(timestamps)
+            else "more readouts, or fewer on-path held-out views (--test-on-path)"
         )
-    if len(timestamps) == 1:
+        if not len(timestamps):  # (was refused on loading, after the simulation)
+            raise ValueError(
+                f"no training timestamp: train_every {train_every} over {readouts} readouts, "
+                f"around {len(held_out)} on-path held-out views; {remedy}"
+            )
         warnings.warn(
             f"one training timestamp (readout {timestamps[0]}; train_every {train_every} over "
             f"{readouts} readouts): every step trains on one view, which cannot place the scene "
