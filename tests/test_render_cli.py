@@ -71,7 +71,35 @@ def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     mono = np.empty((2, 3, 1))
     mono[0], mono[1] = srgb_to_linear(values[0]), srgb_to_linear(values[1])  # rows: [2, 3, 1]
     monkeypatch.setattr(evaluate, "render_view", lambda model, viewmat, dataset: mono)
-    dataset = SimpleNamespace(trajectory=_cameras([4.0, 4.0]), scene_center=CENTER)
+    dataset = SimpleNamespace(trajectory=_cameras([4.0, 4.0]), scene_center=CENTER, meta={})
     frames = orbit_frames(None, dataset, 2)
     assert frames.dtype == np.uint8 and frames.shape == (2, 2, 3, 3)
     assert (frames[:, 0] == 101).all() and (frames[:, 1] == 100).all()
+
+
+def test_orbit_frames_turn_about_the_up_the_dataset_was_simulated_with(monkeypatch):
+    """meta.json's `up` (simulate --up) is the orbit's axis where --up is not given, the
+    cameras' up where it is null or absent; --up wins over both."""
+    eyes = []
+    monkeypatch.setattr(
+        evaluate,
+        "render_view",
+        lambda model, viewmat, dataset: (
+            eyes.append(np.linalg.inv(viewmat)[:3, 3]) or np.zeros((1, 1, 1))
+        ),
+    )
+
+    def axis(meta, up=None):
+        """The orbit's axis: the normal of the plane its eyes lie in."""
+        eyes.clear()
+        dataset = SimpleNamespace(trajectory=_cameras([4.0] * 5), scene_center=CENTER, meta=meta)
+        orbit_frames(None, dataset, 8, up)
+        normal = np.linalg.svd(np.stack(eyes) - np.mean(eyes, axis=0))[2][-1]
+        return normal * np.sign(normal @ [1.0, 1.0, 1.0])
+
+    np.testing.assert_allclose(axis({"up": [0.0, 2.0, 0.0]}), [0.0, 1.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(axis({"up": None}), [0.0, 0.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(axis({}), [0.0, 0.0, 1.0], atol=1e-9)
+    np.testing.assert_allclose(axis({"up": [0, 2, 0]}, np.array([1.0, 0, 0])), [1, 0, 0], atol=1e-9)
+    with pytest.raises(ValueError, match="meta.json's up: expected a non-zero direction"):
+        axis({"up": [0, 0, 0]})

@@ -140,6 +140,16 @@ def test_a_crop_under_the_field_is_warned_of(scene):
         train_sim(small, valid_timestamps(small, 33), 33, steps=1, crop=64, progress=False)
 
 
+def test_shift_layers_past_the_frame_are_warned_of():
+    """On an 8×6 frame 3 shift layers reach edge to edge (2·3 + 1 = 7 pixels): a 4th sees the
+    zero border only, said with the number that suffices."""
+    small = BernoulliStream(lambda k: np.full((8, 6), 0.2), 60)
+    ts = valid_timestamps(small, 33)
+    with pytest.warns(UserWarning, match="shift_layers 4 on 8×6 frames: 3 reach") as caught:
+        train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=4)
+    assert len(caught) == 1
+
+
 @pytest.mark.parametrize("path", ["forward", "forward_rotated"])
 @pytest.mark.parametrize("pixel", [(9, 10), (0, 0), (17, 20)])
 def test_blind_spot_is_exact(path, pixel):

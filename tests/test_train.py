@@ -1798,11 +1798,12 @@ def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
     with pytest.raises(ValueError, match="densify.every") as refused:
         load_config(path, iterations=500)
     assert "scaled" not in str(refused.value)  # the values named are those written
+    assert refused.value.name == "densify.every"  # a ConfigError names the setting it refuses
     # every 100000 (3000 iterations') at --iterations 60: the error named every = 2000, a value
     # nobody wrote; it says that it is scaled, and from what
     path.write_text(yaml.safe_dump({"base": "tfp33", "densify": {"every": 100000}}))
     scaled = r"densify.every = 2000, .*; scaled to train.iterations = 60 from the run length "
-    with pytest.raises(ValueError, match=scaled + r"each .* \(densify.every x 0.02\)"):
+    with pytest.raises(ValueError, match=scaled + r"it .* \(densify.every x 0.02\)"):
         load_config(path, iterations=60)
 
 

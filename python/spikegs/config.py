@@ -357,19 +357,18 @@ class Config:
 
 
 def _validated_scaled(config: Config, factors: dict[str, float]) -> Config:
-    """`config.validate()`, where an error names a densification value scaled to the run's length
-    (by `factors`, per schedule key) saying so: the value named is not the one written."""
+    """`config.validate()`, where the setting refused is a densification value scaled to the run's
+    length (by `factors`, per schedule key) saying so: the value named is not the one written."""
     try:
         return config.validate()
-    except ValueError as err:
-        named = {key: f for key, f in factors.items() if f"densify.{key} = " in str(err)}
-        scaled = {key: f for key, f in named.items() if f != 1}
-        if not scaled:
+    except ConfigError as err:
+        key = err.name.removeprefix("densify.")
+        if factors.get(key, 1) == 1:
             raise
-        listed = ", ".join(f"densify.{key} x {f:.3g}" for key, f in scaled.items())
         raise ValueError(
             f"{err}; scaled to train.iterations = {config.train.iterations} from the run length "
-            f"each was set for, the default {TrainConfig.iterations} where unset ({listed})"
+            f"it was set for, the default {TrainConfig.iterations} where unset "
+            f"(densify.{key} x {factors[key]:.3g})"
         ) from None
 
 
@@ -397,9 +396,17 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
         d.stop = first
 
 
+class ConfigError(ValueError):
+    """A setting refused by `Config.validate`: `name` is its 'section.key'."""
+
+    def __init__(self, name: str, value, expected: str):
+        super().__init__(f"config: {name} = {value!r}, expected {expected}")
+        self.name = name
+
+
 def _require(ok: bool, name: str, value, expected: str) -> None:
     if not ok:
-        raise ValueError(f"config: {name} = {value!r}, expected {expected}")
+        raise ConfigError(name, value, expected)
 
 
 def _numbers(section, where: str = ""):

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .cli import direction, output_file, positive_int
-from .data.trajectory import WORLD_UP, look_at
+from .data.trajectory import WORLD_UP, look_at, unit_vector
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
@@ -31,8 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--up",
         type=direction,
-        help="the world's up as X,Y,Z, the orbit's axis (default: as the cameras show it, "
-        "`world_up`; a top-down or forward-facing capture leaves it open)",
+        help="the world's up as X,Y,Z, the orbit's axis (default: the up a dataset was simulated "
+        "with, meta.json's `up`, else as the cameras show it, `world_up`; a top-down or "
+        "forward-facing capture leaves it open)",
     )
 
 
@@ -76,10 +77,13 @@ def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None
 
 
 def orbit_frames(model, dataset, frames: int, up: np.ndarray | None = None) -> np.ndarray:
-    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show)."""
+    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show), about
+    `up`, else the up the dataset was simulated with (meta.json's `up`), else the cameras'."""
     from .evaluate import render_view
     from .image_io import linear_to_srgb
 
+    if up is None and dataset.meta.get("up") is not None:
+        up = unit_vector("meta.json's up", dataset.meta["up"])
     path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up)
     out = []
     for viewmat in path:
