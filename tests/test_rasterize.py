@@ -429,6 +429,8 @@ def _bad_inputs():
             ("near-decimal", {"near": decimal.Decimal("0.01")}, "near, far: expected real"),
             ("means-sparse", {"means": s["means"].to_sparse()}, "means: expected a dense"),
             ("K-sparse", {"K": s["K"].to_sparse()}, "K: expected a dense"),  # NotImplementedError
+            # rendered, and K.grad stayed None after the backward
+            ("K-requires-grad", {"K": s["K"].clone().requires_grad_()}, "K: the intrinsics get no"),
             # failed only in the backward's in-place sum, with torch's message
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),

@@ -241,6 +241,13 @@ def test_bad_input_refused():
         simulate_spikes(frames, 10, frame_times=["0", "9"])
     with pytest.raises(ValueError, match="expected real intensities"):
         simulate_spikes(frames.astype(np.complex64), 10)
+    for codes in (np.uint8, np.uint16):  # an image file's 255 fired every readout, unsaid
+        with pytest.raises(ValueError, match=f"found {np.dtype(codes).name} codes: convert"):
+            simulate_spikes((frames * 255).astype(codes), 10)
+        with pytest.raises(ValueError, match="frame at t=0 expected intensities"):
+            simulate_spikes(lambda t, c=codes: (frames[0] * 255).astype(c), 10)
+    simulate_spikes(frames > 0.5, 10)  # bool and signed integers: intensities at face value
+    simulate_spikes(np.ones((1, 4, 5), np.int64), 10)
     with pytest.raises(ValueError, match=r"found nan at \[1, 2, 3\]"):
         nan = frames.copy()
         nan[1, 2, 3] = np.nan

@@ -377,12 +377,16 @@ def test_from_bits_packs_a_stream_in_memory():
         SpikeStream.from_bits(bits[0])
 
 
-def test_from_packed_defaults_to_the_full_packed_width():
-    """from_packed(packed) without height/width: every bit of the last byte is a column
-    (width 8 * last dim); a default one short dropped the last column of every frame."""
+def test_from_packed_needs_the_width():
+    """A packed row of 2 bytes holds 9 to 16 columns: from_packed without width refuses to guess
+    (a guess of 16 gave a 13-wide frame 3 columns that never fire), takes height from the array,
+    and with width=16 keeps the last column (a default one short once dropped it)."""
     bits = np.zeros((3, 2, 16), np.uint8)
     bits[:, :, -1] = 1  # the last column fires every readout
-    s = SpikeStream.from_packed(np.packbits(bits, axis=-1, bitorder="little"))
+    packed = np.packbits(bits, axis=-1, bitorder="little")
+    with pytest.raises(ValueError, match="needs width=: rows of 2 bytes hold 9 to 16 columns"):
+        SpikeStream.from_packed(packed)
+    s = SpikeStream.from_packed(packed, width=16)
     assert (s.height, s.width) == (2, 16)
     np.testing.assert_array_equal(s.window(1, 3), bits)
 

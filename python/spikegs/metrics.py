@@ -1,5 +1,6 @@
-"""PSNR and SSIM (scikit-image's, and 3DGS's) against ground truth, on [H, W] or [H, W, C] images
-in [0, 1]."""
+"""PSNR and SSIM (scikit-image's, and 3DGS's) against ground truth, on [H, W] or [H, W, C] float
+images (numpy arrays or torch tensors) in [0, 1]: intensities, as renders are (a dataset's images
+are in firing-rate units: divide by `targets.intensity_scale`)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,32 @@ from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 
 def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
-    pred, gt = np.asarray(pred, dtype=np.float64), np.asarray(gt, dtype=np.float64)
+    """`pred` and `gt` (arrays or tensors) as float64 [H, W] or [H, W, C] images; ValueError for
+    integer codes (data range 1: 8-bit 200 against 100 scored -40 dB) or a channels-first image
+    (a [3, H, W] tensor's layout was scored as 3 rows of W pixels with H channels)."""
+    pred, gt = _image(pred), _image(gt)
     if pred.shape != gt.shape or pred.ndim not in (2, 3):
         raise ValueError(
             f"expected two [H, W] or [H, W, C] images, got {pred.shape} and {gt.shape}"
         )
-    return pred, gt
+    if pred.ndim == 3 and pred.shape[0] <= 4 < pred.shape[2]:
+        raise ValueError(
+            f"expected [H, W, C] images, got {list(pred.shape)}: channels first? "
+            f"np.moveaxis(image, 0, -1)"
+        )
+    return pred.astype(np.float64), gt.astype(np.float64)
+
+
+def _image(x) -> np.ndarray:
+    if hasattr(x, "detach"):  # a torch tensor, perhaps requiring grad
+        x = x.detach().cpu().numpy()
+    x = np.asarray(x)
+    if x.dtype.kind != "f":
+        raise ValueError(
+            f"expected float images in [0, 1] (data range 1), found {x.dtype.name} values "
+            f"(8-bit codes: image / 255)"
+        )
+    return x
 
 
 def psnr(pred, gt) -> float:

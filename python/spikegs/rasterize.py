@@ -159,17 +159,21 @@ def rasterize(
     screen_points: torch.Tensor | None = None,
     screen_abs: torch.Tensor | None = None,
 ) -> RasterizeResult:
-    """Render N Gaussians into one [H, W, C] image, differentiably.
+    """Render N Gaussians into one [H, W, C] image of `width` × `height` pixels, differentiably.
 
     means [N, 3], quats [N, 4] (w, x, y, z, any norm), scales [N, 3] and opacities [N] (already
     activated), colors [N, C] (direct) or [N, K, C] (SH coefficients, degree `sh_degree` or
     sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV; its top 3x4 rows read as an affine
-    map, not checked for rigidity), K [3, 3] intrinsics (no gradient:
-    K.grad stays None), background [C].
-    All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU.
+    map, not checked for rigidity), K [3, 3] intrinsics (no gradient: one requiring grad is
+    refused), background [C]. Pixel (u, v) has its centre at (u + 0.5, v + 0.5) in K's pixels.
+    All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU; one
+    camera a call (no batch dimension). Returns RasterizeResult: image [H, W, C], alpha [H, W],
+    radii [N] int32, means2d [N, 2] pixels, depths [N].
     `screen_points`, an optional [N, 2] tensor of zeros (refused otherwise) requiring grad,
     receives the gradient of the projected 2D means (as in 3DGS densification; the reference adds
-    its values to them, this op ignores them). `screen_abs`, an optional [N, 2] tensor, has
+    its values to them, this op ignores them): `means2d` is an output beside the image, so its
+    `.retain_grad()` (gsplat's way) sees no gradient of the image. `screen_abs`, an optional
+    [N, 2] tensor, has
     each backward add the compositing's per-pixel shares of that gradient summed in absolute value
     (AbsGS's densification signal: shares of opposite sign do not cancel). Culled Gaussians get
     radius 0 and zero gradient.
@@ -208,6 +212,10 @@ def rasterize(
         raise ValueError("colors: expected at least one channel")
     _check("viewmat", viewmat, (4, 4), dtype)
     _check("K", K, (3, 3), dtype)
+    if K.requires_grad:
+        raise ValueError(
+            "K: the intrinsics get no gradient (a learnt K would stay as it is); pass K.detach()"
+        )
     for name, camera in (("viewmat", viewmat), ("K", K)):
         if not torch.isfinite(camera).all():
             raise ValueError(f"{name}: expected finite values, got {camera.tolist()}")

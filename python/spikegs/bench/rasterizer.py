@@ -56,7 +56,7 @@ def standard_scene(n: int, width: int, height: int, channels: int, seed: int = 0
 
 def _render(fn: Callable, scene: dict, width: int, height: int, grad: bool):
     """Render with `fn` (and with `grad`, backpropagate the benchmark loss): (out, leaves)."""
-    leaves = {k: v.detach().requires_grad_(grad) for k, v in scene.items()}
+    leaves = {k: v.detach().requires_grad_(grad and k != "K") for k, v in scene.items()}
     with torch.set_grad_enabled(grad):
         out = fn(*leaves.values(), width, height)
         if grad:

@@ -136,6 +136,12 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     frame = np.asarray(frame)
     if frame.dtype.kind not in "biuf":
         raise ValueError(f"{what} expected real intensities, found {frame.dtype.name} values")
+    if frame.dtype in (np.uint8, np.uint16):  # an image file's codes, not light: 255 = 255 × 1.0
+        raise ValueError(
+            f"{what} expected intensities (1.0 fires rate_at_one a readout), found "
+            f"{frame.dtype.name} codes: convert them to float and linear light first (an 8-bit "
+            f"sRGB image: spikegs.image_io.srgb_to_linear(image / 255))"
+        )
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
     bad = ~(np.isfinite(frame) & (frame >= 0)) if frame.dtype.kind == "f" else frame < 0
@@ -248,7 +254,9 @@ def simulate_spikes(
     a callable t -> [H, W] sampled at t = 0, frame_every, 2·frame_every, ... and the last readout.
     The light between two frames is interpolated linearly per readout. Works `chunk` readouts at
     a time. With `out` a path, streams to a .dat file (rows flipped if `flip`) and returns
-    `SpikeStream.open(out, ...)`; else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped).
+    `SpikeStream.open(out, ...)`; else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped),
+    which `SpikeStream.from_packed(packed, width=W)` reads. Intensities are floats (or bool and
+    signed integers, at face value); uint8 and uint16, an image file's codes, are refused.
     """
     if not (is_int(num_readouts) and num_readouts >= 1):
         raise ValueError(f"num_readouts expected a positive int, found {num_readouts!r}")

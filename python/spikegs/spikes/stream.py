@@ -140,14 +140,21 @@ class SpikeStream:
     def from_packed(
         cls, packed: np.ndarray, height: int | None = None, width: int | None = None
     ) -> SpikeStream:
-        """Wrap packed [T, H, ceil(W/8)] uint8 (LSB first, row 0 on top); width: 8·last dim."""
+        """Wrap packed [T, H, ceil(W/8)] uint8 (LSB first, row 0 on top; height: H by default).
+        `width` is required: a row of B bytes holds 8B - 7 to 8B columns (a guess of 8B gave
+        `simulate_spikes`' 13-wide frames 3 columns that never fire)."""
         packed = np.asarray(packed)
         if packed.ndim != 3 or packed.dtype != np.uint8:
             raise ValueError(
                 f"packed expected uint8 [T, H, ceil(W/8)], found {packed.dtype} {packed.shape}"
             )
+        if width is None:
+            b = packed.shape[2]
+            raise ValueError(
+                f"from_packed needs width=: rows of {b} bytes hold {max(1, 8 * b - 7)} to {8 * b} "
+                f"columns"
+            )
         height = packed.shape[1] if height is None else height
-        width = 8 * packed.shape[2] if width is None else width
         height, width = whole_numbers(height=height, width=width)
         if packed.shape[1:] != (height, (width + 7) // 8):
             raise ValueError(
