@@ -1,11 +1,12 @@
 """eval (evaluate.py): the scores' means, the side-by-side images' error panel, and what an earlier
 eval.json may remove (its images of views whose scores changed; never a path it names), runs
-and datasets without a scene name or a data fingerprint."""
+and datasets without a scene name or a data fingerprint, and the README's scoring of a run."""
 
 import copy
 import json
 import shutil
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -124,3 +125,21 @@ def test_a_run_from_before_data_fingerprints_scores_its_own_folder_as_eval(train
     (run / "train.json").write_text(json.dumps(summary))
     result = evaluate_run(run, trained[0], write_images=False)
     assert result["file"] == str((run / "eval.json").resolve())
+
+
+def test_the_readme_scores_a_run_as_eval_does(trained, run, capsys):
+    """README.md's Python API block that loads a run, renders and scores it, run as written (the
+    paths replaced): its scores are eval.json's of the first test view."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    block = readme.split("A trained run, rendered and scored")[1].split("```python\n")[1]
+    code = block.split("```")[0]
+    code = code.replace('"data"', repr(str(trained[0].root))).replace(
+        '"run/scene.ply"', repr(str(run / "scene.ply"))
+    )
+    exec(compile(code, "README.md", "exec"), {})
+    printed = capsys.readouterr().out
+    first = evaluate_run(run, trained[0], write_images=False)["views"][
+        trained[0].test_views[0].name
+    ]
+    for metric in ("psnr", "ssim", "ssim_3dgs"):
+        assert f"'{metric}': {first[metric]!r}" in printed, (metric, printed)
