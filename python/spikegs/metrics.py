@@ -26,6 +26,7 @@ def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _image(x) -> np.ndarray:
+    """`x` (an array or a tensor) as a float numpy array; ValueError for integer or bool values."""
     if hasattr(x, "detach"):  # a torch tensor, perhaps requiring grad
         x = x.detach().cpu().numpy()
     x = np.asarray(x)

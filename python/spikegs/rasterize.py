@@ -173,10 +173,9 @@ def rasterize(
     receives the gradient of the projected 2D means (as in 3DGS densification; the reference adds
     its values to them, this op ignores them): `means2d` is an output beside the image, so its
     `.retain_grad()` (gsplat's way) sees no gradient of the image. `screen_abs`, an optional
-    [N, 2] tensor, has
-    each backward add the compositing's per-pixel shares of that gradient summed in absolute value
-    (AbsGS's densification signal: shares of opposite sign do not cancel). Culled Gaussians get
-    radius 0 and zero gradient.
+    [N, 2] tensor, has each backward add the compositing's per-pixel shares of that gradient
+    summed in absolute value (AbsGS's densification signal: shares of opposite sign do not
+    cancel). Culled Gaussians get radius 0 and zero gradient.
     Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
