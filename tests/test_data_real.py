@@ -1203,3 +1203,14 @@ def test_a_window_one_readout_into_the_next_view_names_the_view():
     np.testing.assert_array_equal(views.tfp(1, 3), 0.0)  # [0, 3): inside view a
     with pytest.raises(ValueError, match=r"covers \[1, 4\), outside view 'a' at readouts \[0, 3\)"):
         views.tfp(2, 3)
+
+
+def test_default_train_every_spaces_the_readouts_the_poses_span(llff_stream, tmp_path):
+    """Poses over the first quarter of a recording (the pose log's file 4 times over): the
+    default stride gives ~1024 timestamps over the readouts the poses span (1 here), not over the
+    whole file (3: a third as many timestamps, in silence)."""
+    root = copy(llff_stream, tmp_path)
+    (root / "spikes.dat").write_bytes((root / "spikes.dat").read_bytes() * 4)  # 2800 readouts
+    ds = load_dataset(root)
+    assert len(ds.stream) == 2800 and ds.trajectory.end == 650
+    assert ds.meta["train_every"] == 1 and np.diff(ds.train_timestamps).min() == 1

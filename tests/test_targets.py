@@ -1,4 +1,5 @@
-"""Training targets: computed on first use, equal to the eager computation, never recomputed."""
+"""Training targets: computed on first use, equal to the eager computation, never recomputed
+while the memory budget lasts."""
 
 from __future__ import annotations
 
@@ -15,6 +16,8 @@ from spikegs.data.trajectory import Trajectory
 from spikegs.sim_train import infer_sim
 from spikegs.spikes import SpikeStream
 from spikegs.targets import (
+    ImageBudget,
+    TargetImages,
     build_targets,
     check_targets,
     intensity_scale,
@@ -53,6 +56,27 @@ def test_targets_are_computed_on_first_use_and_match_the_eager_images(dataset):
     assert targets.instant[picks[0]] is first  # kept, not recomputed
     assert targets.instant[picks[0]].dtype == torch.float32
     assert len(targets.instant) == len(ts)
+
+
+def test_images_past_the_budget_are_computed_at_each_visit_said_once():
+    """A budget of two 4×4 images, shared by two targets, keeps the first two computed; a third
+    timestamp's image is computed at each visit (the same values), said once; kept ones are not
+    recomputed."""
+    calls = []
+
+    def rates(readouts):  # [1] -> [1, 4, 4, 1] firing rates
+        calls.append(int(readouts[0]))
+        return np.full((1, 4, 4, 1), float(readouts[0]), np.float32)
+
+    budget = ImageBudget(limit=2 * 16 * 4)  # two float32 images of 4×4
+    a, b = (TargetImages(np.arange(5), rates, 2.0, 0.1, budget=budget) for _ in range(2))
+    a[0], b[1]
+    with pytest.warns(UserWarning, match="training images: 2 kept fill 0.00 GiB of 0.00") as caught:
+        first, again = a[3], a[3]
+    assert len(caught) == 1
+    assert torch.equal(first, again) and float(first[0, 0, 0]) == 1.5
+    assert a.computed == b.computed == 1 and calls == [0, 1, 3, 3]
+    assert float(a[0][0, 0, 0]) == 0.0 and calls == [0, 1, 3, 3]  # kept
 
 
 def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):

@@ -172,15 +172,12 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
     return messages
 
 
-def _train_every(meta: dict, meta_path: Path, num_readouts: int) -> int:
-    """A raw recording's readouts between training timestamps: meta.json's `train_every` where it
-    states one (a positive integer, else ValueError), else default_train_every."""
+def _stated_train_every(meta: dict, meta_path: Path) -> int | None:
+    """meta.json's `train_every` (a positive integer, else ValueError), None where unstated."""
     every = meta.get("train_every")
-    if every is None:
-        return default_train_every(num_readouts)
-    if not (is_int(every) and every > 0):
+    if every is not None and not (is_int(every) and every > 0):
         raise ValueError(f"{meta_path}: train_every expected a positive integer, found {every!r}")
-    return int(every)
+    return None if every is None else int(every)
 
 
 def _registered_timestamps(root: Path, registered: np.ndarray):
@@ -308,7 +305,7 @@ def estimate_poses(
     split = bool(present)
     ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
     raw = ours or not split
-    train_every = _train_every(meta, meta_path, num) if raw else None
+    stated_every = _stated_train_every(meta, meta_path) if raw else None
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
         raise ValueError(
@@ -379,6 +376,8 @@ def estimate_poses(
     trajectory = recon.trajectory(num)
     kept = None if raw else _registered_timestamps(root, recon.readouts)  # checked before writes
     if raw:  # held-out views and training timestamps too, so that the recording trains
+        span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover
+        train_every = stated_every or default_train_every(span)
         views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every)
         meta.update(
             train_every=train_every,

@@ -2,7 +2,9 @@
 
 Each image is computed the first time a run samples its timestamp and kept from then on: n
 steps over M timestamps visit about M·(1 − exp(−n/M)) of them (3000 steps: ~1,990 of 3,400), and
-SIM inference at the others (0.2-0.3 s a 256² frame in float32) would be wasted.
+SIM inference at the others (0.2-0.3 s a 256² frame in float32) would be wasted. What a run keeps
+is capped at a quarter of the machine's memory (`ImageBudget`: 50,000 timestamps of 250×400 would
+hold 20 GB per target); past it, images are computed at each visit.
 
 Spike images (TFP, TFI, SIM) are firing rates, spikes per readout; dividing by the rate that
 intensity 1.0 fires (the simulator's calibration, or for real data a high percentile of TFP)
@@ -11,6 +13,7 @@ puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS def
 
 from __future__ import annotations
 
+import os
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,12 +27,49 @@ from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 
+def machine_memory() -> int:
+    """Bytes of the machine's physical memory (16 GiB where the system does not say)."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):  # not POSIX, or a name it lacks
+        return 16 << 30
+
+
+class ImageBudget:
+    """Bytes that a run's target images may keep, shared by its instant and exposure images
+    (default: a quarter of the machine's memory); past it, images are computed at each visit,
+    said once."""
+
+    def __init__(self, limit: int | None = None):
+        self.limit = machine_memory() // 4 if limit is None else limit
+        self.used = self.kept = 0  # bytes, images
+        self.full = False
+
+    def take(self, nbytes: int) -> bool:
+        """Whether an image of `nbytes` fits (then counted as kept)."""
+        if self.used + nbytes <= self.limit:
+            self.used += nbytes
+            self.kept += 1
+            return True
+        if not self.full:
+            self.full = True
+            warnings.warn(
+                f"training images: {self.kept} kept fill {self.used / 2**30:.2f} GiB of "
+                f"{self.limit / 2**30:.2f}, a quarter of this machine's memory; images of further "
+                f"timestamps are computed at each visit (SIM's inference each step: slower). "
+                f"Fewer training timestamps keep them all (a larger train_every: simulate "
+                f"--train-every, meta.json's or spikegs.json's train_every)",
+                stacklevel=3,
+            )
+        return False
+
+
 class TargetImages:
     """Images [H, W, C] in intensity units at a run's training timestamps, indexed like them;
-    each computed on first access (`image_fn` of that one readout) and kept. `quantum`: one spike
-    of the TFP window that they count or estimate, in intensity units (smooth L1's zone).
-    `time_offset`: readouts from a timestamp to the time its image shows (TFI's: +0.5), where the
-    trainer renders the instant pose."""
+    each computed on first access (`image_fn` of that one readout) and kept while `budget`
+    lasts. `quantum`: one spike of the TFP window that they count or estimate, in intensity
+    units (smooth L1's zone). `time_offset`: readouts from a timestamp to the time its image
+    shows (TFI's: +0.5), where the trainer renders the instant pose."""
 
     def __init__(
         self,
@@ -38,6 +78,7 @@ class TargetImages:
         scale: float,
         quantum: float,
         time_offset: float = 0.0,
+        budget: ImageBudget | None = None,
     ):
         self.timestamps = timestamps  # [M] readouts
         self.time_offset = time_offset
@@ -45,6 +86,7 @@ class TargetImages:
         self._scale = scale  # firing rate of intensity 1.0
         self.quantum = quantum
         self._cache: dict[int, torch.Tensor] = {}
+        self._budget = ImageBudget() if budget is None else budget
 
     def __len__(self) -> int:
         return len(self.timestamps)
@@ -53,7 +95,9 @@ class TargetImages:
         image = self._cache.get(index)
         if image is None:
             rates = self._image_fn(self.timestamps[index : index + 1])[0]  # [H, W, C]
-            image = self._cache[index] = torch.from_numpy(rates / np.float32(self._scale))
+            image = torch.from_numpy(rates / np.float32(self._scale))
+            if self._budget.take(image.nbytes):
+                self._cache[index] = image
         return image
 
     @property
@@ -166,11 +210,11 @@ def trained_sim(
     return model, seconds, path
 
 
-def clean_images(dataset, quantum: float) -> TargetImages:
+def clean_images(dataset, quantum: float, budget: ImageBudget | None = None) -> TargetImages:
     """The noise-free instant images at the training timestamps, rendered by the source that a
     built-in scene's dataset was simulated from at the poses it was simulated from (already in
     intensity units; poses estimated since do not move them); `quantum`: the smooth-L1 zone they
-    are compared within (they count no spikes)."""
+    are compared within (they count no spikes); `budget`: what they may keep."""
     from .data.simulate import clean_source, simulated_trajectory  # the data package imports us
 
     source, poses = clean_source(dataset), simulated_trajectory(dataset)
@@ -178,7 +222,7 @@ def clean_images(dataset, quantum: float) -> TargetImages:
     render = lambda readouts: np.stack(  # noqa: E731
         [source.image_at(poses, float(t)) for t in readouts]
     ).astype(np.float32)
-    return TargetImages(ts, render, 1.0, quantum)
+    return TargetImages(ts, render, 1.0, quantum, budget=budget)
 
 
 def check_targets(dataset, config: Config) -> None:
@@ -245,11 +289,13 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         """One spike of a `window`-readout TFP, in intensity units."""
         return 1.0 / (window * scale)
 
+    budget = ImageBudget()  # the instant and exposure images' together
+
     def images(stream_fn, window: int, time_offset: float = 0.0) -> TargetImages:
         """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
         that count or estimate the spikes of `window` readouts."""
         per_channel = lambda k: _per_channel(streams, lambda st: stream_fn(st, k))  # noqa: E731
-        return TargetImages(ts, per_channel, scale, spike(window), time_offset)
+        return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget)
 
     instant, sim_seconds = None, 0.0
     if config.instant_target() != "none":
@@ -264,7 +310,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             window = config.sim.target_readouts()
             instant = images(lambda st, k: predict(fast, st.window(k, fast.window)), window)
         elif s.instant == "clean":
-            instant = clean_images(dataset, spike(s.instant_window))
+            instant = clean_images(dataset, spike(s.instant_window), budget)
         elif s.instant == "tfp":
             instant = images(lambda st, k: st.tfp(k, s.instant_window), s.instant_window)
         else:  # TFI counts no window: instant_window only sets smooth L1's zone

@@ -329,8 +329,9 @@ def stream_dataset(
     source: str,
 ) -> Dataset:
     """One continuous stream with a pose [P, 4, 4] at each readout [P]: training timestamps every
-    `train_every` readouts clear of the held-out poses; a held-out pose whose pseudo-ground-truth
-    window does not fit in the stream is not evaluated."""
+    `train_every` readouts (default: ~1024 over the readouts the poses span) clear of the held-out
+    poses; a held-out pose whose pseudo-ground-truth window does not fit in the stream is not
+    evaluated."""
     trajectory = Trajectory(readouts, viewmats, source=source)
     if trajectory.start < 0 or trajectory.end > len(stream) - 1:
         raise ValueError(
@@ -344,7 +345,8 @@ def stream_dataset(
             f"window needs: readouts are indices, {READOUT_PERIOD_S * 1e6:g} µs apart (not "
             f"seconds?)"
         )
-    every = options.train_every or default_train_every(len(stream))
+    # by default ~1024 timestamps over the readouts the poses span, not the whole recording's
+    every = options.train_every or default_train_every(trajectory.end - trajectory.start + 1)
     ks = train_timestamps(len(stream), readouts[test], every)  # [M]
     ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
     if not len(ks):
