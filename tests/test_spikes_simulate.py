@@ -252,6 +252,12 @@ def test_bad_input_refused():
         nan = frames.copy()
         nan[1, 2, 3] = np.nan
         simulate_spikes(nan, 10)
+    with pytest.raises(ValueError, match=r"found -1.0 at \[1, 3, 2\]"):  # checked in parts
+        negative = frames.copy()
+        negative[1, 3, 2] = -1
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr("spikegs.spikes.simulate._CHECKED_VALUES", 7)  # a row at a time
+            simulate_spikes(negative, 10)
     for seed in (1.5, -1, 2**64):  # 1.5 was read as 1, -1 and 2**64 wrapped to 2**64 - 1 and 0
         with pytest.raises(ValueError, match="seed"):
             simulate_spikes(frames, 10, seed=seed)

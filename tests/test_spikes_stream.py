@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -70,6 +71,25 @@ def test_digest_covers_every_readout_whatever_the_layout(tmp_path, monkeypatch):
         edited[t, y, x] ^= 1
         assert SpikeStream.from_bits(edited).digest() != digest, (t, y, x)
     assert SpikeStream.from_bits(bits[:10]).digest() != digest
+
+
+def test_a_files_digest_is_read_once_while_the_file_is_unchanged(tmp_path, monkeypatch):
+    """A command asks for the digest two or three times (SIM's cache, the run's fingerprint):
+    the file is read once; edited in place (its mtime moved), it is read again."""
+    bits = random_bits((6, 4, 16))
+    path = save_dat(tmp_path / "s.dat", bits)
+    stream = SpikeStream.open(path, 4, 16)
+    first = stream.digest()
+    reads = []
+    monkeypatch.setattr(SpikeStream, "packed", lambda self, *a: reads.append(a) or 1 / 0)
+    assert stream.digest() == first and not reads
+    monkeypatch.undo()
+    edited = bits.copy()
+    edited[0] ^= 1
+    with open(path, "r+b") as f:  # in place: the same inode, the map sees the new bytes
+        f.write(save_dat(tmp_path / "e.dat", edited).read_bytes())
+    os.utime(path, ns=(0, path.stat().st_mtime_ns + 10**9))
+    assert stream.digest() == SpikeStream.from_bits(edited).digest() != first
 
 
 def test_unflipped_file_read_flipped(tmp_path):

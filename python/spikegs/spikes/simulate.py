@@ -124,6 +124,9 @@ def rate_bias(params: SimParams) -> list[float]:
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
+_CHECKED_VALUES = 16 << 20  # light values checked at a time by _checked_frame
+
+
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     """`frame` (an array or a torch tensor) as float32, ValueError unless real, of `shape` (if
     given), finite and >= 0. Light beyond float32's range (from float64) is taken at its largest
@@ -144,12 +147,18 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
         )
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
-    bad = ~(np.isfinite(frame) & (frame >= 0)) if frame.dtype.kind == "f" else frame < 0
-    if bad.any():
-        raise ValueError(
-            f"{what} expected finite intensities >= 0, found {frame[bad].ravel()[0]} at "
-            f"{list(map(int, np.argwhere(bad)[0]))}"
-        )
+    rows = frame.reshape(-1, frame.shape[-1]) if frame.ndim > 1 else frame.reshape(1, -1)
+    step = max(1, _CHECKED_VALUES // max(1, rows.shape[1]))  # rows a check (not the whole light
+    for start in range(0, len(rows), step):  # at once: 2 bytes of masks a value, GBs of them)
+        part = rows[start : start + step]
+        bad = ~(np.isfinite(part) & (part >= 0)) if frame.dtype.kind == "f" else part < 0
+        if bad.any():
+            row, col = np.argwhere(bad)[0]
+            where = np.unravel_index((start + row) * rows.shape[1] + col, frame.shape)
+            raise ValueError(
+                f"{what} expected finite intensities >= 0, found {part[row, col]} at "
+                f"{list(map(int, where))}"
+            )
     if frame.dtype.kind == "f" and frame.dtype.itemsize < 4:  # float16: exact in float32 (its
         frame = frame.astype(np.float32)  # minimum with FLOAT32_MAX overflowed, with a warning)
     if frame.dtype != np.float32:
