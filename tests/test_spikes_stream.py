@@ -92,6 +92,33 @@ def test_a_files_digest_is_read_once_while_the_file_is_unchanged(tmp_path, monke
     assert stream.digest() == SpikeStream.from_bits(edited).digest() != first
 
 
+def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypatch):
+    """Over _CACHED_DIGEST_BYTES (here 0) a file's digest is kept in $XDG_CACHE_HOME/spikegs for
+    another process's stream of the same file, layout, size, mtime and inode; the file read
+    another way (flipped or not) or touched is read again, and a garbled cache entry too."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    bits = random_bits((6, 4, 16))
+    path = save_dat(tmp_path / "s.dat", bits)
+    digest = SpikeStream.open(path, 4, 16).digest()
+    (entry,) = (tmp_path / "cache" / "spikegs" / "digests").iterdir()
+    assert entry.read_text() == digest.hex()
+    real_packed = SpikeStream.packed
+    reads = []
+    monkeypatch.setattr(
+        SpikeStream, "packed", lambda self, *a: reads.append(a) or real_packed(self, *a)
+    )
+    assert SpikeStream.open(path, 4, 16).digest() == digest and not reads  # a new process's
+    unflipped = SpikeStream.open(path, 4, 16, flip=False)
+    assert unflipped.digest() != digest and reads  # other rows read: another key
+    reads.clear()
+    entry.write_text("garbled")
+    assert SpikeStream.open(path, 4, 16).digest() == digest and reads
+    reads.clear()
+    os.utime(path, ns=(0, path.stat().st_mtime_ns + 10**9))
+    assert SpikeStream.open(path, 4, 16).digest() == digest and reads
+
+
 def test_unflipped_file_read_flipped(tmp_path):
     bits = random_bits((3, 4, 16))
     path = save_dat(tmp_path / "s.dat", bits, flip=False)

@@ -9,7 +9,6 @@ A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` ->
 from __future__ import annotations
 
 import functools
-import os
 import sys
 import time
 import warnings
@@ -22,6 +21,7 @@ import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically, sweep_killed_writes
+from .cache_home import cache_home
 from .config import SimConfig
 from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
@@ -302,13 +302,8 @@ def user_cache(name: str, data: str) -> Path | None:
     """Where a SIM for spikes of fingerprint `data` is cached when its dataset's folder cannot be
     written: $XDG_CACHE_HOME (an absolute path, as the XDG spec has it), else ~/.cache, then
     spikegs/sim/<fingerprint>/name; None where neither is known (no home directory)."""
-    base = Path(os.environ.get("XDG_CACHE_HOME") or ".")
-    if not base.is_absolute():
-        try:
-            base = Path.home() / ".cache"
-        except RuntimeError:  # no $HOME and no passwd entry
-            return None
-    return base / "spikegs" / "sim" / data[:16] / name
+    home = cache_home()
+    return None if home is None else home / "sim" / data[:16] / name
 
 
 def train_or_load(

@@ -30,7 +30,8 @@ from typing import Union
 import numpy as np
 
 from .. import _C
-from ..atomic_save import temporary_name
+from ..atomic_save import temporary_name, write_text_atomically
+from ..cache_home import cache_home
 from ..number_checks import is_int, is_number, whole_numbers
 
 PathLike = Union[str, os.PathLike]
@@ -93,6 +94,7 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
 
 
 _DIGEST_CHUNK_BYTES = 64 << 20  # readouts hashed at a time by SpikeStream.digest
+_CACHED_DIGEST_BYTES = 256 << 20  # streams from larger files have their digest in the user cache
 MAX_WINDOW = _C.MAX_WINDOW  # the core counts spikes in int32
 
 
@@ -250,22 +252,38 @@ class SpikeStream:
     def digest(self) -> bytes:
         """SHA-256 of the size and every readout, in the memory layout (the same spikes give the
         same digest from any file layout); read in chunks of ~64 MiB, ~0.1 s a 100 MB here. A
-        file's is computed once while the file is unchanged (a command asks two or three times);
-        reading over a GiB is announced on stderr."""
-        stat = self.path.stat() if self.path is not None else None
-        key = (stat.st_size, stat.st_mtime_ns, stat.st_ino) if stat else None
+        file's is read once while the file is unchanged (its size, mtime and inode): kept by the
+        stream (a command asks two or three times) and, for a file over 256 MiB, in the user's
+        cache for the next command (a 10 GB recording took ~7 s each); reading over a GiB is
+        announced on stderr."""
+        key = self._file_key()
         if key is not None and self._digest is not None and self._digest[0] == key:
             return self._digest[1]
         nbytes = len(self) * self._layout.frame_bytes
-        if nbytes > 1 << 30:
-            print(f"{self.path}: reading {nbytes / 1e9:.1f} GB for its digest", file=sys.stderr)
-        sha = hashlib.sha256(np.asarray([len(self), self.height, self.width], np.int64).data)
-        chunk = max(1, _DIGEST_CHUNK_BYTES // (self.height * ((self.width + 7) // 8)))
-        for start in range(0, len(self), chunk):
-            sha.update(self.packed(start, min(start + chunk, len(self))).data)
-        digest = sha.digest()
+        cached = _digest_cache(key) if key is not None and nbytes > _CACHED_DIGEST_BYTES else None
+        digest = _read_digest(cached)
+        if digest is None:
+            if nbytes > 1 << 30:
+                print(f"{self.path}: reading {nbytes / 1e9:.1f} GB for its digest", file=sys.stderr)
+            sha = hashlib.sha256(np.asarray([len(self), self.height, self.width], np.int64).data)
+            chunk = max(1, _DIGEST_CHUNK_BYTES // (self.height * ((self.width + 7) // 8)))
+            for start in range(0, len(self), chunk):
+                sha.update(self.packed(start, min(start + chunk, len(self))).data)
+            digest = sha.digest()
+            _write_digest(cached, digest)
         self._digest = None if key is None else (key, digest)
         return digest
+
+    def _file_key(self) -> str | None:
+        """The file's identity as read now, in this layout: path, size, mtime, inode, frame size,
+        flip, stored row width and column offset (None for a stream in memory)."""
+        if self.path is None:
+            return None
+        stat, lay = self.path.stat(), self._layout
+        return (
+            f"{self.path.resolve()}|{stat.st_size}|{stat.st_mtime_ns}|{stat.st_ino}|"
+            f"{lay.height}x{lay.width}|{lay.flip}|{lay.row_bits}|{lay.col_offset}"
+        )
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]; whole-number
@@ -277,6 +295,33 @@ class SpikeStream:
         mem = _C.SpikeLayout.memory(self.height, self.width)
         out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
         return out.reshape(stop - start, self.height, (self.width + 7) // 8)
+
+
+def _digest_cache(key: str) -> Path | None:
+    """The user-cache file holding the digest of the file `key` names (None: no cache folder)."""
+    home = cache_home()
+    name = hashlib.sha256(key.encode()).hexdigest()[:32]
+    return None if home is None else home / "digests" / name
+
+
+def _read_digest(path: Path | None) -> bytes | None:
+    """The digest cached at `path`; None where there is none, or no readable one."""
+    try:
+        digest = bytes.fromhex(path.read_text()) if path is not None else None
+    except (OSError, ValueError):
+        return None
+    return digest if digest is not None and len(digest) == hashlib.sha256().digest_size else None
+
+
+def _write_digest(path: Path | None, digest: bytes) -> None:
+    """Cache `digest` at `path`, where the cache folder can be written (else nothing)."""
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomically(path, digest.hex())
+    except OSError:
+        pass  # a read-only home: the next command reads the file again
 
 
 def _readouts_of(bits) -> np.ndarray:
