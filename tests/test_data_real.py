@@ -273,7 +273,9 @@ def test_windows_never_straddle_two_views(llff):
         view = ds.stream.view_of(int(k))
         assert offsets[view] <= k - 32 and k + 32 < offsets[view + 1]
         # exposure poses anywhere in the window: the view's own pose
-        np.testing.assert_allclose(ds.trajectory.pose_at(k + 32), ds.trajectory.pose_at(k - 32))
+        np.testing.assert_allclose(  # (zeros of the rotation: 2e-16 against 2.3e-16 by numpy)
+            ds.trajectory.pose_at(k + 32), ds.trajectory.pose_at(k - 32), atol=1e-12
+        )
     with pytest.raises(ValueError, match="within one view"):
         ds.stream.tfp(LENGTH - 10, 33)
     with pytest.raises(ValueError, match="within one view"):

@@ -1,5 +1,7 @@
 """SIM: exact blind spot, size, shapes, self-supervised training, save/load, inference, metrics."""
 
+from __future__ import annotations
+
 import hashlib
 import os
 import shutil

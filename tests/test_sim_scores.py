@@ -2,6 +2,8 @@
 over its channels, each channel against its own ground truth, and a method a channel cannot
 score (its pseudo ground truth) is left out."""
 
+from __future__ import annotations
+
 from types import SimpleNamespace
 
 import numpy as np

@@ -48,7 +48,8 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
     """`k` as a 1-D int64 array [B], and whether it was a single index; whole-number floats
     (a readout time such as `TestView.readout`) are accepted."""
     arr = np.asarray(k)
-    if arr.dtype.kind == "u" and arr.size and arr.max() > np.iinfo(np.int64).max:
+    # uint64 against uint64: against a Python int numpy < 1.25 compared in float64 (2^63 passed)
+    if arr.dtype.kind == "u" and arr.size and arr.max() > np.uint64(np.iinfo(np.int64).max):
         raise ValueError(f"readout index expected below 2^63, found {arr.max()}")
     if np.issubdtype(arr.dtype, np.floating) and np.all(np.abs(arr) < 2.0**62):  # NaN: False
         arr = arr.astype(np.int64) if np.all(arr == np.round(arr)) else arr
