@@ -3,8 +3,8 @@
 Each image is computed the first time a run samples its timestamp and kept from then on: n
 steps over M timestamps visit about M·(1 − exp(−n/M)) of them (3000 steps: ~1,990 of 3,400), and
 SIM inference at the others (0.2-0.3 s a 256² frame in float32) would be wasted. What a run keeps
-is capped at a quarter of the machine's memory (`ImageBudget`: 50,000 timestamps of 250×400 would
-hold 20 GB per target); past it, images are computed at each visit.
+is capped at a quarter of the memory the process may use (`ImageBudget`: 50,000 timestamps of
+250×400 would hold 20 GB per target); past it, images are computed at each visit.
 
 Spike images (TFP, TFI, SIM) are firing rates, spikes per readout; dividing by the rate that
 intensity 1.0 fires (the simulator's calibration, or for real data a high percentile of TFP)
@@ -13,7 +13,6 @@ puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS def
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,22 +22,15 @@ import numpy as np
 import torch
 
 from .config import Config, SimConfig
+from .machine_memory import machine_memory
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 
-def machine_memory() -> int:
-    """Bytes of the machine's physical memory (16 GiB where the system does not say)."""
-    try:
-        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (AttributeError, ValueError, OSError):  # not POSIX, or a name it lacks
-        return 16 << 30
-
-
 class ImageBudget:
     """Bytes that a run's target images may keep, shared by its instant and exposure images
-    (default: a quarter of the machine's memory); past it, images are computed at each visit,
-    said once."""
+    (default: a quarter of the memory this process may use, `machine_memory`); past it, images
+    are computed at each visit, said once."""
 
     def __init__(self, limit: int | None = None):
         self.limit = machine_memory() // 4 if limit is None else limit
@@ -55,10 +47,10 @@ class ImageBudget:
             self.full = True
             warnings.warn(
                 f"training images: {self.kept} kept fill {self.used / 2**30:.2f} GiB of "
-                f"{self.limit / 2**30:.2f}, a quarter of this machine's memory; images of further "
-                f"timestamps are computed at each visit (SIM's inference each step: slower). "
-                f"Fewer training timestamps keep them all (a larger train_every: simulate "
-                f"--train-every, meta.json's or spikegs.json's train_every)",
+                f"{self.limit / 2**30:.2f}, a quarter of the memory this process may use; "
+                f"images of further timestamps are computed at each visit (SIM's inference each "
+                f"step: slower). Fewer training timestamps keep them all (a larger train_every: "
+                f"simulate --train-every, meta.json's or spikegs.json's train_every)",
                 stacklevel=3,
             )
         return False

@@ -1,0 +1,36 @@
+"""machine_memory.py: the memory limit of a process's cgroup, v1 and v2, its own or an
+ancestor's, and none set."""
+
+from spikegs.machine_memory import cgroup_limit, machine_memory
+
+
+def _file(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def test_the_lowest_limit_of_the_group_and_its_ancestors(tmp_path):
+    """v2: a batch job limits its group (8 GiB), its step's group says "max": the job's counts;
+    v1: the memory controller's group and the root's "unlimited" (2^63 - 4096)."""
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    _file(membership, "0::/slurm/job_7/step_0\n")
+    _file(root / "slurm/job_7/step_0/memory.max", "max\n")
+    _file(root / "slurm/job_7/memory.max", f"{8 << 30}\n")
+    _file(root / "slurm/memory.max", f"{64 << 30}\n")
+    assert cgroup_limit(membership, root) == 8 << 30
+    _file(membership, "4:memory:/process_api/abc\n3:cpuset:/\n0::/\n")
+    _file(root / "memory/process_api/abc/memory.limit_in_bytes", f"{3 << 30}\n")
+    _file(root / "memory/memory.limit_in_bytes", "9223372036854771712\n")
+    assert cgroup_limit(membership, root) == 3 << 30
+
+
+def test_no_limit_set_or_readable(tmp_path):
+    """ "max" everywhere, a group without files, or no /proc/self/cgroup: None, and the machine's
+    memory stands."""
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    assert cgroup_limit(membership, root) is None  # no membership file
+    _file(membership, "garbled\n0::/user.slice\n")
+    assert cgroup_limit(membership, root) is None  # no memory.max
+    _file(root / "user.slice/memory.max", "max\n")
+    assert cgroup_limit(membership, root) is None
+    assert machine_memory() > 0
