@@ -45,7 +45,8 @@ def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
 
 def test_a_sim_methods_curve_starts_after_sims_training():
     """Each point at SIM's seconds + its training seconds; a curve of its own offset
-    (`curve_sim_seconds`: seed 0's SIM in `bench train`) takes that one, not `sim_seconds`."""
+    (`curve_sim_seconds`: seed 0's SIM in `bench train`) takes that one, not `sim_seconds`; each
+    labelled with its method's title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -63,8 +64,8 @@ def test_a_sim_methods_curve_starts_after_sims_training():
         lines = {line.get_label(): list(line.get_xdata()) for line in ax.lines}
     finally:
         plt.close(fig)
-    assert lines == {
-        "tfp33": [1.0, 3.0],
-        "spikegs (from SIM 10 s)": [11.0, 13.0],
+    assert lines == {  # the paper's names for its methods, a config's own for others
+        "TFP(33)+3DGS": [1.0, 3.0],
+        "SpikeGS (from SIM 10 s)": [11.0, 13.0],
         "bench (from SIM 30 s)": [31.0, 33.0],
     }

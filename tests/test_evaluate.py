@@ -54,8 +54,9 @@ def test_the_scores_are_the_means_over_the_views(trained, run):
 
 
 def test_side_by_side_is_ground_truth_render_and_four_times_the_error(trained, run):
-    """RUN/eval/VIEW.png: ground truth | render | 4 x |render - ground truth|, linear intensities
-    written sRGB-encoded in 8 bits (`write_image`): read back within one 8-bit step."""
+    """RUN/eval/VIEW.png: ground truth | render | 4 x |render - ground truth|, the images'
+    linear intensities written sRGB-encoded in 8 bits (`write_image`), the error as it is (its
+    brightness proportional to it): read back within one 8-bit step."""
     data = trained[0]
     evaluate_run(run, data)
     model, scale = load_ply(run / "scene.ply"), intensity_scale(data)
@@ -65,9 +66,10 @@ def test_side_by_side_is_ground_truth_render_and_four_times_the_error(trained, r
         side = read_image(run / "eval" / f"{view.name}.png")  # [H, 3W, C] sRGB values
         w = data.width
         assert side.shape == (data.height, 3 * w, data.channels)
-        for panel, linear in enumerate((gt, pred, 4 * np.abs(pred - gt))):
+        shown = (linear_to_srgb(gt), linear_to_srgb(pred), np.clip(4 * np.abs(pred - gt), 0, 1))
+        for panel, values in enumerate(shown):  # the error as it is: 0.25 and more white
             np.testing.assert_allclose(
-                side[:, panel * w : (panel + 1) * w], linear_to_srgb(linear), atol=1.01 / 255
+                side[:, panel * w : (panel + 1) * w], values, atol=1.01 / 255
             )
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .method_titles import method_title
+
 
 def logged_curve(run_dir: str | Path) -> list[dict]:
     """The evaluations in RUN/log.jsonl, [{"iteration", "train_seconds", "psnr"}] (the PSNR of
@@ -45,25 +47,38 @@ def _as_text(text: str) -> str:
     return text.replace("$", r"\$")
 
 
+# Okabe and Ito's colours, told apart with colour-blindness; each method a marker of its own too,
+# for greyscale print
+COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442")
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*")
+LABELS = {"psnr": "PSNR (dB)", "ssim": "SSIM (scikit-image, 7×7 window)"}
+
+
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
-    """One line per method of each metric against seconds (SIM methods offset by their SIM time)."""
+    """One line per method of each metric against seconds (SIM methods offset by their SIM time,
+    solid; the others dashed)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     for i, (name, r) in enumerate(methods.items()):
         offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
         seconds = [offset + p["train_seconds"] for p in r["curve"]]
         sim = r["uses_sim"]
-        label = f"{name} (from SIM {offset:.0f} s)" if sim else name
+        label = method_title(name) + (f" (from SIM {offset:.0f} s)" if sim else "")
+        style = {
+            "color": COLOURS[i % len(COLOURS)],
+            "marker": MARKERS[i % len(MARKERS)],
+            "linestyle": "-" if sim else "--",
+        }
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]
-            ax.plot(seconds, values, "o-" if sim else "s--", color=f"C{i}", label=_as_text(label))
+            ax.plot(seconds, values, label=_as_text(label), **style)
     for ax, metric in zip(axes, metrics):
         ax.set_xscale("log")  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped)
         ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
         ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("seconds (SIM + training)")
-        ax.set_ylabel("PSNR (dB)" if metric == "psnr" else metric.upper())
+        ax.set_ylabel(LABELS.get(metric, metric))
         ax.grid(True, which="both", alpha=0.3)
     axes[-1].legend(fontsize=8)
 

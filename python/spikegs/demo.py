@@ -24,10 +24,10 @@ from .cli import positive_int
 from .config import load_config, read_yaml
 from .curves import save_logged_curves
 from .data.scenes import SCENES
+from .method_titles import method_title
 from .run_folder import refuse_foreign_files, run_lock
 
 METHODS = ("spikegs", "tfp33")
-TITLES = {"spikegs": "SpikeGS", "tfp33": "TFP(33)+3DGS"}  # their names in comparison.png
 DEFAULT_SCENE = "solids"
 # The demo's shortened schedule: same for both methods, so the comparison is fair, sized for the
 # 5-minute budget on 2 cores of the slower (AVX2, no native bfloat16) machine (BENCHMARKS.md,
@@ -241,7 +241,7 @@ def write_figures(out: Path, dataset, results: dict) -> None:
         ]
         w = panels[0].shape[1] // 3
         rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
-    header = column_titles(["ground truth", *(TITLES[m] for m in METHODS[::-1])], w)
+    header = column_titles(["ground truth", *(method_title(m) for m in METHODS[::-1])], w)
     header = np.broadcast_to(header, (*header.shape[:2], rows[0].shape[2]))
     write_image(out / COMPARISON, np.concatenate([header, *rows], axis=0))
     runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}

@@ -17,7 +17,7 @@ from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
-from .image_io import write_image
+from .image_io import srgb_to_linear, write_image
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output
 from .ply import declares_channels, load_ply
@@ -221,9 +221,10 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
         views[view.name] = view_metrics(pred, gt)
-        if write_images:  # ground truth | render | 4 x the absolute error that was scored
-            side = np.concatenate([gt, pred, 4 * np.abs(pred - gt)], axis=1)
-            write_image(folder / f"{view.name}.png", side)
+        if write_images:  # ground truth | render | 4 x the absolute error that was scored,
+            # shown as it is (sRGB encoding would show an error of 0.02 as a 31 % grey)
+            error = srgb_to_linear(np.clip(4 * np.abs(pred - gt), 0, 1))
+            write_image(folder / f"{view.name}.png", np.concatenate([gt, pred, error], axis=1))
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
         for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
             (folder / f"{view}.png").unlink(missing_ok=True)

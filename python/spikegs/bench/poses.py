@@ -112,13 +112,15 @@ def _run(dataset, setup: dict, quick: bool, refine: bool, run_dir: Path) -> tupl
     return {**scores, "seconds": summary["train_seconds"]}, trainer
 
 
-def _plot(rows: list[dict], errors: dict[str, np.ndarray], path: Path) -> None:
+def _plot(rows: list[dict], errors: dict[str, np.ndarray], setup: dict, path: Path) -> None:
+    """Test PSNR of the three conditions, and the training views' rotation and centre errors
+    before and after refinement (the last noise seed's, sorted)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     # points, not bars: an axis that does not start at 0 would exaggerate bars' lengths
     names, psnrs = [r["condition"] for r in rows], [r["psnr"] for r in rows]
     axes[0].plot(names, psnrs, "o", color="C0", markersize=8)
@@ -126,12 +128,24 @@ def _plot(rows: list[dict], errors: dict[str, np.ndarray], path: Path) -> None:
         axes[0].annotate(f"{value:.2f}", (name, value), textcoords="offset points", xytext=(0, 8))
     axes[0].margins(x=0.2, y=0.3)
     axes[0].set_ylabel("test PSNR (dB), true test poses")
-    for name, color in (("before", "C3"), ("after", "C2")):
-        values = np.sort(errors[f"rotation_deg_{name}"])
-        axes[1].plot(values, color=color, label=f"{name} refinement")
-    axes[1].set_xlabel("training view (sorted)")
-    axes[1].set_ylabel("rotation error (degrees)")
-    axes[1].legend()
+    seeds = setup["repeats"]
+    axes[0].set_title(f"median of {seeds} noise seed{'s' * (seeds > 1)}", fontsize=9)
+    for ax, key, label, scale in (
+        (axes[1], "rotation_deg", "rotation error (degrees)", 1.0),
+        (axes[2], "centre", "camera centre error (% of the scene radius)", 100.0),
+    ):
+        for name, style in (("before", ("C3", "--")), ("after", ("C0", "-"))):
+            values = np.sort(errors[f"{key}_{name}"]) * scale
+            ax.plot(values, color=style[0], linestyle=style[1], label=f"{name} refinement")
+        ax.set_xlabel("training view (sorted by its error)")
+        ax.set_ylabel(label)
+        ax.set_title(f"the last noise seed's {len(values)} views", fontsize=9)
+        ax.legend()
+    fig.suptitle(
+        f"Pose refinement: solids {setup['size']}², {setup['method']} "
+        f"({setup['iterations']} iterations), poses off by {NOISE_DEG}° and "
+        f"{NOISE_TRANSLATION:.0%} of the radius every {KEYFRAME_EVERY} readouts"
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -197,5 +211,5 @@ def run(quick: bool, out: Path) -> dict:
         "psnr_recovered_fraction": recovered,
     }
     write_results(out, "poses", results)
-    _plot(rows, errors, out / "poses.png")
+    _plot(rows, errors, setup, out / "poses.png")
     return results

@@ -24,7 +24,7 @@ import torch
 
 from .. import reference
 from ..rasterize import rasterize
-from .common import median_seconds, print_table, uniform, write_results
+from .common import machine_info, median_seconds, print_table, uniform, write_results
 
 REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
 # The reference is a Python loop of small ops: one torch thread is its fastest setting (threads
@@ -172,7 +172,7 @@ def measure(n: int, width: int, height: int, channels: int, repeats: int) -> dic
     return row
 
 
-def _plot(rows: list[dict[str, Any]], path: Path) -> None:
+def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
     """Time against N, log-log: C++ (solid), torch reference (dashed), a colour per size and C."""
     import matplotlib
 
@@ -185,7 +185,7 @@ def _plot(rows: list[dict[str, Any]], path: Path) -> None:
         for i, (size, channels) in enumerate(configs):
             sel = [r for r in rows if (r["size"], r["C"]) == (size, channels)]
             color = f"C{i}"
-            label = f"{size}, C={channels}"
+            label = f"{size.replace('x', '×')}, C = {channels}"
             ax.loglog(
                 [r["N"] for r in sel],
                 [r[key] for r in sel],
@@ -207,7 +207,12 @@ def _plot(rows: list[dict[str, Any]], path: Path) -> None:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("time (ms)")
     axes[1].legend(fontsize=7)
-    fig.suptitle("spikegs.rasterize (C++) vs spikegs.reference (torch), float32")
+    fig.suptitle(
+        f"spikegs.rasterize (C++, median of {repeats} after a warm-up, "
+        f"{machine_info()['cores']} cores) vs spikegs.reference (torch, timed once, 1 thread), "
+        f"float32; C: channels, size W×H pixels",
+        fontsize=10,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -246,5 +251,5 @@ def run(quick: bool, out: Path) -> dict:
         "rows": rows,
     }
     write_results(out, "rasterizer", results)
-    _plot(rows, out / "rasterizer.png")
+    _plot(rows, repeats, out / "rasterizer.png")
     return results

@@ -329,12 +329,13 @@ def run(
             )
         if order is not None:
             print(f"paper's ablation order (both > only instant > only exposure): {order}")
-        title = f"{scene} {size}, {length} per method; {SIM_NOTE}"
+        views = f"mean over the {len(dataset.test_views)} test views, seed 0's run"
+        title = f"{scene} {size}, {length} per method; {views}\n{SIM_NOTE}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
     headline = results.get(HEADLINE_SCENE, {}).get("methods", {})
     shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
     if shown:  # (an ablation or the oracle alone has no headline: an empty plot, before)
-        title = f"{HEADLINE_SCENE}: SpikeGS vs baselines, {length}\n{SIM_NOTE}"
+        title = f"{HEADLINE_SCENE} {size}: SpikeGS vs baselines, {length}; {views}\n{SIM_NOTE}"
         save_curves(out / "headline.png", shown, ("psnr",), title)
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
