@@ -4,6 +4,7 @@ runs that train SIM first starting at SIM's training time (matplotlib)."""
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 from .method_titles import method_title
@@ -91,9 +92,11 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(metrics), figsize=(5.5 * len(metrics), 4.2), squeeze=False)
+    width = 5.5 * len(metrics)  # inches
+    fig, axes = plt.subplots(1, len(metrics), figsize=(width, 4.2), squeeze=False)
     _plot_curves(axes[0], methods, metrics)
-    fig.suptitle(_as_text(title), fontsize=10)
+    lines = [textwrap.fill(line, int(13 * width)) for line in title.split("\n")]  # ~13 a inch
+    fig.suptitle(_as_text("\n".join(lines)), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
