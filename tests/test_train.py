@@ -29,7 +29,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.data.view_geometry import optical_axes
 from spikegs.data_fingerprint import data_fingerprint, same_data
-from spikegs.demo import DEMO_OVERRIDES
+from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.file_lock import exclusive_lock
@@ -1385,9 +1385,11 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert scores["ssim_3dgs"] == evaluated["ssim_3dgs"]  # the papers' SSIM, reported too
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
     views = len(load_dataset(out / "data").test_views)
-    comparison = read_image(out / "comparison.png")  # [16 + views * 32, 3 * 32, C]
-    assert comparison.shape[:2] == (16 + views * 32, 3 * 32)
+    comparison = read_image(out / "comparison.png")  # [16 + views * 32, LABEL + 3 * 32, C]
+    assert comparison.shape[:2] == (16 + views * 32, LABEL_WIDTH + 3 * 32)
     assert comparison[:16].max() > 0.9 and comparison[:16].mean() < 0.5  # titles: white on black
+    labels = comparison[16:, :LABEL_WIDTH]  # each row's view and PSNRs: white text on black
+    assert all(labels[32 * i : 32 * i + 12].max() > 0.9 for i in range(views))
     # curves.png: error against time, every 50 iterations and at the end
     assert read_image(out / "curves.png").ndim == 3
     curve = logged_curve(out / "runs" / "spikegs")

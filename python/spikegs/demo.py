@@ -104,6 +104,7 @@ SECONDS_FILE = ".demo_seconds"  # wall-clock seconds of the demo's interrupted p
 STARTED_FILE = ".demo_started.json"  # what a demo began with: {"scene", "iterations", "color"}
 RESULTS = "results.json"
 COMPARISON, CURVES = "comparison.png", "curves.png"  # the demo's figures
+LABEL_WIDTH = 88  # pixels of comparison.png's row labels: the view, each method's PSNR there
 
 
 def earlier_seconds(out: Path) -> float:
@@ -228,20 +229,45 @@ def column_titles(titles: list[str], width: int, height: int = 16) -> np.ndarray
     return srgb_to_linear(np.concatenate(columns, axis=1))[..., None]
 
 
+def row_labels(lines: list[str], width: int, height: int) -> np.ndarray:
+    """A label [height, width, 1] of white `lines` on black, left-aligned from the top (cut to
+    it), in linear light."""
+    from PIL import Image, ImageDraw
+
+    from .image_io import srgb_to_linear
+
+    label = Image.new("L", (width, height))
+    ImageDraw.Draw(label).multiline_text((3, 2), "\n".join(lines), fill=255, spacing=2)
+    return srgb_to_linear(np.asarray(label, np.float64) / 255)[..., None]
+
+
+def _view_scores(run_dir: Path) -> dict[str, str]:
+    """Each view's PSNR in RUN/eval.json, as text ("inf" where eval wrote null)."""
+    views = json.loads((run_dir / "eval.json").read_text())["views"]
+    return {name: "inf" if v["psnr"] is None else f"{v['psnr']:.2f}" for name, v in views.items()}
+
+
 def write_figures(out: Path, dataset, results: dict) -> None:
     """OUT/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, from the
-    runs' evaluation images, under those titles) and OUT/curves.png (`save_logged_curves`)."""
+    runs' evaluation images, under those titles, each row labelled with its view and the
+    methods' PSNR there) and OUT/curves.png (`save_logged_curves`)."""
     from .image_io import read_image, srgb_to_linear, write_image
 
+    scores = {m: _view_scores(out / "runs" / m) for m in METHODS}
     rows = []
     for view in dataset.test_views:  # each eval image is GT | render | error: GT once, renders
         panels = [  # back to linear light: write_image encodes it as sRGB again
             srgb_to_linear(read_image(out / "runs" / m / "eval" / f"{view.name}.png"))
             for m in METHODS
         ]
-        w = panels[0].shape[1] // 3
-        rows.append(np.concatenate([panels[0][:, :w]] + [p[:, w : 2 * w] for p in panels[::-1]], 1))
-    header = column_titles(["ground truth", *(method_title(m) for m in METHODS[::-1])], w)
+        w, h, c = panels[0].shape[1] // 3, panels[0].shape[0], panels[0].shape[2]
+        psnrs = [f"{method_title(m).split('+')[0]} {scores[m][view.name]}" for m in METHODS[::-1]]
+        label = row_labels([view.name, *psnrs], LABEL_WIDTH, h)
+        label = np.broadcast_to(label, (h, LABEL_WIDTH, c))
+        renders = [p[:, w : 2 * w] for p in panels[::-1]]
+        rows.append(np.concatenate([label, panels[0][:, :w], *renders], 1))
+    titles = column_titles(["ground truth", *(method_title(m) for m in METHODS[::-1])], w)
+    header = np.concatenate([column_titles(["view, PSNR"], LABEL_WIDTH), titles], axis=1)
     header = np.broadcast_to(header, (*header.shape[:2], rows[0].shape[2]))
     write_image(out / COMPARISON, np.concatenate([header, *rows], axis=0))
     runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}
