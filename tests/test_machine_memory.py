@@ -22,6 +22,8 @@ def test_the_lowest_limit_of_the_group_and_its_ancestors(tmp_path):
     _file(root / "memory/process_api/abc/memory.limit_in_bytes", f"{3 << 30}\n")
     _file(root / "memory/memory.limit_in_bytes", "9223372036854771712\n")
     assert cgroup_limit(membership, root) == 3 << 30
+    _file(root / "memory/process_api/abc/memory.limit_in_bytes", "9223372036854771712\n")
+    assert cgroup_limit(membership, root) is None  # v1's "no limit"
 
 
 def test_no_limit_set_or_readable(tmp_path):

@@ -31,3 +31,5 @@ def test_metrics_refuse_codes_and_channels_first_and_take_tensors(metric):
     a, b = rng.random((16, 16, 3)), rng.random((16, 16, 3))
     tensor = torch.from_numpy(a).float().requires_grad_()
     assert metric(tensor, torch.from_numpy(b)) == pytest.approx(metric(a.astype(np.float32), b))
+    half = torch.from_numpy(a).bfloat16()  # none in numpy: taken as its values
+    assert metric(half, torch.from_numpy(b)) == pytest.approx(metric(half.double().numpy(), b))

@@ -143,13 +143,25 @@ def test_a_crop_under_the_field_is_warned_of(scene):
 
 
 def test_shift_layers_past_the_frame_are_warned_of():
-    """On an 8×6 frame 3 shift layers reach edge to edge (2·3 + 1 = 7 pixels): a 4th sees the
-    zero border only, said with the number that suffices."""
+    """On an 8×6 frame 5 shift layers reach every pixel from every other (a corner's field: 2m + 1
+    rows down and m columns across, measured: 39, 44, 47 of the 47 other pixels at m = 3, 4, 5):
+    a 6th is said to add the zero border only, with the number that suffices; 5 are not."""
     small = BernoulliStream(lambda k: np.full((8, 6), 0.2), 60)
     ts = valid_timestamps(small, 33)
-    with pytest.warns(UserWarning, match="shift_layers 4 on 8×6 frames: 3 reach") as caught:
-        train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=4)
+    for layers, seen in ((4, 44), (5, 47)):  # 47: every pixel but the blind spot
+        model = SIM(window=5, shift_layers=layers).double().train()
+        with torch.no_grad():  # positive weights: no path cancels (SIM starts at zero)
+            for weights in model.parameters():
+                weights.copy_(torch.rand_like(weights) * 0.1 + 0.01)
+        x = torch.rand(1, 5, 8, 6, dtype=torch.float64, requires_grad=True)
+        model(x)[0, 0, 0, 0].backward()
+        assert int((x.grad.abs().sum((0, 1)) > 0).sum()) == seen, layers
+    with pytest.warns(UserWarning, match="shift_layers 6 on 8×6 frames: 5 reach every") as caught:
+        train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=6)
     assert len(caught) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=5)
 
 
 @pytest.mark.parametrize("path", ["forward", "forward_rotated"])

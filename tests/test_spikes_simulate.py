@@ -246,6 +246,8 @@ def test_bad_input_refused():
             simulate_spikes((frames * 255).astype(codes), 10)
         with pytest.raises(ValueError, match="frame at t=0 expected intensities"):
             simulate_spikes(lambda t, c=codes: (frames[0] * 255).astype(c), 10)
+    with pytest.raises(ValueError, match="height and width expected >= 1, found 4x0"):
+        simulate_spikes(frames[:, :, :0], 10)  # (numpy's reshape error in the NaN check, before)
     simulate_spikes(frames > 0.5, 10)  # bool and signed integers: intensities at face value
     simulate_spikes(np.ones((1, 4, 5), np.int64), 10)
     with pytest.raises(ValueError, match=r"found nan at \[1, 2, 3\]"):

@@ -119,6 +119,38 @@ def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypat
     assert SpikeStream.open(path, 4, 16).digest() == digest and reads
 
 
+def test_a_file_changed_after_open_never_caches_the_mapped_spikes_for_it(tmp_path, monkeypatch):
+    """The cache holds a digest for a file only while it is the one mapped at open: grown in
+    place (a recording still written) or replaced after open, the stream's digest (of what it
+    mapped) is not cached for the new file, which the next process reads afresh; a file removed
+    after open, or opened by a relative path before a chdir, still gives the mapped spikes'."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    bits = random_bits((10, 4, 16))
+    first = SpikeStream.from_bits(bits[:6]).digest()
+    for change in ("grow", "replace"):
+        path = save_dat(tmp_path / f"{change}.dat", bits[:6])
+        stream = SpikeStream.open(path, 4, 16)
+        if change == "grow":
+            with open(path, "ab") as f:
+                f.write(save_dat(tmp_path / "tail.dat", bits[6:]).read_bytes())
+        else:
+            os.replace(save_dat(tmp_path / "new.dat", bits), path)
+        assert stream.digest() == first  # what it mapped
+        assert SpikeStream.open(path, 4, 16).digest() == SpikeStream.from_bits(bits).digest()
+    path = save_dat(tmp_path / "gone.dat", bits[:6])
+    stream = SpikeStream.open(path, 4, 16)
+    path.unlink()
+    assert stream.digest() == first
+    monkeypatch.chdir(tmp_path)
+    stream = SpikeStream.open("grow.dat", 4, 16)  # 10 readouts
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    save_dat(tmp_path / "elsewhere" / "grow.dat", bits[:6])  # the same name, other spikes
+    assert stream.digest() == SpikeStream.from_bits(bits).digest()
+    assert SpikeStream.open("grow.dat", 4, 16).digest() == first
+
+
 def test_unflipped_file_read_flipped(tmp_path):
     bits = random_bits((3, 4, 16))
     path = save_dat(tmp_path / "s.dat", bits, flip=False)

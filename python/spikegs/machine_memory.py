@@ -48,6 +48,6 @@ def cgroup_limit(
             text = path.read_text().strip()
         except OSError:
             continue
-        if text.isdigit():
+        if text.isdigit() and int(text) < 1 << 62:  # v1 writes ~2^63 for none
             limits.append(int(text))
     return min(limits) if limits else None

@@ -27,8 +27,9 @@ def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
 
 def _image(x) -> np.ndarray:
     """`x` (an array or a tensor) as a float numpy array; ValueError for integer or bool values."""
-    if hasattr(x, "detach"):  # a torch tensor, perhaps requiring grad
-        x = x.detach().cpu().numpy()
+    if hasattr(x, "detach"):  # a torch tensor, perhaps requiring grad, perhaps bfloat16
+        x = x.detach().cpu()
+        x = (x.double() if x.is_floating_point() else x).numpy()
     x = np.asarray(x)
     if x.dtype.kind != "f":
         raise ValueError(

@@ -135,12 +135,14 @@ def train_sim(
             f"sees the zero border where inference sees the frame; crop {model.field()} or more",
             stacklevel=2,
         )
-    spanning = max(1, (max(height, width) - 1) // 2)  # shift layers reaching edge to edge
+    # a branch's m layers reach 2m + 1 pixels along its axis and m across: from a corner pixel,
+    # the far one lies in the field of the branch along the longer side from this many layers on
+    spanning = max(1, -(-(max(height, width) - 2) // 2), min(height, width) - 1)
     if len(model.shift) > spanning:
         warnings.warn(
             f"SIM's shift_layers {len(model.shift)} on {height}×{width} frames: {spanning} reach "
-            f"from one edge to the other (2m + 1 = {2 * spanning + 1} pixels), the others see the "
-            f"zero border only and cost time; sim.shift_layers {spanning} or fewer",
+            f"every pixel from every other, the others add the zero border only and cost time; "
+            f"sim.shift_layers {spanning} or fewer",
             stacklevel=2,
         )
     losses, first, earlier = [], 0, 0.0  # earlier: seconds of the steps in a resumed state

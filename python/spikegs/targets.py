@@ -94,7 +94,8 @@ class TargetImages:
 
     @property
     def computed(self) -> int:
-        """How many timestamps' images have been computed so far."""
+        """How many timestamps' images have been computed and kept so far (all computed while
+        the budget lasts)."""
         return len(self._cache)
 
 

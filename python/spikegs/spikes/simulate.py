@@ -147,7 +147,8 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
         )
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
-    rows = frame.reshape(-1, frame.shape[-1]) if frame.ndim > 1 else frame.reshape(1, -1)
+    flat = frame.ndim < 2 or frame.size == 0  # (a width of 0: reshape(-1, 0) is no shape)
+    rows = frame.reshape(1, -1) if flat else frame.reshape(-1, frame.shape[-1])
     step = max(1, _CHECKED_VALUES // max(1, rows.shape[1]))  # rows a check (not the whole light
     for start in range(0, len(rows), step):  # at once: 2 bytes of masks a value, GBs of them)
         part = rows[start : start + step]

@@ -112,7 +112,8 @@ class SpikeStream:
         self._layout = layout
         self._len = _frame_count(data.size, layout, path)
         self.path = path
-        self._digest: tuple | None = None  # (the file's size, mtime, inode), its digest
+        self._digest: tuple | None = None  # (the file's identity when read, its digest)
+        self._opened: tuple | None = None  # (absolute path, the file's identity) at `open`
 
     @classmethod
     def open(
@@ -139,7 +140,10 @@ class SpikeStream:
         size = path.stat().st_size
         _frame_count(size, layout, path)
         data = np.memmap(path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
-        return cls(data, layout, path)
+        stream = cls(data, layout, path)
+        absolute = path.resolve()  # (a later chdir does not move it)
+        stream._opened = (absolute, _file_identity(absolute))
+        return stream
 
     @classmethod
     def from_packed(
@@ -253,15 +257,18 @@ class SpikeStream:
     def digest(self) -> bytes:
         """SHA-256 of the size and every readout, in the memory layout (the same spikes give the
         same digest from any file layout); read in chunks of ~64 MiB, ~0.1 s a 100 MB here. A
-        file's is read once while the file is unchanged (its size, mtime and inode): kept by the
-        stream (a command asks two or three times) and, for a file over 256 MiB, in the user's
-        cache for the next command (a 10 GB recording took ~7 s each); reading over a GiB is
-        announced on stderr."""
-        key = self._file_key()
-        if key is not None and self._digest is not None and self._digest[0] == key:
+        file's is read once while the file is unchanged (its path, size, mtime and inode): kept by
+        the stream (a command asks two or three times) and, for a file over 256 MiB that is still
+        the one mapped at `open`, in the user's cache for the next command (a 10 GB recording
+        took ~7 s each); reading over a GiB is announced on stderr."""
+        now = _file_identity(self._opened[0]) if self._opened else None  # the file as it is now
+        if now is not None and self._digest is not None and self._digest[0] == now:
             return self._digest[1]
         nbytes = len(self) * self._layout.frame_bytes
-        cached = _digest_cache(key) if key is not None and nbytes > _CACHED_DIGEST_BYTES else None
+        lay = self._layout  # the same bytes read in another layout are other spikes
+        unchanged = now is not None and now == self._opened[1]  # still the file mapped at open
+        key = f"{now}|{lay.height}x{lay.width}|{lay.flip}|{lay.row_bits}|{lay.col_offset}"
+        cached = _digest_cache(key) if unchanged and nbytes > _CACHED_DIGEST_BYTES else None
         digest = _read_digest(cached)
         if digest is None:
             if nbytes > 1 << 30:
@@ -271,20 +278,10 @@ class SpikeStream:
             for start in range(0, len(self), chunk):
                 sha.update(self.packed(start, min(start + chunk, len(self))).data)
             digest = sha.digest()
-            _write_digest(cached, digest)
-        self._digest = None if key is None else (key, digest)
+            if cached is not None and _file_identity(self._opened[0]) == now:  # unchanged since
+                _write_digest(cached, digest)
+        self._digest = None if now is None else (now, digest)
         return digest
-
-    def _file_key(self) -> str | None:
-        """The file's identity as read now, in this layout: path, size, mtime, inode, frame size,
-        flip, stored row width and column offset (None for a stream in memory)."""
-        if self.path is None:
-            return None
-        stat, lay = self.path.stat(), self._layout
-        return (
-            f"{self.path.resolve()}|{stat.st_size}|{stat.st_mtime_ns}|{stat.st_ino}|"
-            f"{lay.height}x{lay.width}|{lay.flip}|{lay.row_bits}|{lay.col_offset}"
-        )
 
     def packed(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Readouts [start, stop) in the memory layout: uint8 [n, H, ceil(W/8)]; whole-number
@@ -296,6 +293,16 @@ class SpikeStream:
         mem = _C.SpikeLayout.memory(self.height, self.width)
         out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
         return out.reshape(stop - start, self.height, (self.width + 7) // 8)
+
+
+def _file_identity(path: Path) -> str | None:
+    """The file at absolute `path` as its metadata tell it: path, size, mtime, inode, device
+    (None where it is gone or unreadable)."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return f"{path}|{st.st_size}|{st.st_mtime_ns}|{st.st_ino}|{st.st_dev}"
 
 
 def _digest_cache(key: str) -> Path | None:
