@@ -1606,6 +1606,25 @@ def test_every_command_names_an_output_folder_under_a_file(dataset, tmp_path, ca
         assert "afile/out: a folder on its path is a file" in capsys.readouterr().err, args
 
 
+def test_a_log_gets_lines_a_terminal_gets_a_bar(dataset, tmp_path, capsys, monkeypatch):
+    """Where stderr is no terminal (a batch job's log; pytest's capture) `spikegs train` prints a
+    line at each evaluation without --no-progress, and no bar's carriage returns; on a terminal
+    it draws the bar unless told --no-progress."""
+    from spikegs.cli import show_bars
+
+    config = tmp_path / "short.yaml"
+    config.write_text("base: tfp33\ntrain: {iterations: 4, eval_every: 2, init_gaussians: 200}\n")
+    run = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "r")]
+    assert main(run) == 0
+    err = capsys.readouterr().err
+    assert "short: iteration 2/4, held-out PSNR" in err and "short: iteration 4/4" in err
+    assert "\r" not in err
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert show_bars(False) and not show_bars(True)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
+    assert not show_bars(False)
+
+
 def test_train_seed_on_the_command_line_overrides_the_configs(tmp_path):
     """`spikegs train --seed` could be dropped (overrides = {}) with every test passing."""
     from spikegs.cli import build_parser

@@ -106,6 +106,12 @@ class _DefaultsFormatter(argparse.HelpFormatter):
         return text if "default" in text else f"{text} (default: %(default)s)"
 
 
+def show_bars(off: bool) -> bool:
+    """Whether a command draws progress bars: not where `off` (--no-progress, --quiet), nor where
+    stderr is no terminal (a batch job's log, which bars' carriage returns garble)."""
+    return not off and sys.stderr.isatty()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="spikegs", description=USAGE, formatter_class=argparse.RawDescriptionHelpFormatter

@@ -20,7 +20,7 @@ import numpy as np
 from . import strict_json
 from .atomic_save import write_text_atomically
 from .bench.common import print_table
-from .cli import positive_int
+from .cli import positive_int, show_bars
 from .config import load_config, read_yaml
 from .curves import save_logged_curves
 from .data.scenes import SCENES
@@ -73,7 +73,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="a colour spike camera, a stream per channel (on --resume, the demo's own camera)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bars: a line at each evaluation (the default where stderr is not a "
+        "terminal)",
+    )
 
 
 def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):
@@ -193,13 +198,15 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
     last checkpoint on `resume`, where it had started) and evaluated on the test views."""
     from .evaluate import evaluate_run
     from .train import Trainer
+    from .train_cli import print_evaluation
 
     results = {}
     for i, method in enumerate(configs, start=2):
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
         started = resume and (run_dir / "config.yaml").exists()
-        summary = Trainer(dataset, configs[method], run_dir, progress=progress).train(started)
+        trainer = Trainer(dataset, configs[method], run_dir, progress=progress)
+        summary = trainer.train(started, on_eval=None if progress else print_evaluation)
         ev = evaluate_run(run_dir, dataset)
         results[method] = {
             "psnr": ev["psnr"],
@@ -291,7 +298,7 @@ def run(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace, out: Path) -> int:
     """`run` once OUT is locked."""
     start = time.perf_counter()
-    progress = not args.no_progress
+    progress = show_bars(args.no_progress)  # else a line at each evaluation
     earlier = earlier_seconds(out) if args.resume else 0.0
     # --resume without --scene or --iterations goes on with those the demo was started with
     scene = args.scene or (started_scene(out) if args.resume else None) or DEFAULT_SCENE

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from .bench.common import print_table
-from .cli import output_file, positive_int
+from .cli import output_file, positive_int, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
@@ -64,7 +64,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "holds every setting, and train reuses a SIM made with its config's own)",
     )
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (none where stderr is not a terminal)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -98,7 +102,12 @@ def run(args: argparse.Namespace) -> int:
     views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     try:
         model, seconds, out = trained_sim(
-            dataset, sim, args.seed, path=args.out, force=args.force, progress=not args.no_progress
+            dataset,
+            sim,
+            args.seed,
+            path=args.out,
+            force=args.force,
+            progress=show_bars(args.no_progress),
         )
     except KeyboardInterrupt:
         print(

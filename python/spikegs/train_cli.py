@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .cli import file_path, positive_int
+from .cli import file_path, positive_int, show_bars
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
@@ -40,7 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-progress",
         action="store_true",
-        help="no progress bar: a line to stderr at each evaluation instead (for logs)",
+        help="no progress bar: a line to stderr at each evaluation instead (the default where "
+        "stderr is not a terminal: a batch job's log)",
     )
 
 
@@ -74,7 +75,7 @@ def config_from_args(args: argparse.Namespace):
 
 
 def print_evaluation(trainer) -> None:
-    """--no-progress's progress: one line to stderr at each evaluation (a bar garbles logs)."""
+    """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs)."""
     print(
         f"{trainer.config.method}: iteration {trainer.iteration}/{trainer.config.train.iterations}"
         f", held-out PSNR {trainer.held_out_psnr:.2f} dB, {len(trainer.model):,} Gaussians, "
@@ -91,8 +92,9 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)  # bad method or config: refused before any work
     check_folder_output(args.out)
     dataset = load_dataset(args.dataset)
-    trainer = Trainer(dataset, config, args.out, progress=not args.no_progress)
-    summary = trainer.train(args.resume, on_eval=print_evaluation if args.no_progress else None)
+    bars = show_bars(args.no_progress)
+    trainer = Trainer(dataset, config, args.out, progress=bars)
+    summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
     runs = {config.method: (Path(args.out), summary["sim_seconds"])}
     save_logged_curves(Path(args.out) / CURVE, runs, dataset)
     print(json.dumps(summary, indent=2))
