@@ -22,7 +22,7 @@ def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
             f"expected [H, W, C] images, got {list(pred.shape)}: channels first? "
             f"np.moveaxis(image, 0, -1)"
         )
-    return pred.astype(np.float64), gt.astype(np.float64)
+    return np.asarray(pred, np.float64), np.asarray(gt, np.float64)  # (no copy of float64)
 
 
 def _image(x) -> np.ndarray:
