@@ -161,10 +161,7 @@ void bind_variant(py::module_& m, const std::string& suffix) {
   py::class_<Ctx, std::shared_ptr<Ctx>>(m, ("RasterContext_" + suffix).c_str())
       .def_property_readonly(
           "pairs", [](const Ctx& c) { return c.state.composite.pairs; },
-          "(pixel, Gaussian) pairs evaluated by the forward")
-      .def_property_readonly("num_visible", [](const Ctx& c) { return c.state.bins.order.size(); })
-      .def_property_readonly("num_tile_pairs",
-                             [](const Ctx& c) { return c.state.bins.ranks.size(); });
+          "(pixel, Gaussian) pairs evaluated by the forward");
   m.def(("rasterize_forward_" + suffix).c_str(), &forward<T>, py::arg("means"), py::arg("quats"),
         py::arg("scales"), py::arg("opacities"), py::arg("colors"), py::arg("viewmat"),
         py::arg("K"), py::arg("width"), py::arg("height"), py::arg("sh_degree"),

@@ -128,14 +128,6 @@ py::array_t<uint8_t> run_simulator(
 void bind_spikes(py::module_& m) {
   py::class_<SpikeLayout>(m, "SpikeLayout",
                           "Where each pixel's bit lives in a packed frame (see spike_format.hpp).")
-      .def(py::init(
-               [](int64_t height, int64_t width, int64_t row_bits, int64_t col_offset, bool flip) {
-                 SpikeLayout l{height, width, row_bits, col_offset, flip};
-                 l.validate();
-                 return l;
-               }),
-           py::arg("height"), py::arg("width"), py::arg("row_bits"), py::arg("col_offset") = 0,
-           py::arg("flip") = false)
       .def_static("memory", &SpikeLayout::memory, py::arg("height"), py::arg("width"),
                   "[T, H, ceil(W/8)] rows padded to bytes, unflipped")
       .def_static("dat", &SpikeLayout::dat, py::arg("height"), py::arg("width"), py::arg("flip"),
@@ -200,10 +192,7 @@ void bind_spikes(py::module_& m) {
       .def(py::init<int64_t, int64_t, const SimParams&, uint64_t>(), py::arg("height"),
            py::arg("width"), py::arg("params"), py::arg("seed"))
       .def("run", &run_simulator, py::arg("frames"), py::arg("times"), py::arg("n"),
-           "the next n readouts under frames [F, H, W] at readout times [F]: [n, H, ceil(W/8)]")
-      .def_property_readonly("readout", &SpikeSimulator::readout)
-      .def_property_readonly("height", &SpikeSimulator::height)
-      .def_property_readonly("width", &SpikeSimulator::width);
+           "the next n readouts under frames [F, H, W] at readout times [F]: [n, H, ceil(W/8)]");
 }
 
 }  // namespace spikegs
