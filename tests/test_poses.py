@@ -362,9 +362,9 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
     cases = [
         ({"flip": None}, r"missing keys \['flip'\]"),
-        ({"height": "128"}, "meta.json: height: expected an int, found '128'"),
+        ({"height": "128"}, "meta.json: height expected an integer > 0, found '128'"),
         ({"height": 0}, "meta.json: height expected an integer > 0, found 0"),
-        ({"flip": "false"}, "meta.json: flip: expected True or False, found 'false'"),
+        ({"flip": "false"}, "meta.json: flip expected true or false, found 'false'"),  # as train
         (
             {"num_readouts": 500},
             r"1000 readouts of 128x128, meta.json says 500 \(or its height",
@@ -433,6 +433,11 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
     assert main(["poses", str(textured), "--sim"]) == 2  # no SIM cached: said before "SfM: ..."
     assert capsys.readouterr().err.startswith("spikegs poses: error: --sim: no trained SIM")
+    (textured / "sim").mkdir()
+    torch.save({"weights": [1.0]}, textured / "sim" / "notes.pt")  # not a SIM: passed over
+    assert main(["poses", str(textured), "--sim"]) == 2
+    assert capsys.readouterr().err.startswith("spikegs poses: error: --sim: no trained SIM")
+    shutil.rmtree(textured / "sim")
     for flags, message in ((["--count", "-3"], "--count"), (["--min-registered", "2"], "(0, 1]")):
         assert main(["poses", str(textured), *flags]) == 2
         assert message in capsys.readouterr().err

@@ -253,6 +253,10 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
         assert torch.equal(a, b)
     with torch.no_grad():
         torch.testing.assert_close(loaded(x), model(x))  # layouts differ: last-bit changes only
+    stray = tmp_path / "stray.pt"
+    torch.save({"weights": [1.0]}, stray)  # another tool's file: said, not a KeyError
+    with pytest.raises(ValueError, match=f"{stray}: not a saved SIM"):
+        load_sim(stray)
     stream, ts = scene[1], [40, 50]
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
     capsys.readouterr()

@@ -31,7 +31,7 @@ from typing import Any
 import yaml
 
 from .densify import DensifyConfig
-from .losses import NORMS
+from .losses import NORMS, SIM_LOSSES
 from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
 
@@ -315,7 +315,7 @@ class Config:
         )
         for name in ("iterations", "crop", "batch", "shift_layers"):
             _require(getattr(sim, name) >= 1, f"sim.{name}", getattr(sim, name), ">= 1")
-        _require(sim.loss in ("l1", "l2"), "sim.loss", sim.loss, "l1 or l2")
+        _require(sim.loss in SIM_LOSSES, "sim.loss", sim.loss, " or ".join(SIM_LOSSES))
         _require(
             0 <= self.pose_refine.lr <= MAX_LR,
             "pose_refine.lr",

@@ -26,6 +26,9 @@ NORMS = {
     "smooth_l1": _smooth_l1,
 }
 
+# SIM's self-supervised loss against TFP (paper eq. 13: l1; l2 the mean, the default)
+SIM_LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}
+
 
 def check_images(render, target, what: str) -> None:
     """ValueError unless `render` and `target` are floating-point torch tensors of one shape

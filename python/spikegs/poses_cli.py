@@ -48,12 +48,12 @@ from .data.dataset import (
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
-from .number_checks import is_int, whole_numbers
+from .number_checks import is_int
 from .point_cloud import POINTS, write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
-from .spikes.stream import as_flag, centred_range
+from .spikes.stream import centred_range
 
 MIN_IMAGES = 8
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
@@ -98,10 +98,12 @@ def _image_readouts(num_readouts: int, window: int, every: int | None, count: in
 
 
 def _cached_sim(root: Path):
-    """The dataset's most recently trained SIM (DATASET/sim/*.pt), said which."""
-    from .sim_train import load_sim
+    """The dataset's most recently trained SIM (DATASET/sim/*.pt; other files there are passed
+    over), said which."""
+    from .sim_train import is_sim_file, load_sim
 
-    cached = sorted((root / "sim").glob("*.pt"), key=lambda p: p.stat().st_mtime)
+    saved = [p for p in (root / "sim").glob("*.pt") if is_sim_file(p)]
+    cached = sorted(saved, key=lambda p: p.stat().st_mtime)
     if not cached:
         raise ValueError(f"--sim: no trained SIM in {root / 'sim'}; run `spikegs sim-train` first")
     print(
@@ -121,13 +123,6 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     missing = [k for k in required if k not in meta]
     if missing:
         raise ValueError(f"{where}: missing keys {missing} (docs/datasets.md, spikegs poses)")
-    try:
-        h, w, channels, num = whole_numbers(**{k: meta[k] for k in required[:4]})
-        flip = as_flag("flip", meta["flip"])
-    except ValueError as err:
-        raise ValueError(f"{where}: {err}") from None
-    # sizes > 0 (a 0 was refused later, by the stream, without naming meta.json); channels 1 or 3
-    check_meta_values(meta, where, ["height", "width", "num_readouts", "channels"])
     intrinsics = [k for k in ("fx", "fy", "cx", "cy") if k in meta]
     if meta.get("intrinsics_from") != INTRINSICS_FROM_SFM and 0 < len(intrinsics) < 4:
         raise ValueError(
@@ -136,9 +131,10 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
         )
     optional = ("scene_center", "scene_radius", "raw_width", "col_offset", "scene", "source")
     stated = [k for k in (*intrinsics, *optional) if k in meta]
-    check_meta_values(meta, where, stated)  # what training reads later, refused now
-    described = {**meta, "height": h, "width": w, "flip": flip, "num_readouts": num}
-    streams = open_streams(root, spike_files(channels), described)
+    # as training reads them later, in its words: sizes > 0 (a 0 was refused by the stream
+    # without naming meta.json), channels 1 or 3, flip a JSON boolean
+    check_meta_values(meta, where, [*required, *stated])
+    streams = open_streams(root, spike_files(meta["channels"]), meta)
     for stream in streams:  # a dark or saturated file: said before SfM, not after it
         check_fires(stream, META)
     return streams

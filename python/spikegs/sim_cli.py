@@ -14,6 +14,7 @@ from .cli import output_file, positive_int, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
+from .losses import SIM_LOSSES
 from .output_paths import check_file_output
 from .sim_scores import evaluate_dataset, on_path_views
 from .sim_train import CHECKPOINT_S, is_sim_file
@@ -50,7 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=sim.crop,
         help="crop side, pixels (at most a frame side)",
     )
-    parser.add_argument("--loss", choices=("l1", "l2"), default=sim.loss, help="loss against TFP")
+    parser.add_argument(
+        "--loss", choices=tuple(SIM_LOSSES), default=sim.loss, help="loss against TFP"
+    )
     parser.add_argument(
         "--seed",
         type=int,

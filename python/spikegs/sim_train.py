@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from tqdm.auto import tqdm
 
 from .atomic_save import save_atomically, sweep_killed_writes
@@ -26,6 +25,7 @@ from .config import SimConfig
 from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt
+from .losses import SIM_LOSSES
 from .number_checks import is_number
 from .output_paths import writable_folder
 from .sim import SIM, START
@@ -46,9 +46,6 @@ def bf16_is_fast() -> bool:
 def _fast_dtype(dtype: torch.dtype | None) -> torch.dtype:
     """`dtype`, or bfloat16 where it is native (it holds SIM's error), else float32."""
     return dtype or (torch.bfloat16 if bf16_is_fast() else torch.float32)
-
-
-LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}  # SIM's self-supervised loss against TFP
 
 
 def training_layout(bf16: bool) -> torch.memory_format:
@@ -115,8 +112,8 @@ def train_sim(
     timestamps = np.asarray(timestamps)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")
-    if loss not in LOSSES:
-        raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(LOSSES)}")
+    if loss not in SIM_LOSSES:
+        raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(SIM_LOSSES)}")
     rng = np.random.default_rng(seed)
     with torch.random.fork_rng():
         torch.manual_seed(seed)
@@ -191,7 +188,7 @@ def train_sim(
             target = x[:, model.target].mean(dim=1, keepdim=True)  # [B, 1, ch, cw]
             with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
                 pred = model.forward_rotated(x)  # [B, 1, ch, cw]
-            step_loss = LOSSES[loss](pred.float(), target)
+            step_loss = SIM_LOSSES[loss](pred.float(), target)
             opt.zero_grad(set_to_none=True)
             step_loss.backward()
             opt.step()
@@ -265,8 +262,11 @@ def _model_of(payload: dict) -> SIM:
 
 
 def load_sim(path: Path) -> SIM:
-    """The SIM saved at `path`, in eval mode."""
-    return _model_of(torch.load(Path(path), map_location="cpu", weights_only=True))
+    """The SIM saved at `path`, in eval mode; ValueError naming the file where it is not one."""
+    try:
+        return _model_of(_read_saved(Path(path)))
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from None
 
 
 def _cached(
