@@ -118,12 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as err:
-            if err.name is None or not module_name.startswith(err.name):
-                raise  # a dependency is missing, not the command's own module
-            continue  # a command whose module (or package) is not part of this build
+        module = importlib.import_module(module_name)
         command = sub.add_parser(
             name, help=help_text, description=help_text, formatter_class=_DefaultsFormatter
         )

@@ -40,7 +40,6 @@ from .data.dataset import (
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
-    read_json,
     read_timestamps,
     spike_files,
     write_parts,
@@ -54,6 +53,7 @@ from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
 from .spikes.stream import centred_range
+from .strict_json import read_json
 
 MIN_IMAGES = 8
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores

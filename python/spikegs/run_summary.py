@@ -5,9 +5,9 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
-from .data.trajectory import read_json
 from .file_lock import exclusive_lock
 from .number_checks import is_number
+from .strict_json import read_json
 
 SUMMARY = "train.json"
 CURVE = "curve.png"  # `spikegs train`'s plot of the PSNR it logged against seconds

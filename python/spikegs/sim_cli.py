@@ -9,7 +9,6 @@ import os
 import sys
 from pathlib import Path
 
-from .bench.common import print_table
 from .cli import output_file, positive_int, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
@@ -19,6 +18,7 @@ from .output_paths import check_file_output
 from .sim_scores import evaluate_dataset, on_path_views
 from .sim_train import CHECKPOINT_S, is_sim_file
 from .targets import check_targets, intensity_scale, trained_sim
+from .text_table import print_table
 
 # the config keys that the options set, named in the config's messages
 FLAGS = {

@@ -1,11 +1,13 @@
-"""JSON that any parser reads: Python's json writes inf and NaN as the non-standard Infinity and
-NaN tokens (JavaScript's JSON.parse, jq and serde refuse them). Here they are null; a PSNR is
-infinite only for a render identical to its ground truth."""
+"""Strict JSON, both ways. Written so that any parser reads it: Python's json writes inf and NaN
+as the non-standard Infinity and NaN tokens (JavaScript's JSON.parse, jq and serde refuse them);
+here they are null (a PSNR is infinite only for a render identical to its ground truth). Read
+refusing what json lets through: a key given twice (json keeps the last)."""
 
 from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 
 def _finite_or_none(value):
@@ -22,3 +24,32 @@ def _finite_or_none(value):
 def dumps(value, **kwargs) -> str:
     """json.dumps(value) with non-finite floats written as null."""
     return json.dumps(_finite_or_none(value), allow_nan=False, **kwargs)
+
+
+class _RepeatedKeys(ValueError):
+    """A JSON object gives a key twice."""
+
+
+def _unique_keys(pairs: list) -> dict:
+    """A JSON object's {key: value}; _RepeatedKeys naming a key given twice (json keeps the
+    last)."""
+    doc = dict(pairs)
+    if len(doc) < len(pairs):
+        keys = [k for k, _ in pairs]
+        raise _RepeatedKeys(sorted({k for k in keys if keys.count(k) > 1}))
+    return doc
+
+
+def read_json(path: Path) -> dict:
+    """The JSON object in the file at `path`; ValueError naming the file where it is malformed,
+    gives a key twice in an object (which of the two was meant?) or holds something else than an
+    object."""
+    try:
+        doc = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
+    except _RepeatedKeys as err:
+        raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ValueError(f"{path}: not valid JSON ({err})") from None
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: expected a JSON object {{...}}, found {type(doc).__name__}")
+    return doc

@@ -200,13 +200,17 @@ class Trainer:
         self.model.origin = origin
         with torch.no_grad():
             self.model.background.copy_(torch.from_numpy(sample.median))
+        self._start_optimisation()
+        self.rng = np.random.default_rng(t.seed)
+        self.iteration, self.train_seconds = 0, 0.0
+
+    def _start_optimisation(self) -> None:
+        """A fresh pose refiner (None unless configured), optimiser and densifier of the model."""
         self.poses = make_refiner(
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
         self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
         self.densifier = Densifier(self.config.densify, self.radius, self.config.train.iterations)
-        self.rng = np.random.default_rng(t.seed)
-        self.iteration, self.train_seconds = 0, 0.0
 
     def save_checkpoint(self) -> None:
         state = {
@@ -260,14 +264,10 @@ class Trainer:
         if "origin" not in state["model"]:  # saved before origins: world means, moved about the
             # origin a fresh run takes (Adam's moments do not depend on it)
             self.model = self.model.centred_at(self.origin)
-        self.poses = make_refiner(
-            self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
-        )
+        self._start_optimisation()
         if self.poses is not None:
-            self.poses.load_state_dict(state["poses"])
-        self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
+            self.poses.load_state_dict(state["poses"])  # in place: the optimiser's parameters
         self.optimizer.load_state_dict(state["optimizer"])
-        self.densifier = Densifier(self.config.densify, self.radius, self.config.train.iterations)
         self.densifier.load_state_dict(state["densifier"])
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]

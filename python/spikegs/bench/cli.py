@@ -89,13 +89,7 @@ def run(args: argparse.Namespace) -> int:
         )
         check_outputs(Path(args.out), scenes, methods, seeds)
     for part in parts:
-        try:
-            module = importlib.import_module(PARTS[part])
-        except ModuleNotFoundError as err:
-            if err.name != PARTS[part]:
-                raise
-            print(f"== {part}: not part of this build, skipped")
-            continue
+        module = importlib.import_module(PARTS[part])
         print(f"== {part}")
         options = train_options if part == "train" else {}
         start = time.perf_counter()

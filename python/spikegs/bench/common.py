@@ -1,4 +1,4 @@
-"""Shared benchmark helpers: machine description, median timing, tables and JSON results."""
+"""Shared benchmark helpers: machine description, median timing and JSON results."""
 
 from __future__ import annotations
 
@@ -56,24 +56,6 @@ def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> 
         fn()
         times.append(time.perf_counter() - start)
     return statistics.median(times)
-
-
-def print_table(rows: list[dict[str, Any]], columns: list[str] | None = None) -> None:
-    """Print rows of dicts as an aligned text table."""
-    if not rows:
-        return
-    columns = columns or list(rows[0])
-
-    def fmt(value: Any) -> str:
-        if isinstance(value, float):
-            return f"{value:.4g}"
-        return str(value)
-
-    cells = [[fmt(row.get(c, "")) for c in columns] for row in rows]
-    widths = [max(len(c), *(len(r[i]) for r in cells)) for i, c in enumerate(columns)]
-    print("  ".join(c.rjust(w) for c, w in zip(columns, widths)))
-    for r in cells:
-        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
 
 
 def write_results(out_dir: Path, name: str, results: dict[str, Any]) -> Path:

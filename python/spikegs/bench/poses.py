@@ -26,8 +26,9 @@ from ..data import simulate_dataset
 from ..data.trajectory import Trajectory
 from ..evaluate import evaluate_run
 from ..pose_refine import pose_errors
+from ..text_table import print_table
 from ..train import Trainer
-from .common import print_table, write_results
+from .common import write_results
 from .train import schedule
 
 NOISE_DEG = 1.0  # rotation of each perturbed pose

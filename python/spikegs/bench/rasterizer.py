@@ -24,7 +24,8 @@ import torch
 
 from .. import reference
 from ..rasterize import rasterize
-from .common import machine_info, median_seconds, print_table, uniform, write_results
+from ..text_table import print_table
+from .common import machine_info, median_seconds, uniform, write_results
 
 REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
 # The reference is a Python loop of small ops: one torch thread is its fastest setting (threads

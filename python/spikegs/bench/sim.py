@@ -24,7 +24,8 @@ from ..data.scenes import SCENES
 from ..sim import SIM
 from ..sim_scores import evaluate_dataset
 from ..sim_train import inference_model, train_sim, training_layout
-from .common import median_seconds, print_table, write_results
+from ..text_table import print_table
+from .common import median_seconds, write_results
 
 TRAINING = SimConfig()  # SIM trains as `spikegs train` trains it: steps, batch
 

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..spikes import SimParams, SpikeStream, simulate_spikes
-from .common import machine_info, median_seconds, print_table, write_results
+from ..text_table import print_table
+from .common import machine_info, median_seconds, write_results
 
 HEIGHT, WIDTH = 250, 400
 BATCH = 25  # timestamps per call: bounds the output held at once ([25, H, W] float32)

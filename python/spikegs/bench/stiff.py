@@ -17,7 +17,8 @@ from typing import Callable
 import torch
 
 from ..rasterize import rasterize
-from .common import print_table, uniform, write_results
+from ..text_table import print_table
+from .common import uniform, write_results
 
 PER_GAUSSIAN = ("means", "quats", "scales", "opacities", "colors", "means2d")
 GRADS = (*PER_GAUSSIAN, "background", "viewmat")

@@ -39,8 +39,9 @@ from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
 from ..evaluate import SSIMS, render_view, view_metrics
 from ..run_folder import refuse_foreign_files
+from ..text_table import print_table
 from ..train import Trainer
-from .common import print_table, write_results
+from .common import write_results
 
 BASELINES = ("tfp33", "tfp65", "tfi", "tfp33_smooth_l1")  # the last: TFP(33)+3DGS at our norm
 CEILING = "oracle"  # clean instant targets: what perfect supervision gives this trainer

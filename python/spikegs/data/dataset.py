@@ -26,12 +26,12 @@ from ..atomic_save import write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..spikes import SpikeStream
+from ..strict_json import read_json
 from .trajectory import (
     PathLike,
     Trajectory,
     camera_doc,
     read_camera_doc,
-    read_json,
     rigid_c2w,
 )
 

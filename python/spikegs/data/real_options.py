@@ -26,7 +26,8 @@ from pathlib import Path
 
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
-from .dataset import check_fires, read_json
+from ..strict_json import read_json
+from .dataset import check_fires
 
 OPTIONS_FILE = "spikegs.json"
 # how to mend a camera whose images have another aspect ratio than the spikes (`frame_columns`)

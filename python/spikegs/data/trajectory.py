@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from ..atomic_save import write_text_atomically
 from ..number_checks import is_number, number_array
+from ..strict_json import read_json
 
 PathLike = Union[str, os.PathLike]
 CONVENTION = "opencv"
@@ -306,35 +307,6 @@ def read_camera_doc(path: Path, camera: dict | None = None) -> list:
     if not isinstance(frames, list) or not all(isinstance(f, dict) for f in frames):
         raise ValueError(f"{path}: 'frames' expected a list of objects")
     return frames
-
-
-class _RepeatedKeys(ValueError):
-    """A JSON object gives a key twice."""
-
-
-def _unique_keys(pairs: list) -> dict:
-    """A JSON object's {key: value}; _RepeatedKeys naming a key given twice (json keeps the
-    last)."""
-    doc = dict(pairs)
-    if len(doc) < len(pairs):
-        keys = [k for k, _ in pairs]
-        raise _RepeatedKeys(sorted({k for k in keys if keys.count(k) > 1}))
-    return doc
-
-
-def read_json(path: Path) -> dict:
-    """The JSON object in the file at `path`; ValueError naming the file where it is malformed,
-    gives a key twice in an object (which of the two was meant?) or holds something else than an
-    object."""
-    try:
-        doc = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
-    except _RepeatedKeys as err:
-        raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: not valid JSON ({err})") from None
-    if not isinstance(doc, dict):
-        raise ValueError(f"{path}: expected a JSON object {{...}}, found {type(doc).__name__}")
-    return doc
 
 
 _look_at = look_at  # `spiral` has a parameter of the same name

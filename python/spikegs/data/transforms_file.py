@@ -12,8 +12,9 @@ import skimage.transform
 
 from ..image_io import read_stored_image, srgb_to_linear, to_channels
 from ..number_checks import is_number, number_array
+from ..strict_json import read_json
 from .dataset import check_intrinsics, intrinsics_keys
-from .trajectory import read_json, rigid_c2w
+from .trajectory import rigid_c2w
 
 IMAGE_EXTENSIONS = (
     ".png",
