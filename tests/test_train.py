@@ -23,7 +23,7 @@ import yaml
 from plyfile import PlyData, PlyElement
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
-from spikegs.config import CONFIG_DIR, Config, available_methods, dump_yaml, load_config
+from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
@@ -42,6 +42,7 @@ from spikegs.run_folder import run_lock
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer, _means_lr
 from spikegs.train_cli import config_from_args
+from spikegs.yaml_files import dump_yaml
 
 FAST = {
     "train": {"iterations": 200, "init_gaussians": 800, "eval_every": 50, "checkpoint_every": 50},

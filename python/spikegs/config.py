@@ -22,8 +22,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import re
-from collections.abc import Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +32,7 @@ from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
 from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
+from .yaml_files import read_yaml
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -465,72 +464,6 @@ def _apply(target, overrides: dict, where: str) -> None:
 
 def available_methods() -> list[str]:
     return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
-
-
-class _Loader(yaml.SafeLoader):
-    """yaml.SafeLoader that reads numbers as YAML 1.2 does: 1e-4 as a float (YAML 1.1, PyYAML's,
-    wants a dot, 1.0e-4, and reads 1e-4 as a string), 020 as 20 (1.1: octal 16) and 1:20 as a
-    string (1.1: base 60, 80); and refuses a key given twice in one mapping (PyYAML keeps the
-    last: a second `train:` section would drop the first) or a key that is a list or mapping."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            key = self.construct_object(key_node, deep=deep)
-            if not isinstance(key, Hashable):
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"a key that is a {type(key).__name__}", key_node.start_mark
-                )
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key '{key}' given twice in one mapping", key_node.start_mark
-                )
-            seen.add(key)
-        return super().construct_mapping(node, deep)
-
-
-_FLOAT, _INT = "tag:yaml.org,2002:float", "tag:yaml.org,2002:int"
-_FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$")  # 1e-4, 1.5E3
-_INT_12 = re.compile(r"^[-+]?[0-9][0-9_]*$|^0o_*[0-7][0-7_]*$|^0x_*[0-9a-fA-F][0-9a-fA-F_]*$")
-_Loader.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
-_Loader.yaml_implicit_resolvers = {
-    first: [(tag, regexp) for tag, regexp in resolvers if tag != _INT]
-    for first, resolvers in _Loader.yaml_implicit_resolvers.items()
-}
-_Loader.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
-
-
-def _int_12(loader: _Loader, node) -> int:
-    """A YAML 1.2 integer: decimal (leading zeros too), 0o octal or 0x hexadecimal."""
-    text = loader.construct_scalar(node).replace("_", "")
-    sign, digits = (-1, text[1:]) if text[0] == "-" else (1, text.lstrip("+"))
-    base = {"0o": 8, "0x": 16}.get(digits[:2], 10)
-    return sign * int(digits[2:] if base != 10 else digits, base)
-
-
-_Loader.add_constructor(_INT, _int_12)
-
-
-class _Dumper(yaml.SafeDumper):
-    """yaml.SafeDumper that quotes what `_Loader` would read as a number (a method named 1e5 or
-    0o17)."""
-
-
-_Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
-_Dumper.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
-
-
-def read_yaml(path: Path):
-    """A YAML file read by the rules of config files (`_Loader`: YAML 1.2 numbers, no key given
-    twice), as a run's config.yaml was written (`dump_yaml`)."""
-    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)
-
-
-def dump_yaml(data: dict) -> str:
-    """`data` as YAML that `_Loader` reads back as it is (a run's config.yaml)."""
-    return yaml.dump(data, Dumper=_Dumper, sort_keys=False)
 
 
 def load_config(

@@ -20,12 +20,13 @@ import numpy as np
 from . import strict_json
 from .atomic_save import write_text_atomically
 from .cli import positive_int, show_bars
-from .config import load_config, read_yaml
+from .config import load_config
 from .curves import save_logged_curves
 from .data.scenes import SCENES
 from .method_titles import method_title
 from .run_folder import refuse_foreign_files, run_lock
 from .text_table import print_table
+from .yaml_files import read_yaml
 
 METHODS = ("spikegs", "tfp33")
 DEFAULT_SCENE = "solids"

@@ -168,7 +168,7 @@ def _configured_method(run_dir: Path) -> str | None:
     in a run folder), None where it has none or cannot be read."""
     import yaml
 
-    from .config import read_yaml
+    from .yaml_files import read_yaml
 
     try:
         method = read_yaml(run_dir / "config.yaml").get("method")

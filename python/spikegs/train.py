@@ -20,7 +20,7 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_atomically
-from .config import MIN_GAUSSIANS, Config, differences, dump_yaml, with_defaults
+from .config import MIN_GAUSSIANS, Config, differences, with_defaults
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import render_view, view_metrics
@@ -43,6 +43,7 @@ from .pose_refine import PoseRefiner, make_refiner
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
+from .yaml_files import dump_yaml
 
 SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views must see one
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
