@@ -257,6 +257,8 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     torch.save({"weights": [1.0]}, stray)  # another tool's file: said, not a KeyError
     with pytest.raises(ValueError, match=f"{stray}: not a saved SIM"):
         load_sim(stray)
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        load_sim(tmp_path / "missing.pt")
     stream, ts = scene[1], [40, 50]
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
     capsys.readouterr()

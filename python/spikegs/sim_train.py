@@ -262,7 +262,10 @@ def _model_of(payload: dict) -> SIM:
 
 
 def load_sim(path: Path) -> SIM:
-    """The SIM saved at `path`, in eval mode; ValueError naming the file where it is not one."""
+    """The SIM saved at `path`, in eval mode; FileNotFoundError where there is no such file,
+    ValueError naming the file where it is not a saved SIM."""
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{path}: no such file (a SIM saved by spikegs sim-train)")
     try:
         return _model_of(_read_saved(Path(path)))
     except ValueError as err:
