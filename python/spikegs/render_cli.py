@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .cli import direction, output_file, positive_int
-from .data.trajectory import WORLD_UP, look_at, unit_vector
+from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
@@ -68,11 +68,10 @@ def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None
     first = offsets[0] - (offsets[0] @ up) * up  # the first camera's direction in the orbit plane
     if np.linalg.norm(first) <= 1e-6 * distance.max():  # above the centre, or at it: any way
         first = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 = first / np.linalg.norm(first)
-    e2 = np.cross(up, e1)
-    angles = 2 * np.pi * np.arange(frames) / frames  # [F]
-    ring = np.cos(angles)[:, None] * e1 + np.sin(angles)[:, None] * e2  # [F, 3]
-    eyes = center + distance.mean() * (np.cos(elevation) * ring + np.sin(elevation) * up)
+    axes = up_rotation(up)  # [3, 3]: columns orbit_eye's x and y (azimuths 0° and 90°), and up
+    start = np.degrees(np.arctan2(first @ axes[:, 1], first @ axes[:, 0]))  # the first camera's
+    azimuths = start + 360.0 * np.arange(frames) / frames  # [F]
+    eyes = orbit_eye(center, distance.mean(), azimuths, np.degrees(elevation), up)  # [F, 3]
     return np.stack([look_at(eye, center, up) for eye in eyes])
 
 

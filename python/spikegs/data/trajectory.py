@@ -74,7 +74,7 @@ def orbit_eye(center, radius: float, azimuth_deg, elevation_deg, up=WORLD_UP) ->
     """Camera centres [..., 3] on a sphere of `radius` around `center`, at `elevation_deg` above
     the plane normal to unit `up` [3] (+z: azimuth from +x towards +y; another up turns that
     frame by `up_rotation`)."""
-    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    az, el = np.broadcast_arrays(np.radians(azimuth_deg), np.radians(elevation_deg))
     offset = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
     if not np.array_equal(up, WORLD_UP):
         offset = offset @ up_rotation(up).T
