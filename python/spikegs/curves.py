@@ -8,13 +8,14 @@ import textwrap
 from pathlib import Path
 
 from .method_titles import method_title
+from .run_summary import LOG
 
 
 def logged_curve(run_dir: str | Path) -> list[dict]:
     """The evaluations in RUN/log.jsonl, [{"iteration", "train_seconds", "psnr"}] (the PSNR of
     the dataset's first test view, as the progress bar shows it), in order."""
     curve = []
-    for line in (Path(run_dir) / "log.jsonl").read_text().splitlines():
+    for line in (Path(run_dir) / LOG).read_text().splitlines():
         record = json.loads(line)
         if "psnr" in record:
             curve.append(

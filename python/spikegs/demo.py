@@ -25,6 +25,7 @@ from .curves import save_logged_curves
 from .data.scenes import SCENES
 from .method_titles import method_title
 from .run_folder import refuse_foreign_files, run_lock
+from .run_summary import CONFIG, EVAL, LOCK
 from .text_table import print_table
 from .yaml_files import read_yaml
 
@@ -140,7 +141,7 @@ def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
     config.yaml, else what it recorded when it started), None for the default."""
     for method in METHODS:
-        saved = out / "runs" / method / "config.yaml"
+        saved = out / "runs" / method / CONFIG
         if saved.is_file():
             return int(read_yaml(saved)["train"]["iterations"])
     iterations = _started(out).get("iterations")
@@ -205,7 +206,7 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
     for i, method in enumerate(configs, start=2):
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
-        started = resume and (run_dir / "config.yaml").exists()
+        started = resume and (run_dir / CONFIG).exists()
         trainer = Trainer(dataset, configs[method], run_dir, progress=progress)
         summary = trainer.train(started, on_eval=None if progress else print_evaluation)
         ev = evaluate_run(run_dir, dataset)
@@ -251,7 +252,7 @@ def row_labels(lines: list[str], width: int, height: int) -> np.ndarray:
 
 def _view_scores(run_dir: Path) -> dict[str, str]:
     """Each view's PSNR in RUN/eval.json, as text ("inf" where eval wrote null)."""
-    views = json.loads((run_dir / "eval.json").read_text())["views"]
+    views = json.loads((run_dir / f"{EVAL}.json").read_text())["views"]
     return {name: "inf" if v["psnr"] is None else f"{v['psnr']:.2f}" for name, v in views.items()}
 
 
@@ -265,7 +266,7 @@ def write_figures(out: Path, dataset, results: dict) -> None:
     rows = []
     for view in dataset.test_views:  # each eval image is GT | render | error: GT once, renders
         panels = [  # back to linear light: write_image encodes it as sRGB again
-            srgb_to_linear(read_image(out / "runs" / m / "eval" / f"{view.name}.png"))
+            srgb_to_linear(read_image(out / "runs" / m / EVAL / f"{view.name}.png"))
             for m in METHODS
         ]
         w, h, c = panels[0].shape[1] // 3, panels[0].shape[0], panels[0].shape[2]
@@ -288,7 +289,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_folder_output(out)
     # a demo writes STARTED_FILE as it starts: a folder without anything holds none
-    if args.resume and not (out.is_dir() and any(p.name != ".lock" for p in out.iterdir())):
+    if args.resume and not (out.is_dir() and any(p.name != LOCK for p in out.iterdir())):
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
         args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     out.mkdir(parents=True, exist_ok=True)

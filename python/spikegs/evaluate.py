@@ -21,7 +21,7 @@ from .image_io import srgb_to_linear, write_image
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output
 from .ply import declares_channels, load_ply
-from .run_summary import read_summary, trained_scene
+from .run_summary import CONFIG, EVAL, read_summary, trained_scene
 from .targets import intensity_scale
 
 
@@ -62,23 +62,23 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     units)."""
     own = train.get("dataset")
     if own is None:
-        return "eval"
+        return EVAL
     root = Path(dataset.root).resolve()
     known = "data" in train  # runs from before fingerprints: their own folder is trusted
     scale = _run_scale(train, dataset)
     same = not known or same_data(train["data"], dataset, scale)
     if Path(own).resolve() == root:
         if same:
-            return "eval"
+            return EVAL
         warnings.warn(
             f"{root} holds other data than {run_dir} was trained on ({OTHER_DATA}): scored as "
             f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
     elif known and same and not _holds_run_data(Path(own), train["data"], scale):  # moved
-        return "eval"
+        return EVAL
     for i in itertools.count(1):
-        name = f"eval-{root.name}" + (f"-{i}" if i > 1 else "")
+        name = f"{EVAL}-{root.name}" + (f"-{i}" if i > 1 else "")
         if _scored_dataset(run_dir / f"{name}.json") in (None, str(root)):
             return name
 
@@ -171,7 +171,7 @@ def _configured_method(run_dir: Path) -> str | None:
     from .yaml_files import read_yaml
 
     try:
-        method = read_yaml(run_dir / "config.yaml").get("method")
+        method = read_yaml(run_dir / CONFIG).get("method")
     except (OSError, UnicodeDecodeError, yaml.YAMLError, AttributeError):
         return None
     return method if isinstance(method, str) else None

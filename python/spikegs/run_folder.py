@@ -7,23 +7,23 @@ from pathlib import Path
 
 from .atomic_save import is_temporary
 from .file_lock import exclusive_lock
-from .run_summary import CURVE
+from .run_summary import CHECKPOINTS, CONFIG, CURVE, EVAL, LOCK, LOG, SCENE, SUMMARY
 
 
 def run_lock(run_dir: Path):
     """An exclusive lock on RUN/.lock for a `with` block: FileExistsError while another process
     trains in RUN."""
     return exclusive_lock(
-        run_dir / ".lock",
+        run_dir / LOCK,
         busy=f"{run_dir} is being trained by another process; wait for it to end or train into "
         f"another --out",
     )
 
 
 # what a fresh run writes before its first checkpoint: it may start over a run stopped then
-RUN_STARTED = frozenset({"config.yaml", "log.jsonl", ".lock", "checkpoints"})
+RUN_STARTED = frozenset({CONFIG, LOG, LOCK, CHECKPOINTS})
 # what `spikegs train` and `spikegs eval` write in a run (and eval-DATASET*[.json] for others')
-RUN_FILES = RUN_STARTED | {"scene.ply", "train.json", CURVE, "eval", "eval.json"}
+RUN_FILES = RUN_STARTED | {SCENE, SUMMARY, CURVE, EVAL, f"{EVAL}.json"}
 
 
 def foreign_files(run_dir: Path) -> list[str]:
@@ -32,7 +32,7 @@ def foreign_files(run_dir: Path) -> list[str]:
     return sorted(
         n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
         for n in names
-        if n not in RUN_FILES and not n.startswith("eval-") and not is_temporary(n)
+        if n not in RUN_FILES and not n.startswith(f"{EVAL}-") and not is_temporary(n)
     )
 
 

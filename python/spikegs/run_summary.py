@@ -1,4 +1,5 @@
-"""RUN/train.json, the summary `spikegs train` writes at the end of a run, read back checked."""
+"""A run folder's files by name, and RUN/train.json, the summary `spikegs train` writes at the end
+of a run, read back checked."""
 
 from __future__ import annotations
 
@@ -9,13 +10,19 @@ from .file_lock import exclusive_lock
 from .number_checks import is_number
 from .strict_json import read_json
 
+CONFIG = "config.yaml"  # the run's settings, which --resume keeps
+LOG = "log.jsonl"  # loss, its terms, Gaussians, held-out PSNR against seconds: a JSON line each
+LOCK = ".lock"  # held by the process training in the folder
+CHECKPOINTS = "checkpoints"  # folder of last.pt
+SCENE = "scene.ply"  # the trained scene, written when the run finishes
 SUMMARY = "train.json"
 CURVE = "curve.png"  # `spikegs train`'s plot of the PSNR it logged against seconds
+EVAL = "eval"  # `spikegs eval`'s: RUN/eval.json its scores, RUN/eval/ its side-by-side images
 
 
 def last_checkpoint(run_dir: Path) -> Path:
     """RUN/checkpoints/last.pt, the checkpoint that `--resume` continues from."""
-    return Path(run_dir) / "checkpoints" / "last.pt"
+    return Path(run_dir) / CHECKPOINTS / "last.pt"
 
 
 def read_summary(run_dir: Path) -> dict:
@@ -37,10 +44,10 @@ def read_summary(run_dir: Path) -> dict:
 def trained_scene(run_dir: Path) -> Path:
     """RUN/scene.ply, written when a run finishes; FileNotFoundError saying how to get it where
     the run has not finished (stopped with a checkpoint: --resume) or not started."""
-    ply = Path(run_dir) / "scene.ply"
+    ply = Path(run_dir) / SCENE
     if ply.exists():
         return ply
-    lock = Path(run_dir) / ".lock"
+    lock = Path(run_dir) / LOCK
     if lock.is_file():  # a run being trained holds it (`spikegs train`): --resume would fail
         busy = f"{ply} not found yet: {run_dir} is being trained by another process"
         try:

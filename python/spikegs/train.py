@@ -41,7 +41,7 @@ from .point_cloud import (
 )
 from .pose_refine import PoseRefiner, make_refiner
 from .run_folder import check_fresh_run_dir, run_lock
-from .run_summary import SUMMARY, last_checkpoint
+from .run_summary import CONFIG, LOG, SCENE, SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
 from .yaml_files import dump_yaml
 
@@ -465,7 +465,7 @@ class Trainer:
                 sweep_temporaries(folder)
             from_checkpoint = self._from_checkpoint(resume)
             if resume and not from_checkpoint:  # stderr: stdout is `spikegs train`'s summary
-                started = (self.run_dir / "config.yaml").exists()  # (a mistyped --out: not)
+                started = (self.run_dir / CONFIG).exists()  # (a mistyped --out: not)
                 what = "no checkpoint yet" if started else "no run to continue, nothing written"
                 print(f"{self.run_dir}: {what}; training from the start", file=sys.stderr)
             if not resume and self.checkpoint_path.exists():
@@ -496,9 +496,9 @@ class Trainer:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
         text = dump_yaml(self.config.to_dict())  # `--resume` reads it back
-        write_text_atomically(self.run_dir / "config.yaml", text)
+        write_text_atomically(self.run_dir / CONFIG, text)
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
-        _cut_log(self.run_dir / "log.jsonl", state["iteration"] if state else 0)
+        _cut_log(self.run_dir / LOG, state["iteration"] if state else 0)
         # a finished run needs no targets; SIM's training time for this run: trained now or
         # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
         if state is None or state["iteration"] < t.iterations:
@@ -515,7 +515,7 @@ class Trainer:
                 )
         else:
             self._fresh_state()
-        log = (self.run_dir / "log.jsonl").open("a")
+        log = (self.run_dir / LOG).open("a")
         saved_at = time.perf_counter()
         bar = tqdm(
             total=t.iterations,
@@ -551,7 +551,7 @@ class Trainer:
                 bar.close()
                 log.close()
         self.save_checkpoint()
-        save_ply(self.model, self.run_dir / "scene.ply")
+        save_ply(self.model, self.run_dir / SCENE)
         biased = biased_fit(self.brightness, self.config.supervision)
         if biased:
             warnings.warn(f"{self.run_dir}: {biased}", stacklevel=2)

@@ -11,7 +11,7 @@ from .cli import file_path, positive_int, show_bars
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
-from .run_summary import CURVE
+from .run_summary import CONFIG, CURVE
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -49,7 +49,7 @@ def config_from_args(args: argparse.Namespace):
     """The validated config of --method/--config (neither: DEFAULT_METHOD, or on --resume the
     run's own RUN/config.yaml) with the command-line overrides applied."""
     overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
-    saved = Path(args.out) / "config.yaml"
+    saved = Path(args.out) / CONFIG
     if args.config is not None and Path(args.config).suffix not in (".yaml", ".yml"):
         raise ValueError(
             f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
