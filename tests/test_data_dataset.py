@@ -586,7 +586,7 @@ def test_frames_and_poses_of_different_counts():
 def test_cli(tmp_path, capsys):
     out = tmp_path / "cli"
     args = ["simulate", "--scene", "fine-texture", "--out", str(out), "--height", "16"]
-    args += ["--width", "16", "--readouts", "330", "--test-on-path", "2", "--quiet"]
+    args += ["--width", "16", "--readouts", "330", "--test-on-path", "2", "--no-progress"]
     assert main(args + ["--seed", "5", "--rate-at-one", "0.3"]) == 0
     ds = load_dataset(out)
     assert ds.meta["seed"] == 5 and ds.meta["sim"]["rate_at_one"] == 0.3

@@ -1188,7 +1188,7 @@ def test_option_help_gives_the_defaults(capsys):
         "--threshold THRESHOLD photo-electrons a spike θ (shot noise ~ 1/√θ) (default: 100.0)"
         in text
     )
-    assert "--overwrite replace a dataset in --out --quiet" in text  # flags: no default said
+    assert "--overwrite replace a dataset in --out --no-progress, --quiet" in text  # no default
     assert "(default: None)" not in text and "(default: False)" not in text
     assert "(default: solids) (default" not in text  # where the text says it, not again
 

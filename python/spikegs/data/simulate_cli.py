@@ -66,9 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-flip", action="store_true", help="write .dat rows top-down")
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
     parser.add_argument(
+        "--no-progress",
         "--quiet",
+        dest="quiet",
         action="store_true",
-        help="no progress bars (none where stderr is not a terminal)",
+        help="no progress bars (none where stderr is not a terminal); --no-progress as in train",
     )
     sim = parser.add_argument_group("simulator parameters (SimParams)")
     for field in dataclasses.fields(SimParams):
