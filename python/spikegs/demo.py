@@ -195,14 +195,17 @@ def check_run_dirs(out: Path) -> None:
         )
 
 
-def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress: bool) -> dict:
-    """{method: scores}: each method of `configs` trained into OUT/runs/METHOD (resumed from its
-    last checkpoint on `resume`, where it had started) and evaluated on the test views."""
+def train_and_evaluate(
+    dataset, configs: dict, out: Path, resume: bool, progress: bool
+) -> tuple[dict, dict]:
+    """{method: scores} and {method: {view: PSNR}}: each method of `configs` trained into
+    OUT/runs/METHOD (resumed from its last checkpoint on `resume`, where it had started) and
+    evaluated on the test views."""
     from .evaluate import evaluate_run
     from .train import Trainer
     from .train_cli import print_evaluation
 
-    results = {}
+    results, view_psnrs = {}, {}
     for i, method in enumerate(configs, start=2):
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
@@ -218,7 +221,8 @@ def train_and_evaluate(dataset, configs: dict, out: Path, resume: bool, progress
             "sim_seconds": summary["sim_seconds"],
             "gaussians": summary["gaussians"],
         }
-    return results
+        view_psnrs[method] = {name: v["psnr"] for name, v in ev["views"].items()}
+    return results, view_psnrs
 
 
 def column_titles(titles: list[str], width: int, height: int = 16) -> np.ndarray:
@@ -250,19 +254,13 @@ def row_labels(lines: list[str], width: int, height: int) -> np.ndarray:
     return srgb_to_linear(np.asarray(label, np.float64) / 255)[..., None]
 
 
-def _view_scores(run_dir: Path) -> dict[str, str]:
-    """Each view's PSNR in RUN/eval.json, as text ("inf" where eval wrote null)."""
-    views = json.loads((run_dir / f"{EVAL}.json").read_text())["views"]
-    return {name: "inf" if v["psnr"] is None else f"{v['psnr']:.2f}" for name, v in views.items()}
-
-
-def write_figures(out: Path, dataset, results: dict) -> None:
+def write_figures(out: Path, dataset, results: dict, view_psnrs: dict) -> None:
     """OUT/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, from the
     runs' evaluation images, under those titles, each row labelled with its view and the
-    methods' PSNR there) and OUT/curves.png (`save_logged_curves`)."""
+    methods' PSNR there, `view_psnrs` {method: {view: PSNR}}) and OUT/curves.png
+    (`save_logged_curves`)."""
     from .image_io import read_image, srgb_to_linear, write_image
 
-    scores = {m: _view_scores(out / "runs" / m) for m in METHODS}
     rows = []
     for view in dataset.test_views:  # each eval image is GT | render | error: GT once, renders
         panels = [  # back to linear light: write_image encodes it as sRGB again
@@ -270,7 +268,9 @@ def write_figures(out: Path, dataset, results: dict) -> None:
             for m in METHODS
         ]
         w, h, c = panels[0].shape[1] // 3, panels[0].shape[0], panels[0].shape[2]
-        psnrs = [f"{method_title(m).split('+')[0]} {scores[m][view.name]}" for m in METHODS[::-1]]
+        psnrs = [
+            f"{method_title(m).split('+')[0]} {view_psnrs[m][view.name]:.2f}" for m in METHODS[::-1]
+        ]
         label = row_labels([view.name, *psnrs], LABEL_WIDTH, h)
         label = np.broadcast_to(label, (h, LABEL_WIDTH, c))
         renders = [p[:, w : 2 * w] for p in panels[::-1]]
@@ -324,8 +324,8 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         check_run_dirs(out)
     try:  # the figures too: stopped while writing them, it says how to go on as well
         dataset = demo_dataset(scene, out / "data", args.resume, progress, color)
-        results = train_and_evaluate(dataset, configs, out, args.resume, progress)
-        write_figures(out, dataset, results)
+        results, view_psnrs = train_and_evaluate(dataset, configs, out, args.resume, progress)
+        write_figures(out, dataset, results, view_psnrs)
     except KeyboardInterrupt:
         (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
         print("\nthe same command with --resume continues from here", file=sys.stderr)
