@@ -106,6 +106,19 @@ class _DefaultsFormatter(argparse.HelpFormatter):
         return text if "default" in text else f"{text} (default: %(default)s)"
 
 
+def add_no_progress(parser: argparse.ArgumentParser, instead: str = "", *aliases: str) -> None:
+    """--no-progress (and `aliases`), read by `show_bars`: no progress bars, `instead` what the
+    command prints in their place; the default where stderr is not a terminal."""
+    parser.add_argument(
+        "--no-progress",
+        *aliases,
+        dest="no_progress",
+        action="store_true",
+        help=f"no progress bars{instead} (the default where stderr is not a terminal: a batch "
+        f"job's log)",
+    )
+
+
 def show_bars(off: bool) -> bool:
     """Whether a command draws progress bars: not where `off` (--no-progress, --quiet), nor where
     stderr is no terminal (a batch job's log, which bars' carriage returns garble)."""

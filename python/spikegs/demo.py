@@ -19,7 +19,7 @@ import numpy as np
 
 from . import strict_json
 from .atomic_save import write_text_atomically
-from .cli import positive_int, show_bars
+from .cli import add_no_progress, positive_int, show_bars
 from .config import load_config
 from .curves import save_logged_curves
 from .data.scenes import SCENES
@@ -75,12 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="a colour spike camera, a stream per channel (on --resume, the demo's own camera)",
     )
-    parser.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress bars: a line at each evaluation (the default where stderr is not a "
-        "terminal)",
-    )
+    add_no_progress(parser, ": a line at each evaluation instead")
 
 
 def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):

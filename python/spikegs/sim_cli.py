@@ -9,7 +9,7 @@ import os
 import sys
 from pathlib import Path
 
-from .cli import output_file, positive_int, show_bars
+from .cli import add_no_progress, output_file, positive_int, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
@@ -67,11 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "holds every setting, and train reuses a SIM made with its config's own)",
     )
     parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
-    parser.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress bar (none where stderr is not a terminal)",
-    )
+    add_no_progress(parser)
 
 
 def run(args: argparse.Namespace) -> int:

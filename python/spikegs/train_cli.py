@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .cli import file_path, positive_int, show_bars
+from .cli import add_no_progress, file_path, positive_int, show_bars
 from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
@@ -37,12 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="continue from RUN's last checkpoint (a run stopped before its first one starts over)",
     )
-    parser.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress bar: a line to stderr at each evaluation instead (the default where "
-        "stderr is not a terminal: a batch job's log)",
-    )
+    add_no_progress(parser, ": a line to stderr at each evaluation instead")
 
 
 def config_from_args(args: argparse.Namespace):

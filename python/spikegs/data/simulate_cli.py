@@ -7,7 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
-from ..cli import direction, show_bars
+from ..cli import add_no_progress, direction, show_bars
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
@@ -65,13 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel (Mitsuba)")
     parser.add_argument("--no-flip", action="store_true", help="write .dat rows top-down")
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
-    parser.add_argument(
-        "--no-progress",
-        "--quiet",
-        dest="quiet",
-        action="store_true",
-        help="no progress bars (none where stderr is not a terminal); --no-progress as in train",
-    )
+    add_no_progress(parser, "", "--quiet")
     sim = parser.add_argument_group("simulator parameters (SimParams)")
     for field in dataclasses.fields(SimParams):
         flag = "--" + field.name.replace("_", "-")
@@ -107,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         train_every=args.train_every,
         spp=args.spp,
         flip=not args.no_flip,
-        progress=show_bars(args.quiet),
+        progress=show_bars(args.no_progress),
         **sim_params,
     )
     print(f"{dataset} in {time.perf_counter() - start:.1f} s")
