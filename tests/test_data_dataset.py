@@ -559,10 +559,11 @@ def test_existing_dataset_needs_overwrite(tmp_path):
     assert (out / "notes.txt").exists()
     with pytest.raises(FileExistsError, match=r"not a dataset's \(ds\)"):  # nor mixed in
         simulate_dataset("wires", tmp_path, **SMALL)
-    # a simulation killed while rendering leaves its light: the folder was refused for good
+    # a simulation killed while simulating leaves its spikes' temporary file: the folder was
+    # refused for good ("not a dataset's"), even with --overwrite
     killed = tmp_path / "killed"
     killed.mkdir()
-    (killed / ".light.npy").write_bytes(b"\0" * 64)
+    (killed / ".spikes_g.dat.0123abcd.tmp").write_bytes(b"\0" * 64)
     with pytest.raises(FileNotFoundError, match="an interrupted simulation"):
         load_dataset(killed)
     with pytest.raises(FileExistsError, match="an interrupted simulation left.*--overwrite"):

@@ -9,7 +9,7 @@ import pytest
 import torch
 from spikegs import SimParams, SpikeStream, simulate_spikes
 from spikegs.spikes import simulate
-from spikegs.spikes.simulate import fpn_gain, sample_times
+from spikegs.spikes.simulate import fpn_gain, sample_times, simulate_channels
 
 
 def rates(packed: np.ndarray, width: int) -> np.ndarray:
@@ -156,6 +156,50 @@ def test_callable_source_matches_frames():
 
     want = simulate_spikes(frames, 300, frame_times=times, seed=3)
     np.testing.assert_array_equal(simulate_spikes(light, 300, frame_every=100, seed=3), want)
+
+
+def test_a_callable_is_sampled_at_the_frame_times_given():
+    """A callable with frame_times is sampled there (they were ignored: it was sampled every
+    frame_every readouts), each time once."""
+    frames = np.random.default_rng(5).random((3, 4, 9), dtype=np.float32)
+    times = np.array([0.0, 37.5, 119.0])
+    calls = []
+    light = lambda t: calls.append(t) or frames[list(times).index(t)]  # noqa: E731
+    got = simulate_spikes(light, 120, frame_times=times, seed=6, chunk=16)
+    np.testing.assert_array_equal(got, simulate_spikes(frames, 120, frame_times=times, seed=6))
+    assert calls == list(times)
+    with pytest.raises(ValueError, match=r"frame_times expected \[F\] with F >= 1, found \[0\]"):
+        simulate_spikes(light, 120, frame_times=[])
+    with pytest.raises(ValueError, match=r"covering readouts \[0, 119\]"):
+        simulate_spikes(light, 120, frame_times=[0.0, 100.0])
+
+
+def test_channels_are_each_simulated_as_alone(tmp_path):
+    """simulate_channels writes each channel's .dat as simulate_spikes writes that channel alone
+    with its seed, rendering each frame once, whatever the chunk; an error part way through
+    leaves no file."""
+    frames = np.random.default_rng(3).random((5, 6, 11, 3), dtype=np.float32)  # [F, H, W, C]
+    times = np.array([0.0, 40.0, 90.0, 150.0, 199.0])
+    seeds, outs = [4, 9, 2**64 - 1], [tmp_path / f"c{c}.dat" for c in range(3)]
+    calls = []
+    light = lambda t: calls.append(t) or frames[list(times).index(t)]  # noqa: E731
+    simulate_channels(light, 200, outs, seeds, frame_times=times, flip=False, chunk=7)
+    assert calls == list(times)
+    for c in range(3):
+        want = simulate_spikes(frames[..., c], 200, frame_times=times, seed=seeds[c])
+        np.testing.assert_array_equal(SpikeStream.open(outs[c], 6, 11, flip=False).packed(), want)
+    simulate_channels(frames, 200, outs, seeds, frame_times=times, flip=False)  # an array too
+    np.testing.assert_array_equal(SpikeStream.open(outs[2], 6, 11, flip=False).packed(), want)
+
+    fails = lambda t: frames[0] * (np.nan if t > 100 else 1)  # noqa: E731
+    new = [tmp_path / f"new{c}.dat" for c in range(3)]
+    with pytest.raises(ValueError, match="frame at t=150 expected finite intensities"):
+        simulate_channels(fails, 200, new, seeds, frame_times=times)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in outs)
+    with pytest.raises(ValueError, match=r"frames expected \[H, W, 3\] each, found \[6, 11, 2\]"):
+        simulate_channels(frames[..., :2], 200, outs, seeds, frame_times=times)
+    with pytest.raises(ValueError, match="a seed for each of 3 outputs, found 2"):
+        simulate_channels(frames, 200, outs, seeds[:2], frame_times=times)
 
 
 def test_frame_every_that_rounds_onto_the_last_readout():

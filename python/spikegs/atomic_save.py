@@ -25,6 +25,13 @@ def is_temporary(name: str) -> bool:
     return _TEMPORARY.match(name) is not None
 
 
+def target_name(name: str) -> str:
+    """The name of the file that a temporary file of ours is written for (`.NAME.WRITER.tmp`:
+    NAME); any other name as it is."""
+    match = _TEMPORARY.match(name)
+    return name[1 : match.start(1) - 1] if match else name
+
+
 def _writer_alive(name: str) -> bool:
     """Whether the writer of temporary file `name` is a live process (its WRITER a process id:
     `write_atomically`'s)."""

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic_save import write_text_atomically
+from ..atomic_save import target_name, write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..spikes import SpikeStream
@@ -211,8 +211,7 @@ class Dataset:
         )
 
 
-LIGHT = ".light.npy"  # the rendered light while simulating: left by a killed simulation
-PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), LIGHT)  # any: a dataset
+PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
@@ -220,8 +219,9 @@ DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS
 
 
 def holds_dataset(out: Path) -> bool:
-    """Whether `out` holds (a part of) a dataset."""
-    return any((out / n).exists() for n in PARTS)
+    """Whether the directory `out` holds (a part of) a dataset, or a part's temporary file
+    (`.spikes.dat.W.tmp`, which a simulation killed while writing it leaves)."""
+    return out.is_dir() and any(target_name(p.name) in PARTS for p in out.iterdir())
 
 
 def near_held_out(timestamps: np.ndarray, held_out: np.ndarray) -> np.ndarray:
@@ -242,8 +242,8 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
             f"{out} already holds a dataset (or what an interrupted simulation left); pass "
             f"--overwrite to replace it"
         )
-    parts = {*PARTS, *DERIVED}
-    others = sorted(p.name for p in out.iterdir() if p.name not in parts) if out.is_dir() else []
+    names = [p.name for p in out.iterdir()] if out.is_dir() else []
+    others = sorted(n for n in names if target_name(n) not in {*PARTS, *DERIVED})
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"

@@ -8,14 +8,13 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from ..number_checks import finite_numbers, is_seed, whole_numbers
-from ..spikes import SimParams, simulate_spikes
+from ..spikes import SimParams
+from ..spikes.simulate import simulate_channels
 from ..spikes.stream import as_flag
 from .dataset import (
     FORMAT_VERSION,
-    LIGHT,
     READOUT_PERIOD_S,
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
@@ -293,29 +292,20 @@ def write_spikes(
     flip: bool,
     progress: bool,
 ) -> None:
-    """Render the light at readouts `times` [F] into a temporary file, then simulate each channel
-    into its .dat (mono: `seed`; colour: one seed per channel derived from it)."""
-    shape = (len(times), source.height, source.width, source.channels)
-    tmp = out / LIGHT
-    light = np.lib.format.open_memmap(tmp, "w+", np.float32, shape)  # [F, H, W, C] on disk
-    try:
-        for i, t in enumerate(tqdm(times, desc="render", unit="frame", disable=not progress)):
-            light[i] = source.image_at(trajectory, float(t))
-        files = spike_files(source.channels)
-        seeds = [seed] if len(files) == 1 else np.random.SeedSequence(seed).generate_state(3)
-        for c, name in enumerate(tqdm(files, desc="spikes", disable=not progress)):
-            simulate_spikes(
-                light[..., c],
-                readouts,
-                frame_times=times,
-                out=out / name,
-                flip=flip,
-                seed=int(seeds[c]),
-                params=params,
-            )
-    finally:
-        del light
-        tmp.unlink()
+    """Simulate each channel of the light, rendered at readouts `times` [F] as the simulation
+    reaches them, into its .dat (mono: `seed`; colour: one seed per channel derived from it)."""
+    files = spike_files(source.channels)
+    seeds = [seed] if len(files) == 1 else np.random.SeedSequence(seed).generate_state(3)
+    simulate_channels(
+        lambda t: source.image_at(trajectory, t),
+        readouts,
+        [out / name for name in files],
+        [int(s) for s in seeds],
+        frame_times=times,
+        flip=flip,
+        params=params,
+        progress=progress,
+    )
 
 
 def simulate_dataset(

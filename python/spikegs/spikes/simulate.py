@@ -18,6 +18,7 @@ from typing import Callable, Union
 
 import numpy as np
 from scipy.special import ndtri
+from tqdm import tqdm
 
 from .. import _C
 from ..number_checks import is_int, is_number, is_seed, number_array
@@ -175,35 +176,67 @@ def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
     return np.append(times[times < last], float(last))
 
 
-class _Frames:
-    """The light: frames [F, H, W] at readout times [F], read lazily from an array or a callable."""
+def _checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
+    """`frame_times` as floats [F] (F = `count`, or any F >= 1 where None); ValueError unless
+    finite, strictly increasing and covering readouts [0, last]."""
+    times = number_array(frame_times)
+    if times.ndim != 1 or len(times) != (count or len(times)) or not len(times):
+        expected = f"[{count}]" if count else "[F] with F >= 1"
+        raise ValueError(f"frame_times expected {expected}, found {list(times.shape)}")
+    if len(times) > 1 and not (
+        np.isfinite(times).all()
+        and (np.diff(times) > 0).all()
+        and times[0] <= 0 <= last <= times[-1]
+    ):
+        raise ValueError(
+            f"frame times expected finite, strictly increasing and covering readouts "
+            f"[0, {last}], found {len(times)} times in [{times.min()}, {times.max()}]"
+        )
+    return times
 
-    def __init__(self, source: Source, num_readouts: int, frame_times, frame_every: float):
+
+class _Frames:
+    """The light: frames [F, H, W, C] at readout times [F], read lazily from an array or a
+    callable (frames [F, H, W] and a callable's [H, W] given a channel axis when `channels` is
+    None), so that each frame is read (rendered) once and only those lighting a chunk are held."""
+
+    def __init__(
+        self, source: Source, num_readouts: int, frame_times, frame_every: float, channels
+    ):
         last = num_readouts - 1
         self._cache: dict[int, np.ndarray | None] = {}
+        frame_ndim = 2 if channels is None else 3
         if callable(source):
-            if not (is_number(frame_every) and frame_every > 0):
-                raise ValueError(f"frame_every expected a finite number > 0, found {frame_every}")
-            if (num_readouts - 1) / frame_every > MAX_LIGHT_TIMES:  # their times alone: 8 bytes
-                raise ValueError(
-                    f"frame_every {frame_every:g} samples the light {num_readouts - 1:.0f} / "
-                    f"{frame_every:g} times, over {MAX_LIGHT_TIMES:.0e}: a larger frame_every "
-                    f"(each readout interpolates the two frames around it)"
-                )
-            self.times = sample_times(num_readouts, frame_every)  # [F]
-            self._cache[0] = _checked_frame(source(0.0), None, "frame at t=0")
-            self.shape = self._cache[0].shape
-            self._get = lambda i: _checked_frame(
-                source(float(self.times[i])), self.shape, f"frame at t={self.times[i]}"
-            )
+            if frame_times is None:
+                if not (is_number(frame_every) and frame_every > 0):
+                    raise ValueError(
+                        f"frame_every expected a finite number > 0, found {frame_every}"
+                    )
+                if (num_readouts - 1) / frame_every > MAX_LIGHT_TIMES:  # 8 bytes a time
+                    raise ValueError(
+                        f"frame_every {frame_every:g} samples the light {num_readouts - 1:.0f} "
+                        f"/ {frame_every:g} times, over {MAX_LIGHT_TIMES:.0e}: a larger "
+                        f"frame_every (each readout interpolates the two frames around it)"
+                    )
+                frame_times = sample_times(num_readouts, frame_every)
+            self.times = _checked_times(frame_times, None, last)  # [F]
+
+            def render(i: int, shape) -> np.ndarray:
+                t = float(self.times[i])
+                return _checked_frame(source(t), shape, f"frame at t={t:g}")
+
+            first = render(0, None)
+            shape = first.shape
+
+            def read(i: int) -> np.ndarray:  # the first frame rendered once
+                return first if i == 0 else render(i, shape)
+
         else:
             frames = _checked_frame(source, None, "frames")
-            if frames.ndim != 3 or len(frames) == 0:
-                raise ValueError(
-                    f"frames expected [F, H, W] with F >= 1, found {list(frames.shape)}"
-                )
-            self.shape = frames.shape[1:]
-            self._get = frames.__getitem__
+            if frames.ndim != 1 + frame_ndim or len(frames) == 0:
+                axes = "[F, H, W]" if channels is None else "[F, H, W, C]"
+                raise ValueError(f"frames expected {axes} with F >= 1, found {list(frames.shape)}")
+            shape, read = frames.shape[1:], frames.__getitem__
             if frame_times is None:
                 if len(frames) > 1 and last == 0:
                     raise ValueError(
@@ -211,29 +244,17 @@ class _Frames:
                         f"frame_times"
                     )
                 frame_times = np.linspace(0.0, last, len(frames)) if len(frames) > 1 else [0.0]
-            self.times = number_array(frame_times)
-            if self.times.shape != (len(frames),):
-                raise ValueError(
-                    f"frame_times expected [{len(frames)}], found {list(self.times.shape)}"
-                )
-        if len(self.times) > 1 and not (
-            np.isfinite(self.times).all()
-            and (np.diff(self.times) > 0).all()
-            and self.times[0] <= 0
-            and self.times[-1] >= last
-        ):
-            raise ValueError(
-                f"frame times expected finite, strictly increasing and covering readouts "
-                f"[0, {last}], found {len(self.times)} times in "
-                f"[{self.times.min()}, {self.times.max()}]"
-            )
-        if len(self.shape) != 2:
-            raise ValueError(f"frames expected [H, W] each, found {list(self.shape)}")
+            self.times = _checked_times(frame_times, len(frames), last)  # [F]
+        if len(shape) != frame_ndim or (channels is not None and shape[-1] != channels):
+            axes = "[H, W]" if channels is None else f"[H, W, {channels}]"
+            raise ValueError(f"frames expected {axes} each, found {list(shape)}")
+        self.shape = shape if channels is not None else (*shape, 1)  # [H, W, C]
+        self._get = read if channels is not None else lambda i: read(i)[..., None]
 
     def covering(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
-        """Frames [f, H, W] and their times [f] that light readouts [t0, t1): the two around each
-        readout, which it interpolates (with frames sampled more often than once a readout, those
-        between are not read: a millionth of a readout apart, they filled the memory)."""
+        """Frames [f, H, W, C] and their times [f] that light readouts [t0, t1): the two around
+        each readout, which it interpolates (with frames sampled more often than once a readout,
+        those between are not read: a millionth of a readout apart, they filled the memory)."""
         i0 = max(int(np.searchsorted(self.times, t0, side="right")) - 1, 0)
         i1 = min(int(np.searchsorted(self.times, t1 - 1, side="left")), len(self.times) - 1)
         before = np.searchsorted(self.times, np.arange(t0, t1), side="right") - 1  # [t1 - t0]
@@ -243,6 +264,37 @@ class _Frames:
             if frame is None:
                 self._cache[i] = self._get(i)
         return np.stack(list(self._cache.values())), self.times[needed]
+
+
+def _checked_run(num_readouts, seeds: list, params, chunk) -> tuple[int, SimParams]:
+    """`num_readouts` as an int and `params` (None: the defaults); ValueError naming a bad
+    readout count, seed, params or chunk."""
+    if not (is_int(num_readouts) and num_readouts >= 1):
+        raise ValueError(f"num_readouts expected a positive int, found {num_readouts!r}")
+    for seed in seeds:
+        if not is_seed(seed):
+            raise ValueError(f"seed expected an integer in 0..2**64 - 1, found {seed}")
+    check_chunk(chunk)
+    params = SimParams() if params is None else params
+    if not isinstance(params, SimParams):
+        raise ValueError(f"params expected a SimParams or None, found {type(params).__name__}")
+    return int(num_readouts), params
+
+
+def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimParams, chunk: int):
+    """Yield (t0, t1, spikes) for each `chunk` readouts [t0, t1): spikes [C] packed uint8
+    [t1 - t0, H, ceil(W/8)], channel c simulated with seed `seeds[c]`."""
+    height, width, _ = frames.shape
+    sims = [_C.SpikeSimulator(height, width, params.to_core(), int(s)) for s in seeds]
+    # A million times the light that fires every readout fires every readout, as any more does;
+    # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)
+    saturated = np.float32(1e6 / params.rate_at_one)
+    for t0 in range(0, num_readouts, chunk):
+        t1 = min(t0 + chunk, num_readouts)
+        light, times = frames.covering(t0, t1)  # [f, H, W, C] (a new array), [f]
+        np.minimum(light, saturated, out=light)
+        channels = [np.ascontiguousarray(light[..., c]) for c in range(len(sims))]
+        yield t0, t1, [sim.run(c, times, t1 - t0) for sim, c in zip(sims, channels)]
 
 
 def simulate_spikes(
@@ -261,38 +313,57 @@ def simulate_spikes(
 
     source: intensity frames [F, H, W] (1.0 fires `rate_at_one` per readout) shown at readouts
     `frame_times` [F] (default evenly over [0, num_readouts - 1]; one frame = constant light), or
-    a callable t -> [H, W] sampled at t = 0, frame_every, 2·frame_every, ... and the last readout.
+    a callable t -> [H, W] sampled at `frame_times` if given, else at t = 0, frame_every,
+    2·frame_every, ... and the last readout, each time once, as the simulation reaches it.
     The light between two frames is interpolated linearly per readout. Works `chunk` readouts at
     a time. With `out` a path, streams to a .dat file (rows flipped if `flip`) and returns
     `SpikeStream.open(out, ...)`; else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped),
     which `SpikeStream.from_packed(packed, width=W)` reads. Intensities are floats (or bool and
     signed integers, at face value); uint8 and uint16, an image file's codes, are refused.
     """
-    if not (is_int(num_readouts) and num_readouts >= 1):
-        raise ValueError(f"num_readouts expected a positive int, found {num_readouts!r}")
-    num_readouts = int(num_readouts)
-    if not is_seed(seed):
-        raise ValueError(f"seed expected an integer in 0..2**64 - 1, found {seed}")
-    check_chunk(chunk)
-    frames = _Frames(source, num_readouts, frame_times, frame_every)
-    height, width = frames.shape
-    params = SimParams() if params is None else params
-    if not isinstance(params, SimParams):
-        raise ValueError(f"params expected a SimParams or None, found {type(params).__name__}")
-    sim = _C.SpikeSimulator(height, width, params.to_core(), int(seed))  # validates
-    # A million times the light that fires every readout fires every readout, as any more does;
-    # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)
-    saturated = np.float32(1e6 / params.rate_at_one)
+    num_readouts, params = _checked_run(num_readouts, [seed], params, chunk)
+    frames = _Frames(source, num_readouts, frame_times, frame_every, None)
+    height, width, _ = frames.shape
     writer = DatWriter(out, height, width, flip) if out is not None else None
     packed = None if writer else np.empty((num_readouts, height, (width + 7) // 8), np.uint8)
     with writer or contextlib.nullcontext():
-        for t0 in range(0, num_readouts, chunk):
-            t1 = min(t0 + chunk, num_readouts)
-            light, times = frames.covering(t0, t1)  # [f, H, W] (a new array), [f]
-            np.minimum(light, saturated, out=light)
-            spikes = sim.run(light, times, t1 - t0)  # [n, H, ceil(W/8)]
+        for t0, t1, (spikes,) in _spike_chunks(frames, num_readouts, [seed], params, chunk):
             if writer:
                 writer.write_packed(spikes)
             else:
                 packed[t0:t1] = spikes
     return SpikeStream.open(out, height, width, flip=flip) if writer else packed
+
+
+def simulate_channels(
+    source: Source,
+    num_readouts: int,
+    outs: list[PathLike],
+    seeds: list[int],
+    *,
+    frame_times=None,
+    frame_every: float = 1,
+    flip: bool = True,
+    params: SimParams | None = None,
+    chunk: int = 256,
+    progress: bool = False,
+) -> None:
+    """Simulate the C channels of a light, frames [F, H, W, C] or a callable t -> [H, W, C]
+    (`simulate_spikes`'s times), into one .dat file each, `outs` [C], channel c with seed
+    `seeds[c]`: each file the spikes `simulate_spikes` writes of that channel alone. Each frame
+    is read (a callable's rendered) once, and only those lighting `chunk` readouts are held: no
+    light of the whole recording in memory or on disk. `progress`: a bar over the readouts."""
+    if len(outs) != len(seeds):
+        raise ValueError(f"expected a seed for each of {len(outs)} outputs, found {len(seeds)}")
+    num_readouts, params = _checked_run(num_readouts, seeds, params, chunk)
+    frames = _Frames(source, num_readouts, frame_times, frame_every, len(outs))
+    height, width, _ = frames.shape
+    with contextlib.ExitStack() as stack:  # an error discards every file written so far
+        writers = [stack.enter_context(DatWriter(out, height, width, flip)) for out in outs]
+        bar = stack.enter_context(
+            tqdm(total=num_readouts, desc="simulate", unit="readout", disable=not progress)
+        )
+        for t0, t1, spikes in _spike_chunks(frames, num_readouts, seeds, params, chunk):
+            for writer, channel in zip(writers, spikes):
+                writer.write_packed(channel)
+            bar.update(t1 - t0)
