@@ -251,10 +251,11 @@ class _Frames:
         self.shape = shape if channels is not None else (*shape, 1)  # [H, W, C]
         self._get = read if channels is not None else lambda i: read(i)[..., None]
 
-    def covering(self, t0: int, t1: int) -> tuple[np.ndarray, np.ndarray]:
-        """Frames [f, H, W, C] and their times [f] that light readouts [t0, t1): the two around
-        each readout, which it interpolates (with frames sampled more often than once a readout,
-        those between are not read: a millionth of a readout apart, they filled the memory)."""
+    def covering(self, t0: int, t1: int) -> tuple[list[np.ndarray], np.ndarray]:
+        """The f frames [H, W, C] and their times [f] that light readouts [t0, t1): the two
+        around each readout, which it interpolates (with frames sampled more often than once a
+        readout, those between are not read: a millionth of a readout apart, they filled the
+        memory)."""
         i0 = max(int(np.searchsorted(self.times, t0, side="right")) - 1, 0)
         i1 = min(int(np.searchsorted(self.times, t1 - 1, side="left")), len(self.times) - 1)
         before = np.searchsorted(self.times, np.arange(t0, t1), side="right") - 1  # [t1 - t0]
@@ -263,7 +264,7 @@ class _Frames:
         for i, frame in self._cache.items():
             if frame is None:
                 self._cache[i] = self._get(i)
-        return np.stack(list(self._cache.values())), self.times[needed]
+        return list(self._cache.values()), self.times[needed]
 
 
 def _checked_run(num_readouts, seeds: list, params, chunk) -> tuple[int, SimParams]:
@@ -291,10 +292,18 @@ def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimPa
     saturated = np.float32(1e6 / params.rate_at_one)
     for t0 in range(0, num_readouts, chunk):
         t1 = min(t0 + chunk, num_readouts)
-        light, times = frames.covering(t0, t1)  # [f, H, W, C] (a new array), [f]
+        yield t0, t1, _chunk_spikes(sims, *frames.covering(t0, t1), t1 - t0, saturated)
+
+
+def _chunk_spikes(sims: list, held: list, times: np.ndarray, n: int, saturated) -> list:
+    """Spikes [C] packed uint8 [n, H, ceil(W/8)]: `n` readouts of each channel's simulator
+    `sims` [C] lit by frames `held` [f] of [H, W, C] at `times` [f] (capped at `saturated`)."""
+    spikes = []
+    for c, sim in enumerate(sims):  # a channel's light at a time: [f, H, W], a new array
+        light = np.stack([frame[..., c] for frame in held])
         np.minimum(light, saturated, out=light)
-        channels = [np.ascontiguousarray(light[..., c]) for c in range(len(sims))]
-        yield t0, t1, [sim.run(c, times, t1 - t0) for sim, c in zip(sims, channels)]
+        spikes.append(sim.run(light, times, n))
+    return spikes
 
 
 def simulate_spikes(
