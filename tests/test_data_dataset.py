@@ -559,16 +559,25 @@ def test_existing_dataset_needs_overwrite(tmp_path):
     assert (out / "notes.txt").exists()
     with pytest.raises(FileExistsError, match=r"not a dataset's \(ds\)"):  # nor mixed in
         simulate_dataset("wires", tmp_path, **SMALL)
-    # a simulation killed while simulating leaves its spikes' temporary file: the folder was
-    # refused for good ("not a dataset's"), even with --overwrite
-    killed = tmp_path / "killed"
-    killed.mkdir()
-    (killed / ".spikes_g.dat.0123abcd.tmp").write_bytes(b"\0" * 64)
-    with pytest.raises(FileNotFoundError, match="an interrupted simulation"):
-        load_dataset(killed)
-    with pytest.raises(FileExistsError, match="an interrupted simulation left.*--overwrite"):
-        simulate_dataset("wires", killed, **SMALL)
-    assert simulate_dataset("wires", killed, overwrite=True, **SMALL).meta["scene"] == "wires"
+    # a simulation killed while simulating leaves its spikes' temporary file (the folder was
+    # refused for good, "not a dataset's", even with --overwrite), one killed before 2026-11-29
+    # while rendering its light .light.npy
+    for left in (".spikes_g.dat.0123abcd.tmp", ".light.npy"):
+        killed = tmp_path / f"killed{left}"
+        killed.mkdir()
+        (killed / left).write_bytes(b"\0" * 64)
+        with pytest.raises(FileNotFoundError, match="an interrupted simulation"):
+            load_dataset(killed)
+        with pytest.raises(FileExistsError, match="an interrupted simulation left.*--overwrite"):
+            simulate_dataset("wires", killed, **SMALL)
+        assert simulate_dataset("wires", killed, overwrite=True, **SMALL).meta["scene"] == "wires"
+        assert not (killed / left).exists()
+    # a temporary file beside a derived file is no dataset's part (nor is it removed)
+    stray = tmp_path / "stray"
+    stray.mkdir()
+    (stray / ".points3d.ply.99.tmp").write_bytes(b"")
+    with pytest.raises(FileExistsError, match=r"not a dataset's \(.points3d.ply.99.tmp\)"):
+        simulate_dataset("wires", stray, overwrite=True, **SMALL)
 
 
 def test_unknown_scene_lists_the_known_ones(tmp_path):

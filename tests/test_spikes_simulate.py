@@ -168,6 +168,11 @@ def test_a_callable_is_sampled_at_the_frame_times_given():
     got = simulate_spikes(light, 120, frame_times=times, seed=6, chunk=16)
     np.testing.assert_array_equal(got, simulate_spikes(frames, 120, frame_times=times, seed=6))
     assert calls == list(times)
+    with pytest.raises(ValueError, match="frame_every expected a finite number > 0"):
+        simulate_spikes(light, 120, frame_times=times, frame_every=0)  # unread, still checked
+    with pytest.raises(ValueError, match="frame at t=1234567 expected finite"):  # not 1.23457e+06
+        nan_later = lambda t: frames[0] * (np.nan if t else 1)  # noqa: E731
+        simulate_spikes(nan_later, 1234568, frame_times=[0.0, 1234567.0], chunk=10**6)
     with pytest.raises(ValueError, match=r"frame_times expected \[F\] with F >= 1, found \[0\]"):
         simulate_spikes(light, 120, frame_times=[])
     with pytest.raises(ValueError, match=r"covering readouts \[0, 119\]"):
@@ -198,8 +203,12 @@ def test_channels_are_each_simulated_as_alone(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in outs)
     with pytest.raises(ValueError, match=r"frames expected \[H, W, 3\] each, found \[6, 11, 2\]"):
         simulate_channels(frames[..., :2], 200, outs, seeds, frame_times=times)
-    with pytest.raises(ValueError, match="a seed for each of 3 outputs, found 2"):
+    with pytest.raises(ValueError, match="1 or more outputs, found 3 outputs and 2 seeds"):
         simulate_channels(frames, 200, outs, seeds[:2], frame_times=times)
+    with pytest.raises(ValueError, match="found 0 outputs and 0 seeds"):
+        simulate_channels(frames, 200, [], [], frame_times=times)
+    with pytest.raises(ValueError, match="outs: expected a file for each channel"):
+        simulate_channels(frames, 200, [outs[0], outs[1], outs[0]], seeds, frame_times=times)
 
 
 def test_frame_every_that_rounds_onto_the_last_readout():

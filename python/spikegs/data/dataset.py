@@ -211,7 +211,16 @@ class Dataset:
         )
 
 
-PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3))  # any: a dataset
+# where a simulation before 2026-11-29 rendered its light, left by one killed then (GBs)
+OLD_LIGHT = ".light.npy"
+PARTS = (
+    META,
+    TRAJECTORY,
+    TEST_VIEWS,
+    *spike_files(1),
+    *spike_files(3),
+    OLD_LIGHT,
+)  # any: a dataset
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
@@ -243,7 +252,7 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
             f"--overwrite to replace it"
         )
     names = [p.name for p in out.iterdir()] if out.is_dir() else []
-    others = sorted(n for n in names if target_name(n) not in {*PARTS, *DERIVED})
+    others = sorted(n for n in names if target_name(n) not in PARTS and n not in DERIVED)
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import numbers
+import os
 import warnings
 from typing import Callable, Union
 
@@ -207,11 +209,9 @@ class _Frames:
         self._cache: dict[int, np.ndarray | None] = {}
         frame_ndim = 2 if channels is None else 3
         if callable(source):
+            if not (is_number(frame_every) and frame_every > 0):
+                raise ValueError(f"frame_every expected a finite number > 0, found {frame_every}")
             if frame_times is None:
-                if not (is_number(frame_every) and frame_every > 0):
-                    raise ValueError(
-                        f"frame_every expected a finite number > 0, found {frame_every}"
-                    )
                 if (num_readouts - 1) / frame_every > MAX_LIGHT_TIMES:  # 8 bytes a time
                     raise ValueError(
                         f"frame_every {frame_every:g} samples the light {num_readouts - 1:.0f} "
@@ -221,16 +221,12 @@ class _Frames:
                 frame_times = sample_times(num_readouts, frame_every)
             self.times = _checked_times(frame_times, None, last)  # [F]
 
-            def render(i: int, shape) -> np.ndarray:
+            def render(i: int, shape=None) -> np.ndarray:
                 t = float(self.times[i])
-                return _checked_frame(source(t), shape, f"frame at t={t:g}")
+                return _checked_frame(source(t), shape, f"frame at t={t:.10g}")
 
-            first = render(0, None)
-            shape = first.shape
-
-            def read(i: int) -> np.ndarray:  # the first frame rendered once
-                return first if i == 0 else render(i, shape)
-
+            first = render(0)  # its shape: every frame's
+            shape, read = first.shape, functools.partial(render, shape=first.shape)
         else:
             frames = _checked_frame(source, None, "frames")
             if frames.ndim != 1 + frame_ndim or len(frames) == 0:
@@ -250,6 +246,8 @@ class _Frames:
             raise ValueError(f"frames expected {axes} each, found {list(shape)}")
         self.shape = shape if channels is not None else (*shape, 1)  # [H, W, C]
         self._get = read if channels is not None else lambda i: read(i)[..., None]
+        if callable(source):  # its first frame rendered once: covering() finds it cached
+            self._cache[0] = first if channels is not None else first[..., None]
 
     def covering(self, t0: int, t1: int) -> tuple[list[np.ndarray], np.ndarray]:
         """The f frames [H, W, C] and their times [f] that light readouts [t0, t1): the two
@@ -362,8 +360,13 @@ def simulate_channels(
     `seeds[c]`: each file the spikes `simulate_spikes` writes of that channel alone. Each frame
     is read (a callable's rendered) once, and only those lighting `chunk` readouts are held: no
     light of the whole recording in memory or on disk. `progress`: a bar over the readouts."""
-    if len(outs) != len(seeds):
-        raise ValueError(f"expected a seed for each of {len(outs)} outputs, found {len(seeds)}")
+    if not outs or len(outs) != len(seeds):
+        raise ValueError(
+            f"expected a seed for each of 1 or more outputs, found {len(outs)} outputs and "
+            f"{len(seeds)} seeds"
+        )
+    if len({os.path.realpath(out) for out in outs}) < len(outs):  # the last would win
+        raise ValueError(f"outs: expected a file for each channel, found {list(map(str, outs))}")
     num_readouts, params = _checked_run(num_readouts, seeds, params, chunk)
     frames = _Frames(source, num_readouts, frame_times, frame_every, len(outs))
     height, width, _ = frames.shape
