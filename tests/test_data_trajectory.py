@@ -122,9 +122,13 @@ def test_spiral_every_n_keeps_both_ends():
 
 def test_json_round_trip_states_the_convention(tmp_path, two_poses):
     path = tmp_path / "trajectory.json"
-    two_poses.save_json(path)
+    two_poses.save_json(path, fl_x=175.8, w=128)
     doc = json.loads(path.read_text())
     assert doc["convention"] == "opencv" and doc["camera_model"] == "OPENCV"
+    assert (doc["fl_x"], doc["w"], list(doc)[-1]) == (175.8, 128, "frames")
+    # a frame a line (written one by one: a pose a readout of a long recording)
+    lines = [line.strip().rstrip(",") for line in path.read_text().splitlines()]
+    assert [json.loads(line) for line in lines if line.startswith('{"readout"')] == doc["frames"]
     assert [f["readout"] for f in doc["frames"]] == [10, 30]
     np.testing.assert_allclose(
         doc["frames"][1]["transform_matrix"], np.linalg.inv(two_poses.viewmats[1])

@@ -30,9 +30,9 @@ from ..strict_json import read_json
 from .trajectory import (
     PathLike,
     Trajectory,
-    camera_doc,
     read_camera_doc,
     rigid_c2w,
+    write_camera_doc,
 )
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
@@ -301,7 +301,7 @@ def write_parts(
             }
         )
     # whole files only (`spikegs poses` rewrites a dataset's: a kill there left it unloadable)
-    write_text_atomically(out / TEST_VIEWS, json.dumps(camera_doc(frames, **camera), indent=1))
+    write_camera_doc(out / TEST_VIEWS, frames, **camera)
     write_text_atomically(out / META, json.dumps(meta, indent=1))
 
 

@@ -11,13 +11,14 @@ import json
 import math
 import os
 import warnings
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..atomic_save import write_text_atomically
+from ..atomic_save import write_atomically
 from ..number_checks import is_number, number_array
 from ..strict_json import read_json
 
@@ -247,11 +248,11 @@ class Trajectory:
     def save_json(self, path: PathLike, **extra) -> None:
         """Write the nerfstudio-like trajectory JSON (camera-to-world, OpenCV); `extra` keys
         (e.g. intrinsics fl_x, fl_y, cx, cy, w, h) go to the top level."""
-        frames = [
+        frames = (
             {"readout": readout_number(k), "transform_matrix": c2w.tolist()}
             for k, c2w in zip(self.readouts, np.linalg.inv(self.viewmats))
-        ]
-        write_text_atomically(Path(path), json.dumps(camera_doc(frames, **extra), indent=1))
+        )
+        write_camera_doc(Path(path), frames, **extra)
 
     @classmethod
     def load_json(cls, path: PathLike, camera: dict | None = None) -> Trajectory:
@@ -274,16 +275,30 @@ class Trajectory:
         return cls(readouts, np.linalg.inv(c2w), source=str(path))
 
 
-def camera_doc(frames: list, **extra) -> dict:
-    """The JSON object of a camera file (trajectory.json, test_views.json): OpenCV cameras,
-    `extra` keys at the top level, then `frames`."""
-    return {"camera_model": "OPENCV", "convention": CONVENTION, **extra, "frames": frames}
+def write_camera_doc(path: Path, frames: Iterable[dict], **extra) -> None:
+    """Write a camera file (trajectory.json, test_views.json) atomically: a JSON object of
+    OpenCV cameras, `extra` keys at the top level, then `frames`, a frame a line, each encoded as
+    it is written (a pose a readout of a long recording is never held whole as Python objects
+    and text: 160k readouts took 0.6 GB and 4.4 s, indented a number a line)."""
+    top = {"camera_model": "OPENCV", "convention": CONVENTION, **extra}
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as file:
+            file.write(
+                "{\n" + "".join(f" {json.dumps(k)}: {json.dumps(v)},\n" for k, v in top.items())
+            )
+            file.write(' "frames": [')
+            for i, frame in enumerate(frames):
+                file.write(("," if i else "") + "\n  " + json.dumps(frame))
+            file.write("\n ]\n}\n")
+
+    write_atomically(path, write)
 
 
 def read_camera_doc(path: Path, camera: dict | None = None) -> list:
-    """The frames [P] of `camera_doc`'s file; ValueError naming it unless it is an object in our
-    convention whose frames are a list of objects. Given `camera` (nerfstudio keys: the camera
-    training uses), a warning for each of its keys that the file states otherwise."""
+    """The frames [P] of `write_camera_doc`'s file; ValueError naming it unless it is an object
+    in our convention whose frames are a list of objects. Given `camera` (nerfstudio keys: the
+    camera training uses), a warning for each of its keys that the file states otherwise."""
     doc = read_json(path)
     for key, value in (camera or {}).items():
         stated = doc.get(key, value)
