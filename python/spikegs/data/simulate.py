@@ -8,6 +8,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from ..number_checks import finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
@@ -293,19 +294,26 @@ def write_spikes(
     progress: bool,
 ) -> None:
     """Simulate each channel of the light, rendered at readouts `times` [F] as the simulation
-    reaches them, into its .dat (mono: `seed`; colour: one seed per channel derived from it)."""
+    reaches them, into its .dat (mono: `seed`; colour: one seed per channel derived from it);
+    `progress`: a bar over the frames rendered."""
     files = spike_files(source.channels)
     seeds = [seed] if len(files) == 1 else np.random.SeedSequence(seed).generate_state(3)
-    simulate_channels(
-        lambda t: source.image_at(trajectory, t),
-        readouts,
-        [out / name for name in files],
-        [int(s) for s in seeds],
-        frame_times=times,
-        flip=flip,
-        params=params,
-        progress=progress,
-    )
+    with tqdm(total=len(times), desc="simulate", unit="frame", disable=not progress) as bar:
+
+        def render(t: float) -> np.ndarray:  # [H, W, C]
+            image = source.image_at(trajectory, t)
+            bar.update()
+            return image
+
+        simulate_channels(
+            render,
+            readouts,
+            [out / name for name in files],
+            [int(s) for s in seeds],
+            frame_times=times,
+            flip=flip,
+            params=params,
+        )
 
 
 def simulate_dataset(

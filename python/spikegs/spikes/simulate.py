@@ -20,7 +20,6 @@ from typing import Callable, Union
 
 import numpy as np
 from scipy.special import ndtri
-from tqdm import tqdm
 
 from .. import _C
 from ..number_checks import is_int, is_number, is_seed, number_array
@@ -353,13 +352,12 @@ def simulate_channels(
     flip: bool = True,
     params: SimParams | None = None,
     chunk: int = 256,
-    progress: bool = False,
 ) -> None:
     """Simulate the C channels of a light, frames [F, H, W, C] or a callable t -> [H, W, C]
     (`simulate_spikes`'s times), into one .dat file each, `outs` [C], channel c with seed
     `seeds[c]`: each file the spikes `simulate_spikes` writes of that channel alone. Each frame
     is read (a callable's rendered) once, and only those lighting `chunk` readouts are held: no
-    light of the whole recording in memory or on disk. `progress`: a bar over the readouts."""
+    light of the whole recording in memory or on disk."""
     if not outs or len(outs) != len(seeds):
         raise ValueError(
             f"expected a seed for each of 1 or more outputs, found {len(outs)} outputs and "
@@ -372,10 +370,6 @@ def simulate_channels(
     height, width, _ = frames.shape
     with contextlib.ExitStack() as stack:  # an error discards every file written so far
         writers = [stack.enter_context(DatWriter(out, height, width, flip)) for out in outs]
-        bar = stack.enter_context(
-            tqdm(total=num_readouts, desc="simulate", unit="readout", disable=not progress)
-        )
-        for t0, t1, spikes in _spike_chunks(frames, num_readouts, seeds, params, chunk):
+        for _, _, spikes in _spike_chunks(frames, num_readouts, seeds, params, chunk):
             for writer, channel in zip(writers, spikes):
                 writer.write_packed(channel)
-            bar.update(t1 - t0)
