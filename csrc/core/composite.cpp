@@ -286,12 +286,14 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
     fail("composite_backward: the state is not of a forward of these splats (", splats.size(),
          " gathered values, expected ", visible * stride, ")");
   // Each pair's share of its Gaussian's gradients, in rank-major order: mx, my, A, B, C,
-  // opacity, |mx|, |my|, colour[C] ([pairs, 8 + C], left uninitialised: each tile zeroes its own
-  // pairs' slots); and each tile's share of the background's. Every slot is written by the one
-  // thread that owns its tile, and the sums below run in a fixed order, so the gradients are
-  // bitwise the same for any thread count.
+  // opacity, |mx|, |my|, colour[C] ([pairs, 8 + C], left uninitialised: each tile zeroes the
+  // slots of its pairs up to its last contributor, and the pairs behind it, which no pixel of
+  // the tile reaches, are neither written nor summed); and each tile's share of the
+  // background's. Every slot is written by the one thread that owns its tile, and the sums below
+  // run in a fixed order, so the gradients are bitwise the same for any thread count.
   const Scratch<T> pair_grads(bins.ranks.size() * grad_stride);
-  std::vector<T> tile_bg(tiles * C, T(0));              // [tiles, C]
+  std::vector<std::int32_t> tile_last(tiles, -1);  // [tiles] rank of the last contributor, -1: none
+  std::vector<T> tile_bg(tiles * C, T(0));         // [tiles, C]
   auto slot = [&](std::int32_t rank, std::int64_t t) {  // pair (t, rank)'s gradient share
     return pair_grads.get() + rank_major(bins, rank, t) * grad_stride;
   };
@@ -311,8 +313,6 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t t = 0; t < tiles; ++t) {
       const Tile tile = tile_at(bins, t, width, height);
-      for (std::int64_t j = tile.begin; j < tile.end; ++j)  // pairs left out below stay zero
-        std::fill_n(slot(bins.ranks[j], t), grad_stride, T(0));
       std::int32_t max_last = -1, row_last[kTileSize];  // last contributor, per tile and per row
       for (int p = 0; p < kTilePixels; ++p) {
         cx[p] = T(tile.x0 + p % kTileSize) + T(0.5);
@@ -344,6 +344,9 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
         }
         max_last = std::max(max_last, row_last[py]);
       }
+      if (max_last >= 0) tile_last[t] = bins.ranks[tile.begin + max_last];
+      for (std::int64_t j = tile.begin; j <= tile.begin + max_last; ++j)  // those left out below
+        std::fill_n(slot(bins.ranks[j], t), grad_stride, T(0));           // stay zero
       // the background's share, T_final · dL/dimage, summed in a register and stored once (a
       // sum into tile_bg, pixel by pixel, shared its cache line with the neighbouring tiles',
       // which the other threads were writing); pixels outside the image add 1 · 0
@@ -465,14 +468,18 @@ void backward_impl(const Projected<T>& proj, const TileBins& bins, int width, in
 #pragma omp parallel for schedule(static)
   for (std::int64_t rank = 0; rank < visible; ++rank) {
     const std::int64_t i = bins.order[rank];
-    for (std::int64_t k = bins.rank_begin[rank]; k < bins.rank_begin[rank + 1]; ++k) {
-      const T* s = pair_grads.get() + k * grad_stride;
-      grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
-      grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
-      grads.opacity[i] += s[5];
-      grads.mean2d_abs[2 * i] += s[6], grads.mean2d_abs[2 * i + 1] += s[7];
-      for (int c = 0; c < C; ++c) grads.color[i * C + c] += s[kGradHeader + c];
-    }
+    const std::int32_t* rect = &bins.rect[4 * rank];  // the rank's tiles in rank-major order
+    std::int64_t k = bins.rank_begin[rank];
+    for (std::int64_t ty = rect[1]; ty < rect[3]; ++ty)
+      for (std::int64_t tx = rect[0]; tx < rect[2]; ++tx, ++k) {
+        if (rank > tile_last[ty * bins.tiles_x + tx]) continue;  // behind: its slot unwritten
+        const T* s = pair_grads.get() + k * grad_stride;
+        grads.mean2d[2 * i] += s[0], grads.mean2d[2 * i + 1] += s[1];
+        grads.conic[3 * i] += s[2], grads.conic[3 * i + 1] += s[3], grads.conic[3 * i + 2] += s[4];
+        grads.opacity[i] += s[5];
+        grads.mean2d_abs[2 * i] += s[6], grads.mean2d_abs[2 * i + 1] += s[7];
+        for (int c = 0; c < C; ++c) grads.color[i * C + c] += s[kGradHeader + c];
+      }
   }
   if (grad_background)
     for (int c = 0; c < C; ++c) {
