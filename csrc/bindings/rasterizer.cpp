@@ -9,8 +9,12 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <new>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "bindings/register.hpp"
 
@@ -60,6 +64,36 @@ sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
 
 constexpr int kMaxImageSize = 1 << 20;  // width and height: tile and pixel indices are 32-bit
 
+// std::bad_alloc saying what ran out of memory: pybind11 raises MemoryError with its what(),
+// which was a bare "std::bad_alloc".
+class OutOfMemory : public std::bad_alloc {
+ public:
+  explicit OutOfMemory(std::string message) : message_(std::move(message)) {}
+  const char* what() const noexcept override { return message_.c_str(); }
+
+ private:
+  std::string message_;
+};
+
+// run(), an out-of-memory error in it named with the work that needed the memory: the
+// Gaussians, pixels, channels and, once binned, the (tile, Gaussian) pairs.
+template <typename T, typename Run>
+void naming_memory(const char* stage, const sr::RasterState<T>& state, std::int64_t gaussians,
+                   const sr::Camera<T>& cam, int channels, Run&& run) {
+  try {
+    run();
+  } catch (const std::bad_alloc&) {
+    std::ostringstream os;
+    os << "rasterize " << stage << ": out of memory with " << gaussians << " Gaussians, "
+       << cam.width << "x" << cam.height << " pixels, " << channels << " channel(s)";
+    const std::vector<std::int64_t>& begin = state.bins.rank_begin;
+    if (!begin.empty() && begin.size() == state.bins.order.size() + 1)
+      os << " and " << begin.back() << " (tile, Gaussian) pairs";
+    os << "; fewer or smaller Gaussians, fewer channels or a smaller image need less";
+    throw OutOfMemory(os.str());
+  }
+}
+
 template <typename T>
 void check_background(const std::optional<Array<T>>& background, int channels) {
   if (background && background->size() != channels)
@@ -99,7 +133,9 @@ py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& 
   Array<T> alpha({py::ssize_t(height), py::ssize_t(width)});
   {
     py::gil_scoped_release release;
-    sr::rasterize_forward(p, cam, bg, image.mutable_data(), alpha.mutable_data(), ctx->state);
+    naming_memory("forward", ctx->state, p.n, cam, channels, [&] {
+      sr::rasterize_forward(p, cam, bg, image.mutable_data(), alpha.mutable_data(), ctx->state);
+    });
   }
   const py::ssize_t n = p.n;
   const auto& proj = ctx->state.proj;
@@ -147,9 +183,11 @@ py::tuple backward(const RasterContext<T>& ctx, const Array<T>& means, const Arr
     const sr::OutputGrads<T> dout{grad_image.data(), grad_alpha ? grad_alpha->data() : nullptr,
                                   grad_means2d ? grad_means2d->data() : nullptr,
                                   grad_depths ? grad_depths->data() : nullptr};
-    sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state, dout,
-                           g, dbackground.mutable_data(), dmeans2d.mutable_data(),
-                           dmeans2d_abs.mutable_data());
+    naming_memory("backward", ctx.state, p.n, ctx.cam, ctx.channels, [&] {
+      sr::rasterize_backward(p, ctx.cam, background ? background->data() : nullptr, ctx.state, dout,
+                             g, dbackground.mutable_data(), dmeans2d.mutable_data(),
+                             dmeans2d_abs.mutable_data());
+    });
   }
   return py::make_tuple(dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d,
                         dmeans2d_abs);
