@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <new>
 #include <optional>
 #include <sstream>
@@ -65,14 +66,15 @@ sr::GaussianParams<T> params_of(const Array<T>& means, const Array<T>& quats,
 constexpr int kMaxImageSize = 1 << 20;  // width and height: tile and pixel indices are 32-bit
 
 // std::bad_alloc saying what ran out of memory: pybind11 raises MemoryError with its what(),
-// which was a bare "std::bad_alloc".
+// which was a bare "std::bad_alloc". The message is shared, so that copies cannot throw.
 class OutOfMemory : public std::bad_alloc {
  public:
-  explicit OutOfMemory(std::string message) : message_(std::move(message)) {}
-  const char* what() const noexcept override { return message_.c_str(); }
+  explicit OutOfMemory(std::string message)
+      : message_(std::make_shared<const std::string>(std::move(message))) {}
+  const char* what() const noexcept override { return message_->c_str(); }
 
  private:
-  std::string message_;
+  std::shared_ptr<const std::string> message_;
 };
 
 // run(), an out-of-memory error in it named with the work that needed the memory: the
