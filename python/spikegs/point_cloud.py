@@ -13,7 +13,7 @@ from plyfile import PlyData, PlyElement
 from scipy.spatial import cKDTree
 
 from .atomic_save import write_atomically
-from .data.trajectory import pixels_in_view
+from .data.trajectory import pixels_in_view, point_parts
 from .gaussians import GaussianModel
 from .ply import read_vertices
 from .targets import sample_timestamps
@@ -50,14 +50,14 @@ def read_points(path: str | Path) -> np.ndarray:
     return points
 
 
-def in_training_views(points: np.ndarray, dataset, chunk: int = 65536) -> np.ndarray:
+def in_training_views(points: np.ndarray, dataset) -> np.ndarray:
     """Whether each point [P, 3] lies inside each of the dataset's training views at
-    `sample_timestamps` (16-31 spread over the stream) [M, P] bool; `chunk` points at a time."""
+    `sample_timestamps` (16-31 spread over the stream) [M, P] bool; a part at a time."""
     viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
-    parts = np.array_split(points, max(1, -(-len(points) // chunk)))
     size = dataset.width, dataset.height
     return np.concatenate(
-        [pixels_in_view(part, viewmats, dataset.K, *size)[2] for part in parts], axis=1
+        [pixels_in_view(part, viewmats, dataset.K, *size)[2] for part in point_parts(points)],
+        axis=1,
     )
 
 

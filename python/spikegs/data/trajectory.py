@@ -98,6 +98,12 @@ def project_points(points, viewmats, K) -> tuple[np.ndarray, np.ndarray]:
     return pixels, z[..., 0]
 
 
+def point_parts(points: np.ndarray, size: int = 65536) -> list[np.ndarray]:
+    """Points [P, 3] in consecutive parts of at most `size`: projected into F views, a part's
+    temporaries are [F, size, 3] float64 (31 views: 49 MB), the whole cloud's could be GBs."""
+    return np.array_split(points, max(1, -(-len(points) // size)))
+
+
 def pixels_in_view(points, viewmats, K, width: int, height: int):
     """Pixel columns u and rows v [F, P] (whole numbers as floats; NaN behind a camera) of world
     points [P, 3] in the cameras `viewmats` [F, 4, 4], and whether each lands in front of the
