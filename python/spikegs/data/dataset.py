@@ -211,16 +211,9 @@ class Dataset:
         )
 
 
-# where a simulation before 2026-11-29 rendered its light, left by one killed then (GBs)
-OLD_LIGHT = ".light.npy"
-PARTS = (
-    META,
-    TRAJECTORY,
-    TEST_VIEWS,
-    *spike_files(1),
-    *spike_files(3),
-    OLD_LIGHT,
-)  # any: a dataset
+OLD_LIGHT = ".light.npy"  # a simulation before 2026-11-29 rendered its light here (GBs)
+# any of these (or its temporary file) marks a dataset, or what an interrupted simulation left
+PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), OLD_LIGHT)
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
