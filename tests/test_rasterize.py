@@ -901,3 +901,37 @@ def test_the_core_binding_checks_what_the_core_assumes():
         assert np.isfinite(g).all() and not g.any()
     with pytest.raises(ValueError, match="background must have C entries"):
         backward(ctx, *arrays, np.zeros(1), image_grad, None, None, None)
+
+
+FORKED_RENDER = """
+import multiprocessing, torch
+from spikegs import rasterize
+
+def render(_=None):
+    means = torch.tensor([[0.0, 0, 3], [0.2, 0.1, 4]])
+    K = torch.tensor([[20.0, 0, 8], [0, 20, 8], [0, 0, 1]])
+    return rasterize(means, torch.tensor([[1.0, 0, 0, 0]] * 2), torch.full((2, 3), 0.2),
+                     torch.tensor([0.5, 0.7]), torch.rand(2, 3, generator=torch.Generator()
+                     .manual_seed(0)), torch.eye(4), K, 16, 16).image.sum().item()
+
+torch.set_num_threads(2)
+first = render()  # the parent's team of two threads: libgomp keeps them in a pool
+with multiprocessing.get_context("fork").Pool(1) as pool:
+    try:
+        print("child", pool.apply_async(render).get(timeout=30) == first)
+    except multiprocessing.TimeoutError:
+        print("child hung")
+"""
+
+
+@needs_cpp
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork: POSIX only")
+def test_a_forked_child_renders_after_the_parent_did():
+    """A fork pool's worker renders what the parent rendered before it forked: its first team of
+    two threads waited forever for the parent's pool threads (GNU libgomp), until spikegs set one
+    thread in forked children. In a subprocess, so that the test forks no pytest process."""
+    done = subprocess.run(
+        [sys.executable, "-c", FORKED_RENDER], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split("\n")[0] == "child True", done.stdout

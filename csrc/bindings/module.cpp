@@ -1,9 +1,14 @@
 // The pybind11 module spikegs._C: numpy arrays in and out, the GIL released around the core.
 #include "bindings/register.hpp"
+#include "core/thread_buffers.hpp"
 
 PYBIND11_MODULE(_C, m) {
   m.doc() = "SpikeGS C++ core: Gaussian rasterizer and spike-stream kernels";
   spikegs::require_cpu_features(m);  // before any of the core's code runs
   spikegs::bind_rasterizer(m);
   spikegs::bind_spikes(m);
+  // the OpenMP runtime the core was linked with, which torch.set_num_threads does not reach where
+  // torch brings another one
+  m.def("set_max_threads", &spikegs::set_max_threads, pybind11::arg("n"),
+        "Team size of the calling thread's next parallel regions in the core (n >= 1)");
 }

@@ -21,6 +21,15 @@ inline int max_threads() {
 #endif
 }
 
+// Sets the calling thread's team size for the parallel regions it opens next (n >= 1).
+inline void set_max_threads(int n) {
+#ifdef _OPENMP
+  omp_set_num_threads(n);
+#else
+  (void)n;
+#endif
+}
+
 inline int thread_number() {
 #ifdef _OPENMP
   return omp_get_thread_num();

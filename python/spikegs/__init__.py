@@ -8,9 +8,24 @@ import os
 # Set before torch is imported only: a script that imports torch first keeps torch's policy.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+import torch
+
+from . import _C
 from .rasterize import RasterizeResult, rasterize
 from .sim import SIM
 from .spikes import SimParams, SpikeStream, save_dat, simulate_spikes
+
+
+def _one_thread_after_fork() -> None:
+    """A forked child's first OpenMP team of more than one thread waits forever for the parent's
+    pool threads, which fork did not copy, once any parallel region (ours or torch's) ran before
+    the fork (GNU libgomp): a render in a multiprocessing fork pool hung. The child runs one
+    thread, as torch's DataLoader workers do (torch's runtime and the core's, where they differ)."""
+    torch.set_num_threads(1)
+    _C.set_max_threads(1)
+
+
+os.register_at_fork(after_in_child=_one_thread_after_fork)
 
 __all__ = [
     "RasterizeResult",
