@@ -585,6 +585,20 @@ def test_double_backward_is_refused_clearly():
 
 
 @needs_cpp
+def test_a_batch_of_gradients_is_refused_clearly():
+    """Rows of a Jacobian at once (torch said only "Batching rule not implemented for
+    aten::detach"); one row at a time works."""
+    scene = make_scene(5, 4, 17, 11)
+    means = scene["means"].clone().requires_grad_()
+    alpha = render(spikegs.rasterize, scene, means=means).alpha
+    rows = torch.eye(alpha.numel(), dtype=alpha.dtype)[:3].view(3, *alpha.shape)
+    with pytest.raises(RuntimeError, match="one gradient of its outputs at a time.*vmap"):
+        torch.autograd.grad(alpha, means, rows, is_grads_batched=True, retain_graph=True)
+    row = torch.autograd.grad(alpha, means, rows[1])[0]
+    assert row.abs().sum() > 0
+
+
+@needs_cpp
 def test_numpy_integer_sizes_accepted():
     a = render(spikegs.rasterize, _BAD_SCENE)
     b = render(spikegs.rasterize, _BAD_SCENE, width=np.int64(13), height=np.int32(9))

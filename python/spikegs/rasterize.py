@@ -62,6 +62,20 @@ def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     return (-1, 1) if degree is None else (degree, colors.shape[1])
 
 
+def _grad_array(grad: torch.Tensor):
+    """An output's gradient as the core's array; RuntimeError naming the op for a batch of
+    gradients at once (vmap, `is_grads_batched`, `jacobian(vectorize=True)`), whose batched
+    tensor holds no array (torch said only "Batching rule not implemented for aten::detach")."""
+    try:
+        return grad.contiguous().numpy()
+    except RuntimeError as err:
+        raise RuntimeError(
+            "spikegs.rasterize: its backward takes one gradient of its outputs at a time, not a "
+            "batch (torch.func.vmap, is_grads_batched=True, jacobian(vectorize=True)); loop over "
+            f"them ({err})"
+        ) from None
+
+
 class _RasterizeFunction(torch.autograd.Function):
     @staticmethod
     def forward(
@@ -116,6 +130,7 @@ class _RasterizeFunction(torch.autograd.Function):
         means, quats, scales, opacities, colors, background = ctx.saved_tensors
         if grad_image is None:
             grad_image = means.new_zeros(ctx.image_shape)
+        grads_in = (grad_image, grad_alpha, grad_means2d, grad_depths)
         arrays = [
             t.detach().contiguous().numpy() for t in (means, quats, scales, opacities, colors)
         ]
@@ -124,11 +139,7 @@ class _RasterizeFunction(torch.autograd.Function):
             ctx.raster,
             *arrays,
             bg,
-            grad_image.contiguous().numpy(),
-            *(
-                None if g is None else g.contiguous().numpy()
-                for g in (grad_alpha, grad_means2d, grad_depths)
-            ),
+            *(None if g is None else _grad_array(g) for g in grads_in),
         )
         dmeans, dquats, dscales, dopac, dcolors, dviewmat, dbackground, dmeans2d, dabs = map(
             torch.from_numpy, grads
