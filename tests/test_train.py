@@ -425,6 +425,52 @@ def test_resume_after_interruption_equals_uninterrupted(
     assert torch.equal(whole.model.background, resumed.model.background)
 
 
+def test_an_evaluation_sees_the_model_before_the_densification_due_then(dataset, tmp_path):
+    """As 3DGS evaluates: an evaluation at an opacity reset's iteration logged the reset scene (a
+    held-out PSNR ~10 dB low at 1000 of the default 3000 iterations); the run trains as one that
+    evaluates only at its end."""
+    densify = {**FAST["densify"], "start": 10, "stop": 30, "every": 10, "opacity_reset_every": 20}
+    runs, opacities = {}, {}
+    for eval_every in (20, 40):
+        config = load_config(
+            "tfp33",
+            {
+                "train": {**FAST["train"], "iterations": 40, "eval_every": eval_every},
+                "densify": densify,
+            },
+        )
+        runs[eval_every] = Trainer(dataset, config, tmp_path / str(eval_every), progress=False)
+        runs[eval_every].train(
+            on_eval=lambda t: opacities.setdefault(t.iteration, t.model.opacities.max().item())
+        )
+    assert runs[20].densifier._resets_opacity(20)
+    assert opacities[20] > 0.05, opacities  # the reset caps opacities at 0.01
+    for name, value in runs[20].model.params.items():
+        assert torch.equal(value, runs[40].model.params[name]), name
+
+
+def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path, capsys):
+    """It said "resuming at iteration 40 of 40", then "finished at iteration 40; nothing to
+    train", and wrote each of the run's files again; a run killed after its last checkpoint
+    still gets the files it lacks."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
+    run = tmp_path / "run"
+    summary = Trainer(dataset, config, run, progress=False).train()
+
+    def files() -> dict:
+        return {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in run.rglob("*") if p.is_file()}
+
+    before = files()
+    capsys.readouterr()
+    assert Trainer(dataset, config, run, progress=False).train(resume=True) == summary
+    assert capsys.readouterr().err == f"{run}: finished at iteration 40; nothing to train\n"
+    assert files() == before
+    for name in ("scene.ply", "train.json"):
+        (run / name).unlink()
+    assert Trainer(dataset, config, run, progress=False).train(resume=True) == summary
+    assert {p: c for p, (c, _) in files().items()} == {p: c for p, (c, _) in before.items()}
+
+
 def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     dataset, tmp_path, monkeypatch, ctrl_c
 ):
@@ -1462,20 +1508,20 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert started_iterations(tmp_path / "early2") == 80
     capsys.readouterr()
 
-    step = Trainer.step
+    update = Trainer.update
 
     def killed_at_60(self):  # SpikeGS's checkpoint at 50 is the last
-        loss = step(self)
+        loss = update(self)
         if self.config.method == "spikegs" and self.iteration == 60:
             raise KeyboardInterrupt
         return loss
 
-    monkeypatch.setattr(Trainer, "step", killed_at_60)
+    monkeypatch.setattr(Trainer, "update", killed_at_60)
     again = tmp_path / "again"
     assert main([*argv, str(again)]) == 130
     assert "with --resume continues" in capsys.readouterr().err
     interrupted = float((again / ".demo_seconds").read_text())  # that process's wall clock
-    monkeypatch.setattr(Trainer, "step", step)
+    monkeypatch.setattr(Trainer, "update", update)
     assert main([*argv, str(again), "--resume", "--scene", "wires"]) == 2  # not its scene
     capsys.readouterr()
     fresh, fresh_state = [], Trainer._fresh_state
@@ -1607,10 +1653,9 @@ def test_every_command_names_an_output_folder_under_a_file(dataset, tmp_path, ca
         assert "afile/out: a folder on its path is a file" in capsys.readouterr().err, args
 
 
-def test_a_log_gets_lines_a_terminal_gets_a_bar(dataset, tmp_path, capsys, monkeypatch):
+def test_a_log_gets_lines(dataset, tmp_path, capsys):
     """Where stderr is no terminal (a batch job's log; pytest's capture) `spikegs train` prints a
-    line at each evaluation without --no-progress, and no bar's carriage returns; on a terminal
-    it draws the bar unless told --no-progress."""
+    line at each evaluation without --no-progress, and no bar's carriage returns."""
     from spikegs.cli import show_bars
 
     config = tmp_path / "short.yaml"
@@ -1618,12 +1663,32 @@ def test_a_log_gets_lines_a_terminal_gets_a_bar(dataset, tmp_path, capsys, monke
     run = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "r")]
     assert main(run) == 0
     err = capsys.readouterr().err
+    assert err.startswith(f"short: 4 iterations into {tmp_path / 'r'}, a line every 2\n"), err
     assert "short: iteration 2/4, held-out PSNR" in err and "short: iteration 4/4" in err
     assert "\r" not in err
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    assert show_bars(False) and not show_bars(True)
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: False)
     assert not show_bars(False)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals: POSIX only")
+def test_a_terminal_gets_a_bar_if_it_has_a_width(monkeypatch):
+    """A terminal gets the bar unless told --no-progress; a pseudo-terminal given no size
+    (`script` under cron, some containers), where tqdm drew empty bars and a run printed nothing
+    until its end, gets the log's lines."""
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    from spikegs.cli import show_bars
+
+    master, slave = pty.openpty()
+    with os.fdopen(slave, "w") as tty:
+        monkeypatch.setattr(sys, "stderr", tty)
+        for columns, bars in ((0, False), (80, True)):
+            fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, columns, 0, 0))
+            assert show_bars(False) == bars and not show_bars(True), columns
+        monkeypatch.undo()
+    os.close(master)
 
 
 def test_train_seed_on_the_command_line_overrides_the_configs(tmp_path):
@@ -1876,18 +1941,18 @@ def test_a_file_output_named_as_a_folder_is_refused_while_parsing(argv, capsys):
 
 def _train_until(dataset, config, run, iteration: int, monkeypatch, error=RuntimeError) -> None:
     """Train `config` in `run` and die (`error`, e.g. a kill: no checkpoint) at `iteration`."""
-    step = Trainer.step
+    update = Trainer.update
 
-    def step_then_die(self):
-        loss = step(self)
+    def update_then_die(self):
+        loss = update(self)
         if self.iteration == iteration:
             raise error
         return loss
 
-    monkeypatch.setattr(Trainer, "step", step_then_die)
+    monkeypatch.setattr(Trainer, "update", update_then_die)
     with pytest.raises(error):
         Trainer(dataset, config, run, progress=False).train()
-    monkeypatch.setattr(Trainer, "step", step)
+    monkeypatch.setattr(Trainer, "update", update)
 
 
 def _logged(run) -> list[int]:
@@ -2496,15 +2561,15 @@ def test_a_step_renders_the_instant_and_the_exposure_poses(
         "supervision": {"exposure_weight": 1.0, "exposure_poses": 5, "exposure_window": 33},
     }
     trainer = Trainer(dataset, load_config(method, overrides), tmp_path / "run", progress=False)
-    rendered, stepped, render, step = [], [], GaussianModel.render, Trainer.step
+    rendered, stepped, render, update = [], [], GaussianModel.render, Trainer.update
 
     def recording_render(model, viewmat, *args, **kwargs):
         rendered.append(viewmat.clone())
         return render(model, viewmat, *args, **kwargs)
 
-    def recording_step(self):
+    def recording_update(self):
         rendered.clear()
-        loss = step(self)
+        loss = update(self)
         stepped.append(list(rendered))
         return loss
 
@@ -2514,7 +2579,7 @@ def test_a_step_renders_the_instant_and_the_exposure_poses(
         lambda t, window, poses: spans.append(t) or exposure_times(t, window, poses),
     )
     monkeypatch.setattr(GaussianModel, "render", recording_render)
-    monkeypatch.setattr(Trainer, "step", recording_step)
+    monkeypatch.setattr(Trainer, "update", recording_update)
     trainer.train()
     assert len(stepped) == len(spans) == 3
     for t, views in zip(spans, stepped):

@@ -121,8 +121,15 @@ def add_no_progress(parser: argparse.ArgumentParser, instead: str = "", *aliases
 
 def show_bars(off: bool) -> bool:
     """Whether a command draws progress bars: not where `off` (--no-progress, --quiet), nor where
-    stderr is no terminal (a batch job's log, which bars' carriage returns garble)."""
-    return not off and sys.stderr.isatty()
+    stderr is no terminal (a batch job's log, which bars' carriage returns garble) or one that
+    reports no width (a pseudo-terminal given no size: `script` under cron, some containers),
+    where tqdm drew empty bars and the run printed nothing until its end."""
+    if off or not sys.stderr.isatty():
+        return False
+    try:
+        return os.get_terminal_size(sys.stderr.fileno()).columns > 0
+    except (OSError, ValueError):  # no file descriptor: a stream that only says it is a terminal
+        return False
 
 
 def build_parser() -> argparse.ArgumentParser:

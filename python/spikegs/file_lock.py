@@ -23,7 +23,7 @@ def exclusive_lock(path: Path, busy: str | None):
     if fcntl is None:
         yield
         return
-    with Path(path).open("w") as handle:
+    with Path(path).open("a") as handle:  # "w" would touch it: a finished run looked rewritten
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -65,7 +65,9 @@ def _cut_log(path: Path, iteration: int) -> None:
                 raise ValueError(f"{path}: line {number} is not a log record ({err})") from None
             if step <= iteration:
                 kept.append(line)
-    write_text_atomically(path, "".join(line + "\n" for line in kept))  # a kill keeps them all
+    text = "".join(line + "\n" for line in kept)
+    if not (path.exists() and path.read_text() == text):  # a finished run's, say: left as it is
+        write_text_atomically(path, text)  # a kill keeps them all
 
 
 def _optimizer(
@@ -323,6 +325,13 @@ class Trainer:
             )
 
     def step(self) -> float:
+        """One iteration, as the loop runs it without evaluation: `update`, then `densify`;
+        returns the loss."""
+        loss = self.update()
+        self.densify()
+        return loss
+
+    def update(self) -> float:
         """One optimisation step on a random training timestamp; returns the loss."""
         s, targets = self.config.supervision, self.targets
         self.iteration += 1
@@ -396,10 +405,14 @@ class Trainer:
             screen_grad = screen if absgrad else screen.grad
             weight = s.instant_total_weight() if instant_only else s.total_weight()
             self.densifier.observe(radii, screen_grad / weight, w, h)
+        return loss.item()
+
+    def densify(self) -> None:
+        """The densification, pruning and opacity reset due after this iteration's update."""
         self.densifier.step(self.model, self.optimizer, self.iteration)
         if len(self.model) == 0:
             d = self.config.densify
-            biased = biased_fit(self.brightness, s)
+            biased = biased_fit(self.brightness, self.config.supervision)
             raise ValueError(
                 f"iteration {self.iteration}: pruning removed every Gaussian (below "
                 f"densify.min_opacity {d.min_opacity}, or larger than densify.max_world_size "
@@ -407,7 +420,6 @@ class Trainer:
                 f"which densify.max_gaussians {d.max_gaussians} may leave no room for); prune "
                 f"less, or give the run more room" + (f". Before: {biased}" if biased else "")
             )
-        return loss.item()
 
     # -- the loop ------------------------------------------------------------------------------
     def quick_psnr(self) -> float:
@@ -475,9 +487,14 @@ class Trainer:
                 )
             state = self._read_checkpoint() if from_checkpoint else None
             if state is not None:  # said: a resumed run printed nothing before its next line
+                it, iterations = state["iteration"], self.config.train.iterations
                 print(
-                    f"{self.run_dir}: resuming at iteration {state['iteration']} of "
-                    f"{self.config.train.iterations}",
+                    f"{self.run_dir}: "
+                    + (
+                        f"finished at iteration {it}; nothing to train"
+                        if it >= iterations
+                        else f"resuming at iteration {it} of {iterations}"
+                    ),
                     file=sys.stderr,
                 )
             return self._run(state, on_eval)
@@ -495,8 +512,15 @@ class Trainer:
     def _run(self, state: dict | None, on_eval) -> dict:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
-        text = dump_yaml(self.config.to_dict())  # `--resume` reads it back
-        write_text_atomically(self.run_dir / CONFIG, text)
+        # a finished run's files are rewritten only where missing (a run killed after its last
+        # checkpoint): --resume of a finished run rewrote each as it was
+        finished = state is not None and state["iteration"] >= t.iterations
+
+        def due(name: str) -> bool:
+            return not (finished and (self.run_dir / name).exists())
+
+        if due(CONFIG):  # `--resume` reads it back
+            write_text_atomically(self.run_dir / CONFIG, dump_yaml(self.config.to_dict()))
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / LOG, state["iteration"] if state else 0)
         # a finished run needs no targets; SIM's training time for this run: trained now or
@@ -508,11 +532,6 @@ class Trainer:
         )
         if state is not None:
             self._load_checkpoint(state)
-            if self.iteration >= t.iterations:
-                print(
-                    f"{self.run_dir}: finished at iteration {self.iteration}; nothing to train",
-                    file=sys.stderr,  # stdout: `spikegs train`'s JSON summary
-                )
         else:
             self._fresh_state()
         log = (self.run_dir / LOG).open("a")
@@ -534,9 +553,15 @@ class Trainer:
             try:
                 while self.iteration < t.iterations:
                     start = time.perf_counter()
-                    loss = self.step()
+                    loss = self.update()
                     self.train_seconds += time.perf_counter() - start
+                    # the model the step trained, as 3DGS evaluates it: an opacity reset due now
+                    # (at 1000 of the default 3000 iterations) logged a held-out PSNR ~10 dB low,
+                    # a dip a user could read as divergence
                     self._after_step(loss, log, bar, on_eval)
+                    start = time.perf_counter()
+                    self.densify()
+                    self.train_seconds += time.perf_counter() - start
                     if interrupted() and self.iteration < t.iterations:
                         self.save_checkpoint()  # between steps: a consistent state
                         raise KeyboardInterrupt  # (after the last step the run just finishes)
@@ -550,8 +575,10 @@ class Trainer:
             finally:
                 bar.close()
                 log.close()
-        self.save_checkpoint()
-        save_ply(self.model, self.run_dir / SCENE)
+        if not finished:
+            self.save_checkpoint()
+        if due(SCENE):
+            save_ply(self.model, self.run_dir / SCENE)
         biased = biased_fit(self.brightness, self.config.supervision)
         if biased:
             warnings.warn(f"{self.run_dir}: {biased}", stacklevel=2)
@@ -566,5 +593,6 @@ class Trainer:
             "intensity_scale": self.scale,
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
         }
-        write_text_atomically(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
+        if due(SUMMARY):
+            write_text_atomically(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
         return summary

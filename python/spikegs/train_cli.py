@@ -89,6 +89,14 @@ def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
     trainer = Trainer(dataset, config, args.out, progress=bars)
+    if not bars:  # a log heard first of the run at its first evaluation, minutes in at 256²
+        t = config.train
+        print(
+            f"{config.method}: {t.iterations} iterations into {args.out}, a line every "
+            f"{t.eval_every}",
+            file=sys.stderr,
+            flush=True,
+        )
     summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
     runs = {config.method: (Path(args.out), summary["sim_seconds"])}
     save_logged_curves(Path(args.out) / CURVE, runs, dataset)
