@@ -2544,6 +2544,32 @@ def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
     assert not [p for p in tmp_path.iterdir() if atomic_save.is_temporary(p.name)]
 
 
+UTF8_FILES = """
+import sys
+from pathlib import Path
+from spikegs.atomic_save import write_text_atomically
+from spikegs.strict_json import read_json
+
+folder = Path(sys.argv[1])
+(folder / "bom.json").write_bytes('\\ufeff{"note": "donn\\u00e9es"}'.encode("utf-8"))
+write_text_atomically(folder / "ours.json", '{"note": "donn\\u00e9es"}')
+note = {"note": "donn\\u00e9es"}
+print(read_json(folder / "bom.json") == read_json(folder / "ours.json") == note)
+"""
+
+
+def test_json_files_are_utf8_whatever_the_locale(tmp_path):
+    """Under the C locale without UTF-8 mode (its codec ASCII; a Windows one is cp1252), a JSON
+    file holding "données" was "not valid JSON", and writing it failed; a byte-order mark, which
+    editors on Windows write, is skipped."""
+    env = {**os.environ, "LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    done = subprocess.run(
+        [sys.executable, "-c", UTF8_FILES, str(tmp_path)], capture_output=True, text=True, env=env
+    )
+    assert done.stdout == "True\n", done.stderr[-2000:]
+    assert (tmp_path / "ours.json").read_bytes() == '{"note": "données"}'.encode()
+
+
 @pytest.mark.parametrize("method, offset", [("tfp33", 0.0), ("tfi", 0.5)])
 def test_a_step_renders_the_instant_and_the_exposure_poses(
     dataset, tmp_path, monkeypatch, method, offset

@@ -91,8 +91,9 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
 
 
 def write_text_atomically(path: Path, text: str) -> None:
-    """`path.write_text(text)` through `write_atomically`."""
-    write_atomically(path, lambda tmp: tmp.write_text(text))
+    """`path.write_text(text)` in UTF-8 (the locale's codec may have no "é") through
+    `write_atomically`."""
+    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def save_atomically(obj, path: Path) -> None:

@@ -45,7 +45,10 @@ def read_json(path: Path) -> dict:
     gives a key twice in an object (which of the two was meant?) or holds something else than an
     object."""
     try:
-        doc = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
+        # JSON is UTF-8 whatever the locale (a C or Windows locale's codec misread "données"); a
+        # byte-order mark, which editors on Windows write, is skipped
+        text = path.read_text(encoding="utf-8-sig")
+        doc = json.loads(text, object_pairs_hook=_unique_keys)
     except _RepeatedKeys as err:
         raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
