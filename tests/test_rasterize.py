@@ -592,7 +592,7 @@ def test_a_batch_of_gradients_is_refused_clearly():
     means = scene["means"].clone().requires_grad_()
     alpha = render(spikegs.rasterize, scene, means=means).alpha
     rows = torch.eye(alpha.numel(), dtype=alpha.dtype)[:3].view(3, *alpha.shape)
-    with pytest.raises(RuntimeError, match="one gradient of its outputs at a time.*vmap"):
+    with pytest.raises(RuntimeError, match="one gradient of its outputs at a time.*batched"):
         torch.autograd.grad(alpha, means, rows, is_grads_batched=True, retain_graph=True)
     row = torch.autograd.grad(alpha, means, rows[1])[0]
     assert row.abs().sum() > 0

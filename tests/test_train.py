@@ -469,6 +469,23 @@ def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path
         (run / name).unlink()
     assert Trainer(dataset, config, run, progress=False).train(resume=True) == summary
     assert {p: c for p, (c, _) in files().items()} == {p: c for p, (c, _) in before.items()}
+    moved = load_dataset(shutil.copytree(dataset.root, tmp_path / "moved"))
+    Trainer(moved, config, run, progress=False).train(resume=True)  # eval finds it by train.json
+    assert json.loads((run / "train.json").read_text())["dataset"] == str(moved.root.resolve())
+
+
+def test_no_densification_at_the_last_iteration(dataset, tmp_path):
+    """Its clones and splits were saved untrained, and the run's last evaluation, taken before the
+    step's densification, was of another scene than the one saved (6310 Gaussians against
+    12484)."""
+    densify = {**FAST["densify"], "start": 10, "stop": 40, "every": 10, "grad_threshold": 1e-6}
+    train = {**FAST["train"], "iterations": 40}
+    config = load_config("tfp33", {"train": train, "densify": densify})
+    evaluated = []
+    run = Trainer(dataset, config, tmp_path / "run", progress=False)
+    summary = run.train(on_eval=lambda trainer: evaluated.append(len(trainer.model)))
+    assert evaluated[-1] == summary["gaussians"] == len(load_ply(tmp_path / "run" / "scene.ply"))
+    assert summary["gaussians"] > config.train.init_gaussians  # densified at 10, 20 and 30
 
 
 def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
@@ -600,8 +617,8 @@ def test_densification_sees_a_unit_weight_loss(dataset, tmp_path):
     densify = {"start": 30, "stop": 30, "every": 30, "opacity_reset_every": 0}
     models = []
     for weight in (1.0, 10.0):
-        overrides = {
-            "train": {**FAST["train"], "iterations": 30, "checkpoint_every": 30},
+        overrides = {  # the last iteration does not densify
+            "train": {**FAST["train"], "iterations": 31, "checkpoint_every": 31},
             "densify": {**densify, "grad_threshold": 0.0005},
             "supervision": {"instant_weight": weight, "exposure_weight": weight},
         }
@@ -1663,7 +1680,7 @@ def test_a_log_gets_lines(dataset, tmp_path, capsys):
     run = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "r")]
     assert main(run) == 0
     err = capsys.readouterr().err
-    assert err.startswith(f"short: 4 iterations into {tmp_path / 'r'}, a line every 2\n"), err
+    assert err.startswith(f"short: training 4 iterations into {tmp_path / 'r'}\n"), err
     assert "short: iteration 2/4, held-out PSNR" in err and "short: iteration 4/4" in err
     assert "\r" not in err
     assert not show_bars(False)

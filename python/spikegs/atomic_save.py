@@ -96,6 +96,13 @@ def write_text_atomically(path: Path, text: str) -> None:
     write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
+def write_text_if_changed(path: Path, text: str) -> None:
+    """`write_text_atomically` unless the file holds `text` already (left as it is: a finished
+    run's files, resumed)."""
+    if not (path.is_file() and path.read_bytes() == text.encode("utf-8")):
+        write_text_atomically(path, text)
+
+
 def save_atomically(obj, path: Path) -> None:
     """torch.save `obj` to `path` through `write_atomically`."""
     import torch

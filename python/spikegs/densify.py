@@ -109,9 +109,13 @@ class Densifier:
         self.max_radii = torch.maximum(self.max_radii, radii.float())  # radius 0 where hidden
 
     def step(self, model: GaussianModel, optimizer: torch.optim.Optimizer, iteration: int) -> None:
-        """Densify/prune and reset opacities at the configured iterations (1-based)."""
+        """Densify/prune and reset opacities at the configured iterations (1-based); never at the
+        run's last (3DGS densifies before `densify_until_iter`): its clones and splits would be
+        saved untrained, and the run's last evaluation, taken before, would not be of the scene
+        it saves."""
         c = self.config
-        if c.start <= iteration <= self.stop and iteration % c.every == 0:
+        last = iteration >= self.iterations
+        if c.start <= iteration <= self.stop and iteration % c.every == 0 and not last:
             self._densify_and_prune(model, optimizer, iteration)
         if self._resets_opacity(iteration):
             cap = torch.logit(torch.tensor(0.01))

@@ -64,15 +64,16 @@ def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
 
 def _grad_array(grad: torch.Tensor):
     """An output's gradient as the core's array; RuntimeError naming the op for a batch of
-    gradients at once (vmap, `is_grads_batched`, `jacobian(vectorize=True)`), whose batched
+    gradients at once (`is_grads_batched=True`, `jacobian(vectorize=True)`), whose batched
     tensor holds no array (torch said only "Batching rule not implemented for aten::detach")."""
     try:
         return grad.contiguous().numpy()
     except RuntimeError as err:
+        if "Batching rule" not in str(err):
+            raise
         raise RuntimeError(
             "spikegs.rasterize: its backward takes one gradient of its outputs at a time, not a "
-            "batch (torch.func.vmap, is_grads_batched=True, jacobian(vectorize=True)); loop over "
-            f"them ({err})"
+            f"batch (is_grads_batched=True, jacobian(vectorize=True)); loop over them ({err})"
         ) from None
 
 

@@ -19,7 +19,7 @@ import torch
 from tqdm.auto import tqdm
 
 from . import strict_json
-from .atomic_save import save_atomically, sweep_temporaries, write_text_atomically
+from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
@@ -65,9 +65,7 @@ def _cut_log(path: Path, iteration: int) -> None:
                 raise ValueError(f"{path}: line {number} is not a log record ({err})") from None
             if step <= iteration:
                 kept.append(line)
-    text = "".join(line + "\n" for line in kept)
-    if not (path.exists() and path.read_text() == text):  # a finished run's, say: left as it is
-        write_text_atomically(path, text)  # a kill keeps them all
+    write_text_if_changed(path, "".join(line + "\n" for line in kept))  # a kill keeps them all
 
 
 def _optimizer(
@@ -497,6 +495,13 @@ class Trainer:
                     ),
                     file=sys.stderr,
                 )
+            elif not self.progress:  # a log heard of the run first at its first evaluation
+                print(
+                    f"{self.config.method}: training {self.config.train.iterations} iterations "
+                    f"into {self.run_dir}",
+                    file=sys.stderr,
+                    flush=True,
+                )
             return self._run(state, on_eval)
 
     def _from_checkpoint(self, resume: bool) -> bool:
@@ -512,15 +517,11 @@ class Trainer:
     def _run(self, state: dict | None, on_eval) -> dict:
         """`train` once its checks have passed: fresh when `state` is None, else resumed."""
         t = self.config.train
-        # a finished run's files are rewritten only where missing (a run killed after its last
-        # checkpoint): --resume of a finished run rewrote each as it was
+        # --resume of a finished run rewrote each of its files as it was: now only what changed
+        # (train.json's dataset, moved) or what a kill after the last checkpoint left missing
         finished = state is not None and state["iteration"] >= t.iterations
-
-        def due(name: str) -> bool:
-            return not (finished and (self.run_dir / name).exists())
-
-        if due(CONFIG):  # `--resume` reads it back
-            write_text_atomically(self.run_dir / CONFIG, dump_yaml(self.config.to_dict()))
+        config = dump_yaml(self.config.to_dict())  # `--resume` reads it back
+        write_text_if_changed(self.run_dir / CONFIG, config)
         # the log is checked (and cut to the checkpoint) before minutes of SIM training
         _cut_log(self.run_dir / LOG, state["iteration"] if state else 0)
         # a finished run needs no targets; SIM's training time for this run: trained now or
@@ -577,7 +578,7 @@ class Trainer:
                 log.close()
         if not finished:
             self.save_checkpoint()
-        if due(SCENE):
+        if not (finished and (self.run_dir / SCENE).exists()):
             save_ply(self.model, self.run_dir / SCENE)
         biased = biased_fit(self.brightness, self.config.supervision)
         if biased:
@@ -593,6 +594,5 @@ class Trainer:
             "intensity_scale": self.scale,
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
         }
-        if due(SUMMARY):
-            write_text_atomically(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
+        write_text_if_changed(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
         return summary

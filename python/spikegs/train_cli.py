@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="continue from RUN's last checkpoint (a run stopped before its first one starts over)",
     )
-    add_no_progress(parser, ": a line to stderr at each evaluation instead")
+    add_no_progress(parser, ": a line to stderr as it starts and at each evaluation instead")
 
 
 def config_from_args(args: argparse.Namespace):
@@ -51,7 +51,8 @@ def config_from_args(args: argparse.Namespace):
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = given is None and args.resume and saved.is_file()
-    empty = own and not saved.read_text().strip()  # the defaults would stand in for the run's
+    # an empty one: the defaults would stand in for the run's
+    empty = own and not saved.read_text(encoding="utf-8").strip()
     if given is None and args.resume and not Path(args.out).exists():
         raise ValueError(
             f"--resume: {args.out} does not exist: nothing to resume (check the path; a new run "
@@ -89,14 +90,6 @@ def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
     trainer = Trainer(dataset, config, args.out, progress=bars)
-    if not bars:  # a log heard first of the run at its first evaluation, minutes in at 256²
-        t = config.train
-        print(
-            f"{config.method}: {t.iterations} iterations into {args.out}, a line every "
-            f"{t.eval_every}",
-            file=sys.stderr,
-            flush=True,
-        )
     summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
     runs = {config.method: (Path(args.out), summary["sim_seconds"])}
     save_logged_curves(Path(args.out) / CURVE, runs, dataset)
