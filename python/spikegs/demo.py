@@ -75,7 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="a colour spike camera, a stream per channel (on --resume, the demo's own camera)",
     )
-    add_no_progress(parser, ": a line at each evaluation instead")
+    add_no_progress(parser, ": a line as each run starts and at each evaluation instead")
 
 
 def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):
