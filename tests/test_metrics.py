@@ -33,3 +33,30 @@ def test_metrics_refuse_codes_and_channels_first_and_take_tensors(metric):
     assert metric(tensor, torch.from_numpy(b)) == pytest.approx(metric(a.astype(np.float32), b))
     half = torch.from_numpy(a).bfloat16()  # none in numpy: taken as its values
     assert metric(half, torch.from_numpy(b)) == pytest.approx(metric(half.double().numpy(), b))
+
+
+def test_ssim_3dgs_is_3dgs_evaluations_ssim():
+    """3DGS's evaluation's `ssim` written out as it computes it: one 11×11 window (the outer
+    product of the normalised Gaussian, σ = 1.5) convolved per channel with 5 pixels of zero
+    padding, the map's mean; on images with content up to their edges, where the padding counts
+    (the test against scikit-image frames its images in black)."""
+    import torch
+    import torch.nn.functional as F
+
+    rng = np.random.default_rng(1)
+    a = rng.random((37, 50, 3))
+    b = np.clip(a + 0.1 * rng.standard_normal(a.shape), 0, 1)
+    x, y = (torch.from_numpy(i).permute(2, 0, 1)[None] for i in (a, b))  # [1, 3, H, W]
+    g = torch.exp(-((torch.arange(11, dtype=torch.float64) - 5) ** 2) / (2 * 1.5**2))
+    g = g / g.sum()
+    window = (g[:, None] @ g[None, :]).expand(3, 1, 11, 11)
+
+    def blur(t):
+        return F.conv2d(t, window, padding=5, groups=3)
+
+    mx, my = blur(x), blur(y)
+    vx, vy, cxy = blur(x * x) - mx**2, blur(y * y) - my**2, blur(x * y) - mx * my
+    c1, c2 = 0.01**2, 0.03**2
+    ssim_map = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx**2 + my**2 + c1) * (vx + vy + c2))
+    assert ssim_3dgs(a, b) == pytest.approx(float(ssim_map.mean()), abs=1e-6)
+    assert abs(ssim_3dgs(a, b) - ssim(a, b)) > 1e-3  # scikit-image's is another SSIM
