@@ -2532,6 +2532,61 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     assert loop.read_text() == "scores"
 
 
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
+def test_a_full_disk_is_an_os_error_naming_the_file_and_leaves_no_torn_file(tmp_path, monkeypatch):
+    """Each writer's temporary file made a link to /dev/full, where every write fails as on a full
+    disk: a PNG's writer reported success (an empty image replaced the previous one), torch.save
+    raised RuntimeError ("unexpected pos"), PyAV's error could not be renamed (AttributeError), a
+    .dat's and a text file's error named no file; each is now an OSError naming the file asked
+    for, and the previous file stays."""
+    import errno
+
+    from spikegs import atomic_save
+    from spikegs.curves import save_curves
+    from spikegs.spikes.stream import DatWriter
+    from spikegs.video import write_video
+
+    made = []
+
+    def temporary_to_dev_full(path, writer):
+        name = f".{path.name}.{writer}.tmp"
+        link = path.with_name(name)
+        if not link.is_symlink():
+            link.symlink_to("/dev/full")
+            made.append(link)
+        return name
+
+    monkeypatch.setattr(atomic_save, "temporary_name", temporary_to_dev_full)
+    frames = np.zeros((2, 16, 16, 3), np.uint8)
+    curve = {"curve": [{"train_seconds": 1.0, "psnr": 20.0}], "sim_seconds": 0, "uses_sim": False}
+    writes = {
+        "view.png": lambda p: write_image(p, np.full((8, 8, 3), 0.5)),
+        "last.pt": lambda p: atomic_save.save_atomically({"x": torch.zeros(1000)}, p),
+        "o.mp4": lambda p: write_video(p, frames, 10),
+        "o.gif": lambda p: write_video(p, frames, 10),
+        "train.json": lambda p: atomic_save.write_text_atomically(p, "{}"),
+        "curve.png": lambda p: save_curves(p, {"tfp33": curve}, ("psnr",), "curves"),
+    }
+    for name, write in writes.items():
+        path = tmp_path / name
+        path.write_bytes(b"previous")
+        with pytest.raises(OSError) as raised:
+            write(path)
+        assert raised.value.filename == str(path) or str(path) in str(raised.value), name
+        if raised.value.errno is not None:
+            assert raised.value.errno == errno.ENOSPC, name
+        assert path.read_bytes() == b"previous", name
+    assert not [p for p in made if p.is_symlink()]  # each temporary removed
+    dat = tmp_path / "spikes.dat"
+    writer = DatWriter(dat, 64, 64)
+    writer._file.close()
+    writer._file = open("/dev/full", "wb")  # noqa: SIM115 (the writer closes it)
+    with pytest.raises(OSError) as raised, writer:
+        writer.write_bits(np.zeros((4096, 64, 64), bool))
+    assert raised.value.filename == str(dat) and raised.value.errno == errno.ENOSPC
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(writes)
+
+
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
     """Test views, evaluation images and points3d.ply (which `spikegs poses` rewrites in a
     dataset) went straight to their path: a kill left a truncated file the dataset refused."""

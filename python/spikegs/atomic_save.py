@@ -70,6 +70,17 @@ def sweep_killed_writes(path: Path) -> None:
         stale.unlink(missing_ok=True)
 
 
+def naming(err: OSError, path: Path, written=None) -> OSError:
+    """`err` naming `path` where it names no file (a write's error: a full disk said only "[Errno
+    28] No space left on device") or names `written`, the temporary written for it; else `err`.
+    A new error of its errno's kind: PyAV's `av.error.OSError` has no settable filename."""
+    if err.errno is None or err.filename not in (None, str(written), written):
+        return err
+    named = OSError(err.errno, err.strerror, str(path))
+    named.__cause__ = err  # as `raise named from err`
+    return named
+
+
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
     `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder.
@@ -83,9 +94,7 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
         write(tmp)
         tmp.replace(path)
     except OSError as err:  # named by the file asked for, not the hidden temporary one
-        if err.filename in (str(tmp), tmp):
-            err.filename = str(path)
-        raise
+        raise naming(err, path, tmp)  # noqa: B904 (its cause set, where it is another)
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -104,7 +113,16 @@ def write_text_if_changed(path: Path, text: str) -> None:
 
 
 def save_atomically(obj, path: Path) -> None:
-    """torch.save `obj` to `path` through `write_atomically`."""
+    """torch.save `obj` to `path` through `write_atomically`, serialised in memory first: torch's
+    file writer turned a full disk into "RuntimeError: [enforce fail at inline_container.cc]
+    unexpected pos", which no caller takes for an OSError."""
+    import io
+
     import torch
 
-    write_atomically(path, lambda tmp: torch.save(obj, tmp))
+    def write(tmp: Path) -> None:
+        buffer = io.BytesIO()
+        torch.save(obj, buffer)
+        tmp.write_bytes(buffer.getbuffer())
+
+    write_atomically(path, write)

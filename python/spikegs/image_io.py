@@ -61,9 +61,22 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         try:
             ok = out.write_image(np.ascontiguousarray(image))
         finally:
-            out.close()
-        if not ok:
+            closed = out.close()
+        if not (ok and closed):
             raise OSError(f"cannot write {path}: {_reason(out.geterror())}")
+        # on a full disk PNG's writer returned True from every call (an empty temporary then
+        # replaced the image; its has_error, set there, is also set by a TIFF's harmless Exif
+        # notice): what was written must read back whole
+        check = oiio.ImageInput.open(str(tmp))
+        whole = check is not None and check.read_image() is not None
+        if check is not None:
+            check.close()
+        if not whole:
+            oiio.geterror()  # taken: OpenImageIO prints errors left unread when the process ends
+            raise OSError(
+                f"cannot write {path}: what was written reads back torn or empty (a full disk, or "
+                f"a quota reached?)"
+            )
 
     write_atomically(path, write)  # a kill mid-write keeps the previous image (or none)
 

@@ -30,7 +30,7 @@ from typing import Union
 import numpy as np
 
 from .. import _C
-from ..atomic_save import temporary_name, write_text_atomically
+from ..atomic_save import naming, temporary_name, write_text_atomically
 from ..cache_home import cache_home
 from ..number_checks import is_int, is_number, whole_numbers
 
@@ -374,11 +374,17 @@ class DatWriter:
             self.discard()
             raise
 
+    def _write(self, data) -> None:
+        try:
+            self._file.write(data)
+        except OSError as err:  # a full disk's error named no file
+            raise naming(err, self.path, self._partial)  # noqa: B904 (its cause set)
+
     def write_bits(self, bits: np.ndarray) -> None:
         """Append bits [n, H, W], bool or 0/1 integers (other values refused: 256 wrapped to 0)."""
         bits = np.asarray(bits)
         _check_bits(bits)
-        self._file.write(_C.spike_pack(bits, self._layout).data)
+        self._write(_C.spike_pack(bits, self._layout).data)
 
     def write_packed(self, packed: np.ndarray) -> None:
         """Append packed readouts uint8 [n, H, ceil(W/8)] in the memory layout."""
@@ -390,7 +396,7 @@ class DatWriter:
                 f"{packed.dtype} {list(packed.shape)}"
             )
         n = len(packed)
-        self._file.write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
+        self._write(_C.spike_repack(packed, self._memory, 0, n, self._layout).data)
 
     def close(self) -> None:
         """Finish: the readouts written replace `path` (a symlink's target)."""
@@ -399,6 +405,8 @@ class DatWriter:
         try:
             self._file.close()  # flushes: a full disk fails here
             self._partial.replace(self._target)
+        except OSError as err:
+            raise naming(err, self.path, self._partial)  # noqa: B904 (its cause set)
         finally:
             self._partial.unlink(missing_ok=True)  # gone once it replaced the target
 
