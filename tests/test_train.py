@@ -1431,6 +1431,32 @@ def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys)
     assert "holds a mono dataset; leave out --color" in capsys.readouterr().err
 
 
+@pytest.mark.filterwarnings("ignore:.*differ in brightness from the exposure targets")
+def test_a_demo_stopped_by_a_full_disk_says_how_to_go_on_and_counts_its_time(
+    tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C said "--resume continues" and kept the process's time for the resumed total; a full
+    disk did neither (a resumed demo said "total 2 s" of ~22)."""
+    import errno
+
+    _tiny_demo(monkeypatch, sim_iterations=3)
+    out = tmp_path / "demo"
+
+    def disk_full(out_dir, *args):
+        raise OSError(errno.ENOSPC, "No space left on device", str(out_dir / "comparison.png"))
+
+    with monkeypatch.context() as patch:
+        patch.setattr("spikegs.demo.write_figures", disk_full)
+        assert main(["demo", "--iterations", "20", "--no-progress", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "once that is mended, the same command with --resume continues from here" in err
+    assert "No space left on device" in err
+    spent = float((out / ".demo_seconds").read_text())
+    assert spent > 0
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0
+    assert json.loads((out / "results.json").read_text())["total_seconds"] > spent
+
+
 # SIM trained 5 steps: its output is half as bright as the exposure's targets, which is said
 @pytest.mark.filterwarnings("ignore:.*differ in brightness from the exposure targets")
 def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypatch, capsys):

@@ -321,9 +321,13 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         dataset = demo_dataset(scene, out / "data", args.resume, progress, color)
         results, view_psnrs = train_and_evaluate(dataset, configs, out, args.resume, progress)
         write_figures(out, dataset, results, view_psnrs)
-    except KeyboardInterrupt:
-        (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
-        print("\nthe same command with --resume continues from here", file=sys.stderr)
+    except (KeyboardInterrupt, OSError, MemoryError) as stop:
+        try:  # a full disk may refuse this too: the time is then not counted
+            (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
+        except OSError:
+            pass
+        mend = "" if isinstance(stop, KeyboardInterrupt) else "once that is mended, "
+        print(f"\n{mend}the same command with --resume continues from here", file=sys.stderr)
         raise
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)
