@@ -322,8 +322,9 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         results, view_psnrs = train_and_evaluate(dataset, configs, out, args.resume, progress)
         write_figures(out, dataset, results, view_psnrs)
     except (KeyboardInterrupt, OSError, MemoryError) as stop:
-        try:  # a full disk may refuse this too: the time is then not counted
-            (out / SECONDS_FILE).write_text(repr(earlier + time.perf_counter() - start))
+        try:  # a full disk may refuse this too: the time then stays as it was
+            seconds = repr(earlier + time.perf_counter() - start)
+            write_text_atomically(out / SECONDS_FILE, seconds)  # (write_text emptied it first)
         except OSError:
             pass
         mend = "" if isinstance(stop, KeyboardInterrupt) else "once that is mended, "
