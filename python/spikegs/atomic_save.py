@@ -124,3 +124,16 @@ def save_atomically(obj, path: Path) -> None:
             torch.save(obj, file)
 
     write_atomically(path, write)
+
+
+def save_figure(fig, path: Path) -> None:
+    """Save matplotlib figure `fig` to `path` through `write_atomically` (savefig straight to a
+    curve.png left it torn on a full disk), in the format of its suffix (PNG without one: the
+    temporary's name has none), at 120 dpi; the figure is closed."""
+    import matplotlib.pyplot as plt
+
+    kind = Path(path).suffix[1:] or "png"
+    try:
+        write_atomically(Path(path), lambda tmp: fig.savefig(tmp, dpi=120, format=kind))
+    finally:
+        plt.close(fig)

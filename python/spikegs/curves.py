@@ -7,7 +7,7 @@ import json
 import textwrap
 from pathlib import Path
 
-from .atomic_save import write_atomically
+from .atomic_save import save_figure
 from .method_titles import method_title
 from .run_summary import LOG
 
@@ -100,8 +100,4 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
     lines = [textwrap.fill(line, int(13 * width)) for line in title.split("\n")]  # ~13 a inch
     fig.suptitle(_as_text("\n".join(lines)), fontsize=10)
     fig.tight_layout()
-    kind = Path(path).suffix[1:] or "png"  # the temporary's name has none
-    try:  # a full disk left a torn curve.png in place of the last one
-        write_atomically(Path(path), lambda tmp: fig.savefig(tmp, dpi=120, format=kind))
-    finally:
-        plt.close(fig)
+    save_figure(fig, path)

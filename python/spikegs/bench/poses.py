@@ -21,6 +21,7 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
+from ..atomic_save import save_figure
 from ..config import load_config
 from ..data import simulate_dataset
 from ..data.trajectory import Trajectory
@@ -148,8 +149,7 @@ def _plot(rows: list[dict], errors: dict[str, np.ndarray], setup: dict, path: Pa
         f"{NOISE_TRANSLATION:.0%} of the radius every {KEYFRAME_EVERY} readouts"
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def run(quick: bool, out: Path) -> dict:

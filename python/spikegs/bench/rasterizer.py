@@ -23,6 +23,7 @@ from typing import Any, Callable
 import torch
 
 from .. import reference
+from ..atomic_save import save_figure
 from ..rasterize import rasterize
 from ..text_table import print_table
 from .common import machine_info, median_seconds, uniform, write_results
@@ -215,8 +216,7 @@ def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
         fontsize=10,
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def run(quick: bool, out: Path) -> dict:

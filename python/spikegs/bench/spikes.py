@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic_save import save_figure
 from ..spikes import SimParams, SpikeStream, simulate_spikes
 from ..text_table import print_table
 from .common import machine_info, median_seconds, write_results
@@ -121,8 +122,7 @@ def _plot(rows: list[dict], path: Path) -> None:
     ax.set_title(f"TFP on a {HEIGHT}×{WIDTH} stream, {machine_info()['cores']} cores")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _bench_stream(path: Path, readouts: int, count: int, np_count: int) -> tuple:
