@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import sys
@@ -11,6 +12,7 @@ from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run
+from spikegs.interrupt import raise_terminated
 from spikegs.train import Trainer
 
 FAST = {
@@ -67,7 +69,19 @@ def test_eval_json_names_where_it_lies_for_a_run_named_relative(tmp_path, monkey
     assert result["file"] == str(tmp_path.resolve() / "run" / "eval.json")
 
 
-def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):
+@pytest.fixture
+def console_signals():
+    """SIGINT and SIGTERM as the test found them, after `console()` (which sets them to be
+    ignored once a command is stopped, and SIGTERM to raise Terminated); SIGTERM at its
+    default for the test, as in a fresh process."""
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    yield previous
+    for s, handler in previous.items():
+        signal.signal(s, handler)
+
+
+def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch, console_signals):
     """After 'interrupted', a second Ctrl-C (pressed twice, as people do) landed in the
     interpreter's exit and printed 'Exception ignored in atexit callback ... KeyboardInterrupt':
     the `spikegs` command ignores SIGINT once interrupted, until it has exited."""
@@ -75,35 +89,54 @@ def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch):
     def interrupted(args):
         raise KeyboardInterrupt
 
-    previous = signal.getsignal(signal.SIGINT)
     monkeypatch.setattr("spikegs.eval_cli.run", interrupted)
     monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
-    try:
-        with pytest.raises(SystemExit) as exit:
-            console()
-        assert exit.value.code == 130
-        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 130
+    assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    signal.signal(signal.SIGINT, console_signals[signal.SIGINT])
     assert main(["eval", "RUN"]) == 130  # main, which tests call, leaves SIGINT alone
-    assert signal.getsignal(signal.SIGINT) is previous
+    assert signal.getsignal(signal.SIGINT) is console_signals[signal.SIGINT]
 
 
-def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys):
+def test_sigterm_stops_a_command_as_ctrl_c_does(monkeypatch, capsys, console_signals):
+    """SIGTERM (a batch scheduler's time limit, `timeout`, `docker stop`) killed any command at
+    once, its clean-up (temporaries, the demo's time) undone: the `spikegs` command raises it as
+    Terminated, a KeyboardInterrupt, says 'terminated', exits with 143 and ignores further
+    signals while exiting. A SIGTERM ignored by the parent (`trap '' TERM`) stays ignored."""
+    handlers = []
+
+    def terminated(args):
+        handlers.append(signal.getsignal(signal.SIGTERM))
+        if handlers[-1] is raise_terminated:  # (else the test would end pytest)
+            os.kill(os.getpid(), signal.SIGTERM)
+        return 0
+
+    monkeypatch.setattr("spikegs.eval_cli.run", terminated)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 143 and handlers == [raise_terminated]
+    assert capsys.readouterr().err == "terminated\n"
+    assert all(signal.getsignal(s) is signal.SIG_IGN for s in console_signals)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 0 and handlers[-1] is signal.SIG_IGN
+
+
+def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys, console_signals):
     """Ctrl-C in the first seconds, while Python imported torch for the command, printed a
     30-60-line traceback ending in KeyboardInterrupt."""
 
     def importing(*args):
         raise KeyboardInterrupt
 
-    previous = signal.getsignal(signal.SIGINT)
     monkeypatch.setattr("spikegs.cli.build_parser", importing)
     monkeypatch.setattr(sys, "argv", ["spikegs", "train", "DATA", "--out", "RUN"])
-    try:
-        with pytest.raises(SystemExit) as exit:
-            console()
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    with pytest.raises(SystemExit) as exit:
+        console()
     assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
 
 

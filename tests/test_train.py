@@ -36,7 +36,7 @@ from spikegs.file_lock import exclusive_lock
 from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
-from spikegs.interrupt import deferred_interrupt
+from spikegs.interrupt import Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
 from spikegs.run_folder import run_lock
 from spikegs.targets import intensity_scale
@@ -502,14 +502,74 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
-def _interrupt_during(owner, method: str, iteration: int, monkeypatch, signals: int) -> None:
-    """Send this process `signals` SIGINTs from inside `owner.method`, at `iteration`."""
+def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path):
+    """The command as a batch scheduler's time limit stops it: SIGTERM killed it at once, its
+    steps since the last checkpoint lost (here: all), nothing said; now it checkpoints the step
+    it was in, says so and exits with 143 (128 + SIGTERM)."""
+    config = tmp_path / "long.yaml"  # no checkpoint of its own for a minute
+    train = {**FAST["train"], "iterations": 100000, "checkpoint_every": 100000}
+    config.write_text(yaml.safe_dump({"base": "tfp33", **FAST, "train": train}))
+    run = tmp_path / "run"
+    command = [sys.executable, "-m", "spikegs", "train", str(dataset.root), "--out", str(run)]
+    training = subprocess.Popen(
+        [*command, "--config", str(config), "--no-progress"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    log = run / "log.jsonl"
+    deadline = time.monotonic() + 120
+    while not (log.exists() and log.read_text().count("\n") >= 2):
+        assert training.poll() is None and time.monotonic() < deadline, training.stderr.read()
+        time.sleep(0.1)
+    training.send_signal(signal.SIGTERM)
+    err = training.communicate(timeout=120)[1]
+    assert training.returncode == 143, err
+    assert "SIGTERM: stopping after this step" in err and err.endswith("terminated\n"), err
+    logged = [json.loads(line)["iteration"] for line in log.read_text().splitlines()]
+    saved = torch.load(run / "checkpoints" / "last.pt")["iteration"]
+    assert saved >= logged[-1] > 0
+
+
+@pytest.fixture
+def sigterm_raises():
+    """SIGTERM as the `spikegs` command handles it (raising Terminated), for the test's duration:
+    a trainer that failed to defer it stops the test where the signal lands, not pytest."""
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    yield
+    signal.signal(signal.SIGTERM, previous)
+
+
+@pytest.mark.parametrize("signals, saved", [(1, 40), (2, 25)])
+def test_sigterm_stops_as_ctrl_c_does(
+    dataset, tmp_path, monkeypatch, capsys, sigterm_raises, signals, saved
+):
+    """SIGTERM, how a batch scheduler ends a job at its time limit (and `timeout`, `kill`,
+    `docker stop`), killed a run at once: the steps since its last checkpoint were lost, nothing
+    said. Now the step finishes and the run checkpoints (a second SIGTERM: at once, keeping the
+    last checkpoint)."""
+    train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
+    config = load_config("tfp33", {**FAST, "train": train})
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals, signal.SIGTERM)
+    with pytest.raises(Terminated):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert torch.load(tmp_path / "run" / "checkpoints" / "last.pt")["iteration"] == saved
+    assert "SIGTERM: stopping after this step" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) is raise_terminated  # handler restored
+    monkeypatch.undo()
+    Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+
+
+def _interrupt_during(
+    owner, method: str, iteration: int, monkeypatch, signals: int, signum=signal.SIGINT
+) -> None:
+    """Send this process `signals` signals `signum` from inside `owner.method`, at `iteration`."""
     original = getattr(owner, method)
 
     def interrupted(self, *args, **kwargs):
         if args and args[-1] == iteration:  # Densifier.step(model, optimizer, iteration)
             for _ in range(signals):
-                os.kill(os.getpid(), signal.SIGINT)
+                os.kill(os.getpid(), signum)
         return original(self, *args, **kwargs)
 
     monkeypatch.setattr(owner, method, interrupted)

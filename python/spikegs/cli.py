@@ -11,6 +11,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from .interrupt import Terminated, raise_terminated
 from .missing_dependency import MissingDependencyError
 
 # sub-command -> (module implementing it, one-line help)
@@ -160,22 +161,34 @@ def _warning_printer(command: str, default):
 
 
 INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells'
+TERMINATED = 143  # stopped by SIGTERM (128 + SIGTERM)
 
 
 def console() -> None:
-    """The `spikegs` command: `main`, then exit with its status. Once interrupted, further
-    Ctrl-Cs are ignored while the interpreter exits (a second one, pressed as people do, printed
-    'Exception ignored in atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C
-    while the command's modules import says 'interrupted' too, not a traceback (one during the
-    package's own import, torch's, before this runs, still ends in Python's traceback)."""
+    """The `spikegs` command: `main`, then exit with its status. SIGTERM stops a command as
+    Ctrl-C does (a batch scheduler's time limit: training checkpoints after its step, temporary
+    files are removed), unless it was ignored. Once stopped, further signals are ignored while
+    the interpreter exits (a second Ctrl-C, pressed as people do, printed 'Exception ignored in
+    atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's
+    modules import says 'interrupted' too, not a traceback (one during the package's own
+    import, torch's, before this runs, still ends in Python's traceback)."""
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, raise_terminated)
     try:
         status = main()
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        status = INTERRUPTED
-    if status == INTERRUPTED:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except KeyboardInterrupt as stop:
+        status = _stopped(stop)
+    if status in (INTERRUPTED, TERMINATED):
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
     sys.exit(status)
+
+
+def _stopped(stop: KeyboardInterrupt) -> int:
+    """Say that a signal stopped the command; its exit status."""
+    terminated = isinstance(stop, Terminated)
+    print("terminated" if terminated else "interrupted", file=sys.stderr)
+    return TERMINATED if terminated else INTERRUPTED
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -189,9 +202,8 @@ def _run(args: argparse.Namespace) -> int:
     """Run the parsed command; its errors as messages and exit codes."""
     try:
         return int(args._run(args) or 0)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return INTERRUPTED
+    except KeyboardInterrupt as stop:
+        return _stopped(stop)
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
         print(f"spikegs {args.command}: error: {err}", file=sys.stderr)

@@ -1,7 +1,11 @@
-"""Ctrl-C between steps: a SIGINT that arrives during a step takes effect once the step is done.
+"""Ctrl-C (SIGINT) and SIGTERM between steps: a signal that arrives during a step takes effect
+once the step is done.
 
 A KeyboardInterrupt raised wherever the signal lands (in the middle of an optimizer update or of
-densification) would leave the model half-updated, and a checkpoint of it unresumable.
+densification) would leave the model half-updated, and a checkpoint of it unresumable. SIGTERM is
+how a batch scheduler ends a job at its time limit (Slurm, then SIGKILL 30 s later), as do
+`timeout`, `kill` and `docker stop`: killed at once, a run lost the steps since its last
+checkpoint (up to a minute) and said nothing.
 """
 
 from __future__ import annotations
@@ -13,26 +17,45 @@ import threading
 from collections.abc import Callable, Iterator
 
 
+class Terminated(KeyboardInterrupt):
+    """Work stopped by SIGTERM, as Ctrl-C stops it (the same clean-up; exit status 143)."""
+
+
+NAMES = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
+
+
+def interruption(signum: int) -> KeyboardInterrupt:
+    """The exception that stops work for signal `signum`: KeyboardInterrupt, or Terminated."""
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def raise_terminated(signum, frame) -> None:
+    """A SIGTERM handler that stops work as Ctrl-C does (`finally` blocks run)."""
+    raise Terminated
+
+
 @contextlib.contextmanager
-def deferred_interrupt(message: str) -> Iterator[Callable[[], bool]]:
-    """Within the block the first SIGINT prints `message` and sets a flag, which the yielded
-    callable reads; a second one raises KeyboardInterrupt at once. Outside the main thread
-    (where no signal is delivered), or where SIGINT is ignored (a background job), the flag stays
-    False and the handling as it was."""
-    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
-    if ignored or threading.current_thread() is not threading.main_thread():
-        yield lambda: False
+def deferred_interrupt(message: str) -> Iterator[Callable[[], int]]:
+    """Within the block the first SIGINT or SIGTERM prints `message` (its `{signal}` the
+    signal's name) and is recorded; the yielded callable returns the signal number (0 before
+    any), and `interruption` of it is the exception to raise once the step is done. A second
+    one raises at once. Outside the main thread (where no signal is delivered) nothing changes,
+    nor for a signal ignored (SIGINT in a background job; `nohup` leaves SIGTERM alone)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: 0
         return
-    hits = []
+    handled = [s for s in NAMES if signal.getsignal(s) is not signal.SIG_IGN]
+    hits: list[int] = []
 
     def handler(signum, frame):
         hits.append(signum)
         if len(hits) > 1:
-            raise KeyboardInterrupt
-        print(message, file=sys.stderr, flush=True)
+            raise interruption(signum)
+        print(message.format(signal=NAMES[signum]), file=sys.stderr, flush=True)
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {s: signal.signal(s, handler) for s in handled}
     try:
-        yield lambda: bool(hits)
+        yield lambda: hits[0] if hits else 0
     finally:
-        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
+        for s, before in previous.items():
+            signal.signal(s, before if before is not None else signal.SIG_DFL)

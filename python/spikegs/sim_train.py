@@ -24,7 +24,7 @@ from .cache_home import cache_home
 from .config import SimConfig
 from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
-from .interrupt import deferred_interrupt
+from .interrupt import deferred_interrupt, interruption
 from .losses import SIM_LOSSES
 from .number_checks import is_number
 from .output_paths import writable_folder
@@ -173,8 +173,8 @@ def train_sim(
         }
         save_atomically(state, checkpoint)
 
-    stop = "\nCtrl-C: SIM's training stops after this step, its state saved (again: at once)"
-    with deferred_interrupt(stop) as interrupted:
+    message = "\n{signal}: SIM's training stops after this step, its state saved (again: at once)"
+    with deferred_interrupt(message) as interrupted:
         for step in bar:
             ks = rng.choice(timestamps, batch_size)
             channel = (
@@ -201,7 +201,7 @@ def train_sim(
                 save_state(step + 1)
                 saved = time.monotonic()
             if interrupted():  # the last step too: the caller would go on to minutes of work
-                raise KeyboardInterrupt
+                raise interruption(interrupted())
     return model.eval(), losses
 
 

@@ -27,7 +27,7 @@ from .evaluate import render_view, view_metrics
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
-from .interrupt import deferred_interrupt
+from .interrupt import deferred_interrupt, interruption
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import (
@@ -547,8 +547,8 @@ class Trainer:
         self.held_out_psnr = float("nan")  # none before the first evaluation
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
         stop_message = (
-            "\nCtrl-C: stopping after this step, with a checkpoint to --resume from (Ctrl-C again "
-            "stops at once, keeping the last checkpoint)"
+            "\n{signal}: stopping after this step, with a checkpoint to --resume from ({signal} "
+            "again stops at once, keeping the last checkpoint)"
         )
         with deferred_interrupt(stop_message) as interrupted:
             try:
@@ -565,7 +565,9 @@ class Trainer:
                     self.train_seconds += time.perf_counter() - start
                     if interrupted() and self.iteration < t.iterations:
                         self.save_checkpoint()  # between steps: a consistent state
-                        raise KeyboardInterrupt  # (after the last step the run just finishes)
+                        raise interruption(
+                            interrupted()
+                        )  # (after the last step the run just finishes)
                     if (
                         self.iteration % t.checkpoint_every == 0
                         or time.perf_counter() - saved_at > CHECKPOINT_S
