@@ -13,7 +13,8 @@ from .rasterize import RasterizeResult, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
-# the near plane: the rasterizer's 0.01 world units (3DGS's), lowered in proportion for a scene of
+# the near plane: the rasterizer's 0.01 world units (gsplat's, and the znear of 3DGS's projection
+# matrix; 3DGS's renderer itself culls at depth 0.2), lowered in proportion for a scene of
 # radius under 1, whose units are small (at 0.01 every Gaussian of a scene a thousand times
 # smaller, cameras 0.003 from its centre, was culled and training learnt the background alone);
 # not raised for a larger one, whose content may lie far nearer a camera than its radius (a

@@ -68,14 +68,17 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     ]
     if model.origin.any():
         comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
-    ply = PlyData([PlyElement.describe(vertex, "vertex")], comments=comments)
+    # the comments go after 'element vertex N': SIBR's viewer (and its C++ kin) reads the count
+    # from the header's third line, and read 0 Gaussians from a file comment there
+    ply = PlyData([PlyElement.describe(vertex, "vertex", comments=comments)])
     write_atomically(Path(path), lambda tmp: ply.write(str(tmp)))  # never half a file at `path`
 
 
-def _tags(comments: list[str]) -> dict[str, str]:
-    """The `spikegs KEY VALUE` comments of a file (others ignored)."""
+def _tags(ply: PlyData) -> dict[str, str]:
+    """The `spikegs KEY VALUE` comments of a file, the vertex element's (save_ply's) or the
+    file's (earlier files'); others ignored."""
     tags = {}
-    for comment in comments:
+    for comment in [*ply.comments, *ply["vertex"].comments]:
         parts = comment.split(" ", 2)
         if parts[0] == "spikegs" and len(parts) == 3:
             tags[parts[1]] = parts[2]
@@ -113,7 +116,7 @@ def load_ply(path: str | Path) -> GaussianModel:
     missing = [k for k in (*needed, *(f"rot_{i}" for i in range(4))) if k not in names]
     if missing:
         raise ValueError(f"{path}: vertex properties {missing} missing: not a 3DGS splat file")
-    tags = _tags(ply.comments)
+    tags = _tags(ply)
     dc_names = sorted((k for k in names if re.fullmatch(r"f_dc_\d+", k)), key=lambda s: int(s[5:]))
     rest_names = sorted(
         (k for k in names if re.fullmatch(r"f_rest_\d+", k)), key=lambda s: int(s[7:])
@@ -171,12 +174,13 @@ def load_ply(path: str | Path) -> GaussianModel:
                 f"{path}: comment 'spikegs background {tags['background']}': expected "
                 f"{channels} finite numbers"
             )
-    else:  # another tool's file, or ours re-saved by one: 3DGS's black (3.3 dB lost unsaid)
+    else:  # another tool's file, or ours re-saved by one: 3DGS's black (dB lost unsaid)
         background = torch.zeros(channels)
         warnings.warn(
             f"{path}: no 'spikegs background' comment (another tool's file, or re-saved by one): "
             f"rendered over black; add 'comment spikegs background V' (a value per channel, as "
-            f"the run's own scene.ply has it) after 'format' to restore a trained background",
+            f"the run's own scene.ply has it) after 'element vertex N' to restore a trained "
+            f"background",
             stacklevel=2,
         )
     rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params.values()]  # [N, *]
@@ -212,4 +216,4 @@ def load_ply(path: str | Path) -> GaussianModel:
 def declares_channels(path: str | Path) -> bool:
     """Whether a .ply states its channel count (`comment spikegs channels N`, which save_ply writes
     and another tool's re-save drops)."""
-    return "channels" in _tags(read_vertices(path).comments)
+    return "channels" in _tags(read_vertices(path))
