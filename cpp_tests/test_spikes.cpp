@@ -95,6 +95,12 @@ TEST_CASE(bad_shapes_refused) {
   CHECK(!throws_invalid([&] { PackedStream::over(bytes.data(), 100, l); }));
   CHECK(throws_invalid([&] { SpikeLayout::dat(4, 8, true, 6); }), "raw row narrower than image");
   CHECK(throws_invalid([&] { SpikeLayout::memory(0, 8); }));
+  // sizes whose arithmetic passed int64 (undefined; wrapped into a negative row that validate's
+  // own check, overflowing too, let through)
+  const int64_t max = std::numeric_limits<int64_t>::max();
+  for (int64_t width : {max, max - 6})
+    CHECK(throws_invalid([&] { SpikeLayout::memory(1, width); }), "width ", width);
+  CHECK(throws_invalid([&] { SpikeLayout::dat(1, 8, false, -max); }), "a negative raw row");
   const PackedStream s = PackedStream::over(bytes.data(), 100, l);  // 25 readouts
   std::vector<int32_t> out(32);
   for (int64_t start : {-1, 23}) {
@@ -236,6 +242,9 @@ TEST_CASE(simulator_refuses_bad_input) {
     infinite.*field = inf;
     CHECK(throws_invalid([&] { SpikeSimulator(2, 2, infinite, 0); }), "an infinite parameter");
   }
+  // height x width past int64 (undefined: an optimised build wrote into an empty simulator)
+  CHECK(throws_invalid([&] { SpikeSimulator(int64_t(1) << 32, int64_t(1) << 32, SimParams{}, 0); }),
+        "2^64 pixels");
   SpikeSimulator sim(2, 2, SimParams{}, 0);
   const std::vector<float> frames(8, 0.5f);
   const std::vector<double> short_times = {0.0, 5.0}, unsorted = {3.0, 1.0};

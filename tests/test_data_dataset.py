@@ -683,6 +683,20 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
         check_meta_values({**meta, "cx": 1200.0}, tmp_path / "meta.json", ["cx"])
 
 
+@pytest.mark.parametrize(
+    "key, value, message",
+    [  # an int past a float's range (JSON reads 309 digits as one): an OverflowError
+        ("fx", 10**400, "fx expected a finite number > 0"),
+        ("width", 10**400, "width expected an integer > 0 and at most 1048576"),  # passed
+        ("height", 2**20 + 1, "height expected an integer > 0 and at most 1048576"),
+    ],
+)
+def test_meta_values_out_of_range_are_named(tmp_path, key, value, message):
+    meta = {"width": 64, "height": 48, "fx": 40.0, key: value}
+    with pytest.raises(ValueError, match=message):
+        check_meta_values(meta, tmp_path / "meta.json", ["height", "width", "fx"])
+
+
 # a dataset written by hand (no simulation): readouts, rows, columns
 T, H, W = 100, 6, 8
 

@@ -310,6 +310,9 @@ def test_core_kernels_refuse_float_indices():
                 kernel(data, layout, bad, 3)
         for good in (np.array([2], np.int32), np.array([2], np.uint16), [2]):
             assert kernel(data, layout, good, 3).shape == (1, 2, 8)
+        # uint64 past int64 was cast to a negative readout, which the error then named
+        with pytest.raises(ValueError, match="below 2\\^63, found 18446744073709551615"):
+            kernel(data, layout, np.array([2**64 - 1], np.uint64), 3)
 
 
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):

@@ -1052,6 +1052,8 @@ def test_every_method_config_loads():
         ("spikegs", {"supervision": {"exposure_weight": float("inf")}}, "exposure_weight"),
         ("spikegs", {"supervision": {"dssim_weight": float("nan")}}, "dssim_weight.*finite"),
         ("spikegs", {"lr": {"means": float("inf")}}, "lr.means.*finite"),
+        # an int past a float's range (309 digits in YAML): an OverflowError
+        ("spikegs", {"lr": {"means": 10**400}}, "lr.means' = a 401-digit integer, beyond"),
         ("spikegs", {"lr": {"background": float("inf")}}, "lr.background"),
         ("spikegs", {"densify": {"grad_threshold": float("inf")}}, "densify.grad_threshold"),
         # 0 cloned or split every Gaussian each round (the CLI's --grad-threshold refused it)
@@ -2251,6 +2253,12 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
             (tmp_path / "run" / "config.yaml").write_text(lost)
         assert main([*argv, "--resume"]) == 2
         assert "config.yaml is missing or empty" in capsys.readouterr().err
+    # a section emptied (`supervision:`, null in YAML) or not a section: named, not a TypeError
+    # from the keys added since the run was saved
+    for section in ("", " 3"):
+        (tmp_path / "run" / "config.yaml").write_text(f"base: tfp33\nsupervision:{section}\n")
+        assert main([*argv, "--resume"]) == 2
+        assert "'supervision' must be a section" in capsys.readouterr().err
     # no RUN at all (a mistyped path): said; the default method does not stand in for its settings
     argv[argv.index("--out") + 1] = str(tmp_path / "stopped_at_once")
     assert main([*argv, "--resume"]) == 2

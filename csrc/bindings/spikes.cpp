@@ -3,6 +3,7 @@
 #include <pybind11/pybind11.h>
 
 #include <algorithm>
+#include <limits>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
@@ -46,6 +47,14 @@ py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py:
   if (kind != 'i' && kind != 'u')
     throw py::type_error(std::string(what) + " expected integers, found dtype " +
                          std::string(py::str(indices.dtype())));
+  if (kind == 'u' && indices.itemsize() == 8) {  // past int64: the cast below wrapped them
+    using Unsigned = py::array_t<uint64_t, py::array::c_style | py::array::forcecast>;
+    const Unsigned u = Unsigned::ensure(indices);
+    for (py::ssize_t i = 0; i < u.size(); ++i)
+      if (u.data()[i] > uint64_t(std::numeric_limits<int64_t>::max()))
+        throw std::invalid_argument(std::string(what) + " expected below 2^63, found " +
+                                    std::to_string(u.data()[i]));
+  }
   const Indices idx = Indices::ensure(indices);
   if (idx.ndim() != 1)
     throw std::invalid_argument(std::string(what) + " expected 1-D, found shape " + shape_of(idx));

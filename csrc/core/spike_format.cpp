@@ -35,7 +35,8 @@ void SpikeLayout::validate() const {
   if (height < 1 || width < 1) fail("height and width expected >= 1, found ", height, "x", width);
   if (col_offset < 0) fail("column offset expected >= 0, found ", col_offset);
   // each comparison free of overflow: col_offset + width, or height * row_bits, may pass int64
-  if (col_offset > row_bits - width)
+  // (row_bits - width only once row_bits >= width >= 1)
+  if (row_bits < width || col_offset > row_bits - width)
     fail("stored rows of at least col_offset + width pixels expected (col_offset ", col_offset,
          ", width ", width, "), found ", row_bits);
   if (row_bits > (std::numeric_limits<int64_t>::max() - 7) / height)
@@ -43,6 +44,9 @@ void SpikeLayout::validate() const {
 }
 
 SpikeLayout SpikeLayout::memory(int64_t height, int64_t width) {
+  // rows padded to whole bytes: width + 7 wrapped past int64 (a negative row) within 7 of 2^63
+  if (width > std::numeric_limits<int64_t>::max() - 7)
+    fail("width expected below 2^63 - 7, found ", width);
   SpikeLayout l{height, width, 8 * ((width + 7) / 8), 0, false};
   l.validate();
   return l;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -47,6 +48,10 @@ SpikeSimulator::SpikeSimulator(int64_t height, int64_t width, const SimParams& p
                                uint64_t seed)
     : height_(height), width_(width), params_(params), key_(mix64(seed ^ kReadoutStream)) {
   if (height < 1 || width < 1) fail("height and width expected >= 1, found ", height, "x", width);
+  // the pixel count in int64: a product past 2^63 wrapped (undefined), and an optimised build
+  // wrote into an empty simulator
+  if (width > std::numeric_limits<int64_t>::max() / height)
+    fail("height x width expected below 2^63 pixels, found ", height, "x", width);
   params.validate();
   const int64_t hw = height * width;
   voltage_.resize(size_t(hw));

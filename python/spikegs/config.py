@@ -452,7 +452,12 @@ def _apply(target, overrides: dict, where: str) -> None:
             _apply(current, value, f"{where}{key}.")
             continue
         kind = type(current)
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        if kind is float and is_int(value):
+            if not is_number(value):  # float() raised OverflowError
+                raise ValueError(
+                    f"config: '{where}{key}' = a {len(str(abs(value)))}-digit integer, beyond a "
+                    f"float's range"
+                )
             value = float(value)
         if type(value) is not kind:
             got = type(value).__name__
@@ -620,10 +625,11 @@ def legacy_overrides(saved: dict | Path) -> dict:
     """The LEGACY_VALUES of the keys that a saved run config (a dict, or its YAML file) lacks."""
     if isinstance(saved, Path):
         saved = _read(saved, set(), saved_run=True)
-    return {
+    return {  # a section that is not one (null, a number) is left to load_config, which says so
         section: missing
         for section, values in LEGACY_VALUES.items()
-        if (missing := {k: v for k, v in values.items() if k not in saved.get(section, {})})
+        if isinstance(saved.get(section, {}), dict)
+        and (missing := {k: v for k, v in values.items() if k not in saved.get(section, {})})
     }
 
 

@@ -23,12 +23,14 @@ def is_seed(value) -> bool:
 
 
 def is_number(value) -> bool:
-    """Whether `value` is a finite real number (not a bool)."""
-    return (
-        isinstance(value, numbers.Real)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
+    """Whether `value` is a finite real number (not a bool) that a float holds (an int past
+    1.8e308, which JSON and YAML read from 309 digits, is not: float() raised OverflowError)."""
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
 
 
 def whole_numbers(**values) -> list[int]:

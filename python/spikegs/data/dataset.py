@@ -25,6 +25,7 @@ import numpy as np
 from ..atomic_save import target_name, write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
+from ..rasterize import MAX_SIZE
 from ..spikes import SpikeStream
 from ..strict_json import read_json
 from .trajectory import (
@@ -588,16 +589,23 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
     """ValueError naming `path` (meta.json) and the key unless each of `keys` (present in `meta`)
     holds a value of its type and range."""
 
-    def number(key: str, low: float = -np.inf, integer: bool = False) -> None:
+    def number(key: str, low: float = -np.inf, integer: bool = False, high=None) -> None:
         value = meta[key]
-        if not ((is_int if integer else is_number)(value) and value > low):
+        if not (
+            (is_int if integer else is_number)(value)
+            and value > low
+            and (high is None or value <= high)
+        ):
             what = ("an integer" if integer else "a finite number") + (
                 f" > {low}" if low > -np.inf else ""
             )
+            what += "" if high is None else f" and at most {high}"
             raise ValueError(f"{path}: {key} expected {what}, found {value!r}")
 
     for key in keys:
-        if key in ("height", "width", "num_readouts"):
+        if key in ("height", "width"):
+            number(key, 0, integer=True, high=MAX_SIZE)  # the rasterizer's
+        elif key == "num_readouts":
             number(key, 0, integer=True)
         elif key == "channels" and (meta[key] not in (1, 3) or isinstance(meta[key], bool)):
             raise ValueError(f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta[key]!r}")
