@@ -362,7 +362,7 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
     cases = [
         ({"flip": None}, r"missing keys \['flip'\]"),
-        ({"height": "128"}, "meta.json: height expected an integer > 0 and at most 1048576, found '128'"),
+        ({"height": "128"}, "meta.json: height expected an integer > 0 .*, found '128'"),
         ({"height": 0}, "meta.json: height expected an integer > 0 and at most 1048576, found 0"),
         ({"flip": "false"}, "meta.json: flip expected true or false, found 'false'"),  # as train
         (

@@ -3,17 +3,38 @@ one."""
 
 from __future__ import annotations
 
+import contextlib
 import glob
+import hashlib
 import os
 import re
 from collections.abc import Callable
 from pathlib import Path
 
+NAME_MAX = 255  # bytes in a file name (Linux's and macOS's file systems)
+STEM_MAX = 200  # bytes of a name that a temporary's name holds: room for a writer and .tmp
+
+
+def short_name(name: str, limit: int) -> str:
+    """`name` where it fits in `limit` bytes (UTF-8), else its first whole characters and a hash
+    of all of it (`~` and 12 hex digits), `limit` bytes at most: distinct names stay distinct."""
+    raw = os.fsencode(name)
+    if len(raw) <= limit:
+        return name
+    digest = hashlib.sha1(raw).hexdigest()[:12]
+    return raw[: limit - 13].decode("utf-8", "ignore") + "~" + digest
+
 
 def temporary_name(path: Path, writer: str) -> str:
     """The name of writer `writer`'s temporary file beside `path`: hidden, ending .tmp (a
-    process id for `write_atomically`, a random one for a streaming DatWriter)."""
-    return f".{path.name}.{writer}.tmp"
+    process id for `write_atomically`, a random one for a streaming DatWriter); a name past
+    STEM_MAX bytes shortened (a 246-byte video's temporary passed NAME_MAX, and its write
+    failed after the rendering)."""
+    return _temporary(short_name(path.name, STEM_MAX), writer)
+
+
+def _temporary(stem: str, writer: str) -> str:
+    return f".{stem}.{writer}.tmp"
 
 
 _TEMPORARY = re.compile(r"^\..+\.([^.]+)\.tmp$")  # `temporary_name`'s
@@ -27,7 +48,7 @@ def is_temporary(name: str) -> bool:
 
 def target_name(name: str) -> str:
     """The name of the file that a temporary file of ours is written for (`.NAME.WRITER.tmp`:
-    NAME); any other name as it is."""
+    NAME, shortened where it is long); any other name as it is."""
     match = _TEMPORARY.match(name)
     return name[1 : match.start(1) - 1] if match else name
 
@@ -66,7 +87,7 @@ def sweep_killed_writes(path: Path) -> None:
     its target, for a symbolic link); call it where no other process can be writing `path` (under
     the lock that its writers hold)."""
     path = written_path(path)
-    for stale in path.parent.glob(temporary_name(Path(glob.escape(path.name)), "*")):
+    for stale in path.parent.glob(_temporary(glob.escape(short_name(path.name, STEM_MAX)), "*")):
         stale.unlink(missing_ok=True)
 
 
@@ -95,8 +116,9 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
         tmp.replace(path)
     except OSError as err:  # named by the file asked for, not the hidden temporary one
         raise naming(err, path, tmp)  # noqa: B904 (its cause set, where it is another)
-    finally:
-        tmp.unlink(missing_ok=True)
+    finally:  # (an error of its own would replace the write's)
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
 
 
 def write_text_atomically(path: Path, text: str) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from . import strict_json
-from .atomic_save import write_text_atomically
+from .atomic_save import STEM_MAX, short_name, write_text_atomically
 from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
@@ -78,7 +78,8 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
     elif known and same and not _holds_run_data(Path(own), train["data"], scale):  # moved
         return EVAL
     for i in itertools.count(1):
-        name = f"{EVAL}-{root.name}" + (f"-{i}" if i > 1 else "")
+        # (a long dataset name shortened: eval-NAME.json past NAME_MAX failed after the scoring)
+        name = f"{EVAL}-{short_name(root.name, STEM_MAX)}" + (f"-{i}" if i > 1 else "")
         if _scored_dataset(run_dir / f"{name}.json") in (None, str(root)):
             return name
 

@@ -41,6 +41,20 @@ def _reason(error: str) -> str:
     return error.strip() or "OpenImageIO gave no reason (a truncated file, or no permission?)"
 
 
+def _name(path: str | Path) -> str:
+    """`path` as OpenImageIO takes it; ValueError naming it where it is not UTF-8 (a Latin-1
+    folder's name, read through os.fsdecode's surrogate escapes: the binding raised TypeError)."""
+    name = str(path)
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError(
+            f"{name}: not a UTF-8 file name, which OpenImageIO cannot open; rename it (or its "
+            f"folder)"
+        ) from None
+    return name
+
+
 def write_image(path: str | Path, image: np.ndarray) -> None:
     """Write linear float `image` [H, W] or [H, W, C]: EXR/TIFF as they are; PNG/JPEG, which
     OpenImageIO tags as sRGB, sRGB-encoded (clipped to [0, 1]) and quantised to 8 bits, so that
@@ -55,8 +69,8 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         spec.set_format(oiio.UINT8)
 
     def write(tmp: Path) -> None:  # the format is `path`'s: the temporary name has no suffix
-        out = oiio.ImageOutput.create(str(path))
-        if out is None or not out.open(str(tmp), spec):
+        out = oiio.ImageOutput.create(_name(path))
+        if out is None or not out.open(_name(tmp), spec):
             raise OSError(f"cannot write {path}: {_reason(oiio.geterror())}")
         try:
             ok = out.write_image(np.ascontiguousarray(image))
@@ -67,7 +81,7 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
         # on a full disk PNG's writer returned True from every call (an empty temporary then
         # replaced the image; its has_error, set there, is also set by a TIFF's harmless Exif
         # notice): what was written must read back whole
-        check = oiio.ImageInput.open(str(tmp))
+        check = oiio.ImageInput.open(_name(tmp))
         whole = check is not None and check.read_image() is not None
         if check is not None:
             check.close()
@@ -95,7 +109,7 @@ def _read(path: str | Path, unassociated_alpha: bool) -> tuple[np.ndarray, oiio.
     """Pixels [H, W, C] float32 and spec of an image file; see `read_image` for the errors."""
     config = oiio.ImageSpec()
     config.attribute("oiio:UnassociatedAlpha", int(unassociated_alpha))
-    inp = oiio.ImageInput.open(str(path), config)
+    inp = oiio.ImageInput.open(_name(path), config)
     if inp is None:
         missing = not Path(path).is_file()
         raise (FileNotFoundError if missing else ValueError)(

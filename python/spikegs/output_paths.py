@@ -22,10 +22,17 @@ def writable_folder(folder: Path) -> bool:
         return False
 
 
-def _check_no_file_on_path(path: Path, flag: str) -> None:
-    """ValueError where a folder on `path`'s way is a file."""
-    if any(parent.exists() and not parent.is_dir() for parent in path.parents):
-        raise ValueError(f"{flag} {path}: a folder on its path is a file")
+def _check_no_file_on_path(path: Path, flag: str, folders) -> None:
+    """ValueError where one of `folders` on `path`'s way is a file, or a symbolic link to
+    nothing (a scratch disk's folder not made yet: 'File exists' once the work was done)."""
+    for folder in folders:
+        if folder.is_symlink() and not folder.exists():
+            raise ValueError(
+                f"{flag} {path}: {folder} is a symbolic link to {os.readlink(folder)}, which does "
+                f"not exist; make that folder first"
+            )
+        if folder.exists() and not folder.is_dir():
+            raise ValueError(f"{flag} {path}: a folder on its path is a file")
 
 
 def check_file_output(path: Path, flag: str = "--out") -> None:
@@ -34,17 +41,25 @@ def check_file_output(path: Path, flag: str = "--out") -> None:
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{flag} {path}: is a directory; give a file name")
-    _check_no_file_on_path(path, flag)
+    _check_no_file_on_path(path, flag, path.parents)
     if not writable_folder(path.parent):
         raise ValueError(f"{flag} {path}: its folder is not writable")
 
 
 def check_folder_output(folder: Path, flag: str = "--out") -> None:
     """ValueError unless files can be written into `folder` (made where missing): not a file,
-    no file on its path, its nearest existing ancestor writable."""
+    no file or link to nothing on its path, its nearest existing ancestor writable, its name
+    UTF-8."""
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{flag} {folder}: is a file; give a folder")
-    _check_no_file_on_path(folder, flag)
+    _check_no_file_on_path(folder, flag, [folder, *folder.parents])
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")
+    try:  # a Latin-1 folder name, read through the surrogate escapes of os.fsdecode
+        str(folder.absolute()).encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError(
+            f"{flag} {folder}: not a UTF-8 name, which OpenImageIO (spikegs's image files) "
+            f"cannot open; rename it"
+        ) from None

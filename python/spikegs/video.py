@@ -22,6 +22,8 @@ def check_video_output(path: Path, fps: int) -> None:
     """ValueError, before any rendering, unless `path` can take a video at `fps`: a .gif (at most
     GIF_MAX_FPS) or an .mp4, not an existing directory."""
     suffix = path.suffix.lower()
+    if path.name.lower() in (".gif", ".mp4"):  # (a hidden file's name, whose suffix is none)
+        raise ValueError(f"--out: '{path.name}' names no file before its suffix: NAME{path.name}")
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"--out: expected a .gif or .mp4 file, got '{path.name}'")
     check_file_output(path)
@@ -73,7 +75,8 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
     codec = mp4_codec()
 
     def write(tmp: Path) -> None:
-        with av.open(str(tmp), "w", format="mp4") as container:
+        # absolute: FFmpeg read a relative '2024-05-01T10:30.mp4' as the protocol '2024-05-01T10'
+        with av.open(str(tmp.absolute()), "w", format="mp4") as container:
             stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
             stream.height, stream.width = frames.shape[1:3]
             stream.pix_fmt = "yuv420p"

@@ -87,16 +87,15 @@ def peak_in_this_process(n: int, width: int, height: int, channels: int) -> floa
 
 def _peak_rss_mb(n: int, width: int, height: int, channels: int) -> float:
     """`peak_in_this_process` run in a fresh Python process; NaN where /proc cannot do it."""
+    # this package, first on the child's path (through PYTHONPATH, a folder holding ':' split in
+    # two, and the child imported another install's spikegs without a word)
+    package_root = str(Path(__file__).resolve().parents[2])
     code = (
+        f"import sys; sys.path.insert(0, {package_root!r}); "
         "from spikegs.bench.rasterizer import peak_in_this_process as f; "
         f"print(f({n}, {width}, {height}, {channels}))"
     )
-    package_root = str(Path(__file__).resolve().parents[2])
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([package_root, os.environ.get("PYTHONPATH", "")]),
-    }
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     try:
         return float(done.stdout.split()[-1])
     except (IndexError, ValueError):

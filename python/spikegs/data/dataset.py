@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import json
+import os
 import shlex
 import shutil
 import warnings
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic_save import target_name, write_text_atomically
+from ..atomic_save import NAME_MAX, target_name, write_text_atomically
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
@@ -260,7 +261,14 @@ def prepare_output(out: PathLike, overwrite: bool) -> Path:
     directory (caches derived from the old spikes included)."""
     out = check_output(out, overwrite)
     if out.is_dir() and holds_dataset(out):
-        shutil.rmtree(out)
+        if out.is_symlink():  # (a dataset on another disk) its target emptied, the link kept:
+            for entry in out.iterdir():  # rmtree refuses a link
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink()
+        else:
+            shutil.rmtree(out)
     out.mkdir(parents=True, exist_ok=True)
     return out
 
@@ -364,9 +372,17 @@ def repeated(names) -> list[str]:
     return sorted(name for name, count in collections.Counter(names).items() if count > 1)
 
 
+VIEW_NAME_MAX = NAME_MAX - len(".png")  # bytes (UTF-8)
+
+
 def is_view_name(name) -> bool:
     """Whether `name` can name a test view: a file name (RUN/eval/NAME.png), not a path."""
-    return isinstance(name, str) and name not in ("", ".", "..") and not {"/", "\\"} & set(name)
+    return (
+        isinstance(name, str)
+        and name not in ("", ".", "..")
+        and not {"/", "\\"} & set(name)
+        and len(os.fsencode(name)) <= VIEW_NAME_MAX
+    )
 
 
 def check_test_views(views: list[TestView], where) -> None:
@@ -378,7 +394,8 @@ def check_test_views(views: list[TestView], where) -> None:
     for view in views:  # a name names the view's files: RUN/eval/NAME.png
         if not is_view_name(view.name):
             raise ValueError(
-                f"{where}: test view name {view.name!r} expected a file name (no / or \\)"
+                f"{where}: test view name {view.name!r} expected a file name (no / or \\, at "
+                f"most {VIEW_NAME_MAX} bytes)"
             )
     twice = repeated(v.name for v in views)
     if twice:

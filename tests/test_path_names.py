@@ -1,0 +1,103 @@
+"""File and folder names that researchers have (a paths audit): long names, a colon, non-UTF-8
+names, symbolic links to other disks or to nothing."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from spikegs.atomic_save import (
+    NAME_MAX,
+    short_name,
+    sweep_killed_writes,
+    temporary_name,
+    write_text_atomically,
+)
+from spikegs.data.dataset import is_view_name, prepare_output
+from spikegs.image_io import read_image, write_image
+from spikegs.output_paths import check_file_output, check_folder_output
+from spikegs.video import can_encode, check_video_output, write_video
+
+LINUX = pytest.mark.skipif(sys.platform != "linux", reason="names as bytes: Linux file systems")
+
+
+def test_names_up_to_name_max_are_written(tmp_path):
+    """A 246-byte video or view image failed after the work: its temporary (`.NAME.PID.tmp`)
+    passed NAME_MAX, and the failed clean-up's own error named that hidden file."""
+    text = tmp_path / ("é" * 127)  # 254 bytes: a character cut in two would not be UTF-8
+    write_text_atomically(text, "scores")
+    assert text.read_text() == "scores" and os.listdir(tmp_path) == [text.name]
+    image = tmp_path / ("v" * (NAME_MAX - 4) + ".png")
+    write_image(image, np.full((4, 4), 0.5, np.float32))
+    assert read_image(image).shape[:2] == (4, 4)
+    # a killed writer's temporary of a long name is swept as a short one's is
+    stale = tmp_path / temporary_name(text, "12345")
+    stale.write_text("torn")
+    sweep_killed_writes(text)
+    assert not stale.exists() and text.exists()
+
+
+@pytest.mark.parametrize("limit", [40, 200])
+def test_short_names_fit_and_stay_distinct(limit):
+    names = ["é" * 150 + "a", "é" * 150 + "b", "x" * 39]
+    shortened = [short_name(n, limit) for n in names]
+    assert all(len(os.fsencode(s)) <= limit for s in shortened)
+    assert len(set(shortened)) == 3 and shortened[2] == names[2]  # one that fits: as it is
+    assert all(s.encode("utf-8") for s in shortened)  # whole characters
+
+
+def test_view_names_fit_their_image():
+    assert is_view_name("a" * (NAME_MAX - 4)) and not is_view_name("a" * (NAME_MAX - 3))
+
+
+@pytest.mark.skipif(not can_encode("mpeg4"), reason="PyAV without an MP4 encoder")
+def test_an_mp4_named_with_a_colon(tmp_path, monkeypatch):
+    """FFmpeg took the relative '2024-05-01T10:30.mp4' for the protocol '2024-05-01T10' (a
+    traceback, after the rendering)."""
+    monkeypatch.chdir(tmp_path)
+    write_video(Path("2024-05-01T10:30.mp4"), np.zeros((2, 16, 16, 3), np.uint8), 10)
+    assert (tmp_path / "2024-05-01T10:30.mp4").stat().st_size > 0
+
+
+def test_a_video_named_by_its_suffix_alone_is_refused_as_such(tmp_path):
+    with pytest.raises(ValueError, match="'.mp4' names no file before its suffix"):
+        check_video_output(tmp_path / ".mp4", 10)
+
+
+@LINUX
+def test_a_non_utf8_folder_is_refused_by_name(tmp_path):
+    """OpenImageIO takes UTF-8 names only: a Latin-1 folder (café) was a TypeError traceback
+    from its binding, after a simulation had written its spikes."""
+    latin = tmp_path / os.fsdecode(b"caf\xe9")
+    with pytest.raises(ValueError, match="not a UTF-8 name"):
+        check_folder_output(latin)
+    latin.mkdir()
+    with pytest.raises(ValueError, match="not a UTF-8 file name"):
+        write_image(latin / "v.png", np.zeros((2, 2), np.float32))
+    with pytest.raises(ValueError, match="not a UTF-8 file name"):
+        read_image(latin / "v.png")
+
+
+def test_a_link_to_a_missing_folder_is_named(tmp_path):
+    """An output that is a symbolic link to a scratch disk's folder not made yet failed with
+    '[Errno 17] File exists', after rendering for a video."""
+    link = tmp_path / "scratch"
+    link.symlink_to(tmp_path / "not_yet")
+    for check, path in ((check_folder_output, link), (check_file_output, link / "o.mp4")):
+        with pytest.raises(ValueError, match="scratch is a symbolic link to .*not_yet, which"):
+            check(path)
+
+
+def test_a_dataset_replaced_through_a_link(tmp_path):
+    """`spikegs simulate --out LINK --overwrite`, LINK a dataset on another disk: rmtree refused
+    the link ('Cannot call rmtree on a symbolic link'); the target is emptied, the link kept."""
+    target = tmp_path / "disk" / "data"
+    (target / "test").mkdir(parents=True)
+    (target / "meta.json").write_text("{}")
+    link = tmp_path / "data"
+    link.symlink_to(target)
+    assert prepare_output(link, overwrite=True) == link
+    assert link.is_symlink() and target.is_dir() and not any(target.iterdir())
