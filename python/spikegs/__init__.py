@@ -2,6 +2,8 @@
 
 import os
 
+from . import thread_count  # a CPU quota's threads in OMP_NUM_THREADS, before torch loads
+
 # torch and spikegs._C may each bring an OpenMP runtime (a torch wheel whose libgomp has another
 # name; torch 2.13's CPU wheel and _C share one libgomp.so.1); threads of one spinning after a
 # parallel region starve the other on a small machine (fwd+bwd 2.6x slower measured on 2 cores).
@@ -26,6 +28,7 @@ def _one_thread_after_fork() -> None:
 
 
 os.register_at_fork(after_in_child=_one_thread_after_fork)
+thread_count.set_loaded_threads(torch, _C)
 
 __all__ = [
     "RasterizeResult",

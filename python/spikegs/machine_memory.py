@@ -6,6 +6,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .cgroup_files import MEMBERSHIP, ROOT, cgroup_files
+
 
 def machine_memory() -> int:
     """Bytes of memory this process may use: the machine's physical memory, or its cgroup's
@@ -18,32 +20,12 @@ def machine_memory() -> int:
     return total if limit is None else min(total, limit)
 
 
-def cgroup_limit(
-    membership: Path = Path("/proc/self/cgroup"), root: Path = Path("/sys/fs/cgroup")
-) -> int | None:
-    """The lowest memory limit over this process's cgroup and its ancestors (v2 `memory.max`
-    under `root`, v1 `memory.limit_in_bytes` under `root`/memory), as `membership` lists the
-    groups; None where none is set ("max") or none can be read."""
-    try:
-        lines = membership.read_text().splitlines()
-    except OSError:
-        return None
-    files = []
-    for line in lines:
-        fields = line.split(":", 2)  # hierarchy-ID:controllers:path
-        if len(fields) != 3:
-            continue
-        _, controllers, group = fields
-        if controllers == "":  # the v2 hierarchy
-            base, name = root, "memory.max"
-        elif "memory" in controllers.split(","):
-            base, name = root / "memory", "memory.limit_in_bytes"
-        else:
-            continue
-        parts = [p for p in group.split("/") if p]
-        files += [base.joinpath(*parts[:n], name) for n in range(len(parts), -1, -1)]
+def cgroup_limit(membership: Path = MEMBERSHIP, root: Path = ROOT) -> int | None:
+    """The lowest memory limit over this process's cgroup and its ancestors (v2 `memory.max`,
+    v1 `memory.limit_in_bytes`; `cgroup_files`); None where none is set ("max") or none can be
+    read."""
     limits = []
-    for path in files:
+    for path in cgroup_files("memory", "memory.limit_in_bytes", "memory.max", membership, root):
         try:
             text = path.read_text().strip()
         except OSError:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import platform
 import statistics
 import time
@@ -11,6 +10,7 @@ from typing import Any, Callable
 
 from .. import strict_json
 from ..atomic_save import write_text_atomically
+from ..cpu_quota import cpu_quota, usable_cpus
 
 
 def uniform(gen, lo: float, hi: float, *shape: int):
@@ -36,9 +36,8 @@ def machine_info() -> dict[str, Any]:
         pass
     return {
         "cpu": cpu,
-        "cores": len(os.sched_getaffinity(0))
-        if hasattr(os, "sched_getaffinity")
-        else os.cpu_count(),
+        "cores": usable_cpus(),
+        "cpu_quota": cpu_quota(),  # CPUs' worth of time (a container's --cpus), or None
         "torch_threads": torch.get_num_threads(),
         "python": platform.python_version(),
         "torch": torch.__version__,

@@ -1,0 +1,74 @@
+"""cpu_quota.py and thread_count.py: a container's CPU quota (cgroup v1 and v2, its own or an
+ancestor's) chooses the threads OpenMP and torch start with, unless the user chose."""
+
+import types
+
+from spikegs import cpu_quota, thread_count
+from spikegs.cpu_quota import cpu_quota as quota_of
+from spikegs.cpu_quota import quota_threads
+from spikegs.thread_count import default_threads, set_loaded_threads
+
+
+def _file(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def test_the_lowest_quota_of_the_group_and_its_ancestors(tmp_path):
+    """v2: `cpu.max` "QUOTA PERIOD" ("max" for none), a pod's limit on its parent; v1: the cpu
+    controller's cfs_quota_us (-1 for none) over cfs_period_us."""
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    _file(membership, "0::/kubepods/pod_7/ctr\n")
+    _file(root / "kubepods/pod_7/ctr/cpu.max", "max 100000\n")
+    _file(root / "kubepods/pod_7/cpu.max", "150000 100000\n")
+    _file(root / "kubepods/cpu.max", "800000 100000\n")
+    assert quota_of(membership, root) == 1.5
+    _file(membership, "4:cpu,cpuacct:/docker/abc\n3:memory:/\n0::/\n")
+    _file(root / "cpu/docker/abc/cpu.cfs_quota_us", "50000\n")
+    _file(root / "cpu/docker/abc/cpu.cfs_period_us", "100000\n")
+    _file(root / "cpu/cpu.cfs_quota_us", "-1\n")
+    _file(root / "cpu/cpu.cfs_period_us", "100000\n")
+    assert quota_of(membership, root) == 0.5
+    _file(root / "cpu/docker/abc/cpu.cfs_quota_us", "-1\n")
+    assert quota_of(membership, root) is None
+    assert quota_of(tmp_path / "none", root) is None  # no /proc/self/cgroup
+
+
+def test_threads_round_the_quota_up_below_the_usable_cpus(tmp_path, monkeypatch):
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    _file(membership, "0::/job\n")
+    monkeypatch.setattr(cpu_quota, "usable_cpus", lambda: 64)
+    for quota, threads in ((50000, 1), (150000, 2), (200000, 2), (6400000, None), (9e6, None)):
+        _file(root / "job/cpu.max", f"{int(quota)} 100000\n")
+        assert quota_threads(membership, root) == threads, quota
+    _file(root / "job/cpu.max", "max 100000\n")
+    assert quota_threads(membership, root) is None
+
+
+def test_the_users_thread_count_stands():
+    environ = {}
+    assert default_threads(environ, 2) == 2 and environ == {"OMP_NUM_THREADS": "2"}
+    environ = {"OMP_NUM_THREADS": "8"}
+    assert default_threads(environ, 2) is None and environ == {"OMP_NUM_THREADS": "8"}
+    assert default_threads({}, None) is None
+
+
+def test_torch_loaded_first_takes_the_quotas_count(monkeypatch):
+    """A script that imported torch before spikegs: torch counted its threads already (one a
+    CPU); unless the user set a count, the quota's is set in torch and in the core."""
+    calls = []
+    fake_torch = types.SimpleNamespace(
+        get_num_threads=lambda: 64, set_num_threads=lambda n: calls.append(("torch", n))
+    )
+    core = types.SimpleNamespace(set_max_threads=lambda n: calls.append(("core", n)))
+    monkeypatch.setattr(thread_count, "usable_cpus", lambda: 64)
+    monkeypatch.setattr(thread_count, "QUOTA_THREADS", 2)
+    monkeypatch.setattr(thread_count, "TORCH_FIRST", False)
+    set_loaded_threads(fake_torch, core)
+    assert calls == []  # loaded after: OMP_NUM_THREADS did it
+    monkeypatch.setattr(thread_count, "TORCH_FIRST", True)
+    set_loaded_threads(fake_torch, core)
+    assert calls == [("torch", 2), ("core", 2)]
+    fake_torch.get_num_threads = lambda: 3  # the user's own count
+    set_loaded_threads(fake_torch, core)
+    assert len(calls) == 2
