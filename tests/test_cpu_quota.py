@@ -24,12 +24,13 @@ def test_the_lowest_quota_of_the_group_and_its_ancestors(tmp_path):
     _file(root / "kubepods/cpu.max", "800000 100000\n")
     assert quota_of(membership, root) == 1.5
     _file(membership, "4:cpu,cpuacct:/docker/abc\n3:memory:/\n0::/\n")
-    _file(root / "cpu/docker/abc/cpu.cfs_quota_us", "50000\n")
-    _file(root / "cpu/docker/abc/cpu.cfs_period_us", "100000\n")
-    _file(root / "cpu/cpu.cfs_quota_us", "-1\n")
-    _file(root / "cpu/cpu.cfs_period_us", "100000\n")
+    v1 = root / "cpu,cpuacct"  # mounted by its controllers' names
+    _file(v1 / "docker/abc/cpu.cfs_quota_us", "25000\n")
+    _file(v1 / "docker/abc/cpu.cfs_period_us", "50000\n")
+    _file(v1 / "cpu.cfs_quota_us", "-1\n")
+    _file(v1 / "cpu.cfs_period_us", "100000\n")
     assert quota_of(membership, root) == 0.5
-    _file(root / "cpu/docker/abc/cpu.cfs_quota_us", "-1\n")
+    _file(v1 / "docker/abc/cpu.cfs_quota_us", "-1\n")
     assert quota_of(membership, root) is None
     assert quota_of(tmp_path / "none", root) is None  # no /proc/self/cgroup
 

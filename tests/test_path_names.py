@@ -3,9 +3,11 @@ names, symbolic links to other disks or to nothing."""
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,9 +16,11 @@ from spikegs.atomic_save import (
     short_name,
     sweep_killed_writes,
     temporary_name,
+    write_atomically,
     write_text_atomically,
 )
 from spikegs.data.dataset import is_view_name, prepare_output
+from spikegs.evaluate import _eval_name
 from spikegs.image_io import read_image, write_image
 from spikegs.output_paths import check_file_output, check_folder_output
 from spikegs.video import can_encode, check_video_output, write_video
@@ -49,6 +53,31 @@ def test_short_names_fit_and_stay_distinct(limit):
     assert all(s.encode("utf-8") for s in shortened)  # whole characters
 
 
+def test_a_failed_clean_up_keeps_the_writes_error(tmp_path, monkeypatch):
+    """The temporary's removal failing too (its name too long, a folder gone) replaced the
+    write's error, named by the file asked for, with its own, naming the hidden temporary."""
+
+    def refused(self, missing_ok=False):
+        raise OSError(errno.ENAMETOOLONG, "File name too long", str(self))
+
+    def full(tmp):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(Path, "unlink", refused)
+    with pytest.raises(OSError, match="No space left on device: '.*scores.json'") as err:
+        write_atomically(tmp_path / "scores.json", full)
+    assert err.value.errno == errno.ENOSPC
+
+
+def test_another_datasets_scores_fit_a_file_name(tmp_path):
+    """`spikegs eval RUN --dataset D`, D's name 250 bytes: eval-D.json passed NAME_MAX and
+    failed after the scoring."""
+    dataset = SimpleNamespace(root=tmp_path / ("d" * 250))
+    train = {"dataset": str(tmp_path / "own"), "intensity_scale": 1.0}  # its train.json
+    name = _eval_name(tmp_path / "run", train, dataset)
+    assert name.startswith("eval-ddd") and len(os.fsencode(f"{name}-99.json")) <= NAME_MAX
+
+
 def test_view_names_fit_their_image():
     assert is_view_name("a" * (NAME_MAX - 4)) and not is_view_name("a" * (NAME_MAX - 3))
 
@@ -73,7 +102,8 @@ def test_a_non_utf8_folder_is_refused_by_name(tmp_path):
     from its binding, after a simulation had written its spikes."""
     latin = tmp_path / os.fsdecode(b"caf\xe9")
     with pytest.raises(ValueError, match="not a UTF-8 name"):
-        check_folder_output(latin)
+        check_folder_output(latin, images=True)
+    check_folder_output(latin)  # a run folder: training writes no OpenImageIO file
     latin.mkdir()
     with pytest.raises(ValueError, match="not a UTF-8 file name"):
         write_image(latin / "v.png", np.zeros((2, 2), np.float32))

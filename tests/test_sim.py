@@ -19,6 +19,7 @@ from skimage.metrics import structural_similarity
 from spikegs import sim_train
 from spikegs.data_fingerprint import spikes_fingerprint
 from spikegs.file_lock import exclusive_lock
+from spikegs.interrupt import Terminated, raise_terminated
 from spikegs.metrics import psnr, ssim, ssim_3dgs
 from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
@@ -402,12 +403,37 @@ class _SigInt(_CtrlC):
     """`stream`, whose `at`-th training window sends this process a SIGINT (a Ctrl-C in the
     middle of a step)."""
 
+    signum = signal.SIGINT
+
     def window(self, k, w: int) -> np.ndarray:
         if w > 1:
             self.calls += 1
             if self.calls == self.at:
-                os.kill(os.getpid(), signal.SIGINT)
+                os.kill(os.getpid(), self.signum)
         return self.stream.window(k, w)
+
+
+class _SigTerm(_SigInt):
+    """A SIGTERM (a batch scheduler's time limit) in the middle of a step."""
+
+    signum = signal.SIGTERM
+
+
+def test_sim_saves_its_state_on_sigterm(tmp_path, capsys, scene):
+    """SIGTERM as the `spikegs` command raises it: the step finishes, the state is saved, and
+    SIM's training stops as Terminated (exit 143: a KeyboardInterrupt said 'interrupted', 130)."""
+    stream, path = scene[1], tmp_path / "sim.pt"
+    ts = valid_timestamps(stream, 33)
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        with pytest.raises(Terminated):
+            at = 12 * TRAIN["batch_size"] + 1
+            train_or_load(path, _SigTerm(stream, at), ts, 33, seed=3, **TRAIN)
+        assert signal.getsignal(signal.SIGTERM) is raise_terminated
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert "SIGTERM: SIM's training stops after this step" in capsys.readouterr().err
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 13
 
 
 def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained, ctrl_c):
@@ -459,9 +485,11 @@ def test_interrupted_sim_training_resumes_to_the_same_sim(
     path.unlink()
     with pytest.raises(KeyboardInterrupt):  # a state saved for crop 16 ...
         train_or_load(path, _CtrlC(stream, 9), ts, 33, seed=3, **TRAIN)
-    other = dict(TRAIN, crop=20)  # ... is not resumed for crop 20: trained afresh
-    fresh, _ = train_sim(stream, ts, 33, seed=3, **other)
+    other = dict(TRAIN, crop=20)  # ... is not resumed for crop 20: trained afresh, said (an
+    fresh, _ = train_sim(stream, ts, 33, seed=3, **other)  # earlier version's was dropped unsaid)
+    capsys.readouterr()
     afresh, _, _ = train_or_load(path, stream, ts, 33, seed=3, **other)
+    assert "an interrupted SIM training of other settings" in capsys.readouterr().err
     for a, b in zip(afresh.state_dict().values(), fresh.state_dict().values()):
         assert torch.equal(a, b)
 
@@ -807,6 +835,20 @@ def test_progress_is_not_a_setting_of_a_cached_sim(tmp_path):
     assert train_or_load(path, stream, ts, W, **{**TINY, "progress": False})[1] > 0
     assert "progress" not in torch.load(path, weights_only=True)["meta"]
     assert train_or_load(path, stream, ts, W, **{**TINY, "progress": True})[1] == 0
+
+
+def test_a_sim_saved_with_the_crop_asked_for_is_reused(tmp_path, capsys):
+    """SIMs saved before 2026-11-25 recorded the crop asked for (64), which training took at
+    most the frames' larger side (12): called 'trained with other settings', retrained bit for
+    bit and overwritten."""
+    stream = SpikeArray(12, 12, 40)
+    path, ts = tmp_path / "sim.pt", [20, 21]
+    assert train_or_load(path, stream, ts, W, **TINY)[1] > 0
+    payload = torch.load(path, weights_only=True)
+    payload["meta"]["crop"] = 64
+    torch.save(payload, path)
+    assert train_or_load(path, stream, ts, W, **TINY)[1] == 0
+    assert "other settings" not in capsys.readouterr().err
 
 
 def test_user_cache_folder_is_the_fingerprints_first_16_hex_digits(tmp_path, monkeypatch):

@@ -1821,6 +1821,20 @@ def test_a_filesystem_without_locks_trains_with_a_warning(dataset, tmp_path, mon
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
 
 
+def test_a_sigterm_handler_of_the_callers_stays_theirs():
+    """A library user's own SIGTERM handler (a job manager's requeue) is not taken over by
+    training's deferred stop."""
+    calls = []
+    previous = signal.signal(signal.SIGTERM, lambda *args: calls.append(args[0]))
+    try:
+        with deferred_interrupt("stopping") as interrupted:
+            os.kill(os.getpid(), signal.SIGTERM)
+            assert not interrupted()
+        assert calls == [signal.SIGTERM]
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def test_an_ignored_sigint_stays_ignored():
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a background job
     try:
@@ -1832,10 +1846,18 @@ def test_an_ignored_sigint_stays_ignored():
         signal.signal(signal.SIGINT, previous)
 
 
-def test_ctrl_c_in_the_last_step_finishes_the_run(dataset, tmp_path, monkeypatch, ctrl_c):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_in_the_last_step_finishes_the_run_then_stops(
+    dataset, tmp_path, monkeypatch, ctrl_c, sigterm_raises, signum
+):
+    """Ctrl-C or SIGTERM in the last step: the run finishes (its checkpoint, scene.ply and
+    train.json), then stops: it returned as if nothing had been asked, and a demo went on to
+    its next method, which a scheduler's SIGKILL cut 30 s later."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
-    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
-    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    _interrupt_during(Densifier, "step", 40, monkeypatch, 1, signum)
+    with pytest.raises(Terminated if signum == signal.SIGTERM else KeyboardInterrupt):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert json.loads((tmp_path / "run" / "train.json").read_text())["iterations"] == 40
     assert (tmp_path / "run" / "scene.ply").exists()
 
 
@@ -2259,6 +2281,15 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
         (tmp_path / "run" / "config.yaml").write_text(f"base: tfp33\nsupervision:{section}\n")
         assert main([*argv, "--resume"]) == 2
         assert "'supervision' must be a section" in capsys.readouterr().err
+    # a run of an earlier version, whose tfp33 defaults today's differ from: --method tfp33 (a
+    # batch script's one command) resumed nothing, "trained with other settings"
+    older = {**config.to_dict(), "lr": {**config.to_dict()["lr"], "means": 1.6e-4}}
+    (tmp_path / "run" / "config.yaml").write_text(dump_yaml(older))
+    state = torch.load(tmp_path / "run" / "checkpoints" / "last.pt", weights_only=True)
+    torch.save({**state, "config": older}, tmp_path / "run" / "checkpoints" / "last.pt")
+    assert main([*argv, "--resume", "--method", "tfp33"]) == 0
+    said = capsys.readouterr().err
+    assert "resuming with its own settings" in said and "lr.means: 0.00016 in the run" in said
     # no RUN at all (a mistyped path): said; the default method does not stand in for its settings
     argv[argv.index("--out") + 1] = str(tmp_path / "stopped_at_once")
     assert main([*argv, "--resume"]) == 2

@@ -32,8 +32,8 @@ def cgroup_files(
         _, controllers, group = fields
         if controllers == "":  # the v2 hierarchy
             base, name = root, v2_name
-        elif v1_controller in controllers.split(","):
-            base, name = root / v1_controller, v1_name
+        elif v1_controller in controllers.split(","):  # mounted by its controllers' names
+            base, name = root / controllers, v1_name  # ('cpu,cpuacct'; 'cpu' a link, if any)
         else:
             continue
         parts = [p for p in group.split("/") if p]

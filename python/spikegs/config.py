@@ -633,6 +633,14 @@ def legacy_overrides(saved: dict | Path) -> dict:
     }
 
 
+def load_saved_run(path: Path, overrides: dict | None = None, iterations: int | None = None):
+    """A run's own config.yaml (`path`) as the run trained: the keys added since it was saved at
+    the values that kept its behaviour (LEGACY_VALUES), then `overrides` and `iterations` as in
+    `load_config`."""
+    overrides = {**legacy_overrides(path), **(overrides or {})}
+    return load_config(path, overrides, iterations, saved_run=True)
+
+
 def with_defaults(saved: dict) -> dict:
     """A config dict saved by an earlier version, with the keys added since filled in: by the
     value that kept its behaviour (LEGACY_VALUES), else by their defaults (which keep it)."""

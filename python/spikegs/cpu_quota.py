@@ -43,5 +43,5 @@ def quota_threads(membership: Path = MEMBERSHIP, root: Path = ROOT) -> int | Non
     quota = cpu_quota(membership, root)
     if quota is None:
         return None
-    threads = max(1, math.ceil(quota - 1e-9))  # (1.0000001 CPUs: one)
+    threads = max(1, math.ceil(quota))  # (whole microseconds: 150000/100000 is 1.5 exactly)
     return threads if threads < usable_cpus() else None

@@ -20,7 +20,7 @@ import numpy as np
 from . import strict_json
 from .atomic_save import write_text_atomically
 from .cli import add_no_progress, positive_int, show_bars
-from .config import load_config
+from .config import load_config, load_saved_run
 from .curves import save_logged_curves
 from .data.scenes import SCENES
 from .method_titles import method_title
@@ -205,7 +205,12 @@ def train_and_evaluate(
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
         started = resume and (run_dir / CONFIG).exists()
-        trainer = Trainer(dataset, configs[method], run_dir, progress=progress)
+        # a started run goes on with its own settings: an earlier version's, whose defaults
+        # today's differ from, was refused as trained with other settings
+        config = configs[method]
+        if started:  # (at the length asked for: another is refused, as before)
+            config = load_saved_run(run_dir / CONFIG, iterations=config.train.iterations)
+        trainer = Trainer(dataset, config, run_dir, progress=progress)
         summary = trainer.train(started, on_eval=None if progress else print_evaluation)
         ev = evaluate_run(run_dir, dataset)
         results[method] = {
@@ -282,7 +287,7 @@ def run(args: argparse.Namespace) -> int:
     from .output_paths import check_folder_output
 
     out = Path(args.out)
-    check_folder_output(out)
+    check_folder_output(out, images=True)
     # a demo writes STARTED_FILE as it starts: a folder without anything holds none
     if args.resume and not (out.is_dir() and any(p.name != LOCK for p in out.iterdir())):
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)

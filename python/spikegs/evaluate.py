@@ -208,7 +208,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     # refused before any view is rendered, not after the images are written
     check_file_output(scores_file, "eval's scores")
     if write_images:
-        check_folder_output(folder, "eval's images")
+        check_folder_output(folder, "eval's images", images=True)
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
     earlier = _scored_views(scores_file)  # {view: its scores then}
     for gone in set(earlier) - {v.name for v in dataset.test_views}:

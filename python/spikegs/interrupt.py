@@ -30,8 +30,19 @@ def interruption(signum: int) -> KeyboardInterrupt:
 
 
 def raise_terminated(signum, frame) -> None:
-    """A SIGTERM handler that stops work as Ctrl-C does (`finally` blocks run)."""
+    """A SIGTERM handler that stops work as Ctrl-C does (`finally` blocks run); further SIGTERMs
+    are ignored while it unwinds (one landing in the clean-up printed 'terminated' twice)."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise Terminated
+
+
+def _takes_over(signum: int) -> bool:
+    """Whether a deferred block handles `signum`: SIGINT unless ignored; SIGTERM where its
+    handler is the default or the `spikegs` command's (a library user's own stays theirs)."""
+    handler = signal.getsignal(signum)
+    if signum == signal.SIGTERM:
+        return handler in (signal.SIG_DFL, raise_terminated)
+    return handler is not signal.SIG_IGN
 
 
 @contextlib.contextmanager
@@ -40,11 +51,12 @@ def deferred_interrupt(message: str) -> Iterator[Callable[[], int]]:
     signal's name) and is recorded; the yielded callable returns the signal number (0 before
     any), and `interruption` of it is the exception to raise once the step is done. A second
     one raises at once. Outside the main thread (where no signal is delivered) nothing changes,
-    nor for a signal ignored (SIGINT in a background job; `nohup` leaves SIGTERM alone)."""
+    nor for a signal ignored (SIGINT in a background job) or a SIGTERM handler of the caller's
+    (`_takes_over`)."""
     if threading.current_thread() is not threading.main_thread():
         yield lambda: 0
         return
-    handled = [s for s in NAMES if signal.getsignal(s) is not signal.SIG_IGN]
+    handled = [s for s in NAMES if _takes_over(s)]
     hits: list[int] = []
 
     def handler(signum, frame):

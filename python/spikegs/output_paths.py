@@ -46,16 +46,18 @@ def check_file_output(path: Path, flag: str = "--out") -> None:
         raise ValueError(f"{flag} {path}: its folder is not writable")
 
 
-def check_folder_output(folder: Path, flag: str = "--out") -> None:
+def check_folder_output(folder: Path, flag: str = "--out", images: bool = False) -> None:
     """ValueError unless files can be written into `folder` (made where missing): not a file,
-    no file or link to nothing on its path, its nearest existing ancestor writable, its name
-    UTF-8."""
+    no file or link to nothing on its path, its nearest existing ancestor writable, and its name
+    UTF-8 where it takes `images` (OpenImageIO's)."""
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{flag} {folder}: is a file; give a folder")
     _check_no_file_on_path(folder, flag, [folder, *folder.parents])
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")
+    if not images:
+        return
     try:  # a Latin-1 folder name, read through the surrogate escapes of os.fsdecode
         str(folder.absolute()).encode("utf-8")
     except UnicodeEncodeError:

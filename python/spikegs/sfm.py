@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 import shutil
+import signal
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -134,6 +136,7 @@ def reconstruct(
 
 def import_pycolmap():
     """pycolmap, or MissingDependencyError saying how to install it."""
+    handler = signal.getsignal(signal.SIGTERM)
     try:
         import pycolmap
     except ImportError as err:
@@ -141,6 +144,9 @@ def import_pycolmap():
             "poses from spikes need pycolmap, which is not installed: "
             "pip install 'spikegs[sfm]' (or pip install pycolmap)"
         ) from err
+    # glog's failure handler took SIGTERM below Python (a stack dump, not 'terminated')
+    if handler is not None and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, handler)
     return pycolmap
 
 

@@ -26,7 +26,7 @@ from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt, interruption
 from .losses import SIM_LOSSES
-from .number_checks import is_number
+from .number_checks import is_int, is_number
 from .output_paths import writable_folder
 from .sim import SIM, START
 
@@ -215,7 +215,14 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
     except Exception as err:  # a torn file: start afresh, as without one
         print(f"{checkpoint}: unreadable ({err}); training SIM from the start", file=sys.stderr)
         return None
-    return state if isinstance(state, dict) and state.get("key") == key else None
+    if isinstance(state, dict) and state.get("key") == key:
+        return state
+    print(  # (an earlier version's, or other settings': its steps cannot be continued)
+        f"{checkpoint}: an interrupted SIM training of other settings or of an earlier spikegs; "
+        f"training SIM from the start",
+        file=sys.stderr,
+    )
+    return None
 
 
 def save_sim(model: SIM, path: Path, **meta) -> None:
@@ -272,12 +279,18 @@ def load_sim(path: Path) -> SIM:
         raise ValueError(f"{path}: {err}") from None
 
 
+def _crop_taken(settings: dict, side: int) -> dict:
+    """SIM training `settings` with their crop as training takes it: at most `side`."""
+    crop = settings.get("crop")
+    return {**settings, "crop": min(crop, side)} if is_int(crop) else dict(settings)
+
+
 def _cached(
-    path: Path, window: int, data: tuple[str, ...], settings: dict, say: bool = True
+    path: Path, window: int, data: tuple[str, ...], settings: dict, side: int, say: bool = True
 ) -> SIM | None:
     """The SIM saved at `path` if it was trained for `window` on spikes of a fingerprint in
-    `data` from this package's start with training `settings` (train_sim's keywords); None
-    (saying why where a file is there, if `say`) otherwise."""
+    `data` from this package's start with training `settings` (train_sim's keywords) on frames
+    whose larger side is `side`; None (saying why where a file is there, if `say`) otherwise."""
     if not path.exists():
         return None
     try:
@@ -285,10 +298,12 @@ def _cached(
     except ValueError as err:
         why = str(err)
     else:
-        meta = payload["meta"]
+        # crops as trained, at most the larger side (SIMs saved before 2026-11-25 recorded the
+        # crop asked for: a SIM of 32² frames saved as crop 64 was retrained, bit for bit)
+        meta, now = (_crop_taken(m, side) for m in (payload["meta"], settings))
         same = (payload["config"]["window"], meta.get("start")) == (window, START)
         same = same and meta.get("data") in data
-        other = {k: (meta.get(k), v) for k, v in settings.items() if meta.get(k) != v}
+        other = {k: (meta.get(k), v) for k, v in now.items() if meta.get(k) != v}
         if same and not other:
             return _model_of(payload)
         why = (
@@ -326,7 +341,9 @@ def train_or_load(
     data = spikes_fingerprint(stream, timestamps)
     known = (data, spikes_fingerprint(stream, timestamps, sampled=True))  # a SIM's of today, before
     settings = {k: v for k, v in kwargs.items() if k != "progress"}
-    model = None if force else _cached(path, window, known, settings, say=False)
+    first = stream[0] if isinstance(stream, (list, tuple)) else stream  # a colour camera's
+    side = max(first.height, first.width)
+    model = None if force else _cached(path, window, known, settings, side, say=False)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):
@@ -340,7 +357,7 @@ def train_or_load(
         legacy = user_cache(path.name, known[1])
         path = fallback
         for cached in (fallback, legacy) if not force else ():
-            model = _cached(cached, window, known, settings, say=False)
+            model = _cached(cached, window, known, settings, side, say=False)
             if model is not None:
                 path = cached
                 break
@@ -350,7 +367,7 @@ def train_or_load(
     # loads what it saved
     path.parent.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(path.with_name(f"{path.name}.lock"), busy=None):
-        model = None if force else _cached(path, window, known, settings)
+        model = None if force else _cached(path, window, known, settings, side)
         if model is not None:
             return model, 0.0, path
         partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted

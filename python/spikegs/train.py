@@ -528,8 +528,10 @@ class Trainer:
         # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
         if state is None or state["iteration"] < t.iterations:
             self.targets = build_targets(self.dataset, self.config, self.progress)
-        self.sim_seconds = (
-            self.targets.sim_seconds if state is None else state.get("sim_seconds", 0.0)
+        self.sim_seconds = (  # (an earlier version's checkpoint of a cached SIM kept 0)
+            self.targets.sim_seconds
+            if state is None or not (finished or state.get("sim_seconds"))
+            else state.get("sim_seconds", 0.0)
         )
         if state is not None:
             self._load_checkpoint(state)
@@ -578,6 +580,8 @@ class Trainer:
             finally:
                 bar.close()
                 log.close()
+            stopped = interrupted()  # in the last step: the run finishes, then stops (a demo
+            # went on to its next method, which the scheduler's SIGKILL then cut)
         if not finished:
             self.save_checkpoint()
         if not (finished and (self.run_dir / SCENE).exists()):
@@ -597,4 +601,6 @@ class Trainer:
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
         }
         write_text_if_changed(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
+        if stopped:
+            raise interruption(stopped)
         return summary

@@ -7,11 +7,20 @@ import json
 import sys
 from pathlib import Path
 
+import yaml
+
 from .cli import add_no_progress, file_path, positive_int, show_bars
-from .config import DEFAULT_METHOD, available_methods, legacy_overrides, load_config
+from .config import (
+    DEFAULT_METHOD,
+    available_methods,
+    differences,
+    load_config,
+    load_saved_run,
+)
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
 from .run_summary import CONFIG, CURVE
+from .yaml_files import read_yaml
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,7 +59,11 @@ def config_from_args(args: argparse.Namespace):
             f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
-    own = given is None and args.resume and saved.is_file()
+    # --method naming the run's own method resumes with its settings, as without --method (a
+    # batch script's one command): after an upgrade that changed the method's defaults, the
+    # checkpoint was refused as trained with other settings
+    started = args.resume and saved.is_file()
+    own = started and (given is None or (args.config is None and given == _saved_method(saved)))
     # an empty one: the defaults would stand in for the run's
     empty = own and not saved.read_text(encoding="utf-8").strip()
     if given is None and args.resume and not Path(args.out).exists():
@@ -64,10 +77,31 @@ def config_from_args(args: argparse.Namespace):
             f"or --config (a checkpoint is checked against them; a run stopped before its first "
             f"one starts over)"
         )
-    if own:  # keys added since the run was saved keep its behaviour
-        overrides = {**legacy_overrides(saved), **overrides}
-    name = given if given is not None else (saved if own else DEFAULT_METHOD)
-    return load_config(name, overrides, args.iterations, saved_run=own)
+    if not own:
+        return load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
+    config = load_saved_run(saved, overrides, args.iterations)  # keys added since keep its own
+    if given in available_methods():
+        changed = differences(
+            config.to_dict(),
+            load_config(given, overrides, args.iterations).to_dict(),
+            ("in the run", "now"),
+        )
+        if changed:
+            print(
+                f"{args.out}: resuming with its own settings ({saved}); {given}'s defaults have "
+                f"changed since: {'; '.join(changed)}",
+                file=sys.stderr,
+            )
+    return config
+
+
+def _saved_method(saved: Path) -> str | None:
+    """The method a run's config.yaml names; None where it cannot be read."""
+    try:
+        doc = read_yaml(saved)
+    except (OSError, ValueError, yaml.YAMLError):  # (UnicodeDecodeError is a ValueError)
+        return None
+    return doc.get("method") if isinstance(doc, dict) else None
 
 
 def print_evaluation(trainer) -> None:

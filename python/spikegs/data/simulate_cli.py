@@ -81,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_folder_output(args.out)
+    check_folder_output(args.out, images=True)
     sim_params = {f.name: getattr(args, f.name) for f in dataclasses.fields(SimParams)}
     start = time.perf_counter()
     dataset = simulate_dataset(
