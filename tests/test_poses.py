@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import subprocess
+import sys
 import warnings
 from pathlib import Path
 
@@ -630,3 +632,23 @@ def test_image_readouts_reach_both_ends_of_the_stream():
     assert _image_readouts(100, 33, 1, 0).tolist() == list(range(16, 84))
     assert _image_readouts(100, 33, None, 3).tolist() == [16, 50, 83]
     assert _image_readouts(100, 33, 10, 0).tolist() == [16, 26, 36, 46, 56, 66, 76]
+
+
+def test_sigterm_stays_pythons_after_pycolmap_loads():
+    """Loading pycolmap installs glog's failure handler for SIGTERM below Python: `spikegs
+    poses`, stopped by a batch scheduler, dumped a stack trace instead of saying 'terminated'."""
+    pytest.importorskip("pycolmap")
+    code = (
+        "import os, signal, time\n"
+        "from spikegs.interrupt import Terminated, raise_terminated\n"
+        "from spikegs.sfm import import_pycolmap\n"
+        "signal.signal(signal.SIGTERM, raise_terminated)\n"
+        "import_pycolmap()\n"
+        "try:\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    time.sleep(5)\n"
+        "except Terminated:\n"
+        "    print('terminated')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout == "terminated\n", done.stderr[-500:]
