@@ -567,9 +567,7 @@ class Trainer:
                     self.train_seconds += time.perf_counter() - start
                     if interrupted() and self.iteration < t.iterations:
                         self.save_checkpoint()  # between steps: a consistent state
-                        raise interruption(
-                            interrupted()
-                        )  # (after the last step the run just finishes)
+                        raise interruption(interrupted())  # (the last step: finished first)
                     if (
                         self.iteration % t.checkpoint_every == 0
                         or time.perf_counter() - saved_at > CHECKPOINT_S
