@@ -32,6 +32,9 @@ def test_the_lowest_quota_of_the_group_and_its_ancestors(tmp_path):
     assert quota_of(membership, root) == 0.5
     _file(v1 / "docker/abc/cpu.cfs_quota_us", "-1\n")
     assert quota_of(membership, root) is None
+    _file(root / "cpu/docker/abc/cpu.cfs_quota_us", "200000\n")  # mounted as 'cpu' alone
+    _file(root / "cpu/docker/abc/cpu.cfs_period_us", "100000\n")
+    assert quota_of(membership, root) == 2.0
     assert quota_of(tmp_path / "none", root) is None  # no /proc/self/cgroup
 
 

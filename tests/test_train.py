@@ -2290,6 +2290,14 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert main([*argv, "--resume", "--method", "tfp33"]) == 0
     said = capsys.readouterr().err
     assert "resuming with its own settings" in said and "lr.means: 0.00016 in the run" in said
+    assert "train.iterations" not in said and "train.seed" not in said  # the run's own
+    # stopped before its first checkpoint: it starts, with the method's settings of today
+    (tmp_path / "early").mkdir()
+    (tmp_path / "early" / "config.yaml").write_text(dump_yaml(older))
+    early = [*argv[:3], str(tmp_path / "early"), "--no-progress", "--iterations", "2"]
+    assert main([*early, "--resume", "--method", "tfp33"]) == 0
+    assert "own settings" not in capsys.readouterr().err
+    assert yaml.safe_load((tmp_path / "early" / "config.yaml").read_text())["lr"]["means"] == 4.8e-4
     # no RUN at all (a mistyped path): said; the default method does not stand in for its settings
     argv[argv.index("--out") + 1] = str(tmp_path / "stopped_at_once")
     assert main([*argv, "--resume"]) == 2

@@ -31,11 +31,13 @@ def cgroup_files(
             continue
         _, controllers, group = fields
         if controllers == "":  # the v2 hierarchy
-            base, name = root, v2_name
-        elif v1_controller in controllers.split(","):  # mounted by its controllers' names
-            base, name = root / controllers, v1_name  # ('cpu,cpuacct'; 'cpu' a link, if any)
+            bases, name = [root], v2_name
+        elif v1_controller in controllers.split(","):  # mounted by its controllers' names, or
+            # by the controller's ('cpu,cpuacct', and 'cpu' a link to it on systemd's hosts)
+            bases, name = list(dict.fromkeys([root / controllers, root / v1_controller])), v1_name
         else:
             continue
         parts = [p for p in group.split("/") if p]
-        files += [base.joinpath(*parts[:n], name) for n in range(len(parts), -1, -1)]
+        for base in bases:
+            files += [base.joinpath(*parts[:n], name) for n in range(len(parts), -1, -1)]
     return files

@@ -25,7 +25,7 @@ from .curves import save_logged_curves
 from .data.scenes import SCENES
 from .method_titles import method_title
 from .run_folder import refuse_foreign_files, run_lock
-from .run_summary import CONFIG, EVAL, LOCK
+from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
 from .yaml_files import read_yaml
 
@@ -205,10 +205,11 @@ def train_and_evaluate(
         print(f"[{i}/3] training {method}")
         run_dir = out / "runs" / method
         started = resume and (run_dir / CONFIG).exists()
-        # a started run goes on with its own settings: an earlier version's, whose defaults
+        # a checkpointed run goes on with its own settings: an earlier version's, whose defaults
         # today's differ from, was refused as trained with other settings
         config = configs[method]
-        if started:  # (at the length asked for: another is refused, as before)
+        if started and last_checkpoint(run_dir).is_file():  # (at the length asked for: another
+            # is refused, as before)
             config = load_saved_run(run_dir / CONFIG, iterations=config.train.iterations)
         trainer = Trainer(dataset, config, run_dir, progress=progress)
         summary = trainer.train(started, on_eval=None if progress else print_evaluation)

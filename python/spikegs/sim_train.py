@@ -218,8 +218,8 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
     if isinstance(state, dict) and state.get("key") == key:
         return state
     print(  # (an earlier version's, or other settings': its steps cannot be continued)
-        f"{checkpoint}: an interrupted SIM training of other settings or of an earlier spikegs; "
-        f"training SIM from the start",
+        f"{checkpoint}: an interrupted SIM training of other settings or spikes, or of an "
+        f"earlier spikegs; training SIM from the start",
         file=sys.stderr,
     )
     return None

@@ -19,7 +19,7 @@ from .config import (
 )
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
-from .run_summary import CONFIG, CURVE
+from .run_summary import CONFIG, CURVE, last_checkpoint
 from .yaml_files import read_yaml
 
 
@@ -59,11 +59,16 @@ def config_from_args(args: argparse.Namespace):
             f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
-    # --method naming the run's own method resumes with its settings, as without --method (a
-    # batch script's one command): after an upgrade that changed the method's defaults, the
-    # checkpoint was refused as trained with other settings
-    started = args.resume and saved.is_file()
-    own = started and (given is None or (args.config is None and given == _saved_method(saved)))
+    # --method naming a checkpointed run's own built-in method resumes with its settings, as
+    # without --method (a batch script's one command): after an upgrade that changed the
+    # method's defaults, the checkpoint was refused as trained with other settings
+    same_method = (
+        args.config is None
+        and given in available_methods()
+        and last_checkpoint(args.out).is_file()
+        and given == _saved_method(saved)
+    )
+    own = args.resume and saved.is_file() and (given is None or same_method)
     # an empty one: the defaults would stand in for the run's
     empty = own and not saved.read_text(encoding="utf-8").strip()
     if given is None and args.resume and not Path(args.out).exists():
@@ -80,16 +85,15 @@ def config_from_args(args: argparse.Namespace):
     if not own:
         return load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
     config = load_saved_run(saved, overrides, args.iterations)  # keys added since keep its own
-    if given in available_methods():
-        changed = differences(
-            config.to_dict(),
-            load_config(given, overrides, args.iterations).to_dict(),
-            ("in the run", "now"),
+    if given is not None:  # at the run's length and seed: only what the method's settings differ in
+        current = load_config(
+            given, {"train": {"seed": config.train.seed}}, config.train.iterations
         )
+        changed = differences(config.to_dict(), current.to_dict(), ("in the run", "now"))
         if changed:
             print(
-                f"{args.out}: resuming with its own settings ({saved}); {given}'s defaults have "
-                f"changed since: {'; '.join(changed)}",
+                f"{args.out}: resuming with its own settings ({saved}), which differ from "
+                f"{given}'s current ones: {'; '.join(changed)}",
                 file=sys.stderr,
             )
     return config
