@@ -2289,7 +2289,7 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     torch.save({**state, "config": older}, tmp_path / "run" / "checkpoints" / "last.pt")
     assert main([*argv, "--resume", "--method", "tfp33"]) == 0
     said = capsys.readouterr().err
-    assert "resuming with its own settings" in said and "lr.means: 0.00016 in the run" in said
+    assert "the run's own settings stand" in said and "lr.means: 0.00016 in the run" in said
     assert "train.iterations" not in said and "train.seed" not in said  # the run's own
     # stopped before its first checkpoint: it starts, with the method's settings of today
     (tmp_path / "early").mkdir()

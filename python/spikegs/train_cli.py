@@ -92,7 +92,7 @@ def config_from_args(args: argparse.Namespace):
         changed = differences(config.to_dict(), current.to_dict(), ("in the run", "now"))
         if changed:
             print(
-                f"{args.out}: resuming with its own settings ({saved}), which differ from "
+                f"{args.out}: the run's own settings stand ({saved}), which differ from "
                 f"{given}'s current ones: {'; '.join(changed)}",
                 file=sys.stderr,
             )
