@@ -1861,6 +1861,17 @@ def test_a_stop_in_the_last_step_finishes_the_run_then_stops(
     assert (tmp_path / "run" / "scene.ply").exists()
 
 
+def test_spikegs_train_stopped_in_its_last_step_plots_its_curve(
+    dataset, tmp_path, monkeypatch, sigterm_raises
+):
+    """The command, SIGTERMed in the last step: the finished run's curve.png is written (it was
+    left to a --resume), and the exit status is 143."""
+    _interrupt_during(Densifier, "step", 30, monkeypatch, 1, signal.SIGTERM)
+    argv = ["train", str(dataset.root), "--method", "tfp33", "--out", str(tmp_path / "run")]
+    assert main([*argv, "--iterations", "30", "--no-progress"]) == 143
+    assert read_image(tmp_path / "run" / "curve.png").ndim == 3
+
+
 def test_a_base_name_is_a_method_whatever_the_current_directory_holds(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "tfp33").write_text("")  # a stray file of a method's name

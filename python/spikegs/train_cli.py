@@ -128,8 +128,17 @@ def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
     trainer = Trainer(dataset, config, args.out, progress=bars)
-    summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
-    runs = {config.method: (Path(args.out), summary["sim_seconds"])}
-    save_logged_curves(Path(args.out) / CURVE, runs, dataset)
+    try:
+        summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
+    except KeyboardInterrupt:  # stopped in its last step, the run finished: its curve too
+        if trainer.iteration >= config.train.iterations:
+            save_logged_curves(Path(args.out) / CURVE, {config.method: _plotted(trainer)}, dataset)
+        raise
+    save_logged_curves(Path(args.out) / CURVE, {config.method: _plotted(trainer)}, dataset)
     print(json.dumps(summary, indent=2))
     return 0
+
+
+def _plotted(trainer) -> tuple[Path, float]:
+    """A run as `save_logged_curves` takes it: its folder and SIM's training seconds."""
+    return trainer.run_dir, trainer.sim_seconds
