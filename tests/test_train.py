@@ -2316,6 +2316,25 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert main([*argv, "--resume", "--method", "tfp33", "--iterations", "3"]) == 0  # named: starts
 
 
+def test_an_earlier_runs_config_given_with_config_is_warned_of(tmp_path):
+    """An earlier version's run config.yaml given with --config (to train its settings again)
+    took today's defaults for the keys added since, unannounced (densify.instant_only: True now,
+    False in that run)."""
+    full = {**load_config("tfp33").to_dict(), "method": "mine"}
+    del full["densify"]["instant_only"]
+    path = tmp_path / "mine.yaml"
+    path.write_text(dump_yaml(full))
+    argv = ["train", "D", "--config", str(path), "--out", str(tmp_path / "run")]
+    args = build_parser().parse_args(argv)
+    said = r"sets every key but densify.instant_only, .* densify.instant_only = False; write"
+    with pytest.warns(UserWarning, match=said):
+        assert config_from_args(args).densify.instant_only
+    path.write_text("base: tfp33\ndensify: {absgrad: false}\n")  # a user's own: nothing said
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        config_from_args(args)
+
+
 def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys):
     """`spikegs train --no-progress` printed nothing until its summary (a batch job's log showed
     no progress through minutes of training); it prints one line to stderr per evaluation."""

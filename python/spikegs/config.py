@@ -633,6 +633,21 @@ def legacy_overrides(saved: dict | Path) -> dict:
     }
 
 
+def older_run_keys(doc: dict) -> dict:
+    """{"section.key": value} of the LEGACY_VALUES keys that a config file's dict lacks where it
+    sets every other key of their section, as an earlier version's run config.yaml does: that
+    run trained with those values, while a config file takes today's defaults for them."""
+    older = {}
+    for section, legacy in LEGACY_VALUES.items():
+        values = doc.get(section)
+        if not isinstance(values, dict):
+            continue
+        missing = {f.name for f in dataclasses.fields(getattr(Config(), section))} - set(values)
+        if missing and missing <= set(legacy):
+            older.update({f"{section}.{k}": legacy[k] for k in sorted(missing)})
+    return older
+
+
 def load_saved_run(path: Path, overrides: dict | None = None, iterations: int | None = None):
     """A run's own config.yaml (`path`) as the run trained: the keys added since it was saved at
     the values that kept its behaviour (LEGACY_VALUES), then `overrides` and `iterations` as in

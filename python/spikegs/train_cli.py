@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import yaml
@@ -16,6 +17,7 @@ from .config import (
     differences,
     load_config,
     load_saved_run,
+    older_run_keys,
 )
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
@@ -83,7 +85,18 @@ def config_from_args(args: argparse.Namespace):
             f"one starts over)"
         )
     if not own:
-        return load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
+        config = load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
+        older = older_run_keys(read_yaml(args.config) or {}) if args.config is not None else {}
+        if older:  # (a valid file: load_config read it)
+            warnings.warn(
+                f"--config {args.config} sets every key but {', '.join(older)}, as an earlier "
+                f"spikegs's run config.yaml does: those take today's defaults, where that run "
+                f"trained with "
+                + ", ".join(f"{k} = {v!r}" for k, v in older.items())
+                + "; write them in to train as it did (or --resume that run)",
+                stacklevel=2,
+            )
+        return config
     config = load_saved_run(saved, overrides, args.iterations)  # keys added since keep its own
     if given is not None:  # at the run's length and seed: only what the method's settings differ in
         current = load_config(
