@@ -1861,6 +1861,22 @@ def test_a_stop_in_the_last_step_finishes_the_run_then_stops(
     assert (tmp_path / "run" / "scene.ply").exists()
 
 
+def test_spikegs_train_stopped_before_its_first_step_says_interrupted(
+    dataset, tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C while SIM trains, before the run's first step: 'interrupted' and 130 (the check
+    for a run finished in its last step read an iteration the trainer did not have yet: an
+    AttributeError's traceback)."""
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_module, "build_targets", ctrl_c)
+    argv = ["train", str(dataset.root), "--method", "tfp33", "--out", str(tmp_path / "run")]
+    assert main([*argv, "--iterations", "30", "--no-progress"]) == 130
+    assert capsys.readouterr().err.endswith("interrupted\n")
+
+
 def test_spikegs_train_stopped_in_its_last_step_plots_its_curve(
     dataset, tmp_path, monkeypatch, sigterm_raises
 ):

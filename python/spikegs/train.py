@@ -114,6 +114,7 @@ class Trainer:
         self.checkpoint_path = last_checkpoint(self.run_dir)
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
+        self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
         self.brightness = FitBrightness()  # of the steps this process takes
 
     # -- state ---------------------------------------------------------------------------------

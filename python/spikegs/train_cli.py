@@ -143,15 +143,9 @@ def run(args: argparse.Namespace) -> int:
     trainer = Trainer(dataset, config, args.out, progress=bars)
     try:
         summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
-    except KeyboardInterrupt:  # stopped in its last step, the run finished: its curve too
+    finally:  # a run stopped in its last step finished all the same: its curve too
         if trainer.iteration >= config.train.iterations:
-            save_logged_curves(Path(args.out) / CURVE, {config.method: _plotted(trainer)}, dataset)
-        raise
-    save_logged_curves(Path(args.out) / CURVE, {config.method: _plotted(trainer)}, dataset)
+            runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
+            save_logged_curves(Path(args.out) / CURVE, runs, dataset)
     print(json.dumps(summary, indent=2))
     return 0
-
-
-def _plotted(trainer) -> tuple[Path, float]:
-    """A run as `save_logged_curves` takes it: its folder and SIM's training seconds."""
-    return trainer.run_dir, trainer.sim_seconds
