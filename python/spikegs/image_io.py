@@ -10,6 +10,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from .atomic_save import write_atomically
+from .output_paths import utf8_name
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
@@ -44,15 +45,12 @@ def _reason(error: str) -> str:
 def _name(path: str | Path) -> str:
     """`path` as OpenImageIO takes it; ValueError naming it where it is not UTF-8 (a Latin-1
     folder's name, read through os.fsdecode's surrogate escapes: the binding raised TypeError)."""
-    name = str(path)
-    try:
-        name.encode("utf-8")
-    except UnicodeEncodeError:
+    if not utf8_name(path):
         raise ValueError(
-            f"{name}: not a UTF-8 file name, which OpenImageIO cannot open; rename it (or its "
+            f"{path}: not a UTF-8 file name, which OpenImageIO cannot open; rename it (or its "
             f"folder)"
-        ) from None
-    return name
+        )
+    return str(path)
 
 
 def write_image(path: str | Path, image: np.ndarray) -> None:

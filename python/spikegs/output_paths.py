@@ -22,6 +22,16 @@ def writable_folder(folder: Path) -> bool:
         return False
 
 
+def utf8_name(path: str | Path) -> bool:
+    """Whether `path` is UTF-8, as OpenImageIO takes names (not a Latin-1 folder's, read through
+    the surrogate escapes of os.fsdecode)."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def _check_no_file_on_path(path: Path, flag: str, folders) -> None:
     """ValueError where one of `folders` on `path`'s way is a file, or a symbolic link to
     nothing (a scratch disk's folder not made yet: 'File exists' once the work was done)."""
@@ -56,12 +66,8 @@ def check_folder_output(folder: Path, flag: str = "--out", images: bool = False)
     _check_no_file_on_path(folder, flag, [folder, *folder.parents])
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")
-    if not images:
-        return
-    try:  # a Latin-1 folder name, read through the surrogate escapes of os.fsdecode
-        str(folder.absolute()).encode("utf-8")
-    except UnicodeEncodeError:
+    if images and not utf8_name(folder.absolute()):
         raise ValueError(
             f"{flag} {folder}: not a UTF-8 name, which OpenImageIO (spikegs's image files) "
             f"cannot open; rename it"
-        ) from None
+        )

@@ -123,7 +123,7 @@ def train_sim(
     model = model.to(memory_format=layout).train()
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps)
-    streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
+    streams = _streams(stream)
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
     if crop < min(model.field(), max(height, width)):
@@ -203,6 +203,11 @@ def train_sim(
             if interrupted():  # the last step too: the caller would go on to minutes of work
                 raise interruption(interrupted())
     return model.eval(), losses
+
+
+def _streams(stream) -> list:
+    """`stream` as a list of streams: a colour camera's channels, or the one."""
+    return list(stream) if isinstance(stream, (list, tuple)) else [stream]
 
 
 def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
@@ -341,7 +346,7 @@ def train_or_load(
     data = spikes_fingerprint(stream, timestamps)
     known = (data, spikes_fingerprint(stream, timestamps, sampled=True))  # a SIM's of today, before
     settings = {k: v for k, v in kwargs.items() if k != "progress"}
-    first = stream[0] if isinstance(stream, (list, tuple)) else stream  # a colour camera's
+    first = _streams(stream)[0]
     side = max(first.height, first.width)
     model = None if force else _cached(path, window, known, settings, side, say=False)
     if model is None and not writable_folder(path.parent):

@@ -527,13 +527,11 @@ class Trainer:
         _cut_log(self.run_dir / LOG, state["iteration"] if state else 0)
         # a finished run needs no targets; SIM's training time for this run: trained now or
         # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
-        if state is None or state["iteration"] < t.iterations:
+        if not finished:
             self.targets = build_targets(self.dataset, self.config, self.progress)
-        self.sim_seconds = (  # (an earlier version's checkpoint of a cached SIM kept 0)
-            self.targets.sim_seconds
-            if state is None or not (finished or state.get("sim_seconds"))
-            else state.get("sim_seconds", 0.0)
-        )
+        # (an earlier version's checkpoint of a cached SIM kept 0: the cache's time stands in)
+        saved = state.get("sim_seconds", 0.0) if state else 0.0
+        self.sim_seconds = saved if finished or saved else self.targets.sim_seconds
         if state is not None:
             self._load_checkpoint(state)
         else:
