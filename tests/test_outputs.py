@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import signal
@@ -138,6 +139,19 @@ def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsy
     with pytest.raises(SystemExit) as exit:
         console()
     assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+
+def test_characters_the_output_codec_lacks_print_escaped(monkeypatch, console_signals):
+    """`spikegs simulate --help` through an ASCII or Latin-1 stdout (a legacy locale, a
+    Windows code page, PYTHONIOENCODING) raised UnicodeEncodeError at its "µs"; messages with
+    θ or — likewise, after the work: the command prints them escaped."""
+    out = io.TextIOWrapper(io.BytesIO(), encoding="ascii")
+    monkeypatch.setattr(sys, "stdout", out)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "simulate", "--help"])
+    with pytest.raises(SystemExit) as exit:
+        console()
+    out.flush()
+    assert exit.value.code == 0 and b"readouts (25 \\xb5s each)" in out.buffer.getvalue()
 
 
 def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import io
 import math
 import os
 import signal
@@ -171,7 +172,12 @@ def console() -> None:
     the interpreter exits (a second Ctrl-C, pressed as people do, printed 'Exception ignored in
     atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's
     modules import says 'interrupted' too, not a traceback (one during the package's own
-    import, torch's, before this runs, still ends in Python's traceback)."""
+    import, torch's, before this runs, still ends in Python's traceback). A character the
+    output's codec lacks (θ, µ or — through a Latin-1 or ASCII stdout) prints escaped (as
+    Python's stderr does), not as a UnicodeEncodeError after the work."""
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper):
+            stream.reconfigure(errors="backslashreplace")
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, raise_terminated)
     try:
