@@ -145,3 +145,20 @@ def test_the_readme_scores_a_run_as_eval_does(trained, run, capsys):
     ]
     for metric in ("psnr", "ssim", "ssim_3dgs"):
         assert f"'{metric}': {first[metric]!r}" in printed, (metric, printed)
+
+
+def test_the_readmes_sweep_trains_and_scores_each_run(trained, tmp_path, capsys):
+    """README.md's Python API block that trains runs from a script, run as written (the data's
+    path and the runs' folder replaced, 1500 iterations cut to 40, SIM's to 50): each run
+    trained and scored."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    block = readme.split("Runs trained from a script")[1].split("```python\n")[1]
+    code = block.split("```")[0].replace('"data"', repr(str(trained[0].root)))
+    code = code.replace('f"runs/', f'f"{tmp_path}/').replace("iterations=1500", "iterations=40")
+    code = code.replace("weight}}", 'weight}, "sim": {"iterations": 50}}')
+    exec(compile(code, "README.md", "exec"), {})
+    printed = capsys.readouterr().out.splitlines()
+    for weight, line in zip(("1", "4"), printed):
+        scores = json.loads((tmp_path / f"lambda{weight}" / "eval.json").read_text())
+        assert line == f"{float(weight)} {scores['psnr']}"
+    assert len(printed) == 2

@@ -449,6 +449,27 @@ def test_an_evaluation_sees_the_model_before_the_densification_due_then(dataset,
         assert torch.equal(value, runs[40].model.params[name]), name
 
 
+def test_a_run_and_its_callers_random_numbers_leave_each_other_alone(dataset, tmp_path):
+    """A run seeded torch's global generator and drew its splits' offsets from it: a callback
+    drawing from it (a sweep's own sampling) changed the run, and every run left it in the same
+    state (a random search drew the same settings after each run). A Trainer kept the caller's
+    Config too: one edited between building two trainers trained both with its last values."""
+    config = load_config("tfp33", FAST)
+    plain = Trainer(dataset, config, tmp_path / "plain", progress=False)
+    config.train.seed = 1  # edited once that trainer is built: it keeps seed 0
+    drawing = Trainer(dataset, load_config("tfp33", FAST), tmp_path / "drawing", progress=False)
+    plain.train()
+    torch.manual_seed(123)
+    drawn = []
+    drawing.train(on_eval=lambda trainer: drawn.append(torch.rand(7)))
+    after = torch.rand(3)
+    torch.manual_seed(123)
+    assert all(torch.equal(torch.rand(7), d) for d in drawn) and torch.equal(torch.rand(3), after)
+    assert plain.config.train.seed == 0 and len(plain.model) > FAST["train"]["init_gaussians"]
+    ours, theirs = plain.model.params, drawing.model.params
+    assert all(torch.equal(ours[k], theirs[k]) for k in ours)
+
+
 def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path, capsys):
     """It said "resuming at iteration 40 of 40", then "finished at iteration 40; nothing to
     train", and wrote each of the run's files again; a run killed after its last checkpoint
@@ -2335,16 +2356,22 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
 def test_an_earlier_runs_config_given_with_config_is_warned_of(tmp_path):
     """An earlier version's run config.yaml given with --config (to train its settings again)
     took today's defaults for the keys added since, unannounced (densify.instant_only: True now,
-    False in that run)."""
+    False in that run). Such a file also lacks keys added since whose default keeps its
+    behaviour (a new term's weight at 0): the warning stood only where it lacked no other."""
     full = {**load_config("tfp33").to_dict(), "method": "mine"}
     del full["densify"]["instant_only"]
     path = tmp_path / "mine.yaml"
     path.write_text(dump_yaml(full))
     argv = ["train", "D", "--config", str(path), "--out", str(tmp_path / "run")]
     args = build_parser().parse_args(argv)
-    said = r"sets every key but densify.instant_only, .* densify.instant_only = False; write"
+    said = r"sets nearly every key but densify.instant_only, .* densify.instant_only = False; write"
     with pytest.warns(UserWarning, match=said):
         assert config_from_args(args).densify.instant_only
+    for section, key in [("densify", "max_screen_size"), ("supervision", "dssim_weight")]:
+        del full[section][key]  # as if added after that run, at a default keeping its behaviour
+    path.write_text(dump_yaml(full))
+    with pytest.warns(UserWarning, match=said):
+        config_from_args(args)
     path.write_text("base: tfp33\ndensify: {absgrad: false}\n")  # a user's own: nothing said
     with warnings.catch_warnings():
         warnings.simplefilter("error")

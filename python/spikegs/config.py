@@ -633,19 +633,31 @@ def legacy_overrides(saved: dict | Path) -> dict:
     }
 
 
+# the share of the config's keys a file sets to be taken for a run's config.yaml: today's sets
+# them all, an earlier version's all but those added since (LEGACY_VALUES' and others)
+SAVED_RUN_SHARE = 0.75
+
+
 def older_run_keys(doc: dict) -> dict:
     """{"section.key": value} of the LEGACY_VALUES keys that a config file's dict lacks where it
-    sets every other key of their section, as an earlier version's run config.yaml does: that
-    run trained with those values, while a config file takes today's defaults for them."""
-    older = {}
-    for section, legacy in LEGACY_VALUES.items():
-        values = doc.get(section)
-        if not isinstance(values, dict):
-            continue
-        missing = {f.name for f in dataclasses.fields(getattr(Config(), section))} - set(values)
-        if missing and missing <= set(legacy):
-            older.update({f"{section}.{k}": legacy[k] for k in sorted(missing)})
-    return older
+    sets most keys of the config (SAVED_RUN_SHARE), as an earlier version's run config.yaml
+    does: that run trained with those values, while a config file takes today's defaults."""
+    keys = {
+        name: {f.name for f in dataclasses.fields(part)}
+        for name, part in vars(Config()).items()
+        if dataclasses.is_dataclass(part)
+    }
+    sections = {name: doc[name] for name in keys if isinstance(doc.get(name), dict)}
+    given = sum(len(keys[name] & set(values)) for name, values in sections.items())
+    if given < SAVED_RUN_SHARE * sum(map(len, keys.values())):
+        return {}
+    return {
+        f"{name}.{key}": value
+        for name, legacy in LEGACY_VALUES.items()
+        if name in sections
+        for key, value in sorted(legacy.items())
+        if key not in sections[name]
+    }
 
 
 def load_saved_run(path: Path, overrides: dict | None = None, iterations: int | None = None):

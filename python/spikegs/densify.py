@@ -79,8 +79,18 @@ def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, s
 class Densifier:
     """Accumulates screen-space gradients between steps and applies density control."""
 
-    def __init__(self, config: DensifyConfig, scene_radius: float, iterations: int):
+    def __init__(
+        self,
+        config: DensifyConfig,
+        scene_radius: float,
+        iterations: int,
+        generator: torch.Generator | None = None,
+    ):
         self.config = config
+        # the splits' random offsets: the trainer's own generator (None: torch's global one),
+        # so that other code drawing from torch's global RNG in the same process (a user's
+        # on_eval callback, another run) does not change a run, nor a run the caller's numbers
+        self.generator = generator
         self.scene_radius = scene_radius
         self.iterations = iterations  # of the whole run: no opacity reset too close to its end
         self.stop = config.last_iteration(iterations)
@@ -169,7 +179,8 @@ class Densifier:
             rot = quat_to_rotation(torch.nn.functional.normalize(p["quats"][split], dim=1)).repeat(
                 2, 1, 1
             )  # [2S, 3, 3]
-            offsets = (rot @ (torch.randn_like(std) * std).unsqueeze(-1)).squeeze(-1)  # [2S, 3]
+            noise = torch.randn(std.shape, generator=self.generator, dtype=std.dtype)
+            offsets = (rot @ (noise * std).unsqueeze(-1)).squeeze(-1)  # [2S, 3]
             for k, v in p.items():
                 extra = v[split].repeat(2, *([1] * (v.dim() - 1)))
                 if k == "means":

@@ -6,6 +6,7 @@ end, scene.ply and train.json. Training resumes from the last checkpoint with `r
 
 from __future__ import annotations
 
+import copy
 import functools
 import json
 import math
@@ -102,7 +103,9 @@ class Trainer:
     """Trains a GaussianModel on `dataset` with the supervision of `config`, in `run_dir`."""
 
     def __init__(self, dataset, config: Config, run_dir: str | Path, progress: bool = True):
-        self.dataset, self.config, self.progress = dataset, config, progress
+        # a copy: a sweep that edits one Config between constructing its trainers (or after one
+        # trained, before resuming it) trained every run with the last settings
+        self.dataset, self.config, self.progress = dataset, copy.deepcopy(config), progress
         self.run_dir = Path(run_dir)
         self.scale = intensity_scale(dataset)
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
@@ -169,7 +172,10 @@ class Trainer:
 
     def _fresh_state(self) -> None:
         t = self.config.train
-        torch.manual_seed(t.seed)
+        # the run's own generators: torch's global RNG is the caller's (a run that reseeded it
+        # made every run of a sweep leave it in the same state, and a callback drawing from it
+        # changed the run); the densifier's draws what the global one, seeded so, drew before
+        self.split_rng = torch.Generator().manual_seed(t.seed)
         gen = torch.Generator().manual_seed(t.seed)
         # intensities from the data (initial_intensity.py): Gaussians take what the views show
         # where they project (a point cloud gives positions only), the background the views'
@@ -212,7 +218,9 @@ class Trainer:
             self.config.pose_refine, len(self.dataset.train_timestamps), self.radius
         )
         self.optimizer = _optimizer(self.model, self.config, self.radius, self.poses)
-        self.densifier = Densifier(self.config.densify, self.radius, self.config.train.iterations)
+        self.densifier = Densifier(
+            self.config.densify, self.radius, self.config.train.iterations, self.split_rng
+        )
 
     def save_checkpoint(self) -> None:
         state = {
@@ -224,7 +232,7 @@ class Trainer:
             "densifier": self.densifier.state_dict(),
             "poses": None if self.poses is None else self.poses.state_dict(),
             "rng": self.rng.bit_generator.state,
-            "torch_rng": torch.get_rng_state(),
+            "torch_rng": self.split_rng.get_state(),  # (a checkpoint before: the global one's)
             "config": self.config.to_dict(),
             "data": self.data,
             "dataset": str(Path(self.dataset.root).resolve()),
@@ -262,6 +270,8 @@ class Trainer:
         return state
 
     def _load_checkpoint(self, state: dict) -> None:
+        self.split_rng = torch.Generator()
+        self.split_rng.set_state(state["torch_rng"])  # an older checkpoint's global state: the same
         self.model = GaussianModel.from_state_dict(state["model"])
         if "origin" not in state["model"]:  # saved before origins: world means, moved about the
             # origin a fresh run takes (Adam's moments do not depend on it)
@@ -273,7 +283,6 @@ class Trainer:
         self.densifier.load_state_dict(state["densifier"])
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]
-        torch.set_rng_state(state["torch_rng"])
         self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
 
     # -- one step ------------------------------------------------------------------------------

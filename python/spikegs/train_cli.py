@@ -89,9 +89,9 @@ def config_from_args(args: argparse.Namespace):
         older = older_run_keys(read_yaml(args.config) or {}) if args.config is not None else {}
         if older:  # (a valid file: load_config read it)
             warnings.warn(
-                f"--config {args.config} sets every key but {', '.join(older)}, as an earlier "
-                f"spikegs's run config.yaml does: those take today's defaults, where that run "
-                f"trained with "
+                f"--config {args.config} sets nearly every key but {', '.join(older)}, as an "
+                f"earlier spikegs's run config.yaml does: those take today's defaults, where "
+                f"that run trained with "
                 + ", ".join(f"{k} = {v!r}" for k, v in older.items())
                 + "; write them in to train as it did (or --resume that run)",
                 stacklevel=2,
