@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
-# Installs SpikeGS with its test extras and runs every test: the C++ tests (ctest, built with
-# AddressSanitizer and UBSan: a memory error fails them; again without OpenMP) and pytest.
+# Installs SpikeGS with its test extras and runs every test: the house style (ruff, clang-format),
+# the C++ tests (ctest, built with AddressSanitizer and UBSan: a memory error fails them; again
+# without OpenMP) and pytest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install.sh ".[test,mitsuba,sfm]"
+bash scripts/install.sh ".[dev,mitsuba,sfm]"
+ruff check . && ruff format --check .
+clang-format --dry-run --Werror csrc/*/*.cpp csrc/*/*.hpp cpp_tests/*.cpp cpp_tests/*.hpp
 cmake -S . -B build/ctest -DSPIKEGS_PYTHON=OFF -DSPIKEGS_TESTS=ON -DSPIKEGS_SANITIZE=ON >/dev/null
 cmake --build build/ctest -j"$(nproc)"
 ctest --test-dir build/ctest --output-on-failure -j"$(nproc)"

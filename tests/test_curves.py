@@ -69,3 +69,28 @@ def test_a_sim_methods_curve_starts_after_sims_training():
         "SpikeGS (from SIM 10 s)": [11.0, 13.0],
         "bench (from SIM 30 s)": [31.0, 33.0],
     }
+
+
+def test_every_benchmarked_method_is_drawn_in_a_style_of_its_own():
+    """Curves cycled 8 styles by position: of `bench train`'s 10 methods, k13 was drawn as
+    SpikeGS and oracle as TFP(33)+3DGS. Each line differs from every other in its colour and
+    marker, and in its colour and line style."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from spikegs.bench.train import METHODS, VARIANTS
+
+    curve = [{"train_seconds": 1.0, "psnr": 20.0}, {"train_seconds": 3.0, "psnr": 21.0}]
+    methods = {m: {"curve": curve, "sim_seconds": 1.0, "uses_sim": True} for m in METHODS}
+    methods.update({m: {"curve": curve, "sim_seconds": 0.0, "uses_sim": False} for m in "abcde"})
+    methods.update({m: {"curve": curve, "sim_seconds": 1.0, "uses_sim": True} for m in VARIANTS})
+    fig, ax = plt.subplots()
+    try:
+        _plot_curves([ax], methods, ("psnr",))
+        styles = [(line.get_color(), line.get_marker(), line.get_linestyle()) for line in ax.lines]
+    finally:
+        plt.close(fig)
+    assert len(styles) == len(methods)
+    assert len({(colour, marker) for colour, marker, _ in styles}) == len(styles)
+    assert len({(colour, line) for colour, _, line in styles}) == len(styles)

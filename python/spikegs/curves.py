@@ -51,15 +51,17 @@ def _as_text(text: str) -> str:
 
 
 # Okabe and Ito's colours, told apart with colour-blindness; each method a marker of its own too,
-# for greyscale print
+# for greyscale print (8 colours and 11 markers: the first 88 methods differ in one or both); past
+# the eighth, methods take the colours again with dotted lines
 COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442")
-MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*")
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h")
+LINES = {True: ("-", ":"), False: ("--", "-.")}  # a SIM method's, another's; by colour cycle
 LABELS = {"psnr": "PSNR (dB)", "ssim": "SSIM (scikit-image, 7×7 window)"}
 
 
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time,
-    solid; the others dashed)."""
+    solid or dotted; the others dashed or dash-dotted)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     for i, (name, r) in enumerate(methods.items()):
@@ -70,7 +72,7 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
         style = {
             "color": COLOURS[i % len(COLOURS)],
             "marker": MARKERS[i % len(MARKERS)],
-            "linestyle": "-" if sim else "--",
+            "linestyle": LINES[sim][i // len(COLOURS) % 2],
         }
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]

@@ -13,6 +13,7 @@ TITLES = {
     "only_exposure": "only L_exposure",
     "k9": "SpikeGS, K = 9",
     "k13": "SpikeGS, K = 13",
+    "sim17": "SpikeGS, SIM on 17 readouts",
     "oracle": "clean instant targets (ceiling)",
 }
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..cli import positive_float, positive_int
 from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
-from .train import FULL_ITERATIONS, QUICK_ITERATIONS
+from .train import FULL_ITERATIONS, QUICK_ITERATIONS, VARIANTS
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
 PARTS = {
@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenes", help="bench train: comma-separated scenes (default: all)")
     parser.add_argument(
         "--methods",
-        help="bench train: comma-separated methods (default: all but the variant sim17)",
+        help=f"bench train: comma-separated methods (default: all but {', '.join(VARIANTS)})",
     )
     parser.add_argument(
         "--grad-threshold",
