@@ -4,6 +4,12 @@
 # build, where an unpinned torch pulls a multi-GB CUDA build; elsewhere see the README), and the
 # build backend.
 set -euo pipefail
+# Python 3.10 or newer (pyproject.toml's requires-python): torch 2.13.0, pinned below, has no
+# wheel for 3.9 (torch's last for 3.9 is 2.8.0), where pip's "No matching distribution found for
+# torch==2.13.0" would be the only word
+python -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else
+  "SpikeGS needs Python 3.10 or newer (torch 2.13.0 has no wheel for Python %d.%d): %s"
+  % (sys.version_info[0], sys.version_info[1], sys.executable))'
 has_glm() {
   local dir
   for dir in /usr/include /usr/local/include /opt/homebrew/include "${CONDA_PREFIX:-/nonexistent}/include"; do
