@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("spikegs._C")
 
+from spikegs import _C  # noqa: E402
 from spikegs.bench import sim, stiff, train  # noqa: E402
 from spikegs.demo import DEMO_OVERRIDES  # noqa: E402
 from spikegs.sim import SIM  # noqa: E402
@@ -23,7 +24,8 @@ def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
         assert row["non_finite"] == "none", row["case"]
         assert row["zero_grad"] in ("yes", "-"), row["case"]
         assert row["image_err"] < stiff.FLOAT_ERROR_BOUND, row["case"]
-    assert (tmp_path / "stiff.json").exists()
+    machine = json.loads((tmp_path / "stiff.json").read_text())["machine"]
+    assert machine["build"]["cpu_features"] == " ".join(_C.compiled_cpu_features)  # its build
 
 
 def test_train_schedule_is_the_demo_one_stretched():

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from spikegs import _C
 from spikegs.config import load_config
 from spikegs.data import simulate_dataset
 from spikegs.evaluate import evaluate_run, other_data, render_view
@@ -127,6 +128,10 @@ def test_a_run_from_before_data_fingerprints_scores_its_own_folder_as_eval(train
     (run / "train.json").write_text(json.dumps(summary))
     result = evaluate_run(run, trained[0], write_images=False)
     assert result["file"] == str((run / "eval.json").resolve())
+    assert result["environment"]["build"] == {  # what scored it
+        **_C.build,
+        "cpu_features": " ".join(_C.compiled_cpu_features),
+    }
 
 
 def test_the_readme_scores_a_run_as_eval_does(trained, run, capsys):

@@ -21,6 +21,7 @@ import pytest
 import torch
 import yaml
 from plyfile import PlyData, PlyElement
+from spikegs import _C
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
@@ -38,6 +39,7 @@ from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
+from spikegs.provenance import environment
 from spikegs.run_folder import run_lock
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer, _means_lr
@@ -423,6 +425,43 @@ def test_resume_after_interruption_equals_uninterrupted(
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
     assert torch.equal(whole.model.background, resumed.model.background)
+
+
+def test_train_json_names_what_trained_the_run_from_which_iteration(
+    dataset, tmp_path, monkeypatch, ctrl_c
+):
+    """A run's record named no version, build or thread count (a `-march=native` build and SIM's
+    threads move the last decimals; defaults changed between versions): train.json lists the
+    environment of each process that trained it, from the iteration it began at, where it
+    differs from the one before; an earlier version's checkpoint kept none."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 60}})
+    run = tmp_path / "run"
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
+    with pytest.raises(KeyboardInterrupt):
+        Trainer(dataset, config, run, progress=False).train()
+    monkeypatch.undo()
+    here = environment()
+    assert here["build"]["source"] == _C.build["source"] and here["torch_threads"] >= 1
+    elsewhere = {**here, "torch_threads": here["torch_threads"] + 1}
+    monkeypatch.setattr(train_module, "environment", lambda: elsewhere)
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    summary = json.loads((run / "train.json").read_text())
+    assert summary["environment"] == [
+        {"from_iteration": 0, **here},
+        {"from_iteration": 40, **elsewhere},
+    ]
+    written = (run / "train.json").read_bytes()
+    monkeypatch.setattr(train_module, "environment", lambda: {**here, "cores": 99})
+    Trainer(dataset, config, run, progress=False).train(resume=True)  # finished: no steps
+    assert (run / "train.json").read_bytes() == written
+    checkpoint = run / "checkpoints" / "last.pt"
+    state = torch.load(checkpoint, weights_only=True)
+    del state["environments"]  # an earlier version's, 10 steps before its end
+    state["iteration"] = 50
+    torch.save(state, checkpoint)
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    trained = json.loads((run / "train.json").read_text())["environment"]
+    assert trained == [{"from_iteration": 50, **here, "cores": 99}]
 
 
 def test_an_evaluation_sees_the_model_before_the_densification_due_then(dataset, tmp_path):

@@ -11,4 +11,15 @@ PYBIND11_MODULE(_C, m) {
   // torch brings another one
   m.def("set_max_threads", &spikegs::set_max_threads, pybind11::arg("n"),
         "Team size of the calling thread's next parallel regions in the core (n >= 1)");
+  // the build a run's record names (CMakeLists.txt): its source, compiler, options and threads
+  pybind11::dict build;
+  build["source"] = SPIKEGS_SOURCE;
+  build["compiler"] = SPIKEGS_COMPILER;
+  build["options"] = SPIKEGS_OPTIONS;
+#ifdef _OPENMP
+  build["openmp"] = true;
+#else
+  build["openmp"] = false;
+#endif
+  m.attr("build") = build;
 }

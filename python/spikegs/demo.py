@@ -24,6 +24,7 @@ from .config import load_config, load_saved_run
 from .curves import save_logged_curves
 from .data.scenes import SCENES
 from .method_titles import method_title
+from .provenance import environment
 from .run_folder import refuse_foreign_files, run_lock
 from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
@@ -343,6 +344,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         "scene": dataset.meta.get("scene"),
         "total_seconds": total,
         "resumed": args.resume,  # finished by more than one process
+        "environment": environment(),  # this process's; each run's train.json names its own
     }
     write_text_atomically(out / RESULTS, strict_json.dumps(payload, indent=2))
     print()

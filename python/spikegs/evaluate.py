@@ -21,6 +21,7 @@ from .image_io import srgb_to_linear, write_image
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output
 from .ply import declares_channels, load_ply
+from .provenance import environment
 from .run_summary import CONFIG, EVAL, read_summary, trained_scene
 from .targets import intensity_scale
 
@@ -250,6 +251,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         # real data without sharp images: scored against a TFP pseudo ground truth (pseudo_*)
         "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
         "views": views,
+        "environment": environment(),  # of this scoring; train.json's names what trained it
     }
     result["file"] = str(scores_file.resolve())  # not as typed: where it lies
     write_text_atomically(scores_file, strict_json.dumps(result, indent=2))

@@ -41,6 +41,7 @@ from .point_cloud import (
     seen_points,
 )
 from .pose_refine import PoseRefiner, make_refiner
+from .provenance import environment
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, LOG, SCENE, SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
@@ -172,6 +173,7 @@ class Trainer:
 
     def _fresh_state(self) -> None:
         t = self.config.train
+        self.environments: list[dict] = []  # what trained the run (`_record_environment`)
         # the run's own generators: torch's global RNG is the caller's (a run that reseeded it
         # made every run of a sweep leave it in the same state, and a callback drawing from it
         # changed the run); the densifier's draws what the global one, seeded so, drew before
@@ -222,6 +224,15 @@ class Trainer:
             self.config.densify, self.radius, self.config.train.iterations, self.split_rng
         )
 
+    def _record_environment(self) -> None:
+        """This process's environment (provenance.py) in the run's record, from the iteration it
+        trains from, where it differs from the previous process's: a run resumed elsewhere (another
+        build, version or thread count) names each; an earlier version's checkpoint kept none."""
+        now = environment()
+        last = self.environments[-1] if self.environments else {}
+        if {k: v for k, v in last.items() if k != "from_iteration"} != now:
+            self.environments.append({"from_iteration": self.iteration, **now})
+
     def save_checkpoint(self) -> None:
         state = {
             "iteration": self.iteration,
@@ -236,6 +247,7 @@ class Trainer:
             "config": self.config.to_dict(),
             "data": self.data,
             "dataset": str(Path(self.dataset.root).resolve()),
+            "environments": self.environments,
         }
         save_atomically(state, self.checkpoint_path)  # a kill mid-save keeps the previous one
 
@@ -284,6 +296,7 @@ class Trainer:
         self.rng = np.random.default_rng()
         self.rng.bit_generator.state = state["rng"]
         self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
+        self.environments = state.get("environments", [])
 
     # -- one step ------------------------------------------------------------------------------
     def _poses(self, readouts: list[float], view: int) -> list[torch.Tensor]:
@@ -545,6 +558,8 @@ class Trainer:
             self._load_checkpoint(state)
         else:
             self._fresh_state()
+        if not finished:
+            self._record_environment()
         log = (self.run_dir / LOG).open("a")
         saved_at = time.perf_counter()
         bar = tqdm(
@@ -605,6 +620,7 @@ class Trainer:
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
+            "environment": self.environments,  # what trained it, from which iteration
         }
         write_text_if_changed(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
         if stopped:

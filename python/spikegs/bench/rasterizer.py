@@ -24,9 +24,10 @@ import torch
 
 from .. import reference
 from ..atomic_save import save_figure
+from ..cpu_quota import usable_cpus
 from ..rasterize import rasterize
 from ..text_table import print_table
-from .common import machine_info, median_seconds, uniform, write_results
+from .common import median_seconds, uniform, write_results
 
 REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
 # The reference is a Python loop of small ops: one torch thread is its fastest setting (threads
@@ -210,7 +211,7 @@ def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
     axes[1].legend(fontsize=7)
     fig.suptitle(
         f"spikegs.rasterize (C++, median of {repeats} after a warm-up, "
-        f"{machine_info()['cores']} cores) vs spikegs.reference (torch, timed once, 1 thread), "
+        f"{usable_cpus()} cores) vs spikegs.reference (torch, timed once, 1 thread), "
         f"float32; C: channels, size W×H pixels",
         fontsize=10,
     )
