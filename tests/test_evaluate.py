@@ -167,3 +167,20 @@ def test_the_readmes_sweep_trains_and_scores_each_run(trained, tmp_path, capsys)
         scores = json.loads((tmp_path / f"lambda{weight}" / "eval.json").read_text())
         assert line == f"{float(weight)} {scores['psnr']}"
     assert len(printed) == 2
+
+
+def test_eval_json_scores_the_paths_views_and_novel_ones_apart(trained, run):
+    """eval.json gave one mean over every test view: a table could not tell the views on the
+    camera's path from novel ones (a comparison level on the one, apart on the other), nor name
+    the run's scene, seed or length without two more files."""
+    result = evaluate_run(run, trained[0], write_images=False)
+    views = result["views"]
+    for group, on in (("on_path", True), ("off_path", False)):
+        picked = [v for v in views.values() if (v["readout"] is not None) == on]
+        assert result[group]["views"] == len(picked) == 2
+        assert result[group]["psnr"] == pytest.approx(np.mean([v["psnr"] for v in picked]))
+    readouts = {v.name: v.readout for v in trained[0].test_views}
+    assert {name: v["readout"] for name, v in views.items()} == readouts
+    summary = json.loads((run / "train.json").read_text())
+    assert (result["scene"], result["seed"], result["iterations"]) == ("solids", 0, 2)
+    assert summary["seed"] == 0 and result["iterations"] == summary["iterations"]

@@ -1600,7 +1600,12 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         evaluated = json.loads((out / "runs" / method / "eval.json").read_text())
         assert scores["ssim_3dgs"] == evaluated["ssim_3dgs"]  # the papers' SSIM, reported too
     assert results["methods"]["spikegs"]["sim_seconds"] > 0  # SIM trained in the demo
-    views = len(load_dataset(out / "data").test_views)
+    data = load_dataset(out / "data")
+    views = len(data.test_views)
+    # what the scores are of: the demo's length, size and views (its record lacked them)
+    assert all(scores["iterations"] == 80 for scores in results["methods"].values())
+    shape = (data.height, data.width, data.channels, views)
+    assert tuple(results[k] for k in ("height", "width", "channels", "test_views")) == shape
     comparison = read_image(out / "comparison.png")  # [16 + views * 32, LABEL + 3 * 32, C]
     assert comparison.shape[:2] == (16 + views * 32, LABEL_WIDTH + 3 * 32)
     assert comparison[:16].max() > 0.9 and comparison[:16].mean() < 0.5  # titles: white on black
@@ -2435,7 +2440,8 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
     ]
     logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     last = logged[-1]
-    assert f"held-out PSNR {last['psnr']:.2f} dB, {last['gaussians']:,} Gaussians" in lines[-1]
+    said = f"held-out PSNR {last['psnr']:.2f} dB (view {last['psnr_view']}), {last['gaussians']:,}"
+    assert said in lines[-1] and last["psnr_view"] == dataset.test_views[0].name
     assert json.loads(printed.out)["iterations"] == 100  # stdout: the summary alone
 
 

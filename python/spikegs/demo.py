@@ -222,6 +222,7 @@ def train_and_evaluate(
             "train_seconds": summary["train_seconds"],
             "sim_seconds": summary["sim_seconds"],
             "gaussians": summary["gaussians"],
+            "iterations": summary["iterations"],
         }
         view_psnrs[method] = {name: v["psnr"] for name, v in ev["views"].items()}
     return results, view_psnrs
@@ -342,6 +343,10 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     payload = {
         "methods": results,
         "scene": dataset.meta.get("scene"),
+        "height": dataset.height,
+        "width": dataset.width,
+        "channels": dataset.channels,
+        "test_views": len(dataset.test_views),  # the scores' means are over these
         "total_seconds": total,
         "resumed": args.resume,  # finished by more than one process
         "environment": environment(),  # this process's; each run's train.json names its own

@@ -42,6 +42,7 @@ def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarra
 
 
 SSIMS = {"ssim": ssim, "ssim_3dgs": ssim_3dgs}  # scikit-image's, 3DGS's evaluation's
+SCORES = ("psnr", *SSIMS)  # what eval.json means over the views
 
 
 def view_metrics(
@@ -157,6 +158,16 @@ def _scored_views(path: Path) -> dict:
         return {}
 
 
+def _means(views: list[dict]) -> dict:
+    """{"psnr", "ssim", "ssim_3dgs"}: the means of `views`' scores (none where there are none)."""
+    return {k: float(np.mean([v[k] for v in views])) for k in SCORES} if views else {}
+
+
+def _group(views: list[dict]) -> dict:
+    """The means of `views`' scores and their number ("views")."""
+    return {**_means(views), "views": len(views)}
+
+
 def _changed(old, new: dict) -> bool:
     """Whether a view's scores `new` differ from an earlier scoring's `old` (a score that scoring
     did not record, ssim_3dgs before 2026-11-29, is no change)."""
@@ -222,7 +233,7 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         pseudo = view.name.startswith(PSEUDO_PREFIX)
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
-        views[view.name] = view_metrics(pred, gt)
+        views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
         if write_images:  # ground truth | render | 4 x the absolute error that was scored,
             # shown as it is (sRGB encoding would show an error of 0.02 as a 31 % grey)
             error = srgb_to_linear(np.clip(4 * np.abs(pred - gt), 0, 1))
@@ -242,9 +253,13 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     result = {
         "method": train.get("method") or _configured_method(run_dir),
         "dataset": str(Path(dataset.root).resolve()),
-        "psnr": float(np.mean([v["psnr"] for v in views.values()])),
-        "ssim": float(np.mean([v["ssim"] for v in views.values()])),
-        "ssim_3dgs": float(np.mean([v["ssim_3dgs"] for v in views.values()])),
+        "scene": dataset.meta.get("scene"),
+        **_means(list(views.values())),  # psnr, ssim, ssim_3dgs over every test view
+        # the views on the camera's path (at a readout of the stream) and off it (novel views)
+        "on_path": _group([v for v in views.values() if v["readout"] is not None]),
+        "off_path": _group([v for v in views.values() if v["readout"] is None]),
+        "iterations": train.get("iterations"),
+        "seed": train.get("seed"),
         "train_seconds": train.get("train_seconds"),
         "sim_seconds": train.get("sim_seconds"),
         "gaussians": len(model),

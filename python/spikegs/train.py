@@ -465,8 +465,8 @@ class Trainer:
                 **{f"loss_{name}": term for name, term in self.loss_terms.items()},
                 "gaussians": len(self.model),
             }
-            if evaluate:
-                record["psnr"] = self.held_out_psnr
+            if evaluate:  # one view's (eval.json's psnr is the mean over every test view)
+                record.update(psnr=self.held_out_psnr, psnr_view=self.dataset.test_views[0].name)
             log.write(strict_json.dumps(record) + "\n")
             log.flush()
             bar.set_postfix(
@@ -615,6 +615,7 @@ class Trainer:
             "dataset": str(Path(self.dataset.root).resolve()),
             "scene": self.dataset.meta.get("scene"),
             "iterations": self.iteration,
+            "seed": self.config.train.seed,
             "train_seconds": self.train_seconds,
             "sim_seconds": self.sim_seconds,
             "gaussians": len(self.model),
@@ -622,7 +623,7 @@ class Trainer:
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
             "environment": self.environments,  # what trained it, from which iteration
         }
-        write_text_if_changed(self.run_dir / SUMMARY, json.dumps(summary, indent=2))
+        write_text_if_changed(self.run_dir / SUMMARY, strict_json.dumps(summary, indent=2))
         if stopped:
             raise interruption(stopped)
         return summary
