@@ -19,6 +19,7 @@ import numpy as np
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
 from ..targets import intensity_scale
+from .correlation import correlation
 from .dataset import (
     FORMAT_VERSION,
     PSEUDO_PREFIX,
@@ -178,12 +179,6 @@ def check_orientation(views: list[tuple[np.ndarray, np.ndarray]], flip: bool, so
     better upside down than as read, in most views (by FLIP_MARGIN in correlation): `flip` is
     likely wrong, and the scene would train upside down; and when they match neither way (median
     correlation under MATCH_MIN): the spikes are not read as the images show them."""
-
-    def correlation(a: np.ndarray, b: np.ndarray) -> float:
-        a, b = a - a.mean(), b - b.mean()
-        norm = np.sqrt((a * a).sum() * (b * b).sum())
-        return float((a * b).sum() / norm) if norm > 0 else 0.0
-
     pairs = [
         (correlation(tfp, image.mean(-1)), correlation(tfp, image.mean(-1)[::-1]))
         for tfp, image in views

@@ -27,7 +27,7 @@ from pathlib import Path
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
 from ..strict_json import read_json
-from .dataset import check_fires
+from .dataset import check_fires, warn_rows_out_of_line
 
 OPTIONS_FILE = "spikegs.json"
 # how to mend a camera whose images have another aspect ratio than the spikes (`frame_columns`)
@@ -128,4 +128,5 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
             f"if these are wrong)"
         ) from err
     check_fires(stream, OPTIONS_FILE)
+    warn_rows_out_of_line(stream, OPTIONS_FILE)
     return stream
