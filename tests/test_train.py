@@ -161,8 +161,8 @@ def test_a_run_steps_at_the_scheduled_rates_visits_every_timestamp_and_logs_in_i
     assert len(trainer.targets.timestamps) == trainer.targets.instant.computed == 3
     record = json.loads((tmp_path / "run" / "log.jsonl").read_text().splitlines()[-1])
     view = few_views.test_views[0]
-    image = render_view(trainer.model, view.viewmat, few_views)
-    expected = view_metrics(image, view.image / trainer.scale, ssims=())["psnr"]
+    image = np.clip(render_view(trainer.model, view.viewmat, few_views), 0, 1)
+    expected = view_metrics(image, np.clip(view.image / trainer.scale, 0, 1), ssims=())["psnr"]
     assert record["iteration"] == 60 and record["psnr"] == pytest.approx(expected, abs=1e-6)
 
 
@@ -2440,8 +2440,12 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
     ]
     logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     last = logged[-1]
-    said = f"held-out PSNR {last['psnr']:.2f} dB (view {last['psnr_view']}), {last['gaussians']:,}"
+    views = f"{len(dataset.test_views)} views ({last['psnr_view']} {last['psnr']:.2f})"
+    said = f"held-out PSNR {last['psnr_mean']:.2f} dB over {views}, {last['gaussians']:,} Gaussians"
     assert said in lines[-1] and last["psnr_view"] == dataset.test_views[0].name
+    scores = evaluate_run(tmp_path / "run", dataset, write_images=False)
+    assert last["psnr_mean"] == pytest.approx(scores["psnr"], abs=1e-9)  # as eval scores it
+    assert last["psnr"] == pytest.approx(scores["views"][last["psnr_view"]]["psnr"], abs=1e-9)
     assert json.loads(printed.out)["iterations"] == 100  # stdout: the summary alone
 
 

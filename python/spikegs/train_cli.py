@@ -123,11 +123,12 @@ def _saved_method(saved: Path) -> str | None:
 
 def print_evaluation(trainer) -> None:
     """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs)."""
-    view = trainer.dataset.test_views[0].name  # (eval scores every test view)
+    views = trainer.dataset.test_views
     print(
         f"{trainer.config.method}: iteration {trainer.iteration}/{trainer.config.train.iterations}"
-        f", held-out PSNR {trainer.held_out_psnr:.2f} dB (view {view}), "
-        f"{len(trainer.model):,} Gaussians, {trainer.train_seconds:.0f} s",
+        f", held-out PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "
+        f"{trainer.held_out_psnr:.2f}), {len(trainer.model):,} Gaussians, "
+        f"{trainer.train_seconds:.0f} s",
         file=sys.stderr,
         flush=True,
     )
