@@ -67,8 +67,8 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     assert spikegs["psnr"] == pytest.approx(27.2) and spikegs["curve"] == ["seed 0"]
     assert spikegs["psnr_std"] == pytest.approx(math.sqrt(2) * 1.2)
     assert [s["psnr"] for s in spikegs["seeds"]] == [26.0, 28.4]
-    gain, spread = train.paired_gains(methods)["spikegs"]  # +1.0 and +1.4: paired, not pooled
-    assert gain == pytest.approx(1.2) and spread == pytest.approx(math.sqrt(2) * 0.2)
+    gain = train.paired_gains(methods)["spikegs"]  # +1.0 and +1.4: paired, not pooled
+    assert gain["mean"] == pytest.approx(1.2) and gain["std"] == pytest.approx(math.sqrt(2) * 0.2)
     assert train.ablation_order(methods) == "spikegs > only_exposure > only_instant"
     methods["only_instant"] = train.over_seeds([_run(26.0), _run(27.8)])
     assert train.ablation_order(methods) == "holds"

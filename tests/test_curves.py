@@ -29,6 +29,26 @@ def test_logged_curve_is_the_evaluations_with_their_training_seconds(tmp_path):
     ]
 
 
+def test_the_curve_is_the_mean_over_the_test_views_where_every_evaluation_logged_it(
+    tmp_path, monkeypatch
+):
+    """curve.png showed the first test view's PSNR (~1 dB from eval.json's mean over the views):
+    the mean where each evaluation logged it (psnr_mean), else (an earlier version's log, in part
+    or whole) the first view's, and the title says which."""
+    means = [dict(r, psnr_mean=r["psnr"] + 1.0) if "psnr" in r else r for r in LOG]
+    assert [p["psnr"] for p in logged_curve(_log(tmp_path / "new", means))] == [22.0, 23.5]
+    resumed = [*LOG[:2], *means[2:]]  # an older version's evaluation, then the new one's
+    assert [p["psnr"] for p in logged_curve(_log(tmp_path / "old", resumed))] == [21.0, 22.5]
+    titles = []
+    monkeypatch.setattr(curves, "save_curves", lambda path, methods, m, title: titles.append(title))
+    views = [SimpleNamespace(name=f"view_{i}") for i in range(3)]
+    dataset = SimpleNamespace(meta={"scene": "solids"}, root=tmp_path, test_views=views)
+    save_logged_curves(tmp_path / "a.png", {"spikegs": (tmp_path / "new", 1.0)}, dataset)
+    save_logged_curves(tmp_path / "b.png", {"tfp33": (tmp_path / "old", 0.0)}, dataset)
+    assert titles[0].startswith("solids: PSNR over the 3 test views during training")
+    assert titles[1].startswith("solids: PSNR of the test view view_0 during training")
+
+
 def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
     """save_logged_curves: a run with 0 s of SIM is no SIM method (drawn from 0 s, dashed, without
     "from SIM"); one with SIM seconds is, and keeps them."""

@@ -184,3 +184,19 @@ def test_eval_json_scores_the_paths_views_and_novel_ones_apart(trained, run):
     summary = json.loads((run / "train.json").read_text())
     assert (result["scene"], result["seed"], result["iterations"]) == ("solids", 0, 2)
     assert summary["seed"] == 0 and result["iterations"] == summary["iterations"]
+
+
+def test_docs_outputs_names_every_key_a_run_writes(trained, run):
+    """docs/outputs.md, the reference of the output files: each key of train.json, eval.json
+    and log.jsonl (and their nested records) is named there, as `key` (a key added to a file
+    and left out of its reference fails here)."""
+    docs = (Path(__file__).parents[1] / "docs" / "outputs.md").read_text(encoding="utf-8")
+    evaluate_run(run, trained[0], write_images=False)
+    summary = json.loads((run / "train.json").read_text())
+    scores = json.loads((run / "eval.json").read_text())
+    rows = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    keys = {*summary, *summary["environment"][0], *scores, *scores["on_path"]}
+    keys |= {*next(iter(scores["views"].values())), *scores["environment"]}
+    keys |= {f"build.{k}" for k in scores["environment"]["build"]} - {"build"}
+    keys |= {k for row in rows for k in row}
+    assert {k for k in keys if f"`{k}`" not in docs and k != "build"} == set()

@@ -12,21 +12,23 @@ from .method_titles import method_title
 from .run_summary import LOG
 
 
+def _logged_evaluations(run_dir: str | Path) -> tuple[list[dict], str]:
+    """RUN/log.jsonl's evaluation records in order, and the key of the PSNR each holds:
+    "psnr_mean" (over every test view, as eval.json's psnr) where each logged it, else "psnr"
+    (the first test view's: a log of an earlier version, in part or whole)."""
+    lines = (Path(run_dir) / LOG).read_text().splitlines()
+    evaluations = [r for r in map(json.loads, lines) if "psnr" in r]
+    return evaluations, "psnr_mean" if all("psnr_mean" in r for r in evaluations) else "psnr"
+
+
 def logged_curve(run_dir: str | Path) -> list[dict]:
-    """The evaluations in RUN/log.jsonl, [{"iteration", "train_seconds", "psnr"}] (the PSNR of
-    the dataset's first test view, as the progress bar shows it), in order."""
-    curve = []
-    for line in (Path(run_dir) / LOG).read_text().splitlines():
-        record = json.loads(line)
-        if "psnr" in record:
-            curve.append(
-                {
-                    "iteration": record["iteration"],
-                    "train_seconds": record["seconds"],
-                    "psnr": record["psnr"],
-                }
-            )
-    return curve
+    """RUN's logged test PSNR against its training seconds, [{"iteration", "train_seconds",
+    "psnr"}] (`_logged_evaluations`: over every test view, or an earlier log's first view)."""
+    evaluations, key = _logged_evaluations(run_dir)
+    return [
+        {"iteration": r["iteration"], "train_seconds": r["seconds"], "psnr": r[key]}
+        for r in evaluations
+    ]
 
 
 def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset) -> None:
@@ -37,8 +39,11 @@ def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset)
         for name, (run_dir, sim) in runs.items()
     }
     scene = dataset.meta.get("scene") or Path(dataset.root).name
+    means = all(_logged_evaluations(run_dir)[1] == "psnr_mean" for run_dir, _ in runs.values())
+    views = dataset.test_views
+    scored = f"over the {len(views)} test views" if means else f"of the test view {views[0].name}"
     title = (
-        f"{scene}: PSNR of the test view {dataset.test_views[0].name} during training\n"
+        f"{scene}: PSNR {scored} during training\n"
         f"(a SIM method's curve starts after SIM's training)"
     )
     save_curves(path, methods, ("psnr",), title)

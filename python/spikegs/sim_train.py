@@ -64,6 +64,9 @@ def _to_input(
     return x.contiguous(memory_format=layout)
 
 
+FINAL_LOSS_STEPS = 50  # a SIM's final_loss: the mean loss of its last steps (saved, and bench's)
+
+
 def train_sim(
     stream,
     timestamps: Sequence[int],
@@ -396,7 +399,7 @@ def train_or_load(
             **kwargs,
         )
         seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
-        final_loss = float(np.mean(losses[-50:]))
+        final_loss = float(np.mean(losses[-FINAL_LOSS_STEPS:]))
         save_sim(
             model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
         )

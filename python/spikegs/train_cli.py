@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import warnings
 from pathlib import Path
 
 import yaml
 
+from . import strict_json
 from .cli import add_no_progress, file_path, positive_int, show_bars
 from .config import (
     DEFAULT_METHOD,
@@ -149,5 +149,5 @@ def run(args: argparse.Namespace) -> int:
         if trainer.iteration >= config.train.iterations:
             runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
             save_logged_curves(Path(args.out) / CURVE, runs, dataset)
-    print(json.dumps(summary, indent=2))
+    print(strict_json.dumps(summary, indent=2))
     return 0

@@ -18,12 +18,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..cli import show_bars
 from ..config import SimConfig
 from ..data import simulate_dataset
 from ..data.scenes import SCENES
 from ..sim import SIM
 from ..sim_scores import evaluate_dataset
-from ..sim_train import inference_model, train_sim, training_layout
+from ..sim_train import FINAL_LOSS_STEPS, inference_model, train_sim, training_layout
 from ..text_table import print_table
 from .common import median_seconds, write_results
 
@@ -119,7 +120,12 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
     )
     start = time.perf_counter()
     model, losses = train_sim(
-        dataset.stream, dataset.train_timestamps, steps=steps, batch_size=TRAINING.batch, seed=0
+        dataset.stream,
+        dataset.train_timestamps,
+        steps=steps,
+        batch_size=TRAINING.batch,
+        seed=0,
+        progress=show_bars(False),  # (a bar's carriage returns garbled a log)
     )
     seconds = time.perf_counter() - start
     rows = []
@@ -130,12 +136,13 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
                 rows.append({"scene": scene, "method": label, **scores})
     train = {
         "scene": scene,
-        "size": f"{height}x{width}",
+        "height": height,  # (a "size" of "HxW" read as the rasterizer's "WxH")
+        "width": width,
         "steps": steps,
         "batch": TRAINING.batch,
         "seconds": seconds,
         "s_per_step": seconds / steps,
-        "final_loss": float(np.mean(losses[-20:])),
+        "final_loss": float(np.mean(losses[-FINAL_LOSS_STEPS:])),
     }
     return rows, train, model
 
@@ -171,7 +178,7 @@ def run(quick: bool, out: Path) -> dict:
         "training": training,
         "quality": quality,
         "psnr_gain_over_tfp33_db": gains,
-        "inference": {"size": f"{size[0]}x{size[1]}", "rows": fps_rows},
+        "inference": {"height": size[0], "width": size[1], "rows": fps_rows},
         "train_step": step_rows,
     }
     write_results(out, "sim", results)

@@ -166,9 +166,10 @@ def seeded(config: Config, seed: int) -> Config:
     return config
 
 
-def _mean_and_std(values: list[float]) -> tuple[float, float]:
-    """Mean and sample standard deviation (0 for a single value)."""
-    return float(np.mean(values)), float(np.std(values, ddof=1)) if len(values) > 1 else 0.0
+def _mean_and_std(values: list[float]) -> tuple[float, float | None]:
+    """Mean and sample standard deviation (None for a single value: no spread measured, where
+    0.0 read as seeds that agreed)."""
+    return float(np.mean(values)), float(np.std(values, ddof=1)) if len(values) > 1 else None
 
 
 def over_seeds(runs: list[dict]) -> dict:
@@ -194,15 +195,17 @@ def over_seeds(runs: list[dict]) -> dict:
     return merged
 
 
-def paired_gains(methods: dict, base: str = "tfp33") -> dict[str, tuple[float, float]]:
-    """PSNR gain of each method over `base`, seed by seed: name -> (mean, standard deviation)."""
+def paired_gains(methods: dict, base: str = "tfp33") -> dict[str, dict]:
+    """PSNR gain of each method over `base`, seed by seed: name -> {"mean", "std"} (its sample
+    standard deviation, None for one seed)."""
     if base not in methods:
         return {}
     reference = [s["psnr"] for s in methods[base]["seeds"]]
-    return {
+    gains = {
         name: _mean_and_std([s["psnr"] - b for s, b in zip(r["seeds"], reference)])
         for name, r in methods.items()
     }
+    return {name: {"mean": mean, "std": std} for name, (mean, std) in gains.items()}
 
 
 def ablation_order(methods: dict) -> str | None:
@@ -214,13 +217,12 @@ def ablation_order(methods: dict) -> str | None:
     return "holds" if tuple(found) == ABLATION_ORDER else " > ".join(found)
 
 
-def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
+def _table(methods: dict, gains: dict[str, dict]) -> list[dict]:
     """The paper's Tables 1-3 analogue for one scene: scores, times, `gains` over TFP(33)
     (`paired_gains`; means over the seeds, ± their standard deviations when there are several)."""
-    several = any(len(r["seeds"]) > 1 for r in methods.values())
 
-    def spread(mean: float, std: float, digits: int) -> str | float:
-        return f"{mean:.{digits}f} ± {std:.{digits}f}" if several else mean
+    def spread(mean: float, std: float | None, digits: int) -> str | float:
+        return mean if std is None else f"{mean:.{digits}f} ± {std:.{digits}f}"
 
     return [
         {
@@ -230,7 +232,7 @@ def _table(methods: dict, gains: dict[str, tuple[float, float]]) -> list[dict]:
             "train s": r["train_seconds"],
             "SIM s": r["sim_seconds"] if r["uses_sim"] else "-",
             "Gaussians": int(round(r["gaussians"])),
-            "gain over tfp33 (dB)": spread(*gains[name], 2) if name in gains else "-",
+            "gain over tfp33 (dB)": spread(**gains[name], digits=2) if name in gains else "-",
         }
         for name, r in methods.items()
     ]
@@ -346,7 +348,8 @@ def run(
         "schedule": overrides,
         "points_per_run": POINTS,
         "time_axis": "SIM methods: sim_seconds + train_seconds; others: train_seconds "
-        "(optimisation steps only; evaluation excluded)",
+        "(the steps: updates, densification and each timestamp's targets made at its first visit; "
+        "evaluations, checkpoints and SIM's training excluded)",
         "scores": "mean PSNR (dB, data range 1) and SSIM over every test view; ssim: "
         "scikit-image's (7x7 uniform window), ssim_3dgs: 3DGS's evaluation's (11x11 Gaussian, "
         "the final scores only)",
