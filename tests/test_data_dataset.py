@@ -20,7 +20,7 @@ from spikegs.data import (
     simulate_dataset,
 )
 from spikegs.data.dataset import TestView as View
-from spikegs.data.dataset import check_meta_values, warn_rows_out_of_line, write_parts
+from spikegs.data.dataset import check_meta_values, check_stream_image, write_parts
 from spikegs.data.simulate import warn_about_data
 from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
@@ -808,13 +808,18 @@ def test_a_view_lit_in_one_colour_is_lit():
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_a_recording_read_at_the_wrong_frame_size_is_warned_of(scene, tmp_path):
     """Height and width swapped give frames of as many bytes: the spikes were read without a
-    word and trained into noise (SfM, if run, failed later). Each row then starts at another
-    place of the scene: neighbouring rows no longer correlate, a row's own pixels still do."""
+    word and trained into noise (SfM, if run, failed later). Neighbouring rows then no longer
+    correlate, where a row's own pixels still do; a camera's hot pixels are no such sign."""
     data = simulate_dataset(scene, tmp_path / "d", **{**SMALL, "readouts": 500})
-    path, (h, w) = data.stream.path, (data.height, data.width)
+    path, (h, w), n = data.stream.path, (data.height, data.width), len(data.stream)
+    hot = np.random.default_rng(0).random((h, w)) < 0.03  # a camera's hot pixels: not warned of
+    bits = data.stream.window(n // 2, n)  # [n, h, w]
+    bits[:, hot] = 1
+    save_dat(tmp_path / "hot.dat", bits)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        warn_rows_out_of_line(SpikeStream.open(path, h, w, flip=True), "meta.json")
-    for size in [(w, h), (2 * h, w // 2)]:  # swapped; rows cut at half the width
-        with pytest.warns(UserWarning, match=r"rows do not line up .* frame size is likely wrong"):
-            warn_rows_out_of_line(SpikeStream.open(path, *size, flip=True), "meta.json")
+        check_stream_image(SpikeStream.open(path, h, w, flip=True), "meta.json")
+        check_stream_image(SpikeStream.open(tmp_path / "hot.dat", h, w), "meta.json")
+    for file, size in [(path, (w, h)), (path, (2 * h, w // 2)), (tmp_path / "hot.dat", (w, h))]:
+        with pytest.warns(UserWarning, match=r"image is no scene's .*\(height and width swapped"):
+            check_stream_image(SpikeStream.open(file, *size), "meta.json")  # swapped, halved

@@ -35,8 +35,8 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
-    check_fires,
     check_meta_values,
+    check_stream_image,
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
@@ -136,7 +136,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     check_meta_values(meta, where, [*required, *stated])
     streams = open_streams(root, spike_files(meta["channels"]), meta)
     for stream in streams:  # a dark or saturated file: said before SfM, not after it
-        check_fires(stream, META)
+        check_stream_image(stream, META)
     return streams
 
 

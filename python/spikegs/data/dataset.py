@@ -342,53 +342,50 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     return streams
 
 
-SILENT_SHARE = 0.01  # check_fires: a stream with fewer pixels that ever fire (or never
+SILENT_SHARE = 0.01  # check_stream_image: a stream with fewer pixels that ever fire (or never
 # stop firing) than this share holds no image (a hot or a dead pixel does not make one)
+STRUCTURE_MIN = 0.5  # neighbouring pixels' correlation: along rows over it and across them under
+# it, the image is not a scene's (the counts' ranks over whole streams: 0.8-0.99 both ways for
+# the built-in scenes read right, dim ones too, 0.53 with a tenth of the pixels hot; under 0.05
+# across rows with height and width swapped). Neither way over it is no sign: a flat field's
+# image, or spikes of another row width (raw_width), which a count's noise cannot tell apart
 
 
-def check_fires(stream: SpikeStream, settings: str) -> None:
-    """ValueError naming the stream's file when under SILENT_SHARE of its pixels ever fire, or
-    all but that share fire at every readout: no image in it (one pass over the spikes);
-    `settings` names the file of its frame size."""
+def check_stream_image(stream: SpikeStream, settings: str) -> None:
+    """The image the whole stream's spikes give (one pass): a ValueError naming the file when
+    under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout (no
+    image in it); a UserWarning when it is no scene's at this frame size: its rows' own pixels
+    correlate and neighbouring rows do not (STRUCTURE_MIN), as with height and width swapped,
+    which give frames of as many bytes, each row then starting at another place of the scene.
+    `settings` names the file of the frame size."""
     n = len(stream)
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
-    if firing >= SILENT_SHARE and saturated <= 1 - SILENT_SHARE:
-        return
-    dark = firing < SILENT_SHARE
-    if dark:
-        what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
-    else:
-        every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
-        what = f"{every} firing at every readout"
-    raise ValueError(
-        f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: nothing "
-        f"to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong file or a "
-        f"wrong frame size: height, width, raw_width, col_offset in {settings})"
-    )
+    size = f"{stream.height}x{stream.width}"
+    if firing < SILENT_SHARE or saturated > 1 - SILENT_SHARE:
+        dark = firing < SILENT_SHARE
+        if dark:
+            what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
+        else:
+            every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
+            what = f"{every} firing at every readout"
+        raise ValueError(
+            f"{stream.path}: {what} in its {n} readouts of {size}: nothing to learn from "
+            f"({'a dark' if dark else 'a saturated'} recording, a wrong file or a wrong frame "
+            f"size: height, width, raw_width, col_offset in {settings})"
+        )
+    from scipy.stats import rankdata
 
-
-ROWS_WINDOW = 401  # readouts of the image `warn_rows_out_of_line` decodes (noise ~1/20)
-ROWS_MIN = 0.5  # neighbouring rows' correlation under which, with rows' own above it, warn
-# (measured on the built-in scenes at 32-128 px: 0.82-0.98 read at their size, under 0.17 with
-# height and width swapped or the rows cut at another width)
-
-
-def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
-    """A UserWarning when the image the spikes give at their frame size has structure along its
-    rows but none across them (neighbouring rows correlate under ROWS_MIN where neighbouring
-    pixels of a row correlate above it): each row starts at another place of the scene, as with
-    height and width swapped (which give as many bytes a frame) or a wrong raw_width."""
-    n = len(stream)
-    image = stream.counts(n // 2, min(ROWS_WINDOW, n))  # [H, W]
-    across, along = correlation(image[1:], image[:-1]), correlation(image[:, 1:], image[:, :-1])
-    if across < ROWS_MIN <= along:
+    image = rankdata(counts).reshape(counts.shape)  # ranks: hot pixels' counts decorrelated it
+    across = correlation(image[1:], image[:-1])
+    along = correlation(image[:, 1:], image[:, :-1])
+    if across < STRUCTURE_MIN <= along:
         warnings.warn(
-            f"{stream.path}: read as {stream.height}x{stream.width} frames, its rows do not line "
-            f"up (neighbouring rows correlate at {across:.2f}, neighbouring pixels of a row at "
-            f"{along:.2f}, where a scene gives both near 1): the frame size is likely wrong "
-            f"(height and width swapped, or raw_width, col_offset in {settings}); training on "
-            f"it learns noise",
+            f"{stream.path}: read as {size} frames, its image is no scene's (neighbouring rows "
+            f"correlate at {across:.2f}, neighbouring pixels of a row at {along:.2f}, where a "
+            f"scene gives both near 1): the frame size is likely wrong (height and width "
+            f"swapped? height, width, raw_width, col_offset in {settings}); training on it "
+            f"learns noise",
             stacklevel=3,
         )
 
@@ -520,8 +517,7 @@ def load_dataset(path: PathLike) -> Dataset:
     names = spike_files(int(meta["channels"]))
     streams = open_streams(root, names, meta)
     for stream in streams:
-        check_fires(stream, META)
-        warn_rows_out_of_line(stream, META)
+        check_stream_image(stream, META)
     if (root / "spikegs.json").is_file():
         warnings.warn(
             f"{root / 'spikegs.json'} is not read: it holds the options of the LLFF and NeRF "

@@ -27,7 +27,7 @@ from pathlib import Path
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
 from ..strict_json import read_json
-from .dataset import check_fires, warn_rows_out_of_line
+from .dataset import check_stream_image
 
 OPTIONS_FILE = "spikegs.json"
 # how to mend a camera whose images have another aspect ratio than the spikes (`frame_columns`)
@@ -110,7 +110,7 @@ def read_options(root: Path, overrides: dict) -> Options:
 def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:
     """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop;
     FileNotFoundError or ValueError naming the file (empty, not of the expected layout, or
-    without information: `check_fires`)."""
+    without information: `check_stream_image`)."""
     if not path.is_file():
         raise FileNotFoundError(f"spike file not found: {path}")
     if path.stat().st_size == 0:
@@ -127,6 +127,5 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
             f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
             f"if these are wrong)"
         ) from err
-    check_fires(stream, OPTIONS_FILE)
-    warn_rows_out_of_line(stream, OPTIONS_FILE)
+    check_stream_image(stream, OPTIONS_FILE)
     return stream
