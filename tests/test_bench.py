@@ -76,6 +76,9 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     row = {r["method"]: r for r in train._table(methods, train.paired_gains(methods))}["spikegs"]
     assert row["PSNR"] == "27.20 ± 1.70" and row["gain over tfp33 (dB)"] == "1.20 ± 0.28"
     # the plots draw seed 0's curve: its time axis starts at seed 0's SIM, not the mean's
+    one = {"tfp33": train.over_seeds([_run(25.0)]), "spikegs": train.over_seeds([_run(26.5)])}
+    assert one["spikegs"]["psnr_std"] is None  # one seed: no spread measured (0.0 read as agreed)
+    assert train.paired_gains(one)["spikegs"] == {"mean": 1.5, "std": None}
     timed = train.over_seeds([_run(26.0, sim_seconds=30.0), _run(27.0, sim_seconds=50.0)])
     assert timed["sim_seconds"] == 40.0 and timed["curve_sim_seconds"] == 30.0
     assert isinstance(row["Gaussians"], int)

@@ -39,14 +39,22 @@ def test_the_curve_is_the_mean_over_the_test_views_where_every_evaluation_logged
     assert [p["psnr"] for p in logged_curve(_log(tmp_path / "new", means))] == [22.0, 23.5]
     resumed = [*LOG[:2], *means[2:]]  # an older version's evaluation, then the new one's
     assert [p["psnr"] for p in logged_curve(_log(tmp_path / "old", resumed))] == [21.0, 22.5]
-    titles = []
-    monkeypatch.setattr(curves, "save_curves", lambda path, methods, m, title: titles.append(title))
+    titles, drawn = [], []
+
+    def save(path, methods, metrics, title):
+        titles.append(title)
+        drawn.append({name: [p["psnr"] for p in m["curve"]] for name, m in methods.items()})
+
+    monkeypatch.setattr(curves, "save_curves", save)
     views = [SimpleNamespace(name=f"view_{i}") for i in range(3)]
     dataset = SimpleNamespace(meta={"scene": "solids"}, root=tmp_path, test_views=views)
     save_logged_curves(tmp_path / "a.png", {"spikegs": (tmp_path / "new", 1.0)}, dataset)
     save_logged_curves(tmp_path / "b.png", {"tfp33": (tmp_path / "old", 0.0)}, dataset)
+    both = {"spikegs": (tmp_path / "new", 1.0), "tfp33": (tmp_path / "old", 0.0)}
+    save_logged_curves(tmp_path / "c.png", both, dataset)  # (a demo resumed across versions)
     assert titles[0].startswith("solids: PSNR over the 3 test views during training")
     assert titles[1].startswith("solids: PSNR of the test view view_0 during training")
+    assert titles[2] == titles[1] and drawn[2] == {"spikegs": [21.0, 22.5], "tfp33": [21.0, 22.5]}
 
 
 def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):

@@ -296,7 +296,6 @@ def test_gradcheck(impl, sh_degree):
     )
 
 
-@needs_cpp
 def anisotropic(scene: dict, kx: float, ky: float, cx: float, cy: float) -> dict:
     """`scene` seen through other intrinsics: its focal lengths times `kx`, `ky` (fx != fy: a
     non-square pixel or a resampled image), the principal point at (`cx`, `cy`) of the image."""
@@ -366,6 +365,7 @@ def test_a_small_gaussian_lands_where_the_intrinsics_project_it():
     assert (centroid - expected).abs().max() < 0.02, (centroid, expected)
 
 
+@needs_cpp
 @pytest.mark.parametrize("channels", [1, 3, 4])
 @pytest.mark.parametrize(
     "dtype, rtol", [(torch.float64, 1e-9), (torch.float32, 1e-4)], ids=["float64", "float32"]
@@ -414,7 +414,6 @@ def test_equal_depths_keep_index_order():
     assert not torch.allclose(out.image, flipped.image, atol=1e-3), "the order should matter here"
 
 
-@needs_cpp
 @needs_cpp
 def test_result_type():
     out = render(spikegs.rasterize, make_scene(6, 5, 13, 9))

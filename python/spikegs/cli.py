@@ -175,8 +175,8 @@ def console() -> None:
     import, torch's, before this runs, still ends in Python's traceback). A character the
     output's codec lacks (θ, µ or — through a Latin-1 or ASCII stdout) prints escaped (as
     Python's stderr does), not as a UnicodeEncodeError after the work."""
-    for stream in (sys.stdout, sys.stderr):
-        if isinstance(stream, io.TextIOWrapper):
+    for stream in (sys.stdout, sys.stderr):  # (UTF-8 mode's surrogateescape stays)
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
             stream.reconfigure(errors="backslashreplace")
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, raise_terminated)

@@ -12,35 +12,46 @@ from .method_titles import method_title
 from .run_summary import LOG
 
 
-def _logged_evaluations(run_dir: str | Path) -> tuple[list[dict], str]:
-    """RUN/log.jsonl's evaluation records in order, and the key of the PSNR each holds:
-    "psnr_mean" (over every test view, as eval.json's psnr) where each logged it, else "psnr"
-    (the first test view's: a log of an earlier version, in part or whole)."""
+def _logged_evaluations(run_dir: str | Path) -> list[dict]:
+    """RUN/log.jsonl's evaluation records, in order."""
     lines = (Path(run_dir) / LOG).read_text().splitlines()
-    evaluations = [r for r in map(json.loads, lines) if "psnr" in r]
-    return evaluations, "psnr_mean" if all("psnr_mean" in r for r in evaluations) else "psnr"
+    return [r for r in map(json.loads, lines) if "psnr" in r]
 
 
-def logged_curve(run_dir: str | Path) -> list[dict]:
-    """RUN's logged test PSNR against its training seconds, [{"iteration", "train_seconds",
-    "psnr"}] (`_logged_evaluations`: over every test view, or an earlier log's first view)."""
-    evaluations, key = _logged_evaluations(run_dir)
+def _psnr_key(runs: list[list[dict]]) -> str:
+    """The PSNR that every evaluation of `runs` holds: "psnr_mean" (over every test view, as
+    eval.json's psnr) where each logged it, else "psnr" (the first test view's: a log of an
+    earlier version, in part or whole)."""
+    return "psnr_mean" if all("psnr_mean" in r for run in runs for r in run) else "psnr"
+
+
+def _curve(evaluations: list[dict], key: str) -> list[dict]:
+    """[{"iteration", "train_seconds", "psnr"}] of logged `evaluations`, the PSNR under `key`."""
     return [
         {"iteration": r["iteration"], "train_seconds": r["seconds"], "psnr": r[key]}
         for r in evaluations
     ]
 
 
+def logged_curve(run_dir: str | Path) -> list[dict]:
+    """RUN's logged test PSNR against its training seconds, [{"iteration", "train_seconds",
+    "psnr"}] (over every test view, or an earlier log's first view: `_psnr_key`)."""
+    evaluations = _logged_evaluations(run_dir)
+    return _curve(evaluations, _psnr_key([evaluations]))
+
+
 def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset) -> None:
     """Plot the logged PSNR of `runs` ({method: (RUN, SIM's training seconds)}, trained on
     `dataset`) to `path`, each curve starting after its SIM's training."""
+    logs = {name: _logged_evaluations(run_dir) for name, (run_dir, _) in runs.items()}
+    key = _psnr_key(list(logs.values()))  # one for every curve: the title names it
     methods = {
-        name: {"curve": logged_curve(run_dir), "sim_seconds": sim, "uses_sim": sim > 0}
-        for name, (run_dir, sim) in runs.items()
+        name: {"curve": _curve(logs[name], key), "sim_seconds": sim, "uses_sim": sim > 0}
+        for name, (_, sim) in runs.items()
     }
     scene = dataset.meta.get("scene") or Path(dataset.root).name
-    means = all(_logged_evaluations(run_dir)[1] == "psnr_mean" for run_dir, _ in runs.values())
     views = dataset.test_views
+    means = key == "psnr_mean"
     scored = f"over the {len(views)} test views" if means else f"of the test view {views[0].name}"
     title = (
         f"{scene}: PSNR {scored} during training\n"

@@ -26,12 +26,6 @@ from .run_summary import CONFIG, EVAL, read_summary, trained_scene
 from .targets import intensity_scale
 
 
-def scored(pred: np.ndarray, image: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """A render [H, W, C] (intensities) and a view's image [H, W, C] (firing rates) as eval scores
-    them: the image over `scale` into the render's units, both clipped to [0, 1]."""
-    return np.clip(pred, 0, 1), np.clip(np.asarray(image, np.float32) / scale, 0, 1)
-
-
 def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarray:
     """The model's image [H, W, C] (intensity units) from world-to-camera `viewmat` [4, 4] in the
     dataset's camera (its intrinsics, size and scene's near plane), rendered about the origin
@@ -58,6 +52,13 @@ def view_metrics(
     [H, W, C] intensities, clipped to [0, 1]."""
     pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)
     return {"psnr": psnr(pred, gt), **{name: SSIMS[name](pred, gt) for name in ssims}}
+
+
+def score_view(model, view, dataset, scale: float, ssims: tuple[str, ...] = tuple(SSIMS)) -> dict:
+    """`view_metrics` of the model's render of test `view` against its image over `scale` (a
+    dataset's firing rates into the render's units), as training's evaluations score it."""
+    pred = render_view(model, view.viewmat, dataset)
+    return view_metrics(pred, np.asarray(view.image, np.float32) / scale, ssims)
 
 
 def _eval_name(run_dir: Path, train: dict, dataset) -> str:
@@ -237,7 +238,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
         # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
         pseudo = view.name.startswith(PSEUDO_PREFIX)
-        pred, gt = scored(pred, view.image, run_scale if pseudo else scale)  # as shown, too
+        gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
+        pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
         if write_images:  # ground truth | render | 4 x the absolute error that was scored,
             # shown as it is (sRGB encoding would show an error of 0.02 as a 31 % grey)

@@ -34,7 +34,11 @@ def environment() -> dict[str, Any]:
 
     return {
         "spikegs": __version__,
-        "build": {**_C.build, "cpu_features": " ".join(_C.compiled_cpu_features)},
+        # (an extension built before its record: rebuilt, it names its own)
+        "build": {
+            **getattr(_C, "build", {"source": "unknown (an extension older than this record)"}),
+            "cpu_features": " ".join(_C.compiled_cpu_features),
+        },
         "python": platform.python_version(),
         "torch": str(torch.__version__),  # (a TorchVersion, which a checkpoint cannot hold)
         "numpy": numpy.__version__,

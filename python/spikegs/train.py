@@ -24,7 +24,7 @@ from .atomic_save import save_atomically, sweep_temporaries, write_text_if_chang
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
-from .evaluate import render_view, scored, view_metrics
+from .evaluate import score_view
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
@@ -446,20 +446,17 @@ class Trainer:
     def test_psnrs(self) -> list[float]:
         """Each test view's PSNR, as `spikegs eval` scores it (without its SSIMs)."""
         return [
-            view_metrics(
-                *scored(render_view(self.model, v.viewmat, self.dataset), v.image, self.scale),
-                ssims=(),
-            )["psnr"]
+            score_view(self.model, v, self.dataset, self.scale, ssims=())["psnr"]
             for v in self.dataset.test_views
         ]
 
     def _after_step(self, loss: float, log, bar, on_eval) -> None:
-        """Evaluation (into `held_out_psnr`) and log record due after a step."""
+        """Evaluation (into `test_psnr` and `first_view_psnr`) and log record due after a step."""
         t, it = self.config.train, self.iteration
         evaluate = it % t.eval_every == 0 or it == t.iterations
         if evaluate:
             psnrs = self.test_psnrs()
-            self.held_out_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
+            self.first_view_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
             if on_eval is not None:
                 on_eval(self)
         if it % t.log_every == 0 or evaluate:
@@ -472,7 +469,7 @@ class Trainer:
             }
             if evaluate:  # the first test view's, and the mean over all (eval.json's psnr)
                 name = self.dataset.test_views[0].name
-                record.update(psnr=self.held_out_psnr, psnr_view=name, psnr_mean=self.test_psnr)
+                record.update(psnr=self.first_view_psnr, psnr_view=name, psnr_mean=self.test_psnr)
             log.write(strict_json.dumps(record) + "\n")
             log.flush()
             bar.set_postfix(
@@ -486,7 +483,7 @@ class Trainer:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
-        outside the timed steps (its time is not in `train_seconds`), `trainer.held_out_psnr`
+        outside the timed steps (its time is not in `train_seconds`), `trainer.first_view_psnr`
         then the first test view's PSNR and `trainer.test_psnr` the mean over every test view."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
@@ -575,7 +572,7 @@ class Trainer:
             desc=self.config.method,
             dynamic_ncols=True,
         )
-        self.held_out_psnr = self.test_psnr = float("nan")  # none before the first evaluation
+        self.first_view_psnr = self.test_psnr = float("nan")  # none before the first evaluation
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
         stop_message = (
             "\n{signal}: stopping after this step, with a checkpoint to --resume from ({signal} "

@@ -89,8 +89,8 @@ def config_from_args(args: argparse.Namespace):
         older = older_run_keys(read_yaml(args.config) or {}) if args.config is not None else {}
         if older:  # (a valid file: load_config read it)
             warnings.warn(
-                f"--config {args.config} sets nearly every key but {', '.join(older)}, as an "
-                f"earlier spikegs's run config.yaml does: those take today's defaults, where "
+                f"--config {args.config} sets nearly every key but lacks {', '.join(older)}, as "
+                f"an earlier spikegs's run config.yaml does: those take today's defaults, where "
                 f"that run trained with "
                 + ", ".join(f"{k} = {v!r}" for k, v in older.items())
                 + "; write them in to train as it did (or --resume that run)",
@@ -127,7 +127,7 @@ def print_evaluation(trainer) -> None:
     print(
         f"{trainer.config.method}: iteration {trainer.iteration}/{trainer.config.train.iterations}"
         f", held-out PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "
-        f"{trainer.held_out_psnr:.2f}), {len(trainer.model):,} Gaussians, "
+        f"{trainer.first_view_psnr:.2f}), {len(trainer.model):,} Gaussians, "
         f"{trainer.train_seconds:.0f} s",
         file=sys.stderr,
         flush=True,

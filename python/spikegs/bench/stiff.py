@@ -10,9 +10,9 @@ must be culled (or are transparent or clamped) get exactly zero gradient.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import torch
 

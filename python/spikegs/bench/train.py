@@ -37,7 +37,7 @@ from ..data.dataset import check_output
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES
-from ..evaluate import SSIMS, render_view, view_metrics
+from ..evaluate import SSIMS, score_view
 from ..run_folder import refuse_foreign_files
 from ..text_table import print_table
 from ..train import Trainer
@@ -115,14 +115,7 @@ def held_out_scores(trainer: Trainer, ssims: tuple[str, ...] = ("ssim",)) -> dic
     """Mean PSNR and the `ssims` (evaluate.SSIMS; the tables' is scikit-image's "ssim") of the
     trainer's model over every test view of its dataset."""
     ds = trainer.dataset
-    scores = [
-        view_metrics(
-            render_view(trainer.model, view.viewmat, ds),
-            np.asarray(view.image, dtype=np.float32) / trainer.scale,
-            ssims=ssims,
-        )
-        for view in ds.test_views
-    ]
+    scores = [score_view(trainer.model, view, ds, trainer.scale, ssims) for view in ds.test_views]
     return {k: float(np.mean([s[k] for s in scores])) for k in ("psnr", *ssims)}
 
 

@@ -374,6 +374,8 @@ def check_stream_image(stream: SpikeStream, settings: str) -> None:
             f"({'a dark' if dark else 'a saturated'} recording, a wrong file or a wrong frame "
             f"size: height, width, raw_width, col_offset in {settings})"
         )
+    if min(counts.shape) < 2:  # a line of pixels has no rows (or columns) to compare
+        return
     from scipy.stats import rankdata
 
     image = rankdata(counts).reshape(counts.shape)  # ranks: hot pixels' counts decorrelated it

@@ -14,7 +14,7 @@ deterministic: it takes a `seed` for its jitter and returns the same scene for t
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import skimage.data

@@ -13,7 +13,6 @@ import os
 import warnings
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -22,7 +21,7 @@ from ..atomic_save import write_atomically
 from ..number_checks import is_number, number_array
 from ..strict_json import read_json
 
-PathLike = Union[str, os.PathLike]
+PathLike = str | os.PathLike
 CONVENTION = "opencv"
 WORLD_UP = np.array([0.0, 0.0, 1.0])  # the spiral ascends along +z
 

@@ -16,7 +16,7 @@ import functools
 import numbers
 import os
 import warnings
-from typing import Callable, Union
+from collections.abc import Callable
 
 import numpy as np
 from scipy.special import ndtri
@@ -26,7 +26,7 @@ from ..number_checks import is_int, is_number, is_seed, number_array
 from .stream import DatWriter, PathLike, SpikeStream, as_flag, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
-Source = Union[np.ndarray, Callable[[float], np.ndarray]]
+Source = np.ndarray | Callable[[float], np.ndarray]
 
 
 MAX_LIGHT_TIMES = 1e8  # a callable's sampling times: 0.8 GB (a frame every 1e-7 readouts: 24 GB)

@@ -25,7 +25,6 @@ import shutil
 import sys
 import uuid
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 
@@ -34,7 +33,7 @@ from ..atomic_save import naming, temporary_name, write_text_atomically
 from ..cache_home import cache_home
 from ..number_checks import is_int, is_number, whole_numbers
 
-PathLike = Union[str, os.PathLike]
+PathLike = str | os.PathLike
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
 
 
