@@ -9,14 +9,17 @@ import os
 import sys
 from pathlib import Path
 
+from . import strict_json
+from .atomic_save import write_text_atomically
 from .cli import add_no_progress, output_file, positive_int, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .losses import SIM_LOSSES
 from .output_paths import check_file_output
+from .provenance import environment
 from .sim_scores import evaluate_dataset, on_path_views
-from .sim_train import CHECKPOINT_S, is_sim_file
+from .sim_train import CHECKPOINT_S, is_sim_file, recorded_seconds
 from .targets import check_targets, intensity_scale, trained_sim
 from .text_table import print_table
 
@@ -126,6 +129,23 @@ def run(args: argparse.Namespace) -> int:
         f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
         f"the same error in the intensity units of spikegs eval)"
     )
+    record = Path(out).with_suffix(".json")  # the table for a script, beside the weights
+    summary = {
+        "sim": str(Path(out).resolve()),
+        "dataset": str(Path(dataset.root).resolve()),
+        "parameters": model.num_parameters(),
+        "seconds": recorded_seconds(Path(out)),  # its training time, as it recorded it
+        "trained_now": bool(seconds),
+        "views": [v.name for v in views],  # on the camera's path: scored at their readouts
+        "units": f"firing rates, spikes a readout, data range 1 ({units:.1f} dB above eval's)",
+        "scores": scores,
+        "environment": environment(),
+    }
+    try:  # (reused weights may lie where nothing is written: the table above stands)
+        write_text_atomically(record, strict_json.dumps(summary, indent=2))
+        print(f"scores: {record}")
+    except OSError as err:
+        print(f"scores not written beside the weights: {err}", file=sys.stderr)
     note = pseudo_views_note(v.name for v in views)
     if note:
         print(
