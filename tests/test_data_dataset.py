@@ -822,5 +822,5 @@ def test_a_recording_read_at_the_wrong_frame_size_is_warned_of(scene, tmp_path):
         check_stream_image(SpikeStream.open(tmp_path / "hot.dat", h, w), "meta.json")
         check_stream_image(SpikeStream.open(path, 1, h * w), "meta.json")  # a line: no rows
     for file, size in [(path, (w, h)), (path, (2 * h, w // 2)), (tmp_path / "hot.dat", (w, h))]:
-        with pytest.warns(UserWarning, match=r"image is no scene's .*\(height and width swapped"):
+        with pytest.warns(UserWarning, match=r"images are no scene's .*\(height and width swapped"):
             check_stream_image(SpikeStream.open(file, *size), "meta.json")  # swapped, halved

@@ -382,7 +382,7 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
     said = [str(w.message) for w in caught]
     assert any(re.search(r"poses span readouts \[40, .* of the 2800 .* at 16x24", m) for m in said)
-    assert any("16x24 frames, its image is no scene" in m for m in said)  # (as it is wrong)
+    assert any("16x24 frames, its images are no scene" in m for m in said)  # (as it is wrong)
 
 
 @pytest.mark.filterwarnings("default")
@@ -958,7 +958,7 @@ def test_nerf_image_in_two_formats_named(nerf, tmp_path):
 def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
     write_options(root, height=H // 2, width=W // 2)  # the same .dat files as 16x24 frames
-    with pytest.warns(UserWarning, match="16x24 frames, its image is no scene"):  # (they don't)
+    with pytest.warns(UserWarning, match="16x24 frames, its images are no scene"):  # (they don't)
         ds = load_dataset(root)
     assert (ds.height, ds.width) == (H // 2, W // 2)
     np.testing.assert_allclose(np.diag(ds.K)[:2], np.diag(sim.K)[:2] / 2, rtol=1e-6)

@@ -344,24 +344,21 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
 
 SILENT_SHARE = 0.01  # check_stream_image: a stream with fewer pixels that ever fire (or never
 # stop firing) than this share holds no image (a hot or a dead pixel does not make one)
-STRUCTURE_MIN = 0.5  # neighbouring pixels' correlation: along rows over it and across them under
-# it, the image is not a scene's (the counts' ranks over whole streams: 0.8-0.99 both ways for
-# the built-in scenes read right, dim ones too, 0.53 with a tenth of the pixels hot; under 0.05
-# across rows with height and width swapped). Neither way over it is no sign: a flat field's
-# image, or spikes of another row width (raw_width), which a count's noise cannot tell apart
+STRUCTURE_MIN = 0.5  # neighbouring pixels' correlation along rows over which, with neighbouring
+STRUCTURE_GAP = 0.3  # rows' this much lower and under it, the image is no scene's
+STRUCTURE_WINDOWS = (7, 401)  # images of 401 readouts at 7 places (short: little motion blur)
+# (the medians of the counts' ranks' correlations: 0.76-0.95 both ways for the built-in scenes read
+# right, 0.5 for a dim one, with 3 % of the pixels hot too; swapped: under 0.1 across rows, 0.8-0.95
+# along them; 0.47 and 0.53 for a 16x13 image, its noise: the gap)
 
 
 def check_stream_image(stream: SpikeStream, settings: str) -> None:
     """The image the whole stream's spikes give (one pass): a ValueError naming the file when
     under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout (no
-    image in it); a UserWarning when it is no scene's at this frame size: its rows' own pixels
-    correlate and neighbouring rows do not (STRUCTURE_MIN), as with height and width swapped,
-    which give frames of as many bytes, each row then starting at another place of the scene.
-    `settings` names the file of the frame size."""
+    image in it); then `_warn_rows_out_of_line`. `settings` names the file of the frame size."""
     n = len(stream)
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
-    size = f"{stream.height}x{stream.width}"
     if firing < SILENT_SHARE or saturated > 1 - SILENT_SHARE:
         dark = firing < SILENT_SHARE
         if dark:
@@ -370,25 +367,41 @@ def check_stream_image(stream: SpikeStream, settings: str) -> None:
             every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
             what = f"{every} firing at every readout"
         raise ValueError(
-            f"{stream.path}: {what} in its {n} readouts of {size}: nothing to learn from "
-            f"({'a dark' if dark else 'a saturated'} recording, a wrong file or a wrong frame "
-            f"size: height, width, raw_width, col_offset in {settings})"
+            f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: "
+            f"nothing to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong "
+            f"file or a wrong frame size: height, width, raw_width, col_offset in {settings})"
         )
-    if min(counts.shape) < 2:  # a line of pixels has no rows (or columns) to compare
+    _warn_rows_out_of_line(stream, settings)
+
+
+def _warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
+    """A UserWarning when the stream's images are no scene's at this frame size: their rows' own
+    pixels correlate and neighbouring rows do not (STRUCTURE_MIN, STRUCTURE_GAP: the medians
+    over STRUCTURE_WINDOWS, of the counts' ranks, which a camera's hot pixels do not decorrelate),
+    as with height and width swapped, which give frames of as many bytes, each row then starting
+    at another place of the scene. Rows of another raw_width give no structure either way, as a
+    flat field does: no sign. A texture of independent pixels moving along the rows (white noise
+    panned) looks alike."""
+    if min(stream.height, stream.width) < 2:  # a line of pixels has no rows (or columns)
         return
     from scipy.stats import rankdata
 
-    image = rankdata(counts).reshape(counts.shape)  # ranks: hot pixels' counts decorrelated it
-    across = correlation(image[1:], image[:-1])
-    along = correlation(image[:, 1:], image[:, :-1])
-    if across < STRUCTURE_MIN <= along:
+    places, length = STRUCTURE_WINDOWS
+    w = min(length, len(stream))
+    ks = np.unique(np.linspace(w // 2, len(stream) - w + w // 2, places).astype(np.int64))
+    pairs = []
+    for counts in stream.counts(ks, w):  # [H, W] each
+        image = rankdata(counts).reshape(counts.shape)
+        pairs.append((correlation(image[1:], image[:-1]), correlation(image[:, 1:], image[:, :-1])))
+    across, along = np.median(np.asarray(pairs), axis=0)
+    if across < STRUCTURE_MIN <= along and along - across >= STRUCTURE_GAP:
         warnings.warn(
-            f"{stream.path}: read as {size} frames, its image is no scene's (neighbouring rows "
-            f"correlate at {across:.2f}, neighbouring pixels of a row at {along:.2f}, where a "
-            f"scene gives both near 1): the frame size is likely wrong (height and width "
-            f"swapped? height, width, raw_width, col_offset in {settings}); training on it "
-            f"learns noise",
-            stacklevel=3,
+            f"{stream.path}: read as {stream.height}x{stream.width} frames, its images are no "
+            f"scene's (neighbouring rows correlate at {across:.2f}, neighbouring pixels of a row "
+            f"at {along:.2f}, where a scene gives both alike): the frame size is likely wrong "
+            f"(height and width swapped? height, width, raw_width, col_offset in {settings}); "
+            f"training on it learns noise",
+            stacklevel=4,
         )
 
 
