@@ -20,7 +20,7 @@ from spikegs.data import (
     simulate_dataset,
 )
 from spikegs.data.dataset import TestView as View
-from spikegs.data.dataset import check_meta_values, check_stream_image, write_parts
+from spikegs.data.dataset import check_meta_values, warn_rows_out_of_line, write_parts
 from spikegs.data.simulate import warn_about_data
 from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
@@ -806,21 +806,30 @@ def test_a_view_lit_in_one_colour_is_lit():
 
 
 @pytest.mark.parametrize("scene", list(SCENES))
-def test_a_recording_read_at_the_wrong_frame_size_is_warned_of(scene, tmp_path):
+def test_a_recording_read_with_height_and_width_swapped_is_warned_of(scene, tmp_path):
     """Height and width swapped give frames of as many bytes: the spikes were read without a
-    word and trained into noise (SfM, if run, failed later). Neighbouring rows then no longer
-    correlate, where a row's own pixels still do; a camera's hot pixels are no such sign."""
+    word and trained into noise (SfM, if run, failed later). Read swapped, such frames give a
+    clearly more coherent image; right ones do not (with a camera's hot pixels too, in a small
+    frame under motion blur, or as a line of pixels)."""
     data = simulate_dataset(scene, tmp_path / "d", **{**SMALL, "readouts": 500})
     path, (h, w), n = data.stream.path, (data.height, data.width), len(data.stream)
-    hot = np.random.default_rng(0).random((h, w)) < 0.03  # a camera's hot pixels: not warned of
+    hot = np.random.default_rng(0).random((h, w)) < 0.03  # a camera's hot pixels
     bits = data.stream.window(n // 2, n)  # [n, h, w]
     bits[:, hot] = 1
     save_dat(tmp_path / "hot.dat", bits)
+    small = simulate_dataset(scene, tmp_path / "small", **{**SMALL, "height": 12, "width": 8})
+    tall = simulate_dataset(scene, tmp_path / "tall", **{**SMALL, "height": 32, "width": 16})
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_stream_image(SpikeStream.open(path, h, w, flip=True), "meta.json")
-        check_stream_image(SpikeStream.open(tmp_path / "hot.dat", h, w), "meta.json")
-        check_stream_image(SpikeStream.open(path, 1, h * w), "meta.json")  # a line: no rows
-    for file, size in [(path, (w, h)), (path, (2 * h, w // 2)), (tmp_path / "hot.dat", (w, h))]:
-        with pytest.warns(UserWarning, match=r"images are no scene's .*\(height and width swapped"):
-            check_stream_image(SpikeStream.open(file, *size), "meta.json")  # swapped, halved
+        warn_rows_out_of_line(SpikeStream.open(path, h, w, flip=True), "meta.json")
+        warn_rows_out_of_line(SpikeStream.open(tmp_path / "hot.dat", h, w), "meta.json")
+        warn_rows_out_of_line(SpikeStream.open(small.stream.path, 12, 8, flip=True), "meta.json")
+        warn_rows_out_of_line(SpikeStream.open(path, 1, h * w), "meta.json")  # a line: no rows
+    said = r"read as (\d+)x(\d+) give .* read as \2x\1 at .*: height and width are likely swapped"
+    for file, size in [
+        (path, (w, h)),
+        (tmp_path / "hot.dat", (w, h)),
+        (tall.stream.path, (16, 32)),
+    ]:
+        with pytest.warns(UserWarning, match=said):  # (32x16 read as 16x32: rows two apart)
+            warn_rows_out_of_line(SpikeStream.open(file, *size), "meta.json")

@@ -378,11 +378,8 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     # a frame size a quarter of the file's: 4x the readouts, the poses on the first quarter
     np.savetxt(root / "readouts.txt", np.arange(poses) * 8 + 40, fmt="%d")
     write_options(root, height=16, width=24, test_views=[0], pseudo_gt_window=33)
-    with pytest.warns(UserWarning) as caught:
+    with pytest.warns(UserWarning, match=r"poses span readouts \[40, .* of the 2800 .* at 16x24"):
         load_dataset(root)
-    said = [str(w.message) for w in caught]
-    assert any(re.search(r"poses span readouts \[40, .* of the 2800 .* at 16x24", m) for m in said)
-    assert any("16x24 frames, its images are no scene" in m for m in said)  # (as it is wrong)
 
 
 @pytest.mark.filterwarnings("default")
@@ -958,8 +955,7 @@ def test_nerf_image_in_two_formats_named(nerf, tmp_path):
 def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
     write_options(root, height=H // 2, width=W // 2)  # the same .dat files as 16x24 frames
-    with pytest.warns(UserWarning, match="16x24 frames, its images are no scene"):  # (they don't)
-        ds = load_dataset(root)
+    ds = load_dataset(root)
     assert (ds.height, ds.width) == (H // 2, W // 2)
     np.testing.assert_allclose(np.diag(ds.K)[:2], np.diag(sim.K)[:2] / 2, rtol=1e-6)
     write_options(root, height=H // 2)  # 16x48: non-square pixels (fy halved, fx kept)

@@ -42,6 +42,7 @@ from .data.dataset import (
     open_streams,
     read_timestamps,
     spike_files,
+    warn_rows_out_of_line,
     write_parts,
 )
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
@@ -137,6 +138,7 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     streams = open_streams(root, spike_files(meta["channels"]), meta)
     for stream in streams:  # a dark or saturated file: said before SfM, not after it
         check_stream_image(stream, META)
+    warn_rows_out_of_line(streams[0], META)
     return streams
 
 

@@ -344,64 +344,74 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
 
 SILENT_SHARE = 0.01  # check_stream_image: a stream with fewer pixels that ever fire (or never
 # stop firing) than this share holds no image (a hot or a dead pixel does not make one)
-STRUCTURE_MIN = 0.5  # neighbouring pixels' correlation along rows over which, with neighbouring
-STRUCTURE_GAP = 0.3  # rows' this much lower and under it, the image is no scene's
+SWAPPED_MIN, SWAPPED_GAP = 0.5, 0.05  # neighbouring rows' correlation read swapped, over it
+# and this much over the rows as read: the frame size is likely swapped. Measured (medians over
+# STRUCTURE_WINDOWS of the counts' ranks), the built-in scenes read right against read swapped:
+# 0.69-0.87 against -0.08-0.01 at 24x32, 0.34-0.56 against -0.05-0.05 at 12x8 (motion blur),
+# and where swapped rows are true rows two apart (2:1 frames) 0.58-0.75 against 0.38-0.61 (the
+# gap 0.07 at the least: 64x32); 685 datasets of earlier audits read right: none warned of
 STRUCTURE_WINDOWS = (7, 401)  # images of 401 readouts at 7 places (short: little motion blur)
-# (the medians of the counts' ranks' correlations: 0.76-0.95 both ways for the built-in scenes read
-# right, 0.5 for a dim one, with 3 % of the pixels hot too; swapped: under 0.1 across rows, 0.8-0.95
-# along them; 0.47 and 0.53 for a 16x13 image, its noise: the gap)
 
 
 def check_stream_image(stream: SpikeStream, settings: str) -> None:
-    """The image the whole stream's spikes give (one pass): a ValueError naming the file when
-    under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout (no
-    image in it); then `_warn_rows_out_of_line`. `settings` names the file of the frame size."""
+    """ValueError naming the stream's file when under SILENT_SHARE of its pixels ever fire, or
+    all but that share fire at every readout: no image in it (one pass over the spikes);
+    `settings` names the file of its frame size."""
     n = len(stream)
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
-    if firing < SILENT_SHARE or saturated > 1 - SILENT_SHARE:
-        dark = firing < SILENT_SHARE
-        if dark:
-            what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
-        else:
-            every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
-            what = f"{every} firing at every readout"
-        raise ValueError(
-            f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: "
-            f"nothing to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong "
-            f"file or a wrong frame size: height, width, raw_width, col_offset in {settings})"
-        )
-    _warn_rows_out_of_line(stream, settings)
-
-
-def _warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
-    """A UserWarning when the stream's images are no scene's at this frame size: their rows' own
-    pixels correlate and neighbouring rows do not (STRUCTURE_MIN, STRUCTURE_GAP: the medians
-    over STRUCTURE_WINDOWS, of the counts' ranks, which a camera's hot pixels do not decorrelate),
-    as with height and width swapped, which give frames of as many bytes, each row then starting
-    at another place of the scene. Rows of another raw_width give no structure either way, as a
-    flat field does: no sign. A texture of independent pixels moving along the rows (white noise
-    panned) looks alike."""
-    if min(stream.height, stream.width) < 2:  # a line of pixels has no rows (or columns)
+    if firing >= SILENT_SHARE and saturated <= 1 - SILENT_SHARE:
         return
+    dark = firing < SILENT_SHARE
+    if dark:
+        what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
+    else:
+        every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
+        what = f"{every} firing at every readout"
+    raise ValueError(
+        f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: nothing "
+        f"to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong file or a "
+        f"wrong frame size: height, width, raw_width, col_offset in {settings})"
+    )
+
+
+def _rows_alike(stream: SpikeStream) -> float:
+    """How alike neighbouring rows of the stream's images are: the median over
+    STRUCTURE_WINDOWS of the correlation of their counts' ranks (which a camera's hot pixels do
+    not decorrelate)."""
     from scipy.stats import rankdata
 
     places, length = STRUCTURE_WINDOWS
     w = min(length, len(stream))
     ks = np.unique(np.linspace(w // 2, len(stream) - w + w // 2, places).astype(np.int64))
-    pairs = []
+    alike = []
     for counts in stream.counts(ks, w):  # [H, W] each
         image = rankdata(counts).reshape(counts.shape)
-        pairs.append((correlation(image[1:], image[:-1]), correlation(image[:, 1:], image[:, :-1])))
-    across, along = np.median(np.asarray(pairs), axis=0)
-    if across < STRUCTURE_MIN <= along and along - across >= STRUCTURE_GAP:
+        alike.append(correlation(image[1:], image[:-1]))
+    return float(np.median(alike))
+
+
+def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
+    """A UserWarning when a .dat stream's frames read with height and width swapped give a
+    clearly more coherent image (neighbouring rows alike: SWAPPED_MIN, SWAPPED_GAP): height and
+    width swapped give frames of as many bytes, each row then starting at another place of the
+    scene, and trained into noise unsaid. A square frame, a camera's raw rows (raw_width,
+    col_offset) or spikes in memory are not compared; `settings` names the file of the size."""
+    layout = stream.layout
+    simple = layout.row_bits == stream.width and layout.col_offset == 0
+    if stream.path is None or stream.height == stream.width or not simple:
+        return
+    if min(stream.height, stream.width) < 2:  # a line of pixels has no rows (or columns)
+        return
+    swapped = SpikeStream.open(stream.path, stream.width, stream.height, layout.flip)
+    as_read, other = _rows_alike(stream), _rows_alike(swapped)
+    if other >= SWAPPED_MIN and other - as_read >= SWAPPED_GAP:
         warnings.warn(
-            f"{stream.path}: read as {stream.height}x{stream.width} frames, its images are no "
-            f"scene's (neighbouring rows correlate at {across:.2f}, neighbouring pixels of a row "
-            f"at {along:.2f}, where a scene gives both alike): the frame size is likely wrong "
-            f"(height and width swapped? height, width, raw_width, col_offset in {settings}); "
-            f"training on it learns noise",
-            stacklevel=4,
+            f"{stream.path}: its frames read as {stream.height}x{stream.width} give an image "
+            f"whose neighbouring rows correlate at {as_read:.2f}, read as "
+            f"{stream.width}x{stream.height} at {other:.2f}: height and width are likely "
+            f"swapped (set them in {settings}); read so, training learns noise",
+            stacklevel=3,
         )
 
 
@@ -533,6 +543,7 @@ def load_dataset(path: PathLike) -> Dataset:
     streams = open_streams(root, names, meta)
     for stream in streams:
         check_stream_image(stream, META)
+    warn_rows_out_of_line(streams[0], META)  # (the channels share a frame size)
     if (root / "spikegs.json").is_file():
         warnings.warn(
             f"{root / 'spikegs.json'} is not read: it holds the options of the LLFF and NeRF "

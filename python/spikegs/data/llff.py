@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Dataset, check_intrinsics, read_column
+from .dataset import Dataset, check_intrinsics, read_column, warn_rows_out_of_line
 from .real import (
     camera_meta,
     first_of,
@@ -298,6 +298,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
         readouts = _read_readouts(root / READOUTS, len(poses))
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
         stream = open_spikes(root / STREAM, height, width, options)
+        warn_rows_out_of_line(stream, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
         _warn_partial_span(stream, readouts, poses[0, :, 4])
@@ -310,6 +311,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
     files = _spike_files(folder, len(poses), source)
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
     streams = [open_spikes(p, height, width, options) for p in files]
+    warn_rows_out_of_line(streams[0], OPTIONS_FILE)  # (the views share a frame size)
     names = [p.stem for p in files]
     return views_dataset(
         root,

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..image_io import to_channels
-from .dataset import Dataset, repeated
+from .dataset import Dataset, repeated, warn_rows_out_of_line
 from .real import camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike
@@ -220,6 +220,9 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
+    first = next((s for s in streams if s is not None), None)
+    if first is not None:
+        warn_rows_out_of_line(first, OPTIONS_FILE)  # (the views share a frame size)
     bases = [_base(root, f["file_path"]).as_posix() for f in frames]
     names = [b.replace("/", "_") for b in bases]  # a view's name names its files: no folders
     for name in repeated(names):
