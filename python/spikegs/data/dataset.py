@@ -399,13 +399,15 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
     col_offset) or spikes in memory are not compared; `settings` names the file of the size."""
     layout = stream.layout
     simple = layout.row_bits == stream.width and layout.col_offset == 0
-    if stream.path is None or stream.height == stream.width or not simple:
-        return
-    if min(stream.height, stream.width) < 2:  # a line of pixels has no rows (or columns)
+    line = min(stream.height, stream.width) < 2  # a line of pixels has no rows (or columns)
+    if stream.path is None or stream.height == stream.width or not simple or line:
         return
     swapped = SpikeStream.open(stream.path, stream.width, stream.height, layout.flip)
-    as_read, other = _rows_alike(stream), _rows_alike(swapped)
-    if other >= SWAPPED_MIN and other - as_read >= SWAPPED_GAP:
+    other = _rows_alike(swapped)
+    if other < SWAPPED_MIN:  # (right data: the rows as read need no reading, on every load)
+        return
+    as_read = _rows_alike(stream)
+    if other - as_read >= SWAPPED_GAP:
         warnings.warn(
             f"{stream.path}: its frames read as {stream.height}x{stream.width} give an image "
             f"whose neighbouring rows correlate at {as_read:.2f}, read as "
