@@ -58,6 +58,24 @@ def test_round_trip(small):
         np.testing.assert_allclose(camera_matrix(name, doc, (24, 32), (24, 32)), ds.K, rtol=1e-6)
 
 
+def test_the_default_frame_spacing_renders_a_faster_view_more_often(tmp_path, small):
+    """The default 8 readouts between light frames moved a 250x400 frame's scene sphere 7.6 px
+    (a 512² frame's 9.7): `spikegs simulate` at the camera's own size warned of ghosting at its
+    defaults. Unless frame_every is given, the spacing shrinks to keep it under 6 px (here a view
+    whose scene moves 7.9 px every 8 readouts: 6); given, it is kept and warned of."""
+    fast = {**SMALL, "speed": 2.0}  # (also warned of as motion blur: not this test's)
+    for given in (None, 8):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            ds = simulate_dataset("solids", tmp_path / str(given), frame_every=given, **fast)
+        ghosting = [str(w.message) for w in caught if "between two rendered" in str(w.message)]
+        assert ds.meta["frame_every"] == (given or 6)
+        assert [m[:40] for m in ghosting] == (
+            ["the scene moves up to 7.9 pixels between"] if given else []
+        ), ghosting
+    assert small.meta["frame_every"] == 8  # at the default speed
+
+
 @pytest.mark.parametrize("readouts, every", [(2100, None), (2100, 1)])
 def test_training_timestamps_default_to_at_most_1024(tmp_path, readouts, every):
     """As for real streams: a stride of ceil(readouts / 1024), unless train_every is given."""

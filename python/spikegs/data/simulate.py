@@ -180,8 +180,35 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
 
 
 # the scene sphere's largest motion between two light frames rendered every --frame-every
-# readouts (its poles: the objects inside move less); the defaults' is 2.4 px at 128²
+# readouts (its poles: the objects inside move less); the defaults' is 2.4 px at 128², 4.9 px at
+# 256², and a larger frame renders more often by default (default_frame_every)
 FRAME_MOTION_PX = 6.0
+
+
+def frame_motion(source: Source, trajectory: Trajectory, times: np.ndarray) -> float:
+    """The largest motion in pixels of the scene sphere's poles and centre between two light
+    frames at readouts `times` [F] (points behind either camera of a pair not counted)."""
+    offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
+    points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
+    pixels, z = project_points(points, trajectory.pose_at(times), source.K)  # [F, 7, 2], [F, 7]
+    steps = np.linalg.norm(np.diff(pixels, axis=0), axis=-1)  # [F - 1, 7]
+    # points in front of both cameras of a pair (a sphere around a camera has some behind it)
+    ahead = z > 0.01 * source.scene_radius
+    seen = ahead[1:] & ahead[:-1]
+    return float(steps[seen].max()) if seen.any() else 0.0
+
+
+def default_frame_every(source: Source, trajectory: Trajectory, num_readouts: int) -> float:
+    """DEFAULT_FRAME_EVERY, or the whole number of readouts below it (at least 1) at which the
+    scene moves at most FRAME_MOTION_PX pixels between two light frames: a larger or nearer view
+    renders more often rather than warning of ghosting at the defaults (250x400: 6)."""
+    times = source.light_times(num_readouts, DEFAULT_FRAME_EVERY)  # [F]
+    if len(times) < 2:
+        return DEFAULT_FRAME_EVERY
+    motion = frame_motion(source, trajectory, times)
+    if motion <= FRAME_MOTION_PX:
+        return DEFAULT_FRAME_EVERY
+    return max(1, math.floor(DEFAULT_FRAME_EVERY * FRAME_MOTION_PX / motion))
 
 
 def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray) -> None:
@@ -201,14 +228,7 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
             f"at or before it and the next): more readouts, or fewer frames",
             stacklevel=3,
         )
-    offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
-    points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
-    pixels, z = project_points(points, trajectory.pose_at(times), source.K)  # [F, 7, 2], [F, 7]
-    steps = np.linalg.norm(np.diff(pixels, axis=0), axis=-1)  # [F - 1, 7]
-    # points in front of both cameras of a pair (a sphere around a camera has some behind it)
-    ahead = z > 0.01 * source.scene_radius
-    seen = ahead[1:] & ahead[:-1]
-    motion = float(steps[seen].max()) if seen.any() else 0.0
+    motion = frame_motion(source, trajectory, times)
     if motion > FRAME_MOTION_PX:
         # built-in and Mitsuba scenes render a frame every frame_every readouts; a frame
         # sequence's spacing is its own
@@ -340,7 +360,7 @@ def simulate_dataset(
     """Simulate a dataset into `out` and return it loaded. `speed`: degrees of orbit per readout
     (default DEFAULT_SPEED), `up`: the unit axis [3] its spiral ascends along (default +z; +y for a
     y-up Mitsuba scene), `frame_every`: readouts between two rendered light frames (default
-    DEFAULT_FRAME_EVERY; the simulator interpolates linearly), each for a built-in or Mitsuba
+    `default_frame_every`; the simulator interpolates linearly), each for a built-in or Mitsuba
     scene (a frame sequence's frames and poses set them: given, they are warned of);
     `test_on_path`, `test_off_path`: held-out views on and off the path (default
     DEFAULT_TEST_VIEWS each, or as many as a frame sequence has; fewer than a count given are
@@ -447,6 +467,8 @@ def simulate_dataset(
             stacklevel=2,
         )
     warn_about_data(views, trajectory, params)
+    if motion["frame_every"] is None and source.kind != "frames":  # (a frame sequence's own)
+        frame_every = float(default_frame_every(source, trajectory, readouts))
     times = source.light_times(readouts, frame_every)  # [F]
     warn_about_frames(source, trajectory, times)
     if abs(speed) >= 180:  # the poses cannot show it: consecutive readouts look still or reversed

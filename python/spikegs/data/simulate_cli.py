@@ -16,6 +16,7 @@ from .simulate import (
     DEFAULT_READOUTS,
     DEFAULT_SPEED,
     DEFAULT_TEST_VIEWS,
+    FRAME_MOTION_PX,
     simulate_dataset,
 )
 
@@ -51,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--frame-every",
         type=float,
         help=f"readouts between rendered light frames, >= 1 (linear in between; default "
-        f"{DEFAULT_FRAME_EVERY}; a built-in or Mitsuba scene's)",
+        f"{DEFAULT_FRAME_EVERY}, fewer where the scene would move over {FRAME_MOTION_PX:g} px "
+        f"between two; a built-in or Mitsuba scene's)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
     default = f"(default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has)"
