@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from spikegs import evaluate
 from spikegs.data.trajectory import Trajectory, look_at, orbit_eye
 from spikegs.image_io import srgb_to_linear
-from spikegs.render_cli import direction, orbit_frames, orbit_viewmats, world_up
+from spikegs.render_cli import dataset_orbit, direction, orbit_frames, orbit_viewmats, world_up
 
 CENTER = np.array([1.0, -2.0, 0.5])
 
@@ -72,7 +72,7 @@ def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     mono[0], mono[1] = srgb_to_linear(values[0]), srgb_to_linear(values[1])  # rows: [2, 3, 1]
     monkeypatch.setattr(evaluate, "render_view", lambda model, viewmat, dataset: mono)
     dataset = SimpleNamespace(trajectory=_cameras([4.0, 4.0]), scene_center=CENTER, meta={})
-    frames = orbit_frames(None, dataset, 2)
+    frames = orbit_frames(None, dataset, dataset_orbit(dataset, 2))
     assert frames.dtype == np.uint8 and frames.shape == (2, 2, 3, 3)
     assert (frames[:, 0] == 101).all() and (frames[:, 1] == 100).all()
 
@@ -93,7 +93,7 @@ def test_orbit_frames_turn_about_the_up_the_dataset_was_simulated_with(monkeypat
         """The orbit's axis: the normal of the plane its eyes lie in."""
         eyes.clear()
         dataset = SimpleNamespace(trajectory=_cameras([4.0] * 5), scene_center=CENTER, meta=meta)
-        orbit_frames(None, dataset, 8, up)
+        orbit_frames(None, dataset, dataset_orbit(dataset, 8, up))
         normal = np.linalg.svd(np.stack(eyes) - np.mean(eyes, axis=0))[2][-1]
         return normal * np.sign(normal @ [1.0, 1.0, 1.0])
 

@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -1460,6 +1461,40 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     mp4 = tmp_path / "orbit.mp4"  # no ffmpeg on PATH needed
     assert main(["render", str(tmp_path / "run"), "--out", str(mp4), "--frames", "3"]) == 0
     assert _decoded(mp4).shape == (3, dataset.height, dataset.width, 3)
+
+
+def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, capsys):
+    """VIDEO.json holds the orbit's poses in trajectory.json's layout (camera to world, OpenCV,
+    the dataset's camera) and what rendered them: another method can be rendered at the same
+    views. A place where it cannot be written leaves the video and says so."""
+    from spikegs.render_cli import dataset_orbit
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    gif = tmp_path / "orbit.gif"
+    assert main(["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "3"]) == 0
+    doc = json.loads((tmp_path / "orbit.gif.json").read_text())
+    assert (doc["convention"], doc["w"], doc["h"], doc["fps"]) == (
+        "opencv",
+        dataset.width,
+        dataset.height,
+        20,
+    )
+    assert [doc["fl_x"], doc["fl_y"], doc["cx"], doc["cy"]] == pytest.approx(
+        [dataset.K[0, 0], dataset.K[1, 1], dataset.K[0, 2], dataset.K[1, 2]]
+    )
+    assert doc["video"] == str(gif.resolve()) and doc["run"] == str((tmp_path / "run").resolve())
+    assert doc["dataset"] == str(dataset.root.resolve()) and "torch" in doc["environment"]
+    assert [f["frame"] for f in doc["frames"]] == [0, 1, 2]
+    c2w = np.array([f["transform_matrix"] for f in doc["frames"]])  # [3, 4, 4]
+    np.testing.assert_allclose(np.linalg.inv(c2w), dataset_orbit(dataset, 3), atol=1e-12)
+    docs = (Path(__file__).parents[1] / "docs" / "outputs.md").read_text(encoding="utf-8")
+    assert {k for k in {*doc, *doc["frames"][0]} if f"`{k}`" not in docs} == set()
+    (tmp_path / "o.gif.json").mkdir()  # a folder in its place
+    capsys.readouterr()
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif")]) == 0
+    assert (tmp_path / "o.gif").is_file()
+    assert "cameras not written beside the video: " in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("fps", [20, 24, 40])

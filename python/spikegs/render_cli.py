@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from pathlib import Path
 
@@ -75,15 +76,19 @@ def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None
     return np.stack([look_at(eye, center, up) for eye in eyes])
 
 
-def orbit_frames(model, dataset, frames: int, up: np.ndarray | None = None) -> np.ndarray:
-    """uint8 [F, H, W, 3] renders on `orbit_viewmats`' orbit, sRGB-encoded (as players show), about
-    `up`, else the up the dataset was simulated with (meta.json's `up`), else the cameras'."""
+def dataset_orbit(dataset, frames: int, up: np.ndarray | None = None) -> np.ndarray:
+    """Viewmats [F, 4, 4] of `orbit_viewmats`' orbit about `up`, else the up the dataset was
+    simulated with (meta.json's `up`), else the cameras'."""
+    if up is None and dataset.meta.get("up") is not None:
+        up = unit_vector("meta.json's up", dataset.meta["up"])
+    return orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up)
+
+
+def orbit_frames(model, dataset, path: np.ndarray) -> np.ndarray:
+    """uint8 [F, H, W, 3] renders at viewmats `path` [F, 4, 4], sRGB-encoded (as players show)."""
     from .evaluate import render_view
     from .image_io import linear_to_srgb
 
-    if up is None and dataset.meta.get("up") is not None:
-        up = unit_vector("meta.json's up", dataset.meta["up"])
-    path = orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up)
     out = []
     for viewmat in path:
         image = render_view(model, viewmat, dataset)  # [H, W, C]
@@ -111,7 +116,42 @@ def run(args: argparse.Namespace) -> int:
             f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",
             stacklevel=2,
         )
-    frames = orbit_frames(load_ply(ply), dataset, args.frames, args.up)
-    write_video(args.out, frames, args.fps)
-    print(f"{len(frames)} frames -> {args.out}")
+    path = dataset_orbit(dataset, args.frames, args.up)  # [F, 4, 4]
+    write_video(args.out, orbit_frames(load_ply(ply), dataset, path), args.fps)
+    print(f"{len(path)} frames -> {args.out}")
+    cameras = orbit_record(args.out)
+    try:  # (the video stands without it, as sim-train's table does)
+        save_orbit(cameras, path, dataset, video=args.out, run=args.run, fps=args.fps)
+        print(f"cameras: {cameras}")
+    except OSError as err:
+        print(f"cameras not written beside the video: {err}", file=sys.stderr)
     return 0
+
+
+def orbit_record(video: Path) -> Path:
+    """The orbit's camera file beside `video`: VIDEO.json (orbit.mp4.json)."""
+    return video.with_name(video.name + ".json")
+
+
+def save_orbit(path: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int):
+    """Write the orbit's cameras, viewmats [F, 4, 4], in trajectory.json's layout (OpenCV
+    camera-to-world, the dataset's camera; a `frame` index per frame), with what rendered them:
+    another method rendered at these poses shows the same views, frame for frame."""
+    from .data.dataset import camera_keys, intrinsics_keys
+    from .data.trajectory import write_camera_doc
+    from .provenance import environment
+
+    camera = {**intrinsics_keys(dataset.K), "width": dataset.width, "height": dataset.height}
+    write_camera_doc(
+        path,
+        (
+            {"frame": i, "transform_matrix": c2w.tolist()}
+            for i, c2w in enumerate(np.linalg.inv(viewmats))
+        ),
+        **camera_keys(camera),
+        video=str(Path(video).resolve()),
+        fps=fps,
+        run=str(Path(run).resolve()),
+        dataset=str(Path(dataset.root).resolve()),
+        environment=environment(),
+    )
