@@ -59,17 +59,17 @@ def test_round_trip(small):
 
 
 def test_the_default_frame_spacing_renders_a_faster_view_more_often(tmp_path, small):
-    """The default 8 readouts between light frames moved a 250x400 frame's scene sphere 7.6 px
-    (a 512² frame's 9.7): `spikegs simulate` at the camera's own size warned of ghosting at its
-    defaults. Unless frame_every is given, the spacing shrinks to keep it under 6 px (here a view
-    whose scene moves 7.9 px every 8 readouts: 6); given, it is kept and warned of."""
-    fast = {**SMALL, "speed": 2.0}  # (also warned of as motion blur: not this test's)
+    """The default 8 readouts between light frames moved a 512² frame's scene sphere 9.7 px:
+    `spikegs simulate` at that size warned of ghosting at its defaults. Unless frame_every is
+    given, the spacing shrinks to keep it within 6 px (here a view whose scene moves 7.9 px every
+    8 readouts: 5, where 6 would move it 6.02 px); given, it is kept and warned of."""
+    fast = {**SMALL, "speed": 2.7}  # (also warned of as motion blur: not this test's)
     for given in (None, 8):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             ds = simulate_dataset("solids", tmp_path / str(given), frame_every=given, **fast)
         ghosting = [str(w.message) for w in caught if "between two rendered" in str(w.message)]
-        assert ds.meta["frame_every"] == (given or 6)
+        assert ds.meta["frame_every"] == (given or 5)
         assert [m[:40] for m in ghosting] == (
             ["the scene moves up to 7.9 pixels between"] if given else []
         ), ghosting
@@ -105,11 +105,12 @@ def test_test_views(small):
 
 
 def test_spikes_see_the_scene(small):
-    # TFP over a long window vs the clean image at its centre: correlated, same scale
+    # TFP over a long window vs the clean image at its centre: correlated (0.91 and 0.92 for
+    # the two views at 24x32; 0.45 and 0.50 over 9 readouts), same scale
     view = next(v for v in small.test_views if v.readout is not None)
     k = int(view.readout)
-    tfp = small.stream.tfp(k, 9)
-    assert np.corrcoef(tfp.ravel(), view.image[..., 0].ravel())[0, 1] > 0.6
+    tfp = small.stream.tfp(k, 33)
+    assert np.corrcoef(tfp.ravel(), view.image[..., 0].ravel())[0, 1] > 0.8
     assert tfp.mean() == pytest.approx(view.image.mean(), rel=0.35)
 
 
@@ -164,7 +165,7 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases = [
         # (not also that the test images average 0.05 times their spikes: the dark current is
         # not the images', and meta.json states it; on every later load too)
-        ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0.04"),
+        ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0\.0[34]"),
         ("solids", {"speed": 1.0}, r"the camera turns up to 32\.\d° in 33 readouts"),
         # not the 0° between the ends; and 90° a readout crosses pixels between the light frames
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),

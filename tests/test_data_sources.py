@@ -381,6 +381,16 @@ def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():
         assert areas[fov] == pytest.approx(np.pi * (focal * ball / cam[2]) ** 2, rel=0.3)
     focal_ratio = np.tan(np.radians(30.0)) / np.tan(np.radians(15.0))
     assert areas[30.0] / areas[60.0] == pytest.approx(focal_ratio**2, rel=0.25)
+    for height, width in ((24, 40), (40, 24)):  # the field of view spans the shorter side
+        source = MitsubaSource(
+            glowing_ball(target, ball), width, height, spp=1, center=[0, 0, 0], radius=1.0
+        )
+        focal = 12.0 / np.tan(np.radians(20.0))
+        assert source.K[0, 0] == pytest.approx(focal)
+        viewmat = source.trajectory(2, 1.0).pose_at(0.0)
+        mask = source.render(viewmat)[..., 0] > 0.5
+        cam = assert_drawn_where_projected(source, viewmat, mask, target)
+        assert mask.sum() == pytest.approx(np.pi * (focal * ball / cam[2]) ** 2, rel=0.3)
 
 
 def test_mitsuba_negative_light_is_set_to_0_with_one_warning():

@@ -84,17 +84,21 @@ CENTER = np.array([0.5, -1.0, 2.0])
 
 
 def test_render_source_fov_sets_the_focal():
+    """fov_deg spans the frame's shorter side, wide or tall: a 250x400 frame framed by its
+    width cut the scene off at the top or bottom in 11 of 16 test views."""
     wide = ProbeSource(64, 48, 1, CENTER, 2.0, fov_deg=90.0)
-    np.testing.assert_allclose(wide.K, [[32.0, 0, 32.0], [0, 32.0, 24.0], [0, 0, 1]], atol=1e-9)
+    np.testing.assert_allclose(wide.K, [[24.0, 0, 32.0], [0, 24.0, 24.0], [0, 0, 1]], atol=1e-9)
+    tall = ProbeSource(48, 64, 1, CENTER, 2.0, fov_deg=90.0)
+    np.testing.assert_allclose(tall.K, [[24.0, 0, 24.0], [0, 24.0, 32.0], [0, 0, 1]], atol=1e-9)
     narrow = ProbeSource(64, 48, 1, CENTER, 2.0, fov_deg=20.0)
-    assert narrow.K[0, 0] == pytest.approx(32.0 / np.tan(np.radians(10.0)))
+    assert narrow.K[0, 0] == pytest.approx(24.0 / np.tan(np.radians(10.0)))
     assert narrow.K[1, 1] == narrow.K[0, 0]  # square pixels
-    # a point at half the field of view off the axis projects onto the image's edge (x = width)
-    cam = np.array([np.tan(np.radians(10.0)), 0.0, 1.0])
-    assert (narrow.K @ cam)[0] / cam[2] == pytest.approx(64.0)
+    # a point at half the field of view off the axis projects onto the image's edge (y = height)
+    cam = np.array([0.0, np.tan(np.radians(10.0)), 1.0])
+    assert (narrow.K @ cam)[1] / cam[2] == pytest.approx(48.0)
     # the default is 40 degrees
     default = ProbeSource(64, 48, 1, CENTER, 2.0)
-    assert default.K[0, 0] == pytest.approx(32.0 / np.tan(np.radians(20.0)))
+    assert default.K[0, 0] == pytest.approx(24.0 / np.tan(np.radians(20.0)))
 
 
 def test_render_source_distance_is_in_scene_radii():
@@ -134,7 +138,7 @@ def test_procedural_source_gets_the_render_defaults():
     _, elevation, distance = azimuth_elevation(traj.centers, scene.center)
     np.testing.assert_allclose(distance, 2.5 * scene.radius, rtol=1e-9)
     assert elevation[0] == pytest.approx(10.0) and elevation[-1] == pytest.approx(50.0)
-    assert source.K[0, 0] == pytest.approx(16.0 / np.tan(np.radians(20.0)))
+    assert source.K[0, 0] == pytest.approx(12.0 / np.tan(np.radians(20.0)))  # 24 px high
 
 
 # --- FrameSequenceSource.from_transforms(background, test_path, center, radius) -----------------

@@ -201,14 +201,14 @@ def frame_motion(source: Source, trajectory: Trajectory, times: np.ndarray) -> f
 def default_frame_every(source: Source, trajectory: Trajectory, num_readouts: int) -> float:
     """DEFAULT_FRAME_EVERY, or the whole number of readouts below it (at least 1) at which the
     scene moves at most FRAME_MOTION_PX pixels between two light frames: a larger or nearer view
-    renders more often rather than warning of ghosting at the defaults (250x400: 6)."""
-    times = source.light_times(num_readouts, DEFAULT_FRAME_EVERY)  # [F]
-    if len(times) < 2:
-        return DEFAULT_FRAME_EVERY
-    motion = frame_motion(source, trajectory, times)
-    if motion <= FRAME_MOTION_PX:
-        return DEFAULT_FRAME_EVERY
-    return max(1, math.floor(DEFAULT_FRAME_EVERY * FRAME_MOTION_PX / motion))
+    renders more often rather than warning of ghosting at the defaults (512²: 4, 1080x1920: 2)."""
+    every = DEFAULT_FRAME_EVERY
+    while every > 1:  # motion is near proportional to the spacing: one or two tries
+        motion = frame_motion(source, trajectory, source.light_times(num_readouts, every))
+        if motion <= FRAME_MOTION_PX:
+            break
+        every = max(1, min(every - 1, math.floor(every * FRAME_MOTION_PX / motion)))
+    return every
 
 
 def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray) -> None:

@@ -32,9 +32,10 @@ from .view_geometry import view_sphere
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
 
 
-def intrinsics(width: int, height: int, fov_x_deg: float) -> np.ndarray:
-    """K [3, 3] of a pinhole with horizontal field of view `fov_x_deg`, square pixels, centred."""
-    f = width / 2 / np.tan(np.radians(fov_x_deg) / 2)
+def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
+    """K [3, 3] of a pinhole with field of view `fov_deg` across the frame's shorter side (a wide
+    frame sees more at the sides, the scene framed as in a square one), square pixels, centred."""
+    f = min(width, height) / 2 / np.tan(np.radians(fov_deg) / 2)
     return np.array([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
 
 
@@ -239,7 +240,7 @@ class MitsubaSource(RenderSource):
             {
                 "type": "perspective",
                 "fov": fov_deg,
-                "fov_axis": "x",
+                "fov_axis": "smaller",  # as `intrinsics`
                 "film": {
                     "type": "hdrfilm",
                     "width": self.width,
