@@ -13,6 +13,7 @@ puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS def
 
 from __future__ import annotations
 
+import sys
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -298,6 +299,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             )
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
                 sim_seconds = recorded_seconds(path)
+                print(f"SIM: loaded {path} (trained in {sim_seconds:.0f} s)", file=sys.stderr)
             fast = fast_inference_model(model)
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
