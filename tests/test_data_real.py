@@ -244,13 +244,16 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "note: 1 views without a sharp image" in printed
     assert "(PSNR of firing rates, spikes a readout, over a data range of 1: " in printed
-    scores = json.loads((tmp_path / "sim.json").read_text())  # the table, for a script
+    scores = json.loads((tmp_path / "sim.pt.json").read_text())  # the table, for a script
     assert scores["sim"] == str(out.resolve()) and scores["trained_now"] and scores["seconds"] > 0
     assert set(scores["scores"]) >= {"SIM", "TFP(33)", "TFI"}
     assert all(f"{s['psnr']:.4g}" in printed for s in scores["scores"].values())  # the table's
     os.utime(out, (0, 0))
     assert main([*args, "--out", str(out)]) == 0  # reused: the latest SIM for poses --sim
     assert "reused" in capsys.readouterr().out and out.stat().st_mtime > 0
+    named = tmp_path / "w.json"  # its table was written over the weights it named
+    assert main([*args, "--out", str(named)]) == 0 and main([*args, "--out", str(named)]) == 0
+    assert "reused" in capsys.readouterr().out and (tmp_path / "w.json.json").is_file()
 
 
 def test_nerf_unknown_convention_refused(nerf, tmp_path):

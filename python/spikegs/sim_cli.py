@@ -129,7 +129,9 @@ def run(args: argparse.Namespace) -> int:
         f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
         f"the same error in the intensity units of spikegs eval)"
     )
-    record = Path(out).with_suffix(".json")  # the table for a script, beside the weights
+    # the table for a script, beside the weights (named after the whole file name: `--out w.json`
+    # was overwritten by its own table, `--out results` wrote over a results.json)
+    record = Path(out).with_name(Path(out).name + ".json")
     summary = {
         "sim": str(Path(out).resolve()),
         "dataset": str(Path(dataset.root).resolve()),
