@@ -28,6 +28,19 @@ def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
     assert machine["build"]["cpu_features"] == " ".join(_C.compiled_cpu_features)  # its build
 
 
+def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):
+    """`spikegs bench stiff` printed its table and exited 0 whatever it showed (CI runs `bench
+    all --quick`: only a crash failed it); a row beyond a bound now exits 1, naming it."""
+    from spikegs.cli import main
+
+    assert main(["bench", "stiff", "--out", str(tmp_path / "ok")]) == 0
+    assert json.loads((tmp_path / "ok" / "stiff.json").read_text())["failures"] == []
+    monkeypatch.setattr(stiff, "GRAD_ERROR_BOUND", 1e-7)  # the needles' gradients exceed it
+    capsys.readouterr()
+    assert main(["bench", "stiff", "--out", str(tmp_path / "tight")]) == 1
+    assert "FAILED bench stiff: needles 0.2 x 1e2..1e4 px: rel_means " in capsys.readouterr().err
+
+
 def test_train_schedule_is_the_demo_one_stretched():
     demo = DEMO_OVERRIDES["train"]["iterations"]
     assert train.schedule(demo, quick=False)["densify"] == DEMO_OVERRIDES["densify"]

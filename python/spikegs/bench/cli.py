@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import sys
 import time
 from pathlib import Path
 
@@ -88,11 +89,15 @@ def run(args: argparse.Namespace) -> int:
             args.quick, train_options.get("scenes"), train_options.get("methods"), seeds
         )
         check_outputs(Path(args.out), scenes, methods, seeds)
+    failures = []
     for part in parts:
         module = importlib.import_module(PARTS[part])
         print(f"== {part}")
         options = train_options if part == "train" else {}
         start = time.perf_counter()
-        module.run(quick=args.quick, out=args.out, **options)
+        results = module.run(quick=args.quick, out=args.out, **options)
         print(f"== {part}: {time.perf_counter() - start:.1f} s")
-    return 0
+        failures += [f"bench {part}: {f}" for f in results.get("failures", [])]
+    for failure in failures:  # (a check that fails: a script, CI, must see it)
+        print(f"FAILED {failure}", file=sys.stderr)
+    return 1 if failures else 0
