@@ -6,9 +6,11 @@ import io
 import os
 import shutil
 import signal
+import subprocess
 import sys
 
 import pytest
+import spikegs
 from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
@@ -152,6 +154,37 @@ def test_characters_the_output_codec_lacks_print_escaped(monkeypatch, console_si
         console()
     out.flush()
     assert exit.value.code == 0 and b"readouts (25 \\xb5s each)" in out.buffer.getvalue()
+
+
+def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
+    """`spikegs train ... --resume | head -1` of a finished run exited 2 with "error: [Errno 32]
+    Broken pipe" (the demo's besides: "once that is mended, ... --resume continues"): a gone
+    reader ends the command as SIGPIPE ends a Unix tool, quietly, exit status 141."""
+    script = (
+        "import sys, spikegs.cli as cli\n"
+        "def run(args):\n"
+        "    raise BrokenPipeError(32, 'Broken pipe')\n"
+        "cli.main = lambda: cli._run(cli.argparse.Namespace(command='eval', _run=run))\n"
+        "cli.console()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert (done.returncode, done.stdout, done.stderr) == (141, "", "")
+
+
+def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
+    """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
+    `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read
+    as the option it begins, which a script's turns ambiguous, or another's, when options are
+    added. `--version` names the package's."""
+    for wrong in ("--quiet", "--iter"):
+        with pytest.raises(SystemExit) as exit:
+            main(["train", "DATA", "--out", "RUN", wrong, "3"])
+        err = capsys.readouterr().err
+        assert exit.value.code == 2 and err.startswith("usage: spikegs train ")
+        assert f"spikegs train: error: unrecognized arguments: {wrong} 3" in err
+    with pytest.raises(SystemExit) as exit:
+        main(["--version"])
+    assert exit.value.code == 0 and capsys.readouterr().out == f"spikegs {spikegs.__version__}\n"
 
 
 def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):

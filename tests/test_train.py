@@ -1675,6 +1675,12 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert "notes.txt" in capsys.readouterr().err
         assert (mine / part / "notes.txt").exists() and (mine / "results.json").exists()
         assert len([p for p in mine.rglob("*") if p.name != ".lock"]) == 3 + part.count("/")
+    # nor a spikegs run or dataset of a folder no demo started in (`--out` naming a project)
+    project = tmp_path / "project"
+    shutil.copytree(out / "runs" / "spikegs", project / "runs" / "spikegs")
+    assert main([*argv, str(project)]) == 2
+    assert "holds a dataset or run no demo wrote" in capsys.readouterr().err
+    assert (project / "runs" / "spikegs" / "scene.ply").is_file()
     # --resume refuses a user's files in a run folder before any work (after SIM and SpikeGS)
     (out / "runs" / "tfp33" / "notes.txt").write_text("mine")
     with monkeypatch.context() as patch:
@@ -1745,7 +1751,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert main(["demo", "--no-progress", "--out", str(again), "--resume"]) == 0
     took = time.perf_counter() - start
     assert fresh == ["tfp33"]  # SpikeGS went on from its checkpoint; TFP(33) had not started
-    assert "resuming with the spike dataset" in capsys.readouterr().out
+    assert "resuming with the spike dataset" in capsys.readouterr().err  # progress: stderr
     resumed = json.loads((again / "results.json").read_text())
     assert resumed["resumed"] and not results["resumed"]
     # total_seconds: both processes' (the first up to its Ctrl-C), not the last one's alone

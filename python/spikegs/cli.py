@@ -135,17 +135,29 @@ def show_bars(off: bool) -> bool:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The parser of every command; options are never abbreviated (a script's `--iter` would
+    turn ambiguous, or mean another option, when one is added)."""
+    from . import __version__
+
     parser = argparse.ArgumentParser(
-        prog="spikegs", description=USAGE, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="spikegs",
+        description=USAGE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
+    parser.add_argument("--version", action="version", version=f"spikegs {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (module_name, help_text) in COMMANDS.items():
         module = importlib.import_module(module_name)
         command = sub.add_parser(
-            name, help=help_text, description=help_text, formatter_class=_DefaultsFormatter
+            name,
+            help=help_text,
+            description=help_text,
+            formatter_class=_DefaultsFormatter,
+            allow_abbrev=False,
         )
         module.add_arguments(command)
-        sub.choices[name].set_defaults(_run=module.run)
+        command.set_defaults(_run=module.run, _parser=command)
     return parser
 
 
@@ -163,6 +175,7 @@ def _warning_printer(command: str, default):
 
 INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells'
 TERMINATED = 143  # stopped by SIGTERM (128 + SIGTERM)
+BROKEN_PIPE = 141  # its output's reader gone (128 + SIGPIPE)
 
 
 def console() -> None:
@@ -184,6 +197,9 @@ def console() -> None:
         status = main()
     except KeyboardInterrupt as stop:
         status = _stopped(stop)
+    except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # (exit's flush)
+        status = BROKEN_PIPE
     if status in (INTERRUPTED, TERMINATED):
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, signal.SIG_IGN)
@@ -198,7 +214,9 @@ def _stopped(stop: KeyboardInterrupt) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args, unknown = build_parser().parse_known_args(argv)
+    if unknown:  # with the command's usage (the top level's named no option of it)
+        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     with warnings.catch_warnings():
         warnings.showwarning = _warning_printer(args.command, warnings.showwarning)
         return _run(args)
@@ -210,6 +228,8 @@ def _run(args: argparse.Namespace) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt as stop:
         return _stopped(stop)
+    except BrokenPipeError:  # the output's reader left: not the command's error (`console`)
+        raise
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
         print(f"spikegs {args.command}: error: {err}", file=sys.stderr)

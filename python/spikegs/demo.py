@@ -97,9 +97,9 @@ def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bo
                 f"--resume: {data} holds a {'colour' if dataset.channels == 3 else 'mono'} "
                 f"dataset; leave out --color to continue it, or give another --out"
             )
-        print(f"[1/3] resuming with the spike dataset in {data}")
+        print(f"[1/3] resuming with the spike dataset in {data}", file=sys.stderr)
         return dataset
-    print(f"[1/3] simulating the spike dataset -> {data}")
+    print(f"[1/3] simulating the spike dataset -> {data}", file=sys.stderr)
     return simulate_dataset(scene, data, overwrite=True, progress=progress, color=color)
 
 
@@ -172,11 +172,20 @@ def started_color(out: Path) -> bool:
 def check_fresh_out(out: Path) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
-    spikegs run's (a user's own run there keeps its notes, renders, ...)."""
+    spikegs run's (a user's own run there keeps its notes, renders, ...), or holding anything
+    where no demo started in OUT (no STARTED_FILE: `--out` naming a project's folder, whose own
+    runs/spikegs and data are a dataset's and a run's)."""
     from .data.dataset import check_output
 
     check_output(out / "data", overwrite=True)
     check_run_dirs(out)
+    if not (out / STARTED_FILE).is_file():
+        for held in (out / "data", *(out / "runs" / m for m in METHODS)):
+            if held.is_dir() and any(p.name != LOCK for p in held.iterdir()):
+                raise FileExistsError(
+                    f"{held} holds a dataset or run no demo wrote ({out} holds no "
+                    f"{STARTED_FILE}), which a demo would replace; give it another --out"
+                )
 
 
 def check_run_dirs(out: Path) -> None:
@@ -203,7 +212,7 @@ def train_and_evaluate(
 
     results, view_psnrs = {}, {}
     for i, method in enumerate(configs, start=2):
-        print(f"[{i}/3] training {method}")
+        print(f"[{i}/3] training {method}", file=sys.stderr)
         run_dir = out / "runs" / method
         started = resume and (run_dir / CONFIG).exists()
         # a checkpointed run goes on with its own settings: an earlier version's, whose defaults

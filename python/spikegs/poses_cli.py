@@ -64,7 +64,13 @@ WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and repor
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", type=Path, help="dataset directory (meta.json and spikes)")
+    parser.add_argument(
+        "dataset",
+        type=Path,
+        help="dataset directory (meta.json and spikes), written in place: trajectory.json (an "
+        "earlier one kept as trajectory.json.bak), points3d.ply, meta.json's camera and the "
+        "training timestamps; SfM's work in DATASET/sfm",
+    )
     parser.add_argument("--window", type=int, default=33, help="TFP window, odd (default 33)")
     when = parser.add_mutually_exclusive_group()
     when.add_argument("--every", type=int, help="an image every N readouts")

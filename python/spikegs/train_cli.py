@@ -40,9 +40,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--iterations",
         type=positive_int,
-        help="override train.iterations; the densification schedule is scaled with it",
+        help="override train.iterations (default: the method's, 3000 for the built-in ones); the "
+        "densification schedule is scaled with it",
     )
-    parser.add_argument("--seed", type=int, help="override train.seed")
+    parser.add_argument("--seed", type=int, help="override train.seed (default: the method's, 0)")
     parser.add_argument(
         "--resume",
         action="store_true",
