@@ -122,3 +122,33 @@ def test_every_benchmarked_method_is_drawn_in_a_style_of_its_own():
     assert len(styles) == len(methods)
     assert len({(colour, marker) for colour, marker, _ in styles}) == len(styles)
     assert len({(colour, line) for colour, _, line in styles}) == len(styles)
+
+
+def test_the_time_axis_names_several_seconds_whatever_its_span():
+    """A log axis labelled at 1, 2, 5 × 10^k named two seconds over 170-500 s (a run's
+    curve.png at 250x400) and none over 170-190 s: under a factor 3 the axis is linear, within
+    a decade every 1-9 × 10^k is named; over decades 1, 2, 5 × 10^k as before."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def named(seconds: list[float]) -> tuple[str, list[str]]:
+        """The axis's scale and the tick labels it draws within the seconds plotted."""
+        curve = [{"train_seconds": s, "psnr": 20.0} for s in seconds]
+        fig, ax = plt.subplots()
+        try:
+            _plot_curves([ax], {"tfp33": {"curve": curve, "sim_seconds": 0.0, "uses_sim": False}},
+                         ("psnr",))  # fmt: skip
+            fig.canvas.draw()
+            ticks = [t for t in ax.get_xticklabels() if min(seconds) <= t.get_position()[0]]
+            labels = [t.get_text() for t in ticks if t.get_position()[0] <= max(seconds)]
+            return ax.get_xscale(), [label for label in labels if label]
+        finally:
+            plt.close(fig)
+
+    assert named([150.0, 300.0, 600.0]) == ("log", ["200", "300", "400", "500", "600"])
+    scale, labels = named([170.0, 180.0, 190.0])
+    assert scale == "linear" and len(labels) >= 3
+    assert named([3.0, 300.0, 3000.0]) == ("log", ["5", "10", "20", "50", "100", "200", "500",
+                                                   "1000", "2000"])  # fmt: skip

@@ -94,10 +94,14 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
             values = [p[metric] for p in r["curve"]]
             ax.plot(seconds, values, label=_as_text(label), **style)
     for ax, metric in zip(axes, metrics):
-        ax.set_xscale("log")  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped)
-        ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
-        ax.xaxis.set_minor_formatter(NullFormatter())
+        low, high = ax.dataLim.intervalx  # the seconds plotted
+        if high >= 3 * low:  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped);
+            ax.set_xscale("log")  # within a decade (150-600 s) every 100: 1, 2, 5 named two
+            subs = range(1, 10) if high < 10 * low else (1.0, 2.0, 5.0)
+            ax.xaxis.set_major_locator(LogLocator(base=10, subs=subs))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        # (under a factor 3, 170-190 s: a linear axis, which names its ticks; a log one named none)
         ax.set_xlabel("seconds (SIM + training)")
         ax.set_ylabel(LABELS.get(metric, metric))
         ax.grid(True, which="both", alpha=0.3)
