@@ -247,7 +247,9 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.raises(ValueError, match="frame_every expected >= 1, found 1e-05"):  # 2e7 poses
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": 1e-5})
     # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
-    with pytest.raises(ValueError, match="height, width: expected >= 1 pixel, found 0, 32"):
+    with pytest.raises(
+        ValueError, match=r"height, width \(--height, --width\): expected >= 1 pixel, found 0, 32"
+    ):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
     with pytest.raises(ValueError, match="expected finite numbers, found speed=nan"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": float("nan")})

@@ -389,7 +389,9 @@ def simulate_dataset(
     speed, frame_every = finite_numbers(speed=speed, frame_every=frame_every)
     flip, color = as_flag("flip", flip), as_flag("color", color)
     if height < 1 or width < 1:
-        raise ValueError(f"height, width: expected >= 1 pixel, found {height}, {width}")
+        raise ValueError(
+            f"height, width (--height, --width): expected >= 1 pixel, found {height}, {width}"
+        )
     if spp < 1:
         raise ValueError(f"spp (--spp): expected samples per pixel >= 1, found {spp}")
     if not is_seed(seed):
