@@ -237,10 +237,15 @@ def test_negative_view_counts_refused(tmp_path):
     for size in ({"height": 2}, {"height": 1, "width": 1}):  # 1x1 was simulated, then unscored
         with pytest.raises(ValueError, match="images cannot be scored"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **size})
-    # a frame 40 times as tall as wide (its focal length set by the width) was written whole,
-    # then refused by its own meta.json
-    with pytest.raises(ValueError, match=r"fy 4.12\d* gives a 173° .*--height 128 --width 3: a"):
-        simulate_dataset("solids", tmp_path / "tall", **{**SMALL, "height": 128, "width": 3})
+    # a camera that its own meta.json refuses (a frame 40 times as tall as wide, its focal
+    # length set by the width) was written whole, then refused
+    from spikegs.data import ProceduralSource
+
+    K = np.array([[4.12, 0.0, 1.5], [0.0, 4.12, 64.0], [0.0, 0.0, 1.0]])
+    source = ProceduralSource("solids", SCENES["solids"](), 3, 128, K=K)
+    tall = {**SMALL, "height": 128, "width": 3}
+    with pytest.raises(ValueError, match=r"fy 4.12 gives a 173° .*: the camera scene 'solids' g"):
+        simulate_dataset(source, tmp_path / "tall", **tall)
     assert not (tmp_path / "tall").exists()
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})

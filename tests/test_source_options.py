@@ -99,6 +99,14 @@ def test_render_source_fov_sets_the_focal():
     # the default is 40 degrees
     default = ProbeSource(64, 48, 1, CENTER, 2.0)
     assert default.K[0, 0] == pytest.approx(24.0 / np.tan(np.radians(20.0)))
+    # a strip or a line of pixels sees 120° along its length (40° across its one pixel made the
+    # focal 1.4 px, a ~180° view that is refused), with no jump where that takes over (~4.76:1)
+    line = ProbeSource(1000, 1, 1, CENTER, 2.0)
+    assert line.K[0, 0] == pytest.approx(500.0 / np.tan(np.radians(60.0)))
+    for width in (474, 478):  # 4.74:1 and 4.78:1
+        strip = ProbeSource(width, 100, 1, CENTER, 2.0)
+        focal = max(50 / np.tan(np.radians(20)), width / 2 / np.tan(np.radians(60)))
+        assert strip.K[0, 0] == pytest.approx(focal)
 
 
 def test_render_source_distance_is_in_scene_radii():

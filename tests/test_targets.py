@@ -155,6 +155,27 @@ def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tm
         build_targets(recording, load_config("oracle"), progress=False)
 
 
+def test_clean_targets_of_a_wide_frame_framed_as_an_older_version_did(tmp_path):
+    """A wide frame's field of view spanned its width before 2026-11-30: the oracle's clean
+    images of such a dataset, rebuilt with today's framing, showed another view (correlation
+    0.14 with the test view, 22.6 -> 15.8 dB): they are rendered with the dataset's camera."""
+    from spikegs.data import ProceduralSource
+    from spikegs.data.scenes import SCENES
+    from spikegs.data.sources import intrinsics
+
+    old = intrinsics(40, 40, 40.0)  # 40° across the 40-pixel width
+    old[1, 2] = 12.0  # centred on 24 rows
+    source = ProceduralSource("solids", SCENES["solids"](), 40, 24, K=old)
+    data = simulate_dataset(
+        source, tmp_path / "wide", height=24, width=40, readouts=300, test_on_path=1,
+        test_off_path=0, progress=False,
+    )  # fmt: skip
+    assert data.meta["fx"] == pytest.approx(old[0, 0]) and data.meta["source"] == "procedural"
+    view = data.test_views[0]
+    clean = clean_source(data).image_at(data.trajectory, view.readout)  # [24, 40, 1]
+    np.testing.assert_allclose(clean, view.image / intensity_scale(data), atol=1e-6)
+
+
 def test_clean_targets_stay_at_the_simulated_poses_when_sfm_replaces_them(dataset, tmp_path):
     """After `spikegs poses` the clean images were rendered at SfM's poses, not at the views
     the spikes saw; with no pose log kept (a recording's own frame) they are refused."""

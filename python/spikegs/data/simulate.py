@@ -25,6 +25,7 @@ from .dataset import (
     check_output,
     check_test_views,
     intrinsics_keys,
+    intrinsics_matrix,
     load_dataset,
     near_held_out,
     prepare_output,
@@ -67,7 +68,11 @@ def clean_source(dataset: Dataset) -> Source:
             f"{dataset.root}: clean instant images (supervision.instant: clean) need a dataset "
             f"simulated from a built-in scene ({', '.join(SCENES)}); this one is {this}"
         )
-    return make_source(scene, dataset.width, dataset.height, dataset.channels)
+    # with the camera it was simulated with (a wide frame's framing changed on 2026-11-30)
+    K = intrinsics_matrix(dataset.meta)
+    return ProceduralSource(
+        scene, SCENES[scene](), dataset.width, dataset.height, dataset.channels, K=K
+    )
 
 
 def simulated_trajectory(dataset: Dataset) -> Trajectory:
@@ -441,13 +446,15 @@ def simulate_dataset(
             f"images, expected {height}x{width}x{channels}"
         )
     # the camera as load_dataset will check it, before any work (a frame 40 times as tall as
-    # wide, its focal length set by the width, was written whole and then refused)
+    # wide, its focal length set by the width, was written whole and then refused; a source's
+    # own camera can still give such a view)
     camera = {"height": height, "width": width, **intrinsics_keys(source.K)}
     try:
         check_meta_values(camera, f"scene '{source.name}'", ["fx", "fy", "cx", "cy"])
     except ValueError as err:
         raise ValueError(
-            f"{err}; --height {height} --width {width}: a frame less tall for its width"
+            f"{err}: the camera scene '{source.name}' gives a {height}x{width} frame (another "
+            f"size, or a narrower field of view)"
         ) from None
     trajectory = source.trajectory(readouts, speed)
     rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them

@@ -32,11 +32,27 @@ from .view_geometry import view_sphere
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
 
 
+# the widest view across a frame's longer side that `intrinsics` gives (a wide-angle lens's): a
+# strip or a line of pixels (1x1000) sees 120° along its length, where 40° across its one pixel
+# made it ~180° (refused)
+MAX_LONG_FOV_DEG = 120.0
+
+
 def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
     """K [3, 3] of a pinhole with field of view `fov_deg` across the frame's shorter side (a wide
-    frame sees more at the sides, the scene framed as in a square one), square pixels, centred."""
-    f = min(width, height) / 2 / np.tan(np.radians(fov_deg) / 2)
+    frame sees more at the sides, the scene framed as in a square one), up to MAX_LONG_FOV_DEG
+    across its longer side (frames over 4.8:1 at 40°), square pixels, centred."""
+    short, long = sorted((width, height))
+    f = max(
+        short / 2 / np.tan(np.radians(fov_deg) / 2),
+        long / 2 / np.tan(np.radians(MAX_LONG_FOV_DEG) / 2),
+    )
     return np.array([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
+
+
+def horizontal_fov_deg(K: np.ndarray, width: int) -> float:
+    """The field of view across the width of a centred pinhole K [3, 3] (Mitsuba's `fov`)."""
+    return round(float(np.degrees(2 * np.arctan(width / 2 / K[0, 0]))), 9)  # 40.0, not 1 ulp off
 
 
 class Source(ABC):
@@ -92,10 +108,12 @@ class RenderSource(Source):
         distance: float = 2.5,
         elevation_deg: tuple[float, float] = (10.0, 50.0),
         up=WORLD_UP,
+        K: np.ndarray | None = None,
     ):
-        super().__init__(
-            width, height, channels, intrinsics(width, height, fov_deg), center, radius
-        )
+        """`K` [3, 3], a camera of its own (a dataset's as simulated), else `intrinsics` of
+        `fov_deg`."""
+        K = intrinsics(width, height, fov_deg) if K is None else K
+        super().__init__(width, height, channels, K, center, radius)
         self.distance = distance * self.scene_radius  # camera to scene centre
         self.elevation_deg = elevation_deg
         self.up = unit_vector("up", up)
@@ -149,8 +167,9 @@ class ProceduralSource(RenderSource):
         height: int,
         channels: int = 1,
         up=WORLD_UP,
+        K: np.ndarray | None = None,
     ):
-        super().__init__(width, height, channels, scene.center, scene.radius, up=up)
+        super().__init__(width, height, channels, scene.center, scene.radius, up=up, K=K)
         self.name = name
         tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
         self._gaussians = [
@@ -239,8 +258,8 @@ class MitsubaSource(RenderSource):
         self._sensor = mi.load_dict(
             {
                 "type": "perspective",
-                "fov": fov_deg,
-                "fov_axis": "smaller",  # as `intrinsics`
+                "fov": horizontal_fov_deg(self.K, self.width),  # as `intrinsics` frames it
+                "fov_axis": "x",
                 "film": {
                     "type": "hdrfilm",
                     "width": self.width,
