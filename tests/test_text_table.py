@@ -5,17 +5,18 @@ from spikegs.text_table import print_table
 
 def test_a_columns_floats_share_their_decimals(capsys):
     """sim-train's PSNRs printed as 43.1, 37.12 and 40 (4 significant digits each): a column
-    reads to the decimals of its largest value's 4 digits; a column of numbers too small or too
-    large for fixed decimals (1e-05 would be 0.0000) keeps 4 significant digits each."""
+    reads to the decimals of its largest value's 4 digits; a column of numbers too small for
+    fixed decimals (1e-05 would be 0.0000), or spanning a factor 1000 or more (0.0123 beside 2500
+    would be 0), keeps 4 significant digits each."""
     rows = [
-        {"method": "SIM", "psnr": 43.1, "ssim": 0.99123, "tiny": 1e-5, "n": 3},
-        {"method": "TFP(33)", "psnr": 37.1234, "ssim": 0.912, "tiny": 0.5, "n": 12},
-        {"method": "TFI", "psnr": 40.0045, "ssim": float("nan"), "tiny": 2.0, "n": 7},
+        {"method": "SIM", "psnr": 43.1, "ssim": 0.99123, "tiny": 1e-5, "ms": 0.0123, "n": 3},
+        {"method": "TFP(33)", "psnr": 37.1234, "ssim": 0.912, "tiny": 0.5, "ms": 150.0, "n": 12},
+        {"method": "TFI", "psnr": 40.0045, "ssim": float("nan"), "tiny": 2.0, "ms": 2500.0, "n": 7},
     ]
     print_table(rows)
     assert capsys.readouterr().out.splitlines() == [
-        " method   psnr    ssim   tiny   n",
-        "    SIM  43.10  0.9912  1e-05   3",
-        "TFP(33)  37.12  0.9120    0.5  12",
-        "    TFI  40.00     nan      2   7",
+        " method   psnr    ssim   tiny      ms   n",
+        "    SIM  43.10  0.9912  1e-05  0.0123   3",
+        "TFP(33)  37.12  0.9120    0.5     150  12",
+        "    TFI  40.00     nan      2    2500   7",
     ]
