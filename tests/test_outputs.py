@@ -25,16 +25,21 @@ FAST = {
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
 
 
-def test_a_run_on_a_cached_sim_counts_sims_training_time(tmp_path):
+def test_a_run_on_a_cached_sim_counts_sims_training_time(tmp_path, capsys):
     """A second SIM method on a dataset loads SIM from DATASET/sim: its train.json said
     sim_seconds 0 and its curve.png drew it from 0 s as a method without SIM, where `bench
-    train` counts the cached SIM's recorded time."""
+    train` counts the cached SIM's recorded time. It says which SIM it loaded (it said
+    nothing)."""
     data = simulate_dataset("solids", tmp_path / "data", **TINY)
     config = load_config("spikegs", {**FAST, "sim": {"iterations": 3, "crop": 16, "batch": 1}})
     first = Trainer(data, config, tmp_path / "a", progress=False).train()
+    assert "SIM: loaded" not in capsys.readouterr().err
     second = Trainer(data, config, tmp_path / "b", progress=False).train()
     assert first["sim_seconds"] > 0
     assert second["sim_seconds"] == first["sim_seconds"]
+    (cached,) = (tmp_path / "data" / "sim").glob("*.pt")
+    said = f"SIM: loaded {cached} (trained in {first['sim_seconds']:.0f} s)"
+    assert said in capsys.readouterr().err
 
 
 def test_eval_images_are_those_of_the_views_scored(tmp_path):

@@ -1480,9 +1480,9 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
         dataset.height,
         20,
     )
-    assert [doc["fl_x"], doc["fl_y"], doc["cx"], doc["cy"]] == pytest.approx(
-        [dataset.K[0, 0], dataset.K[1, 1], dataset.K[0, 2], dataset.K[1, 2]]
-    )
+    assert [doc["fl_x"], doc["fl_y"], doc["cx"], doc["cy"]] == [
+        dataset.meta[k] for k in ("fx", "fy", "cx", "cy")
+    ]  # meta.json's numbers, not the float32 K's
     assert doc["video"] == str(gif.resolve()) and doc["run"] == str((tmp_path / "run").resolve())
     assert doc["dataset"] == str(dataset.root.resolve()) and "torch" in doc["environment"]
     assert [f["frame"] for f in doc["frames"]] == [0, 1, 2]
@@ -1681,6 +1681,12 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert main([*argv, str(project)]) == 2
     assert "holds a dataset or run no demo wrote" in capsys.readouterr().err
     assert (project / "runs" / "spikegs" / "scene.ply").is_file()
+    older = tmp_path / "older"  # a demo of before 2026-11-25 left a results.json, no start file
+    shutil.copytree(out, older)
+    (older / ".demo_started.json").unlink()
+    with monkeypatch.context() as patch:
+        patch.setattr("spikegs.demo.demo_dataset", _ctrl_c)  # got past the checks
+        assert main([*argv, str(older)]) == 130
     # --resume refuses a user's files in a run folder before any work (after SIM and SpikeGS)
     (out / "runs" / "tfp33" / "notes.txt").write_text("mine")
     with monkeypatch.context() as patch:

@@ -173,18 +173,19 @@ def check_fresh_out(out: Path) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
     spikegs run's (a user's own run there keeps its notes, renders, ...), or holding anything
-    where no demo started in OUT (no STARTED_FILE: `--out` naming a project's folder, whose own
-    runs/spikegs and data are a dataset's and a run's)."""
+    where no demo ran in OUT (neither STARTED_FILE nor RESULTS, which demos before 2026-11-25
+    left alone: `--out` naming a project's folder, whose runs/spikegs and data are its own)."""
     from .data.dataset import check_output
 
     check_output(out / "data", overwrite=True)
     check_run_dirs(out)
-    if not (out / STARTED_FILE).is_file():
+    if not ((out / STARTED_FILE).is_file() or (out / RESULTS).is_file()):
         for held in (out / "data", *(out / "runs" / m for m in METHODS)):
             if held.is_dir() and any(p.name != LOCK for p in held.iterdir()):
                 raise FileExistsError(
-                    f"{held} holds a dataset or run no demo wrote ({out} holds no "
-                    f"{STARTED_FILE}), which a demo would replace; give it another --out"
+                    f"{held} holds a dataset or run no demo wrote ({out} holds neither "
+                    f"{STARTED_FILE} nor {RESULTS}), which a demo would replace; give it "
+                    f"another --out"
                 )
 
 

@@ -134,21 +134,20 @@ def orbit_record(video: Path) -> Path:
 
 
 def save_orbit(path: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int):
-    """Write the orbit's cameras, viewmats [F, 4, 4], in trajectory.json's layout (OpenCV
-    camera-to-world, the dataset's camera; a `frame` index per frame), with what rendered them:
-    another method rendered at these poses shows the same views, frame for frame."""
-    from .data.dataset import camera_keys, intrinsics_keys
+    """Write the orbit's cameras, viewmats [F, 4, 4], in the layout of trajectory.json (OpenCV
+    camera-to-world, the dataset's camera), a `frame` index per frame where it has a `readout`,
+    with what rendered them: another method rendered at these poses shows the same views."""
+    from .data.dataset import camera_keys
     from .data.trajectory import write_camera_doc
     from .provenance import environment
 
-    camera = {**intrinsics_keys(dataset.K), "width": dataset.width, "height": dataset.height}
     write_camera_doc(
         path,
         (
             {"frame": i, "transform_matrix": c2w.tolist()}
             for i, c2w in enumerate(np.linalg.inv(viewmats))
         ),
-        **camera_keys(camera),
+        **camera_keys(dataset.meta),  # meta.json's numbers (dataset.K is float32)
         video=str(Path(video).resolve()),
         fps=fps,
         run=str(Path(run).resolve()),

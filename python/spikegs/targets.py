@@ -299,7 +299,8 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             )
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
                 sim_seconds = recorded_seconds(path)
-                print(f"SIM: loaded {path} (trained in {sim_seconds:.0f} s)", file=sys.stderr)
+                took = f"trained in {sim_seconds:.0f} s" if sim_seconds else "no time recorded"
+                print(f"SIM: loaded {path} ({took})", file=sys.stderr)
             fast = fast_inference_model(model)
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
