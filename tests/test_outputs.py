@@ -187,6 +187,10 @@ def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsy
         err = capsys.readouterr().err
         assert exit.value.code == 2 and err.startswith("usage: spikegs train ")
         assert f"spikegs train: error: unrecognized arguments: {wrong} 3" in err
+    with pytest.raises(SystemExit) as exit:  # an option before the command is the top level's
+        main(["--bogus", "train", "DATA", "--out", "RUN"])
+    err = capsys.readouterr().err
+    assert exit.value.code == 2 and "spikegs: error: unrecognized arguments: --bogus" in err
     with pytest.raises(SystemExit) as exit:
         main(["--version"])
     assert exit.value.code == 0 and capsys.readouterr().out == f"spikegs {spikegs.__version__}\n"

@@ -214,9 +214,12 @@ def _stopped(stop: KeyboardInterrupt) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args, unknown = build_parser().parse_known_args(argv)
-    if unknown:  # with the command's usage (the top level's named no option of it)
-        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # with the command's usage (the top level's named no option of it), unless
+        words = sys.argv[1:] if argv is None else argv  # it came before the command's name
+        before = words.index(unknown[0]) < words.index(args.command)
+        (parser if before else args._parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     with warnings.catch_warnings():
         warnings.showwarning = _warning_printer(args.command, warnings.showwarning)
         return _run(args)
