@@ -58,7 +58,7 @@ def test_round_trip(small):
         np.testing.assert_allclose(camera_matrix(name, doc, (24, 32), (24, 32)), ds.K, rtol=1e-6)
 
 
-def test_the_default_frame_spacing_renders_a_faster_view_more_often(tmp_path, small):
+def test_the_default_frame_spacing_renders_a_faster_view_more_often(tmp_path, small, capsys):
     """The default 8 readouts between light frames moved a 512² frame's scene sphere 9.7 px:
     `spikegs simulate` at that size warned of ghosting at its defaults. Unless frame_every is
     given, the spacing shrinks to keep it within 6 px (here a view whose scene moves 7.9 px every
@@ -74,6 +74,13 @@ def test_the_default_frame_spacing_renders_a_faster_view_more_often(tmp_path, sm
             ["the scene moves up to 7.9 pixels between"] if given else []
         ), ghosting
     assert small.meta["frame_every"] == 8  # at the default speed
+    cli = ["simulate", "--out", str(tmp_path / "cli"), "--speed", "2.7", "--no-progress"]
+    cli += [f"--{k.replace('_', '-')}={v}" for k, v in SMALL.items() if k != "progress"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # (the motion blur's)
+        assert main(cli) == 0
+    said = "light rendered every 5 readouts, not 8: at this size the scene would move over 6 px"
+    assert said in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("readouts, every", [(2100, None), (2100, 1)])
@@ -627,6 +634,7 @@ def test_cli(tmp_path, capsys):
     assert main(args + ["--seed", "5", "--rate-at-one", "0.3"]) == 0
     ds = load_dataset(out)
     assert ds.meta["seed"] == 5 and ds.meta["sim"]["rate_at_one"] == 0.3
+    assert "light rendered every" not in capsys.readouterr().out  # 8 readouts, said nowhere
     assert main(args) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert main(["simulate", "--scene", "teapot", "--out", str(tmp_path / "t")]) == 2

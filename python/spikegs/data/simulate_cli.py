@@ -107,4 +107,10 @@ def run(args: argparse.Namespace) -> int:
         **sim_params,
     )
     print(f"{dataset} in {time.perf_counter() - start:.1f} s")
+    spacing = dataset.meta.get("frame_every")
+    if args.frame_every is None and spacing not in (None, DEFAULT_FRAME_EVERY):  # (meta.json's)
+        print(
+            f"light rendered every {spacing:g} readouts, not {DEFAULT_FRAME_EVERY}: at this size "
+            f"the scene would move over {FRAME_MOTION_PX:g} px between two frames"
+        )
     return 0
