@@ -1993,14 +1993,18 @@ def test_spikegs_train_stopped_before_its_first_step_says_interrupted(
 
 
 def test_spikegs_train_stopped_in_its_last_step_plots_its_curve(
-    dataset, tmp_path, monkeypatch, sigterm_raises
+    dataset, tmp_path, monkeypatch, sigterm_raises, capsys
 ):
     """The command, SIGTERMed in the last step: the finished run's curve.png is written (it was
-    left to a --resume), and the exit status is 143."""
+    left to a --resume), its summary printed as a finished run's is (it was not), and the exit
+    status is 143."""
     _interrupt_during(Densifier, "step", 30, monkeypatch, 1, signal.SIGTERM)
     argv = ["train", str(dataset.root), "--method", "tfp33", "--out", str(tmp_path / "run")]
     assert main([*argv, "--iterations", "30", "--no-progress"]) == 143
     assert read_image(tmp_path / "run" / "curve.png").ndim == 3
+    printed = json.loads(capsys.readouterr().out)
+    assert printed == json.loads((tmp_path / "run" / "train.json").read_text())
+    assert printed["iterations"] == 30
 
 
 def test_a_base_name_is_a_method_whatever_the_current_directory_holds(tmp_path, monkeypatch):

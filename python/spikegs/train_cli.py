@@ -21,7 +21,7 @@ from .config import (
 )
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
-from .run_summary import CONFIG, CURVE, last_checkpoint
+from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint
 from .yaml_files import read_yaml
 
 
@@ -144,11 +144,16 @@ def run(args: argparse.Namespace) -> int:
     dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
     trainer = Trainer(dataset, config, args.out, progress=bars)
+    summary = None
     try:
         summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
-    finally:  # a run stopped in its last step finished all the same: its curve too
+    finally:  # a run stopped in its last step finished all the same: its curve and summary too
         if trainer.iteration >= config.train.iterations:
             runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
             save_logged_curves(Path(args.out) / CURVE, runs, dataset)
-    print(strict_json.dumps(summary, indent=2))
+            written = Path(args.out) / SUMMARY  # written before the stop is raised
+            if summary is None and written.is_file():
+                summary = strict_json.read_json(written)
+            if summary is not None:  # (a script reads it from stdout)
+                print(strict_json.dumps(summary, indent=2))
     return 0
