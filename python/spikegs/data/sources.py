@@ -41,7 +41,7 @@ MAX_LONG_FOV_DEG = 120.0
 def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
     """K [3, 3] of a pinhole with field of view `fov_deg` across the frame's shorter side (a wide
     frame sees more at the sides, the scene framed as in a square one), up to MAX_LONG_FOV_DEG
-    across its longer side (frames over 4.8:1 at 40°), square pixels, centred."""
+    across its longer side (frames over 4.76:1 at 40°), square pixels, centred."""
     short, long = sorted((width, height))
     f = max(
         short / 2 / np.tan(np.radians(fov_deg) / 2),
