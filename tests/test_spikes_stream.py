@@ -215,7 +215,7 @@ def test_truncated_file_refused(tmp_path):
     with open(path, "ab") as f:
         f.write(b"\0" * 5)
     with pytest.raises(
-        ValueError, match=r"16 bytes expected, found 69 bytes \(4 frames and 5 bytes over: else"
+        ValueError, match=r"16 bytes expected, found 69 bytes \(4 frames and 5 bytes over: is t"
     ):
         SpikeStream.open(path, 8, 16)  # 4 frames: rather a wrong size than a cut (not advised)
     path = save_dat(tmp_path / "my recording.dat", random_bits((20, 8, 16)))
@@ -223,11 +223,12 @@ def test_truncated_file_refused(tmp_path):
         f.write(b"\0" * 5)
     with pytest.raises(
         ValueError,
-        match=rf"keeps its 20 whole frames truncated to 320 bytes "
-        rf"\(`truncate -s 320 '{path}'`\); else",
+        match=rf"5 bytes over: is the frame size, height, width or raw_width, right\?; a record"
+        rf".* keeps its 20 whole frames truncated to 320 bytes \(on a copy: `truncate -s 320 "
+        rf"'{path}'` deletes the rest\)\)",
     ):
         SpikeStream.open(path, 8, 16)
-    with pytest.raises(ValueError, match=r"packed data: .*\(0 frames and 5 bytes over: else"):
+    with pytest.raises(ValueError, match=r"packed data: .*\(0 frames and 5 bytes over: is th"):
         SpikeStream(np.zeros(5, np.uint8), _C.SpikeLayout.memory(8, 16))  # no file to cut
     with pytest.raises(ValueError, match="expected"):
         SpikeStream.open(path, 8, 16, raw_width=12)  # raw rows narrower than the image

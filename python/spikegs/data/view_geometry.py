@@ -78,7 +78,9 @@ def view_sphere(
         raise ValueError(
             f"{source}: the cameras' optical axes do not converge in front of them (forward-facing "
             f"or parallel views, directions within about ±2°, or axes whose nearest point lies "
-            f"behind a camera), so the scene's centre and size are unknown; {fix} (the "
+            f"behind a camera, as poses in another convention than their file states give: "
+            f"OpenCV matrices where OpenGL's are read, or world-to-camera ones), so the scene's "
+            f"centre and size are unknown; {fix} (the "
             f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
             f"scene D ahead of them is centred at position + D * direction)"
         )

@@ -80,15 +80,16 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
     if num_bytes % fb:
         whole, over = divmod(num_bytes, fb)
         cut = (  # a recording cut off mid-frame, not a wrong frame size: many frames, one part
-            f"a recording cut off mid-frame keeps its {whole} whole frames truncated to "
-            f"{whole * fb} bytes (`truncate -s {whole * fb} {shlex.quote(str(path))}`); "
+            f"; a recording cut off mid-frame keeps its {whole} whole frames truncated to "
+            f"{whole * fb} bytes (on a copy: `truncate -s {whole * fb} "
+            f"{shlex.quote(str(path))}` deletes the rest)"
             if path is not None and whole >= 16
             else ""
         )
-        raise ValueError(
+        raise ValueError(  # the size first: the likelier cause, and truncating loses data
             f"{path or 'packed data'}: a whole number of {layout.height}x{layout.row_bits}-bit "
             f"frames of {fb} bytes expected, found {num_bytes} bytes ({whole} frames and {over} "
-            f"bytes over: {cut}else the frame size is wrong)"
+            f"bytes over: is the frame size, height, width or raw_width, right?{cut})"
         )
     return num_bytes // fb
 
