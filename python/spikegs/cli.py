@@ -218,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # with the command's usage (the top level's named no option of it), unless
         words = sys.argv[1:] if argv is None else argv  # it came before the command's name
-        before = words.index(unknown[0]) < words.index(args.command)
+        first = unknown[0]
+        before = first in words and words.index(first) < words.index(args.command)
         (parser if before else args._parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     with warnings.catch_warnings():
         warnings.showwarning = _warning_printer(args.command, warnings.showwarning)
