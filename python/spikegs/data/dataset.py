@@ -73,6 +73,12 @@ def intrinsics_matrix(meta: dict) -> np.ndarray:
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
 
 
+def field_of_view_deg(pixels: float, focal: float) -> float:
+    """The angle in degrees that `pixels` centred on a pinhole's axis span at focal length
+    `focal` (pixels)."""
+    return float(2 * np.degrees(np.arctan(pixels / 2 / focal)))
+
+
 def intrinsics_keys(K: np.ndarray) -> dict:
     """meta.json's fx, fy, cx, cy (floats) of K [3, 3]."""
     return {"fx": float(K[0, 0]), "fy": float(K[1, 1]), "cx": float(K[0, 2]), "cy": float(K[1, 2])}
@@ -682,7 +688,7 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
         elif key in ("fx", "fy"):
             number(key, 0)
             size = meta.get("width" if key == "fx" else "height")
-            field = 2 * np.degrees(np.arctan(size / 2 / meta[key])) if is_number(size) else 0
+            field = field_of_view_deg(size, meta[key]) if is_number(size) else 0
             if field > MAX_FIELD_DEG:
                 raise ValueError(
                     f"{path}: {key} {meta[key]!r} gives a {field:.0f}° field of view across "

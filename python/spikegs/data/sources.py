@@ -23,7 +23,7 @@ from ..image_io import to_channels
 from ..missing_dependency import MissingDependencyError
 from ..rasterize import rasterize
 from ..spikes.simulate import sample_times
-from .dataset import check_meta_values
+from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
 from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
 from .transforms_file import intrinsics_text, read_transforms
@@ -52,7 +52,7 @@ def intrinsics(width: int, height: int, fov_deg: float) -> np.ndarray:
 
 def horizontal_fov_deg(K: np.ndarray, width: int) -> float:
     """The field of view across the width of a centred pinhole K [3, 3] (Mitsuba's `fov`)."""
-    return round(float(np.degrees(2 * np.arctan(width / 2 / K[0, 0]))), 9)  # 40.0, not 1 ulp off
+    return round(field_of_view_deg(width, K[0, 0]), 9)  # 40.0, not 1 ulp off
 
 
 class Source(ABC):
