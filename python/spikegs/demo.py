@@ -169,6 +169,11 @@ def started_color(out: Path) -> bool:
     return _started(out).get("color") is True if meta is None else meta.get("channels") == 3
 
 
+def holds_files(folder: Path) -> bool:
+    """Whether `folder` exists and holds anything but a lock (which stays behind, empty)."""
+    return folder.is_dir() and any(p.name != LOCK for p in folder.iterdir())
+
+
 def check_fresh_out(out: Path) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
@@ -181,7 +186,7 @@ def check_fresh_out(out: Path) -> None:
     check_run_dirs(out)
     if not ((out / STARTED_FILE).is_file() or (out / RESULTS).is_file()):
         for held in (out / "data", *(out / "runs" / m for m in METHODS)):
-            if held.is_dir() and any(p.name != LOCK for p in held.iterdir()):
+            if holds_files(held):
                 raise FileExistsError(
                     f"{held} holds a dataset or run no demo wrote ({out} holds neither "
                     f"{STARTED_FILE} nor {RESULTS}), which a demo would replace; give it "
@@ -302,7 +307,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_folder_output(out, images=True)
     # a demo writes STARTED_FILE as it starts: a folder without anything holds none
-    if args.resume and not (out.is_dir() and any(p.name != LOCK for p in out.iterdir())):
+    if args.resume and not holds_files(out):
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
         args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     out.mkdir(parents=True, exist_ok=True)
