@@ -71,3 +71,10 @@ def check_folder_output(folder: Path, flag: str = "--out", images: bool = False)
             f"{flag} {folder}: not a UTF-8 name, which OpenImageIO (spikegs's image files) "
             f"cannot open; rename it"
         )
+
+
+def record_beside(path: Path) -> Path:
+    """The JSON record of the file at `path`, beside it: its whole name with ".json" appended
+    (orbit.mp4.json, sim.pt.json; with_suffix wrote a w.json's record over it)."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")

@@ -11,6 +11,7 @@ import numpy as np
 
 from .cli import direction, output_file, positive_int
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
+from .output_paths import record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
@@ -119,18 +120,13 @@ def run(args: argparse.Namespace) -> int:
     path = dataset_orbit(dataset, args.frames, args.up)  # [F, 4, 4]
     write_video(args.out, orbit_frames(load_ply(ply), dataset, path), args.fps)
     print(f"{len(path)} frames -> {args.out}")
-    cameras = orbit_record(args.out)
+    cameras = record_beside(args.out)
     try:  # (the video stands without it, as sim-train's table does)
         save_orbit(cameras, path, dataset, video=args.out, run=args.run, fps=args.fps)
         print(f"cameras: {cameras}")
     except OSError as err:
         print(f"cameras not written beside the video: {err}", file=sys.stderr)
     return 0
-
-
-def orbit_record(video: Path) -> Path:
-    """The orbit's camera file beside `video`: VIDEO.json (orbit.mp4.json)."""
-    return video.with_name(video.name + ".json")
 
 
 def save_orbit(path: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int):

@@ -16,7 +16,7 @@ from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
 from .losses import SIM_LOSSES
-from .output_paths import check_file_output
+from .output_paths import check_file_output, record_beside
 from .provenance import environment
 from .sim_scores import evaluate_dataset, on_path_views
 from .sim_train import CHECKPOINT_S, is_sim_file, recorded_seconds
@@ -129,9 +129,7 @@ def run(args: argparse.Namespace) -> int:
         f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
         f"the same error in the intensity units of spikegs eval)"
     )
-    # the table for a script, beside the weights (named after the whole file name: `--out w.json`
-    # was overwritten by its own table, `--out results` wrote over a results.json)
-    record = Path(out).with_name(Path(out).name + ".json")
+    record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {
         "sim": str(Path(out).resolve()),
         "dataset": str(Path(dataset.root).resolve()),
