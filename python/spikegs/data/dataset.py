@@ -37,6 +37,7 @@ from .trajectory import (
     rigid_c2w,
     write_camera_doc,
 )
+from .view_geometry import CONVERGING, centre_of_view, optical_axes
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
     "meta.json",
@@ -116,6 +117,13 @@ SCENE_SIZE_RATIO = 100.0
 # camera-to-world put an orbit's cameras within 2 % of one point; a turn on the spot has no
 # parallax either)
 ONE_POINT_SHARE, TURN_DEG = 0.05, 10.0
+# Dataset: view directions spread (CONVERGING) whose optical axes' nearest point lies behind
+# every camera, within 60° of straight behind (cos < BEHIND_COS), are warned of: an inward orbit
+# with its z axes reversed (OpenGL's axes read as LLFF's) trained 18.7 dB where its right poses
+# gave 25.4, unsaid (the LLFF layout's frustum sphere lies ahead of any cameras, and a NeRF
+# layout's spikegs.json scene_center skips the axes' check); 450 other datasets of audits and
+# tests: none
+BEHIND_COS = -0.5
 
 
 class Dataset:
@@ -138,6 +146,7 @@ class Dataset:
         self._warn_about_float32_rounding()
         self._warn_about_scene_size()
         self._warn_about_one_viewpoint()
+        self._warn_about_axes_behind()
 
     def _camera_distance(self) -> float:
         """The cameras' median distance from the scene centre; 0 where it is rounding alone
@@ -186,6 +195,29 @@ class Dataset:
                 f"world-to-camera matrices given where camera-to-world ones belong put an "
                 f"orbit's cameras at one point (and a camera turning on the spot shows no "
                 f"parallax to place Gaussians in depth)",
+                stacklevel=3,
+            )
+
+    def _warn_about_axes_behind(self) -> None:
+        """A UserWarning where the cameras' view directions spread (CONVERGING) and the point
+        nearest to all their optical axes lies behind every camera (BEHIND_COS), the cameras
+        apart (ONE_POINT_SHARE of their distance from it): they look away from what they
+        circle, as an orbit's poses read in another convention than theirs do (z backwards)."""
+        eyes, dirs, proj = optical_axes(self.trajectory.viewmats)  # [P, 3], [P, 3], [P, 3, 3]
+        if np.linalg.eigvalsh(proj.mean(0))[0] < CONVERGING:
+            return
+        offsets = centre_of_view(self.trajectory.viewmats)[0] - eyes  # [P, 3]
+        distance = np.linalg.norm(offsets, axis=1)  # [P]
+        spread = float(np.linalg.norm(eyes - eyes.mean(0), axis=1).max())
+        behind = np.einsum("pi,pi->p", offsets, dirs) < BEHIND_COS * distance  # [P]
+        if behind.all() and spread > ONE_POINT_SHARE * float(np.median(distance)):
+            warnings.warn(
+                f"{self.root}: the cameras look away from the point their optical axes meet at "
+                f"(it lies behind every one, {np.median(distance):.3g} away), as an orbit's do "
+                f"whose poses are read in another convention than theirs (OpenGL's axes, y up "
+                f"and z backwards, read as OpenCV's or LLFF's, z forward, or the reverse): "
+                f"check the poses' convention (a capture looking outwards from its middle is "
+                f"right so)",
                 stacklevel=3,
             )
 
@@ -357,6 +389,11 @@ SWAPPED_MIN, SWAPPED_GAP = 0.5, 0.05  # neighbouring rows' correlation read swap
 # and where swapped rows are true rows two apart (2:1 frames) 0.58-0.75 against 0.38-0.61 (the
 # gap 0.07 at the least: 64x32); 685 datasets of earlier audits read right: none warned of
 STRUCTURE_WINDOWS = (7, 401)  # images of 401 readouts at 7 places (short: little motion blur)
+WIDER_GAP = 0.2  # a reading with wider stored rows this much more coherent than the rows as
+# given (and SWAPPED_MIN or more): raw_width is likely missing or wrong. Measured: 64x96 with 16
+# more columns a row read without raw_width 0.15, with 0.74; the camera's 416-pixel rows read as
+# 400 -0.05, as 416 0.97; 504 streams read as their meta.json says (54 under SWAPPED_MIN, so
+# searched; no raw rows among them): none warned of
 
 
 def check_stream_image(stream: SpikeStream, settings: str) -> None:
@@ -398,28 +435,62 @@ def _rows_alike(stream: SpikeStream) -> float:
 
 
 def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
-    """A UserWarning when a .dat stream's frames read with height and width swapped give a
-    clearly more coherent image (neighbouring rows alike: SWAPPED_MIN, SWAPPED_GAP): height and
-    width swapped give frames of as many bytes, each row then starting at another place of the
-    scene, and trained into noise unsaid. A square frame, a camera's raw rows (raw_width,
-    col_offset) or spikes in memory are not compared; `settings` names the file of the size."""
-    layout = stream.layout
-    simple = layout.row_bits == stream.width and layout.col_offset == 0
-    line = min(stream.height, stream.width) < 2  # a line of pixels has no rows (or columns)
-    if stream.path is None or stream.height == stream.width or not simple or line:
-        return
-    swapped = SpikeStream.open(stream.path, stream.width, stream.height, layout.flip)
-    other = _rows_alike(swapped)
-    if other < SWAPPED_MIN:  # (right data: the rows as read need no reading, on every load)
+    """UserWarnings when a .dat stream's frames read another way give a clearly more coherent
+    image (neighbouring rows alike) than as given: with height and width swapped (frames of as
+    many bytes, each row then starting at another place of the scene), or, where the image as
+    given has no such structure, with stored rows a few pixels wider (`_warn_if_rows_wider`: a
+    camera's extra columns without raw_width); read wrong, training learns noise unsaid. A line
+    of pixels or spikes in memory are not judged; a square frame or a camera's raw rows
+    (raw_width, col_offset) are not read swapped; `settings` names the file of the size."""
+    if stream.path is None or min(stream.height, stream.width) < 2:  # a line has no rows
         return
     as_read = _rows_alike(stream)
-    if other - as_read >= SWAPPED_GAP:
+    layout = stream.layout
+    simple = layout.row_bits == stream.width and layout.col_offset == 0
+    if simple and stream.height != stream.width:
+        swapped = SpikeStream.open(stream.path, stream.width, stream.height, layout.flip)
+        other = _rows_alike(swapped)
+        if other >= SWAPPED_MIN and other - as_read >= SWAPPED_GAP:
+            warnings.warn(
+                f"{stream.path}: its frames read as {stream.height}x{stream.width} give an "
+                f"image whose neighbouring rows correlate at {as_read:.2f}, read as "
+                f"{stream.width}x{stream.height} at {other:.2f}: height and width are likely "
+                f"swapped (set them in {settings}); read so, training learns noise",
+                stacklevel=3,
+            )
+            return
+    if as_read < SWAPPED_MIN:
+        _warn_if_rows_wider(stream, as_read, settings)
+
+
+def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> None:
+    """A UserWarning when the stream's file read with stored rows of another width R (width <= R
+    < 2 width, whole frames of height·R bits in the file) gives an image whose neighbouring rows
+    correlate at SWAPPED_MIN or more and WIDER_GAP over `as_read`, the rows as given: rows of
+    R pixels read as fewer start each a few pixels further along the scene, and frames of the
+    wrong size blur the images of many readouts into noise; read so, a right file's frames blur,
+    unless the rows are a whole multiple of its own, which 2·width excludes."""
+    layout = stream.layout
+    size = stream.path.stat().st_size
+    scores = {}
+    for row in range(stream.width, 2 * stream.width):
+        frame_bytes = -(-stream.height * row // 8)
+        if row == layout.row_bits or size % frame_bytes:
+            continue
+        wider = SpikeStream.open(stream.path, stream.height, stream.width, layout.flip, row)
+        scores[row] = _rows_alike(wider)
+    if not scores:
+        return
+    row = max(scores, key=scores.get)
+    if scores[row] >= SWAPPED_MIN and scores[row] - as_read >= WIDER_GAP:
         warnings.warn(
-            f"{stream.path}: its frames read as {stream.height}x{stream.width} give an image "
-            f"whose neighbouring rows correlate at {as_read:.2f}, read as "
-            f"{stream.width}x{stream.height} at {other:.2f}: height and width are likely "
-            f"swapped (set them in {settings}); read so, training learns noise",
-            stacklevel=3,
+            f"{stream.path}: its frames read as {stream.height}x{stream.width} with rows of "
+            f"{layout.row_bits} pixels give an image whose neighbouring rows correlate at "
+            f"{as_read:.2f}, read with rows of {row} pixels at {scores[row]:.2f}: the file likely "
+            f"stores {row} pixels a row (a camera's extra columns: set raw_width {row}, and "
+            f"col_offset, the first stored column kept, in {settings}); read so, training "
+            f"learns noise",
+            stacklevel=4,
         )
 
 
