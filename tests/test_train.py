@@ -34,7 +34,7 @@ from spikegs.data_fingerprint import data_fingerprint, same_data
 from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
-from spikegs.file_lock import exclusive_lock
+from spikegs.file_lock import BUSY, Busy, exclusive_lock
 from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
@@ -415,10 +415,15 @@ def test_resume_after_interruption_equals_uninterrupted(
     for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
         assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == 2
         assert "finish it with spikegs train DATASET" in capsys.readouterr().err
-    # while another process trains it, --resume would be refused: eval says so instead
+    # while another process trains it, --resume would be refused: eval says so instead, and
+    # exits BUSY (a script's retry may succeed; 2, usage errors' and bad input's, it may not)
     with exclusive_lock(tmp_path / "cut" / ".lock", "held"):
-        with pytest.raises(FileNotFoundError, match="being trained by another process; try again"):
+        with pytest.raises(Busy, match="being trained by another process; try again"):
             evaluate_run(tmp_path / "cut", dataset)
+        capsys.readouterr()
+        for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
+            assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == BUSY == 75
+            assert "busy: " in capsys.readouterr().err
     capsys.readouterr()
     resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
     resumed.train(resume=True)
@@ -722,7 +727,7 @@ def test_one_process_trains_in_a_run_directory(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     (tmp_path / "run").mkdir()
     with run_lock(tmp_path / "run"):  # as another training process holds it
-        with pytest.raises(FileExistsError, match="being trained by another process"):
+        with pytest.raises(Busy, match="being trained by another process"):
             Trainer(dataset, config, tmp_path / "run", progress=False).train()
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
 
@@ -1709,7 +1714,7 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     # one demo per OUT: a second one deleted the first one's dataset and run, lock and all
 
     with run_lock(out):
-        assert main([*argv, str(out)]) == 2
+        assert main([*argv, str(out)]) == BUSY
     assert "another process" in capsys.readouterr().err and (out / "results.json").exists()
     # stopped while simulating: --resume went on with 1800 iterations, not the 80 asked for
     from spikegs.demo import started_iterations

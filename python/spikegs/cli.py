@@ -12,6 +12,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from .file_lock import BUSY, Busy
 from .interrupt import Terminated, raise_terminated
 from .missing_dependency import MissingDependencyError
 
@@ -234,6 +235,9 @@ def _run(args: argparse.Namespace) -> int:
         return _stopped(stop)
     except BrokenPipeError:  # the output's reader left: not the command's error (`console`)
         raise
+    except Busy as err:  # another process holds the run: a retry may succeed
+        print(f"spikegs {args.command}: busy: {err}", file=sys.stderr)
+        return BUSY
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
         print(f"spikegs {args.command}: error: {err}", file=sys.stderr)

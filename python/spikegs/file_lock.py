@@ -14,10 +14,19 @@ except ImportError:  # Windows
     fcntl = None
 
 
+class Busy(FileExistsError):
+    """Another process holds the lock: the same command may succeed later (`spikegs` exits with
+    BUSY then, where a usage error or bad input exits 2)."""
+
+
+BUSY = 75  # the exit status of a command refused for a lock another process holds (sysexits.h's
+# EX_TEMPFAIL: a temporary failure, worth a retry)
+
+
 @contextlib.contextmanager
 def exclusive_lock(path: Path, busy: str | None):
     """Hold an exclusive lock on the file `path` for the block (released at its end or when the
-    process dies, however). While another process holds it: FileExistsError(`busy`), or, where
+    process dies, however). While another process holds it: Busy(`busy`), or, where
     `busy` is None, wait for it (saying so). No lock where the OS has no fcntl (Windows) or the
     filesystem no flock (some NFS, Lustre and FUSE mounts: a warning)."""
     if fcntl is None:
@@ -28,7 +37,7 @@ def exclusive_lock(path: Path, busy: str | None):
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             if busy is not None:
-                raise FileExistsError(busy) from None
+                raise Busy(busy) from None
             print(f"waiting for another process, which holds {path}", file=sys.stderr)
             fcntl.flock(handle, fcntl.LOCK_EX)
         except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock

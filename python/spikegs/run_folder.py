@@ -11,8 +11,8 @@ from .run_summary import CHECKPOINTS, CONFIG, CURVE, EVAL, LOCK, LOG, SCENE, SUM
 
 
 def run_lock(run_dir: Path):
-    """An exclusive lock on RUN/.lock for a `with` block: FileExistsError while another process
-    trains in RUN."""
+    """An exclusive lock on RUN/.lock for a `with` block: Busy while another process trains in
+    RUN."""
     return exclusive_lock(
         run_dir / LOCK,
         busy=f"{run_dir} is being trained by another process; wait for it to end or train into "

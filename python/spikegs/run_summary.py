@@ -6,7 +6,7 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
-from .file_lock import exclusive_lock
+from .file_lock import Busy, exclusive_lock
 from .number_checks import is_number
 from .strict_json import read_json
 
@@ -53,8 +53,8 @@ def trained_scene(run_dir: Path) -> Path:
         try:
             with exclusive_lock(lock, busy):
                 pass
-        except FileExistsError:
-            raise FileNotFoundError(f"{busy}; try again once it has finished") from None
+        except Busy:
+            raise Busy(f"{busy}; try again once it has finished") from None
         except OSError:  # a folder this process cannot write: not known to be busy
             pass
     if last_checkpoint(run_dir).exists():
