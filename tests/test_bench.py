@@ -41,6 +41,22 @@ def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):
     assert "FAILED bench stiff: needles 0.2 x 1e2..1e4 px: rel_means " in capsys.readouterr().err
 
 
+def test_bench_sim_draws_its_bar_only_on_a_terminal_and_never_with_no_progress(
+    tmp_path, monkeypatch
+):
+    """bench sim drew SIM's training bar on a terminal with no way to turn it off (every other
+    command has --no-progress); off the terminal it draws none."""
+    from spikegs.cli import main
+
+    asked = []
+    monkeypatch.setattr(sim, "run", lambda quick, out, progress: asked.append(progress) or {})
+    for terminal, argv in [(True, []), (True, ["--no-progress"]), (False, [])]:
+        bars = lambda off, terminal=terminal: terminal and not off  # noqa: E731 (show_bars's rule)
+        monkeypatch.setattr("spikegs.bench.cli.show_bars", bars)
+        assert main(["bench", "sim", "--quick", *argv, "--out", str(tmp_path)]) == 0
+    assert asked == [True, False, False]
+
+
 def test_train_schedule_is_the_demo_one_stretched():
     demo = DEMO_OVERRIDES["train"]["iterations"]
     assert train.schedule(demo, quick=False)["densify"] == DEMO_OVERRIDES["densify"]

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import positive_float, positive_int
+from ..cli import positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
 from .train import FULL_ITERATIONS, QUICK_ITERATIONS, VARIANTS
@@ -33,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="output folder (default bench-results, or bench-results-quick with --quick: a quick "
         "run does not replace a full one's files)",
+    )
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bars (bench sim's SIM training draws one on a terminal)",
     )
     parser.add_argument(
         "--iterations",
@@ -94,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         module = importlib.import_module(PARTS[part])
         print(f"== {part}")
         options = train_options if part == "train" else {}
+        if part == "sim":  # (a bar's carriage returns garble a log: none where it is no terminal)
+            options = {"progress": show_bars(args.no_progress)}
         start = time.perf_counter()
         results = module.run(quick=args.quick, out=args.out, **options)
         print(f"== {part}: {time.perf_counter() - start:.1f} s")

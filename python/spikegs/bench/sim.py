@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..cli import show_bars
 from ..config import SimConfig
 from ..data import simulate_dataset
 from ..data.scenes import SCENES
@@ -104,8 +103,9 @@ def _train_step_rows(model, batch: int, crop: int, repeats: int) -> list[dict]:
     return rows
 
 
-def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
-    """Simulate `scene`, train SIM on it, score every method: (quality rows, training, model)."""
+def _scene(scene: str, quick: bool, root: Path, progress: bool) -> tuple[list[dict], dict, SIM]:
+    """Simulate `scene`, train SIM on it (a progress bar where `progress`), score every method:
+    (quality rows, training, model)."""
     height, width, readouts, views = (64, 96, 400, 2) if quick else (250, 400, 1200, 4)
     steps = 30 if quick else TRAINING.iterations
     dataset = simulate_dataset(
@@ -125,7 +125,7 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
         steps=steps,
         batch_size=TRAINING.batch,
         seed=0,
-        progress=show_bars(False),  # (a bar's carriage returns garbled a log)
+        progress=progress,
     )
     seconds = time.perf_counter() - start
     rows = []
@@ -147,12 +147,13 @@ def _scene(scene: str, quick: bool, root: Path) -> tuple[list[dict], dict, SIM]:
     return rows, train, model
 
 
-def run(quick: bool, out: Path) -> dict:
-    """Quality on the built-in scenes, training time, inference FPS at 250×400; writes sim.json."""
+def run(quick: bool, out: Path, progress: bool = False) -> dict:
+    """Quality on the built-in scenes, training time, inference FPS at 250×400; writes sim.json.
+    SIM's training draws a progress bar where `progress`."""
     quality, training = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for scene in SCENES if not quick else list(SCENES)[:1]:
-            rows, train, model = _scene(scene, quick, Path(tmp))
+            rows, train, model = _scene(scene, quick, Path(tmp), progress)
             quality += rows
             training.append(train)
     psnr = {(r["scene"], r["method"]): r["psnr"] for r in quality}
