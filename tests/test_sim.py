@@ -671,7 +671,6 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     [
         (["--window", "4"], "--window: config: sim.window = 4"),
         (["--target-window", "35"], "sim.target_window = 35"),
-        (["--seed", "-1"], "--seed: config: train.seed = -1"),
         (["--out", "adir"], "is a directory"),  # ('.' is refused while parsing)
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
         # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache

@@ -1376,6 +1376,22 @@ def test_the_help_pages_example_commands_parse():
         assert build_parser().parse_args(words).command == words[0]
 
 
+@pytest.mark.parametrize("given", ["-1", str(2**64), "1.5", "x"])
+def test_a_seed_out_of_range_is_refused_alike_by_every_command(given, capsys):
+    """simulate, sim-train and train each worded the same bad seed their own way, after parsing
+    (one with the config's key, one with its key and option); now while parsing, alike, with
+    the command's usage. The range's ends pass."""
+    for command in (["simulate", "--out", "d"], ["sim-train", "d"], ["train", "d", "--out", "r"]):
+        with pytest.raises(SystemExit) as stop:
+            build_parser().parse_args([*command, "--seed", given])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err
+        assert f"usage: spikegs {command[0]}" in err
+        assert f"argument --seed: expected an integer in 0..2**64 - 1, found '{given}'" in err
+        for edge in (0, 2**64 - 1):
+            assert build_parser().parse_args([*command, "--seed", str(edge)]).seed == edge
+
+
 def test_option_help_gives_the_defaults(capsys):
     """Options' defaults were in the code only (simulate --height, the simulator's parameters)."""
     with pytest.raises(SystemExit):

@@ -54,6 +54,21 @@ def positive_float(text: str) -> float:
     return value
 
 
+def seed(text: str) -> int:
+    """An argparse type: a seed, a whole number in 0..2**64 - 1 (torch's and the simulator's
+    range, where one outside would wrap around), refused while parsing in one wording for every
+    command (each worded its own check after parsing)."""
+    from .number_checks import is_seed  # (numpy: not at every spikegs start)
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not is_seed(value):
+        raise argparse.ArgumentTypeError(f"expected an integer in 0..2**64 - 1, found '{text}'")
+    return value
+
+
 def direction(text: str):
     """An argparse type: 'X,Y,Z', a non-zero finite vector, as a unit vector [3] (numpy)."""
     from .data.trajectory import unit_vector  # (numpy: not at every spikegs start, --help too)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from . import strict_json
 from .atomic_save import write_text_atomically
-from .cli import add_no_progress, output_file, positive_int, show_bars
+from .cli import add_no_progress, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--seed",
-        type=int,
+        type=seed,
         default=TrainConfig().seed,
         help="seed of SIM's training (a training run's train.seed picks the SIM of its seed)",
     )

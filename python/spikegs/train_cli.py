@@ -10,7 +10,7 @@ from pathlib import Path
 import yaml
 
 from . import strict_json
-from .cli import add_no_progress, file_path, positive_int, show_bars
+from .cli import add_no_progress, file_path, positive_int, seed, show_bars
 from .config import (
     DEFAULT_METHOD,
     available_methods,
@@ -43,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="override train.iterations (default: the method's, 3000 for the built-in ones); the "
         "densification schedule is scaled with it",
     )
-    parser.add_argument("--seed", type=int, help="override train.seed (default: the method's, 0)")
+    parser.add_argument("--seed", type=seed, help="override train.seed (default: the method's, 0)")
     parser.add_argument(
         "--resume",
         action="store_true",

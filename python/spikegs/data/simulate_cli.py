@@ -7,7 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
-from ..cli import add_no_progress, direction, show_bars
+from ..cli import add_no_progress, direction, seed, show_bars
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"the scene's up as X,Y,Z, the axis the orbit ascends along (default 0,0,1; 0,1,0 "
         f"for a y-up Mitsuba scene, such as its Cornell box; {orbit})",
     )
-    parser.add_argument("--seed", type=int, default=0, help="simulator seed")
+    parser.add_argument("--seed", type=seed, default=0, help="simulator seed")
     parser.add_argument(
         "--frame-every",
         type=float,
