@@ -236,6 +236,38 @@ def test_rows_wider_than_the_image_without_raw_width_are_named(sim, llff_stream,
     np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
 
 
+def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, tmp_path):
+    """A pose every 5 readouts (a motion-capture log): every 8th pose, 40 readouts apart, kept
+    every training timestamp within 64 readouts of one and none was left, an error. The
+    held-out poses are spaced 8 clearances apart instead (about 1 in 8 timestamps lost to
+    them), said in a warning; test_views still chooses."""
+    root = copy(llff_stream, tmp_path)
+    readouts = np.arange(0, VIEWS * LENGTH, 5)  # [140]
+    viewmats = sim.trajectory.pose_at(readouts)
+    rows = to_poses_bounds(viewmats, (H, W, sim.K[0, 0]), bounds_of(sim, viewmats))
+    np.save(root / "poses_bounds.npy", rows)
+    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
+    with pytest.warns(
+        UserWarning,
+        match=r"every 8th pose, the default held-out views, left no training timestamp .* held "
+        r"out every 208th pose from pose 104 instead, 1 of 140 \(1040 readouts apart\)",
+    ):
+        ds = load_dataset(root)
+    assert [(v.name, v.readout) for v in ds.test_views] == [("pseudo_view_104", 520.0)]
+    assert len(ds.train_timestamps) and not (abs(ds.train_timestamps - 520) <= 64).any()
+    write_options(root, test_views=[20, 120])  # the user's choice: kept
+    assert [v.readout for v in load_dataset(root).test_views] == [100.0, 600.0]
+
+
+def test_ordinals_read_as_english():
+    from spikegs.data.real import ordinal
+
+    assert [ordinal(n) for n in (1, 2, 3, 4, 11, 12, 13, 21, 22, 101, 111, 131, 208)] == [
+        "1st", "2nd", "3rd", "4th", "11th", "12th", "13th", "21st", "22nd", "101st", "111th",
+        "131st", "208th",
+    ]  # fmt: skip
+
+
 def test_poses_whose_cameras_look_away_are_named(sim, llff_stream, tmp_path):
     """An orbit's poses with z reversed (OpenGL's axes written as LLFF's down, right, backwards
     columns were): every camera looks away from what it circles. The LLFF layout's frustum

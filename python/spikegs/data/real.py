@@ -92,6 +92,33 @@ def ground_truth_note(sharp: int, pseudo: int) -> dict:
     return {**note, "pseudo_method": PSEUDO_NOTE} if pseudo else note
 
 
+# readouts a held-out pose keeps free of training timestamps: one between two such poses lies
+# over 2·WINDOW_MARGIN from each
+HOLD_OUT_GAP = 4 * WINDOW_MARGIN + 1
+
+
+def _pose_step(readouts: np.ndarray) -> float:
+    """The median readouts [P] between consecutive poses (0 for one pose)."""
+    return float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
+
+
+def _spaced_hold_out(readouts: np.ndarray, every: int) -> int:
+    """Every how many poses of a stream's pose log (readouts [P]) to hold one out so that the
+    held-out poses lie HOLDOUT_EVERY clearances apart (HOLD_OUT_GAP and a train_every `every`):
+    about 1 in HOLDOUT_EVERY training timestamps lost to them, as every HOLDOUT_EVERY-th view of
+    LLFF's sparse views loses; at least HOLDOUT_EVERY."""
+    step = _pose_step(readouts)
+    if not step:
+        return HOLDOUT_EVERY
+    return max(HOLDOUT_EVERY, math.ceil(HOLDOUT_EVERY * (HOLD_OUT_GAP + every) / step))
+
+
+def ordinal(n: int) -> str:
+    """'1st', '2nd', '3rd', '4th', '11th', '131st'."""
+    last = "th" if n % 100 in (11, 12, 13) else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{last}"
+
+
 def held_out_mask(count: int, indices: list[int] | None, source: str) -> np.ndarray:
     """Mask [count] of the test views: `indices`, or every HOLDOUT_EVERY-th from 0."""
     indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
@@ -342,25 +369,43 @@ def stream_dataset(
         )
     # by default ~1024 timestamps over the readouts the poses span, not the whole recording's
     every = options.train_every or default_train_every(trajectory.end - trajectory.start + 1)
-    ks = train_timestamps(len(stream), readouts[test], every)  # [M]
-    ks = ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
+
+    def clear_of(test: np.ndarray) -> np.ndarray:  # training timestamps [M] clear of `test`
+        ks = train_timestamps(len(stream), readouts[test], every)  # [M]
+        return ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
+
+    ks = clear_of(test)
+    nth = _spaced_hold_out(readouts, every)
+    if not len(ks) and not options.test_views and nth > HOLDOUT_EVERY:  # a dense pose log
+        spaced = np.zeros(len(readouts), bool)
+        spaced[nth // 2 :: nth] = True
+        spaced[len(readouts) // 2] |= not spaced.any()  # a log shorter than half the spacing
+        if len(clear_of(spaced)):
+            test, ks = spaced, clear_of(spaced)
+            warnings.warn(
+                f"{source}: every {HOLDOUT_EVERY}th pose, the default held-out views, left no "
+                f"training timestamp (a timestamp keeps {WINDOW_MARGIN * 2} readouts clear of "
+                f"each): held out every {ordinal(nth)} pose from pose {nth // 2} instead, "
+                f"{int(test.sum())} of {len(readouts)} "
+                f"({readout_number(nth * _pose_step(readouts))} readouts apart); test_views in "
+                f"spikegs.json chooses others",
+                stacklevel=3,
+            )
     if not len(ks):
         held = readouts[test]
         spacing = float(np.median(np.diff(held))) if len(held) > 1 else math.inf
         which = "" if options.test_views else f", every {HOLDOUT_EVERY}th pose by default"
         apart = f", which lie {spacing:g} readouts apart" if len(held) > 1 else ""
-        # a timestamp between two held-out poses lies over 2·WINDOW_MARGIN from each
-        gap = 4 * WINDOW_MARGIN + 1
-        smaller = "a smaller train_every, or " if every > 1 and spacing > gap else ""
-        step = float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
-        nth = max(HOLDOUT_EVERY, math.ceil((gap + every) / step)) if step else HOLDOUT_EVERY
+        smaller = "a smaller train_every, or " if every > 1 and spacing > HOLD_OUT_GAP else ""
+        step = _pose_step(readouts)  # the fewest held-out poses apart that leave a timestamp:
+        least = max(HOLDOUT_EVERY, math.ceil((HOLD_OUT_GAP + every) / step)) if step else nth
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
             f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
             f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
             f"clear of each of the {held.size} held-out poses{which}{apart}; {smaller}fewer "
-            f"held-out poses further apart (test_views, pose indices, e.g. every {nth}th: "
-            f"{readout_number(nth * step)} readouts apart), in spikegs.json"
+            f"held-out poses further apart (test_views, pose indices, e.g. every "
+            f"{ordinal(least)}: {readout_number(least * step)} readouts apart), in spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)
     window = options.pseudo_gt_window or NEEDED_WINDOW
