@@ -380,8 +380,9 @@ def stream_dataset(
         spaced = np.zeros(len(readouts), bool)
         spaced[nth // 2 :: nth] = True
         spaced[len(readouts) // 2] |= not spaced.any()  # a log shorter than half the spacing
-        if len(clear_of(spaced)):
-            test, ks = spaced, clear_of(spaced)
+        spaced_ks = clear_of(spaced)
+        if len(spaced_ks):
+            test, ks = spaced, spaced_ks
             warnings.warn(
                 f"{source}: every {HOLDOUT_EVERY}th pose, the default held-out views, left no "
                 f"training timestamp (a timestamp keeps {WINDOW_MARGIN * 2} readouts clear of "
