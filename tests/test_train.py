@@ -2434,6 +2434,11 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert read_image(tmp_path / "run" / "curve.png").ndim == 3  # the logged PSNR, plotted
     assert main([*argv, "--resume", "--method", "spikegs"]) == 2  # named again: compared
     assert "other settings" in capsys.readouterr().err
+    # a finished run lengthened: refused, its schedule scaled with its length (said why)
+    assert main([*argv, "--resume", "--iterations", "5"]) == 2
+    assert "train.iterations: 3 in the run, 5 now (a run's length sets its schedule" in (
+        capsys.readouterr().err
+    )
     # config.yaml emptied or deleted: the defaults stood in for the run's settings
     for lost in ("", None):
         if lost is None:

@@ -266,10 +266,17 @@ class Trainer:
             with_defaults(state["config"]), self.config.to_dict(), ("in the run", "now")
         )
         if changed:
+            longer = any(c.startswith("train.iterations") for c in changed)
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
                 f"the same method and settings (or train into another --out). Differing: "
                 + "; ".join(changed)
+                + (
+                    " (a run's length sets its schedule, densification, learning-rate decay and "
+                    "the instant loss's end scaled with it: a run of another length is a new run)"
+                    if longer
+                    else ""
+                )
             )
         saved = state.get("data", self.data)  # checkpoints before fingerprints have none
         if not same_data(saved, self.dataset, self.scale, self.data):
