@@ -16,7 +16,14 @@ from spikegs import SpikeStream
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
-from spikegs.data.llff import llff_intrinsics, llff_sphere, to_poses_bounds, viewmats_from_llff
+from spikegs.data.dataset import Dataset
+from spikegs.data.llff import (
+    _warn_if_looking_away,
+    llff_intrinsics,
+    llff_sphere,
+    to_poses_bounds,
+    viewmats_from_llff,
+)
 from spikegs.data.real import (
     check_orientation,
     held_out_mask,
@@ -238,25 +245,32 @@ def test_rows_wider_than_the_image_without_raw_width_are_named(sim, llff_stream,
 
 def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, tmp_path):
     """A pose every 5 readouts (a motion-capture log): every 8th pose, 40 readouts apart, kept
-    every training timestamp within 64 readouts of one and none was left, an error. The
-    held-out poses are spaced 8 clearances apart instead (about 1 in 8 timestamps lost to
-    them), said in a warning; test_views still chooses."""
+    every training timestamp within 64 readouts of one and none was left, an error (a log a
+    little sparser kept a handful). Where the default keeps under a quarter of what spaced
+    poses keep, poses 8 clearances apart are held out instead (about 1 in 8 timestamps lost to
+    them), of those whose pseudo ground truth fits, said in a warning; test_views still
+    chooses."""
     root = copy(llff_stream, tmp_path)
-    readouts = np.arange(0, VIEWS * LENGTH, 5)  # [140]
-    viewmats = sim.trajectory.pose_at(readouts)
-    rows = to_poses_bounds(viewmats, (H, W, sim.K[0, 0]), bounds_of(sim, viewmats))
-    np.save(root / "poses_bounds.npy", rows)
-    np.savetxt(root / "readouts.txt", readouts, fmt="%d")
-    with pytest.warns(
-        UserWarning,
-        match=r"every 8th pose, the default held-out views, left no training timestamp .* held "
-        r"out every 208th pose from pose 104 instead, 1 of 140 \(1040 readouts apart\)",
-    ):
-        ds = load_dataset(root)
-    assert [(v.name, v.readout) for v in ds.test_views] == [("pseudo_view_104", 520.0)]
-    assert len(ds.train_timestamps) and not (abs(ds.train_timestamps - 520) <= 64).any()
-    write_options(root, test_views=[20, 120])  # the user's choice: kept
-    assert [v.readout for v in load_dataset(root).test_views] == [100.0, 600.0]
+
+    def log(readouts, **options) -> Dataset:  # [P]: the loaded dataset of poses there
+        viewmats = sim.trajectory.pose_at(readouts)
+        rows = to_poses_bounds(viewmats, (H, W, sim.K[0, 0]), bounds_of(sim, viewmats))
+        np.save(root / "poses_bounds.npy", rows)
+        np.savetxt(root / "readouts.txt", readouts, fmt="%d")
+        write_options(root, **options)
+        return load_dataset(root)
+
+    said = r"every 8th pose, the default held-out views, leaves 0 training timestamps .* held out "
+    every5 = np.arange(0, VIEWS * LENGTH, 5)  # [140]; windows fit at readouts 32-667: poses 7-133
+    with pytest.warns(UserWarning, match=said + r"pose 111 instead \(1 of 140, every 208th"):
+        ds = log(every5)
+    assert [(v.name, v.readout) for v in ds.test_views] == [("pseudo_view_111", 555.0)]
+    assert len(ds.train_timestamps) and not (abs(ds.train_timestamps - 555) <= 64).any()
+    with pytest.warns(UserWarning, match=said + r"pose 112 instead \(1 of 140, every 210th"):
+        log(every5, train_every=2)  # 8 clearances of 129 + 2 readouts
+    with pytest.warns(UserWarning, match=said + r"pose 83 instead"):  # fewer than half of 520
+        assert log(np.arange(0, 301, 2)).test_views[0].readout == 166.0  # the middle one
+    assert [v.readout for v in log(every5, test_views=[20, 120]).test_views] == [100.0, 600.0]
 
 
 def test_ordinals_read_as_english():
@@ -287,6 +301,16 @@ def test_poses_whose_cameras_look_away_are_named(sim, llff_stream, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         load_dataset(llff_stream)
+        # a pan about a point 5 cm behind the lens (a tripod): the axes meet there, behind
+        # every camera, but nearer than the scene's near bound of 1
+        turns = np.radians(np.linspace(-40, 40, 9))
+        ahead = np.stack([np.cos(turns), np.sin(turns), np.zeros(9)], 1)  # [9, 3]
+        pan = np.stack([look_at(0.05 * d, 2.0 * d) for d in ahead])  # [9, 4, 4]
+        _warn_if_looking_away(pan, np.tile([1.0, 5.0], (9, 1)), "pan")
+        # half the orbit's cameras reversed: not every camera looks away
+        half = sim.trajectory.pose_at(readouts).copy()  # [N, 4, 4]
+        half[::2] = np.diag([1.0, -1.0, -1.0, 1.0]) @ half[::2]
+        _warn_if_looking_away(half, bounds, "half")
 
 
 # -- conventions -----------------------------------------------------------------------------------

@@ -15,8 +15,8 @@ except ImportError:  # Windows
 
 
 class Busy(FileExistsError):
-    """Another process holds the lock: the same command may succeed later (`spikegs` exits with
-    BUSY then, where a usage error or bad input exits 2)."""
+    """Another process holds the lock: a later try may succeed (eval, render, --resume once it
+    has finished; `spikegs` exits with BUSY, where a usage error or bad input exits 2)."""
 
 
 BUSY = 75  # the exit status of a command refused for a lock another process holds (sysexits.h's

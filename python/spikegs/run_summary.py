@@ -43,7 +43,8 @@ def read_summary(run_dir: Path) -> dict:
 
 def trained_scene(run_dir: Path) -> Path:
     """RUN/scene.ply, written when a run finishes; FileNotFoundError saying how to get it where
-    the run has not finished (stopped with a checkpoint: --resume) or not started."""
+    the run has not finished (stopped with a checkpoint: --resume) or not started; Busy while
+    another process trains it."""
     ply = Path(run_dir) / SCENE
     if ply.exists():
         return ply

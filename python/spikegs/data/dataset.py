@@ -37,7 +37,6 @@ from .trajectory import (
     rigid_c2w,
     write_camera_doc,
 )
-from .view_geometry import CONVERGING, centre_of_view, optical_axes
 
 META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
     "meta.json",
@@ -117,13 +116,6 @@ SCENE_SIZE_RATIO = 100.0
 # camera-to-world put an orbit's cameras within 2 % of one point; a turn on the spot has no
 # parallax either)
 ONE_POINT_SHARE, TURN_DEG = 0.05, 10.0
-# Dataset: view directions spread (CONVERGING) whose optical axes' nearest point lies behind
-# every camera, within 60° of straight behind (cos < BEHIND_COS), are warned of: an inward orbit
-# with its z axes reversed (OpenGL's axes read as LLFF's) trained 18.7 dB where its right poses
-# gave 25.4, unsaid (the LLFF layout's frustum sphere lies ahead of any cameras, and a NeRF
-# layout's spikegs.json scene_center skips the axes' check); 450 other datasets of audits and
-# tests: none
-BEHIND_COS = -0.5
 
 
 class Dataset:
@@ -146,7 +138,6 @@ class Dataset:
         self._warn_about_float32_rounding()
         self._warn_about_scene_size()
         self._warn_about_one_viewpoint()
-        self._warn_about_axes_behind()
 
     def _camera_distance(self) -> float:
         """The cameras' median distance from the scene centre; 0 where it is rounding alone
@@ -195,29 +186,6 @@ class Dataset:
                 f"world-to-camera matrices given where camera-to-world ones belong put an "
                 f"orbit's cameras at one point (and a camera turning on the spot shows no "
                 f"parallax to place Gaussians in depth)",
-                stacklevel=3,
-            )
-
-    def _warn_about_axes_behind(self) -> None:
-        """A UserWarning where the cameras' view directions spread (CONVERGING) and the point
-        nearest to all their optical axes lies behind every camera (BEHIND_COS), the cameras
-        apart (ONE_POINT_SHARE of their distance from it): they look away from what they
-        circle, as an orbit's poses read in another convention than theirs do (z backwards)."""
-        eyes, dirs, proj = optical_axes(self.trajectory.viewmats)  # [P, 3], [P, 3], [P, 3, 3]
-        if np.linalg.eigvalsh(proj.mean(0))[0] < CONVERGING:
-            return
-        offsets = centre_of_view(self.trajectory.viewmats)[0] - eyes  # [P, 3]
-        distance = np.linalg.norm(offsets, axis=1)  # [P]
-        spread = float(np.linalg.norm(eyes - eyes.mean(0), axis=1).max())
-        behind = np.einsum("pi,pi->p", offsets, dirs) < BEHIND_COS * distance  # [P]
-        if behind.all() and spread > ONE_POINT_SHARE * float(np.median(distance)):
-            warnings.warn(
-                f"{self.root}: the cameras look away from the point their optical axes meet at "
-                f"(it lies behind every one, {np.median(distance):.3g} away), as an orbit's do "
-                f"whose poses are read in another convention than theirs (OpenGL's axes, y up "
-                f"and z backwards, read as OpenCV's or LLFF's, z forward, or the reverse): "
-                f"check the poses' convention (a capture looking outwards from its middle is "
-                f"right so)",
                 stacklevel=3,
             )
 
@@ -394,6 +362,9 @@ WIDER_GAP = 0.2  # a reading with wider stored rows this much more coherent than
 # more columns a row read without raw_width 0.15, with 0.74; the camera's 416-pixel rows read as
 # 400 -0.05, as 416 0.97; 504 streams read as their meta.json says (54 under SWAPPED_MIN, so
 # searched; no raw rows among them): none warned of
+WIDER_MIN_SIZE = 16  # rows and columns a frame needs to be read wider: random frames of 2-12 x
+# 2-16 pixels, the best of many widths' noisy scores, were told to set raw_width in 14 of 330 (a
+# review's) and 11 of 165 (seeded); none with the floor
 
 
 def check_stream_image(stream: SpikeStream, settings: str) -> None:
@@ -464,13 +435,16 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
 
 
 def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> None:
-    """A UserWarning when the stream's file read with stored rows of another width R (width <= R
-    < 2 width, whole frames of height·R bits in the file) gives an image whose neighbouring rows
-    correlate at SWAPPED_MIN or more and WIDER_GAP over `as_read`, the rows as given: rows of
+    """A UserWarning when the stream's file (frames of WIDER_MIN_SIZE or more rows and columns)
+    read with stored rows of another width R (width <= R < 2 width, whole frames of height·R bits
+    in the file) gives an image whose neighbouring rows correlate at SWAPPED_MIN or more and
+    WIDER_GAP over `as_read`, the rows as given: rows of
     R pixels read as fewer start each a few pixels further along the scene, and frames of the
     wrong size blur the images of many readouts into noise; read so, a right file's frames blur,
     unless the rows are a whole multiple of its own, which 2·width excludes."""
     layout = stream.layout
+    if min(stream.height, stream.width) < WIDER_MIN_SIZE:
+        return
     size = stream.path.stat().st_size
     scores = {}
     for row in range(stream.width, 2 * stream.width):

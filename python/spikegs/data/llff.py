@@ -34,7 +34,7 @@ from .real import (
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike, readout_number, rigid_c2w
 from .transforms_file import frame_columns
-from .view_geometry import converging_centre, optical_axes
+from .view_geometry import CONVERGING, centre_of_view, converging_centre, optical_axes
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
     "poses_bounds.npy",
@@ -45,6 +45,13 @@ POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
 # camera axes [down, right, backwards] <-> [right, down, forward]; the matrix is its own inverse
 LLFF_TO_OPENCV = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 LOOSE_SPHERE = 20.0  # warn when the sphere is this many times the cameras' spread and near bound
+# _warn_if_looking_away: view directions spread (CONVERGING) whose optical axes' nearest point
+# lies behind every camera, within 60° of straight behind (cos < BEHIND_COS), and as far from them
+# as the scene's near bounds or further: an inward orbit with its z axes reversed (OpenGL's axes
+# written as LLFF's columns) trained 18.7 dB where its right poses gave 25.4, unsaid (the
+# frustum sphere lies ahead of any cameras). A pan about a point just behind the lens (a tripod,
+# a hand) has its axes meet there, nearer than the scene: not warned of
+BEHIND_COS = -0.5
 
 
 def natural_key(name: str) -> list:
@@ -120,6 +127,28 @@ def llff_sphere(
             stacklevel=3,
         )
     return center, radius
+
+
+def _warn_if_looking_away(viewmats: np.ndarray, bounds: np.ndarray, source) -> None:
+    """A UserWarning where the cameras (viewmats [N, 4, 4], depth bounds [N, 2]) look away from
+    the point their optical axes meet at (BEHIND_COS), that point as far behind them as the
+    scene's median near bound or further: an orbit read with its z axes reversed."""
+    eyes, dirs, proj = optical_axes(viewmats)  # [N, 3], [N, 3], [N, 3, 3]
+    if np.linalg.eigvalsh(proj.mean(0))[0] < CONVERGING:
+        return
+    offsets = centre_of_view(viewmats)[0] - eyes  # [N, 3]
+    distance = np.linalg.norm(offsets, axis=1)  # [N]
+    behind = np.einsum("ni,ni->n", offsets, dirs) < BEHIND_COS * distance  # [N]
+    if behind.all() and np.median(distance) >= np.median(bounds[:, 0]):
+        warnings.warn(
+            f"{source}: the cameras look away from the point their optical axes meet at (it "
+            f"lies behind every one, {np.median(distance):.3g} away, the scene's near bounds "
+            f"{np.median(bounds[:, 0]):.3g}), as an orbit's do whose poses were written in "
+            f"another convention (OpenGL's axes, y up and z backwards, where LLFF's columns are "
+            f"down, right, backwards): check the poses' convention (a rig looking outwards from "
+            f"its middle is right so)",
+            stacklevel=3,
+        )
 
 
 def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -282,6 +311,7 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
     options = read_options(root, overrides)
     poses, bounds = _read_poses_bounds(source)
     viewmats = viewmats_from_llff(poses, str(source))  # [N, 4, 4]
+    _warn_if_looking_away(viewmats, bounds, source)
     K, height, width = llff_intrinsics(poses[0, :, 4], options, str(source))
     test = held_out_mask(len(poses), options.test_views, str(source))
     given = options.scene_center is not None and options.scene_radius is not None
