@@ -270,6 +270,10 @@ def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, t
         log(every5, train_every=2)  # 8 clearances of 129 + 2 readouts
     with pytest.warns(UserWarning, match=said + r"pose 83 instead"):  # fewer than half of 520
         assert log(np.arange(0, 301, 2)).test_views[0].readout == 166.0  # the middle one
+    # every 17 readouts: every 8th pose, 136 apart, leaves a few timestamps between them
+    few = r"every 8th pose, the default held-out views, leaves [1-9]\d? training timestamps"
+    with pytest.warns(UserWarning, match=few):
+        assert len(log(np.arange(0, VIEWS * LENGTH, 17)).train_timestamps) > 400
     assert [v.readout for v in log(every5, test_views=[20, 120]).test_views] == [100.0, 600.0]
 
 
