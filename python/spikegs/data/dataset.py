@@ -438,10 +438,10 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
     """A UserWarning when the stream's file (frames of WIDER_MIN_SIZE or more rows and columns)
     read with stored rows of another width R (width <= R < 2 width, whole frames of height·R bits
     in the file) gives an image whose neighbouring rows correlate at SWAPPED_MIN or more and
-    WIDER_GAP over `as_read`, the rows as given: rows of
-    R pixels read as fewer start each a few pixels further along the scene, and frames of the
-    wrong size blur the images of many readouts into noise; read so, a right file's frames blur,
-    unless the rows are a whole multiple of its own, which 2·width excludes."""
+    WIDER_GAP over `as_read`, the rows as given: rows of R pixels read as fewer start each a few
+    pixels further along the scene, and frames of the wrong size blur the images of many
+    readouts into noise; read so, a right file's frames blur, unless the rows are a whole
+    multiple of its own, which 2·width excludes."""
     layout = stream.layout
     if min(stream.height, stream.width) < WIDER_MIN_SIZE:
         return
