@@ -34,7 +34,7 @@ from .real import (
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike, readout_number, rigid_c2w
 from .transforms_file import frame_columns
-from .view_geometry import CONVERGING, centre_of_view, converging_centre, optical_axes
+from .view_geometry import CONVERGING, axes_meeting, converging_centre, optical_axes
 
 POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
     "poses_bounds.npy",
@@ -133,16 +133,15 @@ def _warn_if_looking_away(viewmats: np.ndarray, bounds: np.ndarray, source) -> N
     """A UserWarning where the cameras (viewmats [N, 4, 4], depth bounds [N, 2]) look away from
     the point their optical axes meet at (BEHIND_COS), that point as far behind them as the
     scene's median near bound or further: an orbit read with its z axes reversed."""
-    eyes, dirs, proj = optical_axes(viewmats)  # [N, 3], [N, 3], [N, 3, 3]
-    if np.linalg.eigvalsh(proj.mean(0))[0] < CONVERGING:
+    meeting = axes_meeting(viewmats)
+    if meeting.spread < CONVERGING:
         return
-    offsets = centre_of_view(viewmats)[0] - eyes  # [N, 3]
-    distance = np.linalg.norm(offsets, axis=1)  # [N]
-    behind = np.einsum("ni,ni->n", offsets, dirs) < BEHIND_COS * distance  # [N]
-    if behind.all() and np.median(distance) >= np.median(bounds[:, 0]):
+    behind = meeting.depth < BEHIND_COS * meeting.distance  # [N]
+    distance = float(np.median(meeting.distance))
+    if behind.all() and distance >= np.median(bounds[:, 0]):
         warnings.warn(
             f"{source}: the cameras look away from the point their optical axes meet at (it "
-            f"lies behind every one, {np.median(distance):.3g} away, the scene's near bounds "
+            f"lies behind every one, {distance:.3g} away, the scene's near bounds "
             f"{np.median(bounds[:, 0]):.3g}), as an orbit's do whose poses were written in "
             f"another convention (OpenGL's axes, y up and z backwards, where LLFF's columns are "
             f"down, right, backwards): check the poses' convention (a rig looking outwards from "

@@ -108,15 +108,16 @@ def _pose_step(readouts: np.ndarray) -> float:
     return float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
 
 
-def _spaced_hold_out(readouts: np.ndarray, every: int) -> int:
+def _spaced_hold_out(readouts: np.ndarray, every: int, clearances: int = HOLDOUT_EVERY) -> int:
     """Every how many poses of a stream's pose log (readouts [P]) to hold one out so that the
-    held-out poses lie HOLDOUT_EVERY clearances apart (HOLD_OUT_GAP and a train_every `every`):
-    about 1 in HOLDOUT_EVERY training timestamps lost to them, as every HOLDOUT_EVERY-th view of
-    LLFF's sparse views loses; at least HOLDOUT_EVERY."""
+    held-out poses lie `clearances` clearances apart (HOLD_OUT_GAP and a train_every `every`):
+    HOLDOUT_EVERY of them lose about 1 in HOLDOUT_EVERY training timestamps, as every
+    HOLDOUT_EVERY-th view of LLFF's sparse views loses; 1 leaves a timestamp between two; at
+    least HOLDOUT_EVERY."""
     step = _pose_step(readouts)
     if not step:
         return HOLDOUT_EVERY
-    return max(HOLDOUT_EVERY, math.ceil(HOLDOUT_EVERY * (HOLD_OUT_GAP + every) / step))
+    return max(HOLDOUT_EVERY, math.ceil(clearances * (HOLD_OUT_GAP + every) / step))
 
 
 def _spaced_mask(fits: np.ndarray, nth: int) -> np.ndarray:
@@ -419,21 +420,20 @@ def stream_dataset(
         which = "" if options.test_views else f", every {HOLDOUT_EVERY}th pose by default"
         apart = f", which lie {spacing:g} readouts apart" if len(held) > 1 else ""
         smaller = "a smaller train_every, or " if every > 1 and spacing > HOLD_OUT_GAP else ""
-        step = _pose_step(readouts)  # the fewest held-out poses apart that leave a timestamp:
-        least = max(HOLDOUT_EVERY, math.ceil((HOLD_OUT_GAP + every) / step)) if step else nth
+        least = _spaced_hold_out(readouts, every, clearances=1)  # the closest that leave one
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
             f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
             f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
             f"clear of each of the {held.size} held-out poses{which}{apart}; {smaller}fewer "
             f"held-out poses further apart (test_views, pose indices, e.g. every "
-            f"{ordinal(least)}: {readout_number(least * step)} readouts apart), in spikegs.json"
+            f"{ordinal(least)}: {readout_number(least * _pose_step(readouts))} readouts apart), "
+            f"in spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)
     held_out = [
         HeldOut(f"view_{i:03d}", viewmats[i], float(readouts[i]), None, window)
-        for i in np.flatnonzero(test)
-        if lo <= round(readouts[i]) <= hi
+        for i in np.flatnonzero(test & fits)
     ]
     held = np.flatnonzero(test)
     if held.size and not held_out:

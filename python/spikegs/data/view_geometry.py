@@ -3,6 +3,8 @@ stand from it."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..number_checks import is_number, number_array
@@ -31,6 +33,27 @@ def centre_of_view(viewmats: np.ndarray) -> tuple[np.ndarray, float]:
     return center, float(np.linalg.norm(eyes - center, axis=1).mean() / 2.5)
 
 
+class AxesMeeting(NamedTuple):
+    """Where cameras' optical axes meet (`axes_meeting`)."""
+
+    center: np.ndarray  # [3] `centre_of_view`'s point
+    radius: float  # and its radius
+    spread: float  # the view directions': the smallest eigenvalue of the mean of I - d d^T
+    depth: np.ndarray  # [F] the point's depth along each camera's axis (< 0: behind it)
+    distance: np.ndarray  # [F] each camera's distance to it
+
+
+def axes_meeting(viewmats: np.ndarray) -> AxesMeeting:
+    """Where the optical axes of world-to-camera viewmats [F, 4, 4] meet, and how the cameras
+    stand to that point."""
+    eyes, dirs, proj = optical_axes(viewmats)  # [F, 3], [F, 3], [F, 3, 3]
+    center, radius = centre_of_view(viewmats)
+    offsets = center - eyes  # [F, 3]
+    spread = float(np.linalg.eigvalsh(proj.mean(0))[0])
+    depth = np.einsum("fi,fi->f", offsets, dirs)
+    return AxesMeeting(center, radius, spread, depth, np.linalg.norm(offsets, axis=1))
+
+
 def converging_centre(
     viewmats: np.ndarray, min_spread: float = CONVERGING
 ) -> tuple[np.ndarray, float] | None:
@@ -38,11 +61,9 @@ def converging_centre(
     camera: view directions spread (`min_spread`; CONVERGING, about ±20°, for LLFF, which has depth
     bounds to fall back on) and the point ahead of each; else None (forward-facing views: the
     nearest point is set by noise, often behind them)."""
-    eyes, dirs, proj = optical_axes(viewmats)  # [F, 3], [F, 3], [F, 3, 3]
-    center, radius = centre_of_view(viewmats)
-    ahead = np.einsum("fi,fi->f", center - eyes, dirs) > 0  # [F]
-    spread = np.linalg.eigvalsh(proj.mean(0))[0] >= min_spread
-    return (center, radius) if spread and ahead.all() else None
+    meeting = axes_meeting(viewmats)
+    converged = meeting.spread >= min_spread and (meeting.depth > 0).all()
+    return (meeting.center, meeting.radius) if converged else None
 
 
 def view_sphere(
