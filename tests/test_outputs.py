@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import io
 import os
 import shutil
@@ -79,11 +80,12 @@ def test_eval_json_names_where_it_lies_for_a_run_named_relative(tmp_path, monkey
 
 @pytest.fixture
 def console_signals():
-    """SIGINT and SIGTERM as the test found them, after `console()` (which sets them to be
-    ignored once a command is stopped, and SIGTERM to raise Terminated); SIGTERM at its
-    default for the test, as in a fresh process."""
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    """SIGINT, SIGTERM and SIGHUP as the test found them, after `console()` (which sets them to
+    be ignored once a command is stopped, and SIGTERM and SIGHUP to raise Terminated); SIGTERM
+    and SIGHUP at their defaults for the test, as in a fresh process."""
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    for s in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_DFL)
     yield previous
     for s, handler in previous.items():
         signal.signal(s, handler)
@@ -108,30 +110,55 @@ def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch, console_
     assert signal.getsignal(signal.SIGINT) is console_signals[signal.SIGINT]
 
 
-def test_sigterm_stops_a_command_as_ctrl_c_does(monkeypatch, capsys, console_signals):
+@pytest.mark.parametrize(
+    "signum, status, said", [(signal.SIGTERM, 143, "terminated"), (signal.SIGHUP, 129, "hung up")]
+)
+def test_sigterm_stops_a_command_as_ctrl_c_does(
+    monkeypatch, capsys, console_signals, signum, status, said
+):
     """SIGTERM (a batch scheduler's time limit, `timeout`, `docker stop`) killed any command at
     once, its clean-up (temporaries, the demo's time) undone: the `spikegs` command raises it as
     Terminated, a KeyboardInterrupt, says 'terminated', exits with 143 and ignores further
-    signals while exiting. A SIGTERM ignored by the parent (`trap '' TERM`) stays ignored."""
+    signals while exiting. A SIGTERM ignored by the parent (`trap '' TERM`) stays ignored.
+    SIGHUP (a closed terminal) likewise: 'hung up', 129; ignored under nohup."""
     handlers = []
 
     def terminated(args):
-        handlers.append(signal.getsignal(signal.SIGTERM))
+        handlers.append(signal.getsignal(signum))
         if handlers[-1] is raise_terminated:  # (else the test would end pytest)
-            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), signum)
         return 0
 
     monkeypatch.setattr("spikegs.eval_cli.run", terminated)
     monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
     with pytest.raises(SystemExit) as exit:
         console()
-    assert exit.value.code == 143 and handlers == [raise_terminated]
-    assert capsys.readouterr().err == "terminated\n"
+    assert exit.value.code == status and handlers == [raise_terminated]
+    assert capsys.readouterr().err == f"{said}\n"
     assert all(signal.getsignal(s) is signal.SIG_IGN for s in console_signals)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.signal(signum, signal.SIG_IGN)
     with pytest.raises(SystemExit) as exit:
         console()
     assert exit.value.code == 0 and handlers[-1] is signal.SIG_IGN
+
+
+def test_a_stop_said_to_a_closed_terminal_still_stops(monkeypatch, console_signals):
+    """Saying 'hung up' to the terminal whose closing sent SIGHUP raises EIO: the command still
+    exits as stopped (129), with no traceback of the write."""
+
+    class ClosedTerminal(io.StringIO):
+        def write(self, text):
+            raise OSError(errno.EIO, "Input/output error")
+
+    def hung_up(args):
+        os.kill(os.getpid(), signal.SIGHUP)
+
+    monkeypatch.setattr("spikegs.eval_cli.run", hung_up)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
+    monkeypatch.setattr(sys, "stderr", ClosedTerminal())
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 129
 
 
 def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys, console_signals):

@@ -571,10 +571,14 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
-def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path):
+@pytest.mark.parametrize(
+    "signum, status, said", [(signal.SIGTERM, 143, "terminated"), (signal.SIGHUP, 129, "hung up")]
+)
+def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status, said):
     """The command as a batch scheduler's time limit stops it: SIGTERM killed it at once, its
     steps since the last checkpoint lost (here: all), nothing said; now it checkpoints the step
-    it was in, says so and exits with 143 (128 + SIGTERM)."""
+    it was in, says so and exits with 143 (128 + SIGTERM). SIGHUP (the terminal closed, an ssh
+    session dropped) likewise, 129."""
     config = tmp_path / "long.yaml"  # no checkpoint of its own for a minute
     train = {**FAST["train"], "iterations": 100000, "checkpoint_every": 100000}
     config.write_text(yaml.safe_dump({"base": "tfp33", **FAST, "train": train}))
@@ -591,10 +595,10 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path):
     while not (log.exists() and log.read_text().count("\n") >= 2):
         assert training.poll() is None and time.monotonic() < deadline, training.stderr.read()
         time.sleep(0.1)
-    training.send_signal(signal.SIGTERM)
+    training.send_signal(signum)
     err = training.communicate(timeout=120)[1]
-    assert training.returncode == 143, err
-    assert "SIGTERM: stopping after this step" in err and err.endswith("terminated\n"), err
+    assert training.returncode == status, err
+    assert f"{signum.name}: stopping after this step" in err and err.endswith(f"{said}\n"), err
     logged = [json.loads(line)["iteration"] for line in log.read_text().splitlines()]
     saved = torch.load(run / "checkpoints" / "last.pt")["iteration"]
     assert saved >= logged[-1] > 0
@@ -602,31 +606,106 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path):
 
 @pytest.fixture
 def sigterm_raises():
-    """SIGTERM as the `spikegs` command handles it (raising Terminated), for the test's duration:
-    a trainer that failed to defer it stops the test where the signal lands, not pytest."""
-    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    """SIGTERM and SIGHUP as the `spikegs` command handles them (raising Terminated), for the
+    test's duration: a trainer that failed to defer them stops the test where the signal lands,
+    not pytest."""
+    previous = {s: signal.signal(s, raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
     yield
-    signal.signal(signal.SIGTERM, previous)
+    for s, handler in previous.items():
+        signal.signal(s, handler)
 
 
-@pytest.mark.parametrize("signals, saved", [(1, 40), (2, 25)])
+@pytest.mark.parametrize(
+    "signum, signals, saved",
+    [(signal.SIGTERM, 1, 40), (signal.SIGTERM, 2, 25), (signal.SIGHUP, 2, 40)],
+)
 def test_sigterm_stops_as_ctrl_c_does(
-    dataset, tmp_path, monkeypatch, capsys, sigterm_raises, signals, saved
+    dataset, tmp_path, monkeypatch, capsys, sigterm_raises, signum, signals, saved
 ):
     """SIGTERM, how a batch scheduler ends a job at its time limit (and `timeout`, `kill`,
     `docker stop`), killed a run at once: the steps since its last checkpoint were lost, nothing
     said. Now the step finishes and the run checkpoints (a second SIGTERM: at once, keeping the
-    last checkpoint)."""
+    last checkpoint). SIGHUP likewise, but a second one does not stop at once: a closed
+    terminal's hangup comes twice (the shell's, then the kernel's as the shell exits)."""
     train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
     config = load_config("tfp33", {**FAST, "train": train})
-    _interrupt_during(Densifier, "step", 40, monkeypatch, signals, signal.SIGTERM)
-    with pytest.raises(Terminated):
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals, signum)
+    with pytest.raises(Terminated) as stopped:
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert stopped.value.signum == signum
     assert torch.load(tmp_path / "run" / "checkpoints" / "last.pt")["iteration"] == saved
-    assert "SIGTERM: stopping after this step" in capsys.readouterr().err
-    assert signal.getsignal(signal.SIGTERM) is raise_terminated  # handler restored
+    assert f"{signum.name}: stopping after this step" in capsys.readouterr().err
+    assert signal.getsignal(signum) is raise_terminated  # handler restored
     monkeypatch.undo()
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+
+
+class _GoneStderr:
+    """A stderr whose writes raise `error` once `gone` is set: its reader left (EPIPE), its
+    terminal closed (EIO)."""
+
+    def __init__(self, error: OSError):
+        self.error, self.gone = error, False
+
+    def write(self, text: str) -> int:
+        if self.gone:
+            raise self.error
+        return len(text)
+
+    def flush(self) -> None:
+        if self.gone:
+            raise self.error
+
+
+@pytest.mark.parametrize(
+    "shown, error, at",
+    [
+        ("line", BrokenPipeError(errno.EPIPE, "Broken pipe"), 40),
+        ("line", OSError(errno.EIO, "Input/output error"), 40),
+        ("bar", BrokenPipeError(errno.EPIPE, "Broken pipe"), 40),
+        ("line", BrokenPipeError(errno.EPIPE, "Broken pipe"), 60),
+        ("line", OSError(errno.ENOSPC, "No space left on device"), 40),
+    ],
+)
+def test_a_progress_output_gone_stops_the_run_with_a_checkpoint(
+    dataset, tmp_path, monkeypatch, shown, error, at
+):
+    """`spikegs train ... 2>&1 | head` stopped where its reader left (or a terminal closed
+    under it, EIO) with the error its progress output raised, mid-step: every step since the
+    last checkpoint (up to a minute) was lost. Now the step finishes, the run checkpoints, then
+    stops with that error (at the last step: finished first); resumed, it ends as a run never
+    stopped. Another error (a full disk's) stops at once, as before."""
+    train = {**FAST["train"], "iterations": 60, "eval_every": 20, "checkpoint_every": 1000}
+    config = load_config("tfp33", {**FAST, "train": train})  # densifies at 40, stopping there
+    stderr = _GoneStderr(error)
+    monkeypatch.setattr(sys, "stderr", stderr)
+
+    def show(trainer):  # the progress line, or the moment the bar's next write fails
+        if trainer.iteration == at:
+            stderr.gone = True
+            if shown == "line":
+                raise error
+
+    run = tmp_path / "cut"
+    cut = Trainer(dataset, config, run, progress=shown == "bar")
+    with pytest.raises(type(error)) as raised:
+        cut.train(on_eval=show)
+    assert raised.value is error
+    checkpoint = run / "checkpoints" / "last.pt"
+    if error.errno == errno.ENOSPC:
+        assert not checkpoint.exists()  # (no output lost: the error of the work itself)
+        return
+    assert torch.load(checkpoint)["iteration"] == at
+    log = [json.loads(line)["iteration"] for line in (run / "log.jsonl").read_text().splitlines()]
+    assert log[-1] == at
+    assert (run / "train.json").exists() == (at == 60)
+    monkeypatch.undo()
+    resumed = Trainer(dataset, config, run, progress=False)
+    resumed.train(resume=True)
+    whole = Trainer(dataset, config, tmp_path / "whole", progress=False)
+    whole.train()
+    for name, value in whole.model.params.items():
+        assert torch.equal(value, resumed.model.params[name]), name
 
 
 def _interrupt_during(

@@ -13,7 +13,7 @@ import warnings
 from pathlib import Path
 
 from .file_lock import BUSY, Busy
-from .interrupt import Terminated, raise_terminated
+from .interrupt import ENDING, NAMES, Terminated, raise_terminated, say
 from .missing_dependency import MissingDependencyError
 
 # sub-command -> (module implementing it, one-line help)
@@ -190,16 +190,17 @@ def _warning_printer(command: str, default):
 
 
 INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells'
-TERMINATED = 143  # stopped by SIGTERM (128 + SIGTERM)
+# stopped by SIGTERM or SIGHUP: 128 + the signal's number (143, 129)
 BROKEN_PIPE = 141  # its output's reader gone (128 + SIGPIPE)
 
 
 def console() -> None:
     """The `spikegs` command: `main`, then exit with its status. SIGTERM stops a command as
     Ctrl-C does (a batch scheduler's time limit: training checkpoints after its step, temporary
-    files are removed), unless it was ignored. Once stopped, further signals are ignored while
-    the interpreter exits (a second Ctrl-C, pressed as people do, printed 'Exception ignored in
-    atexit callback ... KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's
+    files are removed), unless it was ignored; SIGHUP likewise (the terminal closed; nohup
+    ignores it). Once stopped, further signals are ignored while the interpreter exits (a
+    second Ctrl-C, pressed as people do, printed 'Exception ignored in atexit callback ...
+    KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's
     modules import says 'interrupted' too, not a traceback (one during the package's own
     import, torch's, before this runs, still ends in Python's traceback). A character the
     output's codec lacks (θ, µ or — through a Latin-1 or ASCII stdout) prints escaped (as
@@ -207,8 +208,9 @@ def console() -> None:
     for stream in (sys.stdout, sys.stderr):  # (UTF-8 mode's surrogateescape stays)
         if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
             stream.reconfigure(errors="backslashreplace")
-    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, raise_terminated)
+    for signum in ENDING:
+        if signal.getsignal(signum) is signal.SIG_DFL:
+            signal.signal(signum, raise_terminated)
     try:
         status = main()
     except KeyboardInterrupt as stop:
@@ -216,17 +218,22 @@ def console() -> None:
     except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # (exit's flush)
         status = BROKEN_PIPE
-    if status in (INTERRUPTED, TERMINATED):
-        for signum in (signal.SIGINT, signal.SIGTERM):
+    if status in STOPPED:
+        for signum in NAMES:
             signal.signal(signum, signal.SIG_IGN)
     sys.exit(status)
 
 
+STOPPED = {INTERRUPTED, *(128 + s for s in ENDING)}  # exit statuses of a command a signal stopped
+
+
 def _stopped(stop: KeyboardInterrupt) -> int:
-    """Say that a signal stopped the command; its exit status."""
-    terminated = isinstance(stop, Terminated)
-    print("terminated" if terminated else "interrupted", file=sys.stderr)
-    return TERMINATED if terminated else INTERRUPTED
+    """Say that a signal stopped the command (unless stderr is gone); its exit status."""
+    if isinstance(stop, Terminated):
+        say("terminated" if stop.signum == signal.SIGTERM else "hung up")
+        return 128 + stop.signum
+    say("interrupted")
+    return INTERRUPTED
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,6 +23,7 @@ from .cli import add_no_progress, positive_int, show_bars
 from .config import load_config, load_saved_run
 from .curves import save_logged_curves
 from .data.scenes import SCENES
+from .interrupt import say
 from .method_titles import method_title
 from .provenance import environment
 from .run_folder import refuse_foreign_files, run_lock
@@ -351,7 +352,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         except OSError:
             pass
         mend = "" if isinstance(stop, KeyboardInterrupt) else "once that is mended, "
-        print(f"\n{mend}the same command with --resume continues from here", file=sys.stderr)
+        say(f"\n{mend}the same command with --resume continues from here")  # (stderr may be gone)
         raise
     total = earlier + time.perf_counter() - start  # with the interrupted processes' time
     (out / SECONDS_FILE).unlink(missing_ok=True)

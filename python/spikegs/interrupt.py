@@ -5,12 +5,14 @@ A KeyboardInterrupt raised wherever the signal lands (in the middle of an optimi
 densification) would leave the model half-updated, and a checkpoint of it unresumable. SIGTERM is
 how a batch scheduler ends a job at its time limit (Slurm, then SIGKILL 30 s later), as do
 `timeout`, `kill` and `docker stop`: killed at once, a run lost the steps since its last
-checkpoint (up to a minute) and said nothing.
+checkpoint (up to a minute) and said nothing. SIGHUP (the terminal closed: an ssh session that
+dropped, a terminal window shut, the run not under nohup or tmux) likewise.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import signal
 import sys
 import threading
@@ -18,41 +20,66 @@ from collections.abc import Callable, Iterator
 
 
 class Terminated(KeyboardInterrupt):
-    """Work stopped by SIGTERM, as Ctrl-C stops it (the same clean-up; exit status 143)."""
+    """Work stopped by SIGTERM or SIGHUP (`signum`), as Ctrl-C stops it (the same clean-up;
+    exit status 128 + signum)."""
+
+    def __init__(self, signum: int = signal.SIGTERM):
+        super().__init__()
+        self.signum = signum
 
 
-NAMES = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
+# signals that end a process unless handled (SIGHUP where the OS has it: not Windows)
+ENDING = tuple(s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None)
+NAMES = {signal.SIGINT: "Ctrl-C", **{s: s.name for s in ENDING}}
 
 
 def interruption(signum: int) -> KeyboardInterrupt:
     """The exception that stops work for signal `signum`: KeyboardInterrupt, or Terminated."""
-    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    return Terminated(signum) if signum in ENDING else KeyboardInterrupt()
 
 
 def raise_terminated(signum, frame) -> None:
-    """A SIGTERM handler that stops work as Ctrl-C does (`finally` blocks run); further SIGTERMs
-    are ignored while it unwinds (one landing in the clean-up printed 'terminated' twice)."""
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    raise Terminated
+    """A SIGTERM or SIGHUP handler that stops work as Ctrl-C does (`finally` blocks run); that
+    signal is then ignored while it unwinds (a second SIGTERM landing in the clean-up printed
+    'terminated' twice)."""
+    signal.signal(signum, signal.SIG_IGN)
+    raise Terminated(signum)
+
+
+def say(message: str) -> None:
+    """`message` on stderr, unless stderr is gone (its terminal closed with SIGHUP: EIO; its
+    reader left: EPIPE), where stopping must not fail on saying so."""
+    try:
+        print(message, file=sys.stderr, flush=True)
+    except OSError as err:
+        if not output_gone(err):
+            raise
+
+
+def output_gone(err: OSError) -> bool:
+    """Whether `err` says that an output stream is gone: its reader left (EPIPE), its terminal
+    closed (EIO)."""
+    return err.errno in (errno.EPIPE, errno.EIO)
 
 
 def _takes_over(signum: int) -> bool:
-    """Whether a deferred block handles `signum`: SIGINT unless ignored; SIGTERM where its
-    handler is the default or the `spikegs` command's (a library user's own stays theirs)."""
+    """Whether a deferred block handles `signum`: SIGINT unless ignored; SIGTERM and SIGHUP
+    where the handler is the default or the `spikegs` command's (a library user's own, or
+    nohup's SIG_IGN, stays)."""
     handler = signal.getsignal(signum)
-    if signum == signal.SIGTERM:
+    if signum in ENDING:
         return handler in (signal.SIG_DFL, raise_terminated)
     return handler is not signal.SIG_IGN
 
 
 @contextlib.contextmanager
 def deferred_interrupt(message: str) -> Iterator[Callable[[], int]]:
-    """Within the block the first SIGINT or SIGTERM prints `message` (its `{signal}` the
+    """Within the block the first SIGINT, SIGTERM or SIGHUP prints `message` (its `{signal}` the
     signal's name) and is recorded; the yielded callable returns the signal number (0 before
     any), and `interruption` of it is the exception to raise once the step is done. A second
-    one raises at once. Outside the main thread (where no signal is delivered) nothing changes,
-    nor for a signal ignored (SIGINT in a background job) or a SIGTERM handler of the caller's
-    (`_takes_over`)."""
+    one raises at once (not a second SIGHUP: a hangup's). Outside the main thread (where no
+    signal is delivered) nothing changes, nor for a signal ignored (SIGINT in a background job,
+    SIGHUP under nohup) or a SIGTERM or SIGHUP handler of the caller's (`_takes_over`)."""
     if threading.current_thread() is not threading.main_thread():
         yield lambda: 0
         return
@@ -60,10 +87,12 @@ def deferred_interrupt(message: str) -> Iterator[Callable[[], int]]:
     hits: list[int] = []
 
     def handler(signum, frame):
+        if hits and signum == getattr(signal, "SIGHUP", None):
+            return  # a hangup comes twice (the shell's, then the kernel's as the shell exits)
         hits.append(signum)
         if len(hits) > 1:
             raise interruption(signum)
-        print(message.format(signal=NAMES[signum]), file=sys.stderr, flush=True)
+        say(message.format(signal=NAMES[signum]))  # (raising here would tear the step)
 
     previous = {s: signal.signal(s, handler) for s in handled}
     try:

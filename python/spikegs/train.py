@@ -28,7 +28,7 @@ from .evaluate import score_view
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
-from .interrupt import deferred_interrupt, interruption
+from .interrupt import deferred_interrupt, interruption, output_gone
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import (
@@ -457,15 +457,15 @@ class Trainer:
             for v in self.dataset.test_views
         ]
 
-    def _after_step(self, loss: float, log, bar, on_eval) -> None:
-        """Evaluation (into `test_psnr` and `first_view_psnr`) and log record due after a step."""
+    def _after_step(self, loss: float, log, bar, on_eval) -> OSError | None:
+        """Evaluation (into `test_psnr` and `first_view_psnr`), log record and progress due
+        after a step; the error that the progress output's loss raised (`output_gone`), if it
+        did: the caller stops once the step is done, as a signal stops it."""
         t, it = self.config.train, self.iteration
         evaluate = it % t.eval_every == 0 or it == t.iterations
         if evaluate:
             psnrs = self.test_psnrs()
             self.first_view_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
-            if on_eval is not None:
-                on_eval(self)
         if it % t.log_every == 0 or evaluate:
             record = {
                 "iteration": it,
@@ -479,12 +479,23 @@ class Trainer:
                 record.update(psnr=self.first_view_psnr, psnr_view=name, psnr_mean=self.test_psnr)
             log.write(strict_json.dumps(record) + "\n")
             log.flush()
-            bar.set_postfix(
-                loss=f"{loss:.4f}",
-                psnr=f"{self.test_psnr:.2f}" if np.isfinite(self.test_psnr) else "-",
-                n=len(self.model),
-                s=f"{self.train_seconds:.0f}",
-            )
+        try:
+            if evaluate and on_eval is not None:
+                on_eval(self)
+            if it % t.log_every == 0 or evaluate:
+                bar.set_postfix(
+                    loss=f"{loss:.4f}",
+                    psnr=f"{self.test_psnr:.2f}" if np.isfinite(self.test_psnr) else "-",
+                    n=len(self.model),
+                    s=f"{self.train_seconds:.0f}",
+                )
+            bar.update(1)
+        except OSError as err:
+            if not output_gone(err):
+                raise
+            bar.disable = True  # (its close would write again)
+            return err
+        return None
 
     def train(self, resume: bool = False, on_eval=None) -> dict:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
@@ -585,16 +596,17 @@ class Trainer:
             "\n{signal}: stopping after this step, with a checkpoint to --resume from ({signal} "
             "again stops at once, keeping the last checkpoint)"
         )
+        gone = None  # the progress output's loss (its reader left, its terminal closed)
         with deferred_interrupt(stop_message) as interrupted:
             try:
-                while self.iteration < t.iterations:
+                while self.iteration < t.iterations and gone is None:
                     start = time.perf_counter()
                     loss = self.update()
                     self.train_seconds += time.perf_counter() - start
                     # the model the step trained, as 3DGS evaluates it: an opacity reset due now
                     # (at 1000 of the default 3000 iterations) logged a held-out PSNR ~10 dB low,
                     # a dip a user could read as divergence
-                    self._after_step(loss, log, bar, on_eval)
+                    gone = self._after_step(loss, log, bar, on_eval)
                     start = time.perf_counter()
                     self.densify()
                     self.train_seconds += time.perf_counter() - start
@@ -607,12 +619,14 @@ class Trainer:
                     ):
                         self.save_checkpoint()
                         saved_at = time.perf_counter()
-                    bar.update(1)
             finally:
                 bar.close()
                 log.close()
             stopped = interrupted()  # in the last step: the run finishes, then stops (a demo
             # went on to its next method, which the scheduler's SIGKILL then cut)
+        if gone is not None and self.iteration < t.iterations:
+            self.save_checkpoint()  # nothing to show the rest to: stopped, as `| head` stops it
+            raise gone
         if not finished:
             self.save_checkpoint()
         if not (finished and (self.run_dir / SCENE).exists()):
@@ -636,4 +650,6 @@ class Trainer:
         write_text_if_changed(self.run_dir / SUMMARY, strict_json.dumps(summary, indent=2))
         if stopped:
             raise interruption(stopped)
+        if gone is not None:
+            raise gone
         return summary
