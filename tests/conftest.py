@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -52,3 +53,32 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(threads)
+
+
+class _GoneStderr:
+    """A stderr whose writes raise `error` once `gone` is set."""
+
+    def __init__(self, error: OSError):
+        self.error, self.gone = error, False
+
+    def write(self, text: str) -> int:
+        if self.gone:
+            raise self.error
+        return len(text)
+
+    def flush(self) -> None:
+        if self.gone:
+            raise self.error
+
+
+@pytest.fixture
+def gone_stderr(monkeypatch):
+    """`gone_stderr(error)`: sys.stderr, for the test, a stream whose writes raise `error` (its
+    reader left: EPIPE; its terminal closed: EIO) once its `gone` is set."""
+
+    def install(error: OSError) -> _GoneStderr:
+        stream = _GoneStderr(error)
+        monkeypatch.setattr(sys, "stderr", stream)
+        return stream
+
+    return install

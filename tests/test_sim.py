@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+import functools
 import hashlib
 import os
 import shutil
@@ -434,6 +436,42 @@ def test_sim_saves_its_state_on_sigterm(tmp_path, capsys, scene):
         signal.signal(signal.SIGTERM, previous)
     assert "SIGTERM: SIM's training stops after this step" in capsys.readouterr().err
     assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 13
+
+
+class _GoneAt(_CtrlC):
+    """`stream`, whose `at`-th training window sets `stderr` gone (its reader leaving)."""
+
+    def __init__(self, stream, at: int, stderr):
+        super().__init__(stream, None)
+        self.gone_at, self.stderr = at, stderr
+
+    def window(self, k, w: int) -> np.ndarray:
+        if w > 1:
+            self.calls += 1
+            self.stderr.gone |= self.calls == self.gone_at
+        return self.stream.window(k, w)
+
+
+def test_sim_saves_its_state_where_its_bar_output_is_gone(
+    tmp_path, monkeypatch, scene, trained, gone_stderr
+):
+    """`spikegs sim-train ... 2>&1 | head`: the bar's write after the reader left raised
+    BrokenPipeError, the steps since the last 30-second save lost; now the step finishes, the
+    state is saved, then it stops with that error, and resumes to the SIM of a run never
+    stopped."""
+    every_step = functools.partial(sim_train.tqdm, mininterval=0, miniters=1)
+    monkeypatch.setattr(sim_train, "tqdm", every_step)  # (a write at each step)
+    stream, path = scene[1], tmp_path / "sim.pt"
+    ts = valid_timestamps(stream, 33)
+    stderr = gone_stderr(BrokenPipeError(errno.EPIPE, "Broken pipe"))
+    gone = _GoneAt(stream, 12 * TRAIN["batch_size"] + 1, stderr)
+    with pytest.raises(BrokenPipeError):
+        train_or_load(path, gone, ts, 33, seed=3, **{**TRAIN, "progress": True})
+    assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 13
+    monkeypatch.undo()
+    resumed, _, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
+    for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
+        assert torch.equal(a, b)
 
 
 def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained, ctrl_c):

@@ -640,23 +640,6 @@ def test_sigterm_stops_as_ctrl_c_does(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
-class _GoneStderr:
-    """A stderr whose writes raise `error` once `gone` is set: its reader left (EPIPE), its
-    terminal closed (EIO)."""
-
-    def __init__(self, error: OSError):
-        self.error, self.gone = error, False
-
-    def write(self, text: str) -> int:
-        if self.gone:
-            raise self.error
-        return len(text)
-
-    def flush(self) -> None:
-        if self.gone:
-            raise self.error
-
-
 @pytest.mark.parametrize(
     "shown, error, at",
     [
@@ -668,7 +651,7 @@ class _GoneStderr:
     ],
 )
 def test_a_progress_output_gone_stops_the_run_with_a_checkpoint(
-    dataset, tmp_path, monkeypatch, shown, error, at
+    dataset, tmp_path, monkeypatch, gone_stderr, shown, error, at
 ):
     """`spikegs train ... 2>&1 | head` stopped where its reader left (or a terminal closed
     under it, EIO) with the error its progress output raised, mid-step: every step since the
@@ -677,8 +660,7 @@ def test_a_progress_output_gone_stops_the_run_with_a_checkpoint(
     stopped. Another error (a full disk's) stops at once, as before."""
     train = {**FAST["train"], "iterations": 60, "eval_every": 20, "checkpoint_every": 1000}
     config = load_config("tfp33", {**FAST, "train": train})  # densifies at 40, stopping there
-    stderr = _GoneStderr(error)
-    monkeypatch.setattr(sys, "stderr", stderr)
+    stderr = gone_stderr(error)
 
     def show(trainer):  # the progress line, or the moment the bar's next write fails
         if trainer.iteration == at:

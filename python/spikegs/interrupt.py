@@ -62,6 +62,29 @@ def output_gone(err: OSError) -> bool:
     return err.errno in (errno.EPIPE, errno.EIO)
 
 
+def progress_lost(show: Callable[[], None], bar) -> OSError | None:
+    """Call `show` (a step's progress: its line, its tqdm `bar`); the error it raised where the
+    output is gone (`output_gone`), the bar then off (its close would write again), else None:
+    the caller stops once its step is done, as a signal stops it."""
+    try:
+        show()
+    except OSError as err:
+        if not output_gone(err):
+            raise
+        bar.disable = True
+        return err
+    return None
+
+
+@contextlib.contextmanager
+def quiet_close(bar) -> Iterator:
+    """`bar` for the block, closed at its end without raising where its output is gone."""
+    try:
+        yield bar
+    finally:
+        progress_lost(bar.close, bar)
+
+
 def _takes_over(signum: int) -> bool:
     """Whether a deferred block handles `signum`: SIGINT unless ignored; SIGTERM and SIGHUP
     where the handler is the default or the `spikegs` command's (a library user's own, or

@@ -24,7 +24,7 @@ from .cache_home import cache_home
 from .config import SimConfig
 from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
-from .interrupt import deferred_interrupt, interruption
+from .interrupt import deferred_interrupt, interruption, progress_lost, quiet_close
 from .losses import SIM_LOSSES
 from .number_checks import is_int, is_number
 from .output_paths import writable_folder
@@ -155,7 +155,6 @@ def train_sim(
         print(f"{checkpoint}: SIM's training resumes at step {first} of {steps}", file=sys.stderr)
     began = saved = time.monotonic()
     bar = tqdm(
-        range(first, steps),
         initial=first,
         total=steps,
         desc="SIM",
@@ -177,8 +176,9 @@ def train_sim(
         save_atomically(state, checkpoint)
 
     message = "\n{signal}: SIM's training stops after this step, its state saved (again: at once)"
-    with deferred_interrupt(message) as interrupted:
-        for step in bar:
+    # (the bar's output gone at its close: the steps are done, the caller's output says so)
+    with deferred_interrupt(message) as interrupted, quiet_close(bar):
+        for step in range(first, steps):
             ks = rng.choice(timestamps, batch_size)
             channel = (
                 rng.integers(len(streams), size=batch_size) if len(streams) > 1 else [0] * len(ks)
@@ -197,15 +197,23 @@ def train_sim(
             opt.step()
             sched.step()
             losses.append(step_loss.item())
-            if len(losses) % 50 == 0:
-                bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
+            gone = progress_lost(lambda: _show_step(bar, losses), bar)
             due = time.monotonic() - saved >= CHECKPOINT_S
-            if checkpoint is not None and (due or interrupted()):
+            if checkpoint is not None and (due or interrupted() or gone is not None):
                 save_state(step + 1)
                 saved = time.monotonic()
             if interrupted():  # the last step too: the caller would go on to minutes of work
                 raise interruption(interrupted())
+            if gone is not None:  # nothing to show the rest to: stopped, as `| head` stops it
+                raise gone
     return model.eval(), losses
+
+
+def _show_step(bar, losses: list[float]) -> None:
+    """A step done on the bar, with the mean loss of the last 50 every 50 steps."""
+    if len(losses) % 50 == 0:
+        bar.set_postfix(loss=f"{np.mean(losses[-50:]):.4f}")
+    bar.update(1)
 
 
 def _streams(stream) -> list:

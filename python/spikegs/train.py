@@ -28,7 +28,7 @@ from .evaluate import score_view
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
-from .interrupt import deferred_interrupt, interruption, output_gone
+from .interrupt import deferred_interrupt, interruption, progress_lost
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import (
@@ -459,8 +459,7 @@ class Trainer:
 
     def _after_step(self, loss: float, log, bar, on_eval) -> OSError | None:
         """Evaluation (into `test_psnr` and `first_view_psnr`), log record and progress due
-        after a step; the error that the progress output's loss raised (`output_gone`), if it
-        did: the caller stops once the step is done, as a signal stops it."""
+        after a step; the error the progress output raised where it is gone (`progress_lost`)."""
         t, it = self.config.train, self.iteration
         evaluate = it % t.eval_every == 0 or it == t.iterations
         if evaluate:
@@ -479,7 +478,8 @@ class Trainer:
                 record.update(psnr=self.first_view_psnr, psnr_view=name, psnr_mean=self.test_psnr)
             log.write(strict_json.dumps(record) + "\n")
             log.flush()
-        try:
+
+        def show() -> None:
             if evaluate and on_eval is not None:
                 on_eval(self)
             if it % t.log_every == 0 or evaluate:
@@ -490,12 +490,8 @@ class Trainer:
                     s=f"{self.train_seconds:.0f}",
                 )
             bar.update(1)
-        except OSError as err:
-            if not output_gone(err):
-                raise
-            bar.disable = True  # (its close would write again)
-            return err
-        return None
+
+        return progress_lost(show, bar)
 
     def train(self, resume: bool = False, on_eval=None) -> dict:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
@@ -620,8 +616,9 @@ class Trainer:
                         self.save_checkpoint()
                         saved_at = time.perf_counter()
             finally:
-                bar.close()
+                closed = progress_lost(bar.close, bar)  # the run done: it finishes, then stops
                 log.close()
+            gone = gone or closed
             stopped = interrupted()  # in the last step: the run finishes, then stops (a demo
             # went on to its next method, which the scheduler's SIGKILL then cut)
         if gone is not None and self.iteration < t.iterations:
