@@ -543,6 +543,18 @@ def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path
     assert json.loads((run / "train.json").read_text())["dataset"] == str(moved.root.resolve())
 
 
+def test_the_bars_time_left_is_marked_a_lower_bound_while_densifying(dataset, tmp_path, capsys):
+    """The bar's time left came from the steps so far, while densification multiplied the
+    Gaussians and the time a step takes: a 30000-iteration run's said 0.4-0.75x the time it
+    then took. Until densification ends it carries a "+" (at least that long); from there,
+    without."""
+    config = load_config("tfp33", FAST)  # densifies until 160 of 200
+    Trainer(dataset, config, tmp_path / "run", progress=True).train()
+    shown = [line for line in capsys.readouterr().err.split("\r") if "/200 [" in line]
+    growing = [int(line.split("/200")[0].split()[-1]) for line in shown if "+, " in line]
+    assert growing and max(growing) < 160 and "+, " not in shown[-1], shown
+
+
 def test_no_densification_at_the_last_iteration(dataset, tmp_path):
     """Its clones and splits were saved untrained, and the run's last evaluation, taken before the
     step's densification, was of another scene than the one saved (6310 Gaussians against
