@@ -200,9 +200,9 @@ def console() -> None:
     files are removed), unless it was ignored; SIGHUP likewise (the terminal closed; nohup
     ignores it). Once stopped, further signals are ignored while the interpreter exits (a
     second Ctrl-C, pressed as people do, printed 'Exception ignored in atexit callback ...
-    KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's
-    modules import says 'interrupted' too, not a traceback (one during the package's own
-    import, torch's, before this runs, still ends in Python's traceback). A character the
+    KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's modules import says
+    'interrupted' too, not a traceback (one during the package's own import, torch's, before
+    this runs, still ends in Python's traceback). A character the
     output's codec lacks (θ, µ or — through a Latin-1 or ASCII stdout) prints escaped (as
     Python's stderr does), not as a UnicodeEncodeError after the work."""
     for stream in (sys.stdout, sys.stderr):  # (UTF-8 mode's surrogateescape stays)
