@@ -38,7 +38,7 @@ from spikegs.file_lock import BUSY, Busy, exclusive_lock
 from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
-from spikegs.interrupt import Terminated, deferred_interrupt, raise_terminated
+from spikegs.interrupt import ENDING, Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.run_folder import run_lock
@@ -54,6 +54,9 @@ FAST = {
 
 # a one-step run that densifies (the densifier observes only the steps that do)
 ONE_DENSIFYING_STEP = {"start": 1, "stop": 1, "every": 1, "opacity_reset_every": 0}
+
+HANGUP = getattr(signal, "SIGHUP", None)  # (not on Windows)
+NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
 
@@ -546,13 +549,16 @@ def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path
 def test_the_bars_time_left_is_marked_a_lower_bound_while_densifying(dataset, tmp_path, capsys):
     """The bar's time left came from the steps so far, while densification multiplied the
     Gaussians and the time a step takes: a 30000-iteration run's said 0.4-0.75x the time it
-    then took. Until densification ends it carries a "+" (at least that long); from there,
-    without."""
+    then took. Until densification's last round it carries a "+" (at least that long); from
+    there, or in a run that never densifies, without."""
     config = load_config("tfp33", FAST)  # densifies until 160 of 200
     Trainer(dataset, config, tmp_path / "run", progress=True).train()
     shown = [line for line in capsys.readouterr().err.split("\r") if "/200 [" in line]
     growing = [int(line.split("/200")[0].split()[-1]) for line in shown if "+, " in line]
     assert growing and max(growing) < 160 and "+, " not in shown[-1], shown
+    never = load_config("tfp33", {**FAST, "densify": {**FAST["densify"], "start": 200}})
+    Trainer(dataset, never, tmp_path / "never", progress=True).train()
+    assert "+, " not in capsys.readouterr().err
 
 
 def test_no_densification_at_the_last_iteration(dataset, tmp_path):
@@ -584,7 +590,8 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
 
 
 @pytest.mark.parametrize(
-    "signum, status, said", [(signal.SIGTERM, 143, "terminated"), (signal.SIGHUP, 129, "hung up")]
+    "signum, status, said",
+    [(signal.SIGTERM, 143, "terminated"), pytest.param(HANGUP, 129, "hung up", marks=NO_HANGUP)],
 )
 def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status, said):
     """The command as a batch scheduler's time limit stops it: SIGTERM killed it at once, its
@@ -621,7 +628,7 @@ def sigterm_raises():
     """SIGTERM and SIGHUP as the `spikegs` command handles them (raising Terminated), for the
     test's duration: a trainer that failed to defer them stops the test where the signal lands,
     not pytest."""
-    previous = {s: signal.signal(s, raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
+    previous = {s: signal.signal(s, raise_terminated) for s in ENDING}
     yield
     for s, handler in previous.items():
         signal.signal(s, handler)
@@ -629,7 +636,11 @@ def sigterm_raises():
 
 @pytest.mark.parametrize(
     "signum, signals, saved",
-    [(signal.SIGTERM, 1, 40), (signal.SIGTERM, 2, 25), (signal.SIGHUP, 2, 40)],
+    [
+        (signal.SIGTERM, 1, 40),
+        (signal.SIGTERM, 2, 25),
+        pytest.param(HANGUP, 2, 40, marks=NO_HANGUP),
+    ],
 )
 def test_sigterm_stops_as_ctrl_c_does(
     dataset, tmp_path, monkeypatch, capsys, sigterm_raises, signum, signals, saved
@@ -637,8 +648,9 @@ def test_sigterm_stops_as_ctrl_c_does(
     """SIGTERM, how a batch scheduler ends a job at its time limit (and `timeout`, `kill`,
     `docker stop`), killed a run at once: the steps since its last checkpoint were lost, nothing
     said. Now the step finishes and the run checkpoints (a second SIGTERM: at once, keeping the
-    last checkpoint). SIGHUP likewise, but a second one does not stop at once: a closed
-    terminal's hangup comes twice (the shell's, then the kernel's as the shell exits)."""
+    last checkpoint). SIGHUP likewise, but a second one does not stop at once, nor says it
+    would: a closed terminal's hangup comes twice (the shell's, then the kernel's as the shell
+    exits), and stays ignored once training has stopped (it raised in the clean-up)."""
     train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
     config = load_config("tfp33", {**FAST, "train": train})
     _interrupt_during(Densifier, "step", 40, monkeypatch, signals, signum)
@@ -646,8 +658,11 @@ def test_sigterm_stops_as_ctrl_c_does(
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
     assert stopped.value.signum == signum
     assert torch.load(tmp_path / "run" / "checkpoints" / "last.pt")["iteration"] == saved
-    assert f"{signum.name}: stopping after this step" in capsys.readouterr().err
-    assert signal.getsignal(signum) is raise_terminated  # handler restored
+    err = capsys.readouterr().err
+    assert f"{signum.name}: stopping after this step" in err
+    assert ("again stops at once" in err) == (signum != HANGUP)
+    restored = signal.SIG_IGN if signum == HANGUP else raise_terminated  # (else restored)
+    assert signal.getsignal(signum) is restored
     monkeypatch.undo()
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
@@ -659,6 +674,7 @@ def test_sigterm_stops_as_ctrl_c_does(
         ("line", OSError(errno.EIO, "Input/output error"), 40),
         ("bar", BrokenPipeError(errno.EPIPE, "Broken pipe"), 40),
         ("line", BrokenPipeError(errno.EPIPE, "Broken pipe"), 60),
+        ("close", BrokenPipeError(errno.EPIPE, "Broken pipe"), 60),
         ("line", OSError(errno.ENOSPC, "No space left on device"), 40),
     ],
 )
@@ -669,19 +685,27 @@ def test_a_progress_output_gone_stops_the_run_with_a_checkpoint(
     under it, EIO) with the error its progress output raised, mid-step: every step since the
     last checkpoint (up to a minute) was lost. Now the step finishes, the run checkpoints, then
     stops with that error (at the last step: finished first); resumed, it ends as a run never
-    stopped. Another error (a full disk's) stops at once, as before."""
+    stopped (the bar's last write, at its close, too). Another error (a full disk's) stops at
+    once, as before."""
     train = {**FAST["train"], "iterations": 60, "eval_every": 20, "checkpoint_every": 1000}
     config = load_config("tfp33", {**FAST, "train": train})  # densifies at 40, stopping there
     stderr = gone_stderr(error)
 
     def show(trainer):  # the progress line, or the moment the bar's next write fails
-        if trainer.iteration == at:
+        if trainer.iteration == at and shown != "close":
             stderr.gone = True
             if shown == "line":
                 raise error
 
+    step = Densifier.step
+
+    def last_step(self, model, optimizer, iteration):  # after the last step's output
+        stderr.gone |= shown == "close" and iteration == at
+        return step(self, model, optimizer, iteration)
+
+    monkeypatch.setattr(Densifier, "step", last_step)
     run = tmp_path / "cut"
-    cut = Trainer(dataset, config, run, progress=shown == "bar")
+    cut = Trainer(dataset, config, run, progress=shown != "line")
     with pytest.raises(type(error)) as raised:
         cut.train(on_eval=show)
     assert raised.value is error

@@ -192,6 +192,7 @@ def _warning_printer(command: str, default):
 INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGINT), as shells'
 # stopped by SIGTERM or SIGHUP: 128 + the signal's number (143, 129)
 BROKEN_PIPE = 141  # its output's reader gone (128 + SIGPIPE)
+HUNG_UP = 129  # an error it could not say, its terminal gone (EIO): as SIGHUP ends (128 + 1)
 
 
 def console() -> None:
@@ -255,15 +256,15 @@ def _run(args: argparse.Namespace) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt as stop:
         return _stopped(stop)
-    except BrokenPipeError:  # the output's reader left: not the command's error (`console`)
-        raise
     except Busy as err:  # another process holds the run: a retry may succeed
         print(f"spikegs {args.command}: busy: {err}", file=sys.stderr)
         return BUSY
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
-        print(f"spikegs {args.command}: error: {err}", file=sys.stderr)
-        return 2
+        if isinstance(err, BrokenPipeError):  # the output's reader left: not the command's
+            raise  # error (`console`)
+        # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
+        return 2 if say(f"spikegs {args.command}: error: {err}") else HUNG_UP
     except FloatingPointError as err:  # training diverged: the message says where and why
         print(f"spikegs {args.command}: stopped: {err}", file=sys.stderr)
         return 1

@@ -46,14 +46,16 @@ def raise_terminated(signum, frame) -> None:
     raise Terminated(signum)
 
 
-def say(message: str) -> None:
-    """`message` on stderr, unless stderr is gone (its terminal closed with SIGHUP: EIO; its
-    reader left: EPIPE), where stopping must not fail on saying so."""
+def say(message: str) -> bool:
+    """`message` on stderr; False where stderr is gone (its terminal closed: EIO, with SIGHUP
+    or not; its reader left: EPIPE), where stopping must not fail on saying so."""
     try:
         print(message, file=sys.stderr, flush=True)
     except OSError as err:
         if not output_gone(err):
             raise
+        return False
+    return True
 
 
 def output_gone(err: OSError) -> bool:
@@ -96,30 +98,38 @@ def _takes_over(signum: int) -> bool:
 
 
 @contextlib.contextmanager
-def deferred_interrupt(message: str) -> Iterator[Callable[[], int]]:
+def deferred_interrupt(message: str, again: str = "") -> Iterator[Callable[[], int]]:
     """Within the block the first SIGINT, SIGTERM or SIGHUP prints `message` (its `{signal}` the
-    signal's name) and is recorded; the yielded callable returns the signal number (0 before
-    any), and `interruption` of it is the exception to raise once the step is done. A second
-    one raises at once (not a second SIGHUP: a hangup's). Outside the main thread (where no
-    signal is delivered) nothing changes, nor for a signal ignored (SIGINT in a background job,
-    SIGHUP under nohup) or a SIGTERM or SIGHUP handler of the caller's (`_takes_over`)."""
+    signal's name), then `again` but for a hangup, and is recorded; the yielded callable returns
+    the signal number (0 before any), and `interruption` of it is the exception to raise once
+    the step is done. A second one raises at once, but a second SIGHUP (a hangup comes twice:
+    the shell's, then the kernel's as the shell exits), which stays ignored after the block
+    too. Outside the main thread (where no signal is delivered) nothing changes, nor for a
+    signal ignored (SIGINT in a background job, SIGHUP under nohup) or a SIGTERM or SIGHUP
+    handler of the caller's (`_takes_over`)."""
     if threading.current_thread() is not threading.main_thread():
         yield lambda: 0
         return
     handled = [s for s in NAMES if _takes_over(s)]
+    hangup = getattr(signal, "SIGHUP", None)
     hits: list[int] = []
+    hung_up = []
 
     def handler(signum, frame):
-        if hits and signum == getattr(signal, "SIGHUP", None):
-            return  # a hangup comes twice (the shell's, then the kernel's as the shell exits)
+        if signum == hangup:
+            hung_up.append(signum)
+            if hits:
+                return
         hits.append(signum)
         if len(hits) > 1:
             raise interruption(signum)
-        say(message.format(signal=NAMES[signum]))  # (raising here would tear the step)
+        said = message + ("" if signum == hangup else again)
+        say(said.format(signal=NAMES[signum]))  # (raising here would tear the step)
 
     previous = {s: signal.signal(s, handler) for s in handled}
     try:
         yield lambda: hits[0] if hits else 0
     finally:
         for s, before in previous.items():
-            signal.signal(s, before if before is not None else signal.SIG_DFL)
+            restored = signal.SIG_IGN if s == hangup and hung_up else before
+            signal.signal(s, restored if restored is not None else signal.SIG_DFL)

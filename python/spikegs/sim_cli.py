@@ -15,6 +15,7 @@ from .cli import add_no_progress, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset
 from .data.real import pseudo_views_note
+from .interrupt import say
 from .losses import SIM_LOSSES
 from .output_paths import check_file_output, record_beside
 from .provenance import environment
@@ -111,11 +112,10 @@ def run(args: argparse.Namespace) -> int:
             force=args.force,
             progress=show_bars(args.no_progress),
         )
-    except KeyboardInterrupt:
-        print(
+    except KeyboardInterrupt:  # (stderr may be gone: a closed terminal's SIGHUP)
+        say(
             "\nthe same command (without --force) continues from SIM's state, saved every "
-            f"{CHECKPOINT_S:g} s",
-            file=sys.stderr,
+            f"{CHECKPOINT_S:g} s"
         )
         raise
     done = f"trained in {seconds:.1f} s" if seconds else "reused"

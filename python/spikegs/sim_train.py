@@ -175,9 +175,9 @@ def train_sim(
         }
         save_atomically(state, checkpoint)
 
-    message = "\n{signal}: SIM's training stops after this step, its state saved (again: at once)"
+    message = "\n{signal}: SIM's training stops after this step, its state saved"
     # (the bar's output gone at its close: the steps are done, the caller's output says so)
-    with deferred_interrupt(message) as interrupted, quiet_close(bar):
+    with deferred_interrupt(message, " (again: at once)") as interrupted, quiet_close(bar):
         for step in range(first, steps):
             ks = rng.choice(timestamps, batch_size)
             channel = (

@@ -453,10 +453,13 @@ class Trainer:
             )
 
     # -- the loop ------------------------------------------------------------------------------
-    @property
-    def _densify_end(self) -> int:
-        """The last iteration that may densify."""
-        return self.config.densify.last_iteration(self.config.train.iterations)
+    def _densifies_after(self, iteration: int) -> bool:
+        """Whether a densification round falls after `iteration` (as `Densifier.step` has
+        them: densify.every's multiples from densify.start to its stop, not the run's last)."""
+        d, iterations = self.config.densify, self.config.train.iterations
+        last = min(d.last_iteration(iterations), iterations - 1)
+        rounds = range(d.first_iteration(), last + 1, d.every)
+        return len(rounds) > 0 and rounds[-1] > iteration
 
     def test_psnrs(self) -> list[float]:
         """Each test view's PSNR, as `spikegs eval` scores it (without its SSIMs)."""
@@ -497,8 +500,8 @@ class Trainer:
                     n=len(self.model),
                     s=f"{self.train_seconds:.0f}",
                 )
-            if it == self._densify_end:  # the time a step takes settles: no more a bound
-                bar.bar_format = None
+            if not bar.disable and bar.bar_format and not self._densifies_after(it):
+                bar.bar_format = None  # a step's time settles: the plain estimate
             bar.update(1)
 
         return progress_lost(show, bar)
@@ -595,16 +598,14 @@ class Trainer:
             disable=not self.progress,
             desc=self.config.method,
             dynamic_ncols=True,
-            bar_format=GROWING_BAR if self.iteration < self._densify_end else None,
+            bar_format=GROWING_BAR if self._densifies_after(self.iteration) else None,
         )
         self.first_view_psnr = self.test_psnr = float("nan")  # none before the first evaluation
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
-        stop_message = (
-            "\n{signal}: stopping after this step, with a checkpoint to --resume from ({signal} "
-            "again stops at once, keeping the last checkpoint)"
-        )
+        stop_message = "\n{signal}: stopping after this step, with a checkpoint to --resume from"
+        again = " ({signal} again stops at once, keeping the last checkpoint)"
         gone = None  # the progress output's loss (its reader left, its terminal closed)
-        with deferred_interrupt(stop_message) as interrupted:
+        with deferred_interrupt(stop_message, again) as interrupted:
             try:
                 while self.iteration < t.iterations and gone is None:
                     start = time.perf_counter()
