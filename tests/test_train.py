@@ -551,13 +551,17 @@ def test_the_bars_time_left_is_marked_a_lower_bound_while_densifying(dataset, tm
     Gaussians and the time a step takes: a 30000-iteration run's said 0.4-0.75x the time it
     then took. Until densification's last round it carries a "+" (at least that long); from
     there, or in a run that never densifies, without."""
-    config = load_config("tfp33", FAST)  # densifies until 160 of 200
-    Trainer(dataset, config, tmp_path / "run", progress=True).train()
+    config = load_config("tfp33", FAST)  # densifies at 40, 80, 120 and 160 of 200
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=True)
+    assert trainer.densifies_from(160) and not trainer.densifies_from(161)
+    trainer.train()
     shown = [line for line in capsys.readouterr().err.split("\r") if "/200 [" in line]
     growing = [int(line.split("/200")[0].split()[-1]) for line in shown if "+, " in line]
-    assert growing and max(growing) < 160 and "+, " not in shown[-1], shown
+    assert growing and max(growing) <= 160 and "+, " not in shown[-1], shown
     never = load_config("tfp33", {**FAST, "densify": {**FAST["densify"], "start": 200}})
-    Trainer(dataset, never, tmp_path / "never", progress=True).train()
+    trainer = Trainer(dataset, never, tmp_path / "never", progress=True)
+    assert not trainer.densifies_from(0)
+    trainer.train()
     assert "+, " not in capsys.readouterr().err
 
 
@@ -2618,6 +2622,9 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
         "quick: iteration 50/100",
         "quick: iteration 100/100",
     ]
+    # the time left at the recent pace: a lower bound while densification rounds remain (at
+    # 60 and 80), none at the end
+    assert re.search(r", \d+ s, at least \d+ s left$", lines[0]) and lines[1].endswith(" s")
     logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     last = logged[-1]
     views = f"{len(dataset.test_views)} views ({last['psnr_view']} {last['psnr']:.2f})"

@@ -453,13 +453,14 @@ class Trainer:
             )
 
     # -- the loop ------------------------------------------------------------------------------
-    def _densifies_after(self, iteration: int) -> bool:
-        """Whether a densification round falls after `iteration` (as `Densifier.step` has
-        them: densify.every's multiples from densify.start to its stop, not the run's last)."""
+    def densifies_from(self, iteration: int) -> bool:
+        """Whether a densification round is due at `iteration` (after its evaluation) or later
+        (as `Densifier.step` has them: densify.every's multiples from densify.start to its
+        stop, not at the run's last)."""
         d, iterations = self.config.densify, self.config.train.iterations
         last = min(d.last_iteration(iterations), iterations - 1)
         rounds = range(d.first_iteration(), last + 1, d.every)
-        return len(rounds) > 0 and rounds[-1] > iteration
+        return len(rounds) > 0 and rounds[-1] >= iteration
 
     def test_psnrs(self) -> list[float]:
         """Each test view's PSNR, as `spikegs eval` scores it (without its SSIMs)."""
@@ -476,6 +477,10 @@ class Trainer:
         if evaluate:
             psnrs = self.test_psnrs()
             self.first_view_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
+            paced_from, seconds = self._paced  # the steps since the previous evaluation
+            pace = (self.train_seconds - seconds) / max(it - paced_from, 1)
+            self.seconds_left = (t.iterations - it) * pace
+            self._paced = (it, self.train_seconds)
         if it % t.log_every == 0 or evaluate:
             record = {
                 "iteration": it,
@@ -500,7 +505,7 @@ class Trainer:
                     n=len(self.model),
                     s=f"{self.train_seconds:.0f}",
                 )
-            if not bar.disable and bar.bar_format and not self._densifies_after(it):
+            if not bar.disable and bar.bar_format and not self.densifies_from(it):
                 bar.bar_format = None  # a step's time settles: the plain estimate
             bar.update(1)
 
@@ -511,7 +516,9 @@ class Trainer:
 
         `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
         outside the timed steps (its time is not in `train_seconds`), `trainer.first_view_psnr`
-        then the first test view's PSNR and `trainer.test_psnr` the mean over every test view."""
+        then the first test view's PSNR, `trainer.test_psnr` the mean over every test view and
+        `trainer.seconds_left` the training seconds the remaining steps take at the pace of
+        those since the previous evaluation (more while it `densifies_from` the iteration)."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
@@ -598,9 +605,11 @@ class Trainer:
             disable=not self.progress,
             desc=self.config.method,
             dynamic_ncols=True,
-            bar_format=GROWING_BAR if self._densifies_after(self.iteration) else None,
+            bar_format=GROWING_BAR if self.densifies_from(self.iteration) else None,
         )
         self.first_view_psnr = self.test_psnr = float("nan")  # none before the first evaluation
+        self.seconds_left = float("nan")
+        self._paced = (self.iteration, self.train_seconds)  # where `seconds_left`'s pace starts
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
         stop_message = "\n{signal}: stopping after this step, with a checkpoint to --resume from"
         again = " ({signal} again stops at once, keeping the last checkpoint)"

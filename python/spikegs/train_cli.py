@@ -125,13 +125,19 @@ def _saved_method(saved: Path) -> str | None:
 
 
 def print_evaluation(trainer) -> None:
-    """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs)."""
-    views = trainer.dataset.test_views
+    """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs), with
+    the training time left at the recent pace, at least that while densification rounds remain
+    (each makes the steps slower), until the last."""
+    views, it = trainer.dataset.test_views, trainer.iteration
+    left = ""
+    if it < trainer.config.train.iterations:
+        bound = "at least" if trainer.densifies_from(it) else "about"
+        left = f", {bound} {trainer.seconds_left:.0f} s left"
     print(
-        f"{trainer.config.method}: iteration {trainer.iteration}/{trainer.config.train.iterations}"
-        f", held-out PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "
+        f"{trainer.config.method}: iteration {it}/{trainer.config.train.iterations}, held-out "
+        f"PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "
         f"{trainer.first_view_psnr:.2f}), {len(trainer.model):,} Gaussians, "
-        f"{trainer.train_seconds:.0f} s",
+        f"{trainer.train_seconds:.0f} s{left}",
         file=sys.stderr,
         flush=True,
     )
