@@ -546,11 +546,11 @@ def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path
     assert json.loads((run / "train.json").read_text())["dataset"] == str(moved.root.resolve())
 
 
-def test_the_bars_time_left_is_marked_a_lower_bound_while_densifying(dataset, tmp_path, capsys):
+def test_the_bars_time_left_is_marked_while_densifying(dataset, tmp_path, capsys):
     """The bar's time left came from the steps so far, while densification multiplied the
     Gaussians and the time a step takes: a 30000-iteration run's said 0.4-0.75x the time it
-    then took. Until densification's last round it carries a "+" (at least that long); from
-    there, or in a run that never densifies, without."""
+    then took. Until densification's last round it carries a "+" (likely more); from there, or
+    in a run that never densifies, without."""
     config = load_config("tfp33", FAST)  # densifies at 40, 80, 120 and 160 of 200
     trainer = Trainer(dataset, config, tmp_path / "run", progress=True)
     assert trainer.densifies_from(160) and not trainer.densifies_from(161)
@@ -2622,9 +2622,10 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
         "quick: iteration 50/100",
         "quick: iteration 100/100",
     ]
-    # the time left at the recent pace: a lower bound while densification rounds remain (at
-    # 60 and 80), none at the end
-    assert re.search(r", \d+ s, at least \d+ s left$", lines[0]) and lines[1].endswith(" s")
+    # the time left at the recent pace, said to be densifying while rounds remain (at 60 and
+    # 80), none at the end
+    assert re.search(r", \d+ s, ~\d+ s left \(densifying\)$", lines[0]), lines
+    assert lines[1].endswith(" s")
     logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     last = logged[-1]
     views = f"{len(dataset.test_views)} views ({last['psnr_view']} {last['psnr']:.2f})"

@@ -49,8 +49,8 @@ from .yaml_files import dump_yaml
 
 SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views must see one
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
-# the bar while densification multiplies the Gaussians, and the time a step takes: its time left
-# is a lower bound, marked "+" (0.4-0.75x the time a 30000-iteration run then took to finish)
+# the bar while densification rounds remain, which slow the steps as they add Gaussians: its
+# time left marked "+" (a 30000-iteration run's was 0.4-0.75x the time it then took)
 GROWING_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}+, {rate_fmt}{postfix}]"
 
 

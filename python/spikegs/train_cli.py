@@ -126,13 +126,13 @@ def _saved_method(saved: Path) -> str | None:
 
 def print_evaluation(trainer) -> None:
     """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs), with
-    the training time left at the recent pace, at least that while densification rounds remain
-    (each makes the steps slower), until the last."""
+    the training time left at the pace since the previous one, until the last; "densifying"
+    while densification rounds remain, which slow the steps as they add Gaussians."""
     views, it = trainer.dataset.test_views, trainer.iteration
     left = ""
     if it < trainer.config.train.iterations:
-        bound = "at least" if trainer.densifies_from(it) else "about"
-        left = f", {bound} {trainer.seconds_left:.0f} s left"
+        growing = " (densifying)" if trainer.densifies_from(it) else ""
+        left = f", ~{trainer.seconds_left:.0f} s left{growing}"
     print(
         f"{trainer.config.method}: iteration {it}/{trainer.config.train.iterations}, held-out "
         f"PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "
