@@ -2611,21 +2611,22 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
     no progress through minutes of training); it prints one line to stderr per evaluation."""
     config = tmp_path / "quick.yaml"
     config.write_text(
-        "base: tfp33\ntrain: {iterations: 100, eval_every: 50, init_gaussians: 800}\n"
-        "densify: {start: 20, stop: 80, every: 20}\n"
+        "base: tfp33\ntrain: {iterations: 120, eval_every: 40, init_gaussians: 800}\n"
+        "densify: {start: 20, stop: 100, every: 20}\n"
     )
     argv = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "run")]
     assert main([*argv, "--no-progress"]) == 0
     printed = capsys.readouterr()
     lines = [line for line in printed.err.splitlines() if line.startswith("quick: iteration")]
     assert [line.split(",")[0] for line in lines] == [
-        "quick: iteration 50/100",
-        "quick: iteration 100/100",
+        "quick: iteration 40/120",
+        "quick: iteration 80/120",
+        "quick: iteration 120/120",
     ]
-    # the time left at the recent pace, said to be densifying while rounds remain (at 60 and
-    # 80), none at the end
-    assert re.search(r", \d+ s, ~\d+ s left \(densifying\)$", lines[0]), lines
-    assert lines[1].endswith(" s")
+    # from the second evaluation, the time left at the pace since the one before, said to be
+    # densifying while rounds remain (at 80 and 100); none at the end
+    assert lines[0].endswith(" s") and lines[2].endswith(" s")
+    assert re.search(r", \d+ s, ~\d+ s left \(densifying\)$", lines[1]), lines
     logged = [json.loads(r) for r in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     last = logged[-1]
     views = f"{len(dataset.test_views)} views ({last['psnr_view']} {last['psnr']:.2f})"
@@ -2634,7 +2635,7 @@ def test_no_progress_prints_a_line_at_each_evaluation(dataset, tmp_path, capsys)
     scores = evaluate_run(tmp_path / "run", dataset, write_images=False)
     assert last["psnr_mean"] == pytest.approx(scores["psnr"], abs=1e-9)  # as eval scores it
     assert last["psnr"] == pytest.approx(scores["views"][last["psnr_view"]]["psnr"], abs=1e-9)
-    assert json.loads(printed.out)["iterations"] == 100  # stdout: the summary alone
+    assert json.loads(printed.out)["iterations"] == 120  # stdout: the summary alone
 
 
 def test_a_fresh_run_refuses_a_directory_with_other_files(dataset, tmp_path, capsys):

@@ -477,9 +477,10 @@ class Trainer:
         if evaluate:
             psnrs = self.test_psnrs()
             self.first_view_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
-            paced_from, seconds = self._paced  # the steps since the previous evaluation
-            pace = (self.train_seconds - seconds) / max(it - paced_from, 1)
-            self.seconds_left = (t.iterations - it) * pace
+            if self._paced is not None:  # the pace of the steps since the previous evaluation
+                paced_from, seconds = self._paced
+                pace = (self.train_seconds - seconds) / max(it - paced_from, 1)
+                self.seconds_left = (t.iterations - it) * pace
             self._paced = (it, self.train_seconds)
         if it % t.log_every == 0 or evaluate:
             record = {
@@ -518,7 +519,8 @@ class Trainer:
         outside the timed steps (its time is not in `train_seconds`), `trainer.first_view_psnr`
         then the first test view's PSNR, `trainer.test_psnr` the mean over every test view and
         `trainer.seconds_left` the training seconds the remaining steps take at the pace of
-        those since the previous evaluation (more while it `densifies_from` the iteration)."""
+        those since the previous evaluation (NaN at the first; more while it `densifies_from`
+        the iteration)."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
@@ -608,8 +610,10 @@ class Trainer:
             bar_format=GROWING_BAR if self.densifies_from(self.iteration) else None,
         )
         self.first_view_psnr = self.test_psnr = float("nan")  # none before the first evaluation
+        # none before a second evaluation: the steps up to the first compute most timestamps'
+        # targets, which later ones find kept (on solids, 10000 iterations: 4x the time left)
         self.seconds_left = float("nan")
-        self._paced = (self.iteration, self.train_seconds)  # where `seconds_left`'s pace starts
+        self._paced = None  # (iteration, train_seconds) at the previous evaluation
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
         stop_message = "\n{signal}: stopping after this step, with a checkpoint to --resume from"
         again = " ({signal} again stops at once, keeping the last checkpoint)"

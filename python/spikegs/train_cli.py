@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -126,11 +127,12 @@ def _saved_method(saved: Path) -> str | None:
 
 def print_evaluation(trainer) -> None:
     """Progress without a bar: one line to stderr at each evaluation (a bar garbles logs), with
-    the training time left at the pace since the previous one, until the last; "densifying"
-    while densification rounds remain, which slow the steps as they add Gaussians."""
+    the training time left at the pace since the previous one, from the second to the last but
+    one; "densifying" while densification rounds remain, which slow the steps as they add
+    Gaussians."""
     views, it = trainer.dataset.test_views, trainer.iteration
     left = ""
-    if it < trainer.config.train.iterations:
+    if it < trainer.config.train.iterations and math.isfinite(trainer.seconds_left):
         growing = " (densifying)" if trainer.densifies_from(it) else ""
         left = f", ~{trainer.seconds_left:.0f} s left{growing}"
     print(
