@@ -166,17 +166,25 @@ def test_a_stop_said_to_a_closed_terminal_still_stops(monkeypatch, console_signa
     assert exit.value.code == 129
 
 
-@pytest.mark.parametrize("said, status", [(True, 2), (False, 129)])
-def test_an_error_it_cannot_say_ends_the_command_quietly(monkeypatch, gone_stderr, said, status):
+@pytest.mark.parametrize(
+    "stderr, status",
+    [
+        (None, 2),
+        (OSError(errno.EIO, "Input/output error"), 129),
+        (BrokenPipeError(errno.EPIPE, "Broken pipe"), 141),
+    ],
+)
+def test_an_error_it_cannot_say_ends_the_command_quietly(monkeypatch, gone_stderr, stderr, status):
     """A command whose terminal closed under it without a SIGHUP (a job left running by a shell
     that exited) failed writing there (EIO), then again saying so: a traceback, exit 1. An
-    error it cannot say ends it quietly with 129, as SIGHUP would; one it can, with 2."""
+    error it cannot say ends it quietly with 129, as SIGHUP would (141 where stderr's reader
+    left); one it can, with 2."""
 
     def run(args):
         raise OSError(errno.EIO, "Input/output error")
 
     monkeypatch.setattr("spikegs.eval_cli.run", run)
-    gone_stderr(OSError(errno.EIO, "Input/output error")).gone = not said
+    gone_stderr(stderr).gone = stderr is not None
     assert main(["eval", "RUN"]) == status
 
 

@@ -193,6 +193,7 @@ INTERRUPTED = 130  # the exit status of a command stopped by Ctrl-C (128 + SIGIN
 # stopped by SIGTERM or SIGHUP: 128 + the signal's number (143, 129)
 BROKEN_PIPE = 141  # its output's reader gone (128 + SIGPIPE)
 HUNG_UP = 129  # an error it could not say, its terminal gone (EIO): as SIGHUP ends (128 + 1)
+# (one it could not say to stderr's reader gone: BROKEN_PIPE)
 
 
 def console() -> None:
@@ -264,7 +265,10 @@ def _run(args: argparse.Namespace) -> int:
         if isinstance(err, BrokenPipeError):  # the output's reader left: not the command's
             raise  # error (`console`)
         # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
-        return 2 if say(f"spikegs {args.command}: error: {err}") else HUNG_UP
+        unsaid = say(f"spikegs {args.command}: error: {err}")
+        if unsaid is None:
+            return 2
+        return BROKEN_PIPE if isinstance(unsaid, BrokenPipeError) else HUNG_UP
     except FloatingPointError as err:  # training diverged: the message says where and why
         print(f"spikegs {args.command}: stopped: {err}", file=sys.stderr)
         return 1

@@ -46,16 +46,17 @@ def raise_terminated(signum, frame) -> None:
     raise Terminated(signum)
 
 
-def say(message: str) -> bool:
-    """`message` on stderr; False where stderr is gone (its terminal closed: EIO, with SIGHUP
-    or not; its reader left: EPIPE), where stopping must not fail on saying so."""
+def say(message: str) -> OSError | None:
+    """`message` on stderr; the error that kept it unsaid where stderr is gone (its terminal
+    closed: EIO, with SIGHUP or not; its reader left: EPIPE), where stopping must not fail on
+    saying so, else None."""
     try:
         print(message, file=sys.stderr, flush=True)
     except OSError as err:
         if not output_gone(err):
             raise
-        return False
-    return True
+        return err
+    return None
 
 
 def output_gone(err: OSError) -> bool:
