@@ -275,6 +275,12 @@ def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, t
     with pytest.warns(UserWarning, match=few):
         assert len(log(np.arange(0, VIEWS * LENGTH, 17)).train_timestamps) > 400
     assert [v.readout for v in log(every5, test_views=[20, 120]).test_views] == [100.0, 600.0]
+    # an uneven log, a pose every 10 readouts up to 350 then every 50: every 8th pose leaves
+    # the dense half no timestamp, where the sparse half keeps enough that the spaced rule
+    # stays out; the stretch is named (trained unsaid from the neighbouring stretches)
+    uneven = np.concatenate([np.arange(0, 350, 10), np.arange(350, VIEWS * LENGTH, 50)])  # [42]
+    with pytest.warns(UserWarning, match=r"no training timestamp in readouts \[32, 3\d\d\]: "):
+        assert len(log(uneven).train_timestamps) > 100
 
 
 def test_ordinals_read_as_english():

@@ -359,6 +359,27 @@ def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) ->
         )
 
 
+def _warn_if_stretches_untrained(
+    ks: np.ndarray, start: float, end: float, every: int, source: str
+) -> None:
+    """A UserWarning naming the stretches of the poses' readouts [start, end] that the default
+    held-out poses leave without a training timestamp (ks [M], sorted), where their clearances
+    merge over more than two (a denser stretch of an uneven pose log: every 8th pose there
+    lies closer than a clearance apart)."""
+    edges = np.concatenate([[start + WINDOW_MARGIN], ks, [end - WINDOW_MARGIN]])  # [M + 2]
+    wide = np.flatnonzero(np.diff(edges) > 2 * (HOLD_OUT_GAP + every))
+    if len(wide):
+        stretches = [f"[{readout_number(edges[i])}, {readout_number(edges[i + 1])}]" for i in wide]
+        warnings.warn(
+            f"{source}: no training timestamp in readouts {first_of(stretches)}: the default "
+            f"held-out views, every {HOLDOUT_EVERY}th pose, lie closer there than the "
+            f"{HOLD_OUT_GAP} readouts each keeps clear (a denser stretch of the pose log), and "
+            f"what the cameras saw there trains from the neighbouring stretches only; "
+            f"test_views in spikegs.json chooses held-out poses further apart",
+            stacklevel=3,
+        )
+
+
 def stream_dataset(
     root: Path,
     meta: dict,
@@ -431,6 +452,8 @@ def stream_dataset(
             f"in spikegs.json"
         )
     warn_pose_gaps(readouts, ks, source)
+    if options.test_views is None:  # (held-out poses of the user's own: as chosen)
+        _warn_if_stretches_untrained(ks, trajectory.start, trajectory.end, every, source)
     held_out = [
         HeldOut(f"view_{i:03d}", viewmats[i], float(readouts[i]), None, window)
         for i in np.flatnonzero(test & fits)
