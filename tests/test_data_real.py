@@ -279,8 +279,14 @@ def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, t
     # the dense half no timestamp, where the sparse half keeps enough that the spaced rule
     # stays out; the stretch is named (trained unsaid from the neighbouring stretches)
     uneven = np.concatenate([np.arange(0, 350, 10), np.arange(350, VIEWS * LENGTH, 50)])  # [42]
-    with pytest.warns(UserWarning, match=r"no training timestamp in readouts \[32, 3\d\d\]: "):
+    with pytest.warns(UserWarning, match=r"no training timestamp between readouts 32-3\d\d: "):
         assert len(log(uneven).train_timestamps) > 100
+    with warnings.catch_warnings():  # held-out poses of the user's: as chosen, unsaid
+        warnings.simplefilter("error")
+        log(uneven, test_views=[3, 11, 19, 27])  # 80 readouts apart: 32-334 untrained
+    # a uniform log whose train_every steps over the strips between clearances: said too
+    with pytest.warns(UserWarning, match=r"between readouts .*: .* a train_every under 130"):
+        log(np.arange(0, VIEWS * LENGTH, 20), train_every=130)
 
 
 def test_ordinals_read_as_english():

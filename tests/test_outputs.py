@@ -230,6 +230,27 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
     assert (done.returncode, done.stdout, done.stderr) == (141, "", "")
 
 
+def test_an_error_to_a_reader_that_left_exits_141_with_output_pending():
+    """An error it could not say, stderr's reader gone, returned 141, but what stdout still held
+    for the same gone reader failed at exit, which then exited 120."""
+    script = (
+        "import spikegs.cli as cli\n"
+        "print('pending')\n"  # (held: stdout is a pipe)
+        "def run(args):\n"
+        "    raise ValueError('bad input')\n"
+        "cli.main = lambda: cli._run(cli.argparse.Namespace(command='eval', _run=run))\n"
+        "cli.console()\n"
+    )
+    read, write = os.pipe()
+    os.close(read)  # the reader left
+    held = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    try:
+        done = subprocess.run([sys.executable, "-c", script], stdout=write, stderr=write, env=held)
+    finally:
+        os.close(write)
+    assert done.returncode == 141
+
+
 def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import io
 import math
@@ -218,8 +219,13 @@ def console() -> None:
     except KeyboardInterrupt as stop:
         status = _stopped(stop)
     except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # (exit's flush)
         status = BROKEN_PIPE
+    if status in (BROKEN_PIPE, HUNG_UP):  # an output's reader or terminal gone: what stdout
+        # or stderr still holds for it would fail exit's flush, which exits 120 then
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
+                os.dup2(devnull, stream.fileno())
     if status in STOPPED:
         for signum in NAMES:
             signal.signal(signum, signal.SIG_IGN)

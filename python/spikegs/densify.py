@@ -57,6 +57,14 @@ class DensifyConfig:
         (its rounds fall on the multiples of `every` from `first_iteration` up to it)."""
         return self.stop or iterations // 2
 
+    def last_round(self, iterations: int) -> int:
+        """The last iteration that densifies in a run of `iterations`, 0 where none does: the
+        last multiple of `every` from `first_iteration` to `last_iteration`, not the run's last
+        (`Densifier.step`)."""
+        last = min(self.last_iteration(iterations), iterations - 1)
+        rounds = range(self.first_iteration(), last + 1, self.every)
+        return rounds[-1] if len(rounds) else 0
+
 
 def _surgery(model: GaussianModel, optimizer: torch.optim.Optimizer, param_fn, state_fn) -> None:
     """Replace each Gaussian parameter p by param_fn(name, p), its Adam moments m by
@@ -138,10 +146,10 @@ class Densifier:
 
     def _resets_opacity(self, iteration: int) -> bool:
         """Opacities are reset every `opacity_reset_every` iterations before `stop`, so that a
-        pruning round follows (3DGS and gsplat reset only while densifying, `iteration <
-        densify_until_iter`: 3k..12k of 30k; a reset at `stop` was never pruned after), and only
-        with a whole reset period left to recover from it; a reset at the end of a run would
-        leave a nearly transparent scene."""
+        pruning round follows where densification runs (3DGS and gsplat reset only while
+        densifying, `iteration < densify_until_iter`, whatever its start: 3k..12k of 30k; a
+        reset at `stop` was never pruned after), and only with a whole reset period left to
+        recover from it; a reset at the end of a run would leave a nearly transparent scene."""
         every = self.config.opacity_reset_every
         return bool(
             every

@@ -455,12 +455,9 @@ class Trainer:
     # -- the loop ------------------------------------------------------------------------------
     def densifies_from(self, iteration: int) -> bool:
         """Whether a densification round is due at `iteration` (after its evaluation) or later
-        (as `Densifier.step` has them: densify.every's multiples from densify.start to its
-        stop, not at the run's last)."""
-        d, iterations = self.config.densify, self.config.train.iterations
-        last = min(d.last_iteration(iterations), iterations - 1)
-        rounds = range(d.first_iteration(), last + 1, d.every)
-        return len(rounds) > 0 and rounds[-1] >= iteration
+        (`DensifyConfig.last_round`)."""
+        last = self.config.densify.last_round(self.config.train.iterations)
+        return last > 0 and last >= iteration
 
     def test_psnrs(self) -> list[float]:
         """Each test view's PSNR, as `spikegs eval` scores it (without its SSIMs)."""
@@ -607,7 +604,7 @@ class Trainer:
             disable=not self.progress,
             desc=self.config.method,
             dynamic_ncols=True,
-            bar_format=GROWING_BAR if self.densifies_from(self.iteration) else None,
+            bar_format=GROWING_BAR if self.densifies_from(self.iteration + 1) else None,
         )
         self.first_view_psnr = self.test_psnr = float("nan")  # none before the first evaluation
         # none before a second evaluation: the steps up to the first compute most timestamps'

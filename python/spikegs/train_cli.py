@@ -134,7 +134,7 @@ def print_evaluation(trainer) -> None:
     left = ""
     if it < trainer.config.train.iterations and math.isfinite(trainer.seconds_left):
         growing = " (densifying)" if trainer.densifies_from(it) else ""
-        left = f", ~{trainer.seconds_left:.0f} s left{growing}"
+        left = f", ~{trainer.seconds_left:.0f} s of training left{growing}"
     print(
         f"{trainer.config.method}: iteration {it}/{trainer.config.train.iterations}, held-out "
         f"PSNR {trainer.test_psnr:.2f} dB over {len(views)} views ({views[0].name} "

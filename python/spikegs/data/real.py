@@ -363,19 +363,22 @@ def _warn_if_stretches_untrained(
     ks: np.ndarray, start: float, end: float, every: int, source: str
 ) -> None:
     """A UserWarning naming the stretches of the poses' readouts [start, end] that the default
-    held-out poses leave without a training timestamp (ks [M], sorted), where their clearances
-    merge over more than two (a denser stretch of an uneven pose log: every 8th pose there
-    lies closer than a clearance apart)."""
+    held-out poses leave without a training timestamp (ks [M], sorted) over more than two
+    clearances: every 8th pose there lies within a clearance and a timestamp step of the next
+    (a denser stretch of an uneven pose log; or a uniform one whose train_every steps over the
+    strips between clearances)."""
     edges = np.concatenate([[start + WINDOW_MARGIN], ks, [end - WINDOW_MARGIN]])  # [M + 2]
     wide = np.flatnonzero(np.diff(edges) > 2 * (HOLD_OUT_GAP + every))
     if len(wide):
-        stretches = [f"[{readout_number(edges[i])}, {readout_number(edges[i + 1])}]" for i in wide]
+        stretches = [f"{readout_number(edges[i])}-{readout_number(edges[i + 1])}" for i in wide]
+        smaller = f"a train_every under {every}, or " if every > 1 else ""
         warnings.warn(
-            f"{source}: no training timestamp in readouts {first_of(stretches)}: the default "
-            f"held-out views, every {HOLDOUT_EVERY}th pose, lie closer there than the "
-            f"{HOLD_OUT_GAP} readouts each keeps clear (a denser stretch of the pose log), and "
-            f"what the cameras saw there trains from the neighbouring stretches only; "
-            f"test_views in spikegs.json chooses held-out poses further apart",
+            f"{source}: no training timestamp between readouts {first_of(stretches)}: the "
+            f"default held-out views, every {HOLDOUT_EVERY}th pose, lie there within "
+            f"{HOLD_OUT_GAP + every} readouts of one another (each keeps {2 * WINDOW_MARGIN} "
+            f"clear either side; timestamps fall every {every}, train_every), and what the "
+            f"cameras saw there trains from the neighbouring readouts only; {smaller}test_views "
+            f"in spikegs.json further apart",
             stacklevel=3,
         )
 
