@@ -205,9 +205,9 @@ def console() -> None:
     second Ctrl-C, pressed as people do, printed 'Exception ignored in atexit callback ...
     KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's modules import says
     'interrupted' too, not a traceback (one during the package's own import, torch's, before
-    this runs, still ends in Python's traceback). A character the
-    output's codec lacks (θ, µ or — through a Latin-1 or ASCII stdout) prints escaped (as
-    Python's stderr does), not as a UnicodeEncodeError after the work."""
+    this runs, still ends in Python's traceback). A character the output's codec lacks (θ, µ
+    or — through a Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a
+    UnicodeEncodeError after the work."""
     for stream in (sys.stdout, sys.stderr):  # (UTF-8 mode's surrogateescape stays)
         if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
             stream.reconfigure(errors="backslashreplace")
