@@ -127,6 +127,9 @@ def test_a_run_computes_only_the_timestamps_it_samples(dataset, tmp_path):
     # SIM's images for the steps up to densify.stop (instant_until: densify), the exposure's for all
     assert trainer.targets.instant.computed == len(set(drawn[:8]))
     assert trainer.targets.exposure.computed == len(set(drawn))
+    # released once the run ended: a Trainer kept (a notebook's) held them, run after run
+    assert trainer.targets.instant.nbytes == trainer.targets.exposure.nbytes == 0
+    assert trainer.targets.exposure[0].shape[:2] == (dataset.height, dataset.width)  # (again)
 
 
 def test_clean_targets_are_the_images_the_dataset_was_simulated_from(dataset, tmp_path):

@@ -80,6 +80,7 @@ class TargetImages:
         self.quantum = quantum
         self._cache: dict[int, torch.Tensor] = {}
         self._budget = ImageBudget() if budget is None else budget
+        self._kept: set[int] = set()  # the indices whose images were kept, released or not
 
     def __len__(self) -> int:
         return len(self.timestamps)
@@ -91,13 +92,27 @@ class TargetImages:
             image = torch.from_numpy(rates / np.float32(self._scale))
             if self._budget.take(image.nbytes):
                 self._cache[index] = image
+                self._kept.add(index)
         return image
 
     @property
     def computed(self) -> int:
         """How many timestamps' images have been computed and kept so far (all computed while
-        the budget lasts)."""
-        return len(self._cache)
+        the budget lasts), also once `release`d."""
+        return len(self._kept)
+
+    @property
+    def nbytes(self) -> int:
+        """The bytes of the images held now."""
+        return sum(image.nbytes for image in self._cache.values())
+
+    def release(self) -> None:
+        """Drop the images held (a run's, once it stops: a Trainer kept in a notebook held them,
+        up to a quarter of the memory, run after run), their bytes back to the budget; an image
+        asked for again is computed again."""
+        self._budget.used -= self.nbytes
+        self._budget.kept -= len(self._cache)
+        self._cache.clear()
 
 
 @dataclass
@@ -106,6 +121,12 @@ class Targets:
     instant: TargetImages | None  # M images [H, W, C], or None
     exposure: TargetImages | None  # M images [H, W, C], or None
     sim_seconds: float = 0.0  # SIM's training time (loaded from its cache: the time it recorded)
+
+    def release(self) -> None:
+        """Drop the images both hold (`TargetImages.release`)."""
+        for images in (self.instant, self.exposure):
+            if images is not None:
+                images.release()
 
 
 def sample_timestamps(dataset) -> np.ndarray:

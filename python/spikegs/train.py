@@ -123,6 +123,7 @@ class Trainer:
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
         self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
         self.brightness = FitBrightness()  # of the steps this process takes
+        self.targets = None  # a training's target images (`build_targets`), released after it
 
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
@@ -561,7 +562,11 @@ class Trainer:
                     file=sys.stderr,
                     flush=True,
                 )
-            return self._run(state, on_eval)
+            try:
+                return self._run(state, on_eval)
+            finally:  # the run's target images go with it (a Trainer kept held them)
+                if self.targets is not None:
+                    self.targets.release()
 
     def _from_checkpoint(self, resume: bool) -> bool:
         """Whether training goes on from RUN's checkpoint (else from the start); --resume of a run
