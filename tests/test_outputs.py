@@ -16,10 +16,9 @@ from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run
-from spikegs.interrupt import ENDING, raise_terminated
+from spikegs.interrupt import ENDING, HANGUP, raise_terminated
 from spikegs.train import Trainer
 
-HANGUP = getattr(signal, "SIGHUP", None)  # (not on Windows)
 NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
 
 FAST = {

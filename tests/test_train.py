@@ -39,7 +39,7 @@ from spikegs.file_lock import BUSY, Busy, exclusive_lock
 from spikegs.gaussians import GaussianModel, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
-from spikegs.interrupt import ENDING, Terminated, deferred_interrupt, raise_terminated
+from spikegs.interrupt import ENDING, HANGUP, Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.run_folder import run_lock
@@ -56,7 +56,6 @@ FAST = {
 # a one-step run that densifies (the densifier observes only the steps that do)
 ONE_DENSIFYING_STEP = {"start": 1, "stop": 1, "every": 1, "opacity_reset_every": 0}
 
-HANGUP = getattr(signal, "SIGHUP", None)  # (not on Windows)
 NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)

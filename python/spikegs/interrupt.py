@@ -28,8 +28,8 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
-# signals that end a process unless handled (SIGHUP where the OS has it: not Windows)
-ENDING = tuple(s for s in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if s is not None)
+HANGUP = getattr(signal, "SIGHUP", None)  # None where the OS has none (Windows)
+ENDING = tuple(s for s in (signal.SIGTERM, HANGUP) if s is not None)  # end a process unhandled
 NAMES = {signal.SIGINT: "Ctrl-C", **{s: s.name for s in ENDING}}
 
 
@@ -112,19 +112,18 @@ def deferred_interrupt(message: str, again: str = "") -> Iterator[Callable[[], i
         yield lambda: 0
         return
     handled = [s for s in NAMES if _takes_over(s)]
-    hangup = getattr(signal, "SIGHUP", None)
     hits: list[int] = []
     hung_up = []
 
     def handler(signum, frame):
-        if signum == hangup:
+        if signum == HANGUP:
             hung_up.append(signum)
             if hits:
                 return
         hits.append(signum)
         if len(hits) > 1:
             raise interruption(signum)
-        said = message + ("" if signum == hangup else again)
+        said = message + ("" if signum == HANGUP else again)
         say(said.format(signal=NAMES[signum]))  # (raising here would tear the step)
 
     previous = {s: signal.signal(s, handler) for s in handled}
@@ -132,5 +131,5 @@ def deferred_interrupt(message: str, again: str = "") -> Iterator[Callable[[], i
         yield lambda: hits[0] if hits else 0
     finally:
         for s, before in previous.items():
-            restored = signal.SIG_IGN if s == hangup and hung_up else before
+            restored = signal.SIG_IGN if s == HANGUP and hung_up else before
             signal.signal(s, restored if restored is not None else signal.SIG_DFL)

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import positive_float, positive_int, show_bars
+from ..cli import add_no_progress, positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
 from .train import FULL_ITERATIONS, QUICK_ITERATIONS, VARIANTS
@@ -34,11 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="output folder (default bench-results, or bench-results-quick with --quick: a quick "
         "run does not replace a full one's files)",
     )
-    parser.add_argument(
-        "--no-progress",
-        action="store_true",
-        help="no progress bars (bench sim's SIM training draws one on a terminal)",
-    )
+    add_no_progress(parser, " in bench sim's SIM training")
     parser.add_argument(
         "--iterations",
         type=positive_int,
