@@ -250,6 +250,26 @@ def test_an_error_to_a_reader_that_left_exits_141_with_output_pending():
     assert done.returncode == 141
 
 
+@NO_HANGUP
+def test_a_hung_up_command_keeps_the_lines_its_log_file_holds(tmp_path):
+    """Stopped by SIGHUP, a command sent stdout and stderr to /dev/null before exiting (for a
+    terminal gone, whose flush would fail): the last lines still held for a log file that
+    works were lost, and a test runner's captured output with them."""
+    script = (
+        "import os, signal, spikegs.cli as cli\n"
+        "print('last line')\n"  # (held: stdout is a file)
+        "def run(args):\n"
+        "    os.kill(os.getpid(), signal.SIGHUP)\n"
+        "cli.main = lambda: cli._run(cli.argparse.Namespace(command='eval', _run=run))\n"
+        "cli.console()\n"
+    )
+    held = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    with open(tmp_path / "log", "w") as log:
+        done = subprocess.run([sys.executable, "-c", script], stdout=log, stderr=log, env=held)
+    assert done.returncode == 129
+    assert sorted((tmp_path / "log").read_text().splitlines()) == ["hung up", "last line"]
+
+
 def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read

@@ -220,16 +220,26 @@ def console() -> None:
         status = _stopped(stop)
     except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
         status = BROKEN_PIPE
-    if status in (BROKEN_PIPE, HUNG_UP):  # an output's reader or terminal gone: what stdout
-        # or stderr still holds for it would fail exit's flush, which exits 120 then
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
-                os.dup2(devnull, stream.fileno())
+    if status in (BROKEN_PIPE, HUNG_UP):  # an output's reader or terminal gone
+        _drop_unflushable_outputs()
     if status in STOPPED:
         for signum in NAMES:
             signal.signal(signum, signal.SIG_IGN)
     sys.exit(status)
+
+
+def _drop_unflushable_outputs() -> None:
+    """Send stdout or stderr to /dev/null where what it still holds cannot be flushed (its
+    reader or terminal gone): exit's flush would fail on it and exit 120. An output that
+    flushes is left as it is (a log file a hung-up command wrote to keeps its last lines)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except OSError:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
+                os.dup2(devnull, stream.fileno())
+            os.close(devnull)
 
 
 STOPPED = {INTERRUPTED, *(128 + s for s in ENDING)}  # exit statuses of a command a signal stopped
