@@ -516,6 +516,18 @@ def _bad_inputs():
                 {"colors": s["colors"][:, :3], "sh_degree": None},
                 "colors|sh_degree",
             ),
+            # was "sh_degree: expected 0..3, got 4", a degree the caller never passed
+            (
+                "sh-k-25",
+                {"colors": s["colors"].repeat(1, 7, 1)[:, :25], "sh_degree": None},
+                "up to 3",
+            ),
+            # [N, C, K] (as some codebases store them): said "pass sh_degree", which fails too
+            (
+                "sh-channels-first",
+                {"colors": s["colors"].mT, "sh_degree": None, "background": None},
+                "transpose",
+            ),
             (
                 "sh-degree-4",
                 {"colors": s["colors"].repeat(1, 7, 1)[:, :25], "sh_degree": 4},

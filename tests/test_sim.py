@@ -983,3 +983,15 @@ def test_recorded_seconds_are_positive_numbers_or_zero(tmp_path):
     assert recorded_seconds(path) == 0.0
     path.write_bytes(b"not a SIM")
     assert recorded_seconds(path) == 0.0
+
+
+def test_loading_a_sim_leaves_torch_global_generator(tmp_path):
+    """A SIM loaded (or copied for inference) drew its discarded default init from torch's global
+    generator: a script's sweep of `Trainer`s (README) got other random numbers after each."""
+    model = SIM(window=9, target_window=9)
+    save_sim(model, tmp_path / "sim.pt")
+    torch.manual_seed(0)
+    state = torch.get_rng_state()
+    loaded = load_sim(tmp_path / "sim.pt")
+    sim_train.inference_model(loaded)
+    assert torch.equal(torch.get_rng_state(), state)

@@ -376,6 +376,9 @@ print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
     with pytest.raises(IsADirectoryError, match="a folder"):
         DatWriter(tmp_path, 8, 8)
+    with pytest.raises(FileNotFoundError) as missing:  # named its hidden temporary file
+        save_dat(tmp_path / "nodir" / "x.dat", np.zeros((2, 8, 8), bool))
+    assert missing.value.filename == str(tmp_path / "nodir" / "x.dat")
     with monkeypatch.context() as patch:  # it left its open partial file behind
         patch.setattr("shutil.copymode", lambda *a: exec("raise PermissionError('denied')"))
         with pytest.raises(PermissionError, match="denied"):

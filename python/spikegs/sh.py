@@ -53,8 +53,19 @@ def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
         raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
+        c = colors.shape[2]
+        if num_coeffs(sh_degree) != k and c in (4, 9, 16) and k <= 4:
+            raise ValueError(
+                f"colors: expected SH coefficients [N, K, C], got {list(colors.shape)}, "
+                f"{k} coefficients of {c} channels: a [N, C, K] layout? colors.transpose(1, 2)"
+            )
         if num_coeffs(sh_degree) != k:
             raise ValueError(f"colors: {k} SH coefficients is not a square; pass sh_degree")
+        if sh_degree > MAX_DEGREE:
+            raise ValueError(
+                f"colors: {k} SH coefficients are degree {sh_degree}, up to {MAX_DEGREE} "
+                f"rendered: pass sh_degree={MAX_DEGREE} to use the first {num_coeffs(MAX_DEGREE)}"
+            )
     if not 0 <= sh_degree <= MAX_DEGREE:
         raise ValueError(f"sh_degree: expected 0..{MAX_DEGREE}, got {sh_degree}")
     if k < num_coeffs(sh_degree):

@@ -279,7 +279,8 @@ def is_sim_file(path: Path) -> bool:
 
 
 def _model_of(payload: dict) -> SIM:
-    model = SIM(**payload["config"])
+    with torch.random.fork_rng():  # SIM's default init draws from torch's global generator
+        model = SIM(**payload["config"])
     model.load_state_dict(payload["state_dict"])
     return model.eval()
 
@@ -424,7 +425,8 @@ def train_or_load(
 
 def inference_model(model: SIM, dtype: torch.dtype = torch.float32) -> SIM:
     """A frozen copy of `model` for fast CPU inference: `dtype` weights, channels-last layout."""
-    fast = SIM(**model.config)
+    with torch.random.fork_rng():  # (its default init, overwritten: the script's numbers stay)
+        fast = SIM(**model.config)
     fast.load_state_dict(model.state_dict())
     return fast.to(dtype=dtype, memory_format=torch.channels_last).eval().requires_grad_(False)
 

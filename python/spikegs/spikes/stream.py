@@ -366,7 +366,10 @@ class DatWriter:
         if self._target.is_dir():
             raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
         self._partial = self._target.with_name(temporary_name(self._target, uuid.uuid4().hex))
-        self._file = open(self._partial, "xb")
+        try:
+            self._file = open(self._partial, "xb")
+        except OSError as err:  # a missing or read-only folder: named by `path`, not the temporary
+            raise naming(err, self.path, self._partial)  # noqa: B904 (its cause set)
         try:
             if self._target.exists():  # its permissions stay, as when it was overwritten in place
                 shutil.copymode(self._target, self._partial)
