@@ -280,8 +280,15 @@ def assert_drawn_where_projected(source, viewmat, mask, point) -> np.ndarray:
     return cam
 
 
-def test_mitsuba_source_convention_and_dataset(tmp_path):
-    pytest.importorskip("mitsuba")
+@pytest.fixture
+def mitsuba(tmp_path, monkeypatch):
+    """mitsuba, with Dr.Jit's kernel cache in a temporary folder: its first import, which reads
+    DRJIT_CACHE_DIR, made ~/.drjit (a stamp of its sweep there, and any kernels)."""
+    monkeypatch.setenv("DRJIT_CACHE_DIR", str(tmp_path / "drjit"))
+    return pytest.importorskip("mitsuba")
+
+
+def test_mitsuba_source_convention_and_dataset(tmp_path, mitsuba):
     target = np.array([0.3, -0.2, 0.1])
     scene = glowing_ball(target, 0.25, (1.0, 0.5, 0.25))
     source = MitsubaSource(scene, 16, 16, channels=3, spp=1, center=[0, 0, 0], radius=1.0)
@@ -323,11 +330,10 @@ def test_up_rotation_turns_z_into_up():
         assert np.linalg.det(rot) == pytest.approx(1.0)
 
 
-def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path):
+def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path, mitsuba):
     """A y-up Mitsuba scene (its Cornell box's convention) orbited about +z showed its floor as a
     wall, every view sideways; `up` turns the spiral: the ball above the other (along +y) is
     above it in every view, which it is not about +z."""
-    pytest.importorskip("mitsuba")
     emitter = lambda value: {"type": "area", "radiance": {"type": "rgb", "value": value}}  # noqa: E731
     scene = {
         "type": "scene",
@@ -363,9 +369,8 @@ def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path):
         simulate_dataset(source, tmp_path / "bad", height=8, width=8, up=[0, 1, 0])
 
 
-def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():
+def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view(mitsuba):
     """MitsubaSource's fov_deg (no caller passes it) sets K and the sensor alike."""
-    pytest.importorskip("mitsuba")
     target, ball = np.array([0.15, -0.1, 0.05]), 0.3
     areas = {}
     for fov in (30.0, 60.0):
@@ -393,9 +398,8 @@ def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view():
         assert mask.sum() == pytest.approx(np.pi * (focal * ball / cam[2]) ** 2, rel=0.3)
 
 
-def test_mitsuba_negative_light_is_set_to_0_with_one_warning():
+def test_mitsuba_negative_light_is_set_to_0_with_one_warning(mitsuba):
     """A negative emitter's radiance was set to 0 without a word of ours (as frame files warn)."""
-    pytest.importorskip("mitsuba")
     source = MitsubaSource(glowing_ball([0, 0, 0], 0.5, (-1.0, 0.5, 0.5)), 8, 8, spp=1)
     viewmat = source.trajectory(2, 1.0).pose_at(0.0)
     with pytest.warns(UserWarning, match=r"renders \d+ values below 0 .* lowest -1;.* set to 0"):
@@ -406,10 +410,9 @@ def test_mitsuba_negative_light_is_set_to_0_with_one_warning():
         source.render(viewmat)  # said once
 
 
-def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path):
+def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path, mitsuba):
     """No integrator: Mitsuba's raw Exception at the first frame; no shapes: a NaN scene centre,
     reported as non-rigid poses; a parse error: a traceback."""
-    pytest.importorskip("mitsuba")
     ball = {"type": "sphere", "radius": 0.5}
     cases = [
         ({"type": "scene", "ball": ball}, "has no integrator"),

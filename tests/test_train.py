@@ -615,11 +615,17 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status,
     )
     log = run / "log.jsonl"
     deadline = time.monotonic() + 120
-    while not (log.exists() and log.read_text().count("\n") >= 2):
-        assert training.poll() is None and time.monotonic() < deadline, training.stderr.read()
-        time.sleep(0.1)
-    training.send_signal(signum)
-    err = training.communicate(timeout=120)[1]
+    try:
+        while not (log.exists() and log.read_text().count("\n") >= 2):
+            assert training.poll() is None, training.stderr.read()
+            assert time.monotonic() < deadline, "no step logged in 120 s"
+            time.sleep(0.1)
+        training.send_signal(signum)
+        err = training.communicate(timeout=120)[1]
+    finally:  # a failure above left it training (for 100000 iterations) after the test
+        if training.poll() is None:
+            training.kill()
+            training.communicate()
     assert training.returncode == status, err
     assert f"{signum.name}: stopping after this step" in err and err.endswith(f"{said}\n"), err
     logged = [json.loads(line)["iteration"] for line in log.read_text().splitlines()]
@@ -693,7 +699,8 @@ def test_a_progress_output_gone_stops_the_run_with_a_checkpoint(
     once, as before."""
     train = {**FAST["train"], "iterations": 60, "eval_every": 20, "checkpoint_every": 1000}
     config = load_config("tfp33", {**FAST, "train": train})  # densifies at 40, stopping there
-    stderr = gone_stderr(error)
+    error = type(error)(*error.args)  # this run's own: the parametrized one, raised, kept the
+    stderr = gone_stderr(error)  # run's frames (its trainers, its tqdm bar) for the session
 
     def show(trainer):  # the progress line, or the moment the bar's next write fails
         if trainer.iteration == at and shown != "close":

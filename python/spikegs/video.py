@@ -75,8 +75,9 @@ def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
     codec = mp4_codec()
 
     def write(tmp: Path) -> None:
-        # absolute: FFmpeg read a relative '2024-05-01T10:30.mp4' as the protocol '2024-05-01T10'
-        with av.open(str(tmp.absolute()), "w", format="mp4") as container:
+        # a file of ours, not a name: FFmpeg read a relative '2024-05-01T10:30.mp4' as the
+        # protocol '2024-05-01T10', and kept a file open whose write failed (a full disk)
+        with open(tmp, "wb") as file, av.open(file, "w", format="mp4") as container:
             stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
             stream.height, stream.width = frames.shape[1:3]
             stream.pix_fmt = "yuv420p"
