@@ -3038,6 +3038,8 @@ def test_a_full_disk_is_an_os_error_naming_the_file_and_leaves_no_torn_file(tmp_
             assert raised.value.errno == errno.ENOSPC, name
         assert path.read_bytes() == b"previous", name
     assert not [p for p in made if p.is_symlink()]  # each temporary removed
+    fds = Path("/proc/self/fd")  # PyAV's file stayed open after its failed write
+    assert not [fd for fd in fds.iterdir() if fd.resolve() == Path("/dev/full")]
     dat = tmp_path / "spikes.dat"
     writer = DatWriter(dat, 64, 64)
     writer._file.close()
