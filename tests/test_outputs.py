@@ -270,6 +270,27 @@ def test_a_hung_up_command_keeps_the_lines_its_log_file_holds(tmp_path):
     assert sorted((tmp_path / "log").read_text().splitlines()) == ["hung up", "last line"]
 
 
+@pytest.mark.parametrize("closed", [None, "closed"])
+def test_a_closed_stdout_does_not_fail_a_command_whose_reader_left(
+    monkeypatch, console_signals, closed
+):
+    """Ending on a reader gone, the command flushes its outputs to find those that cannot be:
+    stdout None (`spikegs ... >&-`: Python's for a closed descriptor) or closed by a script
+    raised there (exit's own flush passes them by)."""
+
+    def reader_left(args):
+        if closed:
+            sys.stdout.close()
+        raise BrokenPipeError(errno.EPIPE, "Broken pipe")
+
+    monkeypatch.setattr("spikegs.eval_cli.run", reader_left)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
+    monkeypatch.setattr(sys, "stdout", closed and io.TextIOWrapper(io.BytesIO()))
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 141
+
+
 def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read

@@ -235,6 +235,8 @@ def _drop_unflushable_outputs() -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
+        except (AttributeError, ValueError):  # None (its descriptor closed as Python started)
+            continue  # or closed: exit's flush passes it by too
         except OSError:
             devnull = os.open(os.devnull, os.O_WRONLY)
             with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
