@@ -118,7 +118,7 @@ def train_sim(
     if loss not in SIM_LOSSES:
         raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(SIM_LOSSES)}")
     rng = np.random.default_rng(seed)
-    with torch.random.fork_rng():
+    with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         model = SIM(window=window, target_window=target_window, **sim_kwargs)
     bf16 = bf16_is_fast() if bf16 is None else bf16
@@ -279,7 +279,8 @@ def is_sim_file(path: Path) -> bool:
 
 
 def _model_of(payload: dict) -> SIM:
-    with torch.random.fork_rng():  # SIM's default init draws from torch's global generator
+    # SIM's default init, replaced by the state, drew from torch's global generator (CPU's)
+    with torch.random.fork_rng(devices=[]):
         model = SIM(**payload["config"])
     model.load_state_dict(payload["state_dict"])
     return model.eval()
@@ -425,7 +426,7 @@ def train_or_load(
 
 def inference_model(model: SIM, dtype: torch.dtype = torch.float32) -> SIM:
     """A frozen copy of `model` for fast CPU inference: `dtype` weights, channels-last layout."""
-    with torch.random.fork_rng():  # (its default init, overwritten: the script's numbers stay)
+    with torch.random.fork_rng(devices=[]):  # (its default init, overwritten: as `_model_of`)
         fast = SIM(**model.config)
     fast.load_state_dict(model.state_dict())
     return fast.to(dtype=dtype, memory_format=torch.channels_last).eval().requires_grad_(False)
