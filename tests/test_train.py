@@ -1715,7 +1715,10 @@ def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys)
     assert load_dataset(out / "data").channels == 3
     assert all(10 < scores["psnr"] < 60 for scores in results["methods"].values())
     assert load_ply(out / "runs" / "spikegs" / "scene.ply").channels == 3
+    killed = out / f".comparison.png.{_dead_pid()}.tmp"  # a demo killed writing it: stayed
+    killed.write_bytes(b"torn")
     assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0  # colour kept
+    assert not killed.exists()
     assert json.loads((out / "results.json").read_text())["methods"] == results["methods"]
     mono = tmp_path / "mono"
     assert main(["demo", "--iterations", "20", "--no-progress", "--out", str(mono)]) == 0

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import strict_json
-from .atomic_save import write_text_atomically
+from .atomic_save import sweep_temporaries, write_text_atomically
 from .cli import add_no_progress, positive_int, show_bars
 from .config import load_config, load_saved_run
 from .curves import save_logged_curves
@@ -319,6 +319,7 @@ def run(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace, out: Path) -> int:
     """`run` once OUT is locked."""
     start = time.perf_counter()
+    sweep_temporaries(out)  # one demo here: a figure or results.json a killed one half-wrote
     progress = show_bars(args.no_progress)  # else a line at each evaluation
     earlier = earlier_seconds(out) if args.resume else 0.0
     # --resume without --scene or --iterations goes on with those the demo was started with
