@@ -2735,6 +2735,21 @@ def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):
     assert evaluate_run(tmp_path / "run", dataset, write_images=False)["method"] == "tfp33"
 
 
+def test_eval_sweeps_what_a_killed_scoring_half_wrote(dataset, tmp_path):
+    """`spikegs eval` killed while writing eval.json or a side-by-side left its hidden temporary
+    file in the run for good (training's resume sweeps a run, a finished run's eval did not)."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    (run / "eval").mkdir()
+    dead = _dead_pid()
+    killed = [run / f".eval.json.{dead}.tmp", run / "eval" / f".on_000.png.{dead}.tmp"]
+    for path in killed:
+        path.write_bytes(b"torn")
+    evaluate_run(run, dataset)
+    assert not any(path.exists() for path in killed)
+
+
 def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monkeypatch):
     """A render identical to its ground truth has an infinite PSNR, which Python's json wrote as
     the token Infinity, refused by JSON.parse, jq and serde: it is null."""

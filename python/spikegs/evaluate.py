@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from . import strict_json
-from .atomic_save import STEM_MAX, short_name, write_text_atomically
+from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
 from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
@@ -228,6 +228,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     check_file_output(scores_file, "eval's scores")
     if write_images:
         check_folder_output(folder, "eval's images", images=True)
+    for written in (run_dir, folder):  # what a killed scoring (or training) half-wrote there
+        sweep_temporaries(written)
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
     earlier = _scored_views(scores_file)  # {view: its scores then}
     for gone in set(earlier) - {v.name for v in dataset.test_views}:
