@@ -2735,6 +2735,17 @@ def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):
     assert evaluate_run(tmp_path / "run", dataset, write_images=False)["method"] == "tfp33"
 
 
+def test_eval_of_a_run_killed_before_its_train_json_says_to_resume(dataset, tmp_path, capsys):
+    """Killed between scene.ply and train.json, its last writes, a run was "not found or without
+    a dataset: is RUN a finished run?" to eval and render, though --resume finishes it."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    (run / "train.json").unlink()
+    assert main(["eval", str(run)]) == 2
+    assert "stopped while writing its results; finish it with" in capsys.readouterr().err
+
+
 def test_eval_sweeps_what_a_killed_scoring_half_wrote(dataset, tmp_path):
     """`spikegs eval` killed while writing eval.json or a side-by-side left its hidden temporary
     file in the run for good (training's resume sweeps a run, a finished run's eval did not)."""
@@ -2957,6 +2968,21 @@ def test_eval_and_render_name_a_malformed_run_file(dataset, tmp_path, capsys):
         for command in (["eval"], ["render", "--out", str(run / "orbit.gif")]):
             assert main([command[0], str(run), *command[1:]]) == 2, (case, command)
             assert re.search(message, capsys.readouterr().err), (case, command)
+
+
+def test_a_write_sweeps_the_temporaries_killed_writers_left_of_its_file(tmp_path):
+    """A render, an eval image or a demo's figure killed mid-write left its hidden temporary
+    beside the file for good, however often the file was written again; a live writer's, and
+    a streaming .dat writer's (no process id), stay."""
+    from spikegs.atomic_save import write_text_atomically
+
+    path = tmp_path / "orbit.mp4"
+    dead = tmp_path / f".orbit.mp4.{_dead_pid()}.tmp"
+    kept = [tmp_path / f".orbit.mp4.{os.getppid()}.tmp", tmp_path / ".orbit.mp4.ab12cd.tmp"]
+    for leftover in (dead, *kept):
+        leftover.write_text("torn")
+    write_text_atomically(path, "whole")
+    assert not dead.exists() and all(p.exists() for p in kept)
 
 
 def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):

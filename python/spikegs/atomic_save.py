@@ -91,6 +91,20 @@ def sweep_killed_writes(path: Path) -> None:
         stale.unlink(missing_ok=True)
 
 
+def sweep_dead_writes(path: Path) -> None:
+    """Remove the temporaries of `path` that `write_atomically` calls of dead processes left
+    beside it (a kill mid-write: `spikegs eval`'s images, a video, the demo's figures, which no
+    run folder's sweep reaches); a live writer's, and a streaming writer's (no process id),
+    stay."""
+    pattern = _temporary(glob.escape(short_name(path.name, STEM_MAX)), "[0-9]*")
+    for stale in path.parent.glob(pattern):
+        ours = target_name(stale.name) == short_name(path.name, STEM_MAX)
+        writer = _TEMPORARY.match(stale.name).group(1)
+        if ours and writer.isdigit() and not _writer_alive(stale.name):
+            with contextlib.suppress(OSError):
+                stale.unlink(missing_ok=True)
+
+
 def naming(err: OSError, path: Path, written=None) -> OSError:
     """`err` naming `path` where it names no file (a write's error: a full disk said only "[Errno
     28] No space left on device") or names `written`, the temporary written for it; else `err`.
@@ -110,6 +124,7 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     a run folder when training starts, `sweep_killed_writes` in SIM's cache)."""
     path = written_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    sweep_dead_writes(path)  # a killed writer's temporary of `path` (eval's images, a video)
     tmp = path.with_name(temporary_name(path, str(os.getpid())))
     try:
         write(tmp)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 
 
@@ -21,11 +22,17 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     """The dataset a run was trained on, unless one is given."""
     if dataset is not None:
         return dataset
-    from .run_summary import SUMMARY, read_summary, trained_scene
+    from .run_summary import SUMMARY, last_checkpoint, read_summary, trained_scene
 
     summary = read_summary(run_dir)
     if "dataset" not in summary:
         trained_scene(run_dir)  # a run stopped with a checkpoint: finish it with --resume
+        if not (Path(run_dir) / SUMMARY).exists() and last_checkpoint(run_dir).exists():
+            # killed between scene.ply and train.json, its last writes: --resume writes the rest
+            raise FileNotFoundError(
+                f"{run_dir / SUMMARY} not found: the run stopped while writing its results; "
+                f"finish it with spikegs train DATASET --out {shlex.quote(str(run_dir))} --resume"
+            )
         raise FileNotFoundError(
             f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"
         )
