@@ -120,8 +120,9 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """`write(tmp)` to a temporary file of this process beside `path` (processes may share
     `path`, as trainers share a SIM cache), then rename it onto `path`; makes `path`'s folder.
     Where `path` is a symbolic link, its target is written and the link stays. The temporary file
-    is removed when writing fails; a killed process's stays until swept (`sweep_temporaries` in
-    a run folder when training starts, `sweep_killed_writes` in SIM's cache)."""
+    is removed when writing fails; a killed process's stays until swept (`sweep_dead_writes` as
+    `path` is written again, `sweep_temporaries` in a run folder when training or scoring starts
+    and in a demo's, `sweep_killed_writes` in SIM's cache)."""
     path = written_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     sweep_dead_writes(path)  # a killed writer's temporary of `path` (eval's images, a video)
