@@ -8,7 +8,7 @@ import glob
 import hashlib
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 NAME_MAX = 255  # bytes in a file name (Linux's and macOS's file systems)
@@ -82,12 +82,17 @@ def written_path(path: Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
+def _temporaries_of(path: Path, writer: str = "*") -> Iterator[Path]:
+    """The files beside `path` named as its temporaries, of writers matching the glob `writer`
+    (a longer name's may match too: `target_name` tells)."""
+    return path.parent.glob(_temporary(glob.escape(short_name(path.name, STEM_MAX)), writer))
+
+
 def sweep_killed_writes(path: Path) -> None:
     """Remove the temporary files that writers of `path` killed mid-write left beside it (beside
     its target, for a symbolic link); call it where no other process can be writing `path` (under
     the lock that its writers hold)."""
-    path = written_path(path)
-    for stale in path.parent.glob(_temporary(glob.escape(short_name(path.name, STEM_MAX)), "*")):
+    for stale in _temporaries_of(written_path(path)):
         stale.unlink(missing_ok=True)
 
 
@@ -96,9 +101,9 @@ def sweep_dead_writes(path: Path) -> None:
     beside it (a kill mid-write: `spikegs eval`'s images, a video, the demo's figures, which no
     run folder's sweep reaches); a live writer's, and a streaming writer's (no process id),
     stay."""
-    pattern = _temporary(glob.escape(short_name(path.name, STEM_MAX)), "[0-9]*")
-    for stale in path.parent.glob(pattern):
-        ours = target_name(stale.name) == short_name(path.name, STEM_MAX)
+    stem = short_name(path.name, STEM_MAX)
+    for stale in _temporaries_of(path, "[0-9]*"):
+        ours = target_name(stale.name) == stem
         writer = _TEMPORARY.match(stale.name).group(1)
         if ours and writer.isdigit() and not _writer_alive(stale.name):
             with contextlib.suppress(OSError):

@@ -275,13 +275,13 @@ def _run(args: argparse.Namespace) -> int:
         return int(args._run(args) or 0)
     except KeyboardInterrupt as stop:
         return _stopped(stop)
+    except BrokenPipeError:  # the output's reader left: not the command's error (`console`)
+        raise
     except Busy as err:  # another process holds the run: a retry may succeed
         print(f"spikegs {args.command}: busy: {err}", file=sys.stderr)
         return BUSY
     # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
     except (ValueError, OSError, MissingDependencyError) as err:
-        if isinstance(err, BrokenPipeError):  # the output's reader left: not the command's
-            raise  # error (`console`)
         # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
         unsaid = say(f"spikegs {args.command}: error: {err}")
         if unsaid is None:

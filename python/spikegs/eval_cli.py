@@ -27,7 +27,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     summary = read_summary(run_dir)
     if "dataset" not in summary:
         trained_scene(run_dir)  # a run stopped with a checkpoint: finish it with --resume
-        if not (Path(run_dir) / SUMMARY).exists() and last_checkpoint(run_dir).exists():
+        if not (run_dir / SUMMARY).exists() and last_checkpoint(run_dir).exists():
             # killed between scene.ply and train.json, its last writes: --resume writes the rest
             raise FileNotFoundError(
                 f"{run_dir / SUMMARY} not found: the run stopped while writing its results; "

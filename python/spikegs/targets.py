@@ -56,6 +56,11 @@ class ImageBudget:
             )
         return False
 
+    def give_back(self, nbytes: int, images: int) -> None:
+        """Count `images` kept images of `nbytes` in all as dropped."""
+        self.used -= nbytes
+        self.kept -= images
+
 
 class TargetImages:
     """Images [H, W, C] in intensity units at a run's training timestamps, indexed like them;
@@ -110,8 +115,7 @@ class TargetImages:
         """Drop the images held (a run's, once it stops: a Trainer kept in a notebook held them,
         up to a quarter of the memory, run after run), their bytes back to the budget; an image
         asked for again is computed again."""
-        self._budget.used -= self.nbytes
-        self._budget.kept -= len(self._cache)
+        self._budget.give_back(self.nbytes, len(self._cache))
         self._cache.clear()
 
 
