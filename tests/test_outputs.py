@@ -16,8 +16,9 @@ from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run
-from spikegs.interrupt import ENDING, HANGUP, raise_terminated
+from spikegs.interrupt import ENDING, HANGUP, progress_lost, raise_terminated
 from spikegs.train import Trainer
+from tqdm import tqdm
 
 NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
 
@@ -323,3 +324,15 @@ def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):
     }
     save_curves(tmp_path / "curves.png", methods, ("psnr",), "scene $^$: view $a_{b$")
     assert (tmp_path / "curves.png").stat().st_size > 0
+
+
+def test_a_bar_whose_output_is_gone_leaves_the_next_bar_its_line(gone_stderr):
+    """A bar whose output went away was turned off but stayed in tqdm's list of bars (its close
+    returns early when off), so a later bar in the same process was drawn on the line below it."""
+    stderr = gone_stderr(BrokenPipeError(errno.EPIPE, "Broken pipe"))
+    bar = tqdm(total=3, file=sys.stderr)
+    stderr.gone = True
+    assert isinstance(progress_lost(bar.refresh, bar), BrokenPipeError)
+    quiet = tqdm(total=3, file=io.StringIO())
+    assert quiet.pos == 0
+    quiet.close()

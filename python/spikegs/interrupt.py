@@ -67,14 +67,17 @@ def output_gone(err: OSError) -> bool:
 
 def progress_lost(show: Callable[[], None], bar) -> OSError | None:
     """Call `show` (a step's progress: its line, its tqdm `bar`); the error it raised where the
-    output is gone (`output_gone`), the bar then off (its close would write again), else None:
-    the caller stops once its step is done, as a signal stops it."""
+    output is gone (`output_gone`), the bar then off (its close would write again) and out of
+    tqdm's list of bars (a later bar in the process would be drawn below it), else None: the
+    caller stops once its step is done, as a signal stops it."""
     try:
         show()
     except OSError as err:
         if not output_gone(err):
             raise
-        bar.disable = True
+        if not bar.disable:  # (a bar made off was never listed)
+            bar.disable = True
+            type(bar)._decr_instances(bar)  # what close does before it writes
         return err
     return None
 
