@@ -91,6 +91,8 @@ class LearningRates:
     # times the scene radius, decayed exponentially to means_final. 3DGS's 1.6e-4 (and gsplat's)
     # is per unit of the *camera* extent, 1.1x the cameras' farthest distance from their centroid:
     # ~3 scene radii on our orbits (cameras at ~2.5-3 radii), so 3x that per scene radius.
+    # Forward-facing views (LLFF) spread little: 3DGS's rate there is a fraction of a radius's,
+    # ours stays per scene radius (untuned on such data).
     # At 1.6e-4 per radius (until 2026-11-28, with percent_dense 0.01) the demo's schedule scored
     # lower: SpikeGS by 0.42 / 0.70 dB on solids and 0.61 on fine-texture, TFI+3DGS by 0.65-1.13
     # (BENCHMARKS.md, "The position learning rate's unit")

@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
     print(
         f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
-        f"the same error in the intensity units of spikegs eval)"
+        f"the same error in the intensity units of spikegs eval; SSIM higher too)"
     )
     record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {
@@ -137,7 +137,10 @@ def run(args: argparse.Namespace) -> int:
         "seconds": recorded_seconds(Path(out)),  # its training time, as it recorded it
         "trained_now": bool(seconds),
         "views": [v.name for v in views],  # on the camera's path: scored at their readouts
-        "units": f"firing rates, spikes a readout, data range 1 ({units:.1f} dB above eval's)",
+        "units": (
+            f"firing rates, spikes a readout, data range 1 (PSNR {units:.1f} dB above eval's, "
+            f"SSIM higher too)"
+        ),
         "scores": scores,
         "environment": environment(),
     }

@@ -17,7 +17,10 @@ def compare_methods(
 ) -> dict[str, dict[str, float]]:
     """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
     view whose ground truth is a method's own image (a pseudo ground truth: TFP of the view's
-    spikes) is left out of that method's mean (PSNR inf), and a method left no view is left out."""
+    spikes) is left out of that method's mean (PSNR inf), and a method left no view is left out.
+    TFI(t) spans readouts t and t + 1 (training compares it with the render at t + 0.5); it is
+    scored here against the image at t, half a readout apart (at the default speed 0.075° of
+    orbit, a fraction of a pixel), small beside its noise."""
     timestamps = np.asarray(timestamps)
     images = {
         "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],

@@ -39,7 +39,9 @@ from .transforms_file import TRANSFORMS, warn_unread_transforms
 
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
-DEFAULT_FRAME_EVERY = 8  # light rendered every 8 readouts (< 1 px of motion), linear between
+# the light rendered every 8 readouts, or more often where the scene would move more than
+# FRAME_MOTION_PX between frames (default_frame_every); cross-faded between
+DEFAULT_FRAME_EVERY = 8
 DEFAULT_TEST_VIEWS = 8  # held-out views on the path, and off it
 MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at most this many
 # Data that defeats the methods, or their scores, gets a warning before simulating: more of the
