@@ -3,7 +3,8 @@ ancestor's) chooses the threads OpenMP and torch start with, unless the user cho
 
 import types
 
-from spikegs import cpu_quota, thread_count
+import pytest
+from spikegs import _C, cpu_quota, thread_count
 from spikegs.cpu_quota import cpu_quota as quota_of
 from spikegs.cpu_quota import quota_threads
 from spikegs.thread_count import default_threads, set_loaded_threads
@@ -76,3 +77,10 @@ def test_torch_loaded_first_takes_the_quotas_count(monkeypatch):
     fake_torch.get_num_threads = lambda: 3  # the user's own count
     set_loaded_threads(fake_torch, core)
     assert len(calls) == 2
+
+
+def test_the_cores_thread_count_is_at_least_one():
+    """The core's set_max_threads took 0 or a negative count and acted as 1, unsaid."""
+    for n in (0, -5):
+        with pytest.raises(ValueError, match=f"n expected >= 1, found {n}"):
+            _C.set_max_threads(n)

@@ -561,6 +561,7 @@ def test_the_core_has_the_documented_constants():
         "tile_size": 16,
         "near": reference.NEAR,
         "far": reference.FAR,
+        "max_mean2d": reference.MAX_MEAN2D,
         "max_sh_degree": 3,
         "max_image_size": 2**20,
     }
@@ -909,6 +910,62 @@ def test_needle_axis_has_no_holes_in_float32(op):
         assert (alpha32 - alpha64).abs().max() < 1e-3
         # never above the opacity: exp of the rounded power gave up to +1.1e-4 (core)
         assert alpha32.max() <= scene["opacities"][0].double()
+
+
+@pytest.mark.parametrize(
+    "op",
+    [pytest.param(spikegs.rasterize, marks=needs_cpp, id="core"), reference.rasterize],
+)
+def test_a_needle_whose_backward_would_overflow_is_culled(op):
+    """A float32 needle ~1e18 long (0.03 and 0.17 across) projected finite and drew nothing, but
+    its backward's 2 |V|³ terms overflowed: 0 · inf gave NaN gradients, and through their sum the
+    view matrix's too, ruining a second, ordinary Gaussian's pose refinement. Now culled there."""
+    t = lambda x: torch.tensor(x, dtype=torch.float32)  # noqa: E731
+    for length in (9.8e17, 1e18, 1.03e18):
+        viewmat = torch.eye(4, requires_grad=True)
+        params = [
+            t([[0.672, 1.1756, 1.517], [0.0, 0.0, 2.0]]),
+            t([[-0.6839, -0.3240, 0.0051, -1.1001], [1.0, 0.0, 0.0, 0.0]]),
+            t([[0.0305, length, 0.172], [0.1, 0.1, 0.1]]),
+            t([0.544, 0.9]),
+            t([[1.0, 0.5], [0.2, 0.4]]),
+        ]
+        params = [p.requires_grad_() for p in params]
+        K = t([[20.0, 0, 2], [0, 20.0, 3], [0, 0, 1]])
+        out = op(*params, viewmat, K, 4, 6)
+        out.image.sum().backward()
+        assert out.radii[0] == 0 and out.radii[1] > 0
+        for grad in [p.grad for p in params] + [viewmat.grad]:
+            assert torch.isfinite(grad).all()
+        assert viewmat.grad.abs().sum() > 0
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64], ids=["float32", "float64"])
+@pytest.mark.parametrize(
+    "op",
+    [pytest.param(spikegs.rasterize, marks=needs_cpp, id="core"), reference.rasterize],
+)
+def test_a_splat_centred_past_max_mean2d_is_culled(op, dtype):
+    """A needle centred 2e19 px off the image whose ellipse reached it: float32's power was
+    inf - inf, a NaN that reached exp's integer conversion (undefined). Splats centred farther
+    than 2^40 px (in x or y) are culled; one centred 20 px off still renders."""
+    c, s = math.cos(math.pi / 8), math.sin(math.pi / 8)
+    t = lambda x: torch.tensor(x, dtype=dtype)  # noqa: E731
+    K = t([[100.0, 0, 8], [0, 100.0, 8], [0, 0, 1]])
+    for centre, length, culled in ((2e17, 1e17, True), (0.2, 0.1, False)):
+        out = op(
+            t([[centre, centre, 1.0]]),
+            t([[c, 0, 0, s]]),
+            t([[length, 1e-3, 1e-3]]),
+            t([1.0]),
+            t([[1.0]]),
+            torch.eye(4, dtype=dtype),
+            K,
+            16,
+            16,
+        )
+        assert (out.radii[0] == 0) == culled
+        assert torch.isfinite(out.image).all() and (out.alpha.max() > 0) != culled
 
 
 OUT_OF_MEMORY = """

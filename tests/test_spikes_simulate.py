@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from spikegs import SimParams, SpikeStream, simulate_spikes
+from spikegs import _C, SimParams, SpikeStream, simulate_spikes
 from spikegs.spikes import simulate
 from spikegs.spikes.simulate import fpn_gain, sample_times, simulate_channels
 
@@ -319,6 +319,20 @@ def test_bad_input_refused():
     for chunk in (0, -1, 2.5):
         with pytest.raises(ValueError, match="chunk"):
             simulate_spikes(frames, 10, chunk=chunk)
+
+
+def test_the_core_simulator_refuses_light_that_is_not_finite_or_negative():
+    """A direct caller of the core's simulator (simulate_spikes checks first) passed NaN light: the
+    pixel's voltage became NaN and it never fired again, in that run or any later one."""
+    sim = _C.SpikeSimulator(2, 3, SimParams().to_core(), 0)
+    for bad in (np.nan, np.inf, -1.0):
+        frames = np.ones((2, 2, 3), np.float32)
+        frames[1, 1, 1] = bad
+        with pytest.raises(
+            ValueError, match="finite intensities >= 0, found .* at frame 1, pixel 4"
+        ):
+            sim.run(frames, np.array([0.0, 9.0]), 10)
+    assert sim.run(np.ones((2, 2, 3), np.float32), np.array([0.0, 9.0]), 10).shape == (10, 2, 1)
 
 
 def test_sim_params_of_the_wrong_type_are_named():

@@ -316,6 +316,20 @@ def test_core_kernels_refuse_float_indices():
             kernel(data, layout, np.array([2**64 - 1], np.uint64), 3)
 
 
+def test_core_index_arrays_that_cannot_be_converted_raise_the_conversions_error():
+    """Index arrays are copied to int64 (or checked as uint64): a copy that fails (numpy's size
+    limit, memory) returned a null array that the binding read, a segmentation fault."""
+    s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
+    data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
+    too_big = np.lib.stride_tricks.as_strided(np.zeros(1, np.int32), shape=(2**60,), strides=(0,))
+    too_many = np.lib.stride_tricks.as_strided(np.zeros(1, np.uint64), (2**59,), strides=(0,))
+    for kernel in (_C.spike_counts, _C.spike_tfp, _C.spike_tfi):
+        with pytest.raises(ValueError, match="array is too big"):
+            kernel(data, layout, too_big, 3)
+        with pytest.raises(MemoryError):
+            kernel(data, layout, too_many, 3)
+
+
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):
     """col_offset + width and height * row_bits wrapped around int64: uninitialised TFPs, a
     segfault in window(), a division by zero in DatWriter."""

@@ -227,6 +227,7 @@ void bind_rasterizer(py::module_& m) {
   constants["alpha_min"] = sr::kAlphaMin;
   constants["transmittance_min"] = sr::kTransmittanceMin;
   constants["dilation"] = sr::kDilation;
+  constants["max_mean2d"] = sr::kMaxMean2d;
   constants["clamp_margin"] = sr::kClampMargin;
   constants["near"] = sr::kDefaultNear;
   constants["far"] = sr::kDefaultFar;

@@ -49,13 +49,13 @@ py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py:
                          std::string(py::str(indices.dtype())));
   if (kind == 'u' && indices.itemsize() == 8) {  // past int64: the cast below wrapped them
     using Unsigned = py::array_t<uint64_t, py::array::c_style | py::array::forcecast>;
-    const Unsigned u = Unsigned::ensure(indices);
+    const Unsigned u(indices);  // (raises the conversion's error, a copy's MemoryError)
     for (py::ssize_t i = 0; i < u.size(); ++i)
       if (u.data()[i] > uint64_t(std::numeric_limits<int64_t>::max()))
         throw std::invalid_argument(std::string(what) + " expected below 2^63, found " +
                                     std::to_string(u.data()[i]));
   }
-  const Indices idx = Indices::ensure(indices);
+  const Indices idx(indices);
   if (idx.ndim() != 1)
     throw std::invalid_argument(std::string(what) + " expected 1-D, found shape " + shape_of(idx));
   const int64_t B = idx.shape(0);

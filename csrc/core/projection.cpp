@@ -113,6 +113,11 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   s.det = glm::dot(cr, cr) + eps * (n0 + n1) + eps * eps;
   if (!(s.det > 0) || !is_finite(s.det) || !is_finite(s.a) || !is_finite(s.b) || !is_finite(s.c))
     return s;
+  // the backward's largest terms (V1 x (V0 x V1)) reach 2 |V|^3: where that overflows while the
+  // projection stays finite (a float32 needle ~1e18 long) its gradients were 0 * inf, NaN, and
+  // the view matrix's too through their sum
+  const T n_max = std::max(n0, n1);
+  if (!is_finite(T(2) * n_max * std::sqrt(n_max))) return s;
   s.visible = true;
   return s;
 }
@@ -151,6 +156,7 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
     const T o = prm.opacities[i];
     if (!s.visible || !(o >= T(kAlphaMin))) continue;
     const T mx = cam.fx * s.p.x / s.p.z + cam.cx, my = cam.fy * s.p.y / s.p.z + cam.cy;
+    if (!(std::abs(mx) < T(kMaxMean2d) && std::abs(my) < T(kMaxMean2d))) continue;
     const T mid = T(0.5) * (s.a + s.c);
     const T lambda = mid + std::sqrt(std::max(T(0.1), mid * mid - s.det));
     // alpha >= 1/255 inside the ellipse d^T conic d <= 2 ln(255 o), whose bounding circle is r

@@ -77,6 +77,10 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
     if (!is_finite(times[f]) || (f > 0 && !(times[f] > times[f - 1])))
       fail("frame times expected finite and strictly increasing, found ", times[f], " at frame ",
            f);
+  for (int64_t i = 0; i < num_frames * height_ * width_; ++i)  // a NaN pixel would never fire again
+    if (!is_finite(frames[i]) || !(frames[i] >= 0.0f))
+      fail("frames expected finite intensities >= 0, found ", frames[i], " at frame ",
+           i / (height_ * width_), ", pixel ", i % (height_ * width_));
   if (num_frames > 1 && n > 0 && (times[0] > double(t0) || times[num_frames - 1] < double(last)))
     fail("frame times expected to cover readouts [", t0, ", ", last, "], found [", times[0], ", ",
          times[num_frames - 1], "]");

@@ -21,6 +21,7 @@ T_MIN = 1e-4  # a pixel stops below this transmittance
 DILATION = 0.3  # added to the 2D covariance's diagonal (pixels²)
 CLAMP_MARGIN = 0.3  # the Jacobian's clamp, beyond the image, in tan(fov/2) units
 NEAR, FAR = 0.01, 1e10  # the default clipping planes (world units)
+MAX_MEAN2D = 2.0**40  # a 2D mean farther from the image origin in x or y (pixels) is culled
 
 
 class _Splats(NamedTuple):
@@ -96,6 +97,8 @@ def _project(
     cross = torch.linalg.cross(V0, V1)  # [N, 3]
     det = (cross * cross).sum(-1) + DILATION * (n0 + n1) + DILATION * DILATION  # [N]
     keep = keep & torch.isfinite(det) & (det > 0)
+    n_max = torch.maximum(n0, n1)  # the backward's terms reach 2 |V|^3: culled where that overflows
+    keep = keep & torch.isfinite(2 * n_max * torch.sqrt(n_max))
     conics = torch.stack([c / det, -b / det, a / det], -1)  # [N, 3]
 
     # 7-8: 2D mean, opacity-aware radius, box cull
@@ -120,6 +123,7 @@ def _project(
         # the circle's box, then the ellipse's own x and y half-widths (+1 px), the box the C++
         # binning tiles: it can miss the image where the circle does not
         ex, ey = torch.sqrt(level * a) + 1, torch.sqrt(level * c) + 1
+        keep = keep & (mx.abs() < MAX_MEAN2D) & (my.abs() < MAX_MEAN2D)
         keep = keep & (r >= 1) & reaches_image(r, r) & reaches_image(ex, ey)
         radii = torch.where(keep, torch.clamp(r, max=2.0**30), 0).to(torch.int32)
 
