@@ -11,7 +11,8 @@ DIR/spike_data/...  a frame's spikes: its "spike_path" (relative to DIR) if it h
     spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat; an
     absolute file_path counts relative to DIR if it is inside DIR, else by its file name
 DIR/<file_path>     optional sharp image (extension optional): a test frame's ground truth; a
-    training frame's calibrates the intensity scale when spikegs.json gives no rate_at_one
+    training frame's calibrates the intensity scale when spikegs.json gives no rate_at_one, and
+    checks the spikes' orientation (flip)
 DIR/spikegs.json    loader options (real_options.py), all optional
 
 A test frame needs its spikes or its image; one with no image gets a pseudo ground truth (real.py).
@@ -19,14 +20,16 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
+import itertools
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from ..image_io import to_channels
 from .dataset import Dataset, repeated, warn_rows_out_of_line
-from .real import camera_meta, held_out_mask, scene_sphere, views_dataset
+from .real import ORIENTATION_VIEWS, camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike
 from .transforms_file import (
@@ -106,12 +109,17 @@ def _image(root: Path, frame: dict) -> np.ndarray | None:
         return None
 
 
-def _sizes(path: Path, camera: dict, images: list, options: Options) -> tuple[tuple, tuple, str]:
+def _sizes(
+    path: Path, camera: dict, images: list, training: Iterator, options: Options
+) -> tuple[tuple, tuple, str]:
     """(h, w) the intrinsics are for, (h, w) of the spikes and what gives the first: the camera's
-    w, h, else the first sharp test image's size; each of height, width from spikegs.json, else the
-    first's."""
+    w, h, else the first sharp test image's size (`images`), else the first training image's
+    (`training`: read as needed); each of height, width from spikegs.json, else the first's."""
     shapes = [im.shape[:2] for im in images if im is not None]
     stated, what = stated_size(path, camera, "the first sharp image")
+    if not (stated or shapes):  # (a focal in pixels is for the frames' images, test or not)
+        found = (im for im in training if im is not None)
+        shapes = [im.shape[:2] for im in itertools.islice(found, 1)]
     src = stated or (shapes[0] if shapes else None)
     height = options.height or (src and src[0])
     width = options.width or (src and src[1])
@@ -195,7 +203,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{source}: spike file of frame '{frame['file_path']}' not found ({where})"
                 + (", and no sharp image either" if is_test else "")
             )
-    src, (height, width), what = _sizes(path, camera, images, options)
+    training = (_image(root, f) for f, is_test in zip(frames, test) if not is_test)
+    src, (height, width), what = _sizes(path, camera, images, training, options)
     row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
         path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
     )
@@ -203,18 +212,20 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     center, radius = view_sphere(
         viewmats, path, fix, center=options.scene_center, radius=options.scene_radius
     )
-    # [H, W, 1] intensity or None; a training frame's image (read one at a time) only calibrates
-    # the intensity scale, when spikegs.json gives none
-    calibrate = options.rate_at_one is None
+    # [H, W, 1] intensity or None; a training frame's image (read one at a time) calibrates the
+    # intensity scale where spikegs.json gives none, and checks the spikes' orientation: the first
+    # ORIENTATION_VIEWS training frames' where it gives one (the check was skipped then)
+    training = np.cumsum(~np.asarray(test, dtype=bool))  # [F] training frames up to each
+    read = training <= (len(frames) if options.rate_at_one is None else ORIENTATION_VIEWS)
     images = [
         _mono(
-            image if is_test else _image(root, frame) if calibrate else None,
+            image if is_test else _image(root, frame) if reads else None,
             src,
             (height, row),
             slice(shift, shift + width),
             f"{root / frame['file_path']}",
         )
-        for frame, image, is_test in zip(frames, images, test)
+        for frame, image, is_test, reads in zip(frames, images, test, read)
     ]
     K = camera_matrix(path, camera, src, (height, row), shift)
     sphere = scene_sphere(options, center, radius)

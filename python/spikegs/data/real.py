@@ -216,6 +216,7 @@ def rate_from_images(views: list[tuple[np.ndarray, np.ndarray]], source: str) ->
 
 
 FLIP_MARGIN = 0.2  # correlation by which the other orientation must match better, to warn
+ORIENTATION_VIEWS = 8  # training views' sharp images read for the check where none calibrates
 MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images under this is warned
 # of (0.99 for a well-read view; 0.25 for a .dat packed most significant bit first)
 

@@ -26,13 +26,14 @@ IMAGE_EXTENSIONS = (
 )  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
-CAMERA_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+CAMERA_KEYS = ("camera_angle_x", "camera_angle_y", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 # nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
 # others (fisheye, equirectangular, ...) a pinhole rasterizer cannot render
 PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "FULL_OPENCV", "SIMPLE_RADIAL", "RADIAL")
 CAMERA_RANGES = {  # key: (in range, what is expected)
     "camera_angle_x": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
+    "camera_angle_y": (lambda v: 0 < v < math.pi, "in (0, pi) radians"),
     "fl_x": (lambda v: v > 0, "> 0 (pixels)"),
     "fl_y": (lambda v: v > 0, "> 0 (pixels)"),
     "w": (lambda v: v > 0 and v.is_integer(), "a positive integer (pixels)"),
@@ -261,8 +262,9 @@ def camera_matrix(
     path: Path, camera: dict, src: tuple, size: tuple, shift: float = 0
 ) -> np.ndarray:
     """K [3, 3] of a transforms file's `camera` (`read_camera`'s keys: fl_x, fl_y, cx, cy, or
-    camera_angle_x) for images of `src` (h, w), scaled to `size` (h, w) and moved `shift` columns
-    left (a crop, `frame_columns`); cx, cy default to the image centre."""
+    camera_angle_x and camera_angle_y as instant-ngp writes them) for images of `src` (h, w),
+    scaled to `size` (h, w) and moved `shift` columns left (a crop, `frame_columns`); cx, cy
+    default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, camera.get(key, default))  # noqa: E731
     from_angle = None  # the focal (px) of camera_angle_x at the images' width
@@ -277,8 +279,10 @@ def camera_matrix(
                 f"width {src_w:g}) disagree; fl_x is used",
                 stacklevel=2,
             )
-    elif from_angle is not None:
+    elif from_angle is not None:  # camera_angle_y, where given, sets the focal in y
         fx = fy = from_angle
+        if "camera_angle_y" in camera:
+            fy = src_h / 2 / np.tan(get("camera_angle_y", None) / 2)
     else:
         raise ValueError(
             f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
