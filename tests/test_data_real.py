@@ -561,11 +561,10 @@ def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
     (root / "train" / "r_4.exr").write_bytes(b"not an image")
     with pytest.raises(ValueError, match="cannot read .*r_4.exr"):  # not taken for absent
         load_dataset(root)
-    write_options(root, rate_at_one=0.2)  # a calibration given wins; the first 8 training
-    with pytest.raises(ValueError, match="cannot read .*r_4.exr"):  # images check the flip
-        load_dataset(root)
-    write_image(root / "train" / "r_4.exr", source.render(viewmats[4]))
-    assert load_dataset(root).meta["rate_at_one"] == 0.2
+    write_options(root, rate_at_one=0.2)  # a calibration given wins; the images then only
+    assert load_dataset(root).meta["rate_at_one"] == 0.2  # check the flip: one unreadable, or
+    write_image(root / "train" / "r_4.exr", np.zeros((H, H, 1), np.float32))  # of another
+    assert load_dataset(root).meta["rate_at_one"] == 0.2  # aspect, is left out of it
     (root / "spike_data" / "train" / "r_3.dat").unlink()  # a training frame needs its spikes,
     with pytest.raises(FileNotFoundError, match="r_3.dat"):  # whether or not it has an image
         load_dataset(root)
@@ -1157,13 +1156,24 @@ def test_nerf_focal_given_once_or_twice(sim, nerf, tmp_path):
 
 
 def test_nerf_camera_angle_y_gives_the_focal_in_y(sim, nerf, tmp_path):
-    """instant-ngp writes camera_angle_y beside camera_angle_x: it was ignored (fy = fx, unsaid)."""
+    """instant-ngp writes camera_angle_y beside camera_angle_x: it was ignored (fy = fx, unsaid).
+    Non-square pixels are warned of (Blender's angle_y follows its sensor, not the render), as is
+    an angle beside a focal in pixels that disagrees with it; an angle in degrees is named."""
     root = copy(nerf, tmp_path)
     fy = 1.1 * float(sim.K[1, 1])
     for part in ("transforms_train.json", "transforms_test.json"):
         edit_json(root / part, lambda doc: doc.update(camera_angle_y=2 * math.atan(H / 2 / fy)))
-    K = load_dataset(root).K
+    with pytest.warns(UserWarning, match="non-square pixels, taken as given"):
+        K = load_dataset(root).K
     assert K[1, 1] == pytest.approx(fy) and K[0, 0] == pytest.approx(sim.K[0, 0])
+    for part in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / part, lambda doc: doc.update(fl_x=float(sim.K[0, 0])))
+    with pytest.warns(UserWarning, match="fl_y .* and camera_angle_y .* disagree; fl_y is used"):
+        assert load_dataset(root).K[1, 1] == pytest.approx(sim.K[1, 1])
+    for part in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / part, lambda doc: doc.update(camera_angle_y=38.2))
+    with pytest.raises(ValueError, match="camera_angle_y .* \\(38.2 degrees would be 0.66"):
+        load_dataset(root)
 
 
 CAMERA_ENTRIES = {"fl_x": (0, 0), "fl_y": (1, 1), "cx": (0, 2), "cy": (1, 2)}  # K's entry of each
@@ -1185,6 +1195,17 @@ def test_nerf_focal_in_pixels_of_the_training_images(sim, nerf, tmp_path):
         edit_json(root / part, lambda doc: doc.update(camera))
     write_options(root, height=H, width=W)
     np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
+
+    def angle_only(doc):  # a focal as an angle needs no image size
+        for key in CAMERA_ENTRIES:
+            doc.pop(key)
+        doc["camera_angle_x"] = float(2 * np.arctan(W / 2 / sim.K[0, 0]))
+
+    for part in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / part, angle_only)
+    write_image(root / "train" / "r_2.exr", np.ones((2 * H, 3 * W, 1), np.float32))
+    write_options(root, height=H, width=W, rate_at_one=0.25)  # (no image calibrates)
+    np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)  # (that one was the size)
 
 
 def test_nerf_matrix_of_text_refused(nerf, tmp_path):

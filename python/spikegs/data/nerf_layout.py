@@ -2,17 +2,19 @@
 
 DIR/transforms_train.json + transforms_test.json, or DIR/transforms.json or transforms_train.json
     alone (every 8th frame, or spikegs.json's test_views, held out)
-    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x (radians), in the file or per frame
-    (nerfstudio: a frame's keys override the file's; every frame must give the same camera, at the
-    spikes' aspect ratio; distortion k1..k4, p1, p2 is not modelled: a warning if non-zero); frames
-    with file_path and transform_matrix (camera-to-world, OpenGL unless "convention": "opencv"),
-    converging on the scene unless spikegs.json gives scene_center and scene_radius
+    intrinsics fl_x, fl_y, cx, cy, w, h or camera_angle_x (and _y; radians), in the file or per
+    frame (nerfstudio: a frame's keys override the file's; every frame must give the same camera,
+    at the spikes' aspect ratio; distortion k1..k4, p1, p2 is not modelled: a warning if
+    non-zero); frames with file_path and transform_matrix (camera-to-world, OpenGL unless
+    "convention": "opencv"), converging on the scene unless spikegs.json gives scene_center and
+    scene_radius
 DIR/spike_data/...  a frame's spikes: its "spike_path" (relative to DIR) if it has one, else
     spike_data/<file_path without extension>.dat, else spike_data/<file name stem>.dat; an
     absolute file_path counts relative to DIR if it is inside DIR, else by its file name
 DIR/<file_path>     optional sharp image (extension optional): a test frame's ground truth; a
-    training frame's calibrates the intensity scale when spikegs.json gives no rate_at_one, and
-    checks the spikes' orientation (flip)
+    training frame's calibrates the intensity scale when spikegs.json gives no rate_at_one,
+    checks the spikes' orientation (flip) and, where no test frame has one, sizes intrinsics in
+    pixels given without w, h
 DIR/spikegs.json    loader options (real_options.py), all optional
 
 A test frame needs its spikes or its image; one with no image gets a pseudo ground truth (real.py).
@@ -109,16 +111,28 @@ def _image(root: Path, frame: dict) -> np.ndarray | None:
         return None
 
 
+def _readable(root: Path, frame: dict) -> np.ndarray | None:
+    """`_image`, or None where the file cannot be read: for a training image only checked."""
+    try:
+        return _image(root, frame)
+    except ValueError:
+        return None
+
+
+PIXEL_KEYS = ("fl_x", "fl_y", "cx", "cy")  # intrinsics in the pixels of the frames' images
+
+
 def _sizes(
     path: Path, camera: dict, images: list, training: Iterator, options: Options
 ) -> tuple[tuple, tuple, str]:
     """(h, w) the intrinsics are for, (h, w) of the spikes and what gives the first: the camera's
-    w, h, else the first sharp test image's size (`images`), else the first training image's
-    (`training`: read as needed); each of height, width from spikegs.json, else the first's."""
+    w, h, else the first sharp test image's size (`images`), else, for intrinsics in pixels, the
+    first readable training image's (`training`, read as needed); each of height, width from
+    spikegs.json, else the first's."""
     shapes = [im.shape[:2] for im in images if im is not None]
     stated, what = stated_size(path, camera, "the first sharp image")
-    if not (stated or shapes):  # (a focal in pixels is for the frames' images, test or not)
-        found = (im for im in training if im is not None)
+    if not (stated or shapes) and any(k in camera for k in PIXEL_KEYS):  # (an angle's focal
+        found = (im for im in training if im is not None)  # scales with the spikes' width)
         shapes = [im.shape[:2] for im in itertools.islice(found, 1)]
     src = stated or (shapes[0] if shapes else None)
     height = options.height or (src and src[0])
@@ -203,7 +217,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{source}: spike file of frame '{frame['file_path']}' not found ({where})"
                 + (", and no sharp image either" if is_test else "")
             )
-    training = (_image(root, f) for f, is_test in zip(frames, test) if not is_test)
+    training = (_readable(root, f) for f, is_test in zip(frames, test) if not is_test)
     src, (height, width), what = _sizes(path, camera, images, training, options)
     row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
         path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
@@ -214,18 +228,26 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     )
     # [H, W, 1] intensity or None; a training frame's image (read one at a time) calibrates the
     # intensity scale where spikegs.json gives none, and checks the spikes' orientation: the first
-    # ORIENTATION_VIEWS training frames' where it gives one (the check was skipped then)
-    training = np.cumsum(~np.asarray(test, dtype=bool))  # [F] training frames up to each
-    read = training <= (len(frames) if options.rate_at_one is None else ORIENTATION_VIEWS)
+    # ORIENTATION_VIEWS training frames' where it gives one (the check was skipped then), those
+    # that cannot be read or fitted left out (nothing else needs them)
+    calibrate = options.rate_at_one is None
+    checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
+
+    def mono(image: np.ndarray | None, frame: dict) -> np.ndarray | None:
+        name = f"{root / frame['file_path']}"
+        return _mono(image, src, (height, row), slice(shift, shift + width), name)
+
+    def training_image(frame: dict, check: bool) -> np.ndarray | None:
+        if calibrate:
+            return mono(_image(root, frame), frame)
+        try:
+            return mono(_readable(root, frame), frame) if check else None
+        except ValueError:  # (another aspect ratio)
+            return None
+
     images = [
-        _mono(
-            image if is_test else _image(root, frame) if reads else None,
-            src,
-            (height, row),
-            slice(shift, shift + width),
-            f"{root / frame['file_path']}",
-        )
-        for frame, image, is_test, reads in zip(frames, images, test, read)
+        mono(image, frame) if is_test else training_image(frame, check)
+        for frame, image, is_test, check in zip(frames, images, test, checked)
     ]
     K = camera_matrix(path, camera, src, (height, row), shift)
     sphere = scene_sphere(options, center, radius)

@@ -146,13 +146,13 @@ def read_transforms(path: Path, width: int, height: int, channels: int, backgrou
 
 def camera_number(path: Path, key: str, value) -> float:
     """A transforms file's camera value as a finite float, in CAMERA_RANGES for its key;
-    ValueError naming `key` otherwise (camera_angle_x over pi: degrees, not radians?)."""
+    ValueError naming `key` otherwise (a camera angle over pi: degrees, not radians?)."""
     number = float(value) if is_number(value) else math.nan  # "0.4" is text, true no number
     if not math.isfinite(number):
         raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
     in_range, expected = CAMERA_RANGES.get(key, (lambda v: True, ""))
     if not in_range(number):
-        degrees = key == "camera_angle_x" and number >= math.pi
+        degrees = key.startswith("camera_angle") and number >= math.pi
         hint = f" ({number:g} degrees would be {math.radians(number):.6g})" if degrees else ""
         raise ValueError(f"{path}: {key} expected {expected}, found {value!r}{hint}")
     return number
@@ -267,22 +267,33 @@ def camera_matrix(
     default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, camera.get(key, default))  # noqa: E731
-    from_angle = None  # the focal (px) of camera_angle_x at the images' width
-    if "camera_angle_x" in camera:
-        from_angle = src_w / 2 / np.tan(get("camera_angle_x", None) / 2)
+    angles = {  # axis: the focal (px) of camera_angle_<axis> at the images' width or height
+        axis: half / np.tan(get(f"camera_angle_{axis}", None) / 2)
+        for axis, half in (("x", src_w / 2), ("y", src_h / 2))
+        if f"camera_angle_{axis}" in camera
+    }
     if "fl_x" in camera or "fl_y" in camera:  # one focal given: square pixels
         fx = get("fl_x", camera.get("fl_y"))
         fy = get("fl_y", fx)
-        if from_angle is not None and abs(from_angle - fx) > 0.01 * fx:
+        for axis, focal in (("x", fx), ("y", fy)):
+            if axis in angles and abs(angles[axis] - focal) > 0.01 * focal:
+                warnings.warn(
+                    f"{path}: fl_{axis} {focal:g} and camera_angle_{axis} (a focal of "
+                    f"{angles[axis]:.6g} px at {src_w if axis == 'x' else src_h:g} pixels) "
+                    f"disagree; fl_{axis} is used",
+                    stacklevel=2,
+                )
+    elif "x" in angles:  # camera_angle_y (instant-ngp's), where given, the focal in y
+        fx = fy = angles["x"]
+        if "y" in angles and abs(angles["y"] - fx) > 0.01 * fx:
             warnings.warn(
-                f"{path}: fl_x {fx:g} and camera_angle_x (a focal of {from_angle:.6g} px at "
-                f"width {src_w:g}) disagree; fl_x is used",
+                f"{path}: camera_angle_x and camera_angle_y give focals of {fx:.6g} and "
+                f"{angles['y']:.6g} px: non-square pixels, taken as given (Blender's angle_y "
+                f"follows its sensor's height whatever the render's aspect: where it came from "
+                f"there, remove camera_angle_y)",
                 stacklevel=2,
             )
-    elif from_angle is not None:  # camera_angle_y, where given, sets the focal in y
-        fx = fy = from_angle
-        if "camera_angle_y" in camera:
-            fy = src_h / 2 / np.tan(get("camera_angle_y", None) / 2)
+        fy = angles.get("y", fx)
     else:
         raise ValueError(
             f"{path}: intrinsics expected (camera_angle_x, or fl_x/fl_y/cx/cy, in the file or "
