@@ -330,6 +330,19 @@ def test_core_index_arrays_that_cannot_be_converted_raise_the_conversions_error(
             kernel(data, layout, too_many, 3)
 
 
+def test_core_kernels_check_indices_before_allocating_their_output():
+    """A batch of bad indices too large to allocate the output for (2^20 of 1024x1024 frames: 4
+    TiB) raised MemoryError; the indices are checked first and named."""
+    s = SpikeStream.from_packed(np.zeros((20, 1024, 128), np.uint8), 1024, 1024)
+    data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(1024, 1024)
+    bad = np.full(2**20, 50, np.int64)
+    for kernel in (_C.spike_counts, _C.spike_tfp):
+        with pytest.raises(ValueError, match=r"3 readouts from 50 expected within .*\[0, 20\)"):
+            kernel(data, layout, bad, 3)
+    with pytest.raises(ValueError, match=r"TFI readout expected in \[0, 20\), found 50"):
+        _C.spike_tfi(data, layout, bad)
+
+
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):
     """col_offset + width and height * row_bits wrapped around int64: uninitialised TFPs, a
     segfault in window(), a division by zero in DatWriter."""

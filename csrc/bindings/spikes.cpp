@@ -37,9 +37,14 @@ PackedStream stream_of(const Bytes& data, const SpikeLayout& layout) {
 
 // out [B, H, W] of T from kernel(stream, idx, B, out), run without the GIL. `indices`: integers
 // only (an array or a list): a cast truncated floats (0.7 read readout 0) and read booleans.
-template <typename T, typename Kernel>
+// window_counts' checks, as per_index's `check`
+auto windows_checked(int64_t w) {
+  return [w](const PackedStream& s, const int64_t* k, int64_t B) { check_windows(s, k, B, w); };
+}
+
+template <typename T, typename Check, typename Kernel>
 py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py::object& given,
-                         const char* what, Kernel&& kernel) {
+                         const char* what, Check&& check, Kernel&& kernel) {
   const PackedStream s = stream_of(data, layout);
   const py::array indices = py::array::ensure(given);
   if (!indices) throw py::type_error(std::string(what) + " expected an array of integers");
@@ -59,6 +64,7 @@ py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py:
   if (idx.ndim() != 1)
     throw std::invalid_argument(std::string(what) + " expected 1-D, found shape " + shape_of(idx));
   const int64_t B = idx.shape(0);
+  check(s, idx.data(), B);  // before allocating: a batch of bad indices is told so, not MemoryError
   py::array_t<T> out({B, layout.height, layout.width});
   const int64_t* k = idx.data();
   T* o = out.mutable_data();
@@ -160,7 +166,7 @@ void bind_spikes(py::module_& m) {
   m.def(
       "spike_counts",
       [](const Bytes& data, const SpikeLayout& layout, const py::object& starts, int64_t w) {
-        return per_index<int32_t>(data, layout, starts, "starts",
+        return per_index<int32_t>(data, layout, starts, "starts", windows_checked(w),
                                   [w](const PackedStream& s, const int64_t* k, int64_t B,
                                       int32_t* o) { window_counts<int32_t>(s, k, B, w, o); });
       },
@@ -169,7 +175,7 @@ void bind_spikes(py::module_& m) {
   m.def(
       "spike_tfp",
       [](const Bytes& data, const SpikeLayout& layout, const py::object& starts, int64_t w) {
-        return per_index<float>(data, layout, starts, "starts",
+        return per_index<float>(data, layout, starts, "starts", windows_checked(w),
                                 [w](const PackedStream& s, const int64_t* k, int64_t B, float* o) {
                                   window_counts<float>(s, k, B, w, o);
                                 });
@@ -179,9 +185,14 @@ void bind_spikes(py::module_& m) {
   m.def(
       "spike_tfi",
       [](const Bytes& data, const SpikeLayout& layout, const py::object& ks, int64_t max_interval) {
-        return per_index<float>(data, layout, ks, "readouts",
-                                [max_interval](const PackedStream& s, const int64_t* k, int64_t B,
-                                               float* o) { tfi(s, k, B, max_interval, o); });
+        return per_index<float>(
+            data, layout, ks, "readouts",
+            [max_interval](const PackedStream& s, const int64_t* k, int64_t B) {
+              check_tfi(s, k, B, max_interval);
+            },
+            [max_interval](const PackedStream& s, const int64_t* k, int64_t B, float* o) {
+              tfi(s, k, B, max_interval, o);
+            });
       },
       py::arg("data"), py::arg("layout"), py::arg("ks"),
       py::arg("max_interval") = kTfiDefaultMaxInterval,

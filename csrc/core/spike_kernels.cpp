@@ -159,10 +159,14 @@ void nearest_spike(const PackedStream& s, const Chunk& c, const uint64_t* valid,
 
 }  // namespace
 
-template <typename Out>
-void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out) {
+void check_windows(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w) {
   if (w < 1 || w > kMaxWindow) fail("window length expected in [1, ", kMaxWindow, "], found ", w);
   for (int64_t i = 0; i < num; ++i) check_range(s, starts[i], w);
+}
+
+template <typename Out>
+void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out) {
+  check_windows(s, starts, num, w);
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width;
   const double inv_w = 1.0 / double(w);
@@ -191,12 +195,16 @@ template void window_counts<int32_t>(const PackedStream&, const int64_t*, int64_
                                      int32_t*);
 template void window_counts<float>(const PackedStream&, const int64_t*, int64_t, int64_t, float*);
 
-void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out) {
+void check_tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval) {
   if (max_interval < 1 || max_interval > kTfiMaxInterval)
     fail("max_interval expected in [1, ", kTfiMaxInterval, "], found ", max_interval);
   for (int64_t i = 0; i < num; ++i)
     if (ks[i] < 0 || ks[i] >= s.num_frames)
       fail("TFI readout expected in [0, ", s.num_frames, "), found ", ks[i]);
+}
+
+void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out) {
+  check_tfi(s, ks, num, max_interval);
   const SpikeLayout& l = s.layout;
   const int64_t chunks = num_chunks(l), hw = l.height * l.width, M = max_interval;
 #pragma omp parallel for schedule(dynamic, 4)

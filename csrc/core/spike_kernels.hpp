@@ -37,8 +37,12 @@ constexpr int64_t kMaxWindow = INT32_MAX;  // window_counts' bound on w: it coun
 // (std::invalid_argument otherwise).
 template <typename Out>
 void window_counts(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w, Out* out);
+// window_counts' checks of its arguments alone (a caller may check before allocating `out`)
+void check_windows(const PackedStream& s, const int64_t* starts, int64_t num, int64_t w);
 
 // out [num, H, W] = TFI at readouts ks[i] (each in [0, T)), defined above.
 void tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval, float* out);
+// tfi's checks of its arguments alone
+void check_tfi(const PackedStream& s, const int64_t* ks, int64_t num, int64_t max_interval);
 
 }  // namespace spikegs
