@@ -24,6 +24,7 @@ def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
         assert row["non_finite"] == "none", row["case"]
         assert row["zero_grad"] in ("yes", "-"), row["case"]
         assert row["image_err"] < stiff.FLOAT_ERROR_BOUND, row["case"]
+        assert row["ref_err"] < stiff.REFERENCE_ERROR_BOUND and row["ref_culls"] == "same"
     machine = json.loads((tmp_path / "stiff.json").read_text())["machine"]
     assert machine["build"]["cpu_features"] == " ".join(_C.compiled_cpu_features)  # its build
 
@@ -39,6 +40,22 @@ def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):
     capsys.readouterr()
     assert main(["bench", "stiff", "--out", str(tmp_path / "tight")]) == 1
     assert "FAILED bench stiff: needles 0.2 x 1e2..1e4 px: rel_means " in capsys.readouterr().err
+
+
+def test_a_core_wrong_in_both_precisions_fails_bench_stiff(tmp_path, monkeypatch):
+    """bench stiff compared the core's float32 with its own float64: a core that drew nothing, or
+    half the image, in both passed every check (a helper's mutations). The float64 reference
+    shows it."""
+    core = stiff.rasterize
+
+    def halved(*args, **kwargs):
+        out = core(*args, **kwargs)
+        return out._replace(image=0.5 * out.image)
+
+    monkeypatch.setattr(stiff, "rasterize", halved)
+    failures = stiff.run(quick=True, out=tmp_path)["failures"]
+    assert len(failures) == len(stiff.CASES)  # every case (the empty one: its background)
+    assert "scales 1e-6..1e3: ref_err 0.501 > 1e-06" in failures
 
 
 def test_bench_sim_draws_its_bar_only_on_a_terminal_and_never_with_no_progress(

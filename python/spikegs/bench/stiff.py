@@ -1,7 +1,9 @@
 """`spikegs bench stiff`: the rasterizer's stiff and extreme cases through `spikegs.rasterize`.
 
 The cases of cpp_tests/test_raster_stiff.cpp, rendered in float32 and float64 with a backward pass
-of a fixed random upstream gradient: per case, the largest |float32 − float64| of the image and
+of a fixed random upstream gradient: per case, the float64 core against the float64 pure-torch
+reference (`spikegs.reference`: an error common to both of the core's precisions shows there),
+the largest |float32 − float64| of the image and
 alpha, the relative error of each float32 gradient (max |g32 − g64| / max(max |g64|, 1)),
 whether any output or gradient is non-finite in either precision, and whether the Gaussians that
 must be culled (or are transparent or clamped) get exactly zero gradient.
@@ -16,6 +18,7 @@ from pathlib import Path
 
 import torch
 
+from .. import reference
 from ..rasterize import rasterize
 from ..text_table import print_table
 from .common import uniform, write_results
@@ -24,6 +27,8 @@ PER_GAUSSIAN = ("means", "quats", "scales", "opacities", "colors", "means2d")
 GRADS = (*PER_GAUSSIAN, "background", "viewmat")
 FLOAT_ERROR_BOUND = 1e-3  # |float32 - float64| of image and alpha the C++ tests assert
 GRAD_ERROR_BOUND = 1e-2  # rel_X of every gradient (the needles' 1.6e-4 the worst, 2026-11-30)
+REFERENCE_ERROR_BOUND = 1e-6  # float64 core against the float64 pure-torch reference (ref_err)
+TINY = 1e-300  # a gradient that is zero in both is no error
 NAN, INF = float("nan"), float("inf")
 
 
@@ -191,12 +196,12 @@ CASES = (
 )
 
 
-def forward_backward(case: Case, dtype: torch.dtype) -> tuple[dict, dict]:
+def forward_backward(case: Case, dtype: torch.dtype, op=None) -> tuple[dict, dict]:
     """Outputs (image, alpha, radii) and the gradients GRADS of (image, alpha) · (fixed random
-    upstream gradient), in `dtype`."""
+    upstream gradient), in `dtype`, through `op` (the pure-torch reference; None: the core)."""
     leaves = {k: v.to(dtype).requires_grad_(k != "K") for k, v in case.scene.items()}
     screen = torch.zeros(len(leaves["means"]), 2, dtype=dtype, requires_grad=True)
-    out = rasterize(
+    out = (op or rasterize)(
         *(leaves[k] for k in ("means", "quats", "scales", "opacities", "colors", "viewmat", "K")),
         case.width,
         case.height,
@@ -228,6 +233,10 @@ def measure(case: Case) -> dict:
     """One row of the table for `case`."""
     results = {dtype: forward_backward(case, dtype) for dtype in (torch.float32, torch.float64)}
     (out32, g32), (out64, g64) = results[torch.float32], results[torch.float64]
+    out_ref, g_ref = forward_backward(case, torch.float64, reference.rasterize)
+    # each gradient's error relative to its size, or to 1e-9 of the largest where it is smaller:
+    # one that vanishes analytically (an isotropic Gaussian's quaternion) holds rounding alone
+    floor = 1e-9 * max([_max_abs(g) for g in g_ref.values()] + [TINY])
     non_finite = [
         f"{str(dtype)[6:]} {kind}{name}"
         for dtype, (out, grads) in results.items()
@@ -246,6 +255,11 @@ def measure(case: Case) -> dict:
         "size": f"{case.width}x{case.height}",
         "visible": int((out64["radii"] > 0).sum()),
         "image_err": max(_max_abs(out32[k].double() - out64[k]) for k in ("image", "alpha")),
+        "ref_err": max(
+            [_max_abs(out64[k] - out_ref[k]) for k in ("image", "alpha")]
+            + [_max_abs(g64[k] - g_ref[k]) / max(_max_abs(g_ref[k]), floor) for k in GRADS]
+        ),
+        "ref_culls": "same" if torch.equal(out64["radii"] > 0, out_ref["radii"] > 0) else "NO",
     }
     row.update({f"rel_{name}": _relative_error(g32[name], g64[name]) for name in GRADS})
     row["non_finite"] = ", ".join(non_finite) or "none"
@@ -257,6 +271,10 @@ def failed_checks(row: dict) -> list[str]:
     """What a row of `measure` fails: float32 beyond the bounds of float64, a non-finite output
     or gradient, a culled, transparent or clamped Gaussian with a gradient."""
     problems = []
+    if row["ref_err"] > REFERENCE_ERROR_BOUND:
+        problems.append(f"ref_err {row['ref_err']:.3g} > {REFERENCE_ERROR_BOUND:g}")
+    if row["ref_culls"] == "NO":
+        problems.append("ref_culls NO")
     if row["image_err"] > FLOAT_ERROR_BOUND:
         problems.append(f"image_err {row['image_err']:.3g} > {FLOAT_ERROR_BOUND:g}")
     problems += [
@@ -282,6 +300,10 @@ def run(quick: bool, out: Path) -> dict:
         "loss": "sum(image * g) + sum(alpha * h), g, h ~ N(0, 1) fixed (seed 7)",
         "columns": {
             "image_err": "max |float32 - float64| of image and alpha",
+            "ref_err": "the float64 core against the float64 pure-torch reference: max |diff| of "
+            "image and alpha, max |diff| / max |reference| of each gradient (at least 1e-9 of the "
+            "largest gradient's)",
+            "ref_culls": "the core and the reference cull the same Gaussians",
             "rel_X": "max |grad32 - grad64| / max(max |grad64|, 1) of gradient X "
             "(means2d: the screen points)",
             "non_finite": "outputs or gradients with a non-finite value, in either precision",
@@ -289,6 +311,7 @@ def run(quick: bool, out: Path) -> dict:
         },
         "float_error_bound": FLOAT_ERROR_BOUND,
         "grad_error_bound": GRAD_ERROR_BOUND,
+        "reference_error_bound": REFERENCE_ERROR_BOUND,
         "load_average": os.getloadavg(),
         "cases": rows,
         "failures": failures,  # `spikegs bench` exits 1 where there are any
