@@ -25,8 +25,10 @@ def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
         assert row["zero_grad"] in ("yes", "-"), row["case"]
         assert row["image_err"] < stiff.FLOAT_ERROR_BOUND, row["case"]
         assert row["ref_err"] < stiff.REFERENCE_ERROR_BOUND and row["ref_culls"] == "same"
-    machine = json.loads((tmp_path / "stiff.json").read_text())["machine"]
+    written = json.loads((tmp_path / "stiff.json").read_text())
+    machine = written["machine"]
     assert machine["build"]["cpu_features"] == " ".join(_C.compiled_cpu_features)  # its build
+    assert len(written["load_average"]) == 3  # every bench's (spikes, sim, poses had none)
 
 
 def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):

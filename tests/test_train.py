@@ -452,6 +452,8 @@ def test_train_json_names_what_trained_the_run_from_which_iteration(
         monkeypatch.undo()
     here = environment()
     assert here["build"]["source"] == _C.build["source"] and here["torch_threads"] >= 1
+    assert here["core_threads"] == _C.max_threads() >= 1  # the core's, not torch's, runtime
+    assert here["omp_num_threads"] == os.environ.get("OMP_NUM_THREADS")
     elsewhere = {**here, "torch_threads": here["torch_threads"] + 1}
     monkeypatch.setattr(train_module, "environment", lambda: elsewhere)
     Trainer(dataset, config, run, progress=False).train(resume=True)

@@ -20,6 +20,8 @@ PYBIND11_MODULE(_C, m) {
       },
       pybind11::arg("n"),
       "Team size of the calling thread's next parallel regions in the core (n >= 1)");
+  m.def("max_threads", &spikegs::max_threads,
+        "Team size of the calling thread's next parallel regions in the core (1 without OpenMP)");
   // the build a run's record names (CMakeLists.txt): its source, compiler, options and threads
   pybind11::dict build;
   build["source"] = SPIKEGS_SOURCE;

@@ -5,6 +5,7 @@ does, so two records that differ here explain scores that differ in the last dec
 
 from __future__ import annotations
 
+import os
 import platform
 from typing import Any
 
@@ -23,10 +24,35 @@ def cpu_model() -> str:
     return platform.processor() or "unknown"
 
 
+def cpu_identity() -> dict[str, Any]:
+    """The CPU's family, model and stepping (x86 /proc/cpuinfo: a virtual machine's model name
+    may be a vendor's word alone) and whether it computes bfloat16 natively (SIM's bf16
+    inference); {} where /proc/cpuinfo does not say."""
+    fields = {}
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if not key.strip():  # the first CPU's block ends
+                    break
+                fields.setdefault(key.strip(), value.strip())
+    except OSError:
+        return {}
+    if "cpu family" not in fields:
+        return {}
+    flags = fields.get("flags", "").split()
+    return {
+        "cpu_id": f"family {fields['cpu family']} model {fields.get('model', '?')} stepping "
+        f"{fields.get('stepping', '?')}",
+        "native_bf16": "avx512_bf16" in flags or "amx_bf16" in flags,
+    }
+
+
 def environment() -> dict[str, Any]:
     """The record: spikegs's version, the source and options its core was built from
     (`spikegs._C.build`: the git commit at the build's configuration, "-dirty" with changes not
-    committed), the extensions it was compiled for, library versions, the CPU and threads."""
+    committed), the extensions it was compiled for, library versions, the CPU and threads (torch's
+    and the core's as this thread starts them)."""
     import numpy
     import torch
 
@@ -43,7 +69,10 @@ def environment() -> dict[str, Any]:
         "torch": str(torch.__version__),  # (a TorchVersion, which a checkpoint cannot hold)
         "numpy": numpy.__version__,
         "cpu": cpu_model(),
+        **cpu_identity(),
         "cores": usable_cpus(),
         "cpu_quota": cpu_quota(),  # CPUs' worth of time (a container's --cpus), or None
         "torch_threads": torch.get_num_threads(),
+        "core_threads": _C.max_threads() if hasattr(_C, "max_threads") else None,
+        "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),  # as the user set it, or None
     }

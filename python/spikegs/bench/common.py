@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -36,6 +37,8 @@ def write_results(out_dir: Path, name: str, results: dict[str, Any]) -> Path:
     """Write `results` (plus the machine description) to `out_dir/name.json`."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.json"
-    payload = {"benchmark": name, "machine": environment(), **results}
+    # the load at the end, the bench's own threads included (a snapshot, where a bench has none)
+    payload = {"benchmark": name, "machine": environment(), "load_average": os.getloadavg()}
+    payload.update(results)
     write_text_atomically(path, strict_json.dumps(payload, indent=2))
     return path

@@ -13,7 +13,6 @@ allocator that already holds memory from earlier runs shows no growth.
 from __future__ import annotations
 
 import contextlib
-import os
 import subprocess
 import sys
 import time
@@ -23,7 +22,7 @@ from typing import Any
 
 import torch
 
-from .. import reference
+from .. import _C, reference
 from ..atomic_save import save_figure
 from ..cpu_quota import usable_cpus
 from ..rasterize import rasterize
@@ -239,16 +238,21 @@ def run(quick: bool, out: Path) -> dict:
                 print(f"  N={n} {width}x{height} C={channels}: {rows[-1]['fwd_bwd_ms']:.1f} ms")
     columns = [c for c in dict.fromkeys(k for row in rows for k in row) if c != "pairs_source"]
     print_table(rows, columns)
+    print(
+        f"speedup_*: the core on {_C.max_threads()} thread(s), median of {repeats} after a "
+        f"warm-up, against the pure-torch reference on {REFERENCE_THREADS} thread, timed once"
+    )
     results = {
         "scene": "means uniform in a unit cube 2 units in front, fx = fy = 256, cx, cy = centre, "
         "identity viewmat, scales U[0.01, 0.05], unit quaternions, opacities U[0.05, 0.95], "
         "direct colours U[0, 1]; float32 (errors against the float64 core)",
         "loss": LOSS,
         "alternative": "spikegs.reference.rasterize (pure torch, autograd), timed once, "
-        f"{REFERENCE_THREADS} torch thread(s)",
+        f"{REFERENCE_THREADS} torch thread(s), against the core on its threads (machine's "
+        "core_threads), a median of repeats after a warm-up: speed-ups per process, not per "
+        "thread",
         "peak_memory": "one forward+backward in a fresh process: VmHWM after "
         "`5 > /proc/self/clear_refs`, minus VmRSS before (MiB)",
-        "load_average": os.getloadavg(),
         "repeats": repeats,
         "rows": rows,
     }

@@ -67,7 +67,7 @@ def _bench_tfp(stream: SpikeStream, frames: np.ndarray, w: int, count: int, np_c
     ks = np.sort(rng.integers(w // 2, len(stream) - w + w // 2 + 1, count))
     frame_bytes = stream.layout.frame_bytes
     t_ours = median_seconds(lambda: _ours(stream, ks, w), repeats=3)
-    t_np = median_seconds(lambda: _numpy(frames, ks[:np_count], w), repeats=1, warmup=0)
+    t_np = median_seconds(lambda: _numpy(frames, ks[:np_count], w), repeats=3, warmup=0)
     check = ks[:8]
     err = max(
         float(np.abs(stream.tfp(int(k), w) - _numpy_tfp(frames, int(k), w)).max()) for k in check

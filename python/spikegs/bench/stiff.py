@@ -11,7 +11,6 @@ must be culled (or are transparent or clamped) get exactly zero gradient.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -312,7 +311,6 @@ def run(quick: bool, out: Path) -> dict:
         "float_error_bound": FLOAT_ERROR_BOUND,
         "grad_error_bound": GRAD_ERROR_BOUND,
         "reference_error_bound": REFERENCE_ERROR_BOUND,
-        "load_average": os.getloadavg(),
         "cases": rows,
         "failures": failures,  # `spikegs bench` exits 1 where there are any
     }

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import copy
 import math
-import os
 import shutil
 import time
 from collections.abc import Sequence
@@ -347,7 +346,6 @@ def run(
         "scikit-image's (7x7 uniform window), ssim_3dgs: 3DGS's evaluation's (11x11 Gaussian, "
         "the final scores only)",
         "total_seconds": time.perf_counter() - start,
-        "load_average": os.getloadavg(),
         "scenes": results,
     }
     write_results(out, "train", payload)
