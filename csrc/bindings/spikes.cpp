@@ -35,13 +35,14 @@ PackedStream stream_of(const Bytes& data, const SpikeLayout& layout) {
   return PackedStream::over(data.data(), int64_t(data.size()), layout);
 }
 
-// out [B, H, W] of T from kernel(stream, idx, B, out), run without the GIL. `indices`: integers
-// only (an array or a list): a cast truncated floats (0.7 read readout 0) and read booleans.
 // window_counts' checks, as per_index's `check`
 auto windows_checked(int64_t w) {
   return [w](const PackedStream& s, const int64_t* k, int64_t B) { check_windows(s, k, B, w); };
 }
 
+// out [B, H, W] of T from kernel(stream, idx, B, out), run without the GIL, after check(stream,
+// idx, B) (the kernel's own checks, before the output is allocated). `indices`: integers only (an
+// array or a list): a cast truncated floats (0.7 read readout 0) and read booleans.
 template <typename T, typename Check, typename Kernel>
 py::array_t<T> per_index(const Bytes& data, const SpikeLayout& layout, const py::object& given,
                          const char* what, Check&& check, Kernel&& kernel) {

@@ -3,8 +3,8 @@
 The cases of cpp_tests/test_raster_stiff.cpp, rendered in float32 and float64 with a backward pass
 of a fixed random upstream gradient: per case, the float64 core against the float64 pure-torch
 reference (`spikegs.reference`: an error common to both of the core's precisions shows there),
-the largest |float32 − float64| of the image and
-alpha, the relative error of each float32 gradient (max |g32 − g64| / max(max |g64|, 1)),
+the largest |float32 − float64| of the image and alpha, the relative error of each float32
+gradient (max |g32 − g64| / max(max |g64|, 1)),
 whether any output or gradient is non-finite in either precision, and whether the Gaussians that
 must be culled (or are transparent or clamped) get exactly zero gradient.
 """
@@ -27,7 +27,7 @@ GRADS = (*PER_GAUSSIAN, "background", "viewmat")
 FLOAT_ERROR_BOUND = 1e-3  # |float32 - float64| of image and alpha the C++ tests assert
 GRAD_ERROR_BOUND = 1e-2  # rel_X of every gradient (the needles' 1.6e-4 the worst, 2026-11-30)
 REFERENCE_ERROR_BOUND = 1e-6  # float64 core against the float64 pure-torch reference (ref_err)
-TINY = 1e-300  # a gradient that is zero in both is no error
+TINY = 1e-300  # ref_err's floor where every gradient is zero (the empty scene)
 NAN, INF = float("nan"), float("inf")
 
 

@@ -26,6 +26,7 @@ IMAGE_EXTENSIONS = (
 )  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
+SIDES = {"x": "width", "y": "height"}  # the image side a camera angle spans
 CAMERA_KEYS = ("camera_angle_x", "camera_angle_y", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 # nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
@@ -279,7 +280,7 @@ def camera_matrix(
             if axis in angles and abs(angles[axis] - focal) > 0.01 * focal:
                 warnings.warn(
                     f"{path}: fl_{axis} {focal:g} and camera_angle_{axis} (a focal of "
-                    f"{angles[axis]:.6g} px at {src_w if axis == 'x' else src_h:g} pixels) "
+                    f"{angles[axis]:.6g} px at {SIDES[axis]} {src_w if axis == 'x' else src_h:g}) "
                     f"disagree; fl_{axis} is used",
                     stacklevel=2,
                 )
