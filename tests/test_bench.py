@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("spikegs._C")
 
 from spikegs import _C  # noqa: E402
-from spikegs.bench import sim, stiff, train  # noqa: E402
+from spikegs.bench import rasterizer, sim, stiff, train  # noqa: E402
 from spikegs.demo import DEMO_OVERRIDES  # noqa: E402
 from spikegs.sim import SIM  # noqa: E402
 
@@ -58,6 +58,21 @@ def test_a_core_wrong_in_both_precisions_fails_bench_stiff(tmp_path, monkeypatch
     failures = stiff.run(quick=True, out=tmp_path)["failures"]
     assert len(failures) == len(stiff.CASES)  # every case (the empty one: its background)
     assert "scales 1e-6..1e3: ref_err 0.501 > 1e-06" in failures
+
+
+def test_the_reference_rasterizer_is_timed_after_its_first_calls(monkeypatch):
+    """bench rasterizer timed the pure-torch reference's very first call, 15-20 % slower than
+    later ones (torch's first calls; a benchmark audit): a render of 10 Gaussians goes first."""
+    reference_rasterize, sizes = rasterizer.reference.rasterize, []
+
+    def recorded(means, *args, **kwargs):
+        sizes.append(len(means))
+        return reference_rasterize(means, *args, **kwargs)
+
+    monkeypatch.setattr(rasterizer.reference, "rasterize", recorded)
+    monkeypatch.setattr(rasterizer, "_peak_rss_mb", lambda *args: None)  # (a fresh process)
+    rasterizer.measure(100, 16, 16, 1, repeats=1)
+    assert sizes == [rasterizer.WARMUP_N, 100, 100]
 
 
 def test_bench_sim_draws_its_bar_only_on_a_terminal_and_never_with_no_progress(
