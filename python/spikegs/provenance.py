@@ -12,23 +12,9 @@ from typing import Any
 from .cpu_quota import cpu_quota, usable_cpus
 
 
-def cpu_model() -> str:
-    """The CPU's model name (/proc/cpuinfo), else the platform's word for it."""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def cpu_identity() -> dict[str, Any]:
-    """The CPU's family, model and stepping (x86 /proc/cpuinfo: a virtual machine's model name
-    may be a vendor's word alone) and whether it computes bfloat16 natively (SIM's bf16
-    inference); {} where /proc/cpuinfo does not say."""
-    fields = {}
+def _first_cpu() -> dict[str, str]:
+    """The first CPU's fields in /proc/cpuinfo ({} where there is none to read)."""
+    fields: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
             for line in f:
@@ -37,15 +23,24 @@ def cpu_identity() -> dict[str, Any]:
                     break
                 fields.setdefault(key.strip(), value.strip())
     except OSError:
-        return {}
-    if "cpu family" not in fields:
-        return {}
-    flags = fields.get("flags", "").split()
-    return {
-        "cpu_id": f"family {fields['cpu family']} model {fields.get('model', '?')} stepping "
-        f"{fields.get('stepping', '?')}",
-        "native_bf16": "avx512_bf16" in flags or "amx_bf16" in flags,
-    }
+        pass
+    return fields
+
+
+def cpu_record() -> dict[str, Any]:
+    """The CPU's model name (else the platform's word for it); on x86 its family, model and
+    stepping (a virtual machine's model name may be a vendor's word alone) and whether it
+    computes bfloat16 natively (SIM's bf16 inference)."""
+    fields = _first_cpu()
+    record: dict[str, Any] = {"cpu": fields.get("model name") or platform.processor() or "unknown"}
+    if "cpu family" in fields:
+        flags = fields.get("flags", "").split()
+        record["cpu_id"] = (
+            f"family {fields['cpu family']} model {fields.get('model', '?')} stepping "
+            f"{fields.get('stepping', '?')}"
+        )
+        record["native_bf16"] = "avx512_bf16" in flags or "amx_bf16" in flags
+    return record
 
 
 def environment() -> dict[str, Any]:
@@ -68,8 +63,7 @@ def environment() -> dict[str, Any]:
         "python": platform.python_version(),
         "torch": str(torch.__version__),  # (a TorchVersion, which a checkpoint cannot hold)
         "numpy": numpy.__version__,
-        "cpu": cpu_model(),
-        **cpu_identity(),
+        **cpu_record(),
         "cores": usable_cpus(),
         "cpu_quota": cpu_quota(),  # CPUs' worth of time (a container's --cpus), or None
         "torch_threads": torch.get_num_threads(),

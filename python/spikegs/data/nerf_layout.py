@@ -241,8 +241,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         if calibrate:
             return mono(_image(root, frame), frame)
         try:
-            return mono(_readable(root, frame), frame) if check else None
-        except ValueError:  # (another aspect ratio)
+            return mono(_image(root, frame), frame) if check else None
+        except ValueError:  # unreadable, or of another aspect ratio
             return None
 
     images = [

@@ -26,7 +26,6 @@ IMAGE_EXTENSIONS = (
 )  # tried in turn after an extensionless path
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
-SIDES = {"x": "width", "y": "height"}  # the image side a camera angle spans
 CAMERA_KEYS = ("camera_angle_x", "camera_angle_y", "fl_x", "fl_y", "cx", "cy", "w", "h")
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 # nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
@@ -268,9 +267,10 @@ def camera_matrix(
     default to the image centre."""
     (src_h, src_w), (height, width) = src, size
     get = lambda key, default: camera_number(path, key, camera.get(key, default))  # noqa: E731
+    sides = {"x": ("width", src_w), "y": ("height", src_h)}  # the image side an angle spans
     angles = {  # axis: the focal (px) of camera_angle_<axis> at the images' width or height
-        axis: half / np.tan(get(f"camera_angle_{axis}", None) / 2)
-        for axis, half in (("x", src_w / 2), ("y", src_h / 2))
+        axis: size / 2 / np.tan(get(f"camera_angle_{axis}", None) / 2)
+        for axis, (_, size) in sides.items()
         if f"camera_angle_{axis}" in camera
     }
     if "fl_x" in camera or "fl_y" in camera:  # one focal given: square pixels
@@ -280,7 +280,7 @@ def camera_matrix(
             if axis in angles and abs(angles[axis] - focal) > 0.01 * focal:
                 warnings.warn(
                     f"{path}: fl_{axis} {focal:g} and camera_angle_{axis} (a focal of "
-                    f"{angles[axis]:.6g} px at {SIDES[axis]} {src_w if axis == 'x' else src_h:g}) "
+                    f"{angles[axis]:.6g} px at {sides[axis][0]} {sides[axis][1]:g}) "
                     f"disagree; fl_{axis} is used",
                     stacklevel=2,
                 )
