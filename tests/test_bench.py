@@ -7,14 +7,16 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 pytest.importorskip("spikegs._C")
 
 from spikegs import _C  # noqa: E402
-from spikegs.bench import rasterizer, sim, stiff, train  # noqa: E402
+from spikegs.bench import rasterizer, sim, spikes, stiff, train  # noqa: E402
 from spikegs.demo import DEMO_OVERRIDES  # noqa: E402
 from spikegs.sim import SIM  # noqa: E402
+from spikegs.spikes import SimParams, simulate_spikes  # noqa: E402
 
 
 def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
@@ -29,6 +31,40 @@ def test_stiff_cases_are_finite_and_float32_is_close(tmp_path):
     machine = written["machine"]
     assert machine["build"]["cpu_features"] == " ".join(_C.compiled_cpu_features)  # its build
     assert len(written["load_average"]) == 3  # every bench's (spikes, sim, poses had none)
+
+
+@pytest.mark.parametrize("max_interval", [1, 3, 40, 1024])
+def test_bench_spikes_numpy_tfi_is_the_cores(tmp_path, max_interval):
+    """The TFI alternative `bench spikes` times and measures the core against: sparse spikes (a
+    pixel's nearest several chunks away, or beyond reach), every readout from the first to the
+    last, short and long reaches."""
+    from spikegs.spikes import SpikeStream, save_dat
+
+    rng = np.random.default_rng(3)
+    bits = rng.random((90, 4, 16)) < np.linspace(0.002, 0.3, 16)  # [T, H, W] rates by column
+    path = save_dat(tmp_path / "s.dat", bits.astype(np.uint8), flip=True)
+    stream = SpikeStream.open(path, 4, 16)
+    frames = np.memmap(path, np.uint8, "r").reshape(90, 4, 2)
+    for k in range(90):
+        ours = stream.tfi(k, max_interval)
+        np.testing.assert_array_equal(spikes._numpy_tfi(frames, k, max_interval), ours)
+
+
+def test_bench_spikes_numpy_simulator_is_the_cores():
+    """The simulator alternative of `bench spikes`: without noise it fires the core's spikes
+    (interpolated light, a pixel saturated, one dark); at the default noise as many spikes as the
+    core within the noise."""
+    light = np.random.default_rng(2).random((3, 6, 16), dtype=np.float32) * 1.5
+    light[:, 0, :2] = [0.0, 1.0]  # dark; exactly 1
+    light[:, 1, 0] = [8.0, 0.0, 0.0]  # saturated, then dark: no charge banked
+    times = np.array([0.0, 70.0, 399.0])
+    ours = simulate_spikes(light, 400, frame_times=times, params=spikes.NOISE_FREE)
+    theirs = spikes._numpy_simulate(light, times, 400, spikes.NOISE_FREE)
+    np.testing.assert_array_equal(theirs, ours)
+    noisy = simulate_spikes(light, 400, frame_times=times)
+    count = spikes._spike_count(noisy)
+    numpy_count = spikes._spike_count(spikes._numpy_simulate(light, times, 400, SimParams()))
+    assert abs(numpy_count - count) < 4 * math.sqrt(count), (numpy_count, count)
 
 
 def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):
