@@ -11,7 +11,13 @@ from pathlib import Path
 from ..cli import add_no_progress, positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
 from ..output_paths import check_folder_output
-from .train import FULL_ITERATIONS, QUICK_ITERATIONS, VARIANTS
+from .train import (
+    FULL_ITERATIONS,
+    HEADLINE_SCENE,
+    QUICK_ITERATIONS,
+    QUICK_METHODS,
+    VARIANTS,
+)
 
 # part -> module with `run(quick: bool, out: Path) -> dict`
 PARTS = {
@@ -46,10 +52,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_int,
         help="bench train: runs per method and scene (seeds 0..N-1; default 1)",
     )
-    parser.add_argument("--scenes", help="bench train: comma-separated scenes (default: all)")
+    parser.add_argument(
+        "--scenes",
+        help=f"bench train: comma-separated scenes (default: all, {HEADLINE_SCENE} with --quick)",
+    )
     parser.add_argument(
         "--methods",
-        help=f"bench train: comma-separated methods (default: all but {', '.join(VARIANTS)})",
+        help=f"bench train: comma-separated methods (default: all but {', '.join(VARIANTS)}, "
+        f"{','.join(QUICK_METHODS)} with --quick)",
     )
     parser.add_argument(
         "--grad-threshold",

@@ -273,9 +273,9 @@ def run(
     methods: Sequence[str] | None = None,
     grad_threshold: float | None = None,
 ) -> dict:
-    """Train `methods` (default: all) on `scenes` (default: every built-in one) with `seeds`
-    seeds each, densifying at the demo's threshold or `grad_threshold`; print a table per scene,
-    write JSON and plots."""
+    """Train `methods` (default: METHODS, QUICK_METHODS when quick) on `scenes` (default: every
+    built-in one, HEADLINE_SCENE when quick) with `seeds` seeds each, densifying at the demo's
+    threshold or `grad_threshold`; print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds)
     settings = QUICK_DATA if quick else FULL_DATA
