@@ -1,7 +1,7 @@
 """Initial intensities of the Gaussians, from the data and the same for every method.
 
-A random Gaussian takes the median TFP(33) intensity at its projections into 16-31 training views;
-one that no view sees, and the background, take the median intensity of those images: the
+A random Gaussian takes the median TFP(33) intensity at its projections into up to 31 training
+views; one that no view sees, and the background, take the median intensity of those images: the
 constant image that fits them best in L1. The first render then resembles the views (a Gaussian on
 a surface takes its colour, one in empty space the background's) instead of a grey fog: a grey 0.5
 start fades the Gaussians on darker structures before their colour can follow, and pruning removes
@@ -22,7 +22,7 @@ from .targets import tfp_sample
 
 @dataclass
 class ViewSample:
-    """TFP(33) images at 16-31 training timestamps spread over the stream, read once for both
+    """TFP(33) images at up to 31 training timestamps spread over the stream, read once for both
     initial intensities."""
 
     timestamps: np.ndarray  # [M] readouts

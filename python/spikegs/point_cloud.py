@@ -52,7 +52,7 @@ def read_points(path: str | Path) -> np.ndarray:
 
 def in_training_views(points: np.ndarray, dataset) -> np.ndarray:
     """Whether each point [P, 3] lies inside each of the dataset's training views at
-    `sample_timestamps` (16-31 spread over the stream) [M, P] bool; a part at a time."""
+    `sample_timestamps` (up to 31 spread over the stream) [M, P] bool; a part at a time."""
     viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
     size = dataset.width, dataset.height
     return np.concatenate(

@@ -134,7 +134,7 @@ class Targets:
 
 
 def sample_timestamps(dataset) -> np.ndarray:
-    """Every (M // 16)-th of the M training timestamps: all of them where M < 32, else 16 to 31."""
+    """Every (M // 16)-th of the M training timestamps: all of them where M < 32, else 16 to 24."""
     return np.asarray(dataset.train_timestamps[:: max(1, len(dataset.train_timestamps) // 16)])
 
 
