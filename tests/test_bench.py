@@ -183,6 +183,22 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     assert isinstance(row["Gaussians"], int)
 
 
+def test_ablation_order_holds_only_where_each_method_scores_strictly_higher():
+    """Tied means are not an order: 'holds' says both losses > only instant > only exposure."""
+    methods = {
+        "spikegs": train.over_seeds([_run(27.0)]),
+        "only_instant": train.over_seeds([_run(27.0)]),
+        "only_exposure": train.over_seeds([_run(26.0)]),
+    }
+    assert train.ablation_order(methods) == "spikegs = only_instant > only_exposure"
+    methods["only_exposure"] = train.over_seeds([_run(27.0)])
+    assert train.ablation_order(methods) == "spikegs = only_instant = only_exposure"
+    methods["only_instant"] = train.over_seeds([_run(26.0)])
+    assert train.ablation_order(methods) == "spikegs = only_exposure > only_instant"
+    methods["only_exposure"] = train.over_seeds([_run(25.0)])
+    assert train.ablation_order(methods) == "holds"
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

@@ -201,12 +201,20 @@ def paired_gains(methods: dict, base: str = "tfp33") -> dict[str, dict]:
 
 
 def ablation_order(methods: dict) -> str | None:
-    """'holds' when the mean PSNRs follow the paper's ablation (both losses > only instant >
-    only exposure), else the order found; None when a method of it was not run."""
+    """'holds' when the mean PSNRs follow the paper's ablation strictly (both losses > only
+    instant > only exposure), else the order found, equal means joined by '=' (a tie is no
+    lead: sorted, it would have read as the paper's order); None when a method of it was not
+    run."""
     if not all(m in methods for m in ABLATION_ORDER):
         return None
     found = sorted(ABLATION_ORDER, key=lambda m: -methods[m]["psnr"])
-    return "holds" if tuple(found) == ABLATION_ORDER else " > ".join(found)
+    psnr = [methods[m]["psnr"] for m in found]
+    if tuple(found) == ABLATION_ORDER and psnr[0] > psnr[1] > psnr[2]:
+        return "holds"
+    order = found[0]
+    for name, higher, lower in zip(found[1:], psnr, psnr[1:]):
+        order += f" {'=' if lower == higher else '>'} {name}"
+    return order
 
 
 def _table(methods: dict, gains: dict[str, dict]) -> list[dict]:
