@@ -199,6 +199,27 @@ def test_ablation_order_holds_only_where_each_method_scores_strictly_higher():
     assert train.ablation_order(methods) == "holds"
 
 
+def test_ablation_order_says_on_how_many_seeds_it_holds():
+    """'holds' judges the means: the line and the JSON say on how many seeds the order held
+    (the means can follow it where one seed of two does not)."""
+    methods = {
+        "spikegs": train.over_seeds([_run(27.0), _run(28.0)]),
+        "only_instant": train.over_seeds([_run(26.0), _run(28.2)]),
+        "only_exposure": train.over_seeds([_run(25.0), _run(27.5)]),
+    }
+    assert train.ablation_order(methods) == "holds"
+    assert train.ablation_seeds(methods) == 1
+    assert train.ablation_line(methods) == (
+        "paper's ablation order (both > only instant > only exposure): holds in the mean "
+        "over 2 seeds, on 1 of them"
+    )
+    one = {name: train.over_seeds(r["seeds"][:1]) for name, r in methods.items()}
+    assert train.ablation_seeds(one) == 1
+    assert train.ablation_line(one).endswith(": holds (one seed)")
+    assert train.ablation_seeds({"spikegs": methods["spikegs"]}) is None
+    assert train.ablation_line({"spikegs": methods["spikegs"]}) is None
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
