@@ -3,7 +3,8 @@
 Simulates the small default scene, trains SIM, trains SpikeGS and the TFP(33)+3DGS baseline with
 the same budget, evaluates both on held-out views, prints a table and writes DIR/results.json and
 DIR/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, stacked) and
-DIR/curves.png (a held-out view's PSNR against seconds, SIM's training included).
+DIR/curves.png (both methods' test PSNR over every test view against training seconds, SpikeGS's
+from the end of SIM's training).
 """
 
 from __future__ import annotations
