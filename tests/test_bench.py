@@ -180,6 +180,10 @@ def test_train_seeds_average_and_gains_pair_seed_by_seed():
     assert train.paired_gains(one)["spikegs"] == {"mean": 1.5, "std": None}
     timed = train.over_seeds([_run(26.0, sim_seconds=30.0), _run(27.0, sim_seconds=50.0)])
     assert timed["sim_seconds"] == 40.0 and timed["curve_sim_seconds"] == 30.0
+    # times are medians over the seeds: one run slowed by another job does not move them
+    slowed = [_run(26.0, sim_seconds=s) for s in (30.0, 31.0, 90.0)]
+    assert train.over_seeds(slowed)["sim_seconds"] == 31.0
+    assert [s["sim_seconds"] for s in train.over_seeds(slowed)["seeds"]] == [30.0, 31.0, 90.0]
     assert isinstance(row["Gaussians"], int)
 
 

@@ -14,8 +14,9 @@ METHODS (QUICK_METHODS when quick); `methods` may name any method of configs/ (V
 variant sim17, are not in the default set).
 
 With `seeds` > 1 every run is repeated with train.seed = 0 .. seeds-1 (SIM retrained for each:
-its training is part of a method's randomness): scores and times are means over the seeds, with
-their standard deviations and the gains over TFP(33) paired seed by seed; the plots show seed 0.
+its training is part of a method's randomness): scores are means over the seeds, with their
+standard deviations and the gains over TFP(33) paired seed by seed, times medians over the seeds
+(a run slowed by another job on the machine moves a mean); the plots show seed 0.
 """
 
 from __future__ import annotations
@@ -164,26 +165,24 @@ def _mean_and_std(values: list[float]) -> tuple[float, float | None]:
     return float(np.mean(values)), float(np.std(values, ddof=1)) if len(values) > 1 else None
 
 
+SCORES = ("psnr", "ssim", "ssim_3dgs", "gaussians")  # averaged over the seeds
+TIMES = ("train_seconds", "sim_seconds", "wall_seconds")  # their medians over the seeds
+
+
 def over_seeds(runs: list[dict]) -> dict:
     """One method's runs on one scene, one per seed -> seed 0's run (its curve, for the plots)
-    with the scores and times replaced by their means, standard deviations and every seed's."""
-    keys = (
-        "psnr",
-        "ssim",
-        "ssim_3dgs",
-        "train_seconds",
-        "sim_seconds",
-        "gaussians",
-        "wall_seconds",
-    )
+    with the scores replaced by their means and standard deviations, the times by their
+    medians, and every seed's of both."""
     merged = dict(runs[0])
     merged["curve_sim_seconds"] = runs[0]["sim_seconds"]  # the curve's own offset: seed 0's SIM
-    for key in keys:
+    for key in SCORES:
         mean, std = _mean_and_std([r[key] for r in runs])
         merged[key] = mean
         if key in ("psnr", "ssim"):
             merged[f"{key}_std"] = std
-    merged["seeds"] = [{k: r[k] for k in keys} for r in runs]
+    for key in TIMES:
+        merged[key] = float(np.median([r[key] for r in runs]))
+    merged["seeds"] = [{k: r[k] for k in (*SCORES, *TIMES)} for r in runs]
     return merged
 
 
