@@ -342,3 +342,45 @@ def test_bench_all_refuses_a_users_files_in_its_data_folders_before_any_part(tmp
     printed = capsys.readouterr()
     assert "notes.txt" in printed.err and "== rasterizer" not in printed.out
     assert mine.read_text() == "mine"
+
+
+def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypatch, capsys):
+    """The margins are at equal iterations, where SpikeGS renders K poses a step and trains SIM
+    first (a helper's audit: ~6 times a baseline's seconds in the demo); `--equal-time` trains
+    each baseline again with its schedule stretched to SpikeGS's seconds, SIM's included."""
+    from types import SimpleNamespace
+
+    from spikegs.cli import main
+
+    trained = []
+
+    def fake_train(dataset, config, run_dir):  # seconds: spikegs 0.5 a step + SIM 30, tfp 0.1
+        n, sim = config.train.iterations, config.instant_target() == "sim"
+        trained.append((run_dir.name, n, config.densify.stop))
+        point = {"iteration": n, "train_seconds": 0.1 * n, "psnr": 20.0, "ssim": 0.5}
+        return {
+            **_run(30.0 if sim else 25.0 + n / 1000, uses_sim=sim, iterations=n, curve=[point]),
+            "train_seconds": (0.5 if sim else 0.1) * n,
+            "sim_seconds": 30.0 if sim else 0.0,
+        }
+
+    dataset = SimpleNamespace(width=64, height=64, test_views=[0, 1])
+    monkeypatch.setattr(train, "dataset_for", lambda *a: (dataset, 0.0))
+    monkeypatch.setattr(train, "train_method", fake_train)
+    argv = ["bench", "train", "--quick", "--methods", "spikegs,tfp33,only_instant", "--equal-time"]
+    assert main([*argv, "--out", str(tmp_path)]) == 0
+    # SpikeGS 50 + 30 s = 80 s; tfp33 10 s for 100 iterations: 800 at its pace, stretched
+    assert [t[:2] for t in trained] == [
+        ("spikegs", 100),
+        ("tfp33", 100),
+        ("only_instant", 100),
+        ("tfp33-equal-time", 800),
+    ]
+    assert trained[3][2] == 8 * trained[1][2] > 0  # its densification stretched with it
+    scene = json.loads((tmp_path / "train.json").read_text())["scenes"][train.HEADLINE_SCENE]
+    assert scene["methods"]["tfp33-equal-time"]["train_seconds"] == 80.0
+    assert "tfp33-equal-time" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="expected spikegs and a baseline"):
+        train.selection(True, None, ["spikegs", "only_instant"], equal_time=True)
+    assert main(["bench", "spikes", "--equal-time"]) == 2
+    assert "--equal-time: options of bench train, not of bench spikes" in capsys.readouterr().err

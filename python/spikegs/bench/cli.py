@@ -62,6 +62,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"{','.join(QUICK_METHODS)} with --quick)",
     )
     parser.add_argument(
+        "--equal-time",
+        action="store_true",
+        help="bench train: train each baseline again for SpikeGS's seconds, SIM's training "
+        "included (its schedule stretched to as many iterations): the margins at equal time "
+        "beside those at equal iterations",
+    )
+    parser.add_argument(
         "--grad-threshold",
         type=positive_float,
         help="bench train: densification threshold for every method (default: the demo's "
@@ -71,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _train_options(args: argparse.Namespace) -> dict:
     """bench train's keyword arguments from the command line."""
-    options = {}
+    options = {"equal_time": True} if args.equal_time else {}
     for name in ("seeds", "iterations", "grad_threshold"):
         if getattr(args, name) is not None:
             options[name] = getattr(args, name)
@@ -93,13 +100,17 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out)
     if "train" in parts:  # a bad scene, method, seed count or output fails before any part runs
-        from .train import check_outputs, selection
+        from .train import check_outputs, run_names, selection
 
-        seeds = train_options.get("seeds", 1)
+        seeds, equal_time = train_options.get("seeds", 1), args.equal_time
         scenes, methods = selection(
-            args.quick, train_options.get("scenes"), train_options.get("methods"), seeds
+            args.quick,
+            train_options.get("scenes"),
+            train_options.get("methods"),
+            seeds,
+            equal_time,
         )
-        check_outputs(Path(args.out), scenes, methods, seeds)
+        check_outputs(Path(args.out), scenes, run_names(methods, equal_time), seeds)
     failures = []
     for part in parts:
         module = importlib.import_module(PARTS[part])

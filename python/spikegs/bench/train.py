@@ -17,6 +17,12 @@ With `seeds` > 1 every run is repeated with train.seed = 0 .. seeds-1 (SIM retra
 its training is part of a method's randomness): scores are means over the seeds, with their
 standard deviations and the gains over TFP(33) paired seed by seed, times medians over the seeds
 (a run slowed by another job on the machine moves a mean); the plots show seed 0.
+
+The methods' margins are at equal iterations: a SpikeGS step renders K poses and SIM trains first.
+With `equal_time` each baseline (BASELINES) is trained again as BASELINE-equal-time, its schedule
+stretched to the iterations that take SpikeGS's median seconds, SIM's training included, at the
+baseline's own median seconds an iteration (a step's cost grows with the Gaussians, so the time
+reached is near SpikeGS's, not equal: the table shows it).
 """
 
 from __future__ import annotations
@@ -57,6 +63,7 @@ QUICK_ITERATIONS = 100
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
 QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "test_off_path": 2}
 QUICK_SIM_ITERATIONS = 20
+EQUAL_TIME = "-equal-time"  # a baseline's run given SpikeGS's seconds: its name and folder suffix
 SIM_NOTE = "SIM methods start at their SIM training time"
 
 
@@ -150,6 +157,20 @@ def train_method(dataset, config: Config, run_dir: Path) -> dict:
         "wall_seconds": time.perf_counter() - start,  # with targets, SIM and evaluations
         "curve": curve,  # time axis of the plots: sim_seconds + train_seconds
     }
+
+
+def _seeds(dataset, config: Config, seeds: int, root: Path, name: str) -> dict:
+    """`config` trained with seeds 0 .. `seeds` - 1 in root/run_name(name, seed), each run's
+    line printed; `over_seeds` of them."""
+    per_seed = []
+    for seed in range(seeds):
+        r = train_method(dataset, seeded(config, seed), root / run_name(name, seed))
+        per_seed.append(r)
+        print(
+            f"  {root.name} {name} seed {seed}: {r['psnr']:.2f} dB ({r['iterations']} "
+            f"iterations); {r['train_seconds']:.1f} s training, {r['wall_seconds']:.1f} s in all"
+        )
+    return over_seeds(per_seed)
 
 
 def seeded(config: Config, seed: int) -> Config:
@@ -270,10 +291,12 @@ def selection(
     scenes: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
     seeds: int = 1,
+    equal_time: bool = False,
 ) -> tuple[list[str], list[str]]:
     """The scenes and methods a run trains (defaults filled in: METHODS, or QUICK_METHODS when
     quick; any method of configs/ may be named, e.g. the variant sim17); ValueError naming what
-    is unknown, with the known ones, before any work starts. A name given twice runs once."""
+    is unknown, with the known ones, before any work starts. A name given twice runs once.
+    `equal_time` needs spikegs and a baseline among the methods."""
     scenes = list(dict.fromkeys(scenes or ([HEADLINE_SCENE] if quick else SCENES)))
     methods = list(dict.fromkeys(methods or (QUICK_METHODS if quick else METHODS)))
     known = [*METHODS, *(m for m in available_methods() if m not in METHODS)]
@@ -283,7 +306,30 @@ def selection(
             f"bench train: unknown {', '.join(unknown) or f'seeds {seeds}'}; scenes: "
             f"{', '.join(SCENES)}; methods: {', '.join(known)}; seeds >= 1"
         )
+    if equal_time and ("spikegs" not in methods or not equal_time_methods(methods)):
+        raise ValueError(
+            f"bench train --equal-time: expected spikegs and a baseline ({', '.join(BASELINES)}) "
+            f"among the methods, found {', '.join(methods)}"
+        )
     return scenes, methods
+
+
+def run_names(methods: Sequence[str], equal_time: bool) -> list[str]:
+    """Every run's method name: `methods`, and with `equal_time` their baselines' at SpikeGS's
+    time."""
+    return [*methods, *(m + EQUAL_TIME for m in equal_time_methods(methods) if equal_time)]
+
+
+def equal_time_methods(methods: Sequence[str]) -> list[str]:
+    """The baselines among `methods`, each trained again at SpikeGS's time with `equal_time`."""
+    return [m for m in methods if m in BASELINES]
+
+
+def equal_time_iterations(runs: dict, method: str, iterations: int) -> int:
+    """The iterations that give `method` SpikeGS's median seconds, SIM's training included:
+    `iterations` scaled by the ratio of the two methods' median times (runs: over_seeds's)."""
+    budget = runs["spikegs"]["train_seconds"] + runs["spikegs"]["sim_seconds"]
+    return max(iterations, round(iterations * budget / max(runs[method]["train_seconds"], 1e-9)))
 
 
 def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seeds: int) -> None:
@@ -307,19 +353,21 @@ def run(
     scenes: Sequence[str] | None = None,
     methods: Sequence[str] | None = None,
     grad_threshold: float | None = None,
+    equal_time: bool = False,
 ) -> dict:
     """Train `methods` (default: METHODS, QUICK_METHODS when quick) on `scenes` (default: every
     built-in one, HEADLINE_SCENE when quick) with `seeds` seeds each, densifying at the demo's
-    threshold or `grad_threshold`; print a table per scene, write JSON and plots."""
+    threshold or `grad_threshold`, and with `equal_time` each baseline again at SpikeGS's time;
+    print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
-    scenes, methods = selection(quick, scenes, methods, seeds)
+    scenes, methods = selection(quick, scenes, methods, seeds, equal_time)
     settings = QUICK_DATA if quick else FULL_DATA
     overrides = schedule(iterations, quick, grad_threshold)
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:
         length += f", densify threshold {grad_threshold:g}"
     configs = {m: load_config(m, overrides) for m in methods}
-    check_outputs(out, scenes, methods, seeds)
+    check_outputs(out, scenes, run_names(methods, equal_time), seeds)
     start = time.perf_counter()
     results = {}
     for scene in scenes:
@@ -327,17 +375,12 @@ def run(
         dataset, simulate_s = dataset_for(scene, out / "data" / scene, settings)
         runs = {}
         for method, config in configs.items():
-            per_seed = []
-            for seed in range(seeds):
-                r = train_method(
-                    dataset, seeded(config, seed), out / "runs" / scene / run_name(method, seed)
-                )
-                per_seed.append(r)
-                print(
-                    f"  {scene} {method} seed {seed}: {r['psnr']:.2f} dB; "
-                    f"{r['train_seconds']:.1f} s training, {r['wall_seconds']:.1f} s in all"
-                )
-            runs[method] = over_seeds(per_seed)
+            runs[method] = _seeds(dataset, config, seeds, out / "runs" / scene, method)
+        for method in equal_time_methods(methods) if equal_time else ():
+            n = equal_time_iterations(runs, method, iterations)
+            config = load_config(method, schedule(n, quick, grad_threshold))
+            name = method + EQUAL_TIME
+            runs[name] = _seeds(dataset, config, seeds, out / "runs" / scene, name)
         wall = time.perf_counter() - scene_start
         order = ablation_order(runs)
         results[scene] = {
@@ -372,6 +415,7 @@ def run(
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
         "iterations": iterations,
+        "equal_time": equal_time,
         "seeds": seeds,
         "schedule": overrides,
         "points_per_run": POINTS,
