@@ -199,11 +199,12 @@ def test_size_pruning_waits_for_the_round_after_the_reset():
 
 
 def test_screen_size_pruning_removes_the_gaussians_larger_than_the_cap():
-    """densify.max_screen_size 3 px, after the first reset: of radii 2 and 5 px the 5 goes (no
-    test set it; a flipped comparison passed them all)."""
+    """densify.max_screen_size 3 px, after the first reset: of radii 2, 5 and 3 px the 5 goes (no
+    test set it; a flipped comparison passed them all, and >= for > passed a cap no radius met)."""
     rules = dict(RULES, opacity_reset_every=20, max_world_size=0.0, max_screen_size=3.0)
-    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    model, optimizer = _model([0.05, 0.05, 0.05], [0.5, 0.5, 0.5])
     densifier = Densifier(DensifyConfig(**rules), scene_radius=1.0, iterations=100)
-    densifier.observe(torch.tensor([2, 5]), torch.zeros(2, 2), width=2, height=2)
+    # radii are whole pixels: one of exactly the cap is not larger than it, and stays (3DGS: >)
+    densifier.observe(torch.tensor([2, 5, 3]), torch.zeros(3, 2), width=2, height=2)
     densifier.step(model, optimizer, 28)
-    assert model.params["sh_dc"].flatten().tolist() == [0.0]
+    assert model.params["sh_dc"].flatten().tolist() == [0.0, 2.0]

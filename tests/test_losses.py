@@ -21,6 +21,12 @@ def test_exposure_times_spread_like_the_window(window, poses):
         assert times[poses // 2] == pytest.approx(100.0)  # the instant pose is one of them
 
 
+def test_one_exposure_pose_is_the_instant():
+    """K = 1: the one midpoint of the window is t itself (K >= 2 alone was tested, where refusing
+    K = 1 passed every test)."""
+    assert exposure_times(100.0, 33, 1).tolist() == [100.0]
+
+
 def _fit_constant(norm: str, targets: torch.Tensor) -> float:
     """The constant image that minimises the exposure loss over `targets` [M, H, W, 1]."""
     x = torch.zeros(1, requires_grad=True)

@@ -13,6 +13,7 @@ from spikegs.data import simulate_dataset
 from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
+from spikegs.machine_memory import machine_memory
 from spikegs.sim_train import infer_sim
 from spikegs.spikes import SpikeStream
 from spikegs.targets import (
@@ -22,6 +23,7 @@ from spikegs.targets import (
     check_targets,
     intensity_scale,
     sample_timestamps,
+    sim_crop,
     sim_path,
     tfp_sample,
     trained_sim,
@@ -77,6 +79,12 @@ def test_images_past_the_budget_are_computed_at_each_visit_said_once():
     assert torch.equal(first, again) and float(first[0, 0, 0]) == 1.5
     assert a.computed == b.computed == 1 and calls == [0, 1, 3, 3]
     assert float(a[0][0, 0, 0]) == 0.0 and calls == [0, 1, 3, 3]  # kept
+    a.release()  # its one image back to the budget: one image of 64 bytes kept, b's
+    assert (budget.kept, budget.used) == (1, 64) and a.nbytes == 0
+
+
+def test_the_default_budget_is_a_quarter_of_the_memory_the_process_may_use():
+    assert ImageBudget().limit == machine_memory() // 4
 
 
 def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):
@@ -97,6 +105,10 @@ def test_crops_larger_than_the_image_share_one_cache(dataset):
     assert len(paths) == 1 and "_c24_" in paths.pop()
     smaller = load_config("spikegs", {"sim": {**SIM_FAST["sim"], "crop": 20}}).sim
     assert "_c20_" in sim_path(dataset, smaller, 0).name
+    # a wide frame: the larger side caps it (training crops min(crop, side) along each side)
+    sim = load_config("spikegs", {"sim": {**SIM_FAST["sim"], "crop": 64}}).sim
+    assert sim_crop(SimpleNamespace(height=24, width=40), sim) == 40
+    assert sim_crop(SimpleNamespace(height=40, width=24), sim) == 40
 
 
 @pytest.mark.parametrize(
@@ -110,6 +122,15 @@ def test_instant_smooth_l1_zone_is_one_spike_of_the_targets_window(dataset, meth
     scale = intensity_scale(dataset)
     assert targets.instant.quantum == pytest.approx(1.0 / (readouts * scale))
     assert targets.exposure is None or targets.exposure.quantum == pytest.approx(1 / (33 * scale))
+
+
+def test_clean_targets_smooth_l1_zone_is_one_spike_of_the_instant_window(dataset):
+    """The oracle's clean images count no spikes: instant_window sets their smooth-L1 zone (one
+    spike of it), not the exposure window, which a method without the exposure loss leaves
+    unread (both at 33 by default, where taking the exposure's passed every test)."""
+    config = load_config("oracle", {"supervision": {"instant_window": 17}})
+    targets = build_targets(dataset, config, progress=False)
+    assert targets.instant.quantum == pytest.approx(1.0 / (17 * intensity_scale(dataset)))
 
 
 def test_a_run_computes_only_the_timestamps_it_samples(dataset, tmp_path):
@@ -269,6 +290,12 @@ def test_image_scale_states_the_calibration_and_must_agree(dataset):
         intensity_scale(with_meta({**no_rate, "image_scale": 0}))
     with pytest.raises(ValueError, match="rate_at_one 0.25 and image_scale 0.3: .* differ"):
         intensity_scale(with_meta({**dataset.meta, "image_scale": 0.3}))
+    # they must agree to rounding (1e-6), not within 0.1 % (0.25 against 0.25025)
+    with pytest.raises(ValueError, match="rate_at_one 0.25 and image_scale 0.25025: .* differ"):
+        intensity_scale(with_meta({**dataset.meta, "image_scale": 0.25025}))
+    assert intensity_scale(with_meta({**dataset.meta, "image_scale": 0.2500001})) == 0.25
+    # a pixel firing at every readout at intensity 1 is a valid calibration: (0, 1] includes 1
+    assert intensity_scale(with_meta({**no_rate, "image_scale": 1.0})) == 1.0
     # neither: TFP(33)'s 99.5th percentile over the view sample, the brightest light it saw (the
     # 90th, which passed every test, is 0.09 here against the true 0.25)
     guess = intensity_scale(with_meta(no_rate))
@@ -285,9 +312,11 @@ def test_image_scale_states_the_calibration_and_must_agree(dataset):
 def test_the_view_sample_spans_16_to_31_timestamps_over_the_stream():
     """Every (M // 16)-th training timestamp, first to last: 16 to 31 of them (every M // 8-th,
     8 to 15, passed every test)."""
-    for m in (16, 31, 32, 278, 1000):
+    for m in (16, 31, 32, 47, 278, 480, 1000):
         ts = sample_timestamps(SimpleNamespace(train_timestamps=list(range(m))))
         assert 16 <= len(ts) <= 32 and ts[0] == 0 and ts[-1] >= m - m // 16, (m, len(ts))
+        # from M = 32 on, 16 to 24 (every (M // 15)-th passed the bounds above: 15 of 480)
+        assert len(ts) == m if m < 32 else 16 <= len(ts) <= 24, (m, len(ts))
 
 
 def test_the_exposure_target_is_tfp_of_the_exposure_window(dataset):
