@@ -208,3 +208,14 @@ def test_screen_size_pruning_removes_the_gaussians_larger_than_the_cap():
     densifier.observe(torch.tensor([2, 5, 3]), torch.zeros(3, 2), width=2, height=2)
     densifier.step(model, optimizer, 28)
     assert model.params["sh_dc"].flatten().tolist() == [0.0, 2.0]
+
+
+def test_the_last_round_is_never_the_runs_last_iteration():
+    """A stop at or past the run's end: the last round falls before the last iteration (which
+    `step` never densifies at), 90 of 100 every 10; the run's end itself (100) passed every test,
+    and `Trainer.densifies_from` would then mark steps 91..100 as densifying."""
+    assert DensifyConfig(start=10, every=10, stop=100).last_round(100) == 90
+    assert DensifyConfig(start=10, every=10, stop=500).last_round(100) == 90
+    assert DensifyConfig(start=10, every=10, stop=95).last_round(100) == 90
+    assert DensifyConfig(start=10, every=10, stop=0).last_round(100) == 50
+    assert DensifyConfig(start=60, every=10, stop=0).last_round(100) == 0  # none: 60 > 50
