@@ -25,12 +25,18 @@ def test_metrics_refuse_codes_and_channels_first_and_take_tensors(metric):
     rng = np.random.default_rng(0)
     with pytest.raises(ValueError, match="found uint8 values"):
         metric(np.full((8, 8), 200, np.uint8), np.full((8, 8), 100, np.uint8))
-    chw = rng.random((3, 32, 32))
-    with pytest.raises(ValueError, match=r"got \[3, 32, 32\]: channels first"):
-        metric(chw, chw * 0.9)
+    for channels in (3, 4):  # RGB or RGBA first (RGBA's 4 passed with < in place of <=)
+        chw = rng.random((channels, 32, 32))
+        with pytest.raises(ValueError, match=rf"got \[{channels}, 32, 32\]: channels first"):
+            metric(chw, chw * 0.9)
     a, b = rng.random((16, 16, 3)), rng.random((16, 16, 3))
     tensor = torch.from_numpy(a).float().requires_grad_()
     assert metric(tensor, torch.from_numpy(b)) == pytest.approx(metric(a.astype(np.float32), b))
+    # float64 scored in float64: images 1e-9 apart score ~180 dB (float32 rounds them to 0 or a
+    # float32 step apart: another score, which scoring a float32 copy of the tensor gave)
+    near = a + 1e-9 * rng.standard_normal(a.shape)
+    exact = metric(a, near)
+    assert metric(torch.from_numpy(a), torch.from_numpy(near)) == pytest.approx(exact, abs=1e-9)
     half = torch.from_numpy(a).bfloat16()  # none in numpy: taken as its values
     assert metric(half, torch.from_numpy(b)) == pytest.approx(metric(half.double().numpy(), b))
 
@@ -60,3 +66,17 @@ def test_ssim_3dgs_is_3dgs_evaluations_ssim():
     ssim_map = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx**2 + my**2 + c1) * (vx + vy + c2))
     assert ssim_3dgs(a, b) == pytest.approx(float(ssim_map.mean()), abs=1e-6)
     assert abs(ssim_3dgs(a, b) - ssim(a, b)) > 1e-3  # scikit-image's is another SSIM
+
+
+@pytest.mark.parametrize("rows, window", [(4, 3), (6, 5)])
+def test_ssim_of_an_even_short_side_takes_the_largest_odd_window_under_it(rows, window):
+    """A side of 4 (6) pixels takes a 3 (5) window, the largest odd one that fits (two under the
+    side passed every test, which had odd sides alone: 4 then gave 2, refused, 6 gave 4, which
+    scikit-image refuses)."""
+    from skimage.metrics import structural_similarity
+
+    rng = np.random.default_rng(2)
+    gt = rng.random((rows, 12))
+    pred = np.clip(gt + 0.1 * rng.standard_normal(gt.shape), 0, 1)
+    want = structural_similarity(gt, pred, data_range=1.0, win_size=window)
+    assert ssim(pred, gt) == pytest.approx(want, abs=1e-12)

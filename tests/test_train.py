@@ -36,7 +36,7 @@ from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.file_lock import BUSY, Busy, exclusive_lock
-from spikegs.gaussians import GaussianModel, near_plane
+from spikegs.gaussians import GaussianModel, frame_origin, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import ENDING, HANGUP, Terminated, deferred_interrupt, raise_terminated
@@ -3310,3 +3310,13 @@ def test_a_model_renders_at_any_distance():
     with torch.no_grad():
         image = model.render(view, K, 32, 32, near_plane(1e10)).image
     assert image.std() > 0.05, image.std()
+
+
+def test_a_scene_is_trained_about_its_centre_from_ten_radii_out():
+    """frame_origin: the world's origin for a scene within 10 radii of it, the scene's centre
+    beyond (100 radii passed every test: their far scenes lay thousands of radii out)."""
+    for radius in (0.5, 2.0):
+        near = np.array([9.9, 0.0, 0.0]) * radius
+        far = np.array([6.0, 6.0, 6.0]) * radius  # 10.4 radii
+        assert np.array_equal(frame_origin(near, radius), np.zeros(3))
+        assert np.array_equal(frame_origin(far, radius), far)
