@@ -244,6 +244,12 @@ def test_project_points_pinhole():
     np.testing.assert_allclose(pixels[0, 0], [40.5, 30.25], atol=1e-12)
     np.testing.assert_allclose(pixels[0, 1], [40.5 + 100 * 0.1, 30.25 - 120 * 0.05], atol=1e-12)
     assert np.isnan(pixels[:, 2:]).all() and np.array_equal(pixels[0], pixels[1], equal_nan=True)
+    # in the camera's plane off its axis (depth 0): no position either (z >= 0 dividing by it
+    # gave inf there, and the centre's 0 / 0 NaN hid it)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nor numpy's divide-by-zero warning
+        pixels, depth = project_points((eye + right)[None], viewmat[None], K)
+    assert depth[0, 0] == pytest.approx(0, abs=1e-12) and np.isnan(pixels).all()
 
 
 def test_pixels_in_view_floors_to_the_pixel_holding_the_point():
