@@ -14,6 +14,7 @@ from spikegs.data.trajectory import (
     check_rigid,
     look_at,
     pixels_in_view,
+    point_parts,
     project_points,
     read_camera_doc,
     rigid_c2w,
@@ -250,6 +251,17 @@ def test_project_points_pinhole():
         warnings.simplefilter("error")  # nor numpy's divide-by-zero warning
         pixels, depth = project_points((eye + right)[None], viewmat[None], K)
     assert depth[0, 0] == pytest.approx(0, abs=1e-12) and np.isnan(pixels).all()
+
+
+def test_point_parts_hold_at_most_their_size_and_every_point_in_order():
+    """A cloud one point over a part's size is two parts (floor division made it one part of
+    all the points, the whole cloud's temporaries that the parts exist to bound)."""
+    points = np.arange(3 * 11, dtype=np.float64).reshape(11, 3)
+    for size, lengths in ((5, [4, 4, 3]), (10, [6, 5]), (11, [11]), (20, [11])):
+        parts = point_parts(points, size)
+        assert [len(p) for p in parts] == lengths, size
+        np.testing.assert_array_equal(np.concatenate(parts), points)
+    assert len(point_parts(np.zeros((0, 3)))) == 1
 
 
 def test_pixels_in_view_floors_to_the_pixel_holding_the_point():

@@ -262,6 +262,11 @@ def test_windows_past_either_end_refused():
         s.counts(5, 2**31)  # int32 counts: a stream that long read TFP -1 (15 h at 40 kHz)
     with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):  # "k in [10, 9]"
         s.tfp(5, 21)
+    # the bounds themselves are valid: the int32 limit is a window length (too long for this
+    # stream), 2**30 a max_interval (both refused as out of range with < for <=)
+    with pytest.raises(ValueError, match="longer than the stream's 20 readouts"):
+        s.counts(5, 2**31 - 1)
+    assert (s.tfi(5, 2**30) == np.float32(2.0**-30)).all()  # no spikes: 1 / max_interval
     for w in (float("inf"), float("nan"), None, True, np.array([3])):  # array: "found [3]"
         with pytest.raises(ValueError, match="window length"):
             s.tfp(5, w)
