@@ -43,8 +43,8 @@ from spikegs.interrupt import ENDING, HANGUP, Terminated, deferred_interrupt, ra
 from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.run_folder import run_lock
-from spikegs.targets import intensity_scale
-from spikegs.train import Trainer, _means_lr
+from spikegs.targets import build_targets, intensity_scale
+from spikegs.train import Trainer, _means_lr, _optimizer
 from spikegs.train_cli import config_from_args
 from spikegs.yaml_files import dump_yaml
 
@@ -1247,6 +1247,10 @@ def test_every_method_config_loads():
         ("spikegs", {"sim": {"crop": -8}}, "sim.crop"),
         ("spikegs", {"sim": {"shift_layers": 0}}, "sim.shift_layers"),
         ("spikegs", {"sim": {"window": -1}}, "sim.window"),
+        # centred on its readout: an even window has no centre (its check dropped passed)
+        ("spikegs", {"sim": {"window": 32}}, "sim.window.*odd"),
+        ("spikegs", {"train": {"sh_degree": 4}}, "train.sh_degree"),
+        ("spikegs", {"densify": {"max_gaussians": 4999}}, "densify.max_gaussians"),
         ("spikegs", {"densify": {"every": -1}}, "densify.every"),
         ("spikegs", {"densify": {"every": 0}}, "densify.every"),
         ("spikegs", {"densify": {"start": -1}}, "densify.start"),
@@ -1307,12 +1311,15 @@ def test_config_types_are_checked_however_set():
 
 def test_config_edges_of_the_ranges_are_accepted():
     edges = {
-        "train": {"seed": 2**64 - 1, "init_gaussians": 16},
+        "train": {"seed": 2**64 - 1, "init_gaussians": 16, "sh_degree": 3},
         "sim": {"iterations": 1, "crop": 1, "batch": 1, "window": 1},
         "densify": {"start": 0, "every": 1, "opacity_reset_every": 0, "min_opacity": 0.0},
     }
     config = load_config("spikegs", edges)
     assert (config.train.seed, config.sim.crop, config.densify.every) == (2**64 - 1, 1, 1)
+    # a cap of exactly the initial Gaussians: a run that never grows (> for >= refused it)
+    config = load_config("spikegs", {"densify": {"max_gaussians": 5000}})
+    assert config.densify.max_gaussians == config.train.init_gaussians == 5000
 
 
 def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
@@ -3320,3 +3327,41 @@ def test_a_scene_is_trained_about_its_centre_from_ten_radii_out():
         far = np.array([6.0, 6.0, 6.0]) * radius  # 10.4 radii
         assert np.array_equal(frame_origin(near, radius), np.zeros(3))
         assert np.array_equal(frame_origin(far, radius), far)
+
+
+def test_a_method_without_an_instant_target_densifies_on_its_exposure_renders(dataset, tmp_path):
+    """only_exposure (instant: none) with densify.instant_only: no instant render to take the
+    signal from, so the exposure's renders give it, over the exposure's weight (instant_only
+    taken alone, without 'and the instant loss trains', divided a signal never tapped by an
+    instant weight of 0: NaN, and the run never grew)."""
+    overrides = {
+        "train": {"iterations": 2, "init_gaussians": 300, "eval_every": 2, "checkpoint_every": 2},
+        "densify": {**ONE_DENSIFYING_STEP, "grad_threshold": 1e-9},
+    }
+    config = load_config("only_exposure", overrides)
+    assert config.densify.instant_only and config.instant_target() == "none"
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=False)
+    trainer._fresh_state()
+    trainer.targets = build_targets(dataset, config, progress=False)
+    trainer.update()
+    grads = trainer.densifier.grad_sum
+    assert torch.isfinite(grads).all() and grads.max() > 0
+    trainer.densify()
+    assert len(trainer.model) > 300
+
+
+def test_adam_steps_do_not_shrink_with_the_gradients_scale():
+    """3DGS's Adam epsilon (1e-15): a first step moves each parameter by its rate whatever its
+    gradient's size, 1e-9 here, as a scene's means get in small units (torch's default 1e-8 moved
+    them by a tenth of it, and passed every test)."""
+    model = GaussianModel.random(10, (0, 0, 0), 1.0, 1, 0, torch.Generator().manual_seed(0))
+    config = load_config("spikegs")
+    optimizer = _optimizer(model, config, 2.0)
+    before = {name: p.detach().clone() for name, p in model.params.items()}
+    sum(1e-9 * p.sum() for p in model.params.values()).backward()
+    optimizer.step()
+    rates = {g["name"]: g["lr"] for g in optimizer.param_groups}
+    assert rates["means"] == pytest.approx(2.0 * config.lr.means)
+    for name, p in model.params.items():
+        step = (before[name] - p.detach()).abs()
+        torch.testing.assert_close(step, torch.full_like(step, rates[name]), rtol=1e-3, atol=0)
