@@ -2964,6 +2964,13 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
         "output, differ in brightness from the exposure targets; a SIM trained too briefly? "
         "sim.iterations)"
     )
+    # the band judged unbiased, [0.8, 1.25]: the measured unbiased fits (0.96-1.06) inside it,
+    # a fifth darker or a quarter brighter said (0.7 or 1.4 passed every test)
+    for ratio, said in ((0.78, True), (0.82, False), (1.2, False), (1.3, True)):
+        record = FitBrightness()
+        for _ in range(MIN_STEPS):
+            record.observe("exposure", [one * ratio], one)
+        assert (biased_fit(record, SupervisionConfig()) is not None) == said, ratio
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
