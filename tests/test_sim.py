@@ -995,3 +995,24 @@ def test_loading_a_sim_leaves_torch_global_generator(tmp_path):
     loaded = load_sim(tmp_path / "sim.pt")
     sim_train.inference_model(loaded)
     assert torch.equal(torch.get_rng_state(), state)
+
+
+def test_training_crops_reach_every_edge_of_the_frame(monkeypatch):
+    """Crops of 7 on an 8×8 frame start at row and column 0 or 1, each: spikes on the last row
+    and column alone, some crops hold each (offsets to height - crop exclusive never trained on
+    the frame's last row, and passed every test)."""
+    from spikegs.spikes import SpikeStream
+
+    bits = np.zeros((10, 8, 8), bool)
+    bits[:, -1, :3] = True  # the last row, away from the last column
+    bits[:, :3, -1] = True  # the last column, away from the last row
+    seen = []
+    to_input = sim_train._to_input
+    monkeypatch.setattr(
+        sim_train, "_to_input", lambda crops, *a: seen.append(crops) or to_input(crops, *a)
+    )
+    stream = SpikeStream.from_bits(bits)
+    train_sim(stream, [4, 5], 3, steps=8, batch_size=4, crop=7, shift_layers=1, progress=False)
+    crops = np.concatenate(seen)  # [32, 3, 7, 7]
+    assert crops.shape == (32, 3, 7, 7)
+    assert crops[:, :, -1, :].any() and crops[:, :, :, -1].any()
