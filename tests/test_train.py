@@ -2295,6 +2295,10 @@ def test_iterations_override_scales_the_densification_schedule():
     assert (cli.densify.start, cli.densify.every, cli.densify.stop) == (200, 40, 0)
     with pytest.raises(ValueError, match="train.iterations"):
         config.with_iterations(0)
+    # scaled to the nearest iteration: 2000 of 3000 rounds every 66.7 to 67 and the reset's
+    # 666.7 to 667 (truncation, 66 and 666, passed every test, whose factors gave whole numbers)
+    d = load_config("spikegs").with_iterations(2000).densify
+    assert (d.start, d.every, d.opacity_reset_every) == (333, 67, 667)
 
 
 def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
