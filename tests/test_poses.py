@@ -25,7 +25,7 @@ from spikegs.data.dataset import check_output
 from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import MIN_START_INTENSITY, GaussianModel
-from spikegs.point_cloud import POINTS, read_points, seen_points, write_points
+from spikegs.point_cloud import POINTS, ball_points, read_points, seen_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import (
     _complete_meta,
@@ -662,3 +662,41 @@ def test_sigterm_stays_pythons_after_pycolmap_loads():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0 and done.stdout == "terminated\n", done.stderr[-500:]
+
+
+def test_a_point_cloud_starts_init_gaussians_of_its_points_at_their_spacing(tiny, tmp_path):
+    """A cloud of 400 points and init_gaussians 300: 300 of its points, none twice, sized by the
+    median distance between nearest neighbours among them (brute force here; the second
+    neighbour, a cloud kept whole, and no size cap all passed every test), at most 0.99 of the
+    size that densification prunes where that cap is on."""
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    points = np.random.default_rng(1).normal(size=(400, 3))
+    write_points(root / POINTS, points)
+    uncapped = {**TINY, "densify": {**TINY["densify"], "max_world_size": 0.0}}
+    trainer = Trainer(load_dataset(root), load_config("tfp33", uncapped), tmp_path / "r", False)
+    trainer._fresh_state()
+    means = trainer.model.params["means"].detach().double().numpy()
+    nearest = np.linalg.norm(means[:, None] - points[None], axis=2)  # [300, 400]
+    assert len(means) == 300 and (nearest.min(axis=1) < 1e-6).all()
+    kept = points[nearest.argmin(axis=1)]
+    assert len(np.unique(kept, axis=0)) == 300
+    gaps = np.linalg.norm(kept[:, None] - kept[None], axis=2)
+    np.fill_diagonal(gaps, np.inf)
+    spacing = np.median(gaps.min(axis=1))
+    np.testing.assert_allclose(trainer.model.scales.detach().numpy(), spacing, rtol=1e-5)
+    capped = load_config("tfp33", TINY)
+    trainer = Trainer(load_dataset(root), capped, tmp_path / "r2", False)
+    trainer._fresh_state()
+    cap = 0.99 * capped.densify.max_world_size * trainer.radius
+    assert cap < spacing  # so the cap decides
+    np.testing.assert_allclose(trainer.model.scales.detach().numpy(), cap, rtol=1e-5)
+
+
+def test_scene_probes_fill_the_ball_uniformly():
+    """The probes that check the scene is in view are uniform in the scene's ball: within it, an
+    eighth of them within half its radius (a square root for the cube root put a quarter there,
+    and passed every test)."""
+    center = np.array([1.0, -2.0, 3.0])
+    r = np.linalg.norm(ball_points(center, 2.0, 8000) - center, axis=1)
+    assert r.max() <= 2.0 and abs((r < 1.0).mean() - 1 / 8) < 0.015

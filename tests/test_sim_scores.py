@@ -57,3 +57,13 @@ def test_a_method_that_a_channel_cannot_score_is_left_out(tmp_path):
     with np.errstate(divide="raise"):
         scores = evaluate_dataset(model, dataset)
     assert set(scores) == {"SIM", "TFP(33)", "TFI"}
+
+
+def test_a_view_between_readouts_is_scored_at_the_nearest_one(tmp_path):
+    """On-path views at readouts 39.7 and 60.2 score as at 40 and 60, the nearest readouts
+    (truncation, 39, passed every test, whose views lay on whole readouts)."""
+    dataset, model = _colour_dataset(tmp_path), SIM(window=33)
+    whole = evaluate_dataset(model, dataset)
+    for view, readout in zip(dataset.test_views, (39.7, 60.2)):
+        view.readout = readout
+    assert evaluate_dataset(model, dataset) == whole
