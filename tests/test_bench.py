@@ -379,7 +379,16 @@ def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypa
     assert trained[3][2] == 8 * trained[1][2] > 0  # its densification stretched with it
     scene = json.loads((tmp_path / "train.json").read_text())["scenes"][train.HEADLINE_SCENE]
     assert scene["methods"]["tfp33-equal-time"]["train_seconds"] == 80.0
-    assert "tfp33-equal-time" in capsys.readouterr().out
+    # the table and plot titled '100 iterations' beside its 800: each says the runs' iterations
+    printed = capsys.readouterr().out.splitlines()
+    assert any("100 iterations, BASELINE-equal-time as many as SpikeGS's" in p for p in printed)
+    header = next(p.split() for p in printed if p.split()[:2] == ["method", "iterations"])
+    row = next(p.split() for p in printed if p.split()[:1] == ["tfp33-equal-time"])
+    assert row[header.index("iterations")] == "800"
+    titles = []
+    monkeypatch.setattr(train, "save_curves", lambda path, runs, keys, title: titles.append(title))
+    main([*argv, "--out", str(tmp_path / "again")])
+    assert "100 iterations per method, BASELINE-equal-time as many" in titles[0]
     with pytest.raises(ValueError, match="expected spikegs and a baseline"):
         train.selection(True, None, ["spikegs", "only_instant"], equal_time=True)
     assert main(["bench", "spikes", "--equal-time"]) == 2

@@ -265,9 +265,10 @@ def ablation_line(methods: dict) -> str | None:
     return f"paper's ablation order (both > only instant > only exposure): {order}"
 
 
-def _table(methods: dict, gains: dict[str, dict]) -> list[dict]:
+def _table(methods: dict, gains: dict[str, dict], iterations: bool = False) -> list[dict]:
     """The paper's Tables 1-3 analogue for one scene: scores, times, `gains` over TFP(33)
-    (`paired_gains`; means over the seeds, ± their standard deviations when there are several)."""
+    (`paired_gains`; means over the seeds, ± their standard deviations when there are several);
+    with `iterations` each method's (seed 0's: the -equal-time runs train more)."""
 
     def spread(mean: float, std: float | None, digits: int) -> str | float:
         return mean if std is None else f"{mean:.{digits}f} ± {std:.{digits}f}"
@@ -275,6 +276,7 @@ def _table(methods: dict, gains: dict[str, dict]) -> list[dict]:
     return [
         {
             "method": name,
+            **({"iterations": r["iterations"]} if iterations else {}),
             "PSNR": spread(r["psnr"], r["psnr_std"], 2),
             "SSIM": spread(r["ssim"], r["ssim_std"], 3),
             "train s": r["train_seconds"],
@@ -366,6 +368,8 @@ def run(
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:
         length += f", densify threshold {grad_threshold:g}"
+    # the -equal-time runs train more: the scene's table and plot say so
+    stretched = f", BASELINE{EQUAL_TIME} as many as SpikeGS's seconds take" if equal_time else ""
     configs = {m: load_config(m, overrides) for m in methods}
     check_outputs(out, scenes, run_names(methods, equal_time), seeds)
     start = time.perf_counter()
@@ -393,10 +397,10 @@ def run(
         }
         size = f"{dataset.width}x{dataset.height}"
         print(
-            f"{scene} ({size}, {len(dataset.test_views)} test views, {length}, "
+            f"{scene} ({size}, {len(dataset.test_views)} test views, {length}{stretched}, "
             f"{seeds} seed{'s' if seeds > 1 else ''})"
         )
-        print_table(_table(runs, results[scene]["gain_over_tfp33_db"]))
+        print_table(_table(runs, results[scene]["gain_over_tfp33_db"], equal_time))
         if CEILING in runs:
             print(
                 f"{CEILING}: trained on the clean instant images (one render a step): the "
@@ -405,7 +409,7 @@ def run(
         if order is not None:
             print(ablation_line(runs))
         views = f"mean over the {len(dataset.test_views)} test views, seed 0's run"
-        title = f"{scene} {size}, {length} per method; {views}\n{SIM_NOTE}"
+        title = f"{scene} {size}, {length} per method{stretched}; {views}\n{SIM_NOTE}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
     headline = results.get(HEADLINE_SCENE, {}).get("methods", {})
     shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
