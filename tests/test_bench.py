@@ -4,6 +4,7 @@ schedule is the demo's (CI also runs `spikegs bench all --quick`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -65,6 +66,45 @@ def test_bench_spikes_numpy_simulator_is_the_cores():
     count = spikes._spike_count(noisy)
     numpy_count = spikes._spike_count(spikes._numpy_simulate(light, times, 400, SimParams()))
     assert abs(numpy_count - count) < 4 * math.sqrt(count), (numpy_count, count)
+
+
+def _spike_statistics(packed: np.ndarray, width: int) -> tuple[float, float, float]:
+    """The mean readout of each pixel's first spike, the spread (standard deviation) of the
+    intervals between a pixel's spikes and that of the pixels' spike counts, of packed readouts
+    [T, H, ceil(W/8)]."""
+    bits = np.unpackbits(packed, axis=-1, bitorder="little")[..., :width]
+    bits = bits.reshape(len(packed), -1)  # [T, pixels]
+    pixel, readout = np.nonzero(bits.T)  # by pixel, then readout
+    intervals = np.diff(readout)[pixel[1:] == pixel[:-1]]
+    return float(bits.argmax(axis=0).mean()), float(intervals.std()), float(bits.sum(0).std())
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        dataclasses.replace(spikes.NOISE_FREE, shot_noise=True),
+        dataclasses.replace(spikes.NOISE_FREE, temporal_sigma=0.1),
+        dataclasses.replace(spikes.NOISE_FREE, random_init=True),
+        dataclasses.replace(spikes.NOISE_FREE, fpn_sigma=0.03),
+        dataclasses.replace(spikes.NOISE_FREE, dark_rate=0.05),  # its spread: dark_sigma 0.5
+        SimParams(),
+    ],
+    ids=["shot", "threshold", "start", "thresholds", "dark", "default"],
+)
+def test_bench_spikes_numpy_simulator_draws_the_cores_noise(params):
+    """The numpy simulator `bench spikes` times the core against draws its noise too: spike counts
+    alone agreed with a numpy model that had dropped the shot noise, the threshold noise or the
+    random start (a spike a pixel in 300 readouts: within the noise), which does less work. Each
+    noise on its own, then the default's: the first spikes' mean readout (a random start halves
+    it), the spread of the intervals between spikes and that of the pixels' counts (both 0
+    without noise, at constant light)."""
+    light = np.full((3, 32, 32), 0.4, np.float32)  # 0.1 spikes a readout: intervals of ~10
+    times = np.array([0.0, 150.0, 299.0])
+    ours = _spike_statistics(simulate_spikes(light, 300, frame_times=times, params=params), 32)
+    theirs = _spike_statistics(spikes._numpy_simulate(light, times, 300, params), 32)
+    assert abs(theirs[0] - ours[0]) < 0.6, (theirs, ours)  # ±0.1 for 1024 uniform starts
+    assert theirs[1] == pytest.approx(ours[1], rel=0.05, abs=0.02), (theirs, ours)
+    assert theirs[2] == pytest.approx(ours[2], rel=0.15, abs=0.05), (theirs, ours)  # ±2 % each
 
 
 def test_a_stiff_case_that_fails_fails_the_bench(tmp_path, monkeypatch, capsys):
