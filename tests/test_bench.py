@@ -241,6 +241,8 @@ def test_ablation_order_holds_only_where_each_method_scores_strictly_higher():
     assert train.ablation_order(methods) == "spikegs = only_exposure > only_instant"
     methods["only_exposure"] = train.over_seeds([_run(25.0)])
     assert train.ablation_order(methods) == "holds"
+    methods["only_exposure"] = train.over_seeds([_run(26.0)])  # the paper's order, the last tied
+    assert train.ablation_order(methods) == "spikegs > only_instant = only_exposure"
 
 
 def test_ablation_order_says_on_how_many_seeds_it_holds():
@@ -253,6 +255,9 @@ def test_ablation_order_says_on_how_many_seeds_it_holds():
     }
     assert train.ablation_order(methods) == "holds"
     assert train.ablation_seeds(methods) == 1
+    for tie, psnr in (("only_instant", 27.0), ("only_exposure", 26.0)):  # seed 0: 27 > 26 > 25
+        tied = {**methods, tie: train.over_seeds([_run(psnr), *methods[tie]["seeds"][1:]])}
+        assert train.ablation_seeds(tied) == 0  # either lead tied: no order on that seed
     assert train.ablation_line(methods) == (
         "paper's ablation order (both > only instant > only exposure): holds in the mean "
         "over 2 seeds, on 1 of them"
