@@ -13,7 +13,6 @@ that differ between the two.
 from __future__ import annotations
 
 import tempfile
-import time
 import tracemalloc
 from pathlib import Path
 from typing import Any
@@ -149,24 +148,27 @@ def _spike_count(packed: np.ndarray) -> int:
     return int(np.unpackbits(packed).sum())
 
 
-def _timed(fn, *args, **kwargs) -> tuple[float, Any]:
-    """Seconds of one call of `fn(*args, **kwargs)` and its result."""
-    start = time.perf_counter()
-    result = fn(*args, **kwargs)
-    return time.perf_counter() - start, result
+def _timed(fn, *args, repeats: int = 1, **kwargs) -> tuple[float, Any]:
+    """The median seconds of `repeats` calls of `fn(*args, **kwargs)` and the last's result."""
+    results = []
+    seconds = median_seconds(lambda: results.append(fn(*args, **kwargs)), repeats, warmup=0)
+    return seconds, results[-1]
 
 
 def _simulator_vs_numpy(light: np.ndarray, readouts: int) -> list[dict]:
     """Ours against numpy's same model over `readouts`, at the default noise (their spike counts
     agree within the noise; the draws differ) and without noise (the spikes that differ: float32
-    either side, the core's fused and reordered sums can tip a pixel at its threshold)."""
+    either side, the core's fused and reordered sums can tip a pixel at its threshold); each
+    time a median of 3, as TFP's and TFI's (one call moved with the machine's load)."""
     times = np.linspace(0.0, readouts - 1.0, len(light))  # [F]
     rows = []
     for noise, params in (("default", SimParams()), ("none", NOISE_FREE)):
         ours_seconds, ours_spikes = _timed(
-            simulate_spikes, light, readouts, frame_times=times, params=params
+            simulate_spikes, light, readouts, frame_times=times, params=params, repeats=3
         )
-        numpy_seconds, numpy_spikes = _timed(_numpy_simulate, light, times, readouts, params)
+        numpy_seconds, numpy_spikes = _timed(
+            _numpy_simulate, light, times, readouts, params, repeats=3
+        )
         row = {
             "noise": noise,
             "readouts": readouts,
