@@ -458,5 +458,9 @@ def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypa
     assert "100 iterations per method, BASELINE-equal-time as many" in titles[0]
     with pytest.raises(ValueError, match="expected spikegs and a baseline"):
         train.selection(True, None, ["spikegs", "only_instant"], equal_time=True)
+    # a baseline slower than SpikeGS keeps its iterations (the bench's), never fewer
+    runs = {"spikegs": _run(30.0, train_seconds=5.0, sim_seconds=1.0), "tfp33": _run(25.0)}
+    runs["tfp33"]["train_seconds"] = 12.0
+    assert train.equal_time_iterations(runs, "tfp33", 100) == 100
     assert main(["bench", "spikes", "--equal-time"]) == 2
     assert "--equal-time: options of bench train, not of bench spikes" in capsys.readouterr().err

@@ -1784,6 +1784,8 @@ def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     assert "SpikeGS 75 s with SIM's training, 6.1x the baseline's 12 s" in line
     results["spikegs"]["psnr"] = 29.2199  # a tie prints no -0.00
     assert "+0.00 dB" in gain_line(results)
+    results["tfp33"]["train_seconds"] = 0.0  # no ratio to a baseline that took no time
+    assert gain_line(results).endswith("SpikeGS 75 s with SIM's training, the baseline's 0 s)")
 
 
 # SIM trained 5 steps: its output is half as bright as the exposure's targets, which is said

@@ -391,7 +391,7 @@ def gain_line(results: dict) -> str:
     ours, base = results["spikegs"], results["tfp33"]
     gain = round(ours["psnr"] - base["psnr"], 2) + 0.0  # no -0.00
     ours_s = ours["train_seconds"] + ours["sim_seconds"]
-    times = f", {ours_s / base['train_seconds']:.1f}x" if base["train_seconds"] > 0 else ""
+    times = f", {ours_s / base['train_seconds']:.1f}x" if base["train_seconds"] > 0 else ","
     return (
         f"SpikeGS - TFP(33)+3DGS: {gain:+.2f} dB at equal iterations ({ours['iterations']} each; "
         f"SpikeGS {ours_s:.0f} s with SIM's training{times} the baseline's "
