@@ -184,9 +184,8 @@ def _simulator_vs_numpy(light: np.ndarray, readouts: int) -> list[dict]:
     return rows
 
 
-def _bench_simulator(readouts: int) -> dict:
-    """Throughput at the default noise over `readouts`."""
-    light = np.random.default_rng(1).random((3, HEIGHT, WIDTH), dtype=np.float32)
+def _bench_simulator(light: np.ndarray, readouts: int) -> dict:
+    """Throughput at the default noise over `readouts` of `light` [F, H, W]."""
     simulate_spikes(light, 64)  # warm up
     seconds, packed = _timed(simulate_spikes, light, readouts, params=SimParams())
     bits = np.unpackbits(packed[:200], axis=-1, bitorder="little")[..., :WIDTH]  # [200, H, W]
@@ -269,8 +268,8 @@ def run(quick: bool, out: Path) -> dict:
         path = Path(tmp) / "stream.dat"
         _write_random_stream(path, readouts)
         rows, memory, tfi = _bench_stream(path, readouts, count, np_count)
-    sim = _bench_simulator(300 if quick else 3000)
-    light = np.random.default_rng(1).random((3, HEIGHT, WIDTH), dtype=np.float32)
+    light = np.random.default_rng(1).random((3, HEIGHT, WIDTH), dtype=np.float32)  # [F, H, W]
+    sim = _bench_simulator(light, 300 if quick else 3000)
     sim_rows = _simulator_vs_numpy(light, 50 if quick else 300)
 
     print(f"TFP on a memory-mapped {HEIGHT}x{WIDTH} stream of {readouts} readouts")
