@@ -286,3 +286,21 @@ TEST_CASE(simulator_rate_is_calibrated_and_capped) {
   for (int64_t x = 0; x < W; ++x) saturated = saturated && rate[3 * W + x] == 1.0f;
   CHECK(saturated, "overexposed pixels fire once per readout, never more");
 }
+
+// A readout at exactly a frame's time sees that frame's light, not the previous frame's
+// interpolated to weight 1: from a frame of 1e20, 1e20 + (2.4 - 1e20) is 0 in float. Noise off,
+// one pixel, θ = 100, 25 photo-electrons per unit of light: readout 0 fires and banks θ (the
+// cap), readout 1 (light 2.4: 60 e) fires and keeps 60, readout 2 (60 more) fires; with the
+// light lost at readout 1 it kept 0, and readout 2 did not fire.
+TEST_CASE(simulator_readout_at_a_frame_time_sees_that_frame) {
+  SimParams params;
+  params.dark_rate = 0, params.dark_sigma = 0, params.fpn_sigma = 0, params.temporal_sigma = 0;
+  params.shot_noise = false, params.random_init = false;
+  const std::vector<float> frames = {1e20f, 2.4f, 2.4f};  // [3, 1, 1]
+  const std::vector<double> times = {0.0, 1.0, 2.0};
+  SpikeSimulator sim(1, 1, params, 5);
+  std::vector<uint8_t> out(3, 0xff);
+  sim.run(frames.data(), times.data(), 3, 3, out.data());
+  CHECK(out[0] == 1 && out[1] == 1 && out[2] == 1, "spikes ", int(out[0]), int(out[1]), int(out[2]),
+        ", expected 111");
+}
