@@ -1086,3 +1086,17 @@ def test_a_forked_child_renders_after_the_parent_did():
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split("\n")[0] == "child True", done.stdout
+
+
+@needs_cpp
+def test_a_float32_splat_whose_determinant_overflows_is_culled():
+    """DESIGN §4: a Gaussian whose 2D determinant is not finite is culled. A round splat ~1e10 px
+    wide in float32: its covariance entries (~1e20) and the backward's largest terms (~1e30) are
+    finite, its determinant (~1e40) is not; with that guard dropped it was rendered (conic 0)."""
+    scene = make_scene(3, 2, 16, 12, dtype=torch.float32)
+    scene["viewmat"] = torch.eye(4, dtype=torch.float32)
+    scene["means"] = torch.tensor([[0.0, 0.0, 2.0], [0.05, 0.0, 2.0]])
+    scene["scales"][0] = 1e10 * 2.0 / scene["K"][0, 0]
+    out, grads = forward_backward(spikegs.rasterize, scene, torch.float32)
+    assert out.radii.tolist()[0] == 0 and out.radii.tolist()[1] > 0
+    check_finite_and_culled(out, grads)
