@@ -1114,7 +1114,7 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
         edit_json(root / name, per_frame)
     np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
     edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1].update(fl_x=99.0))
-    with pytest.raises(ValueError, match=f"test/r_1' has intrinsics fl_x 99, .* w {W}, h {H}, "):
+    with pytest.raises(ValueError, match=f"test/r_1' has intrinsics fl_x 99, .* w {W}, h {H} \\("):
         load_dataset(root)
     edit_json(
         root / "transforms_test.json", lambda doc: doc["frames"][1].update(fl_x=camera["fl_x"])
@@ -1136,6 +1136,31 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
         )
         with pytest.raises(ValueError, match="transforms_train.json: fl_x expected a finite nu"):
             load_dataset(root)
+
+
+def test_nerf_camera_stated_with_other_keys_is_one_camera(sim, nerf, tmp_path):
+    """transforms_test.json stating camera_angle_y, cx, cy and the size at half resolution beside
+    a training file with camera_angle_x alone was refused as 'one camera expected' (its keys
+    differed): the same K is one camera; a camera_angle_y 2 % off, or distortion one file alone
+    states, is another."""
+    root = copy(nerf, tmp_path)
+    angle_y = 2 * np.arctan(H / 2 / float(sim.K[0, 0]))
+
+    def camera(factor: float):  # instant-ngp's keys, at half the size
+        same = dict(cx=W / 4, cy=H / 4, w=W // 2, h=H // 2)
+        return lambda doc: doc.update(camera_angle_y=angle_y * factor, **same)
+
+    edit_json(root / "transforms_test.json", camera(1.0))
+    np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
+    edit_json(root / "transforms_test.json", camera(1.02))
+    other = r"test/r_0' has intrinsics .*camera_angle_y .* \(fx, fy, cx, cy [\d.]+, [\d.]+, "
+    with pytest.warns(UserWarning, match="non-square pixels"):
+        with pytest.raises(ValueError, match=other + ".*one camera expected"):
+            load_dataset(root)
+    edit_json(root / "transforms_test.json", camera(1.0))
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(k1=0.1))
+    with pytest.raises(ValueError, match="k1 0.1 .*one camera expected"):
+        load_dataset(root)
 
 
 def test_nerf_focal_given_once_or_twice(sim, nerf, tmp_path):

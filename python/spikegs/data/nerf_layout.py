@@ -37,11 +37,11 @@ from .trajectory import PathLike
 from .transforms_file import (
     IMAGE_EXTENSIONS,
     TRANSFORMS,
-    camera_matrix,
     fitted,
     frame_columns,
     is_opengl,
-    read_camera,
+    one_camera_matrix,
+    read_cameras,
     read_frame,
     read_transforms_doc,
     stated_size,
@@ -206,7 +206,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     root = Path(path)
     options = read_options(root, overrides)
     frames, sources, docs, viewmats, test = _frames(root, options)
-    path, camera = sources[0], read_camera(docs, frames, sources)
+    path, cameras = sources[0], read_cameras(docs, frames, sources)
+    camera = cameras[0]
     spikes = _find_spikes(root, frames, sources)
     images = [_image(root, f) if t else None for f, t in zip(frames, test)]
     for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
@@ -249,7 +250,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         mono(image, frame) if is_test else training_image(frame, check)
         for frame, image, is_test, check in zip(frames, images, test, checked)
     ]
-    K = camera_matrix(path, camera, src, (height, row), shift)
+    K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]

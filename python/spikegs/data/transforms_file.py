@@ -120,8 +120,9 @@ def read_transforms(path: Path, width: int, height: int, channels: int, backgrou
     doc = read_transforms_doc(path)
     frames = doc["frames"]
     viewmats = transforms_viewmats(path, doc)  # [F, 4, 4]
-    camera = read_camera([doc] * len(frames), frames, [path] * len(frames))
-    src, what = stated_size(path, camera, "its first frame")
+    sources = [path] * len(frames)
+    cameras = read_cameras([doc] * len(frames), frames, sources)
+    src, what = stated_size(path, cameras[0], "its first frame")
     images, negative = [], []  # negative: (file, values below 0, the lowest) of each frame
     for f in frames:
         image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
@@ -140,7 +141,7 @@ def read_transforms(path: Path, width: int, height: int, channels: int, backgrou
             f"{negative[0][0]}), set to 0: light is not negative",
             stacklevel=3,
         )
-    K = camera_matrix(path, camera, src, (height, width))
+    K = one_camera_matrix(cameras, frames, sources, src, (height, width))
     return np.stack(images).astype(np.float32), viewmats, K, doc
 
 
@@ -184,12 +185,13 @@ def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
     return skimage.transform.resize(image, size, anti_aliasing=True)
 
 
-def read_camera(docs: list, frames: list, sources: list) -> dict:
-    """The one camera {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS): the first frame's
-    file's keys (docs [F], each frame's file's JSON; sources [F], its path), the frame's own file's,
-    then the frame's (nerfstudio), each checked (`camera_number`); ValueError naming two frames that
-    differ or a camera_model that is not a pinhole; a warning for non-zero distortion, which the
-    pinhole rasterizer does not model."""
+def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
+    """The cameras {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS), each under the index
+    of the first frame stating it, the first frame's first: the first frame's file's keys (docs
+    [F], each frame's file's JSON; sources [F], its path), the frame's own file's, then the frame's
+    (nerfstudio), each checked (`camera_number`); ValueError for a camera_model that is not a
+    pinhole; a warning for the first camera's non-zero distortion, which the pinhole rasterizer
+    does not model. Cameras stated with other keys may still be one (`one_camera_matrix`)."""
     for doc, frame, source in zip(docs, frames, sources):
         model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
         if model not in PINHOLE_MODELS:
@@ -199,30 +201,52 @@ def read_camera(docs: list, frames: list, sources: list) -> dict:
                 f"frames to one"
             )
     keys = CAMERA_KEYS + DISTORTION_KEYS
-    merged = [
-        {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
-        for doc, frame in zip(docs, frames)
-    ]
-    cameras = [
-        {k: camera_number(src, k, v) for k, v in c.items()} for c, src in zip(merged, sources)
-    ]
-    for i, camera in enumerate(cameras):
-        if camera.keys() != cameras[0].keys() or not np.allclose(
-            [camera[k] for k in camera], [cameras[0][k] for k in camera], rtol=1e-6
-        ):
-            raise ValueError(
-                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
-                f"{_camera_text(camera)}, frame '{frames[0]['file_path']}' of {sources[0]} "
-                f"{_camera_text(cameras[0])}: one camera expected"
-            )
-    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
+    cameras = {}
+    for i, (doc, frame, source) in enumerate(zip(docs, frames, sources)):
+        merged = {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
+        camera = {k: camera_number(source, k, v) for k, v in merged.items()}
+        if camera not in cameras.values():
+            cameras[i] = camera
+    distortion = _distortion(cameras[0])
     if distortion:
         warnings.warn(
             f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
             f"camera (undistort the spikes' frames to model it)",
             stacklevel=3,
         )
-    return cameras[0]
+    return cameras
+
+
+def _distortion(camera: dict) -> dict:
+    """A camera's non-zero DISTORTION_KEYS."""
+    return {k: camera[k] for k in DISTORTION_KEYS if camera.get(k, 0) != 0}
+
+
+def one_camera_matrix(
+    cameras: dict[int, dict], frames: list, sources: list, src: tuple, size: tuple, shift: float = 0
+) -> np.ndarray:
+    """K [3, 3] of the first of `cameras` (`read_cameras`) at `camera_matrix`'s `src`, `size` and
+    `shift`, each other camera's at its own w, h where it states them; ValueError naming two frames
+    whose cameras differ in K (within 1e-6) or in distortion: one camera expected. Keys one file
+    states and another leaves to their defaults (camera_angle_y, cx, w, h, ...) are one camera
+    where they give the same K."""
+
+    def matrix(i: int, camera: dict) -> np.ndarray:
+        own = stated_size(sources[i], camera, "")[0] or src
+        return camera_matrix(sources[i], camera, own, size, shift)
+
+    (first, camera), *others = cameras.items()
+    K = matrix(first, camera)
+    for i, other in others:
+        K_i = matrix(i, other)
+        if not np.allclose(K_i, K, rtol=1e-6, atol=0) or _distortion(other) != _distortion(camera):
+            raise ValueError(
+                f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
+                f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i)}), frame "
+                f"'{frames[first]['file_path']}' of {sources[first]} {_camera_text(camera)} "
+                f"({intrinsics_text(K)}): one camera expected"
+            )
+    return K
 
 
 def stated_size(path: Path, camera: dict, image: str) -> tuple[tuple[int, int] | None, str]:
