@@ -223,6 +223,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
         path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
     )
+    # the frames' cameras checked as one before the training images are read
+    K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
     fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
     center, radius = view_sphere(
         viewmats, path, fix, center=options.scene_center, radius=options.scene_radius
@@ -250,7 +252,6 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         mono(image, frame) if is_test else training_image(frame, check)
         for frame, image, is_test, check in zip(frames, images, test, checked)
     ]
-    K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]

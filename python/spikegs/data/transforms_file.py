@@ -207,7 +207,7 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
         camera = {k: camera_number(source, k, v) for k, v in merged.items()}
         if camera not in cameras.values():
             cameras[i] = camera
-    distortion = _distortion(cameras[0])
+    distortion = {k: cameras[0][k] for k in DISTORTION_KEYS if cameras[0].get(k, 0) != 0}
     if distortion:
         warnings.warn(
             f"{sources[0]}: distortion {distortion} ignored: the rasterizer assumes a pinhole "
@@ -217,9 +217,14 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
     return cameras
 
 
-def _distortion(camera: dict) -> dict:
-    """A camera's non-zero DISTORTION_KEYS."""
-    return {k: camera[k] for k in DISTORTION_KEYS if camera.get(k, 0) != 0}
+def _same_distortion(a: dict, b: dict) -> bool:
+    """Whether cameras `a` and `b` state the same distortion (within 1e-6; absent is 0)."""
+    return np.allclose(
+        [a.get(k, 0) for k in DISTORTION_KEYS],
+        [b.get(k, 0) for k in DISTORTION_KEYS],
+        rtol=1e-6,
+        atol=0,
+    )
 
 
 def one_camera_matrix(
@@ -227,7 +232,7 @@ def one_camera_matrix(
 ) -> np.ndarray:
     """K [3, 3] of the first of `cameras` (`read_cameras`) at `camera_matrix`'s `src`, `size` and
     `shift`, each other camera's at its own w, h where it states them; ValueError naming two frames
-    whose cameras differ in K (within 1e-6) or in distortion: one camera expected. Keys one file
+    whose cameras differ in K or in distortion (within 1e-6): one camera expected. Keys one file
     states and another leaves to their defaults (camera_angle_y, cx, w, h, ...) are one camera
     where they give the same K."""
 
@@ -239,7 +244,7 @@ def one_camera_matrix(
     K = matrix(first, camera)
     for i, other in others:
         K_i = matrix(i, other)
-        if not np.allclose(K_i, K, rtol=1e-6, atol=0) or _distortion(other) != _distortion(camera):
+        if not (np.allclose(K_i, K, rtol=1e-6, atol=0) and _same_distortion(other, camera)):
             raise ValueError(
                 f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
                 f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i)}), frame "
