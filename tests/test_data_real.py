@@ -1139,15 +1139,15 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
 
 
 def test_nerf_camera_stated_with_other_keys_is_one_camera(sim, nerf, tmp_path):
-    """transforms_test.json stating camera_angle_y, cx, cy and the size at half resolution beside
-    a training file with camera_angle_x alone was refused as 'one camera expected' (its keys
-    differed): the same K is one camera; a camera_angle_y 2 % off, or distortion one file alone
-    states, is another."""
+    """transforms_test.json stating camera_angle_y, cx, cy, a zero distortion and the size at half
+    resolution beside a training file with camera_angle_x, w and h alone was refused as 'one
+    camera expected' (its keys differed): the same K is one camera; a camera_angle_y 2 % off, or
+    distortion one file alone states, is another, and the message says which differs."""
     root = copy(nerf, tmp_path)
     angle_y = 2 * np.arctan(H / 2 / float(sim.K[0, 0]))
 
     def camera(factor: float):  # instant-ngp's keys, at half the size
-        same = dict(cx=W / 4, cy=H / 4, w=W // 2, h=H // 2)
+        same = dict(cx=W / 4, cy=H / 4, w=W // 2, h=H // 2, k1=0.0, p1=0)
         return lambda doc: doc.update(camera_angle_y=angle_y * factor, **same)
 
     edit_json(root / "transforms_test.json", camera(1.0))
@@ -1155,11 +1155,11 @@ def test_nerf_camera_stated_with_other_keys_is_one_camera(sim, nerf, tmp_path):
     edit_json(root / "transforms_test.json", camera(1.02))
     other = r"test/r_0' has intrinsics .*camera_angle_y .* \(fx, fy, cx, cy [\d.]+, [\d.]+, "
     with pytest.warns(UserWarning, match="non-square pixels"):
-        with pytest.raises(ValueError, match=other + ".*one camera expected"):
+        with pytest.raises(ValueError, match=other + ".*fx, fy, cx, cy differ; one camera exp"):
             load_dataset(root)
     edit_json(root / "transforms_test.json", camera(1.0))
     edit_json(root / "transforms_test.json", lambda doc: doc.update(k1=0.1))
-    with pytest.raises(ValueError, match="k1 0.1 .*one camera expected"):
+    with pytest.raises(ValueError, match="k1 0.1, .*their distortion differs; one camera exp"):
         load_dataset(root)
 
 

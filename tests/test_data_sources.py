@@ -638,6 +638,27 @@ def test_simulated_frames_read_the_camera_as_the_nerf_layout(tmp_path, camera, f
     np.testing.assert_allclose(half.K, [[15, 0, 6], [0, 15, 4], [0, 0, 1]])
 
 
+def test_simulated_frames_cameras_checked_before_the_frames_are_read(tmp_path):
+    """Frames of one file stating other keys for one camera (the last at half the size) read as
+    one camera; a frame of another focal is refused before a later frame is read (a missing image
+    was reported instead of the cameras)."""
+    viewmats = arc_viewmats(3)
+    frames = np.random.default_rng(0).random((3, 16, 24, 3))
+    write_transforms(tmp_path / "transforms.json", "train", frames, viewmats, np.eye(3), ".exr")
+    doc = json.loads((tmp_path / "transforms.json").read_text())
+    del doc["camera_angle_x"]
+    cameras = [{"fl_x": 30.0}, {"fl_x": 30.0, "cx": 12.0}, {"fl_x": 15.0, "w": 12, "h": 8}]
+    for frame, camera in zip(doc["frames"], cameras):
+        frame.update(camera)
+    (tmp_path / "transforms.json").write_text(json.dumps(doc))
+    source = FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 24, 16)
+    np.testing.assert_allclose(source.K, [[30, 0, 12], [0, 30, 8], [0, 0, 1]])
+    doc["frames"][2].update(fl_x=16.0, file_path="missing")
+    (tmp_path / "transforms.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="their fx, fy, cx, cy differ; one camera expected"):
+        FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 24, 16)
+
+
 @pytest.mark.parametrize(
     "key, value, expected",
     [

@@ -195,9 +195,9 @@ def rasterize(
     _check("quats", quats, (n, 4), dtype)
     _check("scales", scales, (n, 3), dtype)
     _check("opacities", opacities, (n,), dtype)
-    # each range checked by a reduction first, and masked only where that fails (a NaN, which
-    # the reduction carries, and an inf fail it too, and the mask lets them through): the masks
-    # took ~70 us a render at 11k Gaussians, and a SpikeGS step renders 5 poses
+    # each range checked by a reduction first, and masked only where that fails (NaN, which the
+    # reduction carries, may fail it; the mask lets NaN and inf through): the masks took ~70 us
+    # a render at 11k Gaussians, and a SpikeGS step renders 5 poses
     s = scales.detach()
     if s.numel() and not bool(s.min() >= 0):
         negative = s[s < 0]

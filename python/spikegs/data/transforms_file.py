@@ -104,9 +104,9 @@ def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
     return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
 
 
-def intrinsics_text(K: np.ndarray) -> str:
-    """fx, fy, cx, cy of a camera matrix [3, 3], for a message."""
-    return ", ".join(f"{v:.6g}" for v in intrinsics_keys(K).values())
+def intrinsics_text(K: np.ndarray, digits: int = 6) -> str:
+    """fx, fy, cx, cy of a camera matrix [3, 3] to `digits` significant digits, for a message."""
+    return ", ".join(f"{v:.{digits}g}" for v in intrinsics_keys(K).values())
 
 
 def _camera_text(camera: dict) -> str:
@@ -130,8 +130,10 @@ def read_transforms(path: Path, width: int, height: int, channels: int, backgrou
             negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
             image = np.maximum(image, 0.0)
         src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
-        if not images:  # the aspect ratio checked before any frame is resized (no crop here)
+        if not images:  # before any frame is resized or another read: the aspect ratio, and
+            # the frames' cameras as one (no crop here)
             frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
+            K = one_camera_matrix(cameras, frames, sources, src, (height, width))
         image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
         images.append(to_channels(image, channels))
     if negative:
@@ -141,7 +143,6 @@ def read_transforms(path: Path, width: int, height: int, channels: int, backgrou
             f"{negative[0][0]}), set to 0: light is not negative",
             stacklevel=3,
         )
-    K = one_camera_matrix(cameras, frames, sources, src, (height, width))
     return np.stack(images).astype(np.float32), viewmats, K, doc
 
 
@@ -218,12 +219,13 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
 
 
 def _same_distortion(a: dict, b: dict) -> bool:
-    """Whether cameras `a` and `b` state the same distortion (within 1e-6; absent is 0)."""
+    """Whether cameras `a` and `b` state the same distortion (within 1e-6 relative, 1e-9 absolute;
+    absent is 0)."""
     return np.allclose(
         [a.get(k, 0) for k in DISTORTION_KEYS],
         [b.get(k, 0) for k in DISTORTION_KEYS],
         rtol=1e-6,
-        atol=0,
+        atol=1e-9,
     )
 
 
@@ -244,12 +246,14 @@ def one_camera_matrix(
     K = matrix(first, camera)
     for i, other in others:
         K_i = matrix(i, other)
-        if not (np.allclose(K_i, K, rtol=1e-6, atol=0) and _same_distortion(other, camera)):
+        same_K = np.allclose(K_i, K, rtol=1e-6, atol=0)
+        if not (same_K and _same_distortion(other, camera)):
+            differ = "their distortion differs" if same_K else "their fx, fy, cx, cy differ"
             raise ValueError(
                 f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
-                f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i)}), frame "
+                f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i, 9)}), frame "
                 f"'{frames[first]['file_path']}' of {sources[first]} {_camera_text(camera)} "
-                f"({intrinsics_text(K)}): one camera expected"
+                f"({intrinsics_text(K, 9)}): {differ}; one camera expected"
             )
     return K
 
@@ -290,7 +294,7 @@ def frame_columns(
 def camera_matrix(
     path: Path, camera: dict, src: tuple, size: tuple, shift: float = 0
 ) -> np.ndarray:
-    """K [3, 3] of a transforms file's `camera` (`read_camera`'s keys: fl_x, fl_y, cx, cy, or
+    """K [3, 3] of a transforms file's `camera` (`read_cameras`' keys: fl_x, fl_y, cx, cy, or
     camera_angle_x and camera_angle_y as instant-ngp writes them) for images of `src` (h, w),
     scaled to `size` (h, w) and moved `shift` columns left (a crop, `frame_columns`); cx, cy
     default to the image centre."""
