@@ -2,6 +2,7 @@
 headings as GitHub anchors them (text moved between documents left links pointing nowhere)."""
 
 import re
+import unicodedata
 from collections import Counter
 from pathlib import Path
 
@@ -13,12 +14,19 @@ LINK = re.compile(r"\]\(([^)\s]+)\)")  # [text](target)
 FENCE = re.compile(r"^```.*?^```", re.S | re.M)
 
 
+def _kept(c: str) -> bool:
+    """Whether GitHub keeps character `c` in a heading's anchor: letters, marks, decimal digits,
+    '_', '-' and spaces (so not '²' or '½', which Python's \\w keeps)."""
+    category = unicodedata.category(c)
+    return c in "- " or category[0] in "LM" or category in ("Nd", "Pc")
+
+
 def anchors(markdown: str) -> set[str]:
-    """GitHub's anchors of a document's headings: lower case, punctuation but '-' and '_' dropped,
-    spaces as '-', a repeated one numbered -1, -2, ..."""
+    """GitHub's anchors of a document's headings: lower case, the characters it drops
+    (`_kept`) dropped, spaces as '-', a repeated one numbered -1, -2, ..."""
     seen, found = Counter(), set()
     for heading in re.findall(r"^#+ (.*)$", FENCE.sub("", markdown), re.M):
-        slug = re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+        slug = "".join(c for c in heading.strip().lower() if _kept(c)).replace(" ", "-")
         found.add(slug if not seen[slug] else f"{slug}-{seen[slug]}")
         seen[slug] += 1
     return found
@@ -27,6 +35,7 @@ def anchors(markdown: str) -> set[str]:
 def test_anchors_as_github_makes_them():
     text = "# RUN/eval.json and `x`\n## Tables 1–3\n## Tables 1–3\n```\n# not a heading\n```\n"
     assert anchors(text) == {"runevaljson-and-x", "tables-13", "tables-13-1"}
+    assert anchors("## 256² — 250×400, λ (é)\n") == {"256--250400-λ-é"}
 
 
 @pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: p.name)
