@@ -20,6 +20,7 @@ from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.dataset import Dataset
 from spikegs.data.llff import (
     _warn_if_looking_away,
+    frustum_sphere,
     llff_intrinsics,
     llff_sphere,
     to_poses_bounds,
@@ -1376,6 +1377,60 @@ def test_view_streams_put_a_views_first_readout_in_that_view():
     assert trajectory.readouts.tolist() == [0, 2, 3, 6]
     np.testing.assert_allclose(trajectory.pose_at(3.0), poses[1], atol=1e-12)
     np.testing.assert_allclose(trajectory.pose_at(2.0), poses[0], atol=1e-12)
+
+
+def test_view_streams_report_their_frame_size_and_refuse_mixed_sizes():
+    """Views of 2x8 frames: height 2 and width 8 (a width read from the height passed every
+    loader test, whose datasets take their size from meta), and a view of another size is refused
+    (views of two sizes cannot share one readout axis)."""
+    a, b = np.zeros((3, 2, 8), bool), np.ones((4, 2, 8), bool)
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
+    assert (views.height, views.width, len(views)) == (2, 8, 7)
+    assert repr(views) == "ViewStreams(views=2, readouts=7, 2x8)"
+    with pytest.raises(ValueError, match=r"one size expected, found sizes \[\(2, 8\), \(8, 2\)\]"):
+        ViewStreams(
+            [SpikeStream.from_bits(a), SpikeStream.from_bits(np.ones((4, 8, 2), bool))], "ab"
+        )
+
+
+def test_view_streams_refuse_a_readout_at_the_end_naming_the_stream():
+    """Readout 7 of views of 3 and 4 readouts lies past the stream: a ValueError naming the
+    stream's [0, 7) (a bound one readout loose took it for a view's and failed on an index)."""
+    a, b = np.zeros((3, 2, 8), bool), np.ones((4, 2, 8), bool)
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
+    np.testing.assert_array_equal(views.tfp(6, 1), 1.0)  # the last readout
+    for k in (7, -1):
+        with pytest.raises(ValueError, match=r"outside the stream's \[0, 7\)"):
+            views.tfp(k, 1)
+
+
+def test_a_one_readout_view_holds_one_pose():
+    """A view of one readout (its first readout its last) is one pose of the held trajectory: the
+    two equal readouts would be refused as not strictly increasing."""
+    a, b = np.zeros((1, 2, 8), bool), np.ones((4, 2, 8), bool)
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
+    poses = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0.0, 3.0, 1.0], [0, 0, 0])])
+    trajectory = views.held_trajectory(poses, "x")
+    assert trajectory.readouts.tolist() == [0, 1, 4]
+    np.testing.assert_allclose(trajectory.pose_at(0.0), poses[0], atol=1e-12)
+
+
+def test_llff_views_within_20_degrees_take_the_frustum_sphere(sim):
+    """An arc of ±10° aimed at the origin spreads its view directions 0.013, under the ±20°
+    (0.03) that LLFF takes as inward-facing: the sphere is the frustums' (the near and far bounds
+    placing the scene), not one about where the optical axes meet, which a forward-facing
+    capture's pose noise sets; at ±30° it is centred there."""
+    for degrees, inward in ((10, False), (30, True)):
+        arc = np.radians(np.linspace(-degrees, degrees, 7))
+        viewmats = np.stack([look_at([4 * np.sin(a), -4 * np.cos(a), 0], [0, 0, 0]) for a in arc])
+        bounds = np.tile([2.0, 6.0], (len(arc), 1))
+        center, radius = llff_sphere(viewmats, bounds, sim.K, W, H)
+        if inward:
+            np.testing.assert_allclose(center, 0, atol=1e-9)
+        else:
+            expected = frustum_sphere(viewmats, bounds, sim.K, W, H)
+            np.testing.assert_allclose(center, expected[0])
+            assert radius == pytest.approx(expected[1])
 
 
 def test_a_held_out_pose_whose_window_just_fits_is_scored(tmp_path):

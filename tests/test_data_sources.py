@@ -597,12 +597,15 @@ def test_simulate_from_a_folder_names_the_transforms_file_it_leaves_unread(tmp_p
 
 def test_narrow_inward_captures_give_their_scene_sphere():
     """A 30° arc and a ring seen from 82° elevation, aimed at the origin, were refused when the
-    NeRF layout took LLFF's ±20° spread test (LLFF has depth bounds to fall back on)."""
+    NeRF layout took LLFF's ±20° spread test (LLFF has depth bounds to fall back on); a 12° arc
+    spreads its directions 0.005, over the 1e-3 (±2°) below which views are forward-facing."""
     arc = np.radians(np.linspace(-15, 15, 7))
+    narrow = np.radians(np.linspace(-6, 6, 7))  # directions spread 0.005: over the 1e-3 (±2°)
     ring = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     up = np.radians(82)
     captures = {
         "arc 30°": [look_at([4 * np.sin(a), 4 * np.cos(a), 0.5], [0, 0, 0]) for a in arc],
+        "arc 12°": [look_at([4 * np.sin(a), 4 * np.cos(a), 0.5], [0, 0, 0]) for a in narrow],
         "ring at 82°": [
             look_at(4 * np.array([np.cos(up) * np.cos(a), np.cos(up) * np.sin(a), np.sin(up)]),
                     [0, 0, 0], up=(1, 0, 0))
