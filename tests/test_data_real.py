@@ -777,6 +777,7 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
         ("rate_at_one", 5),  # more than one spike a readout: accepted and used as the scale
         ("scene_radius", -1),
         ("scene_center", [0, 0]),
+        ("scene_center", [0, 0, 1, 2]),  # LLFF took it as it was, to meta
         ("flip", "false"),
         ("height", "48"),
         ("width", 0),
@@ -799,6 +800,16 @@ def test_options_valid_values_pass(tmp_path):
     write_options(tmp_path, **values, rate_at_one=0.25, scene_radius=2)
     options = read_options(tmp_path, {"train_every": np.int64(3)})
     assert options.train_every == 3 and options.scene_radius == 2 and options.flip is False
+
+
+def test_options_accept_the_ends_of_their_ranges(tmp_path):
+    """The ends of each option's range are valid: col_offset 0 (the raw camera's rows cropped from
+    their first column), rate_at_one 1 (a spike every readout), a pseudo_gt_window and train_every
+    of 1, view 0 held out; a range closed one step too far refused them as the wrong type."""
+    values = dict(col_offset=0, rate_at_one=1, pseudo_gt_window=1, train_every=1, test_views=[0])
+    write_options(tmp_path, **values, raw_width=1, height=1, width=1)
+    options = read_options(tmp_path, {})
+    assert [getattr(options, key) for key in values] == list(values.values())
 
 
 def test_options_scene_center_needs_its_radius(tmp_path):
