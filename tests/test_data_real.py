@@ -34,7 +34,7 @@ from spikegs.data.real import (
     view_tfps,
     warn_pose_gaps,
 )
-from spikegs.data.real_options import Options, read_options
+from spikegs.data.real_options import Options, open_spikes, read_options
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.data.transforms_file import OPENGL_TO_OPENCV
 from spikegs.data.view_stream import ViewStreams
@@ -783,7 +783,9 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
         ("width", 0),
         ("col_offset", -1),
         ("train_every", 2.5),
+        ("train_every", 0),  # no stride between timestamps
         ("test_views", [0.5]),
+        ("test_views", [-1]),  # the last view, to Python
         ("pseudo_gt_window", 64),
     ],
 )
@@ -810,6 +812,23 @@ def test_options_accept_the_ends_of_their_ranges(tmp_path):
     write_options(tmp_path, **values, raw_width=1, height=1, width=1)
     options = read_options(tmp_path, {})
     assert [getattr(options, key) for key in values] == list(values.values())
+
+
+def test_options_of_none_leave_the_files_values(tmp_path):
+    """A keyword option of None (load_llff(DIR, height=None), a command-line flag not given)
+    leaves spikegs.json's value: None is the layout's default only where the file gives none."""
+    write_options(tmp_path, height=16, flip=False)
+    options = read_options(tmp_path, {"height": None, "flip": None, "width": 24})
+    assert (options.height, options.width, options.flip) == (16, 24, False)
+
+
+def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):
+    """A .dat that is no whole number of readouts at the options' frame size: the error names
+    the stored rows read (raw_width's 12 pixels, not the image's 6) and the first column kept."""
+    save_dat(tmp_path / "view.dat", np.ones((10, 4, 8), bool))  # 40 bytes: not 4x12 frames
+    options = Options(raw_width=12, col_offset=2)
+    with pytest.raises(ValueError, match=r"view.dat: .*frames of 4x6 pixels, rows of 12 from col"):
+        open_spikes(tmp_path / "view.dat", 4, 6, options)
 
 
 def test_options_scene_center_needs_its_radius(tmp_path):
