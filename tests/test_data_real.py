@@ -1347,6 +1347,8 @@ def test_llff_holds_out_every_8th_view_from_view_0():
     """LLFF's convention: views 0, 8, 16, ... (a mask from 1 held out 1, 9 instead)."""
     assert np.flatnonzero(held_out_mask(17, None, "x")).tolist() == [0, 8, 16]
     assert np.flatnonzero(held_out_mask(5, [1, 3], "x")).tolist() == [1, 3]
+    with pytest.raises(ValueError, match=r"test_views \[5\] outside the 5 views \[0, 5\)"):
+        held_out_mask(5, [1, 5], "x")  # one past the last view: not an IndexError
 
 
 def test_view_tfp_spans_the_whole_odd_view():
@@ -1370,6 +1372,10 @@ def test_intensity_calibration_is_the_median_over_views():
     views = [(0.25 * image[..., 0], image), (0.25 * image[..., 0], image)]
     views.append((0.25 * image[..., 0], image / 5))  # a wrong, darker image: ratio 1.25
     assert rate_from_images(views, "x") == pytest.approx(0.25)
+    black = (0.25 * image[..., 0], 0 * image)  # a black image: no ratio (an infinite one moved
+    assert rate_from_images([views[0], views[2], black], "x") == pytest.approx(0.75)  # the median)
+    with pytest.raises(ValueError, match="all black or their spikes too few"):
+        rate_from_images([black, black], "x")
 
 
 def test_spikes_upside_down_against_their_images_warn_of_flip():
@@ -1390,6 +1396,54 @@ def test_spikes_upside_down_against_their_images_warn_of_flip():
     scrambled = np.random.default_rng(0).permutation(image.reshape(-1)).reshape(image.shape)
     with pytest.warns(UserWarning, match=r"hardly match .* \(median correlation -?0\.\d\d over 3"):
         check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, True, "x")
+
+
+def test_flip_warning_needs_most_views_to_match_upside_down_by_a_margin():
+    """TFPs mixing each image with itself upside down (weights cos θ, sin θ: correlations about
+    those): flipped better by 0.37 (θ 60°) in most views warns of flip; by 0.10 (θ 49°, within
+    FLIP_MARGIN 0.2, a noisy view's difference) or in only half the views it does not."""
+    image = np.random.default_rng(0).random((64, 64, 1))
+    flat = image[..., 0]
+
+    def view(degrees):  # (TFP [H, W], image [H, W, 1]) of a view mixed at θ
+        t = np.radians(degrees)
+        return np.cos(t) * flat + np.sin(t) * flat[::-1], image
+
+    with pytest.warns(UserWarning, match="better upside down"):
+        check_orientation([view(60)] * 3, True, "x")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_orientation([view(49)] * 3, True, "x")
+        check_orientation([view(60), view(30)], True, "x")  # one view of two
+
+
+def test_a_view_of_the_longest_window_loads_and_one_readout_less_is_refused(sim, llff, tmp_path):
+    """A view of 65 readouts holds TFP(65), the longest window training reads: it loads; one of
+    64 is refused naming the file (a bound one readout off either way refused the first or let
+    the second fail at training)."""
+    root = copy(llff, tmp_path)
+    write_view(sim, root / "spikes" / "004.dat", 4, length=65)
+    assert load_dataset(root).meta["view_readouts"]["004"] == [280, 345]
+    write_view(sim, root / "spikes" / "004.dat", 4, length=64)
+    with pytest.raises(ValueError, match="004.dat: view '004' has 64 readouts.*at least 65"):
+        load_dataset(root)
+
+
+def test_stream_poses_outside_the_stream_refused(tmp_path):
+    """Poses of one stream of 200 readouts at readouts -0.5 or 200 lie outside [0, 199]: a
+    ValueError naming the stream (the LLFF loader checks the end before; stream_dataset itself
+    refuses both ends)."""
+    bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
+    save_dat(tmp_path / "spikes.dat", bits)
+    stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
+    viewmats = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0, 3.0, 1.0], [0, 0, 0])])
+    meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
+    test = np.array([True, False])
+    for readouts in ([-0.5, 150.0], [50.0, 200.0]):
+        with pytest.raises(ValueError, match=r"outside the stream's \[0, 199\]"):
+            stream_dataset(
+                tmp_path, meta, stream, np.array(readouts), viewmats, test, Options(), "x"
+            )
 
 
 def test_view_streams_put_a_views_first_readout_in_that_view():
