@@ -27,6 +27,7 @@ from spikegs.data.llff import (
     viewmats_from_llff,
 )
 from spikegs.data.real import (
+    _spaced_hold_out,
     check_orientation,
     held_out_mask,
     rate_from_images,
@@ -1444,6 +1445,32 @@ def test_stream_poses_outside_the_stream_refused(tmp_path):
             stream_dataset(
                 tmp_path, meta, stream, np.array(readouts), viewmats, test, Options(), "x"
             )
+
+
+def test_stream_timestamps_reach_the_first_and_last_pose_by_half_a_window(tmp_path):
+    """One stream of 200 readouts, poses at 0, 100, 199, the middle one held out: training
+    timestamps are every readout whose TFP(65) lies between the first and last pose and that keeps
+    64 readouts clear of readout 100, 32-35 and 165-167 (a strict bound at either end lost the
+    first or last; a clearance of 63 or 65 moved 35 or 165)."""
+    bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
+    save_dat(tmp_path / "spikes.dat", bits)
+    stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
+    angles = np.radians([0.0, 25.0, 50.0])
+    viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
+    meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
+    meta |= {"scene_center": [0.0, 0.0, 0.0], "scene_radius": 1.0}
+    readouts, test = np.array([0.0, 100.0, 199.0]), np.array([False, True, False])
+    ds = stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+    assert ds.train_timestamps.tolist() == [32, 33, 34, 35, 165, 166, 167]
+
+
+def test_spaced_held_out_poses_follow_the_documented_stride():
+    """docs/datasets.md: held-out poses of a dense log every ⌈8·(129 + train_every) / s⌉-th, s
+    the median readouts between poses: every 1040th for a pose a readout and train_every 1,
+    ⌈8 · 131 / 3⌉ = 350th for one every 3 readouts and train_every 2; never under every 8th."""
+    assert _spaced_hold_out(np.arange(5000.0), 1) == 1040
+    assert _spaced_hold_out(np.arange(0.0, 5000.0, 3.0), 2) == 350
+    assert _spaced_hold_out(np.arange(0.0, 50000.0, 1000.0), 1) == 8
 
 
 def test_view_streams_put_a_views_first_readout_in_that_view():
