@@ -667,6 +667,13 @@ def test_simulated_frames_cameras_checked_before_the_frames_are_read(tmp_path):
     [
         ("camera_angle_x", 40, r"in \(0, pi\) radians, found 40 \(40 degrees would be 0.698"),
         ("camera_angle_x", -0.7, r"in \(0, pi\) radians, found -0.7$"),
+        # the range's open ends: π (a focal of 0, read as degrees) and 0
+        (
+            "camera_angle_x",
+            np.pi,
+            r"in \(0, pi\) radians, found 3.14159\d+ \(3.14159 degrees would",
+        ),
+        ("camera_angle_y", 0, r"in \(0, pi\) radians, found 0$"),
         ("fl_x", -50.8, r"> 0 \(pixels\), found -50.8"),
         ("fl_y", 0, r"> 0 \(pixels\), found 0"),
         ("w", 0, "a positive integer"),
