@@ -1473,6 +1473,23 @@ def test_spaced_held_out_poses_follow_the_documented_stride():
     assert _spaced_hold_out(np.arange(0.0, 50000.0, 1000.0), 1) == 8
 
 
+def test_a_fractional_held_out_pose_is_scored_on_the_nearest_readout(tmp_path):
+    """A held-out pose at readout 100.7 (readouts.txt may be fractional) gets the pseudo ground
+    truth TFP(65) centred on readout 101, the nearest (truncating centred it on 100)."""
+    bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
+    save_dat(tmp_path / "spikes.dat", bits)
+    stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
+    angles = np.radians([0.0, 25.0, 50.0])
+    viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
+    meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
+    meta |= {"scene_center": [0.0, 0.0, 0.0], "scene_radius": 1.0}
+    readouts, test = np.array([0.0, 100.7, 199.0]), np.array([False, True, False])
+    ds = stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+    assert ds.test_views[0].readout == pytest.approx(100.7)
+    np.testing.assert_array_equal(ds.test_views[0].image[..., 0], stream.tfp(101, 65))
+    assert not np.array_equal(stream.tfp(100, 65), stream.tfp(101, 65))
+
+
 def test_view_streams_put_a_views_first_readout_in_that_view():
     """Views of 3 and 4 readouts: readout 3 is view 1's first (not view 0's), TFP(1) there reads
     view 1's spikes, and the held trajectory gives readout 3 view 1's pose (the last readout of
