@@ -175,6 +175,9 @@ def test_llff_per_view_loads(sim, llff):
     # the sphere around the frustums holds the simulated scene's centre
     assert np.linalg.norm(ds.scene_center - sim.scene_center) < ds.scene_radius
     assert ds.meta["near"] > 0 and ds.meta["far"] > ds.meta["near"]
+    # meta.json's keys: the rows as stored (raw_width defaults to the width) and the files in order
+    assert (ds.meta["raw_width"], ds.meta["col_offset"]) == (W, 0)
+    assert ds.meta["spike_files"] == [f"spikes/{i:03d}.dat" for i in range(VIEWS)]
 
 
 def test_llff_stream_loads(sim, llff_stream):
@@ -200,6 +203,11 @@ def test_nerf_layout_loads(sim, nerf):
     np.testing.assert_allclose(sharp.image, clean * ds.meta["image_scale"], rtol=1e-5)
     assert pseudo.readout is not None
     assert len(ds.stream) == 9 * LENGTH and len(ds.train_timestamps) == 8
+    # each view's readouts hold its own pose, after test/r_0, which has no spikes (the poses of
+    # the views with spikes, not the first 9, shifted test/r_1's onto r_0's)
+    start, end = ds.meta["view_readouts"]["test_r_1"]
+    np.testing.assert_allclose(ds.trajectory.pose_at(float(start)), pseudo.viewmat, atol=1e-9)
+    np.testing.assert_allclose(ds.trajectory.pose_at(float(end - 1)), pseudo.viewmat, atol=1e-9)
     np.testing.assert_allclose(ds.K, sim.K, rtol=1e-6)
     assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.5 * sim.scene_radius
 
@@ -627,6 +635,9 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
     write_image(root / "test" / "r_0.exr", sharp[:, : W // 2])
     with pytest.raises(ValueError, match=rf"r_0: image {W // 2}x{H} .*camera's images are {W}x{H}"):
         load_dataset(root)
+    write_image(root / "test" / "r_0.exr", sharp[:, 3:])  # 3 columns (6 %) short: another crop
+    with pytest.raises(ValueError, match=rf"r_0: image {W - 3}x{H} .*camera's images are {W}x{H}"):
+        load_dataset(root)
 
 
 def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):
@@ -813,6 +824,15 @@ def test_options_accept_the_ends_of_their_ranges(tmp_path):
     write_options(tmp_path, **values, raw_width=1, height=1, width=1)
     options = read_options(tmp_path, {})
     assert [getattr(options, key) for key in values] == list(values.values())
+
+
+def test_no_held_out_view_is_refused(llff, tmp_path):
+    """test_views [] holds no view out: a ValueError saying so (a dataset without test views
+    trains and then has nothing to score)."""
+    root = copy(llff, tmp_path)
+    write_options(root, test_views=[])
+    with pytest.raises(ValueError, match="no test view .set test_views in spikegs.json"):
+        load_dataset(root)
 
 
 def test_options_of_none_leave_the_files_values(tmp_path):
@@ -1210,6 +1230,10 @@ def test_nerf_focal_given_once_or_twice(sim, nerf, tmp_path):
         edit_json(root / part, lambda doc: doc.update(fl_x=0.5 * fx))
     with pytest.warns(UserWarning, match="fl_x .* and camera_angle_x .* disagree; fl_x is used"):
         assert load_dataset(root).K[0, 0] == pytest.approx(0.5 * fx)
+    for part in ("transforms_train.json", "transforms_test.json"):  # 5 %: over the 1 % allowed
+        edit_json(root / part, lambda doc: doc.update(fl_x=1.05 * fx))
+    with pytest.warns(UserWarning, match="fl_x .* and camera_angle_x .* disagree; fl_x is used"):
+        load_dataset(root)
 
 
 def test_nerf_camera_angle_y_gives_the_focal_in_y(sim, nerf, tmp_path):

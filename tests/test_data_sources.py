@@ -676,8 +676,10 @@ def test_simulated_frames_cameras_checked_before_the_frames_are_read(tmp_path):
         ("camera_angle_y", 0, r"in \(0, pi\) radians, found 0$"),
         ("fl_x", -50.8, r"> 0 \(pixels\), found -50.8"),
         ("fl_y", 0, r"> 0 \(pixels\), found 0"),
+        ("fl_y", -30, r"> 0 \(pixels\), found -30"),
         ("w", 0, "a positive integer"),
         ("h", 23.5, "a positive integer"),
+        ("w", 36.5, "a positive integer"),
     ],
 )
 def test_intrinsics_out_of_range_named(tmp_path, key, value, expected):
