@@ -1567,6 +1567,17 @@ def test_a_one_readout_view_holds_one_pose():
     np.testing.assert_allclose(trajectory.pose_at(0.0), poses[0], atol=1e-12)
 
 
+def test_frustum_sphere_holds_the_image_corners_at_both_bounds():
+    """A camera at the origin looking along +z (OpenCV), 16x6 pixels, fx = fy = 10, cx = 8,
+    cy = 3, bounds 1 and 2: the corners lie at x = ±0.8 d, y = ±0.3 d, so the box is
+    [-1.6, 1.6] x [-0.6, 0.6] x [1, 2], centred at (0, 0, 1.5), radius √3.17 (columns taken
+    for rows gave another box)."""
+    K = np.array([[10.0, 0, 8], [0, 10, 3], [0, 0, 1]])
+    center, radius = frustum_sphere(np.eye(4)[None], np.array([[1.0, 2.0]]), K, 16, 6)
+    np.testing.assert_allclose(center, [0, 0, 1.5], atol=1e-12)
+    assert radius == pytest.approx(np.sqrt(1.6**2 + 0.6**2 + 0.5**2))
+
+
 def test_llff_views_within_20_degrees_take_the_frustum_sphere(sim):
     """An arc of ±10° aimed at the origin spreads its view directions 0.013, under the ±20°
     (0.03) that LLFF takes as inward-facing: the sphere is the frustums' (the near and far bounds
