@@ -786,7 +786,7 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
     [
         ("rate_at_one", -1),
         ("rate_at_one", 0),
-        ("rate_at_one", 5),  # more than one spike a readout: accepted and used as the scale
+        ("rate_at_one", 5),  # more than one spike a readout (was accepted, used as the scale)
         ("scene_radius", -1),
         ("scene_center", [0, 0]),
         ("scene_center", [0, 0, 1, 2]),  # LLFF took it as it was, to meta
