@@ -727,6 +727,26 @@ def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
         FrameSequenceSource.from_transforms(tmp_path / "sim.json", 16, 16)
 
 
+def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
+    """frame_columns takes the images for whole stored rows (a crop: raw_width, col_offset) only
+    when their width at the spikes' height is within a pixel of raw_width. Images already of the
+    kept columns (50 of 56 stored) are no crop: a looser tolerance (10 px) read them as one, and
+    refused a good camera as of another aspect ratio (or, nearer, shifted cx by col_offset)."""
+    from spikegs.data.transforms_file import frame_columns
+
+    def columns(src, raw_width, col_offset=3):
+        return frame_columns("t.json", "the camera", src, (25, 50), "FIX", raw_width, col_offset)
+
+    assert columns((25, 56), 56) == (56, 3)  # whole rows: a crop, cx moved 3 left
+    assert columns((50, 113), 56) == (56, 3)  # 56.5 px at height 25: within a pixel
+    assert columns((25, 50), 56) == (50, 0)  # images of the kept columns: no crop
+    assert columns((25, 50), 53) == (50, 0)
+    assert columns((25, 50), None) == (50, 0)
+    for src in ((25, 54), (25, 58)):  # 2 px from either: another aspect ratio
+        with pytest.raises(ValueError, match=r"t.json: the camera is for 25x5\d images .*FIX"):
+            columns(src, 56)
+
+
 @pytest.mark.parametrize("radius, warned", [(1.0, False), (5.0, False), (1.0, True)])
 def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
     """Frames 0.2° apart on an orbit of radius 4 move the scene by a pixel or so; a scene sphere
