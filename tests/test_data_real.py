@@ -1338,6 +1338,32 @@ def test_nerf_spike_candidates_listed_once(tmp_path):
     assert len(_spike_candidates(tmp_path, {"file_path": "./train/r_0"}, "t.json")) == 2
 
 
+def test_nerf_spike_files_found_by_path_first_and_never_shared(nerf, tmp_path):
+    """A frame's spikes: spike_data/<file_path less its image extension, of any case>.dat before
+    spike_data/<stem>.dat. Guards against an upper-case extension kept in the name (r_2.PNG.dat
+    sought, the frame refused), the stem tried first (a stray spike_data/r_2.dat, another view's
+    spikes, trained at train/r_2's pose) and two frames reading one spike file unrefused."""
+    root = copy(nerf, tmp_path / "found")
+    edit_json(
+        root / "transforms_train.json",
+        lambda doc: doc["frames"][0].update(file_path="./train/r_2.PNG"),
+    )
+    shutil.copy(root / "custom" / "last.dat", root / "spike_data" / "r_2.dat")
+    files = load_dataset(root).meta["spike_files"]
+    assert files[0] == os.path.join("spike_data", "train", "r_2.dat"), files
+    assert os.path.join("spike_data", "r_2.dat") not in files
+
+    root = copy(nerf, tmp_path / "shared")
+    edit_json(
+        root / "transforms_train.json",
+        lambda doc: doc["frames"][0].update(spike_path="custom/last.dat"),
+    )
+    with pytest.raises(
+        ValueError, match=r"frames '\./train/r_2' and '\./train/last.png' share the spike file"
+    ):
+        load_dataset(root)
+
+
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
     root = copy(nerf, tmp_path)
     shutil.copy(root / "custom" / "last.dat", root / "custom" / "twin.dat")
