@@ -727,6 +727,24 @@ def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
         FrameSequenceSource.from_transforms(tmp_path / "sim.json", 16, 16)
 
 
+def test_nerf_orientation_check_reads_the_first_eight_training_images(tmp_path, monkeypatch):
+    """With rate_at_one given, only the first ORIENTATION_VIEWS (8) training frames' sharp images
+    are read, for the flip check: 12 frames, every 8th (0, 8) held out, all with images, give
+    training frames 1-7 and 9 to the check. Guards against one fewer (< for <=), frames counted
+    with the test ones (1-7) and every training image read (10, the cost the limit avoids)."""
+    from spikegs.data import real
+
+    seen = []
+    monkeypatch.setattr(real, "check_orientation", lambda views, *_: seen.append(len(views)))
+    image = np.full((23, 37, 3), 0.5)
+    camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
+    root = write_nerf(tmp_path, camera, arc_viewmats(12), images=dict.fromkeys(range(12), image))
+    (root / "spikegs.json").write_text(json.dumps({"rate_at_one": 0.25}))
+    ds = load_dataset(root)
+    assert [v.name for v in ds.test_views] == ["images_f_0", "images_f_8"]
+    assert seen == [real.ORIENTATION_VIEWS] == [8]
+
+
 def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     """frame_columns takes the images for whole stored rows (a crop: raw_width, col_offset) only
     when their width at the spikes' height is within a pixel of raw_width. Images already of the
