@@ -10,6 +10,7 @@ import pickle
 import re
 import shutil
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -611,7 +612,10 @@ def test_nerf_bad_input(nerf, tmp_path):
 
     root = copy(nerf, tmp_path / "noimage")
     (root / "spike_data" / "r_1.dat").unlink()  # test/r_1: no spikes and no image
-    with pytest.raises(FileNotFoundError, match="r_1.dat.*no sharp image"):
+    with pytest.raises(  # the file that lists the frame named (not transforms_train.json)
+        FileNotFoundError,
+        match=r"transforms_test.json: spike file of frame './test/r_1' .*r_1.dat.*no sharp image",
+    ):
         load_dataset(root)
 
     for spike_path, error in ((None, FileNotFoundError), (3, ValueError)):  # null: a TypeError
@@ -1362,6 +1366,27 @@ def test_nerf_spike_files_found_by_path_first_and_never_shared(nerf, tmp_path):
         ValueError, match=r"frames '\./train/r_2' and '\./train/last.png' share the spike file"
     ):
         load_dataset(root)
+
+
+def test_nerf_spike_candidates_keep_other_suffixes_and_resolve_dir(tmp_path, monkeypatch):
+    """Only an image extension leaves a frame's file_path for its spike file: scan.001 is sought
+    as spike_data/scan.001.dat, not spike_data/scan.dat (another frame's, or none). An absolute
+    file_path inside a DIR given relative (or through a link) keeps its folders: compared
+    unresolved it read as outside DIR, named by its file name alone."""
+    from spikegs.data.nerf_layout import _spike_candidates
+
+    def candidates(root, file_path):
+        found = _spike_candidates(root, {"file_path": file_path}, "t.json")
+        return [p.relative_to(root).as_posix() for p in found]
+
+    assert candidates(tmp_path, "./train/scan.001") == [
+        "spike_data/train/scan.001.dat",
+        "spike_data/scan.001.dat",
+    ]
+    assert candidates(tmp_path, "./train/r_0.JPG")[0] == "spike_data/train/r_0.dat"
+    monkeypatch.chdir(tmp_path.parent)
+    inside = str(tmp_path / "train" / "r_0.png")
+    assert candidates(Path(tmp_path.name), inside)[0] == "spike_data/train/r_0.dat"
 
 
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
