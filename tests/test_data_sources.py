@@ -745,11 +745,31 @@ def test_nerf_orientation_check_reads_the_first_eight_training_images(tmp_path, 
     assert seen == [real.ORIENTATION_VIEWS] == [8]
 
 
+def test_nerf_test_image_sizes_pixel_intrinsics_and_its_alpha_is_over_white(tmp_path):
+    """Intrinsics in pixels without w, h are for the first sharp test image's size (here 46x74,
+    twice the spikes'): K halved, no training image needed (guards against the training images
+    sought first: none found, the camera read as for the spikes' 23x37, K not halved). Its
+    transparent pixels are white, as NeRF synthetic's renders are meant (guards against a black
+    background)."""
+    image = np.concatenate([np.zeros((46, 37, 4)), np.ones((46, 37, 4))], axis=1)
+    image[..., :3] = 0.2  # left half transparent
+    camera = {"fl_x": 101.6, "cx": 37.0, "cy": 23.0}
+    root = write_nerf(tmp_path, camera, arc_viewmats(), images={0: image})
+    options = {"rate_at_one": 0.25, "height": 23, "width": 37}  # the spikes' size
+    (root / "spikegs.json").write_text(json.dumps(options))
+    ds = load_dataset(root)
+    np.testing.assert_allclose(ds.K, [[50.8, 0, 18.5], [0, 50.8, 11.5], [0, 0, 1]], rtol=1e-6)
+    sharp = ds.test_views[0].image[..., 0] / 0.25  # [23, 37] intensity
+    np.testing.assert_allclose(sharp[:, :16], 1.0, atol=1e-3)  # (the resize filter's reach)
+    np.testing.assert_allclose(sharp[:, 21:], 0.2, atol=0.005)  # 8-bit sRGB, decoded
+
+
 def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     """frame_columns takes the images for whole stored rows (a crop: raw_width, col_offset) only
     when their width at the spikes' height is within a pixel of raw_width. Images already of the
     kept columns (50 of 56 stored) are no crop: a looser tolerance (10 px) read them as one, and
-    refused a good camera as of another aspect ratio (or, nearer, shifted cx by col_offset)."""
+    refused a good camera as of another aspect ratio (or, nearer, shifted cx by col_offset). Both
+    tolerances are a pixel either way of the images' width scaled to the spikes' height."""
     from spikegs.data.transforms_file import frame_columns
 
     def columns(src, raw_width, col_offset=3):
@@ -759,7 +779,9 @@ def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     assert columns((50, 113), 56) == (56, 3)  # 56.5 px at height 25: within a pixel
     assert columns((25, 50), 56) == (50, 0)  # images of the kept columns: no crop
     assert columns((25, 50), 53) == (50, 0)
-    assert columns((25, 50), None) == (50, 0)
+    for width in (49, 50, 51):  # a pixel either way: the same aspect ratio (the width rounded)
+        assert columns((25, width), None) == (50, 0)
+    assert columns((25, 57), 56) == (56, 3)
     for src in ((25, 54), (25, 58)):  # 2 px from either: another aspect ratio
         with pytest.raises(ValueError, match=r"t.json: the camera is for 25x5\d images .*FIX"):
             columns(src, 56)
