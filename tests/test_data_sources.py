@@ -764,6 +764,29 @@ def test_nerf_test_image_sizes_pixel_intrinsics_and_its_alpha_is_over_white(tmp_
     np.testing.assert_allclose(sharp[:, 21:], 0.2, atol=0.005)  # 8-bit sRGB, decoded
 
 
+def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
+    """Frames' own intrinsics must give one camera to within 1e-6: a frame whose fl_x is 1e-4
+    off (another calibration) is refused, one 1e-8 off (rounding) is not; guards against a
+    looser comparison passing the first. w or h alone is refused by name (guards against w alone
+    failing as a bare KeyError and h alone ignored)."""
+    camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
+    root = write_nerf(tmp_path / "own", camera, arc_viewmats())
+    doc = json.loads((root / "transforms.json").read_text())
+    for off, refused in ((1e-8, False), (1e-4, True)):
+        doc["frames"][3]["fl_x"] = 50.8 * (1 + off)
+        (root / "transforms.json").write_text(json.dumps(doc))
+        if refused:
+            with pytest.raises(ValueError, match=r"frame './images/f_3' has intrinsics .*differ"):
+                load_dataset(root)
+        else:
+            np.testing.assert_allclose(load_dataset(root).K[0, 0], 50.8, rtol=1e-6)
+    for key in ("w", "h"):
+        alone = {k: v for k, v in camera.items() if k != key}
+        root = write_nerf(tmp_path / f"no_{key}", alone, arc_viewmats())
+        with pytest.raises(ValueError, match="transforms.json: w and h expected together"):
+            load_dataset(root)
+
+
 def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     """frame_columns takes the images for whole stored rows (a crop: raw_width, col_offset) only
     when their width at the spikes' height is within a pixel of raw_width. Images already of the
