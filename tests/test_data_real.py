@@ -387,11 +387,20 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
 
 
 def test_nerf_unknown_convention_refused(nerf, tmp_path):
+    """A convention other than opengl, opencv (any case) is refused by name; "OpenGL" reads as
+    OpenGL (guards against a case-sensitive comparison reading it as OpenCV); two files of two
+    conventions are warned of."""
     for value in (None, "colmap", 3):
         root = copy(nerf, tmp_path / str(value))
         edit_json(root / "transforms_train.json", lambda doc, v=value: doc.update(convention=v))
         with pytest.raises(ValueError, match=rf"transforms_train.json: convention {value!r}"):
             load_dataset(root)
+    root = copy(nerf, tmp_path / "cased")  # the label's case is free: "OpenGL" is OpenGL's
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / name, lambda doc: doc.update(convention="OpenGL"))
+    np.testing.assert_allclose(
+        load_dataset(root).test_views[0].viewmat, load_dataset(nerf).test_views[0].viewmat
+    )
     # one file relabelled: its OpenGL matrices read as OpenCV "do not converge" (set a centre)
     root = copy(nerf, tmp_path / "mixed")
     edit_json(root / "transforms_train.json", lambda doc: doc.update(convention="opencv"))
