@@ -787,6 +787,22 @@ def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
             load_dataset(root)
 
 
+def test_transforms_frames_must_be_a_list(tmp_path):
+    """A transforms file whose frames is not a list (one frame object unwrapped, a number) is
+    refused by name; guards against the check dropped: the object's keys read as frames ("frame
+    0 needs a file_path", misleading) and a number failing as a bare TypeError."""
+    from spikegs.data.transforms_file import read_transforms_doc
+
+    frame = {"file_path": "f_0", "transform_matrix": np.eye(4).tolist()}
+    path = tmp_path / "transforms.json"
+    for frames in (frame, 5, "f_0"):
+        path.write_text(json.dumps({"frames": frames}))
+        with pytest.raises(ValueError, match="transforms.json: expected a JSON object with a list"):
+            read_transforms_doc(path)
+    path.write_text(json.dumps({"frames": [frame]}))
+    assert read_transforms_doc(path)["frames"] == [frame]
+
+
 def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     """frame_columns takes the images for whole stored rows (a crop: raw_width, col_offset) only
     when their width at the spikes' height is within a pixel of raw_width. Images already of the
