@@ -616,7 +616,9 @@ def test_nerf_bad_input(nerf, tmp_path):
         root / "transforms_train.json",
         lambda doc: doc["frames"][1]["transform_matrix"][0].__setitem__(0, float("inf")),
     )
-    with pytest.raises(ValueError, match="transforms_train.json.*NaN"):
+    with pytest.raises(  # named as such (not as a pose that is not a rotation)
+        ValueError, match=r"transforms_train.json: non-finite \(NaN/inf\) transform_matrix in fr"
+    ):
         load_dataset(root)
 
     root = copy(nerf, tmp_path / "noimage")
