@@ -767,8 +767,9 @@ def test_nerf_test_image_sizes_pixel_intrinsics_and_its_alpha_is_over_white(tmp_
 def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
     """Frames' own intrinsics must give one camera to within 1e-6: a frame whose fl_x is 1e-4
     off (another calibration) is refused, one 1e-8 off (rounding) is not; guards against a
-    looser comparison passing the first. w or h alone is refused by name (guards against w alone
-    failing as a bare KeyError and h alone ignored)."""
+    looser comparison passing the first. A frame's key overrides its file's (guards against the
+    reverse). w or h alone is refused by name (guards against w alone failing as a bare KeyError
+    and h alone ignored)."""
     camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
     root = write_nerf(tmp_path / "own", camera, arc_viewmats())
     doc = json.loads((root / "transforms.json").read_text())
@@ -780,6 +781,11 @@ def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
                 load_dataset(root)
         else:
             np.testing.assert_allclose(load_dataset(root).K[0, 0], 50.8, rtol=1e-6)
+    # a frame's keys override its file's (nerfstudio)
+    root = write_nerf(
+        tmp_path / "both", {**camera, "fl_x": 40.0}, arc_viewmats(), frame_camera={"fl_x": 50.8}
+    )
+    np.testing.assert_allclose(load_dataset(root).K[0, 0], 50.8, rtol=1e-6)
     for key in ("w", "h"):
         alone = {k: v for k, v in camera.items() if k != key}
         root = write_nerf(tmp_path / f"no_{key}", alone, arc_viewmats())
