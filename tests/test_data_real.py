@@ -1403,6 +1403,20 @@ def test_nerf_spike_candidates_keep_other_suffixes_and_resolve_dir(tmp_path, mon
     assert candidates(Path(tmp_path.name), inside)[0] == "spike_data/train/r_0.dat"
 
 
+def test_nerf_spikes_with_rows_wider_than_the_camera_are_named(sim, nerf, tmp_path):
+    """The NeRF layout checks its first spike file's rows as the stream layouts do: a camera's
+    rows of W + 24 pixels read W at a time are warned of, raw_width named (guards against the
+    check left out of this layout: noise trained without a word)."""
+    root = copy(nerf, tmp_path)
+    packed = sim.stream.packed(2 * LENGTH, 3 * LENGTH)  # train/r_2, the first training view
+    bits = np.unpackbits(packed, axis=-1, bitorder="little")[..., :W]  # [T, H, W]
+    raw = np.random.default_rng(0).integers(0, 2, (LENGTH, H, W + 24), dtype=np.uint8)
+    raw[..., 4 : 4 + W] = bits  # the extra columns: noise; 105 whole 32x48 frames too
+    save_dat(root / "spike_data" / "train" / "r_2.dat", raw)
+    with pytest.warns(UserWarning, match=rf"rows of {W + 24} pixels .* set raw_width {W + 24}"):
+        load_dataset(root)
+
+
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
     root = copy(nerf, tmp_path)
     shutil.copy(root / "custom" / "last.dat", root / "custom" / "twin.dat")
