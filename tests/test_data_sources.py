@@ -793,11 +793,13 @@ def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
             load_dataset(root)
 
 
-def test_transforms_frames_must_be_a_list(tmp_path):
+def test_transforms_frames_must_be_a_list_of_4x4_matrices(tmp_path):
     """A transforms file whose frames is not a list (one frame object unwrapped, a number) is
     refused by name; guards against the check dropped: the object's keys read as frames ("frame
-    0 needs a file_path", misleading) and a number failing as a bare TypeError."""
-    from spikegs.data.transforms_file import read_transforms_doc
+    0 needs a file_path", misleading) and a number failing as a bare TypeError. So is a frame
+    without a transform_matrix (else a bare KeyError) and one of 4 rows of 3 (a check of the
+    row count alone let it through)."""
+    from spikegs.data.transforms_file import read_transforms_doc, transforms_viewmats
 
     frame = {"file_path": "f_0", "transform_matrix": np.eye(4).tolist()}
     path = tmp_path / "transforms.json"
@@ -807,6 +809,14 @@ def test_transforms_frames_must_be_a_list(tmp_path):
             read_transforms_doc(path)
     path.write_text(json.dumps({"frames": [frame]}))
     assert read_transforms_doc(path)["frames"] == [frame]
+    path.write_text(json.dumps({"frames": [frame, {"file_path": "f_1"}]}))
+    with pytest.raises(ValueError, match="frame 1 needs a file_path .text. and a transform_matr"):
+        read_transforms_doc(path)  # (not a bare KeyError when its matrix is read)
+    doc = {"frames": [frame, {**frame, "transform_matrix": np.eye(4)[:, :3].tolist()}]}
+    with pytest.raises(
+        ValueError, match=r"frame 1 \('f_0'\): transform_matrix expected 4 rows of 4"
+    ):
+        transforms_viewmats(path, doc)  # 4 rows of 3
 
 
 def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
