@@ -1657,6 +1657,24 @@ def test_frustum_sphere_holds_the_image_corners_at_both_bounds():
     assert radius == pytest.approx(np.sqrt(1.6**2 + 0.6**2 + 0.5**2))
 
 
+def test_llff_forward_sphere_caps_far_bounds_at_their_90th_percentile(sim):
+    """Forward-facing views with far bounds 3 to 8: each is capped at their 90th percentile (7.5)
+    only, so the sphere holds every view's far image corners but the last's; a cap at the
+    median (5.5) left the far half of most views' content outside the sphere."""
+    viewmats = np.stack([look_at([x, 0, 0], [x, 10, 0]) for x in np.linspace(-0.5, 0.5, 10)])
+    near, far = np.ones(10), np.linspace(3.0, 8.0, 10)
+    center, radius = llff_sphere(viewmats, np.stack([near, far], 1), sim.K, W, H)
+    capped = frustum_sphere(viewmats, np.stack([near, np.minimum(far, 7.5)], 1), sim.K, W, H)
+    np.testing.assert_allclose(center, capped[0], atol=1e-9)
+    assert radius == pytest.approx(capped[1])
+    corners = [(u, v, 1.0) for u in (0, W) for v in (0, H)]  # pixel corners, homogeneous
+    rays = np.linalg.solve(sim.K, np.array(corners, dtype=float).T).T  # [4, 3], z = 1
+    c2w = np.linalg.inv(viewmats)
+    points = np.einsum("nij,nkj->nki", c2w[:, :3, :3], far[:, None, None] * rays)
+    distance = np.linalg.norm(points + c2w[:, None, :3, 3] - center, axis=-1)  # [10, 4]
+    assert (distance[:9] <= radius + 1e-9).all() and (distance[9] > radius).any()
+
+
 def test_llff_views_within_20_degrees_take_the_frustum_sphere(sim):
     """An arc of ±10° aimed at the origin spreads its view directions 0.013, under the ±20°
     (0.03) that LLFF takes as inward-facing: the sphere is the frustums' (the near and far bounds
