@@ -341,6 +341,25 @@ def test_poses_whose_cameras_look_away_are_named(sim, llff_stream, tmp_path):
         _warn_if_looking_away(half, bounds, "half")
 
 
+def test_cameras_looking_away_within_60_degrees_of_straight_back_are_named():
+    """A ring of cameras whose optical axes all point 50° off straight away from the ring's
+    centre (the point the axes meet at lies 130° off each axis: behind, within 60° of straight
+    back) is warned of; 75° off (105°: nearer sideways than back) is not. Guards against the
+    cone (BEHIND_COS = cos 120°) widened to take sideways views for reversed ones, or narrowed."""
+    ring = np.radians(np.arange(0, 360, 30))
+    for off, warned in ((50, True), (75, False)):
+        views = []
+        for a in ring:
+            away, along = np.array([np.cos(a), np.sin(a), 0]), np.array([-np.sin(a), np.cos(a), 0])
+            look = np.cos(np.radians(off)) * away + np.sin(np.radians(off)) * along
+            views.append(look_at(4 * away, 4 * away + look, up=(0.0, 0.0, 1.0)))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _warn_if_looking_away(np.stack(views), np.tile([1.0, 5.0], (12, 1)), "ring")
+        said = [str(w.message) for w in caught]
+        assert len(said) == warned and all("look away" in m for m in said), (off, said)
+
+
 # -- conventions -----------------------------------------------------------------------------------
 def random_viewmats(n: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
@@ -895,13 +914,19 @@ def test_llff_sphere_ignores_loose_far_bounds(sim, llff, tmp_path):
 
 
 def test_llff_sphere_warns_when_loose(sim):
-    """Forward-facing cameras with far bounds 1000 times the near ones: a warning."""
+    """Forward-facing cameras with far bounds 1000, or 40, times the near ones: a warning (a
+    sphere over LOOSE_SPHERE = 20 times the near bound)."""
     viewmats = np.stack([look_at([x, 0, 0], [x, 10, 0]) for x in np.linspace(-0.2, 0.2, 5)])
     bounds = np.tile([1.0, 8.0], (5, 1))
     _, radius = llff_sphere(viewmats, bounds, sim.K, W, H)  # no warning
     assert 4 < radius < 8
     with pytest.warns(UserWarning, match="far bounds may be loose.*scene_radius in spikegs"):
         llff_sphere(viewmats, np.tile([1.0, 1000.0], (5, 1)), sim.K, W, H)
+    # the limit is 20 times the near bound (1 here): far bounds 20 (a sphere of some 17) pass,
+    # 40 (some 35) are warned of (a limit of 200 let a sphere 35 times the scene's through)
+    assert llff_sphere(viewmats, np.tile([1.0, 20.0], (5, 1)), sim.K, W, H)[1] < 20
+    with pytest.warns(UserWarning, match=r"radius 3\d\.?\d* is over 20 times"):
+        llff_sphere(viewmats, np.tile([1.0, 40.0], (5, 1)), sim.K, W, H)
 
 
 def test_nerf_absolute_file_paths(nerf, tmp_path):
