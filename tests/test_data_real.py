@@ -360,6 +360,31 @@ def test_cameras_looking_away_within_60_degrees_of_straight_back_are_named():
         assert len(said) == warned and all("look away" in m for m in said), (off, said)
 
 
+def test_poses_bounds_rows_checked_at_their_edges(tmp_path):
+    """poses_bounds.npy: a near bound of 0 (a camera at the scene's surface, a depth nothing
+    divides by), near == far, and a height, width or focal of 0 are refused naming the file, as
+    is an hwf that differs by 1e-4 between rows (another camera). Guards against each check's
+    bound relaxed by one step (>= 0, <= near, < 0, a 1e-2 tolerance)."""
+    from spikegs.data.llff import _read_poses_bounds
+
+    poses = np.tile(np.concatenate([np.eye(3), np.zeros((3, 1)), [[32], [48], [40]]], 1), (3, 1, 1))
+    good = np.concatenate([poses.reshape(3, 15), np.tile([1.0, 5.0], (3, 1))], 1)  # [3, 17]
+    path = tmp_path / "poses_bounds.npy"
+    np.save(path, good)
+    _read_poses_bounds(path)
+    for (row, col), value, message in (
+        ((1, 15), 0.0, r"bounds expected 0 < near < far, not so for views \[1\]"),
+        ((2, 16), 1.0, r"bounds expected 0 < near < far, not so for views \[2\]"),
+        ((slice(None), 4), 0.0, "height, width, focal expected positive"),
+        ((1, 14), 40 * (1 + 1e-4), "height, width, focal expected positive and the same"),
+    ):
+        bad = good.copy()
+        bad[row, col] = value
+        np.save(path, bad)
+        with pytest.raises(ValueError, match=f"poses_bounds.npy: {message}"):
+            _read_poses_bounds(path)
+
+
 # -- conventions -----------------------------------------------------------------------------------
 def random_viewmats(n: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
