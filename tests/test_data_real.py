@@ -1159,6 +1159,23 @@ def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, 
         load_dataset(root)
 
 
+def test_readouts_one_per_pose_strictly_increasing(tmp_path):
+    """readouts.txt: two poses at one readout (a pose logged twice) and a line more than there
+    are poses (another take's file) are refused; guards against a non-strict order check and a
+    count check that let extra lines through."""
+    from spikegs.data.llff import _read_readouts
+
+    path = tmp_path / "readouts.txt"
+    np.savetxt(path, [0, 10, 20], fmt="%d")
+    np.testing.assert_array_equal(_read_readouts(path, 3), [0, 10, 20])
+    np.savetxt(path, [0, 10, 10], fmt="%d")
+    with pytest.raises(ValueError, match="strictly increasing, found 10 for pose 2 after 10"):
+        _read_readouts(path, 3)
+    np.savetxt(path, [0, 10, 20, 30], fmt="%d")
+    with pytest.raises(ValueError, match="readouts.txt: 4 readouts for 3 poses; expected one per"):
+        _read_readouts(path, 3)
+
+
 def test_pose_gap_warning_ignores_short_gaps_and_stays_short():
     dense = np.arange(0, 2000, 2.0)  # a pose every 2 readouts, 12 missing: within one window
     dense = dense[(dense <= 998) | (dense >= 1012)]
@@ -1487,6 +1504,10 @@ def test_llff_intrinsics_scale_with_the_spikes_frame_size():
     )
     assert (height, width) == (32, 48)
     np.testing.assert_allclose(K, [[40, 0, 24], [0, 40, 16], [0, 0, 1]])
+    # images 97 wide (48.5 at height 32, within a pixel): each axis scaled by its own ratio,
+    # fy by the heights' (fy from the widths' ratio read 80 * 48 / 97 = 39.6)
+    K, *_ = llff_intrinsics(np.array([64.0, 97.0, 80.0]), Options(height=32, width=48), "x")
+    np.testing.assert_allclose(K, [[80 * 48 / 97, 0, 24], [0, 40, 16], [0, 0, 1]])
 
 
 def test_llff_intrinsics_of_a_raw_row_crop_keep_the_focal_and_shift_cx():
