@@ -1176,6 +1176,50 @@ def test_readouts_one_per_pose_strictly_increasing(tmp_path):
         _read_readouts(path, 3)
 
 
+def test_llff_stream_length_checked_at_its_last_readout():
+    """A stream of 100 readouts (0-99): a last pose at readout 99 fits (guards against refusing
+    it, < for <=); a first pose at 100, one past the end, is every pose past the end, a counter
+    rather than an index, and said so (guards against that case read from 101 on only). With
+    height alone set, the frame size is still said to come from hwf (not from spikegs.json)."""
+    from spikegs.data.llff import _check_stream_length
+
+    class Stream:
+        path, height, width = "s.dat", 32, 48
+
+        def __len__(self):
+            return 100
+
+    hwf, options = np.array([32.0, 48.0, 40.0]), Options()
+    _check_stream_length(Stream(), np.array([0.0, 50.0, 99.0]), hwf, options)
+    with pytest.raises(ValueError, match=r"up to readout 100\. The frame size 32x48 was taken"):
+        _check_stream_length(Stream(), np.array([0.0, 50.0, 100.0]), hwf, options)
+    with pytest.raises(ValueError, match=r"Every pose lies past the end \(the first at 100\)"):
+        _check_stream_length(Stream(), np.array([100.0, 150.0]), hwf, options)
+    # height alone set: the frame size still came from hwf, and the message says so
+    with pytest.raises(ValueError, match=r"The frame size 32x48 was taken from hwf"):
+        _check_stream_length(Stream(), np.array([0.0, 100.0]), hwf, Options(height=32))
+
+
+def test_llff_poses_over_under_half_a_stream_read_at_another_size_are_warned_of():
+    """Poses spanning readouts 0-30 of a 100-readout stream read at 32x48 where hwf says 64x96:
+    under half the stream, warned of (a wrong frame size reads it as more, scrambled, readouts);
+    guards against a threshold of a twentieth. At hwf's size, or over half, no warning."""
+    from spikegs.data.llff import _warn_partial_span
+
+    class Stream:
+        path, height, width = "s.dat", 32, 48
+
+        def __len__(self):
+            return 100
+
+    with pytest.warns(UserWarning, match=r"span readouts \[0, 30\] of the 100 .* at 32x48"):
+        _warn_partial_span(Stream(), np.array([0.0, 30.0]), np.array([64.0, 96.0, 40.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _warn_partial_span(Stream(), np.array([0.0, 30.0]), np.array([32.0, 48.0, 40.0]))
+        _warn_partial_span(Stream(), np.array([0.0, 60.0]), np.array([64.0, 96.0, 40.0]))
+
+
 def test_pose_gap_warning_ignores_short_gaps_and_stays_short():
     dense = np.arange(0, 2000, 2.0)  # a pose every 2 readouts, 12 missing: within one window
     dense = dense[(dense <= 998) | (dense >= 1012)]
@@ -1726,6 +1770,13 @@ def test_frustum_sphere_holds_the_image_corners_at_both_bounds():
     center, radius = frustum_sphere(np.eye(4)[None], np.array([[1.0, 2.0]]), K, 16, 6)
     np.testing.assert_allclose(center, [0, 0, 1.5], atol=1e-12)
     assert radius == pytest.approx(np.sqrt(1.6**2 + 0.6**2 + 0.5**2))
+    # turned to look along world x (camera x -> world y, y -> z, z -> x): the box turns with it
+    # (the rotation applied transposed put it along world y)
+    c2w = np.eye(4)
+    c2w[:3, :3] = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
+    turned = frustum_sphere(np.linalg.inv(c2w)[None], np.array([[1.0, 2.0]]), K, 16, 6)
+    np.testing.assert_allclose(turned[0], [1.5, 0, 0], atol=1e-12)
+    assert turned[1] == pytest.approx(radius)
 
 
 def test_llff_forward_sphere_caps_far_bounds_at_their_90th_percentile(sim):
