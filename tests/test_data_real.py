@@ -401,6 +401,21 @@ def test_forward_facing_views_toed_out_are_not_taken_for_looking_away(llff):
     assert (ds.meta["near"], ds.meta["far"]) == (bounds[:, 0].min(), bounds[:, 1].max())
 
 
+def test_llff_spike_files_miscounted_name_the_other_files_but_not_hidden_ones(tmp_path):
+    """spikes/ with 2 .dat files for 3 poses: the error names the files not read (003.bin, a
+    view's spikes of another extension) but not hidden ones (.DS_Store, a Finder's), which only
+    hid the one that matters (guards against the dot filter dropped)."""
+    from spikegs.data.llff import _spike_files
+
+    for name in ("001.dat", "002.dat", "003.bin", ".DS_Store"):
+        (tmp_path / name).write_bytes(b"")
+    with pytest.raises(
+        ValueError, match=r"holds 2 \.dat files;.*\(not read, not named \*\.dat: "
+    ) as e:
+        _spike_files(tmp_path, 3, tmp_path / "poses_bounds.npy")
+    assert "003.bin" in str(e.value) and ".DS_Store" not in str(e.value)
+
+
 # -- conventions -----------------------------------------------------------------------------------
 def random_viewmats(n: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
