@@ -1696,11 +1696,9 @@ def test_stream_poses_outside_the_stream_refused(tmp_path):
             )
 
 
-def test_stream_timestamps_reach_the_first_and_last_pose_by_half_a_window(tmp_path):
-    """One stream of 200 readouts, poses at 0, 100, 199, the middle one held out: training
-    timestamps are every readout whose TFP(65) lies between the first and last pose and that keeps
-    64 readouts clear of readout 100, 32-35 and 165-167 (a strict bound at either end lost the
-    first or last; a clearance of 63 or 65 moved 35 or 165)."""
+def _three_poses(tmp_path, middle: float):
+    """A random 4x8 stream of 200 readouts with poses at readouts 0, `middle` and 199, the middle
+    one held out: the SpikeStream and its dataset."""
     bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
     save_dat(tmp_path / "spikes.dat", bits)
     stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
@@ -1708,8 +1706,16 @@ def test_stream_timestamps_reach_the_first_and_last_pose_by_half_a_window(tmp_pa
     viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
     meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
     meta |= {"scene_center": [0.0, 0.0, 0.0], "scene_radius": 1.0}
-    readouts, test = np.array([0.0, 100.0, 199.0]), np.array([False, True, False])
-    ds = stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+    readouts, test = np.array([0.0, middle, 199.0]), np.array([False, True, False])
+    return stream, stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+
+
+def test_stream_timestamps_reach_the_first_and_last_pose_by_half_a_window(tmp_path):
+    """One stream of 200 readouts, poses at 0, 100, 199, the middle one held out: training
+    timestamps are every readout whose TFP(65) lies between the first and last pose and that keeps
+    64 readouts clear of readout 100, 32-35 and 165-167 (a strict bound at either end lost the
+    first or last; a clearance of 63 or 65 moved 35 or 165)."""
+    ds = _three_poses(tmp_path, 100.0)[1]
     assert ds.train_timestamps.tolist() == [32, 33, 34, 35, 165, 166, 167]
 
 
@@ -1725,15 +1731,7 @@ def test_spaced_held_out_poses_follow_the_documented_stride():
 def test_a_fractional_held_out_pose_is_scored_on_the_nearest_readout(tmp_path):
     """A held-out pose at readout 100.7 (readouts.txt may be fractional) gets the pseudo ground
     truth TFP(65) centred on readout 101, the nearest (truncating centred it on 100)."""
-    bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
-    save_dat(tmp_path / "spikes.dat", bits)
-    stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
-    angles = np.radians([0.0, 25.0, 50.0])
-    viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
-    meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
-    meta |= {"scene_center": [0.0, 0.0, 0.0], "scene_radius": 1.0}
-    readouts, test = np.array([0.0, 100.7, 199.0]), np.array([False, True, False])
-    ds = stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+    stream, ds = _three_poses(tmp_path, 100.7)
     assert ds.test_views[0].readout == pytest.approx(100.7)
     np.testing.assert_array_equal(ds.test_views[0].image[..., 0], stream.tfp(101, 65))
     assert not np.array_equal(stream.tfp(100, 65), stream.tfp(101, 65))
