@@ -1826,6 +1826,21 @@ def test_llff_forward_sphere_caps_far_bounds_at_their_90th_percentile(sim):
     assert (distance[:9] <= radius + 1e-9).all() and (distance[9] > radius).any()
 
 
+def test_llff_inward_radius_is_capped_by_the_frustum_sphere(sim):
+    """Inward views on a 90° arc of radius 4 about the origin, near 0.1 and far 0.5: the sphere is
+    centred where the axes meet (the origin), its radius the frustum sphere's (the views' content
+    reaches at most 0.5 in), not their reach to the near bound, 3.9 (uncapped, the sphere held
+    the whole empty middle)."""
+    angles = np.radians(np.linspace(0.0, 90.0, 7))
+    eyes = 4 * np.stack([np.cos(angles), np.sin(angles), np.zeros(7)], 1)
+    viewmats = np.stack([look_at(eye, [0, 0, 0]) for eye in eyes])
+    bounds = np.tile([0.1, 0.5], (7, 1))
+    center, radius = llff_sphere(viewmats, bounds, sim.K, W, H)
+    frustum = frustum_sphere(viewmats, bounds, sim.K, W, H)[1]
+    np.testing.assert_allclose(center, 0.0, atol=1e-9)
+    assert radius == pytest.approx(frustum) and frustum < 3.9
+
+
 def test_llff_views_within_20_degrees_take_the_frustum_sphere(sim):
     """An arc of ±10° aimed at the origin spreads its view directions 0.013, under the ±20°
     (0.03) that LLFF takes as inward-facing: the sphere is the frustums' (the near and far bounds
