@@ -20,13 +20,19 @@ from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.dataset import Dataset
 from spikegs.data.llff import (
+    _check_stream_length,
+    _read_poses_bounds,
+    _read_readouts,
+    _spike_files,
     _warn_if_looking_away,
+    _warn_partial_span,
     frustum_sphere,
     llff_intrinsics,
     llff_sphere,
     to_poses_bounds,
     viewmats_from_llff,
 )
+from spikegs.data.nerf_layout import _spike_candidates
 from spikegs.data.real import (
     _spaced_hold_out,
     check_orientation,
@@ -365,7 +371,6 @@ def test_poses_bounds_rows_checked_at_their_edges(tmp_path):
     divides by), near == far, and a height, width or focal of 0 are refused naming the file, as
     is an hwf that differs by 1e-4 between rows (another camera). Guards against each check's
     bound relaxed by one step (>= 0, <= near, < 0, a 1e-2 tolerance)."""
-    from spikegs.data.llff import _read_poses_bounds
 
     poses = np.tile(np.concatenate([np.eye(3), np.zeros((3, 1)), [[32], [48], [40]]], 1), (3, 1, 1))
     good = np.concatenate([poses.reshape(3, 15), np.tile([1.0, 5.0], (3, 1))], 1)  # [3, 17]
@@ -405,7 +410,6 @@ def test_llff_spike_files_miscounted_name_the_other_files_but_not_hidden_ones(tm
     """spikes/ with 2 .dat files for 3 poses: the error names the files not read (003.bin, a
     view's spikes of another extension) but not hidden ones (.DS_Store, a Finder's), which only
     hid the one that matters (guards against the dot filter dropped)."""
-    from spikegs.data.llff import _spike_files
 
     for name in ("001.dat", "002.dat", "003.bin", ".DS_Store"):
         (tmp_path / name).write_bytes(b"")
@@ -1194,7 +1198,6 @@ def test_readouts_one_per_pose_strictly_increasing(tmp_path):
     """readouts.txt: two poses at one readout (a pose logged twice) and a line more than there
     are poses (another take's file) are refused; guards against a non-strict order check and a
     count check that let extra lines through."""
-    from spikegs.data.llff import _read_readouts
 
     path = tmp_path / "readouts.txt"
     np.savetxt(path, [0, 10, 20], fmt="%d")
@@ -1212,7 +1215,6 @@ def test_llff_stream_length_checked_at_its_last_readout():
     it, < for <=); a first pose at 100, one past the end, is every pose past the end, a counter
     rather than an index, and said so (guards against that case read from 101 on only). With
     height alone set, the frame size is still said to come from hwf (not from spikegs.json)."""
-    from spikegs.data.llff import _check_stream_length
 
     class Stream:
         path, height, width = "s.dat", 32, 48
@@ -1235,7 +1237,6 @@ def test_llff_poses_over_under_half_a_stream_read_at_another_size_are_warned_of(
     """Poses spanning readouts 0-30 of a 100-readout stream read at 32x48 where hwf says 64x96:
     under half the stream, warned of (a wrong frame size reads it as more, scrambled, readouts);
     guards against a threshold of a twentieth. At hwf's size, or over half, no warning."""
-    from spikegs.data.llff import _warn_partial_span
 
     class Stream:
         path, height, width = "s.dat", 32, 48
@@ -1489,7 +1490,6 @@ def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
 
 
 def test_nerf_spike_candidates_listed_once(tmp_path):
-    from spikegs.data.nerf_layout import _spike_candidates
 
     for file_path in ("r_0", str(tmp_path.parent / "elsewhere" / "r_0.png")):  # no folder in DIR
         assert _spike_candidates(tmp_path, {"file_path": file_path}, "t.json") == [
@@ -1529,7 +1529,6 @@ def test_nerf_spike_candidates_keep_other_suffixes_and_resolve_dir(tmp_path, mon
     as spike_data/scan.001.dat, not spike_data/scan.dat (another frame's, or none). An absolute
     file_path inside a DIR given relative (or through a link) keeps its folders: compared
     unresolved it read as outside DIR, named by its file name alone."""
-    from spikegs.data.nerf_layout import _spike_candidates
 
     def candidates(root, file_path):
         found = _spike_candidates(root, {"file_path": file_path}, "t.json")

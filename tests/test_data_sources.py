@@ -16,11 +16,18 @@ from spikegs.data import (
     ProceduralSource,
     load_dataset,
     make_source,
+    real,
     simulate_dataset,
 )
 from spikegs.data.sources import MissingDependencyError, MitsubaSource, import_mitsuba
 from spikegs.data.trajectory import check_rigid, look_at
-from spikegs.data.transforms_file import OPENGL_TO_OPENCV, read_frame
+from spikegs.data.transforms_file import (
+    OPENGL_TO_OPENCV,
+    frame_columns,
+    read_frame,
+    read_transforms_doc,
+    transforms_viewmats,
+)
 from spikegs.data.view_geometry import (
     AXES_SPREAD_MIN,
     centre_of_view,
@@ -732,8 +739,6 @@ def test_nerf_orientation_check_reads_the_first_eight_training_images(tmp_path, 
     are read, for the flip check: 12 frames, every 8th (0, 8) held out, all with images, give
     training frames 1-7 and 9 to the check. Guards against one fewer (< for <=), frames counted
     with the test ones (1-7) and every training image read (10, the cost the limit avoids)."""
-    from spikegs.data import real
-
     seen = []
     monkeypatch.setattr(real, "check_orientation", lambda views, *_: seen.append(len(views)))
     image = np.full((23, 37, 3), 0.5)
@@ -799,8 +804,6 @@ def test_transforms_frames_must_be_a_list_of_4x4_matrices(tmp_path):
     0 needs a file_path", misleading) and a number failing as a bare TypeError. So is a frame
     without a transform_matrix (else a bare KeyError) and one of 4 rows of 3 (a check of the
     row count alone let it through)."""
-    from spikegs.data.transforms_file import read_transforms_doc, transforms_viewmats
-
     frame = {"file_path": "f_0", "transform_matrix": np.eye(4).tolist()}
     path = tmp_path / "transforms.json"
     for frames in (frame, 5, "f_0"):
@@ -825,7 +828,6 @@ def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     kept columns (50 of 56 stored) are no crop: a looser tolerance (10 px) read them as one, and
     refused a good camera as of another aspect ratio (or, nearer, shifted cx by col_offset). Both
     tolerances are a pixel either way of the images' width scaled to the spikes' height."""
-    from spikegs.data.transforms_file import frame_columns
 
     def columns(src, raw_width, col_offset=3):
         return frame_columns("t.json", "the camera", src, (25, 50), "FIX", raw_width, col_offset)
