@@ -241,10 +241,32 @@ def test_from_transforms_test_path_of_another_camera_is_refused(nerf_dir):
     """The test file's intrinsics were dropped: another camera's views were scored with the
     training K."""
     write_transforms(nerf_dir / "wide.json", "wide", ring_viewmats([45]), 0.3, fov_x=1.5)
-    with pytest.raises(ValueError, match=r"wide.json: its camera .* one camera expected"):
+    (nerf_dir / "wide" / "r_0.exr").unlink()  # the cameras are compared before it is sought
+    with pytest.raises(ValueError, match=r"wide.json: frame 'wide/r_0' has .* differ; one camera"):
         FrameSequenceSource.from_transforms(
             nerf_dir / "transforms.json", SIZE, SIZE, test_path=nerf_dir / "wide.json"
         )
+
+
+def test_from_transforms_test_path_of_another_distortion_is_refused(nerf_dir):
+    """The test file's distortion was not compared with the training file's (its K alone)."""
+    write_transforms(nerf_dir / "bent.json", "bent", ring_viewmats([45]), 0.3, k1=-0.2)
+    with pytest.raises(ValueError, match=r"bent.json: .* their distortion differs; one camera"):
+        FrameSequenceSource.from_transforms(
+            nerf_dir / "transforms.json", SIZE, SIZE, test_path=nerf_dir / "bent.json"
+        )
+
+
+def test_from_transforms_test_path_stating_one_camera_otherwise(nerf_dir):
+    """A test file stating the training camera by other keys (instant-ngp's camera_angle_y, cx, cy
+    at twice the resolution) is the same camera."""
+    fov_y = 2 * np.arctan(np.tan(FOV_X / 2))  # square images: the same angle in y
+    stated = {"camera_angle_y": fov_y, "cx": SIZE, "cy": SIZE, "w": 2 * SIZE, "h": 2 * SIZE}
+    write_transforms(nerf_dir / "same.json", "same", ring_viewmats([45]), 0.3, **stated)
+    source = FrameSequenceSource.from_transforms(
+        nerf_dir / "transforms.json", SIZE, SIZE, test_path=nerf_dir / "same.json"
+    )
+    assert [name for name, *_ in source.off_path_views(5)] == ["off_000"]
 
 
 def test_from_transforms_scene_sphere_options(nerf_dir):

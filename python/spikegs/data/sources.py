@@ -26,7 +26,7 @@ from ..spikes.simulate import sample_times
 from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
 from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
-from .transforms_file import intrinsics_text, read_transforms
+from .transforms_file import read_transforms
 from .view_geometry import view_sphere
 
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
@@ -347,7 +347,11 @@ class FrameSequenceSource(Source):
         The scene sphere: `center`, `radius`, else the file's scene_center and scene_radius, else
         `view_sphere`'s."""
         path = Path(path)
-        frames, viewmats, K, doc = read_transforms(path, width, height, channels, background)
+        sibling = path.with_name("transforms_test.json")
+        test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
+        paths = [path] + ([Path(test_path)] if test_path else [])
+        images, poses, K, doc = read_transforms(paths, width, height, channels, background)
+        frames, viewmats = images[0], poses[0]
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
@@ -357,20 +361,9 @@ class FrameSequenceSource(Source):
             center=doc.get("scene_center") if center is None else center,
             radius=doc.get("scene_radius") if radius is None else radius,
         )
-        sibling = path.with_name("transforms_test.json")
-        test_path = test_path or (sibling if sibling.is_file() and sibling != path else None)
         tests = []
-        if test_path:
-            images, poses, test_K, _ = read_transforms(
-                Path(test_path), width, height, channels, background
-            )
-            if not np.allclose(test_K, K, rtol=1e-6, atol=0):  # both at width × height
-                raise ValueError(
-                    f"{test_path}: its camera (fx, fy, cx, cy at {width}x{height}: "
-                    f"{intrinsics_text(test_K)}) differs from {path}'s "
-                    f"({intrinsics_text(K)}); one camera expected"
-                )
-            tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses, images))]
+        if len(paths) == 2:
+            tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses[1], images[1]))]
         return cls(
             path.parent.name or path.stem,
             frames,

@@ -114,36 +114,41 @@ def _camera_text(camera: dict) -> str:
     return ", ".join(f"{key} {value:.6g}" for key, value in camera.items())
 
 
-def read_transforms(path: Path, width: int, height: int, channels: int, background: float):
-    """Frames [F, height, width, C], viewmats [F, 4, 4] (OpenCV), K [3, 3] and the document of a
-    transforms JSON."""
-    doc = read_transforms_doc(path)
-    frames = doc["frames"]
-    viewmats = transforms_viewmats(path, doc)  # [F, 4, 4]
-    sources = [path] * len(frames)
-    cameras = read_cameras([doc] * len(frames), frames, sources)
-    src, what = stated_size(path, cameras[0], "its first frame")
-    images, negative = [], []  # negative: (file, values below 0, the lowest) of each frame
-    for f in frames:
-        image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
-        if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
-            negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
-            image = np.maximum(image, 0.0)
-        src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
-        if not images:  # before any frame is resized or another read: the aspect ratio, and
-            # the frames' cameras as one (no crop here)
-            frame_columns(path, what, src, (height, width), SIMULATE_ASPECT_FIX)
-            K = one_camera_matrix(cameras, frames, sources, src, (height, width))
-        image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
-        images.append(to_channels(image, channels))
-    if negative:
-        warnings.warn(
-            f"{path}: {len(negative)} frame(s) hold {sum(n for _, n, _ in negative)} values below "
-            f"0 (the lowest {min(low for *_, low in negative):.3g}, first in "
-            f"{negative[0][0]}), set to 0: light is not negative",
-            stacklevel=3,
-        )
-    return np.stack(images).astype(np.float32), viewmats, K, doc
+def read_transforms(paths: list[Path], width: int, height: int, channels: int, background: float):
+    """Frames [F_i, height, width, C] and OpenCV viewmats [F_i, 4, 4] of each of the transforms
+    JSONs `paths` (training, then test frames), the K [3, 3] of their one camera and the first
+    file's document. The files' cameras are checked as one (`one_camera_matrix`) at the first
+    frame, before another frame is read."""
+    docs = [read_transforms_doc(path) for path in paths]
+    viewmats = [transforms_viewmats(path, doc) for path, doc in zip(paths, docs)]  # [F_i, 4, 4]
+    frames = [f for doc in docs for f in doc["frames"]]
+    sources = [path for path, doc in zip(paths, docs) for _ in doc["frames"]]
+    cameras = read_cameras([doc for doc in docs for _ in doc["frames"]], frames, sources)
+    src, what = stated_size(paths[0], cameras[0], "its first frame")
+    K, images = None, []
+    for path, doc in zip(paths, docs):
+        frame_images, negative = [], []  # negative: (file, values below 0, the lowest) a frame
+        for f in doc["frames"]:
+            image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
+            if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
+                negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
+                image = np.maximum(image, 0.0)
+            src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
+            if K is None:  # before any frame is resized or another read: the aspect ratio,
+                # and the frames' cameras as one (no crop here)
+                frame_columns(paths[0], what, src, (height, width), SIMULATE_ASPECT_FIX)
+                K = one_camera_matrix(cameras, frames, sources, src, (height, width))
+            image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
+            frame_images.append(to_channels(image, channels))
+        if negative:
+            warnings.warn(
+                f"{path}: {len(negative)} frame(s) hold {sum(n for _, n, _ in negative)} values "
+                f"below 0 (the lowest {min(low for *_, low in negative):.3g}, first in "
+                f"{negative[0][0]}), set to 0: light is not negative",
+                stacklevel=3,
+            )
+        images.append(np.stack(frame_images).astype(np.float32))
+    return images, viewmats, K, docs[0]
 
 
 def camera_number(path: Path, key: str, value) -> float:
