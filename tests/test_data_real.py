@@ -1211,10 +1211,11 @@ def test_readouts_one_per_pose_strictly_increasing(tmp_path):
 
 
 def test_llff_stream_length_checked_at_its_last_readout():
-    """A stream of 100 readouts (0-99): a last pose at readout 99 fits (guards against refusing
-    it, < for <=); a first pose at 100, one past the end, is every pose past the end, a counter
-    rather than an index, and said so (guards against that case read from 101 on only). With
-    height alone set, the frame size is still said to come from hwf (not from spikegs.json)."""
+    """A stream of 100 readouts (0-99) records the light to readout 99.5: a last pose at 99.5, the
+    end of the last readout's integration, fits (guards against refusing it, < for <=; 99.6 is
+    refused); a first pose at 100, past the end, is every pose past the end, a counter rather
+    than an index, and said so (guards against that case read from 101 on only). With height
+    alone set, the frame size is still said to come from hwf (not from spikegs.json)."""
 
     class Stream:
         path, height, width = "s.dat", 32, 48
@@ -1223,9 +1224,9 @@ def test_llff_stream_length_checked_at_its_last_readout():
             return 100
 
     hwf, options = np.array([32.0, 48.0, 40.0]), Options()
-    _check_stream_length(Stream(), np.array([0.0, 50.0, 99.0]), hwf, options)
-    with pytest.raises(ValueError, match=r"up to readout 100\. The frame size 32x48 was taken"):
-        _check_stream_length(Stream(), np.array([0.0, 50.0, 100.0]), hwf, options)
+    _check_stream_length(Stream(), np.array([0.0, 50.0, 99.5]), hwf, options)
+    with pytest.raises(ValueError, match=r"up to readout 99\.6\. The frame size 32x48 was taken"):
+        _check_stream_length(Stream(), np.array([0.0, 50.0, 99.6]), hwf, options)
     with pytest.raises(ValueError, match=r"Every pose lies past the end \(the first at 100\)"):
         _check_stream_length(Stream(), np.array([100.0, 150.0]), hwf, options)
     # height alone set: the frame size still came from hwf, and the message says so
@@ -1678,26 +1679,9 @@ def test_a_view_of_the_longest_window_loads_and_one_readout_less_is_refused(sim,
         load_dataset(root)
 
 
-def test_stream_poses_outside_the_stream_refused(tmp_path):
-    """Poses of one stream of 200 readouts at readouts -0.5 or 200 lie outside [0, 199]: a
-    ValueError naming the stream (the LLFF loader checks the end before; stream_dataset itself
-    refuses both ends)."""
-    bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
-    save_dat(tmp_path / "spikes.dat", bits)
-    stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
-    viewmats = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0, 3.0, 1.0], [0, 0, 0])])
-    meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
-    test = np.array([True, False])
-    for readouts in ([-0.5, 150.0], [50.0, 200.0]):
-        with pytest.raises(ValueError, match=r"outside the stream's \[0, 199\]"):
-            stream_dataset(
-                tmp_path, meta, stream, np.array(readouts), viewmats, test, Options(), "x"
-            )
-
-
-def _three_poses(tmp_path, middle: float):
-    """A random 4x8 stream of 200 readouts with poses at readouts 0, `middle` and 199, the middle
-    one held out: the SpikeStream and its dataset."""
+def _three_poses(tmp_path, middle: float, ends: tuple = (0.0, 199.0)):
+    """A random 4x8 stream of 200 readouts with poses at readouts `ends[0]`, `middle` and
+    `ends[1]`, the middle one held out: the SpikeStream and its dataset."""
     bits = np.random.default_rng(0).random((200, 4, 8)) < 0.3
     save_dat(tmp_path / "spikes.dat", bits)
     stream = SpikeStream.open(tmp_path / "spikes.dat", 4, 8)
@@ -1705,8 +1689,21 @@ def _three_poses(tmp_path, middle: float):
     viewmats = np.stack([look_at([3 * np.cos(a), 3 * np.sin(a), 1.0], [0, 0, 0]) for a in angles])
     meta = {"height": 4, "width": 8, "channels": 1, "fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 2.0}
     meta |= {"scene_center": [0.0, 0.0, 0.0], "scene_radius": 1.0}
-    readouts, test = np.array([0.0, middle, 199.0]), np.array([False, True, False])
+    readouts, test = np.array([ends[0], middle, ends[1]]), np.array([False, True, False])
     return stream, stream_dataset(tmp_path, meta, stream, readouts, viewmats, test, Options(), "x")
+
+
+def test_stream_poses_outside_the_streams_light_refused(tmp_path):
+    """One stream of 200 readouts records the light of readouts (-0.5, 199.5]: poses stamped at
+    the start of the first readout's integration and the end of the last's load (they were
+    refused as outside [0, 199]) with the timestamps of poses at 0 and 199; poses at -0.6 or
+    199.6 are a ValueError naming the stream (the LLFF loader checks the end before;
+    stream_dataset itself refuses both ends)."""
+    ds = _three_poses(tmp_path, 100.0, ends=(-0.5, 199.5))[1]
+    assert ds.train_timestamps.tolist() == [32, 33, 34, 35, 165, 166, 167]
+    for ends in ((-0.6, 199.0), (0.0, 199.6)):
+        with pytest.raises(ValueError, match=r"outside \[-0.5, 199.5\], the light the stream's"):
+            _three_poses(tmp_path, 100.0, ends)
 
 
 def test_stream_timestamps_reach_the_first_and_last_pose_by_half_a_window(tmp_path):

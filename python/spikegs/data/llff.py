@@ -27,6 +27,7 @@ from .real import (
     camera_meta,
     first_of,
     held_out_mask,
+    light_span,
     scene_sphere,
     stream_dataset,
     views_dataset,
@@ -264,10 +265,11 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
 def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options) -> None:
     """ValueError if readouts.txt reaches past the stream's end, saying whether the frame size
     came from hwf (spikes at another resolution than the poses' images read too few readouts)."""
-    if readouts[-1] <= len(stream) - 1:
+    end = light_span(len(stream))[1]
+    if readouts[-1] <= end:
         return
     size = f"{stream.height}x{stream.width}"
-    if readouts[0] > len(stream) - 1:  # every pose past the end: a counter, not an index
+    if readouts[0] > end:  # every pose past the end: a counter, not an index
         cause = (
             f"Every pose lies past the end (the first at {readout_number(readouts[0])}): "
             f"{READOUTS} holds 0-based readout indices into the spike file, not the camera's own "

@@ -384,6 +384,13 @@ def _warn_if_stretches_untrained(
         )
 
 
+def light_span(num_readouts: int) -> tuple[float, float]:
+    """The readouts' interval whose light a stream of `num_readouts` records: readout k shows the
+    light of (k - 0.5, k + 0.5], so a pose stamped at the start of the first readout's
+    integration or at the end of the last's lies half a readout outside [0, num_readouts - 1]."""
+    return -0.5, num_readouts - 0.5
+
+
 def stream_dataset(
     root: Path,
     meta: dict,
@@ -399,10 +406,12 @@ def stream_dataset(
     poses; a held-out pose whose pseudo-ground-truth window does not fit in the stream is not
     evaluated."""
     trajectory = Trajectory(readouts, viewmats, source=source)
-    if trajectory.start < 0 or trajectory.end > len(stream) - 1:
+    first, last = light_span(len(stream))
+    if trajectory.start < first or trajectory.end > last:
         raise ValueError(
-            f"{source}: pose readouts span [{trajectory.start}, {trajectory.end}], outside the "
-            f"stream's [0, {len(stream) - 1}] ({stream.path})"
+            f"{source}: pose readouts span [{trajectory.start:g}, {trajectory.end:g}], outside "
+            f"[{first:g}, {last:g}], the light the stream's {len(stream)} readouts record "
+            f"({stream.path})"
         )
     if trajectory.end - trajectory.start < 2 * WINDOW_MARGIN:
         raise ValueError(
