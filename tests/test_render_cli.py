@@ -1,5 +1,6 @@
-"""The orbit of `spikegs render` (render_cli.py): its radius, elevation and frames, the up of
-cameras rolled every way, directions that are not finite, and the frames' 8-bit values."""
+"""The orbit of `spikegs render` (render_cli.py): its radius, elevation and frames, a circle or a
+loop over the cameras' span, the up of cameras rolled every way, directions that are not finite,
+and the frames' 8-bit values."""
 
 import argparse
 from types import SimpleNamespace
@@ -15,10 +16,10 @@ from spikegs.render_cli import dataset_orbit, direction, orbit_frames, orbit_vie
 CENTER = np.array([1.0, -2.0, 0.5])
 
 
-def _cameras(distances, elevation_deg=30.0):
-    """Upright cameras looking at CENTER from `distances` at azimuths 0, 40, 80, ... degrees and
-    one elevation (+z up)."""
-    eyes = [orbit_eye(CENTER, d, 40.0 * i, elevation_deg) for i, d in enumerate(distances)]
+def _cameras(distances, elevation_deg=30.0, step_deg=40.0):
+    """Upright cameras looking at CENTER from `distances` at azimuths 0, step, 2 step, ... degrees
+    and one elevation (+z up)."""
+    eyes = [orbit_eye(CENTER, d, step_deg * i, elevation_deg) for i, d in enumerate(distances)]
     viewmats = np.stack([look_at(eye, CENTER) for eye in eyes])
     return Trajectory(np.arange(len(eyes), dtype=np.float64), viewmats)
 
@@ -27,11 +28,21 @@ def _eyes(viewmats):
     return np.linalg.inv(viewmats)[:, :3, 3]  # [F, 3] camera centres
 
 
+def _azimuths_elevations(viewmats) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuths and elevations (degrees, +z up) [F] of the eyes of viewmats [F, 4, 4] about
+    CENTER."""
+    offsets = _eyes(viewmats) - CENTER
+    azimuths = np.degrees(np.arctan2(offsets[:, 1], offsets[:, 0]))
+    return azimuths, np.degrees(np.arcsin(offsets[:, 2] / np.linalg.norm(offsets, axis=1)))
+
+
 def test_the_orbit_keeps_the_cameras_mean_distance_and_elevation():
-    """Cameras at 3 and 5 units (mean 4), 30 degrees up: every orbit eye is 4 from the centre,
-    2 = 4 sin 30 above it, and the first lies at the first camera's azimuth."""
-    orbit = orbit_viewmats(_cameras([3.0, 5.0, 3.0, 5.0]), CENTER, 6)
+    """Cameras at 3 and 5 units (mean 4) every 90 degrees, 30 degrees up, surround the centre: a
+    circle, every eye 4 from the centre, 2 = 4 sin 30 above it, the first at the first camera's
+    azimuth."""
+    orbit, path = orbit_viewmats(_cameras([3.0, 5.0, 3.0, 5.0], step_deg=90.0), CENTER, 6)
     offsets = _eyes(orbit) - CENTER  # [6, 3]
+    assert path == "circle"
     np.testing.assert_allclose(np.linalg.norm(offsets, axis=1), 4.0, rtol=1e-9)
     np.testing.assert_allclose(offsets[:, 2], 4.0 * np.sin(np.radians(30.0)), rtol=1e-9)
     np.testing.assert_allclose(offsets[0], orbit_eye((0, 0, 0), 4.0, 0.0, 30.0), atol=1e-9)
@@ -42,10 +53,54 @@ def test_the_orbit_frames_are_evenly_spaced_around_the_whole_circle():
     azimuth of `orbit_eye`): the last is one step before the first, not on it (a looping video
     would show the first view twice)."""
     frames = 8
-    offsets = _eyes(orbit_viewmats(_cameras([4.0, 4.0, 4.0]), CENTER, frames)) - CENTER
-    azimuths = np.degrees(np.arctan2(offsets[:, 1], offsets[:, 0]))  # [F]
+    orbit = orbit_viewmats(_cameras([4.0, 4.0, 4.0], step_deg=120.0), CENTER, frames)[0]
+    azimuths = _azimuths_elevations(orbit)[0]  # [F]
     steps = np.diff(np.concatenate([azimuths, azimuths[:1] + 360.0])) % 360.0
     np.testing.assert_allclose(steps, 360.0 / frames, atol=1e-9)
+
+
+def _looking_in(eyes) -> Trajectory:
+    """Cameras at `eyes` [P, 3] looking at CENTER."""
+    return Trajectory(np.arange(float(len(eyes))), np.stack([look_at(e, CENTER) for e in eyes]))
+
+
+@pytest.mark.parametrize("first", [0.0, 170.0])
+def test_cameras_over_a_part_of_the_circle_are_looped_over_their_span(first):
+    """Cameras over 80 degrees of azimuth (0, 40, 80 from `first`; across +-180 from 170) at
+    elevations 10 to 50 leave a 280-degree gap: the path loops within their span of azimuth and
+    elevation (a circle showed 280 degrees no camera saw) at their mean distance, around their
+    mean; with --path circle, the whole circle."""
+    views = ((3, 0, 10), (4, 40, 50), (5, 80, 30))  # distance, azimuth from first, elevation
+    cameras = _looking_in([orbit_eye(CENTER, d, first + a, e) for d, a, e in views])
+    span, path = orbit_viewmats(cameras, CENTER, 40)
+    azimuths, elevations = _azimuths_elevations(span)
+    turned = (azimuths - first + 180.0) % 360.0 - 180.0  # from the first camera's azimuth
+    assert path == "span"
+    assert turned.min() >= -1e-9 and turned.max() <= 80 + 1e-9 and np.ptp(turned) > 40
+    assert elevations.min() >= 10 - 1e-9 and elevations.max() <= 50 + 1e-9
+    np.testing.assert_allclose([turned.mean(), elevations.mean()], [40.0, 30.0], atol=2.0)
+    np.testing.assert_allclose(np.linalg.norm(_eyes(span) - CENTER, axis=1), 4.0, rtol=1e-9)
+    circle, path = orbit_viewmats(cameras, CENTER, 40, path="circle")
+    assert path == "circle" and np.ptp(_azimuths_elevations(circle)[0] % 360.0) > 350.0
+
+
+def test_cameras_along_an_ascending_arc_are_followed_to_and_fro():
+    """Cameras rising along a spiral's arc (azimuths 0-60, elevations 10-40 with them): the loop
+    stays on their line, from one end to the other (an ellipse over their box of azimuths and
+    elevations visited its empty corners, at 0 degrees and 40 up), and it is not a circle."""
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, a, 10 + a / 2) for a in range(0, 61, 10)])
+    span, path = orbit_viewmats(cameras, CENTER, 24)
+    azimuths, elevations = _azimuths_elevations(span)
+    assert path == "span"
+    np.testing.assert_allclose(elevations, 10 + azimuths / 2, atol=1e-9)
+    np.testing.assert_allclose([azimuths.min(), azimuths.max()], [0.0, 60.0], atol=1e-9)
+
+
+def test_a_gap_of_120_degrees_is_circled_and_one_over_it_looped():
+    """Three cameras 120 degrees apart surround the centre (a circle); 121 degrees apart, one gap
+    is 118 and the others 121 (a span) -- the auto choice's threshold, SURROUND_GAP_DEG."""
+    assert orbit_viewmats(_cameras([4.0] * 3, step_deg=120.0), CENTER, 4)[1] == "circle"
+    assert orbit_viewmats(_cameras([4.0] * 3, step_deg=121.0), CENTER, 4)[1] == "span"
 
 
 def test_cameras_rolled_every_way_leave_the_world_up_to_the_default():
@@ -72,7 +127,7 @@ def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     mono[0], mono[1] = srgb_to_linear(values[0]), srgb_to_linear(values[1])  # rows: [2, 3, 1]
     monkeypatch.setattr(evaluate, "render_view", lambda model, viewmat, dataset: mono)
     dataset = SimpleNamespace(trajectory=_cameras([4.0, 4.0]), scene_center=CENTER, meta={})
-    frames = orbit_frames(None, dataset, dataset_orbit(dataset, 2))
+    frames = orbit_frames(None, dataset, dataset_orbit(dataset, 2)[0])
     assert frames.dtype == np.uint8 and frames.shape == (2, 2, 3, 3)
     assert (frames[:, 0] == 101).all() and (frames[:, 1] == 100).all()
 
@@ -93,7 +148,7 @@ def test_orbit_frames_turn_about_the_up_the_dataset_was_simulated_with(monkeypat
         """The orbit's axis: the normal of the plane its eyes lie in."""
         eyes.clear()
         dataset = SimpleNamespace(trajectory=_cameras([4.0] * 5), scene_center=CENTER, meta=meta)
-        orbit_frames(None, dataset, dataset_orbit(dataset, 8, up))
+        orbit_frames(None, dataset, dataset_orbit(dataset, 8, up, "circle")[0])
         normal = np.linalg.svd(np.stack(eyes) - np.mean(eyes, axis=0))[2][-1]
         return normal * np.sign(normal @ [1.0, 1.0, 1.0])
 

@@ -1625,7 +1625,8 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
     assert doc["dataset"] == str(dataset.root.resolve()) and "torch" in doc["environment"]
     assert [f["frame"] for f in doc["frames"]] == [0, 1, 2]
     c2w = np.array([f["transform_matrix"] for f in doc["frames"]])  # [3, 4, 4]
-    np.testing.assert_allclose(np.linalg.inv(c2w), dataset_orbit(dataset, 3), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.inv(c2w), dataset_orbit(dataset, 3)[0], atol=1e-12)
+    assert doc["orbit"] == dataset_orbit(dataset, 3)[1]
     docs = (Path(__file__).parents[1] / "docs" / "outputs.md").read_text(encoding="utf-8")
     assert {k for k in {*doc, *doc["frames"][0]} if f"`{k}`" not in docs} == set()
     (tmp_path / "o.gif.json").mkdir()  # a folder in its place
@@ -1952,7 +1953,9 @@ def test_orbit_of_cameras_at_the_centre(dataset):
         orbit_viewmats(Trajectory(path.readouts, at), center, 4)
     one = path.viewmats.copy()
     one[0] = at[0]
-    assert np.isfinite(orbit_viewmats(Trajectory(path.readouts, one), center, 4)).all()
+    for way in ("circle", "span"):
+        viewmats = orbit_viewmats(Trajectory(path.readouts, one), center, 4, path=way)[0]
+        assert np.isfinite(viewmats).all()
 
 
 def test_orbit_turns_with_the_world(dataset):
@@ -1963,7 +1966,7 @@ def test_orbit_turns_with_the_world(dataset):
     from spikegs.render_cli import orbit_viewmats, world_up
 
     path, center = dataset.trajectory, np.asarray(dataset.scene_center)
-    orbit = orbit_viewmats(path, center, 8)  # [8, 4, 4]
+    orbit = orbit_viewmats(path, center, 8, path="circle")[0]  # [8, 4, 4]
     c2w = np.linalg.inv(orbit)  # [8, 4, 4]
     np.testing.assert_allclose(c2w[:, :3, 0] @ [0.0, 0.0, 1.0], 0.0, atol=1e-9)  # level
     np.testing.assert_allclose(c2w[:, 2, 3], c2w[0, 2, 3])  # at one height
@@ -1971,14 +1974,16 @@ def test_orbit_turns_with_the_world(dataset):
     turn[:3, :3] = Rotation.from_euler("xyz", [100, -30, 45], degrees=True).as_matrix()
     turned = Trajectory(path.readouts, path.viewmats @ np.linalg.inv(turn))
     np.testing.assert_allclose(
-        orbit_viewmats(turned, turn[:3, :3] @ center, 8), orbit @ np.linalg.inv(turn), atol=1e-9
+        orbit_viewmats(turned, turn[:3, :3] @ center, 8, path="circle")[0],
+        orbit @ np.linalg.inv(turn),
+        atol=1e-9,
     )
     alike = np.repeat(np.linalg.inv(turn)[None], 5, axis=0)  # forward-facing: all turned alike
     np.testing.assert_allclose(world_up(alike), -turn[:3, :3].T[:, 1], atol=1e-12)
     # --up: an axis the cameras leave open (a top-down capture's) given by the user
     from spikegs.cli import direction
 
-    side = np.linalg.inv(orbit_viewmats(path, center, 8, direction("0,2,0")))  # [8, 4, 4] c2w
+    side = np.linalg.inv(orbit_viewmats(path, center, 8, direction("0,2,0"), "circle")[0])
     np.testing.assert_allclose(side[:, :3, 0] @ [0.0, 1.0, 0.0], 0.0, atol=1e-9)  # level in y
     for bad in ("0,0,0", "1,2", "x,y,z", "nan,0,1", "inf,0,0"):
         with pytest.raises(argparse.ArgumentTypeError, match="non-zero direction"):

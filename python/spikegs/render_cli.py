@@ -17,6 +17,13 @@ from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 # directions that the cameras' right axes span with less than this fraction of their main spread
 # count as level (roll noise of SfM poses stays below it)
 LEVEL_SPAN = 0.05
+# cameras whose azimuths about the scene centre leave no gap over this many degrees surround it:
+# `spikegs render` circles them (three cameras 120° apart do); otherwise it loops over their span
+SURROUND_GAP_DEG = 120.0
+PATH_TEXT = {  # what each path shows, as `spikegs render` says
+    "circle": "a circle around the scene centre",
+    "span": "a loop over the views the cameras span (--path circle for the whole circle)",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +36,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=20,
         help=f"frames a second, 1 to {MAX_FPS} (a .gif {GIF_MAX_FPS} at most)",
+    )
+    parser.add_argument(
+        "--path",
+        choices=("auto", *PATH_TEXT),
+        default="auto",
+        help="circle: the whole level circle at the cameras' mean elevation; span: a loop over "
+        "the azimuths and elevations the cameras span (a forward-facing capture, a partial arc); "
+        f"auto (default): a circle where no gap between the cameras' azimuths is over "
+        f"{SURROUND_GAP_DEG:g} degrees, else a span",
     )
     parser.add_argument(
         "--up",
@@ -52,10 +68,45 @@ def world_up(c2w: np.ndarray) -> np.ndarray:
     return up / np.linalg.norm(up)
 
 
-def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None) -> np.ndarray:
-    """Viewmats [F, 4, 4] on a level orbit around `center` at the cameras' mean distance and
-    elevation, starting at the first camera's azimuth, about unit `up` [3] (default: their
-    `world_up`: real data (SfM, LLFF) has no fixed world up, so +z would tilt or flip the orbit)."""
+def _arc_of(azimuths: np.ndarray) -> tuple[float, float]:
+    """(start, width) in degrees of the shortest arc holding every azimuth [P] (degrees): it starts
+    after the largest gap between neighbours around the circle."""
+    ordered = np.sort(azimuths % 360.0)
+    gaps = np.diff(np.append(ordered, ordered[0] + 360.0))  # [P]: after each azimuth
+    largest = int(np.argmax(gaps))
+    return float(ordered[(largest + 1) % len(ordered)]), float(360.0 - gaps[largest])
+
+
+def _span_loop(
+    azimuths: np.ndarray, elevations: np.ndarray, turn: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuths and elevations (degrees) [F] at angles `turn` [F] of an ellipse over cameras'
+    azimuths (from the start of their arc) and elevations [P]: about their mean, along their
+    principal directions, sqrt(3) standard deviations across (a uniform spread's half-width: a
+    grid's inscribed ellipse, a line's length, travelled to and fro), kept within their
+    extremes."""
+    points = np.stack([azimuths, elevations], axis=1)  # [P, 2]
+    spread, directions = np.linalg.eigh(np.cov(points.T, bias=True).reshape(2, 2))  # ascending
+    radii = np.sqrt(3.0 * np.maximum(spread, 0.0))  # [2]
+    loop = points.mean(axis=0) + (  # [F, 2]: the major axis first
+        np.cos(turn)[:, None] * radii[1] * directions[:, 1]
+        + np.sin(turn)[:, None] * radii[0] * directions[:, 0]
+    )
+    loop = np.clip(loop, points.min(axis=0), points.max(axis=0))
+    return loop[:, 0], loop[:, 1]
+
+
+def orbit_viewmats(
+    trajectory, center, frames: int, up: np.ndarray | None = None, path: str = "auto"
+) -> tuple[np.ndarray, str]:
+    """Viewmats [F, 4, 4] looking at `center` from the cameras' mean distance, about unit `up`
+    [3] (default: their `world_up`: real data (SfM, LLFF) has no fixed world up, so +z would tilt
+    or flip the path), and the path taken: "circle", the whole level circle at their mean
+    elevation from the first camera's azimuth; "span", a loop over the azimuths and elevations
+    the cameras span (a forward-facing capture, a partial arc: a circle would show mostly what no
+    camera saw; cameras all above the centre have no azimuths to span: a circle); "auto", a
+    circle where the cameras surround the centre (no gap between their azimuths over
+    SURROUND_GAP_DEG), else a span."""
     center = np.asarray(center, np.float64)
     up = world_up(np.linalg.inv(trajectory.viewmats)) if up is None else np.asarray(up, float)
     offsets = trajectory.centers - center  # [P, 3]
@@ -66,23 +117,37 @@ def orbit_viewmats(trajectory, center, frames: int, up: np.ndarray | None = None
             "render: every camera sits at the scene centre (a capture turning in place): an "
             "orbit around it has no radius"
         )
-    elevation = np.arcsin(np.clip(offsets[away] @ up / distance[away], -1, 1)).mean()
-    first = offsets[0] - (offsets[0] @ up) * up  # the first camera's direction in the orbit plane
-    if np.linalg.norm(first) <= 1e-6 * distance.max():  # above the centre, or at it: any way
-        first = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
+    ratio = offsets @ up / np.maximum(distance, np.finfo(float).tiny)  # [P] (0 at the centre)
+    elevations = np.degrees(np.arcsin(np.clip(ratio, -1, 1)))  # [P]
     axes = up_rotation(up)  # [3, 3]: columns orbit_eye's x and y (azimuths 0° and 90°), and up
-    start = np.degrees(np.arctan2(first @ axes[:, 1], first @ axes[:, 0]))  # the first camera's
-    azimuths = start + 360.0 * np.arange(frames) / frames  # [F]
-    eyes = orbit_eye(center, distance.mean(), azimuths, np.degrees(elevation), up)  # [F, 3]
-    return np.stack([look_at(eye, center, up) for eye in eyes])
+    level = offsets @ axes[:, :2]  # [P, 2]: in the orbit plane
+    beside = np.linalg.norm(level, axis=1) > 1e-6 * distance.max()  # [P]: not above the centre
+    azimuths = np.degrees(np.arctan2(level[:, 1], level[:, 0]))  # [P]
+    start, width = _arc_of(azimuths[beside]) if beside.any() else (0.0, 360.0)
+    if path == "auto":
+        path = "circle" if 360.0 - width <= SURROUND_GAP_DEG + 1e-6 else "span"  # (round-off)
+    turn = 2 * np.pi * np.arange(frames) / frames  # [F]
+    if path == "circle" or not beside.any():  # from the first camera's azimuth, where it has one
+        path = "circle"
+        azimuth = (azimuths[0] if beside[0] else start) + np.degrees(turn)  # [F]
+        elevation = np.full(frames, elevations[away].mean())
+    else:  # a quarter step on: a to-and-fro line shows no view twice running (a GIF merges them)
+        azimuth, elevation = _span_loop(
+            (azimuths[beside] - start) % 360.0, elevations[beside], turn + np.pi / 2 / frames
+        )
+        azimuth += start
+    eyes = orbit_eye(center, distance.mean(), azimuth, elevation, up)  # [F, 3]
+    return np.stack([look_at(eye, center, up) for eye in eyes]), path
 
 
-def dataset_orbit(dataset, frames: int, up: np.ndarray | None = None) -> np.ndarray:
-    """Viewmats [F, 4, 4] of `orbit_viewmats`' orbit about `up`, else the up the dataset was
+def dataset_orbit(
+    dataset, frames: int, up: np.ndarray | None = None, path: str = "auto"
+) -> tuple[np.ndarray, str]:
+    """`orbit_viewmats`' viewmats [F, 4, 4] and path about `up`, else the up the dataset was
     simulated with (meta.json's `up`), else the cameras'."""
     if up is None and dataset.meta.get("up") is not None:
         up = unit_vector("meta.json's up", dataset.meta["up"])
-    return orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up)
+    return orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up, path)
 
 
 def orbit_frames(model, dataset, path: np.ndarray) -> np.ndarray:
@@ -117,28 +182,33 @@ def run(args: argparse.Namespace) -> int:
             f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",
             stacklevel=2,
         )
-    path = dataset_orbit(dataset, args.frames, args.up)  # [F, 4, 4]
-    write_video(args.out, orbit_frames(load_ply(ply), dataset, path), args.fps)
-    print(f"{len(path)} frames -> {args.out}")
+    viewmats, path = dataset_orbit(dataset, args.frames, args.up, args.path)  # [F, 4, 4]
+    write_video(args.out, orbit_frames(load_ply(ply), dataset, viewmats), args.fps)
+    print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
     try:  # (the video stands without it, as sim-train's table does)
-        save_orbit(cameras, path, dataset, video=args.out, run=args.run, fps=args.fps)
+        save_orbit(
+            cameras, viewmats, dataset, video=args.out, run=args.run, fps=args.fps, path=path
+        )
         print(f"cameras: {cameras}")
     except OSError as err:
         print(f"cameras not written beside the video: {err}", file=sys.stderr)
     return 0
 
 
-def save_orbit(path: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int):
+def save_orbit(
+    file: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int, path: str
+):
     """Write the orbit's cameras, viewmats [F, 4, 4], in the layout of trajectory.json (OpenCV
     camera-to-world, the dataset's camera), a `frame` index per frame where it has a `readout`,
-    with what rendered them: another method rendered at these poses shows the same views."""
+    with what rendered them and the `path` taken: another method rendered at these poses shows
+    the same views."""
     from .data.dataset import camera_keys
     from .data.trajectory import write_camera_doc
     from .provenance import environment
 
     write_camera_doc(
-        path,
+        file,
         (
             {"frame": i, "transform_matrix": c2w.tolist()}
             for i, c2w in enumerate(np.linalg.inv(viewmats))
@@ -146,6 +216,7 @@ def save_orbit(path: Path, viewmats: np.ndarray, dataset, *, video: Path, run: P
         **camera_keys(dataset.meta),  # meta.json's numbers (dataset.K is float32)
         video=str(Path(video).resolve()),
         fps=fps,
+        orbit=path,
         run=str(Path(run).resolve()),
         dataset=str(Path(dataset.root).resolve()),
         environment=environment(),
