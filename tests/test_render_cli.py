@@ -93,7 +93,10 @@ def test_cameras_along_an_ascending_arc_are_followed_to_and_fro():
     azimuths, elevations = _azimuths_elevations(span)
     assert path == "span"
     np.testing.assert_allclose(elevations, 10 + azimuths / 2, atol=1e-9)
-    np.testing.assert_allclose([azimuths.min(), azimuths.max()], [0.0, 60.0], atol=1e-9)
+    # to within the quarter step's 30 (1 - cos(pi / 48)) = 0.064 degrees of either end (the
+    # ends exactly were the clip's, which held the path there for frames running)
+    np.testing.assert_allclose([azimuths.min(), azimuths.max()], [0.0, 60.0], atol=0.07)
+    assert azimuths.min() >= 0.0 and azimuths.max() <= 60.0
 
 
 def test_a_gap_of_120_degrees_is_circled_and_one_over_it_looped():

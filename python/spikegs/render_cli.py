@@ -87,7 +87,11 @@ def _span_loop(
     extremes."""
     points = np.stack([azimuths, elevations], axis=1)  # [P, 2]
     spread, directions = np.linalg.eigh(np.cov(points.T, bias=True).reshape(2, 2))  # ascending
-    radii = np.sqrt(3.0 * np.maximum(spread, 0.0))  # [2]
+    # within the cameras' reach from their mean along each direction: a clip held the path still
+    # at an end for frames running (few cameras, or a non-uniform spread, reach less)
+    along = (points - points.mean(axis=0)) @ directions  # [P, 2]
+    reach = np.minimum(-along.min(axis=0), along.max(axis=0))  # [2]
+    radii = np.minimum(np.sqrt(3.0 * np.maximum(spread, 0.0)), reach)  # [2]
     loop = points.mean(axis=0) + (  # [F, 2]: the major axis first
         np.cos(turn)[:, None] * radii[1] * directions[:, 1]
         + np.sin(turn)[:, None] * radii[0] * directions[:, 0]
