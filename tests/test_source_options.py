@@ -163,19 +163,27 @@ def ring_viewmats(azimuths, elevation: float = 20.0) -> np.ndarray:
 
 
 def write_transforms(
-    path, folder: str, viewmats, colour: float = COLOUR, fov_x: float = FOV_X, **extra
+    path,
+    folder: str,
+    viewmats,
+    colour: float = COLOUR,
+    fov_x: float | None = FOV_X,
+    size: int = SIZE,
+    **extra,
 ):
-    """A NeRF-style transforms JSON at `path` (OpenGL camera-to-world, extensionless file paths)
-    with one RGBA EXR of `colour` (premultiplied) at ALPHA per pose, in `folder` beside it."""
+    """A NeRF-style transforms JSON at `path` (OpenGL camera-to-world, extensionless file paths;
+    camera_angle_x `fov_x` unless None) with one RGBA EXR of `colour` (premultiplied) at ALPHA,
+    `size` pixels square, per pose, in `folder` beside it."""
     (path.parent / folder).mkdir(parents=True, exist_ok=True)
     frames = []
     for i, viewmat in enumerate(viewmats):
-        image = np.empty((SIZE, SIZE, 4), np.float32)
+        image = np.empty((size, size, 4), np.float32)
         image[..., :3], image[..., 3] = colour, ALPHA
         write_image(path.parent / folder / f"r_{i}.exr", image)
         c2w = np.linalg.inv(viewmat) @ OPENGL_TO_OPENCV  # OpenCV -> OpenGL camera axes
         frames.append({"file_path": f"{folder}/r_{i}", "transform_matrix": c2w.tolist()})
-    path.write_text(json.dumps({"camera_angle_x": fov_x, **extra, "frames": frames}))
+    camera = {} if fov_x is None else {"camera_angle_x": fov_x}
+    path.write_text(json.dumps({**camera, **extra, "frames": frames}))
 
 
 @pytest.fixture
@@ -240,8 +248,8 @@ def test_from_transforms_test_path_from_a_file_without_sibling(tmp_path):
 def test_from_transforms_test_path_of_another_camera_is_refused(nerf_dir):
     """The test file's intrinsics were dropped: another camera's views were scored with the
     training K."""
-    write_transforms(nerf_dir / "wide.json", "wide", ring_viewmats([45]), 0.3, fov_x=1.5)
-    (nerf_dir / "wide" / "r_0.exr").unlink()  # the cameras are compared before it is sought
+    write_transforms(nerf_dir / "wide.json", "wide", ring_viewmats([45, 60]), 0.3, fov_x=1.5)
+    (nerf_dir / "wide" / "r_1.exr").unlink()  # the cameras are compared before it is sought
     with pytest.raises(ValueError, match=r"wide.json: frame 'wide/r_0' has .* differ; one camera"):
         FrameSequenceSource.from_transforms(
             nerf_dir / "transforms.json", SIZE, SIZE, test_path=nerf_dir / "wide.json"
@@ -255,6 +263,36 @@ def test_from_transforms_test_path_of_another_distortion_is_refused(nerf_dir):
         FrameSequenceSource.from_transforms(
             nerf_dir / "transforms.json", SIZE, SIZE, test_path=nerf_dir / "bent.json"
         )
+
+
+def test_from_transforms_test_camera_is_its_own_files_keys(tmp_path):
+    """A test file stating its camera takes none of the training file's keys: a wider camera by
+    camera_angle_x under a training fl_x (which won, with a warning naming it in the test file)
+    is another camera; the error shows the test frame's own keys."""
+    focal = SIZE / 2 / np.tan(FOV_X / 2)  # camera_angle_x FOV_X's, in pixels
+    write_transforms(tmp_path / "transforms.json", "train", ring_viewmats([0, 90]), fl_x=focal)
+    write_transforms(tmp_path / "transforms_test.json", "test", ring_viewmats([45]), fov_x=1.5)
+    with pytest.raises(ValueError, match=r"has intrinsics camera_angle_x 1.5 \(fx"):
+        FrameSequenceSource.from_transforms(tmp_path / "transforms.json", SIZE, SIZE)
+
+
+def test_from_transforms_test_camera_in_its_own_images_pixels(tmp_path):
+    """Neither file states w, h and the test images are twice the training images' size, the
+    test fl_x in their pixels: the same camera (it was measured at the training images' size
+    and refused)."""
+    focal = SIZE / 2 / np.tan(FOV_X / 2)
+    write_transforms(tmp_path / "transforms.json", "train", ring_viewmats([0, 90]), fl_x=focal)
+    write_transforms(
+        tmp_path / "transforms_test.json",
+        "test",
+        ring_viewmats([45]),
+        fov_x=None,
+        size=2 * SIZE,
+        fl_x=2 * focal,
+    )
+    source = FrameSequenceSource.from_transforms(tmp_path / "transforms.json", SIZE, SIZE)
+    assert [name for name, *_ in source.off_path_views(5)] == ["off_000"]
+    np.testing.assert_allclose(source.K[0, 0], focal, rtol=1e-6)
 
 
 def test_from_transforms_test_path_stating_one_camera_otherwise(nerf_dir):

@@ -124,20 +124,24 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
     frames = [f for doc in docs for f in doc["frames"]]
     sources = [path for path, doc in zip(paths, docs) for _ in doc["frames"]]
     cameras = read_cameras([doc for doc in docs for _ in doc["frames"]], frames, sources)
+    firsts = [
+        read_frame(p.parent / d["frames"][0]["file_path"], background) for p, d in zip(paths, docs)
+    ]
+    # the aspect ratio and the frames' cameras as one (no crop here), before another frame is
+    # read: a camera without w, h is for its file's images (their first one's size)
+    sizes = {path: first.shape[:2] for path, first in zip(paths, firsts)}
     src, what = stated_size(paths[0], cameras[0], "its first frame")
-    K, images = None, []
-    for path, doc in zip(paths, docs):
+    src = src or sizes[paths[0]]
+    frame_columns(paths[0], what, src, (height, width), SIMULATE_ASPECT_FIX)
+    K = one_camera_matrix(cameras, frames, sources, src, (height, width), sizes=sizes)
+    images = []
+    for path, doc, first in zip(paths, docs, firsts):
         frame_images, negative = [], []  # negative: (file, values below 0, the lowest) a frame
-        for f in doc["frames"]:
-            image = read_frame(path.parent / f["file_path"], background)  # [h, w, 3]
+        for j, f in enumerate(doc["frames"]):
+            image = read_frame(path.parent / f["file_path"], background) if j else first
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
                 image = np.maximum(image, 0.0)
-            src = src or image.shape[:2]  # the camera's w, h, else the first frame's size
-            if K is None:  # before any frame is resized or another read: the aspect ratio,
-                # and the frames' cameras as one (no crop here)
-                frame_columns(paths[0], what, src, (height, width), SIMULATE_ASPECT_FIX)
-                K = one_camera_matrix(cameras, frames, sources, src, (height, width))
             image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
             frame_images.append(to_channels(image, channels))
         if negative:
@@ -193,9 +197,10 @@ def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
 
 def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
     """The cameras {key: number} of frames [F] (CAMERA_KEYS, DISTORTION_KEYS), each under the index
-    of the first frame stating it, the first frame's first: the first frame's file's keys (docs
-    [F], each frame's file's JSON; sources [F], its path), the frame's own file's, then the frame's
-    (nerfstudio), each checked (`camera_number`); ValueError for a camera_model that is not a
+    of the first frame stating it, the first frame's first: the frame's own file's keys (docs [F],
+    each frame's file's JSON; sources [F], its path), then the frame's (nerfstudio), else, where
+    these state no intrinsics (or no distortion), the first frame's file's; each checked
+    (`camera_number`); ValueError for a camera_model that is not a
     pinhole; a warning for the first camera's non-zero distortion, which the pinhole rasterizer
     does not model. Cameras stated with other keys may still be one (`one_camera_matrix`)."""
     for doc, frame, source in zip(docs, frames, sources):
@@ -206,10 +211,12 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
                 f"rasterizer renders pinhole cameras ({', '.join(PINHOLE_MODELS)}); rectify the "
                 f"frames to one"
             )
-    keys = CAMERA_KEYS + DISTORTION_KEYS
     cameras = {}
     for i, (doc, frame, source) in enumerate(zip(docs, frames, sources)):
-        merged = {k: v for d in (docs[0], doc, frame) for k, v in d.items() if k in keys}
+        merged = {}
+        for keys in (CAMERA_KEYS, DISTORTION_KEYS):  # the first file's where these state none
+            own = {k: v for d in (doc, frame) for k, v in d.items() if k in keys}
+            merged |= own or {k: v for k, v in docs[0].items() if k in keys}
         camera = {k: camera_number(source, k, v) for k, v in merged.items()}
         if camera not in cameras.values():
             cameras[i] = camera
@@ -235,16 +242,22 @@ def _same_distortion(a: dict, b: dict) -> bool:
 
 
 def one_camera_matrix(
-    cameras: dict[int, dict], frames: list, sources: list, src: tuple, size: tuple, shift: float = 0
+    cameras: dict[int, dict],
+    frames: list,
+    sources: list,
+    src: tuple,
+    size: tuple,
+    shift: float = 0,
+    sizes: dict | None = None,
 ) -> np.ndarray:
     """K [3, 3] of the first of `cameras` (`read_cameras`) at `camera_matrix`'s `src`, `size` and
-    `shift`, each other camera's at its own w, h where it states them; ValueError naming two frames
-    whose cameras differ in K or in distortion (within 1e-6): one camera expected. Keys one file
-    states and another leaves to their defaults (camera_angle_y, cx, w, h, ...) are one camera
-    where they give the same K."""
+    `shift`, each other camera's at its own w, h where it states them, else at `sizes`' (h, w) of
+    its file's images (default `src`); ValueError naming two frames whose cameras differ in K or
+    in distortion (within 1e-6): one camera expected. Keys one file states and another leaves to
+    their defaults (camera_angle_y, cx, w, h, ...) are one camera where they give the same K."""
 
     def matrix(i: int, camera: dict) -> np.ndarray:
-        own = stated_size(sources[i], camera, "")[0] or src
+        own = stated_size(sources[i], camera, "")[0] or (sizes or {}).get(sources[i], src)
         return camera_matrix(sources[i], camera, own, size, shift)
 
     (first, camera), *others = cameras.items()
