@@ -99,6 +99,34 @@ def test_cameras_along_an_ascending_arc_are_followed_to_and_fro():
     assert azimuths.min() >= 0.0 and azimuths.max() <= 60.0
 
 
+@pytest.mark.parametrize(
+    "azimuths, elevations",
+    [
+        ((0, 40), (20, 20)),  # two cameras
+        ((0, 40, 80), (20, 20, 20)),  # three on an arc
+        ((170, 250), (10, 40)),  # two, across +-180, rising
+        (tuple(range(0, 61, 10)), tuple(10 + a / 2 for a in range(0, 61, 10))),  # a spiral's arc
+    ],
+)
+def test_no_span_view_shows_twice_running(azimuths, elevations):
+    """Few cameras, or a spread not uniform, reach less than sqrt(3) standard deviations from
+    their mean: an ellipse that wide, clipped to their extremes, stood still at its ends for
+    frames running (a GIF of two cameras' 12 frames held 7)."""
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, a, e) for a, e in zip(azimuths, elevations)])
+    viewmats, path = orbit_viewmats(cameras, CENTER, 24)
+    steps = np.linalg.norm(np.diff(_eyes(viewmats), axis=0), axis=1)  # [F - 1]
+    assert path == "span" and (steps > 1e-6).all()
+
+
+def test_cameras_spanning_no_views_are_circled():
+    """One camera, or cameras at one azimuth and elevation (a dolly towards the centre), span no
+    views: a circle, not a video of one view."""
+    for distances in ([4.0], [3.0, 4.0, 5.0]):
+        cameras = _looking_in([orbit_eye(CENTER, d, 30.0, 20.0) for d in distances])
+        assert orbit_viewmats(cameras, CENTER, 4)[1] == "circle"
+    assert orbit_viewmats(cameras, CENTER, 4, path="span")[1] == "span"  # as asked
+
+
 def test_a_gap_of_120_degrees_is_circled_and_one_over_it_looped():
     """Three cameras 120 degrees apart surround the centre (a circle); 121 degrees apart, one gap
     is 118 and the others 121 (a span) -- the auto choice's threshold, SURROUND_GAP_DEG."""

@@ -83,12 +83,12 @@ def _span_loop(
     """Azimuths and elevations (degrees) [F] at angles `turn` [F] of an ellipse over cameras'
     azimuths (from the start of their arc) and elevations [P]: about their mean, along their
     principal directions, sqrt(3) standard deviations across (a uniform spread's half-width: a
-    grid's inscribed ellipse, a line's length, travelled to and fro), kept within their
-    extremes."""
+    grid's inscribed ellipse, a line's length, travelled to and fro) or their nearer extreme
+    from the mean along it, whichever is less, kept within their extremes."""
     points = np.stack([azimuths, elevations], axis=1)  # [P, 2]
     spread, directions = np.linalg.eigh(np.cov(points.T, bias=True).reshape(2, 2))  # ascending
-    # within the cameras' reach from their mean along each direction: a clip held the path still
-    # at an end for frames running (few cameras, or a non-uniform spread, reach less)
+    # (a clip alone held the path still at an end for frames running: few cameras, or a
+    # non-uniform spread, reach less than sqrt(3) sigma)
     along = (points - points.mean(axis=0)) @ directions  # [P, 2]
     reach = np.minimum(-along.min(axis=0), along.max(axis=0))  # [2]
     radii = np.minimum(np.sqrt(3.0 * np.maximum(spread, 0.0)), reach)  # [2]
@@ -110,7 +110,7 @@ def orbit_viewmats(
     the cameras span (a forward-facing capture, a partial arc: a circle would show mostly what no
     camera saw; cameras all above the centre have no azimuths to span: a circle); "auto", a
     circle where the cameras surround the centre (no gap between their azimuths over
-    SURROUND_GAP_DEG), else a span."""
+    SURROUND_GAP_DEG) or span no views (one camera, a dolly), else a span."""
     center = np.asarray(center, np.float64)
     up = world_up(np.linalg.inv(trajectory.viewmats)) if up is None else np.asarray(up, float)
     offsets = trajectory.centers - center  # [P, 3]
@@ -128,8 +128,10 @@ def orbit_viewmats(
     beside = np.linalg.norm(level, axis=1) > 1e-6 * distance.max()  # [P]: not above the centre
     azimuths = np.degrees(np.arctan2(level[:, 1], level[:, 0]))  # [P]
     start, width = _arc_of(azimuths[beside]) if beside.any() else (0.0, 360.0)
-    if path == "auto":
-        path = "circle" if 360.0 - width <= SURROUND_GAP_DEG + 1e-6 else "span"  # (round-off)
+    if path == "auto":  # (1e-6: round-off) cameras at one azimuth and elevation span no views
+        spread = width + np.ptp(elevations[beside]) if beside.any() else 0.0
+        around = 360.0 - width <= SURROUND_GAP_DEG + 1e-6 or spread <= 1e-6
+        path = "circle" if around else "span"
     turn = 2 * np.pi * np.arange(frames) / frames  # [F]
     if path == "circle" or not beside.any():  # from the first camera's azimuth, where it has one
         path = "circle"
