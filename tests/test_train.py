@@ -1604,7 +1604,8 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
 def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, capsys):
     """VIDEO.json holds the orbit's poses in trajectory.json's layout (camera to world, OpenCV,
     the dataset's camera) and what rendered them: another method can be rendered at the same
-    views. A place where it cannot be written leaves the video and says so."""
+    views; on --path trajectory, each frame's readout too (it loads as a trajectory). A place
+    where it cannot be written leaves the video and says so."""
     from spikegs.render_cli import dataset_orbit
 
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
@@ -1629,6 +1630,14 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
     assert doc["orbit"] == dataset_orbit(dataset, 3)[1]
     docs = (Path(__file__).parents[1] / "docs" / "outputs.md").read_text(encoding="utf-8")
     assert {k for k in {*doc, *doc["frames"][0]} if f"`{k}`" not in docs} == set()
+    # --path trajectory: the recorded path's poses at readouts evenly over it, a trajectory file
+    walk = tmp_path / "walk.gif"
+    assert main(["render", str(tmp_path / "run"), "--out", str(walk), "--path", "trajectory"]) == 0
+    path = Trajectory.load_json(tmp_path / "walk.gif.json")
+    readouts = np.linspace(dataset.trajectory.start, dataset.trajectory.end, 60)
+    np.testing.assert_allclose(path.readouts, readouts, rtol=1e-12)
+    np.testing.assert_allclose(path.viewmats, dataset.trajectory.pose_at(readouts), atol=1e-12)
+    assert json.loads(walk.with_name("walk.gif.json").read_text())["orbit"] == "trajectory"
     (tmp_path / "o.gif.json").mkdir()  # a folder in its place
     capsys.readouterr()
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif")]) == 0

@@ -23,6 +23,7 @@ SURROUND_GAP_DEG = 120.0
 PATH_TEXT = {  # what each path shows, as `spikegs render` says
     "circle": "a circle around the scene centre",
     "span": "a loop over the views the cameras span (--path circle for the whole circle)",
+    "trajectory": "the cameras' recorded path",
 }
 
 
@@ -44,7 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="circle: the whole level circle at the cameras' mean elevation; span: a loop over "
         "the azimuths and elevations the cameras span (a forward-facing capture, a partial arc); "
         f"auto (default): a circle where no gap between the cameras' azimuths is over "
-        f"{SURROUND_GAP_DEG:g} degrees, else a span",
+        f"{SURROUND_GAP_DEG:g} degrees, else a span; trajectory: the recorded path, the frames "
+        "evenly over its readouts",
     )
     parser.add_argument(
         "--up",
@@ -148,12 +150,18 @@ def orbit_viewmats(
 
 def dataset_orbit(
     dataset, frames: int, up: np.ndarray | None = None, path: str = "auto"
-) -> tuple[np.ndarray, str]:
-    """`orbit_viewmats`' viewmats [F, 4, 4] and path about `up`, else the up the dataset was
-    simulated with (meta.json's `up`), else the cameras'."""
+) -> tuple[np.ndarray, str, np.ndarray | None]:
+    """Viewmats [F, 4, 4], the path taken and the readouts [F] of a "trajectory" path (else
+    None): the dataset's poses at F readouts evenly over those its trajectory spans (the recorded
+    path, interpolated as training reads it), else `orbit_viewmats`' about `up`, else the up the
+    dataset was simulated with (meta.json's `up`), else the cameras'."""
+    trajectory = dataset.trajectory
+    if path == "trajectory":
+        readouts = np.linspace(trajectory.start, trajectory.end, frames)  # [F]
+        return trajectory.pose_at(readouts), path, readouts
     if up is None and dataset.meta.get("up") is not None:
         up = unit_vector("meta.json's up", dataset.meta["up"])
-    return orbit_viewmats(dataset.trajectory, dataset.scene_center, frames, up, path)
+    return (*orbit_viewmats(trajectory, dataset.scene_center, frames, up, path), None)
 
 
 def orbit_frames(model, dataset, path: np.ndarray) -> np.ndarray:
@@ -188,13 +196,20 @@ def run(args: argparse.Namespace) -> int:
             f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",
             stacklevel=2,
         )
-    viewmats, path = dataset_orbit(dataset, args.frames, args.up, args.path)  # [F, 4, 4]
+    viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
     write_video(args.out, orbit_frames(load_ply(ply), dataset, viewmats), args.fps)
     print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
     try:  # (the video stands without it, as sim-train's table does)
         save_orbit(
-            cameras, viewmats, dataset, video=args.out, run=args.run, fps=args.fps, path=path
+            cameras,
+            viewmats,
+            dataset,
+            readouts,
+            video=args.out,
+            run=args.run,
+            fps=args.fps,
+            path=path,
         )
         print(f"cameras: {cameras}")
     except OSError as err:
@@ -203,20 +218,30 @@ def run(args: argparse.Namespace) -> int:
 
 
 def save_orbit(
-    file: Path, viewmats: np.ndarray, dataset, *, video: Path, run: Path, fps: int, path: str
+    file: Path,
+    viewmats: np.ndarray,
+    dataset,
+    readouts: np.ndarray | None,
+    *,
+    video: Path,
+    run: Path,
+    fps: int,
+    path: str,
 ):
     """Write the orbit's cameras, viewmats [F, 4, 4], in the layout of trajectory.json (OpenCV
-    camera-to-world, the dataset's camera), a `frame` index per frame where it has a `readout`,
-    with what rendered them and the `path` taken: another method rendered at these poses shows
-    the same views."""
+    camera-to-world, the dataset's camera), a `frame` index per frame, and its `readout` on a
+    trajectory path (`readouts` [F]), with what rendered them and the `path` taken: another
+    method rendered at these poses shows the same views."""
     from .data.dataset import camera_keys
-    from .data.trajectory import write_camera_doc
+    from .data.trajectory import readout_number, write_camera_doc
     from .provenance import environment
 
     write_camera_doc(
         file,
         (
-            {"frame": i, "transform_matrix": c2w.tolist()}
+            {"frame": i}
+            | ({} if readouts is None else {"readout": readout_number(readouts[i])})
+            | {"transform_matrix": c2w.tolist()}
             for i, c2w in enumerate(np.linalg.inv(viewmats))
         ),
         **camera_keys(dataset.meta),  # meta.json's numbers (dataset.K is float32)
