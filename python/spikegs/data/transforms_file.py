@@ -117,8 +117,8 @@ def _camera_text(camera: dict) -> str:
 def read_transforms(paths: list[Path], width: int, height: int, channels: int, background: float):
     """Frames [F_i, height, width, C] and OpenCV viewmats [F_i, 4, 4] of each of the transforms
     JSONs `paths` (training, then test frames), the K [3, 3] of their one camera and the first
-    file's document. The files' cameras are checked as one (`one_camera_matrix`) at the first
-    frame, before another frame is read."""
+    file's document. The files' cameras are checked as one (`one_camera_matrix`) once each file's
+    first frame is read, before any other."""
     docs = [read_transforms_doc(path) for path in paths]
     viewmats = [transforms_viewmats(path, doc) for path, doc in zip(paths, docs)]  # [F_i, 4, 4]
     frames = [f for doc in docs for f in doc["frames"]]
@@ -200,9 +200,9 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
     of the first frame stating it, the first frame's first: the frame's own file's keys (docs [F],
     each frame's file's JSON; sources [F], its path), then the frame's (nerfstudio), else, where
     these state no intrinsics (or no distortion), the first frame's file's; each checked
-    (`camera_number`); ValueError for a camera_model that is not a
-    pinhole; a warning for the first camera's non-zero distortion, which the pinhole rasterizer
-    does not model. Cameras stated with other keys may still be one (`one_camera_matrix`)."""
+    (`camera_number`); ValueError for a camera_model that is not a pinhole; a warning for the
+    first camera's non-zero distortion, which the pinhole rasterizer does not model. Cameras
+    stated with other keys may still be one (`one_camera_matrix`)."""
     for doc, frame, source in zip(docs, frames, sources):
         model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
         if model not in PINHOLE_MODELS:
