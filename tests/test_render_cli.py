@@ -37,10 +37,10 @@ def _azimuths_elevations(viewmats) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_the_orbit_keeps_the_cameras_mean_distance_and_elevation():
-    """Cameras at 3 and 5 units (mean 4) every 90 degrees, 30 degrees up, surround the centre: a
-    circle, every eye 4 from the centre, 2 = 4 sin 30 above it, the first at the first camera's
-    azimuth."""
-    orbit, path = orbit_viewmats(_cameras([3.0, 5.0, 3.0, 5.0], step_deg=90.0), CENTER, 6)
+    """Cameras at 3, 3, 3 and 7 units (mean 4, median 3) every 90 degrees, 30 degrees up, surround
+    the centre: a circle, every eye 4 from the centre, 2 = 4 sin 30 above it, the first at the
+    first camera's azimuth."""
+    orbit, path = orbit_viewmats(_cameras([3.0, 3.0, 3.0, 7.0], step_deg=90.0), CENTER, 6)
     offsets = _eyes(orbit) - CENTER  # [6, 3]
     assert path == "circle"
     np.testing.assert_allclose(np.linalg.norm(offsets, axis=1), 4.0, rtol=1e-9)
@@ -106,12 +106,14 @@ def test_cameras_along_an_ascending_arc_are_followed_to_and_fro():
         ((0, 40, 80), (20, 20, 20)),  # three on an arc
         ((170, 250), (10, 40)),  # two, across +-180, rising
         (tuple(range(0, 61, 10)), tuple(10 + a / 2 for a in range(0, 61, 10))),  # a spiral's arc
+        ((0, 10, 20, 80), (20, 20, 20, 20)),  # bunched at one end: 27.5 and 52.5 from the mean
     ],
 )
 def test_no_span_view_shows_twice_running(azimuths, elevations):
     """Few cameras, or a spread not uniform, reach less than sqrt(3) standard deviations from
     their mean: an ellipse that wide, clipped to their extremes, stood still at its ends for
-    frames running (a GIF of two cameras' 12 frames held 7)."""
+    frames running (a GIF of two cameras' 12 frames held 7); so did one as wide as the farther
+    extreme where the cameras bunch at one end (the nearer one bounds it)."""
     cameras = _looking_in([orbit_eye(CENTER, 4.0, a, e) for a, e in zip(azimuths, elevations)])
     viewmats, path = orbit_viewmats(cameras, CENTER, 24)
     steps = np.linalg.norm(np.diff(_eyes(viewmats), axis=0), axis=1)  # [F - 1]
@@ -120,11 +122,104 @@ def test_no_span_view_shows_twice_running(azimuths, elevations):
 
 def test_cameras_spanning_no_views_are_circled():
     """One camera, or cameras at one azimuth and elevation (a dolly towards the centre), span no
-    views: a circle, not a video of one view."""
+    views: a circle, not a video of one view; a camera straight above the centre has no azimuth
+    and widens no span (its 90 degrees up made the dolly a span)."""
     for distances in ([4.0], [3.0, 4.0, 5.0]):
         cameras = _looking_in([orbit_eye(CENTER, d, 30.0, 20.0) for d in distances])
         assert orbit_viewmats(cameras, CENTER, 4)[1] == "circle"
     assert orbit_viewmats(cameras, CENTER, 4, path="span")[1] == "span"  # as asked
+    above = Trajectory(np.arange(4.0), np.concatenate([cameras.viewmats, _above([3.0])]))
+    assert orbit_viewmats(above, CENTER, 4, UP)[1] == "circle"
+
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _above(heights) -> np.ndarray:
+    """Viewmats [P, 4, 4] of cameras `heights` straight above (negative: below) CENTER, looking
+    at it."""
+    return np.stack([look_at(CENTER + [0.0, 0.0, h], CENTER, up=(0.0, 1.0, 0.0)) for h in heights])
+
+
+def test_cameras_without_an_azimuth_take_a_circle_even_when_a_span_is_asked():
+    """Cameras straight above and below the centre have no azimuths to span: --path span gives
+    the circle at their mean elevation (0) and says it is one."""
+    cameras = Trajectory(np.arange(2.0), _above([3.0, -5.0]))
+    orbit, path = orbit_viewmats(cameras, CENTER, 8, UP, path="span")
+    assert path == "circle"
+    np.testing.assert_allclose(_azimuths_elevations(orbit)[1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(_eyes(orbit) - CENTER, axis=1), 4.0, rtol=1e-9)
+
+
+def test_a_camera_straight_above_the_centre_leaves_the_span_to_the_others():
+    """Cameras at azimuths 100 to 180 and 20 degrees up, and one straight above the centre: the
+    span loops over the others' azimuths and elevation (that camera, counted at azimuth 0 and
+    90 degrees up, stretched the loop over 0 to 180 and up to the top)."""
+    others = np.stack([look_at(orbit_eye(CENTER, 4.0, a, 20.0), CENTER) for a in (100, 140, 180)])
+    cameras = Trajectory(np.arange(4.0), np.concatenate([others, _above([4.0])]))
+    span, path = orbit_viewmats(cameras, CENTER, 24, UP)
+    azimuths, elevations = _azimuths_elevations(span)
+    assert path == "span"
+    assert azimuths.min() >= 100 - 1e-9 and azimuths.max() <= 180 + 1e-9 and np.ptp(azimuths) > 60
+    np.testing.assert_allclose(elevations, 20.0, atol=1e-9)
+
+
+def test_a_camera_at_the_centre_has_no_elevation_in_the_circles():
+    """Cameras 30 degrees up every 90 degrees and one at the centre: the circle is 30 degrees up
+    (the centre's camera, counted at 0, lowered it to 24)."""
+    cameras = _cameras([4.0] * 4, step_deg=90.0)
+    at = look_at(CENTER + [1.0, 0.0, 0.0], CENTER)  # then moved to the centre: t = -R c
+    at[:3, 3] = -at[:3, :3] @ CENTER
+    with_centre = Trajectory(np.arange(5.0), np.concatenate([cameras.viewmats, at[None]]))
+    orbit, path = orbit_viewmats(with_centre, CENTER, 6)
+    assert path == "circle"
+    np.testing.assert_allclose(_azimuths_elevations(orbit)[1], 30.0, atol=1e-9)
+
+
+def test_cameras_at_one_azimuth_over_elevations_are_looped_over_them():
+    """Cameras at one azimuth, 0 to 60 degrees up (a crane shot), span views: the path goes up and
+    down their arc (a circle showed what none saw)."""
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, 30.0, e) for e in range(0, 61, 15)])
+    span, path = orbit_viewmats(cameras, CENTER, 24, UP)
+    azimuths, elevations = _azimuths_elevations(span)
+    assert path == "span"
+    np.testing.assert_allclose(azimuths, 30.0, atol=1e-9)
+    assert elevations.min() >= -1e-9 and elevations.max() <= 60 + 1e-9 and np.ptp(elevations) > 55
+
+
+def test_the_span_stays_within_the_cameras_extremes():
+    """Cameras on a tilted square (azimuths 0 to 20, elevations 10 to 30, its diagonals the
+    principal directions): the ellipse over them reaches 1.2 degrees past their extremes in
+    azimuth and elevation; the path is kept within them."""
+    views = ((0, 10), (20, 30), (5, 25), (15, 15))  # azimuth, elevation
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, a, e) for a, e in views])
+    span, path = orbit_viewmats(cameras, CENTER, 48, UP)
+    azimuths, elevations = _azimuths_elevations(span)
+    assert path == "span"
+    assert azimuths.min() >= -1e-9 and azimuths.max() <= 20 + 1e-9
+    assert elevations.min() >= 10 - 1e-9 and elevations.max() <= 30 + 1e-9
+
+
+def test_the_span_is_sqrt_3_standard_deviations_wide_within_the_cameras_reach():
+    """Cameras at azimuths 0, 30 (eight of them) and 60, level: their standard deviation is
+    sqrt(180) degrees (over the cameras, not an unbiased estimate's sqrt(200)), and sqrt(3) of it
+    (23.2) is within their reach (30): the loop runs 30 +- 23.2 (times cos(pi / 48), the quarter
+    step's nearest frame to either end)."""
+    azimuths = [0.0] + [30.0] * 8 + [60.0]
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, a, 0.0) for a in azimuths])
+    span, path = orbit_viewmats(cameras, CENTER, 24, UP)
+    turned = _azimuths_elevations(span)[0]
+    assert path == "span"
+    half = np.sqrt(3.0 * 180.0) * np.cos(np.pi / 48)
+    np.testing.assert_allclose([turned.min(), turned.max()], [30 - half, 30 + half], atol=1e-6)
+
+
+def test_cameras_pitched_alike_show_their_mean_up():
+    """Cameras at one azimuth pitched -30 to 30 degrees towards the centre (a crane shot) all
+    share a level right axis, which leaves the up open within the plane across it: their mean
+    up, +z, completes it (the first camera's alone is 30 degrees off)."""
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, 30.0, e) for e in (-30, -15, 0, 15, 30)])
+    np.testing.assert_allclose(world_up(np.linalg.inv(cameras.viewmats)), UP, atol=1e-9)
 
 
 def test_a_gap_of_120_degrees_is_circled_and_one_over_it_looped():
