@@ -9,6 +9,7 @@ import subprocess
 import sys
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -77,6 +78,33 @@ def test_exp_map_series_holds_to_float64_rounding_at_its_threshold():
     xi = np.concatenate([direction * np.sqrt(0.99e-4), [0.9, -0.7, 1.2]])
     T = se3_exp(torch.from_numpy(xi)).numpy()
     np.testing.assert_allclose(T, scipy.linalg.expm(_twist_matrix(xi)), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("theta", [1e-8, 1e-7, 1e-6])
+def test_exp_map_gradient_at_tiny_angles_is_the_gradient_at_zero(theta):
+    """Below the threshold the series stand for the closed forms, whose float64 cancellation
+    (1 - cos θ and θ - sin θ of a tiny θ) tore the gradient: 0.16 off at θ = 1e-8 with the series
+    used at θ = 0 alone. Within 1e-6 of the gradient at 0, as a smooth map is."""
+    direction = torch.tensor([0.48, -0.6, 0.64], dtype=torch.float64)
+    weights = torch.linspace(-1, 1, 16, dtype=torch.float64).reshape(4, 4)
+    grads = []
+    for angle in (0.0, theta):
+        xi = torch.cat([direction * angle, torch.tensor([0.3, -0.2, 0.5], dtype=torch.float64)])
+        xi.requires_grad_()
+        (se3_exp(xi) * weights).sum().backward()
+        grads.append(xi.grad)
+    np.testing.assert_allclose(grads[1], grads[0], rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("theta2", [1.01e-4, 1e-3, 5e-3])
+def test_exp_map_closed_forms_take_over_past_the_threshold(theta2):
+    """Just past _SMALL the closed forms (float64 cancellation ~1e-14 there) stand for the
+    series: at θ² = 5e-3 the series' truncated θ⁶ term is 2e-11 of a (a threshold of 1e-2
+    passed every test), and the result is within 1e-13 of the matrix exponential."""
+    direction = np.array([0.48, -0.6, 0.64])  # a unit vector
+    xi = np.concatenate([direction * np.sqrt(theta2), [0.9, -0.7, 1.2]])
+    T = se3_exp(torch.from_numpy(xi)).numpy()
+    np.testing.assert_allclose(T, scipy.linalg.expm(_twist_matrix(xi)), rtol=0, atol=1e-13)
 
 
 def test_exp_map_gradient_is_finite_at_zero_and_matches_finite_differences():
@@ -386,9 +414,11 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         ({"fx": "175.8", "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number"),
         ({"fx": -175.8, "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number > 0"),
         ({"fx": 175.8, "fy": 175.8}, r"states \['fx', 'fy'\] of the intrinsics"),  # replaced
+        ({"fx": 175.8, "fy": 175.8, "cx": 64.0}, r"states \['fx', 'fy', 'cx'\] of the"),
         ({"scene_center": "origin"}, "scene_center expected 3 finite numbers"),
         ({"scene_radius": 0}, "scene_radius expected a finite number > 0"),
         ({"train_every": 2.5}, "meta.json: train_every expected a positive integer"),
+        ({"train_every": 0}, "meta.json: train_every expected a positive integer"),  # not unset
     ]
     for i, (change, message) in enumerate(cases):
         raw = tmp_path / str(i)
@@ -450,9 +480,15 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--sim"]) == 2
     assert capsys.readouterr().err.startswith("spikegs poses: error: --sim: no trained SIM")
     shutil.rmtree(textured / "sim")
-    for flags, message in ((["--count", "-3"], "--count"), (["--min-registered", "2"], "(0, 1]")):
-        assert main(["poses", str(textured), *flags]) == 2
-        assert message in capsys.readouterr().err
+    for flags, message in (
+        (["--count", "-3"], "--count"),
+        (["--every", "0"], "--every: expected >= 1 readout, got 0"),
+        (["--window", "32"], "--window: expected an odd window >= 1, got 32"),
+        (["--min-registered", "2"], "(0, 1]"),
+        (["--min-registered", "0"], "(0, 1]"),
+    ):
+        assert main(["poses", str(textured), *flags]) == 2, flags
+        assert message in capsys.readouterr().err, flags
     still = _solids(tmp_path / "still", 64, 400, speed=0.0005)  # 0.2 degrees of orbit: no parallax
     assert main(["poses", str(still.root), "--count", "12"]) == 2
     err = capsys.readouterr().err
@@ -700,3 +736,156 @@ def test_scene_probes_fill_the_ball_uniformly():
     center = np.array([1.0, -2.0, 3.0])
     r = np.linalg.norm(ball_points(center, 2.0, 8000) - center, axis=1)
     assert r.max() <= 2.0 and abs((r < 1.0).mean() - 1 / 8) < 0.015
+
+
+class _Channel:
+    """A spike stream of `length` readouts whose TFP images [H, W] are `image` (any window)."""
+
+    def __init__(self, image, length: int = 1000):
+        self.image, self.length = np.asarray(image, np.float32), length
+
+    def __len__(self):
+        return self.length
+
+    def tfp(self, readouts, window):
+        return np.broadcast_to(self.image, np.shape(readouts) + self.image.shape).copy()
+
+
+def test_spike_images_average_the_channels_over_their_995th_percentile():
+    """A colour camera's SfM image is the mean of its channels' TFPs (0.4 on the left, 0.467 on
+    the right), divided by the 99.5th percentile (0.467: 2 hot pixels in 800 pass over it) and
+    clipped to 1: the hot pixels' maximum (10) left the scene near black for SIFT, and the first
+    channel alone (0.2 and 0.4) gave another image."""
+    red = np.full((20, 20), 0.2)
+    red[:, 10:] = 0.4
+    red[0, 0] = green_hot = 10.0
+    green = np.full((20, 20), 0.4)
+    green[0, 0] = green_hot
+    images = spike_images(
+        [_Channel(red), _Channel(green), _Channel(np.full((20, 20), 0.6))], [5, 9], 33
+    )
+    expected = np.full((2, 20, 20), 0.4 / (1.4 / 3))
+    expected[:, :, 10:] = 1.0
+    expected[:, 0, 0] = 1.0
+    np.testing.assert_allclose(images, expected, rtol=1e-6)
+
+
+def test_sfm_holds_known_intrinsics_fixed(textured, tmp_path):
+    """Intrinsics stated in meta.json (here a principal point 3 px below the middle, cx != cy)
+    are COLMAP's PINHOLE camera as given, fx, fy, cx, cy in that order, and bundle adjustment
+    leaves them: the reconstruction's K is the one given (cx and cy swapped, or the focal refined,
+    passed every test)."""
+    dataset = load_dataset(textured)
+    readouts = np.linspace(40, len(dataset.streams[0]) - 41, 16).round().astype(int)
+    K = np.array(dataset.K, np.float64)
+    K[1, 2] += 3.0
+    recon = reconstruct(spike_images(dataset.streams, readouts, 33), readouts, tmp_path, K)
+    assert len(recon.readouts) >= 8
+    np.testing.assert_allclose(recon.K, K, rtol=1e-12)
+
+
+class _Model:
+    """What `sfm._read_model` reads of a pycolmap reconstruction: registered images by name with
+    their cam_from_world, one camera, points with their 8-bit (gamma-encoded) colours."""
+
+    def __init__(self, poses: dict, colors):
+        def image(name, viewmat):
+            pose = SimpleNamespace(matrix=lambda: viewmat[:3])
+            return SimpleNamespace(name=name, has_pose=True, cam_from_world=lambda: pose)
+
+        self.images = {i: image(n, v) for i, (n, v) in enumerate(poses.items())}
+        self.cameras = {1: SimpleNamespace(calibration_matrix=lambda: np.eye(3))}
+        self.points3D = {
+            i: SimpleNamespace(xyz=np.full(3, float(i)), color=np.array(c))
+            for i, c in enumerate(colors)
+        }
+
+
+def test_a_reconstruction_reads_its_registered_images_readouts_and_linear_colours():
+    """Of images at readouts 10, 20, 30, 40, those at 20 and 40 registered: the poses are at
+    their own readouts (not the first two given), and the points' colours, gamma-encoded for
+    SIFT, linearised back (128 -> 56, 255 -> 255, 0 -> 0)."""
+    poses = {f"{k:08d}.png": look_at((3.0, 0.0, float(k)), (0, 0, 0)) for k in (40, 20)}
+    names = [f"{k:08d}.png" for k in (10, 20, 30, 40)]
+    model = _Model(poses, [(128, 255, 0)])
+    recon = sfm._read_model(model, names, np.array([10, 20, 30, 40]))
+    assert recon.readouts.tolist() == [20.0, 40.0] and recon.num_images == 4
+    np.testing.assert_allclose(recon.viewmats, [poses[names[1]], poses[names[3]]])
+    assert recon.colors.tolist() == [[56, 255, 0]]
+
+
+def test_poses_sim_takes_the_latest_trained_sim(tmp_path, monkeypatch):
+    """--sim reads the SIM trained or reused last (the newest file), neither the first by name nor
+    the oldest."""
+    import os
+
+    from spikegs import sim_train
+    from spikegs.poses_cli import _cached_sim
+
+    (tmp_path / "sim").mkdir()
+    for name, when in (("b.pt", 100), ("c.pt", 300), ("a.pt", 200)):
+        (tmp_path / "sim" / name).write_bytes(b"")
+        os.utime(tmp_path / "sim" / name, (when, when))
+    monkeypatch.setattr(sim_train, "is_sim_file", lambda path: True)
+    monkeypatch.setattr(sim_train, "load_sim", lambda path: path.name)
+    assert _cached_sim(tmp_path) == "c.pt"
+
+
+def test_a_scene_centre_without_a_radius_is_estimated_with_it():
+    """meta.json with a scene_center but no scene_radius: both come from the points (the radius
+    alone missing left training without one)."""
+    points = np.random.default_rng(0).normal(size=(200, 3)) + [5.0, 0.0, 0.0]
+    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
+    meta = {"width": 64, "height": 64, "scene_center": [0.0, 0.0, 0.0]}
+    _complete_meta(meta, recon, estimated=False)
+    np.testing.assert_allclose(meta["scene_center"], np.median(points, axis=0))
+    assert meta["scene_radius"] > 0
+
+
+def test_a_timestamps_window_may_reach_the_registered_ends(tmp_path):
+    """Windows of 33 (t +- 16) that begin or end exactly at the first or last registered readout
+    (224 and 896) are within them: timestamps 240 and 880 are kept."""
+    (tmp_path / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in range(40, 961, 40)))
+    ks, inside = _registered_timestamps(tmp_path, np.array([224, 500, 896]))
+    assert ks[inside].tolist() == list(range(240, 881, 40))
+
+
+def test_a_second_pose_run_keeps_the_original_timestamps_backup(tmp_path):
+    """train_timestamps.txt.bak holds the list before the first run that dropped timestamps; a
+    second run, dropping more, leaves it (it held the first run's cut)."""
+    original = "".join(f"{k}\n" for k in range(40, 961, 40))
+    (tmp_path / "train_timestamps.txt").write_text(original)
+    for registered in ([220, 500, 900], [300, 500, 700]):
+        ks, inside = _registered_timestamps(tmp_path, np.array(registered))
+        _keep_timestamps(tmp_path, ks, inside, np.array(registered))
+    assert np.loadtxt(tmp_path / "train_timestamps.txt").tolist() == list(range(320, 681, 40))
+    assert (tmp_path / "train_timestamps.txt.bak").read_text() == original
+
+
+def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
+    """Held out: every 8th registered readout with room for its TFP(65), readout 32 (the first
+    such in 1000 readouts) too, each at its readout's pose; training timestamps (every 8) whose
+    65-readout windows lie within the registered [8, 896], 40 and 864 at its ends."""
+    from spikegs.poses_cli import _held_out_split
+
+    streams = [_Channel(np.zeros((4, 6)))]
+    ends = np.stack([np.eye(4)] * 2)
+    ends[1, 0, 3] = 999.0  # a camera moving along x, a unit a readout: each view's own pose
+    trajectory = Trajectory(np.array([0.0, 999.0]), ends)
+    registered = np.array([32, *range(100, 800, 50)])  # 32, 100 ... 750: 32 and 450 held out
+    views = _held_out_split(streams, trajectory, registered, 8)[0]
+    assert [v.readout for v in views] == [32.0, 450.0]
+    np.testing.assert_allclose([v.viewmat[0, 3] for v in views], [32.0, 450.0], rtol=1e-12)
+    registered = np.array([8, *range(300, 700, 50), 896])  # 8 (no room) and 650 held out
+    views, ks = _held_out_split(streams, trajectory, registered, 8)
+    assert [v.readout for v in views] == [650.0]
+    assert (ks.min(), ks.max()) == (40, 864)
+
+
+def test_a_point_cloud_without_points_is_refused(tmp_path):
+    """An empty points3d.ply (a vertex element of 0) names the file and what it lacks, as a
+    non-finite one does (it was taken for a cloud of 0 distinct points and the run started
+    from random ones)."""
+    write_points(tmp_path / POINTS, np.zeros((0, 3)))
+    with pytest.raises(ValueError, match=f"{POINTS}: expected at least one point"):
+        read_points(tmp_path / POINTS)
