@@ -889,3 +889,12 @@ def test_a_point_cloud_without_points_is_refused(tmp_path):
     write_points(tmp_path / POINTS, np.zeros((0, 3)))
     with pytest.raises(ValueError, match=f"{POINTS}: expected at least one point"):
         read_points(tmp_path / POINTS)
+
+
+def test_a_point_cloud_without_coordinates_is_refused_by_name(tmp_path):
+    """A .ply whose vertices have no x, y, z (another tool's properties) is a ValueError naming
+    the file and the properties it has (a KeyError 'x' said neither)."""
+    vertex = np.zeros(3, dtype=[(a, "f4") for a in ("px", "py", "pz")])
+    PlyData([PlyElement.describe(vertex, "vertex")]).write(tmp_path / POINTS)
+    with pytest.raises(ValueError, match=r"expected vertex properties x, y, z; found \['px'"):
+        read_points(tmp_path / POINTS)
