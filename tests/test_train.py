@@ -2993,6 +2993,34 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
         assert (biased_fit(record, SupervisionConfig()) is not None) == said, ratio
 
 
+def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
+    """Black targets on every step are not judged (a ratio of 0 / 0); the band's ends are
+    unbiased (1.25 exactly); the L1 median hint is for a term too dark (not too bright) on TFP's
+    counts, the instant's too where it is TFP; another term is cited as fitted only where its
+    own ratio is in the band, and SIM's output is named only for the instant term."""
+    from spikegs.config import SupervisionConfig
+    from spikegs.fit_brightness import MIN_STEPS, FitBrightness, biased_fit
+
+    def record(**ratios) -> FitBrightness:
+        fit, one = FitBrightness(), torch.ones(2, 2, 1)
+        for _ in range(MIN_STEPS):
+            for term, ratio in ratios.items():
+                fit.observe(term, [one * ratio], one * (term != "black"))
+        return fit
+
+    assert record(black=1.0).ratios() == {}
+    assert biased_fit(record(exposure=1.25), SupervisionConfig()) is None
+    tfp = SupervisionConfig(instant="tfp", instant_norm="l1")
+    assert "instant_norm l1 fits the median" in biased_fit(record(instant=0.5), tfp)
+    bright = biased_fit(record(exposure=1.5), SupervisionConfig(exposure_norm="l1"))
+    assert "median" not in bright and bright.endswith("a biased or unconverged fit")
+    both = biased_fit(record(instant=0.5, exposure=2.0), SupervisionConfig(instant="tfi"))
+    assert "renders hold" in both and "its " not in both  # neither fits: no other cited
+    sim = biased_fit(record(instant=1.0, exposure=2.0), SupervisionConfig(instant="sim"))
+    assert "(its instant renders hold 100 % of theirs: the exposure targets differ" in sim
+    assert "SIM" not in sim
+
+
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
