@@ -84,3 +84,17 @@ def test_the_cores_thread_count_is_at_least_one():
     for n in (0, -5):
         with pytest.raises(ValueError, match=f"n expected >= 1, found {n}"):
             _C.set_max_threads(n)
+
+
+def test_a_quota_at_the_root_of_a_namespaced_group_counts(tmp_path, monkeypatch):
+    """A container with its own cgroup namespace sees itself at the root ("0::/") and `docker run
+    --cpus=2.4` writes cpu.max there: 2.4 CPUs (the root's own file was left out: no quota),
+    3 threads (rounded up, not to the nearest); a period of 0 (a torn file) is no quota, not a
+    ZeroDivisionError as the package loads."""
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    _file(membership, "0::/\n")
+    _file(root / "cpu.max", "240000 100000\n")
+    monkeypatch.setattr(cpu_quota, "usable_cpus", lambda: 64)
+    assert quota_of(membership, root) == 2.4 and quota_threads(membership, root) == 3
+    _file(root / "cpu.max", "50000 0\n")
+    assert quota_of(membership, root) is None

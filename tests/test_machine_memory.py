@@ -36,3 +36,17 @@ def test_no_limit_set_or_readable(tmp_path):
     _file(root / "user.slice/memory.max", "max\n")
     assert cgroup_limit(membership, root) is None
     assert machine_memory() > 0
+
+
+def test_a_limit_above_the_machines_memory_leaves_the_machines(monkeypatch):
+    """A cgroup limit larger than the physical memory (a job asking for more than the node has)
+    does not raise what the process may use past the machine's; a lower one is the answer."""
+    import os
+
+    from spikegs import machine_memory as module
+
+    physical = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    monkeypatch.setattr(module, "cgroup_limit", lambda: 4 * physical)
+    assert machine_memory() == physical
+    monkeypatch.setattr(module, "cgroup_limit", lambda: physical // 4)
+    assert machine_memory() == physical // 4

@@ -131,3 +131,57 @@ def test_a_dataset_replaced_through_a_link(tmp_path):
     link.symlink_to(target)
     assert prepare_output(link, overwrite=True) == link
     assert link.is_symlink() and target.is_dir() and not any(target.iterdir())
+
+
+def test_a_name_of_exactly_the_limit_is_kept_and_temporaries_are_ours_only():
+    """A name of `limit` bytes fits as it is (shortened, its temporary's and sweep's name would
+    differ from it needlessly); `.NAME.WRITER.tmp` is ours, a user's `notes.v2.tmp` not (its
+    leading dot is part of the pattern)."""
+    from spikegs.atomic_save import is_temporary
+
+    assert short_name("x" * 40, 40) == "x" * 40
+    assert is_temporary(".notes.json.123.tmp") and not is_temporary("notes.v2.tmp")
+
+
+def test_a_temporarys_writer_is_alive_unless_its_process_is_gone(tmp_path, monkeypatch):
+    """Writer 0 is no process (os.kill(0, 0) signals our own group: its temporary was never
+    swept); another user's live process (PermissionError) is alive, and its temporary stays
+    (the error escaped the sweep)."""
+    from spikegs import atomic_save
+
+    zero = tmp_path / ".scores.json.0.tmp"
+    zero.write_text("torn")
+    atomic_save.sweep_temporaries(tmp_path)
+    assert not zero.exists()
+
+    def not_ours(pid, signal):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(atomic_save.os, "kill", not_ours)
+    theirs = tmp_path / ".scores.json.4242.tmp"
+    theirs.write_text("being written")
+    atomic_save.sweep_temporaries(tmp_path)
+    assert theirs.exists()
+
+
+def test_an_error_naming_another_file_keeps_its_name(tmp_path):
+    """A write's error that names a file other than its temporary (an input it read) is raised
+    as it is, not renamed to the file asked for."""
+    other = str(tmp_path / "frames" / "0001.png")
+
+    def reads(tmp):
+        raise FileNotFoundError(2, "No such file or directory", other)
+
+    with pytest.raises(FileNotFoundError) as raised:
+        write_atomically(tmp_path / "video.json", reads)
+    assert raised.value.filename == other
+
+
+def test_a_figure_without_a_suffix_is_a_png(tmp_path):
+    """save_figure writes the format of its suffix, PNG where there is none (matplotlib refused
+    the empty format)."""
+    import matplotlib.pyplot as plt
+    from spikegs.atomic_save import save_figure
+
+    save_figure(plt.figure(figsize=(1, 1)), tmp_path / "curve")
+    assert (tmp_path / "curve").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

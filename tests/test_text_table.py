@@ -20,3 +20,20 @@ def test_a_columns_floats_share_their_decimals(capsys):
         "TFP(33)  37.12  0.9120    0.5     150  12",
         "    TFI  40.00     nan      2    2500   7",
     ]
+
+
+def test_fixed_decimals_only_within_their_range_and_headers_set_the_width(capsys):
+    """Decimals for a column's largest value (43.1 beside 5.2: 2, not 3 for 5.2); below 0.001
+    (0.0005) or from 1e6 up (2e6) 4 significant digits (0.0005000 and 2000000 were printed); a
+    0 takes no part (0.0 beside 43.1 read 0 and 43.1); a header wider than its values sets the
+    column's width."""
+    rows = [
+        {"a_long_header": 0.0005, "mega": 2e6, "psnr": 43.1, "zero": 0.0},
+        {"a_long_header": 0.0007, "mega": 3e6, "psnr": 5.2, "zero": 43.1},
+    ]
+    print_table(rows)
+    assert capsys.readouterr().out.splitlines() == [
+        "a_long_header   mega   psnr   zero",
+        "       0.0005  2e+06  43.10   0.00",
+        "       0.0007  3e+06   5.20  43.10",
+    ]

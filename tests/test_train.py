@@ -3021,6 +3021,20 @@ def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
     assert "SIM" not in sim
 
 
+def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_booleans():
+    """dumps writes inf and NaN as null inside lists too (a list of per-view scores raised
+    ValueError with allow_nan off); number_array refuses booleans (true, false in a JSON file
+    are not 1 and 0)."""
+    from spikegs.number_checks import number_array
+    from spikegs.strict_json import dumps
+
+    assert (
+        dumps({"psnr": [float("inf"), 31.5, (float("nan"),)]}) == '{"psnr": [null, 31.5, [null]]}'
+    )
+    with pytest.raises(ValueError, match="expected numbers, found bool values"):
+        number_array([True, False])
+
+
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
