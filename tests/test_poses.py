@@ -898,3 +898,33 @@ def test_a_point_cloud_without_coordinates_is_refused_by_name(tmp_path):
     PlyData([PlyElement.describe(vertex, "vertex")]).write(tmp_path / POINTS)
     with pytest.raises(ValueError, match=r"expected vertex properties x, y, z; found \['px'"):
         read_points(tmp_path / POINTS)
+
+
+def test_a_second_pose_run_aligns_to_the_original_pose_log(textured, tmp_path, monkeypatch):
+    """trajectory.json.bak, the pose log before the first run replaced trajectory.json, is what a
+    second run aligns to and reports errors against (against the first run's own SfM poses, a
+    run would report its agreement with itself as the error). SfM stands in: it returns the
+    logged poses exactly, and the replaced trajectory.json is turned 1 degree a readout step."""
+    from spikegs import poses_cli
+    from spikegs.data.dataset import camera_keys
+
+    root = tmp_path / "data"
+    shutil.copytree(textured, root)
+    log = Trajectory.load_json(root / "trajectory.json")
+    meta = json.loads((root / "meta.json").read_text())
+    shutil.copy(root / "trajectory.json", root / "trajectory.json.bak")
+    turns = Rotation.from_rotvec(np.outer(np.radians(np.arange(len(log.readouts))), [0, 1, 0]))
+    replaced = log.viewmats.copy()
+    replaced[:, :3, :] = np.einsum("nij,njk->nik", turns.as_matrix(), log.viewmats[:, :3, :])
+    Trajectory(log.readouts, replaced).save_json(root / "trajectory.json", **camera_keys(meta))
+
+    def logged_poses(images, readouts, work_dir, K, *args, **kwargs):
+        points = np.random.default_rng(0).normal(size=(50, 3)) + meta["scene_center"]
+        poses = log.pose_at(np.asarray(readouts, np.float64))
+        colors = np.zeros((50, 3), np.uint8)
+        return Reconstruction(np.asarray(readouts, np.float64), poses, K, points, colors, 10)
+
+    monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
+    monkeypatch.setattr(poses_cli, "reconstruct", logged_poses)
+    report = poses_cli.estimate_poses(root, count=10)
+    assert report["rotation_error_deg_max"] < 1e-6, report
