@@ -2132,6 +2132,21 @@ def test_a_sigterm_handler_of_the_callers_stays_theirs():
         signal.signal(signal.SIGTERM, previous)
 
 
+def test_a_sigterm_is_ignored_while_its_stop_unwinds():
+    """raise_terminated (the spikegs command's SIGTERM and SIGHUP handler) ignores that signal
+    before it raises: a second SIGTERM landing in the clean-up printed 'terminated' twice."""
+    from spikegs.interrupt import Terminated, raise_terminated
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        with pytest.raises(Terminated) as stopped:
+            raise_terminated(signal.SIGTERM, None)
+        assert stopped.value.signum == signal.SIGTERM
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def test_an_ignored_sigint_stays_ignored():
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in a background job
     try:
