@@ -222,6 +222,20 @@ def test_cameras_pitched_alike_show_their_mean_up():
     np.testing.assert_allclose(world_up(np.linalg.inv(cameras.viewmats)), UP, atol=1e-9)
 
 
+def test_cameras_straight_above_the_centre_circle_just_off_the_pole():
+    """Cameras straight above the centre along the given up (a top-down capture with --up along
+    their view) have no azimuth: a circle at their mean elevation, 90 degrees, put every eye on
+    the pole and look_at refused it; now at TOP_DEG (89), the view turning about the up."""
+    eyes = (CENTER + [0.0, 0.0, 3.0], CENTER + [0.0, 0.0, 4.0])  # looking down, image up +y
+    cameras = Trajectory(np.arange(2.0), np.stack([look_at(e, CENTER, [0, 1, 0]) for e in eyes]))
+    for path in ("auto", "span"):
+        orbit, taken = orbit_viewmats(cameras, CENTER, 4, np.array([0.0, 0.0, 1.0]), path)
+        azimuths, elevations = _azimuths_elevations(orbit)
+        assert taken == "circle" and np.isfinite(orbit).all()
+        np.testing.assert_allclose(elevations, 89.0, atol=1e-9)
+        np.testing.assert_allclose(np.diff(azimuths) % 360.0, 90.0, atol=1e-6)
+
+
 def test_a_gap_of_120_degrees_is_circled_and_one_over_it_looped():
     """Three cameras 120 degrees apart surround the centre (a circle); 121 degrees apart, one gap
     is 118 and the others 121 (a span) -- the auto choice's threshold, SURROUND_GAP_DEG."""

@@ -20,6 +20,9 @@ LEVEL_SPAN = 0.05
 # cameras whose azimuths about the scene centre leave no gap over this many degrees surround it:
 # `spikegs render` circles them (three cameras 120° apart do); otherwise it loops over their span
 SURROUND_GAP_DEG = 120.0
+# the circle's elevation at most this far from the horizon: cameras straight above the centre
+# (a top-down capture with --up along their view) circle just off the pole, the view turning
+TOP_DEG = 89.0
 PATH_TEXT = {  # what each path shows, as `spikegs render` says
     "circle": "a circle around the scene centre",
     "span": "a loop over the views the cameras span (--path circle for the whole circle)",
@@ -108,9 +111,10 @@ def orbit_viewmats(
     """Viewmats [F, 4, 4] looking at `center` from the cameras' mean distance, about unit `up`
     [3] (default: their `world_up`: real data (SfM, LLFF) has no fixed world up, so +z would tilt
     or flip the path), and the path taken: "circle", the whole level circle at their mean
-    elevation from the first camera's azimuth; "span", a loop over the azimuths and elevations
-    the cameras span (a forward-facing capture, a partial arc: a circle would show mostly what no
-    camera saw; cameras all above the centre have no azimuths to span: a circle); "auto", a
+    elevation (within TOP_DEG of the horizon) from the first camera's azimuth; "span", a loop
+    over the azimuths and elevations the cameras span (a forward-facing capture, a partial arc: a
+    circle would show mostly what no camera saw; cameras all above the centre have no azimuths
+    to span: a circle); "auto", a
     circle where the cameras surround the centre (no gap between their azimuths over
     SURROUND_GAP_DEG) or span no views (one camera, a dolly), else a span."""
     center = np.asarray(center, np.float64)
@@ -138,7 +142,7 @@ def orbit_viewmats(
     if path == "circle" or not beside.any():  # from the first camera's azimuth, where it has one
         path = "circle"
         azimuth = (azimuths[0] if beside[0] else start) + np.degrees(turn)  # [F]
-        elevation = np.full(frames, elevations[away].mean())
+        elevation = np.full(frames, np.clip(elevations[away].mean(), -TOP_DEG, TOP_DEG))
     else:  # a quarter step on: a to-and-fro line shows no view twice running (a GIF merges them)
         azimuth, elevation = _span_loop(
             (azimuths[beside] - start) % 360.0, elevations[beside], turn + np.pi / 2 / frames
