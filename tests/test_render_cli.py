@@ -226,10 +226,9 @@ def test_cameras_straight_above_the_centre_circle_just_off_the_pole():
     """Cameras straight above the centre along the given up (a top-down capture with --up along
     their view) have no azimuth: a circle at their mean elevation, 90 degrees, put every eye on
     the pole and look_at refused it; now at TOP_DEG (89), the view turning about the up."""
-    eyes = (CENTER + [0.0, 0.0, 3.0], CENTER + [0.0, 0.0, 4.0])  # looking down, image up +y
-    cameras = Trajectory(np.arange(2.0), np.stack([look_at(e, CENTER, [0, 1, 0]) for e in eyes]))
+    cameras = Trajectory(np.arange(2.0), _above([3.0, 4.0]))
     for path in ("auto", "span"):
-        orbit, taken = orbit_viewmats(cameras, CENTER, 4, np.array([0.0, 0.0, 1.0]), path)
+        orbit, taken = orbit_viewmats(cameras, CENTER, 4, UP, path)
         azimuths, elevations = _azimuths_elevations(orbit)
         assert taken == "circle" and np.isfinite(orbit).all()
         np.testing.assert_allclose(elevations, 89.0, atol=1e-9)
