@@ -1,6 +1,8 @@
 """machine_memory.py: the memory limit of a process's cgroup, v1 and v2, its own or an
 ancestor's, and none set."""
 
+import os
+
 from spikegs.machine_memory import cgroup_limit, machine_memory
 
 
@@ -41,12 +43,8 @@ def test_no_limit_set_or_readable(tmp_path):
 def test_a_limit_above_the_machines_memory_leaves_the_machines(monkeypatch):
     """A cgroup limit larger than the physical memory (a job asking for more than the node has)
     does not raise what the process may use past the machine's; a lower one is the answer."""
-    import os
-
-    from spikegs import machine_memory as module
-
     physical = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    monkeypatch.setattr(module, "cgroup_limit", lambda: 4 * physical)
+    monkeypatch.setattr("spikegs.machine_memory.cgroup_limit", lambda: 4 * physical)
     assert machine_memory() == physical
-    monkeypatch.setattr(module, "cgroup_limit", lambda: physical // 4)
+    monkeypatch.setattr("spikegs.machine_memory.cgroup_limit", lambda: physical // 4)
     assert machine_memory() == physical // 4

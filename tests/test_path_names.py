@@ -13,8 +13,11 @@ import numpy as np
 import pytest
 from spikegs.atomic_save import (
     NAME_MAX,
+    is_temporary,
+    save_figure,
     short_name,
     sweep_killed_writes,
+    sweep_temporaries,
     temporary_name,
     write_atomically,
     write_text_atomically,
@@ -137,8 +140,6 @@ def test_a_name_of_exactly_the_limit_is_kept_and_temporaries_are_ours_only():
     """A name of `limit` bytes fits as it is (shortened, its temporary's and sweep's name would
     differ from it needlessly); `.NAME.WRITER.tmp` is ours, a user's `notes.v2.tmp` not (its
     leading dot is part of the pattern)."""
-    from spikegs.atomic_save import is_temporary
-
     assert short_name("x" * 40, 40) == "x" * 40
     assert is_temporary(".notes.json.123.tmp") and not is_temporary("notes.v2.tmp")
 
@@ -147,20 +148,18 @@ def test_a_temporarys_writer_is_alive_unless_its_process_is_gone(tmp_path, monke
     """Writer 0 is no process (os.kill(0, 0) signals our own group: its temporary was never
     swept); another user's live process (PermissionError) is alive, and its temporary stays
     (the error escaped the sweep)."""
-    from spikegs import atomic_save
-
     zero = tmp_path / ".scores.json.0.tmp"
     zero.write_text("torn")
-    atomic_save.sweep_temporaries(tmp_path)
+    sweep_temporaries(tmp_path)
     assert not zero.exists()
 
     def not_ours(pid, signal):
         raise PermissionError(1, "Operation not permitted")
 
-    monkeypatch.setattr(atomic_save.os, "kill", not_ours)
+    monkeypatch.setattr(os, "kill", not_ours)
     theirs = tmp_path / ".scores.json.4242.tmp"
     theirs.write_text("being written")
-    atomic_save.sweep_temporaries(tmp_path)
+    sweep_temporaries(tmp_path)
     assert theirs.exists()
 
 
@@ -181,7 +180,6 @@ def test_a_figure_without_a_suffix_is_a_png(tmp_path):
     """save_figure writes the format of its suffix, PNG where there is none (matplotlib refused
     the empty format)."""
     import matplotlib.pyplot as plt
-    from spikegs.atomic_save import save_figure
 
     save_figure(plt.figure(figsize=(1, 1)), tmp_path / "curve")
     assert (tmp_path / "curve").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
