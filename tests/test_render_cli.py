@@ -16,12 +16,17 @@ from spikegs.render_cli import dataset_orbit, direction, orbit_frames, orbit_vie
 CENTER = np.array([1.0, -2.0, 0.5])
 
 
+def _looking_in(eyes) -> Trajectory:
+    """Cameras at `eyes` [P, 3] looking at CENTER."""
+    return Trajectory(np.arange(float(len(eyes))), np.stack([look_at(e, CENTER) for e in eyes]))
+
+
 def _cameras(distances, elevation_deg=30.0, step_deg=40.0):
     """Upright cameras looking at CENTER from `distances` at azimuths 0, step, 2 step, ... degrees
     and one elevation (+z up)."""
-    eyes = [orbit_eye(CENTER, d, step_deg * i, elevation_deg) for i, d in enumerate(distances)]
-    viewmats = np.stack([look_at(eye, CENTER) for eye in eyes])
-    return Trajectory(np.arange(len(eyes), dtype=np.float64), viewmats)
+    return _looking_in(
+        [orbit_eye(CENTER, d, step_deg * i, elevation_deg) for i, d in enumerate(distances)]
+    )
 
 
 def _eyes(viewmats):
@@ -57,11 +62,6 @@ def test_the_orbit_frames_are_evenly_spaced_around_the_whole_circle():
     azimuths = _azimuths_elevations(orbit)[0]  # [F]
     steps = np.diff(np.concatenate([azimuths, azimuths[:1] + 360.0])) % 360.0
     np.testing.assert_allclose(steps, 360.0 / frames, atol=1e-9)
-
-
-def _looking_in(eyes) -> Trajectory:
-    """Cameras at `eyes` [P, 3] looking at CENTER."""
-    return Trajectory(np.arange(float(len(eyes))), np.stack([look_at(e, CENTER) for e in eyes]))
 
 
 @pytest.mark.parametrize("first", [0.0, 170.0])

@@ -114,9 +114,8 @@ def orbit_viewmats(
     elevation (within TOP_DEG of the horizon) from the first camera's azimuth; "span", a loop
     over the azimuths and elevations the cameras span (a forward-facing capture, a partial arc: a
     circle would show mostly what no camera saw; cameras all above the centre have no azimuths
-    to span: a circle); "auto", a
-    circle where the cameras surround the centre (no gap between their azimuths over
-    SURROUND_GAP_DEG) or span no views (one camera, a dolly), else a span."""
+    to span: a circle); "auto", a circle where the cameras surround the centre (no gap between
+    their azimuths over SURROUND_GAP_DEG) or span no views (one camera, a dolly), else a span."""
     center = np.asarray(center, np.float64)
     up = world_up(np.linalg.inv(trajectory.viewmats)) if up is None else np.asarray(up, float)
     offsets = trajectory.centers - center  # [P, 3]
@@ -133,14 +132,15 @@ def orbit_viewmats(
     level = offsets @ axes[:, :2]  # [P, 2]: in the orbit plane
     beside = np.linalg.norm(level, axis=1) > 1e-6 * distance.max()  # [P]: not above the centre
     azimuths = np.degrees(np.arctan2(level[:, 1], level[:, 0]))  # [P]
-    start, width = _arc_of(azimuths[beside]) if beside.any() else (0.0, 360.0)
-    if path == "auto":  # (1e-6: round-off) cameras at one azimuth and elevation span no views
-        spread = width + np.ptp(elevations[beside]) if beside.any() else 0.0
+    start, width = _arc_of(azimuths[beside]) if beside.any() else (0.0, 0.0)
+    if not beside.any():  # cameras all above or below the centre: no azimuths to span
+        path = "circle"
+    elif path == "auto":  # (1e-6: round-off) cameras at one azimuth and elevation span no views
+        spread = width + np.ptp(elevations[beside])
         around = 360.0 - width <= SURROUND_GAP_DEG + 1e-6 or spread <= 1e-6
         path = "circle" if around else "span"
     turn = 2 * np.pi * np.arange(frames) / frames  # [F]
-    if path == "circle" or not beside.any():  # from the first camera's azimuth, where it has one
-        path = "circle"
+    if path == "circle":  # from the first camera's azimuth, where it has one
         azimuth = (azimuths[0] if beside[0] else start) + np.degrees(turn)  # [F]
         elevation = np.full(frames, np.clip(elevations[away].mean(), -TOP_DEG, TOP_DEG))
     else:  # a quarter step on: a to-and-fro line shows no view twice running (a GIF merges them)
