@@ -38,6 +38,7 @@ from .transforms_file import (
     IMAGE_EXTENSIONS,
     TRANSFORMS,
     fitted,
+    flat_frames,
     frame_columns,
     is_opengl,
     one_camera_matrix,
@@ -187,9 +188,7 @@ def _frames(root: Path, options: Options):
         path = train if train.is_file() else single
         docs, paths = [read_transforms_doc(path)], [path]
     warn_unread_transforms(root, paths)
-    frames = [f for doc in docs for f in doc["frames"]]
-    sources = [p for p, doc in zip(paths, docs) for _ in doc["frames"]]
-    frame_docs = [doc for doc in docs for _ in doc["frames"]]
+    frames, sources, frame_docs = flat_frames(paths, docs)
     viewmats = np.concatenate(
         [transforms_viewmats(p, doc) for p, doc in zip(paths, docs)]
     )  # [F, 4, 4]

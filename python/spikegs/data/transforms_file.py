@@ -114,6 +114,13 @@ def _camera_text(camera: dict) -> str:
     return ", ".join(f"{key} {value:.6g}" for key, value in camera.items())
 
 
+def flat_frames(paths: list[Path], docs: list[dict]) -> tuple[list, list, list]:
+    """The frames [F] of transforms documents `docs` (read from `paths`) in order, each frame's
+    file [F] and its file's document [F]."""
+    rows = [(frame, path, doc) for path, doc in zip(paths, docs) for frame in doc["frames"]]
+    return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows]
+
+
 def read_transforms(paths: list[Path], width: int, height: int, channels: int, background: float):
     """Frames [F_i, height, width, C] and OpenCV viewmats [F_i, 4, 4] of each of the transforms
     JSONs `paths` (training, then test frames), the K [3, 3] of their one camera and the first
@@ -121,9 +128,8 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
     first frame is read, before any other."""
     docs = [read_transforms_doc(path) for path in paths]
     viewmats = [transforms_viewmats(path, doc) for path, doc in zip(paths, docs)]  # [F_i, 4, 4]
-    frames = [f for doc in docs for f in doc["frames"]]
-    sources = [path for path, doc in zip(paths, docs) for _ in doc["frames"]]
-    cameras = read_cameras([doc for doc in docs for _ in doc["frames"]], frames, sources)
+    frames, sources, frame_docs = flat_frames(paths, docs)
+    cameras = read_cameras(frame_docs, frames, sources)
     firsts = [
         read_frame(p.parent / d["frames"][0]["file_path"], background) for p, d in zip(paths, docs)
     ]
