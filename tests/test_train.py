@@ -107,6 +107,9 @@ def test_means_lr_decays_exponentially_from_lr_to_lr_final_in_scene_radii():
     assert _means_lr(config, 0, 2.0) == pytest.approx(2.0 * lr0)
     assert _means_lr(config, 50, 2.0) == pytest.approx(2.0 * np.sqrt(lr0 * lr1))
     assert _means_lr(config, 100, 2.0) == _means_lr(config, 200, 2.0) == pytest.approx(2.0 * lr1)
+    # lr.means 0 holds the positions still (a log of 0 raised where the decay was computed)
+    frozen = load_config("tfp33", {"lr": {"means": 0.0}})
+    assert _means_lr(frozen, 0, 2.0) == _means_lr(frozen, 50, 2.0) == 0.0
 
 
 def test_means_rate_and_clone_size_are_3dgs_per_camera_extent(tmp_path):
@@ -1304,6 +1307,9 @@ def test_config_types_are_checked_however_set():
     config.train.iterations, config.lr.means = 100, 1  # an int where a float goes: made one
     assert config.validate().lr.means == 1.0 and isinstance(config.lr.means, float)
     assert load_config("tfp33", iterations=np.int64(120)).train.iterations == 120  # numpy's
+    # an int in a file or an override where a float goes (lr.means: 1 in YAML): made a float
+    means = load_config("tfp33", {"lr": {"means": 1}}).lr.means
+    assert means == 1.0 and type(means) is float
     # instant_window also sets the smooth-L1 zone of TFI's and the clean targets: accepted
     tfi = load_config("tfi", {"supervision": {"instant_norm": "smooth_l1", "instant_window": 65}})
     assert tfi.supervision.instant_window == 65
@@ -1344,6 +1350,20 @@ def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
     (tmp_path / "sub" / "gone.yaml").write_text("base: missing.yaml\n")
     with pytest.raises(FileNotFoundError, match=r"gone\.yaml: base: config file not found: .*/sub"):
         load_config("sub/gone.yaml")
+
+
+def test_a_config_file_of_no_mapping_or_a_bad_base_is_named(tmp_path):
+    """A file that is no mapping, a base that names nothing and a base that is no YAML file
+    are refused with the file that says so."""
+    for text, message in [
+        ("- a list\n", "list.yaml: expected a mapping at the top level"),
+        ("base: 3\n", "list.yaml: base = 3, expected a method name or a YAML file"),
+        ("base: ' '\n", "list.yaml: base = ' ', expected a method name"),
+        ("base: common.txt\n", r"list.yaml: base: config file common.txt: expected a .yaml"),
+    ]:
+        (tmp_path / "list.yaml").write_text(text)
+        with pytest.raises(ValueError, match=message):
+            load_config(tmp_path / "list.yaml")
 
 
 def test_a_config_file_names_its_method_unless_it_names_one(tmp_path):
@@ -1409,6 +1429,18 @@ def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
         (tmp_path / "m.yaml").write_text(f"method: {name}\n")
         with pytest.raises(ValueError, match="config: method"):
             load_config(tmp_path / "m.yaml")
+
+
+def test_method_on_resume_beside_an_unreadable_run_config_takes_the_methods(tmp_path):
+    """--method NAME --resume where the run's config.yaml cannot be read (not YAML, not text):
+    the method's own settings, as for a run that names another method (not a YAML error)."""
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "checkpoints" / "last.pt").write_bytes(b"")
+    argv = ["train", "d", "--out", str(run), "--resume", "--method", "tfp33"]
+    for unreadable in (b"train: [\n", b"\xff\xfe\x00"):
+        (run / "config.yaml").write_bytes(unreadable)
+        assert config_from_args(build_parser().parse_args(argv)) == load_config("tfp33")
 
 
 def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
@@ -2938,6 +2970,9 @@ def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):
     (tmp_path / "tiny.yaml").write_text("base: spikegs\n")  # was "no such run folder" too
     with pytest.raises(FileNotFoundError, match="tiny.yaml: a file, not a run folder"):
         evaluate_run(tmp_path / "tiny.yaml", dataset)
+    (tmp_path / "empty").mkdir()  # a run folder never trained: no scene, no checkpoint
+    with pytest.raises(FileNotFoundError, match="scene.ply not found: train the run first"):
+        evaluate_run(tmp_path / "empty", dataset)
 
 
 def test_eval_on_another_scene_says_so(dataset, tmp_path):
