@@ -447,6 +447,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             "'on_000': the pose is not rigid",
         ),
         "last row": ("test_views.json", views(pose(skewed_last_row())), r"not rigid.* = 0.5 "),
+        "3x4": ("test_views.json", views(pose(np.eye(4)[:3])), r"expected 4x4, found \[3, 4\]"),
+        "missing keys": (
+            "meta.json",
+            lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "fy"}),
+            r"meta.json: missing keys \['fy'\]",
+        ),
         "zero": ("trajectory.json", zero_pose, r"trajectory.json: the pose of frame 5 .* = 1 "),
         "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
         "nan readout": ("test_views.json", views(frame0(readout=float("nan"))), "readout a finite"),
@@ -537,6 +543,31 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small):
     (root / "spikegs.json").write_text('{"rate_at_one": 0.3}')
     with pytest.warns(UserWarning, match="spikegs.json is not read"):
         load_dataset(root)
+
+
+def test_test_images_unlike_the_frame_and_binary_timestamps_are_named(tmp_path, small):
+    """A test image of another size or with an alpha channel, and a timestamps file that is no
+    text, are refused naming the file; blank lines and # comments in it are skipped."""
+    from spikegs.image_io import write_image
+
+    image = small.test_views[0].image  # [H, W, 1]
+    for case, stored, message in [
+        ("narrow", image[:, :-1], r"on_000.exr: expected an image of shape \[\d+, \d+, 1\]"),
+        ("alpha", np.concatenate([image] * 4, axis=2), "on_000.exr: a test view with an alpha"),
+    ]:
+        root = tmp_path / case
+        shutil.copytree(small.root, root)
+        write_image(root / "test" / "on_000.exr", stored)
+        with pytest.raises(ValueError, match=message):
+            load_dataset(root)
+    root = tmp_path / "binary"
+    shutil.copytree(small.root, root)
+    (root / "train_timestamps.txt").write_bytes(b"\xff\xfe\x00\x01")
+    with pytest.raises(ValueError, match="train_timestamps.txt: expected text, .* binary data"):
+        load_dataset(root)
+    commented = "# readouts\n\n" + (small.root / "train_timestamps.txt").read_text() + "\n# end\n"
+    (root / "train_timestamps.txt").write_text(commented)
+    np.testing.assert_array_equal(load_dataset(root).train_timestamps, small.train_timestamps)
 
 
 def test_an_8_bit_test_view_is_decoded_from_srgb(tmp_path, small):

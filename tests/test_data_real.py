@@ -390,6 +390,27 @@ def test_poses_bounds_rows_checked_at_their_edges(tmp_path):
             _read_poses_bounds(path)
 
 
+def test_a_poses_bounds_file_not_an_n_by_17_number_array_is_named(tmp_path):
+    """poses_bounds.npy missing (load_llff called on another folder), an .npz archive, an
+    array of text and one of another shape are refused naming the file."""
+    path = tmp_path / "poses_bounds.npy"
+    with pytest.raises(FileNotFoundError, match="LLFF poses file not found: .*poses_bounds.npy"):
+        _read_poses_bounds(path)
+    with path.open("wb") as f:  # (np.savez would add .npz to the name)
+        np.savez(f, rows=np.ones((3, 17)))
+    with pytest.raises(ValueError, match=r"poses_bounds.npy: expected .*\[N, 17\], found an .npz"):
+        _read_poses_bounds(path)
+    for array, found in [
+        (np.full((3, 17), "1.0"), "found dtype <U3"),
+        (np.ones((3, 15)), r"a 3x5 pose and near, far per view\), found \[3, 15\]"),
+        (np.ones((0, 17)), r"found \[0, 17\]"),
+        (np.ones(17), r"found \[17\]"),
+    ]:
+        np.save(path, array)
+        with pytest.raises(ValueError, match=f"poses_bounds.npy: expected .*{found}"):
+            _read_poses_bounds(path)
+
+
 def test_forward_facing_views_toed_out_are_not_taken_for_looking_away(llff):
     """Forward-facing cameras toed out by 1° (their axes meet 7 behind them) spread their
     directions under CONVERGING: no convention warning (guards against the spread test skipped,
