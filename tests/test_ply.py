@@ -46,12 +46,26 @@ OURS = ["spikegs background 0 0 0"]  # no warning about the background
         # an origin of 2 coordinates, of 4
         (3, 0, [*OURS, "spikegs origin 1 2"], "'spikegs origin 1 2': expected 3 finite numbers"),
         (3, 0, [*OURS, "spikegs origin 1 2 3 4"], "expected 3 finite numbers"),
+        # words where numbers go: named, not a float()'s ValueError
+        (3, 0, ["spikegs background a b c"], "'spikegs background a b c': expected 3 finite"),
+        (3, 0, [*OURS, "spikegs origin x y z"], "'spikegs origin x y z': expected 3 finite"),
     ],
 )
 def test_load_ply_refuses_by_name(tmp_path, dc, rest, comments, message):
     path = _write(tmp_path / "o.ply", dc, rest, comments)
     with pytest.raises(ValueError, match=message):
         load_ply(path)
+
+
+def test_a_point_cloud_is_no_splat_file(tmp_path):
+    """A point cloud (points3d.ply of `spikegs poses`, another tool's scan) given as a scene:
+    refused with the properties a 3DGS file has and it lacks."""
+    from spikegs.point_cloud import write_points
+
+    write_points(tmp_path / "points3d.ply", np.zeros((4, 3)), np.zeros((4, 3), np.uint8))
+    lacking = r"\['opacity', 'scale_0', 'scale_1', 'scale_2', 'rot_0', 'rot_1', 'rot_2', 'rot_3'\]"
+    with pytest.raises(ValueError, match=f"points3d.ply: vertex properties {lacking} missing: not"):
+        load_ply(tmp_path / "points3d.ply")
 
 
 def test_only_spikegs_comments_are_read(tmp_path):

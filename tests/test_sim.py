@@ -937,6 +937,19 @@ def test_force_trains_afresh_instead_of_resuming(tmp_path, monkeypatch, capsys):
         assert torch.equal(a, b)
 
 
+def test_a_torn_training_state_is_said_and_trained_over(tmp_path, capsys):
+    """A sim.pt.partial that cannot be read (a disk that filled while it was saved): said, and
+    SIM trained from step 0, to the SIM of a training never interrupted."""
+    stream, path = SpikeArray(12, 12, 40), tmp_path / "sim.pt"
+    ts, settings = _ts(stream), dict(steps=2, batch_size=1, crop=12, progress=False, seed=1)
+    path.with_name("sim.pt.partial").write_bytes(b"half")
+    torn, _, _ = train_or_load(path, stream, ts, W, **settings)
+    assert "sim.pt.partial: unreadable (" in capsys.readouterr().err
+    fresh, _ = train_sim(stream, ts, W, **settings)
+    for a, b in zip(torn.state_dict().values(), fresh.state_dict().values()):
+        assert torch.equal(a, b)
+
+
 def test_a_resumed_trainings_earlier_seconds_are_saved_again(tmp_path, monkeypatch):
     """Interrupted twice, the second state saved holds the seconds of the first process too
     (the SIM's recorded training time counts every process's steps)."""
