@@ -798,6 +798,19 @@ def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):
             load_dataset(root)
 
 
+def test_simulated_frames_without_intrinsics_are_refused(tmp_path):
+    """A transforms file with no camera_angle_x nor fl_x, in the file or its frames: refused
+    naming the keys it needs, not guessed."""
+    viewmats = arc_viewmats(3)
+    frames = np.random.default_rng(0).random((3, 16, 24, 3))
+    write_transforms(tmp_path / "transforms.json", "train", frames, viewmats, np.eye(3), ".exr")
+    doc = json.loads((tmp_path / "transforms.json").read_text())
+    del doc["camera_angle_x"]
+    (tmp_path / "transforms.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"transforms.json: intrinsics expected \(camera_angle_x"):
+        FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 24, 16)
+
+
 def test_transforms_frames_must_be_a_list_of_4x4_matrices(tmp_path):
     """A transforms file whose frames is not a list (one frame object unwrapped, a number) is
     refused by name; guards against the check dropped: the object's keys read as frames ("frame
@@ -809,6 +822,10 @@ def test_transforms_frames_must_be_a_list_of_4x4_matrices(tmp_path):
     for frames in (frame, 5, "f_0"):
         path.write_text(json.dumps({"frames": frames}))
         with pytest.raises(ValueError, match="transforms.json: expected a JSON object with a list"):
+            read_transforms_doc(path)
+    for doc in ({"frames": []}, {"camera_angle_x": 0.7}):  # no frame: said so, not read as none
+        path.write_text(json.dumps(doc))
+        with pytest.raises(ValueError, match="transforms.json: no frames"):
             read_transforms_doc(path)
     path.write_text(json.dumps({"frames": [frame]}))
     assert read_transforms_doc(path)["frames"] == [frame]

@@ -18,6 +18,7 @@ from spikegs.data.trajectory import (
     project_points,
     read_camera_doc,
     rigid_c2w,
+    unit_vector,
 )
 
 
@@ -178,6 +179,38 @@ def test_bad_poses_are_rejected():
         Trajectory(np.array([0.0]), np.diag([2.0, 1, 1, 1])[None])
     with pytest.raises(ValueError, match="parallel"):
         look_at([0, 0, 5], [0, 0, 0])
+    for readouts, viewmats, found in [
+        ([], np.zeros((0, 4, 4)), r"found \[0\] and \[0, 4, 4\]"),  # no pose
+        ([0.0, 1.0], np.stack([np.eye(4)] * 3), r"found \[2\] and \[3, 4, 4\]"),
+    ]:
+        with pytest.raises(ValueError, match=f"poses: expected readouts .*P >= 1, {found}"):
+            Trajectory(np.array(readouts), viewmats)
+    with pytest.raises(ValueError, match=r"poses: non-finite readouts \(NaN/inf\)"):
+        Trajectory(np.array([0.0, np.nan]), np.stack([np.eye(4)] * 2))
+    orbit = dict(radius=4, start_elevation_deg=0, end_elevation_deg=30, degrees_per_readout=1)
+    for num_readouts, every in ((1, 1), (10, 0)):
+        with pytest.raises(ValueError, match=f"spiral: .* found {num_readouts}, {every}"):
+            Trajectory.spiral(num_readouts, every=every, **orbit)
+
+
+def test_an_up_that_is_no_vector_of_numbers_is_named():
+    """meta.json's up (or --up) of a word, a mapping or ragged lists: refused naming it, as a
+    zero or 2-number one is (numpy's TypeError or ValueError was caught for it)."""
+    for up in ("z", {"z": 1}, [[0, 0], [1]], [0, 0, 0], [0, 1]):
+        with pytest.raises(ValueError, match="meta.json's up: expected a non-zero direction"):
+            unit_vector("meta.json's up", up)
+    np.testing.assert_allclose(unit_vector("up", [0, 0, 2]), [0, 0, 1])
+
+
+def test_json_poses_of_3x4_are_named(tmp_path, two_poses):
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    for frame in doc["frames"]:
+        frame["transform_matrix"] = frame["transform_matrix"][:3]  # a 3x4 camera-to-world
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"trajectory.json: transform_matrix expected 4x4, found"):
+        Trajectory.load_json(path)
 
 
 def test_json_rounded_to_4_decimals_is_made_rigid(tmp_path, two_poses):
