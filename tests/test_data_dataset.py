@@ -254,6 +254,16 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.raises(ValueError, match=r"fy 4.12 gives a 173° .*: the camera scene 'solids' g"):
         simulate_dataset(source, tmp_path / "tall", **tall)
     assert not (tmp_path / "tall").exists()
+    with pytest.raises(ValueError, match=r"source 'solids' gives 128x3x1 images, expected 24x32"):
+        simulate_dataset(source, tmp_path / "x", **SMALL)  # another size than asked for
+    with pytest.raises(ValueError, match=r"readouts: expected >= \d+ for 2 on-path held-out"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": 40})
+    for zero in ({"frame_every": 0}, {"train_every": 0}):
+        with pytest.raises(ValueError, match="frame_every and train_every expected positive"):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, **zero})
+    (tmp_path / "file").write_text("")
+    with pytest.raises(FileExistsError, match="output .*file exists and is not a directory"):
+        simulate_dataset("solids", tmp_path / "file", **SMALL)
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
     with pytest.raises(ValueError, match="frame_every expected >= 1, found 1e-05"):  # 2e7 poses

@@ -495,6 +495,16 @@ def _bad_inputs():
             ("far-float32-inf", {"near": 1e39, "far": 1e40}, "round to inf, inf"),
             ("far-int-overflow", {"far": 10**400}, "overflow a float"),  # an OverflowError
             ("near-decimal", {"near": decimal.Decimal("0.01")}, "near, far: expected real"),
+            (
+                "quats-list",
+                {"quats": s["quats"].tolist()},
+                "quats: expected a torch.Tensor, got list",
+            ),
+            (
+                "colors-0-channels",
+                {"colors": s["colors"][..., :0]},
+                "colors: expected at least one",
+            ),
             ("means-sparse", {"means": s["means"].to_sparse()}, "means: expected a dense"),
             ("K-sparse", {"K": s["K"].to_sparse()}, "K: expected a dense"),  # NotImplementedError
             # rendered, and K.grad stayed None after the backward
@@ -509,6 +519,17 @@ def _bad_inputs():
             ),  # a pybind TypeError
             ("sh-degree-str", {"sh_degree": "1"}, "sh_degree: expected an int"),
             ("sh-k-small", {"sh_degree": 2}, "colors|sh_degree"),
+            # a degree for direct colours [N, C], and colours of 4 dimensions
+            (
+                "sh-degree-of-direct",
+                {"colors": s["colors"][:, 0], "sh_degree": 1},
+                r"colors: sh_degree=1 needs SH coefficients \[N, K, C\], got \[6, 3\]",
+            ),
+            (
+                "sh-4d",
+                {"colors": s["colors"][..., None]},
+                r"expected shape \[N, C\] or \[N, K, C\]",
+            ),
             # was "sh_degree: expected 0..3, got -1", a degree the caller never passed
             ("sh-k-zero", {"colors": s["colors"][:, :0], "sh_degree": None}, "at least 1 SH"),
             (
