@@ -666,6 +666,18 @@ def test_frames_and_poses_of_different_counts():
     frames = np.zeros((3, 8, 8, 1), np.float32)
     with pytest.raises(ValueError, match="3 frames but 2 poses"):
         FrameSequenceSource("x", frames, [np.eye(4)] * 2, intrinsics(8, 8, 40))
+    for few in (frames[:1], frames[0]):  # one frame: nothing to move between; no frame axis
+        with pytest.raises(ValueError, match=r"frames expected \[F, H, W, C\] with F >= 2, found"):
+            FrameSequenceSource("x", few, [np.eye(4)], intrinsics(8, 8, 40))
+    with pytest.raises(ValueError, match="channels expected 1 .mono. or 3 .colour., found 2"):
+        FrameSequenceSource(
+            "x",
+            np.zeros((3, 8, 8, 2)),
+            [np.eye(4)] * 3,
+            intrinsics(8, 8, 40),
+            center=[0, 0, 3],
+            radius=1.0,
+        )
 
 
 def test_cli(tmp_path, capsys):

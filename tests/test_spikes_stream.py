@@ -453,6 +453,13 @@ def test_bad_shapes_refused(tmp_path):
         SpikeStream(strided, _C.SpikeLayout.memory(4, 16))
     with pytest.raises(ValueError, match=r"expected \[T, 4, 2\]"):
         SpikeStream.from_packed(np.zeros((3, 4, 1), np.uint8), 4, 13)
+    for packed in (np.zeros((3, 4), np.uint8), np.zeros((3, 4, 2), np.int8)):  # 2-D; signed
+        with pytest.raises(ValueError, match=r"packed expected uint8 \[T, H, ceil\(W/8\)\]"):
+            SpikeStream.from_packed(packed, 4, 13)
+    stream = SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13)
+    for start, stop in ((2, 1), (-1, 2), (0, 4)):  # reversed, before the first, past the last
+        with pytest.raises(ValueError, match=rf"readouts \[{start}, {stop}\) expected within"):
+            stream.packed(start, stop)
     with pytest.raises(ValueError, match="0/1"):
         save_dat(tmp_path / "x.dat", np.full((2, 2, 8), 2, np.uint8))
     with pytest.raises(ValueError, match=r"\[T, H, W\]"):

@@ -1140,6 +1140,16 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
         given[name] = given[name][part]
         with pytest.raises(ValueError, match=rf"of one N and C; found {name} \["):
             GaussianModel(given, given["background"], 1)
+    # a parameter missing, an origin of 2 coordinates or NaN, points of another count than the
+    # colours: named, not a KeyError or a broadcast error later
+    without = {k: v for k, v in model.params.items() if k != "quats"}
+    with pytest.raises(ValueError, match=r"GaussianModel: missing parameters \['quats'\]"):
+        GaussianModel(without, torch.zeros(3), 1)
+    for origin in ([1.0, 2.0], [0.0, float("nan"), 0.0]):
+        with pytest.raises(ValueError, match="GaussianModel: origin expected 3 finite numbers"):
+            GaussianModel(model.params, torch.zeros(3), 1, origin=origin)
+    with pytest.raises(ValueError, match=r"of one N expected, found \[4, 3\] and \[3, 1\]"):
+        GaussianModel.from_points(torch.zeros(4, 3), torch.zeros(3, 1), 0.3)
 
 
 def test_gaussian_models_start_in_float32_whatever_the_default_dtype():
@@ -2254,6 +2264,20 @@ def test_config_reads_scientific_notation(tmp_path):
         0.05,
         2e-4,
     )
+
+
+def test_config_reads_yaml_merge_keys(tmp_path):
+    """`<<: *anchor` (YAML's merge key) shares settings between config files' sections: skipped
+    by the check for keys given twice, where constructing it raised 'could not determine a
+    constructor'."""
+    path = tmp_path / "merged.yaml"
+    path.write_text(
+        "base: tfp33\n"
+        "train: {iterations: 600}\n"
+        "densify:\n  <<: &schedule {start: 100, stop: 400}\n  every: 20\n"
+    )
+    d = load_config(path).densify
+    assert (d.start, d.stop, d.every) == (100, 400, 20)
 
 
 def test_colour_dataset_trains_spikegs_with_one_shared_sim(tmp_path):
