@@ -89,6 +89,31 @@ def test_scores_without_a_later_metric_do_not_count_as_changed(trained, run):
     assert all(png.exists() for png in pngs)
 
 
+def test_an_earlier_score_that_is_no_mapping_counts_as_changed(trained, run):
+    """A view's entry in an earlier eval.json that holds no scores (null, a number: hand-edited,
+    another tool's): its side-by-side no longer matches, and --no-images removes it; the others
+    stay."""
+    data = trained[0]
+    evaluate_run(run, data)
+    doc = json.loads((run / "eval.json").read_text())
+    first, second, *_ = sorted(doc["views"])
+    doc["views"][first], doc["views"][second] = None, 3
+    (run / "eval.json").write_text(json.dumps(doc))
+    evaluate_run(run, data, write_images=False)
+    kept = sorted(png.stem for png in (run / "eval").glob("*.png"))
+    assert kept == sorted(doc["views"])[2:]
+
+
+def test_a_run_of_another_scene_is_said_by_other_data(trained, run):
+    """other_data (which `spikegs render` warns with): a dataset of another scene name than the
+    run's is named, with both scenes."""
+    data = copy.copy(trained[0])
+    data.meta = {**data.meta, "scene": "wires"}
+    said = other_data(run, data)
+    assert said.startswith(f"{run} was trained on scene 'solids' and renders along")
+    assert said.endswith(", scene 'wires'")
+
+
 def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run):
     """An eval.json whose views name paths (hand-edited, another tool's): eval removes the images
     of views the dataset no longer has, and must not follow such a name out of RUN/eval."""

@@ -636,6 +636,7 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status,
     logged = [json.loads(line)["iteration"] for line in log.read_text().splitlines()]
     saved = torch.load(run / "checkpoints" / "last.pt")["iteration"]
     assert saved >= logged[-1] > 0
+    assert not (run / "curve.png").exists()  # written as a run finishes, not where it stops
 
 
 @pytest.fixture
@@ -1451,6 +1452,18 @@ def test_method_on_resume_beside_an_unreadable_run_config_takes_the_methods(tmp_
     for unreadable in (b"train: [\n", b"\xff\xfe\x00"):
         (run / "config.yaml").write_bytes(unreadable)
         assert config_from_args(build_parser().parse_args(argv)) == load_config("tfp33")
+
+
+def test_method_on_resume_of_a_run_of_its_settings_says_nothing(tmp_path, capsys):
+    """--method NAME --resume of a run saved with NAME's current settings: the run's settings,
+    without the note that they differ from NAME's (which an empty list of differences printed)."""
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "checkpoints" / "last.pt").write_bytes(b"")
+    (run / "config.yaml").write_text(dump_yaml(load_config("tfp33").to_dict()))
+    argv = ["train", "d", "--out", str(run), "--resume", "--method", "tfp33"]
+    assert config_from_args(build_parser().parse_args(argv)) == load_config("tfp33")
+    assert capsys.readouterr().err == ""
 
 
 def test_yaml_iterations_scale_the_densification_keys_it_leaves_unset(tmp_path):
