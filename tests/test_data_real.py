@@ -486,6 +486,19 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
     assert "reused" in capsys.readouterr().out and (tmp_path / "w.json.json").is_file()
 
 
+def test_nerf_of_no_stated_size_and_no_sharp_image_asks_for_one(nerf, tmp_path):
+    """Transforms files without w, h and no sharp test image (r_0's left out): the frame size
+    is unknown, and spikegs.json's height and width are asked for (and then read)."""
+    root = copy(nerf, tmp_path / "sizeless")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / name, lambda doc: [doc.pop(k) for k in ("w", "h")])
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(frames=doc["frames"][1:]))
+    with pytest.raises(ValueError, match="image size unknown .*: set height and width in spikegs"):
+        load_dataset(root)
+    write_options(root, height=H, width=W)
+    assert (load_dataset(root).height, load_dataset(root).width) == (H, W)
+
+
 def test_nerf_unknown_convention_refused(nerf, tmp_path):
     """A convention other than opengl, opencv (any case) is refused by name; "OpenGL" reads as
     OpenGL (guards against a case-sensitive comparison reading it as OpenCV); two files of two

@@ -928,3 +928,57 @@ def test_a_second_pose_run_aligns_to_the_original_pose_log(textured, tmp_path, m
     monkeypatch.setattr(poses_cli, "reconstruct", logged_poses)
     report = poses_cli.estimate_poses(root, count=10)
     assert report["rotation_error_deg_max"] < 1e-6, report
+
+
+def _logged_sfm(root: Path, keep=slice(None)):
+    """A stand-in for SfM that registers the images at readouts[keep] with the pose log's poses
+    exactly (50 points about the scene centre)."""
+    log = Trajectory.load_json(root / "trajectory.json")
+    centre = json.loads((root / "meta.json").read_text())["scene_center"]
+
+    def logged_poses(images, readouts, work_dir, K, *args, **kwargs):
+        registered = np.asarray(readouts, np.float64)[keep]
+        points = np.random.default_rng(0).normal(size=(50, 3)) + centre
+        colors = np.zeros((50, 3), np.uint8)
+        images = len(readouts)
+        return Reconstruction(registered, log.pose_at(registered), K, points, colors, images)
+
+    return logged_poses
+
+
+def test_a_split_of_its_own_keeps_the_timestamps_whose_windows_sfm_posed(
+    textured, tmp_path, monkeypatch
+):
+    """A dataset's own split, SfM registering only the middle of the images: the training
+    timestamps whose exposure windows leave the registered readouts (where the poses are held
+    constant) are dropped, said, and the original list kept as a .bak."""
+    from spikegs import poses_cli
+
+    root = tmp_path / "data"
+    shutil.copytree(textured, root)
+    before = np.loadtxt(root / "train_timestamps.txt")
+    monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root, slice(3, -3)))
+    report = poses_cli.estimate_poses(root, count=20)
+    kept = np.loadtxt(root / "train_timestamps.txt")
+    assert f"kept {len(kept)} of {len(before)} training timestamps" in report["summary"]
+    first, last = report["summary"].split("registered readouts [")[1].split("]")[0].split(", ")
+    assert 0 < len(kept) < len(before) and set(kept) <= set(before)
+    assert (kept - 16 >= float(first)).all() and (kept + 16 <= float(last)).all()
+    np.testing.assert_array_equal(np.loadtxt(root / "train_timestamps.txt.bak"), before)
+
+
+def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(textured, tmp_path, monkeypatch):
+    """No trajectory.json to align to: the poses stay in SfM's frame, and meta.json's
+    scene_center / scene_radius, which cannot be in that frame, are said to be kept."""
+    from spikegs import poses_cli
+
+    root = tmp_path / "data"
+    shutil.copytree(textured, root)
+    monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+    for log in ("trajectory.json", "trajectory.json.bak"):  # (the .bak: an earlier test's run)
+        (root / log).unlink(missing_ok=True)
+    summary = poses_cli.estimate_poses(root, count=10)["summary"]
+    assert "no trajectory to align to: the poses are in SfM's own frame" in summary
+    assert "warning: scene_center / scene_radius in meta.json are kept" in summary

@@ -299,6 +299,9 @@ def test_bad_input_refused():
             simulate_spikes((frames * 255).astype(codes), 10)
         with pytest.raises(ValueError, match="frame at t=0 expected intensities"):
             simulate_spikes(lambda t, c=codes: (frames[0] * 255).astype(c), 10)
+    for shape in ((4, 4), (0, 4, 4)):  # one frame without its axis; no frame
+        with pytest.raises(ValueError, match=r"frames expected \[F, H, W\] with F >= 1, found"):
+            simulate_spikes(np.ones(shape, np.float32), 10)
     with pytest.raises(ValueError, match="height and width expected >= 1, found 4x0"):
         simulate_spikes(frames[:, :, :0], 10)  # (numpy's reshape error in the NaN check, before)
     simulate_spikes(frames > 0.5, 10)  # bool and signed integers: intensities at face value
