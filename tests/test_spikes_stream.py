@@ -405,6 +405,7 @@ print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(pa
     writer = DatWriter(tmp_path / "y.dat", 8, 8)
     writer.write_bits(np.zeros((2, 8, 8), bool))
     writer.discard()
+    writer.discard()  # again: nothing left to remove, no error
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
     with pytest.raises(IsADirectoryError, match="a folder"):
         DatWriter(tmp_path, 8, 8)
@@ -416,6 +417,11 @@ print(len(old), float(old.tfp(32, 64).mean()), len(new), len(SpikeStream.open(pa
         with pytest.raises(PermissionError, match="denied"):
             DatWriter(path, 8, 8)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.dat"]
+    (tmp_path / "closed").mkdir()  # closed inside its `with`: the exit's close does nothing more
+    with DatWriter(tmp_path / "closed" / "z.dat", 8, 8) as writer:
+        writer.write_bits(np.ones((4, 8, 8), bool))
+        writer.close()
+    assert len(SpikeStream.open(tmp_path / "closed" / "z.dat", 8, 8)) == 4
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="symlinks, file modes and RLIMIT_FSIZE")
