@@ -110,9 +110,7 @@ def read_options(root: Path, overrides: dict) -> Options:
 def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:
     """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop;
     FileNotFoundError or ValueError naming the file (empty, not of the expected layout, or
-    without information: `check_stream_image`)."""
-    if not path.is_file():
-        raise FileNotFoundError(f"spike file not found: {path}")
+    without information: `check_stream_image`). Its callers found `path` a file."""
     if path.stat().st_size == 0:
         raise ValueError(f"{path}: empty spike file (no readout)")
     try:
