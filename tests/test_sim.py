@@ -646,6 +646,8 @@ def test_l2_loss_learns_the_mean_rate_where_l1_learns_the_median():
     assert abs(means["l1"] - 1 / 9) < 0.006 and means["l1"] - means["l2"] > 0.007, means
     with pytest.raises(ValueError, match="SIM loss"):
         train_sim(stream, ks, 9, loss="huber", **fit)
+    with pytest.raises(ValueError, match="no training timestamps"):  # (not numpy's error)
+        train_sim(stream, [], 9, **fit)
 
 
 def test_centred_target_learns_the_light_at_t_not_the_window_mean():

@@ -1908,6 +1908,13 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert "notes.txt" in capsys.readouterr().err
         assert (mine / part / "notes.txt").exists() and (mine / "results.json").exists()
         assert len([p for p in mine.rglob("*") if p.name != ".lock"]) == 3 + part.count("/")
+    # nor a file where a method's run folder goes
+    filed = tmp_path / "filed"
+    (filed / "runs").mkdir(parents=True)
+    (filed / "runs" / "tfp33").write_text("mine")
+    assert main([*argv, str(filed)]) == 2
+    assert "runs/tfp33 is a file; give the demo another --out" in capsys.readouterr().err
+    assert (filed / "runs" / "tfp33").read_text() == "mine"
     # nor a spikegs run or dataset of a folder no demo started in (`--out` naming a project)
     project = tmp_path / "project"
     shutil.copytree(out / "runs" / "spikegs", project / "runs" / "spikegs")
@@ -2952,6 +2959,11 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
     assert second["file"] == str((tmp_path / "run" / "eval-copy-2.json").resolve())
     again = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "copy"), write_images=False)
     assert again["file"] == other["file"]
+    # a scoring that cannot be read holds its name too (a torn eval-copy-2.json, not overwritten)
+    (tmp_path / "run" / "eval-copy-2.json").write_text("{torn")
+    shutil.copytree(dataset.root, tmp_path / "third" / "copy")
+    third = evaluate_run(tmp_path / "run", load_dataset(tmp_path / "third" / "copy"), False)
+    assert third["file"] == str((tmp_path / "run" / "eval-copy-3.json").resolve())
     # the run's own dataset, moved (its folder gone): its own scores, not eval-moved.json
     moved = shutil.move(dataset.root, tmp_path / "moved")
     try:
