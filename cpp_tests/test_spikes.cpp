@@ -3,6 +3,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "core/spike_format.hpp"
@@ -72,8 +73,13 @@ TEST_CASE(round_trip_layouts) {
         // Through another layout and back.
         const SpikeLayout mem = SpikeLayout::memory(H, W);
         std::vector<uint8_t> re(size_t(T * mem.frame_bytes()));
+        const Packed in_memory(bits, T, mem);
         repack_frames(p.stream, 0, T, mem, re.data());
-        CHECK(re == Packed(bits, T, mem).bytes, "repack W=", W, " flip=", flip);
+        CHECK(re == in_memory.bytes, "repack W=", W, " flip=", flip);
+        // and from memory into this layout, whose rows need not start on a byte
+        std::vector<uint8_t> out(p.bytes.size());
+        repack_frames(in_memory.stream, 0, T, l, out.data());
+        CHECK(out == p.bytes, "repack into W=", W, " flip=", flip, " row_bits=", l.row_bits);
       }
     }
 }
@@ -120,6 +126,31 @@ TEST_CASE(bad_shapes_refused) {
       "a window of 2^31 readouts");
 }
 
+// Each check of a layout's and a kernel's arguments: what it lets through reads or writes past a
+// frame (a negative or too wide crop, a frame past 2^63 bits, a repack into another image size) or
+// divides by zero (a window of no readouts, a TFI bound below 1).
+TEST_CASE(bad_arguments_refused) {
+  CHECK(throws_invalid([&] { SpikeLayout::dat(4, 8, false, 16, -1); }), "a negative column offset");
+  CHECK(throws_invalid([&] { SpikeLayout::dat(4, 8, false, 10, 3); }), "a crop past the row");
+  CHECK(!throws_invalid([&] { SpikeLayout::dat(4, 8, false, 10, 2); }), "a crop to the row's end");
+  CHECK(throws_invalid([&] { SpikeLayout::dat(int64_t(1) << 40, int64_t(1) << 30, false); }),
+        "a frame of 2^70 bits");
+  std::vector<uint8_t> bytes(100);
+  const PackedStream s = PackedStream::over(bytes.data(), 100, SpikeLayout::dat(4, 8, true));
+  std::vector<uint8_t> out(100);
+  CHECK(throws_invalid([&] { unpack_frames(s, 0, -1, out.data()); }), "a negative count");
+  CHECK(throws_invalid([&] { repack_frames(s, 0, 1, SpikeLayout::memory(4, 9), out.data()); }),
+        "a repack into another width");
+  CHECK(throws_invalid([&] { repack_frames(s, 0, 1, SpikeLayout::memory(5, 8), out.data()); }),
+        "a repack into another height");
+  const int64_t start = 0;
+  std::vector<float> f(32);
+  CHECK(throws_invalid([&] { window_counts<float>(s, &start, 1, 0, f.data()); }), "a window of 0");
+  for (int64_t m : {int64_t(0), kTfiMaxInterval + 1})
+    CHECK(throws_invalid([&] { tfi(s, &start, 1, m, f.data()); }), "max_interval ", m);
+  CHECK(!throws_invalid([&] { tfi(s, &start, 1, kTfiMaxInterval, f.data()); }));
+}
+
 TEST_CASE(window_counts_match_naive) {
   // A small cropped unaligned frame (one partial chunk) and a 40x400 one (four chunks, the last
   // with a partial group of words).
@@ -129,7 +160,8 @@ TEST_CASE(window_counts_match_naive) {
     const int64_t H = l.height, W = l.width;
     const Bits bits = random_bits(T, H, W, 0.3, 7);
     Packed p(bits, T, l);
-    for (int64_t w : {1, 33, 255, 256, 600}) {
+    // 1-31 readouts: counters of one to five bit planes; 255 and more: blocks of 255
+    for (int64_t w : {1, 2, 3, 5, 9, 17, 33, 255, 256, 600}) {
       const std::vector<int64_t> starts = {0, 17, T - w};
       std::vector<int32_t> got(starts.size() * H * W);
       std::vector<float> tfp(got.size());
@@ -148,13 +180,15 @@ TEST_CASE(window_counts_match_naive) {
   }
 }
 
-// A spike every readout is a TFP of exactly 1 (41 · float(1/41) is not; nor 47, 55, 61, 82).
+// A spike every readout is a TFP of exactly 1 (41 · float(1/41) is not; nor 47, 55, 61, 82); and
+// a count of w in every bit plane of its counters (windows of 1, 3, 7, 15, 31 readouts fill one to
+// five planes).
 TEST_CASE(window_counts_all_zero_all_one) {
   const int64_t T = 100, H = 4, W = 77;
   for (uint8_t value : {0, 1}) {
     Packed p(Bits(size_t(T * H * W), value), T, SpikeLayout::memory(H, W));
     const int64_t start = 3;
-    for (int64_t w : {33, 41, 47, 55, 61, 82}) {
+    for (int64_t w : {1, 3, 7, 15, 31, 33, 41, 47, 55, 61, 82}) {
       std::vector<float> tfp(H * W, -1.0f);
       window_counts<float>(p.stream, &start, 1, w, tfp.data());
       bool ok = true;
@@ -242,6 +276,18 @@ TEST_CASE(simulator_refuses_bad_input) {
     infinite.*field = inf;
     CHECK(throws_invalid([&] { SpikeSimulator(2, 2, infinite, 0); }), "an infinite parameter");
   }
+  // each parameter past either end of its range
+  const std::pair<double SimParams::*, double> out_of_range[] = {
+      {&SimParams::threshold, 9e-4}, {&SimParams::threshold, 1.1e30},
+      {&SimParams::rate_at_one, 0},  {&SimParams::dark_rate, -1e-9},
+      {&SimParams::dark_rate, 1.5},  {&SimParams::dark_sigma, -0.1},
+      {&SimParams::fpn_sigma, -0.1}, {&SimParams::temporal_sigma, -0.1}};
+  for (const auto& [field, value] : out_of_range) {
+    SimParams params;
+    params.*field = value;
+    CHECK(throws_invalid([&] { SpikeSimulator(2, 2, params, 0); }), "a parameter of ", value);
+  }
+  CHECK(throws_invalid([&] { SpikeSimulator(2, 0, SimParams{}, 0); }), "a width of 0");
   // height x width past int64 (undefined: an optimised build wrote into an empty simulator)
   CHECK(throws_invalid([&] { SpikeSimulator(int64_t(1) << 32, int64_t(1) << 32, SimParams{}, 0); }),
         "2^64 pixels");
@@ -252,6 +298,10 @@ TEST_CASE(simulator_refuses_bad_input) {
   CHECK(throws_invalid([&] { sim.run(frames.data(), short_times.data(), 2, 10, out.data()); }),
         "frames must cover every readout");
   CHECK(throws_invalid([&] { sim.run(frames.data(), unsorted.data(), 2, 1, out.data()); }));
+  CHECK(throws_invalid([&] { sim.run(frames.data(), short_times.data(), 0, 1, out.data()); }),
+        "no frame");
+  CHECK(throws_invalid([&] { sim.run(frames.data(), short_times.data(), 2, -1, out.data()); }),
+        "a negative number of readouts");
   const std::vector<double> infinite_times = {0.0, inf};
   CHECK(throws_invalid([&] { sim.run(frames.data(), infinite_times.data(), 2, 1, out.data()); }),
         "an infinite frame time");
