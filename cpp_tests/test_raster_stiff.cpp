@@ -241,3 +241,21 @@ TEST_CASE(clamped_alpha_has_no_opacity_gradient) {
   CHECK(o.grads.opacities[0] == 0, "opacity gradient ", o.grads.opacities[0]);
   CHECK(o.grads.means[0] == 0 && o.grads.scales[0] == 0, "gradient through a clamped alpha");
 }
+
+TEST_CASE(optional_backward_outputs_may_be_null) {
+  // grad_background, grad_mean2d and grad_mean2d_abs are optional: left out, the others are the
+  // same
+  const Scene<double> s = random_scene(18, 20, 33, 17, 3, -1);
+  const Render<double> r = render(s);
+  const auto gi = random_weights(r.image.size(), 5), ga = random_weights(r.alpha.size(), 6);
+  const Grads<double> full = backward(s, r, gi, ga);
+  Grads<double> g(s);
+  ParamGrads<double> view = g.view();
+  rasterize_backward<double>(s.params(), s.cam, s.background.data(), r.state,
+                             OutputGrads<double>{gi.data(), ga.data()}, view, nullptr, nullptr,
+                             nullptr);
+  CHECK(g.means == full.means && g.quats == full.quats && g.scales == full.scales &&
+            g.opacities == full.opacities && g.colors == full.colors &&
+            std::equal(g.viewmat, g.viewmat + 16, full.viewmat),
+        "gradients differ without the optional outputs");
+}
