@@ -1075,6 +1075,55 @@ def test_the_core_binding_checks_what_the_core_assumes():
         backward(ctx, *arrays, np.zeros(1), image_grad, None, None, None)
 
 
+@needs_cpp
+def test_the_core_binding_refuses_sizes_it_would_read_past():
+    """Direct `_C` callers: arrays shorter than N, C, the SH degree, the image or a 4x4 view
+    matrix say, and SH settings out of range, are refused before the core reads past their ends
+    (spikegs.rasterize checks all of this first, with messages of its own)."""
+    s = {k: v.numpy() if torch.is_tensor(v) else v for k, v in make_scene(8, 6, 13, 9).items()}
+    a = {k: s[k] for k in ("means", "quats", "scales", "opacities", "colors", "viewmat", "K")}
+    settings = {"width": 13, "height": 9, "sh_degree": -1, "sh_coeffs": 1, "channels": 3}
+
+    def forward(**changes):
+        args = {**a, **settings, "background": s["background"], "near": 0.01, "far": 1e10}
+        return spikegs._C.rasterize_forward_float64(**{**args, **changes})
+
+    for changes, message in (
+        ({"channels": 0}, "sh_degree in -1..3"),
+        ({"sh_degree": 4, "sh_coeffs": 25}, "sh_degree in -1..3"),
+        ({"sh_degree": 1, "sh_coeffs": 3}, r"sh_coeffs >= \(degree \+ 1\)\^2"),
+        ({"means": s["means"][:, :2]}, "input sizes do not match N = 6"),
+        ({"quats": s["quats"][:, :3]}, "input sizes do not match N = 6"),
+        ({"scales": s["scales"][:5]}, "input sizes do not match N = 6"),
+        ({"opacities": s["opacities"][:5]}, "input sizes do not match N = 6"),
+        ({"colors": s["colors"][:, :2]}, "input sizes do not match N = 6"),
+        ({"viewmat": s["viewmat"][:3]}, "viewmat must be 4x4, K 3x3"),
+        ({"K": s["K"][:2, :2]}, "viewmat must be 4x4, K 3x3"),
+        ({"width": 0}, r"width and height in 1\.\.2\^20"),
+        ({"height": 2**20 + 1}, r"width and height in 1\.\.2\^20"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            forward(**changes)
+    *_, ctx = forward()
+    arrays = [a[k] for k in ("means", "quats", "scales", "opacities", "colors")]
+    image_grad, alpha_grad = np.ones((9, 13, 3)), np.ones((9, 13))
+
+    def backward(inputs=arrays, image=image_grad, alpha=None, means2d=None, depths=None):
+        return spikegs._C.rasterize_backward_float64(
+            ctx, *inputs, s["background"], image, alpha, means2d, depths
+        )
+
+    assert len(backward(alpha=alpha_grad, means2d=np.ones((6, 2)), depths=np.ones(6))) == 9
+    with pytest.raises(ValueError, match="the forward's context holds 6 Gaussians, not 5"):
+        backward(inputs=[x[:5] for x in arrays])
+    for grads in ({"image": image_grad[:8]}, {"alpha": alpha_grad[:, :12]}):
+        with pytest.raises(ValueError, match="gradient shapes do not match the image"):
+            backward(**grads)
+    for grads in ({"means2d": np.ones((5, 2))}, {"depths": np.ones(7)}):
+        with pytest.raises(ValueError, match="gradient shapes do not match the Gaussians"):
+            backward(**grads)
+
+
 FORKED_RENDER = """
 import multiprocessing, torch
 from spikegs import rasterize
