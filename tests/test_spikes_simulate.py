@@ -338,6 +338,26 @@ def test_the_core_simulator_refuses_light_that_is_not_finite_or_negative():
     assert sim.run(np.ones((2, 2, 3), np.float32), np.array([0.0, 9.0]), 10).shape == (10, 2, 1)
 
 
+def test_the_core_simulator_refuses_frames_and_times_of_other_shapes():
+    """A direct caller of the core's simulator (simulate_spikes checks first): frames not
+    [F, H, W] of its H and W, or times not [F], are refused and named (the core reads F·H·W
+    intensities and F times), and so is a negative count of readouts."""
+    sim = _C.SpikeSimulator(2, 3, SimParams().to_core(), 0)
+    times = np.array([0.0, 9.0])
+    for frames in (np.ones((2, 1, 3), np.float32), np.ones((2, 2, 4)), np.ones((2, 6))):
+        shape = ", ".join(map(str, frames.shape))
+        with pytest.raises(ValueError, match=rf"frames expected \[F, 2, 3\], found \[{shape}\]"):
+            sim.run(frames, times, 10)
+    frames = np.ones((2, 2, 3), np.float32)
+    for bad_times in (np.array([0.0, 4.0, 9.0]), times[:, None]):
+        shape = ", ".join(map(str, bad_times.shape))
+        with pytest.raises(ValueError, match=rf"times expected \[2\], found \[{shape}\]"):
+            sim.run(frames, bad_times, 10)
+    with pytest.raises(ValueError, match="readouts expected >= 0, found -1"):
+        sim.run(frames, times, -1)
+    assert sim.run(frames, times, 10).shape == (10, 2, 1)
+
+
 def test_sim_params_of_the_wrong_type_are_named():
     for fields, message in (
         ({"threshold": "100"}, "threshold: expected a number, found '100'"),

@@ -348,6 +348,23 @@ def test_core_kernels_check_indices_before_allocating_their_output():
         _C.spike_tfi(data, layout, bad)
 
 
+def test_core_refuses_index_and_bit_arrays_of_other_shapes():
+    """A direct `_C` caller's indices must be 1-D (the kernels read as many as the first axis
+    holds) and its bits [T, H, W] of the layout's H and W (the packing reads H·W a readout): other
+    shapes are refused and named, not read in part or past their end."""
+    s = SpikeStream.from_packed(np.zeros((20, 2, 1), np.uint8), 2, 8)
+    data, layout = s.packed().reshape(-1), _C.SpikeLayout.memory(2, 8)
+    for kernel in (_C.spike_counts, _C.spike_tfp, _C.spike_tfi):
+        name = "readouts" if kernel is _C.spike_tfi else "starts"
+        with pytest.raises(ValueError, match=rf"{name} expected 1-D, found shape \[1, 1\]"):
+            kernel(data, layout, np.array([[2]]), 3)
+    for bits in (np.zeros((3, 2, 7), np.uint8), np.zeros((3, 3, 8), np.uint8), np.zeros((2, 8))):
+        shape = ", ".join(map(str, bits.shape))
+        with pytest.raises(ValueError, match=rf"bits expected \[T, 2, 8\], found \[{shape}\]"):
+            _C.spike_pack(bits, layout)
+    assert _C.spike_pack(np.ones((3, 2, 8), np.uint8), layout).tolist() == [[255, 255]] * 3
+
+
 def test_layouts_whose_sizes_overflow_are_refused(tmp_path):
     """col_offset + width and height * row_bits wrapped around int64: uninitialised TFPs, a
     segfault in window(), a division by zero in DatWriter."""
