@@ -152,11 +152,12 @@ TEST_CASE(bad_arguments_refused) {
 }
 
 TEST_CASE(window_counts_match_naive) {
-  // A small cropped unaligned frame (one partial chunk) and a 40x400 one (four chunks, the last
-  // with a partial group of words).
+  // A small cropped unaligned frame (one partial chunk), a 40x400 one (four chunks, the last
+  // with a partial group of words) and a cropped, flipped one of three chunks (chunks that start
+  // and end in a stored row's margins).
   const int64_t T = 700;
-  for (const SpikeLayout& l :
-       {SpikeLayout::dat(5, 123, true, 130, 3), SpikeLayout::memory(40, 400)}) {
+  for (const SpikeLayout& l : {SpikeLayout::dat(5, 123, true, 130, 3), SpikeLayout::memory(40, 400),
+                               SpikeLayout::dat(30, 150, true, 400, 200)}) {
     const int64_t H = l.height, W = l.width;
     const Bits bits = random_bits(T, H, W, 0.3, 7);
     Packed p(bits, T, l);
@@ -200,7 +201,8 @@ TEST_CASE(window_counts_all_zero_all_one) {
 
 TEST_CASE(tfi_matches_naive) {
   const int64_t T = 300, M = 50;
-  for (const SpikeLayout& l : {SpikeLayout::dat(3, 70, true), SpikeLayout::memory(20, 400)}) {
+  for (const SpikeLayout& l : {SpikeLayout::dat(3, 70, true), SpikeLayout::memory(20, 400),
+                               SpikeLayout::dat(30, 150, true, 400, 200)}) {
     const int64_t H = l.height, W = l.width;
     const Bits bits = random_bits(T, H, W, 0.02, 11);
     Packed p(bits, T, l);
