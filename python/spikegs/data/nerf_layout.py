@@ -22,7 +22,6 @@ A test frame needs its spikes or its image; one with no image gets a pseudo grou
 
 from __future__ import annotations
 
-import itertools
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -40,6 +39,7 @@ from .transforms_file import (
     fitted,
     flat_frames,
     frame_columns,
+    frame_files,
     is_opengl,
     one_camera_matrix,
     read_cameras,
@@ -123,19 +123,22 @@ def _readable(root: Path, frame: dict) -> np.ndarray | None:
 PIXEL_KEYS = ("fl_x", "fl_y", "cx", "cy")  # intrinsics in the pixels of the frames' images
 
 
+def _first_shape(images: Iterator) -> tuple | None:
+    """(h, w) of the first image of `images` that is not None (read as needed), or None."""
+    return next((im.shape[:2] for im in images if im is not None), None)
+
+
 def _sizes(
-    path: Path, camera: dict, images: list, training: Iterator, options: Options
+    path: Path, camera: dict, tests: Iterator, training: Iterator, options: Options
 ) -> tuple[tuple, tuple, str]:
     """(h, w) the intrinsics are for, (h, w) of the spikes and what gives the first: the camera's
-    w, h, else the first sharp test image's size (`images`), else, for intrinsics in pixels, the
-    first readable training image's (`training`, read as needed); each of height, width from
-    spikegs.json, else the first's."""
-    shapes = [im.shape[:2] for im in images if im is not None]
+    w, h, else the first sharp test image's size (`tests`), else, for intrinsics in pixels, the
+    first readable training image's (`training`); the images read as needed; each of height,
+    width from spikegs.json, else the first's."""
     stated, what = stated_size(path, camera, "the first sharp image")
-    if not (stated or shapes) and any(k in camera for k in PIXEL_KEYS):  # (an angle's focal
-        found = (im for im in training if im is not None)  # scales with the spikes' width)
-        shapes = [im.shape[:2] for im in itertools.islice(found, 1)]
-    src = stated or (shapes[0] if shapes else None)
+    src = stated or _first_shape(tests)
+    if not src and any(k in camera for k in PIXEL_KEYS):  # (an angle's focal scales with the
+        src = _first_shape(training)  # spikes' width)
     height = options.height or (src and src[0])
     width = options.width or (src and src[1])
     if not (height and width):
@@ -208,17 +211,18 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     path, cameras = sources[0], read_cameras(docs, frames, sources)
     camera = cameras[0]
     spikes = _find_spikes(root, frames, sources)
-    images = [_image(root, f) if t else None for f, t in zip(frames, test)]
-    for frame, source, found, image, is_test in zip(frames, sources, spikes, images, test):
-        if found is None and (image is None or not is_test):
+    for frame, source, found, is_test in zip(frames, sources, spikes, test):
+        if found is None and not (is_test and frame_files(root / frame["file_path"])):
             tried = [str(p) for p in _spike_candidates(root, frame, source)]
             where = f"tried {', '.join(tried)}" if tried else "its spike_path is null"
             raise FileNotFoundError(
                 f"{source}: spike file of frame '{frame['file_path']}' not found ({where})"
                 + (", and no sharp image either" if is_test else "")
             )
+    # sharp images read one at a time (a test set's, full size, would fill the memory at once)
+    tests = (_image(root, f) for f, is_test in zip(frames, test) if is_test)
     training = (_readable(root, f) for f, is_test in zip(frames, test) if not is_test)
-    src, (height, width), what = _sizes(path, camera, images, training, options)
+    src, (height, width), what = _sizes(path, camera, tests, training, options)
     row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
         path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
     )
@@ -248,8 +252,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
             return None
 
     images = [
-        mono(image, frame) if is_test else training_image(frame, check)
-        for frame, image, is_test, check in zip(frames, images, test, checked)
+        mono(_image(root, frame), frame) if is_test else training_image(frame, check)
+        for frame, is_test, check in zip(frames, test, checked)
     ]
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)

@@ -364,12 +364,17 @@ def camera_matrix(
     return K
 
 
+def frame_files(base: Path) -> list[Path]:
+    """The image files a frame's file_path `base` names: itself, or with an extension added."""
+    candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
+    return [p for p in candidates if p.is_file()]
+
+
 def read_frame(base: Path, background: float) -> np.ndarray:
     """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic), an alpha
     channel composited over `background` in linear light, colour read as the file's metadata
     says: sRGB or linear, associated with alpha (EXR) or not (PNG)."""
-    candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
-    files = [p for p in candidates if p.is_file()]
+    files = frame_files(base)
     if not files:
         raise FileNotFoundError(
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
