@@ -3,6 +3,7 @@ simulated dataset, pose conventions, windows within one view, bad input, trainin
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -468,7 +469,7 @@ def test_nerf_pose_round_trip(sim, nerf):
     np.testing.assert_allclose(ds.trajectory.pose_at(0), view_poses(sim)[2], atol=1e-6)
 
 
-def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
+def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys, monkeypatch):
     args = ["sim-train", str(nerf), "--steps", "2", "--crop", "16", "--batch-size", "1"]
     out = tmp_path / "sim.pt"
     assert main([*args, "--out", str(out)]) == 0
@@ -485,6 +486,17 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys):
     named = tmp_path / "w.json"  # its table was written over the weights it named
     assert main([*args, "--out", str(named)]) == 0 and main([*args, "--out", str(named)]) == 0
     assert "reused" in capsys.readouterr().out and (tmp_path / "w.json.json").is_file()
+
+    def refused(path, text):  # reused weights where this user cannot write (a shared disk)
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+    monkeypatch.setattr("spikegs.sim_cli.write_text_atomically", refused)
+    assert main([*args, "--out", str(out)]) == 0
+    printed = capsys.readouterr()
+    assert "reused" in printed.out and "TFP(33)" in printed.out  # the table stands
+    assert f"scores not written beside the weights: [Errno 13] Permission denied: '{out}.json'" in (
+        printed.err
+    )
 
 
 def test_nerf_of_no_stated_size_and_no_sharp_image_asks_for_one(nerf, tmp_path):

@@ -124,6 +124,22 @@ def test_a_link_to_a_missing_folder_is_named(tmp_path):
             check(path)
 
 
+def test_an_output_on_a_read_only_disk_is_refused_by_name(tmp_path, monkeypatch, capsys):
+    """A read-only mount (where root's os.access says yes) or a folder of another user's:
+    `spikegs sim-train --out FILE` and `spikegs simulate --out FOLDER` stop before any work, the
+    message naming the path asked for, not a traceback once the work is done."""
+    from spikegs.cli import main
+
+    monkeypatch.setattr("spikegs.output_paths.writable_folder", lambda folder: False)
+    weights, data = tmp_path / "w.pt", tmp_path / "data"
+    assert main(["sim-train", str(tmp_path / "no_dataset"), "--out", str(weights)]) == 2
+    said = capsys.readouterr().err
+    assert f"spikegs sim-train: error: --out {weights}: its folder is not writable" in said
+    assert main(["simulate", "--out", str(data)]) == 2
+    assert f"spikegs simulate: error: --out {data}: not writable" in capsys.readouterr().err
+    assert os.listdir(tmp_path) == []
+
+
 def test_a_dataset_replaced_through_a_link(tmp_path):
     """`spikegs simulate --out LINK --overwrite`, LINK a dataset on another disk: rmtree refused
     the link ('Cannot call rmtree on a symbolic link'); the target is emptied, the link kept."""
