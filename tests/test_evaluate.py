@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from spikegs import _C
 from spikegs.config import load_config
-from spikegs.data import simulate_dataset
+from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run, other_data, render_view
 from spikegs.image_io import linear_to_srgb, read_image
 from spikegs.ply import load_ply
@@ -157,6 +157,31 @@ def test_a_run_from_before_data_fingerprints_scores_its_own_folder_as_eval(train
         **_C.build,
         "cpu_features": " ".join(_C.compiled_cpu_features),
     }
+
+
+def test_a_copy_of_the_runs_data_whose_old_folder_is_broken_scores_as_eval(trained, run, tmp_path):
+    """The run's dataset copied elsewhere, its old folder left broken (its meta.json cut short
+    by a full disk, a copy half deleted): that folder no longer holds the run's data, so the copy
+    scores as the run's own eval.json, not as another dataset, nor an error naming the old
+    folder's file."""
+    copied = load_dataset(shutil.copytree(trained[0].root, tmp_path / "copied"))
+    broken = shutil.copytree(trained[0].root, tmp_path / "broken")
+    summary = json.loads((run / "train.json").read_text())
+    (run / "train.json").write_text(json.dumps({**summary, "dataset": str(broken)}))
+    (broken / "meta.json").write_text('{"height": 3')
+    assert evaluate_run(run, copied, write_images=False)["file"] == str(run.resolve() / "eval.json")
+    (broken / "trajectory.json").unlink()
+    assert evaluate_run(run, copied, write_images=False)["file"] == str(run.resolve() / "eval.json")
+
+
+def test_a_run_without_train_json_and_an_unreadable_config_is_scored(trained, run):
+    """A run stopped before its end and finished by another tool's scene.ply, its config.yaml
+    garbled: scored, the method unknown (null), not a YAML traceback."""
+    (run / "train.json").unlink()
+    (run / "config.yaml").write_text("method: [spikegs\n")
+    assert evaluate_run(run, trained[0], write_images=False)["method"] is None
+    (run / "config.yaml").write_text("method: tfp33\n")
+    assert evaluate_run(run, trained[0], write_images=False)["method"] == "tfp33"
 
 
 def test_the_readme_scores_a_run_as_eval_does(trained, run, capsys):

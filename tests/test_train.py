@@ -1827,6 +1827,63 @@ def test_a_demo_stopped_by_a_full_disk_says_how_to_go_on_and_counts_its_time(
     assert json.loads((out / "results.json").read_text())["total_seconds"] > spent
 
 
+def test_a_demo_resumed_over_torn_side_files_goes_on_from_its_defaults(
+    tmp_path, monkeypatch, capsys
+):
+    """--resume reads what the demo recorded as it went: .demo_started.json (its scene,
+    iterations, camera), .demo_seconds and results.json (the seconds spent before). One torn or
+    edited by hand (not JSON, not an object, no number) counts as none: the defaults and no
+    earlier seconds, not an error naming a file the user never wrote."""
+    from spikegs.demo import DEFAULT_SCENE, earlier_seconds, started_iterations
+
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / ".demo_started.json").write_text('{"scene": "wires", "iterations": 8')
+    (out / ".demo_seconds").write_text("1e")
+    (out / "results.json").write_text('{"total_seconds": 5000')
+    started = []
+
+    def stopped(scene, data, resume, progress, color):
+        started.append((scene, resume, color))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.demo.demo_dataset", stopped)
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
+    assert started == [(DEFAULT_SCENE, True, False)] and started_iterations(out) is None
+    assert "with --resume continues" in capsys.readouterr().err
+    assert 0 < float((out / ".demo_seconds").read_text()) < 60  # this process's time alone
+    (out / ".demo_started.json").write_text('["wires", 8, true]')  # JSON, but not the object
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
+    assert started[1] == (DEFAULT_SCENE, True, False)
+    (out / ".demo_seconds").unlink()
+    for results, earlier in (('{"total_seconds": null}', 0.0), ('{"total_seconds": 7.5}', 7.5)):
+        (out / "results.json").write_text(results)
+        assert earlier_seconds(out) == earlier
+
+
+def test_a_demo_whose_disk_refuses_its_time_too_still_says_how_to_go_on(
+    tmp_path, monkeypatch, capsys
+):
+    """A full disk stops the demo and then refuses .demo_seconds as well: the disk's error and
+    how to go on are said (not a second traceback from the clean-up), the time recorded before
+    kept as it was."""
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / ".demo_started.json").write_text('{"scene": "wires"}')
+    (out / ".demo_seconds").write_text("12.5")
+
+    def disk_full(*args):
+        raise OSError(errno.ENOSPC, "No space left on device", str(out / "data" / "spikes.dat"))
+
+    monkeypatch.setattr("spikegs.demo.demo_dataset", disk_full)
+    monkeypatch.setattr("spikegs.demo.write_text_atomically", disk_full)
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "once that is mended, the same command with --resume continues from here" in err
+    assert f"No space left on device: '{out / 'data' / 'spikes.dat'}'" in err
+    assert (out / ".demo_seconds").read_text() == "12.5"
+
+
 def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     """The demo's printed lead over TFP(33)+3DGS is at equal iterations, where SpikeGS renders K
     poses a step and trains SIM first: about 6 times the baseline's seconds on the demo (63 + 11
