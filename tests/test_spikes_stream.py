@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import subprocess
 import sys
@@ -117,6 +118,25 @@ def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypat
     reads.clear()
     os.utime(path, ns=(0, path.stat().st_mtime_ns + 10**9))
     assert SpikeStream.open(path, 4, 16).digest() == digest and reads
+
+
+def test_a_digest_cache_that_cannot_be_written_leaves_the_digest_as_it_is(tmp_path, monkeypatch):
+    """A read-only home, a full disk or a file where the cache folder goes: the digest is the
+    file's all the same, nothing cached (the next command reads the file again), no error."""
+    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    bits = random_bits((6, 4, 16))
+    path = save_dat(tmp_path / "s.dat", bits)
+    (tmp_path / "cache").write_text("a file, not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    assert SpikeStream.open(path, 4, 16).digest() == SpikeStream.from_bits(bits).digest()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "home"))
+
+    def disk_full(path, text):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr("spikegs.spikes.stream.write_text_atomically", disk_full)
+    assert SpikeStream.open(path, 4, 16).digest() == SpikeStream.from_bits(bits).digest()
+    assert not [p for p in (tmp_path / "home").rglob("*") if p.is_file()]
 
 
 def test_a_file_changed_after_open_never_caches_the_mapped_spikes_for_it(tmp_path, monkeypatch):

@@ -321,10 +321,8 @@ def _read_digest(path: Path | None) -> bytes | None:
     return digest if digest is not None and len(digest) == hashlib.sha256().digest_size else None
 
 
-def _write_digest(path: Path | None, digest: bytes) -> None:
+def _write_digest(path: Path, digest: bytes) -> None:
     """Cache `digest` at `path`, where the cache folder can be written (else nothing)."""
-    if path is None:
-        return
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomically(path, digest.hex())
