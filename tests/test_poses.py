@@ -885,6 +885,20 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
     assert (ks.min(), ks.max()) == (40, 864)
 
 
+def test_a_raw_recordings_split_that_comes_out_empty_is_refused_saying_why():
+    """SfM registering only images too near the stream's start to hold one out (their TFP(65)
+    does not fit), or a stretch too short for a training window clear of the held-out view: a
+    ValueError naming the readouts and what to change."""
+    from spikegs.poses_cli import _held_out_split
+
+    streams = [_Channel(np.zeros((4, 6)))]
+    trajectory = Trajectory(np.array([0.0, 999.0]), np.stack([np.eye(4)] * 2))
+    with pytest.raises(ValueError, match=r"no held-out view: .* at readouts \[8\] has room for a"):
+        _held_out_split(streams, trajectory, np.array([8, 16, 24]), 8)
+    with pytest.raises(ValueError, match=r"no training timestamp: .* \[300, 380\] leave no 65-"):
+        _held_out_split(streams, trajectory, np.array([300, 340, 380]), 8)
+
+
 def test_a_point_cloud_without_points_is_refused(tmp_path):
     """An empty points3d.ply (a vertex element of 0) names the file and what it lacks, as a
     non-finite one does (it was taken for a cloud of 0 distinct points and the run started
