@@ -1,7 +1,11 @@
 """A run folder's files (run_folder.py): another dataset's evaluations (eval-DATASET*) are a run's
 own, not foreign files that block training into it."""
 
+import errno
+
+import pytest
 from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files
+from spikegs.run_summary import trained_scene
 
 
 def test_evaluations_of_other_datasets_are_a_runs_files(tmp_path):
@@ -26,3 +30,20 @@ def test_a_started_run_without_a_checkpoint_may_be_trained_over(tmp_path):
     for name in ("config.yaml", "log.jsonl", ".lock"):
         (run / name).write_text("")
     check_fresh_run_dir(run, run / "checkpoints" / "last.pt")
+
+
+def test_a_stopped_run_in_a_folder_not_writable_says_how_to_finish_it(tmp_path, monkeypatch):
+    """`spikegs eval` on a stopped run in a folder this process cannot write (a colleague's, a
+    read-only copy): its .lock cannot be opened to ask whether a process trains the run, which is
+    then not known to be busy; the message says how to finish it, not 'Permission denied'."""
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "checkpoints" / "last.pt").write_bytes(b"")
+    (run / ".lock").write_text("")
+
+    def refused(path, busy):
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+    monkeypatch.setattr("spikegs.run_summary.exclusive_lock", refused)
+    with pytest.raises(FileNotFoundError, match="stopped before its end; finish it with spikegs"):
+        trained_scene(run)
