@@ -1000,10 +1000,14 @@ def test_options_accept_the_ends_of_their_ranges(tmp_path):
 
 def test_no_held_out_view_is_refused(llff, tmp_path):
     """test_views [] holds no view out: a ValueError saying so (a dataset without test views
-    trains and then has nothing to score)."""
+    trains and then has nothing to score); every view held out leaves none to train on, said
+    too."""
     root = copy(llff, tmp_path)
     write_options(root, test_views=[])
     with pytest.raises(ValueError, match="no test view .set test_views in spikegs.json"):
+        load_dataset(root)
+    write_options(root, test_views=list(range(VIEWS)))
+    with pytest.raises(ValueError, match="no training timestamp left once the test views are"):
         load_dataset(root)
 
 
@@ -1293,7 +1297,8 @@ def test_llff_stream_length_checked_at_its_last_readout():
     end of the last readout's integration, fits (guards against refusing it, < for <=; 99.6 is
     refused); a first pose at 100, past the end, is every pose past the end, a counter rather
     than an index, and said so (guards against that case read from 101 on only). With height
-    alone set, the frame size is still said to come from hwf (not from spikegs.json)."""
+    alone set, the frame size is still said to come from hwf (not from spikegs.json); with both,
+    from spikegs.json."""
 
     class Stream:
         path, height, width = "s.dat", 32, 48
@@ -1310,6 +1315,9 @@ def test_llff_stream_length_checked_at_its_last_readout():
     # height alone set: the frame size still came from hwf, and the message says so
     with pytest.raises(ValueError, match=r"The frame size 32x48 was taken from hwf"):
         _check_stream_length(Stream(), np.array([0.0, 100.0]), hwf, Options(height=32))
+    # both set: the frame size is spikegs.json's, which is the one to check
+    with pytest.raises(ValueError, match=r"The frame size 32x48 was set in spikegs.json; check"):
+        _check_stream_length(Stream(), np.array([0.0, 100.0]), hwf, Options(height=32, width=48))
 
 
 def test_llff_poses_over_under_half_a_stream_read_at_another_size_are_warned_of():
@@ -1515,6 +1523,11 @@ def test_nerf_focal_in_pixels_of_the_training_images(sim, nerf, tmp_path):
         edit_json(root / part, lambda doc: [doc.pop(k) for k in ("camera_angle_x", "w", "h")])
         edit_json(root / part, lambda doc: doc.update(camera))
     write_options(root, height=H, width=W)
+    np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
+    # the first training image unreadable (a copy cut short), the calibration given: the size is
+    # the next readable one's (the images then only check the flip)
+    (root / "train" / "r_2.exr").write_bytes(b"not an image")
+    write_options(root, height=H, width=W, rate_at_one=0.25)
     np.testing.assert_allclose(load_dataset(root).K, sim.K, rtol=1e-6)
 
     def angle_only(doc):  # a focal as an angle needs no image size

@@ -104,8 +104,10 @@ FEW_KEPT = 4
 
 
 def _pose_step(readouts: np.ndarray) -> float:
-    """The median readouts [P] between consecutive poses (0 for one pose)."""
-    return float(np.median(np.diff(readouts))) if len(readouts) > 1 else 0.0
+    """The median readouts between consecutive poses of a stream's pose log (readouts [P],
+    strictly increasing, P >= 2: `stream_dataset` refuses poses spanning less than a training
+    window)."""
+    return float(np.median(np.diff(readouts)))
 
 
 def _spaced_hold_out(readouts: np.ndarray, every: int, clearances: int = HOLDOUT_EVERY) -> int:
@@ -115,8 +117,6 @@ def _spaced_hold_out(readouts: np.ndarray, every: int, clearances: int = HOLDOUT
     HOLDOUT_EVERY-th view of LLFF's sparse views loses; 1 leaves a timestamp between two; at
     least HOLDOUT_EVERY."""
     step = _pose_step(readouts)
-    if not step:
-        return HOLDOUT_EVERY
     return max(HOLDOUT_EVERY, math.ceil(clearances * (HOLD_OUT_GAP + every) / step))
 
 
@@ -340,9 +340,7 @@ def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) ->
     median spacings and than a training window, that training timestamps [M] fall into: their
     poses are interpolated across the gap (a motion-capture dropout), which a curved path does
     not follow."""
-    spacing = np.diff(readouts)  # [P - 1]
-    if not len(spacing):
-        return
+    spacing = np.diff(readouts)  # [P - 1], P >= 2 (`_pose_step`)
     wide = (spacing > GAP_FACTOR * np.median(spacing)) & (spacing > NEEDED_WINDOW)
     gaps = []
     for i in np.flatnonzero(wide):
