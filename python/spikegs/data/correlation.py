@@ -7,10 +7,8 @@ import numpy as np
 
 
 def correlation(a: np.ndarray, b: np.ndarray) -> float:
-    """Pearson's r of the values of `a` and `b` (arrays of one shape); 0 where either is flat or
-    empty."""
-    if np.size(a) == 0:
-        return 0.0
+    """Pearson's r of the values of `a` and `b` (arrays of one shape, not empty); 0 where either
+    is flat."""
     a = np.asarray(a, np.float64) - np.mean(a)
     b = np.asarray(b, np.float64) - np.mean(b)
     norm = np.sqrt((a * a).sum() * (b * b).sum())
