@@ -192,6 +192,9 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     # a held-out view that shows almost nothing (a one-pixel scene): its PSNR is a render's black
     empty = r"1 of 1 held-out views have under 1% of their pixels lit \(.*: side\)"
     cases.append((constant_source(0.6, lit=1), still, ("turns 0° and", empty)))
+    # no lit pixel at all (a black scene): said to be black, too few spikes to see anything by
+    black = ("all under intensity 0.01: black; too few to see the scene by", "light rate of 0 ")
+    cases.append((constant_source(0.6, lit=0), still, ("turns 0° and", empty, *black)))
     cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them"))  # 18.9 dB against 21.4
     # one training view, which cannot place a scene in depth (it trained in silence)

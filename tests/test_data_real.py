@@ -1866,6 +1866,17 @@ def test_view_streams_refuse_a_readout_at_the_end_naming_the_stream():
             views.tfp(k, 1)
 
 
+def test_view_streams_read_no_timestamps_as_one_stream_does():
+    """No timestamps at all (an empty batch): empty windows, TFPs and TFIs of the frame size,
+    as a single stream gives (gathered from no view's read, there is no first to shape them)."""
+    a, b = np.zeros((3, 2, 8), bool), np.ones((4, 2, 8), bool)
+    views = ViewStreams([SpikeStream.from_bits(a), SpikeStream.from_bits(b)], ["a", "b"])
+    single, none = SpikeStream.from_bits(b), np.array([], np.int64)
+    for read, args in (("window", (1,)), ("tfp", (1,)), ("tfi", ())):
+        got, want = getattr(views, read)(none, *args), getattr(single, read)(none, *args)
+        assert got.shape == want.shape and got.shape[0] == 0 and got.dtype == want.dtype, read
+
+
 def test_a_one_readout_view_holds_one_pose():
     """A view of one readout (its first readout its last) is one pose of the held trajectory: the
     two equal readouts would be refused as not strictly increasing."""

@@ -16,7 +16,7 @@ from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run
-from spikegs.interrupt import ENDING, HANGUP, progress_lost, raise_terminated
+from spikegs.interrupt import ENDING, HANGUP, progress_lost, raise_terminated, say
 from spikegs.train import Trainer
 from tqdm import tqdm
 
@@ -79,6 +79,33 @@ def test_eval_json_names_where_it_lies_for_a_run_named_relative(tmp_path, monkey
     monkeypatch.chdir(tmp_path)
     result = evaluate_run("run", data, write_images=False)
     assert result["file"] == str(tmp_path.resolve() / "run" / "eval.json")
+
+
+class _Stderr:
+    """A stderr whose writes fail with `errno`."""
+
+    def __init__(self, errno_: int):
+        self.errno = errno_
+
+    def write(self, text):
+        raise OSError(self.errno, os.strerror(self.errno))
+
+    def flush(self):
+        pass
+
+
+def test_saying_to_a_gone_stderr_returns_its_error_and_to_a_full_one_raises(monkeypatch):
+    """say(): a stderr whose reader left (EPIPE) or whose terminal closed (EIO) is gone, its
+    error returned for the caller to stop quietly with; any other failure (stderr sent to a file
+    on a full disk) is not a gone output and is raised, not taken for one."""
+    for gone in (errno.EPIPE, errno.EIO):
+        monkeypatch.setattr(sys, "stderr", _Stderr(gone))
+        assert say("stopped").errno == gone
+    monkeypatch.setattr(sys, "stderr", _Stderr(errno.ENOSPC))
+    with pytest.raises(OSError, match="No space left on device"):
+        say("stopped")
+    monkeypatch.undo()
+    assert say("said") is None
 
 
 @pytest.fixture

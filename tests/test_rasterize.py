@@ -700,6 +700,18 @@ def test_a_batch_of_gradients_is_refused_clearly():
     assert row.abs().sum() > 0
 
 
+def test_only_a_batch_of_gradients_is_said_to_be_one():
+    """_grad_array turns torch's "Batching rule" error alone into the batch's message; another
+    tensor numpy cannot take (one requiring grad, which the create_graph check keeps out of a
+    backward; a contiguous view with torch's negative bit) keeps torch's own, which says how to
+    mend it."""
+    from spikegs.rasterize import _grad_array
+
+    with pytest.raises(RuntimeError, match="requires grad. Use tensor.detach") as err:
+        _grad_array(torch.ones(2, requires_grad=True))
+    assert "one gradient of its outputs at a time" not in str(err.value)
+
+
 @needs_cpp
 def test_numpy_integer_sizes_accepted():
     a = render(spikegs.rasterize, _BAD_SCENE)

@@ -37,3 +37,11 @@ def test_fixed_decimals_only_within_their_range_and_headers_set_the_width(capsys
         "       0.0005  2e+06  43.10   0.00",
         "       0.0007  3e+06   5.20  43.10",
     ]
+
+
+def test_no_rows_print_nothing(capsys):
+    """A table of no rows prints nothing (not an IndexError on its first row), with or without
+    the columns named."""
+    print_table([])
+    print_table([], ["method", "psnr"])
+    assert capsys.readouterr().out == ""
