@@ -240,6 +240,26 @@ def test_numpy_integers_simulate_a_dataset_that_loads(tmp_path):
     assert load_dataset(tmp_path / "x").num_readouts == 400
 
 
+def test_a_source_of_ones_own_without_light_times_is_refused_by_name(tmp_path):
+    """A Source of the user's own (spikegs.data exports the class) whose light_times gives no
+    readout: the simulator's message naming frame_times, not numpy's IndexError from the
+    ghosting check (which needs two light frames and has nothing to say of fewer); one light
+    frame is simulated as constant light."""
+    from spikegs.data import ProceduralSource
+
+    class Lit(ProceduralSource):
+        times: list = []
+
+        def light_times(self, num_readouts, frame_every):
+            return np.array(self.times, np.float64)
+
+    source = Lit("solids", SCENES["solids"](), SMALL["width"], SMALL["height"], channels=1)
+    with pytest.raises(ValueError, match=r"frame_times expected \[F\] with F >= 1, found \[0\]"):
+        simulate_dataset(source, tmp_path / "none", **SMALL)
+    source.times = [0.0]
+    assert len(simulate_dataset(source, tmp_path / "one", **SMALL).stream) == SMALL["readouts"]
+
+
 def test_negative_view_counts_refused(tmp_path):
     for counts in ({"test_on_path": -1}, {"test_off_path": -2}):
         with pytest.raises(ValueError, match="expected counts >= 0"):

@@ -221,8 +221,11 @@ def default_frame_every(source: Source, trajectory: Trajectory, num_readouts: in
 def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray) -> None:
     """A UserWarning where the scene sphere's points move more than FRAME_MOTION_PX pixels between
     two light frames at readouts `times` [F]: the simulator cross-fades them (ghosting) where the
-    held-out views are sharp. F >= 2: a source's light times hold readout 0 and the last (a frame
-    sequence has two frames or more), and simulate_dataset's readouts are more than one."""
+    held-out views are sharp. Nothing for F < 2 (a built-in source's light times hold readout 0
+    and the last; a Source of the user's own may give fewer, which the simulator then refuses by
+    name, not an IndexError here)."""
+    if len(times) < 2:
+        return
     readouts = np.arange(int(times[-1]) + 1)  # [R]
     before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
     after = (before + 1)[times[before] != readouts]  # the next, unless the readout is on a frame
