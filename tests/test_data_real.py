@@ -784,7 +784,8 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
 def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch):
     """Each sharp test image is reduced to the spikes' size as it is read: all of a test set's
     held at full size at once filled the memory (60 test images of 960x1440: 2.3 GB peak against
-    0.45 one at a time). Four test frames with sharp images; at most two read images alive."""
+    0.45 one at a time). Four test frames with sharp images; at most two read images alive, and
+    each test image read through the counted reader (no count of nothing)."""
     from spikegs.data import nerf_layout
 
     root = copy(nerf, tmp_path)
@@ -796,12 +797,13 @@ def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch):
     )
     for i in (1, 2, 3):
         shutil.copy(root / "test" / "r_0.exr", root / "test" / f"r_{i}.exr")
-    alive, most = set(), [0]
+    alive, most, read_paths = set(), [0], []
     read = nerf_layout._image
 
-    def counted(*args):
-        image = read(*args)
+    def counted(root, frame):
+        image = read(root, frame)
         if image is not None:
+            read_paths.append(frame["file_path"])
             alive.add(id(image))
             weakref.finalize(image, alive.discard, id(image))
             most[0] = max(most[0], len(alive))
@@ -809,7 +811,8 @@ def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch):
 
     monkeypatch.setattr(nerf_layout, "_image", counted)
     assert [v.name for v in load_dataset(root).test_views] == [f"test_r_{i}" for i in range(4)]
-    assert most[0] <= 2, most
+    assert {f"./test/r_{i}" for i in range(4)} <= set(read_paths), read_paths
+    assert 1 <= most[0] <= 2, most
 
 
 def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):
