@@ -136,15 +136,17 @@ def test_an_image_not_written_names_it_and_keeps_the_one_before(tmp_path, monkey
 
 def test_a_truncated_image_is_refused_by_name(tmp_path):
     """An image cut short (a copy stopped, a full disk): a ValueError naming the file, where
-    OpenImageIO opens it and then reads no pixels, saying nothing why."""
-    from spikegs.image_io import read_image
+    OpenImageIO opens it and then reads no pixels, saying nothing why (3.2's readers, which the
+    fallback then says; another release may give a reason of its own, said instead)."""
+    from spikegs.image_io import _reason, read_image
 
     for name in ("t.png", "t.exr"):
         write_image(tmp_path / name, np.random.default_rng(0).random((64, 64, 3)))
         whole = (tmp_path / name).read_bytes()
         (tmp_path / name).write_bytes(whole[: len(whole) // 2])
-        with pytest.raises(ValueError, match=rf"cannot read .*{name}: OpenImageIO gave no reason"):
+        with pytest.raises(ValueError, match=rf"cannot read .*{name}: \S"):
             read_image(tmp_path / name)
+    assert _reason(" \n").startswith("OpenImageIO gave no reason")
 
 
 def test_frame_sequence_source(tmp_path):
