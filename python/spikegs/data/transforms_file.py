@@ -142,14 +142,18 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
     K = one_camera_matrix(cameras, frames, sources, src, (height, width), sizes=sizes)
     images = []
     for path, doc, first in zip(paths, docs, firsts):
-        frame_images, negative = [], []  # negative: (file, values below 0, the lowest) a frame
+        # each frame into its place as it is read: a list of the resized frames in float64 and
+        # their stack held 4 times the frames' float32 at once (200 frames, 400x400 colour: 2.2 GB
+        # peak, 0.6 GB now)
+        stack = np.empty((len(doc["frames"]), height, width, channels), np.float32)
+        negative = []  # (file, values below 0, the lowest) a frame
         for j, f in enumerate(doc["frames"]):
             image = read_frame(path.parent / f["file_path"], background) if j else first
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
                 image = np.maximum(image, 0.0)
             image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
-            frame_images.append(to_channels(image, channels))
+            stack[j] = to_channels(image, channels)
         if negative:
             warnings.warn(
                 f"{path}: {len(negative)} frame(s) hold {sum(n for _, n, _ in negative)} values "
@@ -157,7 +161,7 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
                 f"{negative[0][0]}), set to 0: light is not negative",
                 stacklevel=3,
             )
-        images.append(np.stack(frame_images).astype(np.float32))
+        images.append(stack)
     return images, viewmats, K, docs[0]
 
 
