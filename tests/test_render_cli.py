@@ -266,7 +266,7 @@ def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     mono[0], mono[1] = srgb_to_linear(values[0]), srgb_to_linear(values[1])  # rows: [2, 3, 1]
     monkeypatch.setattr(evaluate, "render_view", lambda model, viewmat, dataset: mono)
     dataset = SimpleNamespace(trajectory=_cameras([4.0, 4.0]), scene_center=CENTER, meta={})
-    frames = orbit_frames(None, dataset, dataset_orbit(dataset, 2)[0])
+    frames = np.stack(list(orbit_frames(None, dataset, dataset_orbit(dataset, 2)[0])))
     assert frames.dtype == np.uint8 and frames.shape == (2, 2, 3, 3)
     assert (frames[:, 0] == 101).all() and (frames[:, 1] == 100).all()
 
@@ -287,7 +287,7 @@ def test_orbit_frames_turn_about_the_up_the_dataset_was_simulated_with(monkeypat
         """The orbit's axis: the normal of the plane its eyes lie in."""
         eyes.clear()
         dataset = SimpleNamespace(trajectory=_cameras([4.0] * 5), scene_center=CENTER, meta=meta)
-        orbit_frames(None, dataset, dataset_orbit(dataset, 8, up, "circle")[0])
+        list(orbit_frames(None, dataset, dataset_orbit(dataset, 8, up, "circle")[0]))
         normal = np.linalg.svd(np.stack(eyes) - np.mean(eyes, axis=0))[2][-1]
         return normal * np.sign(normal @ [1.0, 1.0, 1.0])
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -168,17 +169,17 @@ def dataset_orbit(
     return (*orbit_viewmats(trajectory, dataset.scene_center, frames, up, path), None)
 
 
-def orbit_frames(model, dataset, path: np.ndarray) -> np.ndarray:
-    """uint8 [F, H, W, 3] renders at viewmats `path` [F, 4, 4], sRGB-encoded (as players show)."""
+def orbit_frames(model, dataset, path: np.ndarray) -> Iterator[np.ndarray]:
+    """uint8 [H, W, 3] renders at viewmats `path` [F, 4, 4], sRGB-encoded (as players show), one
+    at a time as they are asked for: a video's frames all held at once, and stacked, took twice
+    their memory (1080p: 6 MB a frame)."""
     from .evaluate import render_view
     from .image_io import linear_to_srgb
 
-    out = []
     for viewmat in path:
         image = render_view(model, viewmat, dataset)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
-        out.append((linear_to_srgb(image) * 255 + 0.5).astype(np.uint8))  # sRGB, as shown
-    return np.stack(out)
+        yield (linear_to_srgb(image) * 255 + 0.5).astype(np.uint8)  # sRGB, as shown
 
 
 def run(args: argparse.Namespace) -> int:
@@ -201,7 +202,8 @@ def run(args: argparse.Namespace) -> int:
             stacklevel=2,
         )
     viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
-    write_video(args.out, orbit_frames(load_ply(ply), dataset, viewmats), args.fps)
+    frames = orbit_frames(load_ply(ply), dataset, viewmats)  # rendered as they are written
+    write_video(args.out, frames, args.fps, count=len(viewmats))
     print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
     try:  # (the video stands without it, as sim-train's table does)

@@ -3,6 +3,7 @@ whole or not at all."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -64,30 +65,41 @@ def mp4_codec() -> str:
 BT601, SRGB_TRANSFER, LIMITED_RANGE = 6, 13, 1  # FFmpeg's AVColorSpace/Primaries, TRC, Range
 
 
-def write_mp4(path: Path, frames: np.ndarray, fps: int) -> None:
-    """uint8 frames [F, H, W, 3] as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
+def _even(frame: np.ndarray) -> np.ndarray:
+    """A uint8 frame [H, W, 3] with an edge-replicated row and column added where H or W is odd
+    (yuv420p's chroma needs an even size)."""
+    h, w = frame.shape[:2]
+    return np.pad(frame, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+
+
+def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int) -> None:
+    """uint8 frames [H, W, 3] (an array [F, H, W, 3], or any iterable: each is encoded as it
+    comes, and only it is held) as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
     in yuv420p, which every player reads; its chroma needs an even size, so an odd height or
     width gains one edge-replicated row or column."""
     import av
 
-    h, w = frames.shape[1:3]
-    frames = np.pad(frames, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
     codec = mp4_codec()
 
     def write(tmp: Path) -> None:
         # a file of ours, not a name: FFmpeg read a relative '2024-05-01T10:30.mp4' as the
         # protocol '2024-05-01T10', and kept a file open whose write failed (a full disk)
         with open(tmp, "wb") as file, av.open(file, "w", format="mp4") as container:
-            stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
-            stream.height, stream.width = frames.shape[1:3]
-            stream.pix_fmt = "yuv420p"
-            # what swscale's rgb24 -> yuv420p conversion makes, stated so that players do not
-            # guess: BT.601 (SMPTE 170M) matrix and primaries, limited range, sRGB transfer
-            context = stream.codec_context
-            context.colorspace, context.color_primaries = BT601, BT601
-            context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
-            for frame in frames:
+            stream = None
+            for frame in map(_even, frames):
+                if stream is None:  # the first frame's size is the video's
+                    stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
+                    stream.height, stream.width = frame.shape[:2]
+                    stream.pix_fmt = "yuv420p"
+                    # what swscale's rgb24 -> yuv420p conversion makes, stated so that players
+                    # do not guess: BT.601 (SMPTE 170M) matrix and primaries, limited range, sRGB
+                    # transfer
+                    context = stream.codec_context
+                    context.colorspace, context.color_primaries = BT601, BT601
+                    context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
                 container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
+            if stream is None:
+                raise ValueError(f"{path}: no frames to write")
             container.mux(stream.encode())  # flush the encoder's delayed frames
 
     write_atomically(path, write)  # no half-written video at `path`
@@ -101,24 +113,33 @@ def gif_delays_ms(count: int, fps: int) -> list[int]:
     return [10 * int(d) for d in np.diff(ends)]
 
 
-def write_video(path: Path, frames: np.ndarray, fps: int) -> None:
-    """uint8 frames [F, H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
-    first."""
+def write_video(
+    path: Path, frames: Iterable[np.ndarray], fps: int, count: int | None = None
+) -> None:
+    """uint8 frames [H, W, 3] as a GIF (Pillow) or MP4 (`write_mp4`); `check_video_output`
+    first. `frames`: an array [F, H, W, 3], or any iterable of `count` frames (a generator
+    rendering them: each is written as it comes, where holding them all took 2-3 times the
+    video's frames in memory)."""
     check_video_output(path, fps)
     if path.suffix.lower() == ".gif":
         from PIL import Image
 
-        images = [Image.fromarray(f) for f in frames]
-        write_atomically(  # no truncated animation at `path`
-            path,
-            lambda tmp: images[0].save(
+        count = len(frames) if count is None else count
+
+        def write(tmp: Path) -> None:
+            images = (Image.fromarray(frame) for frame in frames)  # each as Pillow takes it
+            first = next(images, None)
+            if first is None:
+                raise ValueError(f"{path}: no frames to write")
+            first.save(
                 tmp,
                 format="GIF",
                 save_all=True,
-                append_images=images[1:],
-                duration=gif_delays_ms(len(frames), fps),
+                append_images=images,
+                duration=gif_delays_ms(count, fps),
                 loop=0,
-            ),
-        )
+            )
+
+        write_atomically(path, write)  # no truncated animation at `path`
     else:
         write_mp4(path, frames, fps)
