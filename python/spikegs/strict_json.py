@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 
@@ -40,15 +41,18 @@ def _unique_keys(pairs: list) -> dict:
     return doc
 
 
-def read_json(path: Path) -> dict:
+def read_json(path: Path, object_hook: Callable[[dict], dict] | None = None) -> dict:
     """The JSON object in the file at `path`; ValueError naming the file where it is malformed,
     gives a key twice in an object (which of the two was meant?) or holds something else than an
-    object."""
+    object. `object_hook`: applied to each object (a dict) as it is parsed, innermost first."""
+    pairs_hook = (
+        _unique_keys if object_hook is None else lambda pairs: object_hook(_unique_keys(pairs))
+    )
     try:
         # JSON is UTF-8 whatever the locale (a C or Windows locale's codec misread "données"); a
         # byte-order mark, which editors on Windows write, is skipped
         text = path.read_text(encoding="utf-8-sig")
-        doc = json.loads(text, object_pairs_hook=_unique_keys)
+        doc = json.loads(text, object_pairs_hook=pairs_hook)
     except _RepeatedKeys as err:
         raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
