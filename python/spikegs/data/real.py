@@ -12,6 +12,7 @@ import dataclasses
 import math
 import os
 import warnings
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -194,12 +195,13 @@ def _longest_odd(length: int) -> int:
     return length - 1 + length % 2
 
 
-def view_tfps(views: list[tuple[SpikeStream, np.ndarray]]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Each view's TFP over its whole stream [H, W] with its sharp image [H, W, C]."""
-    return [(s.tfp(len(s) // 2, _longest_odd(len(s))), image) for s, image in views]
+def view_tfps(views: Iterable[tuple[SpikeStream, np.ndarray]]) -> Iterator[tuple[np.ndarray, ...]]:
+    """Each view's TFP over its whole stream [H, W] with its sharp image [H, W, C], computed as
+    it is asked for (a list of every training view's held as many TFPs as images)."""
+    return ((s.tfp(len(s) // 2, _longest_odd(len(s))), image) for s, image in views)
 
 
-def rate_from_images(views: list[tuple[np.ndarray, np.ndarray]], source: str) -> float:
+def rate_from_images(views: Iterable[tuple[np.ndarray, np.ndarray]], source: str) -> float:
     """The firing rate of intensity 1.0 from training views' TFPs over the whole view [H, W]
     and sharp images [H, W, 1] (`view_tfps`): the median over views of a view's mean firing
     rate over its image's mean intensity. Means, so that motion blur within a view and small
@@ -221,7 +223,7 @@ MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images un
 # of (0.99 for a well-read view; 0.25 for a .dat packed most significant bit first)
 
 
-def check_orientation(views: list[tuple[np.ndarray, np.ndarray]], flip: bool, source: str):
+def check_orientation(views: Iterable[tuple[np.ndarray, np.ndarray]], flip: bool, source: str):
     """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] (`view_tfps`)
     better upside down than as read, in most views (by FLIP_MARGIN in correlation): `flip` is
     likely wrong, and the scene would train upside down; and when they match neither way (median
@@ -309,13 +311,12 @@ def views_dataset(
         for i in np.flatnonzero(test)
     ]
     timestamps = [centers[i] for i in present if not test[i]]
-    # training views with a sharp image: their TFPs [H, W] and images
-    sharp = view_tfps(
-        [(streams[i], images[i]) for i in present if not test[i] and images[i] is not None]
-    )
-    check_orientation(sharp, options.flip, source)
+    # training views with a sharp image: their TFPs [H, W] and images, a view at a time
+    sharp = [i for i in present if not test[i] and images[i] is not None]
+    check_orientation(view_tfps((streams[i], images[i]) for i in sharp), options.flip, source)
     if sharp and "rate_at_one" not in meta:
-        meta["rate_at_one"] = rate_from_images(sharp, source)
+        tfps = view_tfps((streams[i], images[i]) for i in sharp)
+        meta["rate_at_one"] = rate_from_images(tfps, source)
         meta["rate_at_one_from"] = f"{len(sharp)} training views' sharp images"
     meta["spike_files"] = [os.path.relpath(streams[i].path, root) for i in present]
     meta["view_readouts"] = {
