@@ -127,6 +127,10 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 _CHECKED_VALUES = 16 << 20  # light values checked at a time by _checked_frame
+# the frames a chunk of readouts may hold, in bytes of float32 light: fewer readouts a chunk where
+# the frames are large (1080x1920 rendered every 2 readouts: 129 frames a 256-readout chunk, 1.1 GB
+# mono, 3.2 GB colour, and one channel's stack of them as much again); a chunk holds 2 at least
+CHUNK_LIGHT_BYTES = 256 << 20
 
 
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
@@ -248,15 +252,29 @@ class _Frames:
         if callable(source):  # its first frame rendered once: covering() finds it cached
             self._cache[0] = first if channels is not None else first[..., None]
 
-    def covering(self, t0: int, t1: int) -> tuple[list[np.ndarray], np.ndarray]:
-        """The f frames [H, W, C] and their times [f] that light readouts [t0, t1): the two
-        around each readout, which it interpolates (with frames sampled more often than once a
-        readout, those between are not read: a millionth of a readout apart, they filled the
-        memory)."""
+    def _needed(self, t0: int, t1: int) -> np.ndarray:
+        """The indices [f] of the frames that light readouts [t0, t1): the two around each
+        readout, which it interpolates (with frames sampled more often than once a readout, those
+        between are not read: a millionth of a readout apart, they filled the memory)."""
         i0 = max(int(np.searchsorted(self.times, t0, side="right")) - 1, 0)
         i1 = min(int(np.searchsorted(self.times, t1 - 1, side="left")), len(self.times) - 1)
         before = np.searchsorted(self.times, np.arange(t0, t1), side="right") - 1  # [t1 - t0]
-        needed = np.unique(np.clip(np.concatenate([before, before + 1]), i0, i1))  # [f]
+        return np.unique(np.clip(np.concatenate([before, before + 1]), i0, i1))  # [f]
+
+    def end_within(self, t0: int, t1: int, most: int) -> int:
+        """The largest end t in (t0, t1] whose readouts [t0, t) are lit by at most `most` frames
+        (`most` >= 2: one readout's two, t0 + 1 at least)."""
+        if len(self._needed(t0, t1)) <= most:
+            return t1
+        lo, hi = t0 + 1, t1  # the frames of [t0, lo) fit, those of [t0, hi) do not
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if len(self._needed(t0, mid)) <= most else (lo, mid)
+        return lo
+
+    def covering(self, t0: int, t1: int) -> tuple[list[np.ndarray], np.ndarray]:
+        """The f frames [H, W, C] and their times [f] that light readouts [t0, t1) (`_needed`)."""
+        needed = self._needed(t0, t1)  # [f]
         self._cache = {int(i): self._cache.get(int(i)) for i in needed}
         for i, frame in self._cache.items():
             if frame is None:
@@ -280,16 +298,20 @@ def _checked_run(num_readouts, seeds: list, params, chunk) -> tuple[int, SimPara
 
 
 def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimParams, chunk: int):
-    """Yield (t0, t1, spikes) for each `chunk` readouts [t0, t1): spikes [C] packed uint8
-    [t1 - t0, H, ceil(W/8)], channel c simulated with seed `seeds[c]`."""
-    height, width, _ = frames.shape
+    """Yield (t0, t1, spikes) for each `chunk` readouts [t0, t1), fewer where their frames would
+    hold more than CHUNK_LIGHT_BYTES: spikes [C] packed uint8 [t1 - t0, H, ceil(W/8)], channel c
+    simulated with seed `seeds[c]` (the same spikes whatever the chunks)."""
+    height, width, channels = frames.shape
     sims = [_C.SpikeSimulator(height, width, params.to_core(), int(s)) for s in seeds]
     # A million times the light that fires every readout fires every readout, as any more does;
     # capped there, the charge stays finite in float32 (above ~1e37 the shot noise made NaN)
     saturated = np.float32(1e6 / params.rate_at_one)
-    for t0 in range(0, num_readouts, chunk):
-        t1 = min(t0 + chunk, num_readouts)
+    most = max(2, CHUNK_LIGHT_BYTES // max(1, 4 * height * width * channels))  # frames a chunk
+    t0 = 0
+    while t0 < num_readouts:
+        t1 = frames.end_within(t0, min(t0 + chunk, num_readouts), most)
         yield t0, t1, _chunk_spikes(sims, *frames.covering(t0, t1), t1 - t0, saturated)
+        t0 = t1
 
 
 def _chunk_spikes(sims: list, held: list, times: np.ndarray, n: int, saturated) -> list:
@@ -322,9 +344,10 @@ def simulate_spikes(
     a callable t -> [H, W] sampled at `frame_times` if given, else at t = 0, frame_every,
     2·frame_every, ... and the last readout, each time once, as the simulation reaches it.
     The light between two frames is interpolated linearly per readout. Works `chunk` readouts at
-    a time. With `out` a path, streams to a .dat file (rows flipped if `flip`) and returns
-    `SpikeStream.open(out, ...)`; else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped),
-    which `SpikeStream.from_packed(packed, width=W)` reads. Intensities are floats (or bool and
+    a time (fewer where their frames would hold over CHUNK_LIGHT_BYTES). With `out` a path,
+    streams to a .dat file (rows flipped if `flip`) and returns `SpikeStream.open(out, ...)`;
+    else returns packed uint8 [T, H, ceil(W/8)] (rows unflipped), which
+    `SpikeStream.from_packed(packed, width=W)` reads. Intensities are floats (or bool and
     signed integers, at face value); uint8 and uint16, an image file's codes, are refused.
     """
     num_readouts, params = _checked_run(num_readouts, [seed], params, chunk)
@@ -356,8 +379,9 @@ def simulate_channels(
     """Simulate the C channels of a light, frames [F, H, W, C] or a callable t -> [H, W, C]
     (`simulate_spikes`'s times), into one .dat file each, `outs` [C], channel c with seed
     `seeds[c]`: each file the spikes `simulate_spikes` writes of that channel alone. Each frame
-    is read (a callable's rendered) once, and only those lighting `chunk` readouts are held: no
-    light of the whole recording in memory or on disk."""
+    is read (a callable's rendered) once, and only those lighting `chunk` readouts are held (fewer
+    readouts where they would hold over CHUNK_LIGHT_BYTES): no light of the whole recording in
+    memory or on disk."""
     if not outs or len(outs) != len(seeds):
         raise ValueError(
             f"expected a seed for each of 1 or more outputs, found {len(outs)} outputs and "
