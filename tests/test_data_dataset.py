@@ -915,6 +915,49 @@ def test_a_view_lit_in_one_colour_is_lit():
         warn_about_data(views, trajectory, SimParams(rate_at_one=0.25))
 
 
+def test_the_light_checks_gather_the_lit_rates_a_view_at_a_time():
+    """warn_about_data counts saturated pixels and gathers the lit ones view by view: the views'
+    images concatenated, with their masks and a copy of the lit values, took 2.2 times the
+    images before simulating (16 views of 1080x1920 colour: +851 MB over their 380, +401 now).
+    16 views of 48x64 colour, 5 % lit (1 % saturated), one in float64 (a frame sequence's view at
+    a readout): numpy's traced peak under half the images (2.3 times before), the lit
+    values and the numbers said np.concatenate's and np.mean's."""
+    import tracemalloc
+
+    from spikegs.data import simulate
+
+    rng = np.random.default_rng(0)
+    views = []
+    for i in range(16):
+        image = np.zeros((48, 64, 3), np.float64 if i == 3 else np.float32)
+        lit = rng.random(image.shape) < 0.05
+        image[lit] = rng.uniform(0.003, 1.0, lit.sum())
+        image[rng.random(image.shape) < 0.011] = 1.5
+        views.append(View(f"v{i}", np.eye(4), image, None))
+    params = SimParams(rate_at_one=0.25, dark_rate=1.0)  # its warning names the lit mean
+    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
+    tracemalloc.start()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            warn_about_data(views, trajectory, params)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 0.5 * sum(v.image.nbytes for v in views), peak
+    threshold = 0.01 * params.rate_at_one
+    rates = np.concatenate([np.ravel(v.image) for v in views])
+    lit = simulate._lit_rates(views, threshold)
+    assert lit.dtype == rates.dtype == np.float64
+    np.testing.assert_array_equal(lit, rates[rates > threshold])
+    said = [
+        f"{np.mean(rates >= 1.0):.0%} of the held-out",
+        f"{rates[rates > threshold].mean():.3g}",
+    ]
+    messages = " ".join(str(w.message) for w in caught)
+    assert all(text in messages for text in said), (said, messages)
+
+
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_a_recording_read_with_height_and_width_swapped_is_warned_of(scene, tmp_path):
     """Height and width swapped give frames of as many bytes: the spikes were read without a

@@ -100,6 +100,18 @@ def camera_motion(trajectory: Trajectory) -> tuple[float, float]:
     return turn, float(np.linalg.norm(trajectory.centers - trajectory.centers[0], axis=1).max())
 
 
+def _lit_rates(views: list[TestView], threshold: float) -> np.ndarray:
+    """The values [n] over `threshold` of the views' images, in their order (the images' own
+    dtype, promoted as np.concatenate does), gathered a view at a time."""
+    counts = [int(np.count_nonzero(v.image > threshold)) for v in views]
+    lit = np.empty(sum(counts), np.result_type(*(v.image.dtype for v in views)))
+    start = 0
+    for view, count in zip(views, counts):
+        lit[start : start + count] = view.image[view.image > threshold]
+        start += count
+    return lit
+
+
 def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimParams) -> None:
     """UserWarnings where the data to be simulated would defeat the methods (light that saturates
     the camera, or too faint for a TFP window, dark spikes rivalling the light, a camera that
@@ -114,8 +126,11 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             "same image three times over; simulate it mono or use a coloured scene",
             stacklevel=3,
         )
-    rates = np.concatenate([np.ravel(v.image) for v in views])
-    saturated = float(np.mean(rates >= 1.0))
+    # counted view by view, the lit pixels' rates gathered into one array: the views' images
+    # concatenated, their masks and the lit ones copied took 2.2 times the images (16 views of
+    # 1080x1920 colour: +851 MB over their 380, +401 now); the same numbers (np.mean's)
+    total = max(sum(v.image.size for v in views), 1)
+    saturated = sum(int(np.count_nonzero(v.image >= 1.0)) for v in views) / total
     if saturated > SATURATED_FRACTION:
         warnings.warn(
             f"{saturated:.0%} of the held-out views' pixels fire every readout (intensity >= "
@@ -138,7 +153,7 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             stacklevel=3,
         )
     # the scene's own pixels: a small object on black (most of the frame) is not a dim scene
-    lit = rates[rates > threshold]
+    lit = _lit_rates(views, threshold)
     lit_mean = float(lit.mean()) if lit.size else 0.0
     if lit_mean * BLUR_WINDOW < 1:
         fire = (
