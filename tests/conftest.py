@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import weakref
 
 import numpy as np
 import pytest
@@ -82,3 +83,27 @@ def gone_stderr(monkeypatch):
         return stream
 
     return install
+
+
+class AliveArrays:
+    """The arrays handed to `track` that are not yet freed (`len`), and the most alive at once
+    (`most`): for tests that data is held one piece at a time, not all together."""
+
+    def __init__(self):
+        self._ids: set[int] = set()
+        self.most = 0
+
+    def __len__(self) -> int:
+        return len(self._ids)
+
+    def track(self, array):
+        """`array`, counted until it is freed."""
+        self._ids.add(id(array))
+        weakref.finalize(array, self._ids.discard, id(array))
+        self.most = max(self.most, len(self._ids))
+        return array
+
+
+@pytest.fixture
+def alive_arrays() -> AliveArrays:
+    return AliveArrays()

@@ -6,7 +6,6 @@ import json
 import re
 import shutil
 import warnings
-import weakref
 from pathlib import Path
 
 import numpy as np
@@ -900,7 +899,7 @@ def test_camera_files_state_width_and_height_as_nerfstudio_reads_them(tmp_path):
         assert (doc["w"], doc["h"], doc["cx"], doc["cy"]) == (W, H, W / 2, H / 2)
 
 
-def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch):
+def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch, alive_arrays):
     """The off-path views' rendered images are not kept beside their firing rates through the
     simulation, and the test views are not held twice while the dataset written is loaded
     (simulate at 1080x1920 colour, 8 + 8 views: anonymous peak 1380 -> 1113 MB, RSS 2337 ->
@@ -909,16 +908,15 @@ def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch):
     from spikegs.data import simulate
     from spikegs.data.sources import RenderSource
 
-    alive, counted = set(), {}
+    counted = {}
 
     def track(arrays) -> None:
         for array in arrays:
-            alive.add(id(array))
-            weakref.finalize(array, alive.discard, id(array))
+            alive_arrays.track(array)
 
     def counting(name: str, function):
         def call(*args):
-            counted[name] = len(alive)
+            counted[name] = len(alive_arrays)
             return function(*args)
 
         return call

@@ -11,7 +11,6 @@ import pickle
 import re
 import shutil
 import warnings
-import weakref
 from pathlib import Path
 
 import numpy as np
@@ -781,7 +780,7 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
         load_dataset(root)
 
 
-def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch):
+def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch, alive_arrays):
     """Each sharp test image is reduced to the spikes' size as it is read: all of a test set's
     held at full size at once filled the memory (60 test images of 960x1440: 2.3 GB peak against
     0.45 one at a time). Four test frames with sharp images; at most two read images alive, and
@@ -797,22 +796,20 @@ def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch):
     )
     for i in (1, 2, 3):
         shutil.copy(root / "test" / "r_0.exr", root / "test" / f"r_{i}.exr")
-    alive, most, read_paths = set(), [0], []
+    read_paths = []
     read = nerf_layout._image
 
     def counted(root, frame):
         image = read(root, frame)
         if image is not None:
             read_paths.append(frame["file_path"])
-            alive.add(id(image))
-            weakref.finalize(image, alive.discard, id(image))
-            most[0] = max(most[0], len(alive))
+            alive_arrays.track(image)
         return image
 
     monkeypatch.setattr(nerf_layout, "_image", counted)
     assert [v.name for v in load_dataset(root).test_views] == [f"test_r_{i}" for i in range(4)]
     assert {f"./test/r_{i}" for i in range(4)} <= set(read_paths), read_paths
-    assert 1 <= most[0] <= 2, most
+    assert 1 <= alive_arrays.most <= 2, alive_arrays.most
 
 
 def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):

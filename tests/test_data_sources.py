@@ -7,7 +7,6 @@ import os
 import re
 import sys
 import warnings
-import weakref
 
 import numpy as np
 import pytest
@@ -237,7 +236,7 @@ def test_frame_sequence_source(tmp_path):
     assert again.meta["up"] is None and again.meta["degrees_per_readout"] is None
 
 
-def test_frame_sequence_frames_are_stored_one_at_a_time(tmp_path, monkeypatch):
+def test_frame_sequence_frames_are_stored_one_at_a_time(tmp_path, monkeypatch, alive_arrays):
     """Each frame of a sequence goes into the float32 frames as it is resized: the resized frames
     were listed in float64 and stacked, 4 times the frames' memory at once (`spikegs simulate
     --scene DIR`, 200 frames of 800x800 to 400x400 colour: 2.2 GB peak against 1.1). Six colour
@@ -248,19 +247,14 @@ def test_frame_sequence_frames_are_stored_one_at_a_time(tmp_path, monkeypatch):
     poses = truth.trajectory(1001, 0.5).pose_at(np.linspace(0, 1000, 6))  # [6, 4, 4]
     frames = np.stack([truth.render(v) for v in poses])  # [6, 32, 32, 3]
     write_transforms(tmp_path / "transforms.json", "train", frames, poses, truth.K, ".exr")
-    alive, most = set(), [0]
     fitted = transforms_file.fitted
 
     def counted(*args):
-        image = fitted(*args)
-        alive.add(id(image))
-        weakref.finalize(image, alive.discard, id(image))
-        most[0] = max(most[0], len(alive))
-        return image
+        return alive_arrays.track(fitted(*args))
 
     monkeypatch.setattr(transforms_file, "fitted", counted)
     source = FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 16, 16, 3)
-    assert most[0] <= 2, most
+    assert alive_arrays.most <= 2, alive_arrays.most
     assert source.frames.dtype == np.float32 and source.frames.shape == (6, 16, 16, 3)
     monkeypatch.setattr(transforms_file, "fitted", fitted)
     halved = [fitted(f.astype(np.float64), (32, 32), (16, 16), "f") for f in frames]
@@ -838,7 +832,7 @@ def test_nerf_orientation_check_reads_the_first_eight_training_images(tmp_path, 
     assert seen == [real.ORIENTATION_VIEWS] == [8]
 
 
-def test_nerf_training_views_tfps_are_computed_one_at_a_time(tmp_path, monkeypatch):
+def test_nerf_training_views_tfps_are_computed_one_at_a_time(tmp_path, monkeypatch, alive_arrays):
     """The training views' TFPs, which calibrate the intensity scale and check the orientation
     against their sharp images, are computed a view at a time: a list of them all held as much
     as the images again (0.4 MB a view at 250x400; 160 views: peak RSS +295 MB over the load's
@@ -846,15 +840,10 @@ def test_nerf_training_views_tfps_are_computed_one_at_a_time(tmp_path, monkeypat
     two TFPs alive at once (10 before), and the same scale."""
     from spikegs.spikes.stream import SpikeStream
 
-    alive, most = set(), [0]
     tfp = SpikeStream.tfp
 
     def counted(self, *args):
-        image = tfp(self, *args)
-        alive.add(id(image))
-        weakref.finalize(image, alive.discard, id(image))
-        most[0] = max(most[0], len(alive))
-        return image
+        return alive_arrays.track(tfp(self, *args))
 
     image = np.full((23, 37, 3), 0.5)
     camera = {"fl_x": 50.8, "cx": 18.5, "cy": 11.5, "w": 37, "h": 23}
@@ -863,7 +852,7 @@ def test_nerf_training_views_tfps_are_computed_one_at_a_time(tmp_path, monkeypat
         expected = load_dataset(root).meta["rate_at_one"]  # (random spikes)
         monkeypatch.setattr(SpikeStream, "tfp", counted)
         assert load_dataset(root).meta["rate_at_one"] == expected
-    assert 0 < most[0] <= 2, most
+    assert 0 < alive_arrays.most <= 2, alive_arrays.most
 
 
 def test_nerf_test_image_sizes_pixel_intrinsics_and_its_alpha_is_over_white(tmp_path):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import warnings
-import weakref
 
 import numpy as np
 import pytest
@@ -180,7 +179,7 @@ def test_a_callable_is_sampled_at_the_frame_times_given():
         simulate_spikes(light, 120, frame_times=[0.0, 100.0])
 
 
-def test_a_chunk_holds_its_frames_light_up_to_a_cap(tmp_path, monkeypatch):
+def test_a_chunk_holds_its_frames_light_up_to_a_cap(tmp_path, monkeypatch, alive_arrays):
     """Large frames shorten a chunk so that the frames it holds stay under CHUNK_LIGHT_BYTES: a
     256-readout chunk held 129 frames of light rendered every 2 readouts, 1.1 GB at 1080x1920
     (simulate's peak RSS 2575 MB there, 987 with the cap). Colour frames of 6x11 (792 bytes in
@@ -188,15 +187,11 @@ def test_a_chunk_holds_its_frames_light_up_to_a_cap(tmp_path, monkeypatch):
     and the spikes those of uncapped chunks."""
     rng = np.random.default_rng(5)
     frames = {t: rng.random((6, 11, 3), dtype=np.float32) for t in sample_times(200, 2.0)}
-    alive, most, calls = set(), [0], []
+    calls = []
 
     def light(t: float) -> np.ndarray:  # [H, W, C] float32: held as it is returned
         calls.append(t)
-        frame = frames[t].copy()
-        alive.add(id(frame))
-        weakref.finalize(frame, alive.discard, id(frame))
-        most[0] = max(most[0], len(alive))
-        return frame
+        return alive_arrays.track(frames[t].copy())
 
     def spikes(name: str) -> list[np.ndarray]:
         outs = [tmp_path / f"{name}{c}.dat" for c in range(3)]
@@ -205,12 +200,13 @@ def test_a_chunk_holds_its_frames_light_up_to_a_cap(tmp_path, monkeypatch):
 
     monkeypatch.setattr(simulate, "CHUNK_LIGHT_BYTES", 4 * 6 * 11 * 3 * 4, raising=False)
     capped = spikes("capped")
-    assert most[0] <= 4, most
+    assert alive_arrays.most <= 4, alive_arrays.most
     assert calls == sorted(frames)  # each once, in order
     monkeypatch.setattr(simulate, "CHUNK_LIGHT_BYTES", 1 << 30, raising=False)
     for got, want in zip(capped, spikes("whole")):
         np.testing.assert_array_equal(got, want)
-    assert most[0] >= len(frames)  # uncapped, one chunk held every frame: the count counts
+    # uncapped, one chunk held every frame: the count counts
+    assert alive_arrays.most >= len(frames)
 
 
 def test_channels_are_each_simulated_as_alone(tmp_path):
