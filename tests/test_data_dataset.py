@@ -508,6 +508,24 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             ),
             "trajectory.json: malformed frames",
         ),
+        # numpy reads a true among numbers as 1: a pose of the identity with one entry true
+        "bool in a pose": (
+            "trajectory.json",
+            lambda text: json.dumps(
+                {
+                    **json.loads(text),
+                    "frames": [
+                        {
+                            **f,
+                            "transform_matrix": [[True, *f["transform_matrix"][0][1:]]]
+                            + f["transform_matrix"][1:],
+                        }
+                        for f in json.loads(text)["frames"]
+                    ],
+                }
+            ),
+            "trajectory.json: malformed frames .*true or false",
+        ),
         "frames": (
             "test_views.json",
             views(lambda d: {**d, "frames": 3}),

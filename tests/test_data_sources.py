@@ -314,12 +314,17 @@ def test_frame_sequence_rounded_poses_made_rigid_and_malformed_files_named(tmp_p
     source = FrameSequenceSource.from_transforms(path, 8, 8)
     check_rigid(source.viewmats, "rounded")  # within 1e-5 of rigid: loadable test views
     np.testing.assert_allclose(source.viewmats, poses, atol=5e-3)
+    bool_pose = [[True, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 4], [0, 0, 0, 1]]
     for text, message in (
         ("[]", "expected a JSON object"),
         (json.dumps({**doc, "frames": ["train/r_0"]}), "frame 0 needs a file_path"),
         (json.dumps({**doc, "frames": [{**doc["frames"][0], "file_path": 3}]}), r"\(text\)"),
         (
             json.dumps({**doc, "frames": [{**doc["frames"][0], "transform_matrix": "I"}]}),
+            "frame 0 .*transform_matrix expected 4 rows of 4 numbers",
+        ),
+        (  # numpy reads a true among numbers as 1
+            json.dumps({**doc, "frames": [{**doc["frames"][0], "transform_matrix": bool_pose}]}),
             "frame 0 .*transform_matrix expected 4 rows of 4 numbers",
         ),
     ):

@@ -3223,6 +3223,10 @@ def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_
     )
     with pytest.raises(ValueError, match="expected numbers, found bool values"):
         number_array([True, False])
+    for mixed in ([1.0, True], [[0, 1], (2, np.False_)]):  # numpy made these 1.0 and 0
+        with pytest.raises(ValueError, match="found true or false among them"):
+            number_array(mixed)
+    assert number_array([np.zeros(2), [1, 2]]).tolist() == [[0, 0], [1, 2]]
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):

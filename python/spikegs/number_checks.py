@@ -53,8 +53,18 @@ def finite_numbers(**values) -> list[float]:
 
 def number_array(value) -> np.ndarray:
     """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls or
-    ragged lists (np.asarray(value, float) would read '1.0' and True as numbers)."""
+    ragged lists (np.asarray(value, float) would read '1.0' and True as numbers, and
+    np.asarray reads a True among numbers as 1)."""
     array = np.asarray(value)  # ragged: ValueError
     if array.dtype.kind not in "iuf":
         raise ValueError(f"expected numbers, found {array.dtype.name} values")
+    if _holds_bool(value):
+        raise ValueError("expected numbers, found true or false among them")
     return array.astype(np.float64)
+
+
+def _holds_bool(value) -> bool:
+    """Whether nested lists or tuples hold a bool anywhere (arrays inside are numbers already)."""
+    if isinstance(value, (list, tuple)):
+        return any(map(_holds_bool, value))
+    return isinstance(value, (bool, np.bool_))
