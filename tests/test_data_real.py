@@ -808,8 +808,13 @@ def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch, al
 
     monkeypatch.setattr(nerf_layout, "_image", counted)
     assert [v.name for v in load_dataset(root).test_views] == [f"test_r_{i}" for i in range(4)]
-    assert {f"./test/r_{i}" for i in range(4)} <= set(read_paths), read_paths
+    assert sorted(read_paths) == [f"./test/r_{i}" for i in range(4)], read_paths
     assert 1 <= alive_arrays.most <= 2, alive_arrays.most
+    for name in ("train", "test"):  # no stated size: the first test image gives it, read once
+        edit_json(root / f"transforms_{name}.json", lambda doc: [doc.pop(k) for k in "wh"])
+    read_paths.clear()
+    assert load_dataset(root).test_views[0].image.shape == (H, W, 1)
+    assert sorted(read_paths) == [f"./test/r_{i}" for i in range(4)], read_paths
 
 
 def test_nerf_image_with_a_nan_pixel_refused(nerf, tmp_path):

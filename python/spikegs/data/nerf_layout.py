@@ -219,9 +219,23 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
                 f"{source}: spike file of frame '{frame['file_path']}' not found ({where})"
                 + (", and no sharp image either" if is_test else "")
             )
-    # sharp images read one at a time (a test set's, full size, would fill the memory at once)
-    tests = (_image(root, f) for f, is_test in zip(frames, test) if is_test)
-    training = (_readable(root, f) for f, is_test in zip(frames, test) if not is_test)
+    # sharp images read one at a time (a test set's, full size, would fill the memory at once);
+    # the one that gives the size (none where w, h are stated) kept for its view, not read again
+    sized: dict[int, np.ndarray] = {}
+
+    def keep(i: int, image: np.ndarray | None) -> np.ndarray | None:
+        if image is not None:
+            sized[i] = image
+        return image
+
+    tests = (
+        keep(i, _image(root, f)) for i, (f, is_test) in enumerate(zip(frames, test)) if is_test
+    )
+    training = (
+        keep(i, _readable(root, f))
+        for i, (f, is_test) in enumerate(zip(frames, test))
+        if not is_test
+    )
     src, (height, width), what = _sizes(path, camera, tests, training, options)
     row, shift = frame_columns(  # the resized images' width, the spikes' first column in it
         path, what, src, (height, width), ASPECT_FIX, options.raw_width, options.col_offset
@@ -239,22 +253,24 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     calibrate = options.rate_at_one is None
     checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
 
-    def mono(image: np.ndarray | None, frame: dict) -> np.ndarray | None:
+    def mono(i: int, frame: dict) -> np.ndarray | None:
+        image = sized.pop(i) if i in sized else _image(root, frame)
         name = f"{root / frame['file_path']}"
         return _mono(image, src, (height, row), slice(shift, shift + width), name)
 
-    def training_image(frame: dict, check: bool) -> np.ndarray | None:
+    def training_image(i: int, frame: dict, check: bool) -> np.ndarray | None:
         if calibrate:
-            return mono(_image(root, frame), frame)
+            return mono(i, frame)
         try:
-            return mono(_image(root, frame), frame) if check else None
+            return mono(i, frame) if check else None
         except ValueError:  # unreadable, or of another aspect ratio
             return None
 
     images = [
-        mono(_image(root, frame), frame) if is_test else training_image(frame, check)
-        for frame, is_test, check in zip(frames, test, checked)
+        mono(i, frame) if is_test else training_image(i, frame, check)
+        for i, (frame, is_test, check) in enumerate(zip(frames, test, checked))
     ]
+    sized.clear()  # a training image that gave the size but is not checked
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
     streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
