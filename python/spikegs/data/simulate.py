@@ -488,7 +488,7 @@ def simulate_dataset(
     # 1080x1920 colour, 0.2 GB)
     views += [
         TestView(name, viewmat, image * rate, None)
-        for name, viewmat, image in source.off_path_views(test_off_path)
+        for name, viewmat, image in source.off_path_views(test_off_path, speed * (readouts - 1))
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
     check_test_views(views, f"scene '{source.name}'")  # before any work
