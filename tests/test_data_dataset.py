@@ -239,6 +239,38 @@ def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):
         assert len(off) == 2 and nearest.max() < 15, (name, nearest)
 
 
+def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
+    """Source.off_path_views takes the count alone: a Source of the user's own (spikegs.data
+    exports the class) is not passed the arc an orbit's views follow (a TypeError)."""
+    from spikegs.data import ProceduralSource, Source
+
+    orbit = ProceduralSource("solids", SCENES["solids"](), SMALL["width"], SMALL["height"], 1)
+
+    class Own(Source):
+        name, kind = "own", "render"
+
+        def __init__(self):
+            super().__init__(orbit.width, orbit.height, 1, orbit.K, orbit.scene_center, 1.0)
+
+        def trajectory(self, num_readouts, degrees_per_readout):
+            return orbit.trajectory(num_readouts, degrees_per_readout)
+
+        def image_at(self, trajectory, t):
+            return orbit.image_at(trajectory, t)
+
+        def light_times(self, num_readouts, frame_every):
+            return orbit.light_times(num_readouts, frame_every)
+
+        def on_path_times(self, num_readouts, count, margin):
+            return orbit.on_path_times(num_readouts, count, margin)
+
+        def off_path_views(self, count):
+            return orbit.off_path_views(count)[::-1]
+
+    views = simulate_dataset(Own(), tmp_path / "own", **SMALL).test_views
+    assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
+
+
 def test_numpy_integers_simulate_a_dataset_that_loads(tmp_path):
     """numpy integers (a loop over np.arange, a value read from an array) reached meta.json: a
     TypeError after the simulation, and a half-written dataset in the way of the next one."""
@@ -954,7 +986,7 @@ def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch, alive_arrays
     off_path_views, write_parts = RenderSource.off_path_views, simulate.write_parts
 
     def rendered(self, count, arc_deg):
-        views = off_path_views(self, count, arc_deg)
+        views = off_path_views(self, count, arc_deg=arc_deg)
         track(image for *_, image in views)
         return views
 

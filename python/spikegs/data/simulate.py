@@ -484,11 +484,13 @@ def simulate_dataset(
         )
         for i, t in enumerate(on_path)
     ]
+    # an orbit's over the arc its path turns (a Source of the user's own takes only the count);
     # the rendered images not kept beside their firing rates (through the simulation: 8 views of
     # 1080x1920 colour, 0.2 GB)
+    arc = {"arc_deg": speed * (readouts - 1)} if isinstance(source, RenderSource) else {}
     views += [
         TestView(name, viewmat, image * rate, None)
-        for name, viewmat, image in source.off_path_views(test_off_path, speed * (readouts - 1))
+        for name, viewmat, image in source.off_path_views(test_off_path, **arc)
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
     check_test_views(views, f"scene '{source.name}'")  # before any work

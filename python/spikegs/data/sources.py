@@ -87,11 +87,8 @@ class Source(ABC):
         whose clean image is exact."""
 
     @abstractmethod
-    def off_path_views(
-        self, count: int, arc_deg: float = 360.0
-    ) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """Up to `count` views off the path: (name, viewmat [4, 4], image [H, W, C]); `arc_deg`,
-        the degrees an orbit's path turns (`trajectory`'s speed times its readouts less one)."""
+    def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Up to `count` views off the path: (name, viewmat [4, 4], image [H, W, C])."""
 
 
 class RenderSource(Source):
@@ -148,9 +145,9 @@ class RenderSource(Source):
     def off_path_views(
         self, count: int, arc_deg: float = 360.0
     ) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """Evenly over the azimuths the path turns through (around the scene where it turns
-        360° or more): a 20° path (--speed 0.005) sees one side; views around it scored
-        17-22 dB where its own scored 44."""
+        """Evenly over the azimuths the path turns through, `arc_deg` (`trajectory`'s speed
+        times its readouts less one; around the scene where it turns 360° or more): a 20° path
+        (--speed 0.005) sees one side; views around it scored 17-22 dB where its own scored 44."""
         views = []
         elevation = float(np.mean(self.elevation_deg))
         arc = 360.0 if abs(arc_deg) >= 360 else arc_deg
@@ -410,7 +407,5 @@ class FrameSequenceSource(Source):
             pick = np.round(np.linspace(0, len(inside) - 1, count)).astype(int)
         return inside[pick]
 
-    def off_path_views(
-        self, count: int, arc_deg: float = 360.0
-    ) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
         return self._test_views[:count]  # the file's own, wherever its path goes
