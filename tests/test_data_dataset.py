@@ -206,6 +206,9 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     # light that saturates every pixel: flagged while simulating, then refused on loading
     saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
     cases.append((constant_source(5.0), still, saturated))
+    # brighter than white, below the camera's ceiling: recorded, scored as white
+    white = r"100.0% of the held-out views' pixels are brighter than white .* clipped to \[0, 1\]"
+    cases.append((constant_source(2.0), still, (white, "turns 0° and moves 0")))
     for i, (scene, options, messages) in enumerate(cases):
         messages = (messages,) if isinstance(messages, str) else messages
         error = ""

@@ -138,6 +138,17 @@ def warn_about_data(views: list[TestView], trajectory: Trajectory, params: SimPa
             f"intensity is lost; lower rate_at_one",
             stacklevel=3,
         )
+    else:  # brighter than white, recorded, but scored as white
+        bright = sum(int(np.count_nonzero(v.image > params.rate_at_one)) for v in views) / total
+        if bright > SATURATED_FRACTION:
+            warnings.warn(
+                f"{bright:.1%} of the held-out views' pixels are brighter than white (intensity "
+                f"over 1, which fires rate_at_one = {params.rate_at_one:g} spikes per readout): "
+                f"the camera records them, but spikegs eval scores intensities clipped to [0, 1] "
+                f"(as 8-bit images are), so their detail is not scored; dim the scene's light "
+                f"where it matters",
+                stacklevel=3,
+            )
     # a view of a wall's back or of the sky scores how black a render is: Mitsuba's one-sided
     # Cornell box, 9 of its 16 views black, TFP(33)+3DGS 59 dB in the mean, SpikeGS 46, though
     # SpikeGS leads by 2.3 dB over the 7 views of the box (BENCHMARKS.md, "Scenes not tuned on")
