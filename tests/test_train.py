@@ -3209,6 +3209,8 @@ def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
     sim = biased_fit(record(instant=1.0, exposure=2.0), SupervisionConfig(instant="sim"))
     assert "(its instant renders hold 100 % of theirs: the exposure targets differ" in sim
     assert "SIM" not in sim
+    # renders a hair under black (a black recording's dark spikes as targets): 0 %, not -0 %
+    assert "hold 0 % of their exposure" in biased_fit(record(exposure=-0.004), tfp)
 
 
 def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_booleans():

@@ -52,7 +52,7 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
         if LOW <= ratio <= HIGH:
             continue
         text = (
-            f"the renders hold {100 * ratio:.0f} % of their {term} targets' brightness over the "
+            f"the renders hold {round(100 * ratio)} % of their {term} targets' brightness over the "
             f"last {steps} steps: a biased or unconverged fit"
         )
         fitted = [(other, r) for other, (r, _) in ratios.items() if LOW <= r <= HIGH]
@@ -68,7 +68,7 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
             other, r = fitted[0]
             sim = term == "instant" and supervision.instant == "sim"
             text += (
-                f" (its {other} renders hold {100 * r:.0f} % of theirs: the {term} targets"
+                f" (its {other} renders hold {round(100 * r)} % of theirs: the {term} targets"
                 + (", SIM's output," if sim else "")
                 + f" differ in brightness from the {other} targets"
                 + ("; a SIM trained too briefly? sim.iterations" if sim else "")
