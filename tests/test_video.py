@@ -1,8 +1,10 @@
-"""Videos (video.py): the frame-rate bounds of a GIF and the codec an .mp4 prefers."""
+"""Videos (video.py): the frame-rate bounds of a GIF, the codec an .mp4 prefers, and frames
+written as they come."""
 
+import numpy as np
 import pytest
 from spikegs import video
-from spikegs.video import GIF_MAX_FPS, check_video_output, gif_delays_ms
+from spikegs.video import GIF_MAX_FPS, check_video_output, gif_delays_ms, write_video
 
 
 def test_a_gif_takes_up_to_50_fps(tmp_path):
@@ -24,3 +26,30 @@ def test_mp4_prefers_h264_and_falls_back_to_mpeg4(monkeypatch, tmp_path):
     monkeypatch.setattr(video, "can_encode", lambda codec: False)
     with pytest.raises(ValueError, match="none of the encoders libx264, mpeg4"):
         check_video_output(tmp_path / "v.mp4", 20)
+
+
+@pytest.mark.parametrize("error", [RuntimeError("render failed"), KeyboardInterrupt()])
+@pytest.mark.parametrize("name", ["orbit.mp4", "orbit.gif"])
+def test_frames_that_stop_coming_leave_the_previous_video(tmp_path, name, error):
+    """`spikegs render` encodes each frame as it is rendered, inside the video's atomic write: a
+    render that fails (or a Ctrl-C) after two frames raises its own error, and leaves the previous
+    video whole and no temporary file (an error of any kind, not only a write's OSError)."""
+    path = tmp_path / name
+    path.write_bytes(b"previous")
+
+    def frames():
+        yield from np.zeros((2, 16, 16, 3), np.uint8)
+        raise error
+
+    with pytest.raises(type(error)):
+        write_video(path, frames(), 10, count=3)
+    assert path.read_bytes() == b"previous" and sorted(tmp_path.iterdir()) == [path]
+
+
+@pytest.mark.parametrize("name", ["orbit.mp4", "orbit.gif"])
+def test_a_video_of_no_frames_is_refused(tmp_path, name):
+    """No frames: a ValueError naming the video, and no file (the encoder had no stream to flush,
+    the GIF no first image)."""
+    with pytest.raises(ValueError, match=f"{name}: no frames to write"):
+        write_video(tmp_path / name, iter([]), 10, count=0)
+    assert not list(tmp_path.iterdir())
