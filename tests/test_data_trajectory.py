@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -228,6 +229,21 @@ def test_a_long_pose_log_is_read_without_a_python_list_a_number(tmp_path):
     doc["frames"][2]["transform_matrix"][1] = [0.0, 1.0, 0.0]  # ragged, the others arrays
     path.write_text(json.dumps(doc))
     with pytest.raises(ValueError, match=r"trajectory.json: malformed frames \(setting an array"):
+        Trajectory.load_json(path)
+
+
+def test_only_the_frames_matrices_become_arrays_as_the_file_is_parsed(tmp_path, two_poses):
+    """The parse's hook turns a frame's transform_matrix into an array; an object elsewhere with a
+    transform_matrix (here a convention that is one) stays as written, and is named so: it was
+    named as a numpy array over five lines, its 0 as 0."""
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    written = [[1, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    doc["convention"] = {"transform_matrix": written}
+    path.write_text(json.dumps(doc))
+    found = re.escape(f"convention {{'transform_matrix': {written!r}}}; expected")
+    with pytest.raises(ValueError, match=f"trajectory.json: {found}"):
         Trajectory.load_json(path)
 
 

@@ -304,11 +304,12 @@ def write_camera_doc(path: Path, frames: Iterable[dict], **extra) -> None:
 
 
 def _compact_matrix(frame: dict) -> dict:
-    """A JSON object as it is parsed with its `transform_matrix`, where that is 4x4 numbers, as
-    a float64 array [4, 4]: the lists and floats of a pose a readout held 0.3 GB for 200k
-    readouts (the arrays 0.16, with the file's text)."""
+    """A JSON object as it is parsed with its `transform_matrix`, where it is a frame (it has a
+    readout: another object stays as written, for a message) and that is 4x4 numbers, as a
+    float64 array [4, 4]: the lists and floats of a pose a readout held 0.3 GB for 200k readouts
+    (the arrays 0.16, with the file's text)."""
     matrix = frame.get("transform_matrix")
-    if isinstance(matrix, list):
+    if "readout" in frame and isinstance(matrix, list):
         try:
             array = number_array(matrix)
         except ValueError:  # ragged, text, true or false: left as it is, for `load_json`'s error
