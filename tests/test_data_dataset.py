@@ -1003,6 +1003,7 @@ def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch, alive_arrays
     monkeypatch.setattr(simulate, "load_dataset", counting("load", simulate.load_dataset))
     ds = simulate_dataset("solids", tmp_path / "d", **SMALL)
     assert counted == {"spikes": 0, "load": 0}, counted
+    assert alive_arrays.most >= 4, alive_arrays.most  # the 4 written, counted (not 0: elsewhere)
     assert len(ds.test_views) == 4
 
 
