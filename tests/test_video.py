@@ -53,3 +53,25 @@ def test_a_video_of_no_frames_is_refused(tmp_path, name):
     with pytest.raises(ValueError, match=f"{name}: no frames to write"):
         write_video(tmp_path / name, iter([]), 10, count=0)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_mp4_is_the_same_file_whatever_runs_between_its_frames(tmp_path):
+    """`spikegs render` renders each frame between two encodes; with B-frames, libx264 read stack
+    memory it never wrote, and the same frames made another file where other work ran between
+    them (3 files of 5 renders of one orbit). The same frames: one file, work between or not."""
+    rng = np.random.default_rng(0)
+    light = np.cumsum(rng.random((24, 34, 48, 3)), axis=1)  # [F, H, W, 3] a gradient's noise
+    frames = (light / light.max() * 255).astype(np.uint8)
+
+    def rendered(seed: int):
+        """`frames`, some of numpy's and LAPACK's work done before each, as a render's."""
+        work = np.random.default_rng(seed)
+        for frame in frames:
+            np.linalg.svd(work.random((60, 60)))
+            [work.integers(0, 255, work.integers(1000, 100000), np.uint8) for _ in range(10)]
+            yield frame
+
+    write_video(tmp_path / "alone.mp4", frames, 20)
+    for seed in (1, 2):
+        write_video(tmp_path / "rendered.mp4", rendered(seed), 20)
+        assert (tmp_path / "rendered.mp4").read_bytes() == (tmp_path / "alone.mp4").read_bytes()
