@@ -555,7 +555,8 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             ),
             "trajectory.json: malformed frames",
         ),
-        # numpy reads a true among numbers as 1: a pose of the identity with one entry true
+        # a true among a pose's numbers reads as 1 (not scanned for: a long log's load), and
+        # the pose it changes is not rigid
         "bool in a pose": (
             "trajectory.json",
             lambda text: json.dumps(
@@ -571,7 +572,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
                     ],
                 }
             ),
-            "trajectory.json: malformed frames .*true or false",
+            r"trajectory.json: the pose of frame \d+ is not rigid .*all frames refused",
         ),
         "frames": (
             "test_views.json",

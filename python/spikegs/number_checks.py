@@ -64,7 +64,12 @@ def number_array(value) -> np.ndarray:
 
 
 def _holds_bool(value) -> bool:
-    """Whether nested lists or tuples hold a bool anywhere (arrays inside are numbers already)."""
-    if isinstance(value, (list, tuple)):
-        return any(map(_holds_bool, value))
-    return isinstance(value, (bool, np.bool_))
+    """Whether nested lists or tuples hold a bool anywhere (arrays inside are numbers already);
+    a list's types gathered at once (a pose log's 200k 4x4 poses: element by element in Python
+    took half again the load's time)."""
+    if not isinstance(value, (list, tuple)):
+        return isinstance(value, (bool, np.bool_))
+    kinds = set(map(type, value))
+    if not kinds.isdisjoint((bool, np.bool_)):
+        return True
+    return not kinds.isdisjoint((list, tuple)) and any(map(_holds_bool, value))

@@ -305,16 +305,19 @@ def write_camera_doc(path: Path, frames: Iterable[dict], **extra) -> None:
 
 def _compact_matrix(frame: dict) -> dict:
     """A JSON object as it is parsed with its `transform_matrix`, where it is a frame (it has a
-    readout: another object stays as written, for a message) and that is 4x4 numbers, as a
-    float64 array [4, 4]: the lists and floats of a pose a readout held 0.3 GB for 200k readouts
-    (the arrays 0.16, with the file's text)."""
+    readout: another object stays as written, for a message) and that is 4x4 numbers, as an
+    array [4, 4] (int or float as the numbers are; `Trajectory.load_json` makes them float64):
+    the lists and floats of a pose a readout held 0.3 GB for 200k readouts (the arrays 0.16,
+    with the file's text). A true or false among a pose's numbers reads as 1 or 0 here, as
+    numpy reads it (`number_array`'s scan for them took a third again of a long log's load), and
+    a pose it changes is refused as not rigid."""
     matrix = frame.get("transform_matrix")
     if "readout" in frame and isinstance(matrix, list):
         try:
-            array = number_array(matrix)
-        except ValueError:  # ragged, text, true or false: left as it is, for `load_json`'s error
+            array = np.asarray(matrix)
+        except ValueError:  # ragged: left as it is, for `load_json`'s error
             return frame
-        if array.shape == (4, 4):
+        if array.dtype.kind in "iuf" and array.shape == (4, 4):
             frame["transform_matrix"] = array
     return frame
 
