@@ -240,6 +240,14 @@ def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):
         off = [v.viewmat[2, :3] for v in ds.test_views if v.readout is None]
         nearest = np.degrees(np.arccos(np.clip(np.stack(off) @ axes.T, -1, 1))).min(1)
         assert len(off) == 2 and nearest.max() < 15, (name, nearest)
+    # a camera that does not turn (it rises): one off-path view, not copies of it, said
+    with pytest.warns(UserWarning, match="0 .*1 off-path test views of the 0 and 3 asked"):
+        still = simulate_dataset(
+            "solids",
+            tmp_path / "still",
+            **{**SMALL, "speed": 0.0, "test_on_path": 0, "test_off_path": 3},
+        )
+    assert [v.name for v in still.test_views] == ["off_000"]
 
 
 def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):

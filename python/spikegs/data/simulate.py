@@ -509,7 +509,8 @@ def simulate_dataset(
         warnings.warn(  # a frame sequence holds so many frames and test views
             f"scene '{source.name}' gives {len(on_path)} on-path and {off_path} off-path "
             f"test views of the {test_on_path} and {test_off_path} asked (an on-path view is a "
-            f"frame {2 * WINDOW_MARGIN} readouts or more from the ends, distinct)",
+            f"frame {2 * WINDOW_MARGIN} readouts or more from the ends, distinct; an orbit's "
+            f"off-path views lie a degree or more apart over the arc it turns)",
             stacklevel=2,
         )
     warn_about_data(views, trajectory, params)

@@ -12,6 +12,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 
 from __future__ import annotations
 
+import math
 import warnings
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -147,10 +148,13 @@ class RenderSource(Source):
     ) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """Evenly over the azimuths the path turns through, `arc_deg` (`trajectory`'s speed
         times its readouts less one; around the scene where it turns 360° or more): a 20° path
-        (--speed 0.005) sees one side; views around it scored 17-22 dB where its own scored 44."""
+        (--speed 0.005) sees one side; views around it scored 17-22 dB where its own scored 44.
+        Views a degree or more apart: a path that turns under 2° gets one (copies of it scored
+        the same view again)."""
         views = []
         elevation = float(np.mean(self.elevation_deg))
         arc = 360.0 if abs(arc_deg) >= 360 else arc_deg
+        count = min(count, max(1, math.floor(abs(arc))))
         for i in range(count):
             eye = orbit_eye(
                 self.scene_center, 1.2 * self.distance, arc * (i + 0.5) / count, elevation, self.up
