@@ -252,7 +252,8 @@ def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):
 
 def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
     """Source.off_path_views takes the count alone: a Source of the user's own (spikegs.data
-    exports the class) is not passed the arc an orbit's views follow (a TypeError)."""
+    exports the class), or a subclass of its orbits (ProceduralSource, MitsubaSource) written to
+    that signature, is not passed the arc an orbit's views follow (a TypeError)."""
     from spikegs.data import ProceduralSource, Source
 
     orbit = ProceduralSource("solids", SCENES["solids"](), SMALL["width"], SMALL["height"], 1)
@@ -279,6 +280,14 @@ def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
             return orbit.off_path_views(count)[::-1]
 
     views = simulate_dataset(Own(), tmp_path / "own", **SMALL).test_views
+    assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
+
+    class Reversed(ProceduralSource):  # an orbit of one's own, overriding to that signature
+        def off_path_views(self, count):
+            return super().off_path_views(count)[::-1]
+
+    source = Reversed("solids", SCENES["solids"](), SMALL["width"], SMALL["height"], 1)
+    views = simulate_dataset(source, tmp_path / "orbit", **SMALL).test_views
     assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 import warnings
 from pathlib import Path
@@ -495,10 +496,12 @@ def simulate_dataset(
         )
         for i, t in enumerate(on_path)
     ]
-    # an orbit's over the arc its path turns (a Source of the user's own takes only the count);
-    # the rendered images not kept beside their firing rates (through the simulation: 8 views of
-    # 1080x1920 colour, 0.2 GB)
-    arc = {"arc_deg": speed * (readouts - 1)} if isinstance(source, RenderSource) else {}
+    # an orbit's over the arc its path turns, where its off_path_views takes one (RenderSource's:
+    # a Source of the user's own, or a subclass of ProceduralSource overriding it, may take only
+    # the count, Source's signature); the rendered images not kept beside their firing rates
+    # (through the simulation: 8 views of 1080x1920 colour, 0.2 GB)
+    takes_arc = "arc_deg" in inspect.signature(source.off_path_views).parameters
+    arc = {"arc_deg": speed * (readouts - 1)} if takes_arc else {}
     views += [
         TestView(name, viewmat, image * rate, None)
         for name, viewmat, image in source.off_path_views(test_off_path, **arc)
