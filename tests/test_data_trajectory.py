@@ -247,6 +247,21 @@ def test_only_the_frames_matrices_become_arrays_as_the_file_is_parsed(tmp_path, 
         Trajectory.load_json(path)
 
 
+def test_a_true_or_false_among_a_poses_numbers_is_named(tmp_path, two_poses):
+    """numpy reads a true among numbers as 1: one in a pose's translation, which rigidity leaves
+    free, loaded as a camera moved to x = 1 (one in its rotation was refused as not rigid); each
+    is named as a true or false, as transforms.json's is."""
+    path = tmp_path / "trajectory.json"
+    two_poses.save_json(path)
+    doc = json.loads(path.read_text())
+    for row, col in ((0, 3), (0, 0)):
+        edited = json.loads(json.dumps(doc))
+        edited["frames"][1]["transform_matrix"][row][col] = True
+        path.write_text(json.dumps(edited))
+        with pytest.raises(ValueError, match=r"malformed frames \(expected numbers, found true or"):
+            Trajectory.load_json(path)
+
+
 def test_json_poses_of_3x4_are_named(tmp_path, two_poses):
     path = tmp_path / "trajectory.json"
     two_poses.save_json(path)
