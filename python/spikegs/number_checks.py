@@ -64,9 +64,11 @@ def number_array(value) -> np.ndarray:
 
 
 def _holds_bool(value) -> bool:
-    """Whether nested lists or tuples hold a bool anywhere (arrays inside are numbers already);
-    a list's types gathered at once (a pose log's 200k 4x4 poses: element by element in Python
-    took half again the load's time)."""
+    """Whether nested lists or tuples, as JSON and YAML give them, hold a bool anywhere; a
+    list's types gathered at once (a pose log's 200k 4x4 poses: element by element in Python
+    took half again the load's time), so a list of subclasses of list is not looked into, nor an
+    array inside (a numpy bool array among lists of numbers reads as 1 and 0: the package passes
+    none, and looking into the pose log's 200k arrays of numbers would cost its load)."""
     if not isinstance(value, (list, tuple)):
         return isinstance(value, (bool, np.bool_))
     kinds = set(map(type, value))
