@@ -68,6 +68,11 @@ class GuessedUnitsWarning(UserWarning):
     """The test images' units (firing rate of intensity 1) are guessed: their PSNR depends on it."""
 
 
+class DarkSpikesWarning(UserWarning):
+    """A simulated stream's light adds no more spikes than its dark current (simulate says so
+    as it makes one)."""
+
+
 def intrinsics_matrix(meta: dict) -> np.ndarray:
     """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
@@ -367,15 +372,15 @@ WIDER_MIN_SIZE = 16  # rows and columns a frame needs to be read wider: random f
 # review's) and 11 of 165 (seeded); none with the floor
 
 
-def check_stream_image(stream: SpikeStream, settings: str) -> None:
-    """ValueError naming the stream's file when under SILENT_SHARE of its pixels ever fire, or
-    all but that share fire at every readout: no image in it (one pass over the spikes);
-    `settings` names the file of its frame size."""
+def check_stream_image(stream: SpikeStream, settings: str) -> float:
+    """The stream's mean firing rate (spikes a pixel a readout); ValueError naming its file when
+    under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout: no
+    image in it (one pass over the spikes); `settings` names the file of its frame size."""
     n = len(stream)
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
     if firing >= SILENT_SHARE and saturated <= 1 - SILENT_SHARE:
-        return
+        return float(counts.mean()) / n
     dark = firing < SILENT_SHARE
     if dark:
         what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
@@ -594,8 +599,7 @@ def load_dataset(path: PathLike) -> Dataset:
     num = int(meta["num_readouts"])
     names = spike_files(int(meta["channels"]))
     streams = open_streams(root, names, meta)
-    for stream in streams:
-        check_stream_image(stream, META)
+    rate = np.mean([check_stream_image(stream, META) for stream in streams])  # spikes a readout
     warn_rows_out_of_line(streams[0], META)  # (the channels share a frame size)
     if (root / "spikegs.json").is_file():
         warnings.warn(
@@ -638,6 +642,16 @@ def load_dataset(path: PathLike) -> Dataset:
     _check_held_out(test_views, timestamps, num, root)
     sim = meta.get("sim")
     dark = sim.get("dark_rate", 0.0) if isinstance(sim, dict) else 0.0  # the simulator's
+    if is_number(dark) and 0 < dark and rate <= 2 * dark:  # light adds no more than dark
+        warnings.warn(
+            f"{root / names[0]}: its spikes fire {rate:.3g} a pixel a readout, {META}'s "
+            f"sim.dark_rate {dark:g} of them: the light adds {max(rate - dark, 0):.3g}, no more "
+            f"than the dark current (a black scene, or light far dimmer than the simulated "
+            f"noise); every method learns little but noise, and black test views score how "
+            f"black a render is",
+            DarkSpikesWarning,
+            stacklevel=2,
+        )
     _warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if sharp and not stated_scales(meta):

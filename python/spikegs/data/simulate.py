@@ -20,6 +20,7 @@ from .dataset import (
     READOUT_PERIOD_S,
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
+    DarkSpikesWarning,
     Dataset,
     TestView,
     check_meta_values,
@@ -584,4 +585,6 @@ def simulate_dataset(
     }
     write_parts(out, meta, trajectory, timestamps, views)
     del views, source  # the test images (and a frame sequence's frames) not held twice, loaded
-    return load_dataset(out)
+    with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
+        warnings.simplefilter("ignore", DarkSpikesWarning)
+        return load_dataset(out)
