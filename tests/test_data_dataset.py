@@ -225,6 +225,9 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             except ValueError as err:
                 error = str(err)
         assert ("every pixel firing at every readout" in error) == (messages is saturated), error
+        # the simulation's light named at fault, not a real camera's frame-size keys
+        said_sim = "a saturated simulation, rate_at_one 0.25 in meta.json: simulate it again with"
+        assert (said_sim in error and "raw_width" not in error) == (messages is saturated), error
         assert error == "" or messages is saturated, error
         said = [str(w.message) for w in caught if w.category is UserWarning]
         assert len(said) == len(caught), [w.category for w in caught]

@@ -910,11 +910,13 @@ def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_p
     with pytest.raises(
         ValueError,
         match=r"spikes.dat: spikes at 0.07% of the pixels only .*"
-        r"dark recording.* in meta.json",
+        r"a dark simulation, rate_at_one 0.25 in meta.json: simulate it again with more light "
+        r"or a higher --rate-at-one, at most 1; or a wrong file\)",
     ):
         load_dataset(root)
     save_dat(root / "spikes.dat", ~hot)
-    with pytest.raises(ValueError, match=r"spikes.dat: 99.93% of the pixels firing at every"):
+    saturated = r"99.93% of the pixels firing at every .*a saturated simulation.*less light"
+    with pytest.raises(ValueError, match=saturated):
         load_dataset(root)
 
 

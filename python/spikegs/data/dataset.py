@@ -372,10 +372,11 @@ WIDER_MIN_SIZE = 16  # rows and columns a frame needs to be read wider: random f
 # review's) and 11 of 165 (seeded); none with the floor
 
 
-def check_stream_image(stream: SpikeStream, settings: str) -> float:
+def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | None = None) -> float:
     """The stream's mean firing rate (spikes a pixel a readout); ValueError naming its file when
     under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout: no
-    image in it (one pass over the spikes); `settings` names the file of its frame size."""
+    image in it (one pass over the spikes); `settings` names the file of its frame size,
+    `sim_rate` a simulated stream's rate_at_one (its light at fault, not its file)."""
     n = len(stream)
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
@@ -387,10 +388,18 @@ def check_stream_image(stream: SpikeStream, settings: str) -> float:
     else:
         every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
         what = f"{every} firing at every readout"
+    kind = "dark" if dark else "saturated"
+    cause = (
+        f"a {kind} simulation, rate_at_one {sim_rate:g} in {settings}: simulate it again with "
+        + ("more light or a higher --rate-at-one, at most 1" if dark else "less light")
+        + "; or a wrong file"
+        if sim_rate is not None
+        else f"a {kind} recording, a wrong file or a wrong frame size: height, width, "
+        f"raw_width, col_offset in {settings}"
+    )
     raise ValueError(
         f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: nothing "
-        f"to learn from ({'a dark' if dark else 'a saturated'} recording, a wrong file or a "
-        f"wrong frame size: height, width, raw_width, col_offset in {settings})"
+        f"to learn from ({cause})"
     )
 
 
@@ -599,7 +608,9 @@ def load_dataset(path: PathLike) -> Dataset:
     num = int(meta["num_readouts"])
     names = spike_files(int(meta["channels"]))
     streams = open_streams(root, names, meta)
-    rate = np.mean([check_stream_image(stream, META) for stream in streams])  # spikes a readout
+    sim = meta.get("sim") if isinstance(meta.get("sim"), dict) else {}  # the simulator's
+    sim_rate = sim.get("rate_at_one") if is_number(sim.get("rate_at_one")) else None
+    rate = np.mean([check_stream_image(s, META, sim_rate) for s in streams])  # spikes a readout
     warn_rows_out_of_line(streams[0], META)  # (the channels share a frame size)
     if (root / "spikegs.json").is_file():
         warnings.warn(
@@ -640,8 +651,7 @@ def load_dataset(path: PathLike) -> Dataset:
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)
-    sim = meta.get("sim")
-    dark = sim.get("dark_rate", 0.0) if isinstance(sim, dict) else 0.0  # the simulator's
+    dark = sim.get("dark_rate", 0.0)
     if is_number(dark) and 0 < dark and rate <= 2 * dark:  # light adds no more than dark
         warnings.warn(
             f"{root / names[0]}: its spikes fire {rate:.3g} a pixel a readout, {META}'s "
