@@ -55,6 +55,30 @@ def test_a_video_of_no_frames_is_refused(tmp_path, name):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("name", ["orbit.mp4", "orbit.gif"])
+def test_frames_unlike_the_first_or_the_count_are_refused(tmp_path, name):
+    """A frame of another size (an .mp4's encoder rescaled it unsaid), of floats or one channel,
+    or frames other than the count stated (a GIF's delays are counted first: Pillow's IndexError):
+    a ValueError naming the video and the frame, and no file."""
+    path = tmp_path / name
+    frame = np.zeros((16, 16, 3), np.uint8)
+    cases = [
+        ([frame, np.zeros((16, 18, 3), np.uint8)], None, "frame 2 is 16x18, the first 16x16"),
+        (
+            [frame, frame.astype(np.float32)],
+            None,
+            r"frame 2: expected uint8 \[H, W, 3\], got float32",
+        ),
+        ([frame[..., :1]], None, r"frame 1: expected uint8 \[H, W, 3\], got uint8 \[16, 16, 1\]"),
+        ([frame] * 3, 2, "more frames than the 2 stated"),
+        ([frame] * 2, 3, "2 frames, 3 stated"),
+    ]
+    for frames, count, said in cases:
+        with pytest.raises(ValueError, match=f"{name}: {said}"):
+            write_video(path, iter(frames), 10, count=count if count else len(frames))
+        assert not list(tmp_path.iterdir())
+
+
 def test_an_mp4_is_the_same_file_whatever_runs_between_its_frames(tmp_path):
     """`spikegs render` renders each frame between two encodes; with B-frames, libx264 read stack
     memory it never wrote, and the same frames made another file where other work ran between

@@ -3,7 +3,7 @@ whole or not at all."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -77,11 +77,41 @@ def _even(frame: np.ndarray) -> np.ndarray:
     return np.pad(frame, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
 
 
-def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int) -> None:
+def checked_frames(
+    path: Path, frames: Iterable[np.ndarray], count: int | None = None
+) -> Iterator[np.ndarray]:
+    """`frames`, each checked as it comes: uint8 [H, W, 3], all of the first's size (an .mp4's
+    encoder rescaled another size unsaid), `count` of them where given (a GIF's delays are
+    counted before its frames); ValueError naming the video and the frame otherwise, or where
+    there is none."""
+    first, n = None, 0
+    for n, frame in enumerate(frames, 1):
+        frame = np.asarray(frame)
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            raise ValueError(
+                f"{path}: frame {n}: expected uint8 [H, W, 3], got {frame.dtype} "
+                f"{list(frame.shape)}"
+            )
+        first = frame.shape if first is None else first
+        if frame.shape != first:
+            raise ValueError(
+                f"{path}: frame {n} is {frame.shape[0]}x{frame.shape[1]}, the first "
+                f"{first[0]}x{first[1]}: a video's frames share one size"
+            )
+        if count is not None and n > count:
+            raise ValueError(f"{path}: more frames than the {count} stated")
+        yield frame
+    if n == 0:
+        raise ValueError(f"{path}: no frames to write")
+    if count is not None and n < count:
+        raise ValueError(f"{path}: {n} frames, {count} stated")
+
+
+def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int, count: int | None = None) -> None:
     """uint8 frames [H, W, 3] (an array [F, H, W, 3], or any iterable: each is encoded as it
     comes, and only it is held) as an .mp4 through PyAV's own FFmpeg (no ffmpeg on PATH needed),
     in yuv420p, which every player reads; its chroma needs an even size, so an odd height or
-    width gains one edge-replicated row or column."""
+    width gains one edge-replicated row or column; `count`: as `checked_frames`."""
     import av
 
     codec = mp4_codec()
@@ -91,7 +121,7 @@ def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int) -> None:
         # protocol '2024-05-01T10', and kept a file open whose write failed (a full disk)
         with open(tmp, "wb") as file, av.open(file, "w", format="mp4") as container:
             stream = None
-            for frame in map(_even, frames):
+            for frame in map(_even, checked_frames(path, frames, count)):
                 if stream is None:  # the first frame's size is the video's
                     stream = container.add_stream(codec, rate=fps, options=MP4_QUALITY[codec])
                     stream.height, stream.width = frame.shape[:2]
@@ -103,8 +133,6 @@ def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int) -> None:
                     context.colorspace, context.color_primaries = BT601, BT601
                     context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
                 container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
-            if stream is None:
-                raise ValueError(f"{path}: no frames to write")
             container.mux(stream.encode())  # flush the encoder's delayed frames
 
     write_atomically(path, write)  # no half-written video at `path`
@@ -132,11 +160,9 @@ def write_video(
         count = len(frames) if count is None else count
 
         def write(tmp: Path) -> None:
-            images = (Image.fromarray(frame) for frame in frames)  # each as Pillow takes it
-            first = next(images, None)
-            if first is None:
-                raise ValueError(f"{path}: no frames to write")
-            first.save(
+            # each as Pillow takes it; the first (which checked_frames finds or refuses) saves
+            images = (Image.fromarray(frame) for frame in checked_frames(path, frames, count))
+            next(images).save(
                 tmp,
                 format="GIF",
                 save_all=True,
@@ -147,4 +173,4 @@ def write_video(
 
         write_atomically(path, write)  # no truncated animation at `path`
     else:
-        write_mp4(path, frames, fps)
+        write_mp4(path, frames, fps, count)
