@@ -431,7 +431,9 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         (raw / "meta.json").write_text(json.dumps({k: v for k, v in doc.items() if v is not None}))
         assert main(["poses", str(raw), "--count", "30"]) == 2
         assert re.search(message, capsys.readouterr().err), message
-        assert sorted(p.name for p in raw.iterdir()) == ["meta.json", "spikes.dat"]  # untouched
+        # untouched: the dataset's lock, which a process takes to read or write it, stays empty
+        assert sorted(p.name for p in raw.iterdir()) == [".lock", "meta.json", "spikes.dat"]
+        assert (raw / ".lock").stat().st_size == 0
     (tmp_path / "llff").mkdir()  # a layout with poses of its own, or no dataset at all
     assert main(["poses", str(tmp_path / "llff")]) == 2
     assert "an LLFF or NeRF layout brings its own poses" in capsys.readouterr().err

@@ -44,11 +44,14 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
+    from .data.dataset import reading_dataset
     from .data.real import pseudo_views_note
     from .evaluate import evaluate_run
 
-    dataset = load_dataset(run_dataset(args.run, args.dataset))
-    result = evaluate_run(args.run, dataset, write_images=not args.no_images)
+    root = run_dataset(args.run, args.dataset)
+    with reading_dataset(root):  # not rewritten as it is read (Busy while it is)
+        dataset = load_dataset(root)
+        result = evaluate_run(args.run, dataset, write_images=not args.no_images)
     method = result["method"] or args.run.name  # a scene folder of another tool names none
     print(
         f"{method}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "

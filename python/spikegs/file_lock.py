@@ -1,5 +1,6 @@
-"""Advisory exclusive locks (flock) between spikegs processes: one trains in a run folder, one
-trains each cached SIM."""
+"""Advisory locks (flock) between spikegs processes: one trains in a run folder, one trains each
+cached SIM, one writes a dataset (simulate, poses) while none reads it (train, sim-train, eval,
+render)."""
 
 from __future__ import annotations
 
@@ -33,13 +34,57 @@ def exclusive_lock(path: Path, busy: str | None):
         yield
         return
     with Path(path).open("a") as handle:  # "w" would touch it: a finished run looked rewritten
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            if busy is not None:
-                raise Busy(busy) from None
-            print(f"waiting for another process, which holds {path}", file=sys.stderr)
-            fcntl.flock(handle, fcntl.LOCK_EX)
-        except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock
-            warnings.warn(f"{path}: not locked ({err}); use it from one process only", stacklevel=3)
+        _lock(handle, path, fcntl.LOCK_EX, busy)
         yield
+
+
+@contextlib.contextmanager
+def shared_lock(path: Path, busy: str):
+    """Hold a shared lock on the file `path` for the block: processes holding it shared run
+    together, and one asking for `exclusive_lock` is refused (Busy) meanwhile. Busy(`busy`) while
+    another process holds it exclusive. No lock where the file can be neither made nor opened
+    (a folder this process cannot write, holding none: no spikegs process writes it either)."""
+    if fcntl is None:
+        yield
+        return
+    try:
+        handle = Path(path).open("a")
+    except OSError:  # a read-only folder or file: a lock there, if any, is read-only enough
+        try:
+            handle = Path(path).open("rb")
+        except OSError:
+            yield
+            return
+    with handle:
+        _lock(handle, path, fcntl.LOCK_SH, busy)
+        yield
+
+
+def _lock(handle, path: Path, kind: int, busy: str | None) -> None:
+    """flock `handle` (the file `path`) `kind`: Busy(`busy`) while another process holds a lock
+    that conflicts, or, where `busy` is None, wait for it (saying so); a warning where the
+    filesystem cannot lock."""
+    try:
+        fcntl.flock(handle, kind | fcntl.LOCK_NB)
+    except BlockingIOError:
+        if busy is not None:
+            raise Busy(busy) from None
+        print(f"waiting for another process, which holds {path}", file=sys.stderr)
+        fcntl.flock(handle, kind)
+    except OSError as err:  # ENOLCK, ENOSYS, EOPNOTSUPP: the filesystem cannot lock
+        warnings.warn(f"{path}: not locked ({err}); use it from one process only", stacklevel=4)
+
+
+def refuse_if_held(path: Path, busy: str) -> None:
+    """Busy(`busy`) where another process holds a lock on the file `path` (shared or exclusive);
+    nothing where there is no such file or it cannot be opened: a check before any work, which
+    the lock taken later makes sure of."""
+    if not Path(path).is_file():
+        return
+    try:
+        with exclusive_lock(path, busy):
+            pass
+    except Busy:
+        raise
+    except OSError:  # a folder this process cannot write: its writes fail later, saying so
+        pass

@@ -44,6 +44,7 @@ from .data.dataset import (
     spike_files,
     warn_rows_out_of_line,
     write_parts,
+    writing_dataset,
 )
 from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
 from .data.simulate import default_train_every, train_timestamps
@@ -276,7 +277,19 @@ def estimate_poses(
     min_registered: float = 0.5,
 ) -> dict:
     """Run SfM on the dataset at `root` and write its poses and points there; returns the report
-    (also written to DATASET/sfm/report.json)."""
+    (also written to DATASET/sfm/report.json). Busy while another process writes the dataset or
+    trains from it."""
+    args = (window, every, count, sim, min_registered)
+    if not Path(root).is_dir():  # refused as a dataset without meta.json, nothing made
+        return _estimate_poses(Path(root), *args)
+    with writing_dataset(root):  # its poses and split, read as they change: one process at a time
+        return _estimate_poses(Path(root), *args)
+
+
+def _estimate_poses(
+    root: Path, window: int, every: int | None, count: int, sim: bool, min_registered: float
+) -> dict:
+    """`estimate_poses`, its dataset locked."""
     root = Path(root)
     meta_path = root / META
     if not meta_path.is_file():

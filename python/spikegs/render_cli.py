@@ -184,7 +184,7 @@ def orbit_frames(model, dataset, path: np.ndarray) -> Iterator[np.ndarray]:
 
 def run(args: argparse.Namespace) -> int:
     from .data import load_dataset
-    from .data.dataset import GuessedUnitsWarning
+    from .data.dataset import GuessedUnitsWarning, reading_dataset
     from .eval_cli import run_dataset
     from .evaluate import other_data
     from .ply import load_ply
@@ -192,10 +192,12 @@ def run(args: argparse.Namespace) -> int:
 
     check_video_output(args.out, args.fps)
     ply = trained_scene(args.run)
-    with warnings.catch_warnings():  # the test images' units matter to scores, not to an orbit
+    root = run_dataset(args.run, args.dataset)
+    with reading_dataset(root), warnings.catch_warnings():  # (not rewritten as it is read)
+        # the test images' units matter to scores, not to an orbit
         warnings.simplefilter("ignore", GuessedUnitsWarning)
-        dataset = load_dataset(run_dataset(args.run, args.dataset))
-    mismatch = other_data(args.run, dataset)
+        dataset = load_dataset(root)
+        mismatch = other_data(args.run, dataset)  # (its spikes' digest)
     if mismatch:  # eval scores such a dataset as another; an orbit took its cameras unsaid
         warnings.warn(
             f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",

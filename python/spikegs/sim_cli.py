@@ -13,7 +13,7 @@ from . import strict_json
 from .atomic_save import write_text_atomically
 from .cli import add_no_progress, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
-from .data.dataset import load_dataset
+from .data.dataset import load_dataset, reading_dataset
 from .data.real import pseudo_views_note
 from .interrupt import say
 from .losses import SIM_LOSSES
@@ -75,6 +75,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # no simulation or `spikegs poses` rewrites the dataset under SIM (Busy while one does)
+    with reading_dataset(args.dataset):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """`run` once the dataset is locked."""
     sim = SimConfig(
         window=args.window,
         target_window=args.target_window,

@@ -22,6 +22,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
+from .data.dataset import reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -529,7 +530,9 @@ class Trainer:
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained
         # here since), before any work
-        with run_lock(self.run_dir):
+        # the dataset is not rewritten under the training (`spikegs simulate --overwrite`,
+        # `spikegs poses`: Busy meanwhile, and the training Busy while one of them writes it)
+        with reading_dataset(self.dataset.root), run_lock(self.run_dir):
             # one process trains here: a temporary file is a killed process's, half-written
             for folder in (self.run_dir, self.checkpoint_path.parent):
                 sweep_temporaries(folder)

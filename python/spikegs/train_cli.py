@@ -146,11 +146,20 @@ def print_evaluation(trainer) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .data import load_dataset
-    from .train import Trainer
+    from .data.dataset import reading_dataset
 
     config = config_from_args(args)  # bad method or config: refused before any work
     check_folder_output(args.out)
+    # no simulation or `spikegs poses` rewrites the dataset under the training (Busy while one does)
+    with reading_dataset(args.dataset):
+        return _train(args, config)
+
+
+def _train(args: argparse.Namespace, config) -> int:
+    """`run` once the dataset is locked."""
+    from .data import load_dataset
+    from .train import Trainer
+
     dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
     trainer = Trainer(dataset, config, args.out, progress=bars)

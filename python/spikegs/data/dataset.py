@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic_save import NAME_MAX, target_name, write_text_atomically
+from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
@@ -230,8 +231,55 @@ OLD_LIGHT = ".light.npy"  # a simulation before 2026-11-29 rendered its light he
 PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), OLD_LIGHT)
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
+# held by a process writing the dataset (simulate, poses), shared by those reading it (train,
+# sim-train, eval, render); it stays behind, empty
+LOCK = ".lock"
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
-DERIVED = (TEST_DIR, "sim", "sfm", "points3d.ply", TRAJECTORY_BACKUP, TIMESTAMPS, TIMESTAMPS_BACKUP)
+DERIVED = (
+    TEST_DIR,
+    "sim",
+    "sfm",
+    "points3d.ply",
+    TRAJECTORY_BACKUP,
+    TIMESTAMPS,
+    TIMESTAMPS_BACKUP,
+    LOCK,
+)
+WRITERS = "spikegs simulate or poses"
+READERS = "train, sim-train, eval or render"
+
+
+def _in_use(root: Path, remedy: str) -> str:
+    return (
+        f"{root} is in use by another process ({WRITERS} writing it, or {READERS} reading it); "
+        f"wait for it to end{remedy}"
+    )
+
+
+def writing_dataset(root: PathLike, remedy: str = ""):
+    """An exclusive lock on ROOT/.lock (ROOT made where missing) for a `with` block that writes
+    the dataset at `root`: Busy while another process writes it or reads it (`reading_dataset`);
+    `remedy` follows "wait for it to end" in the message."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    return exclusive_lock(root / LOCK, busy=_in_use(root, remedy))
+
+
+def refuse_if_in_use(root: PathLike, remedy: str = "") -> None:
+    """Busy, before any work, where another process holds the dataset at `root`'s lock (writing
+    or reading it); `writing_dataset` makes sure of it later."""
+    refuse_if_held(Path(root) / LOCK, _in_use(Path(root), remedy))
+
+
+def reading_dataset(root: PathLike):
+    """A shared lock on ROOT/.lock for a `with` block that reads the dataset at `root` (loads it,
+    trains from it): processes reading it run together; Busy while one writes it
+    (`writing_dataset`), and a process that would write it is refused meanwhile. No lock where
+    `root` is no folder, or one without the lock that this process cannot write."""
+    root = Path(root)
+    return shared_lock(
+        root / LOCK, f"{root} is being written by another process ({WRITERS}); wait for it to end"
+    )
 
 
 def holds_dataset(out: Path) -> bool:
@@ -270,17 +318,18 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
 
 def prepare_output(out: PathLike, overwrite: bool) -> Path:
     """Create `out` after `check_output`; an old dataset there is deleted with everything in its
-    directory (caches derived from the old spikes included)."""
+    directory (caches derived from the old spikes included) but its lock (`writing_dataset`'s,
+    held by the caller: a new file would be another lock, which a second process could take)."""
     out = check_output(out, overwrite)
     if out.is_dir() and holds_dataset(out):
-        if out.is_symlink():  # (a dataset on another disk) its target emptied, the link kept:
-            for entry in out.iterdir():  # rmtree refuses a link
-                if entry.is_dir() and not entry.is_symlink():
-                    shutil.rmtree(entry)
-                else:
-                    entry.unlink()
-        else:
-            shutil.rmtree(out)
+        # entry by entry: the lock stays, and a link (a dataset on another disk) keeps its target
+        for entry in out.iterdir():  # (rmtree refuses a link)
+            if entry.name == LOCK:
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
     out.mkdir(parents=True, exist_ok=True)
     return out
 

@@ -31,8 +31,10 @@ from .dataset import (
     load_dataset,
     near_held_out,
     prepare_output,
+    refuse_if_in_use,
     spike_files,
     write_parts,
+    writing_dataset,
 )
 from .scenes import SCENES
 from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, RenderSource, Source
@@ -373,6 +375,9 @@ def write_spikes(
         )
 
 
+OTHER_OUT = ", or give another --out"  # a busy dataset's remedy
+
+
 def simulate_dataset(
     scene: str | Path | dict | Source,
     out: str | Path,
@@ -460,6 +465,9 @@ def simulate_dataset(
             f"{height}x{width} images cannot be scored (SSIM, in spikegs eval, needs each side 1 "
             f"or at least 3 pixels, and not 1x1)"
         )
+    # another simulation writing `out` (its spikes' temporary read as "what an interrupted
+    # simulation left"), or a training reading it: refused as busy, before any work
+    refuse_if_in_use(out, OTHER_OUT)
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1
     source = make_source(scene, width, height, channels, spp=spp, up=up)
@@ -557,34 +565,37 @@ def simulate_dataset(
             f"in depth; {remedy}",
             stacklevel=2,
         )
-    out = prepare_output(out, overwrite)
-    write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
-    K = source.K
-    meta = {
-        "format_version": FORMAT_VERSION,
-        "scene": source.name,
-        "source": source.kind,
-        "height": height,
-        "width": width,
-        "channels": channels,
-        "num_readouts": readouts,
-        "readout_period_s": READOUT_PERIOD_S,
-        "flip": flip,
-        "spike_files": spike_files(channels),
-        "seed": seed,
-        "sim": dataclasses.asdict(params),
-        **intrinsics_keys(K),
-        "scene_center": source.scene_center.tolist(),
-        "scene_radius": source.scene_radius,
-        "degrees_per_readout": speed if source.kind != "frames" else None,
-        "frame_every": frame_every if source.kind != "frames" else None,
-        "up": source.up.tolist() if isinstance(source, RenderSource) else None,  # the spiral's
-        "luma": "rec709-linear" if channels == 1 else None,
-        "image_scale": rate,
-        "train_every": train_every,
-    }
-    write_parts(out, meta, trajectory, timestamps, views)
-    del views, source  # the test images (and a frame sequence's frames) not held twice, loaded
-    with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
-        warnings.simplefilter("ignore", DarkSpikesWarning)
-        return load_dataset(out)
+    # one process writes `out`, none reading it (a training's SIM cache, its spikes): the checks
+    # again under the lock, which --overwrite's deletion keeps
+    with writing_dataset(out, OTHER_OUT):
+        out = prepare_output(out, overwrite)
+        write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
+        K = source.K
+        meta = {
+            "format_version": FORMAT_VERSION,
+            "scene": source.name,
+            "source": source.kind,
+            "height": height,
+            "width": width,
+            "channels": channels,
+            "num_readouts": readouts,
+            "readout_period_s": READOUT_PERIOD_S,
+            "flip": flip,
+            "spike_files": spike_files(channels),
+            "seed": seed,
+            "sim": dataclasses.asdict(params),
+            **intrinsics_keys(K),
+            "scene_center": source.scene_center.tolist(),
+            "scene_radius": source.scene_radius,
+            "degrees_per_readout": speed if source.kind != "frames" else None,
+            "frame_every": frame_every if source.kind != "frames" else None,
+            "up": source.up.tolist() if isinstance(source, RenderSource) else None,  # the spiral's
+            "luma": "rec709-linear" if channels == 1 else None,
+            "image_scale": rate,
+            "train_every": train_every,
+        }
+        write_parts(out, meta, trajectory, timestamps, views)
+        del views, source  # the test images (and a frame sequence's frames) not held twice, loaded
+        with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
+            warnings.simplefilter("ignore", DarkSpikesWarning)
+            return load_dataset(out)

@@ -1,0 +1,87 @@
+"""Commands run at once on one dataset, run or benchmark folder: each works, or one is refused as
+busy (exit 75, naming what to do); none deletes or mixes into another's files.
+
+flock locks belong to an open file, not a process: a lock taken here on another open of the same
+file stands for another process's, as a second process sees it."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+
+import pytest
+from spikegs.cli import main
+from spikegs.data import simulate_dataset
+from spikegs.file_lock import BUSY, Busy, exclusive_lock
+
+SMALL = dict(height=16, width=16, readouts=400, test_on_path=2, test_off_path=2, progress=False)
+BUSY_DATASET = "in use by another process"
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """A small simulated dataset's folder (for tests that do not change it)."""
+    root = tmp_path_factory.mktemp("concurrent") / "data"
+    simulate_dataset("solids", root, **SMALL)
+    return root
+
+
+def test_a_dataset_being_simulated_is_not_simulated_over(tmp_path):
+    """Two `spikegs simulate --out D` at once: the second deleted the first one's files as it wrote
+    them ("[Errno 2] No such file or directory: 'D/spikes.dat'"), or said that D held "what an
+    interrupted simulation left" and to pass --overwrite, which deleted it; both could write, a
+    dataset's parts from one and its spikes from the other."""
+    out = tmp_path / "data"
+    out.mkdir()
+    with exclusive_lock(out / ".lock", busy="held"):  # as a simulation writing `out` holds it
+        for overwrite in (False, True):
+            with pytest.raises(Busy, match=f"{BUSY_DATASET}.*give another --out"):
+                simulate_dataset("solids", out, overwrite=overwrite, **SMALL)
+    assert os.listdir(out) == [".lock"]  # nothing written
+    simulate_dataset("solids", out, **SMALL)  # a folder holding the lock alone is an empty one
+
+
+def test_a_dataset_being_trained_from_is_not_overwritten(tmp_path):
+    """`spikegs simulate --overwrite` deleted a dataset that a training was reading, its SIM's
+    lock with it (a second process then trained that SIM beside the first)."""
+    out = tmp_path / "data"
+    simulate_dataset("solids", out, **SMALL)
+    meta = (out / "meta.json").read_text()
+    with open(out / ".lock", "a") as reader:  # a training's lock on its dataset
+        fcntl.flock(reader, fcntl.LOCK_SH)
+        with pytest.raises(Busy, match=f"{BUSY_DATASET} .*train, sim-train, eval or render"):
+            simulate_dataset("solids", out, overwrite=True, seed=3, **SMALL)
+    assert (out / "meta.json").read_text() == meta
+    # once it has ended: replaced, the lock file kept (the one a process may hold as it is)
+    lock = (out / ".lock").stat().st_ino
+    simulate_dataset("solids", out, overwrite=True, seed=3, **SMALL)
+    assert json.loads((out / "meta.json").read_text())["seed"] == 3
+    assert (out / ".lock").stat().st_ino == lock
+
+
+def test_commands_reading_a_dataset_refuse_while_it_is_written(simulated, tmp_path):
+    """train, sim-train, eval and render read a dataset that a simulation or `spikegs poses` was
+    rewriting: a mix of its old and new files, or its spikes gone as a SIM trained on them."""
+    run = tmp_path / "run"
+    with exclusive_lock(simulated / ".lock", busy="held"):  # as `simulate --overwrite` holds it
+        for argv in (
+            ["train", str(simulated), "--out", str(run), "--iterations", "2"],
+            ["sim-train", str(simulated), "--steps", "1", "--out", str(tmp_path / "sim.pt")],
+            ["eval", str(run), "--dataset", str(simulated)],
+        ):
+            assert main([*argv, "--no-progress"] if argv[0] != "eval" else argv) == BUSY, argv
+    assert not run.exists() and not (tmp_path / "sim.pt").exists()
+
+
+def test_training_from_a_dataset_shares_it(simulated, tmp_path):
+    """Trainings from one dataset run together (a shared lock), and leave it as it was."""
+    from spikegs.config import load_config
+    from spikegs.data import load_dataset
+    from spikegs.train import Trainer
+
+    config = load_config("tfp33", {"train": {"iterations": 2, "eval_every": 2}})
+    with open(simulated / ".lock", "a") as reader:  # another training's
+        fcntl.flock(reader, fcntl.LOCK_SH)
+        Trainer(load_dataset(simulated), config, tmp_path / "run", progress=False).train()
+    assert (tmp_path / "run" / "scene.ply").is_file()
