@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import multiprocessing
 import os
 
 import pytest
@@ -85,3 +86,31 @@ def test_training_from_a_dataset_shares_it(simulated, tmp_path):
         fcntl.flock(reader, fcntl.LOCK_SH)
         Trainer(load_dataset(simulated), config, tmp_path / "run", progress=False).train()
     assert (tmp_path / "run" / "scene.ply").is_file()
+
+
+def _hold(path, held, release):  # another process holding the lock at `path`
+    with exclusive_lock(path, busy="held"):
+        held.set()
+        release.wait(60)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
+def test_a_second_bench_into_one_folder_is_refused(tmp_path, capsys):
+    """Two `spikegs bench train --out B` at once: the second deleted each run folder that the
+    first was training in (its lock with it) and trained there too, one's scene.ply ending in the
+    other's run; each reported success."""
+    out = tmp_path / "bench"
+    out.mkdir()
+    fork = multiprocessing.get_context("fork")
+    held, release = fork.Event(), fork.Event()
+    other = fork.Process(target=_hold, args=(out / ".lock", held, release))
+    other.start()
+    try:
+        assert held.wait(60)
+        argv = ["bench", "train", "--quick", "--out", str(out), "--methods", "tfp33"]
+        assert main([*argv, "--iterations", "2", "--no-progress"]) == BUSY
+    finally:
+        release.set()
+        other.join(60)
+    assert "being written by another spikegs bench" in capsys.readouterr().err
+    assert os.listdir(out) == [".lock"]

@@ -10,7 +10,9 @@ from pathlib import Path
 
 from ..cli import add_no_progress, positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
+from ..file_lock import exclusive_lock
 from ..output_paths import check_folder_output
+from ..run_summary import LOCK
 from .train import (
     FULL_ITERATIONS,
     HEADLINE_SCENE,
@@ -91,6 +93,18 @@ def _train_options(args: argparse.Namespace) -> dict:
     return options
 
 
+def bench_lock(out: Path):
+    """An exclusive lock on OUT/.lock (OUT made) for a `with` block: one bench writes into OUT at
+    a time (a second one deleted the first one's runs as they trained, and replaced its dataset);
+    Busy while another holds it."""
+    out.mkdir(parents=True, exist_ok=True)
+    return exclusive_lock(
+        out / LOCK,
+        busy=f"{out} is being written by another spikegs bench; wait for it to end or give "
+        f"another --out",
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     args.out = args.out or Path("bench-results-quick" if args.quick else "bench-results")
     parts = list(PARTS) if args.part == "all" else [args.part]
@@ -112,16 +126,17 @@ def run(args: argparse.Namespace) -> int:
         )
         check_outputs(Path(args.out), scenes, run_names(methods, equal_time), seeds)
     failures = []
-    for part in parts:
-        module = importlib.import_module(PARTS[part])
-        print(f"== {part}")
-        options = train_options if part == "train" else {}
-        if part == "sim":  # (a bar's carriage returns garble a log: none where it is no terminal)
-            options = {"progress": show_bars(args.no_progress)}
-        start = time.perf_counter()
-        results = module.run(quick=args.quick, out=args.out, **options)
-        print(f"== {part}: {time.perf_counter() - start:.1f} s")
-        failures += [f"bench {part}: {f}" for f in results.get("failures", [])]
+    with bench_lock(Path(args.out)):
+        for part in parts:
+            module = importlib.import_module(PARTS[part])
+            print(f"== {part}")
+            options = train_options if part == "train" else {}
+            if part == "sim":  # (a bar's carriage returns garble a log: none in a batch job's)
+                options = {"progress": show_bars(args.no_progress)}
+            start = time.perf_counter()
+            results = module.run(quick=args.quick, out=args.out, **options)
+            print(f"== {part}: {time.perf_counter() - start:.1f} s")
+            failures += [f"bench {part}: {f}" for f in results.get("failures", [])]
     for failure in failures:  # (a check that fails: a script, CI, must see it)
         print(f"FAILED {failure}", file=sys.stderr)
     return 1 if failures else 0
