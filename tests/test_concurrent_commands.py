@@ -114,3 +114,20 @@ def test_a_second_bench_into_one_folder_is_refused(tmp_path, capsys):
         other.join(60)
     assert "being written by another spikegs bench" in capsys.readouterr().err
     assert os.listdir(out) == [".lock"]
+
+
+def test_eval_of_a_run_finishing_says_it_is_busy(tmp_path):
+    """`spikegs eval RUN` between the run's scene.ply and its train.json, the last two writes of a
+    training still under way, said that the run had stopped and to finish it with --resume (which
+    the running training refused)."""
+    from spikegs.eval_cli import run_dataset
+    from spikegs.run_folder import run_lock
+
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "checkpoints" / "last.pt").write_bytes(b"")
+    (run / "scene.ply").write_bytes(b"")
+    with run_lock(run), pytest.raises(Busy, match="being trained by another process"):
+        run_dataset(run, None)
+    with pytest.raises(FileNotFoundError, match="stopped while writing its results"):
+        run_dataset(run, None)  # no process holds it: killed there

@@ -22,12 +22,19 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     """The dataset a run was trained on, unless one is given."""
     if dataset is not None:
         return dataset
-    from .run_summary import SUMMARY, last_checkpoint, read_summary, trained_scene
+    from .file_lock import refuse_if_held
+    from .run_summary import LOCK, SUMMARY, last_checkpoint, read_summary, trained_scene
 
     summary = read_summary(run_dir)
     if "dataset" not in summary:
         trained_scene(run_dir)  # a run stopped with a checkpoint: finish it with --resume
         if not (run_dir / SUMMARY).exists() and last_checkpoint(run_dir).exists():
+            # its training may be writing them now (train.json follows scene.ply)
+            refuse_if_held(
+                run_dir / LOCK,
+                f"{run_dir / SUMMARY} not found yet: {run_dir} is being trained by another "
+                f"process, which is writing its results; try again once it has finished",
+            )
             # killed between scene.ply and train.json, its last writes: --resume writes the rest
             raise FileNotFoundError(
                 f"{run_dir / SUMMARY} not found: the run stopped while writing its results; "
