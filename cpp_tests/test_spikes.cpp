@@ -355,4 +355,12 @@ TEST_CASE(simulator_readout_at_a_frame_time_sees_that_frame) {
   sim.run(frames.data(), times.data(), 3, 3, out.data());
   CHECK(out[0] == 1 && out[1] == 1 && out[2] == 1, "spikes ", int(out[0]), int(out[1]), int(out[2]),
         ", expected 111");
+  // the same readouts in two calls, the first ending at its last frame's time (a chunk's end),
+  // which it read as frames[0] + 1 · (frames[1] - frames[0]): 0 light, and spikes 110
+  SpikeSimulator split(1, 1, params, 5);
+  std::vector<uint8_t> parts(3, 0xff);
+  split.run(frames.data(), times.data(), 2, 2, parts.data());
+  split.run(frames.data() + 1, times.data() + 1, 2, 1, parts.data() + 2);
+  CHECK(parts == out, "spikes in two calls ", int(parts[0]), int(parts[1]), int(parts[2]),
+        ", expected 111");
 }

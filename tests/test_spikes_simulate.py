@@ -145,6 +145,27 @@ def test_deterministic_for_a_seed_and_chunking():
     assert (a != simulate_spikes(frames, 300, seed=8)).any()
 
 
+def test_a_chunk_ending_on_a_frame_time_reads_that_frame():
+    """A chunk's last readout at a frame's time (every chunk, with a frame each readout) read the
+    light as frames[f-1] + 1 · (frames[f] - frames[f-1]), which rounds (1 + (0.1 - 1) is not 0.1
+    in float), where one chunk across it reads frames[f] itself: the spikes differed with the
+    chunk size. Here a bright readout 0 leaves v = 97.5 photo-electrons, readout 1 (light s, the
+    end of a 2-readout chunk) fires and keeps 25 s - 2.5, and readout 2's light brings v to the
+    threshold of 100 within a rounding: 509 of 4096 pixels fired otherwise there."""
+    p = 4096
+    s = np.random.default_rng(0).uniform(0.2, 3.9, p).astype(np.float32)
+    kept = np.float32(97.5) + np.float32(25) * s - np.float32(100)  # v after readout 1
+    frames = np.zeros((4, 1, p), np.float32)  # a frame each readout
+    frames[0], frames[1] = 7.9, s
+    frames[2] = ((100.0 - kept.astype(np.float64)) / 25.0).astype(np.float32)
+    params = SimParams(
+        shot_noise=False, temporal_sigma=0.0, fpn_sigma=0.0, dark_rate=0.0, random_init=False
+    )
+    whole = simulate_spikes(frames, 4, params=params, chunk=4)
+    for chunk in (1, 2, 3):
+        np.testing.assert_array_equal(simulate_spikes(frames, 4, params=params, chunk=chunk), whole)
+
+
 def test_callable_source_matches_frames():
     frames = np.random.default_rng(1).random((4, 6, 10), dtype=np.float32)
     times = np.array([0.0, 100.0, 200.0, 299.0])

@@ -85,16 +85,21 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
     fail("frame times expected to cover readouts [", t0, ", ", last, "], found [", times[0], ", ",
          times[num_frames - 1], "]");
 
+  // A readout at or past the last frame's time reads that frame alone (f = num_frames - 1, a = 0),
+  // as a readout at any frame's time does: its light is then the same whichever frames follow in
+  // this call. It was frames[F-2] + 1 · (frames[F-1] - frames[F-2]), which rounds (1 + (0.1 - 1)
+  // is not 0.1 in float): a chunk of simulate_spikes ends on a frame's time whenever a frame is
+  // rendered each readout, and the spikes differed with the chunk size.
   std::vector<Segment> seg(static_cast<size_t>(n));  // [n]
   for (int64_t t = 0, f = 0; t < n; ++t) {
     const double rt = double(t0 + t);
-    while (f + 2 < num_frames && times[f + 1] <= rt) ++f;
-    const double span = num_frames > 1 ? times[f + 1] - times[f] : 1.0;
-    seg[t] = {f, num_frames > 1 ? float(std::clamp((rt - times[f]) / span, 0.0, 1.0)) : 0.0f};
+    while (f + 1 < num_frames && times[f + 1] <= rt) ++f;
+    const bool last = f + 1 == num_frames;
+    const double span = last ? 1.0 : times[f + 1] - times[f];
+    seg[t] = {f, last ? 0.0f : float(std::clamp((rt - times[f]) / span, 0.0, 1.0))};
   }
 
   const int64_t H = height_, W = width_, hw = H * W, row_bytes = (W + 7) / 8;
-  const int64_t next_frame = num_frames > 1 ? hw : 0;
   const float gain = float(params_.threshold * params_.rate_at_one);
   const float shot = params_.shot_noise ? 1.0f : 0.0f;
   const float tsig = float(params_.temporal_sigma);
@@ -110,7 +115,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
       const float* dark = dark_.data() + r * W;
       for (int64_t t = 0; t < n; ++t) {
         const float* i0 = frames + seg[t].f * hw + r * W;
-        const float* i1 = i0 + next_frame;
+        const float* i1 = seg[t].f + 1 < num_frames ? i0 + hw : i0;  // the last: a = 0
         const float a = seg[t].a;
         const uint64_t counter0 = uint64_t(t0 + t) * uint64_t(hw) + uint64_t(r * W);
 #pragma omp simd

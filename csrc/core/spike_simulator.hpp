@@ -45,8 +45,9 @@ class SpikeSimulator {
 
   // Simulates the next n readouts, [r, r + n) where the calls so far simulated r, under the light
   // of frames [F, H, W] shown at readout times `times` [F] (strictly increasing, times[0] <= r,
-  // times[F-1] >= the last readout), linearly interpolated in between; a single frame (F = 1) is
-  // constant light. Writes out [n, H, ceil(W/8)] (memory layout).
+  // times[F-1] >= the last readout), linearly interpolated in between, a readout at a frame's time
+  // reading that frame exactly (the same light however readouts are split between calls); a single
+  // frame (F = 1) is constant light. Writes out [n, H, ceil(W/8)] (memory layout).
   void run(const float* frames, const double* times, int64_t num_frames, int64_t n, uint8_t* out);
 
   int64_t height() const { return height_; }
