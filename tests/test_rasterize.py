@@ -262,6 +262,21 @@ def test_matches_reference(size, color_mode, channels, dtype, rtol):
 
 
 @needs_cpp
+@pytest.mark.parametrize("sh_degree", [0, 1, 2])
+@pytest.mark.parametrize("channels", [1, 3])
+def test_a_degree_below_the_coefficients_matches_reference(sh_degree, channels):
+    """Degree-3 coefficients [N, 16, C] rendered at a lower degree (a GaussianModel's sh_rest may
+    hold more than its degree reads): the core strides by 16 and reads the first (d+1)²; the
+    unread ones get exactly zero gradient. The other tests render K = (d+1)² only."""
+    scene = make_scene(300 + 10 * sh_degree + channels, 12, 21, 14, channels, sh_degree=3)
+    scene["sh_degree"] = sh_degree
+    compare_to_reference(scene, torch.float64, 1e-9)
+    _, grads = forward_backward(spikegs.rasterize, scene, torch.float64)
+    assert grads["colors"][:, : num_coeffs(sh_degree)].abs().sum() > 0
+    assert torch.all(grads["colors"][:, num_coeffs(sh_degree) :] == 0)
+
+
+@needs_cpp
 @pytest.mark.parametrize("seed", range(3))
 def test_elongated_splats_across_tiles_match_reference(seed):
     """Long, thin splats at every angle crossing tile edges and corners: the core composites only
