@@ -1284,6 +1284,14 @@ def test_every_method_config_loads():
         # instant target, a TFP window for SIM; rates that move parameters by more than their
         # scale a step finished "successfully" with garbage
         ("spikegs", {"densify": {"start": 30, "stop": 60, "every": 100}}, "densify.every"),
+        # a multiple of every in start..stop, but only at or past the run's last iteration, where
+        # no round falls: accepted, and the run never densified
+        ("spikegs", {"densify": {"start": 2950, "stop": 3000}}, "densify.every"),
+        (
+            "tfp33",
+            {"train": {"iterations": 60}, "densify": {"start": 50, "stop": 1000, "every": 100}},
+            "densify.every",
+        ),
         ("spikegs", {"supervision": {"instant": "none", "dssim_weight": 0.5}}, "dssim_weight"),
         ("spikegs", {"supervision": {"instant_weight": 0.0, "dssim_weight": 0.5}}, "dssim_weight"),
         ("spikegs", {"supervision": {"instant_window": 1}}, "supervision.instant_window"),
@@ -2469,6 +2477,28 @@ def test_size_pruning_starts_after_the_first_opacity_reset(reset_every):
     assert all(
         group["params"][0] is model.params[group["name"]] for group in optimizer.param_groups
     )
+
+
+def test_a_schedule_is_accepted_exactly_where_it_densifies():
+    """Validation accepted a schedule whose only multiples of every in start..stop fall at or past
+    the run's last iteration (start 50, stop 1000, every 100 in 60 iterations), where Densifier
+    never densifies: a run that silently never grew. Accepted now exactly where a round falls
+    (`DensifyConfig.last_round`), or where start >= train.iterations (no densification asked)."""
+    for iterations, start, stop, every in itertools.product(
+        range(1, 9), range(0, 10), range(0, 10), range(1, 10)
+    ):
+        config = Config()
+        config.train.iterations = iterations
+        densify = {"start": start, "stop": stop, "every": every, "opacity_reset_every": 0}
+        vars(config.densify).update(densify)
+        densifies = config.densify.last_round(iterations) > 0
+        try:
+            config.validate()
+            accepted = True
+        except ValueError as err:
+            assert re.search(r"densify\.(start|every)", str(err)), str(err)
+            accepted = False
+        assert accepted == (densifies or start >= iterations), (iterations, densify)
 
 
 def test_densification_stops_halfway_by_default():

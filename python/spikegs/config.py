@@ -278,13 +278,17 @@ class Config:
             f"<= the last densifying iteration {last} (densify.stop, or half of train.iterations "
             f"when 0), or >= train.iterations ({t.iterations}) for a run without densification",
         )
-        first = d.first_iteration()
+        # rounds fall on the multiples of every in start..stop, never at the run's last iteration
+        # (`Densifier.step`): a stop past the run ends them at iterations - 1 (start 50, stop 1000,
+        # every 100 in 60 iterations was accepted, and the run never densified)
+        first, end = d.first_iteration(), min(last, t.iterations - 1)
         _require(
-            d.start >= t.iterations or first <= last,
+            d.start >= t.iterations or first <= end,
             "densify.every",
             d.every,
-            f"a period with a multiple in densify.start..stop = {d.start}..{last} (densification "
-            f"runs at the multiples of every: none there, the run would never densify)",
+            f"a period with a multiple in densify.start..stop = {d.start}..{end} (densification "
+            f"runs at the multiples of every, before the run's last iteration {t.iterations}: "
+            f"none there, the run would never densify)",
         )
         _require(
             d.grad_threshold > 0,
