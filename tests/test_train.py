@@ -1307,6 +1307,33 @@ def test_config_validation(name, overrides, message):
         load_config(name, overrides)
 
 
+@pytest.mark.parametrize(
+    "section, key, value, named",
+    [
+        # each crashed mid-run, or trained, after the run folder (and SIM) had been made
+        ("train", "iterations", 2.5, "train.iterations"),  # TypeError in the loop
+        ("train", "iterations", 0, "train.iterations"),  # "trained" 0 steps
+        ("densify", "every", 0, "densify.every"),  # ZeroDivisionError
+        ("train", "eval_every", 0, "train.eval_every"),  # ZeroDivisionError
+        ("lr", "means", -1.0, "lr.means"),  # math domain error
+        ("supervision", "instant", "bogus", "supervision.instant"),  # trained TFI targets
+        ("supervision", "exposure_poses", 1, "supervision.exposure_poses"),  # trained
+        ("sim", "window", 4, "sim.window"),  # trained an even-window SIM
+    ],
+)
+def test_a_trainer_refuses_a_config_edited_out_of_range_before_any_work(
+    dataset, tmp_path, section, key, value, named
+):
+    """A Config edited after load_config (a sweep editing one config between its runs, as the
+    Trainer's copy allows) went unvalidated: invalid values crashed mid-run or trained."""
+    config = load_config("spikegs", FAST)
+    setattr(getattr(config, section), key, value)
+    with pytest.raises(ValueError, match=re.escape(named)):
+        Trainer(dataset, config, tmp_path / "run", progress=False)
+    assert not (tmp_path / "run").exists()
+    assert getattr(getattr(config, section), key) == value  # the caller's config is left as is
+
+
 def test_a_method_without_the_exposure_loss_leaves_its_settings_unread():
     """tfp33 (no exposure loss) refused exposure_window 1 as if it rendered an exposure."""
     config = load_config("tfp33", {"supervision": {"exposure_window": 1, "exposure_poses": 1}})

@@ -109,8 +109,14 @@ class Trainer:
 
     def __init__(self, dataset, config: Config, run_dir: str | Path, progress: bool = True):
         # a copy: a sweep that edits one Config between constructing its trainers (or after one
-        # trained, before resuming it) trained every run with the last settings
-        self.dataset, self.config, self.progress = dataset, copy.deepcopy(config), progress
+        # trained, before resuming it) trained every run with the last settings; validated, as
+        # load_config validates: a value edited out of range (densify.every = 0, a float
+        # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
+        self.dataset, self.config, self.progress = (
+            dataset,
+            copy.deepcopy(config).validate(),
+            progress,
+        )
         self.run_dir = Path(run_dir)
         self.scale = intensity_scale(dataset)
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
