@@ -3291,8 +3291,29 @@ def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
     overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
-    with pytest.raises(ValueError, match="pruning removed every Gaussian"):
+    with pytest.raises(ValueError, match="pruning removed every Gaussian") as stopped:
         trainer.train()
+    assert "densify.min_opacity 0.999" in str(stopped.value)
+    assert "max_world_size" not in str(stopped.value)  # it pruned none
+
+
+def test_a_run_pruned_to_nothing_by_screen_size_names_that_setting(dataset, tmp_path):
+    """densify.max_screen_size (after the first opacity reset) pruned every Gaussian, and the
+    message named densify.min_opacity and densify.max_world_size instead (max_world_size 0.0,
+    which never prunes, where that was set)."""
+    densify = {"start": 1, "stop": 30, "every": 1, "opacity_reset_every": 2}
+    densify.update(max_screen_size=1e-9, max_world_size=0.0)
+    overrides = {"train": {**FAST["train"], "iterations": 40}, "densify": densify}
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    trainer._fresh_state()
+    trainer.densifier._resize(len(trainer.model))
+    trainer.densifier.max_radii.fill_(3.0)  # every Gaussian seen 3 pixels wide
+    trainer.iteration = 3  # a round after the first opacity reset, at 2: size pruning is on
+    with pytest.raises(ValueError, match="pruning removed every Gaussian") as stopped:
+        trainer.densify()
+    assert "densify.max_screen_size 1e-09" in str(stopped.value)
+    assert "min_opacity" not in str(stopped.value)
+    assert "max_world_size" not in str(stopped.value)
 
 
 def test_eval_of_a_run_whose_dataset_is_gone_says_to_pass_one(dataset, tmp_path, capsys):

@@ -105,6 +105,7 @@ class Densifier:
         self.grad_sum = torch.zeros(0)  # [N] summed NDC screen-gradient norms since the last round
         self.count = torch.zeros(0)  # [N] steps each Gaussian was visible in
         self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
+        self.pruned: dict[str, int] = {}  # the last round's: Gaussians each pruning setting removed
 
     def _resize(self, n: int) -> None:
         if self.grad_sum.shape[0] != n:
@@ -204,14 +205,18 @@ class Densifier:
                 lambda name, m: torch.cat([m, torch.zeros_like(new[name])]),
             )
             remove = torch.cat([split, torch.zeros(added, dtype=torch.bool)])  # [N + added]
-            remove |= model.opacities < c.min_opacity
+            pruned = {"min_opacity": model.opacities < c.min_opacity}  # [N + added] bool each
             if self._after_first_reset(iteration):
                 if c.max_world_size:
                     size = model.scales.max(dim=1).values
-                    remove |= size > c.max_world_size * self.scene_radius
+                    pruned["max_world_size"] = size > c.max_world_size * self.scene_radius
                 if c.max_screen_size:
                     radii = torch.cat([self.max_radii, torch.zeros(added)])
-                    remove |= radii > c.max_screen_size
+                    pruned["max_screen_size"] = radii > c.max_screen_size
+            for mask in pruned.values():
+                remove |= mask
+            # what each setting pruned this round (a run pruned to nothing names those that did)
+            self.pruned = {name: int(mask.sum()) for name, mask in pruned.items() if mask.any()}
             keep = ~remove
             _surgery(model, optimizer, lambda name, v: v[keep], lambda name, m: m[keep])
         self._resize(0)

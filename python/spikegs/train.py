@@ -452,11 +452,19 @@ class Trainer:
         if len(self.model) == 0:
             d = self.config.densify
             biased = biased_fit(self.brightness, self.config.supervision)
+            # the settings that pruned this round, each named (max_screen_size's pruning was
+            # reported as min_opacity's or max_world_size's, 0.0 the latter's where it was off)
+            why = {
+                "min_opacity": f"below densify.min_opacity {d.min_opacity}",
+                "max_world_size": f"larger than densify.max_world_size {d.max_world_size} of "
+                f"the scene radius, a size Gaussians leave by splitting, which "
+                f"densify.max_gaussians {d.max_gaussians} may leave no room for",
+                "max_screen_size": f"wider than densify.max_screen_size {d.max_screen_size} "
+                f"pixels in a view",
+            }
+            causes = "; ".join(f"{n:,} {why[name]}" for name, n in self.densifier.pruned.items())
             raise ValueError(
-                f"iteration {self.iteration}: pruning removed every Gaussian (below "
-                f"densify.min_opacity {d.min_opacity}, or larger than densify.max_world_size "
-                f"{d.max_world_size} of the scene radius, a size Gaussians leave by splitting, "
-                f"which densify.max_gaussians {d.max_gaussians} may leave no room for); prune "
+                f"iteration {self.iteration}: pruning removed every Gaussian ({causes}); prune "
                 f"less, or give the run more room" + (f". Before: {biased}" if biased else "")
             )
 
