@@ -68,6 +68,23 @@ def test_bench_spikes_numpy_simulator_is_the_cores():
     assert abs(numpy_count - count) < 4 * math.sqrt(count), (numpy_count, count)
 
 
+def test_bench_spikes_numpy_simulator_reads_the_last_frame_as_the_core():
+    """The core reads a readout at the last frame's time as that frame (5baf63f), where the numpy
+    model kept frames[F-2] + 1 · (frames[F-1] - frames[F-2]), which rounds in float32: `bench
+    spikes` times the core against it with the last readout at the last frame's time, and counted
+    pixels a voltage within a rounding of the threshold tips as "spikes differing". Light built
+    so (as test_a_chunk_ending_on_a_frame_time_reads_that_frame): 14 of 4096 differed."""
+    p = 4096
+    s = np.random.default_rng(0).uniform(0.2, 3.9, p).astype(np.float32)
+    kept = np.float32(97.5) + np.float32(25) * s - np.float32(100)  # v after readout 1
+    light = np.zeros((3, 1, p), np.float32)  # a frame each readout, the last at readout 2
+    light[0], light[1] = 7.9, s
+    light[2] = ((100.0 - kept.astype(np.float64)) / 25.0).astype(np.float32)
+    times = np.array([0.0, 1.0, 2.0])
+    ours = simulate_spikes(light, 3, frame_times=times, params=spikes.NOISE_FREE)
+    np.testing.assert_array_equal(spikes._numpy_simulate(light, times, 3, spikes.NOISE_FREE), ours)
+
+
 def test_bench_spikes_simulator_times_are_medians(monkeypatch):
     """TFP's and TFI's times against numpy are medians of 3; the simulator's were one call each,
     which the machine's load moved (BENCHMARKS.md's two rows of the same core work, 2,318 and

@@ -132,10 +132,13 @@ def _numpy_simulate(light: np.ndarray, times: np.ndarray, readouts: int, params:
     gain, shot, tsig = f32(p.threshold * p.rate_at_one), f32(p.shot_noise), f32(p.temporal_sigma)
     out = np.empty((readouts, light.shape[1], (light.shape[2] + 7) // 8), np.uint8)
     for t in range(readouts):
-        f = min(int(np.searchsorted(times, t, side="right")) - 1, len(times) - 2)
-        a = f32(np.clip((t - times[f]) / (times[f + 1] - times[f]), 0.0, 1.0))
+        f = max(int(np.searchsorted(times, t, side="right")) - 1, 0)
+        # a readout at (or past) the last frame's time reads that frame alone, as the core does:
+        # frames[F-2] + 1 · (frames[F-1] - frames[F-2]) rounds in float32
+        nxt = min(f + 1, len(times) - 1)
+        a = f32(np.clip((t - times[f]) / (times[nxt] - times[f]), 0.0, 1.0)) if nxt > f else f32(0)
         z = rng.standard_normal((2, *theta.shape), f32)
-        mu = gain * np.maximum(light[f] + a * (light[f + 1] - light[f]), 0) + dark
+        mu = gain * np.maximum(light[f] + a * (light[nxt] - light[f]), 0) + dark
         voltage += mu + shot * np.sqrt(mu) * z[0]
         fire = voltage >= theta * np.maximum(1 + tsig * z[1], f32(0.1))
         voltage = np.where(fire, np.minimum(voltage - theta, theta), voltage)
