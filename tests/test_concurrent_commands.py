@@ -43,6 +43,22 @@ def test_a_dataset_being_simulated_is_not_simulated_over(tmp_path):
     simulate_dataset("solids", out, **SMALL)  # a folder holding the lock alone is an empty one
 
 
+def test_a_simulation_under_way_is_busy_not_an_interrupted_one(tmp_path):
+    """A simulation writing `out` has its spikes' temporary there: a second one said that `out`
+    held "what an interrupted simulation left" and to pass --overwrite (which would delete the
+    first one's files). simulate checks the lock before that check, and before any work: busy.
+    (With only the lock in `out`, as above, the lock taken before writing refuses it as well, so
+    that test alone passes without the check before any work.)"""
+    out = tmp_path / "data"
+    out.mkdir()
+    partial = out / ".spikes.dat.4242.tmp"  # the first simulation's spikes, being written
+    partial.write_bytes(b"\0" * 64)
+    with exclusive_lock(out / ".lock", busy="held"):
+        with pytest.raises(Busy, match=f"{BUSY_DATASET}.*give another --out"):
+            simulate_dataset("solids", out, **SMALL)
+    assert sorted(os.listdir(out)) == [".lock", partial.name]  # nothing written or deleted
+
+
 def test_a_dataset_being_trained_from_is_not_overwritten(tmp_path):
     """`spikegs simulate --overwrite` deleted a dataset that a training was reading, its SIM's
     lock with it (a second process then trained that SIM beside the first)."""
