@@ -2559,21 +2559,28 @@ def test_iterations_override_scales_the_densification_schedule():
 def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
     """One round as written (start = stop = 1000 every 100; start 1450 or 1500 with stop 0, half
     the run; start 0 every 1500) was refused at most --iterations: each key rounded alone (500:
-    167..167 every 17; 1003: start 502 past half, 501). Now a round at every length (two where
-    every rounds to 1), within a period of the scaled start; a file's own schedule, unscaled, is
-    checked as written."""
+    167..167 every 17; 1003: start 502 past half, 501); one late in the run (2700..3400 every
+    700) at a few, 11 say: 10..12 every 3, whose 12 is past the run's last round. Now a round at
+    every length (two where every rounds to 1), within a period of the scaled start; a file's own
+    schedule, unscaled, is checked as written."""
     path = tmp_path / "once.yaml"
     schedules = [
         {"start": 1000, "stop": 1000, "every": 100},
         {"start": 1450, "stop": 0},
         {"start": 1500, "stop": 0},
         {"start": 0, "stop": 0, "every": 1500},
+        # its round (2800) late in the run: at 11 iterations 10..12 every 3, whose first
+        # multiple, 12, lies past the run (refused since rounds never fall at its last iteration)
+        {"start": 2700, "stop": 3400, "every": 700},
     ]
     for densify in schedules:
         path.write_text(yaml.safe_dump({"base": "spikegs", "densify": densify}))
         config = load_config(path)
         for iterations in [*range(2, 120), *range(120, 6001, 37)]:
             d = config.with_iterations(iterations).densify
+            if d.start >= iterations:  # 2700 of 3000 rounds to the run's end under 6 iterations:
+                assert densify["start"] == 2700 and iterations < 6, (densify, iterations, d)
+                continue  # no densification, as start >= train.iterations says
             last = d.stop or iterations // 2
             rounds = [i for i in range(1, iterations) if d.start <= i <= last and i % d.every == 0]
             assert 1 <= len(rounds) <= 2, (densify, iterations, d)  # 2: every rounded to 1

@@ -389,7 +389,10 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
     """A scaled schedule whose rounding left no multiple of `every` in start..stop (start = stop
     = 1000 every 100 at 500 of 3000 iterations: 167..167 every 17), or, with stop 0, a start past
     half the run (1500 at 1003: 502 > 501), densifies once: start no later than the last
-    densifying iteration, stop at the first multiple of every from start."""
+    densifying iteration, stop at the first multiple of every from start. One whose first
+    multiple of every from start falls at or past the run's last iteration, where no round falls
+    (`Densifier.step`; 2700..3400 every 700, a round at 2800 of 3000, is 10..12 every 3 at 11),
+    starts at the last multiple of every before the run's end (9) instead."""
     d = densify
     if d.every < 1 or not 0 <= d.start < iterations or d.stop < 0:
         return  # for validate to name
@@ -397,8 +400,11 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
     if not d.stop and d.start == last + 1:  # round(start·f) against floor(iterations / 2)
         d.start = last
     first = d.first_iteration()
+    end = min(last, iterations - 1)  # the last iteration a round may fall at
     if d.start <= last < first < iterations:
         d.stop = first
+    elif d.start <= end < first and end >= d.every:  # (a multiple of every within 1..end)
+        d.start = end // d.every * d.every
 
 
 class ConfigError(ValueError):
