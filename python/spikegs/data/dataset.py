@@ -440,7 +440,11 @@ def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | Non
     kind = "dark" if dark else "saturated"
     cause = (
         f"a {kind} simulation, rate_at_one {sim_rate:g} in {settings}: simulate it again with "
-        + ("more light or a higher --rate-at-one, at most 1" if dark else "less light")
+        + (
+            "more light or a higher --rate-at-one, at most 1"
+            if dark
+            else "less light or a lower --rate-at-one"
+        )
         + "; or a wrong file"
         if sim_rate is not None
         else f"a {kind} recording, a wrong file or a wrong frame size: height, width, "

@@ -150,8 +150,9 @@ class RenderSource(Source):
         times its readouts less one; around the scene where it turns 360° or more): a 20° path
         (--speed 0.005) sees one side; views around it scored 17-22 dB where its own scored 44.
         Views a degree or more apart: a path that turns under 2° gets one (copies of it scored
-        the same view again). They lie on `trajectory`'s orbit: a subclass with a path of its
-        own overrides both."""
+        the same view again). They follow the orbit `trajectory` spirals on (its centre, up and
+        azimuths from 0; its mean elevation, 1.2 times its distance): a subclass with a path of
+        its own overrides both."""
         views = []
         elevation = float(np.mean(self.elevation_deg))
         arc = 360.0 if abs(arc_deg) >= 360 else arc_deg
