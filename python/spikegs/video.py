@@ -24,9 +24,8 @@ MP4_QUALITY = {
 }
 # x264's assembly held to AVX2 where the CPU has AVX-512: x264's AVX-512 code (core 165, PyAV
 # 18's) read heap memory it never wrote (the same frames made 6 files in 20 encodes after other
-# allocations, and a test's file once in CI) and differs from its C code, which its AVX2 code
-# matches (20 encodes, one file: the same as any machine's without AVX-512); 30 frames of
-# 540x960 in 1.10 s against 1.03 (its C code alone: 4.33)
+# allocations, and a test's file once in CI), its AVX2 code one file (as a machine's with AVX2
+# and without AVX-512); 30 frames of 540x960 in 1.10 s against 1.03 (BENCHMARKS.md)
 X264_WITHOUT_AVX512 = {"x264-params": "asm=AVX2"}
 
 
