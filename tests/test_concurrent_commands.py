@@ -147,3 +147,23 @@ def test_eval_of_a_run_finishing_says_it_is_busy(tmp_path):
         run_dataset(run, None)
     with pytest.raises(FileNotFoundError, match="stopped while writing its results"):
         run_dataset(run, None)  # no process holds it: killed there
+
+
+def test_a_filesystem_without_locks_is_said_once_by_simulate(tmp_path, monkeypatch):
+    """simulate's check before any work and its lock around the writes each warned "not locked"
+    where the filesystem cannot lock (ENOLCK): once is enough."""
+    import errno
+    import warnings
+
+    out = tmp_path / "data"
+    simulate_dataset("solids", out, **SMALL)  # its .lock there, as a second simulation finds it
+
+    def no_flock(*args):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr("fcntl.flock", no_flock)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        simulate_dataset("solids", out, overwrite=True, **SMALL)
+    said = [str(w.message) for w in caught if "not locked" in str(w.message)]
+    assert len(said) == 1, said

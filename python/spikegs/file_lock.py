@@ -82,8 +82,10 @@ def refuse_if_held(path: Path, busy: str) -> None:
     if not Path(path).is_file():
         return
     try:
-        with exclusive_lock(path, busy):
-            pass
+        with warnings.catch_warnings():  # a filesystem that cannot lock: the later lock says so
+            warnings.simplefilter("ignore")
+            with exclusive_lock(path, busy):
+                pass
     except Busy:
         raise
     except OSError:  # a folder this process cannot write: its writes fail later, saying so
