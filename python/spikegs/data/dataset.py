@@ -438,18 +438,17 @@ def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | Non
         every = "every pixel" if saturated == 1 else f"{saturated:.2%} of the pixels"
         what = f"{every} firing at every readout"
     kind = "dark" if dark else "saturated"
-    cause = (
-        f"a {kind} simulation, rate_at_one {sim_rate:g} in {settings}: simulate it again with "
-        + (
-            "more light or a higher --rate-at-one, at most 1"
-            if dark
-            else "less light or a lower --rate-at-one"
+    if sim_rate is None:
+        cause = (
+            f"a {kind} recording, a wrong file or a wrong frame size: height, width, raw_width, "
+            f"col_offset in {settings}"
         )
-        + "; or a wrong file"
-        if sim_rate is not None
-        else f"a {kind} recording, a wrong file or a wrong frame size: height, width, "
-        f"raw_width, col_offset in {settings}"
-    )
+    else:
+        light = "more light or a higher" if dark else "less light or a lower"
+        cause = (
+            f"a {kind} simulation, rate_at_one {sim_rate:g} in {settings}: simulate it again "
+            f"with {light} --rate-at-one{', at most 1' if dark else ''}; or a wrong file"
+        )
     raise ValueError(
         f"{stream.path}: {what} in its {n} readouts of {stream.height}x{stream.width}: nothing "
         f"to learn from ({cause})"
