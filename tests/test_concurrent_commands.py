@@ -18,6 +18,8 @@ from spikegs.file_lock import BUSY, Busy, exclusive_lock
 
 SMALL = dict(height=16, width=16, readouts=400, test_on_path=2, test_off_path=2, progress=False)
 BUSY_DATASET = "in use by another process"
+# a command that waits for a lock it should refuse fails in a minute, not at the suite's timeout
+pytestmark = pytest.mark.timeout(60)
 
 
 @pytest.fixture(scope="module")
