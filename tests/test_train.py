@@ -3478,6 +3478,29 @@ def test_a_full_disk_is_an_os_error_naming_the_file_and_leaves_no_torn_file(tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(writes)
 
 
+def test_a_checkpoint_on_a_disk_filling_mid_write_is_an_os_error(tmp_path):
+    """A disk that fills up part-way through a checkpoint (a real one; /dev/full refuses every
+    byte): torch's zip writer, closing, raised "RuntimeError: [enforce fail at
+    inline_container.cc] unexpected pos" over the write's OSError, and `spikegs train` ended in a
+    traceback (exit 1). A file-size limit fails writes alike (EFBIG)."""
+    import resource
+
+    from spikegs.atomic_save import save_atomically
+
+    path = tmp_path / "last.pt"
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)
+    ignored = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # (Python's own setting)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (20000, limit[1]))
+    try:
+        with pytest.raises(OSError) as raised:
+            save_atomically({"x": torch.zeros(100000)}, path)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, limit)
+        signal.signal(signal.SIGXFSZ, ignored)
+    assert raised.value.errno == errno.EFBIG and raised.value.filename == str(path)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
     """Test views, evaluation images and points3d.ply (which `spikegs poses` rewrites in a
     dataset) went straight to their path: a kill left a truncated file the dataset refused."""

@@ -156,15 +156,21 @@ def write_text_if_changed(path: Path, text: str) -> None:
 
 
 def save_atomically(obj, path: Path) -> None:
-    """torch.save `obj` to `path` through `write_atomically`, into a file object: given a path,
-    torch's own writer turned a full disk into "RuntimeError: [enforce fail at
-    inline_container.cc] unexpected pos", which no caller takes for an OSError (serialised in
-    memory first, a checkpoint of 1e6 colour Gaussians took 0.7 GB more)."""
+    """torch.save `obj` to `path` through `write_atomically`, into a file object (serialised in
+    memory first, a checkpoint of 1e6 colour Gaussians took 0.7 GB more). A disk that fills up
+    mid-write raises its OSError: torch's zip writer, closing, raised "RuntimeError: [enforce
+    fail at inline_container.cc] unexpected pos" over it, which no caller takes for an
+    OSError."""
     import torch
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as file:
-            torch.save(obj, file)
+            try:
+                torch.save(obj, file)
+            except RuntimeError as err:
+                if isinstance(err.__context__, OSError):  # the write's own error
+                    raise err.__context__ from None
+                raise
 
     write_atomically(path, write)
 
