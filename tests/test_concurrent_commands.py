@@ -93,6 +93,32 @@ def test_commands_reading_a_dataset_refuse_while_it_is_written(simulated, tmp_pa
     assert not run.exists() and not (tmp_path / "sim.pt").exists()
 
 
+def test_commands_pointed_at_a_folder_without_a_dataset_leave_no_lock_there(tmp_path, capsys):
+    """train, sim-train, eval, render and poses on a folder holding no dataset (an empty or
+    mistyped one; an LLFF or NeRF layout, which no spikegs process writes) left an empty .lock
+    in it; a folder being simulated (its lock held, its parts not yet written) is busy still."""
+    import numpy as np
+
+    typo, llff, run = tmp_path / "typo", tmp_path / "llff", tmp_path / "run"
+    typo.mkdir()
+    llff.mkdir()
+    np.save(llff / "poses_bounds.npy", np.zeros((2, 17)))  # (its bounds refused)
+    commands = [
+        ["train", str(typo), "--out", str(run)],
+        ["sim-train", str(typo)],
+        ["eval", str(run), "--dataset", str(typo)],
+        ["poses", str(typo)],
+    ]
+    for argv in (*commands, ["train", str(llff), "--out", str(run)]):
+        assert main(argv) == 2, argv
+    assert os.listdir(typo) == [] and os.listdir(llff) == ["poses_bounds.npy"]
+    assert "no dataset found" in capsys.readouterr().err
+    with exclusive_lock(typo / ".lock", busy="held"):  # as a simulation starting there holds it
+        for argv in commands:
+            assert main(argv) == BUSY, argv
+    assert not run.exists()
+
+
 def test_training_from_a_dataset_shares_it(simulated, tmp_path):
     """Trainings from one dataset run together (a shared lock), and leave it as it was."""
     from spikegs.config import load_config

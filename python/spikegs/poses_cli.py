@@ -42,6 +42,7 @@ from .data.dataset import (
     open_streams,
     read_timestamps,
     spike_files,
+    takes_lock,
     warn_rows_out_of_line,
     write_parts,
     writing_dataset,
@@ -280,7 +281,7 @@ def estimate_poses(
     (also written to DATASET/sfm/report.json). Busy while another process writes the dataset or
     trains from it."""
     args = (window, every, count, sim, min_registered)
-    if not Path(root).is_dir():  # refused as a dataset without meta.json, nothing made
+    if not takes_lock(Path(root)):  # refused as a dataset without meta.json, nothing made
         return _estimate_poses(Path(root), *args)
     with writing_dataset(root):  # its poses and split, read as they change: one process at a time
         return _estimate_poses(Path(root), *args)

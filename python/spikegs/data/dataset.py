@@ -13,6 +13,7 @@ DIR/test/NAME.exr          their clean instantaneous images, float, firing-rate 
 from __future__ import annotations
 
 import collections
+import contextlib
 import dataclasses
 import json
 import os
@@ -275,11 +276,22 @@ def reading_dataset(root: PathLike):
     """A shared lock on ROOT/.lock for a `with` block that reads the dataset at `root` (loads it,
     trains from it): processes reading it run together; Busy while one writes it
     (`writing_dataset`), and a process that would write it is refused meanwhile. No lock where
-    `root` is no folder, or one without the lock that this process cannot write."""
+    `root` takes none (`takes_lock`), or is a folder without the lock that this process cannot
+    write."""
     root = Path(root)
+    if not takes_lock(root):
+        return contextlib.nullcontext()
     return shared_lock(
         root / LOCK, f"{root} is being written by another process ({WRITERS}); wait for it to end"
     )
+
+
+def takes_lock(root: Path) -> bool:
+    """Whether a command using the folder `root` as a dataset locks it: where it holds a lock or
+    (a part of) a dataset. A folder holding neither is left without a lock file: it has nothing
+    to read (an empty or mistyped one; a simulation starting there makes the lock before any
+    part), or no spikegs process writes it (an LLFF or NeRF layout)."""
+    return (root / LOCK).exists() or holds_dataset(root)
 
 
 def holds_dataset(out: Path) -> bool:
