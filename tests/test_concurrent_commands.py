@@ -177,6 +177,30 @@ def test_eval_of_a_run_finishing_says_it_is_busy(tmp_path):
         run_dataset(run, None)  # no process holds it: killed there
 
 
+def test_a_lock_file_of_another_users_locks_read_only(tmp_path, monkeypatch):
+    """simulate into a folder whose .lock another user made (a shared folder, the lock readable,
+    not writable) ended on "error: [Errno 13] Permission denied: D/.lock" (exit 2): flock needs
+    no write access, and the lock opened read-only works as any."""
+    from pathlib import Path
+
+    out = tmp_path / "data"
+    out.mkdir()
+    (out / ".lock").touch()
+    opened = Path.open
+
+    def theirs(self, mode="r", *args, **kwargs):  # as for a process of another user
+        if self.name == ".lock" and mode != "rb":
+            raise PermissionError(13, "Permission denied", str(self))
+        return opened(self, mode, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "open", theirs)
+    simulate_dataset("solids", out, **SMALL)
+    with open(out / ".lock") as reader:  # a training's lock on its dataset
+        fcntl.flock(reader, fcntl.LOCK_SH)
+        with pytest.raises(Busy, match=BUSY_DATASET):
+            simulate_dataset("solids", out, overwrite=True, **SMALL)
+
+
 def test_a_filesystem_without_locks_is_said_once_by_simulate(tmp_path, monkeypatch):
     """simulate's check before any work and its lock around the writes each warned "not locked"
     where the filesystem cannot lock (ENOLCK): once is enough."""

@@ -33,7 +33,7 @@ def exclusive_lock(path: Path, busy: str | None):
     if fcntl is None:
         yield
         return
-    with Path(path).open("a") as handle:  # "w" would touch it: a finished run looked rewritten
+    with _opened(Path(path)) as handle:
         _lock(handle, path, fcntl.LOCK_EX, busy)
         yield
 
@@ -48,16 +48,27 @@ def shared_lock(path: Path, busy: str):
         yield
         return
     try:
-        handle = Path(path).open("a")
-    except OSError:  # a read-only folder or file: a lock there, if any, is read-only enough
-        try:
-            handle = Path(path).open("rb")
-        except OSError:
-            yield
-            return
+        handle = _opened(Path(path))
+    except OSError:  # (the docstring's folder; or the lock unreadable: another user's, mode 600)
+        yield
+        return
     with handle:
         _lock(handle, path, fcntl.LOCK_SH, busy)
         yield
+
+
+def _opened(path: Path):
+    """The file `path` opened to lock it: for appending, made where missing ("w" would touch it:
+    a finished run looked rewritten), else read-only, all that flock needs (a lock file of
+    another user's in a shared folder; a read-only folder's); the append's OSError where neither
+    opens."""
+    try:
+        return path.open("a")
+    except OSError as err:
+        try:
+            return path.open("rb")
+        except OSError:
+            raise err from None
 
 
 def _lock(handle, path: Path, kind: int, busy: str | None) -> None:
