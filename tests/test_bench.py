@@ -414,6 +414,23 @@ def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path
     assert mine.read_text() == "mine"
 
 
+def test_a_data_folder_holding_its_lock_alone_is_simulated_into_as_an_empty_one(
+    tmp_path, monkeypatch, capsys
+):
+    """A bench stopped as it began simulating leaves OUT/data/SCENE holding its .lock alone: the
+    next one said of it "not this benchmark's dataset (other settings, or incomplete);
+    replaced"."""
+    root = tmp_path / "solids"
+    root.mkdir()
+    (root / ".lock").touch()
+    monkeypatch.setattr(train, "simulate_dataset", lambda *args, **kwargs: "simulated")
+    assert train.dataset_for("solids", root, {})[0] == "simulated"
+    assert capsys.readouterr().out == ""
+    (root / "meta.json").write_text("{}")  # an incomplete dataset is said to be replaced
+    train.dataset_for("solids", root, {})
+    assert "not this benchmark's dataset" in capsys.readouterr().out
+
+
 def test_bench_all_refuses_a_users_files_in_its_data_folders_before_any_part(tmp_path, capsys):
     """OUT/data/SCENE holding a user's file was found by bench train, after the rasterizer,
     spikes and SIM parts had run (~70 s); stiff and poses then never ran."""

@@ -42,7 +42,7 @@ from ..data import load_dataset, simulate_dataset
 from ..data.dataset import check_output
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
-from ..demo import DEMO_OVERRIDES
+from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
 from ..run_folder import refuse_foreign_files
 from ..text_table import print_table
@@ -107,7 +107,7 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
             return dataset, 0.0
     except (FileNotFoundError, ValueError, KeyError):
         pass
-    if root.is_dir() and any(root.iterdir()):
+    if holds_files(root):  # (a folder holding its lock alone is an empty one)
         print(f"{root}: not this benchmark's dataset (other settings, or incomplete); replaced")
     start = time.perf_counter()
     dataset = simulate_dataset(scene, root, overwrite=True, progress=False, **settings)
