@@ -330,6 +330,21 @@ def test_a_sim_that_another_process_trains_is_waited_for_and_loaded(tmp_path, sc
     assert seconds == 0 and torch.equal(model.head[-1].bias, elsewhere.head[-1].bias)
 
 
+def test_a_sim_trained_over_another_takes_its_scores_away(tmp_path, scene):
+    """A SIM trained again at its path (new spikes or timestamps: `spikegs poses` drops some)
+    left beside it the record `spikegs sim-train` wrote of the one before, NAME.json, whose
+    scores and seconds were then read as the new SIM's."""
+    path = tmp_path / "sim.pt"
+    stream, tiny = scene[1], dict(steps=2, batch_size=1, crop=16, progress=False)
+    train_or_load(path, stream, [40, 50], 33, **tiny)
+    record = tmp_path / "sim.pt.json"
+    record.write_text('{"scores": {}}')  # sim-train's
+    assert train_or_load(path, stream, [40, 50], 33, **tiny)[1] == 0  # reused: still its own
+    assert record.exists()
+    assert train_or_load(path, stream, [40, 51], 33, **tiny)[1] > 0
+    assert not record.exists()
+
+
 def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path, monkeypatch):
     """A dataset folder that cannot be written (a read-only mount) ended SIM's training in a
     traceback from torch.save, and `spikegs train` could not train a SIM method on it at all."""

@@ -27,7 +27,7 @@ from .file_lock import exclusive_lock
 from .interrupt import deferred_interrupt, interruption, progress_lost, quiet_close
 from .losses import SIM_LOSSES
 from .number_checks import is_int, is_number
-from .output_paths import writable_folder
+from .output_paths import record_beside, writable_folder
 from .sim import SIM, START
 
 CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
@@ -413,6 +413,7 @@ def train_or_load(
         save_sim(
             model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
         )
+        record_beside(path).unlink(missing_ok=True)  # sim-train's scores of the SIM replaced
         partial.unlink(missing_ok=True)
         if quiet:
             print(
