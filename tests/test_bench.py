@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import tempfile
 
 import numpy as np
 import pytest
@@ -83,6 +84,24 @@ def test_bench_spikes_numpy_simulator_reads_the_last_frame_as_the_core():
     times = np.array([0.0, 1.0, 2.0])
     ours = simulate_spikes(light, 3, frame_times=times, params=spikes.NOISE_FREE)
     np.testing.assert_array_equal(spikes._numpy_simulate(light, times, 3, spikes.NOISE_FREE), ours)
+
+
+def test_bench_data_lies_in_a_named_temporary_folder_removed_after(tmp_path, monkeypatch):
+    """A bench part's temporary data (a 250 MB stream for `bench spikes`) lies in
+    $TMPDIR/spikegs-bench-PART-*, so that one a killed process left says whose it is, and is
+    removed when the part stops, on an error too."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    folders = []
+
+    def stop(path, *args):  # the stream written: where is it?
+        folders.append(path.parent)
+        raise RuntimeError("stopped")
+
+    monkeypatch.setattr(spikes, "_bench_stream", stop)
+    with pytest.raises(RuntimeError, match="stopped"):
+        spikes.run(quick=True, out=tmp_path / "out")
+    assert folders[0].parent == tmp_path and folders[0].name.startswith("spikegs-bench-spikes-")
+    assert not folders[0].exists()
 
 
 def test_bench_spikes_simulator_times_are_medians(monkeypatch):

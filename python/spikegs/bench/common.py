@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import statistics
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +20,13 @@ def uniform(gen, lo: float, hi: float, *shape: int):
     import torch
 
     return lo + (hi - lo) * torch.rand(*shape, generator=gen, dtype=torch.float64)
+
+
+def scratch_folder(part: str) -> tempfile.TemporaryDirectory:
+    """A temporary folder for the benchmark `part`'s data, removed at the block's end (Ctrl-C
+    included); named `spikegs-bench-PART-*` in $TMPDIR, so that one a killed process left (up to
+    ~250 MB for `bench spikes`) says whose it is."""
+    return tempfile.TemporaryDirectory(prefix=f"spikegs-bench-{part}-")
 
 
 def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> float:

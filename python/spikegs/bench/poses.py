@@ -14,7 +14,6 @@ from __future__ import annotations
 import copy
 import math
 import statistics
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ from ..evaluate import evaluate_run
 from ..pose_refine import pose_errors
 from ..text_table import print_table
 from ..train import Trainer
-from .common import write_results
+from .common import scratch_folder, write_results
 from .train import schedule
 
 NOISE_DEG = 1.0  # rotation of each perturbed pose
@@ -156,7 +155,7 @@ def run(quick: bool, out: Path) -> dict:
     """The three conditions, repeated over noise seeds; writes poses.json and poses.png."""
     setup = QUICK if quick else FULL
     runs = {c: [] for c in CONDITIONS}
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch_folder("poses") as tmp:
         tmp = Path(tmp)
         dataset = simulate_dataset(
             "solids",

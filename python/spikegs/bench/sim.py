@@ -11,7 +11,6 @@ channels-first (how SIM trains without native bfloat16) against the per-branch n
 
 from __future__ import annotations
 
-import tempfile
 import time
 from pathlib import Path
 
@@ -25,7 +24,7 @@ from ..sim import SIM
 from ..sim_scores import evaluate_dataset
 from ..sim_train import FINAL_LOSS_STEPS, inference_model, train_sim, training_layout
 from ..text_table import print_table
-from .common import median_seconds, write_results
+from .common import median_seconds, scratch_folder, write_results
 
 TRAINING = SimConfig()  # SIM trains as `spikegs train` trains it: steps, batch
 
@@ -151,7 +150,7 @@ def run(quick: bool, out: Path, progress: bool = False) -> dict:
     """Quality on the built-in scenes, training time, inference FPS at 250×400; writes sim.json.
     SIM's training draws a progress bar where `progress`."""
     quality, training = [], []
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch_folder("sim") as tmp:
         for scene in SCENES if not quick else list(SCENES)[:1]:
             rows, train, model = _scene(scene, quick, Path(tmp), progress)
             quality += rows

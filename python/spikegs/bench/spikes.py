@@ -12,7 +12,6 @@ that differ between the two.
 
 from __future__ import annotations
 
-import tempfile
 import tracemalloc
 from pathlib import Path
 from typing import Any
@@ -23,7 +22,7 @@ from ..atomic_save import save_figure
 from ..cpu_quota import usable_cpus
 from ..spikes import TFI_DEFAULT_MAX_INTERVAL, SimParams, SpikeStream, simulate_spikes
 from ..text_table import print_table
-from .common import median_seconds, write_results
+from .common import median_seconds, scratch_folder, write_results
 
 HEIGHT, WIDTH = 250, 400
 BATCH = 25  # timestamps per call: bounds the output held at once ([25, H, W] float32)
@@ -267,7 +266,7 @@ def run(quick: bool, out: Path) -> dict:
     """Run the benchmark, print a table, write spikes.json and spikes.png under `out`."""
     readouts = 2000 if quick else 20000
     count, np_count = (100, 20) if quick else (1000, 1000)
-    with tempfile.TemporaryDirectory() as tmp:
+    with scratch_folder("spikes") as tmp:
         path = Path(tmp) / "stream.dat"
         _write_random_stream(path, readouts)
         rows, memory, tfi = _bench_stream(path, readouts, count, np_count)
