@@ -8,6 +8,7 @@ import math
 import os
 import subprocess
 import sys
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -453,6 +454,33 @@ def test_non_contiguous_inputs():
         assert torch.equal(a, b)
     for name in PARAMS:
         assert torch.equal(grads_v[name], grads[name]), name
+
+
+@needs_cpp
+def test_inputs_and_outputs_cross_the_binding_without_a_copy():
+    """Contiguous CPU tensors reach the core as numpy views of their memory, and its arrays come
+    back as tensors over them: while the op runs numpy allocates its outputs and gradients and
+    nothing else (tracemalloc traces numpy's memory, not the core's or torch's), so a copy of any
+    input, 4 bytes a Gaussian at least, shows; and the forward's outputs are numpy's memory still
+    (copied into torch tensors, the arrays were freed)."""
+    n, slack = 100_000, 64 << 10  # Python's own objects: a few kB
+    scene = make_scene(2, n, 16, 12, channels=1, dtype=torch.float32)
+    leaves = {k: scene[k].requires_grad_() for k in PARAMS[:5]}
+    render(spikegs.rasterize, scene, **leaves)  # the first call's imports and caches
+    tracemalloc.start()
+    try:
+        out = render(spikegs.rasterize, scene, **leaves)
+        held, peak = tracemalloc.get_traced_memory()
+        outputs = sum(t.nbytes for t in out)  # image, alpha, radii, means2d, depths
+        assert (out.radii > 0).sum() > n // 2
+        assert outputs <= held and peak <= outputs + slack, (held, peak, outputs)
+        tracemalloc.reset_peak()
+        out.image.sum().backward()
+        # a gradient per input value, of the view matrix and background, of means2d and AbsGS's
+        grads = sum(v.nbytes for v in leaves.values()) + (16 + 1 + 4 * n) * 4
+        assert tracemalloc.get_traced_memory()[1] <= held + grads + slack
+    finally:
+        tracemalloc.stop()
 
 
 # ---- input validation ------------------------------------------------------------------------
