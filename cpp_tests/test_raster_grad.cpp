@@ -95,42 +95,82 @@ ProjectedGrads<double> composite_grads(const Scene<double>& s, const Render<doub
   return dp;
 }
 
+// Central differences of a random linear loss on `s`'s projection (its 2D means, conics, colours,
+// opacities and depths) against project_backward's gradients.
+void check_projection(Scene<double>& s) {
+  Projected<double> proj;
+  project_forward(s.params(), s.cam, proj);
+  const auto w_m = random_weights(proj.mean2d.size(), 11),
+             w_c = random_weights(proj.conic.size(), 12);
+  const auto w_col = random_weights(proj.color.size(), 13),
+             w_o = random_weights(proj.opacity.size(), 14),
+             w_d = random_weights(proj.depth.size(), 15);
+  auto loss = [&] {
+    Projected<double> p;
+    project_forward(s.params(), s.cam, p);
+    double l = 0;
+    for (std::int64_t i = 0; i < s.n; ++i) {
+      if (p.radius[i] == 0) continue;
+      for (int k = 0; k < 2; ++k) l += w_m[2 * i + k] * p.mean2d[2 * i + k];
+      for (int k = 0; k < 3; ++k) l += w_c[3 * i + k] * p.conic[3 * i + k];
+      for (int k = 0; k < s.channels; ++k)
+        l += w_col[i * s.channels + k] * p.color[i * s.channels + k];
+      l += w_o[i] * p.opacity[i] + w_d[i] * p.depth[i];
+    }
+    return l;
+  };
+  ProjectedGrads<double> dp{w_m, w_c, w_o, w_col, w_d};
+  for (std::int64_t i = 0; i < s.n; ++i)
+    if (proj.radius[i] == 0) std::printf("  (Gaussian %lld culled)\n", (long long)i);
+  Grads<double> g(s);
+  ParamGrads<double> view = g.view();
+  project_backward(s.params(), s.cam, proj, dp, view);
+  fd_check_scene(s, g, loss);
+}
+
 }  // namespace
 
 TEST_CASE(projection) {
   for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
     const Config& c = kConfigs[seed];
     Scene<double> s = smooth_scene(c, seed + 1);
-    Projected<double> proj;
-    project_forward(s.params(), s.cam, proj);
-    const auto w_m = random_weights(proj.mean2d.size(), 11),
-               w_c = random_weights(proj.conic.size(), 12);
-    const auto w_col = random_weights(proj.color.size(), 13),
-               w_o = random_weights(proj.opacity.size(), 14),
-               w_d = random_weights(proj.depth.size(), 15);
-    auto loss = [&] {
-      Projected<double> p;
-      project_forward(s.params(), s.cam, p);
-      double l = 0;
-      for (std::int64_t i = 0; i < s.n; ++i) {
-        if (p.radius[i] == 0) continue;
-        for (int k = 0; k < 2; ++k) l += w_m[2 * i + k] * p.mean2d[2 * i + k];
-        for (int k = 0; k < 3; ++k) l += w_c[3 * i + k] * p.conic[3 * i + k];
-        for (int k = 0; k < c.channels; ++k)
-          l += w_col[i * c.channels + k] * p.color[i * c.channels + k];
-        l += w_o[i] * p.opacity[i] + w_d[i] * p.depth[i];
-      }
-      return l;
-    };
-    ProjectedGrads<double> dp{w_m, w_c, w_o, w_col, w_d};
-    for (std::int64_t i = 0; i < s.n; ++i)
-      if (proj.radius[i] == 0) std::printf("  (Gaussian %lld culled)\n", (long long)i);
-    Grads<double> g(s);
-    ParamGrads<double> view = g.view();
-    project_backward(s.params(), s.cam, proj, dp, view);
     std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    fd_check_scene(s, g, loss);
+    check_projection(s);
   }
+}
+
+// Gaussians whose x/z or y/z lies past the Jacobian's frustum clamp (the image's edge plus
+// kClampMargin half-FOVs), on each side and at a corner, wide enough to reach the image: the
+// gradient through a clamped coordinate, the derivative of z·bound, against central differences
+// (the random scenes lie within the view, where the clamp never acts).
+TEST_CASE(projection_past_the_frustum_clamp) {
+  Scene<double> s = random_scene(7, 5, 33, 17, 3, 1);
+  const Camera<double>& cam = s.cam;
+  const double tan_x = 0.5 * cam.width / cam.fx, tan_y = 0.5 * cam.height / cam.fy;
+  const double lo_x = -(cam.cx / cam.fx + kClampMargin * tan_x),
+               hi_x = (cam.width - cam.cx) / cam.fx + kClampMargin * tan_x;
+  const double lo_y = -(cam.cy / cam.fy + kClampMargin * tan_y),
+               hi_y = (cam.height - cam.cy) / cam.fy + kClampMargin * tan_y;
+  const double mid_x = (lo_x + hi_x) / 2, mid_y = (lo_y + hi_y) / 2, z = 3;
+  const double past[5][2] = {{hi_x + 0.5 * tan_x, mid_y},
+                             {lo_x - 0.5 * tan_x, mid_y},
+                             {mid_x, hi_y + 0.5 * tan_y},
+                             {mid_x, lo_y - 0.5 * tan_y},
+                             {hi_x + 0.5 * tan_x, lo_y - 0.5 * tan_y}};
+  for (int i = 0; i < 5; ++i) {
+    const double pc[3] = {past[i][0] * z, past[i][1] * z, z};  // camera space -> world: W^T (p - t)
+    for (int k = 0; k < 3; ++k) {
+      s.means[3 * i + k] = 0;
+      for (int r = 0; r < 3; ++r)
+        s.means[3 * i + k] += cam.viewmat[r * 4 + k] * (pc[r] - cam.viewmat[r * 4 + 3]);
+    }
+    for (int k = 0; k < 3; ++k)  // sigma 7-14 px: they reach 13 px and more into the image
+      s.scales[3 * i + k] = (7.0 + 3.5 * k) * z / cam.fx;
+  }
+  Projected<double> proj;
+  project_forward(s.params(), s.cam, proj);
+  for (int i = 0; i < 5; ++i) CHECK(proj.radius[i] > 0, "Gaussian ", i, " culled");
+  check_projection(s);
 }
 
 TEST_CASE(compositing) {
