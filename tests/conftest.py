@@ -107,3 +107,36 @@ class AliveArrays:
 @pytest.fixture
 def alive_arrays() -> AliveArrays:
     return AliveArrays()
+
+
+@pytest.fixture
+def longest_pause():
+    """`longest_pause(call)`: `call()` run in another thread while this one runs Python, the
+    longest time this one ran none during it, as a fraction of the call's time: about 1 where the
+    call holds the GIL throughout (a C++ kernel that keeps it), near 0 where it releases it."""
+    import threading
+    import time
+
+    def measure(call) -> float:
+        bounds, errors = [], []
+
+        def work():
+            start = time.perf_counter()
+            try:
+                call()
+            except BaseException as err:  # raised here, in the test's thread
+                errors.append(err)
+            bounds.extend([start, time.perf_counter()])
+
+        worker, ran = threading.Thread(target=work), []
+        worker.start()
+        while worker.is_alive():
+            ran.append(time.perf_counter())
+        worker.join()
+        if errors:
+            raise errors[0]
+        start, end = bounds
+        times = [start, *(t for t in ran if start < t < end), end]
+        return max(b - a for a, b in zip(times, times[1:])) / (end - start)
+
+    return measure
