@@ -26,7 +26,7 @@ from plyfile import PlyData, PlyElement
 from spikegs import _C
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
-from spikegs.config import CONFIG_DIR, Config, available_methods, load_config
+from spikegs.config import CONFIG_DIR, Config, available_methods, load_config, load_saved_run
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
@@ -1545,6 +1545,18 @@ def test_a_key_given_twice_in_a_yaml_file_is_refused(tmp_path):
     (tmp_path / "twice.yaml").write_text("train: {iterations: 200}\ntrain: {seed: 3}\n")
     with pytest.raises(ValueError, match="'train' given twice"):
         load_config(tmp_path / "twice.yaml")
+
+
+def test_a_bad_key_is_named_with_its_file(tmp_path):
+    """A key or type refused in a base file, or in a run's own config.yaml read on --resume, was
+    named without its file: the user looked for it in the file given to --config."""
+    (tmp_path / "base.yaml").write_text("base: tfp33\ntrain: {iteratons: 20}\n")
+    (tmp_path / "mine.yaml").write_text("base: base.yaml\n")
+    with pytest.raises(ValueError, match=r"base\.yaml: unknown key 'train\.iteratons'"):
+        load_config(tmp_path / "mine.yaml")
+    (tmp_path / "config.yaml").write_text("method: tfp33\nlr: {mean: 1.0e-4}\n")
+    with pytest.raises(ValueError, match=r"config\.yaml: unknown key 'lr\.mean'"):
+        load_saved_run(tmp_path / "config.yaml")
 
 
 def test_yaml_numbers_and_keys_read_as_yaml_1_2(tmp_path):

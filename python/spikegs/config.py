@@ -14,7 +14,8 @@ No file at all is the default method, DEFAULT_METHOD. The densification schedule
 the default train.iterations: a config that sets another gets each schedule key it does not set
 scaled to it, as `--iterations` does; a key a file (or its base) sets is for that file's length, and
 scales from it to the run's. Unknown sections or keys, a key given twice, values of the wrong type
-or range and non-finite numbers are refused with a message that names the key and what is allowed.
+or range and non-finite numbers are refused with a message that names the key and what is allowed
+(an unknown key or a wrong type with the file that sets it, a base file too).
 """
 
 from __future__ import annotations
@@ -587,6 +588,10 @@ def _read(
     base = data.pop("base", None)
     if base is not None and (not isinstance(base, str) or not base.strip()):
         raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
+    try:  # each file's keys and types where it sets them: a typo in a base named with its file
+        _apply(Config(), data, "")
+    except ValueError as err:
+        raise ValueError(f"{path}: {str(err).removeprefix('config: ')}") from None
     merged = {}
     if base:
         try:
