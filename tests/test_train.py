@@ -1223,7 +1223,7 @@ def test_every_method_config_loads():
         ("nope", None, "known methods"),
         ("spikegs", {"train": {"iters": 3}}, "unknown key 'train.iters'"),
         ("spikegs", {"bogus": {}}, "unknown key 'bogus'"),
-        ("spikegs", {"train": {"iterations": "many"}}, "expected int"),
+        ("spikegs", {"train": {"iterations": "many"}}, "'many' \\(text\\), expected an integer"),
         ("spikegs", {"train": {"iterations": 0}}, "train.iterations"),
         ("spikegs", {"supervision": {"exposure_window": 32}}, "odd window"),
         # 66 renders over 65 readouts reached past the window, and the trajectory, mid-run
@@ -1559,6 +1559,19 @@ def test_a_bad_key_is_named_with_its_file(tmp_path):
         load_saved_run(tmp_path / "config.yaml")
 
 
+def test_a_value_of_the_wrong_kind_is_shown_as_yaml_spells_it(tmp_path):
+    """An empty key read "= None is a NoneType, expected int", and `instant: no` "= False is a
+    bool, expected str": Python's words for what the file spells null and false."""
+    for text, message in (
+        ("train:\n  iterations:\n", "'train.iterations' = null (empty), expected an integer"),
+        ("supervision: {instant: no}\n", "'supervision.instant' = false, expected text (YAML"),
+        ("train: 20\n", "'train' = 20 (an integer), expected a section"),
+    ):
+        (tmp_path / "c.yaml").write_text(f"base: tfp33\n{text}")
+        with pytest.raises(ValueError, match=re.escape(message)):
+            load_config(tmp_path / "c.yaml")
+
+
 def test_yaml_numbers_and_keys_read_as_yaml_1_2(tmp_path):
     """020 was octal (16 iterations) and 1:20 base 60 (80); a key that is a list a TypeError."""
     (tmp_path / "n.yaml").write_text("base: tfp33\ntrain: {iterations: 020, seed: 0x10}\n")
@@ -1571,7 +1584,7 @@ def test_yaml_numbers_and_keys_read_as_yaml_1_2(tmp_path):
     with pytest.raises(ValueError, match="a key that is a list"):
         load_config(tmp_path / "k.yaml")
     (tmp_path / "o.yaml").write_text("base: tfp33\ntrain: {iterations: 0o_}\n")  # no digit
-    with pytest.raises(ValueError, match="'train.iterations' = '0o_' is a str"):  # int('', 8)
+    with pytest.raises(ValueError, match="'train.iterations' = '0o_' \\(text\\)"):  # int('', 8)
         load_config(tmp_path / "o.yaml")
 
 
@@ -2875,7 +2888,8 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     for section in ("", " 3"):
         (tmp_path / "run" / "config.yaml").write_text(f"base: tfp33\nsupervision:{section}\n")
         assert main([*argv, "--resume"]) == 2
-        assert "'supervision' must be a section" in capsys.readouterr().err
+        assert "'supervision' = " in (err := capsys.readouterr().err)
+        assert "expected a section" in err
     # a run of an earlier version, whose tfp33 defaults today's differ from: --method tfp33 (a
     # batch script's one command) resumed nothing, "trained with other settings"
     older = {**config.to_dict(), "lr": {**config.to_dict()["lr"], "means": 1.6e-4}}

@@ -33,7 +33,7 @@ from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
 from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
-from .yaml_files import read_yaml
+from .yaml_files import read_yaml, yaml_text
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -452,6 +452,29 @@ def _check_types(section, where: str = "") -> None:
             )
 
 
+# a config value's kind in words, for the messages that name what a key expects and what it holds
+KIND_WORDS = {
+    bool: "true or false",
+    int: "an integer",
+    float: "a number",
+    str: "text",
+    list: "a list",
+    dict: "a section",
+    type(None): "empty",
+}
+
+
+def _wrong_kind(key: str, value, expected: str) -> ValueError:
+    """ValueError: config key `key` holds `value`, as YAML spells it (null, true, '20'), and its
+    kind (a value of another type than KIND_WORDS' in Python's words), where `expected` goes."""
+    kind = KIND_WORDS.get(type(value), type(value).__name__)
+    found = yaml_text(value) + ("" if isinstance(value, bool) else f" ({kind})")  # (true says it)
+    quote = ""
+    if isinstance(value, bool) and expected == KIND_WORDS[str]:
+        quote = " (YAML reads an unquoted yes, no, on or off as true or false: quote the text)"
+    return ValueError(f"config: '{key}' = {found}, expected {expected}{quote}")
+
+
 def _apply(target, overrides: dict, where: str) -> None:
     """Set the fields of dataclass `target` from `overrides`, section by section, checking types."""
     known = {f.name: f for f in dataclasses.fields(target)}
@@ -461,7 +484,7 @@ def _apply(target, overrides: dict, where: str) -> None:
         current = getattr(target, key)
         if dataclasses.is_dataclass(current):
             if not isinstance(value, dict):
-                raise ValueError(f"config: '{where}{key}' must be a section (a mapping)")
+                raise _wrong_kind(f"{where}{key}", value, "a section (its keys, indented below it)")
             _apply(current, value, f"{where}{key}.")
             continue
         kind = type(current)
@@ -473,10 +496,7 @@ def _apply(target, overrides: dict, where: str) -> None:
                 )
             value = float(value)
         if type(value) is not kind:
-            got = type(value).__name__
-            raise ValueError(
-                f"config: '{where}{key}' = {value!r} is a {got}, expected {kind.__name__}"
-            )
+            raise _wrong_kind(f"{where}{key}", value, KIND_WORDS[kind])
         setattr(target, key, value)
 
 
@@ -587,7 +607,7 @@ def _read(
         raise ValueError(f"{path}: expected a mapping at the top level")
     base = data.pop("base", None)
     if base is not None and (not isinstance(base, str) or not base.strip()):
-        raise ValueError(f"{path}: base = {base!r}, expected a method name or a YAML file")
+        raise ValueError(f"{path}: base = {yaml_text(base)}, expected a method name or a YAML file")
     try:  # each file's keys and types where it sets them: a typo in a base named with its file
         _apply(Config(), data, "")
     except ValueError as err:

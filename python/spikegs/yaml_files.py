@@ -3,6 +3,7 @@ alone reads YAML 1.1, where 1e-4 is a string and 020 is octal."""
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Hashable
 from pathlib import Path
@@ -69,6 +70,15 @@ def read_yaml(path: Path):
     """A YAML file read by the rules of config files (`_Loader`: YAML 1.2 numbers, no key given
     twice), as a run's config.yaml was written (`dump_yaml`)."""
     return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)
+
+
+def yaml_text(value) -> str:
+    """A config value as a message shows it: as `dump_yaml` writes it, on one line (null, true,
+    2.5, [1, 2], {a: 1}), text quoted ('20', 'yes')."""
+    if isinstance(value, str):
+        return repr(value)
+    text = yaml.dump(value, Dumper=_Dumper, default_flow_style=True, width=math.inf)
+    return text.removesuffix("\n...\n").strip()
 
 
 def dump_yaml(data: dict) -> str:
