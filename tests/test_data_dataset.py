@@ -510,7 +510,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "spike files": (
             "meta.json",
             rewrite_meta(spike_files=["rec.dat"]),
-            r"spike_files \['rec.dat'\], but 1 channel\(s\) are read from \['spikes.dat'\]",
+            r'spike_files \["rec.dat"\], but 1 channel\(s\) are read from \["spikes.dat"\]',
         ),
         "version": ("meta.json", rewrite_meta(format_version=2), "format_version 2"),
         # a name that was not a string crashed the oracle's lookup (TypeError: unhashable); a
@@ -524,12 +524,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "version text": (
             "meta.json",
             rewrite_meta(format_version="1"),
-            r"format_version '1', this SpikeGS reads 1 \(an integer\)",
+            r'format_version "1", this SpikeGS reads 1 \(an integer\)',
         ),
         "spike files text": (
             "meta.json",
             rewrite_meta(spike_files="spikes.dat"),
-            r"spike_files 'spikes.dat', .* \(a list of file names;",
+            r'spike_files "spikes.dat", .* \(a list of file names;',
         ),
         "flip": ("meta.json", rewrite_meta(flip="true"), "meta.json: flip expected true or false"),
         "none": ("test_views.json", views(no_views), "no held-out test view"),
@@ -905,6 +905,17 @@ def test_meta_values_out_of_range_are_named(tmp_path, key, value, message):
     meta = {"width": 64, "height": 48, "fx": 40.0, key: value}
     with pytest.raises(ValueError, match=message):
         check_meta_values(meta, tmp_path / "meta.json", ["height", "width", "fx"])
+
+
+@pytest.mark.parametrize(
+    "key, value, shown",
+    [("height", None, "null"), ("channels", True, "true"), ("flip", "yes", '"yes"')],
+)
+def test_meta_values_are_shown_as_the_json_file_spells_them(tmp_path, key, value, shown):
+    """meta.json's null read "found None", and true "found True": Python's words for them."""
+    meta = {"width": 64, "height": 48, "channels": 1, "flip": True, key: value}
+    with pytest.raises(ValueError, match=f"{key} expected .*, found {shown}$"):
+        check_meta_values(meta, tmp_path / "meta.json", ["height", "width", "channels", "flip"])
 
 
 # a dataset written by hand (no simulation): readouts, rows, columns

@@ -153,7 +153,7 @@ def test_json_must_state_the_opencv_convention(tmp_path, two_poses):
         else:
             doc["convention"] = convention
         path.write_text(json.dumps(doc))
-        found = "no convention" if convention is None else f"convention {convention!r}"
+        found = "no convention" if convention is None else f"convention {json.dumps(convention)}"
         with pytest.raises(ValueError, match=rf"trajectory.json: {found}; expected .*diag\(1, -1"):
             Trajectory.load_json(path)
     doc["convention"] = "OpenCV"  # as the NeRF layout reads it, in any case
@@ -242,7 +242,7 @@ def test_only_the_frames_matrices_become_arrays_as_the_file_is_parsed(tmp_path, 
     written = [[1, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
     doc["convention"] = {"transform_matrix": written}
     path.write_text(json.dumps(doc))
-    found = re.escape(f"convention {{'transform_matrix': {written!r}}}; expected")
+    found = re.escape(f"convention {json.dumps({'transform_matrix': written})}; expected")
     with pytest.raises(ValueError, match=f"trajectory.json: {found}"):
         Trajectory.load_json(path)
 

@@ -405,14 +405,14 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
     cases = [
         ({"flip": None}, r"missing keys \['flip'\]"),
-        ({"height": "128"}, "meta.json: height expected an integer > 0 .*, found '128'"),
+        ({"height": "128"}, 'meta.json: height expected an integer > 0 .*, found "128"'),
         ({"height": 0}, "meta.json: height expected an integer > 0 and at most 1048576, found 0"),
-        ({"flip": "false"}, "meta.json: flip expected true or false, found 'false'"),  # as train
+        ({"flip": "false"}, 'meta.json: flip expected true or false, found "false"'),  # as train
         (
             {"num_readouts": 500},
             r"1000 readouts of 128x128, meta.json says 500 \(or its height",
         ),
-        ({"spike_files": ["rec.dat"]}, r"spike_files \['rec.dat'\]"),
+        ({"spike_files": ["rec.dat"]}, r'spike_files \["rec.dat"\]'),
         # what training reads later: SfM ran, wrote every file, and training refused them
         ({"fx": "175.8", "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number"),
         ({"fx": -175.8, "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number > 0"),

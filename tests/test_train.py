@@ -3313,8 +3313,11 @@ def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_
     assert (
         dumps({"psnr": [float("inf"), 31.5, (float("nan"),)]}) == '{"psnr": [null, 31.5, [null]]}'
     )
-    with pytest.raises(ValueError, match="expected numbers, found bool values"):
+    with pytest.raises(ValueError, match=re.escape("expected numbers, found true at [0]")):
         number_array([True, False])
+    # a null in a pose log's matrix: named as JSON spells it, and where (was "object values")
+    with pytest.raises(ValueError, match=re.escape("expected numbers, found null at [1, 0]")):
+        number_array([[0, 1], [None, 2]])
     for mixed in ([1.0, True], [[0, 1], (2, np.False_)]):  # numpy made these 1.0 and 0
         with pytest.raises(ValueError, match="found true or false among them"):
             number_array(mixed)

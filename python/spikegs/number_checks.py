@@ -9,6 +9,8 @@ from itertools import chain
 
 import numpy as np
 
+from .strict_json import json_text
+
 
 def is_int(value) -> bool:
     """Whether `value` is an integer (not a bool)."""
@@ -23,10 +25,15 @@ def is_seed(value) -> bool:
     return is_int(value) and 0 <= value <= SEED_MAX
 
 
+def is_real(value) -> bool:
+    """Whether `value` is a real number (not a bool), finite or not."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def is_number(value) -> bool:
     """Whether `value` is a finite real number (not a bool) that a float holds (an int past
     1.8e308, which JSON and YAML read from 309 digits, is not: float() raised OverflowError)."""
-    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+    if not is_real(value):
         return False
     try:
         return math.isfinite(float(value))
@@ -57,11 +64,15 @@ _NESTED = (list, tuple)  # what `holds_bool` looks into
 
 def number_array(value) -> np.ndarray:
     """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls or
-    ragged lists (np.asarray(value, float) would read '1.0' and True as numbers, and
-    np.asarray reads a True among numbers as 1)."""
+    ragged lists, naming the first value that is not a number and where (np.asarray(value,
+    float) would read '1.0' and True as numbers, and np.asarray reads a True among numbers as 1)."""
     array = np.asarray(value)  # ragged: ValueError
-    if array.dtype.kind not in "iuf":
-        raise ValueError(f"expected numbers, found {array.dtype.name} values")
+    if array.dtype.kind not in "iuf":  # the first value that is not a number, as JSON spells it
+        given = np.asarray(value, dtype=object).reshape(-1)  # (as given: not made text like "x")
+        flat = [v.item() if isinstance(v, np.generic) else v for v in given]
+        i = next(i for i, v in enumerate(flat) if isinstance(v, bool) or not is_real(v))
+        where = [int(n) for n in np.unravel_index(i, array.shape)]
+        raise ValueError(f"expected numbers, found {json_text(flat[i])} at {where}")
     if holds_bool(value):
         raise ValueError("expected numbers, found true or false among them")
     return array.astype(np.float64)

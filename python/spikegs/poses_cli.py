@@ -56,7 +56,7 @@ from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream
 from .spikes.stream import centred_range
-from .strict_json import read_json
+from .strict_json import json_text, read_json
 
 MIN_IMAGES = 8
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
@@ -182,7 +182,9 @@ def _stated_train_every(meta: dict, meta_path: Path) -> int | None:
     """meta.json's `train_every` (a positive integer, else ValueError), None where unstated."""
     every = meta.get("train_every")
     if every is not None and not (is_int(every) and every > 0):
-        raise ValueError(f"{meta_path}: train_every expected a positive integer, found {every!r}")
+        raise ValueError(
+            f"{meta_path}: train_every expected a positive integer, found {json_text(every)}"
+        )
     return None if every is None else int(every)
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .file_lock import Busy, exclusive_lock
 from .number_checks import is_number
-from .strict_json import read_json
+from .strict_json import json_text, read_json
 
 CONFIG = "config.yaml"  # the run's settings, which --resume keeps
 LOG = "log.jsonl"  # loss, its terms, Gaussians, held-out PSNR against seconds: a JSON line each
@@ -34,10 +34,12 @@ def read_summary(run_dir: Path) -> dict:
         return {}
     summary = read_json(path)
     if not isinstance(summary.get("dataset", ""), str):
-        raise ValueError(f"{path}: dataset expected a path, found {summary['dataset']!r}")
+        raise ValueError(f"{path}: dataset expected a path, found {json_text(summary['dataset'])}")
     scale = summary.get("intensity_scale", 1.0)
     if not (is_number(scale) and scale > 0):
-        raise ValueError(f"{path}: intensity_scale expected a finite number > 0, found {scale!r}")
+        raise ValueError(
+            f"{path}: intensity_scale expected a finite number > 0, found {json_text(scale)}"
+        )
     return summary
 
 

@@ -27,6 +27,12 @@ def dumps(value, **kwargs) -> str:
     return json.dumps(_finite_or_none(value), allow_nan=False, **kwargs)
 
 
+def json_text(value) -> str:
+    """A value read from a JSON file as a message shows it, as the file spells it: null, true,
+    "32", [0, 0] (Python's repr said None, True, '32')."""
+    return json.dumps(value, ensure_ascii=False, default=repr)
+
+
 class _RepeatedKeys(ValueError):
     """A JSON object gives a key twice."""
 

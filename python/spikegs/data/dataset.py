@@ -30,7 +30,7 @@ from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
 from ..spikes import SpikeStream
-from ..strict_json import read_json
+from ..strict_json import json_text, read_json
 from .correlation import correlation
 from .trajectory import (
     PathLike,
@@ -786,7 +786,8 @@ def _check_meta(meta: dict, path: Path) -> None:
     version = meta.get("format_version", FORMAT_VERSION)
     if version != FORMAT_VERSION or isinstance(version, (bool, str)):  # 1.0 is 1
         raise ValueError(
-            f"{path}: format_version {version!r}, this SpikeGS reads {FORMAT_VERSION} (an integer)"
+            f"{path}: format_version {json_text(version)}, this SpikeGS reads {FORMAT_VERSION} "
+            f"(an integer)"
         )
     optional = [k for k in ("raw_width", "col_offset", "scene", "source") if k in meta]
     check_meta_values(meta, path, [*required, "scene_center", "scene_radius", *optional])
@@ -807,7 +808,7 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 f" > {low}" if low > -np.inf else ""
             )
             what += "" if high is None else f" and at most {high}"
-            raise ValueError(f"{path}: {key} expected {what}, found {value!r}")
+            raise ValueError(f"{path}: {key} expected {what}, found {json_text(value)}")
 
     for key in keys:
         if key in ("height", "width"):
@@ -815,7 +816,9 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
         elif key == "num_readouts":
             number(key, 0, integer=True)
         elif key == "channels" and (meta[key] not in (1, 3) or isinstance(meta[key], bool)):
-            raise ValueError(f"{path}: channels expected 1 (mono) or 3 (RGB), found {meta[key]!r}")
+            raise ValueError(
+                f"{path}: channels expected 1 (mono) or 3 (RGB), found {json_text(meta[key])}"
+            )
         elif key == "scene_radius":
             number(key, 0)
         elif key in ("fx", "fy"):
@@ -842,30 +845,35 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                         f"expected under {MAX_OFF_AXIS_DEG}°"
                     )
         elif key == "flip" and not isinstance(meta[key], bool):
-            raise ValueError(f"{path}: flip expected true or false, found {meta[key]!r}")
+            raise ValueError(f"{path}: flip expected true or false, found {json_text(meta[key])}")
         elif key == "raw_width":
             offset = meta.get("col_offset", 0)
             need = int(meta.get("width", 1)) + (offset if is_int(offset) else 0)
             if not (is_int(meta[key]) and meta[key] >= need):
                 raise ValueError(
                     f"{path}: raw_width (pixels stored per .dat row) expected an integer >= "
-                    f"width + col_offset = {need}, found {meta[key]!r}"
+                    f"width + col_offset = {need}, found {json_text(meta[key])}"
                 )
         elif key == "col_offset" and not (is_int(meta[key]) and meta[key] >= 0):
-            raise ValueError(f"{path}: col_offset expected an integer >= 0, found {meta[key]!r}")
+            raise ValueError(
+                f"{path}: col_offset expected an integer >= 0, found {json_text(meta[key])}"
+            )
         elif key in ("scene", "source") and isinstance(meta[key], (list, dict)):
-            raise ValueError(f"{path}: {key} expected a name or number, found {meta[key]!r}")
+            raise ValueError(
+                f"{path}: {key} expected a name or number, found {json_text(meta[key])}"
+            )
         elif key == "scene_center":
             center = meta[key]
             if not (isinstance(center, list) and len(center) == 3 and all(map(is_number, center))):
                 raise ValueError(
-                    f"{path}: scene_center expected 3 finite numbers, found {center!r}"
+                    f"{path}: scene_center expected 3 finite numbers, found {json_text(center)}"
                 )
     names = spike_files(meta["channels"]) if "channels" in keys else None
     if names and meta.get("spike_files", names) != names:  # the files are found by these names
         raise ValueError(
-            f"{path}: spike_files {meta['spike_files']!r}, but {meta['channels']} channel(s) are "
-            f"read from {names} (a list of file names; rename the files, or remove the key)"
+            f"{path}: spike_files {json_text(meta['spike_files'])}, but {meta['channels']} "
+            f"channel(s) are read from {json_text(names)} (a list of file names; rename the "
+            f"files, or remove the key)"
         )
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..image_io import to_channels
+from ..strict_json import json_text
 from .dataset import Dataset, repeated, warn_rows_out_of_line
 from .real import ORIENTATION_VIEWS, camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
@@ -79,7 +80,7 @@ def _spike_candidates(root: Path, frame: dict, source) -> list[Path]:
         if path is not None and not isinstance(path, str):
             raise ValueError(
                 f"{source}: frame '{frame['file_path']}' spike_path expected a path or null (no "
-                f"spikes), found {path!r}"
+                f"spikes), found {json_text(path)}"
             )
         return [] if path is None else [root / path]
     base = _base(root, frame["file_path"])

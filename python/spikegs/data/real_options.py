@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..number_checks import is_int, is_number
 from ..spikes import SpikeStream
-from ..strict_json import read_json
+from ..strict_json import json_text, read_json
 from .dataset import check_stream_image
 
 OPTIONS_FILE = "spikegs.json"
@@ -94,7 +94,7 @@ def read_options(root: Path, overrides: dict) -> Options:
     for key, value in values.items():
         check, expected = CHECKS[key]
         if value is not None and not check(value):
-            raise ValueError(f"{path}: {key} expected {expected}, found {value!r}")
+            raise ValueError(f"{path}: {key} expected {expected}, found {json_text(value)}")
     if values.get("scene_center") is not None and values.get("scene_radius") is None:
         raise ValueError(
             f"{path}: scene_center needs scene_radius (the radius computed from the poses is "

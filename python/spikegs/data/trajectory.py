@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from ..atomic_save import write_atomically
 from ..number_checks import holds_bool, is_number, number_array
-from ..strict_json import read_json
+from ..strict_json import json_text, read_json
 
 PathLike = str | os.PathLike
 CONVENTION = "opencv"
@@ -336,13 +336,16 @@ def read_camera_doc(path: Path, camera: dict | None = None, object_hook=None) ->
         # rounding (175.8 for 175.77) is not the edit of the wrong file this catches
         if not (is_number(stated) and abs(stated - value) <= 1e-3 * max(1.0, abs(value))):
             warnings.warn(
-                f"{path}: {key} {stated!r}, the dataset's camera has {value!r}: meta.json states "
-                f"the camera training uses, and this file's copy is not read",
+                f"{path}: {key} {json_text(stated)}, the dataset's camera has "
+                f"{json_text(value)}: meta.json states the camera training uses, and this "
+                f"file's copy is not read",
                 stacklevel=3,
             )
     convention = doc.get("convention")  # unstated: NeRF exports are OpenGL, ours OpenCV
     if not (isinstance(convention, str) and convention.lower() == CONVENTION):
-        found = f"convention {doc['convention']!r}" if "convention" in doc else "no convention"
+        found = (
+            f"convention {json_text(doc['convention'])}" if "convention" in doc else "no convention"
+        )
         raise ValueError(
             f'{path}: {found}; expected "convention": "{CONVENTION}" (camera-to-world '
             f"matrices with x right, y down, z forward). NeRF/Blender (OpenGL: y up, z back) "

@@ -12,7 +12,7 @@ import skimage.transform
 
 from ..image_io import read_stored_image, srgb_to_linear, to_channels
 from ..number_checks import is_number, number_array
-from ..strict_json import read_json
+from ..strict_json import json_text, read_json
 from .dataset import check_intrinsics, intrinsics_keys
 from .trajectory import rigid_c2w
 
@@ -87,7 +87,7 @@ def _transform_matrix(path: Path, i: int, frame: dict) -> np.ndarray:
     if matrix is None or matrix.shape != (4, 4):
         raise ValueError(
             f"{path}: frame {i} ('{frame['file_path']}'): transform_matrix expected 4 rows of 4 "
-            f"numbers, found {frame['transform_matrix']!r}"[:300]
+            f"numbers, found {json_text(frame['transform_matrix'])}"[:300]
         )
     return matrix
 
@@ -170,12 +170,12 @@ def camera_number(path: Path, key: str, value) -> float:
     ValueError naming `key` otherwise (a camera angle over pi: degrees, not radians?)."""
     number = float(value) if is_number(value) else math.nan  # "0.4" is text, true no number
     if not math.isfinite(number):
-        raise ValueError(f"{path}: {key} expected a finite number, found {value!r}")
+        raise ValueError(f"{path}: {key} expected a finite number, found {json_text(value)}")
     in_range, expected = CAMERA_RANGES.get(key, (lambda v: True, ""))
     if not in_range(number):
         degrees = key.startswith("camera_angle") and number >= math.pi
         hint = f" ({number:g} degrees would be {math.radians(number):.6g})" if degrees else ""
-        raise ValueError(f"{path}: {key} expected {expected}, found {value!r}{hint}")
+        raise ValueError(f"{path}: {key} expected {expected}, found {json_text(value)}{hint}")
     return number
 
 
@@ -184,7 +184,9 @@ def is_opengl(path: Path, doc: dict) -> bool:
     default) or OpenCV's ("convention": "opencv"); ValueError naming the file for another value."""
     convention = doc.get("convention", "opengl")
     if not isinstance(convention, str) or convention.lower() not in ("opengl", "opencv"):
-        raise ValueError(f"{path}: convention {convention!r}, expected 'opengl' or 'opencv'")
+        raise ValueError(
+            f'{path}: convention {json_text(convention)}, expected "opengl" or "opencv"'
+        )
     return convention.lower() == "opengl"
 
 
@@ -217,7 +219,7 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
         model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
         if model not in PINHOLE_MODELS:
             raise ValueError(
-                f"{source}: camera_model {model!r} of frame '{frame['file_path']}': the "
+                f"{source}: camera_model {json_text(model)} of frame '{frame['file_path']}': the "
                 f"rasterizer renders pinhole cameras ({', '.join(PINHOLE_MODELS)}); rectify the "
                 f"frames to one"
             )
