@@ -1,9 +1,12 @@
 """A run folder's files (run_folder.py): another dataset's evaluations (eval-DATASET*) are a run's
-own, not foreign files that block training into it."""
+own, not foreign files that block training into it; a run folder and a dataset given for each
+other are named for what they are."""
 
 import errno
+import json
 
 import pytest
+from spikegs.cli import main
 from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files
 from spikegs.run_summary import trained_scene
 
@@ -47,3 +50,22 @@ def test_a_stopped_run_in_a_folder_not_writable_says_how_to_finish_it(tmp_path, 
     monkeypatch.setattr("spikegs.run_summary.exclusive_lock", refused)
     with pytest.raises(FileNotFoundError, match="stopped before its end; finish it with spikegs"):
         trained_scene(run)
+
+
+def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, capsys):
+    """`spikegs eval DATASET` said "scene.ply not found: train the run first", and `spikegs train
+    RUN` "no dataset found: none of meta.json, ...": each folder is named for what it is."""
+    data, run = tmp_path / "data", tmp_path / "run"
+    data.mkdir()
+    (data / "meta.json").write_text("{}")
+    run.mkdir()
+    (run / "config.yaml").write_text("method: tfp33\n")
+    (run / "train.json").write_text(json.dumps({"dataset": str(data)}))
+    for argv in (["eval", str(data)], ["render", str(data), "--out", str(tmp_path / "o.gif")]):
+        assert main(argv) == 2
+        assert "data: a dataset (its meta.json), not a run folder" in capsys.readouterr().err
+    for argv in (["train", str(run), "--out", str(tmp_path / "new")], ["poses", str(run)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "run: a run folder (its config.yaml, train.json), not a dataset" in err
+        assert f"the run's dataset is {data}" in err

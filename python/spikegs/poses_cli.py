@@ -35,12 +35,14 @@ from .data.dataset import (
     WINDOW_MARGIN,
     TestView,
     camera_keys,
+    check_dataset_folder,
     check_meta_values,
     check_stream_image,
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
     read_timestamps,
+    run_folder_note,
     spike_files,
     takes_lock,
     warn_rows_out_of_line,
@@ -294,11 +296,13 @@ def _estimate_poses(
 ) -> dict:
     """`estimate_poses`, its dataset locked."""
     root = Path(root)
+    check_dataset_folder(root)
     meta_path = root / META
     if not meta_path.is_file():
         raise FileNotFoundError(
-            f"dataset file not found: {meta_path} (spikegs poses reads a recording's meta.json and "
-            f"spike files; an LLFF or NeRF layout brings its own poses: docs/datasets.md)"
+            run_folder_note(root)
+            or f"dataset file not found: {meta_path} (spikegs poses reads a recording's meta.json "
+            f"and spike files; an LLFF or NeRF layout brings its own poses: docs/datasets.md)"
         )
     meta = read_json(meta_path)
     if window < 1 or window % 2 == 0:

@@ -45,8 +45,8 @@ def read_summary(run_dir: Path) -> dict:
 
 def trained_scene(run_dir: Path) -> Path:
     """RUN/scene.ply, written when a run finishes; FileNotFoundError saying how to get it where
-    the run has not finished (stopped with a checkpoint: --resume) or not started; Busy while
-    another process trains it."""
+    the run has not finished (stopped with a checkpoint: --resume) or not started, or that
+    `run_dir` is a dataset; Busy while another process trains it."""
     ply = Path(run_dir) / SCENE
     if ply.exists():
         return ply
@@ -68,4 +68,12 @@ def trained_scene(run_dir: Path) -> Path:
     if not Path(run_dir).is_dir():
         what = "a file, not a run folder" if Path(run_dir).exists() else "no such run folder"
         raise FileNotFoundError(f"{run_dir}: {what} (spikegs train ... --out RUN)")
+    from .data.dataset import layout_files  # (the data package imports this module)
+
+    marks = layout_files(Path(run_dir))
+    if marks:  # a dataset given where a run goes
+        raise FileNotFoundError(
+            f"{run_dir}: a dataset (its {', '.join(marks)}), not a run folder (spikegs train "
+            f"{shlex.quote(str(run_dir))} --out RUN trains one)"
+        )
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

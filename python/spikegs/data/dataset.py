@@ -29,6 +29,7 @@ from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
+from ..run_summary import CONFIG, SUMMARY, read_summary
 from ..spikes import SpikeStream
 from ..strict_json import json_text, read_json
 from .correlation import correlation
@@ -624,19 +625,49 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
     return views
 
 
+def check_dataset_folder(root: Path) -> None:
+    """FileNotFoundError where the dataset folder `root` does not exist (NotADirectoryError: it is
+    a file)."""
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(f"{root} is a file, not a dataset directory")
+    if not root.is_dir():
+        raise FileNotFoundError(f"dataset directory not found: {root}")
+
+
+def layout_files(root: Path) -> list[str]:
+    """The files in `root` that mark a dataset: meta.json, LLFF's poses_bounds.npy, the NeRF
+    layout's transforms files."""
+    from .llff import POSES_BOUNDS
+    from .nerf_layout import TRANSFORMS
+
+    return [name for name in (META, POSES_BOUNDS, *TRANSFORMS) if (root / name).is_file()]
+
+
+def run_folder_note(root: Path) -> str | None:
+    """'ROOT: a run folder (its config.yaml, ...), not a dataset; the run's dataset is D' where
+    `root` holds a run's settings or summary (spikegs train's --out, given where a dataset goes);
+    None where it holds neither."""
+    held = [name for name in (CONFIG, SUMMARY) if (root / name).is_file()]
+    if not held:
+        return None
+    try:
+        own = read_summary(root).get("dataset")
+    except ValueError:  # (a torn train.json: the run folder is named all the same)
+        own = None
+    note = f"{root}: a run folder (its {', '.join(held)}), not a dataset"
+    return note + (f"; the run's dataset is {own}" if own else "")
+
+
 def load_dataset(path: PathLike) -> Dataset:
     """Open a dataset directory, checking every file before returning (FileNotFoundError names a
     missing file, ValueError a malformed one); the spikes are memory-mapped, not read. Without a
     meta.json, an LLFF (poses_bounds.npy) or NeRF (transforms*.json) layout is opened instead."""
     root = Path(path)
-    if root.exists() and not root.is_dir():
-        raise NotADirectoryError(f"{root} is a file, not a dataset directory")
-    if not root.is_dir():
-        raise FileNotFoundError(f"dataset directory not found: {root}")
+    check_dataset_folder(root)
     from .llff import POSES_BOUNDS, load_llff
     from .nerf_layout import TRANSFORMS, load_nerf_layout
 
-    others = [name for name in (POSES_BOUNDS, *TRANSFORMS) if (root / name).is_file()]
+    others = [name for name in layout_files(root) if name != META]
     if not (root / META).is_file():
         if (root / POSES_BOUNDS).is_file():
             if len(others) > 1:
@@ -649,6 +680,9 @@ def load_dataset(path: PathLike) -> Dataset:
             return load_llff(root)
         if others:
             return load_nerf_layout(root)
+        run = run_folder_note(root)
+        if run is not None:
+            raise FileNotFoundError(run)
         partial = " (its spikes without a meta.json: an interrupted simulation?)"
         raise FileNotFoundError(
             f"{root}: no dataset found: none of {META} (simulated or spikegs poses), "
