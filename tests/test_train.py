@@ -1978,6 +1978,20 @@ def test_a_demo_whose_disk_refuses_its_time_too_still_says_how_to_go_on(
     assert (out / ".demo_seconds").read_text() == "12.5"
 
 
+def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
+    """`spikegs demo --out DATASET` (or a run folder) ran the whole demo into it, its dataset,
+    runs and figures among the dataset's or run's own files, and said nothing."""
+    data, run = tmp_path / "data", tmp_path / "run"
+    for folder, name in ((data, "meta.json"), (run, "config.yaml")):
+        folder.mkdir()
+        (folder / name).write_text("{}")
+    for out, held in ((data, "a dataset (meta.json)"), (run, "a spikegs run (config.yaml)")):
+        for resume in ([], ["--resume"]):
+            assert main(["demo", "--no-progress", "--out", str(out), *resume]) == 2
+            assert f"--out {out} holds {held}" in capsys.readouterr().err
+            assert sorted(p.name for p in out.iterdir()) == [held.split("(")[1][:-1]]
+
+
 def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     """The demo's printed lead over TFP(33)+3DGS is at equal iterations, where SpikeGS renders K
     poses a step and trains SIM first: about 6 times the baseline's seconds on the demo (63 + 11
