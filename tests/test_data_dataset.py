@@ -363,14 +363,16 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.raises(ValueError, match=r"readouts: expected >= \d+ for 2 on-path held-out"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": 40})
     for zero in ({"frame_every": 0}, {"train_every": 0}):
-        with pytest.raises(ValueError, match="frame_every and train_every expected positive"):
+        with pytest.raises(ValueError, match=f"{next(iter(zero))} .*: expected >= 1"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **zero})
     (tmp_path / "file").write_text("")
     with pytest.raises(FileExistsError, match="output .*file exists and is not a directory"):
         simulate_dataset("solids", tmp_path / "file", **SMALL)
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
-    with pytest.raises(ValueError, match="frame_every expected >= 1, found 1e-05"):  # 2e7 poses
+    with pytest.raises(
+        ValueError, match=r"frame_every \(--frame-every\): expected >= 1, found 1e-05"
+    ):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": 1e-5})
     # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
     with pytest.raises(
@@ -389,6 +391,28 @@ def test_negative_view_counts_refused(tmp_path):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "seed": seed, "color": True})
     with pytest.raises(ValueError, match="spp .* expected samples per pixel >= 1, found 0"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 0})
+    assert not (tmp_path / "x").exists()
+
+
+def test_simulate_names_each_option_it_refuses(tmp_path, capsys):
+    """--train-every 0 said "frame_every and train_every expected positive, found 8.0, 0" (a
+    frame_every never given), --test-off-path -1 named test_off_path only, and --speed nan
+    "expected finite numbers, found speed=nan": each names its option now."""
+    cases = [
+        ("--train-every", "0", "train_every (--train-every): expected >= 1 readout, found 0"),
+        ("--frame-every", "0", "frame_every (--frame-every): expected >= 1, found 0"),
+        ("--test-off-path", "-1", "(--test-on-path, --test-off-path): expected counts >= 0"),
+        ("--speed", "nan", "argument --speed: expected a finite number, found 'nan'"),
+        ("--threshold", "inf", "argument --threshold: expected a finite number, found 'inf'"),
+    ]
+    for option, value, message in cases:
+        argv = ["simulate", "--out", str(tmp_path / "x"), option, value]
+        try:
+            status = main(argv)
+        except SystemExit as stop:  # (refused while parsing)
+            status = stop.code
+        assert status == 2
+        assert message in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
 
 

@@ -44,12 +44,25 @@ def positive_int(text: str) -> int:
     return value
 
 
+def _number(text: str) -> float:
+    """float(text), NaN where it is no number (which the types below refuse)."""
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+def finite_float(text: str) -> float:
+    """An argparse type: a finite number, refused while parsing (float() reads nan and inf)."""
+    value = _number(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, found '{text}'")
+    return value
+
+
 def positive_float(text: str) -> float:
     """An argparse type: a finite number > 0, refused while parsing (before any work starts)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
+    value = _number(text)
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, found '{text}'")
     return value

@@ -441,8 +441,8 @@ def simulate_dataset(
     seed = int(seed)
     if test_on_path < 0 or test_off_path < 0:
         raise ValueError(
-            f"test_on_path, test_off_path: expected counts >= 0, found {test_on_path}, "
-            f"{test_off_path}"
+            f"test_on_path, test_off_path (--test-on-path, --test-off-path): expected counts "
+            f">= 0, found {test_on_path}, {test_off_path}"
         )
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts:
@@ -451,14 +451,13 @@ def simulate_dataset(
             f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
-    if frame_every <= 0 or train_every < 1:
-        raise ValueError(
-            f"frame_every and train_every expected positive, found {frame_every}, {train_every}"
-        )
+    if train_every < 1:
+        raise ValueError(f"train_every (--train-every): expected >= 1 readout, found {train_every}")
     if frame_every < 1:  # 1e-5 over 200 readouts: 2e7 poses, 3.6 GB, before any spike
         raise ValueError(
-            f"frame_every expected >= 1, found {frame_every:g}: each readout reads the light "
-            f"from the two frames around it, so frames closer than a readout are never read"
+            f"frame_every (--frame-every): expected >= 1, found {frame_every:g}: each readout "
+            f"reads the light from the two frames around it, so frames closer than a readout are "
+            f"never read"
         )
     if 2 in (height, width) or (height, width) == (1, 1):
         raise ValueError(

@@ -7,7 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
-from ..cli import add_no_progress, direction, seed, show_bars
+from ..cli import add_no_progress, direction, finite_float, seed, show_bars
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     orbit = "a built-in or Mitsuba scene's orbit; a frame sequence's frames set it"
     parser.add_argument(
         "--speed",
-        type=float,
+        type=finite_float,
         help=f"degrees of orbit per readout (default {DEFAULT_SPEED}; {orbit})",
     )
     parser.add_argument(
@@ -50,7 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=seed, default=0, help="simulator seed")
     parser.add_argument(
         "--frame-every",
-        type=float,
+        type=finite_float,
         help=f"readouts between rendered light frames, >= 1 (linear in between; default "
         f"{DEFAULT_FRAME_EVERY}, fewer where the scene would move over {FRAME_MOTION_PX:g} px "
         f"between two; a built-in or Mitsuba scene's)",
@@ -79,7 +79,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                 help=field.metadata["help"],
             )
         else:
-            sim.add_argument(flag, type=float, default=field.default, help=field.metadata["help"])
+            sim.add_argument(
+                flag, type=finite_float, default=field.default, help=field.metadata["help"]
+            )
 
 
 def run(args: argparse.Namespace) -> int:
