@@ -366,7 +366,7 @@ def test_negative_view_counts_refused(tmp_path):
         with pytest.raises(ValueError, match=f"{next(iter(zero))} .*: expected >= 1"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **zero})
     (tmp_path / "file").write_text("")
-    with pytest.raises(FileExistsError, match="output .*file exists and is not a directory"):
+    with pytest.raises(FileExistsError, match="file is a file, not a dataset folder"):
         simulate_dataset("solids", tmp_path / "file", **SMALL)
     with pytest.raises(ValueError, match="frame_every"):  # NaN reached numpy's arange
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": float("nan")})
@@ -459,9 +459,10 @@ def test_missing_files_and_nan_poses(tmp_path, small):
     (root / "trajectory.json").write_text(json.dumps(doc))
     with pytest.raises(ValueError, match="trajectory.json"):
         load_dataset(root)
-    with pytest.raises(FileNotFoundError, match="nowhere"):
+    # "folder", as the help and the docs say, and the messages of run folders
+    with pytest.raises(FileNotFoundError, match="dataset folder not found: .*nowhere"):
         load_dataset(tmp_path / "nowhere")
-    with pytest.raises(NotADirectoryError, match="meta.json is a file, not a dataset directory"):
+    with pytest.raises(NotADirectoryError, match="meta.json is a file, not a dataset folder"):
         load_dataset(small.root / "meta.json")
 
 

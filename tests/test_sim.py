@@ -726,7 +726,7 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     [
         (["--window", "4"], "--window: config: sim.window = 4"),
         (["--target-window", "35"], "sim.target_window = 35"),
-        (["--out", "adir"], "is a directory"),  # ('.' is refused while parsing)
+        (["--out", "adir"], "--out adir: is a folder"),  # ('.' is refused while parsing)
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
         # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache
         (["--out", "file"], "--out file: an existing file that is not a saved SIM"),

@@ -3065,7 +3065,7 @@ def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     (tmp_path / "run" / "eval.json").mkdir()
-    with pytest.raises(ValueError, match="eval.json: is a directory"):
+    with pytest.raises(ValueError, match="eval.json: is a folder"):
         evaluate_run(tmp_path / "run", dataset)
     assert not (tmp_path / "run" / "eval").exists()
     (tmp_path / "run" / "eval.json").rmdir()

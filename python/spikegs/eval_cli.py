@@ -45,7 +45,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
         )
     own = Path(summary["dataset"])
     if not own.is_dir():
-        raise FileNotFoundError(f"the run's dataset {own} is gone: pass --dataset DIR")
+        raise FileNotFoundError(f"the run's dataset {own} is gone: pass --dataset DATASET")
     return own
 
 

@@ -50,7 +50,7 @@ def check_file_output(path: Path, flag: str = "--out") -> None:
     path, its folder writable."""
     path = Path(path)
     if path.is_dir():
-        raise ValueError(f"{flag} {path}: is a directory; give a file name")
+        raise ValueError(f"{flag} {path}: is a folder; give a file name")
     _check_no_file_on_path(path, flag, path.parents)
     if not writable_folder(path.parent):
         raise ValueError(f"{flag} {path}: its folder is not writable")

@@ -71,7 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "dataset",
         type=Path,
-        help="dataset directory (meta.json and spikes), written in place: trajectory.json (an "
+        help="dataset folder (meta.json and spikes), written in place: trajectory.json (an "
         "earlier one kept as trajectory.json.bak), points3d.ply, meta.json's camera and the "
         "training timestamps; SfM's work in DATASET/sfm",
     )

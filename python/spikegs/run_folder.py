@@ -52,7 +52,7 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
     not a run's: `run_dir` a file, or a directory holding anything but RUN_STARTED (a run with a
     `checkpoint` is refused under the run's lock, with its own message)."""
     if run_dir.exists() and not run_dir.is_dir():
-        raise FileExistsError(f"{run_dir} is a file, not a run directory; give another --out")
+        raise FileExistsError(f"{run_dir} is a file, not a run folder; give another --out")
     if not run_dir.is_dir() or checkpoint.exists():
         return
     # temporary files are a killed process's, swept when training starts

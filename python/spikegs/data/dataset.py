@@ -313,7 +313,7 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
     that is not a dataset's (a replaced dataset's directory is deleted whole)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise FileExistsError(f"output {out} exists and is not a directory")
+        raise FileExistsError(f"{out} is a file, not a dataset folder")
     if out.is_dir() and holds_dataset(out) and not overwrite:
         raise FileExistsError(
             f"{out} already holds a dataset (or what an interrupted simulation left); pass "
@@ -324,7 +324,7 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"
-            f"{', ...' if len(others) > 5 else ''}); give an empty or new directory"
+            f"{', ...' if len(others) > 5 else ''}); give an empty or new folder"
         )
     return out
 
@@ -629,9 +629,9 @@ def check_dataset_folder(root: Path) -> None:
     """FileNotFoundError where the dataset folder `root` does not exist (NotADirectoryError: it is
     a file)."""
     if root.exists() and not root.is_dir():
-        raise NotADirectoryError(f"{root} is a file, not a dataset directory")
+        raise NotADirectoryError(f"{root} is a file, not a dataset folder")
     if not root.is_dir():
-        raise FileNotFoundError(f"dataset directory not found: {root}")
+        raise FileNotFoundError(f"dataset folder not found: {root}")
 
 
 def layout_files(root: Path) -> list[str]:

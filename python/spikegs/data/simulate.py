@@ -317,7 +317,7 @@ def make_source(
         return FrameSequenceSource.from_transforms(path, width, height, channels)
     expected = (
         f"expected a built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a transforms "
-        f"JSON (or a directory holding transforms_train.json or transforms.json)"
+        f"JSON (or a folder holding transforms_train.json or transforms.json)"
     )
     if path.is_dir():
         raise ValueError(f"scene folder {path} holds no {' or '.join(TRANSFORMS[::2])}; {expected}")

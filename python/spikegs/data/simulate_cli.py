@@ -26,10 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scene",
         default="solids",
         help=f"built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a NeRF-style "
-        "transforms JSON / a directory holding transforms_train.json or transforms.json (default: "
+        "transforms JSON / a folder holding transforms_train.json or transforms.json (default: "
         "solids)",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output dataset directory")
+    parser.add_argument("--out", type=Path, required=True, help="output dataset folder")
     parser.add_argument("--height", type=int, default=128, help="image rows, pixels")
     parser.add_argument("--width", type=int, default=128, help="image columns, pixels")
     parser.add_argument(
