@@ -1992,6 +1992,22 @@ def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
             assert sorted(p.name for p in out.iterdir()) == [held.split("(")[1][:-1]]
 
 
+def test_a_demo_resumed_over_a_run_config_not_a_runs_names_it(tmp_path, capsys):
+    """--resume read the iterations from the first run's config.yaml as a dict: emptied, it
+    ended in a traceback ('NoneType' object is not subscriptable), torn in yaml's, and text in
+    "invalid literal for int()", naming no file."""
+    saved = tmp_path / "demo" / "runs" / "spikegs" / "config.yaml"
+    saved.parent.mkdir(parents=True)
+    for text, message in (
+        ("", "config.yaml is empty: the run's settings are lost"),
+        ("train: [\n", "config.yaml: not readable as YAML"),
+        ("train: {iterations: x}\n", "config.yaml: 'train.iterations' = 'x' (text)"),
+    ):
+        saved.write_text(text)
+        assert main(["demo", "--no-progress", "--resume", "--out", str(saved.parents[2])]) == 2
+        assert message in capsys.readouterr().err
+
+
 def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     """The demo's printed lead over TFP(33)+3DGS is at equal iterations, where SpikeGS renders K
     poses a step and trains SIM first: about 6 times the baseline's seconds on the demo (63 + 11

@@ -31,7 +31,6 @@ from .provenance import environment
 from .run_folder import RUN_FILES, refuse_foreign_files, run_lock
 from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
-from .yaml_files import read_yaml
 
 METHODS = ("spikegs", "tfp33")
 DEFAULT_SCENE = "solids"
@@ -139,11 +138,17 @@ def _started(out: Path) -> dict:
 
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
-    config.yaml, else what it recorded when it started), None for the default."""
+    config.yaml, else what it recorded when it started), None for the default; ValueError
+    naming a run's config.yaml that is empty or not a run's settings."""
     for method in METHODS:
         saved = out / "runs" / method / CONFIG
         if saved.is_file():
-            return int(read_yaml(saved)["train"]["iterations"])
+            if not saved.read_text(encoding="utf-8").strip():
+                raise ValueError(
+                    f"--resume: {saved} is empty: the run's settings are lost; start the demo "
+                    f"afresh (without --resume)"
+                )
+            return load_saved_run(saved).train.iterations
     iterations = _started(out).get("iterations")
     return iterations if isinstance(iterations, int) and iterations > 0 else None
 
