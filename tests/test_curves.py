@@ -4,8 +4,16 @@ lies on the time axis (a SIM method's after SIM's training)."""
 import json
 from types import SimpleNamespace
 
+import numpy as np
+import pytest
 from spikegs import curves
-from spikegs.curves import _plot_curves, logged_curve, save_logged_curves
+from spikegs.curves import (
+    LEGEND_WRAP,
+    _plot_curves,
+    curves_figure,
+    logged_curve,
+    save_logged_curves,
+)
 
 
 def _log(run_dir, records):
@@ -152,3 +160,58 @@ def test_the_time_axis_names_several_seconds_whatever_its_span():
     assert scale == "linear" and len(labels) >= 3
     assert named([3.0, 300.0, 3000.0]) == ("log", ["5", "10", "20", "50", "100", "200", "500",
                                                    "1000", "2000"])  # fmt: skip
+
+
+def _drawn(methods: dict, metrics: tuple[str, ...] = ("psnr",)):
+    """`curves_figure` of `methods`, drawn: (figure, renderer); close the figure after."""
+    fig = curves_figure(methods, metrics, "a scene")
+    fig.canvas.draw()
+    return fig, fig.canvas.get_renderer()
+
+
+def _at(seconds: list[float], uses_sim: bool = False) -> dict:
+    """A method's record whose evaluations lie at `seconds`."""
+    curve = [{"train_seconds": s, "psnr": 20.0 + i, "ssim": 0.5} for i, s in enumerate(seconds)]
+    return {"curve": curve, "sim_seconds": 0.0, "uses_sim": uses_sim}
+
+
+@pytest.mark.parametrize("span", [(100.0, 900.0), (150.0, 1000.0), (12.0, 95.0), (2.0, 5000.0)])
+@pytest.mark.parametrize("metrics", [("psnr",), ("psnr", "ssim")])
+def test_no_two_time_labels_touch_whatever_the_span(span, metrics):
+    """A log axis named every 1-9 x 10^k within a decade printed 800, 900 and 1000 over one
+    another over 100-900 s (a run of 250x400), 1, 2, 5 x 10^k 1000 and 2000 over 2-5000 s: the
+    densest naming whose labels stand apart, three at least."""
+    import matplotlib.pyplot as plt
+
+    fig, renderer = _drawn({"tfp33": _at(list(np.geomspace(*span, 5)))}, metrics)
+    try:
+        for ax in fig.axes:
+            low, high = ax.get_xlim()
+            labels = [t for t in ax.get_xticklabels() if low <= t.get_position()[0] <= high]
+            named = [t.get_window_extent(renderer) for t in labels if t.get_text()]
+            boxes = sorted(named, key=lambda b: b.x0)
+            assert ax.get_xscale() == "log" and len(boxes) >= 3
+            texts = [t.get_text() for t in labels]
+            assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:])), texts
+    finally:
+        plt.close(fig)
+
+
+def test_the_legend_hides_no_curve():
+    """The legend lay over the curves: the headline's over SpikeGS's rise, `bench train`'s 15
+    entries over half the SSIM panel, a config's long name over the tick labels. It lies right of
+    the panels, within the figure, its long names wrapped."""
+    import matplotlib.pyplot as plt
+    from spikegs.bench.train import METHODS, VARIANTS
+
+    names = [*METHODS, *VARIANTS, "tfp33-equal-time", "lambda_2_k9_no_densify_opacity_reset_v3"]
+    methods = {m: _at([1.0 + i, 5.0 + i, 40.0 + i], m == "spikegs") for i, m in enumerate(names)}
+    fig, renderer = _drawn(methods, ("psnr", "ssim"))
+    try:
+        legend = fig.axes[-1].get_legend().get_window_extent(renderer)
+        assert not any(legend.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
+        assert fig.bbox.contains(legend.x0, legend.y0) and fig.bbox.contains(legend.x1, legend.y1)
+        texts = [t.get_text() for t in fig.axes[-1].get_legend().get_texts()]
+        assert max(len(line) for text in texts for line in text.split("\n")) <= LEGEND_WRAP
+    finally:
+        plt.close(fig)

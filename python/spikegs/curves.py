@@ -73,12 +73,19 @@ COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#0
 MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h")
 LINES = {True: ("-", ":"), False: ("--", "-.")}  # a SIM method's, another's; by colour cycle
 LABELS = {"psnr": "PSNR (dB)", "ssim": "SSIM (scikit-image, 7×7 window)"}
+# a log time axis is named at the densest of these (× 10^k) whose labels stand apart as it is laid
+# out: 1-9 named 800, 900 and 1000 over one another over 100-900 s, 1, 2, 5 1000 and 2000 over
+# 2-5000 s
+LOG_SUBS = (range(1, 10), (1.0, 2.0, 3.0, 5.0), (1.0, 2.0, 5.0), (1.0, 3.0), (1.0,))
+LEGEND_WRAP = 32  # characters a line of a legend entry (a config's long name)
 
 
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time,
-    solid or dotted; the others dashed or dash-dotted)."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    solid or dotted; the others dashed or dash-dotted); the legend right of the last axes, off
+    the curves (inside, it hid the headline's SpikeGS curve and half the lines of `bench
+    train`'s 15)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
     for i, (name, r) in enumerate(methods.items()):
         offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
@@ -92,25 +99,48 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
         }
         for ax, metric in zip(axes, metrics):
             values = [p[metric] for p in r["curve"]]
-            ax.plot(seconds, values, label=_as_text(label), **style)
+            ax.plot(seconds, values, label=_as_text(textwrap.fill(label, LEGEND_WRAP)), **style)
     for ax, metric in zip(axes, metrics):
         low, high = ax.dataLim.intervalx  # the seconds plotted
-        if high >= 3 * low:  # seconds labelled 1, 2, 5, 10, ... (matplotlib's 3x10^0 overlapped);
-            ax.set_xscale("log")  # within a decade (150-600 s) every 100: 1, 2, 5 named two
-            subs = range(1, 10) if high < 10 * low else (1.0, 2.0, 5.0)
-            ax.xaxis.set_major_locator(LogLocator(base=10, subs=subs))
+        if high >= 3 * low:  # (under a factor 3, 170-190 s: a linear axis, which names its ticks;
+            ax.set_xscale("log")  # a log one named none)
             ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
             ax.xaxis.set_minor_formatter(NullFormatter())
-        # (under a factor 3, 170-190 s: a linear axis, which names its ticks; a log one named none)
+            _fit_log_ticks(ax)
         ax.set_xlabel("seconds (SIM + training)")
         ax.set_ylabel(LABELS.get(metric, metric))
         ax.grid(True, which="both", alpha=0.3)
-    axes[-1].legend(fontsize=8)
+    axes[-1].legend(loc="upper left", bbox_to_anchor=(1.03, 1.0), borderaxespad=0, fontsize=8)
+
+
+def _fit_log_ticks(ax) -> None:
+    """Name log axis `ax`'s seconds at the densest of LOG_SUBS whose labels, as `ax` is now
+    laid out, stand at least half a character apart."""
+    from matplotlib.ticker import LogLocator
+
+    renderer = ax.figure.canvas.get_renderer()
+    for subs in LOG_SUBS:
+        ax.xaxis.set_major_locator(LogLocator(base=10, subs=subs))
+        ax.xaxis.get_tightbbox(renderer)  # the ticks and their labels for the axis's limits
+        low, high = ax.get_xlim()
+        labels = [t.label1 for t in ax.xaxis.get_major_ticks() if low <= t.get_loc() <= high]
+        boxes = sorted(
+            (t.get_window_extent(renderer) for t in labels if t.get_text()), key=lambda b: b.x0
+        )
+        gap = labels[0].get_size() * ax.figure.dpi / 72 / 2 if labels else 0.0  # pixels
+        if all(a.x1 + gap <= b.x0 for a, b in zip(boxes, boxes[1:])):
+            return
 
 
 def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str) -> None:
     """Plot `methods` ({name: {"curve": [{"train_seconds", METRIC, ...}], "sim_seconds",
-    "uses_sim"}}) to `path`, one panel per metric."""
+    "uses_sim"}}) to `path`, one panel per metric (`curves_figure`)."""
+    save_figure(curves_figure(methods, metrics, title), path)
+
+
+def curves_figure(methods: dict, metrics: tuple[str, ...], title: str):
+    """The matplotlib figure of `save_curves`: the panels 5.5 inches wide each, the figure wider
+    by the legend."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -119,7 +149,12 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
     width = 5.5 * len(metrics)  # inches
     fig, axes = plt.subplots(1, len(metrics), figsize=(width, 4.2), squeeze=False)
     _plot_curves(axes[0], methods, metrics)
+    legend = axes[0][-1].get_legend().get_window_extent(fig.canvas.get_renderer())
+    fig.set_figwidth(width + legend.width / fig.dpi)
     lines = [textwrap.fill(line, int(13 * width)) for line in title.split("\n")]  # ~13 a inch
     fig.suptitle(_as_text("\n".join(lines)), fontsize=10)
     fig.tight_layout()
-    save_figure(fig, path)
+    for ax in axes[0]:
+        if ax.get_xscale() == "log":
+            _fit_log_ticks(ax)  # again, the axes as laid out
+    return fig
