@@ -14,6 +14,7 @@ from spikegs.curves import (
     logged_curve,
     save_logged_curves,
 )
+from spikegs.method_titles import method_title
 
 
 def _log(run_dir, records):
@@ -215,3 +216,11 @@ def test_the_legend_hides_no_curve():
         assert max(len(line) for text in texts for line in text.split("\n")) <= LEGEND_WRAP
     finally:
         plt.close(fig)
+
+
+def test_a_baselines_run_at_spikegs_time_is_titled_as_its_method():
+    """`bench train --equal-time`'s runs were labelled "tfp33-equal-time" beside "TFP(33)+3DGS";
+    a name of a user's own ending so is kept."""
+    assert method_title("tfp33-equal-time") == "TFP(33)+3DGS at SpikeGS's time"
+    assert method_title("tfi-equal-time") == "TFI+3DGS at SpikeGS's time"
+    assert method_title("mine-equal-time") == "mine-equal-time"

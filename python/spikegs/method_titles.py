@@ -16,8 +16,14 @@ TITLES = {
     "sim17": "SpikeGS, SIM on 17 readouts",
     "oracle": "clean instant targets (ceiling)",
 }
+EQUAL_TIME = "-equal-time"  # `bench train --equal-time`: a baseline's run given SpikeGS's seconds
 
 
 def method_title(name: str) -> str:
-    """The figure title of method `name` (configs/NAME.yaml); `name` itself where none is set."""
+    """The figure title of method `name` (configs/NAME.yaml), of a method's BASE-equal-time run
+    too (its legend entry read "tfp33-equal-time" beside "TFP(33)+3DGS"); `name` itself where
+    none is set."""
+    base = name.removesuffix(EQUAL_TIME)
+    if base != name and base in TITLES:
+        return f"{TITLES[base]} at SpikeGS's time"
     return TITLES.get(name, name)

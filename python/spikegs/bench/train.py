@@ -44,6 +44,7 @@ from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
 from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
+from ..method_titles import EQUAL_TIME  # a baseline's run given SpikeGS's seconds: name, folder
 from ..run_folder import refuse_foreign_files
 from ..text_table import print_table
 from ..train import Trainer
@@ -63,7 +64,6 @@ QUICK_ITERATIONS = 100
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
 QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "test_off_path": 2}
 QUICK_SIM_ITERATIONS = 20
-EQUAL_TIME = "-equal-time"  # a baseline's run given SpikeGS's seconds: its name and folder suffix
 SIM_NOTE = "SIM methods start at their SIM training time"
 
 
