@@ -517,3 +517,33 @@ def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypa
     assert train.equal_time_iterations(runs, "tfp33", 100) == 100
     assert main(["bench", "spikes", "--equal-time"]) == 2
     assert "--equal-time: options of bench train, not of bench spikes" in capsys.readouterr().err
+
+
+def test_the_timing_figures_name_the_threads_the_core_ran_on(tmp_path, monkeypatch):
+    """rasterizer.png and spikes.png said "2 cores" (the CPUs) where OMP_NUM_THREADS=1 ran the
+    core on one thread, as their tables said; spikes.png's numpy runs on one; poses.png names
+    its method as the other figures do."""
+    import matplotlib.pyplot as plt
+    from spikegs.bench import poses
+
+    figures = []
+    for part in (rasterizer, spikes, poses):
+        monkeypatch.setattr(part, "save_figure", lambda fig, path: figures.append(fig))
+    monkeypatch.setattr(_C, "max_threads", lambda: 1)
+    row = {"size": "16x16", "C": 1, "N": 10, "fwd_ms": 1.0, "fwd_bwd_ms": 2.0}
+    rasterizer._plot([row], 3, tmp_path / "r.png")
+    spikes._plot([{"w": 33, "GB/s": 2.0, "numpy GB/s": 0.5}], tmp_path / "s.png")
+    setup = {"size": 64, "method": "tfp33", "iterations": 10, "repeats": 1}
+    rows = [{"condition": c, "psnr": 20.0} for c in ("true poses", "noisy poses", "refined")]
+    errors = {
+        f"{k}_{when}": np.ones(3)
+        for k in ("rotation_deg", "centre")
+        for when in ("before", "after")
+    }
+    poses._plot(rows, errors, setup, tmp_path / "p.png")
+    raster, tfp, pose = figures
+    assert "1 thread)" in raster.texts[0].get_text() and "cores" not in raster.texts[0].get_text()
+    assert "spikegs on 1 thread, numpy on 1" in tfp.axes[0].get_title()
+    assert "TFP(33)+3DGS (10 iterations)" in pose.texts[0].get_text()
+    for fig in figures:
+        plt.close(fig)

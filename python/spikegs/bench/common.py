@@ -29,6 +29,15 @@ def scratch_folder(part: str) -> tempfile.TemporaryDirectory:
     return tempfile.TemporaryDirectory(prefix=f"spikegs-bench-{part}-")
 
 
+def core_threads() -> str:
+    """The C++ core's OpenMP threads as a figure names them ("1 thread", "2 threads"): what it ran
+    on, which OMP_NUM_THREADS sets below the CPUs (the figures said "2 cores" for 1 thread)."""
+    from .. import _C
+
+    n = _C.max_threads()
+    return f"{n} thread{'s' * (n != 1)}"
+
+
 def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> float:
     """Median wall-clock seconds of `fn()` over `repeats` runs after `warmup` untimed runs."""
     for _ in range(warmup):

@@ -25,6 +25,7 @@ from ..config import load_config
 from ..data import simulate_dataset
 from ..data.trajectory import Trajectory
 from ..evaluate import evaluate_run
+from ..method_titles import method_title
 from ..pose_refine import pose_errors
 from ..text_table import print_table
 from ..train import Trainer
@@ -143,7 +144,7 @@ def _plot(rows: list[dict], errors: dict[str, np.ndarray], setup: dict, path: Pa
         ax.set_title(f"the last noise seed's {len(values)} views", fontsize=9)
         ax.legend()
     fig.suptitle(
-        f"Pose refinement: solids {setup['size']}², {setup['method']} "
+        f"Pose refinement: solids {setup['size']}², {method_title(setup['method'])} "
         f"({setup['iterations']} iterations), poses off by {NOISE_DEG}° and "
         f"{NOISE_TRANSLATION:.0%} of the radius every {KEYFRAME_EVERY} readouts"
     )

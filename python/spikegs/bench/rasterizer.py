@@ -24,10 +24,9 @@ import torch
 
 from .. import _C, reference
 from ..atomic_save import save_figure
-from ..cpu_quota import usable_cpus
 from ..rasterize import rasterize
 from ..text_table import print_table
-from .common import median_seconds, uniform, write_results
+from .common import core_threads, median_seconds, uniform, write_results
 
 REFERENCE_MAX_N = 10_000  # the torch reference is timed (once) up to this N
 WARMUP_N = 10  # Gaussians of the reference's untimed first render
@@ -215,7 +214,7 @@ def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
     axes[1].legend(fontsize=7)
     fig.suptitle(
         f"spikegs.rasterize (C++, median of {repeats} after a warm-up, "
-        f"{usable_cpus()} cores) vs spikegs.reference (torch, timed once, 1 thread), "
+        f"{core_threads()}) vs spikegs.reference (torch, timed once, 1 thread), "
         f"float32; C: channels, size W×H pixels",
         fontsize=10,
     )

@@ -19,10 +19,9 @@ from typing import Any
 import numpy as np
 
 from ..atomic_save import save_figure
-from ..cpu_quota import usable_cpus
 from ..spikes import TFI_DEFAULT_MAX_INTERVAL, SimParams, SpikeStream, simulate_spikes
 from ..text_table import print_table
-from .common import median_seconds, scratch_folder, write_results
+from .common import core_threads, median_seconds, scratch_folder, write_results
 
 HEIGHT, WIDTH = 250, 400
 BATCH = 25  # timestamps per call: bounds the output held at once ([25, H, W] float32)
@@ -219,7 +218,7 @@ def _plot(rows: list[dict], path: Path) -> None:
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("window w (readouts)")
     ax.set_ylabel("GB/s (w frames of packed bits a TFP)")
-    ax.set_title(f"TFP on a {HEIGHT}×{WIDTH} stream, {usable_cpus()} cores")
+    ax.set_title(f"TFP on a {HEIGHT}×{WIDTH} stream; spikegs on {core_threads()}, numpy on 1")
     ax.legend()
     fig.tight_layout()
     save_figure(fig, path)
