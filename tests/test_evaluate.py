@@ -13,8 +13,9 @@ import pytest
 from spikegs import _C
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.evaluate import evaluate_run, other_data, render_view
+from spikegs.evaluate import evaluate_run, other_data, render_view, side_by_side
 from spikegs.image_io import linear_to_srgb, read_image
+from spikegs.image_labels import TITLE_HEIGHT
 from spikegs.ply import load_ply
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer
@@ -57,21 +58,39 @@ def test_the_scores_are_the_means_over_the_views(trained, run):
 def test_side_by_side_is_ground_truth_render_and_four_times_the_error(trained, run):
     """RUN/eval/VIEW.png: ground truth | render | 4 x |render - ground truth|, the images'
     linear intensities written sRGB-encoded in 8 bits (`write_image`), the error as it is (its
-    brightness proportional to it): read back within one 8-bit step."""
+    brightness proportional to it): read back within one 8-bit step; under a row of titles,
+    white on black, over each panel (the panels alone said neither which was which nor the
+    error's scale)."""
     data = trained[0]
     evaluate_run(run, data)
     model, scale = load_ply(run / "scene.ply"), intensity_scale(data)
     for view in data.test_views:
         gt = np.asarray(view.image, np.float32) / scale  # synthetic views: sharp images
         pred = render_view(model, view.viewmat, data)
-        side = read_image(run / "eval" / f"{view.name}.png")  # [H, 3W, C] sRGB values
-        w = data.width
-        assert side.shape == (data.height, 3 * w, data.channels)
+        side = read_image(run / "eval" / f"{view.name}.png")  # [TITLES + H, 3W, C] sRGB values
+        w, titles = data.width, TITLE_HEIGHT
+        assert side.shape == (titles + data.height, 3 * w, data.channels)
+        header, side = side[:titles], side[titles:]
+        assert all(header[:, i * w : (i + 1) * w].max() > 0.9 for i in range(3))
         shown = (linear_to_srgb(gt), linear_to_srgb(pred), np.clip(4 * np.abs(pred - gt), 0, 1))
         for panel, values in enumerate(shown):  # the error as it is: 0.25 and more white
             np.testing.assert_allclose(
                 side[:, panel * w : (panel + 1) * w], values, atol=1.01 / 255
             )
+
+
+def test_side_by_side_titles_a_pseudo_ground_truth_and_grow_with_the_image():
+    """A view scored against TFP of its own spikes (real data) is titled so, not "ground truth";
+    over a 1080-pixel panel the titles are 4 times the default font's 11 pixels (1 % of it)."""
+    gt, pred = np.full((32, 40, 3), 0.5, np.float32), np.zeros((32, 40, 3), np.float32)
+    sharp, pseudo = side_by_side(gt, pred, False), side_by_side(gt, pred, True)
+    assert sharp.shape == pseudo.shape == (TITLE_HEIGHT + 32, 120, 3)
+    assert (sharp[:TITLE_HEIGHT, :40] != pseudo[:TITLE_HEIGHT, :40]).any()  # the truth's title
+    np.testing.assert_array_equal(sharp[:, 40:], pseudo[:, 40:])  # the others, and the panels
+    np.testing.assert_array_equal(sharp[TITLE_HEIGHT:, :40], gt)
+    big = side_by_side(np.zeros((1080, 64, 1)), np.zeros((1080, 64, 1)), False)
+    assert big.shape == (4 * TITLE_HEIGHT + 1080, 192, 1)
+    assert big[: 4 * TITLE_HEIGHT].max() > 0.9 and not big[4 * TITLE_HEIGHT :].any()
 
 
 def test_scores_without_a_later_metric_do_not_count_as_changed(trained, run):

@@ -32,7 +32,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.data.view_geometry import optical_axes
 from spikegs.data_fingerprint import data_fingerprint, same_data
-from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH
+from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH, METHODS
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.file_lock import BUSY, Busy, exclusive_lock
@@ -2062,6 +2062,13 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert comparison[:16].max() > 0.9 and comparison[:16].mean() < 0.5  # titles: white on black
     labels = comparison[16:, :LABEL_WIDTH]  # each row's view and PSNRs: white text on black
     assert all(labels[32 * i : 32 * i + 12].max() > 0.9 for i in range(views))
+    # its panels are the runs' evaluation panels (below their titles): the ground truth, then
+    # each method's render, TFP(33)+3DGS's first
+    first = data.test_views[0].name
+    side = {m: read_image(out / "runs" / m / "eval" / f"{first}.png")[-32:] for m in METHODS}
+    row = comparison[16:48, LABEL_WIDTH:]
+    expected = [side["spikegs"][:, :32], side["tfp33"][:, 32:64], side["spikegs"][:, 32:64]]
+    np.testing.assert_allclose(row, np.concatenate(expected, axis=1), atol=1e-6)
     # curves.png: error against time, every 50 iterations and at the end
     assert read_image(out / "curves.png").ndim == 3
     curve = logged_curve(out / "runs" / "spikegs")
@@ -3149,8 +3156,8 @@ def test_eval_images_show_the_error_that_was_scored(dataset, tmp_path, monkeypat
     with pytest.warns(UserWarning, match="match the render exactly once both are clipped"):
         scores = evaluate_run(tmp_path / "run", dataset)["views"][view.name]
     assert scores["psnr"] == float("inf")  # identical once clipped
-    side = read_image(tmp_path / "run" / "eval" / f"{view.name}.png")  # [H, 3 W, C]
-    w = side.shape[1] // 3
+    side = read_image(tmp_path / "run" / "eval" / f"{view.name}.png")[-dataset.height :]
+    w = side.shape[1] // 3  # [H, 3 W, C] under the titles
     assert side[lamp[0], :w][:, lamp[1]].min() > 0.99  # the lamp, white in the truth
     assert np.abs(side[:, 2 * w :]).max() < 1e-3  # and no error anywhere
 

@@ -25,6 +25,7 @@ from .cli import add_no_progress, positive_int, show_bars
 from .config import load_config, load_saved_run
 from .curves import save_logged_curves
 from .data.scenes import SCENES
+from .image_labels import column_titles, row_labels
 from .interrupt import say
 from .method_titles import method_title
 from .provenance import environment
@@ -273,35 +274,6 @@ def train_and_evaluate(
     return results, view_psnrs
 
 
-def column_titles(titles: list[str], width: int, height: int = 16) -> np.ndarray:
-    """A header [height, len(titles) * width, 1] of white titles on black, each centred over its
-    column of `width` pixels (and cut to it), in linear light."""
-    from PIL import Image, ImageDraw
-
-    from .image_io import srgb_to_linear
-
-    columns = []
-    for title in titles:
-        column = Image.new("L", (width, height))
-        draw = ImageDraw.Draw(column)
-        left, top, right, bottom = draw.textbbox((0, 0), title)
-        draw.text(((width - right - left) / 2, (height - bottom - top) / 2), title, fill=255)
-        columns.append(np.asarray(column, np.float64) / 255)  # sRGB values, antialiased
-    return srgb_to_linear(np.concatenate(columns, axis=1))[..., None]
-
-
-def row_labels(lines: list[str], width: int, height: int) -> np.ndarray:
-    """A label [height, width, 1] of white `lines` on black, left-aligned from the top (cut to
-    it), in linear light."""
-    from PIL import Image, ImageDraw
-
-    from .image_io import srgb_to_linear
-
-    label = Image.new("L", (width, height))
-    ImageDraw.Draw(label).multiline_text((3, 2), "\n".join(lines), fill=255, spacing=2)
-    return srgb_to_linear(np.asarray(label, np.float64) / 255)[..., None]
-
-
 def write_figures(out: Path, dataset, results: dict, view_psnrs: dict) -> None:
     """OUT/comparison.png (ground truth | TFP(33)+3DGS | SpikeGS on each test view, from the
     runs' evaluation images, under those titles, each row labelled with its view and the
@@ -309,13 +281,13 @@ def write_figures(out: Path, dataset, results: dict, view_psnrs: dict) -> None:
     (`save_logged_curves`)."""
     from .image_io import read_image, srgb_to_linear, write_image
 
-    rows = []
-    for view in dataset.test_views:  # each eval image is GT | render | error: GT once, renders
-        panels = [  # back to linear light: write_image encodes it as sRGB again
-            srgb_to_linear(read_image(out / "runs" / m / EVAL / f"{view.name}.png"))
+    rows, h = [], dataset.height
+    for view in dataset.test_views:  # each eval image is GT | render | error under their titles:
+        panels = [  # GT once, the renders; back to linear light (write_image encodes it again)
+            srgb_to_linear(read_image(out / "runs" / m / EVAL / f"{view.name}.png")[-h:])
             for m in METHODS
         ]
-        w, h, c = panels[0].shape[1] // 3, panels[0].shape[0], panels[0].shape[2]
+        w, c = panels[0].shape[1] // 3, panels[0].shape[2]
         psnrs = [
             f"{method_title(m).split('+')[0]} {view_psnrs[m][view.name]:.2f}" for m in METHODS[::-1]
         ]
@@ -324,7 +296,7 @@ def write_figures(out: Path, dataset, results: dict, view_psnrs: dict) -> None:
         renders = [p[:, w : 2 * w] for p in panels[::-1]]
         rows.append(np.concatenate([label, panels[0][:, :w], *renders], 1))
     titles = column_titles(["ground truth", *(method_title(m) for m in METHODS[::-1])], w)
-    header = np.concatenate([column_titles(["view, PSNR"], LABEL_WIDTH), titles], axis=1)
+    header = np.concatenate([column_titles(["view, PSNR (dB)"], LABEL_WIDTH), titles], axis=1)
     header = np.broadcast_to(header, (*header.shape[:2], rows[0].shape[2]))
     write_image(out / COMPARISON, np.concatenate([header, *rows], axis=0))
     runs = {m: (out / "runs" / m, r["sim_seconds"]) for m, r in results.items()}

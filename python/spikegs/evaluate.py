@@ -18,6 +18,7 @@ from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import srgb_to_linear, write_image
+from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output
 from .ply import declares_channels, load_ply
@@ -197,6 +198,18 @@ def _configured_method(run_dir: Path) -> str | None:
     return method if isinstance(method, str) else None
 
 
+def side_by_side(gt: np.ndarray, pred: np.ndarray, pseudo: bool) -> np.ndarray:
+    """RUN/eval/VIEW.png's image [TITLES + H, 3 W, C] (linear): ground truth | render | 4 x the
+    absolute error that was scored, shown as it is (sRGB encoding would show an error of 0.02 as
+    a 31 % grey), under titles that say which is which and the error's scale (the panels alone
+    said neither); a `pseudo` ground truth (TFP of the view's own spikes) titled so."""
+    error = srgb_to_linear(np.clip(4 * np.abs(pred - gt), 0, 1))
+    (h, w, c), truth = gt.shape, "TFP pseudo truth" if pseudo else "ground truth"
+    titles = column_titles([truth, "render", "4 x |error|"], w, title_scale(h))
+    header = np.broadcast_to(titles, (*titles.shape[:2], c))
+    return np.concatenate([header, np.concatenate([gt, pred, error], axis=1)], axis=0)
+
+
 def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
     (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
@@ -243,10 +256,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
-        if write_images:  # ground truth | render | 4 x the absolute error that was scored,
-            # shown as it is (sRGB encoding would show an error of 0.02 as a 31 % grey)
-            error = srgb_to_linear(np.clip(4 * np.abs(pred - gt), 0, 1))
-            write_image(folder / f"{view.name}.png", np.concatenate([gt, pred, error], axis=1))
+        if write_images:
+            write_image(folder / f"{view.name}.png", side_by_side(gt, pred, pseudo))
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
         for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
             (folder / f"{view}.png").unlink(missing_ok=True)
