@@ -547,3 +547,30 @@ def test_the_timing_figures_name_the_threads_the_core_ran_on(tmp_path, monkeypat
     assert "TFP(33)+3DGS (10 iterations)" in pose.texts[0].get_text()
     for fig in figures:
         plt.close(fig)
+
+
+def test_rasterizer_figure_tells_every_size_apart_and_hides_no_line(tmp_path, monkeypatch):
+    """rasterizer.png drew each size and C in matplotlib's colours (red beside green) with one
+    marker, the same in grey, under a legend over the C++ lines' largest N: each size and C has
+    a colour and marker of its own, the legend lies off the panels."""
+    import matplotlib.pyplot as plt
+
+    figures = []
+    monkeypatch.setattr(rasterizer, "save_figure", lambda fig, path: figures.append(fig))
+    rows = [
+        {"size": size, "C": c, "N": n, "fwd_ms": n / 1e3, "fwd_bwd_ms": n / 4e2}
+        for size in ("256x256", "400x250")
+        for c in (1, 3)
+        for n in (1_000, 100_000)
+    ]
+    rasterizer._plot(rows, 3, tmp_path / "rasterizer.png")
+    (fig,) = figures
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        styles = {(line.get_color(), line.get_marker()) for line in fig.axes[0].lines}
+        assert len({colour for colour, _ in styles}) == len({m for _, m in styles}) == 4
+        legend = fig.axes[1].get_legend().get_window_extent(renderer)
+        assert not any(legend.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
+    finally:
+        plt.close(fig)

@@ -24,6 +24,7 @@ import torch
 
 from .. import _C, reference
 from ..atomic_save import save_figure
+from ..curves import COLOURS, MARKERS
 from ..rasterize import rasterize
 from ..text_table import print_table
 from .common import core_threads, median_seconds, uniform, write_results
@@ -178,40 +179,40 @@ def measure(n: int, width: int, height: int, channels: int, repeats: int) -> dic
 
 
 def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
-    """Time against N, log-log: C++ (solid), torch reference (dashed), a colour per size and C."""
+    """Time against N, log-log: C++ (solid, filled markers), torch reference (dashed, open), a
+    colour and marker per size and C (the curves' colour-blind-safe ones, told apart in grey
+    too; matplotlib's cycle drew red beside green, every size and C with the same marker); the
+    legend right of the panels (inside, it lay over the C++ lines' largest N)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.2), sharey=True)
     configs = sorted({(r["size"], r["C"]) for r in rows})
     for ax, key, title in zip(axes, ("fwd_ms", "fwd_bwd_ms"), ("forward", "forward + backward")):
         for i, (size, channels) in enumerate(configs):
             sel = [r for r in rows if (r["size"], r["C"]) == (size, channels)]
-            color = f"C{i}"
+            style = {"color": COLOURS[i % len(COLOURS)], "marker": MARKERS[i % len(MARKERS)]}
             label = f"{size.replace('x', '×')}, C = {channels}"
             ax.loglog(
-                [r["N"] for r in sel],
-                [r[key] for r in sel],
-                "o-",
-                color=color,
-                label=f"C++ {label}",
+                [r["N"] for r in sel], [r[key] for r in sel], "-", label=f"C++ {label}", **style
             )
             ref = [r for r in sel if "ref_" + key in r]
             if ref:
                 ax.loglog(
                     [r["N"] for r in ref],
                     [r["ref_" + key] for r in ref],
-                    "s--",
-                    color=color,
+                    "--",
+                    markerfacecolor="none",
                     label=f"torch reference {label}",
+                    **style,
                 )
         ax.set_title(title)
         ax.set_xlabel("Gaussians N")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("time (ms)")
-    axes[1].legend(fontsize=7)
+    axes[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.03, 1.0), borderaxespad=0)
     fig.suptitle(
         f"spikegs.rasterize (C++, median of {repeats} after a warm-up, "
         f"{core_threads()}) vs spikegs.reference (torch, timed once, 1 thread), "
