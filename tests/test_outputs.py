@@ -229,17 +229,31 @@ def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsy
     assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
 
 
-def test_characters_the_output_codec_lacks_print_escaped(monkeypatch, console_signals):
+@pytest.mark.parametrize("errors", ["strict", "surrogateescape"])
+def test_characters_the_output_codec_lacks_print_escaped(monkeypatch, console_signals, errors):
     """`spikegs simulate --help` through an ASCII or Latin-1 stdout (a legacy locale, a
-    Windows code page, PYTHONIOENCODING) raised UnicodeEncodeError at its "µs"; messages with
-    θ or — likewise, after the work: the command prints them escaped."""
-    out = io.TextIOWrapper(io.BytesIO(), encoding="ascii")
+    Windows code page, PYTHONIOENCODING; the C locale without UTF-8 mode, PYTHONUTF8=0, whose
+    ASCII stdout's errors are surrogateescape) raised UnicodeEncodeError at its "µs"; messages
+    with θ or — likewise, after the work: the command prints them escaped."""
+    out = io.TextIOWrapper(io.BytesIO(), encoding="ascii", errors=errors)
     monkeypatch.setattr(sys, "stdout", out)
     monkeypatch.setattr(sys, "argv", ["spikegs", "simulate", "--help"])
     with pytest.raises(SystemExit) as exit:
         console()
     out.flush()
     assert exit.value.code == 0 and b"readouts (25 \\xb5s each)" in out.buffer.getvalue()
+
+
+def test_undecodable_bytes_of_a_name_print_as_they_are(monkeypatch, console_signals):
+    """Under the C locale without UTF-8 mode a folder's Latin-1 name (b"caf\\xe9") prints
+    its own bytes, as Python's surrogateescape stdout does, beside an escaped µ."""
+    out = io.TextIOWrapper(io.BytesIO(), encoding="ascii", errors="surrogateescape")
+    monkeypatch.setattr(sys, "stdout", out)
+    monkeypatch.setattr("spikegs.cli.main", lambda: print(os.fsdecode(b"caf\xe9"), "25 µs") or 0)
+    with pytest.raises(SystemExit):
+        console()
+    out.flush()
+    assert out.buffer.getvalue() == b"caf\xe9 25 \\xb5s\n"
 
 
 def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):

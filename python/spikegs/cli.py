@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import codecs
 import contextlib
 import importlib
 import io
@@ -210,6 +211,31 @@ HUNG_UP = 129  # an error it could not say, its terminal gone (EIO): as SIGHUP e
 # (one it could not say to stderr's reader gone: BROKEN_PIPE)
 
 
+ESCAPE = "spikegs.escape"  # the codec error handler `_escape`
+
+
+def _escape(err: UnicodeError) -> tuple[str | bytes, int]:
+    """Surrogateescape's bytes where it applies (a file name's undecodable bytes print as they
+    are), else backslashreplace's escape."""
+    try:
+        return codecs.lookup_error("surrogateescape")(err)
+    except UnicodeError:
+        return codecs.backslashreplace_errors(err)
+
+
+def _escaping_outputs() -> None:
+    """stdout and stderr print a character their codec lacks escaped: strict ones (a Latin-1
+    or ASCII locale, PYTHONIOENCODING) as backslashreplace does, surrogateescape ones (the C
+    locale's ASCII stdout without UTF-8 mode, PYTHONUTF8=0, which raised at a µ or an é; UTF-8
+    mode's) as `_escape` does."""
+    codecs.register_error(ESCAPE, _escape)
+    escapes = {"strict": "backslashreplace", "surrogateescape": ESCAPE}
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors in escapes:
+            with contextlib.suppress(OSError):  # its flush, where its reader left: said at exit
+                stream.reconfigure(errors=escapes[stream.errors])
+
+
 def console() -> None:
     """The `spikegs` command: `main`, then exit with its status. SIGTERM stops a command as
     Ctrl-C does (a batch scheduler's time limit: training checkpoints after its step, temporary
@@ -221,9 +247,7 @@ def console() -> None:
     this runs, still ends in Python's traceback). A character the output's codec lacks (θ, µ
     or — through a Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a
     UnicodeEncodeError after the work."""
-    for stream in (sys.stdout, sys.stderr):  # (UTF-8 mode's surrogateescape stays)
-        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
-            stream.reconfigure(errors="backslashreplace")
+    _escaping_outputs()
     for signum in ENDING:
         if signal.getsignal(signum) is signal.SIG_DFL:
             signal.signal(signum, raise_terminated)
