@@ -114,6 +114,20 @@ def test_a_non_utf8_folder_is_refused_by_name(tmp_path):
         read_image(latin / "v.png")
 
 
+@LINUX
+def test_a_utf8_folder_read_by_the_c_locale_takes_images(tmp_path):
+    """Under the C locale without UTF-8 mode (LC_ALL=C PYTHONUTF8=0) Python reads a UTF-8 name's
+    bytes (né) as ASCII's surrogate escapes, and its image files were refused as 'not a UTF-8
+    file name': OpenImageIO is given the name's bytes as UTF-8."""
+    folder = tmp_path / "né"
+    folder.mkdir()
+    as_c_locale = Path(os.fsencode(folder).decode("ascii", "surrogateescape"))
+    check_folder_output(as_c_locale, images=True)
+    write_image(as_c_locale / "v.png", np.ones((2, 2), np.float32))
+    assert read_image(folder / "v.png").shape == (2, 2, 1)
+    assert read_image(as_c_locale / "v.png").shape == (2, 2, 1)
+
+
 def test_a_link_to_a_missing_folder_is_named(tmp_path):
     """An output that is a symbolic link to a scratch disk's folder not made yet failed with
     '[Errno 17] File exists', after rendering for a video."""

@@ -45,12 +45,13 @@ def _reason(error: str) -> str:
 def _name(path: str | Path) -> str:
     """`path` as OpenImageIO takes it; ValueError naming it where it is not UTF-8 (a Latin-1
     folder's name, read through os.fsdecode's surrogate escapes: the binding raised TypeError)."""
-    if not utf8_name(path):
+    name = utf8_name(path)
+    if name is None:
         raise ValueError(
             f"{path}: not a UTF-8 file name, which OpenImageIO cannot open; rename it (or its "
             f"folder)"
         )
-    return str(path)
+    return name
 
 
 def write_image(path: str | Path, image: np.ndarray) -> None:

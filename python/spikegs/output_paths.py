@@ -22,14 +22,15 @@ def writable_folder(folder: Path) -> bool:
         return False
 
 
-def utf8_name(path: str | Path) -> bool:
-    """Whether `path` is UTF-8, as OpenImageIO takes names (not a Latin-1 folder's, read through
-    the surrogate escapes of os.fsdecode)."""
+def utf8_name(path: str | Path) -> str | None:
+    """`path` as OpenImageIO takes names, its bytes on disk read as UTF-8; None where they are
+    not (a Latin-1 folder's name, read through the surrogate escapes of os.fsdecode). The bytes,
+    not the string: the C locale without UTF-8 mode (PYTHONUTF8=0) reads a UTF-8 name's bytes
+    as ASCII's surrogate escapes too."""
     try:
-        str(path).encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
+        return os.fsencode(path).decode("utf-8")
+    except UnicodeError:
+        return None
 
 
 def _check_no_file_on_path(path: Path, flag: str, folders) -> None:
@@ -66,7 +67,7 @@ def check_folder_output(folder: Path, flag: str = "--out", images: bool = False)
     _check_no_file_on_path(folder, flag, [folder, *folder.parents])
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")
-    if images and not utf8_name(folder.absolute()):
+    if images and utf8_name(folder.absolute()) is None:
         raise ValueError(
             f"{flag} {folder}: not a UTF-8 name, which OpenImageIO (spikegs's image files) "
             f"cannot open; rename it"
