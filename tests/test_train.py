@@ -2329,7 +2329,8 @@ def test_a_log_gets_lines(dataset, tmp_path, capsys):
 def test_a_terminal_gets_a_bar_if_it_has_a_width(monkeypatch):
     """A terminal gets the bar unless told --no-progress; a pseudo-terminal given no size
     (`script` under cron, some containers), where tqdm drew empty bars and a run printed nothing
-    until its end, gets the log's lines."""
+    until its end, gets the log's lines, and so does one given columns but no rows (`stty cols
+    80` in `script`), where tqdm drew nothing at all."""
     import fcntl
     import pty
     import struct
@@ -2340,9 +2341,9 @@ def test_a_terminal_gets_a_bar_if_it_has_a_width(monkeypatch):
     master, slave = pty.openpty()
     with os.fdopen(slave, "w") as tty:
         monkeypatch.setattr(sys, "stderr", tty)
-        for columns, bars in ((0, False), (80, True)):
-            fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, columns, 0, 0))
-            assert show_bars(False) == bars and not show_bars(True), columns
+        for rows, columns, bars in ((24, 0, False), (0, 80, False), (24, 80, True)):
+            fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", rows, columns, 0, 0))
+            assert show_bars(False) == bars and not show_bars(True), (rows, columns)
         monkeypatch.undo()
     os.close(master)
 

@@ -156,11 +156,13 @@ def show_bars(off: bool) -> bool:
     """Whether a command draws progress bars: not where `off` (--no-progress, --quiet), nor where
     stderr is no terminal (a batch job's log, which bars' carriage returns garble) or one that
     reports no width (a pseudo-terminal given no size: `script` under cron, some containers),
-    where tqdm drew empty bars and the run printed nothing until its end."""
+    where tqdm drew empty bars and the run printed nothing until its end, or no height (`stty
+    cols 80` alone in `script`), where tqdm drew nothing."""
     if off or not sys.stderr.isatty():
         return False
     try:
-        return os.get_terminal_size(sys.stderr.fileno()).columns > 0
+        size = os.get_terminal_size(sys.stderr.fileno())
+        return size.columns > 0 and size.lines > 0
     except (OSError, ValueError):  # no file descriptor: a stream that only says it is a terminal
         return False
 
