@@ -333,6 +333,26 @@ def test_a_closed_stdout_does_not_fail_a_command_whose_reader_left(
     assert exit.value.code == 141
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="reads /proc/self/fd")
+def test_a_command_started_with_stderr_closed_runs_with_it_on_dev_null(tmp_path):
+    """`spikegs train ... 2>&-` stopped at its first look at stderr (Python's None for a closed
+    descriptor: AttributeError, exit 1, nothing said or trained), and the next file it opened
+    took descriptor 2, where C and C++ code's messages go: stderr is /dev/null instead."""
+    script = (
+        "import os, spikegs.cli as cli\n"
+        "def run():\n"
+        "    with open(os.environ['OUT'], 'w') as out:\n"
+        "        out.write(f'{cli.show_bars(False)} {os.readlink(\"/proc/self/fd/2\")}')\n"
+        "    return 0\n"
+        "cli.main = run\n"
+        "cli.console()\n"
+    )
+    out = tmp_path / "out"
+    env = {**os.environ, "OUT": str(out)}
+    done = subprocess.run([sys.executable, "-c", script], env=env, preexec_fn=lambda: os.close(2))
+    assert done.returncode == 0 and out.read_text() == f"False {os.devnull}"
+
+
 def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read

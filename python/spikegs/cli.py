@@ -238,6 +238,19 @@ def _escaping_outputs() -> None:
                 stream.reconfigure(errors=escapes[stream.errors])
 
 
+def _closed_streams_to_devnull() -> None:
+    """stdin, stdout or stderr closed as the command started (`spikegs ... 2>&-`) is /dev/null
+    instead: Python set a closed one to None, whose first use stopped train (exit 1, nothing
+    said), and the next file opened took its descriptor, which C and C++ code writes messages
+    to. Filled in order, each gets the lowest descriptor free: its own."""
+    for fd, name in enumerate(("stdin", "stdout", "stderr")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            os.open(os.devnull, os.O_RDWR)
+            setattr(sys, name, open(fd, "r" if fd == 0 else "w", closefd=False))
+
+
 def console() -> None:
     """The `spikegs` command: `main`, then exit with its status. SIGTERM stops a command as
     Ctrl-C does (a batch scheduler's time limit: training checkpoints after its step, temporary
@@ -249,6 +262,7 @@ def console() -> None:
     this runs, still ends in Python's traceback). A character the output's codec lacks (θ, µ
     or — through a Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a
     UnicodeEncodeError after the work."""
+    _closed_streams_to_devnull()
     _escaping_outputs()
     for signum in ENDING:
         if signal.getsignal(signum) is signal.SIG_DFL:
