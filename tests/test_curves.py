@@ -2,6 +2,9 @@
 lies on the time axis (a SIM method's after SIM's training)."""
 
 import json
+import os
+import subprocess
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -224,3 +227,19 @@ def test_a_baselines_run_at_spikegs_time_is_titled_as_its_method():
     assert method_title("tfp33-equal-time") == "TFP(33)+3DGS at SpikeGS's time"
     assert method_title("tfi-equal-time") == "TFI+3DGS at SpikeGS's time"
     assert method_title("mine-equal-time") == "mine-equal-time"
+
+
+def test_a_backend_matplotlib_does_not_know_leaves_the_figure_drawn(tmp_path):
+    """MPLBACKEND=inline (meant for Jupyter) made `import matplotlib` raise ValueError: a run
+    that had trained lost its curve.png and exited 2; the figures are files, drawn with Agg."""
+    script = (
+        "import sys\n"
+        "from spikegs.curves import save_curves\n"
+        "curve = [{'train_seconds': 1.0, 'psnr': 20.0}, {'train_seconds': 2.0, 'psnr': 21.0}]\n"
+        "methods = {'tfp33': {'curve': curve, 'sim_seconds': 0.0, 'uses_sim': False}}\n"
+        "save_curves(sys.argv[1], methods, ('psnr',), 'title')\n"
+    )
+    figure = tmp_path / "curve.png"
+    env = {**os.environ, "MPLBACKEND": "inline"}
+    done = subprocess.run([sys.executable, "-c", script, str(figure)], env=env, capture_output=True)
+    assert done.returncode == 0 and figure.read_bytes().startswith(b"\x89PNG"), done.stderr

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .atomic_save import save_figure
 from .method_titles import method_title
+from .pyplot_agg import pyplot
 from .run_summary import LOG
 
 
@@ -141,10 +142,7 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
 def curves_figure(methods: dict, metrics: tuple[str, ...], title: str):
     """The matplotlib figure of `save_curves`: the panels 5.5 inches wide each, the figure wider
     by the legend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     width = 5.5 * len(metrics)  # inches
     fig, axes = plt.subplots(1, len(metrics), figsize=(width, 4.2), squeeze=False)

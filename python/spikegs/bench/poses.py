@@ -27,6 +27,7 @@ from ..data.trajectory import Trajectory
 from ..evaluate import evaluate_run
 from ..method_titles import method_title
 from ..pose_refine import pose_errors
+from ..pyplot_agg import pyplot
 from ..text_table import print_table
 from ..train import Trainer
 from .common import scratch_folder, write_results
@@ -117,10 +118,7 @@ def _run(dataset, setup: dict, quick: bool, refine: bool, run_dir: Path) -> tupl
 def _plot(rows: list[dict], errors: dict[str, np.ndarray], setup: dict, path: Path) -> None:
     """Test PSNR of the three conditions, and the training views' rotation and centre errors
     before and after refinement (the last noise seed's, sorted)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     # points, not bars: an axis that does not start at 0 would exaggerate bars' lengths

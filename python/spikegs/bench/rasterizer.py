@@ -25,6 +25,7 @@ import torch
 from .. import _C, reference
 from ..atomic_save import save_figure
 from ..curves import COLOURS, MARKERS
+from ..pyplot_agg import pyplot
 from ..rasterize import rasterize
 from ..text_table import print_table
 from .common import core_threads, median_seconds, uniform, write_results
@@ -183,10 +184,7 @@ def _plot(rows: list[dict[str, Any]], repeats: int, path: Path) -> None:
     colour and marker per size and C (the curves' colour-blind-safe ones, told apart in grey
     too; matplotlib's cycle drew red beside green, every size and C with the same marker); the
     legend right of the panels (inside, it lay over the C++ lines' largest N)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.2), sharey=True)
     configs = sorted({(r["size"], r["C"]) for r in rows})

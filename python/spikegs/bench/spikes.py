@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..atomic_save import save_figure
+from ..pyplot_agg import pyplot
 from ..spikes import TFI_DEFAULT_MAX_INTERVAL, SimParams, SpikeStream, simulate_spikes
 from ..text_table import print_table
 from .common import core_threads, median_seconds, scratch_folder, write_results
@@ -199,10 +200,7 @@ def _bench_simulator(light: np.ndarray, readouts: int) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter, NullLocator
 
     ws = [r["w"] for r in rows]
