@@ -9,6 +9,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import warnings
 
 import pytest
 import spikegs
@@ -213,6 +214,23 @@ def test_an_error_it_cannot_say_ends_the_command_quietly(monkeypatch, gone_stder
     monkeypatch.setattr("spikegs.eval_cli.run", run)
     gone_stderr(stderr).gone = stderr is not None
     assert main(["eval", "RUN"]) == status
+
+
+def test_a_warning_made_an_error_is_said_as_one(monkeypatch, capsys):
+    """Under PYTHONWARNINGS=error a command's warning (simulate's dim light, before any file
+    was written) ended in a traceback: it is said as the command's error, exit 2."""
+
+    def run(args):
+        warnings.warn("the light is dim", stacklevel=1)
+
+    monkeypatch.setattr("spikegs.eval_cli.run", run)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["eval", "RUN"]) == 2
+    assert capsys.readouterr().err == (
+        "spikegs eval: error: the light is dim (a warning, which PYTHONWARNINGS or -W makes an "
+        "error)\n"
+    )
 
 
 def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys, console_signals):

@@ -333,10 +333,13 @@ def _run(args: argparse.Namespace) -> int:
     except Busy as err:  # another process holds the run: a retry may succeed
         print(f"spikegs {args.command}: busy: {err}", file=sys.stderr)
         return BUSY
-    # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]')
-    except (ValueError, OSError, MissingDependencyError) as err:
+    # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]'),
+    # a warning that PYTHONWARNINGS=error or -W error made an exception (a traceback before)
+    except (ValueError, OSError, MissingDependencyError, Warning) as err:
+        warned = isinstance(err, Warning)
+        note = " (a warning, which PYTHONWARNINGS or -W makes an error)" if warned else ""
         # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
-        unsaid = say(f"spikegs {args.command}: error: {err}")
+        unsaid = say(f"spikegs {args.command}: error: {err}{note}")
         if unsaid is None:
             return 2
         return BROKEN_PIPE if isinstance(unsaid, BrokenPipeError) else HUNG_UP
