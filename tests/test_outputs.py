@@ -233,6 +233,24 @@ def test_a_warning_made_an_error_is_said_as_one(monkeypatch, capsys):
     )
 
 
+@pytest.mark.skipif(sys.platform != "linux", reason="a deleted working folder: Linux's")
+def test_a_deleted_working_folder_is_named(tmp_path):
+    """In a working folder deleted under the shell (`mkdir x; cd x; rmdir ../x`) every command
+    ended at torch's import with 'Intel oneMKL FATAL ERROR: Cannot load libtorch_cpu.so', a
+    broken install's message (oneMKL asks for the folder as it loads)."""
+    gone = tmp_path / "x"
+    gone.mkdir()
+    done = subprocess.run(
+        [sys.executable, "-c", "import spikegs"],
+        cwd=gone,
+        preexec_fn=gone.rmdir,  # (in the child, once in it)
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 1
+    assert "FileNotFoundError: the working folder is gone" in done.stderr, done.stderr
+
+
 def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsys, console_signals):
     """Ctrl-C in the first seconds, while Python imported torch for the command, printed a
     30-60-line traceback ending in KeyboardInterrupt."""

@@ -2,6 +2,14 @@
 
 import os
 
+try:  # torch's oneMKL ends the process where it is gone, with a broken install's message
+    os.getcwd()
+except FileNotFoundError:
+    raise FileNotFoundError(
+        "the working folder is gone (deleted while the shell was in it), where torch cannot "
+        "load ('Intel oneMKL FATAL ERROR: Cannot load libtorch_cpu.so'): cd to one that exists"
+    ) from None
+
 from . import thread_count  # a CPU quota's threads in OMP_NUM_THREADS, before torch loads
 
 # torch and spikegs._C may each bring an OpenMP runtime (a torch wheel whose libgomp has another
