@@ -1398,6 +1398,18 @@ def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
         load_config("sub/gone.yaml")
 
 
+def test_a_config_base_under_the_home_is_found_there(tmp_path, monkeypatch):
+    """`base: ~/common.yaml` was looked up in a folder named ~ beside the file ('config file not
+    found: .../sub/~/common.yaml'); `~` is the home, as the shell gives it for --config."""
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "common.yaml").write_text("base: tfp33\ntrain: {iterations: 77}\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "run.yaml").write_text("base: ~/common.yaml\n")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert load_config(tmp_path / "sub" / "run.yaml").train.iterations == 77
+    assert load_config("~/common.yaml").train.iterations == 77
+
+
 def test_a_config_file_of_no_mapping_or_a_bad_base_is_named(tmp_path):
     """A file that is no mapping, a base that names nothing and a base that is no YAML file
     are refused with the file that says so."""

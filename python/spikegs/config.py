@@ -20,6 +20,7 @@ or range and non-finite numbers are refused with a message that names the key an
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import math
@@ -628,8 +629,9 @@ def _read(
 
 
 def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
-    """The resolved path of a config file or a built-in method's name (relative to
-    `relative_to`, else to the current directory); ValueError or FileNotFoundError naming it."""
+    """The resolved path of a config file (`~` its user's home; relative to `relative_to`, else
+    to the current directory) or a built-in method's name; ValueError or FileNotFoundError
+    naming it."""
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         if len(path.parts) > 1 or path.suffix:  # a file's path, not a method's name
@@ -639,8 +641,11 @@ def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
             raise ValueError(
                 f"unknown method '{name_or_path}'; known methods: {', '.join(available_methods())}"
             )
-    elif relative_to is not None and not path.is_absolute():
-        path = relative_to / path
+    else:
+        with contextlib.suppress(RuntimeError):  # ~/FILE.yaml: the home's (where one is known)
+            path = path.expanduser()
+        if relative_to is not None and not path.is_absolute():
+            path = relative_to / path
     if not path.exists():
         raise FileNotFoundError(f"config file not found: {path}")
     if not path.is_file():
