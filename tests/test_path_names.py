@@ -26,6 +26,8 @@ from spikegs.data.dataset import is_view_name, prepare_output
 from spikegs.evaluate import _eval_name
 from spikegs.image_io import read_image, write_image
 from spikegs.output_paths import check_file_output, check_folder_output
+from spikegs.run_summary import last_checkpoint, trained_scene
+from spikegs.shell_words import shell_path
 from spikegs.video import can_encode, check_video_output, write_video
 
 LINUX = pytest.mark.skipif(sys.platform != "linux", reason="names as bytes: Linux file systems")
@@ -213,3 +215,18 @@ def test_a_figure_without_a_suffix_is_a_png(tmp_path):
 
     save_figure(plt.figure(figsize=(1, 1)), tmp_path / "curve")
     assert (tmp_path / "curve").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_command_suggested_for_a_path_starting_with_a_dash_reads_it_as_a_path(
+    tmp_path, monkeypatch
+):
+    """A run stopped before its end in ./-run was told 'finish it with spikegs train DATASET
+    --out -run --resume', which argparse reads as an option without its value (pathlib drops
+    the ./ typed): a relative path that starts with "-" is suggested with ./ before it."""
+    monkeypatch.chdir(tmp_path)
+    run = Path("./-run")
+    last_checkpoint(run).parent.mkdir(parents=True)
+    last_checkpoint(run).touch()
+    with pytest.raises(FileNotFoundError, match=r"--out \./-run --resume"):
+        trained_scene(run)
+    assert (shell_path("-a b"), shell_path("/d/-a"), shell_path("a")) == ("'./-a b'", "/d/-a", "a")

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import shlex
 from pathlib import Path
+
+from .shell_words import shell_path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,7 +39,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
             # killed between scene.ply and train.json, its last writes: --resume writes the rest
             raise FileNotFoundError(
                 f"{run_dir / SUMMARY} not found: the run stopped while writing its results; "
-                f"finish it with spikegs train DATASET --out {shlex.quote(str(run_dir))} --resume"
+                f"finish it with spikegs train DATASET --out {shell_path(run_dir)} --resume"
             )
         raise FileNotFoundError(
             f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"

@@ -3,11 +3,11 @@ of a run, read back checked."""
 
 from __future__ import annotations
 
-import shlex
 from pathlib import Path
 
 from .file_lock import Busy, exclusive_lock
 from .number_checks import is_number
+from .shell_words import shell_path
 from .strict_json import json_text, read_json
 
 CONFIG = "config.yaml"  # the run's settings, which --resume keeps
@@ -63,7 +63,7 @@ def trained_scene(run_dir: Path) -> Path:
     if last_checkpoint(run_dir).exists():
         raise FileNotFoundError(
             f"{ply} not found: the run stopped before its end; finish it with spikegs train "
-            f"DATASET --out {shlex.quote(str(run_dir))} --resume"
+            f"DATASET --out {shell_path(run_dir)} --resume"
         )
     if not Path(run_dir).is_dir():
         what = "a file, not a run folder" if Path(run_dir).exists() else "no such run folder"
@@ -74,6 +74,6 @@ def trained_scene(run_dir: Path) -> Path:
     if marks:  # a dataset given where a run goes
         raise FileNotFoundError(
             f"{run_dir}: a dataset (its {', '.join(marks)}), not a run folder (spikegs train "
-            f"{shlex.quote(str(run_dir))} --out RUN trains one)"
+            f"{shell_path(run_dir)} --out RUN trains one)"
         )
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")

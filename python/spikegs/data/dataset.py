@@ -17,7 +17,6 @@ import contextlib
 import dataclasses
 import json
 import os
-import shlex
 import shutil
 import warnings
 from pathlib import Path
@@ -30,6 +29,7 @@ from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
 from ..run_summary import CONFIG, SUMMARY, read_summary
+from ..shell_words import shell_path
 from ..spikes import SpikeStream
 from ..strict_json import json_text, read_json
 from .correlation import correlation
@@ -698,7 +698,7 @@ def load_dataset(path: PathLike) -> Dataset:
     if not (root / TRAJECTORY).is_file():
         raise FileNotFoundError(
             f"dataset file not found: {root / TRAJECTORY} (the camera poses; a raw recording gets "
-            f"them, and what else it lacks, from `spikegs poses {shlex.quote(str(root))}`)"
+            f"them, and what else it lacks, from `spikegs poses {shell_path(root)}`)"
             + (f"; {not_read}" if others else "")
         )
     meta = read_json(meta_path)

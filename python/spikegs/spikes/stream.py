@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import shlex
 import shutil
 import sys
 import uuid
@@ -32,6 +31,7 @@ from .. import _C
 from ..atomic_save import naming, temporary_name, write_text_atomically
 from ..cache_home import cache_home
 from ..number_checks import is_int, is_number, whole_numbers
+from ..shell_words import shell_path
 
 PathLike = str | os.PathLike
 TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
@@ -82,7 +82,7 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
         cut = (  # a recording cut off mid-frame, not a wrong frame size: many frames, one part
             f"; a recording cut off mid-frame keeps its {whole} whole frames truncated to "
             f"{whole * fb} bytes (on a copy: `truncate -s {whole * fb} "
-            f"{shlex.quote(str(path))}` deletes the rest)"
+            f"{shell_path(path)}` deletes the rest)"
             if path is not None and whole >= 16
             else ""
         )
