@@ -3372,6 +3372,11 @@ def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_
         with pytest.raises(ValueError, match="found true or false among them"):
             number_array(mixed)
     assert number_array([np.zeros(2), [1, 2]]).tolist() == [[0, 0], [1, 2]]
+    # an integer past int64 (JSON reads 1e30 written out as one) made an object array, where the
+    # search for what is not a number found none: StopIteration's traceback, not a message
+    assert number_array([[0, 10**30], [1, 2]]).tolist() == [[0, 1e30], [1, 2]]
+    with pytest.raises(ValueError, match=re.escape("found an integer past 1.8e308 at [1]")):
+        number_array([0, 10**400])
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):

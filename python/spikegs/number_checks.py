@@ -63,19 +63,27 @@ _NESTED = (list, tuple)  # what `holds_bool` looks into
 
 
 def number_array(value) -> np.ndarray:
-    """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls or
-    ragged lists, naming the first value that is not a number and where (np.asarray(value,
-    float) would read '1.0' and True as numbers, and np.asarray reads a True among numbers as 1)."""
+    """Nested lists of numbers as a float64 array; ValueError for strings, booleans, nulls,
+    integers past a float's range or ragged lists, naming the first value that is not a number
+    and where (np.asarray(value, float) would read '1.0' and True as numbers, and np.asarray
+    reads a True among numbers as 1)."""
     array = np.asarray(value)  # ragged: ValueError
-    if array.dtype.kind not in "iuf":  # the first value that is not a number, as JSON spells it
+    if array.dtype.kind not in "iuf":  # (an integer past int64 among numbers: an object array)
         given = np.asarray(value, dtype=object).reshape(-1)  # (as given: not made text like "x")
         flat = [v.item() if isinstance(v, np.generic) else v for v in given]
-        i = next(i for i, v in enumerate(flat) if isinstance(v, bool) or not is_real(v))
-        where = [int(n) for n in np.unravel_index(i, array.shape)]
-        raise ValueError(f"expected numbers, found {json_text(flat[i])} at {where}")
+        i = next((i for i, v in enumerate(flat) if not _float_holds(v)), None)
+        if i is not None:  # the first value that is not a number, as JSON spells it
+            where = [int(n) for n in np.unravel_index(i, array.shape)]
+            found = json_text(flat[i]) if not is_int(flat[i]) else "an integer past 1.8e308"
+            raise ValueError(f"expected numbers, found {found} at {where}")
     if holds_bool(value):
         raise ValueError("expected numbers, found true or false among them")
     return array.astype(np.float64)
+
+
+def _float_holds(value) -> bool:
+    """Whether `value` is a real number (not a bool) that a float holds, finite or not."""
+    return is_real(value) and (is_number(value) or not is_int(value))
 
 
 def holds_bool(value) -> bool:
