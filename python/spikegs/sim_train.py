@@ -410,10 +410,12 @@ def train_or_load(
         )
         seconds = (state or {}).get("seconds", 0.0) + time.perf_counter() - start
         final_loss = float(np.mean(losses[-FINAL_LOSS_STEPS:]))
+        # sim-train's scores of the SIM replaced, removed first: a kill between the two leaves
+        # the old weights without their record, never the new ones with the old one's
+        record_beside(path).unlink(missing_ok=True)
         save_sim(
             model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
         )
-        record_beside(path).unlink(missing_ok=True)  # sim-train's scores of the SIM replaced
         partial.unlink(missing_ok=True)
         if quiet:
             print(
