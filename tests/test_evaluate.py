@@ -270,3 +270,13 @@ def test_docs_outputs_names_every_key_a_run_writes(trained, run):
     keys |= {f"build.{k}" for k in scores["environment"]["build"]} - {"build"}
     keys |= {k for row in rows for k in row}
     assert {k for k in keys if f"`{k}`" not in docs and k != "build"} == set()
+
+
+def test_a_run_that_cannot_be_written_is_refused_saying_to_score_a_copy(trained, run, monkeypatch):
+    """A colleague's run or one on a read-only mount: eval said only "eval's scores
+    RUN/eval.json: its folder is not writable", before any view; it says to score a copy."""
+    writable = lambda folder: Path(folder).resolve() != run.resolve()  # noqa: E731
+    monkeypatch.setattr("spikegs.evaluate.writable_folder", writable)
+    with pytest.raises(ValueError, match=f"{run}: not writable, .*cp -r {run} COPY"):
+        evaluate_run(run, trained[0])
+    assert not (run / "eval.json").exists()

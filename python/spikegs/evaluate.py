@@ -20,10 +20,11 @@ from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import srgb_to_linear, write_image
 from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
-from .output_paths import check_file_output, check_folder_output
+from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels, load_ply
 from .provenance import environment
 from .run_summary import CONFIG, EVAL, read_summary, trained_scene
+from .shell_words import shell_path
 from .targets import intensity_scale
 
 
@@ -238,6 +239,12 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
     run_scale = _run_scale(train, dataset)  # the units the run renders in
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
     # refused before any view is rendered, not after the images are written
+    if not writable_folder(run_dir):
+        raise ValueError(
+            f"{run_dir}: not writable, where eval writes {scores_file.name} and its images (a "
+            f"colleague's run, a read-only mount: copy it, cp -r {shell_path(run_dir)} COPY, and "
+            f"score the copy)"
+        )
     check_file_output(scores_file, "eval's scores")
     if write_images:
         check_folder_output(folder, "eval's images", images=True)
