@@ -1433,6 +1433,11 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     with pytest.raises(ValueError, match="camera_model \"OPENCV_FISHEYE\" of frame './test/r_1'"):
         load_dataset(root)
     edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1].pop("camera_model"))
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(is_fisheye=True))  # instant-
+    with pytest.raises(ValueError, match="is_fisheye true of frame './test/r_0'"):  # ngp's: read
+        load_dataset(root)  # as a pinhole without a word
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(is_fisheye=False))
+    load_dataset(root)
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0.1))
     with pytest.warns(UserWarning, match="distortion \\{'k1': 0.1\\} ignored.*pinhole"):
         load_dataset(root)

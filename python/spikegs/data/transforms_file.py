@@ -212,14 +212,20 @@ def read_cameras(docs: list, frames: list, sources: list) -> dict[int, dict]:
     of the first frame stating it, the first frame's first: the frame's own file's keys (docs [F],
     each frame's file's JSON; sources [F], its path), then the frame's (nerfstudio), else, where
     these state no intrinsics (or no distortion), the first frame's file's; each checked
-    (`camera_number`); ValueError for a camera_model that is not a pinhole; a warning for the
-    first camera's non-zero distortion, which the pinhole rasterizer does not model. Cameras
-    stated with other keys may still be one (`one_camera_matrix`)."""
+    (`camera_number`); ValueError for a camera_model that is not a pinhole, or an is_fisheye
+    (instant-ngp's); a warning for the first camera's non-zero distortion, which the pinhole
+    rasterizer does not model. Cameras stated with other keys may still be one
+    (`one_camera_matrix`)."""
     for doc, frame, source in zip(docs, frames, sources):
-        model = {**docs[0], **doc, **frame}.get("camera_model", "PINHOLE")
-        if model not in PINHOLE_MODELS:
+        stated = {**docs[0], **doc, **frame}
+        model = stated.get("camera_model", "PINHOLE")
+        # instant-ngp's colmap2nerf says fisheye so, without a camera_model: its k1..k4 are then
+        # a fisheye's, and even at 0 the projection is not a pinhole's
+        fisheye = stated.get("is_fisheye", False) not in (False, None)
+        if model not in PINHOLE_MODELS or fisheye:
+            key = "is_fisheye" if fisheye else "camera_model"  # the one stated: PINHOLE passes
             raise ValueError(
-                f"{source}: camera_model {json_text(model)} of frame '{frame['file_path']}': the "
+                f"{source}: {key} {json_text(stated[key])} of frame '{frame['file_path']}': the "
                 f"rasterizer renders pinhole cameras ({', '.join(PINHOLE_MODELS)}); rectify the "
                 f"frames to one"
             )
