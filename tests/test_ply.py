@@ -68,6 +68,17 @@ def test_a_point_cloud_is_no_splat_file(tmp_path):
         load_ply(tmp_path / "points3d.ply")
 
 
+def test_a_compressed_ply_is_named(tmp_path):
+    """SuperSplat's compressed .ply (a chunk element, uint32 packed_* vertex properties): refused
+    as such, not as a file that is no splat file."""
+    chunk = np.zeros(1, [(f"{e}_{a}", "f4") for e in ("min", "max") for a in "xyz"])
+    packed = np.zeros(256, [(f"packed_{k}", "u4") for k in ("position", "rotation", "scale")])
+    elements = [PlyElement.describe(chunk, "chunk"), PlyElement.describe(packed, "vertex")]
+    PlyData(elements).write(str(tmp_path / "scene.compressed.ply"))
+    with pytest.raises(ValueError, match="scene.compressed.ply: a compressed .ply .*SuperSplat"):
+        load_ply(tmp_path / "scene.compressed.ply")
+
+
 def test_only_spikegs_comments_are_read(tmp_path):
     """Another tool's `KEY VALUE` comments with spikegs's keys are not spikegs's: a file of 45
     f_rest is degree 3 whatever "viewer sh_degree 1" says, and its 3 channels stay 3."""

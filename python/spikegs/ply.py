@@ -112,6 +112,12 @@ def load_ply(path: str | Path) -> GaussianModel:
     ply = read_vertices(path)
     v = ply["vertex"].data
     names = v.dtype.names
+    if "packed_position" in names:  # a splat file still, quantised in chunks of 256
+        raise ValueError(
+            f"{path}: a compressed .ply (PlayCanvas / SuperSplat: chunk element, packed_* vertex "
+            f"properties), which spikegs does not read; export it uncompressed (3DGS's "
+            f"x, y, z, f_dc_*, opacity, scale_*, rot_* floats) and load that"
+        )
     needed = ("x", "y", "z", "opacity", *(f"scale_{i}" for i in range(3)))
     missing = [k for k in (*needed, *(f"rot_{i}" for i in range(4))) if k not in names]
     if missing:
