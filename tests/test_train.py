@@ -3089,10 +3089,19 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
     with pytest.raises(ValueError, match="renders 3 .* has 1: score a run on a dataset with as"):
         evaluate_run(tmp_path / "run", dataset)
     text = (tmp_path / "run" / "scene.ply").read_bytes()  # re-saved by another tool: no tags
-    (tmp_path / "run" / "scene.ply").write_bytes(re.sub(rb"comment spikegs [^\n]*\n", b"", text))
-    with pytest.raises(ValueError, match="has 1: a mono scene.ply re-saved by another tool"):
+    text = re.sub(rb"comment spikegs [^\n]*\n", b"", text)
+    (tmp_path / "run" / "scene.ply").write_bytes(text)
+    with pytest.raises(
+        ValueError,
+        match="has 1: a mono scene.ply re-saved by another tool.* after 'element vertex N'",
+    ):
         with pytest.warns(UserWarning, match="no 'spikegs background' comment"):
             evaluate_run(tmp_path / "run", dataset)
+    # as it says, where save_ply writes it: it said after 'format', hiding the count from SIBR
+    text = re.sub(rb"(element vertex \d+\n)", rb"\1comment spikegs channels 1\n", text)
+    (tmp_path / "run" / "scene.ply").write_bytes(text)
+    with pytest.warns(UserWarning, match="no 'spikegs background' comment"):
+        evaluate_run(tmp_path / "run", dataset, write_images=False)
 
 
 def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):

@@ -230,7 +230,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
             + (
                 "a mono scene.ply re-saved by another tool loses spikegs's 'channels' comment "
                 "and reads as RGB: add the header line 'comment spikegs channels 1' after "
-                "'format' to read it as mono again"
+                "'element vertex N' (SIBR reads the count from the third line) to read it as "
+                "mono again; a colour scene is scored on a colour dataset"
                 if resaved
                 else "score a run on a dataset with as many channels as it was trained on"
             )
