@@ -1444,6 +1444,10 @@ def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=-0.1))  # barrel: as
     with pytest.warns(UserWarning, match="distortion \\{'k1': -0.1\\} ignored"):  # unmodelled
         load_dataset(root)
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(k1=0, k6=0.01))  # COLMAP's
+    with pytest.warns(UserWarning, match="distortion \\{'k6': 0.01\\} ignored"):  # FULL_OPENCV:
+        load_dataset(root)  # k5, k6 were not looked at
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(k6=0))
     for value in ("abc", None, float("nan"), True, str(fx)):  # a number as text was read
         edit_json(
             root / "transforms_train.json", lambda doc, v=value: doc["frames"][0].update(fl_x=v)

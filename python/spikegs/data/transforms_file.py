@@ -27,7 +27,7 @@ IMAGE_EXTENSIONS = (
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])  # camera axes: y up, z back -> y down, z forward
 SIMULATE_ASPECT_FIX = "simulate spikes of that aspect ratio (height, width; --height, --width)"
 CAMERA_KEYS = ("camera_angle_x", "camera_angle_y", "fl_x", "fl_y", "cx", "cy", "w", "h")
-DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2")  # FULL_OPENCV: k1..k6
 # nerfstudio's camera models that are a pinhole (with distortion, warned of where not zero); the
 # others (fisheye, equirectangular, ...) a pinhole rasterizer cannot render
 PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE", "OPENCV", "FULL_OPENCV", "SIMPLE_RADIAL", "RADIAL")
