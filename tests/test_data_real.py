@@ -1406,6 +1406,25 @@ def test_nerf_wrong_frame_size_points_at_it(nerf, tmp_path):
         load_dataset(root)
 
 
+def test_nerfstudios_point_cloud_and_masks_are_said_to_be_unread(nerf, tmp_path):
+    """nerfstudio's ply_file_path (its sparse points) and frames' mask_path were passed over
+    without a word: the Gaussians started at random, masked pixels trained. Each is warned of; the
+    cloud no more once it is the dataset's points3d.ply."""
+    root = copy(nerf, tmp_path)
+    edit_json(root / "transforms_train.json", lambda doc: doc.update(ply_file_path="sparse.ply"))
+    with pytest.warns(UserWarning, match="ply_file_path 'sparse.ply' is not read; copy it to "):
+        load_dataset(root)
+    (root / "points3d.ply").write_bytes(b"")  # copied (read by the trainer, not the loader)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        load_dataset(root)
+    assert not [w for w in said if "ply_file_path" in str(w.message)]
+    masks = lambda doc: [f.update(mask_path=f"m/{i}.png") for i, f in enumerate(doc["frames"])]  # noqa: E731
+    edit_json(root / "transforms_test.json", masks)
+    with pytest.warns(UserWarning, match="2 frame\\(s\\) state a mask_path, which is not read"):
+        load_dataset(root)
+
+
 def test_nerf_per_frame_intrinsics_and_distortion(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
     fx, fy, cx, cy = (float(sim.K[i, j]) for i, j in ((0, 0), (1, 1), (0, 2), (1, 2)))

@@ -22,11 +22,11 @@ from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.data.dataset import check_output
+from spikegs.data.dataset import POINTS, check_output
 from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import MIN_START_INTENSITY, GaussianModel
-from spikegs.point_cloud import POINTS, ball_points, read_points, seen_points, write_points
+from spikegs.point_cloud import ball_points, read_points, seen_points, write_points
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import (
     _complete_meta,

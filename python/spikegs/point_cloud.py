@@ -18,8 +18,6 @@ from .gaussians import GaussianModel
 from .ply import read_vertices
 from .targets import sample_timestamps
 
-POINTS = "points3d.ply"
-
 
 def write_points(path: str | Path, points: np.ndarray, colors: np.ndarray | None = None) -> None:
     """Write points [P, 3] (and uint8 colours [P, 3]) as a binary .ply."""

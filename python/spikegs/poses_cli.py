@@ -26,6 +26,7 @@ from .config import SupervisionConfig
 from .data.dataset import (
     INTRINSICS_FROM_SFM,
     META,
+    POINTS,
     TEST_DIR,
     TEST_VIEWS,
     TIMESTAMPS,
@@ -53,7 +54,7 @@ from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int
-from .point_cloud import POINTS, write_points
+from .point_cloud import write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
 from .spikes import SpikeStream

@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
-from .data.dataset import reading_dataset
+from .data.dataset import POINTS, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -33,7 +33,6 @@ from .interrupt import deferred_interrupt, interruption, progress_lost
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .ply import save_ply
 from .point_cloud import (
-    POINTS,
     ball_points,
     distinct_points,
     gaussians_from_points,

@@ -236,12 +236,13 @@ TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses 
 # held by a process writing the dataset (simulate, poses), shared by those reading it (train,
 # sim-train, eval, render); it stays behind, empty
 LOCK = ".lock"
+POINTS = "points3d.ply"  # a sparse point cloud the Gaussians start at (spikegs poses writes one)
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
 DERIVED = (
     TEST_DIR,
     "sim",
     "sfm",
-    "points3d.ply",
+    POINTS,
     TRAJECTORY_BACKUP,
     TIMESTAMPS,
     TIMESTAMPS_BACKUP,

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..image_io import to_channels
 from ..strict_json import json_text
-from .dataset import Dataset, repeated, warn_rows_out_of_line
+from .dataset import POINTS, Dataset, repeated, warn_rows_out_of_line
 from .real import ORIENTATION_VIEWS, camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike
@@ -193,6 +193,7 @@ def _frames(root: Path, options: Options):
         docs, paths = [read_transforms_doc(path)], [path]
     warn_unread_transforms(root, paths)
     frames, sources, frame_docs = flat_frames(paths, docs)
+    warn_unused_keys(root, paths, docs, frames)
     viewmats = np.concatenate(
         [transforms_viewmats(p, doc) for p, doc in zip(paths, docs)]
     )  # [F, 4, 4]
@@ -201,6 +202,29 @@ def _frames(root: Path, options: Options):
     else:
         mask = held_out_mask(len(frames), options.test_views, str(paths[0]))
     return frames, sources, frame_docs, viewmats, mask
+
+
+def warn_unused_keys(root: Path, paths: list[Path], docs: list[dict], frames: list) -> None:
+    """UserWarnings for what nerfstudio's files state and this layout does not read, which would
+    change a training: a `ply_file_path` (its sparse points, where DATASET/points3d.ply would start
+    the Gaussians there; without it they start at random) and frames' `mask_path` (every pixel
+    trains and is scored)."""
+    for path, doc in zip(paths, docs):
+        cloud = doc.get("ply_file_path")
+        if isinstance(cloud, str) and not (root / POINTS).exists():
+            warnings.warn(
+                f"{path}: ply_file_path '{cloud}' is not read; copy it to {root / POINTS} for the "
+                f"Gaussians to start at its points (they start at random points in the scene "
+                f"bounds)",
+                stacklevel=4,
+            )
+    masked = sum("mask_path" in frame for frame in frames)
+    if masked:
+        warnings.warn(
+            f"{root}: {masked} frame(s) state a mask_path, which is not read: every pixel of each "
+            f"view trains and is scored",
+            stacklevel=4,
+        )
 
 
 def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
