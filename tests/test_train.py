@@ -11,6 +11,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -35,7 +36,7 @@ from spikegs.data_fingerprint import data_fingerprint, same_data
 from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH, METHODS
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
-from spikegs.file_lock import BUSY, Busy, exclusive_lock
+from spikegs.file_lock import BUSY, Busy, exclusive_lock, shared_lock
 from spikegs.gaussians import GaussianModel, frame_origin, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
@@ -3512,6 +3513,38 @@ def test_a_write_that_fails_midway_keeps_the_previous_file(tmp_path):
     loop.symlink_to(loop)
     write_atomically(loop, lambda tmp: tmp.write_text("scores"))
     assert loop.read_text() == "scores"
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="FIFOs, device links")
+def test_a_run_folders_links_to_devices_and_fifos_are_neither_read_nor_written_through(tmp_path):
+    """A shared run folder (untrusted) linking train.json to a device was read without end
+    (/dev/zero: eval ran out of memory) and a FIFO there waited forever; eval.json linked to one
+    was written through, root's scoring replacing /dev/zero with a file; a dataset's .lock, a
+    FIFO, hung every command. Now refused to read or lock, and a write replaces the link: the
+    device or FIFO stays."""
+    from spikegs.atomic_save import write_atomically
+    from spikegs.run_summary import read_summary
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "train.json").symlink_to("/dev/null")
+    with pytest.raises(ValueError, match="train.json: a device, FIFO or socket"):
+        read_summary(run)
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    (run / "train.json").unlink()
+    (run / "train.json").symlink_to(pipe)
+    with pytest.raises(ValueError, match="a device, FIFO or socket"):  # (read, it waited)
+        read_summary(run)
+    link = run / "eval.json"
+    link.symlink_to(pipe)
+    write_atomically(link, lambda tmp: tmp.write_text("scores"))
+    assert not link.is_symlink() and link.read_text() == "scores"
+    assert stat.S_ISFIFO(pipe.stat().st_mode)
+    lock = run / ".lock"  # a FIFO's open waited forever for a reader; a device's, none to wait
+    lock.symlink_to("/dev/null")
+    with pytest.raises(ValueError, match="not a lock file"), shared_lock(lock, busy="busy"):
+        pass
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")

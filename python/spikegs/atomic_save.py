@@ -11,6 +11,8 @@ import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from .regular_file import is_special
+
 NAME_MAX = 255  # bytes in a file name (Linux's and macOS's file systems)
 STEM_MAX = 200  # bytes of a name that a temporary's name holds: room for a writer and .tmp
 
@@ -77,9 +79,11 @@ def sweep_temporaries(folder: Path) -> None:
 
 
 def written_path(path: Path) -> Path:
-    """Where a write of `path` lands: `path`, or the target of a symbolic link (the link stays)."""
+    """Where a write of `path` lands: `path`, or the target of a symbolic link (the link stays);
+    a link to a device, FIFO or socket is replaced, not followed (a run folder's eval.json linked
+    to /dev/zero: root's write replaced the device with the scores)."""
     path = Path(path)  # (realpath, not resolve: a link loop is the path itself, not an error)
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+    return Path(os.path.realpath(path)) if path.is_symlink() and not is_special(path) else path
 
 
 def _temporaries_of(path: Path, writer: str = "*") -> Iterator[Path]:

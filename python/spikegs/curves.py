@@ -10,12 +10,13 @@ from pathlib import Path
 from .atomic_save import save_figure
 from .method_titles import method_title
 from .pyplot_agg import pyplot
+from .regular_file import read_text
 from .run_summary import LOG
 
 
 def _logged_evaluations(run_dir: str | Path) -> list[dict]:
     """RUN/log.jsonl's evaluation records, in order."""
-    lines = (Path(run_dir) / LOG).read_text().splitlines()
+    lines = read_text(Path(run_dir) / LOG).splitlines()
     return [r for r in map(json.loads, lines) if "psnr" in r]
 
 

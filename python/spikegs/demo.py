@@ -29,6 +29,7 @@ from .image_labels import column_titles, row_labels
 from .interrupt import say
 from .method_titles import method_title
 from .provenance import environment
+from .regular_file import read_text
 from .run_folder import RUN_FILES, refuse_foreign_files, run_lock
 from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
@@ -119,11 +120,11 @@ def earlier_seconds(out: Path) -> float:
     processes, or a finished demo's total_seconds (resumed, it has nothing left to train); 0
     where none recorded."""
     try:
-        return float((out / SECONDS_FILE).read_text())
+        return float(read_text(out / SECONDS_FILE))
     except (FileNotFoundError, ValueError):
         pass
     try:
-        return float(json.loads((out / RESULTS).read_text())["total_seconds"])
+        return float(json.loads(read_text(out / RESULTS))["total_seconds"])
     except (FileNotFoundError, ValueError, KeyError, TypeError):
         return 0.0
 
@@ -131,7 +132,7 @@ def earlier_seconds(out: Path) -> float:
 def _started(out: Path) -> dict:
     """What the demo in `out` recorded as it started (STARTED_FILE); {} where none."""
     try:
-        started = json.loads((out / STARTED_FILE).read_text())
+        started = json.loads(read_text(out / STARTED_FILE))
     except (FileNotFoundError, ValueError):
         return {}
     return started if isinstance(started, dict) else {}
@@ -158,7 +159,7 @@ def _dataset_meta(out: Path) -> dict | None:
     """The meta.json of the demo's dataset in `out`; None where there is none (or not an
     object)."""
     try:
-        meta = json.loads((out / "data" / "meta.json").read_text())
+        meta = json.loads(read_text(out / "data" / "meta.json"))
     except (FileNotFoundError, ValueError):
         return None
     return meta if isinstance(meta, dict) else None

@@ -23,6 +23,7 @@ from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels, load_ply
 from .provenance import environment
+from .regular_file import read_text
 from .run_summary import CONFIG, EVAL, read_summary, trained_scene
 from .shell_words import shell_path
 from .targets import intensity_scale
@@ -151,7 +152,7 @@ def _scored_dataset(path: Path) -> str | None:
     if not path.exists():
         return None
     try:
-        return str(json.loads(path.read_text()).get("dataset", ""))
+        return str(json.loads(read_text(path)).get("dataset", ""))
     except (ValueError, AttributeError):
         return ""
 
@@ -161,7 +162,7 @@ def _scored_views(path: Path) -> dict:
     where there is no such file, or it is unreadable; a name that is no view's, e.g. a path, is
     left out)."""
     try:
-        views = json.loads(path.read_text())["views"]
+        views = json.loads(read_text(path))["views"]
         return {v: views[v] for v in views if is_view_name(v)}
     except (OSError, ValueError, KeyError, TypeError):
         return {}

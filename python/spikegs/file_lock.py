@@ -9,6 +9,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from .regular_file import is_special
+
 try:
     import fcntl
 except ImportError:  # Windows
@@ -61,7 +63,10 @@ def _opened(path: Path):
     """The file `path` opened to lock it: for appending, made where missing ("w" would touch it:
     a finished run looked rewritten), else read-only, all that flock needs (a lock file of
     another user's in a shared folder; a read-only folder's); the append's OSError where neither
-    opens."""
+    opens; ValueError where it is a device, FIFO or socket (a shared dataset's FIFO .lock: the
+    open waited forever for a reader)."""
+    if is_special(path):
+        raise ValueError(f"{path}: a device, FIFO or socket, not a lock file; remove it")
     try:
         return path.open("a")
     except OSError as err:

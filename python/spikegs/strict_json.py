@@ -10,6 +10,8 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
+from .regular_file import read_text
+
 
 def _finite_or_none(value):
     """`value` with every non-finite float in it, at any depth, replaced by None."""
@@ -57,7 +59,7 @@ def read_json(path: Path, object_hook: Callable[[dict], dict] | None = None) -> 
     try:
         # JSON is UTF-8 whatever the locale (a C or Windows locale's codec misread "données"); a
         # byte-order mark, which editors on Windows write, is skipped
-        text = path.read_text(encoding="utf-8-sig")
+        text = read_text(path, encoding="utf-8-sig")
         doc = json.loads(text, object_pairs_hook=pairs_hook)
     except _RepeatedKeys as err:
         raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None

@@ -42,6 +42,7 @@ from .point_cloud import (
 )
 from .pose_refine import PoseRefiner, make_refiner
 from .provenance import environment
+from .regular_file import read_text
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, LOG, SCENE, SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
@@ -59,7 +60,7 @@ def _cut_log(path: Path, iteration: int) -> None:
     of a run that never checkpointed, are dropped)."""
     kept = []
     if iteration > 0 and path.exists():
-        lines = [line for line in path.read_text().splitlines() if line.strip()]
+        lines = [line for line in read_text(path).splitlines() if line.strip()]
         for number, line in enumerate(lines, start=1):
             try:
                 record = json.loads(line)

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import yaml
 
+from .regular_file import read_text
+
 
 class _Loader(yaml.SafeLoader):
     """yaml.SafeLoader that reads numbers as YAML 1.2 does: 1e-4 as a float (YAML 1.1, PyYAML's,
@@ -69,7 +71,7 @@ _Dumper.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
 def read_yaml(path: Path):
     """A YAML file read by the rules of config files (`_Loader`: YAML 1.2 numbers, no key given
     twice), as a run's config.yaml was written (`dump_yaml`)."""
-    return yaml.load(Path(path).read_text(encoding="utf-8"), Loader=_Loader)
+    return yaml.load(read_text(path), Loader=_Loader)
 
 
 def yaml_text(value) -> str:

@@ -28,6 +28,7 @@ from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
+from ..regular_file import read_text
 from ..run_summary import CONFIG, SUMMARY, read_summary
 from ..shell_words import shell_path
 from ..spikes import SpikeStream
@@ -916,7 +917,7 @@ def read_column(path: Path, what: str) -> np.ndarray:
     """The numbers [P] of a text file of one `what` a line (blank lines and # comments skipped);
     ValueError naming the file and the first line that is not one number."""
     try:
-        lines = path.read_text(encoding="utf-8-sig").splitlines()  # a byte-order mark skipped
+        lines = read_text(path, encoding="utf-8-sig").splitlines()  # a byte-order mark skipped
     except UnicodeDecodeError:
         raise ValueError(f"{path}: expected text, one {what} a line; found binary data") from None
     values = []

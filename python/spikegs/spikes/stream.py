@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _C
-from ..atomic_save import naming, temporary_name, write_text_atomically
+from ..atomic_save import naming, temporary_name, write_text_atomically, written_path
 from ..cache_home import cache_home
 from ..number_checks import is_int, is_number, whole_numbers
 from ..shell_words import shell_path
@@ -360,7 +360,7 @@ class DatWriter:
         height, width = whole_numbers(height=height, width=width)
         self._layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip))
         self._memory = _C.SpikeLayout.memory(height, width)
-        self._target = Path(os.path.realpath(self.path))  # a symlink's target, not the link
+        self._target = written_path(self.path)  # a symlink's target, not the link
         if self._target.is_dir():
             raise IsADirectoryError(f"{self.path}: a folder, not a .dat file to write")
         self._partial = self._target.with_name(temporary_name(self._target, uuid.uuid4().hex))

@@ -1,0 +1,27 @@
+"""Files, not devices: a shared run or dataset folder (untrusted) may hold a link to a device
+(/dev/zero, read without end until memory runs out; written atomically, replaced by a file) or a
+FIFO (whose read waits forever for a writer)."""
+
+from __future__ import annotations
+
+import stat
+from pathlib import Path
+
+
+def is_special(path: Path) -> bool:
+    """Whether `path` is (or links to) a device, a FIFO or a socket: neither a file nor a folder
+    (False where it cannot be found). stat, not open: a FIFO's open waits for a writer."""
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError:  # missing, or a link loop
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def read_text(path: Path, encoding: str = "utf-8") -> str:
+    """`path.read_text(encoding)`; ValueError naming `path` where it `is_special`. A missing file
+    or a folder raises read_text's OSError."""
+    path = Path(path)
+    if is_special(path):
+        raise ValueError(f"{path}: a device, FIFO or socket, not a file; spikegs reads files only")
+    return path.read_text(encoding=encoding)
