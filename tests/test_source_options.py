@@ -8,6 +8,7 @@ and the built-in scenes' seed.
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -371,3 +372,19 @@ def test_scene_seed_sets_the_jitter(name):
     # only the jitter moves: the geometry (means) and the size of the scene stay
     np.testing.assert_array_equal(a.means, other.means)
     assert len(a.means) == len(other.means)
+
+
+def test_frames_listed_out_of_their_names_time_order_are_warned_of(tmp_path):
+    """A frame sequence's list is the simulated camera's time: a file listing its frames in
+    another order than their names' (COLMAP's, which nerfstudio sorts by name) made a camera that
+    jumps between far views, without a word."""
+    path = tmp_path / "transforms.json"
+    write_transforms(path, "seq", ring_viewmats(np.arange(0, 80, 10)))  # r_0 .. r_7 in time order
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
+    doc = json.loads(path.read_text())
+    doc["frames"] = [doc["frames"][i] for i in (0, 7, 1, 6, 2, 5, 3, 4)]  # the same frames
+    path.write_text(json.dumps(doc))
+    with pytest.warns(UserWarning, match="times as long as in their file names' order"):
+        FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)

@@ -13,6 +13,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -301,6 +302,32 @@ class MitsubaSource(RenderSource):
         return to_channels(np.maximum(rgb, 0.0), self.channels).astype(np.float32)
 
 
+def _natural_key(name: str) -> list:
+    """`name` split into text and numbers, for sorting r_2 before r_10."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name)]
+
+
+def warn_if_names_order_the_path(path: Path, names: list[str], viewmats: np.ndarray) -> None:
+    """A UserWarning where frames [F] (file names, viewmats [F, 4, 4]) listed in this order make
+    a camera path over twice as long as in their names' order: a frame sequence's list is its
+    time (the simulated camera runs through it), and a list in another order (COLMAP's, which
+    nerfstudio sorts by name on loading) made a camera that jumps between far views."""
+    centres = -np.einsum("fji,fj->fi", viewmats[:, :3, :3], viewmats[:, :3, 3])  # [F, 3]
+    order = sorted(range(len(names)), key=lambda i: _natural_key(names[i]))
+
+    def length(points: np.ndarray) -> float:
+        return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+    listed, by_name = length(centres), length(centres[order])
+    if listed > 2 * by_name:
+        warnings.warn(
+            f"{path}: its frames, taken in the listed order as the camera's time, make a path "
+            f"{listed / by_name:.1f} times as long as in their file names' order (a list sorted "
+            f"otherwise, as COLMAP's is?); sort the frames by name if that is their time order",
+            stacklevel=3,
+        )
+
+
 class FrameSequenceSource(Source):
     """Rendered frames [F, H, W, C] with poses [F, 4, 4] (world-to-camera, OpenCV), spread evenly
     over the readouts; the light in between is the linear interpolation of the two frames.
@@ -364,6 +391,7 @@ class FrameSequenceSource(Source):
         paths = [path] + ([Path(test_path)] if test_path else [])
         images, poses, K, doc = read_transforms(paths, width, height, channels, background)
         frames, viewmats = images[0], poses[0]
+        warn_if_names_order_the_path(path, [f["file_path"] for f in doc["frames"]], viewmats)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
