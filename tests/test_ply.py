@@ -79,6 +79,18 @@ def test_a_compressed_ply_is_named(tmp_path):
         load_ply(tmp_path / "scene.compressed.ply")
 
 
+def test_a_header_declaring_more_than_memory_holds_is_named(tmp_path):
+    """An ASCII .ply whose header declares 1e15 vertices (a corrupt or crafted file): plyfile
+    allocates them before reading, and numpy's MemoryError ("Unable to allocate 10.7 PiB", exit
+    1) named no file. 10.7 PiB is past any 64-bit machine's address space, overcommit or not."""
+    path = tmp_path / "huge.ply"
+    header = "ply\nformat ascii 1.0\nelement vertex 1000000000000000\n"
+    properties = "".join(f"property float {a}\n" for a in "xyz")
+    path.write_text(header + properties + "end_header\n0 0 0\n")
+    with pytest.raises(ValueError, match="huge.ply: not a readable PLY file: its header declares"):
+        load_ply(path)
+
+
 def test_only_spikegs_comments_are_read(tmp_path):
     """Another tool's `KEY VALUE` comments with spikegs's keys are not spikegs's: a file of 45
     f_rest is degree 3 whatever "viewer sh_degree 1" says, and its 3 channels stay 3."""

@@ -96,11 +96,17 @@ def _tag_int(path, tags: dict, key: str, default: int, lo: int, hi: int) -> int:
 
 
 def read_vertices(path: str | Path) -> PlyData:
-    """A PLY file with a 'vertex' element; ValueError naming the file where it is not one."""
+    """A PLY file with a 'vertex' element; ValueError naming the file where it is not one (a
+    header declaring more elements than memory holds too: an ASCII file's are allocated before
+    they are read, and numpy's "Unable to allocate 10.7 PiB" named no file)."""
     try:
         ply = PlyData.read(str(path))
     except (PlyParseError, UnicodeDecodeError, ValueError) as err:
         raise ValueError(f"{path}: not a readable PLY file ({err})") from None
+    except MemoryError as err:
+        raise ValueError(
+            f"{path}: not a readable PLY file: its header declares more than memory holds ({err})"
+        ) from None
     if "vertex" not in [e.name for e in ply.elements]:
         raise ValueError(f"{path}: no 'vertex' element")
     return ply
