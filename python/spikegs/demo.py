@@ -29,7 +29,7 @@ from .image_labels import column_titles, row_labels
 from .interrupt import say
 from .method_titles import method_title
 from .provenance import environment
-from .regular_file import read_text
+from .regular_file import is_blank, read_text
 from .run_folder import RUN_FILES, refuse_foreign_files, run_lock
 from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
@@ -145,7 +145,7 @@ def started_iterations(out: Path) -> int | None:
     for method in METHODS:
         saved = out / "runs" / method / CONFIG
         if saved.is_file():
-            if not saved.read_text(encoding="utf-8").strip():
+            if is_blank(saved):
                 raise ValueError(
                     f"--resume: {saved} is empty: the run's settings are lost; start the demo "
                     f"afresh (without --resume)"

@@ -25,3 +25,9 @@ def read_text(path: Path, encoding: str = "utf-8") -> str:
     if is_special(path):
         raise ValueError(f"{path}: a device, FIFO or socket, not a file; spikegs reads files only")
     return path.read_text(encoding=encoding)
+
+
+def is_blank(path: Path) -> bool:
+    """Whether the file `path` holds nothing but white space (`read_text`'s errors where it
+    cannot be read)."""
+    return not read_text(path).strip()

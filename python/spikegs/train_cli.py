@@ -22,6 +22,7 @@ from .config import (
 )
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
+from .regular_file import is_blank
 from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint
 from .yaml_files import read_yaml
 
@@ -76,7 +77,7 @@ def config_from_args(args: argparse.Namespace):
     )
     own = args.resume and saved.is_file() and (given is None or same_method)
     # an empty one: the defaults would stand in for the run's
-    empty = own and not saved.read_text(encoding="utf-8").strip()
+    empty = own and is_blank(saved)
     if given is None and args.resume and not Path(args.out).exists():
         raise ValueError(
             f"--resume: {args.out} does not exist: nothing to resume (check the path; a new run "
