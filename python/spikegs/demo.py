@@ -194,10 +194,11 @@ def check_not_dataset_or_run(out: Path) -> None:
     if not out.is_dir():
         return
     run = sorted(p.name for p in out.iterdir() if p.name in RUN_FILES - {LOCK})
+    marks = layout_files(out)
     if run:
         held = f"a spikegs run ({', '.join(run)})"
-    elif layout_files(out) or holds_dataset(out):
-        held = f"a dataset ({', '.join(layout_files(out)) or 'its spikes'})"
+    elif marks or holds_dataset(out):
+        held = f"a dataset ({', '.join(marks) or 'its spikes'})"
     else:
         return
     raise FileExistsError(
