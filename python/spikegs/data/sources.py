@@ -29,7 +29,7 @@ from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
 from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
 from .transforms_file import read_transforms
-from .view_geometry import view_sphere
+from .view_geometry import optical_axes, view_sphere
 
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
 
@@ -312,7 +312,7 @@ def warn_if_names_order_the_path(path: Path, names: list[str], viewmats: np.ndar
     a camera path over twice as long as in their names' order: a frame sequence's list is its
     time (the simulated camera runs through it), and a list in another order (COLMAP's, which
     nerfstudio sorts by name on loading) made a camera that jumps between far views."""
-    centres = -np.einsum("fji,fj->fi", viewmats[:, :3, :3], viewmats[:, :3, 3])  # [F, 3]
+    centres = optical_axes(viewmats)[0]  # [F, 3]
     order = sorted(range(len(names)), key=lambda i: _natural_key(names[i]))
 
     def length(points: np.ndarray) -> float:
