@@ -99,6 +99,25 @@ def test_dssim_of_colour_is_the_mean_of_its_channels_and_its_gradient_checks():
     assert torch.autograd.gradcheck(lambda x: dssim(x, b[:9, :10]), (x,))
 
 
+def test_dssim_under_bfloat16_autocast_is_its_float32_value():
+    """A researcher's training step under torch.autocast("cpu", dtype=torch.bfloat16): the blurs
+    (convolutions, which autocast lowers) ran in bfloat16, where the variances E[x²] - E[x]²
+    cancel: a render 0.005 off its target scored D-SSIM 0 (float32: 6.8e-4) and the gradient
+    pointed elsewhere (cosine 0.87; 0.36 at 0.001 off)."""
+    gen = torch.Generator().manual_seed(0)
+    target = 0.4 + 0.3 * torch.rand(64, 64, 3, generator=gen)
+    render = (target + 0.005 * torch.randn(64, 64, 3, generator=gen)).requires_grad_()
+    expected = dssim(render, target)
+    (grad,) = torch.autograd.grad(expected, render)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        value = dssim(render, target)
+    assert value.dtype == torch.float32 and expected.item() > 5e-4
+    assert torch.equal(value, expected)
+    assert torch.equal(torch.autograd.grad(value, render)[0], grad)
+    half = dssim(render.detach().bfloat16(), target.bfloat16())  # bfloat16 images: float32 too
+    assert half.dtype == torch.float32 and float(half) == pytest.approx(expected.item(), rel=0.1)
+
+
 def test_images_of_other_shapes_or_types_than_the_render_are_refused():
     """A mono target [H, W] (SpikeStream.tfp's) broadcast against a square render [H, W, 1] to
     [H, W, W]: a wrong loss with torch's warning only; integer images gave D-SSIM 0 for any pair

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -115,12 +117,19 @@ def _gaussian_blur(maps: torch.Tensor) -> torch.Tensor:
 
 def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]
-    (floating point: integer images blurred by integer taps gave 0 for any pair)."""
+    (floating point: integer images blurred by integer taps gave 0 for any pair). Computed in
+    float32 at least, torch.autocast or not: the variances (E[x²] - E[x]²) cancel, and bfloat16
+    blurs scored a render 0.005 off its target 0 (in float32 6.8e-4)."""
     check_images(render, target, "dssim")
     c = render.shape[-1]
-    x, y = render.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None]  # [1, C, H, W]
-    # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
-    mx, my, xx, yy, xy = _gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1)).split(c, 1)
+    dtype = torch.promote_types(torch.promote_types(render.dtype, target.dtype), torch.float32)
+    x, y = (t.to(dtype).permute(2, 0, 1)[None] for t in (render, target))  # [1, C, H, W]
+    device = render.device.type  # (a meta tensor has no autocast to turn off)
+    autocast = torch.amp.is_autocast_available(device)
+    with torch.autocast(device, enabled=False) if autocast else contextlib.nullcontext():
+        # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
+        blurred = _gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1))
+    mx, my, xx, yy, xy = blurred.split(c, 1)
     vx, vy, cxy = xx - mx**2, yy - my**2, xy - mx * my
     c1, c2 = 0.01**2, 0.03**2
     s = ((2 * mx * my + c1) * (2 * cxy + c2)) / ((mx**2 + my**2 + c1) * (vx + vy + c2))
