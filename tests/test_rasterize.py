@@ -533,7 +533,13 @@ def _bad_inputs():
             ("K-shape", {"K": s["K"][:2]}, "K"),
             ("background-shape", {"background": s["background"][:2]}, "background"),
             ("means-int", {"means": s["means"].long()}, "means"),
-            ("means-float16", {"means": s["means"].half()}, "means"),
+            ("means-float16", {"means": s["means"].half()}, r"means.*pass means\.float\(\)"),
+            # a layer's output under torch.autocast: said what to do
+            (
+                "colors-bfloat16",
+                {"colors": s["colors"].bfloat16()},
+                r"colors: .* no half-precision path: pass colors\.float\(\)",
+            ),
             ("scales-mixed", {"scales": s["scales"].double()}, "scales"),
             ("colors-mixed", {"colors": s["colors"].double()}, "colors"),
             ("viewmat-mixed", {"viewmat": s["viewmat"].double()}, "viewmat"),

@@ -26,6 +26,14 @@ class RasterizeResult(NamedTuple):
     depths: torch.Tensor  # [N] camera-space z, 0 where culled
 
 
+def _half_hint(name: str, got: torch.dtype, want: torch.dtype = torch.float32) -> str:
+    """What to do with a half-precision input (torch.autocast makes a layer's output bfloat16)."""
+    if got not in (torch.float16, torch.bfloat16):
+        return ""
+    cast = "float()" if want == torch.float32 else "double()"
+    return f"; the op has no half-precision path: pass {name}.{cast} (under torch.autocast too)"
+
+
 def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
     """Raise ValueError naming `name` unless `t` is a CPU `dtype` tensor of `shape` (None: any)."""
     if not isinstance(t, torch.Tensor):
@@ -35,7 +43,10 @@ def _check(name: str, t, shape: tuple, dtype: torch.dtype) -> torch.Tensor:
     if t.layout != torch.strided:
         raise ValueError(f"{name}: expected a dense tensor, got layout {t.layout}")
     if t.dtype != dtype:
-        raise ValueError(f"{name}: expected dtype {dtype} (the dtype of means), got {t.dtype}")
+        raise ValueError(
+            f"{name}: expected dtype {dtype} (the dtype of means), got {t.dtype}"
+            + _half_hint(name, t.dtype, dtype)
+        )
     if t.dim() != len(shape) or any(s is not None and s != d for s, d in zip(shape, t.shape)):
         want = ", ".join("*" if s is None else str(s) for s in shape)
         raise ValueError(f"{name}: expected shape [{want}], got {list(t.shape)}")
@@ -188,7 +199,8 @@ def rasterize(
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
         got = means.dtype if isinstance(means, torch.Tensor) else type(means).__name__
-        raise ValueError(f"means: expected a float32 or float64 tensor, got {got}")
+        hint = _half_hint("means", got) if isinstance(got, torch.dtype) else ""
+        raise ValueError(f"means: expected a float32 or float64 tensor, got {got}{hint}")
     dtype = means.dtype
     n = means.shape[0] if means.dim() == 2 else None
     _check("means", means, (n, 3), dtype)
