@@ -749,6 +749,61 @@ def test_a_loss_on_one_output_alone(output):
     assert_near(grads[0], grads[1], 1e-9, f"grad means of {output}")
 
 
+def _render_and_grads(scene: dict, fn=None) -> list[torch.Tensor]:
+    """A float32 scene's outputs and the gradients of every input of a loss on all of them,
+    computed by `fn(leaves) -> RasterizeResult` (default: the op)."""
+    names = [k for k in PARAMS if k != "screen_points"]
+    leaves = {k: scene[k].clone().requires_grad_() for k in names}
+    out = fn(leaves) if fn else render(spikegs.rasterize, scene, **leaves)
+    loss = (out.image - 0.5).square().mean() + out.alpha.mean() + out.means2d.mean()
+    loss.backward()
+    return [*out, loss.detach()] + [leaves[k].grad for k in names]
+
+
+@needs_cpp
+def test_autocast_and_grad_modes_leave_the_op_as_it_is():
+    """docs/rasterizer.md, "Under the rest of torch": the op is not autocast (float32 in, float32
+    numbers out, the same gradients), and renders alike under no_grad and inference_mode."""
+    scene = make_scene(5, 6, 17, 11, sh_degree=1, dtype=torch.float32)
+    expected = _render_and_grads(scene)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        got = _render_and_grads(scene)
+    assert all(a.dtype == b.dtype and torch.equal(a, b) for a, b in zip(got, expected))
+    for mode in (torch.no_grad, torch.inference_mode):
+        with mode():
+            out = render(spikegs.rasterize, scene)
+        assert not out.image.requires_grad
+        assert all(torch.equal(a, b) for a, b in zip(out, expected))
+
+
+@needs_cpp
+def test_torch_compile_runs_the_op_as_eager_does():
+    """A researcher's compiled step: graph breaks around the op (a C++ call), the same numbers and
+    gradients, and no recompilation on a second call."""
+    import warnings
+
+    graphs = []
+
+    def backend(gm, example_inputs):  # torch's eager backend, counting the graphs it is given
+        graphs.append(gm)
+        return gm.forward
+
+    scene = make_scene(5, 6, 17, 11, sh_degree=1, dtype=torch.float32)
+    expected = _render_and_grads(scene)
+    compiled = torch.compile(
+        lambda leaves: render(spikegs.rasterize, scene, **leaves), backend=backend
+    )
+    with warnings.catch_warnings():  # torch's "Dynamo does not know how to trace" the core
+        warnings.simplefilter("ignore")
+        counts = []
+        for _ in range(2):
+            got = _render_and_grads(scene, compiled)
+            assert all(torch.equal(a, b) for a, b in zip(got, expected))
+            counts.append(len(graphs))
+    assert counts[0] > 0 and counts[1] == counts[0]  # compiled once
+    torch._dynamo.reset()
+
+
 @needs_cpp
 def test_double_backward_is_refused_clearly():
     """A gradient penalty, and a Hessian-vector product (its zeros came back silently)."""
