@@ -777,6 +777,9 @@ def test_autocast_and_grad_modes_leave_the_op_as_it_is():
 
 
 @needs_cpp
+@pytest.mark.skipif(
+    not torch._dynamo.is_dynamo_supported(), reason="torch.compile is not supported on this Python"
+)
 def test_torch_compile_runs_the_op_as_eager_does():
     """A researcher's compiled step: graph breaks around the op (a C++ call), the same numbers and
     gradients, and no recompilation on a second call."""
