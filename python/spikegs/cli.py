@@ -278,7 +278,17 @@ def console() -> None:
     if status in STOPPED:
         for signum in NAMES:
             signal.signal(signum, signal.SIG_IGN)
+    _forget_unhandled_interrupt()
     sys.exit(status)
+
+
+def _forget_unhandled_interrupt() -> None:
+    """Clear CPython's mark of a KeyboardInterrupt left unhandled, which one leaving code run
+    from a string sets though `console` handled it (a Ctrl-C in a dataclass's generated
+    __init__ or a namedtuple's __new__, which modules imported mid-command define): `python -m
+    spikegs` then killed itself with SIGINT at exit, not exiting with its status. Evaluating
+    any string clears it as it starts."""
+    eval("None")
 
 
 def _drop_unflushable_outputs() -> None:
