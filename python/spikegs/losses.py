@@ -115,6 +115,13 @@ def _gaussian_blur(maps: torch.Tensor) -> torch.Tensor:
     return F.conv2d(rows, g.view(1, 1, -1, 1).expand(n, 1, -1, 1), padding=(r, 0), groups=n)
 
 
+def _has_autocast(device: str) -> bool:
+    """Whether torch.autocast takes `device` (torch before 2.4 has no is_autocast_available and
+    autocasts CPU and CUDA alone)."""
+    available = getattr(torch.amp, "is_autocast_available", None)
+    return available(device) if available else device in ("cpu", "cuda")
+
+
 def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """(1 - SSIM) / 2 with the usual 11x11 Gaussian window (σ = 1.5); images [H, W, C] in [0, 1]
     (floating point: integer images blurred by integer taps gave 0 for any pair). Computed in
@@ -125,8 +132,9 @@ def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     dtype = torch.promote_types(torch.promote_types(render.dtype, target.dtype), torch.float32)
     x, y = (t.to(dtype).permute(2, 0, 1)[None] for t in (render, target))  # [1, C, H, W]
     device = render.device.type  # (a meta tensor has no autocast to turn off)
-    autocast = torch.amp.is_autocast_available(device)
-    with torch.autocast(device, enabled=False) if autocast else contextlib.nullcontext():
+    with (
+        torch.autocast(device, enabled=False) if _has_autocast(device) else contextlib.nullcontext()
+    ):
         # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
         blurred = _gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1))
     mx, my, xx, yy, xy = blurred.split(c, 1)
