@@ -22,7 +22,8 @@ suffixes = importlib.machinery.EXTENSION_SUFFIXES
 path = next(package / f"_C{s}" for s in suffixes if (package / f"_C{s}").is_file())
 spec = importlib.util.spec_from_file_location("spikegs._C", path)
 spec.loader.exec_module(importlib.util.module_from_spec(spec))
-mapped = {Path(line.split()[5]).name for line in open("/proc/self/maps") if len(line.split()) > 5}
+maps = Path("/proc/self/maps").read_text().splitlines()
+mapped = {Path(line.split()[5]).name for line in maps if len(line.split()) > 5}
 print(sorted(name for name in mapped if name.startswith(("libtorch", "libc10"))))
 print(sorted(name for name in sys.modules if name.split(".")[0] == "torch"))
 """

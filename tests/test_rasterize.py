@@ -1143,10 +1143,12 @@ def test_a_splat_centred_past_max_mean2d_is_culled(op, dtype):
 
 OUT_OF_MEMORY = """
 import resource, torch
+from pathlib import Path
 from spikegs.rasterize import rasterize
 
 def limit(extra):  # address space: what the process maps now, plus `extra` bytes
-    size = next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmSize:"))
+    status = Path("/proc/self/status").read_text().splitlines()
+    size = next(int(l.split()[1]) for l in status if l.startswith("VmSize:"))
     resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + extra, resource.RLIM_INFINITY))
 
 C = 1 << 18  # a tile's accumulators: 256 C floats = 256 MiB a thread, 2 threads

@@ -138,7 +138,8 @@ class SIM(nn.Module):
             raise ValueError(f"SIM input expected dtype {dtype} (the weights'), found {x.dtype}")
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype and memory format.
+        """Spike window [B, window, H, W] -> image [B, C, H, W] in x's dtype (autocast's under
+        autocast, as torch's convolutions) and memory format.
 
         Each shift convolution pads 2 on both sides along its branch's axis (1 across) within
         the convolution, not as a copy: a branch that sees the pixel's row and those above it
