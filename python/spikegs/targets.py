@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from .config import Config, SimConfig
+from .flicker import find_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
@@ -309,11 +310,28 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         return 1.0 / (window * scale)
 
     budget = ImageBudget()  # the instant and exposure images' together
+    flicker = find_flicker(streams)
+    if flicker is not None:
+        warnings.warn(
+            f"{dataset.root}: the light flickers with a period of {flicker.period:.1f} readouts, "
+            f"depth {flicker.depth:.2f} (lamps on mains power?): each training target is divided "
+            f"by the flicker over its readouts (docs/datasets.md, 'Lighting flicker')",
+            stacklevel=2,
+        )
 
-    def images(stream_fn, window: int, time_offset: float = 0.0) -> TargetImages:
+    def images(stream_fn, window: int, time_offset: float = 0.0, span: int = 0) -> TargetImages:
         """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
-        that count or estimate the spikes of `window` readouts."""
-        per_channel = lambda k: _per_channel(streams, lambda st: stream_fn(st, k))  # noqa: E731
+        that count or estimate the spikes of `window` readouts, and show the light of `span`
+        readouts from k - span // 2 + time_offset (default `window`), over any flicker there."""
+        span = span or window
+
+        def per_channel(k):  # readouts [n] -> [n, H, W, C]
+            rates = _per_channel(streams, lambda st: stream_fn(st, k))
+            if flicker is None:
+                return rates
+            gain = flicker.gain(np.asarray(k) - span // 2 + time_offset, span)  # [n]
+            return rates / gain[:, None, None, None].astype(np.float32)
+
         return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget)
 
     instant, sim_seconds = None, 0.0
@@ -337,7 +355,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         else:  # TFI counts no window: instant_window only sets smooth L1's zone
             # TFI(k)'s inter-spike interval straddles readouts k and k + 1: it shows the light
             # at k + 0.5 (a time ramp measures +0.50), so its pose is rendered there
-            instant = images(lambda st, k: st.tfi(k), s.instant_window, time_offset=0.5)
+            instant = images(lambda st, k: st.tfi(k), s.instant_window, 0.5, span=1)
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)

@@ -1,0 +1,104 @@
+"""Lighting flicker: mains lighting modulates the light at 100 or 120 Hz (twice 50 or 60 Hz), a
+period of 167-400 readouts at a 20-40 kHz readout. Found as a sinusoid in a stream's spikes per
+frame, it is taken out of the training targets (each divided by the modulation over its readouts):
+left in, the views' brightness follows the flicker's phase along the path and 3DGS fits it as
+geometry (BENCHMARKS.md, "Lighting flicker").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .spikes.stream import SpikeStream
+
+PERIODS = (80.0, 420.0)  # readouts searched: 100-120 Hz at 20-40 kHz, and 240 Hz (a harmonic)
+# a sinusoid of a depth (relative amplitude) below MIN_DEPTH, or under PEAK times the median of
+# the periodogram over PERIODS, is no flicker: on the built-in scenes the camera's motion gives
+# depths up to 0.01 there (BENCHMARKS.md, "Lighting flicker")
+MIN_DEPTH, PEAK = 0.03, 8.0
+# nor is one that fewer than IN_PHASE of the lit ones of GRID x GRID regions of the frame share
+# (in phase): a light's flicker brightens the whole frame at once, an orbit's repeating view
+# (solids at 0.6° a readout: 180° every 299 readouts, depth 0.075) brightens some regions as it
+# darkens others (9 of 16 in phase, against 16 of 16 for a flicker of depth 0.1)
+GRID, IN_PHASE, LIT = 4, 0.9, 0.1  # lit: spikes over LIT times the regions' mean
+MIN_PERIODS = 4  # a recording shorter than this many of the longest periods is not judged
+BINS_A_PERIOD = 16  # spikes are summed over bins of 1/16 of the shortest period
+BIN_CHUNK = 64  # bins counted at a time ([64, H, W] int32: 26 MB at 250x400)
+
+
+@dataclass(frozen=True)
+class Flicker:
+    """Light × (1 + depth·sin(2π·t / period + phase)) at readout time t."""
+
+    depth: float
+    period: float  # readouts
+    phase: float  # radians at readout 0
+
+    def gain(self, first, span: int) -> np.ndarray:
+        """The mean modulation [B] over `span` readouts from each of `first` [B] (a readout time:
+        TFI's k + 0.5 with span 1)."""
+        t = np.asarray(first, np.float64)[:, None] + np.arange(span)  # [B, span]
+        return (1 + self.depth * np.sin(2 * np.pi * t / self.period + self.phase)).mean(axis=1)
+
+
+def _region_totals(streams) -> tuple[np.ndarray, np.ndarray]:
+    """Bin centres [n] (readout times) and the spikes of every channel in each bin of readouts
+    in each of GRID x GRID regions of the frame [n, GRID * GRID]."""
+    step = max(1, int(PERIODS[0] // BINS_A_PERIOD))
+    starts = np.arange(0, len(streams[0]) - step + 1, step)  # [n] first readouts
+    h, w = streams[0].height, streams[0].width
+    rows, cols = (np.linspace(0, size, GRID + 1).astype(int)[:-1] for size in (h, w))
+    totals = np.zeros((len(starts), GRID * GRID))
+    for s in streams:
+        for i in range(0, len(starts), BIN_CHUNK):
+            ks = starts[i : i + BIN_CHUNK] + step // 2  # the window of `step` from each start
+            counts = s.counts(ks, step)  # [b, H, W] int32
+            regions = np.add.reduceat(np.add.reduceat(counts, rows, axis=1), cols, axis=2)
+            totals[i : i + BIN_CHUNK] += regions.reshape(len(ks), -1)
+    return starts + (step - 1) / 2, totals
+
+
+def _relative(t: np.ndarray, totals: np.ndarray) -> np.ndarray:
+    """Spikes [n, R] of bins at times `t` [n] as relative rates about each column's mean, a
+    straight line (the camera's slow change of view, in part) taken out."""
+    x = totals / np.maximum(totals.mean(axis=0), 1e-12) - 1
+    return x - np.polyval(np.polyfit(t, x, 1), t[:, None])
+
+
+def periodogram(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The periods [F] (readouts) within PERIODS and the amplitudes [F] of relative rates `x` [n]
+    of evenly spaced bins at times `t` [n] (zero-padded to a tenth of a radian of phase over the
+    recording)."""
+    size = int(2 ** np.ceil(np.log2(2 * np.pi * len(x) / 0.1)))
+    amp = 2 * np.abs(np.fft.rfft(x, size)) / len(x)  # [size / 2 + 1]
+    with np.errstate(divide="ignore"):
+        period = (t[1] - t[0]) / np.fft.rfftfreq(size)  # readouts
+    band = (period >= PERIODS[0]) & (period <= PERIODS[1])
+    return period[band], amp[band]
+
+
+def find_flicker(streams) -> Flicker | None:
+    """The flicker of the light that `streams` [C] (one recording, a stream per channel) saw, or
+    None: none (`MIN_DEPTH`, `PEAK`, `IN_PHASE`), a recording under MIN_PERIODS of the longest
+    period, or per-view streams (each its own phase)."""
+    if not all(isinstance(s, SpikeStream) for s in streams):
+        return None  # per-view streams (ViewStreams): no one phase
+    if len(streams[0]) < MIN_PERIODS * PERIODS[1]:
+        return None
+    t, totals = _region_totals(streams)
+    frame = _relative(t, totals.sum(axis=1, keepdims=True))[:, 0]  # [n]
+    periods, amp = periodogram(t, frame)
+    best = periods[np.argmax(amp)]
+    w = 2 * np.pi / best  # radians a readout
+    basis = np.stack([np.ones_like(t), t, np.sin(w * t), np.cos(w * t)], axis=1)  # [n, 4]
+    _, _, a, b = np.linalg.lstsq(basis, frame, rcond=None)[0]
+    depth, phase = float(np.hypot(a, b)), float(np.arctan2(b, a))  # a sin + b cos
+    if depth < MIN_DEPTH or amp.max() < PEAK * np.median(amp):
+        return None
+    lit = totals.mean(axis=0) > LIT * totals.mean()  # [R]
+    in_phase = _relative(t, totals[:, lit]).T @ np.sin(w * t + phase)  # [lit regions]
+    if np.mean(in_phase > 0) < IN_PHASE:
+        return None
+    return Flicker(depth, float(best), phase)

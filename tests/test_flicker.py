@@ -1,0 +1,87 @@
+"""Lighting flicker: found in a stream's spikes per frame, taken out of the training targets."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from spikegs import SpikeStream, simulate_spikes
+from spikegs.config import load_config
+from spikegs.data import load_dataset, simulate_dataset
+from spikegs.data.simulate import clean_source, simulated_trajectory
+from spikegs.flicker import Flicker, find_flicker
+from spikegs.spikes import SimParams
+from spikegs.spikes.simulate import simulate_channels
+from spikegs.targets import build_targets
+
+
+def _grey(depth: float, period: float, phase: float, readouts: int = 2000) -> SpikeStream:
+    """A 16x16 grey light of intensity 0.5 · (1 + depth sin(2π t / period + phase))."""
+    light = lambda t: np.full((16, 16), 0.5 * (1 + depth * np.sin(2 * np.pi * t / period + phase)))  # noqa: E731
+    return SpikeStream.from_packed(simulate_spikes(light, readouts, frame_every=4), width=16)
+
+
+def test_a_flicker_is_found_with_its_depth_period_and_phase():
+    found = find_flicker([_grey(0.2, 333.3, 1.0)])
+    assert found.depth == pytest.approx(0.2, abs=0.02)
+    assert found.period == pytest.approx(333.3, rel=0.01)
+    assert found.phase == pytest.approx(1.0, abs=0.15)
+
+
+@pytest.mark.parametrize("depth, readouts", [(0.0, 2000), (0.3, 1500)])
+def test_no_flicker_in_a_steady_light_or_a_recording_too_short_to_tell(depth, readouts):
+    assert find_flicker([_grey(depth, 250.0, 0.0, readouts)]) is None
+
+
+def test_a_view_that_brightens_some_regions_as_it_darkens_others_is_no_flicker():
+    """Half the frame (0.8) brightening as the other half (0.2) darkens, at 250 readouts: the
+    frame's total swings by 0.12 as under a flicker (an orbit's repeating view), but its regions
+    are out of phase."""
+
+    def light(t):  # [16, 16]
+        swing = 0.2 * np.sin(2 * np.pi * t / 250)
+        return np.concatenate(
+            [np.full((16, 8), 0.8 * (1 + swing)), np.full((16, 8), 0.2 * (1 - swing))], 1
+        )
+
+    stream = SpikeStream.from_packed(simulate_spikes(light, 2000, frame_every=4), width=16)
+    assert find_flicker([stream]) is None
+
+
+def test_the_gain_is_the_mean_modulation_over_a_span():
+    f = Flicker(0.3, 200.0, 0.5)
+    t = np.arange(10, 43)  # a 33-readout window from readout 10
+    expected = np.mean(1 + 0.3 * np.sin(2 * np.pi * t / 200 + 0.5))
+    assert f.gain([10], 33) == pytest.approx([expected])
+    assert f.gain([50.5], 1) == pytest.approx([1 + 0.3 * np.sin(2 * np.pi * 50.5 / 200 + 0.5)])
+
+
+@pytest.mark.parametrize("method", ["tfp33", "tfi"])
+def test_targets_of_a_flickering_light_are_the_steady_lights(tmp_path, method):
+    """The same scene and seed, steady and flickering (depth 0.3): each target's mean over the
+    steady one's follows the flicker (0.7 to 1.3) unless divided by it."""
+    clean = simulate_dataset(
+        "solids", tmp_path / "clean", height=24, width=24, readouts=2000, progress=False
+    )
+    flick = tmp_path / "flicker"
+    simulate_dataset("solids", flick, height=24, width=24, readouts=2000, progress=False)
+    meta = json.loads((flick / "meta.json").read_text())
+    source, poses = clean_source(clean), simulated_trajectory(clean)
+    simulate_channels(
+        lambda t: source.image_at(poses, t) * (1 + 0.3 * np.sin(2 * np.pi * t / 250)),
+        2000,
+        [flick / "spikes.dat"],
+        [meta["seed"]],
+        frame_times=source.light_times(2000, meta["frame_every"]),
+        params=SimParams(**meta["sim"]),
+    )
+    config = load_config(method)
+    steady = build_targets(clean, config, progress=False).instant
+    with pytest.warns(
+        UserWarning, match=r"flickers with a period of 25\d\.\d readouts, depth 0\.[23]"
+    ):
+        flickering = build_targets(load_dataset(flick), config, progress=False).instant
+    picks = range(0, len(steady), 7)
+    ratio = np.array([flickering[i].mean() / steady[i].mean() for i in picks])  # [n]
+    assert np.abs(ratio - 1).max() < 0.06  # without the division: 0.30
