@@ -59,6 +59,19 @@ def in_training_views(points: np.ndarray, dataset) -> np.ndarray:
     )
 
 
+def view_coverage(points: np.ndarray, dataset, cells: int = 16) -> np.ndarray:
+    """The share of each training view at `sample_timestamps` [M] that points [P, 3] land in:
+    of its image cut into `cells` x `cells` parts, those that hold one or more."""
+    viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
+    u, v, inside = pixels_in_view(points, viewmats, dataset.K, dataset.width, dataset.height)
+    u, v = (
+        np.where(inside, u, 0) * cells // dataset.width,
+        np.where(inside, v, 0) * cells // dataset.height,
+    )
+    part = np.where(inside, u * cells + v, -1)  # [M, P] each point's part, -1 out of view
+    return np.array([len(np.unique(p[p >= 0])) for p in part]) / cells**2  # [M]
+
+
 def seen_points(points: np.ndarray, dataset) -> np.ndarray:
     """Whether each point [P, 3] lies inside one or more of the dataset's training views at
     `sample_timestamps` [P] bool."""
