@@ -219,3 +219,23 @@ def test_the_last_round_is_never_the_runs_last_iteration():
     assert DensifyConfig(start=10, every=10, stop=95).last_round(100) == 90
     assert DensifyConfig(start=10, every=10, stop=0).last_round(100) == 50
     assert DensifyConfig(start=60, every=10, stop=0).last_round(100) == 0  # none: 60 > 50
+
+
+def test_a_run_whose_rounds_never_reach_the_threshold_is_told_so():
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = _densifier([0.3, 0.1])
+    for iteration in range(7, 50, 7):  # every round, the last at 49
+        densifier.step(model, optimizer, iteration)
+        assert (densifier.unreached(iteration) is None) == (iteration < 49)  # not before it
+        _observe(densifier, [0.3, 0.1])
+    said = densifier.unreached(49)
+    assert "saw, 0.3, " in said and "densify.grad_threshold 0.5" in said and len(model) == 2
+    restored = _densifier([])
+    restored.load_state_dict(densifier.state_dict())
+    assert restored.unreached(100) == said
+    earlier = {k: v for k, v in densifier.state_dict().items() if k != "strongest"}
+    restored.load_state_dict(earlier)  # a checkpoint from before the check: unknown, not said
+    assert restored.unreached(100) is None
+    _observe(densifier, [0.9, 0.1])  # with the round's 0.3: a mean of 0.6
+    densifier.step(model, optimizer, 49)  # one round reached it: said of no run that densified
+    assert len(model) == 3 and densifier.unreached(49) is None

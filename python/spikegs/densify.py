@@ -106,6 +106,7 @@ class Densifier:
         self.count = torch.zeros(0)  # [N] steps each Gaussian was visible in
         self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
         self.pruned: dict[str, int] = {}  # the last round's: Gaussians each pruning setting removed
+        self.strongest = 0.0  # the largest mean gradient a round has seen (inf: not recorded)
 
     def _resize(self, n: int) -> None:
         if self.grad_sum.shape[0] != n:
@@ -171,6 +172,7 @@ class Densifier:
         n = len(model)
         self._resize(n)
         grads = self.grad_sum / self.count.clamp_min(1)  # [N] mean over the visible steps
+        self.strongest = max(self.strongest, float(grads.max()) if n else 0.0)
         selected = grads >= c.grad_threshold  # [N] bool
         room = max(c.max_gaussians - n, 0)
         if int(selected.sum()) > room:  # keep the strongest gradients under the cap
@@ -222,8 +224,27 @@ class Densifier:
         self._resize(0)
         self._resize(len(model))
 
+    def unreached(self, iteration: int) -> str | None:
+        """What to say where every round up to `iteration`, the last among them, found no
+        Gaussian's gradient at the threshold (the run kept its initial Gaussians, less those
+        pruned), else None."""
+        last = self.config.last_round(self.iterations)
+        if not last or iteration < last or self.strongest >= self.config.grad_threshold:
+            return None
+        return (
+            f"densification grew no Gaussian: the largest mean screen-space gradient its rounds "
+            f"saw, {self.strongest:.3g}, is under densify.grad_threshold "
+            f"{self.config.grad_threshold:g}, so the run kept its initial Gaussians (fewer "
+            f"where pruned): lower the threshold where the renders look coarse"
+        )
+
     def state_dict(self) -> dict:
-        return {"grad_sum": self.grad_sum, "count": self.count, "max_radii": self.max_radii}
+        return {
+            "grad_sum": self.grad_sum,
+            "count": self.count,
+            "max_radii": self.max_radii,
+            "strongest": self.strongest,
+        }
 
     def load_state_dict(self, state: dict) -> None:
         self.grad_sum, self.count, self.max_radii = (
@@ -231,3 +252,4 @@ class Densifier:
             state["count"],
             state["max_radii"],
         )
+        self.strongest = state.get("strongest", float("inf"))  # an earlier version's: unknown

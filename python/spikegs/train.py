@@ -692,9 +692,12 @@ class Trainer:
             self.save_checkpoint()
         if not (finished and (self.run_dir / SCENE).exists()):
             save_ply(self.model, self.run_dir / SCENE)
-        biased = biased_fit(self.brightness, self.config.supervision)
-        if biased:
-            warnings.warn(f"{self.run_dir}: {biased}", stacklevel=2)
+        for said in (
+            self.densifier.unreached(self.iteration),
+            biased_fit(self.brightness, self.config.supervision),
+        ):
+            if said:
+                warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
         summary = {
             "method": self.config.method,
             "dataset": str(Path(self.dataset.root).resolve()),
