@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -85,3 +86,10 @@ def test_targets_of_a_flickering_light_are_the_steady_lights(tmp_path, method):
     picks = range(0, len(steady), 7)
     ratio = np.array([flickering[i].mean() / steady[i].mean() for i in picks])  # [n]
     assert np.abs(ratio - 1).max() < 0.06  # without the division: 0.30
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # supervision.deflicker false: not looked for, not said
+        kept = build_targets(
+            load_dataset(flick), load_config(method, {"supervision": {"deflicker": False}}), False
+        ).instant
+    ratio = np.array([kept[i].mean() / steady[i].mean() for i in picks])  # [n]
+    assert np.abs(ratio - 1).max() > 0.2  # as the spikes show them

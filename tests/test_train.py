@@ -2790,14 +2790,16 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
         ("densify", "absgrad", False, True),
         ("densify", "instant_only", False, True),
         ("supervision", "instant_until", "run", "densify"),
+        ("supervision", "deflicker", False, True),
     ],
 )
 def test_a_run_saved_before_a_key_with_a_new_behaviour_resumes_as_trained(
     dataset, tmp_path, section, key, old, new
 ):
-    """densify.absgrad, densify.instant_only and supervision.instant_until came with settings
-    (the first two their defaults, the third spikegs's) unlike the behaviour before them: a run
-    saved without the key resumes, from its own settings, as it was trained."""
+    """densify.absgrad, densify.instant_only, supervision.instant_until and
+    supervision.deflicker came with settings (their defaults, instant_until spikegs's) unlike the
+    behaviour before them: a run saved without the key resumes, from its own settings, as it was
+    trained."""
     run = tmp_path / "run"
     exposure = {"supervision": {"exposure_weight": 1.0, "exposure_poses": 3}}
     base = {**FAST, **exposure, "train": {**FAST["train"], "iterations": 2}}
@@ -2984,7 +2986,7 @@ def test_an_earlier_runs_config_given_with_config_is_warned_of(tmp_path):
     path.write_text(dump_yaml(full))
     with pytest.warns(UserWarning, match=said):
         config_from_args(args)
-    half = {k: full[k] for k in ("method", "supervision", "train", "lr")}  # 25 of 46 keys
+    half = {k: full[k] for k in ("method", "supervision", "train", "lr")}  # 27 of 47 keys
     half["densify"] = {"absgrad": False}
     for own in ("base: tfp33\ndensify: {absgrad: false}\n", dump_yaml(half)):  # nothing said
         path.write_text(own)

@@ -76,6 +76,9 @@ class SupervisionConfig:
     # smooth_l1 (quadratic within one spike of the TFP window): both fit the mean
     instant_norm: str = "l1"
     exposure_norm: str = "l1"
+    # divide a light's flicker found in the spikes out of every target (spikegs.flicker; false:
+    # the targets as the spikes show them)
+    deflicker: bool = True
 
     def instant_total_weight(self) -> float:
         """The weight of the losses on the instant render: L_instant's and D-SSIM's (0 without
@@ -656,10 +659,11 @@ def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
 # Keys added with a default unlike the behaviour before them: a run's config saved without one
 # was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24;
 # densify.instant_only: the whole step's signal, before 2026-11-25; supervision.instant_until:
-# both losses to the end, before 2026-11-29, as the dataclass default still is but spikegs not).
+# both losses to the end, before 2026-11-29, as the dataclass default still is but spikegs not;
+# supervision.deflicker: the targets as the spikes showed them, before 2026-12-01).
 LEGACY_VALUES = {
     "densify": {"absgrad": False, "instant_only": False},
-    "supervision": {"instant_until": "run"},
+    "supervision": {"instant_until": "run", "deflicker": False},
 }
 
 

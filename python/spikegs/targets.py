@@ -310,7 +310,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         return 1.0 / (window * scale)
 
     budget = ImageBudget()  # the instant and exposure images' together
-    flicker = find_flicker(streams)
+    flicker = find_flicker(streams) if s.deflicker else None
     if flicker is not None:
         warnings.warn(
             f"{dataset.root}: the light flickers with a period of {flicker.period:.1f} readouts, "
