@@ -22,6 +22,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
+from .curves import logged_curve
 from .data.dataset import POINTS, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
@@ -43,6 +44,7 @@ from .point_cloud import (
 )
 from .pose_refine import PoseRefiner, make_refiner
 from .provenance import environment
+from .psnr_fall import psnr_fall
 from .regular_file import read_text
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, LOG, SCENE, SUMMARY, last_checkpoint
@@ -693,6 +695,7 @@ class Trainer:
         if not (finished and (self.run_dir / SCENE).exists()):
             save_ply(self.model, self.run_dir / SCENE)
         for said in (
+            psnr_fall(logged_curve(self.run_dir)),
             self.densifier.unreached(self.iteration),
             biased_fit(self.brightness, self.config.supervision),
         ):

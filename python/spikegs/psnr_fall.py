@@ -1,0 +1,35 @@
+"""The held-out PSNR falling during a run: a fit that diverged (learning rates too high) or, with
+few training views, one that overfits them."""
+
+from __future__ import annotations
+
+import math
+
+# a fall of the held-out PSNR below its best at an earlier evaluation of this many dB, or more, is
+# said as the run ends. Measured (BENCHMARKS.md, "When a run goes wrong"): every lr x20 fell 5.06
+# dB (128² solids, 750 iterations); the 459 logs on the audit's machine with two evaluations or
+# more fell 1.94 dB at most (a 40-iteration test's), the 105 of 1000 iterations or more 0.81
+FALL_DB = 3.0
+
+
+def psnr_fall(curve: list[dict]) -> str | None:
+    """What to say where a logged curve [{"iteration", "psnr", ...}] fell FALL_DB or more below
+    its best at an earlier evaluation (its largest such fall), else None."""
+    best, fall = None, None  # (iteration, psnr) of the best so far; (dB, best, at, psnr)
+    for r in curve:
+        psnr = r["psnr"]
+        if not math.isfinite(psnr):  # (a perfect or an empty view's: no fall to measure)
+            continue
+        if best is not None and best[1] - psnr > (fall[0] if fall else 0.0):
+            fall = (best[1] - psnr, best, r["iteration"], psnr)
+        if best is None or psnr > best[1]:
+            best = (r["iteration"], psnr)
+    if fall is None or fall[0] < FALL_DB:
+        return None
+    db, (then, peak), at, psnr = fall
+    return (
+        f"the held-out PSNR fell {db:.2f} dB, from {peak:.2f} at iteration {then} to {psnr:.2f} "
+        f"at {at} (log.jsonl): a fit that diverged (learning rates too high: every lr x20 fell "
+        f"5 dB) or, with few training views, one that overfits them; check `lr:` against the "
+        f"method's (docs/training.md, 'When a run goes wrong')"
+    )
