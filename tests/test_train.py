@@ -3881,6 +3881,11 @@ def test_a_held_out_psnr_that_falls_is_said(dataset, tmp_path, monkeypatch):
     assert psnr_fall(curve(20.0, 18.01)) is None  # under 3 dB
     said = psnr_fall(curve(18.0, float("nan"), 18.99, 13.93, 30.0, float("inf")))
     assert said.startswith("the held-out PSNR fell 5.06 dB, from 18.99 at iteration 300 to 13.93")
+    logged = tmp_path / "logged"  # log.jsonl writes an infinite PSNR (a perfect render) as null
+    logged.mkdir()
+    records = [{"iteration": i, "seconds": i, "psnr": p} for i, p in ((1, None), (2, 20.0))]
+    (logged / "log.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    assert psnr_fall(logged_curve(logged)) is None  # not a TypeError as the run ends
     fell = curve(18.99, 13.93)
     monkeypatch.setattr("spikegs.train.logged_curve", lambda run: fell)
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})

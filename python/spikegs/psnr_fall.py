@@ -14,11 +14,12 @@ FALL_DB = 3.0
 
 def psnr_fall(curve: list[dict]) -> str | None:
     """What to say where a logged curve [{"iteration", "psnr", ...}] fell FALL_DB or more below
-    its best at an earlier evaluation (its largest such fall), else None."""
+    its best at an earlier evaluation (its largest such fall), else None; a PSNR that is None
+    (log.jsonl's null for inf or NaN) or not finite is passed over."""
     best, fall = None, None  # (iteration, psnr) of the best so far; (dB, best, at, psnr)
     for r in curve:
         psnr = r["psnr"]
-        if not math.isfinite(psnr):  # (a perfect or an empty view's: no fall to measure)
+        if psnr is None or not math.isfinite(psnr):  # inf, logged as null: no fall to measure
             continue
         if best is not None and best[1] - psnr > (fall[0] if fall else 0.0):
             fall = (best[1] - psnr, best, r["iteration"], psnr)
