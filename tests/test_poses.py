@@ -26,7 +26,13 @@ from spikegs.data.dataset import POINTS, check_output
 from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import MIN_START_INTENSITY, GaussianModel
-from spikegs.point_cloud import ball_points, read_points, seen_points, write_points
+from spikegs.point_cloud import (
+    ball_points,
+    read_points,
+    seen_points,
+    view_coverage,
+    write_points,
+)
 from spikegs.pose_refine import PoseRefiner, hat, pose_errors, se3_exp
 from spikegs.poses_cli import (
     _complete_meta,
@@ -265,6 +271,28 @@ def test_a_scene_sphere_too_small_for_the_poses_units_is_warned_of(tiny, tmp_pat
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Trainer(tiny, load_config("tfp33", TINY), tmp_path / "r", False)._check_scene_in_view()
+
+
+def test_the_scene_spheres_coverage_holds_for_tiny_images_and_cameras_inside_it(tiny):
+    """Each part of a view judged by its middle's ray: points spread through the sphere and
+    projected to whole pixels filled at most 4 of 16 columns of a 4-pixel-wide view (the right
+    sphere read 6 %, under MIN_SPHERE_COVERAGE) and few parts of a long lens's view that a
+    sphere around the cameras fills (a radius 3x their distance, fx x1.5: 15 %)."""
+    from types import SimpleNamespace
+
+    def views(scale: float, focal: float = 1.0, size: int = 32):  # tiny's views, resized
+        K = np.asarray(tiny.K, np.float64) * [[scale * focal], [scale * focal], [1]]
+        K[:2, 2] = np.asarray(tiny.K)[:2, 2] * scale  # [3, 3]
+        at = {"trajectory": tiny.trajectory, "train_timestamps": tiny.train_timestamps}
+        return SimpleNamespace(**at, K=K, width=size, height=size)
+
+    covered = view_coverage(tiny.scene_center, tiny.scene_radius, tiny)  # [M]
+    assert np.median(covered) > 0.5
+    np.testing.assert_array_equal(
+        view_coverage(tiny.scene_center, tiny.scene_radius, views(1 / 8, size=4)), covered
+    )
+    around = 3 * tiny._camera_distance()
+    assert (view_coverage(tiny.scene_center, around, views(1.0, focal=1.5)) == 1).all()
 
 
 def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
