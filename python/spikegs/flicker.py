@@ -23,6 +23,9 @@ MIN_DEPTH, PEAK = 0.03, 8.0
 # (solids at 0.6° a readout: 180° every 299 readouts, depth 0.075) brightens some regions as it
 # darkens others (9 of 16 in phase, against 16 of 16 for a flicker of depth 0.1)
 GRID, IN_PHASE, LIT = 4, 0.9, 0.1  # lit: spikes over LIT times the regions' mean
+# a sinusoid this deep or deeper takes the light to none or below: not the model, so not divided
+# out (a light switched on and off, as by an LED's PWM dimming, fits 1.26 at half on, 1.69 at 30 %)
+MAX_DEPTH = 1.0
 MIN_PERIODS = 4  # a recording shorter than this many of the longest periods is not judged
 BINS_A_PERIOD = 16  # spikes are summed over bins of 1/16 of the shortest period
 BIN_CHUNK = 64  # bins counted at a time ([64, H, W] int32: 26 MB at 250x400)

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from .config import Config, SimConfig
-from .flicker import find_flicker
+from .flicker import MAX_DEPTH, find_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
@@ -312,12 +312,20 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     budget = ImageBudget()  # the instant and exposure images' together
     flicker = find_flicker(streams) if s.deflicker else None
     if flicker is not None:
+        deep = flicker.depth >= MAX_DEPTH  # dividing would make targets negative or infinite
+        done = (
+            f"too deep for a sinusoid (under {MAX_DEPTH:g}: a light switched on and off?), so "
+            f"the targets are left as the spikes show them"
+            if deep
+            else "each training target is divided by the flicker over its readouts"
+        )
         warnings.warn(
             f"{dataset.root}: the light flickers with a period of {flicker.period:.1f} readouts, "
-            f"depth {flicker.depth:.2f} (lamps on mains power?): each training target is divided "
-            f"by the flicker over its readouts (docs/datasets.md, 'Lighting flicker')",
+            f"depth {flicker.depth:.2f} (lamps on mains power?): {done} (docs/datasets.md, "
+            f"'Lighting flicker')",
             stacklevel=2,
         )
+        flicker = None if deep else flicker
 
     def images(stream_fn, window: int, time_offset: float = 0.0, span: int = 0) -> TargetImages:
         """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
