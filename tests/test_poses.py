@@ -256,7 +256,7 @@ def test_poses_that_see_none_of_the_scene_sphere_are_refused_before_any_work(
 
 def test_a_scene_sphere_too_small_for_the_poses_units_is_warned_of(tiny, tmp_path):
     """Translations 10x the scene sphere's units (millimetres against a radius in centimetres):
-    the sphere covers ~2 % of each view, the Gaussians start inside the object and the run
+    the sphere covers ~1 % of each view, the Gaussians start inside the object and the run
     trained 10.8 dB low without a word (BENCHMARKS.md); the right poses' sphere, not said."""
     from spikegs.data.dataset import Dataset
 
