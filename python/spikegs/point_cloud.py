@@ -13,7 +13,7 @@ from plyfile import PlyData, PlyElement
 from scipy.spatial import cKDTree
 
 from .atomic_save import write_atomically
-from .data.trajectory import pixels_in_view, point_parts
+from .data.trajectory import pixel_rays, pixels_in_view, point_parts
 from .gaussians import GaussianModel
 from .ply import read_vertices
 from .targets import sample_timestamps
@@ -70,12 +70,13 @@ def view_coverage(center, radius: float, dataset, cells: int = 16) -> np.ndarray
     K = np.asarray(dataset.K, np.float64)
     middles = (np.arange(cells) + 0.5) / cells  # [cells] as shares of a side
     x, y = np.meshgrid(middles * dataset.width, middles * dataset.height)  # [cells, cells] pixels
-    rays = np.stack([(x - K[0, 2]) / K[0, 0], (y - K[1, 2]) / K[1, 1], np.ones_like(x)], -1)
-    rays = rays.reshape(-1, 3) / np.linalg.norm(rays, axis=-1).reshape(-1, 1)  # [cells², 3]
+    rays = pixel_rays(x, y, K).reshape(-1, 3)  # [cells², 3]
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     centre = viewmats[:, :3, :3] @ np.asarray(center, np.float64) + viewmats[:, :3, 3]  # [M, 3]
     along = centre @ rays.T  # [M, cells²] the ray's nearest approach to the centre, its depth
-    gap = (centre**2).sum(axis=1, keepdims=True) - along**2  # [M, cells²] squared, from it
-    around = (centre**2).sum(axis=1, keepdims=True) <= radius**2  # [M, 1] camera in the ball
+    distance2 = (centre**2).sum(axis=1, keepdims=True)  # [M, 1] the camera's from the centre
+    gap = distance2 - along**2  # [M, cells²] squared, the ray's from the centre
+    around = distance2 <= radius**2  # [M, 1] camera in the ball
     return (around | ((along > 0) & (gap <= radius**2))).mean(axis=1)  # [M]
 
 

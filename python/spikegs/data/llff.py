@@ -33,7 +33,7 @@ from .real import (
     views_dataset,
 )
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
-from .trajectory import PathLike, readout_number, rigid_c2w
+from .trajectory import PathLike, pixel_rays, readout_number, rigid_c2w
 from .transforms_file import frame_columns
 from .view_geometry import CONVERGING, axes_meeting, converging_centre, optical_axes
 
@@ -90,9 +90,7 @@ def frustum_sphere(
     its near and far depth (bounds [N, 2])."""
     u = np.array([0.0, width, 0.0, width])
     v = np.array([0.0, 0.0, height, height])
-    rays = np.stack(
-        [(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1
-    )  # [4, 3]
+    rays = pixel_rays(u, v, K)  # [4, 3]
     points = bounds[:, :, None, None] * rays[None, None]  # [N, 2, 4, 3] camera coordinates
     c2w = np.linalg.inv(viewmats)  # [N, 4, 4]
     world = np.einsum("nij,nkcj->nkci", c2w[:, :3, :3], points) + c2w[:, None, None, :3, 3]

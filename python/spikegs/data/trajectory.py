@@ -97,6 +97,13 @@ def project_points(points, viewmats, K) -> tuple[np.ndarray, np.ndarray]:
     return pixels, z[..., 0]
 
 
+def pixel_rays(u, v, K) -> np.ndarray:
+    """Camera-space directions [..., 3] (z = 1) through pixel positions `u`, `v` [...] (OpenCV,
+    as `project_points` gives them) of intrinsics K [3, 3]: the inverse of its projection."""
+    u, v = np.asarray(u, np.float64), np.asarray(v, np.float64)
+    return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], -1)
+
+
 def point_parts(points: np.ndarray, size: int = 65536) -> list[np.ndarray]:
     """Points [P, 3] in consecutive parts of at most `size`: projected into F views, a part's
     temporaries are [F, size, 3] float64 (31 views: 49 MB), the whole cloud's could be GBs."""
