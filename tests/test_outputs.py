@@ -141,6 +141,18 @@ def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch, console_
     assert signal.getsignal(signal.SIGINT) is console_signals[signal.SIGINT]
 
 
+def test_a_finished_command_ignores_a_late_signal(monkeypatch, console_signals):
+    """A signal landing in the interpreter's exit after a command finished (about a second,
+    torch's teardown) killed it, its status 0 replaced (-2, -15, -1): once `main` returns, the
+    `spikegs` command ignores SIGINT, SIGTERM and SIGHUP, whatever the status."""
+    monkeypatch.setattr("spikegs.eval_cli.run", lambda args: 0)
+    monkeypatch.setattr(sys, "argv", ["spikegs", "eval", "RUN"])
+    with pytest.raises(SystemExit) as exit:
+        console()
+    assert exit.value.code == 0
+    assert all(signal.getsignal(s) is signal.SIG_IGN for s in console_signals)
+
+
 @pytest.mark.parametrize(
     "signum, status, said",
     [(signal.SIGTERM, 143, "terminated"), pytest.param(HANGUP, 129, "hung up", marks=NO_HANGUP)],

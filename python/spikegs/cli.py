@@ -259,8 +259,10 @@ def console() -> None:
     second Ctrl-C, pressed as people do, printed 'Exception ignored in atexit callback ...
     KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's modules import says
     'interrupted' too, not a traceback (one during the package's own import, torch's, before
-    this runs, still ends in Python's traceback). A character the output's codec lacks (θ, µ
-    or — through a Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a
+    this runs, still ends in Python's traceback). A command that finished ignores them too: a
+    signal landing in the interpreter's exit (about a second, torch's teardown) replaced the
+    status it earned (0) with a kill. A character the output's codec lacks (θ, µ or — through a
+    Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a
     UnicodeEncodeError after the work."""
     _closed_streams_to_devnull()
     _escaping_outputs()
@@ -275,9 +277,8 @@ def console() -> None:
         status = BROKEN_PIPE
     if status in (BROKEN_PIPE, HUNG_UP):  # an output's reader or terminal gone
         _drop_unflushable_outputs()
-    if status in STOPPED:
-        for signum in NAMES:
-            signal.signal(signum, signal.SIG_IGN)
+    for signum in NAMES:  # the status is decided: nothing left to stop
+        signal.signal(signum, signal.SIG_IGN)
     _forget_unhandled_interrupt()
     sys.exit(status)
 
@@ -305,9 +306,6 @@ def _drop_unflushable_outputs() -> None:
             with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
                 os.dup2(devnull, stream.fileno())
             os.close(devnull)
-
-
-STOPPED = {INTERRUPTED, *(128 + s for s in ENDING)}  # exit statuses of a command a signal stopped
 
 
 def _stopped(stop: KeyboardInterrupt) -> int:
