@@ -13,7 +13,7 @@ from spikegs import SpikeStream, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.simulate import clean_source, simulated_trajectory
-from spikegs.flicker import Flicker, find_flicker
+from spikegs.flicker import Flicker, _region_totals, find_flicker
 from spikegs.spikes import SimParams
 from spikegs.spikes.simulate import simulate_channels
 from spikegs.targets import build_targets
@@ -76,6 +76,18 @@ def test_the_search_holds_memory_as_its_bins_not_as_a_finely_padded_fft():
     assert found.period == pytest.approx(333.3, rel=1e-3)
     assert found.depth == pytest.approx(0.2, abs=0.01)
     assert found.phase == pytest.approx(1.0, abs=0.05)
+
+
+@pytest.mark.parametrize("height, width", [(1, 1), (1, 40), (2, 2), (3, 5), (16, 16)])
+def test_each_pixel_is_counted_once_in_the_regions(height, width):
+    """A frame under 4 pixels high or wide has fewer regions, not a row or column counted twice
+    (1x1: 16 times): the regions' spikes are the frame's."""
+    rng = np.random.default_rng(0)
+    packed = np.packbits(rng.random((800, height, width)) < 0.3, axis=-1, bitorder="little")
+    stream = SpikeStream.from_packed(packed, width=width)
+    t, totals = _region_totals([stream])
+    frame = [stream.counts(int(k), 5).sum() for k in t]  # the bins of 5 readouts centred at t
+    np.testing.assert_array_equal(totals.sum(axis=1), frame)
 
 
 def test_the_gain_is_the_mean_modulation_over_a_span():

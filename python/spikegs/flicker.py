@@ -52,12 +52,14 @@ class Flicker:
 
 def _region_totals(streams) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres [n] (readout times) and the spikes of every channel in each bin of readouts
-    in each of GRID x GRID regions of the frame [n, GRID * GRID]."""
+    in each of GRID x GRID regions of the frame [n, R] (fewer on a frame under GRID pixels high
+    or wide: a region a row or column)."""
     step = max(1, int(PERIODS[0] // BINS_A_PERIOD))
     starts = np.arange(0, len(streams[0]) - step + 1, step)  # [n] first readouts
     h, w = streams[0].height, streams[0].width
-    rows, cols = (np.linspace(0, size, GRID + 1).astype(int)[:-1] for size in (h, w))
-    totals = np.zeros((len(starts), GRID * GRID))
+    # each region's first row and column, once (reduceat sums a repeated start's row again)
+    rows, cols = (np.unique(np.linspace(0, size, GRID + 1).astype(int)[:-1]) for size in (h, w))
+    totals = np.zeros((len(starts), len(rows) * len(cols)))
     for s in streams:
         for i in range(0, len(starts), BIN_CHUNK):
             ks = starts[i : i + BIN_CHUNK] + step // 2  # the window of `step` from each start
