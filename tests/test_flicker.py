@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from spikegs import SpikeStream, simulate_spikes
+from spikegs import SpikeStream, flicker, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.simulate import clean_source, simulated_trajectory
@@ -88,6 +88,22 @@ def test_each_pixel_is_counted_once_in_the_regions(height, width):
     t, totals = _region_totals([stream])
     frame = [stream.counts(int(k), 5).sum() for k in t]  # the bins of 5 readouts centred at t
     np.testing.assert_array_equal(totals.sum(axis=1), frame)
+
+
+def test_a_long_search_shows_its_progress_unless_told_not_to(tmp_path, monkeypatch, capsys):
+    """A bar over the readouts counted once the search has taken flicker.PROGRESS_AFTER seconds
+    (here at once), none under --no-progress (build_targets' `progress`), none where it is quick
+    (0.03 s here)."""
+    find_flicker([_grey(0.2, 333.3, 1.0)], progress=True)
+    assert "flicker" not in capsys.readouterr().err  # quicker than a second
+    monkeypatch.setattr(flicker, "PROGRESS_AFTER", 0.0)
+    dataset = simulate_dataset(
+        "solids", tmp_path / "d", height=16, width=16, readouts=2000, progress=False
+    )
+    build_targets(dataset, load_config("tfp33"), progress=False)
+    assert "flicker" not in capsys.readouterr().err
+    build_targets(dataset, load_config("tfp33"), progress=True)
+    assert "flicker: 100%" in capsys.readouterr().err.replace("\r", "\n")
 
 
 def test_the_gain_is_the_mean_modulation_over_a_span():

@@ -8,9 +8,12 @@ geometry (BENCHMARKS.md, "Lighting flicker").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
+from tqdm.auto import tqdm
 
+from .interrupt import progress_lost, quiet_close
 from .spikes.stream import SpikeStream
 
 PERIODS = (80.0, 420.0)  # readouts searched: 100-120 Hz at 20-40 kHz, and 240 Hz (a harmonic)
@@ -33,6 +36,9 @@ BINS_A_PERIOD = 16  # spikes are summed over bins of 1/16 of the shortest period
 # PHASE_STEP radians of phase over the recording
 PAD, PHASE_STEP = 4, 0.1
 BIN_CHUNK = 64  # bins counted at a time ([64, H, W] int32: 26 MB at 250x400)
+# a progress bar shows once the counting has taken this long (seconds): 250x400 counts ~26,000
+# readouts a second, 128² solids' 4000 readouts take 0.01-0.08 s
+PROGRESS_AFTER = 1.0
 
 
 @dataclass(frozen=True)
@@ -50,22 +56,35 @@ class Flicker:
         return (1 + self.depth * np.sin(2 * np.pi * t / self.period + self.phase)).mean(axis=1)
 
 
-def _region_totals(streams) -> tuple[np.ndarray, np.ndarray]:
+def _region_totals(streams, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres [n] (readout times) and the spikes of every channel in each bin of readouts
     in each of GRID x GRID regions of the frame [n, R] (fewer on a frame under GRID pixels high
-    or wide: a region a row or column)."""
+    or wide: a region a row or column); `progress`: a bar over the readouts counted, once that
+    takes PROGRESS_AFTER seconds."""
     step = max(1, int(PERIODS[0] // BINS_A_PERIOD))
     starts = np.arange(0, len(streams[0]) - step + 1, step)  # [n] first readouts
     h, w = streams[0].height, streams[0].width
     # each region's first row and column, once (reduceat sums a repeated start's row again)
     rows, cols = (np.unique(np.linspace(0, size, GRID + 1).astype(int)[:-1]) for size in (h, w))
     totals = np.zeros((len(starts), len(rows) * len(cols)))
-    for s in streams:
-        for i in range(0, len(starts), BIN_CHUNK):
-            ks = starts[i : i + BIN_CHUNK] + step // 2  # the window of `step` from each start
-            counts = s.counts(ks, step)  # [b, H, W] int32
-            regions = np.add.reduceat(np.add.reduceat(counts, rows, axis=1), cols, axis=2)
-            totals[i : i + BIN_CHUNK] += regions.reshape(len(ks), -1)
+    bar = tqdm(
+        total=len(streams) * len(starts) * step,
+        desc="flicker",
+        unit="readout",
+        unit_scale=True,
+        disable=not progress,
+        delay=PROGRESS_AFTER,
+        dynamic_ncols=True,
+    )
+    with quiet_close(bar):
+        for s in streams:
+            for i in range(0, len(starts), BIN_CHUNK):
+                ks = starts[i : i + BIN_CHUNK] + step // 2  # the window of `step` from each start
+                counts = s.counts(ks, step)  # [b, H, W] int32
+                regions = np.add.reduceat(np.add.reduceat(counts, rows, axis=1), cols, axis=2)
+                totals[i : i + BIN_CHUNK] += regions.reshape(len(ks), -1)
+                # (output gone: the bar off; training's own bar then stops the run)
+                progress_lost(partial(bar.update, len(ks) * step), bar)
     return starts + (step - 1) / 2, totals
 
 
@@ -110,15 +129,16 @@ def _peak(t: np.ndarray, x: np.ndarray, near: float) -> tuple[float, float]:
     return float(step / (index[np.argmax(amp)] / size)), float(amp.max())
 
 
-def find_flicker(streams) -> Flicker | None:
+def find_flicker(streams, progress: bool = False) -> Flicker | None:
     """The flicker of the light that `streams` [C] (one recording, a stream per channel) saw, or
     None: none (`MIN_DEPTH`, `PEAK`, `IN_PHASE`), a recording under MIN_PERIODS of the longest
-    period, or per-view streams (each its own phase)."""
+    period, or per-view streams (each its own phase); `progress`: a bar where the search takes
+    over PROGRESS_AFTER seconds."""
     if not all(isinstance(s, SpikeStream) for s in streams):
         return None  # per-view streams (ViewStreams): no one phase
     if len(streams[0]) < MIN_PERIODS * PERIODS[1]:
         return None
-    t, totals = _region_totals(streams)
+    t, totals = _region_totals(streams, progress)
     frame = totals.sum(axis=1)  # [n]
     frame = _detrended(t, frame / max(frame.mean(), 1e-12) - 1)  # relative rates
     periods, amp = periodogram(t, frame)  # [F]

@@ -312,7 +312,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     budget = ImageBudget()  # the instant and exposure images' together
     # (clean images, the oracle's, are the simulator's light: no flicker to look for or divide)
     from_spikes = config.instant_target() not in ("none", "clean") or s.exposure_weight > 0
-    flicker = find_flicker(streams) if s.deflicker and from_spikes else None
+    flicker = find_flicker(streams, progress) if s.deflicker and from_spikes else None
     if flicker is not None:
         deep = flicker.depth >= MAX_DEPTH  # dividing would make targets negative or infinite
         done = (
