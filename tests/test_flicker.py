@@ -171,3 +171,33 @@ def test_a_light_switched_on_and_off_is_said_and_its_targets_left(tmp_path):
     ).instant
     for i in range(0, len(kept), 7):
         assert torch.equal(found[i], kept[i])
+
+
+def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_changes(
+    tmp_path, monkeypatch
+):
+    """Kept in the user's cache, the dataset's folder untouched (it may be read-only): searched
+    once for two starts, again for another search or a spike changed."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(flicker, "CACHED_FROM", 0)  # (24x24 solids: 144 kB)
+    _, flick = _flickering(tmp_path, lambda t: 1 + 0.3 * np.sin(2 * np.pi * t / 250))
+    search, searched = flicker.find_flicker, []
+    monkeypatch.setattr(flicker, "find_flicker", lambda *a: searched.append(a) or search(*a))
+    files = lambda: {p: p.stat().st_mtime_ns for p in flick.rglob("*")}  # noqa: E731
+    before, config = files(), load_config("tfi")
+
+    def start() -> float:  # a run's start: its first training target's mean
+        with pytest.warns(UserWarning, match=r"period of 25\d\.\d readouts"):
+            return float(build_targets(load_dataset(flick), config, False).instant[0].mean())
+
+    first = start()
+    assert start() == first and len(searched) == 1 and files() == before
+    monkeypatch.setattr(flicker, "_detector", lambda: b"another search")
+    assert start() == first and len(searched) == 2
+    with open(flick / "spikes.dat", "r+b") as f:  # one spike more or less
+        f.seek(1000)
+        byte = f.read(1)[0] ^ 1
+        f.seek(1000)
+        f.write(bytes([byte]))
+    start()
+    assert len(searched) == 3

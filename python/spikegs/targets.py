@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from .config import Config, SimConfig
-from .flicker import MAX_DEPTH, find_flicker
+from .flicker import MAX_DEPTH, cached_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
@@ -312,7 +312,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     budget = ImageBudget()  # the instant and exposure images' together
     # (clean images, the oracle's, are the simulator's light: no flicker to look for or divide)
     from_spikes = config.instant_target() not in ("none", "clean") or s.exposure_weight > 0
-    flicker = find_flicker(streams, progress) if s.deflicker and from_spikes else None
+    flicker = cached_flicker(streams, progress) if s.deflicker and from_spikes else None
     if flicker is not None:
         deep = flicker.depth >= MAX_DEPTH  # dividing would make targets negative or infinite
         done = (
