@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..flicker import MAX_DEPTH, cached_flicker
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
 from ..targets import intensity_scale
@@ -176,14 +177,27 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
             GuessedUnitsWarning,
             stacklevel=3,
         )
+    # a pseudo ground truth shows the light at its readouts: under a flicker (one stream), its
+    # phase there, which is the light's, not the scene's: divided out as from training targets
+    pseudo = len(held_out) - len(sharp)
+    flicker = cached_flicker([stream]) if pseudo else None
+    flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
     for h in held_out:
         if h.image is None:
-            image = stream.tfp(round(h.readout), h.window)[..., None]  # [H, W, 1]
+            k = round(h.readout)
+            image = stream.tfp(k, h.window)[..., None]  # [H, W, 1]
+            if flicker is not None:  # (the TFP's readouts: the window centred on k)
+                image /= np.float32(flicker.gain([k - h.window // 2], h.window)[0])
             dataset.test_views.append(TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout))
         else:
             image = (np.asarray(h.image) * scale).astype(np.float32)  # [H, W, 1]
             dataset.test_views.append(TestView(h.name, h.viewmat, image, h.readout))
-    meta["test_ground_truth"] = ground_truth_note(len(sharp), len(held_out) - len(sharp))
+    meta["test_ground_truth"] = ground_truth_note(len(sharp), pseudo)
+    if flicker is not None:
+        meta["test_ground_truth"]["pseudo_flicker"] = (
+            f"divided by the light's flicker: period {flicker.period:.1f} readouts, depth "
+            f"{flicker.depth:.2f}"
+        )
     if sharp:
         meta["image_scale"] = scale
     check_test_views(dataset.test_views, root)
