@@ -1,8 +1,8 @@
 """Lighting flicker: mains lighting modulates the light at 100 or 120 Hz (twice 50 or 60 Hz), a
 period of 167-400 readouts at a 20-40 kHz readout. Found as a sinusoid in a stream's spikes per
-frame, it is taken out of the training targets (each divided by the modulation over its readouts):
-left in, the views' brightness follows the flicker's phase along the path and 3DGS fits it as
-geometry (BENCHMARKS.md, "Lighting flicker").
+frame, it is taken out of the training targets (each divided by the modulation over its readouts)
+and out of a pseudo ground truth made from the spikes: left in, the views' brightness follows the
+flicker's phase along the path and 3DGS fits it as geometry (BENCHMARKS.md, "Lighting flicker").
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ import functools
 import hashlib
 import json
 from dataclasses import asdict, dataclass
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +94,7 @@ def _region_totals(streams, progress: bool = False) -> tuple[np.ndarray, np.ndar
                 regions = np.add.reduceat(np.add.reduceat(counts, rows, axis=1), cols, axis=2)
                 totals[i : i + BIN_CHUNK] += regions.reshape(len(ks), -1)
                 # (output gone: the bar off; training's own bar then stops the run)
-                progress_lost(partial(bar.update, len(ks) * step), bar)
+                progress_lost(functools.partial(bar.update, len(ks) * step), bar)
     return starts + (step - 1) / 2, totals
 
 
