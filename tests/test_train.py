@@ -1301,6 +1301,10 @@ def test_every_method_config_loads():
         ("only_instant", {"supervision": {"instant_until": "densify"}}, "instant_until.*exposure"),
         ("spikegs", {"lr": {"background": 1e30}}, "lr.background"),
         ("spikegs", {"pose_refine": {"lr": 5.0}}, "pose_refine.lr"),
+        # overflowed Adam's squared gradients at the first step, after SIM had trained
+        ("spikegs", {"supervision": {"instant_weight": 1e30}}, "instant_weight.*0..1,000,000"),
+        ("spikegs", {"supervision": {"exposure_weight": 2e6}}, "exposure_weight.*float32"),
+        ("spikegs", {"supervision": {"dssim_weight": 1e15}}, "dssim_weight.*ratios"),
     ],
 )
 def test_config_validation(name, overrides, message):
@@ -1320,6 +1324,7 @@ def test_config_validation(name, overrides, message):
         ("supervision", "instant", "bogus", "supervision.instant"),  # trained TFI targets
         ("supervision", "exposure_poses", 1, "supervision.exposure_poses"),  # trained
         ("sim", "window", 4, "sim.window"),  # trained an even-window SIM
+        ("supervision", "exposure_weight", 1e30, "supervision.exposure_weight"),  # overflowed
     ],
 )
 def test_a_trainer_refuses_a_config_edited_out_of_range_before_any_work(
@@ -1373,6 +1378,8 @@ def test_config_edges_of_the_ranges_are_accepted():
     # a cap of exactly the initial Gaussians: a run that never grows (> for >= refused it)
     config = load_config("spikegs", {"densify": {"max_gaussians": 5000}})
     assert config.densify.max_gaussians == config.train.init_gaussians == 5000
+    weights = {"instant_weight": 1e6, "exposure_weight": 1e6, "dssim_weight": 1e6}
+    assert load_config("spikegs", {"supervision": weights}).supervision.dssim_weight == 1e6
 
 
 def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):
@@ -2831,10 +2838,12 @@ def test_a_non_finite_loss_stops_the_run_before_the_update(dataset, tmp_path, mo
     assert all(torch.isfinite(p).all() for p in trainer.model.params.values())
 
 
-def test_gradients_beyond_float32_stop_the_run(dataset, tmp_path, capsys):
+def test_gradients_beyond_float32_stop_the_run(dataset, tmp_path, capsys, monkeypatch):
     """A loss weight of 1e30 overflowed Adam's squared-gradient averages: the parameters froze
     and the run 'finished' at the reset opacity; the stop printed a traceback claiming a
-    checkpoint that did not exist."""
+    checkpoint that did not exist. (Validation now refuses such a weight: lifted here to reach
+    the guard, which any other cause of such gradients meets.)"""
+    monkeypatch.setattr("spikegs.config.MAX_WEIGHT", float("inf"))
     overrides = {**FAST, "train": {**FAST["train"], "iterations": 5}}
     config = tmp_path / "huge.yaml"
     config.write_text(

@@ -46,6 +46,13 @@ DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
 # supervision.instant_until: every step, or until densification ends
 INSTANT_UNTIL = ("run", "densify")
 MAX_LR = 1.0  # learning rates above it move parameters by more than their own scale a step
+# supervision's loss weights: only their ratios matter (Adam's steps do not see the loss's scale,
+# and densification divides the weights out), and a term weighted 2**24 (1.7e7) times another
+# drowns it in float32's rounding of their sum. Far above, Adam's squared gradients overflow
+# float32 (|gradient| 1.8e19): a weight's gradient is up to ~its size (the background's, a mean
+# over pixels; 0.59 at most over 1500 steps of tfp33 on 128² solids), and 1e21-1e22 stopped such a
+# run within 9 steps, after SIM where it trains (BENCHMARKS.md, "Loss weights' bound")
+MAX_WEIGHT = 1e6
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
@@ -212,7 +219,14 @@ class Config:
                 f"a readout at most (more would reach past the window)",
             )
         for name in ("instant_weight", "exposure_weight", "dssim_weight"):
-            _require(getattr(s, name) >= 0, f"supervision.{name}", getattr(s, name), ">= 0")
+            _require(
+                0 <= getattr(s, name) <= MAX_WEIGHT,
+                f"supervision.{name}",
+                getattr(s, name),
+                f"0..{MAX_WEIGHT:,.0f} (only the weights' ratios matter: Adam's steps and "
+                f"densification do not see their scale; near 1e20 Adam's squared gradients "
+                f"overflow float32)",
+            )
         _require(
             s.dssim_weight == 0 or (s.instant != "none" and s.instant_weight > 0),
             "supervision.dssim_weight",
