@@ -168,6 +168,27 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
         np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
 
 
+def test_a_refused_simulation_leaves_no_dataset_and_keeps_the_one_it_would_replace(tmp_path):
+    """A simulation whose light saturated the sensor was written whole, then refused on loading:
+    its folder stayed, a dataset that training refused, and `--overwrite` had deleted the good
+    dataset it was to replace."""
+    still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    saturated = r"every pixel firing at every readout .*a saturated simulation"
+    new = tmp_path / "new"
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match=saturated):
+        simulate_dataset(constant_source(5.0), new, **still)
+    assert not new.exists()
+    with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+        old = simulate_dataset(constant_source(0.6), tmp_path / "old", **still).root
+    files = sorted(p for p in old.rglob("*") if p.is_file())
+    before = [p.read_bytes() for p in files]
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match=saturated):
+        simulate_dataset(constant_source(5.0), old, overwrite=True, **still)
+    assert sorted(p for p in old.rglob("*") if p.is_file()) == files  # the lock among them
+    assert [p.read_bytes() for p in files] == before
+    assert load_dataset(old).meta["sim"]["rate_at_one"] == 0.25
+
+
 def test_data_that_defeats_every_method_is_flagged(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the built-in scenes at the defaults: no warning

@@ -22,7 +22,7 @@ from spikegs.atomic_save import (
     write_atomically,
     write_text_atomically,
 )
-from spikegs.data.dataset import is_view_name, prepare_output
+from spikegs.data.dataset import STAGING, is_view_name, move_in
 from spikegs.evaluate import _eval_name
 from spikegs.image_io import read_image, write_image
 from spikegs.output_paths import check_file_output, check_folder_output
@@ -162,10 +162,13 @@ def test_a_dataset_replaced_through_a_link(tmp_path):
     target = tmp_path / "disk" / "data"
     (target / "test").mkdir(parents=True)
     (target / "meta.json").write_text("{}")
+    (target / STAGING).mkdir()
+    (target / STAGING / "meta.json").write_text('{"new": 1}')
     link = tmp_path / "data"
     link.symlink_to(target)
-    assert prepare_output(link, overwrite=True) == link
-    assert link.is_symlink() and target.is_dir() and not any(target.iterdir())
+    move_in(link)
+    assert link.is_symlink() and target.is_dir() and os.listdir(target) == ["meta.json"]
+    assert (target / "meta.json").read_text() == '{"new": 1}'
 
 
 def test_a_name_of_exactly_the_limit_is_kept_and_temporaries_are_ours_only():

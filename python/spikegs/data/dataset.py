@@ -230,8 +230,10 @@ class Dataset:
 
 
 OLD_LIGHT = ".light.npy"  # a simulation before 2026-11-29 rendered its light here (GBs)
+# the folder inside --out that a simulation writes its dataset into, moved into --out once it loads
+STAGING = ".simulating"
 # any of these (or its temporary file) marks a dataset, or what an interrupted simulation left
-PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), OLD_LIGHT)
+PARTS = (META, TRAJECTORY, TEST_VIEWS, *spike_files(1), *spike_files(3), OLD_LIGHT, STAGING)
 TRAJECTORY_BACKUP = f"{TRAJECTORY}.bak"  # the pose log that `spikegs poses` replaced
 TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses dropped any
 # held by a process writing the dataset (simulate, poses), shared by those reading it (train,
@@ -331,22 +333,23 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
     return out
 
 
-def prepare_output(out: PathLike, overwrite: bool) -> Path:
-    """Create `out` after `check_output`; an old dataset there is deleted with everything in its
-    directory (caches derived from the old spikes included) but its lock (`writing_dataset`'s,
-    held by the caller: a new file would be another lock, which a second process could take)."""
-    out = check_output(out, overwrite)
-    if out.is_dir() and holds_dataset(out):
-        # entry by entry: the lock stays, and a link (a dataset on another disk) keeps its target
-        for entry in out.iterdir():  # (rmtree refuses a link)
-            if entry.name == LOCK:
-                continue
-            if entry.is_dir() and not entry.is_symlink():
-                shutil.rmtree(entry)
-            else:
-                entry.unlink()
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+def move_in(out: Path) -> None:
+    """Replace the dataset at `out` (checked by `check_output`) by the one written into
+    OUT/STAGING: what `out` held is deleted (caches derived from the old spikes included) but its
+    lock (`writing_dataset`'s, held by the caller: a new file would be another lock, which a
+    second process could take), then the new one's entries moved in, within the folder."""
+    staging = out / STAGING
+    # entry by entry: the lock stays, and a link (a dataset on another disk) keeps its target
+    for entry in out.iterdir():  # (rmtree refuses a link)
+        if entry.name in (LOCK, STAGING):
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry)
+        else:
+            entry.unlink()
+    for entry in staging.iterdir():
+        entry.rename(out / entry.name)
+    staging.rmdir()
 
 
 def camera_keys(meta: dict) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import shutil
 import warnings
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from ..spikes.stream import as_flag
 from .dataset import (
     FORMAT_VERSION,
     READOUT_PERIOD_S,
+    STAGING,
     TRAJECTORY_BACKUP,
     WINDOW_MARGIN,
     DarkSpikesWarning,
@@ -29,8 +31,8 @@ from .dataset import (
     intrinsics_keys,
     intrinsics_matrix,
     load_dataset,
+    move_in,
     near_held_out,
-    prepare_output,
     refuse_if_in_use,
     spike_files,
     write_parts,
@@ -564,37 +566,54 @@ def simulate_dataset(
             f"in depth; {remedy}",
             stacklevel=2,
         )
+    K = source.K
+    meta = {
+        "format_version": FORMAT_VERSION,
+        "scene": source.name,
+        "source": source.kind,
+        "height": height,
+        "width": width,
+        "channels": channels,
+        "num_readouts": readouts,
+        "readout_period_s": READOUT_PERIOD_S,
+        "flip": flip,
+        "spike_files": spike_files(channels),
+        "seed": seed,
+        "sim": dataclasses.asdict(params),
+        **intrinsics_keys(K),
+        "scene_center": source.scene_center.tolist(),
+        "scene_radius": source.scene_radius,
+        "degrees_per_readout": speed if source.kind != "frames" else None,
+        "frame_every": frame_every if source.kind != "frames" else None,
+        "up": source.up.tolist() if isinstance(source, RenderSource) else None,  # the spiral's
+        "luma": "rec709-linear" if channels == 1 else None,
+        "image_scale": rate,
+        "train_every": train_every,
+    }
     # one process writes `out`, none reading it (a training's SIM cache, its spikes): the checks
     # again under the lock, which --overwrite's deletion keeps
+    made = not Path(out).exists()  # (removed again where the simulation fails)
     with writing_dataset(out, OTHER_OUT):
-        out = prepare_output(out, overwrite)
-        write_spikes(source, trajectory, times, out, readouts, seed, params, flip, progress)
-        K = source.K
-        meta = {
-            "format_version": FORMAT_VERSION,
-            "scene": source.name,
-            "source": source.kind,
-            "height": height,
-            "width": width,
-            "channels": channels,
-            "num_readouts": readouts,
-            "readout_period_s": READOUT_PERIOD_S,
-            "flip": flip,
-            "spike_files": spike_files(channels),
-            "seed": seed,
-            "sim": dataclasses.asdict(params),
-            **intrinsics_keys(K),
-            "scene_center": source.scene_center.tolist(),
-            "scene_radius": source.scene_radius,
-            "degrees_per_readout": speed if source.kind != "frames" else None,
-            "frame_every": frame_every if source.kind != "frames" else None,
-            "up": source.up.tolist() if isinstance(source, RenderSource) else None,  # the spiral's
-            "luma": "rec709-linear" if channels == 1 else None,
-            "image_scale": rate,
-            "train_every": train_every,
-        }
-        write_parts(out, meta, trajectory, timestamps, views)
-        del views, source  # the test images (and a frame sequence's frames) not held twice, loaded
+        out = check_output(out, overwrite)
+        # the new dataset is written into out/STAGING and loaded there, and replaces the old one
+        # only then: a simulation whose light saturates the sensor (or leaves it dark), refused
+        # on loading, or one that fails or is stopped, leaves no unloadable dataset and keeps
+        # an old one
+        staging = out / STAGING
+        if staging.exists():  # what an interrupted simulation left (--overwrite was given)
+            shutil.rmtree(staging)
+        staging.mkdir()
+        try:
+            write_spikes(source, trajectory, times, staging, readouts, seed, params, flip, progress)
+            write_parts(staging, meta, trajectory, timestamps, views)
+            del views, source  # the test images (and a frame sequence's frames) not held twice
+            with warnings.catch_warnings():  # (the load of `out` below says them)
+                warnings.simplefilter("ignore")
+                load_dataset(staging)
+        except BaseException:
+            shutil.rmtree(out if made else staging, ignore_errors=True)
+            raise
+        move_in(out)
         with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
             warnings.simplefilter("ignore", DarkSpikesWarning)
             return load_dataset(out)
