@@ -260,6 +260,26 @@ def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
     check_targets(short, load_config("spikegs", {"supervision": {"exposure_window": 21}}))
 
 
+def test_a_tfi_image_past_the_poses_is_refused_first(dataset):
+    """Poses that end at the last training timestamp (a Dataset built in Python; the loaders keep
+    timestamps 32 readouts inside the poses): TFI's image there, half a readout later, asked for
+    a pose past them mid-run ('pose_at: t=3964.5 outside the trajectory's readouts')."""
+    last = float(np.max(dataset.train_timestamps))
+
+    def ending_at(end: float) -> Dataset:
+        readouts = np.linspace(dataset.trajectory.start, end, 50)
+        trajectory = Trajectory(readouts, dataset.trajectory.pose_at(readouts))
+        return Dataset(
+            dataset.root, dataset.meta, dataset.streams, trajectory, dataset.train_timestamps,
+            dataset.test_views,
+        )  # fmt: skip
+
+    with pytest.raises(ValueError, match="TFI's images, 0.5 readouts after the training .* past"):
+        build_targets(ending_at(last), load_config("tfi"), progress=False)
+    check_targets(ending_at(last), load_config("tfp33"))  # a TFP shows the light at k
+    check_targets(ending_at(last + 0.5), load_config("tfi"))
+
+
 @pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25", 2.0])  # 2: over a spike a readout
 def test_a_bad_intensity_calibration_is_named(dataset, rate):
     bad = Dataset(

@@ -28,6 +28,10 @@ from .machine_memory import machine_memory
 from .number_checks import is_number
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
+# readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
+# readouts k and k + 1 (a time ramp measures +0.50), so its pose is rendered there
+TFI_TIME = 0.5
+
 
 class ImageBudget:
     """Bytes that a run's target images may keep, shared by its instant and exposure images
@@ -273,21 +277,25 @@ def check_targets(dataset, config: Config) -> None:
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
                 f"{dataset.root} ({where}): at most {2 * room + 1}"
             )
-    # the exposure's renders lie within the window's readouts (exposure_poses <= its length):
-    # poses there, where they do not cover the stream's ends (a real recording's pose log)
+    # the exposure's renders lie within the window's readouts (exposure_poses <= its length),
+    # TFI's half a readout after its timestamp: poses there, where they do not cover the stream's
+    # ends (a real recording's pose log, or a Dataset built in Python)
     reach = s.exposure_window // 2 if s.exposure_weight > 0 else 0
+    late = max(reach, TFI_TIME if instant == "tfi" else 0)
     trajectory = dataset.trajectory
-    if ts.min() - reach < trajectory.start or ts.max() + reach > trajectory.end:
+    if ts.min() - reach < trajectory.start or ts.max() + late > trajectory.end:
         what = (
             f"config: supervision.exposure_window = {s.exposure_window} readouts around the "
             f"training timestamps reaches"
             if reach
+            else f"TFI's images, {TFI_TIME} readouts after the training timestamps, lie"
+            if late
             else "the training timestamps lie"
         )
         raise ValueError(
             f"{what} past the poses of {dataset.root} (timestamps {ts.min()}..{ts.max()}, poses "
-            f"over readouts {trajectory.start:g}..{trajectory.end:g}): a shorter window, or poses "
-            f"over more of the stream"
+            f"over readouts {trajectory.start:g}..{trajectory.end:g}): "
+            f"{'a shorter window, or ' if reach else ''}poses over more of the stream"
         )
     if instant == "clean":
         from .data.simulate import clean_source, simulated_trajectory  # (imports us)
@@ -363,9 +371,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         elif s.instant == "tfp":
             instant = images(lambda st, k: st.tfp(k, s.instant_window), s.instant_window)
         else:  # TFI counts no window: instant_window only sets smooth L1's zone
-            # TFI(k)'s inter-spike interval straddles readouts k and k + 1: it shows the light
-            # at k + 0.5 (a time ramp measures +0.50), so its pose is rendered there
-            instant = images(lambda st, k: st.tfi(k), s.instant_window, 0.5, span=1)
+            instant = images(lambda st, k: st.tfi(k), s.instant_window, TFI_TIME, span=1)
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)
