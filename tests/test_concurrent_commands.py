@@ -219,3 +219,39 @@ def test_a_filesystem_without_locks_is_said_once_by_simulate(tmp_path, monkeypat
         simulate_dataset("solids", out, overwrite=True, **SMALL)
     said = [str(w.message) for w in caught if "not locked" in str(w.message)]
     assert len(said) == 1, said
+
+
+def test_a_training_takes_its_datasets_lock_once(simulated, tmp_path, monkeypatch, capsys):
+    """`spikegs train` took the dataset's lock twice in one process, the command's and then its
+    Trainer's: harmless with flock, but where flock is emulated by POSIX locks (NFS) the inner
+    lock's end released the outer, and where the filesystem cannot lock it said so twice."""
+    import errno
+    import warnings
+
+    def no_flock(*args):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr("fcntl.flock", no_flock)
+    out = tmp_path / "run"
+    argv = ["train", str(simulated), "--method", "tfp33", "--iterations", "2", "--out", str(out)]
+    with warnings.catch_warnings():  # (said, not raised)
+        warnings.simplefilter("always")
+        assert main([*argv, "--no-progress"]) == 0
+    assert capsys.readouterr().err.count(f"{simulated / '.lock'}: not locked") == 1
+
+
+def test_a_dataset_read_in_two_blocks_stays_locked_until_the_last_ends(simulated):
+    """Blocks reading one dataset in one process (a training in each of two threads) share its
+    lock, held until the last ends: the first one's end does not release it under the other."""
+    from contextlib import ExitStack
+
+    from spikegs.data.dataset import reading_dataset, refuse_if_in_use
+
+    first, second = ExitStack(), ExitStack()
+    first.enter_context(reading_dataset(simulated))
+    second.enter_context(reading_dataset(simulated))
+    first.close()
+    with pytest.raises(Busy, match=BUSY_DATASET):  # a writer's check (another open of the file)
+        refuse_if_in_use(simulated)
+    second.close()
+    refuse_if_in_use(simulated)

@@ -18,6 +18,7 @@ import dataclasses
 import json
 import os
 import shutil
+import threading
 import warnings
 from pathlib import Path
 
@@ -277,18 +278,47 @@ def refuse_if_in_use(root: PathLike, remedy: str = "") -> None:
     refuse_if_held(Path(root) / LOCK, _in_use(Path(root), remedy))
 
 
+# the dataset locks this process holds shared (`reading_dataset`), by the lock file's real path:
+# [the open lock, the blocks holding it], changed under _READING_GUARD (a block per thread)
+_READING: dict[str, list] = {}
+_READING_GUARD = threading.Lock()
+
+
 def reading_dataset(root: PathLike):
     """A shared lock on ROOT/.lock for a `with` block that reads the dataset at `root` (loads it,
     trains from it): processes reading it run together; Busy while one writes it
     (`writing_dataset`), and a process that would write it is refused meanwhile. No lock where
     `root` takes none (`takes_lock`), or is a folder without the lock that this process cannot
-    write."""
+    write. A process takes it once (`spikegs train`'s, then its Trainer's; trainings in threads),
+    held until its last block ends: where flock is emulated by POSIX locks (NFS) the close of any
+    descriptor of the file releases the process's lock, and a filesystem without locks is said
+    once."""
     root = Path(root)
     if not takes_lock(root):
         return contextlib.nullcontext()
-    return shared_lock(
-        root / LOCK, f"{root} is being written by another process ({WRITERS}); wait for it to end"
-    )
+    return _held_shared(root)
+
+
+@contextlib.contextmanager
+def _held_shared(root: Path):
+    """`reading_dataset`'s lock, shared by this process's blocks in _READING."""
+    path = os.path.realpath(root / LOCK)
+    with _READING_GUARD:
+        held = _READING.get(path)
+        if held is None:
+            busy = f"{root} is being written by another process ({WRITERS}); wait for it to end"
+            lock = contextlib.ExitStack()
+            lock.enter_context(shared_lock(root / LOCK, busy))
+            held = _READING[path] = [lock, 0]
+        held[1] += 1
+    try:
+        yield
+    finally:
+        with _READING_GUARD:
+            held[1] -= 1
+            if not held[1]:
+                del _READING[path]
+                held[0].close()
 
 
 def takes_lock(root: Path) -> bool:
