@@ -2780,6 +2780,27 @@ def test_resume_with_other_settings_names_them_before_any_work(dataset, tmp_path
     assert (tmp_path / "run" / "config.yaml").read_bytes() == saved
 
 
+def test_a_run_saved_with_a_schedule_that_never_densified_is_refused_saying_what_to_do(
+    dataset, tmp_path, capsys
+):
+    """A schedule whose rounds all fell at or past the run's last iteration was accepted before
+    2026-12-01 (the run never densified); --resume refused its config.yaml as a fresh config,
+    without naming the run's file or saying that the run cannot go on, nor what trains as it did."""
+    schedule = {"start": 50, "stop": 1000, "every": 10}
+    config = load_config("tfp33", {"train": {"iterations": 60}, "densify": schedule})
+    saved = config.to_dict()
+    saved["densify"]["every"] = 100  # as the earlier spikegs saved it
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text(yaml.safe_dump(saved))
+    argv = ["train", str(dataset.root), "--resume", "--out", str(run), "--no-progress"]
+    assert main(argv) == 2
+    said = capsys.readouterr().err
+    assert f"{run / 'config.yaml'}: the run's own settings, of the spikegs that trained" in said
+    assert "the run would never densify), or densify.start >= train.iterations (60)" in said
+    assert "with the settings it trained with alone: train afresh into another --out" in said
+
+
 def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()

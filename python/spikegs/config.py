@@ -307,7 +307,8 @@ class Config:
             d.every,
             f"a period with a multiple in densify.start..stop = {d.start}..{end} (densification "
             f"runs at the multiples of every, before the run's last iteration {t.iterations}: "
-            f"none there, the run would never densify)",
+            f"none there, the run would never densify), or densify.start >= train.iterations "
+            f"({t.iterations}) for a run without densification, as such a schedule trains",
         )
         _require(
             d.grad_threshold > 0,
@@ -723,9 +724,17 @@ def older_run_keys(doc: dict) -> dict:
 def load_saved_run(path: Path, overrides: dict | None = None, iterations: int | None = None):
     """A run's own config.yaml (`path`) as the run trained: the keys added since it was saved at
     the values that kept its behaviour (LEGACY_VALUES), then `overrides` and `iterations` as in
-    `load_config`."""
+    `load_config`; ValueError naming the file where its settings are refused now (a schedule
+    that never densified, which an earlier spikegs accepted)."""
     overrides = {**legacy_overrides(path), **(overrides or {})}
-    return load_config(path, overrides, iterations, saved_run=True)
+    try:
+        return load_config(path, overrides, iterations, saved_run=True)
+    except ValueError as err:  # (a never-densifying schedule, accepted before 2026-12-01)
+        raise ValueError(
+            f"{path}: the run's own settings, of the spikegs that trained it, are refused now: "
+            f"{err}. A run resumes from its checkpoint with the settings it trained with alone: "
+            f"train afresh into another --out, with settings accepted now"
+        ) from None
 
 
 def with_defaults(saved: dict) -> dict:
