@@ -173,10 +173,12 @@ def test_a_refused_simulation_leaves_no_dataset_and_keeps_the_one_it_would_repla
     its folder stayed, a dataset that training refused, and `--overwrite` had deleted the good
     dataset it was to replace."""
     still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
-    saturated = r"every pixel firing at every readout .*a saturated simulation"
+    saturated = r"every pixel firing at every readout .*a saturated simulation.*; the simulation"
+    saturated += " is not kept"
     new = tmp_path / "new"
-    with pytest.warns(UserWarning), pytest.raises(ValueError, match=saturated):
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match=saturated) as said:
         simulate_dataset(constant_source(5.0), new, **still)
+    assert str(said.value).startswith(f"{new / 'spikes.dat'}: every pixel")  # as it would be
     assert not new.exists()
     with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
         old = simulate_dataset(constant_source(0.6), tmp_path / "old", **still).root

@@ -609,7 +609,11 @@ def simulate_dataset(
             del views, source  # the test images (and a frame sequence's frames) not held twice
             with warnings.catch_warnings():  # (the load of `out` below says them)
                 warnings.simplefilter("ignore")
-                load_dataset(staging)
+                try:
+                    load_dataset(staging)
+                except ValueError as err:  # its files named as the dataset's, which it is not
+                    said = str(err).replace(str(staging), str(out))
+                    raise ValueError(f"{said}; the simulation is not kept") from None
         except BaseException:
             shutil.rmtree(out if made else staging, ignore_errors=True)
             raise
