@@ -2819,15 +2819,16 @@ def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):
         ("densify", "instant_only", False, True),
         ("supervision", "instant_until", "run", "densify"),
         ("supervision", "deflicker", False, True),
+        ("supervision", "mask_defects", False, True),
     ],
 )
 def test_a_run_saved_before_a_key_with_a_new_behaviour_resumes_as_trained(
     dataset, tmp_path, section, key, old, new
 ):
-    """densify.absgrad, densify.instant_only, supervision.instant_until and
-    supervision.deflicker came with settings (their defaults, instant_until spikegs's) unlike the
-    behaviour before them: a run saved without the key resumes, from its own settings, as it was
-    trained."""
+    """densify.absgrad, densify.instant_only, supervision.instant_until, supervision.deflicker
+    and supervision.mask_defects came with settings (their defaults, instant_until spikegs's)
+    unlike the behaviour before them: a run saved without the key resumes, from its own settings,
+    as it was trained."""
     run = tmp_path / "run"
     exposure = {"supervision": {"exposure_weight": 1.0, "exposure_poses": 3}}
     base = {**FAST, **exposure, "train": {**FAST["train"], "iterations": 2}}

@@ -86,6 +86,9 @@ class SupervisionConfig:
     # divide a light's flicker found in the spikes out of every target (spikegs.flicker; false:
     # the targets as the spikes show them)
     deflicker: bool = True
+    # leave a sensor's hot, stuck and dead pixels found in the spikes out of every loss against a
+    # target made from them (spikegs.pixel_defects; false: every pixel)
+    mask_defects: bool = True
 
     def instant_total_weight(self) -> float:
         """The weight of the losses on the instant render: L_instant's and D-SSIM's (0 without
@@ -675,10 +678,11 @@ def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
 # was trained with this value (densify.absgrad: the plain gradient, before AbsGS, 2026-11-24;
 # densify.instant_only: the whole step's signal, before 2026-11-25; supervision.instant_until:
 # both losses to the end, before 2026-11-29, as the dataclass default still is but spikegs not;
-# supervision.deflicker: the targets as the spikes showed them, before 2026-12-01).
+# supervision.deflicker: the targets as the spikes showed them, before 2026-12-01;
+# supervision.mask_defects: every pixel in the losses, before 2026-12-01, fifty-second session).
 LEGACY_VALUES = {
     "densify": {"absgrad": False, "instant_only": False},
-    "supervision": {"instant_until": "run", "deflicker": False},
+    "supervision": {"instant_until": "run", "deflicker": False, "mask_defects": False},
 }
 
 

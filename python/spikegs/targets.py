@@ -26,6 +26,7 @@ from .config import Config, SimConfig
 from .flicker import MAX_DEPTH, cached_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
+from .pixel_defects import valid_pixels
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 # readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
@@ -72,7 +73,8 @@ class TargetImages:
     each computed on first access (`image_fn` of that one readout) and kept while `budget`
     lasts. `quantum`: one spike of the TFP window that they count or estimate, in intensity
     units (smooth L1's zone). `time_offset`: readouts from a timestamp to the time its image
-    shows (TFI's: +0.5), where the trainer renders the instant pose."""
+    shows (TFI's: +0.5), where the trainer renders the instant pose. `valid`: the pixels [H, W,
+    C] a loss may compare (None: all; `pixel_defects`)."""
 
     def __init__(
         self,
@@ -82,8 +84,10 @@ class TargetImages:
         quantum: float,
         time_offset: float = 0.0,
         budget: ImageBudget | None = None,
+        valid: torch.Tensor | None = None,
     ):
         self.timestamps = timestamps  # [M] readouts
+        self.valid = valid
         self.time_offset = time_offset
         self._image_fn = image_fn  # readouts [n] -> firing rates [n, H, W, C]
         self._scale = scale  # firing rate of intensity 1.0
@@ -350,7 +354,10 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             gain = flicker.gain(np.asarray(k) - span // 2 + time_offset, span)  # [n]
             return rates / gain[:, None, None, None].astype(np.float32)
 
-        return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget)
+        return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget, valid)
+
+    # a sensor's hot, stuck and dead pixels, left out of every loss against the spikes
+    valid = valid_pixels(streams, dataset.root) if s.mask_defects and from_spikes else None
 
     instant, sim_seconds = None, 0.0
     if config.instant_target() != "none":

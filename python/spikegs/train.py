@@ -32,6 +32,7 @@ from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt, interruption, progress_lost
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
+from .pixel_defects import hide
 from .ply import save_ply
 from .point_cloud import (
     ball_points,
@@ -428,16 +429,13 @@ class Trainer:
         if instant_trains:
             instant = self.model.render(viewmats[0], self.K, w, h, self.near, **tap)
             radii = torch.maximum(radii, instant.radii)
-            terms["instant"] = instant_loss(
-                instant.image,
-                targets.instant[index],
-                s.instant_norm,
-                targets.instant.quantum,
-            )
+            target = targets.instant[index]
+            shown = hide(instant.image, target, targets.instant.valid)  # defects: no residual
+            terms["instant"] = instant_loss(shown, target, s.instant_norm, targets.instant.quantum)
             loss = loss + s.instant_weight * terms["instant"]
-            self.brightness.observe("instant", [instant.image], targets.instant[index])
+            self.brightness.observe("instant", [instant.image], target)
             if s.dssim_weight:
-                terms["dssim"] = dssim(instant.image, targets.instant[index])
+                terms["dssim"] = dssim(shown, target)
                 loss = loss + s.dssim_weight * terms["dssim"]
         if targets.exposure is not None:
             renders = []
@@ -448,10 +446,12 @@ class Trainer:
                 r = self.model.render(viewmat, self.K, w, h, self.near, **exposure_tap)
                 radii = torch.maximum(radii, r.radii)
                 renders.append(r.image)
+            target = targets.exposure[index]
+            shown = [hide(r, target, targets.exposure.valid) for r in renders]
             terms["exposure"] = exposure_loss(
-                renders, targets.exposure[index], s.exposure_norm, targets.exposure.quantum
+                shown, target, s.exposure_norm, targets.exposure.quantum
             )
-            self.brightness.observe("exposure", renders, targets.exposure[index])
+            self.brightness.observe("exposure", renders, target)
             loss = loss + s.exposure_weight * terms["exposure"]
         if not torch.isfinite(loss):
             raise self._diverged(f"the loss is {loss.item()}, before the update")

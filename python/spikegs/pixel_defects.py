@@ -1,0 +1,93 @@
+"""Hot, stuck and dead pixels found in the spikes themselves, left out of the losses.
+
+A sensor's defect stays at one pixel of the frame. Where the camera moves, each view puts it on
+another ray and 3DGS averages it away; where it barely moves (or views differ little), the
+defect falls on nearly one ray in every view and is fitted as a point floating before the scene
+(BENCHMARKS.md, "Sensor defects where the camera barely moves"). A pixel is taken as hot (or
+stuck) where, in nearly every stretch of the recording (each view's stream of a per-view
+capture), it fires well above all but one of its 8 neighbours: a bright point of the scene (a
+highlight, a lamp) moves across the pixels as the camera does, and an edge or a thin line has a
+neighbour as bright. Dead: far below all but one over the whole recording, and in nearly every
+stretch no higher than they.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import torch
+
+from .spikes import SpikeStream
+
+STRETCHES = 16  # a recording's equal stretches (a per-view capture's: its views)
+SHARE = 0.9  # of the stretches in which a defect must stand out
+RATIO = 1.5  # how far from its neighbours' firing rate, as a factor
+Z = 4.0  # and by how many of the neighbours' Poisson standard deviations beyond it
+
+
+def stretches(stream):
+    """Each stretch of `stream` (a SpikeStream: STRETCHES equal ones, at least a readout each; a
+    ViewStreams: the longest odd window of each view), one at a time: its firing rates [H, W]
+    and the readouts it counts."""
+    if isinstance(stream, SpikeStream):
+        window = max(len(stream) // STRETCHES, 1)
+        starts = np.arange(min(len(stream) // window, STRETCHES)) * window
+        centers, windows = starts + window // 2, np.full(len(starts), window)
+    else:  # a ViewStreams
+        centers, windows = stream.centers(), np.diff(stream.offsets)
+        windows = windows - 1 + windows % 2  # [V] odd
+    for k, w in zip(centers, windows):
+        yield stream.tfp(int(k), int(w)), int(w)
+
+
+def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The second darkest and second brightest [H, W] of each pixel's 8 neighbours in rates [H,
+    W] (edges repeated)."""
+    h, w = rates.shape
+    pad = np.pad(rates, 1, mode="edge")
+    ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
+    around = np.sort(np.stack([pad[y : y + h, x : x + w] for y, x in ring]), axis=0)
+    return around[1], around[-2]
+
+
+def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
+    """Hot (or stuck) and dead pixels of one channel's `stream`: two bool maps [H, W]."""
+    shape = (stream.height, stream.width)
+    above, not_below, spikes = np.zeros(shape), np.zeros(shape), np.zeros(shape)  # [H, W] each
+    count = readouts = 0
+    for rates, n in stretches(stream):  # [H, W], readouts
+        dark, bright = _second(rates)
+        above += rates > RATIO * bright + Z * np.sqrt(np.maximum(bright, 1 / n) / n)
+        not_below += rates <= dark
+        spikes += rates * n
+        readouts += n
+        count += 1
+    total = spikes / readouts  # [H, W] the whole recording's rate
+    dark_total, _ = _second(total)
+    deep = total < dark_total / RATIO - Z * np.sqrt(dark_total / readouts)
+    return above / count >= SHARE, deep & (not_below / count >= SHARE)
+
+
+def valid_pixels(streams: list, root) -> torch.Tensor | None:
+    """Pixels [H, W, C] (one channel a stream of `streams`) whose spikes the losses may compare
+    with, or None where no channel has a defect; a warning counts the defects found."""
+    found = [find_defects(stream) for stream in streams]
+    hot = np.stack([h for h, _ in found], -1)  # [H, W, C]
+    dead = np.stack([d for _, d in found], -1)
+    if not (hot.any() or dead.any()):
+        return None
+    warnings.warn(
+        f"{root}: {int(hot.sum())} hot or stuck pixels (firing far above their neighbours "
+        f"throughout the recording) and {int(dead.sum())} dead ones (far below them), left out "
+        f"of every loss against a target made from the spikes (supervision.mask_defects; "
+        f"docs/datasets.md, 'Sensor defects')",
+        stacklevel=3,
+    )
+    return torch.from_numpy(~(hot | dead))
+
+
+def hide(render: torch.Tensor, target: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
+    """`render` [H, W, C] showing `target` [H, W, C] where `valid` [H, W, C] is false: those
+    pixels add no residual and no gradient to a loss (`valid` None: `render` itself)."""
+    return render if valid is None else torch.where(valid, render, target)

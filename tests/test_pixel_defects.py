@@ -1,0 +1,146 @@
+"""A sensor's hot, stuck and dead pixels: found in the spikes, left out of the losses."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+import torch
+from spikegs import SpikeStream, simulate_spikes
+from spikegs.config import load_config
+from spikegs.data import load_dataset, simulate_dataset
+from spikegs.data.view_stream import ViewStreams
+from spikegs.pixel_defects import find_defects
+from spikegs.spikes import DatWriter
+from spikegs.targets import build_targets
+from spikegs.train import Trainer
+
+SIZE, READOUTS = 32, 1600
+HOT, STUCK, DEAD = [(5, 7), (20, 11), (27, 25)], [(9, 22), (14, 3)], [(16, 16), (24, 8)]
+FAST = {"train": {"iterations": 2, "init_gaussians": 300, "eval_every": 2, "checkpoint_every": 2}}
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    """solids seen by a camera that barely moves (12 degrees over the recording)."""
+    root = tmp_path_factory.mktemp("defects") / "clean"
+    return simulate_dataset(
+        "solids", root, height=SIZE, width=SIZE, readouts=READOUTS, speed=0.0075, progress=False
+    )
+
+
+@pytest.fixture(scope="module")
+def defective(clean, tmp_path_factory):
+    """`clean` with hot pixels (a spike at 0.2-1 a readout, OR-ed), stuck (every readout) and
+    dead ones (none) at fixed sensor positions."""
+    root = tmp_path_factory.mktemp("defects") / "defective"
+    shutil.copytree(clean.root, root)
+    meta = json.loads((root / "meta.json").read_text())
+    bits = np.unpackbits(clean.stream.packed(), axis=2, bitorder="little")[..., :SIZE] > 0
+    rng = np.random.default_rng(1)
+    for (y, x), rate in zip(HOT, (0.2, 0.5, 1.0)):
+        bits[:, y, x] |= rng.random(len(bits)) < rate
+    for y, x in STUCK:
+        bits[:, y, x] = True
+    for y, x in DEAD:
+        bits[:, y, x] = False
+    with DatWriter(root / "spikes.dat", SIZE, SIZE, meta["flip"]) as writer:
+        writer.write_bits(bits)
+    return load_dataset(root)
+
+
+def pixels(found: np.ndarray) -> set:
+    return set(zip(*np.nonzero(found)))
+
+
+def test_hot_stuck_and_dead_pixels_are_found(defective):
+    hot, dead = find_defects(defective.stream)
+    assert pixels(hot) == set(HOT + STUCK)
+    assert pixels(dead) == set(DEAD)
+
+
+def test_per_view_streams_are_searched_view_by_view(defective):
+    """A capture of a stream per view (a ViewStreams of 8 views of 200 readouts): each view is a
+    stretch."""
+    packed = defective.stream.packed()  # [T, H, W / 8]
+    views = [SpikeStream.from_packed(packed[i * 200 : (i + 1) * 200], SIZE, SIZE) for i in range(8)]
+    hot, dead = find_defects(ViewStreams(views, [f"r_{i}" for i in range(8)]))
+    assert pixels(hot) == set(HOT + STUCK)
+    assert pixels(dead) == set(DEAD)
+
+
+@pytest.mark.parametrize(
+    "scene, color", [("solids", False), ("wires", False), ("fine-texture", False), ("solids", True)]
+)
+def test_clean_scenes_have_none(clean, tmp_path, scene, color):
+    """No pixel of the built-in scenes, the slow camera's or the default orbit's, in colour too."""
+    ds = simulate_dataset(
+        scene, tmp_path / scene, height=SIZE, width=SIZE, readouts=READOUTS, color=color,
+        progress=False,
+    )  # fmt: skip
+    for stream in [clean.stream, *ds.streams]:
+        hot, dead = find_defects(stream)
+        assert not hot.any() and not dead.any()
+
+
+def test_bright_points_of_the_scene_are_not_taken_for_defects():
+    """At 1.0 on a grey 0.2: a one-pixel highlight that moves a pixel every 100 readouts (a
+    stretch), a short line one pixel wide that moves every 200, a still lamp of 2x2 pixels and
+    a still line across the frame: none is masked. (A still one-pixel point, or a still line's
+    end, would be: the rates cannot tell it from a defect.)"""
+
+    def light(t):  # [16, 16]
+        image = np.full((16, 16), 0.2)
+        image[4, int(t) // 100] = 1.0
+        image[7, 3 + int(t) // 200 : 8 + int(t) // 200] = 1.0
+        image[10:12, 3:5] = 1.0
+        image[13] = 1.0
+        return image
+
+    stream = SpikeStream.from_packed(simulate_spikes(light, 1600, frame_every=4), width=16)
+    hot, dead = find_defects(stream)
+    assert not hot.any() and not dead.any()
+    light_still = lambda t: light(0)  # noqa: E731
+    stream = SpikeStream.from_packed(simulate_spikes(light_still, 1600, frame_every=4), width=16)
+    assert pixels(find_defects(stream)[0]) == {(4, 0), (7, 3), (7, 7)}
+
+
+def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
+    """Every loss against a target from the spikes sees the render equal to its target at the
+    defects (no residual, no gradient) and the render elsewhere; a warning counts them."""
+    with pytest.warns(UserWarning, match=r"5 hot or stuck pixels \(.*\) and 2 dead ones"):
+        targets = build_targets(defective, load_config("tfp33"), progress=False)
+    valid = targets.instant.valid[..., 0]  # [H, W]
+    assert pixels(~valid.numpy()) == set(HOT + STUCK + DEAD)
+    seen = {}
+
+    def spy(name):
+        def loss(shown, target, *_):  # shown [H, W, C] (the exposure's: K of them)
+            first = shown[0] if isinstance(shown, list) else shown
+            seen[name] = first.detach(), target
+            return (first - target).abs().mean()
+
+        return loss
+
+    for name in ("instant_loss", "exposure_loss"):
+        monkeypatch.setattr(f"spikegs.train.{name}", spy(name))
+    config = load_config("spikegs", {**FAST, "sim": {"iterations": 2}})
+    with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
+        Trainer(defective, config, tmp_path / "run", progress=False).train()
+    assert set(seen) == {"instant_loss", "exposure_loss"}
+    for name, (shown, target) in seen.items():
+        assert torch.equal(shown[~valid], target[~valid]), name
+        assert not torch.equal(shown[valid], target[valid]), name
+
+
+def test_the_switch_and_clean_targets_mask_nothing(defective):
+    """supervision.mask_defects false: no pixel masked, nothing said; the oracle's clean images
+    are no spikes' and keep every pixel."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        config = load_config("tfp33", {"supervision": {"mask_defects": False}})
+        assert build_targets(defective, config, progress=False).instant.valid is None
+        assert build_targets(defective, load_config("oracle"), progress=False).instant.valid is None
