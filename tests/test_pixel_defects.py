@@ -109,8 +109,9 @@ def test_bright_points_of_the_scene_are_not_taken_for_defects():
 
 
 def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
-    """Every loss against a target from the spikes sees the render equal to its target at the
-    defects (no residual, no gradient) and the render elsewhere; a warning counts them."""
+    """Every loss against a target from the spikes, and the fit's brightness (a dim scene's
+    defects outshone it: a biased fit said), sees the render equal to its target at the defects
+    (no residual, no gradient) and the render elsewhere; a warning counts them."""
     with pytest.warns(UserWarning, match=r"5 hot or stuck pixels \(.*\) and 2 dead ones"):
         targets = build_targets(defective, load_config("tfp33"), progress=False)
     valid = targets.instant.valid[..., 0]  # [H, W]
@@ -127,10 +128,15 @@ def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
 
     for name in ("instant_loss", "exposure_loss"):
         monkeypatch.setattr(f"spikegs.train.{name}", spy(name))
+
+    def observe(_, term, renders, target):  # the fit's brightness, as its loss sees the renders
+        seen[f"brightness of {term}"] = renders[0].detach(), target
+
+    monkeypatch.setattr("spikegs.train.FitBrightness.observe", observe)
     config = load_config("spikegs", {**FAST, "sim": {"iterations": 2}})
     with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
         Trainer(defective, config, tmp_path / "run", progress=False).train()
-    assert set(seen) == {"instant_loss", "exposure_loss"}
+    assert len(seen) == 4, seen.keys()
     for name, (shown, target) in seen.items():
         assert torch.equal(shown[~valid], target[~valid]), name
         assert not torch.equal(shown[valid], target[valid]), name

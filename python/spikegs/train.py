@@ -433,7 +433,7 @@ class Trainer:
             shown = hide(instant.image, target, targets.instant.valid)  # defects: no residual
             terms["instant"] = instant_loss(shown, target, s.instant_norm, targets.instant.quantum)
             loss = loss + s.instant_weight * terms["instant"]
-            self.brightness.observe("instant", [instant.image], target)
+            self.brightness.observe("instant", [shown], target)  # (as the loss sees it)
             if s.dssim_weight:
                 terms["dssim"] = dssim(shown, target)
                 loss = loss + s.dssim_weight * terms["dssim"]
@@ -451,7 +451,7 @@ class Trainer:
             terms["exposure"] = exposure_loss(
                 shown, target, s.exposure_norm, targets.exposure.quantum
             )
-            self.brightness.observe("exposure", renders, target)
+            self.brightness.observe("exposure", shown, target)
             loss = loss + s.exposure_weight * terms["exposure"]
         if not torch.isfinite(loss):
             raise self._diverged(f"the loss is {loss.item()}, before the update")
