@@ -1302,7 +1302,10 @@ def test_every_method_config_loads():
         ("spikegs", {"lr": {"background": 1e30}}, "lr.background"),
         ("spikegs", {"pose_refine": {"lr": 5.0}}, "pose_refine.lr"),
         # overflowed Adam's squared gradients at the first step, after SIM had trained
-        ("spikegs", {"supervision": {"instant_weight": 1e30}}, "instant_weight.*0..1,000,000"),
+        ("spikegs", {"supervision": {"instant_weight": 1e30}}, "instant_weight.*1e-06..1,000,000"),
+        # trained nothing (the gradients under Adam's eps), silently
+        ("tfp33", {"supervision": {"instant_weight": 1e-14}}, "instant_weight.*0 \\(off\\)"),
+        ("spikegs", {"supervision": {"dssim_weight": 1e-40}}, "dssim_weight.*eps"),
         ("spikegs", {"supervision": {"exposure_weight": 2e6}}, "exposure_weight.*float32"),
         ("spikegs", {"supervision": {"dssim_weight": 1e15}}, "dssim_weight.*ratios"),
     ],
@@ -1380,6 +1383,8 @@ def test_config_edges_of_the_ranges_are_accepted():
     assert config.densify.max_gaussians == config.train.init_gaussians == 5000
     weights = {"instant_weight": 1e6, "exposure_weight": 1e6, "dssim_weight": 1e6}
     assert load_config("spikegs", {"supervision": weights}).supervision.dssim_weight == 1e6
+    weights = {"instant_weight": 1e-6, "exposure_weight": 1e-6, "dssim_weight": 0.0}
+    assert load_config("spikegs", {"supervision": weights}).supervision.instant_weight == 1e-6
 
 
 def test_config_base_is_relative_to_the_including_file(tmp_path, monkeypatch):

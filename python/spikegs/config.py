@@ -51,8 +51,10 @@ MAX_LR = 1.0  # learning rates above it move parameters by more than their own s
 # drowns it in float32's rounding of their sum. Far above, Adam's squared gradients overflow
 # float32 (|gradient| 1.8e19): a weight's gradient is up to ~its size (the background's, a mean
 # over pixels; 0.59 at most over 1500 steps of tfp33 on 128² solids), and 1e21-1e22 stopped such a
-# run within 9 steps, after SIM where it trains (BENCHMARKS.md, "Loss weights' bound")
-MAX_WEIGHT = 1e6
+# run within 9 steps, after SIM where it trains (BENCHMARKS.md, "Loss weights' bound"). Far
+# below, the gradients fall under Adam's eps (1e-15): 32² solids' tfp33 trained as at 1 down to
+# 1e-8, 2.7 dB worse at 1e-10, and not at all from 1e-14; a weight is 0 (off) or at least MIN_WEIGHT
+MAX_WEIGHT, MIN_WEIGHT = 1e6, 1e-6
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
@@ -223,12 +225,12 @@ class Config:
             )
         for name in ("instant_weight", "exposure_weight", "dssim_weight"):
             _require(
-                0 <= getattr(s, name) <= MAX_WEIGHT,
+                getattr(s, name) == 0 or MIN_WEIGHT <= getattr(s, name) <= MAX_WEIGHT,
                 f"supervision.{name}",
                 getattr(s, name),
-                f"0..{MAX_WEIGHT:,.0f} (only the weights' ratios matter: Adam's steps and "
-                f"densification do not see their scale; near 1e20 Adam's squared gradients "
-                f"overflow float32)",
+                f"0 (off) or {MIN_WEIGHT:g}..{MAX_WEIGHT:,.0f} (only the weights' ratios matter "
+                f"within it: Adam's steps and densification do not see their scale; near 1e20 "
+                f"Adam's squared gradients overflow float32, and under 1e-9 its eps swamps them)",
             )
         _require(
             s.dssim_weight == 0 or (s.instant != "none" and s.instant_weight > 0),
