@@ -266,8 +266,8 @@ def test_a_tfi_image_past_the_poses_is_refused_first(dataset):
     a pose past them mid-run ('pose_at: t=3964.5 outside the trajectory's readouts')."""
     last = float(np.max(dataset.train_timestamps))
 
-    def ending_at(end: float) -> Dataset:
-        readouts = np.linspace(dataset.trajectory.start, end, 50)
+    def ending_at(end: float, start: float = dataset.trajectory.start) -> Dataset:
+        readouts = np.linspace(start, end, 50)
         trajectory = Trajectory(readouts, dataset.trajectory.pose_at(readouts))
         return Dataset(
             dataset.root, dataset.meta, dataset.streams, trajectory, dataset.train_timestamps,
@@ -278,6 +278,10 @@ def test_a_tfi_image_past_the_poses_is_refused_first(dataset):
         build_targets(ending_at(last), load_config("tfi"), progress=False)
     check_targets(ending_at(last), load_config("tfp33"))  # a TFP shows the light at k
     check_targets(ending_at(last + 0.5), load_config("tfi"))
+    # poses that start after the first timestamp: that said, not TFI's half readout
+    late_start = ending_at(last + 0.5, float(np.min(dataset.train_timestamps)) + 1)
+    with pytest.raises(ValueError, match="^the training timestamps lie past the poses"):
+        check_targets(late_start, load_config("tfi"))
 
 
 @pytest.mark.parametrize("rate", [-1.0, 0, float("nan"), "0.25", 2.0])  # 2: over a spike a readout

@@ -287,13 +287,14 @@ def check_targets(dataset, config: Config) -> None:
     reach = s.exposure_window // 2 if s.exposure_weight > 0 else 0
     late = max(reach, TFI_TIME if instant == "tfi" else 0)
     trajectory = dataset.trajectory
-    if ts.min() - reach < trajectory.start or ts.max() + late > trajectory.end:
+    early = ts.min() - reach < trajectory.start
+    if early or ts.max() + late > trajectory.end:
         what = (
             f"config: supervision.exposure_window = {s.exposure_window} readouts around the "
             f"training timestamps reaches"
             if reach
             else f"TFI's images, {TFI_TIME} readouts after the training timestamps, lie"
-            if late
+            if late and not early
             else "the training timestamps lie"
         )
         raise ValueError(
