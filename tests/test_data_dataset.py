@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import re
 import shutil
 import warnings
@@ -20,6 +22,7 @@ from spikegs.data import (
     simulate_dataset,
 )
 from spikegs.data.dataset import (
+    STAGING,
     DarkSpikesWarning,
     check_meta_values,
     warn_rows_out_of_line,
@@ -189,6 +192,35 @@ def test_a_refused_simulation_leaves_no_dataset_and_keeps_the_one_it_would_repla
     assert sorted(p for p in old.rglob("*") if p.is_file()) == files  # the lock among them
     assert [p.read_bytes() for p in files] == before
     assert load_dataset(old).meta["sim"]["rate_at_one"] == 0.25
+
+
+def test_a_full_disk_under_overwrite_names_the_old_dataset_kept(tmp_path, monkeypatch):
+    """The new dataset is written beside the one it replaces: a disk without room for both
+    failed with '[Errno 28] No space left on device: DATASET/.simulating/spikes.dat', a path
+    gone by then, not saying why the room ran out nor what to do (a 1.6 MB dataset on a 2.2 MB
+    tmpfs, which --overwrite replaced before the staging, 4ddc4fe)."""
+    still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+        old = simulate_dataset(constant_source(0.6), tmp_path / "old", **still).root
+    before = (old / "spikes.dat").read_bytes()
+
+    def full(source, trajectory, times, out, *args):
+        (out / "spikes.dat").write_bytes(b"\0" * 10)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out / "spikes.dat"))
+
+    monkeypatch.setattr("spikegs.data.simulate.write_spikes", full)
+    said = r"No space left .* 0\.0 MiB\), written beside the one it replaces.*kept; delete"
+    with pytest.warns(UserWarning), pytest.raises(OSError, match=said) as raised:
+        simulate_dataset(constant_source(0.6), old, overwrite=True, **still)
+    assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(old)
+    assert (old / "spikes.dat").read_bytes() == before and not (old / STAGING).exists()
+    new = tmp_path / "new"  # no old dataset: no folder left, none named
+    with (
+        pytest.warns(UserWarning),
+        pytest.raises(OSError, match=r"MiB\); the simulation is not") as e,
+    ):
+        simulate_dataset(constant_source(0.6), new, **still)
+    assert e.value.filename == str(new) and not new.exists()
 
 
 def test_data_that_defeats_every_method_is_flagged(tmp_path):

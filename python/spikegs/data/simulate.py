@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import errno
 import inspect
 import math
 import shutil
@@ -28,6 +29,7 @@ from .dataset import (
     check_meta_values,
     check_output,
     check_test_views,
+    holds_dataset,
     intrinsics_keys,
     intrinsics_matrix,
     load_dataset,
@@ -614,8 +616,19 @@ def simulate_dataset(
                 except ValueError as err:  # its files named as the dataset's, which it is not
                     said = str(err).replace(str(staging), str(out))
                     raise ValueError(f"{said}; the simulation is not kept") from None
-        except BaseException:
+        except BaseException as err:
             shutil.rmtree(out if made else staging, ignore_errors=True)
+            if isinstance(err, OSError) and err.errno == errno.ENOSPC:  # named as `out`'s
+                need = readouts * channels * height * ((width + 7) // 8)  # the spikes' bytes
+                said = f"{err.strerror} for the new dataset (its spikes {need / 2**20:.1f} MiB)"
+                if holds_dataset(out):
+                    said += (
+                        ", written beside the one it replaces, which stays until it loads: the "
+                        "old dataset is kept; delete it first, or free room on the disk"
+                    )
+                raise OSError(
+                    errno.ENOSPC, f"{said}; the simulation is not kept", str(out)
+                ) from err
             raise
         move_in(out)
         with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
