@@ -13,7 +13,7 @@ from spikegs import SpikeStream, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.view_stream import ViewStreams
-from spikegs.pixel_defects import find_defects
+from spikegs.pixel_defects import find_defects, valid_pixels
 from spikegs.spikes import DatWriter
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
@@ -140,6 +140,13 @@ def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
     for name, (shown, target) in seen.items():
         assert torch.equal(shown[~valid], target[~valid]), name
         assert not torch.equal(shown[valid], target[valid]), name
+
+
+def test_a_colour_stream_counts_each_pixel_once(defective):
+    """A defect in every channel of a colour stream is one pixel (it was said as three)."""
+    with pytest.warns(UserWarning, match=r"\b5 hot or stuck .* 2 dead ones .*, in any channel"):
+        valid = valid_pixels([defective.stream] * 3, defective.root)  # [H, W, 3]
+    assert pixels(~valid.numpy().all(-1)) == set(HOT + STUCK + DEAD)
 
 
 def test_the_switch_and_clean_targets_mask_nothing(defective):

@@ -77,10 +77,12 @@ def valid_pixels(streams: list, root) -> torch.Tensor | None:
     dead = np.stack([d for _, d in found], -1)
     if not (hot.any() or dead.any()):
         return None
+    where = "" if len(streams) == 1 else ", in any channel"  # (pixels counted once)
     warnings.warn(
-        f"{root}: {int(hot.sum())} hot or stuck pixels (firing far above their neighbours "
-        f"throughout the recording) and {int(dead.sum())} dead ones (far below them), left out "
-        f"of every loss against a target made from the spikes (supervision.mask_defects; "
+        f"{root}: {int(hot.any(-1).sum())} hot or stuck pixels (firing far above their neighbours "
+        f"throughout the recording) and {int(dead.any(-1).sum())} dead ones (far below them)"
+        f"{where}, left out of every loss against a target made from the spikes "
+        f"(supervision.mask_defects; "
         f"docs/datasets.md, 'Sensor defects')",
         stacklevel=3,
     )
