@@ -194,6 +194,29 @@ def test_a_refused_simulation_leaves_no_dataset_and_keeps_the_one_it_would_repla
     assert load_dataset(old).meta["sim"]["rate_at_one"] == 0.25
 
 
+def test_a_failed_overwrite_keeps_a_dataset_made_while_it_waited_for_the_lock(
+    tmp_path, monkeypatch
+):
+    """A simulation looks whether its folder exists before it takes the lock, to remove a folder
+    it made where it fails: another simulation into the same folder that finished meanwhile made
+    it, and the failure of this one (--overwrite, its light saturating) deleted that dataset."""
+    import spikegs.data.simulate as simulate_module
+
+    still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    out, locked = tmp_path / "d", simulate_module.writing_dataset
+
+    def finished_meanwhile(root, remedy=""):  # the other simulation, then this one's lock
+        monkeypatch.setattr(simulate_module, "writing_dataset", locked)
+        with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+            simulate_dataset(constant_source(0.6), root, **still)
+        return locked(root, remedy)
+
+    monkeypatch.setattr(simulate_module, "writing_dataset", finished_meanwhile)
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match="a saturated simulation"):
+        simulate_dataset(constant_source(5.0), out, overwrite=True, **still)
+    assert load_dataset(out).meta["sim"]["rate_at_one"] == 0.25 and not (out / STAGING).exists()
+
+
 def test_a_full_disk_under_overwrite_names_the_old_dataset_kept(tmp_path, monkeypatch):
     """The new dataset is written beside the one it replaces: a disk without room for both
     failed with '[Errno 28] No space left on device: DATASET/.simulating/spikes.dat', a path

@@ -19,6 +19,7 @@ from ..spikes.simulate import simulate_channels
 from ..spikes.stream import as_flag
 from .dataset import (
     FORMAT_VERSION,
+    LOCK,
     READOUT_PERIOD_S,
     STAGING,
     TRAJECTORY_BACKUP,
@@ -597,6 +598,9 @@ def simulate_dataset(
     made = not Path(out).exists()  # (removed again where the simulation fails)
     with writing_dataset(out, OTHER_OUT):
         out = check_output(out, overwrite)
+        # and still empty but for the lock once it is held: another simulation into `out` may
+        # have finished between the look and the lock (this one, --overwrite, then replaces it)
+        made = made and all(entry.name == LOCK for entry in out.iterdir())
         # the new dataset is written into out/STAGING and loaded there, and replaces the old one
         # only then: a simulation whose light saturates the sensor (or leaves it dark), refused
         # on loading, or one that fails or is stopped, leaves no unloadable dataset and keeps
