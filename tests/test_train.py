@@ -2804,6 +2804,12 @@ def test_a_run_saved_with_a_schedule_that_never_densified_is_refused_saying_what
     assert f"{run / 'config.yaml'}: the run's own settings, of the spikegs that trained" in said
     assert "the run would never densify), or densify.start >= train.iterations (60)" in said
     assert "with the settings it trained with alone: train afresh into another --out" in said
+    # where the run's settings load, a refusal is the caller's overrides', not blamed on the run
+    accepted = {**saved, "densify": {**saved["densify"], "every": 10}}
+    (run / "config.yaml").write_text(yaml.safe_dump(accepted))
+    with pytest.raises(ValueError, match="densify") as refused:
+        load_saved_run(run / "config.yaml", {"densify": {"every": 100}})
+    assert "own settings" not in str(refused.value)
 
 
 def test_a_run_saved_before_a_config_key_existed_resumes(dataset, tmp_path):

@@ -730,12 +730,19 @@ def older_run_keys(doc: dict) -> dict:
 def load_saved_run(path: Path, overrides: dict | None = None, iterations: int | None = None):
     """A run's own config.yaml (`path`) as the run trained: the keys added since it was saved at
     the values that kept its behaviour (LEGACY_VALUES), then `overrides` and `iterations` as in
-    `load_config`; ValueError naming the file where its settings are refused now (a schedule
-    that never densified, which an earlier spikegs accepted)."""
-    overrides = {**legacy_overrides(path), **(overrides or {})}
+    `load_config`; ValueError naming the file where its own settings are refused now (a
+    schedule that never densified, which an earlier spikegs accepted), else the error of
+    `overrides` or `iterations`."""
+    legacy = legacy_overrides(path)
     try:
-        return load_config(path, overrides, iterations, saved_run=True)
+        return load_config(path, {**legacy, **(overrides or {})}, iterations, saved_run=True)
     except ValueError as err:  # (a never-densifying schedule, accepted before 2026-12-01)
+        try:
+            load_config(path, legacy, saved_run=True)
+        except ValueError:
+            pass
+        else:
+            raise  # the run's settings load: the caller's overrides are refused
         raise ValueError(
             f"{path}: the run's own settings, of the spikegs that trained it, are refused now: "
             f"{err}. A run resumes from its checkpoint with the settings it trained with alone: "
