@@ -89,6 +89,16 @@ def valid_pixels(streams: list, root) -> torch.Tensor | None:
     return torch.from_numpy(~(hot | dead))
 
 
+def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
+    """`image` [H, W] with each of its `defects` [H, W] (bool) replaced by the median of its 8
+    neighbours (edges repeated), as a camera's defect-pixel correction does."""
+    from scipy.ndimage import median_filter  # (imported where a defect is found)
+
+    ring = np.ones((3, 3), bool)
+    ring[1, 1] = False
+    return np.where(defects, median_filter(image, footprint=ring, mode="nearest"), image)
+
+
 def hide(render: torch.Tensor, target: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
     """`render` [H, W, C] showing `target` [H, W, C] where `valid` [H, W, C] is false: those
     pixels add no residual and no gradient to a loss (`valid` None: `render` itself)."""

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..flicker import MAX_DEPTH, cached_flicker
+from ..pixel_defects import find_defects, repaired
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
 from ..targets import intensity_scale
@@ -178,14 +179,19 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
             stacklevel=3,
         )
     # a pseudo ground truth shows the light at its readouts: under a flicker (one stream), its
-    # phase there, which is the light's, not the scene's: divided out as from training targets
+    # phase there, which is the light's, not the scene's: divided out as from training targets;
+    # and the sensor's hot, stuck and dead pixels, which the losses leave out: their neighbours'
     pseudo = len(held_out) - len(sharp)
     flicker = cached_flicker([stream]) if pseudo else None
     flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
+    defects = np.logical_or(*find_defects(stream)) if pseudo else None  # [H, W]
     for h in held_out:
         if h.image is None:
             k = round(h.readout)
-            image = stream.tfp(k, h.window)[..., None]  # [H, W, 1]
+            image = stream.tfp(k, h.window)  # [H, W]
+            if defects.any():
+                image = repaired(image, defects)
+            image = image[..., None]  # [H, W, 1]
             if flicker is not None:  # (the TFP's readouts: the window centred on k)
                 image /= np.float32(flicker.gain([k - h.window // 2], h.window)[0])
             dataset.test_views.append(TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout))
@@ -197,6 +203,11 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
         meta["test_ground_truth"]["pseudo_flicker"] = (
             f"divided by the light's flicker: period {flicker.period:.1f} readouts, depth "
             f"{flicker.depth:.2f}"
+        )
+    if defects is not None and defects.any():
+        meta["test_ground_truth"]["pseudo_defects"] = (
+            f"{int(defects.sum())} hot, stuck or dead pixels of the sensor replaced by the median "
+            f"of their neighbours"
         )
     if sharp:
         meta["image_scale"] = scale
