@@ -41,13 +41,18 @@ def stretches(stream):
         yield stream.tfp(int(k), int(w)), int(w)
 
 
+def _neighbours(image: np.ndarray) -> np.ndarray:
+    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated), darkest first [8, H, W]."""
+    h, w = image.shape
+    pad = np.pad(image, 1, mode="edge")
+    ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
+    return np.sort(np.stack([pad[y : y + h, x : x + w] for y, x in ring]), axis=0)
+
+
 def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The second darkest and second brightest [H, W] of each pixel's 8 neighbours in rates [H,
     W] (edges repeated)."""
-    h, w = rates.shape
-    pad = np.pad(rates, 1, mode="edge")
-    ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
-    around = np.sort(np.stack([pad[y : y + h, x : x + w] for y, x in ring]), axis=0)
+    around = _neighbours(rates)
     return around[1], around[-2]
 
 
@@ -90,13 +95,9 @@ def valid_pixels(streams: list, root) -> torch.Tensor | None:
 
 
 def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
-    """`image` [H, W] with each of its `defects` [H, W] (bool) replaced by the median of its 8
-    neighbours (edges repeated), as a camera's defect-pixel correction does."""
-    from scipy.ndimage import median_filter  # (imported where a defect is found)
-
-    ring = np.ones((3, 3), bool)
-    ring[1, 1] = False
-    return np.where(defects, median_filter(image, footprint=ring, mode="nearest"), image)
+    """`image` [H, W] with each of its `defects` [H, W] (bool) replaced by the (upper) median of
+    its 8 neighbours (edges repeated), as a camera's defect-pixel correction does."""
+    return np.where(defects, _neighbours(image)[4], image)
 
 
 def hide(render: torch.Tensor, target: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
