@@ -135,7 +135,7 @@ def test_a_digest_cache_that_cannot_be_written_leaves_the_digest_as_it_is(tmp_pa
     def disk_full(path, text):
         raise OSError(errno.ENOSPC, "No space left on device", str(path))
 
-    monkeypatch.setattr("spikegs.spikes.stream.write_text_atomically", disk_full)
+    monkeypatch.setattr("spikegs.cache_home.write_text_atomically", disk_full)
     assert SpikeStream.open(path, 4, 16).digest() == SpikeStream.from_bits(bits).digest()
     assert not [p for p in (tmp_path / "home").rglob("*") if p.is_file()]
 

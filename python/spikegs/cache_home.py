@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .atomic_save import write_text_atomically
+
 
 def cache_home() -> Path | None:
     """$XDG_CACHE_HOME/spikegs (an absolute path, as the XDG spec has it), else
@@ -16,3 +18,13 @@ def cache_home() -> Path | None:
         except RuntimeError:  # no $HOME and no passwd entry
             return None
     return base / "spikegs"
+
+
+def write_cached(path: Path, text: str) -> None:
+    """Write `text` at `path` in the user's cache (its folders made, the write atomic), where the
+    cache can be written; else nothing: a read-only home computes it again next time."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomically(path, text)
+    except OSError:
+        pass

@@ -18,8 +18,7 @@ import scipy
 from tqdm.auto import tqdm
 
 from . import _C
-from .atomic_save import write_text_atomically
-from .cache_home import cache_home
+from .cache_home import cache_home, write_cached
 from .interrupt import progress_lost, quiet_close
 from .spikes.stream import SpikeStream
 
@@ -176,13 +175,7 @@ def cached_flicker(streams, progress: bool = False) -> Flicker | None:
     except (OSError, ValueError, KeyError, TypeError):  # none yet, or not one of ours
         pass
     found = find_flicker(streams, progress)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomically(
-            path, json.dumps({"flicker": None if found is None else asdict(found)})
-        )
-    except OSError:
-        pass  # a read-only cache: the next start searches again
+    write_cached(path, json.dumps({"flicker": None if found is None else asdict(found)}))
     return found
 
 

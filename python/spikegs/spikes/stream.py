@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import _C
-from ..atomic_save import naming, temporary_name, write_text_atomically, written_path
-from ..cache_home import cache_home
+from ..atomic_save import naming, temporary_name, written_path
+from ..cache_home import cache_home, write_cached
 from ..number_checks import is_int, is_number, whole_numbers
 from ..shell_words import shell_path
 
@@ -322,12 +322,9 @@ def _read_digest(path: Path | None) -> bytes | None:
 
 
 def _write_digest(path: Path, digest: bytes) -> None:
-    """Cache `digest` at `path`, where the cache folder can be written (else nothing)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomically(path, digest.hex())
-    except OSError:
-        pass  # a read-only home: the next command reads the file again
+    """Cache `digest` at `path`, where the cache folder can be written (else nothing: the next
+    command reads the file again)."""
+    write_cached(path, digest.hex())
 
 
 def _readouts_of(bits) -> np.ndarray:
