@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import shutil
 import signal
 import sys
 import weakref
 
 import numpy as np
 import pytest
+
+
+@pytest.fixture(autouse=True)
+def fresh_findings():
+    """Each test searches its recordings afresh: `found_once` keeps what a search of the spikes
+    found for the process, and a test may patch the search."""
+    from spikegs.found_once import forget
+
+    forget()
 
 
 @pytest.fixture
@@ -18,6 +28,29 @@ def ctrl_c():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
+
+
+@pytest.fixture
+def as_llff():
+    """`as_llff(dataset, root, spikes=None)`: `root`, made to hold `dataset`'s spikes (or the
+    .dat file `spikes`) in the LLFF layout, one stream with a pose every 50 readouts (every 8th
+    held out without a sharp image: scored against a pseudo ground truth)."""
+    from spikegs.data.llff import to_poses_bounds
+
+    def write(dataset, root, spikes=None):
+        readouts = np.arange(0, len(dataset.stream), 50)  # [P]
+        viewmats = dataset.trajectory.pose_at(readouts)  # [P, 4, 4]
+        centres = np.linalg.inv(viewmats)[:, :3, 3]  # [P, 3]
+        distance = np.linalg.norm(centres - dataset.scene_center, axis=1)
+        bounds = distance[:, None] + [-1.5 * dataset.scene_radius, 1.5 * dataset.scene_radius]
+        hwf = (dataset.stream.height, dataset.stream.width, dataset.K[0, 0])
+        root.mkdir(parents=True)
+        np.save(root / "poses_bounds.npy", to_poses_bounds(viewmats, hwf, bounds))
+        np.savetxt(root / "readouts.txt", readouts, fmt="%d")
+        shutil.copy(spikes or dataset.root / "spikes.dat", root / "spikes.dat")
+        return root
+
+    return write
 
 
 @pytest.fixture

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import json
-import shutil
 import tracemalloc
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,9 +12,9 @@ import torch
 from spikegs import SpikeStream, flicker, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.data.llff import to_poses_bounds
 from spikegs.data.simulate import clean_source, simulated_trajectory
 from spikegs.flicker import Flicker, _region_totals, find_flicker
+from spikegs.found_once import forget
 from spikegs.spikes import SimParams
 from spikegs.spikes.simulate import simulate_channels
 from spikegs.targets import build_targets
@@ -105,6 +103,7 @@ def test_a_long_search_shows_its_progress_unless_told_not_to(tmp_path, monkeypat
     )
     build_targets(dataset, load_config("tfp33"), progress=False)
     assert "flicker" not in capsys.readouterr().err
+    forget()  # (the finding is kept for the process: searched again)
     build_targets(dataset, load_config("tfp33"), progress=True)
     assert "flicker: 100%" in capsys.readouterr().err.replace("\r", "\n")
 
@@ -206,28 +205,21 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
     assert len(searched) == 3
 
 
-def test_a_pseudo_ground_truth_is_divided_by_the_flicker(tmp_path):
+def test_a_pseudo_ground_truth_is_divided_by_the_flicker(tmp_path, as_llff, monkeypatch, capsys):
     """A recording without sharp test images (LLFF, one stream, a pose every 50 readouts): a
     held-out view's pseudo ground truth, TFP(65) of its spikes, is the steady light's, not the
-    flicker's phase there (0.7 to 1.3 of it, depth 0.3)."""
+    flicker's phase there (0.7 to 1.3 of it, depth 0.3). Its search shows a bar where it is long
+    (here at once) and the loader is asked to (`spikegs train` unless --no-progress)."""
     clean, flick = _flickering(tmp_path, lambda t: 1 + 0.3 * np.sin(2 * np.pi * t / 250))
-    readouts = np.arange(0, 2000, 50)  # [P]; every 8th held out: 400, 800, 1200, 1600 scored
-    viewmats = clean.trajectory.pose_at(readouts)  # [P, 4, 4]
-    distance = np.linalg.norm(np.linalg.inv(viewmats)[:, :3, 3] - clean.scene_center, axis=1)
-    bounds = distance[:, None] + [-1.5 * clean.scene_radius, 1.5 * clean.scene_radius]  # [P, 2]
-
-    def llff(spikes: Path):  # the LLFF layout of the poses and `spikes`
-        root = tmp_path / spikes.parent.name / "llff"
-        root.mkdir()
-        rows = to_poses_bounds(viewmats, (24, 24, clean.K[0, 0]), bounds)
-        np.save(root / "poses_bounds.npy", rows)
-        np.savetxt(root / "readouts.txt", readouts, fmt="%d")
-        shutil.copy(spikes, root / "spikes.dat")
-        return load_dataset(root)
-
-    steady, found = llff(clean.root / "spikes.dat"), llff(flick / "spikes.dat")
-    assert len(found.test_views) == 4
+    monkeypatch.setattr(flicker, "PROGRESS_AFTER", 0.0)
+    steady = load_dataset(as_llff(clean, tmp_path / "steady"))
+    found = load_dataset(as_llff(clean, tmp_path / "found", flick / "spikes.dat"))
+    assert "flicker" not in capsys.readouterr().err
+    assert len(found.test_views) == 4  # readouts 400, 800, 1200, 1600
     ratio = [f.image.mean() / s.image.mean() for s, f in zip(steady.test_views, found.test_views)]
     assert np.abs(np.array(ratio) - 1).max() < 0.05  # as the spikes show them: 0.25
     assert "period 25" in found.meta["test_ground_truth"]["pseudo_flicker"]
     assert "pseudo_flicker" not in steady.meta["test_ground_truth"]
+    forget()  # (the finding is kept for the process: searched again)
+    load_dataset(tmp_path / "found", progress=True)
+    assert "flicker: 100%" in capsys.readouterr().err.replace("\r", "\n")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import shutil
 import warnings
@@ -12,7 +13,6 @@ import torch
 from spikegs import SpikeStream, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.data.llff import to_poses_bounds
 from spikegs.data.view_stream import ViewStreams
 from spikegs.pixel_defects import find_defects, valid_pixels
 from spikegs.spikes import DatWriter
@@ -160,26 +160,13 @@ def test_the_switch_and_clean_targets_mask_nothing(defective):
         assert build_targets(defective, load_config("oracle"), progress=False).instant.valid is None
 
 
-def test_a_pseudo_ground_truth_shows_the_defects_neighbours(clean, defective, tmp_path):
+def test_a_pseudo_ground_truth_shows_the_defects_neighbours(clean, defective, tmp_path, as_llff):
     """A recording without sharp test images (LLFF, one stream) is scored against TFP of each
     held-out view's spikes, which showed the sensor's defects (a stuck pixel at 1 a readout) that
     a masked model does not draw: each defect there is its neighbours' median, every other pixel
     as the spikes show it."""
-    readouts = np.arange(0, READOUTS, 50)  # [P]; every 8th held out and scored
-    viewmats = clean.trajectory.pose_at(readouts)  # [P, 4, 4]
-    distance = np.linalg.norm(np.linalg.inv(viewmats)[:, :3, 3] - clean.scene_center, axis=1)
-    bounds = distance[:, None] + [-1.5 * clean.scene_radius, 1.5 * clean.scene_radius]  # [P, 2]
-
-    def llff(dataset):  # the LLFF layout of the poses and the dataset's spikes
-        root = tmp_path / dataset.root.name
-        root.mkdir()
-        rows = to_poses_bounds(viewmats, (SIZE, SIZE, clean.K[0, 0]), bounds)
-        np.save(root / "poses_bounds.npy", rows)
-        np.savetxt(root / "readouts.txt", readouts, fmt="%d")
-        shutil.copy(dataset.root / "spikes.dat", root / "spikes.dat")
-        return load_dataset(root)
-
-    steady, found = llff(clean), llff(defective)
+    steady = load_dataset(as_llff(clean, tmp_path / "clean"))
+    found = load_dataset(as_llff(defective, tmp_path / "defective"))
     defects = np.zeros((SIZE, SIZE), bool)
     defects[tuple(np.transpose(HOT + STUCK + DEAD))] = True
     assert found.test_views and len(found.test_views) == len(steady.test_views)
@@ -188,3 +175,25 @@ def test_a_pseudo_ground_truth_shows_the_defects_neighbours(clean, defective, tm
         assert np.abs(f.image[defects] - s.image[defects]).max() < 0.15  # stuck: ~0.8 off
     assert "7 hot, stuck or dead" in found.meta["test_ground_truth"]["pseudo_defects"]
     assert "pseudo_defects" not in steady.meta["test_ground_truth"]
+
+
+def test_a_recording_is_searched_once_by_its_loading_and_its_targets(
+    defective, tmp_path, monkeypatch, as_llff
+):
+    """Its pseudo ground truth and its training targets (and another method's) both ask for the
+    recording's defects and flicker: searched once (`found_once`), the mask the same."""
+    searched = []
+    for where, name in (("spikegs.pixel_defects", "_search"), ("spikegs.flicker", "find_flicker")):
+        search = getattr(importlib.import_module(where), name)
+        monkeypatch.setattr(
+            f"{where}.{name}", lambda *a, s=search, n=name: searched.append(n) or s(*a)
+        )
+    dataset = load_dataset(as_llff(defective, tmp_path / "llff"))
+    assert sorted(searched) == ["_search", "find_flicker"]
+    with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
+        masks = [
+            build_targets(dataset, load_config(m), progress=False).instant.valid
+            for m in ("tfp33", "tfp65")
+        ]
+    assert sorted(searched) == ["_search", "find_flicker"]
+    assert torch.equal(masks[0], masks[1]) and int((~masks[0]).sum()) == 7

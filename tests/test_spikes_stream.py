@@ -95,11 +95,11 @@ def test_a_files_digest_is_read_once_while_the_file_is_unchanged(tmp_path, monke
 
 
 def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypatch):
-    """Over _CACHED_DIGEST_BYTES (here 0) a file's digest is kept in $XDG_CACHE_HOME/spikegs for
+    """Over CACHED_FROM (here 0) a file's digest is kept in $XDG_CACHE_HOME/spikegs for
     another process's stream of the same file, layout, size, mtime and inode; the file read
     another way (flipped or not) or touched is read again, and a garbled cache entry too."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    monkeypatch.setattr("spikegs.spikes.stream.CACHED_FROM", 0)
     bits = random_bits((6, 4, 16))
     path = save_dat(tmp_path / "s.dat", bits)
     digest = SpikeStream.open(path, 4, 16).digest()
@@ -124,7 +124,7 @@ def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypat
 def test_a_digest_cache_that_cannot_be_written_leaves_the_digest_as_it_is(tmp_path, monkeypatch):
     """A read-only home, a full disk or a file where the cache folder goes: the digest is the
     file's all the same, nothing cached (the next command reads the file again), no error."""
-    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    monkeypatch.setattr("spikegs.spikes.stream.CACHED_FROM", 0)
     bits = random_bits((6, 4, 16))
     path = save_dat(tmp_path / "s.dat", bits)
     (tmp_path / "cache").write_text("a file, not a folder")
@@ -146,7 +146,7 @@ def test_a_file_changed_after_open_never_caches_the_mapped_spikes_for_it(tmp_pat
     mapped) is not cached for the new file, which the next process reads afresh; a file removed
     after open, or opened by a relative path before a chdir, still gives the mapped spikes'."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    monkeypatch.setattr("spikegs.spikes.stream._CACHED_DIGEST_BYTES", 0)
+    monkeypatch.setattr("spikegs.spikes.stream.CACHED_FROM", 0)
     bits = random_bits((10, 4, 16))
     first = SpikeStream.from_bits(bits[:6]).digest()
     for change in ("grow", "replace"):

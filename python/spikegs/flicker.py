@@ -18,7 +18,8 @@ import scipy
 from tqdm.auto import tqdm
 
 from . import _C
-from .cache_home import cache_home, write_cached
+from .cache_home import CACHED_FROM, cache_home, write_cached
+from .found_once import found_once
 from .interrupt import progress_lost, quiet_close
 from .spikes.stream import SpikeStream
 
@@ -45,9 +46,6 @@ BIN_CHUNK = 64  # bins counted at a time ([64, H, W] int32: 26 MB at 250x400)
 # a progress bar shows once the counting has taken this long (seconds): 250x400 counts ~26,000
 # readouts a second, 128² solids' 4000 readouts take 0.01-0.08 s
 PROGRESS_AFTER = 1.0
-# a finding is kept in the user's cache for recordings of this many bytes of spikes or more (250x400
-# from 21,475 readouts, a search of ~0.8 s; 3.8 s at 100,000, a third of a run's start there)
-CACHED_FROM = 256 << 20
 
 
 @dataclass(frozen=True)
@@ -156,19 +154,25 @@ def _detector() -> bytes:
 
 
 def cached_flicker(streams, progress: bool = False) -> Flicker | None:
-    """`find_flicker`'s finding, kept for a recording of CACHED_FROM bytes or more in the user's
-    cache (`cache_home()/flicker`, never the dataset's folder, which may be read-only) under the
-    spikes' digests and the search's own (`_detector`): a run's start, its resume and a bench's
-    every method search a recording once, and a changed recording or search searches again.
-    Searched where no cache is known, readable or writable."""
+    """`find_flicker`'s finding, under the spikes' digests and the search's own (`_detector`):
+    kept for the process (`found_once`: a recording's loading, its targets and a bench's every
+    method search it once) and, for a recording of CACHED_FROM bytes or more, in the user's cache
+    (`cache_home()/flicker`, never the dataset's folder, which may be read-only: a run's start and
+    its resume search it once). A changed recording or search searches again."""
+    key = hashlib.sha256(_detector())
+    for s in streams:
+        key.update(s.digest())
+    return found_once(key.digest(), lambda: _kept_flicker(streams, key.hexdigest()[:32], progress))
+
+
+def _kept_flicker(streams, name: str, progress: bool) -> Flicker | None:
+    """`find_flicker`'s finding, kept under `name` in the user's cache for a recording of
+    CACHED_FROM bytes or more; searched where no cache is known, readable or writable."""
     home = cache_home()
     size = sum(len(s) * s.height * ((s.width + 7) // 8) for s in streams) if _judged(streams) else 0
     if home is None or size < CACHED_FROM:
         return find_flicker(streams, progress)
-    key = hashlib.sha256(_detector())
-    for s in streams:
-        key.update(s.digest())
-    path = home / "flicker" / f"{key.hexdigest()[:32]}.json"
+    path = home / "flicker" / f"{name}.json"
     try:
         kept = json.loads(path.read_text())["flicker"]
         return None if kept is None else Flicker(**kept)

@@ -13,11 +13,13 @@ stretch no higher than they.
 
 from __future__ import annotations
 
+import hashlib
 import warnings
 
 import numpy as np
 import torch
 
+from .found_once import found_once
 from .spikes import SpikeStream
 
 STRETCHES = 16  # a recording's equal stretches (a per-view capture's: its views)
@@ -57,7 +59,14 @@ def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
-    """Hot (or stuck) and dead pixels of one channel's `stream`: two bool maps [H, W]."""
+    """Hot (or stuck) and dead pixels of one channel's `stream`: two bool maps [H, W], read-only
+    (kept for the process under the spikes' digest: `found_once`)."""
+    key = hashlib.sha256(b"pixel_defects|" + stream.digest()).digest()
+    return found_once(key, lambda: _search(stream))
+
+
+def _search(stream) -> tuple[np.ndarray, np.ndarray]:
+    """`find_defects`' maps [H, W], found afresh."""
     shape = (stream.height, stream.width)
     above, not_below, spikes = np.zeros(shape), np.zeros(shape), np.zeros(shape)  # [H, W] each
     count = readouts = 0
@@ -71,7 +80,10 @@ def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
     total = spikes / readouts  # [H, W] the whole recording's rate
     dark_total, _ = _second(total)
     deep = total < dark_total / RATIO - Z * np.sqrt(dark_total / readouts)
-    return above / count >= SHARE, deep & (not_below / count >= SHARE)
+    found = above / count >= SHARE, deep & (not_below / count >= SHARE)
+    for bits in found:
+        bits.flags.writeable = False  # (kept: a caller's edit would be the next one's finding)
+    return found
 
 
 def valid_pixels(streams: list, root) -> torch.Tensor | None:

@@ -102,9 +102,10 @@ def _run(args: argparse.Namespace) -> int:
             raise ValueError(  # (a cache's torn file is retrained over; a file named is not)
                 f"--out {args.out}: an existing file that is not a saved SIM; give another path"
             )
+    bars = show_bars(args.no_progress)
     try:  # the config's rules, and the window around the dataset's timestamps
         config.validate()
-        dataset = load_dataset(args.dataset)
+        dataset = load_dataset(args.dataset, bars)
         check_targets(dataset, config)
     except ValueError as err:
         key = next((k for k in FLAGS if f"{k} =" in str(err)), None)
@@ -117,7 +118,7 @@ def _run(args: argparse.Namespace) -> int:
             args.seed,
             path=args.out,
             force=args.force,
-            progress=show_bars(args.no_progress),
+            progress=bars,
         )
     except KeyboardInterrupt:  # (stderr may be gone: a closed terminal's SIGHUP)
         say(

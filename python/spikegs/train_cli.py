@@ -161,8 +161,8 @@ def _train(args: argparse.Namespace, config) -> int:
     from .data import load_dataset
     from .train import Trainer
 
-    dataset = load_dataset(args.dataset)
     bars = show_bars(args.no_progress)
+    dataset = load_dataset(args.dataset, bars)
     trainer = Trainer(dataset, config, args.out, progress=bars)
     summary = None
     try:

@@ -693,10 +693,12 @@ def run_folder_note(root: Path) -> str | None:
     return note + (f"; the run's dataset is {own}" if own else "")
 
 
-def load_dataset(path: PathLike) -> Dataset:
+def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     """Open a dataset directory, checking every file before returning (FileNotFoundError names a
     missing file, ValueError a malformed one); the spikes are memory-mapped, not read. Without a
-    meta.json, an LLFF (poses_bounds.npy) or NeRF (transforms*.json) layout is opened instead."""
+    meta.json, an LLFF (poses_bounds.npy) or NeRF (transforms*.json) layout is opened instead.
+    `progress`: a bar where a recording without sharp test images searches long for a flicker of
+    the light (its pseudo ground truth's; docs/datasets.md)."""
     root = Path(path)
     check_dataset_folder(root)
     from .llff import POSES_BOUNDS, load_llff
@@ -712,7 +714,7 @@ def load_dataset(path: PathLike) -> Dataset:
                     f"taken (docs/datasets.md)",
                     stacklevel=2,
                 )
-            return load_llff(root)
+            return load_llff(root, progress=progress)
         if others:
             return load_nerf_layout(root)
         run = run_folder_note(root)

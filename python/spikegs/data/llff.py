@@ -302,9 +302,10 @@ def _warn_partial_span(stream, readouts: np.ndarray, hwf: np.ndarray) -> None:
         )
 
 
-def load_llff(path: PathLike, **overrides) -> Dataset:
+def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset:
     """Open an LLFF-layout directory (module docstring); `overrides` are spikegs.json options.
-    Every file is checked before any spike is read."""
+    Every file is checked before any spike is read. `progress`: a bar where one stream's pseudo
+    ground truth searches long for a flicker."""
     root = Path(path)
     source = root / POSES_BOUNDS
     options = read_options(root, overrides)
@@ -329,7 +330,9 @@ def load_llff(path: PathLike, **overrides) -> Dataset:
         stream = open_spikes(root / STREAM, height, width, options)
         warn_rows_out_of_line(stream, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
-        dataset = stream_dataset(root, meta, stream, readouts, viewmats, test, options, str(source))
+        dataset = stream_dataset(
+            root, meta, stream, readouts, viewmats, test, options, str(source), progress
+        )
         _warn_partial_span(stream, readouts, poses[0, :, 4])
         return dataset
     if not folder.is_dir():

@@ -159,8 +159,11 @@ def scene_sphere(options: Options, center, radius: float) -> dict:
     return {"scene_center": [float(c) for c in center], "scene_radius": float(radius)}
 
 
-def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) -> Dataset:
-    """The Dataset with test images in firing-rate units (sharp x intensity scale, or TFP)."""
+def _finish(
+    root: Path, meta: dict, stream, trajectory, timestamps, held_out, progress: bool = False
+) -> Dataset:
+    """The Dataset with test images in firing-rate units (sharp x intensity scale, or TFP);
+    `progress`: a bar where the search for a flicker takes long (`flicker.PROGRESS_AFTER`)."""
     meta["num_readouts"] = len(stream)
     if not len(timestamps):
         raise ValueError(f"{root}: no training timestamp left once the test views are held out")
@@ -182,7 +185,7 @@ def _finish(root: Path, meta: dict, stream, trajectory, timestamps, held_out) ->
     # phase there, which is the light's, not the scene's: divided out as from training targets;
     # and the sensor's hot, stuck and dead pixels, which the losses leave out: their neighbours'
     pseudo = len(held_out) - len(sharp)
-    flicker = cached_flicker([stream]) if pseudo else None
+    flicker = cached_flicker([stream], progress) if pseudo else None
     flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
     defects = np.logical_or(*find_defects(stream)) if pseudo else None  # [H, W]
     for h in held_out:
@@ -424,11 +427,12 @@ def stream_dataset(
     test: np.ndarray,
     options: Options,
     source: str,
+    progress: bool = False,
 ) -> Dataset:
     """One continuous stream with a pose [P, 4, 4] at each readout [P]: training timestamps every
     `train_every` readouts (default: ~1024 over the readouts the poses span) clear of the held-out
     poses; a held-out pose whose pseudo-ground-truth window does not fit in the stream is not
-    evaluated."""
+    evaluated. `progress`: as `_finish`'s."""
     trajectory = Trajectory(readouts, viewmats, source=source)
     first, last = light_span(len(stream))
     if trajectory.start < first or trajectory.end > last:
@@ -505,4 +509,4 @@ def stream_dataset(
         )
     meta["spike_files"] = [os.path.relpath(stream.path, root)]
     meta["train_every"] = every
-    return _finish(root, meta, stream, trajectory, ks, held_out)
+    return _finish(root, meta, stream, trajectory, ks, held_out, progress)

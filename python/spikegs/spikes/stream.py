@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import _C
 from ..atomic_save import naming, temporary_name, written_path
-from ..cache_home import cache_home, write_cached
+from ..cache_home import CACHED_FROM, cache_home, write_cached
 from ..number_checks import is_int, is_number, whole_numbers
 from ..shell_words import shell_path
 
@@ -95,7 +95,6 @@ def _frame_count(num_bytes: int, layout: _C.SpikeLayout, path: Path | None) -> i
 
 
 _DIGEST_CHUNK_BYTES = 64 << 20  # readouts hashed at a time by SpikeStream.digest
-_CACHED_DIGEST_BYTES = 256 << 20  # streams from larger files have their digest in the user cache
 MAX_WINDOW = _C.MAX_WINDOW  # the core counts spikes in int32
 
 
@@ -258,9 +257,9 @@ class SpikeStream:
         """SHA-256 of the size and every readout, in the memory layout (the same spikes give the
         same digest from any file layout); read in chunks of ~64 MiB, ~0.1 s a 100 MB here. A
         file's is read once while the file is unchanged (its path, size, mtime and inode): kept by
-        the stream (a command asks two or three times) and, for a file over 256 MiB that is still
-        the one mapped at `open`, in the user's cache for the next command (a 10 GB recording
-        took ~7 s each); reading over a GiB is announced on stderr."""
+        the stream (a command asks two or three times) and, for a file of CACHED_FROM bytes or
+        more that is still the one mapped at `open`, in the user's cache for the next command (a
+        10 GB recording took ~7 s each); reading over a GiB is announced on stderr."""
         now = _file_identity(self._opened[0]) if self._opened else None  # the file as it is now
         if now is not None and self._digest is not None and self._digest[0] == now:
             return self._digest[1]
@@ -268,7 +267,7 @@ class SpikeStream:
         lay = self._layout  # the same bytes read in another layout are other spikes
         unchanged = now is not None and now == self._opened[1]  # still the file mapped at open
         key = f"{now}|{lay.height}x{lay.width}|{lay.flip}|{lay.row_bits}|{lay.col_offset}"
-        cached = _digest_cache(key) if unchanged and nbytes > _CACHED_DIGEST_BYTES else None
+        cached = _digest_cache(key) if unchanged and nbytes >= CACHED_FROM else None
         digest = _read_digest(cached)
         if digest is None:
             if nbytes > 1 << 30:
