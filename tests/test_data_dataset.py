@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import warnings
 from pathlib import Path
 
@@ -215,6 +216,35 @@ def test_a_failed_overwrite_keeps_a_dataset_made_while_it_waited_for_the_lock(
     with pytest.warns(UserWarning), pytest.raises(ValueError, match="a saturated simulation"):
         simulate_dataset(constant_source(5.0), out, overwrite=True, **still)
     assert load_dataset(out).meta["sim"]["rate_at_one"] == 0.25 and not (out / STAGING).exists()
+
+
+def test_a_stop_while_the_new_dataset_moves_in_lets_it_finish(tmp_path, monkeypatch, ctrl_c):
+    """A Ctrl-C (SIGTERM, SIGHUP) while --overwrite deleted the old dataset's files and moved the
+    new one's in left a folder of both, or of neither's whole set: the move finishes, then the
+    simulation stops."""
+    import spikegs.data.simulate as simulate_module
+
+    still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+        old = simulate_dataset(constant_source(0.6), tmp_path / "d", **still).root
+    move_in, rename = simulate_module.move_in, Path.rename
+
+    def stopped_midway(out):  # a Ctrl-C as the first of the new files moves in
+        def first(self, target):
+            monkeypatch.setattr(Path, "rename", rename)
+            moved = rename(self, target)
+            signal.raise_signal(signal.SIGINT)
+            return moved
+
+        monkeypatch.setattr(Path, "rename", first)
+        move_in(out)
+
+    monkeypatch.setattr(simulate_module, "move_in", stopped_midway)
+    with pytest.warns(UserWarning), pytest.raises(KeyboardInterrupt):
+        simulate_dataset(constant_source(0.3), old, overwrite=True, **still)
+    new = load_dataset(old)
+    assert new.test_views[0].image.mean() == pytest.approx(0.3 * 0.25, rel=1e-5)
+    assert not (old / STAGING).exists()
 
 
 def test_a_full_disk_under_overwrite_names_the_old_dataset_kept(tmp_path, monkeypatch):

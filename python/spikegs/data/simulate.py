@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ..interrupt import deferred_interrupt, interruption
 from ..number_checks import finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
 from ..spikes.simulate import simulate_channels
@@ -634,7 +635,13 @@ def simulate_dataset(
                     errno.ENOSPC, f"{said}; the simulation is not kept", str(out)
                 ) from err
             raise
-        move_in(out)
+        # the old dataset's files deleted and the new one's moved in, not torn by a stop: a
+        # Ctrl-C there left a folder of both (a new spikes.dat beside the old meta.json)
+        stop = "\n{signal}: stopping once the new dataset has replaced the old one"
+        with deferred_interrupt(stop) as interrupted:
+            move_in(out)
+        if interrupted():
+            raise interruption(interrupted())
         with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
             warnings.simplefilter("ignore", DarkSpikesWarning)
             return load_dataset(out)
