@@ -190,7 +190,10 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
 
     def start() -> float:  # a run's start: its first training target's mean
         with pytest.warns(UserWarning, match=r"period of 25\d\.\d readouts"):
-            return float(build_targets(load_dataset(flick), config, False).instant[0].mean())
+            targets = build_targets(load_dataset(flick), config, False)
+        found = targets.found["flicker"]  # (train.json's found_in_spikes)
+        assert found["period"] == pytest.approx(250, abs=5) and found["divided"]
+        return float(targets.instant[0].mean())
 
     first = start()
     assert start() == first and len(searched) == 1 and files() == before

@@ -136,7 +136,8 @@ def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
     monkeypatch.setattr("spikegs.train.FitBrightness.observe", observe)
     config = load_config("spikegs", {**FAST, "sim": {"iterations": 2}})
     with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
-        Trainer(defective, config, tmp_path / "run", progress=False).train()
+        summary = Trainer(defective, config, tmp_path / "run", progress=False).train()
+    assert summary["found_in_spikes"] == {"flicker": None, "defect_pixels": 7}  # (train.json)
     assert len(seen) == 4, seen.keys()
     for name, (shown, target) in seen.items():
         assert torch.equal(shown[~valid], target[~valid]), name

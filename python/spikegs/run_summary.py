@@ -16,6 +16,7 @@ LOCK = ".lock"  # held by the process training in the folder
 CHECKPOINTS = "checkpoints"  # folder of last.pt
 SCENE = "scene.ply"  # the trained scene, written when the run finishes
 SUMMARY = "train.json"
+FOUND = "found_in_spikes"  # train.json's: the flicker and defect pixels the targets left out
 CURVE = "curve.png"  # `spikegs train`'s plot of the PSNR it logged against seconds
 EVAL = "eval"  # `spikegs eval`'s: RUN/eval.json its scores, RUN/eval/ its side-by-side images
 

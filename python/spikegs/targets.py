@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -134,6 +134,9 @@ class Targets:
     instant: TargetImages | None  # M images [H, W, C], or None
     exposure: TargetImages | None  # M images [H, W, C], or None
     sim_seconds: float = 0.0  # SIM's training time (loaded from its cache: the time it recorded)
+    # what the spikes showed that the targets leave out (train.json's `found_in_spikes`): the
+    # light's flicker (None: none found, or not looked for) and the defect pixels masked
+    found: dict = field(default_factory=dict)
 
     def release(self) -> None:
         """Drop the images both hold (`TargetImages.release`)."""
@@ -326,6 +329,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     # (clean images, the oracle's, are the simulator's light: no flicker to look for or divide)
     from_spikes = config.instant_target() not in ("none", "clean") or s.exposure_weight > 0
     flicker = cached_flicker(streams, progress) if s.deflicker and from_spikes else None
+    found = None
     if flicker is not None:
         deep = flicker.depth >= MAX_DEPTH  # dividing would make targets negative or infinite
         done = (
@@ -340,6 +344,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             f"'Lighting flicker')",
             stacklevel=2,
         )
+        found = {**asdict(flicker), "divided": not deep}
         flicker = None if deep else flicker
 
     def images(stream_fn, window: int, time_offset: float = 0.0, span: int = 0) -> TargetImages:
@@ -383,4 +388,5 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)
-    return Targets(ts, instant, exposure, sim_seconds)
+    masked = 0 if valid is None else int((~valid).any(-1).sum())
+    return Targets(ts, instant, exposure, sim_seconds, {"flicker": found, "defect_pixels": masked})

@@ -48,7 +48,7 @@ from .provenance import environment
 from .psnr_fall import psnr_fall
 from .regular_file import read_text
 from .run_folder import check_fresh_run_dir, run_lock
-from .run_summary import CONFIG, LOG, SCENE, SUMMARY, last_checkpoint
+from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
 from .yaml_files import dump_yaml
 
@@ -140,6 +140,7 @@ class Trainer:
         self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
         self.brightness = FitBrightness()  # of the steps this process takes
         self.targets = None  # a training's target images (`build_targets`), released after it
+        self.found = None  # what they leave out (`Targets.found`), kept in the checkpoint
 
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
@@ -281,6 +282,7 @@ class Trainer:
             "data": self.data,
             "dataset": str(Path(self.dataset.root).resolve()),
             "environments": self.environments,
+            FOUND: self.found,
         }
         save_atomically(state, self.checkpoint_path)  # a kill mid-save keeps the previous one
 
@@ -633,6 +635,8 @@ class Trainer:
         # (an earlier version's checkpoint of a cached SIM kept 0: the cache's time stands in)
         saved = state.get("sim_seconds", 0.0) if state else 0.0
         self.sim_seconds = saved if finished or saved else self.targets.sim_seconds
+        # what the targets leave out (a finished run built none: its checkpoint's, if it has it)
+        self.found = state.get(FOUND) if finished else self.targets.found
         if state is not None:
             self._load_checkpoint(state)
         else:
@@ -713,6 +717,8 @@ class Trainer:
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
             "environment": self.environments,  # what trained it, from which iteration
         }
+        if self.found is not None:  # (none in a checkpoint from before the key)
+            summary[FOUND] = self.found
         write_text_if_changed(self.run_dir / SUMMARY, strict_json.dumps(summary, indent=2))
         if stopped:
             raise interruption(stopped)
