@@ -15,7 +15,7 @@ from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run, other_data, render_view, side_by_side
 from spikegs.image_io import linear_to_srgb, read_image
-from spikegs.image_labels import TITLE_HEIGHT
+from spikegs.image_labels import TITLE_HEIGHT, column_titles
 from spikegs.ply import load_ply
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer
@@ -77,6 +77,17 @@ def test_side_by_side_is_ground_truth_render_and_four_times_the_error(trained, r
             np.testing.assert_allclose(
                 side[:, panel * w : (panel + 1) * w], values, atol=1.01 / 255
             )
+
+
+def test_the_render_is_titled_with_the_psnr_its_view_scored(trained, run):
+    """RUN/eval/VIEW.png's render is titled "render, P dB", P the view's PSNR in eval.json (the
+    image alone said neither how its view scored nor which views scored worst)."""
+    data = trained[0]
+    views, w = evaluate_run(run, data)["views"], data.width
+    for name, scores in views.items():
+        header = read_image(run / "eval" / f"{name}.png")[:TITLE_HEIGHT, w : 2 * w]
+        title = linear_to_srgb(column_titles([f"render, {scores['psnr']:.2f} dB"], w))
+        np.testing.assert_allclose(header, np.broadcast_to(title, header.shape), atol=1.01 / 255)
 
 
 def test_side_by_side_titles_a_pseudo_ground_truth_and_grow_with_the_image():

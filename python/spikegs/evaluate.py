@@ -200,14 +200,18 @@ def _configured_method(run_dir: Path) -> str | None:
     return method if isinstance(method, str) else None
 
 
-def side_by_side(gt: np.ndarray, pred: np.ndarray, pseudo: bool) -> np.ndarray:
+def side_by_side(
+    gt: np.ndarray, pred: np.ndarray, pseudo: bool, psnr: float | None = None
+) -> np.ndarray:
     """RUN/eval/VIEW.png's image [TITLES + H, 3 W, C] (linear): ground truth | render | 4 x the
     absolute error that was scored, shown as it is (sRGB encoding would show an error of 0.02 as
     a 31 % grey), under titles that say which is which and the error's scale (the panels alone
-    said neither); a `pseudo` ground truth (TFP of the view's own spikes) titled so."""
+    said neither); a `pseudo` ground truth (TFP of the view's own spikes) titled so, the render
+    with the view's `psnr` (dB) where given (the image alone did not say how it scored)."""
     error = srgb_to_linear(np.clip(4 * np.abs(pred - gt), 0, 1))
     (h, w, c), truth = gt.shape, "TFP pseudo truth" if pseudo else "ground truth"
-    titles = column_titles([truth, "render", "4 x |error|"], w, title_scale(h))
+    render = "render" if psnr is None else f"render, {psnr:.2f} dB"
+    titles = column_titles([truth, render, "4 x |error|"], w, title_scale(h))
     header = np.broadcast_to(titles, (*titles.shape[:2], c))
     return np.concatenate([header, np.concatenate([gt, pred, error], axis=1)], axis=0)
 
@@ -266,7 +270,8 @@ def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dic
         pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
         if write_images:
-            write_image(folder / f"{view.name}.png", side_by_side(gt, pred, pseudo))
+            image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
+            write_image(folder / f"{view.name}.png", image)
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
         for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
             (folder / f"{view}.png").unlink(missing_ok=True)
