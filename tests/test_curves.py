@@ -69,6 +69,25 @@ def test_the_curve_is_the_mean_over_the_test_views_where_every_evaluation_logged
     assert titles[2] == titles[1] and drawn[2] == {"spikegs": [21.0, 22.5], "tfp33": [21.0, 22.5]}
 
 
+def test_the_title_says_where_views_are_scored_against_a_pseudo_ground_truth(tmp_path, monkeypatch):
+    """A recording's pseudo_* views are scored against TFP of their own spikes, not the truth:
+    curve.png's title said "PSNR over the 3 test views" alone; it says so now, and how many
+    where some are."""
+    titles = []
+    monkeypatch.setattr(curves, "save_curves", lambda path, methods, m, title: titles.append(title))
+    run = {"tfp33": (_log(tmp_path / "run", [dict(LOG[1], psnr_mean=21.0)]), 0.0)}
+    for names in (["pseudo_008", "pseudo_016"], ["on_000", "pseudo_016"], ["on_000"]):
+        views = [SimpleNamespace(name=name) for name in names]
+        dataset = SimpleNamespace(meta={"scene": "llff"}, root=tmp_path, test_views=views)
+        save_logged_curves(tmp_path / "curve.png", run, dataset)
+    assert [t.split("\n")[0] for t in titles] == [
+        "llff: PSNR over the 2 test views during training, against TFP pseudo ground truth",
+        "llff: PSNR over the 2 test views during training, against TFP pseudo ground truth "
+        "(1 of them)",
+        "llff: PSNR over the 1 test views during training",
+    ]
+
+
 def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
     """save_logged_curves: a run with 0 s of SIM is no SIM method (drawn from 0 s, dashed, without
     "from SIM"); one with SIM seconds is, and keeps them."""

@@ -55,11 +55,25 @@ def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset)
     views = dataset.test_views
     means = key == "psnr_mean"
     scored = f"over the {len(views)} test views" if means else f"of the test view {views[0].name}"
+    against = _pseudo_note(views if means else views[:1])
     title = (
-        f"{scene}: PSNR {scored} during training\n"
+        f"{scene}: PSNR {scored} during training{against}\n"
         f"(a SIM method's curve starts after SIM's training)"
     )
     save_curves(path, methods, ("psnr",), title)
+
+
+def _pseudo_note(views) -> str:
+    """The title's ', against TFP pseudo ground truth' where test `views` are scored against TFP
+    of their own spikes (a recording's `pseudo_*` views, which flatter TFP-like methods: the
+    title read as scored against the truth), with how many where some are not; '' where none."""
+    from .data.dataset import PSEUDO_PREFIX
+
+    pseudo = sum(view.name.startswith(PSEUDO_PREFIX) for view in views)
+    if not pseudo:
+        return ""
+    some = "" if pseudo == len(views) else f" ({pseudo} of them)"
+    return f", against TFP pseudo ground truth{some}"
 
 
 def _as_text(text: str) -> str:
