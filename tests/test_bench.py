@@ -522,7 +522,8 @@ def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypa
 def test_the_timing_figures_name_the_threads_the_core_ran_on(tmp_path, monkeypatch):
     """rasterizer.png and spikes.png said "2 cores" (the CPUs) where OMP_NUM_THREADS=1 ran the
     core on one thread, as their tables said; spikes.png's numpy runs on one; poses.png names
-    its method as the other figures do."""
+    its method as the other figures do; each figure's titles lie within it (spikes.png's ran past
+    its right edge, "numpy on 1" cut off)."""
     import matplotlib.pyplot as plt
     from spikegs.bench import poses
 
@@ -546,6 +547,11 @@ def test_the_timing_figures_name_the_threads_the_core_ran_on(tmp_path, monkeypat
     assert "spikegs on 1 thread, numpy on 1" in tfp.axes[0].get_title()
     assert "TFP(33)+3DGS (10 iterations)" in pose.texts[0].get_text()
     for fig in figures:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        for title in [*fig.texts, *(ax.title for ax in fig.axes)]:
+            box = title.get_window_extent(renderer)
+            assert fig.bbox.x0 <= box.x0 and box.x1 <= fig.bbox.x1, title.get_text()
         plt.close(fig)
 
 
