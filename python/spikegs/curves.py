@@ -56,10 +56,9 @@ def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset)
     means = key == "psnr_mean"
     scored = f"over the {len(views)} test views" if means else f"of the test view {views[0].name}"
     against = _pseudo_note(views if means else views[:1])
-    title = (
-        f"{scene}: PSNR {scored} during training{against}\n"
-        f"(a SIM method's curve starts after SIM's training)"
-    )
+    title = f"{scene}: PSNR {scored} during training{against}"
+    if any(m["uses_sim"] for m in methods.values()):  # (a baseline's alone trains no SIM)
+        title += "\n(a SIM method's curve starts after SIM's training)"
     save_curves(path, methods, ("psnr",), title)
 
 
@@ -103,6 +102,7 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     train`'s 15)."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
+    sim_drawn = any(r["uses_sim"] for r in methods.values())  # the time axis holds SIM's seconds
     for i, (name, r) in enumerate(methods.items()):
         offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
         seconds = [offset + p["train_seconds"] for p in r["curve"]]
@@ -123,7 +123,7 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
             ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
             ax.xaxis.set_minor_formatter(NullFormatter())
             _fit_log_ticks(ax)
-        ax.set_xlabel("seconds (SIM + training)")
+        ax.set_xlabel(f"seconds ({'SIM + ' * sim_drawn}training)")
         ax.set_ylabel(LABELS.get(metric, metric))
         ax.grid(True, which="both", alpha=0.3)
     axes[-1].legend(loc="upper left", bbox_to_anchor=(1.03, 1.0), borderaxespad=0, fontsize=8)
