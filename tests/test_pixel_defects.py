@@ -10,11 +10,11 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from spikegs import SpikeStream, simulate_spikes
+from spikegs import SpikeStream, sim_train, simulate_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.view_stream import ViewStreams
-from spikegs.pixel_defects import find_defects, valid_pixels
+from spikegs.pixel_defects import find_defects, repaired_streams, valid_pixels
 from spikegs.spikes import DatWriter
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
@@ -142,6 +142,43 @@ def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
     for name, (shown, target) in seen.items():
         assert torch.equal(shown[~valid], target[~valid]), name
         assert not torch.equal(shown[valid], target[valid]), name
+
+
+def test_sim_is_trained_on_and_reads_the_defects_repaired(defective, monkeypatch):
+    """SIM, a blind-spot network, reads each pixel's neighbours: it was trained on the defects'
+    spikes (a hot pixel swamped its loss) and carried them into their 8 neighbours (3 times the
+    error elsewhere). Its training and its inference see each defect fire as one of its
+    neighbours does (the upper median's), every other pixel as recorded; a clean stream whole."""
+    seen = {"train": [], "infer": []}
+    train = sim_train.train_sim
+
+    def spy_train(stream, *args, **kwargs):
+        seen["train"].append(stream[0].window(800, 33))  # [w, H, W]
+        return train(stream, *args, **kwargs)
+
+    def spy_predict(model, windows):  # [B, w, H, W]
+        seen["infer"].append(windows)
+        return np.zeros((len(windows), SIZE, SIZE, 1), np.float32)
+
+    monkeypatch.setattr(sim_train, "train_sim", spy_train)
+    monkeypatch.setattr("spikegs.targets.predict", spy_predict)
+    config = load_config("spikegs", {"sim": {"iterations": 1}})  # (a SIM no test cached)
+    with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
+        build_targets(defective, config, progress=False).instant[3]
+    defects = np.zeros((SIZE, SIZE), bool)
+    defects[tuple(np.transpose(HOT + STUCK + DEAD))] = True
+    k = int(defective.train_timestamps[3])
+    for window, raw in [
+        (seen["train"][0], defective.stream.window(800, 33)),  # [w, H, W] each
+        (seen["infer"][0][0], defective.stream.window(k, 33)),
+    ]:
+        np.testing.assert_array_equal(window[:, ~defects], raw[:, ~defects])
+        for y, x in HOT + STUCK + DEAD:
+            ring = [raw[:, y + dy, x + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
+            assert any(np.array_equal(window[:, y, x], r) for r in ring), (y, x)
+        for y, x in HOT + STUCK:
+            assert window[:, y, x].sum() < raw[:, y, x].sum(), (y, x)
+    assert repaired_streams(defective.streams, None) is defective.streams
 
 
 def test_a_colour_stream_counts_each_pixel_once(defective):

@@ -43,12 +43,17 @@ def stretches(stream):
         yield stream.tfp(int(k), int(w)), int(w)
 
 
-def _neighbours(image: np.ndarray) -> np.ndarray:
-    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated), darkest first [8, H, W]."""
+def _ring(image: np.ndarray) -> np.ndarray:
+    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated) [8, H, W]."""
     h, w = image.shape
     pad = np.pad(image, 1, mode="edge")
     ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
-    return np.sort(np.stack([pad[y : y + h, x : x + w] for y, x in ring]), axis=0)
+    return np.stack([pad[y : y + h, x : x + w] for y, x in ring])
+
+
+def _neighbours(image: np.ndarray) -> np.ndarray:
+    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated), darkest first [8, H, W]."""
+    return np.sort(_ring(image), axis=0)
 
 
 def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,6 +115,46 @@ def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
     """`image` [H, W] with each of its `defects` [H, W] (bool) replaced by the (upper) median of
     its 8 neighbours (edges repeated), as a camera's defect-pixel correction does."""
     return np.where(defects, _neighbours(image)[4], image)
+
+
+class RepairedSpikes:
+    """`stream` (a SpikeStream or ViewStreams) whose `defects` [H, W] (bool) fire as their
+    neighbour of the (upper) median rate over the recording does: what SIM, a blind-spot network
+    that reads each pixel's neighbours, is trained on and reads (a hot pixel's spikes brightened
+    its 8 neighbours and swamped its self-supervised loss; BENCHMARKS.md, "Sensor defects,
+    leftovers"). Windows only; the digest is the stream's and the defects'."""
+
+    def __init__(self, stream, defects: np.ndarray):
+        self.stream = stream
+        rates = sum(r * n for r, n in stretches(stream))  # [H, W] spikes over the stretches
+        index = np.arange(rates.size).reshape(rates.shape)  # [H, W] flat pixel indices
+        median = np.argsort(_ring(rates), axis=0, kind="stable")[4:5]  # [1, H, W] as `repaired`
+        self.at = np.flatnonzero(defects)  # [D] flat indices of the defects
+        self.stand_in = np.take_along_axis(_ring(index), median, 0)[0].ravel()[self.at]  # [D]
+        self.height, self.width = stream.height, stream.width
+
+    def __len__(self) -> int:
+        return len(self.stream)
+
+    def window(self, k, w: int) -> np.ndarray:
+        """`stream.window(k, w)` [w, H, W] ([B, w, H, W]), the defects repaired."""
+        spikes = self.stream.window(k, w)  # (a new array: repaired in place)
+        flat = spikes.reshape(*spikes.shape[:-2], -1)  # [..., H * W], a view
+        flat[..., self.at] = flat[..., self.stand_in]
+        return spikes
+
+    def digest(self) -> bytes:
+        """SHA-256 of the stream's digest, the defects and the neighbours standing in."""
+        parts = (self.stream.digest(), self.at.tobytes(), self.stand_in.tobytes())
+        return hashlib.sha256(b"".join(parts)).digest()
+
+
+def repaired_streams(streams: list, valid: torch.Tensor | None) -> list:
+    """`streams` (one a channel) with the defects of `valid` [H, W, C] repaired
+    (`RepairedSpikes`; None: `streams`)."""
+    if valid is None:
+        return streams
+    return [RepairedSpikes(s, ~valid[..., c].numpy()) for c, s in enumerate(streams)]
 
 
 def hide(render: torch.Tensor, target: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:

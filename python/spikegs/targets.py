@@ -26,7 +26,7 @@ from .config import Config, SimConfig
 from .flicker import MAX_DEPTH, cached_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
-from .pixel_defects import valid_pixels
+from .pixel_defects import repaired_streams, valid_pixels
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 # readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
@@ -219,13 +219,14 @@ def trained_sim(
     path: Path | None = None,
     force: bool = False,
     progress: bool = True,
+    streams: list | None = None,
 ):
     """(SIM, seconds spent training it, path): the one cached for `sim`'s settings (at `path`, by
     default `sim_path`; `train_or_load` may cache elsewhere), else trained on every channel's
-    stream at the training timestamps."""
+    stream (`streams`, by default the dataset's) at the training timestamps."""
     model, seconds, path = train_or_load(
         path or sim_path(dataset, sim, seed),
-        dataset.streams,  # a colour camera's channels share one SIM
+        streams or dataset.streams,  # a colour camera's channels share one SIM
         dataset.train_timestamps,
         sim.window,
         force=force,
@@ -347,14 +348,17 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
         found = {**asdict(flicker), "divided": not deep}
         flicker = None if deep else flicker
 
-    def images(stream_fn, window: int, time_offset: float = 0.0, span: int = 0) -> TargetImages:
-        """`stream_fn(stream, readouts)` on each channel, stacked on the channel axis; images
-        that count or estimate the spikes of `window` readouts, and show the light of `span`
-        readouts from k - span // 2 + time_offset (default `window`), over any flicker there."""
+    def images(
+        stream_fn, window: int, time_offset: float = 0.0, span: int = 0, sources=None
+    ) -> TargetImages:
+        """`stream_fn(stream, readouts)` on each channel's stream of `sources` (default
+        `streams`), stacked on the channel axis; images that count or estimate the spikes of
+        `window` readouts, and show the light of `span` readouts from k - span // 2 +
+        time_offset (default `window`), over any flicker there."""
         span = span or window
 
         def per_channel(k):  # readouts [n] -> [n, H, W, C]
-            rates = _per_channel(streams, lambda st: stream_fn(st, k))
+            rates = _per_channel(sources or streams, lambda st: stream_fn(st, k))
             if flicker is None:
                 return rates
             gain = flicker.gain(np.asarray(k) - span // 2 + time_offset, span)  # [n]
@@ -368,8 +372,10 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     instant, sim_seconds = None, 0.0
     if config.instant_target() != "none":
         if s.instant == "sim":
+            # SIM reads a defect's spikes into its neighbours: it sees the defects repaired
+            sim_streams = repaired_streams(streams, valid)
             model, sim_seconds, path = trained_sim(
-                dataset, config.sim, config.train.seed, progress=progress
+                dataset, config.sim, config.train.seed, progress=progress, streams=sim_streams
             )
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
                 sim_seconds = recorded_seconds(path)
@@ -378,7 +384,8 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             fast = fast_inference_model(model)
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
-            instant = images(lambda st, k: predict(fast, st.window(k, fast.window)), window)
+            infer = lambda st, k: predict(fast, st.window(k, fast.window))  # noqa: E731
+            instant = images(infer, window, sources=sim_streams)
         elif s.instant == "clean":
             instant = clean_images(dataset, spike(s.instant_window), budget)
         elif s.instant == "tfp":
