@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 from spikegs import SpikeStream, sim_train, simulate_spikes
+from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.view_stream import ViewStreams
@@ -179,6 +180,20 @@ def test_sim_is_trained_on_and_reads_the_defects_repaired(defective, monkeypatch
         for y, x in HOT + STUCK:
             assert window[:, y, x].sum() < raw[:, y, x].sum(), (y, x)
     assert repaired_streams(defective.streams, None) is defective.streams
+
+
+def test_sim_train_makes_the_sim_that_training_reuses(defective, capsys):
+    """`spikegs sim-train` trained on the spikes as recorded and training's SIM on them repaired:
+    each took the other's cached SIM for another and trained it again over it."""
+    argv = ["sim-train", str(defective.root), "--steps", "3", "--no-progress"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # (the command prints its warnings; -W error refuses)
+        assert main(argv) == 0
+    assert "5 hot or stuck pixels" in capsys.readouterr().err
+    config = load_config("spikegs", {"sim": {"iterations": 3}})
+    with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
+        build_targets(defective, config, progress=False)
+    assert "SIM: loaded" in capsys.readouterr().err
 
 
 def test_a_colour_stream_counts_each_pixel_once(defective):
