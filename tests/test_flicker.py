@@ -179,7 +179,8 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
     tmp_path, monkeypatch
 ):
     """Kept in the user's cache, the dataset's folder untouched (it may be read-only): searched
-    once for two starts, again for another search or a spike changed."""
+    once for two starts (two processes: each forgets what it found), again for another search or
+    a spike changed."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.setattr(flicker, "CACHED_FROM", 0)  # (24x24 solids: 144 kB)
     _, flick = _flickering(tmp_path, lambda t: 1 + 0.3 * np.sin(2 * np.pi * t / 250))
@@ -188,7 +189,8 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
     files = lambda: {p: p.stat().st_mtime_ns for p in flick.rglob("*")}  # noqa: E731
     before, config = files(), load_config("tfi")
 
-    def start() -> float:  # a run's start: its first training target's mean
+    def start() -> float:  # a run's start, in a process of its own: its first target's mean
+        forget()
         with pytest.warns(UserWarning, match=r"period of 25\d\.\d readouts"):
             targets = build_targets(load_dataset(flick), config, False)
         found = targets.found["flicker"]  # (train.json's found_in_spikes)
