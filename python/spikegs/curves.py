@@ -56,10 +56,7 @@ def save_logged_curves(path: Path, runs: dict[str, tuple[Path, float]], dataset)
     means = key == "psnr_mean"
     scored = f"over the {len(views)} test views" if means else f"of the test view {views[0].name}"
     against = _pseudo_note(views if means else views[:1])
-    title = f"{scene}: PSNR {scored} during training{against}"
-    if any(m["uses_sim"] for m in methods.values()):  # (a baseline's alone trains no SIM)
-        title += "\n(a SIM method's curve starts after SIM's training)"
-    save_curves(path, methods, ("psnr",), title)
+    save_curves(path, methods, ("psnr",), f"{scene}: PSNR {scored} during training{against}")
 
 
 def _pseudo_note(views) -> str:
@@ -156,8 +153,11 @@ def save_curves(path: Path, methods: dict, metrics: tuple[str, ...], title: str)
 
 def curves_figure(methods: dict, metrics: tuple[str, ...], title: str):
     """The matplotlib figure of `save_curves`: the panels 5.5 inches wide each, the figure wider
-    by the legend."""
+    by the legend; `title` and, where a SIM method is drawn, a line saying where its curve starts
+    (a baseline's alone trains no SIM)."""
     plt = pyplot()
+    if any(r["uses_sim"] for r in methods.values()):
+        title += "\n(a SIM method's curve starts after SIM's training)"
 
     width = 5.5 * len(metrics)  # inches
     fig, axes = plt.subplots(1, len(metrics), figsize=(width, 4.2), squeeze=False)

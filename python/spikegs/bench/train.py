@@ -64,7 +64,6 @@ QUICK_ITERATIONS = 100
 FULL_DATA = {"height": 128, "width": 128, "readouts": 4000, "test_on_path": 8, "test_off_path": 8}
 QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "test_off_path": 2}
 QUICK_SIM_ITERATIONS = 20
-SIM_NOTE = "SIM methods start at their SIM training time"
 
 
 def schedule(iterations: int, quick: bool, grad_threshold: float | None = None) -> dict:
@@ -409,12 +408,12 @@ def run(
         if order is not None:
             print(ablation_line(runs))
         views = f"mean over the {len(dataset.test_views)} test views, seed 0's run"
-        title = f"{scene} {size}, {length} per method{stretched}; {views}\n{SIM_NOTE}"
+        title = f"{scene} {size}, {length} per method{stretched}; {views}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
     headline = results.get(HEADLINE_SCENE, {}).get("methods", {})
     shown = {m: r for m, r in headline.items() if m in ("spikegs", *BASELINES)}
     if shown:  # (an ablation or the oracle alone has no headline: an empty plot, before)
-        title = f"{HEADLINE_SCENE} {size}: SpikeGS vs baselines, {length}; {views}\n{SIM_NOTE}"
+        title = f"{HEADLINE_SCENE} {size}: SpikeGS vs baselines, {length}; {views}"
         save_curves(out / "headline.png", shown, ("psnr",), title)
     payload = {
         "data": {**settings, "train_every": default_train_every(settings["readouts"])},
