@@ -91,6 +91,15 @@ def test_each_pixel_is_counted_once_in_the_regions(height, width):
     np.testing.assert_array_equal(totals.sum(axis=1), frame)
 
 
+def test_a_search_tuned_at_run_time_searches_again(monkeypatch):
+    """A finding is kept for the process (`found_once`) under the search's settings as they are
+    when asked: one tuned after a first search (a notebook's) is not answered with the old one."""
+    streams = [_grey(0.2, 333.3, 1.0)]
+    assert flicker.cached_flicker(streams).depth == pytest.approx(0.2, abs=0.02)
+    monkeypatch.setattr(flicker, "MIN_DEPTH", 0.5)
+    assert flicker.cached_flicker(streams) is None
+
+
 def test_a_long_search_shows_its_progress_unless_told_not_to(tmp_path, monkeypatch, capsys):
     """A bar over the readouts counted once the search has taken flicker.PROGRESS_AFTER seconds
     (here at once), none under --no-progress (build_targets' `progress`), none where it is quick

@@ -64,6 +64,14 @@ def test_hot_stuck_and_dead_pixels_are_found(defective):
     assert pixels(dead) == set(DEAD)
 
 
+def test_a_search_tuned_at_run_time_searches_again(defective, monkeypatch):
+    """A file's finding is kept for the process (`found_once`) under the search's settings as
+    they are when asked: one tuned after a first search (a notebook's) searches again."""
+    assert find_defects(defective.stream)[0].sum() == len(HOT + STUCK)
+    monkeypatch.setattr("spikegs.pixel_defects.SHARE", 1.01)  # (no pixel stands out that often)
+    assert not any(found.any() for found in find_defects(defective.stream))
+
+
 def test_per_view_streams_are_searched_view_by_view(defective):
     """A capture of a stream per view (a ViewStreams of 8 views of 200 readouts): each view is a
     stretch."""

@@ -153,13 +153,20 @@ def _detector() -> bytes:
     return digest.digest()
 
 
+def _settings() -> tuple:
+    """The search's settings as they are now (a notebook may tune them after a first search)."""
+    judged = (MIN_DEPTH, PEAK, MAX_DEPTH, GRID, IN_PHASE, LIT, MIN_PERIODS)
+    return (PERIODS, *judged, BINS_A_PERIOD, PAD, PHASE_STEP)
+
+
 def cached_flicker(streams, progress: bool = False) -> Flicker | None:
-    """`find_flicker`'s finding, under the spikes' digests and the search's own (`_detector`):
+    """`find_flicker`'s finding, under the spikes' digests and the search's (`_detector`, and
+    `_settings` as they are now):
     kept for the process (`found_once`: a recording's loading, its targets and a bench's every
     method search it once) and, for a recording of CACHED_FROM bytes or more, in the user's cache
     (`cache_home()/flicker`, never the dataset's folder, which may be read-only: a run's start and
     its resume search it once). A changed recording or search searches again."""
-    key = hashlib.sha256(_detector())
+    key = hashlib.sha256(_detector() + repr(_settings()).encode())
     for s in streams:
         key.update(s.digest())
     return found_once(key.digest(), lambda: _kept_flicker(streams, key.hexdigest()[:32], progress))

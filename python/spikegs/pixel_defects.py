@@ -65,11 +65,13 @@ def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
     """Hot (or stuck) and dead pixels of one channel's `stream`: two bool maps [H, W], read-only
-    (a file's kept for the process under the spikes' digest: `found_once`)."""
+    (a file's kept for the process under the spikes' digest and the search's settings:
+    `found_once`)."""
     views = getattr(stream, "streams", [stream])  # (a ViewStreams' views)
     if any(view.path is None for view in views):  # in memory: its digest, read each time it is
         return _search(stream)  # asked, costs 4x this search (2.1 / 0.5 s at 250x400 x 100,000)
-    key = hashlib.sha256(b"pixel_defects|" + stream.digest()).digest()
+    settings = f"pixel_defects|{STRETCHES}|{SHARE}|{RATIO}|{Z}|".encode()  # (tuned at run time)
+    key = hashlib.sha256(settings + stream.digest()).digest()
     return found_once(key, lambda: _search(stream))
 
 
