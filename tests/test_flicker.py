@@ -100,6 +100,14 @@ def test_a_search_tuned_at_run_time_searches_again(monkeypatch):
     assert flicker.cached_flicker(streams) is None
 
 
+def test_streams_not_judged_read_no_digest(monkeypatch):
+    """A recording too short to judge (or per-view streams) has no flicker: None at once, without
+    reading every readout for a digest to keep it under (the process memo's key did)."""
+    short = [_grey(0.2, 333.3, 1.0, readouts=1000)]  # under MIN_PERIODS x 420 readouts
+    monkeypatch.setattr(SpikeStream, "digest", lambda self: pytest.fail("a digest was read"))
+    assert flicker.cached_flicker(short) is None
+
+
 def test_a_long_search_shows_its_progress_unless_told_not_to(tmp_path, monkeypatch, capsys):
     """A bar over the readouts counted once the search has taken flicker.PROGRESS_AFTER seconds
     (here at once), none under --no-progress (build_targets' `progress`), none where it is quick
@@ -222,13 +230,19 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
 def test_a_pseudo_ground_truth_is_divided_by_the_flicker(tmp_path, as_llff, monkeypatch, capsys):
     """A recording without sharp test images (LLFF, one stream, a pose every 50 readouts): a
     held-out view's pseudo ground truth, TFP(65) of its spikes, is the steady light's, not the
-    flicker's phase there (0.7 to 1.3 of it, depth 0.3). Its search shows a bar where it is long
-    (here at once) and the loader is asked to (`spikegs train` unless --no-progress)."""
+    flicker's phase there (0.7 to 1.3 of it, depth 0.3). Searched once as it loads, kept for the
+    targets (`found_once`); the search shows a bar where it is long (here at once) and the
+    loader is asked to (`spikegs train` unless --no-progress)."""
     clean, flick = _flickering(tmp_path, lambda t: 1 + 0.3 * np.sin(2 * np.pi * t / 250))
     monkeypatch.setattr(flicker, "PROGRESS_AFTER", 0.0)
+    search, searched = flicker.find_flicker, []
+    monkeypatch.setattr(flicker, "find_flicker", lambda *a: searched.append(a) or search(*a))
     steady = load_dataset(as_llff(clean, tmp_path / "steady"))
     found = load_dataset(as_llff(clean, tmp_path / "found", flick / "spikes.dat"))
     assert "flicker" not in capsys.readouterr().err
+    with pytest.warns(UserWarning, match=r"period of 25\d\.\d readouts"):
+        build_targets(found, load_config("tfp33"), progress=False)
+    assert len(searched) == 2  # once a recording: their loading's, kept for the targets
     assert len(found.test_views) == 4  # readouts 400, 800, 1200, 1600
     ratio = [f.image.mean() / s.image.mean() for s, f in zip(steady.test_views, found.test_views)]
     assert np.abs(np.array(ratio) - 1).max() < 0.05  # as the spikes show them: 0.25

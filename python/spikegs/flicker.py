@@ -161,11 +161,13 @@ def _settings() -> tuple:
 
 def cached_flicker(streams, progress: bool = False) -> Flicker | None:
     """`find_flicker`'s finding, under the spikes' digests and the search's (`_detector`, and
-    `_settings` as they are now):
-    kept for the process (`found_once`: a recording's loading, its targets and a bench's every
-    method search it once) and, for a recording of CACHED_FROM bytes or more, in the user's cache
-    (`cache_home()/flicker`, never the dataset's folder, which may be read-only: a run's start and
-    its resume search it once). A changed recording or search searches again."""
+    `_settings` as they are now): kept for the process (`found_once`: a recording's loading, its
+    targets and a bench's every method search it once) and, for a recording of CACHED_FROM bytes
+    or more, in the user's cache (`cache_home()/flicker`, never the dataset's folder, which may be
+    read-only: a run's start and its resume search it once). A changed recording or search
+    searches again; streams not judged (`_judged`) are None at once, no digest read."""
+    if not _judged(streams):
+        return None
     key = hashlib.sha256(_detector() + repr(_settings()).encode())
     for s in streams:
         key.update(s.digest())
@@ -176,7 +178,7 @@ def _kept_flicker(streams, name: str, progress: bool) -> Flicker | None:
     """`find_flicker`'s finding, kept under `name` in the user's cache for a recording of
     CACHED_FROM bytes or more; searched where no cache is known, readable or writable."""
     home = cache_home()
-    size = sum(len(s) * s.height * ((s.width + 7) // 8) for s in streams) if _judged(streams) else 0
+    size = sum(len(s) * s.height * ((s.width + 7) // 8) for s in streams)
     if home is None or size < CACHED_FROM:
         return find_flicker(streams, progress)
     path = home / "flicker" / f"{name}.json"
