@@ -9,12 +9,12 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from spikegs import SpikeStream, sim_train, simulate_spikes
+from spikegs import SpikeStream, pixel_defects, sim_train, simulate_spikes
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.view_stream import ViewStreams
-from spikegs.pixel_defects import find_defects, repaired_streams, valid_pixels
+from spikegs.pixel_defects import find_defects, sensor_defects
 from spikegs.spikes import DatWriter
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
@@ -186,8 +186,10 @@ def test_sim_is_trained_on_and_reads_the_defects_repaired(defective, monkeypatch
         seen["infer"].append(windows)
         return np.zeros((len(windows), SIZE, SIZE, 1), np.float32)
 
+    counted, stretches = [], pixel_defects.stretches  # (the recording's, a pass over it)
     monkeypatch.setattr(sim_train, "train_sim", spy_train)
     monkeypatch.setattr("spikegs.targets.predict", spy_predict)
+    monkeypatch.setattr(pixel_defects, "stretches", lambda s: counted.append(s) or stretches(s))
     config = load_config("spikegs", {"sim": {"iterations": 1}})  # (a SIM no test cached)
     with pytest.warns(UserWarning, match="5 hot or stuck pixels"):
         build_targets(defective, config, progress=False).instant[3]
@@ -204,7 +206,9 @@ def test_sim_is_trained_on_and_reads_the_defects_repaired(defective, monkeypatch
             assert any(np.array_equal(window[:, y, x], r) for r in ring), (y, x)
         for y, x in HOT + STUCK:
             assert window[:, y, x].sum() < raw[:, y, x].sum(), (y, x)
-    assert repaired_streams(defective.streams, None) is defective.streams
+    assert len(counted) == 1  # the defects and their stand-ins found in one pass (it was two)
+    none = sensor_defects(defective.streams, defective.root, search=False)
+    assert none == (None, defective.streams, 0)
 
 
 def test_sim_train_makes_the_sim_that_training_reuses(defective, capsys):
@@ -224,8 +228,9 @@ def test_sim_train_makes_the_sim_that_training_reuses(defective, capsys):
 def test_a_colour_stream_counts_each_pixel_once(defective):
     """A defect in every channel of a colour stream is one pixel (it was said as three)."""
     with pytest.warns(UserWarning, match=r"\b5 hot or stuck .* 2 dead ones .*, in any channel"):
-        valid = valid_pixels([defective.stream] * 3, defective.root)  # [H, W, 3]
-    assert pixels(~valid.numpy().all(-1)) == set(HOT + STUCK + DEAD)
+        found = sensor_defects([defective.stream] * 3, defective.root)
+    assert pixels(~found.valid.numpy().all(-1)) == set(HOT + STUCK + DEAD)  # valid [H, W, 3]
+    assert found.pixels == len(HOT + STUCK + DEAD)
 
 
 def test_the_switch_and_clean_targets_mask_nothing(defective):

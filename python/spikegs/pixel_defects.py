@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -67,6 +68,11 @@ def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
     """Hot (or stuck) and dead pixels of one channel's `stream`: two bool maps [H, W], read-only
     (a file's kept for the process under the spikes' digest and the search's settings:
     `found_once`)."""
+    return _found(stream)[:2]
+
+
+def _found(stream) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`find_defects`' maps and each defect's stand-in (`_search`)."""
     views = getattr(stream, "streams", [stream])  # (a ViewStreams' views)
     if any(view.path is None for view in views):  # in memory: its digest, read each time it is
         return _search(stream)  # asked, costs 4x this search (2.1 / 0.5 s at 250x400 x 100,000)
@@ -75,8 +81,9 @@ def find_defects(stream) -> tuple[np.ndarray, np.ndarray]:
     return found_once(key, lambda: _search(stream))
 
 
-def _search(stream) -> tuple[np.ndarray, np.ndarray]:
-    """`find_defects`' maps [H, W], found afresh."""
+def _search(stream) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`find_defects`' maps [H, W], found afresh, and each defect's (flat order) neighbour of the
+    (upper) median rate over the recording: flat pixel indices [D]."""
     shape = (stream.height, stream.width)
     above, not_below, spikes = np.zeros(shape), np.zeros(shape), np.zeros(shape)  # [H, W] each
     count = readouts = 0
@@ -90,20 +97,38 @@ def _search(stream) -> tuple[np.ndarray, np.ndarray]:
     total = spikes / readouts  # [H, W] the whole recording's rate
     dark_total, _ = _second(total)
     deep = total < dark_total / RATIO - Z * np.sqrt(dark_total / readouts)
-    found = above / count >= SHARE, deep & (not_below / count >= SHARE)
-    for bits in found:
-        bits.flags.writeable = False  # (kept: a caller's edit would be the next one's finding)
+    hot, dead = above / count >= SHARE, deep & (not_below / count >= SHARE)
+    found = hot, dead, _stand_ins(spikes, hot | dead)
+    for kept in found:
+        kept.flags.writeable = False  # (kept: a caller's edit would be the next one's finding)
     return found
 
 
-def valid_pixels(streams: list, root) -> torch.Tensor | None:
-    """Pixels [H, W, C] (one channel a stream of `streams`) whose spikes the losses may compare
-    with, or None where no channel has a defect; a warning counts the defects found."""
-    found = [find_defects(stream) for stream in streams]
-    hot = np.stack([h for h, _ in found], -1)  # [H, W, C]
-    dead = np.stack([d for _, d in found], -1)
-    if not (hot.any() or dead.any()):
-        return None
+def _stand_ins(spikes: np.ndarray, defects: np.ndarray) -> np.ndarray:
+    """Each of `defects`' [H, W] (bool; flat order) neighbours whose count in `spikes` [H, W] is
+    their (upper) median, as `repaired` takes it: flat pixel indices [D]."""
+    index = np.arange(spikes.size).reshape(spikes.shape)  # [H, W] flat pixel indices
+    median = np.argsort(_ring(spikes)[:, defects], axis=0, kind="stable")[4]  # [D]
+    return _ring(index)[:, defects][median, np.arange(len(median))]
+
+
+class SensorDefects(NamedTuple):
+    """A recording's hot, stuck and dead pixels, as the losses and SIM take them."""
+
+    valid: torch.Tensor | None  # [H, W, C] pixels a loss against the spikes compares (None: all)
+    streams: list  # one a channel, the defects repaired (`RepairedSpikes`): what SIM reads
+    pixels: int  # pixels with a defect in any channel
+
+
+def sensor_defects(streams: list, root, search: bool = True) -> SensorDefects:
+    """The defects of `streams` (one a channel) of the recording at `root`; a warning counts
+    them. None found, or `search` false (nothing searched): `valid` None and `streams` as they
+    are."""
+    found = [_found(stream) for stream in streams] if search else []
+    if not any(h.any() or d.any() for h, d, _ in found):
+        return SensorDefects(None, streams, 0)
+    hot, dead = (np.stack(maps, -1) for maps in list(zip(*found))[:2])  # [H, W, C] each
+    defects = hot | dead
     where = "" if len(streams) == 1 else ", in any channel"  # (pixels counted once)
     warnings.warn(
         f"{root}: {int(hot.any(-1).sum())} hot or stuck pixels (firing far above their neighbours "
@@ -113,7 +138,11 @@ def valid_pixels(streams: list, root) -> torch.Tensor | None:
         f"docs/datasets.md, 'Sensor defects')",
         stacklevel=3,
     )
-    return torch.from_numpy(~(hot | dead))
+    repaired = [
+        RepairedSpikes(stream, np.flatnonzero(defects[..., c]), stand_in)
+        for c, (stream, (_, _, stand_in)) in enumerate(zip(streams, found))
+    ]
+    return SensorDefects(torch.from_numpy(~defects), repaired, int(defects.any(-1).sum()))
 
 
 def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
@@ -123,19 +152,15 @@ def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
 
 
 class RepairedSpikes:
-    """`stream` (a SpikeStream or ViewStreams) whose `defects` [H, W] (bool) fire as their
-    neighbour of the (upper) median rate over the recording does: what SIM, a blind-spot network
-    that reads each pixel's neighbours, is trained on and reads (a hot pixel's spikes brightened
-    its 8 neighbours and swamped its self-supervised loss; BENCHMARKS.md, "Sensor defects,
-    leftovers"). Windows only; the digest is the stream's and the defects'."""
+    """`stream` (a SpikeStream or ViewStreams) whose defects, at flat pixel indices `at` [D], fire
+    as their neighbours `stand_in` [D] (each its neighbour of the (upper) median rate over the
+    recording) do: what SIM, a blind-spot network that reads each pixel's neighbours, is trained
+    on and reads (a hot pixel's spikes brightened its 8 neighbours and swamped its
+    self-supervised loss; BENCHMARKS.md, "Sensor defects, leftovers"). Windows only; the digest
+    is the stream's and the defects'."""
 
-    def __init__(self, stream, defects: np.ndarray):
-        self.stream = stream
-        rates = sum(r * n for r, n in stretches(stream))  # [H, W] spikes over the stretches
-        index = np.arange(rates.size).reshape(rates.shape)  # [H, W] flat pixel indices
-        median = np.argsort(_ring(rates), axis=0, kind="stable")[4:5]  # [1, H, W] as `repaired`
-        self.at = np.flatnonzero(defects)  # [D] flat indices of the defects
-        self.stand_in = np.take_along_axis(_ring(index), median, 0)[0].ravel()[self.at]  # [D]
+    def __init__(self, stream, at: np.ndarray, stand_in: np.ndarray):
+        self.stream, self.at, self.stand_in = stream, at, stand_in
         self.height, self.width = stream.height, stream.width
 
     def __len__(self) -> int:
@@ -152,14 +177,6 @@ class RepairedSpikes:
         """SHA-256 of the stream's digest, the defects and the neighbours standing in."""
         parts = (self.stream.digest(), self.at.tobytes(), self.stand_in.tobytes())
         return hashlib.sha256(b"".join(parts)).digest()
-
-
-def repaired_streams(streams: list, valid: torch.Tensor | None) -> list:
-    """`streams` (one a channel) with the defects of `valid` [H, W, C] repaired
-    (`RepairedSpikes`; None: `streams`)."""
-    if valid is None:
-        return streams
-    return [RepairedSpikes(s, ~valid[..., c].numpy()) for c, s in enumerate(streams)]
 
 
 def hide(render: torch.Tensor, target: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:

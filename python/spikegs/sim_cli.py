@@ -18,7 +18,7 @@ from .data.real import pseudo_views_note
 from .interrupt import say
 from .losses import SIM_LOSSES
 from .output_paths import check_file_output, record_beside
-from .pixel_defects import repaired_streams, valid_pixels
+from .pixel_defects import sensor_defects
 from .provenance import environment
 from .sim_scores import evaluate_dataset, on_path_views
 from .sim_train import CHECKPOINT_S, is_sim_file, recorded_seconds
@@ -114,7 +114,7 @@ def _run(args: argparse.Namespace) -> int:
     views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     # the spikes that training's SIM learns from (the sensor's defects repaired): the one made
     # here is the one it reuses
-    valid = valid_pixels(dataset.streams, dataset.root) if config.supervision.mask_defects else None
+    defects = sensor_defects(dataset.streams, dataset.root, config.supervision.mask_defects)
     try:
         model, seconds, out = trained_sim(
             dataset,
@@ -123,7 +123,7 @@ def _run(args: argparse.Namespace) -> int:
             path=args.out,
             force=args.force,
             progress=bars,
-            streams=repaired_streams(dataset.streams, valid),
+            streams=defects.streams,
         )
     except KeyboardInterrupt:  # (stderr may be gone: a closed terminal's SIGHUP)
         say(

@@ -26,7 +26,7 @@ from .config import Config, SimConfig
 from .flicker import MAX_DEPTH, cached_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
-from .pixel_defects import repaired_streams, valid_pixels
+from .pixel_defects import sensor_defects
 from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
 
 # readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
@@ -366,16 +366,16 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
 
         return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget, valid)
 
-    # a sensor's hot, stuck and dead pixels, left out of every loss against the spikes
-    valid = valid_pixels(streams, dataset.root) if s.mask_defects and from_spikes else None
+    # a sensor's hot, stuck and dead pixels: left out of every loss against the spikes, and
+    # repaired in the spikes SIM reads (it reads a defect's spikes into its neighbours)
+    defects = sensor_defects(streams, dataset.root, s.mask_defects and from_spikes)
+    valid = defects.valid
 
     instant, sim_seconds = None, 0.0
     if config.instant_target() != "none":
         if s.instant == "sim":
-            # SIM reads a defect's spikes into its neighbours: it sees the defects repaired
-            sim_streams = repaired_streams(streams, valid)
             model, sim_seconds, path = trained_sim(
-                dataset, config.sim, config.train.seed, progress=progress, streams=sim_streams
+                dataset, config.sim, config.train.seed, progress=progress, streams=defects.streams
             )
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
                 sim_seconds = recorded_seconds(path)
@@ -385,7 +385,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
             infer = lambda st, k: predict(fast, st.window(k, fast.window))  # noqa: E731
-            instant = images(infer, window, sources=sim_streams)
+            instant = images(infer, window, sources=defects.streams)
         elif s.instant == "clean":
             instant = clean_images(dataset, spike(s.instant_window), budget)
         elif s.instant == "tfp":
@@ -395,5 +395,6 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)
-    masked = 0 if valid is None else int((~valid).any(-1).sum())
-    return Targets(ts, instant, exposure, sim_seconds, {"flicker": found, "defect_pixels": masked})
+    return Targets(
+        ts, instant, exposure, sim_seconds, {"flicker": found, "defect_pixels": defects.pixels}
+    )
