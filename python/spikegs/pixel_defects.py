@@ -156,8 +156,8 @@ class RepairedSpikes:
     as their neighbours `stand_in` [D] (each its neighbour of the (upper) median rate over the
     recording) do: what SIM, a blind-spot network that reads each pixel's neighbours, is trained
     on and reads (a hot pixel's spikes brightened its 8 neighbours and swamped its
-    self-supervised loss; BENCHMARKS.md, "Sensor defects, leftovers"). Windows only; the digest
-    is the stream's and the defects'."""
+    self-supervised loss; BENCHMARKS.md, "Sensor defects, leftovers"), and what sim-train scores
+    the decoders on. Windows, TFP and TFI; the digest is the stream's and the defects'."""
 
     def __init__(self, stream, at: np.ndarray, stand_in: np.ndarray):
         self.stream, self.at, self.stand_in = stream, at, stand_in
@@ -168,10 +168,22 @@ class RepairedSpikes:
 
     def window(self, k, w: int) -> np.ndarray:
         """`stream.window(k, w)` [w, H, W] ([B, w, H, W]), the defects repaired."""
-        spikes = self.stream.window(k, w)  # (a new array: repaired in place)
-        flat = spikes.reshape(*spikes.shape[:-2], -1)  # [..., H * W], a view
+        return self._repaired(self.stream.window(k, w))
+
+    def tfp(self, k, w: int) -> np.ndarray:
+        """`stream.tfp(k, w)` [H, W] ([B, H, W]), the defects repaired (a pixel's TFP is its own
+        spikes', so the stand-ins' TFP)."""
+        return self._repaired(self.stream.tfp(k, w))
+
+    def tfi(self, k) -> np.ndarray:
+        """`stream.tfi(k)` [H, W] ([B, H, W]), the defects repaired (the stand-ins' TFI)."""
+        return self._repaired(self.stream.tfi(k))
+
+    def _repaired(self, images: np.ndarray) -> np.ndarray:
+        """`images` [..., H, W], a new array the stream made, with each defect its stand-in's."""
+        flat = images.reshape(*images.shape[:-2], -1)  # [..., H * W], a view
         flat[..., self.at] = flat[..., self.stand_in]
-        return spikes
+        return images
 
     def digest(self) -> bytes:
         """SHA-256 of the stream's digest, the defects and the neighbours standing in."""

@@ -113,7 +113,7 @@ def _run(args: argparse.Namespace) -> int:
         raise ValueError(f"{FLAGS[key]}: {err}" if key else str(err)) from None
     views = on_path_views(dataset)  # what SIM is scored on, before it is trained
     # the spikes that training's SIM learns from (the sensor's defects repaired): the one made
-    # here is the one it reuses
+    # here is the one it reuses, and every decoder is scored on them
     defects = sensor_defects(dataset.streams, dataset.root, config.supervision.mask_defects)
     try:
         model, seconds, out = trained_sim(
@@ -135,13 +135,18 @@ def _run(args: argparse.Namespace) -> int:
     if not seconds:
         os.utime(out)  # the latest SIM now, as `spikegs poses --sim` picks (by modification time)
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
-    scores = evaluate_dataset(model, dataset)
+    scores = evaluate_dataset(model, dataset, streams=defects.streams)
     print_table([{"method": name, **s} for name, s in scores.items()])
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
     print(
         f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
         f"the same error in the intensity units of spikegs eval; SSIM higher too)"
     )
+    if defects.pixels:
+        print(
+            f"({defects.pixels} hot, stuck or dead pixels of the sensor fire as a neighbour in "
+            f"the spikes every method reads, as SIM's training reads them)"
+        )
     record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {
         "sim": str(Path(out).resolve()),
@@ -155,6 +160,7 @@ def _run(args: argparse.Namespace) -> int:
             f"SSIM higher too)"
         ),
         "scores": scores,
+        "defect_pixels": defects.pixels,  # repaired in the spikes scored
         "environment": environment(),
     }
     try:  # (reused weights may lie where nothing is written: the table above stands)

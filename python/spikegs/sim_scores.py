@@ -13,15 +13,22 @@ from .sim_train import infer_sim
 
 
 def compare_methods(
-    model: SIM, stream, timestamps: Sequence[int], gt: np.ndarray, dtype=None
+    model: SIM,
+    stream,
+    timestamps: Sequence[int],
+    gt: np.ndarray,
+    dtype=None,
+    own: Sequence[str | None] | None = None,
 ) -> dict[str, dict[str, float]]:
     """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
-    view whose ground truth is a method's own image (a pseudo ground truth: TFP of the view's
-    spikes) is left out of that method's mean (PSNR inf), and a method left no view is left out.
+    view whose ground truth is a method's own image (`own` [N], the method's name or None: a
+    pseudo ground truth, TFP of the view's spikes, whatever was repaired or divided out of it
+    since) is left out of that method's mean, and a method left no view is left out.
     TFI(t) spans readouts t and t + 1 (training compares it with the render at t + 0.5); it is
     scored here against the image at t, half a readout apart (at the default speed 0.075° of
     orbit, a fraction of a pixel), small beside its noise."""
     timestamps = np.asarray(timestamps)
+    own = [None] * len(timestamps) if own is None else own
     images = {
         "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
         "TFP(33)": stream.tfp(timestamps, 33),
@@ -31,7 +38,7 @@ def compare_methods(
     gt = np.asarray(gt, dtype=np.float32)
     scores = {}
     for name, pred in images.items():
-        pairs = [(p, g) for p, g in zip(pred, gt) if not np.array_equal(p, g)]
+        pairs = [(p, g) for p, g, o in zip(pred, gt, own) if o != name]
         if pairs:
             scores[name] = {
                 "psnr": float(np.mean([psnr(p, g) for p, g in pairs])),
@@ -49,16 +56,20 @@ def on_path_views(dataset) -> list:
     return views
 
 
-def evaluate_dataset(model: SIM, dataset, dtype=None) -> dict[str, dict[str, float]]:
-    """`compare_methods` on a dataset's held-out on-path views, against their clean images; the
-    mean over channels for a colour camera."""
+def evaluate_dataset(
+    model: SIM, dataset, dtype=None, streams: list | None = None
+) -> dict[str, dict[str, float]]:
+    """`compare_methods` on a dataset's held-out on-path views, against their clean images (a
+    pseudo ground truth's own TFP left out), reading `streams` (default the dataset's; one a
+    channel); the mean over channels for a colour camera."""
     views = on_path_views(dataset)
     timestamps = np.array([round(v.readout) for v in views])
+    own = [None if v.window is None else f"TFP({v.window})" for v in views]
     per_channel = [
         compare_methods(
-            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype
+            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype, own
         )
-        for c, stream in enumerate(dataset.streams)
+        for c, stream in enumerate(streams or dataset.streams)
     ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates
     return {
         name: {m: float(np.mean([r[name][m] for r in per_channel])) for m in scores}

@@ -114,6 +114,7 @@ class TestView:
     viewmat: np.ndarray  # [4, 4] world-to-camera, OpenCV
     image: np.ndarray  # [H, W, C]
     readout: float | None  # on-path readout time, None off the path
+    window: int | None = None  # a pseudo ground truth's: TFP of this many of the view's readouts
 
 
 FLOAT32_ROUNDING_PX = 0.1  # Dataset: a scene far from the origin rounds by more: warned

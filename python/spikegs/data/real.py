@@ -197,7 +197,8 @@ def _finish(
             image = image[..., None]  # [H, W, 1]
             if flicker is not None:  # (the TFP's readouts: the window centred on k)
                 image /= np.float32(flicker.gain([k - h.window // 2], h.window)[0])
-            dataset.test_views.append(TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout))
+            pseudo_view = TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout, h.window)
+            dataset.test_views.append(pseudo_view)
         else:
             image = (np.asarray(h.image) * scale).astype(np.float32)  # [H, W, 1]
             dataset.test_views.append(TestView(h.name, h.viewmat, image, h.readout))
