@@ -1,7 +1,9 @@
-"""`spikegs eval` (eval_cli.py): --no-images writes the scores only; pseudo ground truths noted."""
+"""`spikegs eval` (eval_cli.py): --no-images writes the scores only; pseudo ground truths noted;
+eval and render load with a bar unless --no-progress."""
 
 import json
 
+import pytest
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import simulate_dataset
@@ -35,3 +37,41 @@ def test_eval_notes_views_scored_against_pseudo_ground_truth(tmp_path, monkeypat
     assert main(["eval", str(tmp_path / "run"), "--dataset", str(data.root)]) == 0
     said = capsys.readouterr().out.splitlines()
     assert said[-1] == "note: 2 views without a sharp image, scored against TFP (pseudo_*)"
+
+
+class _Loaded(Exception):
+    """Raised by a stub past the loading: the command has asked for its dataset."""
+
+
+@pytest.mark.parametrize(
+    "command, asked",
+    [(["eval"], [True, True, False, False]), (["render", "--out", "ORBIT"], [True, False])],
+)
+def test_eval_and_render_load_with_a_bar_unless_told_not_to(tmp_path, monkeypatch, command, asked):
+    """A recording without sharp test images searches its spikes for a flicker as it loads
+    (seconds, longer on big ones): eval and render pass the loader a bar in a terminal, as train
+    does, and none under --no-progress; so does eval to its scoring (which loads the run's own
+    folder where --dataset names another)."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "scene.ply").touch()
+    given = []
+
+    def load(root, progress=False):
+        given.append(progress)
+        return "the dataset"
+
+    def past_loading(*args, progress=None, **kwargs):
+        given.extend([] if progress is None else [progress])
+        raise _Loaded
+
+    monkeypatch.setattr("spikegs.data.load_dataset", load)
+    monkeypatch.setattr("spikegs.evaluate.evaluate_run", past_loading)
+    monkeypatch.setattr("spikegs.evaluate.other_data", past_loading)  # render's next step
+    for module in ("eval_cli", "render_cli"):  # stderr a terminal
+        monkeypatch.setattr(f"spikegs.{module}.show_bars", lambda off: not off)
+    name, *options = [str(tmp_path / "orbit.gif") if word == "ORBIT" else word for word in command]
+    for extra in ([], ["--no-progress"]):
+        with pytest.raises(_Loaded):
+            main([name, str(run), *options, "--dataset", str(tmp_path), *extra])
+    assert given == asked

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .cli import add_no_progress, show_bars
 from .shell_words import shell_path
 
 
@@ -17,6 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="write the scores only, no side-by-side images (an earlier scoring's images of views "
         "whose scores changed are removed)",
     )
+    add_no_progress(parser)
 
 
 def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
@@ -57,9 +59,10 @@ def run(args: argparse.Namespace) -> int:
     from .evaluate import evaluate_run
 
     root = run_dataset(args.run, args.dataset)
+    bars = show_bars(args.no_progress)  # (a recording's flicker search as it loads)
     with reading_dataset(root):  # not rewritten as it is read (Busy while it is)
-        dataset = load_dataset(root)
-        result = evaluate_run(args.run, dataset, write_images=not args.no_images)
+        dataset = load_dataset(root, bars)
+        result = evaluate_run(args.run, dataset, write_images=not args.no_images, progress=bars)
     method = result["method"] or args.run.name  # a scene folder of another tool names none
     print(
         f"{method}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "

@@ -64,14 +64,14 @@ def score_view(model, view, dataset, scale: float, ssims: tuple[str, ...] = tupl
     return view_metrics(pred, np.asarray(view.image, np.float32) / scale, ssims)
 
 
-def _eval_name(run_dir: Path, train: dict, dataset) -> str:
+def _eval_name(run_dir: Path, train: dict, dataset, progress: bool = False) -> str:
     """'eval' for the dataset the run was trained on (`train`: its train.json; or moved: its
     folder gone, the data fingerprint the run's), else 'eval-DATASETNAME' (RUN/NAME.json and
     RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores;
     'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of the same directory
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
     another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
-    units)."""
+    units). `progress`: as `_holds_run_data`'s."""
     own = train.get("dataset")
     if own is None:
         return EVAL
@@ -87,8 +87,8 @@ def _eval_name(run_dir: Path, train: dict, dataset) -> str:
             f"another dataset, the run's own eval.json kept",
             stacklevel=3,
         )
-    elif known and same and not _holds_run_data(Path(own), train["data"], scale):  # moved
-        return EVAL
+    elif known and same and not _holds_run_data(Path(own), train["data"], scale, progress):
+        return EVAL  # moved
     for i in itertools.count(1):
         # (a long dataset name shortened: eval-NAME.json past NAME_MAX failed after the scoring)
         name = f"{EVAL}-{short_name(root.name, STEM_MAX)}" + (f"-{i}" if i > 1 else "")
@@ -131,9 +131,10 @@ def other_data(run_dir: Path, dataset) -> str | None:
     return None
 
 
-def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
+def _holds_run_data(folder: Path, data: str, scale: float, progress: bool = False) -> bool:
     """Whether `folder`, the run's dataset folder, still holds the data of fingerprint `data`
-    (False where it is gone, or holds another dataset or none: the run's data moved)."""
+    (False where it is gone, or holds another dataset or none: the run's data moved).
+    `progress`: `load_dataset`'s bar over its flicker search."""
     from .data import load_dataset
 
     if not folder.exists():
@@ -141,7 +142,7 @@ def _holds_run_data(folder: Path, data: str, scale: float) -> bool:
     try:
         with warnings.catch_warnings():  # of a dataset not scored: not the user's concern here
             warnings.simplefilter("ignore")
-            return same_data(data, load_dataset(folder), scale)
+            return same_data(data, load_dataset(folder, progress), scale)
     except (OSError, ValueError, KeyError):
         return False
 
@@ -216,12 +217,16 @@ def side_by_side(
     return np.concatenate([header, np.concatenate([gt, pred, error], axis=1)], axis=0)
 
 
-def evaluate_run(run_dir: str | Path, dataset, write_images: bool = True) -> dict:
+def evaluate_run(
+    run_dir: str | Path, dataset, write_images: bool = True, progress: bool = False
+) -> dict:
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
-    (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own)."""
+    (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own). `progress`: a bar
+    where the run's own dataset folder is loaded to tell whether it still holds the run's data
+    (its flicker search)."""
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
-    name = _eval_name(run_dir, train, dataset)
+    name = _eval_name(run_dir, train, dataset, progress)
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     if scene:
         warnings.warn(scene, stacklevel=2)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import direction, output_file, positive_int
+from .cli import add_no_progress, direction, output_file, positive_int, show_bars
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
 from .output_paths import record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
@@ -59,6 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "with, meta.json's `up`, else as the cameras show it, `world_up`; a top-down or "
         "forward-facing capture leaves it open)",
     )
+    add_no_progress(parser)
 
 
 def world_up(c2w: np.ndarray) -> np.ndarray:
@@ -196,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
     with reading_dataset(root), warnings.catch_warnings():  # (not rewritten as it is read)
         # the test images' units matter to scores, not to an orbit
         warnings.simplefilter("ignore", GuessedUnitsWarning)
-        dataset = load_dataset(root)
+        dataset = load_dataset(root, show_bars(args.no_progress))  # (its flicker search's bar)
         mismatch = other_data(args.run, dataset)  # (its spikes' digest)
     if mismatch:  # eval scores such a dataset as another; an orbit took its cameras unsaid
         warnings.warn(
