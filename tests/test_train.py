@@ -506,6 +506,18 @@ def test_an_evaluation_sees_the_model_before_the_densification_due_then(dataset,
         assert torch.equal(value, runs[40].model.params[name]), name
 
 
+def test_a_run_no_longer_than_eval_every_is_evaluated_after_its_first_step(dataset, tmp_path):
+    """A run of eval_every iterations or fewer (`--iterations 50` against the default 500) was
+    evaluated at its end alone: its curve.png one point. It is evaluated after its first step too
+    (its curve a start and an end); a longer run at the multiples of eval_every and its end."""
+    for iterations, evaluated in ((1, [1]), (50, [1, 50]), (70, [50, 70])):
+        train = {**FAST["train"], "iterations": iterations}  # eval_every 50
+        config = load_config("tfp33", {**FAST, "train": train})
+        run = tmp_path / str(iterations)
+        Trainer(dataset, config, run, progress=False).train()
+        assert [p["iteration"] for p in logged_curve(run)] == evaluated
+
+
 def test_a_run_and_its_callers_random_numbers_leave_each_other_alone(dataset, tmp_path):
     """A run seeded torch's global generator and drew its splits' offsets from it: a callback
     drawing from it (a sweep's own sampling) changed the run, and every run left it in the same

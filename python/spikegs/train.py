@@ -509,7 +509,10 @@ class Trainer:
         """Evaluation (into `test_psnr` and `first_view_psnr`), log record and progress due
         after a step; the error the progress output raised where it is gone (`progress_lost`)."""
         t, it = self.config.train, self.iteration
-        evaluate = it % t.eval_every == 0 or it == t.iterations
+        # a run of eval_every iterations or fewer is evaluated after its first step too: at its
+        # end alone, its curve.png was one point
+        first = it == 1 and t.iterations <= t.eval_every
+        evaluate = it % t.eval_every == 0 or it == t.iterations or first
         if evaluate:
             psnrs = self.test_psnrs()
             self.first_view_psnr, self.test_psnr = psnrs[0], float(np.mean(psnrs))
@@ -551,7 +554,8 @@ class Trainer:
     def train(self, resume: bool = False, on_eval=None) -> dict:
         """Run (or resume) training to `config.train.iterations`; returns the run summary.
 
-        `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end,
+        `on_eval(trainer)`, if given, is called every `eval_every` iterations and at the end
+        (and after the first step where the run is no longer than `eval_every`),
         outside the timed steps (its time is not in `train_seconds`), `trainer.first_view_psnr`
         then the first test view's PSNR, `trainer.test_psnr` the mean over every test view and
         `trainer.seconds_left` the training seconds the remaining steps take at the pace of
