@@ -94,6 +94,23 @@ def test_a_files_digest_is_read_once_while_the_file_is_unchanged(tmp_path, monke
     assert stream.digest() == SpikeStream.from_bits(edited).digest() != first
 
 
+def test_a_long_digest_is_said_as_what_it_is(tmp_path, monkeypatch, capsys):
+    """A digest of over SAID_OVER bytes (a GiB, ~1 s; here 0) is said on stderr: a file's as
+    read from its path, spikes in memory's as hashed (they said "None: reading ... for its
+    digest" as a flicker search keyed by them); one under it is not said."""
+    bits = random_bits((6, 4, 16))
+    path = save_dat(tmp_path / "s.dat", bits)
+    SpikeStream.open(path, 4, 16).digest()
+    SpikeStream.from_bits(bits).digest()
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr("spikegs.spikes.stream.SAID_OVER", 0)
+    SpikeStream.open(path, 4, 16).digest()
+    assert capsys.readouterr().err == f"{path}: reading 0.0 GB for its digest\n"
+    SpikeStream.from_bits(bits).digest()
+    said = "spikes in memory (6 readouts of 4x16): hashing 0.0 GB for their digest\n"
+    assert capsys.readouterr().err == said
+
+
 def test_a_large_files_digest_is_cached_for_the_next_command(tmp_path, monkeypatch):
     """Over CACHED_FROM (here 0) a file's digest is kept in $XDG_CACHE_HOME/spikegs for
     another process's stream of the same file, layout, size, mtime and inode; the file read
