@@ -56,6 +56,13 @@ class Flicker:
     period: float  # readouts
     phase: float  # radians at readout 0
 
+    def __post_init__(self):
+        """ValueError for what `find_flicker` cannot find (a cache file edited or of another
+        tool: its gain divided every target by it, NaN or a string failing deep in training)."""
+        numbers = all(isinstance(v, (int, float)) and np.isfinite(v) for v in asdict(self).values())
+        if not (numbers and self.depth >= 0 and self.period > 0):
+            raise ValueError(f"not a flicker: {self}")
+
     def gain(self, first, span: int) -> np.ndarray:
         """The mean modulation [B] over `span` readouts from each of `first` [B] (a readout time:
         TFI's k + 0.5 with span 1)."""
