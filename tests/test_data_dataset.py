@@ -1055,9 +1055,10 @@ def test_meta_values_are_shown_as_the_json_file_spells_them(tmp_path, key, value
 T, H, W = 100, 6, 8
 
 
-def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=None):
+def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=None, window=None):
     """A mono dataset of T readouts (no spike), two poses at `readouts`, training `timestamps`,
-    one held-out view (off the path, or on it at `view_readout`)."""
+    one held-out view (off the path, or on it at `view_readout`; a pseudo ground truth of TFP over
+    `window` readouts)."""
     root.mkdir(parents=True, exist_ok=True)
     poses = np.stack([look_at([3.0, 0.0, 1.0], [0, 0, 0]), look_at([0.0, 3.0, 1.0], [0, 0, 0])])
     meta = {
@@ -1075,7 +1076,7 @@ def write_tiny(root, timestamps=(40, 50), readouts=(0.0, T - 1.0), view_readout=
         "scene_radius": 1.0,
         "image_scale": 0.25,
     }
-    view = View("v", poses[0], np.full((H, W, 1), 0.1, np.float32), view_readout)
+    view = View("v", poses[0], np.full((H, W, 1), 0.1, np.float32), view_readout, window)
     write_parts(root, meta, Trajectory(np.array(readouts), poses), np.array(timestamps), [view])
     save_dat(root / "spikes.dat", np.random.default_rng(0).random((T, H, W)) < 0.1)
     return root
@@ -1125,6 +1126,22 @@ def test_poses_past_the_last_readout_are_said_to_be_unused(tmp_path):
     read without a word, where one a readout short is refused."""
     with pytest.warns(UserWarning, match=r"poses cover readouts \[0, 150\], the stream holds 100"):
         load_dataset(write_tiny(tmp_path / "d", readouts=(0.0, T + 50.0)))
+
+
+def test_a_pseudo_ground_truths_window_is_kept(tmp_path):
+    """`spikegs poses`' held-out views are TFP(65) of their own spikes: the window is written with
+    them and read back (sim-train leaves that TFP out of their scores by it; it was left out where
+    equal to its image alone, which a repaired defect is not); a window that is not a whole
+    number of readouts is refused."""
+    root = write_tiny(tmp_path / "d", timestamps=(32,), view_readout=T - 1.0, window=65)
+    assert [v.window for v in load_dataset(root).test_views] == [65]
+    path = root / "test_views.json"
+    doc = json.loads(path.read_text())
+    for bad in ("65", 6.5, 0, True):
+        doc["frames"][0]["pseudo_window"] = bad
+        path.write_text(json.dumps(doc))
+        with pytest.raises(ValueError, match="'v': pseudo_window expected a whole number"):
+            load_dataset(root)
 
 
 def test_an_on_path_view_past_the_last_readout_is_refused(tmp_path):

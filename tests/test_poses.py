@@ -415,8 +415,9 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     dataset = load_dataset(raw)
     views = dataset.test_views
     assert [v.name[:7] for v in views] == ["pseudo_"] * 3 and dataset.meta["train_every"] == 1
-    for view in views:  # their ground truth: TFP(65) at their readout, never trained on
+    for view in views:  # their ground truth: TFP(65) at their readout (said), never trained on
         np.testing.assert_array_equal(view.image[..., 0], dataset.stream.tfp(view.readout, 65))
+        assert view.window == 65  # (sim-train leaves TFP(65) out of their scores)
         assert np.abs(dataset.train_timestamps - view.readout).min() > 64
     registered = json.loads((raw / "trajectory.json").read_text())["frames"]
     first, last = registered[1]["readout"], registered[-2]["readout"]  # past the held ends

@@ -256,6 +256,7 @@ def _held_out_split(
             trajectory.pose_at(float(k)),
             np.stack([s.tfp(k, NEEDED_WINDOW) for s in streams], axis=-1),  # [H, W, C]
             float(k),
+            NEEDED_WINDOW,
         )
         for k in held
     ]

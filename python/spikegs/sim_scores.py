@@ -23,7 +23,8 @@ def compare_methods(
     """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
     view whose ground truth is a method's own image (`own` [N], the method's name or None: a
     pseudo ground truth, TFP of the view's spikes, whatever was repaired or divided out of it
-    since) is left out of that method's mean, and a method left no view is left out.
+    since; or equal to it: a dataset that kept no name) is left out of that method's mean, and
+    a method left no view is left out.
     TFI(t) spans readouts t and t + 1 (training compares it with the render at t + 0.5); it is
     scored here against the image at t, half a readout apart (at the default speed 0.075° of
     orbit, a fraction of a pixel), small beside its noise."""
@@ -38,7 +39,7 @@ def compare_methods(
     gt = np.asarray(gt, dtype=np.float32)
     scores = {}
     for name, pred in images.items():
-        pairs = [(p, g) for p, g, o in zip(pred, gt, own) if o != name]
+        pairs = [(p, g) for p, g, o in zip(pred, gt, own) if o != name and not np.array_equal(p, g)]
         if pairs:
             scores[name] = {
                 "psnr": float(np.mean([psnr(p, g) for p, g in pairs])),

@@ -410,6 +410,7 @@ def write_parts(
                 "readout": view.readout,
                 "file_path": file_path,
                 "transform_matrix": np.linalg.inv(view.viewmat).tolist(),
+                **({} if view.window is None else {"pseudo_window": view.window}),
             }
         )
     # whole files only (`spikegs poses` rewrites a dataset's: a kill there left it unloadable)
@@ -630,9 +631,14 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
             c2w = number_array(frame["transform_matrix"])  # [4, 4]
         except ValueError as err:
             raise ValueError(f"{where}: transform_matrix not numbers ({err})") from None
-        readout = frame.get("readout")
+        readout, window = frame.get("readout"), frame.get("pseudo_window")
         if not isinstance(frame["file_path"], str) or not (readout is None or is_number(readout)):
             raise ValueError(f"{where}: file_path expected a path and readout a finite number")
+        if window is not None and not (type(window) is int and window >= 1 and readout is not None):
+            raise ValueError(
+                f"{where}: pseudo_window expected a whole number of readouts >= 1 "
+                f"on the path (a readout), found {window!r}"
+            )
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
         c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
@@ -655,6 +661,7 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
                 np.linalg.inv(c2w),
                 image,
                 None if readout is None else float(readout),
+                window,
             )
         )
     check_test_views(views, path)
