@@ -1074,3 +1074,36 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(textured, tmp_pa
     summary = poses_cli.estimate_poses(root, count=10)["summary"]
     assert "no trajectory to align to: the poses are in SfM's own frame" in summary
     assert "warning: scene_center / scene_radius in meta.json are kept" in summary
+
+
+def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, monkeypatch):
+    """A stuck pixel (a spike at every readout, 4-20 times the scene's rate) is a white dot at
+    one place in every TFP image, a feature that does not move with the camera: SfM is fed the
+    images with it given its 8 neighbours' (upper) median (pixel_defects), and the summary counts
+    it.
+    Fed as it was, it showed 1 (clipped white) in every image."""
+    from spikegs import poses_cli
+    from spikegs.spikes import DatWriter
+
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    size = tiny.height
+    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
+    bits[:, 12, 17] = True  # [T, H, W]
+    with DatWriter(root / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
+        writer.write_bits(bits)
+    fed = []
+    logged = _logged_sfm(root)
+
+    def sfm_of(images, *args, **kwargs):
+        fed.append(images)
+        return logged(images, *args, **kwargs)
+
+    monkeypatch.setattr(poses_cli, "reconstruct", sfm_of)
+    report = poses_cli.estimate_poses(root, count=10)
+    (images,) = fed  # [N, H, W]
+    around = np.delete(images[:, 11:14, 16:19].reshape(len(images), 9), 4, axis=1)  # [N, 8]
+    np.testing.assert_array_equal(images[:, 12, 17], np.sort(around, axis=1)[:, 4])  # upper
+    assert images[:, 12, 17].max() < 1.0
+    assert report["defects"] == 1
+    assert "1 hot, stuck or dead pixels of the sensor" in report["summary"]

@@ -54,6 +54,7 @@ from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int
+from .pixel_defects import find_defects
 from .point_cloud import write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
@@ -351,7 +352,10 @@ def _estimate_poses(
         + (" (slow: --count 40 to 100 suffices for an orbit)" if pairs > SLOW_PAIRS else ""),
         file=sys.stderr,
     )
-    images = spike_images(streams, readouts, window, sim_model)
+    # the sensor's hot, stuck and dead pixels: a dot at one place in every image, a feature that
+    # does not move with the camera, and they set the 99.5th percentile that scales the images
+    defects = [np.logical_or(*find_defects(stream)) for stream in streams]  # [H, W] each
+    images = spike_images(streams, readouts, window, sim_model, defects)
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
     if meta.get("intrinsics_from") != INTRINSICS_FROM_SFM and all(
@@ -361,15 +365,23 @@ def _estimate_poses(
     recon = reconstruct(
         images, readouts, root / WORK_DIR, K, min_registered, from_sim=sim_model is not None
     )
+    defective = int(np.logical_or.reduce(defects).sum())  # pixels, in any channel
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),
         "points": len(recon.points),
+        "defects": defective,
     }
     messages = [
         f"SfM: {len(recon.readouts)} of {recon.num_images} images registered "
         f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points"
     ]
+    if defective:
+        messages.append(
+            f"{defective} hot, stuck or dead pixels of the sensor (found in the spikes) showed "
+            f"the median of their 8 neighbours in the SfM images (docs/datasets.md, 'Sensor "
+            f"defects')"
+        )
     if reference is None:
         messages.append(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "

@@ -20,6 +20,7 @@ from PIL import Image
 
 from .data.trajectory import Trajectory
 from .missing_dependency import MissingDependencyError
+from .pixel_defects import repaired
 
 GAMMA = 2.2  # images are gamma-encoded for SIFT (contrast in the darks), points linearised back
 MIN_FEATURES = 100  # fewer SIFT features per image than this: the images are the likely problem
@@ -58,23 +59,35 @@ class Reconstruction:
         return Trajectory(readouts, viewmats, source="sfm")
 
 
-def spike_images(streams, readouts: np.ndarray, window: int, sim=None) -> np.ndarray:
+def spike_images(
+    streams, readouts: np.ndarray, window: int, sim=None, defects: list | None = None
+) -> np.ndarray:
     """Grey images [N, H, W] in [0, 1] at `readouts` [N]: TFP(`window`) or, given a SIM, its
-    images; the mean of a colour camera's channels, divided by the 99.5th percentile."""
+    images, each channel's `defects` [H, W] (bool; the sensor's hot, stuck and dead pixels) given
+    the median of their 8 neighbours; the mean of a colour camera's channels, divided by the
+    99.5th percentile."""
     from .sim_train import infer_sim
 
-    def image(stream) -> np.ndarray:  # [N, H, W]
+    def image(stream, defects) -> np.ndarray:  # [N, H, W]
         if sim is None:
-            return np.asarray(stream.tfp(readouts, window), np.float32)
-        return infer_sim(sim, stream, readouts)[..., 0]
+            images = np.asarray(stream.tfp(readouts, window), np.float32)
+        else:
+            images = infer_sim(sim, stream, readouts)[..., 0]
+        if defects is not None and defects.any():  # one at a time, in place
+            for i, one in enumerate(images):
+                images[i] = repaired(one, defects)
+        return images
 
     # summed, scaled and clipped in place, a channel's images at a time: the channels' images,
     # their stack, the mean, its quotient and the clipped copy held 7 times the images at once
     # for a colour camera, 3 times for a mono one (1200 images of 250x400: 3.2 and 1.4 GB over
     # the 0.46 GB of the images), now twice (np.percentile's copy)
-    grey = np.array(image(streams[0]), np.float32)  # [N, H, W], its own
-    for stream in streams[1:]:
-        grey += image(stream)
+    defects = [None] * len(streams) if defects is None else defects
+    if len(defects) != len(streams):
+        raise ValueError(f"spike_images: {len(defects)} defect maps for {len(streams)} channels")
+    grey = np.array(image(streams[0], defects[0]), np.float32)  # [N, H, W], its own
+    for stream, found in zip(streams[1:], defects[1:]):
+        grey += image(stream, found)
     grey /= len(streams)  # (np.mean's sum and division, in float32 as it)
     grey /= max(float(np.percentile(grey, 99.5)), 1e-12)
     return np.clip(grey, 0.0, 1.0, out=grey)
