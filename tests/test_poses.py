@@ -948,15 +948,16 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
     from spikegs.poses_cli import _held_out_split
 
     streams = [_Channel(np.zeros((4, 6)))]
+    truth = lambda k, window: np.zeros((4, 6, 1), np.float32)  # noqa: E731
     ends = np.stack([np.eye(4)] * 2)
     ends[1, 0, 3] = 999.0  # a camera moving along x, a unit a readout: each view's own pose
     trajectory = Trajectory(np.array([0.0, 999.0]), ends)
     registered = np.array([32, *range(100, 800, 50)])  # 32, 100 ... 750: 32 and 450 held out
-    views = _held_out_split(streams, trajectory, registered, 8)[0]
+    views = _held_out_split(streams, trajectory, registered, 8, truth)[0]
     assert [v.readout for v in views] == [32.0, 450.0]
     np.testing.assert_allclose([v.viewmat[0, 3] for v in views], [32.0, 450.0], rtol=1e-12)
     registered = np.array([8, *range(300, 700, 50), 896])  # 8 (no room) and 650 held out
-    views, ks = _held_out_split(streams, trajectory, registered, 8)
+    views, ks = _held_out_split(streams, trajectory, registered, 8, truth)
     assert [v.readout for v in views] == [650.0]
     assert (ks.min(), ks.max()) == (40, 864)
 
@@ -968,11 +969,12 @@ def test_a_raw_recordings_split_that_comes_out_empty_is_refused_saying_why():
     from spikegs.poses_cli import _held_out_split
 
     streams = [_Channel(np.zeros((4, 6)))]
+    truth = lambda k, window: np.zeros((4, 6, 1), np.float32)  # noqa: E731
     trajectory = Trajectory(np.array([0.0, 999.0]), np.stack([np.eye(4)] * 2))
     with pytest.raises(ValueError, match=r"no held-out view: .* at readouts \[8\] has room for a"):
-        _held_out_split(streams, trajectory, np.array([8, 16, 24]), 8)
+        _held_out_split(streams, trajectory, np.array([8, 16, 24]), 8, truth)
     with pytest.raises(ValueError, match=r"no training timestamp: .* \[300, 380\] leave no 65-"):
-        _held_out_split(streams, trajectory, np.array([300, 340, 380]), 8)
+        _held_out_split(streams, trajectory, np.array([300, 340, 380]), 8, truth)
 
 
 def test_a_point_cloud_without_points_is_refused(tmp_path):
@@ -1107,3 +1109,41 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     assert images[:, 12, 17].max() < 1.0
     assert report["defects"] == 1
     assert "1 hot, stuck or dead pixels of the sensor" in report["summary"]
+
+
+def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_it(
+    tiny, tmp_path, monkeypatch
+):
+    """A raw recording's held-out views (TFP(65) of their own spikes) show a stuck pixel as its
+    8 neighbours' (upper) median and are divided by a flicker of the light, as the real-data
+    loaders' pseudo ground truth is, and meta.json's test_ground_truth says both: they kept the
+    stuck pixel's 1 a readout and the flicker's phase, which training leaves out."""
+    from spikegs import poses_cli
+    from spikegs.flicker import Flicker
+    from spikegs.spikes import DatWriter
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    size = tiny.height
+    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
+    bits[:, 12, 17] = True  # [T, H, W]
+    with DatWriter(raw / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
+        writer.write_bits(bits)
+    keys = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
+    (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
+    flicker = Flicker(depth=0.3, period=200.0, phase=0.0)
+    monkeypatch.setattr("spikegs.data.real.cached_flicker", lambda streams, progress: flicker)
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root))
+    poses_cli.estimate_poses(raw, count=10)
+    dataset = load_dataset(raw)
+    (view,) = dataset.test_views
+    k = round(view.readout)
+    tfp = dataset.stream.tfp(k, 65)  # [H, W]
+    around = np.delete(tfp[11:14, 16:19].ravel(), 4)  # [8]
+    gain = flicker.gain([k - 32], 65)[0]
+    assert tfp[12, 17] == 1.0 and abs(gain - 1) > 0.05  # what the view showed before
+    np.testing.assert_allclose(view.image[12, 17, 0], np.sort(around)[4] / gain, rtol=1e-6)
+    np.testing.assert_allclose(view.image[0, 0, 0], tfp[0, 0] / gain, rtol=1e-6)
+    note = dataset.meta["test_ground_truth"]
+    assert note["pseudo_defects"].startswith("1 hot, stuck or dead pixels")
+    assert note["pseudo_flicker"].startswith("divided by the light's flicker: period 200.0")

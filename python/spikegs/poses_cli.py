@@ -50,7 +50,13 @@ from .data.dataset import (
     write_parts,
     writing_dataset,
 )
-from .data.real import HOLDOUT_EVERY, NEEDED_WINDOW, PSEUDO_PREFIX, ground_truth_note
+from .data.real import (
+    HOLDOUT_EVERY,
+    NEEDED_WINDOW,
+    PSEUDO_PREFIX,
+    ground_truth_note,
+    pseudo_truth,
+)
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int
@@ -227,13 +233,15 @@ def _keep_timestamps(root: Path, ks: np.ndarray, inside: np.ndarray, registered)
 
 
 def _held_out_split(
-    streams, trajectory: Trajectory, registered: np.ndarray, train_every: int
+    streams, trajectory: Trajectory, registered: np.ndarray, train_every: int, truth
 ) -> tuple[list[TestView], np.ndarray]:
     """A raw recording's held-out views and training timestamps [M]: every HOLDOUT_EVERY-th
-    `registered` readout whose TFP(65) fits in the stream is held out, that TFP [H, W, C] its
-    ground truth; timestamps every `train_every` readouts whose 65-readout windows lie
-    between the first and last registered readouts (the trajectory is held constant outside) and
-    clear of the held-out views'. ValueError when either comes out empty."""
+    `registered` readout whose TFP(65) fits in the stream is held out, `truth(k, 65)` [H, W, C]
+    its ground truth (`pseudo_truth`: TFP with the sensor's defects repaired and a flicker of the
+    light divided, as the real-data loaders make it); timestamps every `train_every` readouts
+    whose 65-readout windows lie between the first and last registered readouts (the trajectory
+    is held constant outside) and clear of the held-out views'. ValueError when either comes out
+    empty."""
     num = len(streams[0])
     lo, hi = centred_range(num, NEEDED_WINDOW)  # readouts whose ground-truth window fits
     held = [int(k) for k in registered[::HOLDOUT_EVERY] if lo <= k <= hi]
@@ -255,7 +263,7 @@ def _held_out_split(
         TestView(
             f"{PSEUDO_PREFIX}{k:06d}",
             trajectory.pose_at(float(k)),
-            np.stack([s.tfp(k, NEEDED_WINDOW) for s in streams], axis=-1),  # [H, W, C]
+            truth(k, NEEDED_WINDOW),  # [H, W, C]
             float(k),
             NEEDED_WINDOW,
         )
@@ -416,12 +424,10 @@ def _estimate_poses(
     if raw:  # held-out views and training timestamps too, so that the recording trains
         span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover
         train_every = stated_every or default_train_every(span)
-        views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every)
-        meta.update(
-            train_every=train_every,
-            test_ground_truth=ground_truth_note(0, len(views)),
-            held_out_by=HELD_OUT_BY,
-        )
+        truth, notes = pseudo_truth(streams)
+        views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
+        note = {**ground_truth_note(0, len(views)), **notes}
+        meta.update(train_every=train_every, test_ground_truth=note, held_out_by=HELD_OUT_BY)
         shutil.rmtree(root / TEST_DIR, ignore_errors=True)  # a previous run's held-out images
         write_parts(root, meta, trajectory, ks, views)
         messages.append(

@@ -12,7 +12,7 @@ import dataclasses
 import math
 import os
 import warnings
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +93,38 @@ def ground_truth_note(sharp: int, pseudo: int) -> dict:
     """meta["test_ground_truth"]: how many test views have a sharp image, how many a pseudo one."""
     note = {"sharp_images": sharp, "pseudo": pseudo}
     return {**note, "pseudo_method": PSEUDO_NOTE} if pseudo else note
+
+
+def pseudo_truth(streams, progress: bool = False) -> tuple[Callable, dict]:
+    """A held-out view's pseudo ground truth from `streams` (one a channel), `truth(k, window)`
+    [H, W, C]: TFP over the window centred on readout k, each sensor's hot, stuck or dead pixel
+    given its neighbours' median (the losses leave them out) and divided by the light's flicker
+    there (the light's, not the scene's: as training's targets are); and what
+    meta["test_ground_truth"] adds of them (`pseudo_flicker`, `pseudo_defects`). `progress`: the
+    flicker search's bar."""
+    flicker = cached_flicker(streams, progress)
+    flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
+    defects = [np.logical_or(*find_defects(stream)) for stream in streams]  # C x [H, W]
+
+    def truth(k: int, window: int) -> np.ndarray:
+        images = [s.tfp(k, window) for s in streams]  # C x [H, W]
+        image = np.stack([repaired(i, d) if d.any() else i for i, d in zip(images, defects)], -1)
+        if flicker is not None:  # (the TFP's readouts: the window centred on k)
+            image /= np.float32(flicker.gain([k - window // 2], window)[0])
+        return image
+
+    notes, defective = {}, int(np.logical_or.reduce(defects).sum())  # (pixels, in any channel)
+    if flicker is not None:
+        notes["pseudo_flicker"] = (
+            f"divided by the light's flicker: period {flicker.period:.1f} readouts, depth "
+            f"{flicker.depth:.2f}"
+        )
+    if defective:
+        notes["pseudo_defects"] = (
+            f"{defective} hot, stuck or dead pixels of the sensor replaced by the median of their "
+            f"neighbours"
+        )
+    return truth, notes
 
 
 # readouts a held-out pose keeps free of training timestamps: one between two such poses lies
@@ -181,38 +213,17 @@ def _finish(
             GuessedUnitsWarning,
             stacklevel=3,
         )
-    # a pseudo ground truth shows the light at its readouts: under a flicker (one stream), its
-    # phase there, which is the light's, not the scene's: divided out as from training targets;
-    # and the sensor's hot, stuck and dead pixels, which the losses leave out: their neighbours'
     pseudo = len(held_out) - len(sharp)
-    flicker = cached_flicker([stream], progress) if pseudo else None
-    flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
-    defects = np.logical_or(*find_defects(stream)) if pseudo else None  # [H, W]
+    truth, notes = pseudo_truth([stream], progress) if pseudo else (None, {})
     for h in held_out:
         if h.image is None:
-            k = round(h.readout)
-            image = stream.tfp(k, h.window)  # [H, W]
-            if defects.any():
-                image = repaired(image, defects)
-            image = image[..., None]  # [H, W, 1]
-            if flicker is not None:  # (the TFP's readouts: the window centred on k)
-                image /= np.float32(flicker.gain([k - h.window // 2], h.window)[0])
+            image = truth(round(h.readout), h.window)  # [H, W, 1]
             pseudo_view = TestView(PSEUDO_PREFIX + h.name, h.viewmat, image, h.readout, h.window)
             dataset.test_views.append(pseudo_view)
         else:
             image = (np.asarray(h.image) * scale).astype(np.float32)  # [H, W, 1]
             dataset.test_views.append(TestView(h.name, h.viewmat, image, h.readout))
-    meta["test_ground_truth"] = ground_truth_note(len(sharp), pseudo)
-    if flicker is not None:
-        meta["test_ground_truth"]["pseudo_flicker"] = (
-            f"divided by the light's flicker: period {flicker.period:.1f} readouts, depth "
-            f"{flicker.depth:.2f}"
-        )
-    if defects is not None and defects.any():
-        meta["test_ground_truth"]["pseudo_defects"] = (
-            f"{int(defects.sum())} hot, stuck or dead pixels of the sensor replaced by the median "
-            f"of their neighbours"
-        )
+    meta["test_ground_truth"] = {**ground_truth_note(len(sharp), pseudo), **notes}
     if sharp:
         meta["image_scale"] = scale
     check_test_views(dataset.test_views, root)
