@@ -98,7 +98,9 @@ def _search(stream) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     dark_total, _ = _second(total)
     deep = total < dark_total / RATIO - Z * np.sqrt(dark_total / readouts)
     hot, dead = above / count >= SHARE, deep & (not_below / count >= SHARE)
-    found = hot, dead, _stand_ins(spikes, hot | dead)
+    # whole counts: neighbours of equal counts taken in ring order (float32 rates times
+    # readouts rounded such ties apart, picking another stand-in, and so another SIM cache key)
+    found = hot, dead, _stand_ins(np.rint(spikes), hot | dead)
     for kept in found:
         kept.flags.writeable = False  # (kept: a caller's edit would be the next one's finding)
     return found
