@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import signal
 import sys
@@ -57,7 +58,7 @@ def as_llff():
 def moved_world():
     """`moved_world(dataset, offset)`: `dataset` with its world moved by `offset` [3] (poses, test
     views and scene centre), as if captured there (UTM or GPS coordinates)."""
-    from spikegs.data.dataset import Dataset, TestView
+    from spikegs.data.dataset import Dataset
     from spikegs.data.trajectory import Trajectory
 
     def moved(dataset, offset) -> Dataset:
@@ -69,7 +70,7 @@ def moved_world():
             return out
 
         trajectory = Trajectory(dataset.trajectory.readouts, move(dataset.trajectory.viewmats))
-        views = [TestView(v.name, move(v.viewmat), v.image, v.readout) for v in dataset.test_views]
+        views = [dataclasses.replace(v, viewmat=move(v.viewmat)) for v in dataset.test_views]
         meta = {**dataset.meta, "scene_center": list(dataset.scene_center + offset)}
         timestamps = dataset.train_timestamps
         return Dataset(dataset.root, meta, dataset.streams, trajectory, timestamps, views)

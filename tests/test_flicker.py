@@ -217,9 +217,12 @@ def test_a_long_recordings_finding_is_kept_until_the_recording_or_the_search_cha
     first = start()
     assert start() == first and len(searched) == 1 and files() == before
     (kept,) = (tmp_path / "cache" / "spikegs" / "flicker").iterdir()
-    for edited in ({"depth": "0.3", "period": 250.0, "phase": 0.0}, {"depth": 0.3, "period": -1}):
-        kept.write_text(json.dumps({"flicker": {"phase": 0.0, **edited}}))  # searched again
-        assert start() == first and len(searched) == 2 and "-1" not in kept.read_text()
+    for edited in ({"depth": "0.3"}, {"period": -1}, {"depth": True}):
+        kept.write_text(
+            json.dumps({"flicker": {"depth": 0.3, "period": 250.0, "phase": 0, **edited}})
+        )
+        assert start() == first and len(searched) == 2  # searched again, and rewritten
+        assert json.loads(kept.read_text())["flicker"]["period"] == pytest.approx(250, abs=5)
         searched.pop()
     monkeypatch.setattr(flicker, "_detector", lambda: b"another search")
     assert start() == first and len(searched) == 2

@@ -59,7 +59,9 @@ class Flicker:
     def __post_init__(self):
         """ValueError for what `find_flicker` cannot find (a cache file edited or of another
         tool: its gain divided every target by it, NaN or a string failing deep in training)."""
-        numbers = all(isinstance(v, (int, float)) and np.isfinite(v) for v in asdict(self).values())
+        values = asdict(self).values()  # (numbers, not bool: true read as 1)
+        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+        numbers = numbers and all(np.isfinite(v) for v in values)
         if not (numbers and self.depth >= 0 and self.period > 0):
             raise ValueError(f"not a flicker: {self}")
 
