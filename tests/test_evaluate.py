@@ -115,6 +115,14 @@ def test_titles_wider_than_their_panels_are_shrunk_whole():
         assert column.max() > 0.5 and not column[:, :2].any() and not column[:, -2:].any()
 
 
+def test_a_short_title_keeps_the_fonts_size_centred_over_its_column():
+    """A title narrower than its column is drawn at the font's size, centred, not stretched to
+    the column's width."""
+    header = column_titles(["TFI"], 200)  # [16, 200, 1]
+    inked = np.flatnonzero(header.max(axis=(0, 2)) > 0.1)  # columns of pixels with ink
+    assert inked.max() - inked.min() < 30 and abs((inked.min() + inked.max()) / 2 - 100) < 3
+
+
 def test_scores_without_a_later_metric_do_not_count_as_changed(trained, run):
     """An eval.json written before ssim_3dgs was scored: the same psnr and ssim again with
     --no-images are no change, and the earlier side-by-sides are kept."""
