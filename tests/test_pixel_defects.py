@@ -157,6 +157,71 @@ def test_bright_points_of_the_scene_are_not_taken_for_defects():
     assert pixels(find_defects(stream)[0]) == {(4, 0), (7, 3), (7, 7)}
 
 
+@pytest.mark.parametrize("views", [1, 10])
+def test_a_defect_hidden_in_one_stretch_of_ten_or_more_is_found(views):
+    """A defect stands out in SHARE (90 %) of the stretches or more, not in every one: on a grey
+    of 0.2 spikes a readout, a hot pixel (0.8, OR-ed) that a highlight (0.9 over its 5x5
+    neighbourhood) outshines and a dead one that fires (0.4) for the first 90 readouts of 1600
+    (within the first of 16 stretches), or through the first view of a capture of 10 (9 of 10:
+    90 % exactly), are found."""
+    rng = np.random.default_rng(0)
+    first = 90 if views == 1 else 1600 // views  # readouts
+    rate = np.full((1600, 16, 16), 0.2)  # [T, H, W]
+    rate[:first, 6:11, 6:11] = 0.9
+    rate[first:, 3, 3] = 0.0
+    rate[:first, 3, 3] = 0.4
+    bits = rng.random(rate.shape) < rate
+    bits[:, 8, 8] |= rng.random(len(bits)) < 0.8
+    stream = SpikeStream.from_bits(bits)
+    if views > 1:
+        packed, n = stream.packed(), len(bits) // views
+        parts = [SpikeStream.from_packed(packed[i * n : (i + 1) * n], 16, 16) for i in range(views)]
+        stream = ViewStreams(parts, [f"r_{i}" for i in range(views)])
+    hot, dead = find_defects(stream)
+    assert pixels(hot) == {(8, 8)} and pixels(dead) == {(3, 3)}
+
+
+def test_a_dead_pixel_among_dim_neighbours_in_short_views_is_found():
+    """Dead: in nearly every stretch no higher than its neighbours, equal included: in 40 views of
+    21 readouts at 0.1 spikes a readout, a quarter of the views see a dead pixel's second
+    darkest neighbour fire nothing too."""
+    bits = np.random.default_rng(0).random((40 * 21, 16, 16)) < 0.1  # [T, H, W]
+    bits[:, 5, 5] = False
+    packed = SpikeStream.from_bits(bits).packed()
+    views = [SpikeStream.from_packed(packed[i * 21 : (i + 1) * 21], 16, 16) for i in range(40)]
+    hot, dead = find_defects(ViewStreams(views, [f"r_{i}" for i in range(40)]))
+    assert not hot.any() and pixels(dead) == {(5, 5)}
+
+
+def test_a_black_region_is_no_dead_pixels():
+    """An 8x8 region that never fires (unlit, or a lens cap's shadow) is not taken for dead
+    pixels: no neighbour fires there to fall far below."""
+    bits = np.random.default_rng(0).random((1600, 16, 16)) < 0.2  # [T, H, W]
+    bits[:, 4:12, 4:12] = False
+    hot, dead = find_defects(SpikeStream.from_bits(bits))
+    assert not hot.any() and not dead.any()
+
+
+@pytest.mark.parametrize("kind", ["stuck", "dead"])
+def test_a_recording_with_one_kind_of_defect_alone_is_masked(kind):
+    """A sensor with stuck pixels and no dead one (or the reverse) has them masked and repaired."""
+    bits = np.random.default_rng(0).random((1600, 16, 16)) < 0.2  # [T, H, W]
+    bits[:, 5, 9] = kind == "stuck"
+    with pytest.warns(UserWarning, match="1 hot or stuck" if kind == "stuck" else "1 dead"):
+        found = sensor_defects([SpikeStream.from_bits(bits)], "memory")
+    assert found.pixels == 1 and not found.valid[5, 9, 0] and found.valid.sum() == 16 * 16 - 1
+
+
+def test_a_findings_maps_are_read_only(defective):
+    """A file's finding is kept for the process: a caller's edit of its maps would be every later
+    caller's finding (the losses', SIM's), so they cannot be written."""
+    hot, dead = find_defects(defective.stream)
+    for found in (hot, dead):
+        with pytest.raises(ValueError, match="read-only"):
+            found[0, 0] = not found[0, 0]
+    assert pixels(find_defects(defective.stream)[0]) == set(HOT + STUCK)
+
+
 def test_the_losses_leave_the_defects_out(defective, tmp_path, monkeypatch):
     """Every loss against a target from the spikes, and the fit's brightness (a dim scene's
     defects outshone it: a biased fit said), sees the render equal to its target at the defects
