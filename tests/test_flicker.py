@@ -33,9 +33,25 @@ def test_a_flicker_is_found_with_its_depth_period_and_phase():
     assert found.phase == pytest.approx(1.0, abs=0.15)
 
 
+@pytest.mark.parametrize("period", [83.3, 400.0])
+def test_flickers_at_either_end_of_the_mains_range_are_found(period):
+    """240 Hz (the 120 Hz flicker's harmonic) at a 20 kHz readout, 83.3 readouts, and 100 Hz at
+    40 kHz, 400 readouts: the periods the search is documented to cover (flicker.PERIODS)."""
+    found = find_flicker([_grey(0.2, period, 1.0)])
+    assert found.period == pytest.approx(period, rel=0.01)
+    assert found.depth == pytest.approx(0.2, abs=0.02)
+
+
 @pytest.mark.parametrize("depth, readouts", [(0.0, 2000), (0.3, 1500)])
 def test_no_flicker_in_a_steady_light_or_a_recording_too_short_to_tell(depth, readouts):
     assert find_flicker([_grey(depth, 250.0, 0.0, readouts)]) is None
+
+
+def test_a_recording_of_four_of_the_longest_periods_is_judged():
+    """MIN_PERIODS x the longest period searched, 4 x 420 = 1680 readouts, is long enough to judge
+    (BENCHMARKS.md, "Lighting flicker": recordings of 1680 readouts or more); 1679 is not."""
+    assert find_flicker([_grey(0.3, 250.0, 0.0, 1680)]).period == pytest.approx(250, rel=0.01)
+    assert find_flicker([_grey(0.3, 250.0, 0.0, 1679)]) is None
 
 
 def test_a_view_that_brightens_some_regions_as_it_darkens_others_is_no_flicker():
@@ -123,6 +139,22 @@ def test_a_long_search_shows_its_progress_unless_told_not_to(tmp_path, monkeypat
     forget()  # (the finding is kept for the process: searched again)
     build_targets(dataset, load_config("tfp33"), progress=True)
     assert "flicker: 100%" in capsys.readouterr().err.replace("\r", "\n")
+
+
+@pytest.mark.parametrize("depth, divided", [(0.99, True), (1.0, False)])
+def test_a_flicker_is_divided_out_while_the_light_stays_above_none(
+    tmp_path, monkeypatch, depth, divided
+):
+    """1 + depth sin(...) stays above zero for a depth under 1 (flicker.MAX_DEPTH): the targets
+    are divided by it; at 1 it reaches zero (a target infinite): left as the spikes show them."""
+    dataset = simulate_dataset(
+        "solids", tmp_path / "d", height=16, width=16, readouts=2000, progress=False
+    )
+    found = Flicker(depth, 250.0, 0.0)
+    monkeypatch.setattr("spikegs.targets.cached_flicker", lambda streams, progress: found)
+    with pytest.warns(UserWarning, match="target is divided" if divided else "too deep"):
+        targets = build_targets(dataset, load_config("tfp33"), progress=False)
+    assert targets.found["flicker"]["divided"] == divided
 
 
 def test_the_gain_is_the_mean_modulation_over_a_span():
