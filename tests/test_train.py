@@ -3603,6 +3603,17 @@ def test_a_run_folders_links_to_devices_and_fifos_are_neither_read_nor_written_t
         pass
 
 
+def test_the_file_readers_take_a_path_as_a_string(tmp_path):
+    """read_json and read_yaml (a notebook's: spikegs.strict_json, spikegs.yaml_files) take a
+    path as a str as well as a Path."""
+    from spikegs.strict_json import read_json
+    from spikegs.yaml_files import read_yaml
+
+    (tmp_path / "a.json").write_text('{"a": 1}')
+    (tmp_path / "a.yaml").write_text("a: 1\n")
+    assert read_json(str(tmp_path / "a.json")) == read_yaml(str(tmp_path / "a.yaml")) == {"a": 1}
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
 def test_a_full_disk_is_an_os_error_naming_the_file_and_leaves_no_torn_file(tmp_path, monkeypatch):
     """Each writer's temporary file made a link to /dev/full, where every write fails as on a full
