@@ -92,6 +92,11 @@ LOG_SUBS = (range(1, 10), (1.0, 2.0, 3.0, 5.0), (1.0, 2.0, 5.0), (1.0, 3.0), (1.
 LEGEND_WRAP = 32  # characters a line of a legend entry (a config's long name)
 
 
+def _draws_sim(methods: dict) -> bool:
+    """Whether a SIM method is among the curves of `methods` (`save_curves`')."""
+    return any(r["uses_sim"] for r in methods.values())
+
+
 def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     """One line per method of each metric against seconds (SIM methods offset by their SIM time,
     solid or dotted; the others dashed or dash-dotted); the legend right of the last axes, off
@@ -99,7 +104,7 @@ def _plot_curves(axes, methods: dict, metrics: tuple[str, ...]) -> None:
     train`'s 15)."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
-    sim_drawn = any(r["uses_sim"] for r in methods.values())  # the time axis holds SIM's seconds
+    sim_drawn = _draws_sim(methods)  # the time axis holds SIM's seconds
     for i, (name, r) in enumerate(methods.items()):
         offset = r.get("curve_sim_seconds", r["sim_seconds"])  # the curve is seed 0's
         seconds = [offset + p["train_seconds"] for p in r["curve"]]
@@ -156,7 +161,7 @@ def curves_figure(methods: dict, metrics: tuple[str, ...], title: str):
     by the legend; `title` and, where a SIM method is drawn, a line saying where its curve starts
     (a baseline's alone trains no SIM)."""
     plt = pyplot()
-    if any(r["uses_sim"] for r in methods.values()):
+    if _draws_sim(methods):
         title += "\n(a SIM method's curve starts after SIM's training)"
 
     width = 5.5 * len(metrics)  # inches

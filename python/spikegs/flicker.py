@@ -21,6 +21,7 @@ from . import _C
 from .cache_home import CACHED_FROM, cache_home, write_cached
 from .found_once import found_once
 from .interrupt import progress_lost, quiet_close
+from .number_checks import is_number
 from .spikes.stream import SpikeStream
 
 PERIODS = (80.0, 420.0)  # readouts searched: 100-120 Hz at 20-40 kHz, and 240 Hz (a harmonic)
@@ -59,9 +60,7 @@ class Flicker:
     def __post_init__(self):
         """ValueError for what `find_flicker` cannot find (a cache file edited or of another
         tool: its gain divided every target by it, NaN or a string failing deep in training)."""
-        values = asdict(self).values()  # (numbers, not bool: true read as 1)
-        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
-        numbers = numbers and all(np.isfinite(v) for v in values)
+        numbers = all(is_number(v) for v in asdict(self).values())  # (not bool: true read as 1)
         if not (numbers and self.depth >= 0 and self.period > 0):
             raise ValueError(f"not a flicker: {self}")
 

@@ -634,7 +634,7 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
         readout, window = frame.get("readout"), frame.get("pseudo_window")
         if not isinstance(frame["file_path"], str) or not (readout is None or is_number(readout)):
             raise ValueError(f"{where}: file_path expected a path and readout a finite number")
-        if window is not None and not (type(window) is int and window >= 1 and readout is not None):
+        if window is not None and not (is_int(window) and window >= 1 and readout is not None):
             raise ValueError(
                 f"{where}: pseudo_window expected a whole number of readouts >= 1 "
                 f"on the path (a readout), found {window!r}"
