@@ -587,6 +587,33 @@ def test_compare_methods_reports_all(scene, trained):
     assert set(alone) == {"SIM", "TFP(33)", "TFI"}
 
 
+def test_compare_methods_divide_each_image_by_the_flicker_over_its_readouts(scene):
+    """Given the light's flicker, each method's image is divided by the light's mean over the
+    readouts it shows (TFP(w): the w centred on t; TFI: t + 0.5; SIM: its target window), as
+    training's targets are: the rows met a steady ground truth with the flicker's phase left in."""
+    from spikegs.flicker import Flicker
+
+    rates, stream = scene
+    ts = np.array([40, 70])
+    gt = np.stack([rates(k) for k in ts])  # [2, H, W]
+    model = _random_sim(window=33, target_window=17)
+    flicker = Flicker(depth=0.5, period=50.0, phase=0.3)
+    scores = compare_methods(model, stream, ts, gt, flicker=flicker)
+
+    def light(first, span):  # [2] the mean of 1 + depth sin over readouts first .. + span - 1
+        t = first[:, None] + np.arange(span)
+        return np.mean(1 + 0.5 * np.sin(2 * np.pi * t / 50.0 + 0.3), axis=1)
+
+    for name, images, gain in (
+        ("SIM", infer_sim(model, stream, ts)[..., 0], light(ts - 8, 17)),
+        ("TFP(33)", stream.tfp(ts, 33), light(ts - 16, 33)),
+        ("TFP(65)", stream.tfp(ts, 65), light(ts - 32, 65)),
+        ("TFI", stream.tfi(ts), light(ts + 0.5, 1)),
+    ):
+        expected = np.mean([psnr(p / g, t) for p, g, t in zip(images, gain, gt)])
+        assert scores[name]["psnr"] == pytest.approx(expected, rel=1e-5), name
+
+
 def test_metrics():
     gt = np.random.default_rng(0).random((16, 20)).astype(np.float32)
     assert psnr(gt + 0.1, gt) == pytest.approx(20.0, abs=1e-4)

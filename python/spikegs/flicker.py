@@ -70,6 +70,13 @@ class Flicker:
         t = np.asarray(first, np.float64)[:, None] + np.arange(span)  # [B, span]
         return (1 + self.depth * np.sin(2 * np.pi * t / self.period + self.phase)).mean(axis=1)
 
+    def divided(self, images: np.ndarray, k, span: int, time_offset: float = 0.0) -> np.ndarray:
+        """`images` [B, ...] (float32) that show the light of `span` readouts from each
+        k - span // 2 + `time_offset` (`k` [B]: a window centred on k), each divided by the
+        flicker's mean there: the light's steady brightness."""
+        gain = self.gain(np.asarray(k) - span // 2 + time_offset, span).astype(np.float32)
+        return images / gain.reshape(-1, *[1] * (images.ndim - 1))
+
 
 def _region_totals(streams, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres [n] (readout times) and the spikes of every channel in each bin of readouts

@@ -7,6 +7,7 @@ import argparse
 import math
 import os
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 from . import strict_json
@@ -15,6 +16,7 @@ from .cli import add_no_progress, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset, reading_dataset
 from .data.real import pseudo_views_note
+from .flicker import MAX_DEPTH, cached_flicker
 from .interrupt import say
 from .losses import SIM_LOSSES
 from .output_paths import check_file_output, record_beside
@@ -135,7 +137,10 @@ def _run(args: argparse.Namespace) -> int:
     if not seconds:
         os.utime(out)  # the latest SIM now, as `spikegs poses --sim` picks (by modification time)
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
-    scores = evaluate_dataset(model, dataset, streams=defects.streams)
+    # the light's flicker, divided out of every method's images as out of training's targets
+    found = cached_flicker(dataset.streams, bars) if config.supervision.deflicker else None
+    flicker = None if found is None or found.depth >= MAX_DEPTH else found
+    scores = evaluate_dataset(model, dataset, streams=defects.streams, flicker=flicker)
     print_table([{"method": name, **s} for name, s in scores.items()])
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
     print(
@@ -146,6 +151,12 @@ def _run(args: argparse.Namespace) -> int:
         print(
             f"({defects.pixels} hot, stuck or dead pixels of the sensor fire as a neighbour in "
             f"the spikes every method reads, as SIM's training reads them)"
+        )
+    if found is not None:
+        done = "each method's images divided by it" if flicker else "too deep to divide out"
+        print(
+            f"(the light flickers with a period of {found.period:.1f} readouts, depth "
+            f"{found.depth:.2f}: {done}, as training's targets are)"
         )
     record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {
@@ -161,6 +172,7 @@ def _run(args: argparse.Namespace) -> int:
         ),
         "scores": scores,
         "defect_pixels": defects.pixels,  # repaired in the spikes scored
+        "flicker": None if found is None else {**asdict(found), "divided": flicker is not None},
         "environment": environment(),
     }
     try:  # (reused weights may lie where nothing is written: the table above stands)

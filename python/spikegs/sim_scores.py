@@ -7,9 +7,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .flicker import Flicker
 from .metrics import psnr, ssim
 from .sim import SIM
 from .sim_train import infer_sim
+from .targets import TFI_TIME
 
 
 def compare_methods(
@@ -19,26 +21,31 @@ def compare_methods(
     gt: np.ndarray,
     dtype=None,
     own: Sequence[str | None] | None = None,
+    flicker: Flicker | None = None,
 ) -> dict[str, dict[str, float]]:
     """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
     view whose ground truth is a method's own image (`own` [N], the method's name or None: a
     pseudo ground truth, TFP of the view's spikes, whatever was repaired or divided out of it
     since; or equal to it: a dataset that kept no name) is left out of that method's mean, and
-    a method left no view is left out.
+    a method left no view is left out. Each image is divided by a `flicker` of the light over
+    the readouts it shows, as training's targets are.
     TFI(t) spans readouts t and t + 1 (training compares it with the render at t + 0.5); it is
     scored here against the image at t, half a readout apart (at the default speed 0.075° of
     orbit, a fraction of a pixel), small beside its noise."""
     timestamps = np.asarray(timestamps)
     own = [None] * len(timestamps) if own is None else own
-    images = {
-        "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
-        "TFP(33)": stream.tfp(timestamps, 33),
-        "TFP(65)": stream.tfp(timestamps, 65),
-        "TFI": stream.tfi(timestamps),
+    sim = infer_sim(model, stream, timestamps, dtype=dtype)[..., 0]
+    images = {  # [N, H, W] each, and the readouts of the light it shows: span, time offset
+        "SIM": (sim, model.target.stop - model.target.start, 0.0),
+        "TFP(33)": (stream.tfp(timestamps, 33), 33, 0.0),
+        "TFP(65)": (stream.tfp(timestamps, 65), 65, 0.0),
+        "TFI": (stream.tfi(timestamps), 1, TFI_TIME),
     }
     gt = np.asarray(gt, dtype=np.float32)
     scores = {}
-    for name, pred in images.items():
+    for name, (pred, span, offset) in images.items():
+        if flicker is not None:
+            pred = flicker.divided(pred, timestamps, span, offset)
         pairs = [(p, g) for p, g, o in zip(pred, gt, own) if o != name and not np.array_equal(p, g)]
         if pairs:
             scores[name] = {
@@ -58,17 +65,23 @@ def on_path_views(dataset) -> list:
 
 
 def evaluate_dataset(
-    model: SIM, dataset, dtype=None, streams: list | None = None
+    model: SIM, dataset, dtype=None, streams: list | None = None, flicker: Flicker | None = None
 ) -> dict[str, dict[str, float]]:
     """`compare_methods` on a dataset's held-out on-path views, against their clean images (a
     pseudo ground truth's own TFP left out), reading `streams` (default the dataset's; one a
-    channel); the mean over channels for a colour camera."""
+    channel), divided by a `flicker` of the light; the mean over channels for a colour camera."""
     views = on_path_views(dataset)
     timestamps = np.array([round(v.readout) for v in views])
     own = [None if v.window is None else f"TFP({v.window})" for v in views]
     per_channel = [
         compare_methods(
-            model, stream, timestamps, np.stack([v.image[..., c] for v in views]), dtype, own
+            model,
+            stream,
+            timestamps,
+            np.stack([v.image[..., c] for v in views]),
+            dtype,
+            own,
+            flicker,
         )
         for c, stream in enumerate(streams or dataset.streams)
     ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates

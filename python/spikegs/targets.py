@@ -359,10 +359,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
 
         def per_channel(k):  # readouts [n] -> [n, H, W, C]
             rates = _per_channel(sources or streams, lambda st: stream_fn(st, k))
-            if flicker is None:
-                return rates
-            gain = flicker.gain(np.asarray(k) - span // 2 + time_offset, span)  # [n]
-            return rates / gain[:, None, None, None].astype(np.float32)
+            return rates if flicker is None else flicker.divided(rates, k, span, time_offset)
 
         return TargetImages(ts, per_channel, scale, spike(window), time_offset, budget, valid)
 

@@ -109,9 +109,7 @@ def pseudo_truth(streams, progress: bool = False) -> tuple[Callable, dict]:
     def truth(k: int, window: int) -> np.ndarray:
         images = [s.tfp(k, window) for s in streams]  # C x [H, W]
         image = np.stack([repaired(i, d) if d.any() else i for i, d in zip(images, defects)], -1)
-        if flicker is not None:  # (the TFP's readouts: the window centred on k)
-            image /= np.float32(flicker.gain([k - window // 2], window)[0])
-        return image
+        return image if flicker is None else flicker.divided(image[None], [k], window)[0]
 
     notes, defective = {}, int(np.logical_or.reduce(defects).sum())  # (pixels, in any channel)
     if flicker is not None:
