@@ -1078,6 +1078,19 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(textured, tmp_pa
     assert "warning: scene_center / scene_radius in meta.json are kept" in summary
 
 
+def _with_a_stuck_pixel(tiny, root: Path) -> Path:
+    """A copy of the `tiny` dataset at `root` whose pixel (12, 17) fires at every readout."""
+    from spikegs.spikes import DatWriter
+
+    shutil.copytree(tiny.root, root)
+    size = tiny.height
+    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
+    bits[:, 12, 17] = True  # [T, H, W]
+    with DatWriter(root / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
+        writer.write_bits(bits)
+    return root
+
+
 def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, monkeypatch):
     """A stuck pixel (a spike at every readout, 4-20 times the scene's rate) is a white dot at
     one place in every TFP image, a feature that does not move with the camera: SfM is fed the
@@ -1085,15 +1098,8 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     it.
     Fed as it was, it showed 1 (clipped white) in every image."""
     from spikegs import poses_cli
-    from spikegs.spikes import DatWriter
 
-    root = tmp_path / "data"
-    shutil.copytree(tiny.root, root)
-    size = tiny.height
-    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
-    bits[:, 12, 17] = True  # [T, H, W]
-    with DatWriter(root / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
-        writer.write_bits(bits)
+    root = _with_a_stuck_pixel(tiny, tmp_path / "data")
     fed = []
     logged = _logged_sfm(root)
 
@@ -1109,6 +1115,39 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     assert images[:, 12, 17].max() < 1.0
     assert report["defects"] == 1
     assert "1 hot, stuck or dead pixels of the sensor" in report["summary"]
+
+
+def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, monkeypatch):
+    """--sim: SIM reads the spikes with a stuck pixel firing as one of its neighbours does (as
+    SIM's training read them: pixel_defects.RepairedSpikes). It read the raw spikes, whose every
+    readout's spike at the pixel it spreads into its 8 neighbours' images, where the repair of
+    the pixel itself in the images leaves them."""
+    from spikegs import poses_cli, sim_train
+    from spikegs.sim import SIM
+
+    root = _with_a_stuck_pixel(tiny, tmp_path / "data")
+    monkeypatch.setattr(poses_cli, "_cached_sim", lambda root: SIM(window=9).eval())
+    read, infer = [], sim_train.infer_sim
+
+    def reading(model, stream, readouts, **kwargs):
+        read.append(stream)
+        return infer(model, stream, readouts, **kwargs)
+
+    monkeypatch.setattr(sim_train, "infer_sim", reading)
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+    report = poses_cli.estimate_poses(root, count=10, sim=True)
+    (stream,) = read
+    spikes = stream.window(len(stream) // 2, 9)  # [9, H, W]
+    assert not spikes[:, 12, 17].all()
+    y, x = _stand_in(stream, 12, 17)
+    np.testing.assert_array_equal(spikes[:, 12, 17], spikes[:, y, x])
+    assert report["defects"] == 1
+
+
+def _stand_in(stream, y: int, x: int) -> tuple[int, int]:
+    """The pixel standing in for the defect at (y, x) of a RepairedSpikes `stream`."""
+    (where,) = np.flatnonzero(stream.at == y * stream.width + x)
+    return divmod(int(stream.stand_in[where]), stream.width)
 
 
 def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_it(

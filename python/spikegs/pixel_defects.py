@@ -127,7 +127,7 @@ def sensor_defects(streams: list, root, search: bool = True) -> SensorDefects:
     them. None found, or `search` false (nothing searched): `valid` None and `streams` as they
     are."""
     found = [_found(stream) for stream in streams] if search else []
-    if not any(h.any() or d.any() for h, d, _ in found):
+    if not _any_found(found):
         return SensorDefects(None, streams, 0)
     hot, dead = (np.stack(maps, -1) for maps in list(zip(*found))[:2])  # [H, W, C] each
     defects = hot | dead
@@ -140,11 +140,33 @@ def sensor_defects(streams: list, root, search: bool = True) -> SensorDefects:
         f"docs/datasets.md, 'Sensor defects')",
         stacklevel=3,
     )
-    repaired = [
-        RepairedSpikes(stream, np.flatnonzero(defects[..., c]), stand_in)
-        for c, (stream, (_, _, stand_in)) in enumerate(zip(streams, found))
+    valid = torch.from_numpy(~defects)
+    return SensorDefects(valid, _repaired_spikes(streams, found), int(defects.any(-1).sum()))
+
+
+def defect_maps(streams: list) -> np.ndarray:
+    """The hot, stuck and dead pixels of `streams` (one a channel): bool [C, H, W]."""
+    return np.stack([np.logical_or(*find_defects(stream)) for stream in streams])
+
+
+def repaired_spikes(streams: list) -> list:
+    """`streams` (one a channel) with their defects repaired (`RepairedSpikes`), as SIM reads
+    them; `streams` themselves where none is found."""
+    found = [_found(stream) for stream in streams]
+    return _repaired_spikes(streams, found) if _any_found(found) else streams
+
+
+def _any_found(found: list) -> bool:
+    """Whether any of `_found`'s findings `found` (one a channel) holds a defect."""
+    return any(hot.any() or dead.any() for hot, dead, _ in found)
+
+
+def _repaired_spikes(streams: list, found: list) -> list:
+    """Each of `streams` a `RepairedSpikes` of its `_found` maps and stand-ins."""
+    return [
+        RepairedSpikes(stream, np.flatnonzero(hot | dead), stand_in)
+        for stream, (hot, dead, stand_in) in zip(streams, found)
     ]
-    return SensorDefects(torch.from_numpy(~defects), repaired, int(defects.any(-1).sum()))
 
 
 def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:

@@ -60,7 +60,7 @@ from .data.real import (
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
 from .number_checks import is_int
-from .pixel_defects import find_defects
+from .pixel_defects import defect_maps, repaired_spikes
 from .point_cloud import write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
@@ -361,9 +361,11 @@ def _estimate_poses(
         file=sys.stderr,
     )
     # the sensor's hot, stuck and dead pixels: a dot at one place in every image, a feature that
-    # does not move with the camera, and they set the 99.5th percentile that scales the images
-    defects = [np.logical_or(*find_defects(stream)) for stream in streams]  # [H, W] each
-    images = spike_images(streams, readouts, window, sim_model, defects)
+    # does not move with the camera, and they set the 99.5th percentile that scales the images;
+    # SIM reads them repaired as its training did (it reads a defect's spikes into its neighbours)
+    defects = defect_maps(streams)  # [C, H, W]
+    sources = repaired_spikes(streams) if sim_model is not None else streams
+    images = spike_images(sources, readouts, window, sim_model, defects)
     # intrinsics stated in meta.json are held fixed; those an earlier run estimated are not
     K = None
     if meta.get("intrinsics_from") != INTRINSICS_FROM_SFM and all(
@@ -373,7 +375,7 @@ def _estimate_poses(
     recon = reconstruct(
         images, readouts, root / WORK_DIR, K, min_registered, from_sim=sim_model is not None
     )
-    defective = int(np.logical_or.reduce(defects).sum())  # pixels, in any channel
+    defective = int(defects.any(0).sum())  # pixels, in any channel
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),

@@ -60,7 +60,7 @@ class Reconstruction:
 
 
 def spike_images(
-    streams, readouts: np.ndarray, window: int, sim=None, defects: list | None = None
+    streams, readouts: np.ndarray, window: int, sim=None, defects: list | np.ndarray | None = None
 ) -> np.ndarray:
     """Grey images [N, H, W] in [0, 1] at `readouts` [N]: TFP(`window`) or, given a SIM, its
     images, each channel's `defects` [H, W] (bool; the sensor's hot, stuck and dead pixels) given

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..flicker import MAX_DEPTH, cached_flicker
-from ..pixel_defects import find_defects, repaired
+from ..pixel_defects import defect_maps, repaired
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
 from ..targets import intensity_scale
@@ -104,14 +104,14 @@ def pseudo_truth(streams, progress: bool = False) -> tuple[Callable, dict]:
     flicker search's bar."""
     flicker = cached_flicker(streams, progress)
     flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
-    defects = [np.logical_or(*find_defects(stream)) for stream in streams]  # C x [H, W]
+    defects = defect_maps(streams)  # [C, H, W]
 
     def truth(k: int, window: int) -> np.ndarray:
         images = [s.tfp(k, window) for s in streams]  # C x [H, W]
         image = np.stack([repaired(i, d) if d.any() else i for i, d in zip(images, defects)], -1)
         return image if flicker is None else flicker.divided(image[None], [k], window)[0]
 
-    notes, defective = {}, int(np.logical_or.reduce(defects).sum())  # (pixels, in any channel)
+    notes, defective = {}, int(defects.any(0).sum())  # (pixels, in any channel)
     if flicker is not None:
         notes["pseudo_flicker"] = (
             f"divided by the light's flicker: period {flicker.period:.1f} readouts, depth "
