@@ -548,13 +548,43 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert "structure from motion failed" in err and "parallax" in err, err
     assert f"Look at the images in {still.root / 'sfm' / 'images'}: scrambled" in err, err
     assert not (still.root / "trajectory.json.bak").exists()
+    # nearly equal images: pairs of neighbours on the path and others (17 and 8 of them here)
+    stats = sfm._match_stats(still.root / "sfm" / "database.db", 12)
+    assert 0 < stats["beyond_neighbours"] < stats["pairs"], stats
 
 
 def test_the_failure_hint_offers_sim_only_where_the_images_are_not_sims():
-    stats = {"images": 20, "features": 10, "pairs": 30, "parallax_pairs": 30, "inliers": 100}
+    stats = {
+        "images": 20,
+        "features": 10,
+        "pairs": 30,
+        "parallax_pairs": 30,
+        "beyond_neighbours": 12,
+        "inliers": 100,
+    }
     tfp, sims = (sfm._failure(stats, 4, 0.5, Path("x"), from_sim=s) for s in (False, True))
     assert "a longer --window, or --sim, gives cleaner images" in tfp
     assert "a longer --window gives cleaner images" in sims and "--sim" not in sims
+
+
+def test_the_failure_says_images_far_apart_and_not_to_spread_them_further():
+    """40 images over 600° of an orbit (128² solids): 42 matched pairs, 34 of them of images
+    next to each other, 30 with parallax; 15 of 40 registered. The hint was 'too little
+    parallax: spread the images over more readouts', the opposite of the cure (120 images
+    registered 118 at 2.3°)."""
+    stats = {
+        "images": 40,
+        "features": 275,
+        "pairs": 42,
+        "parallax_pairs": 30,
+        "beyond_neighbours": 8,
+        "inliers": 995,
+    }
+    message = sfm._failure(stats, 15, 0.5, Path("x"), from_sim=False)
+    assert "images far apart on the path: 34 of the 42 matched pairs" in message
+    assert "raise --count or lower --every" in message and "spread" not in message
+    many = sfm._failure({**stats, "beyond_neighbours": 20}, 15, 0.5, Path("x"), from_sim=False)
+    assert "far apart" not in many and "spread the images over more readouts" in many
 
 
 def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
