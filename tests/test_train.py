@@ -3885,6 +3885,14 @@ def test_a_model_renders_at_any_distance():
     assert image.std() > 0.05, image.std()
 
 
+def test_the_near_plane_is_lowered_for_a_small_scene_and_never_raised():
+    """0.01 world units (the rasterizer's) for a scene of radius 1 or more, whatever its size (a
+    forward-facing capture's loose scene sphere may hold content far nearer a camera than its
+    radius), in proportion below 1 (a scene a thousand times smaller)."""
+    assert near_plane(1.0) == near_plane(1e3) == near_plane(1e10) == 0.01
+    assert near_plane(1e-3) == pytest.approx(1e-5)
+
+
 def test_a_scene_is_trained_about_its_centre_from_ten_radii_out():
     """frame_origin: the world's origin for a scene within 10 radii of it, the scene's centre
     beyond (100 radii passed every test: their far scenes lay thousands of radii out)."""
@@ -3892,6 +3900,10 @@ def test_a_scene_is_trained_about_its_centre_from_ten_radii_out():
         near = np.array([9.9, 0.0, 0.0]) * radius
         far = np.array([6.0, 6.0, 6.0]) * radius  # 10.4 radii
         assert np.array_equal(frame_origin(near, radius), np.zeros(3))
+        # 'over' ten radii: a centre exactly 10 out stays in the world's frame
+        assert np.array_equal(
+            frame_origin(np.array([10.0, 0.0, 0.0]) * radius, radius), np.zeros(3)
+        )
         assert np.array_equal(frame_origin(far, radius), far)
 
 
