@@ -3417,6 +3417,15 @@ def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
     assert "SIM" not in sim
     # renders a hair under black (a black recording's dark spikes as targets): 0 %, not -0 %
     assert "hold 0 % of their exposure" in biased_fit(record(exposure=-0.004), tfp)
+    # the band's lower end is fitted too (a term of exactly 0.8 is cited); a dim recording's
+    # targets, of mean 0.01 (0.5 summed over the 50 steps), are judged: black ones alone are not
+    edge, dim, one = FitBrightness(), FitBrightness(), torch.ones(2, 2, 1)
+    for _ in range(MIN_STEPS):
+        edge.observe("instant", [one * 2.5], one * 1.25)
+        edge.observe("exposure", [one], one * 1.25)  # 50 / 62.5 = 0.8
+        dim.observe("exposure", [one * 0.002], one * 0.01)
+    assert "(its exposure renders hold 80 % of theirs" in biased_fit(edge, SupervisionConfig())
+    assert "hold 20 % of their exposure" in biased_fit(dim, SupervisionConfig())
 
 
 def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_booleans():
