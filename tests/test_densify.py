@@ -239,3 +239,14 @@ def test_a_run_whose_rounds_never_reach_the_threshold_is_told_so():
     _observe(densifier, [0.9, 0.1])  # with the round's 0.3: a mean of 0.6
     densifier.step(model, optimizer, 49)  # one round reached it: said of no run that densified
     assert len(model) == 3 and densifier.unreached(49) is None
+
+
+def test_a_round_that_reached_the_threshold_is_not_forgotten_by_weaker_ones():
+    """The largest gradient is over every round: a run whose first round grew a clone and whose
+    later ones, to the last, stayed under the threshold is not told that it grew none."""
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = _densifier([0.9, 0.1])  # round 7: 0.9 reaches 0.5
+    for iteration in range(7, 50, 7):
+        densifier.step(model, optimizer, iteration)
+        _observe(densifier, [0.3] * len(model))
+    assert len(model) == 3 and densifier.unreached(49) is None
