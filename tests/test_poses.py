@@ -295,6 +295,18 @@ def test_the_scene_spheres_coverage_holds_for_tiny_images_and_cameras_inside_it(
     assert (view_coverage(tiny.scene_center, around, views(1.0, focal=1.5)) == 1).all()
 
 
+def test_the_coverage_judges_each_part_of_a_view_by_the_ray_through_its_middle():
+    """A ball around the ray through the middle of a 16x16 view's last part (pixel 15.5, 15.5 of
+    16²) covers that part alone, 1 of 256; the same ball pushed outside the view, none."""
+    K = np.array([[16.0, 0.0, 8.0], [0.0, 16.0, 8.0], [0.0, 0.0, 1.0]])
+    trajectory = Trajectory(np.array([0.0, 10.0]), np.stack([np.eye(4)] * 2))
+    view = SimpleNamespace(trajectory=trajectory, train_timestamps=np.array([5.0]), K=K)
+    view.width = view.height = 16
+    middle = 10 * np.array([7.5 / 16, 7.5 / 16, 1.0])  # on the ray, 10 deep: rays 0.625 apart
+    np.testing.assert_array_equal(view_coverage(middle, 0.05, view), [1 / 256])
+    np.testing.assert_array_equal(view_coverage(middle + [1.0, 0, 0], 0.05, view), [0.0])
+
+
 def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     """At its points, with what the views show there: the cloud's colours (from spikegs poses,
     relative to its images' 99.5th percentile and grey for a colour camera; a photo's sRGB for
