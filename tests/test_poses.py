@@ -77,13 +77,14 @@ def test_exp_map_matches_the_matrix_exponential(xi):
 
 
 def test_exp_map_series_holds_to_float64_rounding_at_its_threshold():
-    """θ² just under _SMALL (1e-4), where the series' truncated terms are largest: within 1e-14 of
-    the matrix exponential (its θ⁴ coefficients stated wrongly, t4 / 100 in a, θ² / 60 in c, were
-    1e-13 and 2e-11 off there, inside the 1e-12 of the test above at θ ~ 2e-5)."""
+    """θ² just under _SMALL (1e-4), where the series' truncated terms are largest: within 1e-15 of
+    the matrix exponential, 2e-16 off (its θ⁴ coefficients stated wrongly, t4 / 100 in a, θ² / 60
+    in c, were 1e-13 and 2e-11 off there, inside the 1e-12 of the test above at θ ~ 2e-5; t4 /
+    119 in a, 4e-15 off, inside this test's earlier 1e-14)."""
     direction = np.array([0.48, -0.6, 0.64])  # a unit vector
     xi = np.concatenate([direction * np.sqrt(0.99e-4), [0.9, -0.7, 1.2]])
     T = se3_exp(torch.from_numpy(xi)).numpy()
-    np.testing.assert_allclose(T, scipy.linalg.expm(_twist_matrix(xi)), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(T, scipy.linalg.expm(_twist_matrix(xi)), rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("theta", [1e-8, 1e-7, 1e-6])
@@ -765,6 +766,17 @@ def test_a_corrections_translation_is_in_units_of_the_scene_radius():
     moved = refiner(viewmat, 1).detach().numpy()
     np.testing.assert_allclose(moved[:3, 3] - viewmat[:3, 3].numpy(), [0.2, 0, 0], atol=1e-6)
     np.testing.assert_allclose(moved[:3, :3], np.eye(3), atol=1e-7)
+
+
+def test_a_corrections_rotation_is_in_radians_whatever_the_scene_radius():
+    """An axis-angle (0.1, -0.2, 0.3) rotates the camera by that rotation vector, in a scene of
+    radius 2 as in any (only the translation is in scene radii)."""
+    refiner = PoseRefiner(num_views=2, scene_radius=2.0)
+    with torch.no_grad():
+        refiner.corrections[1] = torch.tensor([0.1, -0.2, 0.3, 0.0, 0.0, 0.0])
+    turned = refiner(torch.eye(4), 1).detach().numpy()
+    expected = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix()
+    np.testing.assert_allclose(turned[:3, :3], expected, atol=1e-6)
 
 
 def test_image_readouts_reach_both_ends_of_the_stream():
