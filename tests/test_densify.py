@@ -250,3 +250,26 @@ def test_a_round_that_reached_the_threshold_is_not_forgotten_by_weaker_ones():
         densifier.step(model, optimizer, iteration)
         _observe(densifier, [0.3] * len(model))
     assert len(model) == 3 and densifier.unreached(49) is None
+
+
+def test_the_runs_last_iteration_never_densifies_even_within_the_window():
+    """A stop past the run's end (50 of a 49-iteration run; accepted): its last iteration, 49, a
+    round's by `every` 7, densifies nothing (its clones would be saved untrained)."""
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = Densifier(DensifyConfig(**RULES), scene_radius=1.0, iterations=49)
+    _observe(densifier, [0.9, 0.1])
+    densifier.step(model, optimizer, 49)
+    assert len(model) == 2
+    densifier.step(model, optimizer, 42)  # the round before it does
+    assert len(model) == 3
+
+
+def test_a_fresh_densifier_has_seen_no_gradient():
+    """Gradients of 1e-4 under the default threshold, 2e-4, are told as the largest seen: its
+    record starts at 0 (one at 0.1 said nothing of any run at the default)."""
+    model, optimizer = _model([0.05, 0.05], [0.5, 0.5])
+    densifier = _densifier([1e-4, 1e-5], grad_threshold=2e-4)
+    for iteration in range(7, 50, 7):
+        densifier.step(model, optimizer, iteration)
+        _observe(densifier, [1e-4, 1e-5])
+    assert "saw, 0.0001, " in densifier.unreached(49)
