@@ -397,7 +397,7 @@ def _estimate_poses(
         how = (
             "--sim reads the SIM trained on them"
             if _saved_sims(root)
-            else (f"`spikegs sim-train {root}`, then --sim")
+            else f"`spikegs sim-train {root}`, then --sim"
         )
         messages.append(
             f"SfM read TFP({window}) images of the spikes; SIM's are cleaner, and put simulated "
