@@ -601,6 +601,18 @@ def test_the_failure_says_images_far_apart_and_not_to_spread_them_further():
     assert "far apart" not in many and "spread the images over more readouts" in many
 
 
+def test_the_failure_says_images_far_apart_only_where_neighbours_match_with_parallax():
+    """Not where no pair matched (it said '0 of the 0 matched pairs are of neighbouring images:
+    raise --count'), nor where neighbours matched without parallax (a still or turning camera:
+    more images, closer, show less parallax)."""
+    stats = {"images": 40, "features": 275, "pairs": 0, "parallax_pairs": 0, "inliers": 0}
+    none = sfm._failure({**stats, "beyond_neighbours": 0}, 0, 0.5, Path("x"), from_sim=False)
+    assert "far apart" not in none and "few matching pairs" in none
+    turning = {**stats, "pairs": 39, "beyond_neighbours": 0, "inliers": 900}
+    turning = sfm._failure(turning, None, 0.5, Path("x"), from_sim=False)
+    assert "far apart" not in turning and "spread the images over more readouts" in turning
+
+
 def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
     tmp_path, monkeypatch, capsys
 ):

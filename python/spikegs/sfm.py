@@ -260,14 +260,22 @@ def _failure(
             + ("" if from_sim else ", or --sim,")
             + " gives cleaner images)"
         )
-    # few pairs but of neighbours on the path: each image overlaps the next only (a long path,
-    # or a fast camera, for the images: 40 over 600° of an orbit matched 34 such pairs, 8 more)
-    far = stats["features"] >= MIN_FEATURES and stats["beyond_neighbours"] < n / 2
+    # few pairs but of neighbours on the path, most of them matched and with parallax: each
+    # image overlaps the next only (a long path, or a fast camera, for the images: 40 over 600°
+    # of an orbit matched 34 such pairs, 8 more). Not where no pair matched, nor where the pairs
+    # show no parallax (a still or turning camera: more images, closer, would show less)
+    near = stats["pairs"] - stats["beyond_neighbours"]
+    far = (
+        stats["features"] >= MIN_FEATURES
+        and stats["beyond_neighbours"] < n / 2
+        and near >= (n - 1) / 2
+        and stats["parallax_pairs"] >= stats["pairs"] / 2
+    )
     if far:
         reasons.append(
-            f"images far apart on the path: {stats['pairs'] - stats['beyond_neighbours']} of the "
-            f"{stats['pairs']} matched pairs are of neighbouring images (each image overlaps the "
-            "next only): raise --count or lower --every"
+            f"images far apart on the path: {near} of the {stats['pairs']} matched pairs are of "
+            "neighbouring images (each image overlaps the next only): raise --count or lower "
+            "--every"
         )
     elif stats["pairs"] < n:
         reasons.append(
