@@ -562,7 +562,7 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert "structure from motion failed" in err and "parallax" in err, err
     assert f"Look at the images in {still.root / 'sfm' / 'images'}: scrambled" in err, err
     assert not (still.root / "trajectory.json.bak").exists()
-    # nearly equal images: pairs of neighbours on the path and others (17 and 8 of them here)
+    # nearly equal images: 17 matched pairs, 9 of neighbours on the path and 8 of others
     stats = sfm._match_stats(still.root / "sfm" / "database.db", 12)
     assert 0 < stats["beyond_neighbours"] < stats["pairs"], stats
 
