@@ -1192,6 +1192,21 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     assert "--sim reads the SIM trained on them" in again and "sim-train" not in again
 
 
+def test_the_hint_for_sim_is_a_command_to_paste_and_not_given_to_a_colour_camera(
+    tmp_path, monkeypatch
+):
+    """The command names the dataset quoted for a shell (a space split it in two), and a colour
+    camera, whose TFP(33) (the channels' mean) gave poses as close as SIM's, is not told."""
+    from spikegs import poses_cli
+
+    for color in (False, True):
+        root = _solids(tmp_path / f"a {color}", 16, 300, color=color).root
+        monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+        summary = poses_cli.estimate_poses(root, count=10)["summary"]
+        told = f"`spikegs sim-train '{root}'`, then --sim" in summary
+        assert told != color and ("SIM's are cleaner" in summary) != color, summary
+
+
 def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, monkeypatch):
     """--sim: SIM reads the spikes with a stuck pixel firing as one of its neighbours does (as
     SIM's training read them: pixel_defects.RepairedSpikes). It read the raw spikes, whose every

@@ -64,6 +64,7 @@ from .pixel_defects import defect_maps, repaired_spikes
 from .point_cloud import write_points
 from .pose_refine import pose_errors
 from .sfm import Reconstruction, align, reconstruct, spike_images
+from .shell_words import shell_path
 from .spikes import SpikeStream
 from .spikes.stream import centred_range
 from .strict_json import json_text, read_json
@@ -397,7 +398,7 @@ def _estimate_poses(
         how = (
             "--sim reads the SIM trained on them"
             if _saved_sims(root)
-            else f"`spikegs sim-train {root}`, then --sim"
+            else f"`spikegs sim-train {shell_path(root)}`, then --sim"
         )
         messages.append(
             f"SfM read TFP({window}) images of the spikes; SIM's are cleaner, and put simulated "
