@@ -1,8 +1,9 @@
 """Lighting flicker: mains lighting modulates the light at 100 or 120 Hz (twice 50 or 60 Hz), a
 period of 167-400 readouts at a 20-40 kHz readout. Found as a sinusoid in a stream's spikes per
-frame, it is taken out of the training targets (each divided by the modulation over its readouts)
-and out of a pseudo ground truth made from the spikes: left in, the views' brightness follows the
-flicker's phase along the path and 3DGS fits it as geometry (BENCHMARKS.md, "Lighting flicker").
+frame, it is taken out of the training targets (each divided by the modulation over its readouts),
+out of a pseudo ground truth made from the spikes and out of the images sim-train scores: left in,
+the views' brightness follows the flicker's phase along the path and 3DGS fits it as geometry
+(BENCHMARKS.md, "Lighting flicker").
 """
 
 from __future__ import annotations
