@@ -18,6 +18,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="write the scores only, no side-by-side images (an earlier scoring's images of views "
         "whose scores changed are removed)",
     )
+    parser.add_argument(
+        "--align-poses",
+        action="store_true",
+        help="score each test view from its pose aligned to its image first, the scene frozen "
+        "(for a scene trained from estimated poses, e.g. spikegs poses'): into eval-aligned.json "
+        "and eval-aligned/",
+    )
     add_no_progress(parser)
 
 
@@ -62,12 +69,21 @@ def run(args: argparse.Namespace) -> int:
     bars = show_bars(args.no_progress)  # (a recording's flicker search as it loads)
     with reading_dataset(root):  # not rewritten as it is read (Busy while it is)
         dataset = load_dataset(root, bars)
-        result = evaluate_run(args.run, dataset, write_images=not args.no_images, progress=bars)
+        result = evaluate_run(
+            args.run, dataset, not args.no_images, progress=bars, align_poses=args.align_poses
+        )
     method = result["method"] or args.run.name  # a scene folder of another tool names none
     print(
         f"{method}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {result['file']}"
     )
+    if args.align_poses:
+        moved = result["aligned_poses"]
+        print(
+            f"(each view's pose aligned to its image first: moved a median "
+            f"{moved['rotation_deg_median']:.2f} deg, its centre {moved['centre_median']:.2%} of "
+            f"the scene radius)"
+        )
     note = pseudo_views_note(result["views"])
     if note:
         print(note)

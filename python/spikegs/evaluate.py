@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
@@ -22,6 +23,8 @@ from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels, load_ply
+from .pose_align import STEPS, aligned_pose
+from .pose_refine import pose_errors
 from .provenance import environment
 from .regular_file import read_text
 from .run_summary import CONFIG, EVAL, read_summary, trained_scene
@@ -218,15 +221,20 @@ def side_by_side(
 
 
 def evaluate_run(
-    run_dir: str | Path, dataset, write_images: bool = True, progress: bool = False
+    run_dir: str | Path,
+    dataset,
+    write_images: bool = True,
+    progress: bool = False,
+    align_poses: bool = False,
 ) -> dict:
     """Evaluate RUN/scene.ply on every test view; writes RUN/eval.json and RUN/eval/*.png
     (`_eval_name`: eval-DATASETNAME for a dataset other than the run's own). `progress`: a bar
     where the run's own dataset folder is loaded to tell whether it still holds the run's data
-    (its flicker search)."""
+    (its flicker search), and over the views aligned. `align_poses`: each view scored from its
+    pose aligned to its image (`pose_align`), into NAME-aligned.json and NAME-aligned/."""
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
-    name = _eval_name(run_dir, train, dataset, progress)
+    name = _eval_name(run_dir, train, dataset, progress) + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     if scene:
         warnings.warn(scene, stacklevel=2)
@@ -265,15 +273,20 @@ def evaluate_run(
     earlier = _scored_views(scores_file)  # {view: its scores then}
     for gone in set(earlier) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)
-    views = {}
-    for view in dataset.test_views:
-        pred = render_view(model, view.viewmat, dataset)
+    views, radius = {}, float(dataset.scene_radius)
+    bar = tqdm(dataset.test_views, "aligning poses", disable=not (progress and align_poses))
+    for view in bar:
         # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
         # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
         pseudo = view.name.startswith(PSEUDO_PREFIX)
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
-        pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)  # what is scored, and shown
+        gt = np.clip(gt, 0, 1)  # what is scored, and shown
+        viewmat = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else view.viewmat
+        pred = np.clip(render_view(model, viewmat, dataset), 0, 1)
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
+        if align_poses:  # how far the pose moved: degrees, and the centre in scene radii
+            degrees, moved = (float(e[0]) for e in pose_errors(viewmat[None], view.viewmat[None]))
+            views[view.name].update(aligned_rotation_deg=degrees, aligned_centre=moved / radius)
         if write_images:
             image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
             write_image(folder / f"{view.name}.png", image)
@@ -307,6 +320,14 @@ def evaluate_run(
         "views": views,
         "environment": environment(),  # of this scoring; train.json's names what trained it
     }
+    if align_poses:
+        result["aligned_poses"] = {
+            "steps": STEPS,
+            **{
+                f"{key}_median": float(np.median([v[f"aligned_{key}"] for v in views.values()]))
+                for key in ("rotation_deg", "centre")
+            },
+        }
     result["file"] = str(scores_file.resolve())  # not as typed: where it lies
     write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
     return result
