@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from .gaussians import GaussianModel, frame_origin, near_plane
-from .pose_refine import se3_exp
+from .pose_refine import PoseRefiner
 
 STEPS = 300  # Adam steps a view
 # Adam's step on the twist (radians, scene radii), cosine-annealed to LR_END over the steps:
@@ -32,14 +32,12 @@ def aligned_pose(
     base = frozen.view_of(viewmat)  # [4, 4] float32, the model's frame
     K = torch.as_tensor(dataset.K, dtype=torch.float32)
     near = near_plane(dataset.scene_radius)
-    radius = float(dataset.scene_radius)
-    unit = torch.tensor([1.0, 1.0, 1.0, radius, radius, radius])  # radians, scene radii
+    twist = PoseRefiner(1, float(dataset.scene_radius))  # (radians, scene radii), as training's
     target = torch.as_tensor(np.asarray(image, np.float32))
-    xi = torch.zeros(6, requires_grad=True)
-    optimizer = torch.optim.Adam([xi], lr=LR)
+    optimizer = torch.optim.Adam(twist.parameters(), lr=LR)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps, eta_min=LR_END)
     for _ in range(steps):
-        render = frozen.render(se3_exp(xi * unit) @ base, K, dataset.width, dataset.height, near)
+        render = frozen.render(twist(base, 0), K, dataset.width, dataset.height, near)
         loss = (render.image - target).abs().mean()
         optimizer.zero_grad()
         loss.backward()
@@ -47,5 +45,6 @@ def aligned_pose(
         schedule.step()
     # on the camera side, the correction is the same in the world's frame: E @ view_of(V) is
     # view_of(E @ V)
-    correction = se3_exp(xi.detach().double() * unit.double()).numpy()  # [4, 4]
+    with torch.no_grad():
+        correction = twist(torch.eye(4), 0).double().numpy()  # [4, 4]
     return correction @ np.asarray(viewmat, np.float64)
