@@ -79,6 +79,12 @@ class Flicker:
         return images / gain.reshape(-1, *[1] * (images.ndim - 1))
 
 
+def divisible(flicker: Flicker | None) -> Flicker | None:
+    """`flicker` where it can be divided out, None where none was found or it is too deep (a
+    sinusoid of MAX_DEPTH or more takes the light to none or below)."""
+    return None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
+
+
 def _region_totals(streams, progress: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Bin centres [n] (readout times) and the spikes of every channel in each bin of readouts
     in each of GRID x GRID regions of the frame [n, R] (fewer on a frame under GRID pixels high

@@ -16,7 +16,7 @@ from .cli import add_no_progress, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset, reading_dataset
 from .data.real import pseudo_views_note
-from .flicker import MAX_DEPTH, cached_flicker
+from .flicker import cached_flicker, divisible
 from .interrupt import say
 from .losses import SIM_LOSSES
 from .output_paths import check_file_output, record_beside
@@ -139,7 +139,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     # the light's flicker, divided out of every method's images as out of training's targets
     found = cached_flicker(dataset.streams, bars) if config.supervision.deflicker else None
-    flicker = None if found is None or found.depth >= MAX_DEPTH else found
+    flicker = divisible(found)
     scores = evaluate_dataset(model, dataset, streams=defects.streams, flicker=flicker)
     print_table([{"method": name, **s} for name, s in scores.items()])
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..flicker import MAX_DEPTH, cached_flicker
+from ..flicker import cached_flicker, divisible
 from ..pixel_defects import defect_maps, repaired
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
@@ -102,8 +102,7 @@ def pseudo_truth(streams, progress: bool = False) -> tuple[Callable, dict]:
     there (the light's, not the scene's: as training's targets are); and what
     meta["test_ground_truth"] adds of them (`pseudo_flicker`, `pseudo_defects`). `progress`: the
     flicker search's bar."""
-    flicker = cached_flicker(streams, progress)
-    flicker = None if flicker is None or flicker.depth >= MAX_DEPTH else flicker
+    flicker = divisible(cached_flicker(streams, progress))
     defects = defect_maps(streams)  # [C, H, W]
 
     def truth(k: int, window: int) -> np.ndarray:
