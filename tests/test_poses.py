@@ -54,6 +54,12 @@ TINY = {
 }
 
 
+def _recon(readouts, viewmats, K, points, colors, num_images: int) -> Reconstruction:
+    """SfM's result of these poses [R, 4, 4] and points [P, 3], of no reprojection error."""
+    errors = np.zeros(len(readouts))  # [R] px
+    return Reconstruction(readouts, viewmats, K, points, colors, num_images, errors, 0.0)
+
+
 def _twist_matrix(xi: np.ndarray) -> np.ndarray:
     """The se(3) matrix [4, 4] of a twist (omega, v) [6], for scipy's expm."""
     out = np.zeros((4, 4))
@@ -409,6 +415,20 @@ def test_poses_from_spikes_recover_the_trajectory(textured, tmp_path, capsys):
     assert report["registered"] >= 0.8 * report["images"], report
     assert report["rotation_error_deg_median"] < 3.0, report
     assert report["centre_error_median"] < 0.07, report
+    # the reprojection error in pixels: COLMAP's per-point means, weighted by their tracks, are
+    # the mean over every observation
+    import pycolmap
+
+    (model,) = [pycolmap.Reconstruction(str(d)) for d in (root / "sfm" / "sparse").iterdir()]
+    points = model.points3D.values()
+    errors, tracks = np.array([[p.error, p.track.length()] for p in points]).T  # [P] each
+    mean = report["reprojection_error_px"]
+    assert mean == pytest.approx((errors * tracks).sum() / tracks.sum(), rel=1e-9)
+    per_image = report["image_reprojection_error_px"]
+    assert len(per_image) == report["registered"]
+    assert min(per_image.values()) < mean < report["reprojection_error_px_max"] < 2.0, report
+    assert max(per_image.values()) == report["reprojection_error_px_max"]
+    assert f"mean reprojection error {mean:.2f} px" in printed.out
     assert (root / "trajectory.json.bak").exists() and (root / POINTS).exists()
     dataset = load_dataset(root)  # the new trajectory covers every readout
     assert len(dataset.trajectory) >= report["registered"]
@@ -455,7 +475,7 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
 
 def test_an_implausible_estimated_focal_is_flagged():
     meta = {"width": 64, "scene_center": [0, 0, 0], "scene_radius": 1.0}
-    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), np.zeros((0, 3)), None, 3)
+    recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), np.zeros((0, 3)), None, 3)
     for focal, flagged in ((1671.0, True), (56.0, False), (10.0, True)):  # 2.2, 59.5, 145 deg
         recon.K = np.array([[focal, 0, 32], [0, focal, 32], [0, 0, 1]])
         messages = _complete_meta(dict(meta), recon, estimated=True)
@@ -652,7 +672,7 @@ def test_alignment_uses_the_cameras_orientations_on_a_short_arc():
         sfm_c2w = world @ c2w @ jitter
         sfm_c2w[:3, :3] /= 0.5  # rotations stay rotations; only the centres scale
         noisy.append(np.linalg.inv(sfm_c2w))
-    recon = Reconstruction(readouts, np.stack(noisy), np.eye(3), np.zeros((0, 3)), None, 40)
+    recon = _recon(readouts, np.stack(noisy), np.eye(3), np.zeros((0, 3)), None, 40)
     aligned = align(recon, Trajectory(readouts, truth))
     # the world turn the fit undid (aligned = fit(world(truth))): 0.4-0.8° here, 2.7-6.3° from
     # the centres alone over seeds 0-2
@@ -720,7 +740,7 @@ def test_aligned_reconstruction_moves_its_points_with_its_cameras():
     world[:3, :3], world[:3, 3] = 0.5 * turn, [1.0, -2.0, 0.5]  # SfM's X = world @ X_true
     sfm_c2w = world @ np.linalg.inv(truth)
     sfm_c2w[:, :3, :3] /= 0.5
-    recon = Reconstruction(
+    recon = _recon(
         readouts,
         np.linalg.inv(sfm_c2w),
         np.diag([50.0, 50.0, 1.0]),
@@ -746,7 +766,7 @@ def test_scene_bounds_from_points_are_robust_to_outliers():
     d = rng.normal(size=(198, 3))
     ball = d / np.linalg.norm(d, axis=1, keepdims=True) * rng.random((198, 1)) ** (1 / 3)
     points = np.concatenate([ball + [2.0, 0, 0], [[52.0, 0, 0], [52.0, 0.5, 0]]])
-    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
+    recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64}
     _complete_meta(meta, recon, estimated=False)
     np.testing.assert_allclose(meta["scene_center"], [2.0, 0, 0], atol=0.1)
@@ -760,7 +780,7 @@ def test_pose_report_gives_centre_errors_in_scene_radii():
     eyes = [(3.0, 0.0, 1.0), (0.0, 3.0, 1.0), (-3.0, 0.0, 1.0)]
     truth = np.stack([look_at(e, (0, 0, 0)) for e in eyes])
     moved = np.stack([look_at(np.add(e, (0, 0, 0.1)), (0, 0, 0.1)) for e in eyes])
-    recon = Reconstruction(np.array([0.0, 1, 2]), moved, np.eye(3), np.zeros((0, 3)), None, 3)
+    recon = _recon(np.array([0.0, 1, 2]), moved, np.eye(3), np.zeros((0, 3)), None, 3)
     report = _pose_report(recon, Trajectory(np.array([0.0, 1, 2]), truth), radius=2.0)
     assert report["centre_error_median"] == pytest.approx(0.05)
     assert report["rotation_error_deg_max"] == pytest.approx(0.0, abs=1e-6)
@@ -932,12 +952,23 @@ def test_sfm_holds_known_intrinsics_fixed(textured, tmp_path):
 
 class _Model:
     """What `sfm._read_model` reads of a pycolmap reconstruction: registered images by name with
-    their cam_from_world, one camera, points with their 8-bit (gamma-encoded) colours."""
+    their cam_from_world, each observing point 0 `off` (by name) its projection by a camera of
+    K = I, one camera, points with their 8-bit (gamma-encoded) colours."""
 
-    def __init__(self, poses: dict, colors):
+    def __init__(self, poses: dict, colors, off: dict):
+        camera = SimpleNamespace(img_from_cam=lambda xyz, check_cheirality: xyz[:, :2] / xyz[:, 2:])
+
         def image(name, viewmat):
             pose = SimpleNamespace(matrix=lambda: viewmat[:3])
-            return SimpleNamespace(name=name, has_pose=True, cam_from_world=lambda: pose)
+            seen = viewmat[:3] @ [0, 0, 0, 1]  # point 0, at the origin, in the camera
+            observed = [SimpleNamespace(xy=seen[:2] / seen[2] + off[name], point3D_id=0)]
+            return SimpleNamespace(
+                name=name,
+                has_pose=True,
+                cam_from_world=lambda: pose,
+                camera=camera,
+                get_observation_points2D=lambda: observed,
+            )
 
         self.images = {i: image(n, v) for i, (n, v) in enumerate(poses.items())}
         self.cameras = {1: SimpleNamespace(calibration_matrix=lambda: np.eye(3))}
@@ -950,14 +981,18 @@ class _Model:
 def test_a_reconstruction_reads_its_registered_images_readouts_and_linear_colours():
     """Of images at readouts 10, 20, 30, 40, those at 20 and 40 registered: the poses are at
     their own readouts (not the first two given), and the points' colours, gamma-encoded for
-    SIFT, linearised back (128 -> 56, 255 -> 255, 0 -> 0)."""
+    SIFT, linearised back (128 -> 56, 255 -> 255, 0 -> 0); each image's reprojection error is
+    its observation's distance from the point's projection, in the readouts' order."""
     poses = {f"{k:08d}.png": look_at((3.0, 0.0, float(k)), (0, 0, 0)) for k in (40, 20)}
     names = [f"{k:08d}.png" for k in (10, 20, 30, 40)]
-    model = _Model(poses, [(128, 255, 0)])
+    off = {names[3]: np.array([3.0, 4.0]), names[1]: np.array([0.0, -1.0])}
+    model = _Model(poses, [(128, 255, 0)], off)
     recon = sfm._read_model(model, names, np.array([10, 20, 30, 40]))
     assert recon.readouts.tolist() == [20.0, 40.0] and recon.num_images == 4
     np.testing.assert_allclose(recon.viewmats, [poses[names[1]], poses[names[3]]])
     assert recon.colors.tolist() == [[56, 255, 0]]
+    np.testing.assert_allclose(recon.image_errors, [1.0, 5.0], atol=1e-12)
+    assert recon.reprojection_error == pytest.approx(3.0)
 
 
 def test_poses_sim_takes_the_latest_trained_sim(tmp_path, monkeypatch):
@@ -981,7 +1016,7 @@ def test_a_scene_centre_without_a_radius_is_estimated_with_it():
     """meta.json with a scene_center but no scene_radius: both come from the points (the radius
     alone missing left training without one)."""
     points = np.random.default_rng(0).normal(size=(200, 3)) + [5.0, 0.0, 0.0]
-    recon = Reconstruction(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
+    recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64, "scene_center": [0.0, 0.0, 0.0]}
     _complete_meta(meta, recon, estimated=False)
     np.testing.assert_allclose(meta["scene_center"], np.median(points, axis=0))
@@ -1082,9 +1117,9 @@ def test_a_second_pose_run_aligns_to_the_original_pose_log(textured, tmp_path, m
 
     def logged_poses(images, readouts, work_dir, K, *args, **kwargs):
         points = np.random.default_rng(0).normal(size=(50, 3)) + meta["scene_center"]
-        poses = log.pose_at(np.asarray(readouts, np.float64))
+        readouts = np.asarray(readouts, np.float64)
         colors = np.zeros((50, 3), np.uint8)
-        return Reconstruction(np.asarray(readouts, np.float64), poses, K, points, colors, 10)
+        return _recon(readouts, log.pose_at(readouts), K, points, colors, 10)
 
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
     monkeypatch.setattr(poses_cli, "reconstruct", logged_poses)
@@ -1103,7 +1138,7 @@ def _logged_sfm(root: Path, keep=slice(None)):
         points = np.random.default_rng(0).normal(size=(50, 3)) + centre
         colors = np.zeros((50, 3), np.uint8)
         images = len(readouts)
-        return Reconstruction(registered, log.pose_at(registered), K, points, colors, images)
+        return _recon(registered, log.pose_at(registered), K, points, colors, images)
 
     return logged_poses
 

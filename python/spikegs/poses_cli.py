@@ -292,6 +292,19 @@ def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) ->
     }
 
 
+def _reprojection_report(recon: Reconstruction) -> dict:
+    """SfM's reprojection error in pixels: the mean over every observation of a point, the worst
+    registered image's mean, and each image's mean by its readout (null where it observes none)."""
+    errors = recon.image_errors  # [R]
+    return {
+        "reprojection_error_px": recon.reprojection_error,
+        "reprojection_error_px_max": float(np.nanmax(errors)),
+        "image_reprojection_error_px": {
+            f"{k:g}": None if np.isnan(e) else float(e) for k, e in zip(recon.readouts, errors)
+        },
+    }
+
+
 def estimate_poses(
     root: str | Path,
     window: int = 33,
@@ -389,10 +402,13 @@ def _estimate_poses(
         "registered": len(recon.readouts),
         "points": len(recon.points),
         "defects": defective,
+        **_reprojection_report(recon),
     }
     messages = [
         f"SfM: {len(recon.readouts)} of {recon.num_images} images registered "
-        f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points"
+        f"({len(recon.readouts) / recon.num_images:.0%}), {len(recon.points)} points, mean "
+        f"reprojection error {recon.reprojection_error:.2f} px (worst image "
+        f"{report['reprojection_error_px_max']:.2f} px)"
     ]
     if sim_model is None and len(streams) == 1:  # (a colour camera's mean is as clean)
         how = (

@@ -37,6 +37,8 @@ class Reconstruction:
     points: np.ndarray  # [P, 3]
     colors: np.ndarray  # [P, 3] uint8, linear intensity
     num_images: int  # images given to SfM
+    image_errors: np.ndarray  # [R] mean reprojection error (px) of each image's observed points
+    reprojection_error: float  # px, the mean over every observation of a point
 
     def transformed(self, scale: float, rotation: np.ndarray, shift: np.ndarray) -> Reconstruction:
         """The same reconstruction in the world X' = scale · rotation @ X + shift."""
@@ -190,12 +192,26 @@ def _mapper_options(estimate_focal: bool, seed: int):
     return options
 
 
+def _reprojection_errors(model, image) -> np.ndarray:
+    """The distances (px) [O] between a registered image's observations and its projections of
+    the points they observe."""
+    observed = image.get_observation_points2D()
+    xy = np.array([q.xy for q in observed]).reshape(-1, 2)  # [O, 2]
+    xyz = np.array([model.points3D[q.point3D_id].xyz for q in observed]).reshape(-1, 3)
+    cam_from_world = image.cam_from_world().matrix()  # [3, 4]
+    in_camera = xyz @ cam_from_world[:, :3].T + cam_from_world[:, 3]  # [O, 3]
+    projected = image.camera.img_from_cam(in_camera, check_cheirality=False)  # [O, 2]
+    return np.linalg.norm(projected - xy, axis=1)
+
+
 def _read_model(model, names: list[str], readouts: np.ndarray) -> Reconstruction:
     by_name = {image.name: image for image in model.images.values() if image.has_pose}
     order = [i for i, name in enumerate(names) if name in by_name]
     viewmats = np.tile(np.eye(4), (len(order), 1, 1))  # [R, 4, 4]
+    errors = []  # [R] of [O_r]
     for row, i in enumerate(order):
         viewmats[row, :3] = by_name[names[i]].cam_from_world().matrix()
+        errors.append(_reprojection_errors(model, by_name[names[i]]))
     camera = next(iter(model.cameras.values()))
     points = np.array([p.xyz for p in model.points3D.values()]).reshape(-1, 3)  # [P, 3]
     encoded = np.array([p.color for p in model.points3D.values()]).reshape(-1, 3) / 255.0
@@ -207,6 +223,8 @@ def _read_model(model, names: list[str], readouts: np.ndarray) -> Reconstruction
         points,
         colors,
         len(names),
+        np.array([e.mean() if len(e) else np.nan for e in errors]),
+        float(np.concatenate(errors).mean()),
     )
 
 
