@@ -40,6 +40,7 @@ from spikegs.poses_cli import (
     _keep_timestamps,
     _pose_report,
     _registered_timestamps,
+    _reprojection_report,
 )
 from spikegs.sfm import Reconstruction, align, reconstruct, similarity, spike_images
 from spikegs.sh import C0
@@ -771,6 +772,17 @@ def test_scene_bounds_from_points_are_robust_to_outliers():
     _complete_meta(meta, recon, estimated=False)
     np.testing.assert_allclose(meta["scene_center"], [2.0, 0, 0], atol=0.1)
     assert 0.93 < meta["scene_radius"] < 1.05, meta["scene_radius"]
+
+
+def test_the_reprojection_report_names_each_image_by_its_readout():
+    """Each image's error under its readout written out ("1000000", not "1e+06": a minute at
+    20 kHz is 1.2 million readouts), null for an image that observes no point."""
+    readouts = np.array([16.0, 49.0, 1_000_000.0])
+    recon = _recon(readouts, np.tile(np.eye(4), (3, 1, 1)), np.eye(3), np.zeros((0, 3)), None, 3)
+    recon.image_errors = np.array([0.5, np.nan, 1.5])  # [R] px
+    report = _reprojection_report(recon)
+    assert report["image_reprojection_error_px"] == {"16": 0.5, "49": None, "1000000": 1.5}
+    assert report["reprojection_error_px_max"] == 1.5
 
 
 def test_pose_report_gives_centre_errors_in_scene_radii():

@@ -300,7 +300,7 @@ def _reprojection_report(recon: Reconstruction) -> dict:
         "reprojection_error_px": recon.reprojection_error,
         "reprojection_error_px_max": float(np.nanmax(errors)),
         "image_reprojection_error_px": {
-            f"{k:g}": None if np.isnan(e) else float(e) for k, e in zip(recon.readouts, errors)
+            str(int(k)): None if np.isnan(e) else float(e) for k, e in zip(recon.readouts, errors)
         },
     }
 
