@@ -634,6 +634,26 @@ def test_the_failure_says_images_far_apart_only_where_neighbours_match_with_para
     assert "far apart" not in turning and "spread the images over more readouts" in turning
 
 
+def test_the_failure_names_stated_intrinsics_held_fixed():
+    """A focal stated in mm (or ×10) registers none of 120 images of 128² solids, and the message
+    named only the images: it now gives the focal SfM held and its field of view. Not where the
+    intrinsics were estimated, nor where mapping was not tried."""
+    stats = {
+        "images": 120,
+        "features": 700,
+        "pairs": 480,
+        "parallax_pairs": 460,
+        "beyond_neighbours": 360,
+        "inliers": 30000,
+    }
+    K = np.array([[8.79, 0, 64], [0, 8.79, 64], [0, 0, 1]])  # 175.8 px as if in mm at 20 µm
+    message = sfm._failure(stats, 0, 0.5, Path("x"), False, K, 128)
+    assert "held fixed (fx = 8.79 px, a 164° horizontal field of view)" in message
+    assert "remove fx, fy, cx, cy for SfM to estimate them" in message
+    assert "held fixed" not in sfm._failure(stats, 0, 0.5, Path("x"), False)
+    assert "held fixed" not in sfm._failure(stats, None, 0.5, Path("x"), False, K, 128)
+
+
 def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
     tmp_path, monkeypatch, capsys
 ):

@@ -153,7 +153,11 @@ def reconstruct(
     model = max(models.values(), key=lambda m: m.num_reg_images(), default=None)
     registered = 0 if model is None else model.num_reg_images()
     if registered < max(3, min_registered * len(names)):
-        raise ValueError(_failure(stats, registered, min_registered, work / "images", from_sim))
+        raise ValueError(
+            _failure(
+                stats, registered, min_registered, work / "images", from_sim, K, images.shape[2]
+            )
+        )
     return _read_model(model, names, readouts)
 
 
@@ -258,10 +262,17 @@ def _match_stats(database: Path, num_images: int) -> dict:
 
 
 def _failure(
-    stats: dict, registered: int | None, min_registered: float, images: Path, from_sim: bool
+    stats: dict,
+    registered: int | None,
+    min_registered: float,
+    images: Path,
+    from_sim: bool,
+    K: np.ndarray | None = None,
+    width: int | None = None,
 ) -> str:
     """The failure message: what SfM managed (`registered` None: mapping not tried), in numbers,
-    the likely reasons, and where its `images` (SIM's where `from_sim`) are to look at."""
+    the likely reasons, and where its `images` (SIM's where `from_sim`) are to look at. `K` [3, 3]:
+    the stated intrinsics SfM held fixed, for images `width` px wide."""
     n = stats["images"]
     need = max(3, int(np.ceil(min_registered * n)))
     outcome = (
@@ -303,6 +314,14 @@ def _failure(
         reasons.append(
             "too little parallax (a short stream, or a camera that barely moves or only turns): "
             "spread the images over more readouts"
+        )
+    if K is not None and registered is not None:  # a focal in mm, or ×10, registers none
+        fov = np.degrees(2 * np.arctan(width / (2 * K[0, 0])))
+        reasons.append(
+            f"the intrinsics stated in meta.json are held fixed (fx = {K[0, 0]:.4g} px, a "
+            f"{fov:.0f}° horizontal field of view): wrong ones (another lens's, or in mm, not "
+            "pixels) register few or no images; check them, or remove fx, fy, cx, cy for SfM to "
+            "estimate them"
         )
     return (
         f"structure from motion failed: {outcome}; {n} images, {stats['features']:.0f} SIFT "
