@@ -188,15 +188,18 @@ inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
   return s;
 }
 
-// Smallest distance, over all (pixel, visible Gaussian) pairs the compositing reaches, of alpha to
-// the 1/255 and 0.99 kinks and of the transmittance to the stop threshold (relative): finite
-// differences straddling a kink are meaningless, so tests pick scenes away from them.
-inline double kink_margin(const Scene<double>& s, const Render<double>& r) {
-  const auto& proj = r.state.proj;
-  const auto& order = r.state.bins.order;
-  double margin = 1e30;
-  for (int py = 0; py < s.cam.height; ++py)
-    for (int px = 0; px < s.cam.width; ++px) {
+// The compositing done literally, in double from the projection `proj` as rendered: every pixel
+// over every visible splat in depth order (`order`), no tiles and no rows left out. Calls
+// visit(pixel, i, raw, T) for each pair a pixel reaches before it stops (raw = o·G, T its
+// transmittance before splat i) and returns each pixel's final transmittance [H * W].
+template <typename Visit>
+std::vector<double> composite_literally(const Projected<double>& proj,
+                                        const std::vector<std::int32_t>& order, int width,
+                                        int height, Visit&& visit) {
+  std::vector<double> final_T(std::size_t(width) * height, 1.0);
+  for (int py = 0; py < height; ++py)
+    for (int px = 0; px < width; ++px) {
+      const std::int64_t pixel = std::int64_t(py) * width + px;
       double T = 1;
       for (const std::int32_t i : order) {
         const double dx = px + 0.5 - proj.mean2d[2 * i], dy = py + 0.5 - proj.mean2d[2 * i + 1];
@@ -204,17 +207,90 @@ inline double kink_margin(const Scene<double>& s, const Render<double>& r) {
             -0.5 * (proj.conic[3 * i] * dx * dx + proj.conic[3 * i + 2] * dy * dy) -
             proj.conic[3 * i + 1] * dx * dy;
         const double raw = proj.opacity[i] * std::exp(power);
-        margin =
-            std::min({margin, std::abs(raw - kAlphaMin) / kAlphaMin, std::abs(raw - kAlphaMax)});
+        visit(pixel, i, raw, T);
         if (raw < kAlphaMin) continue;
-        const double a = std::min(kAlphaMax, raw);
-        const double next = T * (1 - a);
-        margin = std::min(margin, std::abs(next - kTransmittanceMin) / kTransmittanceMin);
+        const double next = T * (1 - std::min(kAlphaMax, raw));
         if (next < kTransmittanceMin) break;
         T = next;
       }
+      final_T[pixel] = T;
     }
+  return final_T;
+}
+
+// Smallest distance, over all (pixel, visible Gaussian) pairs the compositing reaches, of alpha to
+// the 1/255 and 0.99 kinks and of the transmittance to the stop threshold (relative): finite
+// differences straddling a kink are meaningless, so tests pick scenes away from them.
+inline double kink_margin(const Scene<double>& s, const Render<double>& r) {
+  double margin = 1e30;
+  composite_literally(
+      r.state.proj, r.state.bins.order, s.cam.width, s.cam.height,
+      [&](std::int64_t, std::int32_t, double raw, double T) {
+        margin =
+            std::min({margin, std::abs(raw - kAlphaMin) / kAlphaMin, std::abs(raw - kAlphaMax)});
+        if (raw < kAlphaMin) return;
+        const double next = T * (1 - std::min(kAlphaMax, raw));
+        margin = std::min(margin, std::abs(next - kTransmittanceMin) / kTransmittanceMin);
+      });
   return margin;
+}
+
+// `count` thin Gaussians ("needles"), 3-10 px long (sigma) and 0.05-0.5 px thin, turned at random
+// angles in the image plane and opacities 0.2-0.5 (a few overlapping leave every pixel far from
+// stopping), seen by an identity camera: their boxes overlap tiles that their ellipses miss.
+inline Scene<double> needle_scene(std::uint32_t seed, std::int64_t count, int width, int height,
+                                  int channels) {
+  Scene<double> s = random_scene(seed, count, width, height, channels, -1);
+  for (int k = 0; k < 16; ++k) s.cam.viewmat[k] = (k % 5 == 0) ? 1 : 0;
+  const double z = 2, f = 60;
+  s.cam.fx = s.cam.fy = f, s.cam.cx = 0.5 * width, s.cam.cy = 0.5 * height;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (std::int64_t i = 0; i < count; ++i) {
+    const double px = width * u(rng), py = height * u(rng), angle = std::acos(-1.0) * u(rng);
+    s.means[3 * i] = (px - s.cam.cx) * z / f, s.means[3 * i + 1] = (py - s.cam.cy) * z / f;
+    s.means[3 * i + 2] = z + 0.01 * i;
+    // a turn by `angle` about the view axis (w, x, y, z)
+    s.quats[4 * i] = std::cos(angle / 2), s.quats[4 * i + 1] = s.quats[4 * i + 2] = 0;
+    s.quats[4 * i + 3] = std::sin(angle / 2);
+    s.scales[3 * i] = (3 + 7 * u(rng)) * z / f;
+    s.scales[3 * i + 1] = s.scales[3 * i + 2] = (0.05 + 0.45 * u(rng)) * z / f;
+    s.opacities[i] = 0.2 + 0.3 * u(rng);
+  }
+  return s;
+}
+
+// The image [H, W, C] and alpha [H, W] of composite_literally, over `background` [C].
+struct LiteralRender {
+  std::vector<double> image, alpha;
+};
+inline LiteralRender render_literally(const Projected<double>& proj,
+                                      const std::vector<std::int32_t>& order, int width, int height,
+                                      int channels, const std::vector<double>& background) {
+  LiteralRender out;
+  out.image.assign(std::size_t(width) * height * channels, 0.0);
+  const std::vector<double> final_T = composite_literally(
+      proj, order, width, height, [&](std::int64_t pixel, std::int32_t i, double raw, double T) {
+        const double a = std::min(kAlphaMax, raw);
+        if (raw < kAlphaMin || T * (1 - a) < kTransmittanceMin) return;
+        for (int c = 0; c < channels; ++c)
+          out.image[pixel * channels + c] += a * T * proj.color[std::int64_t(i) * channels + c];
+      });
+  out.alpha.resize(final_T.size());
+  for (std::size_t p = 0; p < final_T.size(); ++p) {
+    out.alpha[p] = 1 - final_T[p];
+    for (int c = 0; c < channels; ++c) out.image[p * channels + c] += final_T[p] * background[c];
+  }
+  return out;
+}
+
+// A needle scene whose compositing stays away from the alpha and transmittance kinks.
+inline Scene<double> smooth_needle_scene(std::uint32_t seed, std::int64_t count, int width,
+                                         int height, int channels) {
+  for (std::uint32_t attempt = 0;; ++attempt) {
+    Scene<double> s = needle_scene(seed * 1000 + attempt, count, width, height, channels);
+    if (kink_margin(s, render(s)) > 1e-4 || attempt == 50) return s;
+  }
 }
 
 }  // namespace test

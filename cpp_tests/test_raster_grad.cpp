@@ -197,6 +197,35 @@ TEST_CASE(compositing) {
   }
 }
 
+// Thin splats turned at random angles, whose boxes overlap tiles their ellipses miss (the
+// compositing leaves out rows there, test_raster_rows.cpp): the compositing's gradients against
+// central differences of every pixel composited literally, no row left out.
+TEST_CASE(compositing_of_needles_against_the_literal_loop) {
+  const Config c{12, 61, 45, 3, -1};
+  for (std::uint32_t seed = 0; seed < 2; ++seed) {
+    const Scene<double> s = smooth_needle_scene(seed + 401, c.n, c.width, c.height, c.channels);
+    const Render<double> r = render(s);
+    CHECK(kink_margin(s, r) > 1e-4, "seed ", seed, ": a pixel at a kink");
+    const auto w_img = random_weights(r.image.size(), 51),
+               w_alpha = random_weights(r.alpha.size(), 52);
+    Projected<double> proj = r.state.proj;
+    std::vector<double> background = s.background;
+    auto loss = [&] {
+      const LiteralRender lit =
+          render_literally(proj, r.state.bins.order, c.width, c.height, c.channels, background);
+      return dot(lit.image, w_img) + dot(lit.alpha, w_alpha);
+    };
+    std::vector<double> dbg(c.channels);
+    const ProjectedGrads<double> dp = composite_grads(s, r, c, w_img, w_alpha, dbg);
+    std::printf(" seed %u: %zu visible\n", seed, r.state.bins.order.size());
+    fd_check("mean2d", proj.mean2d, dp.mean2d, loss);
+    fd_check("conic", proj.conic, dp.conic, loss);
+    fd_check("opacity", proj.opacity, dp.opacity, loss);
+    fd_check("color", proj.color, dp.color, loss);
+    fd_check("background", background, dbg, loss);
+  }
+}
+
 // The backward reads the splats that its forward gathered: a state that holds none (not a
 // forward's of these splats) is refused, not read past its end.
 TEST_CASE(backward_refuses_a_state_without_its_forward) {
