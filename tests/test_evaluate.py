@@ -3,6 +3,7 @@ eval.json may remove (its images of views whose scores changed; never a path it 
 and datasets without a scene name or a data fingerprint, and the README's scoring of a run."""
 
 import copy
+import functools
 import json
 import shutil
 import warnings
@@ -337,9 +338,10 @@ def _turned(dataset, model=None):
 
 
 def test_a_pose_aligned_to_its_image_comes_back_to_the_pose_that_rendered_it(trained):
-    """`aligned_pose` from a pose 2.3° off the one that rendered the image: back within 0.01°
-    and 1e-4 of the scene radius (300 steps, 1 s at 32²), the model's parameters untouched."""
-    from spikegs.pose_align import aligned_pose
+    """`aligned_pose` from a pose 2.3° off the one that rendered the image: settled, back within
+    0.01° and 1e-4 of the scene radius (1 s at 32²), the model's parameters untouched; stopped
+    before it settled, it says so."""
+    from spikegs.pose_align import ANNEAL_STEPS, CHECK_EVERY, MAX_STEPS, aligned_pose
     from spikegs.pose_refine import pose_errors
 
     data, run_dir = trained
@@ -348,9 +350,12 @@ def test_a_pose_aligned_to_its_image_comes_back_to_the_pose_that_rendered_it(tra
     view, turned = data.test_views[0], _turned(data).test_views[0]
     image = render_view(model, view.viewmat, data)
     found = aligned_pose(model, turned.viewmat, image, data)
-    degrees, centre = pose_errors(found[None], view.viewmat[None])
+    degrees, centre = pose_errors(found.viewmat[None], view.viewmat[None])
     assert pose_errors(turned.viewmat[None], view.viewmat[None])[0][0] > 2.2
     assert degrees[0] < 0.01 and centre[0] < 1e-4 * data.scene_radius
+    assert found.settled and found.steps < MAX_STEPS
+    short = aligned_pose(model, turned.viewmat, image, data, CHECK_EVERY + ANNEAL_STEPS)
+    assert not short.settled and short.steps == CHECK_EVERY + ANNEAL_STEPS
     for key, value in model.params.items():  # (a frozen copy was aligned against)
         assert torch.equal(value, before[key]) and value.requires_grad, key
 
@@ -369,4 +374,23 @@ def test_eval_with_aligned_poses_scores_each_view_from_its_aligned_pose(trained,
     for name, view in aligned["views"].items():
         assert view["psnr"] > 50 > plain["views"][name]["psnr"] + 10, name
         assert view["aligned_rotation_deg"] == pytest.approx(2.29, abs=0.1), name
-    assert aligned["aligned_poses"]["steps"] == 300 and "aligned_poses" not in plain
+        assert view["aligned_settled"], name
+    moved = aligned["aligned_poses"]
+    assert moved["unsettled"] == [] and moved["steps"] < moved["max_steps"]
+    assert moved["steps"] == max(v["aligned_steps"] for v in aligned["views"].values())
+    assert "aligned_poses" not in plain
+
+
+def test_eval_with_aligned_poses_names_the_views_still_moving(trained, run, monkeypatch):
+    """Views whose alignment stopped before their poses settled are named in a warning and in
+    eval-aligned.json's `unsettled` (their scores are not the scene's)."""
+    from spikegs import evaluate
+    from spikegs.pose_align import ANNEAL_STEPS, CHECK_EVERY, aligned_pose
+
+    cut_short = functools.partial(aligned_pose, max_steps=CHECK_EVERY + ANNEAL_STEPS)
+    monkeypatch.setattr(evaluate, "aligned_pose", cut_short)
+    turned = _turned(trained[0], load_ply(run / "scene.ply"))
+    with pytest.warns(UserWarning, match="still moving after") as caught:
+        aligned = evaluate_run(run, turned, write_images=False, align_poses=True)
+    assert aligned["aligned_poses"]["unsettled"] == [v.name for v in turned.test_views]
+    assert str(len(turned.test_views)) in str(caught[0].message)

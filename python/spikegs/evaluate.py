@@ -23,7 +23,7 @@ from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels, load_ply
-from .pose_align import STEPS, aligned_pose
+from .pose_align import MAX_STEPS, aligned_pose
 from .pose_refine import pose_errors
 from .provenance import environment
 from .regular_file import read_text
@@ -281,12 +281,18 @@ def evaluate_run(
         pseudo = view.name.startswith(PSEUDO_PREFIX)
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         gt = np.clip(gt, 0, 1)  # what is scored, and shown
-        viewmat = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else view.viewmat
+        aligned = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else None
+        viewmat = aligned.viewmat if aligned else view.viewmat
         pred = np.clip(render_view(model, viewmat, dataset), 0, 1)
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
-        if align_poses:  # how far the pose moved: degrees, and the centre in scene radii
+        if aligned:  # how far the pose moved: degrees, and the centre in scene radii
             degrees, moved = (float(e[0]) for e in pose_errors(viewmat[None], view.viewmat[None]))
-            views[view.name].update(aligned_rotation_deg=degrees, aligned_centre=moved / radius)
+            views[view.name].update(
+                aligned_rotation_deg=degrees,
+                aligned_centre=moved / radius,
+                aligned_steps=aligned.steps,
+                aligned_settled=aligned.settled,
+            )
         if write_images:
             image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
             write_image(folder / f"{view.name}.png", image)
@@ -321,13 +327,25 @@ def evaluate_run(
         "environment": environment(),  # of this scoring; train.json's names what trained it
     }
     if align_poses:
+        unsettled = [name for name, v in views.items() if not v["aligned_settled"]]
         result["aligned_poses"] = {
-            "steps": STEPS,
+            "steps": max(v["aligned_steps"] for v in views.values()),  # the most a view took
+            "max_steps": MAX_STEPS,
             **{
                 f"{key}_median": float(np.median([v[f"aligned_{key}"] for v in views.values()]))
-                for key in ("rotation_deg", "centre")
+                for key in ("steps", "rotation_deg", "centre")
             },
+            "unsettled": unsettled,
         }
+        if unsettled:
+            listed = ", ".join(unsettled[:3]) + (", ..." if len(unsettled) > 3 else "")
+            warnings.warn(
+                f"{len(unsettled)} test view(s) ({listed}) were still moving after "
+                f"{max(views[v]['aligned_steps'] for v in unsettled)} steps of alignment: their "
+                "given poses lie too far from what their images show (one 10° off comes back, "
+                "one 20° off does not), and their aligned scores are not the scene's",
+                stacklevel=2,
+            )
     result["file"] = str(scores_file.resolve())  # not as typed: where it lies
     write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
     return result

@@ -6,25 +6,45 @@ each test view at its true pose sees that warp, and its PSNR understates the sce
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .pose_refine import PoseRefiner
 
-STEPS = 300  # Adam steps a view
-# Adam's step on the twist (radians, scene radii), cosine-annealed to LR_END over the steps:
-# from SfM's poses (2.3° off) 300 steps scored 29.21 dB where the true poses score 29.28
+# Adam's step on the twist (radians, scene radii), held until the pose settles, then
+# cosine-annealed to LR_END over ANNEAL_STEPS. A pose turned 10° off slides back along a shallow
+# valley (a turn traded against a sideways shift): a fixed 300 steps left some views 2-4° off,
+# 5.7 dB short; settling takes 450-700 (BENCHMARKS.md, "eval --align-poses: until the pose settles")
 LR, LR_END = 2e-3, 5e-5
+CHECK_EVERY = 50  # steps between looks at how far the pose moved
+# settled: its mean over CHECK_EVERY steps moved less than this from the last's (degrees; its
+# centre as many radians of the scene's radius)
+SETTLED_DEG = 0.02
+ANNEAL_STEPS = 100
+MAX_STEPS = 2000  # a view's at most: one 20° off wanders without settling
+
+
+@dataclass
+class Alignment:
+    viewmat: np.ndarray  # [4, 4] float64 world-to-camera, aligned
+    steps: int  # Adam steps taken
+    settled: bool  # the pose stopped moving before MAX_STEPS
 
 
 def aligned_pose(
-    model: GaussianModel, viewmat: np.ndarray, image: np.ndarray, dataset, steps: int = STEPS
-) -> np.ndarray:
+    model: GaussianModel,
+    viewmat: np.ndarray,
+    image: np.ndarray,
+    dataset,
+    max_steps: int = MAX_STEPS,
+) -> Alignment:
     """The world-to-camera viewmat [4, 4] (float64) near `viewmat` [4, 4] from which `model`
-    renders `image` [H, W, C] (the render's units) best: `steps` Adam steps on a twist applied on
-    the camera side (L1, as training's loss), in the dataset's camera and the frame training
-    renders in (`frame_origin`); `model` itself is left as it is."""
+    renders `image` [H, W, C] (the render's units) best: Adam steps on a twist applied on the
+    camera side (L1, as training's loss) until the pose settles (or `max_steps`), in the dataset's
+    camera and the frame training renders in (`frame_origin`); `model` itself is left as it is."""
     origin = frame_origin(dataset.scene_center, dataset.scene_radius)
     frozen = GaussianModel.from_state_dict(model.centred_at(origin).state_dict())
     for p in frozen.params.values():
@@ -35,16 +55,31 @@ def aligned_pose(
     twist = PoseRefiner(1, float(dataset.scene_radius))  # (radians, scene radii), as training's
     target = torch.as_tensor(np.asarray(image, np.float32))
     optimizer = torch.optim.Adam(twist.parameters(), lr=LR)
-    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, steps, eta_min=LR_END)
-    for _ in range(steps):
+
+    def step():
         render = frozen.render(twist(base, 0), K, dataset.width, dataset.height, near)
         loss = (render.image - target).abs().mean()
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
+
+    # the twist's mean over each CHECK_EVERY steps against the last's: Adam's L1 steps jitter
+    # about an optimum by ~LR, a drift along the valley moves the mean
+    steps, settled, before = 0, False, torch.zeros(6)
+    while not settled and steps + CHECK_EVERY + ANNEAL_STEPS <= max_steps:
+        now = torch.zeros(6)
+        for _ in range(CHECK_EVERY):
+            step()
+            now += twist.corrections.detach()[0] / CHECK_EVERY
+        moved = (now - before).view(2, 3).norm(dim=1)  # [2]: turn (radians), centre (radii)
+        settled = steps > 0 and bool(moved.max() < np.radians(SETTLED_DEG))
+        steps, before = steps + CHECK_EVERY, now
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, ANNEAL_STEPS, LR_END)
+    for _ in range(ANNEAL_STEPS):
+        step()
         schedule.step()
     # on the camera side, the correction is the same in the world's frame: E @ view_of(V) is
     # view_of(E @ V)
     with torch.no_grad():
         correction = twist(torch.eye(4), 0).double().numpy()  # [4, 4]
-    return correction @ np.asarray(viewmat, np.float64)
+    return Alignment(correction @ np.asarray(viewmat, np.float64), steps + ANNEAL_STEPS, settled)
