@@ -340,7 +340,7 @@ def _turned(dataset, model=None):
 def test_a_pose_aligned_to_its_image_comes_back_to_the_pose_that_rendered_it(trained):
     """`aligned_pose` from a pose 2.3° off the one that rendered the image: settled, back within
     0.01° and 1e-4 of the scene radius (1 s at 32²), the model's parameters untouched; stopped
-    before it settled, it says so."""
+    before it settled, it says so; too few steps to look at the pose are refused."""
     from spikegs.pose_align import ANNEAL_STEPS, CHECK_EVERY, MAX_STEPS, aligned_pose
     from spikegs.pose_refine import pose_errors
 
@@ -356,6 +356,8 @@ def test_a_pose_aligned_to_its_image_comes_back_to_the_pose_that_rendered_it(tra
     assert found.settled and found.steps < MAX_STEPS
     short = aligned_pose(model, turned.viewmat, image, data, CHECK_EVERY + ANNEAL_STEPS)
     assert not short.settled and short.steps == CHECK_EVERY + ANNEAL_STEPS
+    with pytest.raises(ValueError, match=f"max_steps: expected at least {short.steps} .*, got 99"):
+        aligned_pose(model, turned.viewmat, image, data, 99)  # (it took 100, unlooked at)
     for key, value in model.params.items():  # (a frozen copy was aligned against)
         assert torch.equal(value, before[key]) and value.requires_grad, key
 

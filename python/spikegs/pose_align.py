@@ -31,7 +31,7 @@ MAX_STEPS = 2000  # a view's at most: one 20° off wanders without settling
 class Alignment:
     viewmat: np.ndarray  # [4, 4] float64 world-to-camera, aligned
     steps: int  # Adam steps taken
-    settled: bool  # the pose stopped moving before MAX_STEPS
+    settled: bool  # the pose stopped moving before `max_steps`
 
 
 def aligned_pose(
@@ -44,7 +44,13 @@ def aligned_pose(
     """The world-to-camera viewmat [4, 4] (float64) near `viewmat` [4, 4] from which `model`
     renders `image` [H, W, C] (the render's units) best: Adam steps on a twist applied on the
     camera side (L1, as training's loss) until the pose settles (or `max_steps`), in the dataset's
-    camera and the frame training renders in (`frame_origin`); `model` itself is left as it is."""
+    camera and the frame training renders in (`frame_origin`); `model` itself is left as it is.
+    ValueError for a `max_steps` below one look at the pose and the annealing."""
+    if max_steps < CHECK_EVERY + ANNEAL_STEPS:  # else it took ANNEAL_STEPS, unlooked at
+        raise ValueError(
+            f"max_steps: expected at least {CHECK_EVERY + ANNEAL_STEPS} ({CHECK_EVERY} steps "
+            f"before the pose is looked at, {ANNEAL_STEPS} annealed), got {max_steps}"
+        )
     origin = frame_origin(dataset.scene_center, dataset.scene_radius)
     frozen = GaussianModel.from_state_dict(model.centred_at(origin).state_dict())
     for p in frozen.params.values():
