@@ -340,10 +340,11 @@ def evaluate_run(
         if unsettled:
             listed = ", ".join(unsettled[:3]) + (", ..." if len(unsettled) > 3 else "")
             warnings.warn(
-                f"{len(unsettled)} test view(s) ({listed}) were still moving after "
-                f"{max(views[v]['aligned_steps'] for v in unsettled)} steps of alignment: their "
-                "given poses lie too far from what their images show (one 10° off comes back, "
-                "one 20° off does not), and their aligned scores are not the scene's",
+                f"{len(unsettled)} test view(s) ({listed}) were still moving when their "
+                f"alignment stopped at {max(views[v]['aligned_steps'] for v in unsettled)} "
+                "steps: their given poses lie too far from what their images show, and their "
+                "aligned scores are not the scene's (on a 128² scene 6 of 8 views turned 10° "
+                "came back, 2 of 8 turned 20°: docs/outputs.md)",
                 stacklevel=2,
             )
     result["file"] = str(scores_file.resolve())  # not as typed: where it lies
