@@ -984,8 +984,8 @@ def test_sfm_holds_known_intrinsics_fixed(textured, tmp_path):
 
 class _Model:
     """What `sfm._read_model` reads of a pycolmap reconstruction: registered images by name with
-    their cam_from_world, each observing point 0 `off` (by name) its projection by a camera of
-    K = I, one camera, points with their 8-bit (gamma-encoded) colours."""
+    their cam_from_world, each observing point 0 `off` (by name; None: no point) its projection
+    by a camera of K = I, one camera, points with their 8-bit (gamma-encoded) colours."""
 
     def __init__(self, poses: dict, colors, off: dict):
         camera = SimpleNamespace(img_from_cam=lambda xyz, check_cheirality: xyz[:, :2] / xyz[:, 2:])
@@ -993,7 +993,8 @@ class _Model:
         def image(name, viewmat):
             pose = SimpleNamespace(matrix=lambda: viewmat[:3])
             seen = viewmat[:3] @ [0, 0, 0, 1]  # point 0, at the origin, in the camera
-            observed = [SimpleNamespace(xy=seen[:2] / seen[2] + off[name], point3D_id=0)]
+            xy = None if off[name] is None else seen[:2] / seen[2] + off[name]
+            observed = [] if xy is None else [SimpleNamespace(xy=xy, point3D_id=0)]
             return SimpleNamespace(
                 name=name,
                 has_pose=True,
@@ -1025,6 +1026,17 @@ def test_a_reconstruction_reads_its_registered_images_readouts_and_linear_colour
     assert recon.colors.tolist() == [[56, 255, 0]]
     np.testing.assert_allclose(recon.image_errors, [1.0, 5.0], atol=1e-12)
     assert recon.reprojection_error == pytest.approx(3.0)
+
+
+def test_a_registered_image_observing_no_point_has_no_reprojection_error():
+    """A registered image left without an observation (COLMAP filters observations after
+    registering): its error is NaN, null in report.json, not 0 px; the mean is the others'."""
+    poses = {f"{k:08d}.png": look_at((3.0, 0.0, float(k)), (0, 0, 0)) for k in (10, 20)}
+    names = list(poses)
+    model = _Model(poses, [(0, 0, 0)], {names[0]: np.array([3.0, 4.0]), names[1]: None})
+    recon = sfm._read_model(model, names, np.array([10, 20]))
+    assert recon.image_errors[0] == pytest.approx(5.0) and np.isnan(recon.image_errors[1])
+    assert recon.reprojection_error == pytest.approx(5.0)
 
 
 def test_poses_sim_takes_the_latest_trained_sim(tmp_path, monkeypatch):
