@@ -16,8 +16,9 @@ from .pose_refine import PoseRefiner
 
 # Adam's step on the twist (radians, scene radii), held until the pose settles, then
 # cosine-annealed to LR_END over ANNEAL_STEPS. A pose turned 10° off slides back along a shallow
-# valley (a turn traded against a sideways shift): a fixed 300 steps left some views 2-4° off,
-# 5.7 dB short; settling takes 450-700 (BENCHMARKS.md, "eval --align-poses: until the pose settles")
+# valley (a turn traded against a sideways shift): from 10° off a fixed 300 steps left 4 of 8
+# views 2.0-2.4° off (up to 1.4 dB short) and lost 3; settling takes 350-1200 (BENCHMARKS.md,
+# "eval --align-poses until the pose settles")
 LR, LR_END = 2e-3, 5e-5
 CHECK_EVERY = 50  # steps between looks at how far the pose moved
 # settled: its mean over CHECK_EVERY steps moved less than this from the last's (degrees; its
