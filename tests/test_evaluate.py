@@ -419,4 +419,4 @@ def test_eval_with_aligned_poses_names_the_views_still_moving(trained, run, monk
     assert aligned["aligned_poses"]["unsettled"] == names
     message = str(caught[0].message)
     assert message.startswith(f"4 test view(s) ({', '.join(names[:3])}, ...)")
-    assert "6 of 8 views turned 10° came back, 2 of 8 turned 20°" in message
+    assert "6 of 8 views turned 10° came back, on wires 3 of 8 turned 5°" in message
