@@ -39,6 +39,7 @@ from .data.dataset import (
     check_dataset_folder,
     check_meta_values,
     check_stream_image,
+    field_of_view_deg,
     intrinsics_keys,
     intrinsics_matrix,
     open_streams,
@@ -181,7 +182,7 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
             f"cx = {K[0, 2]:.2f}, cy = {K[1, 2]:.2f} written to {META} (intrinsics_from: "
             f"{INTRINSICS_FROM_SFM}; state fx, fy, cx, cy without it to hold a calibration fixed)"
         )
-        fov = float(np.degrees(2 * np.arctan(meta["width"] / (2 * K[0, 0]))))
+        fov = field_of_view_deg(meta["width"], K[0, 0])
         if not FOV_PLAUSIBLE[0] <= fov <= FOV_PLAUSIBLE[1]:
             messages.append(
                 f"warning: that focal length gives a {fov:.1f}° horizontal field of view, outside "

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from .data.dataset import field_of_view_deg
 from .data.trajectory import Trajectory
 from .missing_dependency import MissingDependencyError
 from .pixel_defects import repaired
@@ -316,12 +317,11 @@ def _failure(
             "spread the images over more readouts"
         )
     if K is not None and registered is not None:  # a focal in mm, or ×10, registers none
-        fov = np.degrees(2 * np.arctan(width / (2 * K[0, 0])))
         reasons.append(
             f"the intrinsics stated in meta.json are held fixed (fx = {K[0, 0]:.4g} px, a "
-            f"{fov:.0f}° horizontal field of view): wrong ones (another lens's, or in mm, not "
-            "pixels) register few or no images; check them, or remove fx, fy, cx, cy for SfM to "
-            "estimate them"
+            f"{field_of_view_deg(width, K[0, 0]):.0f}° horizontal field of view): wrong ones "
+            "(another lens's, or in mm, not pixels) register few or no images; check them, or "
+            "remove fx, fy, cx, cy for SfM to estimate them"
         )
     return (
         f"structure from motion failed: {outcome}; {n} images, {stats['features']:.0f} SIFT "
