@@ -284,15 +284,23 @@ inline LiteralRender render_literally(const Projected<double>& proj,
   return out;
 }
 
-// A needle scene whose compositing stays away from the alpha and transmittance kinks; after 50
-// tries the last, kinks or not: its callers then fail loudly (the gradient test checks the margin,
-// the literal comparison in float meets a threshold's flip), never pass on a kinked scene.
-inline Scene<double> smooth_needle_scene(std::uint32_t seed, std::int64_t count, int width,
-                                         int height, int channels) {
+// The first scene `make(seed * 1000 + attempt)` whose compositing stays away from the alpha and
+// transmittance kinks; after 50 tries the last, kinks or not: its callers then fail loudly (the
+// gradient test checks the margin, the literal comparison in float meets a threshold's flip),
+// never pass on a kinked scene.
+template <typename Make>
+Scene<double> away_from_kinks(std::uint32_t seed, Make make) {
   for (std::uint32_t attempt = 0;; ++attempt) {
-    Scene<double> s = needle_scene(seed * 1000 + attempt, count, width, height, channels);
+    Scene<double> s = make(seed * 1000 + attempt);
     if (kink_margin(s, render(s)) > 1e-4 || attempt == 50) return s;
   }
+}
+
+// A needle scene away from the kinks (`away_from_kinks`).
+inline Scene<double> smooth_needle_scene(std::uint32_t seed, std::int64_t count, int width,
+                                         int height, int channels) {
+  return away_from_kinks(
+      seed, [&](std::uint32_t k) { return needle_scene(k, count, width, height, channels); });
 }
 
 }  // namespace test

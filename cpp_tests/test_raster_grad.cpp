@@ -24,13 +24,11 @@ const Config kConfigs[] = {
     {50, 33, 17, 3, 2}, {12, 33, 17, 3, 3}, {30, 13, 9, 4, -1},
 };
 
-// A scene whose compositing stays away from the alpha and transmittance kinks.
+// A scene of config `c` away from the alpha and transmittance kinks (`away_from_kinks`).
 Scene<double> smooth_scene(const Config& c, std::uint32_t seed) {
-  for (std::uint32_t attempt = 0;; ++attempt) {
-    Scene<double> s =
-        random_scene(seed * 1000 + attempt, c.n, c.width, c.height, c.channels, c.sh_degree);
-    if (kink_margin(s, render(s)) > 1e-4 || attempt == 50) return s;
-  }
+  return away_from_kinks(seed, [&](std::uint32_t k) {
+    return random_scene(k, c.n, c.width, c.height, c.channels, c.sh_degree);
+  });
 }
 
 // A smooth scene of config `c`, its render, and the random weights of a linear loss on its image
