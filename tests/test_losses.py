@@ -1,10 +1,18 @@
-"""The SpikeGS losses: exposure sampling times, L1/L2 optima on quantised targets, D-SSIM."""
+"""The SpikeGS losses: exposure sampling times, L1/L2 optima on quantised targets, D-SSIM, and
+the Gaussian blur D-SSIM and pose alignment read."""
 
 import numpy as np
 import pytest
 import torch
 from skimage.metrics import structural_similarity
-from spikegs.losses import dssim, exposure_loss, exposure_times, instant_loss
+from spikegs.losses import (
+    LONG_BLUR,
+    dssim,
+    exposure_loss,
+    exposure_times,
+    gaussian_blur,
+    instant_loss,
+)
 
 
 @pytest.mark.parametrize("window, poses", [(33, 5), (33, 9), (65, 13), (9, 2)])
@@ -116,6 +124,26 @@ def test_dssim_under_bfloat16_autocast_is_its_float32_value():
     assert torch.equal(torch.autograd.grad(value, render)[0], grad)
     half = dssim(render.detach().bfloat16(), target.bfloat16())  # bfloat16 images: float32 too
     assert half.dtype == torch.float32 and float(half) == pytest.approx(expected.item(), rel=0.1)
+
+
+@pytest.mark.parametrize(
+    "shape, sigma",
+    [((1, 5, 30, 30), 1.5), ((1, 3, 40, 57), LONG_BLUR + 2), ((1, 1, 9, 7), 5.0)],
+)
+def test_gaussian_blur_is_the_zero_padded_2d_convolution(shape, sigma):
+    """`gaussian_blur` against one 2-D convolution with the outer product of a Gaussian's taps over
+    ±⌈3σ⌉, zero padding, in double: the short blur's convolutions and the long one's Fourier
+    products (whose circular wrap must read zeros, also where the taps outreach the map)."""
+    import torch.nn.functional as F
+
+    maps = torch.rand(*shape, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    r = int(np.ceil(3 * sigma))
+    x = torch.arange(-r, r + 1, dtype=torch.float64)
+    taps = torch.exp(-(x**2) / (2 * sigma**2))
+    window = torch.outer(taps, taps) / taps.sum() ** 2  # [2r + 1, 2r + 1]
+    n = shape[1]
+    wanted = F.conv2d(maps, window.expand(n, 1, -1, -1).contiguous(), padding=r, groups=n)
+    torch.testing.assert_close(gaussian_blur(maps, sigma), wanted, rtol=0, atol=1e-6)
 
 
 def test_images_of_other_shapes_or_types_than_the_render_are_refused():

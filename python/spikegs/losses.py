@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 
 import numpy as np
 import torch
@@ -97,22 +98,48 @@ def exposure_loss(
     return _norm(norm)(torch.stack(renders).mean(dim=0), target, quantum)
 
 
-def _gaussian_taps(size: int = 11, sigma: float = 1.5) -> torch.Tensor:
-    """The normalised 1-D Gaussian [size]; SSIM's 2-D window is its outer product."""
-    x = torch.arange(size, dtype=torch.float32) - (size - 1) / 2
+def _gaussian_taps(sigma: float) -> torch.Tensor:
+    """The normalised 1-D Gaussian of width `sigma` (pixels) over ±3σ, rounded up: [2⌈3σ⌉ + 1]
+    taps (11 for SSIM's σ = 1.5; its 2-D window is the outer product)."""
+    r = math.ceil(3 * sigma)
+    x = torch.arange(-r, r + 1, dtype=torch.float32)
     g = torch.exp(-(x**2) / (2 * sigma**2))
     return g / g.sum()
 
 
-def _gaussian_blur(maps: torch.Tensor) -> torch.Tensor:
-    """Each of `maps` [1, n, H, W] blurred by SSIM's window (zero padding), as two 1-D passes of
-    one grouped convolution each: the 11x11 window in one convolution a map took 20x as long
-    (79 against 3.6 ms forward and backward at 128², one map's own convolution is no depthwise
-    kernel in oneDNN)."""
-    n, g = maps.shape[1], _gaussian_taps().to(maps)
-    r = g.numel() // 2
+def gaussian_blur(maps: torch.Tensor, sigma: float = 1.5) -> torch.Tensor:
+    """Each of `maps` [1, n, H, W] blurred by a Gaussian of width `sigma` (pixels; SSIM's window
+    by default) over ±3σ, zero padding. Up to LONG_BLUR pixels wide, as two 1-D passes of one
+    grouped convolution each: the 11x11 window in one convolution a map took 20x as long (79
+    against 3.6 ms forward and backward at 128², one map's own convolution is no depthwise kernel
+    in oneDNN); wider, as products in Fourier space, whose cost the width does not set."""
+    g = _gaussian_taps(sigma).to(maps)
+    if sigma > LONG_BLUR:
+        return _fourier_blur(_fourier_blur(maps, g, 3), g, 2)
+    n, r = maps.shape[1], g.numel() // 2
     rows = F.conv2d(maps, g.view(1, 1, 1, -1).expand(n, 1, 1, -1), padding=(0, r), groups=n)
     return F.conv2d(rows, g.view(1, 1, -1, 1).expand(n, 1, -1, 1), padding=(r, 0), groups=n)
+
+
+# a blur wider than this many pixels (σ) is made in Fourier space: the convolution's cost grows
+# with its taps, forward and backward 251 against 7.7 ms for σ = 16 at 512², 20 against 2.6 ms
+# for σ = 8 at 256²; at σ = 4 at 128², 0.63 against 0.80 ms (BENCHMARKS.md, "eval
+# --align-poses: blurred first")
+LONG_BLUR = 2.0
+
+
+def _fourier_blur(maps: torch.Tensor, taps: torch.Tensor, dim: int) -> torch.Tensor:
+    """`maps` convolved along `dim` with the symmetric `taps` [2r + 1], zero padding: a circular
+    convolution over the axis padded by r zeros (2r + 1 in all at least), which the wrap then
+    reads in place of the zeros beyond either end."""
+    n, r = maps.shape[dim], taps.numel() // 2
+    m = max(n + r, 2 * r + 1)
+    kernel = maps.new_zeros(m)  # the taps centred on index 0, wrapped
+    kernel[: r + 1], kernel[m - r :] = taps[r:], taps[:r]
+    shape = [1] * maps.dim()
+    shape[dim] = m // 2 + 1
+    spectrum = torch.fft.rfft(maps, n=m, dim=dim) * torch.fft.rfft(kernel).view(shape)
+    return torch.fft.irfft(spectrum, n=m, dim=dim).narrow(dim, 0, n)
 
 
 def _has_autocast(device: str) -> bool:
@@ -136,7 +163,7 @@ def dssim(render: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         torch.autocast(device, enabled=False) if _has_autocast(device) else contextlib.nullcontext()
     ):
         # the five local moments' means, blurred together: [1, 5C, H, W] -> 5 x [1, C, H, W]
-        blurred = _gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1))
+        blurred = gaussian_blur(torch.cat([x, y, x * x, y * y, x * y], 1))
     mx, my, xx, yy, xy = blurred.split(c, 1)
     vx, vy, cxy = xx - mx**2, yy - my**2, xy - mx * my
     c1, c2 = 0.01**2, 0.03**2
