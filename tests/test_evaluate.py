@@ -423,7 +423,8 @@ def test_a_pose_settles_against_blurred_images_before_sharp_ones(monkeypatch):
     turn = np.eye(4)
     turn[:3, :3] = Rotation.from_rotvec(np.radians([1.8, 6.0, 0.0])).as_matrix()
     assert pose_align.blur_sigmas(64, 64) == [2.0]
-    assert pose_align.blur_sigmas(128, 96) == [4.0] and pose_align.blur_sigmas(31, 31) == []
+    assert pose_align.blur_sigmas(128, 96) == [4.0] and pose_align.blur_sigmas(32, 24) == [1.0]
+    assert pose_align.blur_sigmas(31, 31) == []  # (under a pixel)
     found = pose_align.aligned_pose(model, turn @ viewmat, image, camera)
     assert found.settled and pose_errors(found.viewmat[None], viewmat[None])[0][0] < 0.005
     monkeypatch.setattr(pose_align, "BLUR_WIDTH", 0.0)  # (no blurred start)
