@@ -387,9 +387,11 @@ def _dot_grid(width: int, period: float):
     world-to-camera viewmat [4, 4], the model, and the camera as `aligned_pose` reads a dataset."""
     import types
 
+    from spikegs.data.sources import intrinsics
     from spikegs.gaussians import GaussianModel
 
-    fx = width / (2 * np.tan(np.radians(25)))
+    K = intrinsics(width, width, 50.0)
+    fx = K[0, 0]
     spacing = period * 4 / fx  # (world units: `period` pixels at 4 units)
     ticks = np.arange(-2, 2 + spacing / 2, spacing)
     x, y = (a.ravel() for a in np.meshgrid(ticks, ticks))
@@ -399,7 +401,7 @@ def _dot_grid(width: int, period: float):
     model = GaussianModel.from_points(points, torch.tensor(shade)[:, None], spacing / 5)
     model.params["opacity_logits"].data.fill_(3.0)
     camera = types.SimpleNamespace(
-        K=np.array([[fx, 0, width / 2], [0, fx, width / 2], [0, 0, 1]]),
+        K=K,
         width=width,
         height=width,
         scene_center=np.zeros(3),
