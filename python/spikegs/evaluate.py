@@ -344,7 +344,7 @@ def evaluate_run(
                 f"alignment stopped at {max(views[v]['aligned_steps'] for v in unsettled)} "
                 "steps: their given poses lie too far from what their images show, and their "
                 "aligned scores are not the scene's (the reach depends on the scene: on 128² "
-                "solids, fine-texture and wires 7 of 8 views turned 10° came back, on wires 2 of "
+                "solids, fine-texture and wires 7 or 8 of 8 views turned 10° came back, 2 to 5 of "
                 "8 turned 20°: docs/outputs.md)",
                 stacklevel=2,
             )

@@ -11,107 +11,110 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .gaussians import GaussianModel, frame_origin, near_plane
+from .gaussians import frame_origin, near_plane
 from .losses import gaussian_blur
-from .pose_refine import PoseRefiner
+from .pose_refine import se3_exp
 
-# Adam's step on the twist (radians, scene radii), held until the pose settles, then
-# cosine-annealed to LR_END over ANNEAL_STEPS. A pose turned 10° off slides back along a shallow
-# valley (a turn traded against a sideways shift): from 10° off a fixed 300 steps left 4 of 8
-# views 2.0-2.4° off (up to 1.4 dB short) and lost 3; settling took 350-1200 (BENCHMARKS.md,
-# "eval --align-poses until the pose settles"), 500-1850 with the blurred start below
-LR, LR_END = 2e-3, 5e-5
-CHECK_EVERY = 50  # steps between looks at how far the pose moved
-# settled: its mean over CHECK_EVERY steps moved less than this from the last's (degrees; its
-# centre as many radians of the scene's radius)
-SETTLED_DEG = 0.02
-ANNEAL_STEPS = 100
-# a view's at most: one 20° off wanders without settling; with the blurred start below, views
-# 10° off a 256² `wires` settled back at 2350-2600 steps, and lost ones at 128² still wandered
-# at 3000
-MAX_STEPS = 3000
+# Levenberg-Marquardt on a twist (radians, scene radii) applied on the camera side of the pose,
+# minimising the squared error: a step renders the view at the pose and at six poses a twist of
+# FD_STEP away along each axis (the residual's Jacobian by forward differences), solves the
+# damped normal equations, and takes the step where it lowers the error (then damps less), else
+# damps more and solves again. Against Adam's steps on the L1 error (until 2026-12-02): the same
+# scores in a fifth of the time (16 views of 128² `fine-texture`, 29 s against 152 s) and as far a
+# reach (BENCHMARKS.md, "eval --align-poses: Levenberg-Marquardt")
+FD_STEP = 1e-3
+DAMPING, DAMPING_MIN, DAMPING_MAX = 1e-3, 1e-7, 1e6  # of the normal equations' diagonal
+MAX_TURN = np.radians(1.0)  # a step's longest turn (radians), and centre shift (as many radii)
+# a phase has settled when a step turns the camera less than this (degrees) and shifts its centre
+# less than as many radians of the scene's radius, or no step lowers the error
+SETTLED_DEG = 1e-3
+MAX_STEPS = 200  # steps in all phases; views back from 5-20° off took at most 146 at 128²
 # coarse to fine: fine, repeated structure (a checker, a grid of wires) gives the sharp images'
-# L1 other optima a few degrees off the pose (L2 settles in the same ones); the pose first
-# settles against both images blurred by a Gaussian this fraction of the image's larger side
-# wide (4 px at 128²), then against the sharp ones. On 128² `fine-texture` and `wires`, 10° off:
-# 7 of 8 views back against 4 and 3, in 1.7x the steps (BENCHMARKS.md, "eval --align-poses:
-# blurred first")
-BLUR_WIDTH = 1 / 32
+# error other optima a few degrees off the pose; the pose first settles against both images
+# blurred by Gaussians these fractions of the image's larger side wide, widest first (16, 8 and
+# 4 px at 256²), then against the sharp ones. Against the widest blur the camera only turns: free
+# to shift, on 256² `wires` it slid 0.8 scene radii along the valley where a turn is traded for a
+# shift, and settled 20-30° off
+BLUR_WIDTHS = (1 / 16, 1 / 32, 1 / 64)
 
 
 def blur_sigmas(width: int, height: int) -> list[float]:
     """The Gaussian widths (pixels) that a `width` x `height` view's alignment settles against,
-    in turn, before its sharp images: [4.0] at 128², none under a pixel (below 32²)."""
-    sigma = BLUR_WIDTH * max(width, height)
-    return [sigma] if sigma >= 1 else []
+    in turn, before its sharp images: [8.0, 4.0, 2.0] at 128², none under a pixel."""
+    sigmas = [fraction * max(width, height) for fraction in BLUR_WIDTHS]
+    return [sigma for sigma in sigmas if sigma >= 1]
 
 
 @dataclass
 class Alignment:
     viewmat: np.ndarray  # [4, 4] float64 world-to-camera, aligned
-    steps: int  # Adam steps taken
-    settled: bool  # the pose stopped moving against the sharp images before `max_steps`
+    steps: int  # Levenberg-Marquardt steps taken, over all phases
+    settled: bool  # the pose settled against the sharp images within `max_steps`
 
 
 def aligned_pose(
-    model: GaussianModel,
-    viewmat: np.ndarray,
-    image: np.ndarray,
-    dataset,
-    max_steps: int = MAX_STEPS,
+    model, viewmat: np.ndarray, image: np.ndarray, dataset, max_steps: int = MAX_STEPS
 ) -> Alignment:
     """The world-to-camera viewmat [4, 4] (float64) near `viewmat` [4, 4] from which `model`
-    renders `image` [H, W, C] (the render's units) best: Adam steps on a twist applied on the
-    camera side (L1, as training's loss), against both images blurred (`blur_sigmas`) and then
-    sharp, each until the pose settles (or `max_steps` in all), in the dataset's camera and the
-    frame training renders in (`frame_origin`); `model` itself is left as it is.
-    ValueError for a `max_steps` below one look at the pose and the annealing."""
-    if max_steps < CHECK_EVERY + ANNEAL_STEPS:  # else it took ANNEAL_STEPS, unlooked at
-        raise ValueError(
-            f"max_steps: expected at least {CHECK_EVERY + ANNEAL_STEPS} ({CHECK_EVERY} steps "
-            f"before the pose is looked at, {ANNEAL_STEPS} annealed), got {max_steps}"
-        )
-    origin = frame_origin(dataset.scene_center, dataset.scene_radius)
-    frozen = GaussianModel.from_state_dict(model.centred_at(origin).state_dict())
-    for p in frozen.params.values():
-        p.requires_grad_(False)
-    base = frozen.view_of(viewmat)  # [4, 4] float32, the model's frame
+    renders `image` [H, W, C] (the render's units) best in the squared error: Levenberg-Marquardt
+    steps on a twist applied on the camera side, against both images blurred (`blur_sigmas`) and
+    then sharp, each until the pose settles (or `max_steps` in all), in the dataset's camera and
+    the frame training renders in (`frame_origin`); `model` itself is left as it is.
+    ValueError for a `max_steps` below one."""
+    if max_steps < 1:
+        raise ValueError(f"max_steps: expected at least 1, got {max_steps}")
+    model = model.centred_at(frame_origin(dataset.scene_center, dataset.scene_radius))
+    start = model.view_of(viewmat).double()  # [4, 4], the model's frame
     K = torch.as_tensor(dataset.K, dtype=torch.float32)
     near = near_plane(dataset.scene_radius)
-    twist = PoseRefiner(1, float(dataset.scene_radius))  # (radians, scene radii), as training's
+    radius = float(dataset.scene_radius)
+    unit = torch.tensor([1.0, 1, 1, radius, radius, radius], dtype=torch.float64)
     target = torch.as_tensor(np.asarray(image, np.float32))
-    optimizer = torch.optim.Adam(twist.parameters(), lr=LR)
 
-    def step(sigma: float):
-        render = frozen.render(twist(base, 0), K, dataset.width, dataset.height, near)
-        error = render.image - target  # [H, W, C]
-        if sigma:
-            error = gaussian_blur(error.permute(2, 0, 1)[None], sigma)
-        loss = error.abs().mean()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
+    def residual(pose: torch.Tensor, sigma: float) -> torch.Tensor:
+        """The render at `pose` [4, 4] less the image, blurred by `sigma` px: [P] float32."""
+        with torch.no_grad():
+            error = model.render(pose.float(), K, dataset.width, dataset.height, near).image
+            error = error - target  # [H, W, C]
+            if sigma:
+                error = gaussian_blur(error.permute(2, 0, 1)[None], sigma)
+        return error.reshape(-1)
 
-    # the twist's mean over each CHECK_EVERY steps against the last's: Adam's L1 steps jitter
-    # about an optimum by ~LR, a drift along the valley moves the mean
-    steps, settled = 0, False
-    for sigma in [*blur_sigmas(dataset.width, dataset.height), 0.0]:
-        settled, before = False, None  # (a first look compares with nothing: no settling)
-        while not settled and steps + CHECK_EVERY + ANNEAL_STEPS <= max_steps:
-            now = torch.zeros(6)
-            for _ in range(CHECK_EVERY):
-                step(sigma)
-                now += twist.corrections.detach()[0] / CHECK_EVERY
-            if before is not None:
-                moved = (now - before).view(2, 3).norm(dim=1)  # [2]: turn (rad), centre (radii)
-                settled = bool(moved.max() < np.radians(SETTLED_DEG))
-            steps, before = steps + CHECK_EVERY, now
-    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, ANNEAL_STEPS, LR_END)
-    for _ in range(ANNEAL_STEPS):
-        step(0.0)
-        schedule.step()
+    def moved(twist: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
+        return se3_exp(twist * unit) @ pose
+
+    pose, steps, settled = start, 0, False
+    sigmas = blur_sigmas(dataset.width, dataset.height)
+    for sigma in [*sigmas, 0.0]:
+        axes = 3 if sigmas and sigma == sigmas[0] else 6  # the widest blur: turns only
+        error = residual(pose, sigma)
+        cost, damping, settled = float(error.double().square().sum()), DAMPING, False
+        while not settled and steps < max_steps:
+            steps += 1
+            jacobian = torch.empty(error.numel(), axes)  # [P, axes]
+            for axis in range(axes):
+                twist = torch.zeros(6, dtype=torch.float64)
+                twist[axis] = FD_STEP
+                jacobian[:, axis] = (residual(moved(twist, pose), sigma) - error) / FD_STEP
+            J = jacobian.double()
+            normal, gradient = J.T @ J, J.T @ error.double()  # [axes, axes], [axes]
+            while True:  # damped until a step lowers the error
+                damped = normal + damping * torch.diag(normal.diagonal())
+                twist = torch.zeros(6, dtype=torch.float64)
+                twist[:axes] = -torch.linalg.solve(damped, gradient)
+                twist *= min(1.0, MAX_TURN / float(twist.view(2, 3).norm(dim=1).max()))
+                tried = residual(moved(twist, pose), sigma)
+                tried_cost = float(tried.double().square().sum())
+                if tried_cost < cost:
+                    pose, error, cost = moved(twist, pose), tried, tried_cost
+                    damping = max(damping / 3, DAMPING_MIN)
+                    break
+                damping *= 4
+                if damping > DAMPING_MAX:  # no step lowers it: at its minimum
+                    twist.zero_()
+                    break
+            settled = bool(twist.view(2, 3).norm(dim=1).max() < np.radians(SETTLED_DEG))
     # on the camera side, the correction is the same in the world's frame: E @ view_of(V) is
     # view_of(E @ V)
-    with torch.no_grad():
-        correction = twist(torch.eye(4), 0).double().numpy()  # [4, 4]
-    return Alignment(correction @ np.asarray(viewmat, np.float64), steps + ANNEAL_STEPS, settled)
+    correction = (pose @ torch.linalg.inv(start)).numpy()  # [4, 4]
+    return Alignment(correction @ np.asarray(viewmat, np.float64), steps, settled)
