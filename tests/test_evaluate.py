@@ -449,6 +449,23 @@ def test_a_pose_turns_only_against_the_widest_blur():
     assert found.settled and pose_errors(found.viewmat[None], viewmat[None])[0][0] < 0.001
 
 
+def test_a_view_with_nothing_in_it_keeps_its_pose_and_a_nan_leaves_it_unsettled():
+    """The dot grid behind the camera renders nothing: no step changes the error, and the pose is
+    kept, settled (the normal equations are floored, not singular); a NaN in the image stops the
+    alignment unsettled, its pose finite."""
+    from spikegs.pose_align import aligned_pose
+
+    viewmat, model, camera = _dot_grid(32, 3.0)
+    image = render_view(model, viewmat, camera)
+    away = viewmat.copy()
+    away[2, 3] = -10.0  # (the plane 10 units behind the camera)
+    kept = aligned_pose(model, away, image, camera)
+    assert kept.settled and np.allclose(kept.viewmat, away, atol=1e-12)
+    image[3, 4] = np.nan
+    stopped = aligned_pose(model, viewmat, image, camera)
+    assert not stopped.settled and np.isfinite(stopped.viewmat).all()
+
+
 def test_eval_with_aligned_poses_scores_each_view_from_its_aligned_pose(trained, run):
     """`evaluate_run(..., align_poses=True)` on test views whose cameras are turned 2.3° from
     where the run's scene rendered their images: each scored from its pose aligned to its image,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .gaussians import frame_origin, near_plane
+from .gaussians import GaussianModel, frame_origin, near_plane
 from .losses import gaussian_blur
 from .pose_refine import se3_exp
 
@@ -23,10 +23,13 @@ from .pose_refine import se3_exp
 # scores in a fifth of the time (16 views of 128² `fine-texture`, 29 s against 152 s) and as far a
 # reach (BENCHMARKS.md, "eval --align-poses: Levenberg-Marquardt")
 FD_STEP = 1e-3
-DAMPING, DAMPING_MIN, DAMPING_MAX = 1e-3, 1e-7, 1e6  # of the normal equations' diagonal
+DAMPING, DAMPING_MIN = 1e-3, 1e-7  # of the normal equations' diagonal
+# the diagonal's least, of its largest (or of one: the image's units² per radian²)
+NORMAL_FLOOR = 1e-12
 MAX_TURN = np.radians(1.0)  # a step's longest turn (radians), and centre shift (as many radii)
-# a phase has settled when a step turns the camera less than this (degrees) and shifts its centre
-# less than as many radians of the scene's radius, or no step lowers the error
+# a phase has settled when the step that lowers the error (damped further while none does) would
+# turn the camera less than this (degrees) and shift its centre less than as many radians of the
+# scene's radius
 SETTLED_DEG = 1e-3
 MAX_STEPS = 200  # steps in all phases; views back from 5-20° off took at most 146 at 128²
 # coarse to fine: fine, repeated structure (a checker, a grid of wires) gives the sharp images'
@@ -53,14 +56,18 @@ class Alignment:
 
 
 def aligned_pose(
-    model, viewmat: np.ndarray, image: np.ndarray, dataset, max_steps: int = MAX_STEPS
+    model: GaussianModel,
+    viewmat: np.ndarray,
+    image: np.ndarray,
+    dataset,
+    max_steps: int = MAX_STEPS,
 ) -> Alignment:
     """The world-to-camera viewmat [4, 4] (float64) near `viewmat` [4, 4] from which `model`
     renders `image` [H, W, C] (the render's units) best in the squared error: Levenberg-Marquardt
     steps on a twist applied on the camera side, against both images blurred (`blur_sigmas`) and
     then sharp, each until the pose settles (or `max_steps` in all), in the dataset's camera and
-    the frame training renders in (`frame_origin`); `model` itself is left as it is.
-    ValueError for a `max_steps` below one."""
+    the frame training renders in (`frame_origin`); `model` itself is left as it is. Stopped,
+    unsettled, where the image or the render holds a NaN. ValueError for a `max_steps` below one."""
     if max_steps < 1:
         raise ValueError(f"max_steps: expected at least 1, got {max_steps}")
     model = model.centred_at(frame_origin(dataset.scene_center, dataset.scene_radius))
@@ -98,11 +105,21 @@ def aligned_pose(
                 jacobian[:, axis] = (residual(moved(twist, pose), sigma) - error) / FD_STEP
             J = jacobian.double()
             normal, gradient = J.T @ J, J.T @ error.double()  # [axes, axes], [axes]
-            while True:  # damped until a step lowers the error
-                damped = normal + damping * torch.diag(normal.diagonal())
+            # floored: an axis along which the render does not change (nothing in view) takes
+            # no step rather than make the equations singular
+            floor = NORMAL_FLOOR * max(float(normal.diagonal().max()), 1.0)
+            diagonal = normal.diagonal().clamp_min(floor)
+            while True:  # damped until a step lowers the error, or is too short to matter
+                damped = normal + damping * torch.diag(diagonal)
                 twist = torch.zeros(6, dtype=torch.float64)
                 twist[:axes] = -torch.linalg.solve(damped, gradient)
-                twist *= min(1.0, MAX_TURN / float(twist.view(2, 3).norm(dim=1).max()))
+                longest = float(twist.view(2, 3).norm(dim=1).max())
+                if not np.isfinite(longest):  # a NaN in the image or the render: unsettled
+                    return _aligned(pose, start, viewmat, steps, False)
+                settled = bool(longest < np.radians(SETTLED_DEG))
+                if settled:
+                    break
+                twist *= min(1.0, MAX_TURN / longest)
                 tried = residual(moved(twist, pose), sigma)
                 tried_cost = float(tried.double().square().sum())
                 if tried_cost < cost:
@@ -110,10 +127,12 @@ def aligned_pose(
                     damping = max(damping / 3, DAMPING_MIN)
                     break
                 damping *= 4
-                if damping > DAMPING_MAX:  # no step lowers it: at its minimum
-                    twist.zero_()
-                    break
-            settled = bool(twist.view(2, 3).norm(dim=1).max() < np.radians(SETTLED_DEG))
+    return _aligned(pose, start, viewmat, steps, settled)
+
+
+def _aligned(pose, start, viewmat, steps: int, settled: bool) -> Alignment:
+    """The Alignment of `viewmat` [4, 4] (the world's frame) corrected as `start` [4, 4] (the
+    model's frame) was to `pose` [4, 4]."""
     # on the camera side, the correction is the same in the world's frame: E @ view_of(V) is
     # view_of(E @ V)
     correction = (pose @ torch.linalg.inv(start)).numpy()  # [4, 4]
