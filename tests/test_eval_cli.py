@@ -1,5 +1,6 @@
 """`spikegs eval` (eval_cli.py): --no-images writes the scores only; pseudo ground truths noted;
-eval and render load with a bar unless --no-progress."""
+--align-poses says how far the poses moved; eval and render load with a bar unless
+--no-progress."""
 
 import json
 
@@ -37,6 +38,35 @@ def test_eval_notes_views_scored_against_pseudo_ground_truth(tmp_path, monkeypat
     assert main(["eval", str(tmp_path / "run"), "--dataset", str(data.root)]) == 0
     said = capsys.readouterr().out.splitlines()
     assert said[-1] == "note: 2 views without a sharp image, scored against TFP (pseudo_*)"
+
+
+def test_eval_with_aligned_poses_says_how_far_the_median_view_and_the_furthest_moved(
+    tmp_path, monkeypatch, capsys
+):
+    """`--align-poses`: under the scores, the median move and the view that moved most (a view
+    settled off its pose moves far more than the others)."""
+    data = simulate_dataset("solids", tmp_path / "data", **TINY)
+    views = {
+        name: {"aligned_rotation_deg": degrees}
+        for name, degrees in (("on_000", 1.5), ("on_002", 31.25), ("off_000", 2.0))
+    }
+    moved = {"rotation_deg_median": 2.0, "centre_median": 0.05}
+    scored = {"method": "tfp33", "psnr": 29.0, "ssim": 0.9, "views": views, "file": "eval.json"}
+    scored["aligned_poses"] = moved
+    given = []
+
+    def evaluate_run(*args, **kwargs):
+        given.append(kwargs["align_poses"])
+        return scored
+
+    monkeypatch.setattr("spikegs.evaluate.evaluate_run", evaluate_run)
+    command = ["eval", str(tmp_path / "run"), "--dataset", str(data.root), "--align-poses"]
+    assert main(command) == 0 and given == [True]
+    said = capsys.readouterr().out.splitlines()
+    assert said[-1] == (
+        "(each view's pose aligned to its image first: moved a median 2.00 deg, at most 31.25 "
+        "(on_002), its centre 5.00% of the scene radius)"
+    )
 
 
 class _Loaded(Exception):

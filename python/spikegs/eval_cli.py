@@ -77,12 +77,14 @@ def run(args: argparse.Namespace) -> int:
         f"{method}: PSNR {result['psnr']:.2f} dB, SSIM {result['ssim']:.4f} "
         f"over {len(result['views'])} test views -> {result['file']}"
     )
-    if args.align_poses:
-        moved = result["aligned_poses"]
+    if args.align_poses:  # the median move, and the view that moved most (an outlier: suspect)
+        moved, views = result["aligned_poses"], result["views"]
+        most = max(views, key=lambda name: views[name]["aligned_rotation_deg"])
         print(
             f"(each view's pose aligned to its image first: moved a median "
-            f"{moved['rotation_deg_median']:.2f} deg, its centre {moved['centre_median']:.2%} of "
-            f"the scene radius)"
+            f"{moved['rotation_deg_median']:.2f} deg, at most "
+            f"{views[most]['aligned_rotation_deg']:.2f} ({most}), its centre "
+            f"{moved['centre_median']:.2%} of the scene radius)"
         )
     note = pseudo_views_note(result["views"])
     if note:
