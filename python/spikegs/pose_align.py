@@ -119,11 +119,11 @@ def aligned_pose(
                 settled = bool(longest < np.radians(SETTLED_DEG))
                 if settled:
                     break
-                twist *= min(1.0, MAX_TURN / longest)
-                tried = residual(moved(twist, pose), sigma)
+                candidate = moved(twist * min(1.0, MAX_TURN / longest), pose)
+                tried = residual(candidate, sigma)
                 tried_cost = float(tried.double().square().sum())
                 if tried_cost < cost:
-                    pose, error, cost = moved(twist, pose), tried, tried_cost
+                    pose, error, cost = candidate, tried, tried_cost
                     damping = max(damping / 3, DAMPING_MIN)
                     break
                 damping *= 4
