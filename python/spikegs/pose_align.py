@@ -6,6 +6,7 @@ each test view at its true pose sees that warp, and its PSNR understates the sce
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +32,7 @@ MAX_TURN = np.radians(1.0)  # a step's longest turn (radians), and centre shift 
 # turn the camera less than this (degrees) and shift its centre less than as many radians of the
 # scene's radius
 SETTLED_DEG = 1e-3
-MAX_STEPS = 200  # steps in all phases; views back from 5-20° off took at most 146 at 128²
+MAX_STEPS = 200  # steps in all phases; views back from 5-20° off took at most 144 at 128²
 # coarse to fine: fine, repeated structure (a checker, a grid of wires) gives the sharp images'
 # error other optima a few degrees off the pose; the pose first settles against both images
 # blurred by Gaussians these fractions of the image's larger side wide, widest first (16, 8 and
@@ -53,6 +54,11 @@ class Alignment:
     viewmat: np.ndarray  # [4, 4] float64 world-to-camera, aligned
     steps: int  # Levenberg-Marquardt steps taken, over all phases
     settled: bool  # the pose settled against the sharp images within `max_steps`
+    # the share of the image's coarse structure that the aligned render leaves unexplained:
+    # |blur(render - image)|² / |blur(image - its mean)|² at the widest blur (none below 16 px);
+    # nan for an image without any. A view settled off its pose often leaves several times what the
+    # others do (BENCHMARKS.md, "eval --align-poses: Levenberg-Marquardt")
+    unexplained: float
 
 
 def aligned_pose(
@@ -81,11 +87,8 @@ def aligned_pose(
     def residual(pose: torch.Tensor, sigma: float) -> torch.Tensor:
         """The render at `pose` [4, 4] less the image, blurred by `sigma` px: [P] float32."""
         with torch.no_grad():
-            error = model.render(pose.float(), K, dataset.width, dataset.height, near).image
-            error = error - target  # [H, W, C]
-            if sigma:
-                error = gaussian_blur(error.permute(2, 0, 1)[None], sigma)
-        return error.reshape(-1)
+            render = model.render(pose.float(), K, dataset.width, dataset.height, near).image
+            return _blurred(render - target, sigma)
 
     def moved(twist: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:
         return se3_exp(twist * unit) @ pose
@@ -115,7 +118,7 @@ def aligned_pose(
                 twist[:axes] = -torch.linalg.solve(damped, gradient)
                 longest = float(twist.view(2, 3).norm(dim=1).max())
                 if not np.isfinite(longest):  # a NaN in the image or the render: unsettled
-                    return _aligned(pose, start, viewmat, steps, False)
+                    return _aligned(pose, start, viewmat, steps, False, math.nan)
                 settled = bool(longest < np.radians(SETTLED_DEG))
                 if settled:
                     break
@@ -127,13 +130,24 @@ def aligned_pose(
                     damping = max(damping / 3, DAMPING_MIN)
                     break
                 damping *= 4
-    return _aligned(pose, start, viewmat, steps, settled)
+    widest = sigmas[0] if sigmas else 0.0
+    structure = float(_blurred(target - target.mean((0, 1)), widest).double().square().sum())
+    left = float(residual(pose, widest).double().square().sum())
+    unexplained = left / structure if structure > 0 else math.nan
+    return _aligned(pose, start, viewmat, steps, settled, unexplained)
 
 
-def _aligned(pose, start, viewmat, steps: int, settled: bool) -> Alignment:
+def _blurred(image: torch.Tensor, sigma: float) -> torch.Tensor:
+    """`image` [H, W, C] blurred by a Gaussian `sigma` px wide (none at 0), flattened: [P]."""
+    if sigma:
+        image = gaussian_blur(image.permute(2, 0, 1)[None], sigma)
+    return image.reshape(-1)
+
+
+def _aligned(pose, start, viewmat, steps: int, settled: bool, unexplained: float) -> Alignment:
     """The Alignment of `viewmat` [4, 4] (the world's frame) corrected as `start` [4, 4] (the
     model's frame) was to `pose` [4, 4]."""
     # on the camera side, the correction is the same in the world's frame: E @ view_of(V) is
     # view_of(E @ V)
     correction = (pose @ torch.linalg.inv(start)).numpy()  # [4, 4]
-    return Alignment(correction @ np.asarray(viewmat, np.float64), steps, settled)
+    return Alignment(correction @ np.asarray(viewmat, np.float64), steps, settled, unexplained)
