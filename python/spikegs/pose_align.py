@@ -101,12 +101,12 @@ def aligned_pose(
         cost, damping, settled = float(error.double().square().sum()), DAMPING, False
         while not settled and steps < max_steps:
             steps += 1
-            jacobian = torch.empty(error.numel(), axes)  # [P, axes]
+            # [P, axes]: float32 differences, held in float64 for the sums over P (no copy)
+            J = torch.empty(error.numel(), axes, dtype=torch.float64)
             for axis in range(axes):
                 twist = torch.zeros(6, dtype=torch.float64)
                 twist[axis] = FD_STEP
-                jacobian[:, axis] = (residual(moved(twist, pose), sigma) - error) / FD_STEP
-            J = jacobian.double()
+                J[:, axis] = (residual(moved(twist, pose), sigma) - error) / FD_STEP
             normal, gradient = J.T @ J, J.T @ error.double()  # [axes, axes], [axes]
             # floored: an axis along which the render does not change (nothing in view) takes
             # no step rather than make the equations singular
