@@ -230,6 +230,11 @@ SUSPECT_RATIO = 2.0
 SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely differ by noise)
 
 
+def _first_three(names: list[str]) -> str:
+    """`names` as a warning lists them: the first three, and "..." for any more."""
+    return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+
+
 def _suspect(views: dict) -> list[str]:
     """The views (names) of `views` {name: scores} whose aligned render leaves over SUSPECT_RATIO
     times the median view's share of its image's coarse structure unexplained, and at least
@@ -322,7 +327,7 @@ def evaluate_run(
             (folder / f"{view}.png").unlink(missing_ok=True)
     exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
     if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
-        listed = ", ".join(exact[:3]) + (", ..." if len(exact) > 3 else "")
+        listed = _first_three(exact)
         warnings.warn(
             f"{len(exact)} test view(s) ({listed}) match the render exactly once both are "
             f"clipped to [0, 1] (saturated or empty views?): PSNR inf, and so is the mean; each "
@@ -360,7 +365,7 @@ def evaluate_run(
             "suspect": _suspect(views),
         }
         if unsettled:
-            listed = ", ".join(unsettled[:3]) + (", ..." if len(unsettled) > 3 else "")
+            listed = _first_three(unsettled)
             warnings.warn(
                 f"{len(unsettled)} test view(s) ({listed}) were still moving when their "
                 f"alignment stopped at {max(views[v]['aligned_steps'] for v in unsettled)} "
@@ -372,7 +377,7 @@ def evaluate_run(
             )
         suspect = result["aligned_poses"]["suspect"]
         if suspect:
-            listed = ", ".join(suspect[:3]) + (", ..." if len(suspect) > 3 else "")
+            listed = _first_three(suspect)
             warnings.warn(
                 f"{len(suspect)} test view(s) ({listed}) leave over {SUSPECT_RATIO:g} times the "
                 "median view's share of their images' coarse structure unexplained once aligned "

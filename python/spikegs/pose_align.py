@@ -98,7 +98,7 @@ def aligned_pose(
     for sigma in [*sigmas, 0.0]:
         axes = 3 if sigmas and sigma == sigmas[0] else 6  # the widest blur: turns only
         error = residual(pose, sigma)
-        cost, damping, settled = float(error.double().square().sum()), DAMPING, False
+        cost, damping, settled = _squared_sum(error), DAMPING, False
         while not settled and steps < max_steps:
             steps += 1
             # [P, axes]: float32 differences, held in float64 for the sums over P (no copy)
@@ -124,15 +124,15 @@ def aligned_pose(
                     break
                 candidate = moved(twist * min(1.0, MAX_TURN / longest), pose)
                 tried = residual(candidate, sigma)
-                tried_cost = float(tried.double().square().sum())
+                tried_cost = _squared_sum(tried)
                 if tried_cost < cost:
                     pose, error, cost = candidate, tried, tried_cost
                     damping = max(damping / 3, DAMPING_MIN)
                     break
                 damping *= 4
     widest = sigmas[0] if sigmas else 0.0
-    structure = float(_blurred(target - target.mean((0, 1)), widest).double().square().sum())
-    left = float(residual(pose, widest).double().square().sum())
+    structure = _squared_sum(_blurred(target - target.mean((0, 1)), widest))
+    left = _squared_sum(residual(pose, widest))
     unexplained = left / structure if structure > 0 else math.nan
     return _aligned(pose, start, viewmat, steps, settled, unexplained)
 
@@ -142,6 +142,11 @@ def _blurred(image: torch.Tensor, sigma: float) -> torch.Tensor:
     if sigma:
         image = gaussian_blur(image.permute(2, 0, 1)[None], sigma)
     return image.reshape(-1)
+
+
+def _squared_sum(error: torch.Tensor) -> float:
+    """The sum of `error`'s squares, summed in float64."""
+    return float(error.double().square().sum())
 
 
 def _aligned(pose, start, viewmat, steps: int, settled: bool, unexplained: float) -> Alignment:
