@@ -1753,6 +1753,31 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     assert _decoded(mp4).shape == (3, dataset.height, dataset.width, 3)
 
 
+def test_render_scale_sizes_the_frames_and_their_cameras(dataset, tmp_path, capsys):
+    """--scale 1.5: frames 1.5 times the dataset's width and height, and VIDEO.json's camera
+    with them (focal lengths and centre scaled alike); a scale leaving no pixel is refused before
+    anything is written."""
+    from PIL import Image
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    gif = tmp_path / "orbit.gif"
+    command = ["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "2"]
+    assert main([*command, "--scale", "1.5"]) == 0
+    with Image.open(gif) as im:
+        assert im.n_frames == 2 and im.size == (48, 48)  # the dataset's 32x32
+    doc = json.loads((tmp_path / "orbit.gif.json").read_text())
+    assert [doc[k] for k in ("fl_x", "fl_y", "cx", "cy", "w", "h")] == [
+        *(1.5 * dataset.meta[k] for k in ("fx", "fy", "cx", "cy")),
+        48,
+        48,
+    ] and doc["scale"] == 1.5
+    gif.unlink()
+    capsys.readouterr()
+    assert main([*command, "--scale", "0.01"]) == 2
+    assert "would render at 0x0" in capsys.readouterr().err and not gif.exists()
+
+
 @pytest.mark.parametrize("video", ["orbit.mp4", "orbit.gif"])
 def test_render_writes_each_frame_as_it_is_rendered(dataset, tmp_path, monkeypatch, video):
     """A video's frames are encoded as they are rendered: all of them were held, then stacked

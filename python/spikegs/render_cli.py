@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import add_no_progress, direction, output_file, positive_int, show_bars
+from .cli import add_no_progress, direction, output_file, positive_float, positive_int, show_bars
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
 from .output_paths import record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
@@ -41,6 +41,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=20,
         help=f"frames a second, 1 to {MAX_FPS} (a .gif {GIF_MAX_FPS} at most)",
+    )
+    parser.add_argument(
+        "--scale",
+        type=positive_float,
+        default=1.0,
+        help="frames this many times the dataset's width and height (default 1; 4: a 128x128 "
+        "scene's orbit at 512x512), each Gaussian drawn as wide as the training images showed "
+        "it; under 1, each pixel the mean of a render at the training size or finer",
     )
     parser.add_argument(
         "--path",
@@ -170,15 +178,16 @@ def dataset_orbit(
     return (*orbit_viewmats(trajectory, dataset.scene_center, frames, up, path), None)
 
 
-def orbit_frames(model, dataset, path: np.ndarray) -> Iterator[np.ndarray]:
-    """uint8 [H, W, 3] renders at viewmats `path` [F, 4, 4], sRGB-encoded (as players show), one
-    at a time as they are asked for: a video's frames all held at once, and stacked, took twice
-    their memory (1080p: 6 MB a frame)."""
-    from .evaluate import render_view
+def orbit_frames(model, dataset, path: np.ndarray, scale: float = 1.0) -> Iterator[np.ndarray]:
+    """uint8 [H, W, 3] renders at viewmats `path` [F, 4, 4], `scale` times the dataset's size
+    (`render_size.render_scaled`), sRGB-encoded (as players show), one at a time as they are
+    asked for: a video's frames all held at once, and stacked, took twice their memory (1080p:
+    6 MB a frame)."""
     from .image_io import linear_to_srgb
+    from .render_size import render_scaled
 
     for viewmat in path:
-        image = render_view(model, viewmat, dataset)  # [H, W, C]
+        image = render_scaled(model, viewmat, dataset, scale)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
         yield (linear_to_srgb(image) * 255 + 0.5).astype(np.uint8)  # sRGB, as shown
 
@@ -189,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
     from .eval_cli import run_dataset
     from .evaluate import other_data
     from .ply import load_ply
+    from .render_size import scaled_size
     from .run_summary import trained_scene
 
     check_video_output(args.out, args.fps)
@@ -204,8 +214,9 @@ def run(args: argparse.Namespace) -> int:
             f"{mismatch}: the orbit follows that dataset's cameras, scene centre and image size",
             stacklevel=2,
         )
+    scaled_size(dataset.width, dataset.height, args.scale)  # (refused before any rendering)
     viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
-    frames = orbit_frames(load_ply(ply), dataset, viewmats)  # rendered as they are written
+    frames = orbit_frames(load_ply(ply), dataset, viewmats, args.scale)  # rendered as written
     write_video(args.out, frames, args.fps, count=len(viewmats))
     print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
@@ -219,6 +230,7 @@ def run(args: argparse.Namespace) -> int:
             run=args.run,
             fps=args.fps,
             path=path,
+            scale=args.scale,
         )
         print(f"cameras: {cameras}")
     except OSError as err:
@@ -236,14 +248,16 @@ def save_orbit(
     run: Path,
     fps: int,
     path: str,
+    scale: float = 1.0,
 ):
     """Write the orbit's cameras, viewmats [F, 4, 4], in the layout of trajectory.json (OpenCV
-    camera-to-world, the dataset's camera), a `frame` index per frame, and its `readout` on a
-    trajectory path (`readouts` [F]), with what rendered them and the `path` taken: another
-    method rendered at these poses shows the same views."""
+    camera-to-world, the dataset's camera with its images `scale` times as large), a `frame`
+    index per frame, and its `readout` on a trajectory path (`readouts` [F]), with what rendered
+    them and the `path` taken: another method rendered at these poses shows the same views."""
     from .data.dataset import camera_keys
     from .data.trajectory import readout_number, write_camera_doc
     from .provenance import environment
+    from .render_size import scaled_keys
 
     write_camera_doc(
         file,
@@ -253,9 +267,10 @@ def save_orbit(
             | {"transform_matrix": c2w.tolist()}
             for i, c2w in enumerate(np.linalg.inv(viewmats))
         ),
-        **camera_keys(dataset.meta),  # meta.json's numbers (dataset.K is float32)
+        **scaled_keys(camera_keys(dataset.meta), scale),  # meta.json's (dataset.K is float32)
         video=str(Path(video).resolve()),
         fps=fps,
+        scale=scale,
         orbit=path,
         run=str(Path(run).resolve()),
         dataset=str(Path(dataset.root).resolve()),

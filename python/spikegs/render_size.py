@@ -1,0 +1,117 @@
+"""Renders at a size other than the training images': drawn no finer than training saw the scene.
+
+The rasterizer widens every splat by DILATION px² of the image it draws (3DGS's low-pass filter),
+and training fitted the Gaussians with that filter at the training images' size. Drawn S times
+larger, a splat keeps only 1/S² of it and thin Gaussians thin further; drawn smaller, every pixel
+takes one sample of a scene fitted to finer pixels and aliases. So a larger frame widens each
+Gaussian in 3D by the filter its finer pixels miss at its depth in the view, and a smaller one
+averages m×m pixels of a render at least the training images' size (BENCHMARKS.md, "Renders at
+another size": against a box-filtered ground truth, 4x larger 24.13 dB against 23.07 drawn as it
+is, 1/4 the size 33.15 dB against 20.03).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import torch
+
+from .data.dataset import camera_keys
+from .gaussians import GaussianModel
+from .rasterize import CONSTANTS
+
+MAX_SIDE = 8192  # pixels a side of a scaled frame (8192² colour: 0.8 GB a render)
+
+
+@dataclasses.dataclass(frozen=True)
+class Camera:
+    """What `evaluate.render_view` draws with, a dataset's alike: intrinsics K [3, 3] (pixels),
+    the image's size, the scene's sphere (its near plane and the training frame's origin)."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    scene_center: np.ndarray
+    scene_radius: float
+
+
+def scaled_size(width: int, height: int, scale: float) -> tuple[int, int]:
+    """(width, height) `scale` times a `width`×`height` image's, rounded; ValueError where a side
+    would be under 1 or over MAX_SIDE pixels."""
+    size = round(width * scale), round(height * scale)
+    if not all(1 <= side <= MAX_SIDE for side in size):
+        raise ValueError(
+            f"scale (--scale) {scale:g}: {width}x{height} images would render at "
+            f"{size[0]}x{size[1]}; a side from 1 to {MAX_SIDE} pixels"
+        )
+    return size
+
+
+def scaled_keys(keys: dict, scale: float, supersample: int = 1) -> dict:
+    """Camera `keys` as `dataset.camera_keys` states them (fl_x, fl_y, cx, cy, w, h) for images
+    `scale` times as large (`scaled_size`), each pixel split into `supersample`²: focal lengths
+    and centre scaled as the sides (pixel centres at +0.5)."""
+    width, height = scaled_size(keys["w"], keys["h"], scale)
+    width, height = width * supersample, height * supersample
+    sx, sy = width / keys["w"], height / keys["h"]
+    return {
+        "fl_x": keys["fl_x"] * sx,
+        "fl_y": keys["fl_y"] * sy,
+        "cx": keys["cx"] * sx,
+        "cy": keys["cy"] * sy,
+        "w": width,
+        "h": height,
+    }
+
+
+def scaled_camera(dataset, scale: float, supersample: int = 1) -> Camera:
+    """The dataset's camera with its images `scaled_keys`' size."""
+    keys = scaled_keys(camera_keys(dataset.meta), scale, supersample)
+    K = np.array([[keys["fl_x"], 0, keys["cx"]], [0, keys["fl_y"], keys["cy"]], [0, 0, 1]])
+    return Camera(K, keys["w"], keys["h"], dataset.scene_center, dataset.scene_radius)
+
+
+def supersampling(dataset, scale: float) -> int:
+    """The m whose m×m pixels a frame `scale` times the dataset's size averages: the least that
+    renders at the training images' size or larger (1 where the frame already is)."""
+    width, height = scaled_size(dataset.width, dataset.height, scale)
+    return max(math.ceil(dataset.width / width), math.ceil(dataset.height / height))
+
+
+def widened(model: GaussianModel, viewmat: np.ndarray, trained_K, camera: Camera) -> GaussianModel:
+    """The model with each Gaussian's covariance grown by k·I (world units²), k the low-pass
+    filter that `camera`'s pixels, finer than those of intrinsics `trained_K` [3, 3], miss at its
+    depth z in world-to-camera `viewmat` [4, 4]: DILATION · z² · (1/(fx₀·fy₀) − 1/(fx·fy)), as
+    wide in the image as training drew it. Growing the covariance by a multiple of I keeps its
+    axes: the scales s become sqrt(s² + k)."""
+    viewmat = np.asarray(viewmat, np.float64)
+    depth = model.world_means() @ torch.from_numpy(viewmat[2, :3]) + viewmat[2, 3]  # [N]
+    trained = 1 / (float(trained_K[0][0]) * float(trained_K[1][1]))
+    finer = trained - 1 / (float(camera.K[0, 0]) * float(camera.K[1, 1]))  # 1/px² → world
+    if finer <= 0:  # pixels no finer than training's
+        return model
+    k = CONSTANTS["dilation"] * depth.square() * finer  # [N], float64
+    state = model.state_dict()
+    log_scales = state["params"]["log_scales"]  # [N, 3]
+    variances = (2 * log_scales.double()).exp()  # float64: no underflow
+    state["params"]["log_scales"] = (0.5 * torch.log(variances + k[:, None])).to(log_scales.dtype)
+    return GaussianModel.from_state_dict(state)
+
+
+def render_scaled(model: GaussianModel, viewmat: np.ndarray, dataset, scale: float) -> np.ndarray:
+    """The model's image [h, w, C] (intensity units) from world-to-camera `viewmat` [4, 4] in the
+    dataset's camera with its images `scale` times as large: drawn as `evaluate.render_view`
+    draws (the same image at scale 1), larger with each Gaussian `widened`, smaller as the mean
+    of `supersampling`'s m×m pixels."""
+    from .evaluate import render_view
+
+    if scale == 1:
+        return render_view(model, viewmat, dataset)
+    m = supersampling(dataset, scale)
+    camera = scaled_camera(dataset, scale, m)
+    image = render_view(widened(model, viewmat, dataset.K, camera), viewmat, camera)
+    height, width, channels = image.shape
+    blocks = image.reshape(height // m, m, width // m, m, channels)
+    return blocks.mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
