@@ -235,13 +235,20 @@ def _first_three(names: list[str]) -> str:
     return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
 
 
+def _finite_median(values) -> float:
+    """The median of the finite `values` (an unexplained share is NaN for an image without
+    coarse structure, a pose for a view whose alignment failed); NaN where none is."""
+    finite = [value for value in values if math.isfinite(value)]
+    return float(np.median(finite)) if finite else math.nan
+
+
 def _suspect(views: dict) -> list[str]:
     """The views (names) of `views` {name: scores} whose aligned render leaves over SUSPECT_RATIO
     times the median view's share of its image's coarse structure unexplained, and at least
     SUSPECT_LEAST."""
     shares = {name: v["aligned_unexplained"] for name, v in views.items()}
-    finite = [share for share in shares.values() if math.isfinite(share)]  # (nan: no structure)
-    bound = max(SUSPECT_RATIO * float(np.median(finite)), SUSPECT_LEAST) if finite else math.inf
+    median = _finite_median(shares.values())
+    bound = max(SUSPECT_RATIO * median, SUSPECT_LEAST) if math.isfinite(median) else math.inf
     return [name for name, share in shares.items() if share > bound]
 
 
@@ -358,7 +365,7 @@ def evaluate_run(
             "steps": max(v["aligned_steps"] for v in views.values()),  # the most a view took
             "max_steps": MAX_STEPS,
             **{
-                f"{key}_median": float(np.median([v[f"aligned_{key}"] for v in views.values()]))
+                f"{key}_median": _finite_median(v[f"aligned_{key}"] for v in views.values())
                 for key in ("steps", "rotation_deg", "centre", "unexplained")
             },
             "unsettled": unsettled,

@@ -98,6 +98,13 @@ def exposure_loss(
     return _norm(norm)(torch.stack(renders).mean(dim=0), target, quantum)
 
 
+# a blur wider than this many pixels (σ) is made in Fourier space: the convolution's cost grows
+# with its taps, forward and backward 251 against 7.7 ms for σ = 16 at 512², 20 against 2.6 ms
+# for σ = 8 at 256²; at σ = 4 at 128², 0.63 against 0.80 ms (BENCHMARKS.md, "eval
+# --align-poses: blurred first")
+LONG_BLUR = 2.0
+
+
 def _gaussian_taps(sigma: float) -> torch.Tensor:
     """The normalised 1-D Gaussian of width `sigma` (pixels) over ±3σ, rounded up: [2⌈3σ⌉ + 1]
     taps (11 for SSIM's σ = 1.5; its 2-D window is the outer product)."""
@@ -119,13 +126,6 @@ def gaussian_blur(maps: torch.Tensor, sigma: float = 1.5) -> torch.Tensor:
     n, r = maps.shape[1], g.numel() // 2
     rows = F.conv2d(maps, g.view(1, 1, 1, -1).expand(n, 1, 1, -1), padding=(0, r), groups=n)
     return F.conv2d(rows, g.view(1, 1, -1, 1).expand(n, 1, -1, 1), padding=(r, 0), groups=n)
-
-
-# a blur wider than this many pixels (σ) is made in Fourier space: the convolution's cost grows
-# with its taps, forward and backward 251 against 7.7 ms for σ = 16 at 512², 20 against 2.6 ms
-# for σ = 8 at 256²; at σ = 4 at 128², 0.63 against 0.80 ms (BENCHMARKS.md, "eval
-# --align-poses: blurred first")
-LONG_BLUR = 2.0
 
 
 def _fourier_blur(maps: torch.Tensor, taps: torch.Tensor, dim: int) -> torch.Tensor:
