@@ -44,6 +44,33 @@ def run(trained, tmp_path):
     return shutil.copytree(trained[1], tmp_path / "run")
 
 
+def test_a_dataset_of_coarser_pixels_is_scored_with_a_warning(trained, run, tmp_path):
+    """The scene at 20² and 24² (pixels 1.6 and 1.33 times the 32² run's): scored drawn at their
+    size, with a warning that this aliases a camera's images; at 28² (1.14 times) and 64²
+    (finer), none, nor for a run whose train.json has no `camera` (trained before it); one that
+    is no camera is refused, naming the file."""
+    sizes = {side: dict(TINY, height=side, width=side) for side in (20, 24, 28, 64)}
+    data = {
+        side: simulate_dataset("solids", tmp_path / f"d{side}", **kw) for side, kw in sizes.items()
+    }
+    assert json.loads((run / "train.json").read_text())["camera"]["w"] == 32
+    for side, wider in ((20, "1.6"), (24, "1.33")):
+        with pytest.warns(UserWarning, match=rf"pixels are {wider} times as wide as those .*alias"):
+            evaluate_run(run, data[side], write_images=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for side in (28, 64):
+            evaluate_run(run, data[side], write_images=False)
+        summary = json.loads((run / "train.json").read_text())
+        del summary["camera"]
+        (run / "train.json").write_text(json.dumps(summary))
+        evaluate_run(run, data[20], write_images=False)
+    for camera in ({"fl_x": 40.0}, {"fl_x": 40.0, "fl_y": -1}, [40.0, 40.0]):  # edited by hand
+        (run / "train.json").write_text(json.dumps({**summary, "camera": camera}))
+        with pytest.raises(ValueError, match="train.json: camera expected fl_x and fl_y, finite"):
+            evaluate_run(run, data[20], write_images=False)
+
+
 def test_the_scores_are_the_means_over_the_views(trained, run):
     """eval.json's psnr, ssim and ssim_3dgs: each the mean of the views' scores (4 views whose
     scores differ, so a median or another statistic differs too)."""

@@ -91,26 +91,26 @@ def test_widening_keeps_the_gaussians_axes_and_grows_with_depth():
     model.params["quats"].data = torch.tensor([[0.9, 0.1, -0.3, 0.2]])
     far = GaussianModel.from_state_dict(model.state_dict())
     far.params["means"].data[0, 2] = 2 * DEPTH
-    camera = SimpleNamespace(K=2 * np.eye(3) * FOCAL)
+    camera, trained = SimpleNamespace(K=2 * np.eye(3) * FOCAL), {"fl_x": FOCAL, "fl_y": FOCAL}
     near_k, far_k = (
-        (widened(m, VIEWMAT, _camera().K, camera).scales ** 2 - m.scales**2)[0].detach()
+        (widened(m, VIEWMAT, trained, camera).scales ** 2 - m.scales**2)[0].detach()
         for m in (model, far)
     )
     k = 0.3 * DEPTH**2 * (1 / FOCAL**2 - 1 / (2 * FOCAL) ** 2)  # world units²
     np.testing.assert_allclose(near_k, [k] * 3, rtol=1e-4)
     np.testing.assert_allclose(far_k, [4 * k] * 3, rtol=1e-4)
-    wide = widened(model, VIEWMAT, _camera().K, camera)
+    wide = widened(model, VIEWMAT, trained, camera)
     for name in ("means", "quats", "opacity_logits", "sh_dc"):
         assert torch.equal(wide.params[name], model.params[name])
-    assert widened(model, VIEWMAT, _camera().K, SimpleNamespace(K=np.eye(3) * FOCAL)) is model
+    assert widened(model, VIEWMAT, trained, SimpleNamespace(K=np.eye(3) * FOCAL)) is model
     # a Gaussian whose variance underflows float32 (e^-120) takes k whole, not log(0)
     model.params["log_scales"].data.fill_(-60.0)
-    thin = widened(model, VIEWMAT, _camera().K, camera).scales.detach()
+    thin = widened(model, VIEWMAT, trained, camera).scales.detach()
     np.testing.assert_allclose(thin**2, [[k] * 3], rtol=1e-5)
     state = model.state_dict()  # a float64 model stays float64
     state["params"] = {name: value.double() for name, value in state["params"].items()}
     double = GaussianModel.from_state_dict({**state, "background": state["background"].double()})
-    assert widened(double, VIEWMAT, _camera().K, camera).params["log_scales"].dtype == torch.float64
+    assert widened(double, VIEWMAT, trained, camera).params["log_scales"].dtype == torch.float64
 
 
 def test_a_smaller_frame_is_the_mean_of_the_training_sizes_pixels():
@@ -132,10 +132,45 @@ def test_a_frame_of_no_whole_ratio_averages_a_render_at_least_the_training_size(
     model, dataset = _splat(2.0), _camera()
     assert supersampling(dataset, 0.3) == 4 and supersampling(dataset, 0.5) == 2
     assert supersampling(dataset, 1.0) == supersampling(dataset, 3.0) == 1
+    nine = {"fx": 10.0, "fy": 10.0, "cx": 4.5, "cy": 4.5, "width": 9, "height": 9}
+    assert supersampling(SimpleNamespace(meta=nine), 1 / 3) == 3  # 10 / (10 · 3/9): 3 + 4e-16
     small = render_scaled(model, VIEWMAT, dataset, 0.3)
     assert small.shape == (10, 10, 1)
     full = render_view(model, VIEWMAT, dataset)
     assert small.sum() * (SIDE / 10) ** 2 == pytest.approx(full.sum(), rel=0.01)
+
+
+def test_a_run_trained_on_finer_pixels_is_drawn_no_finer_than_they_were():
+    """A 16² dataset of a run trained at 32² (train.json's `camera`): at scale 1 each pixel is
+    the mean of 2x2 of the 32² render (not the 16² one drawn as it is), at scale 2 the 32²
+    render itself (no widening: its pixels are the training camera's)."""
+    model, small, large = _splat(0.4, x=0.37), _half(_camera()), _camera()
+    trained = {"fl_x": FOCAL, "fl_y": FOCAL}
+    assert supersampling(small, 1.0, trained) == 2
+    full = render_view(model, VIEWMAT, large)  # [32, 32, 1]
+    np.testing.assert_allclose(
+        render_scaled(model, VIEWMAT, small, 1.0, trained),
+        full.reshape(16, 2, 16, 2, 1).mean(axis=(1, 3)),
+        atol=1e-7,
+    )
+    np.testing.assert_array_equal(render_scaled(model, VIEWMAT, small, 2.0, trained), full)
+
+
+def _half(dataset) -> SimpleNamespace:
+    """The dataset's camera at half its size (meta.json's numbers and K alike)."""
+    meta = {k: v / 2 for k, v in dataset.meta.items()}
+    meta["width"], meta["height"] = dataset.width // 2, dataset.height // 2
+    K = dataset.K.copy()
+    K[:2] /= 2
+    return SimpleNamespace(
+        **{
+            **vars(dataset),
+            "K": K,
+            "meta": meta,
+            "width": dataset.width // 2,
+            "height": dataset.height // 2,
+        }
+    )
 
 
 def test_the_scaled_camera_scales_focal_lengths_and_centre_as_the_sides():

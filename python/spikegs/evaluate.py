@@ -122,6 +122,31 @@ def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
     return None
 
 
+# test pixels coarser than the run's training pixels by more than this (the focal lengths'
+# geometric mean, over the training camera's) are warned of: drawn at that size as 3DGS draws,
+# they alias where the images are a camera's (0.75: −1.9 dB, 0.25: −13 against the mean of a
+# render at the training size; BENCHMARKS.md, "Renders at another size")
+COARSER_PIXELS = 0.8
+
+
+def _coarser_pixels(run_dir: Path, train: dict, dataset) -> str | None:
+    """What says that `dataset`'s pixels are coarser than those the run trained on (by
+    COARSER_PIXELS; train.json's `camera`, absent from runs before it); None where they are not."""
+    trained = train.get("camera")
+    if trained is None:
+        return None
+    ratio = math.sqrt(dataset.meta["fx"] * dataset.meta["fy"] / (trained["fl_x"] * trained["fl_y"]))
+    if ratio >= COARSER_PIXELS:
+        return None
+    return (
+        f"{dataset.root}'s pixels are {1 / ratio:.3g} times as wide as those {run_dir} was "
+        f"trained on: scored drawn at their size, as 3DGS draws, which aliases where the images "
+        f"are a camera's (each pixel the light over its area): against such a truth at a quarter "
+        f"of the size, 20.0 dB drawn so and 33.2 as the mean of a render at the training size "
+        f"(`spikegs render --scale` draws so: docs/outputs.md)"
+    )
+
+
 def other_data(run_dir: Path, dataset) -> str | None:
     """What tells `dataset` from the data the finished run RUN was trained on (another scene,
     or other data than train.json's fingerprint); None where nothing does."""
@@ -268,8 +293,9 @@ def evaluate_run(
     train = read_summary(run_dir)
     name = _eval_name(run_dir, train, dataset, progress) + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
-    if scene:
-        warnings.warn(scene, stacklevel=2)
+    for said in (scene, _coarser_pixels(run_dir, train, dataset)):
+        if said:
+            warnings.warn(said, stacklevel=2)
     ply = trained_scene(run_dir)
     model = load_ply(ply)
     if model.channels != dataset.channels:

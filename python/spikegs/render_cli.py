@@ -48,7 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1.0,
         help="frames this many times the dataset's width and height (default 1; 4: a 128x128 "
         "scene's orbit at 512x512), each Gaussian drawn as wide as the training images showed "
-        "it; under 1, each pixel the mean of a render at the training size or finer",
+        "it; where the frame's pixels are coarser than theirs, each the mean of a render at "
+        "their size or finer",
     )
     parser.add_argument(
         "--path",
@@ -178,16 +179,18 @@ def dataset_orbit(
     return (*orbit_viewmats(trajectory, dataset.scene_center, frames, up, path), None)
 
 
-def orbit_frames(model, dataset, path: np.ndarray, scale: float = 1.0) -> Iterator[np.ndarray]:
+def orbit_frames(
+    model, dataset, path: np.ndarray, scale: float = 1.0, trained: dict | None = None
+) -> Iterator[np.ndarray]:
     """uint8 [H, W, 3] renders at viewmats `path` [F, 4, 4], `scale` times the dataset's size
-    (`render_size.render_scaled`), sRGB-encoded (as players show), one at a time as they are
-    asked for: a video's frames all held at once, and stacked, took twice their memory (1080p:
-    6 MB a frame)."""
+    and no finer than the training camera `trained` drew them (`render_size.render_scaled`),
+    sRGB-encoded (as players show), one at a time as they are asked for: a video's frames all
+    held at once, and stacked, took twice their memory (1080p: 6 MB a frame)."""
     from .image_io import linear_to_srgb
     from .render_size import render_scaled
 
     for viewmat in path:
-        image = render_scaled(model, viewmat, dataset, scale)  # [H, W, C]
+        image = render_scaled(model, viewmat, dataset, scale, trained)  # [H, W, C]
         image = np.repeat(image, 3, axis=2) if image.shape[2] == 1 else image[..., :3]
         yield (linear_to_srgb(image) * 255 + 0.5).astype(np.uint8)  # sRGB, as shown
 
@@ -199,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     from .evaluate import other_data
     from .ply import load_ply
     from .render_size import scaled_size
-    from .run_summary import trained_scene
+    from .run_summary import read_summary, trained_scene
 
     check_video_output(args.out, args.fps)
     ply = trained_scene(args.run)
@@ -216,7 +219,8 @@ def run(args: argparse.Namespace) -> int:
         )
     scaled_size(dataset.width, dataset.height, args.scale)  # (refused before any rendering)
     viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
-    frames = orbit_frames(load_ply(ply), dataset, viewmats, args.scale)  # rendered as written
+    trained = read_summary(args.run).get("camera")  # (a run from before it: the dataset's)
+    frames = orbit_frames(load_ply(ply), dataset, viewmats, args.scale, trained)  # as written
     write_video(args.out, frames, args.fps, count=len(viewmats))
     print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)

@@ -73,26 +73,31 @@ def scaled_camera(dataset, scale: float, supersample: int = 1) -> Camera:
     return Camera(K, keys["w"], keys["h"], dataset.scene_center, dataset.scene_radius)
 
 
-def supersampling(dataset, scale: float) -> int:
+def supersampling(dataset, scale: float, trained: dict | None = None) -> int:
     """The m whose m×m pixels a frame `scale` times the dataset's size averages: the least that
-    renders at the training images' size or larger (1 where the frame already is)."""
-    width, height = scaled_size(dataset.width, dataset.height, scale)
-    return max(math.ceil(dataset.width / width), math.ceil(dataset.height / height))
+    makes them as fine as the training camera's (`trained`: its keys as `scaled_keys` reads
+    them; default the dataset's) or finer (1 where the frame's already are)."""
+    trained = camera_keys(dataset.meta) if trained is None else trained
+    frame = scaled_keys(camera_keys(dataset.meta), scale)
+    coarser = max(trained["fl_x"] / frame["fl_x"], trained["fl_y"] / frame["fl_y"])
+    return max(1, math.ceil(coarser - 1e-9))  # (a whole ratio's float rounding: not one more)
 
 
-def widened(model: GaussianModel, viewmat: np.ndarray, trained_K, camera: Camera) -> GaussianModel:
+def widened(
+    model: GaussianModel, viewmat: np.ndarray, trained: dict, camera: Camera
+) -> GaussianModel:
     """The model with each Gaussian's covariance grown by k·I (world units²), k the low-pass
-    filter that `camera`'s pixels, finer than those of intrinsics `trained_K` [3, 3], miss at its
-    depth z in world-to-camera `viewmat` [4, 4]: DILATION · z² · (1/(fx₀·fy₀) − 1/(fx·fy)), as
-    wide in the image as training drew it. Growing the covariance by a multiple of I keeps its
-    axes: the scales s become sqrt(s² + k)."""
+    filter that `camera`'s pixels, finer than the training camera's (`trained`: fl_x, fl_y),
+    miss at its depth z in world-to-camera `viewmat` [4, 4]: DILATION · z² · (1/(fx₀·fy₀) −
+    1/(fx·fy)), as wide in the image as training drew it (the model itself where they are no
+    finer). Growing the covariance by a multiple of I keeps its axes: the scales s become
+    sqrt(s² + k)."""
+    finer = 1 / (trained["fl_x"] * trained["fl_y"]) - 1 / (camera.K[0, 0] * camera.K[1, 1])
+    if finer <= 0:
+        return model
     viewmat = np.asarray(viewmat, np.float64)
     depth = model.world_means() @ torch.from_numpy(viewmat[2, :3]) + viewmat[2, 3]  # [N]
-    trained = 1 / (float(trained_K[0][0]) * float(trained_K[1][1]))
-    finer = trained - 1 / (float(camera.K[0, 0]) * float(camera.K[1, 1]))  # 1/px² → world
-    if finer <= 0:  # pixels no finer than training's
-        return model
-    k = CONSTANTS["dilation"] * depth.square() * finer  # [N], float64
+    k = CONSTANTS["dilation"] * depth.square() * float(finer)  # [N], float64: 1/px² → world
     state = model.state_dict()
     log_scales = state["params"]["log_scales"]  # [N, 3]
     variances = (2 * log_scales.double()).exp()  # float64: no underflow
@@ -100,18 +105,25 @@ def widened(model: GaussianModel, viewmat: np.ndarray, trained_K, camera: Camera
     return GaussianModel.from_state_dict(state)
 
 
-def render_scaled(model: GaussianModel, viewmat: np.ndarray, dataset, scale: float) -> np.ndarray:
+def render_scaled(
+    model: GaussianModel, viewmat: np.ndarray, dataset, scale: float, trained: dict | None = None
+) -> np.ndarray:
     """The model's image [h, w, C] (intensity units) from world-to-camera `viewmat` [4, 4] in the
-    dataset's camera with its images `scale` times as large: drawn as `evaluate.render_view`
-    draws (the same image at scale 1), larger with each Gaussian `widened`, smaller as the mean
-    of `supersampling`'s m×m pixels."""
+    dataset's camera with its images `scale` times as large, drawn no finer than the training
+    camera (`trained`: train.json's `camera`; default the dataset's) drew it: each Gaussian
+    `widened` where the frame's pixels are finer, the mean of `supersampling`'s m×m pixels where
+    they are coarser; `evaluate.render_view`'s image, bit for bit, in the training camera."""
     from .evaluate import render_view
 
-    if scale == 1:
+    if scale == 1 and trained is None:  # (the dataset's camera is the training camera)
         return render_view(model, viewmat, dataset)
-    m = supersampling(dataset, scale)
+    trained = camera_keys(dataset.meta) if trained is None else trained
+    m = supersampling(dataset, scale, trained)
     camera = scaled_camera(dataset, scale, m)
-    image = render_view(widened(model, viewmat, dataset.K, camera), viewmat, camera)
-    height, width, channels = image.shape
+    model = widened(model, viewmat, trained, camera)
+    image = render_view(model, viewmat, camera)
+    if m == 1:
+        return image
+    height, width, channels = image.shape  # [m·h, m·w, C]
     blocks = image.reshape(height // m, m, width // m, m, channels)
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(np.float32)

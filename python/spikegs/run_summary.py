@@ -28,8 +28,8 @@ def last_checkpoint(run_dir: Path) -> Path:
 
 def read_summary(run_dir: Path) -> dict:
     """RUN/train.json's object ({} where there is none); ValueError naming the file where it is
-    not JSON, not an object, or holds a dataset that is not a path or a scale that is not a
-    finite number > 0."""
+    not JSON, not an object, or holds a dataset that is not a path, a scale that is not a finite
+    number > 0, or a camera whose focal lengths are not."""
     path = Path(run_dir) / SUMMARY
     if not path.exists():
         return {}
@@ -40,6 +40,12 @@ def read_summary(run_dir: Path) -> dict:
     if not (is_number(scale) and scale > 0):
         raise ValueError(
             f"{path}: intensity_scale expected a finite number > 0, found {json_text(scale)}"
+        )
+    camera = summary.get("camera", {"fl_x": 1, "fl_y": 1})  # (absent: a run from before it)
+    focal = [camera.get(k) for k in ("fl_x", "fl_y")] if isinstance(camera, dict) else []
+    if not (len(focal) == 2 and all(is_number(f) and f > 0 for f in focal)):
+        raise ValueError(
+            f"{path}: camera expected fl_x and fl_y, finite numbers > 0, found {json_text(camera)}"
         )
     return summary
 

@@ -23,7 +23,7 @@ from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
 from .config import MIN_GAUSSIANS, Config, differences, with_defaults
 from .curves import logged_curve
-from .data.dataset import POINTS, reading_dataset
+from .data.dataset import POINTS, camera_keys, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -712,6 +712,7 @@ class Trainer:
             "method": self.config.method,
             "dataset": str(Path(self.dataset.root).resolve()),
             "scene": self.dataset.meta.get("scene"),
+            "camera": camera_keys(self.dataset.meta),  # eval tells coarser test pixels by it
             "iterations": self.iteration,
             "seed": self.config.train.seed,
             "train_seconds": self.train_seconds,
