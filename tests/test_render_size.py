@@ -76,11 +76,14 @@ def test_a_larger_frame_draws_each_gaussian_as_wide_as_training_did(scale):
 
 
 def _camera_scaled(dataset, scale: float) -> SimpleNamespace:
-    """The dataset's camera `scale` times as large, nothing else changed."""
+    """The dataset's camera `scale` times as large (K, size and meta.json's numbers), nothing
+    else changed."""
     K = dataset.K.copy()
     K[:2] *= scale
     side = round(dataset.width * scale)
-    return SimpleNamespace(**{**vars(dataset), "K": K, "width": side, "height": side})
+    meta = {k: v * scale for k, v in dataset.meta.items()}  # fx, fy, cx, cy, width, height
+    meta["width"] = meta["height"] = side
+    return SimpleNamespace(**{**vars(dataset), "K": K, "width": side, "height": side, "meta": meta})
 
 
 def test_widening_keeps_the_gaussians_axes_and_grows_with_depth():
@@ -144,7 +147,7 @@ def test_a_run_trained_on_finer_pixels_is_drawn_no_finer_than_they_were():
     """A 16² dataset of a run trained at 32² (train.json's `camera`): at scale 1 each pixel is
     the mean of 2x2 of the 32² render (not the 16² one drawn as it is), at scale 2 the 32²
     render itself (no widening: its pixels are the training camera's)."""
-    model, small, large = _splat(0.4, x=0.37), _half(_camera()), _camera()
+    model, small, large = _splat(0.4, x=0.37), _camera_scaled(_camera(), 0.5), _camera()
     trained = {"fl_x": FOCAL, "fl_y": FOCAL}
     assert supersampling(small, 1.0, trained) == 2
     full = render_view(model, VIEWMAT, large)  # [32, 32, 1]
@@ -154,23 +157,6 @@ def test_a_run_trained_on_finer_pixels_is_drawn_no_finer_than_they_were():
         atol=1e-7,
     )
     np.testing.assert_array_equal(render_scaled(model, VIEWMAT, small, 2.0, trained), full)
-
-
-def _half(dataset) -> SimpleNamespace:
-    """The dataset's camera at half its size (meta.json's numbers and K alike)."""
-    meta = {k: v / 2 for k, v in dataset.meta.items()}
-    meta["width"], meta["height"] = dataset.width // 2, dataset.height // 2
-    K = dataset.K.copy()
-    K[:2] /= 2
-    return SimpleNamespace(
-        **{
-            **vars(dataset),
-            "K": K,
-            "meta": meta,
-            "width": dataset.width // 2,
-            "height": dataset.height // 2,
-        }
-    )
 
 
 def test_the_scaled_camera_scales_focal_lengths_and_centre_as_the_sides():
