@@ -24,10 +24,13 @@ const Config kConfigs[] = {
     {50, 33, 17, 3, 2}, {12, 33, 17, 3, 3}, {30, 13, 9, 4, -1},
 };
 
-// A scene of config `c` away from the alpha and transmittance kinks (`away_from_kinks`).
-Scene<double> smooth_scene(const Config& c, std::uint32_t seed) {
+// A scene of config `c` away from the alpha and transmittance kinks (`away_from_kinks`), drawn
+// with the plain or the antialiased 2D filter.
+Scene<double> smooth_scene(const Config& c, std::uint32_t seed, bool antialiased = false) {
   return away_from_kinks(seed, [&](std::uint32_t k) {
-    return random_scene(k, c.n, c.width, c.height, c.channels, c.sh_degree);
+    Scene<double> s = random_scene(k, c.n, c.width, c.height, c.channels, c.sh_degree);
+    s.cam.antialiased = antialiased;
+    return s;
   });
 }
 
@@ -38,8 +41,9 @@ struct WeightedScene {
   Render<double> r;
   std::vector<double> w_img, w_alpha;
 };
-WeightedScene weighted_scene(const Config& c, std::uint32_t scene_seed, std::uint32_t weight_seed) {
-  WeightedScene ws{smooth_scene(c, scene_seed), {}, {}, {}};
+WeightedScene weighted_scene(const Config& c, std::uint32_t scene_seed, std::uint32_t weight_seed,
+                             bool antialiased = false) {
+  WeightedScene ws{smooth_scene(c, scene_seed, antialiased), {}, {}, {}};
   ws.r = render(ws.s);
   ws.w_img = random_weights(ws.r.image.size(), weight_seed);
   ws.w_alpha = random_weights(ws.r.alpha.size(), weight_seed + 1);
@@ -129,12 +133,14 @@ void check_projection(Scene<double>& s) {
 }  // namespace
 
 TEST_CASE(projection) {
-  for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
-    const Config& c = kConfigs[seed];
-    Scene<double> s = smooth_scene(c, seed + 1);
-    std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    check_projection(s);
-  }
+  for (bool antialiased : {false, true})
+    for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
+      const Config& c = kConfigs[seed];
+      Scene<double> s = smooth_scene(c, seed + 1, antialiased);
+      std::printf(" scene %u%s: N=%lld C=%d sh=%d\n", seed, antialiased ? " antialiased" : "",
+                  (long long)c.n, c.channels, c.sh_degree);
+      check_projection(s);
+    }
 }
 
 // Gaussians whose x/z or y/z lies past the Jacobian's frustum clamp (the image's edge plus
@@ -280,16 +286,18 @@ TEST_CASE(mean2d_abs_sums_per_pixel_shares) {
 }
 
 TEST_CASE(end_to_end) {
-  for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
-    const Config& c = kConfigs[seed];
-    WeightedScene ws = weighted_scene(c, seed + 201, 31);
-    auto loss = [&] {
-      const Render<double> q = render(ws.s);
-      return dot(q.image, ws.w_img) + dot(q.alpha, ws.w_alpha);
-    };
-    const Grads<double> g = backward(ws.s, ws.r, ws.w_img, ws.w_alpha);
-    std::printf(" scene %u: N=%lld C=%d sh=%d\n", seed, (long long)c.n, c.channels, c.sh_degree);
-    fd_check_scene(ws.s, g, loss);
-    fd_check("background", ws.s.background, g.background, loss);
-  }
+  for (bool antialiased : {false, true})
+    for (std::uint32_t seed = 0; seed < std::size(kConfigs); ++seed) {
+      const Config& c = kConfigs[seed];
+      WeightedScene ws = weighted_scene(c, seed + 201, 31, antialiased);
+      auto loss = [&] {
+        const Render<double> q = render(ws.s);
+        return dot(q.image, ws.w_img) + dot(q.alpha, ws.w_alpha);
+      };
+      const Grads<double> g = backward(ws.s, ws.r, ws.w_img, ws.w_alpha);
+      std::printf(" scene %u%s: N=%lld C=%d sh=%d\n", seed, antialiased ? " antialiased" : "",
+                  (long long)c.n, c.channels, c.sh_degree);
+      fd_check_scene(ws.s, g, loss);
+      fd_check("background", ws.s.background, g.background, loss);
+    }
 }

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <string>
 
 #include "harness.hpp"
 #include "raster_scene.hpp"
@@ -29,7 +30,7 @@ struct Outcome {
   double float_error;
 };
 
-Outcome run(const Scene<double>& s, const char* label) {
+Outcome run_filter(const Scene<double>& s, const char* label) {
   Render<double> r = render(s);
   check_bins(r.state, s.cam, label);  // before the backward, which indexes by the bins
   const auto gi = random_weights(r.image.size(), 7), ga = random_weights(r.alpha.size(), 8);
@@ -51,6 +52,15 @@ Outcome run(const Scene<double>& s, const char* label) {
   std::printf("  %s: %zu of %lld visible, max |float - double| = %.3g\n", label,
               r.state.bins.order.size(), (long long)s.n, err);
   return {std::move(r), std::move(g), err};
+}
+
+// run_filter with the plain 2D filter, whose outcome it returns, and with the antialiased one
+// (each opacity scaled by sqrt(det cov2d / det(cov2d + dilation))), finite alike.
+Outcome run(const Scene<double>& s, const char* label) {
+  Scene<double> antialiased = s;
+  antialiased.cam.antialiased = true;
+  run_filter(antialiased, (std::string(label) + ", antialiased").c_str());
+  return run_filter(s, label);
 }
 
 // Gradient entries of Gaussian i, all of which must be zero when it is culled.

@@ -106,7 +106,9 @@ def project(scene: dict) -> reference._Splats:
     """The reference's projection of a scene with direct colours, nothing culled upfront."""
     inputs = (scene[k] for k in ARGS)
     keep = torch.ones(scene["means"].shape[0], dtype=torch.bool)
-    return reference._project(*inputs, scene["width"], scene["height"], None, 0.01, 1e10, keep)
+    return reference._project(
+        *inputs, scene["width"], scene["height"], None, 0.01, 1e10, False, keep
+    )
 
 
 def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
@@ -119,7 +121,7 @@ def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
         sh_degree=s["sh_degree"],
         background=s["background"],
         screen_points=s["screen_points"],
-        **{k: s[k] for k in ("screen_abs", "near", "far") if k in s},
+        **{k: s[k] for k in ("screen_abs", "near", "far", "antialiased") if k in s},
     )
 
 
@@ -289,15 +291,17 @@ def test_elongated_splats_across_tiles_match_reference(seed):
     compare_to_reference(scene, torch.float32, 1e-4)
 
 
+@pytest.mark.parametrize("antialiased", [False, True], ids=["plain", "antialiased"])
 @pytest.mark.parametrize("sh_degree", [None, 1])
 @pytest.mark.parametrize("impl", ["reference", pytest.param("cpp", marks=needs_cpp)])
-def test_gradcheck(impl, sh_degree):
+def test_gradcheck(impl, sh_degree, antialiased):
     """Finite differences in float64: opacities in [0.1, 0.7] and a few Gaussians keep every alpha
     away from the 0.99 clamp and the transmittance stop. screen_points is left out: it is a
     gradient tap whose value the C++ op does not read (its gradient is compared with the reference's
     in test_matches_reference)."""
     fn = spikegs.rasterize if impl == "cpp" else reference.rasterize
     scene = make_scene(5, 4, 17, 11, sh_degree=sh_degree, opacity=(0.1, 0.7), sigma_px=(1.5, 3.0))
+    scene["antialiased"] = antialiased
     if sh_degree is not None:
         scene["colors"] *= 0.25  # colours stay well above the clamp at 0
     names = [k for k in PARAMS if k != "screen_points"]
@@ -311,6 +315,89 @@ def test_gradcheck(impl, sh_degree):
     assert torch.autograd.gradcheck(
         outputs, leaves, eps=1e-6, atol=1e-6, rtol=1e-4, fast_mode=impl == "reference"
     )
+
+
+@needs_cpp
+@pytest.mark.parametrize(
+    "dtype, rtol", [(torch.float64, 1e-9), (torch.float32, 1e-4)], ids=["float64", "float32"]
+)
+@pytest.mark.parametrize("case", ["sh2", "needles", "sub-pixel", "direct-mono"])
+def test_antialiased_matches_reference(case, dtype, rtol):
+    """The antialiased filter (each opacity times sqrt(det Σ / det(Σ + 0.3 I))) against the
+    reference's, forward and every gradient: SH colours, needles across tiles (Σ nearly flat,
+    the compensation near 0), splats under a pixel and direct mono colours."""
+    if case == "needles":
+        scene = make_scene(7100, 40, 70, 52, sigma_px=(0.3, 12.0))
+        scene["scales"][:, 0] *= 6.0
+    elif case == "sub-pixel":
+        scene = make_scene(7200, 30, 33, 17, opacity=(0.3, 1.0), sigma_px=(0.05, 0.8))
+    elif case == "sh2":
+        scene = make_scene(7300, 30, 33, 17, sh_degree=2)
+    else:
+        scene = make_scene(7400, 25, 64, 48, channels=1)
+    scene["antialiased"] = True
+    compare_to_reference(scene, dtype, rtol)
+    plain = render(spikegs.rasterize, scene, antialiased=False)
+    drawn = render(spikegs.rasterize, scene)
+    assert (drawn.radii <= plain.radii).all(), "a compensated splat reaches no farther"
+    assert drawn.alpha.sum() < plain.alpha.sum(), "the compensation takes opacity away"
+
+
+@needs_cpp
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32], ids=["float64", "float32"])
+def test_an_antialiased_line_or_point_is_culled(dtype):
+    """A Gaussian of two (or three) zero scales projects to a line (a point): det(V Vᵀ) = 0, so
+    its antialiased opacity is 0 and it is culled, with zero gradients, where the plain filter
+    draws it 0.3 px² wide; a needle beside them keeps finite gradients."""
+    scene = make_scene(7500, 3, 33, 17, opacity=(0.8, 0.9), sigma_px=(2.0, 3.0))
+    scene["scales"][0, 1:] = 0.0  # a line
+    scene["scales"][1] = 0.0  # a point
+    scene["scales"][2, 1] = 1e-7 * scene["scales"][2, 0]  # a needle, nearly flat
+    scene["means"][:] = scene["means"][2]  # all in view
+    scene = {k: v.to(dtype) if torch.is_tensor(v) else v for k, v in scene.items()}
+    plain, _ = forward_backward(spikegs.rasterize, scene, dtype)
+    out, grads = forward_backward(spikegs.rasterize, {**scene, "antialiased": True}, dtype)
+    assert (plain.radii[:2] > 0).all() and (out.radii[:2] == 0).all()
+    check_finite_and_culled(out, grads)
+    if dtype == torch.float64:
+        compare_to_reference({**scene, "antialiased": True}, dtype, 1e-9)
+
+
+@needs_cpp
+@pytest.mark.parametrize("op", [spikegs.rasterize, reference.rasterize], ids=["core", "reference"])
+def test_an_antialiased_splat_keeps_its_mass_at_any_resolution(op):
+    """Independent of the reference's maths: one round splat of σ = 0.25 px, drawn at 1, 2 and 4
+    times the resolution. Antialiased, its alpha integrates to o 2π σ² in pixels of the first
+    size at each (the dilation keeps the integral; less the mass below 1/255, o_eff G < 1/255);
+    plain, the dilation adds 0.3 px² of the size drawn: 4.5 times the mass at the first size
+    as at the last."""
+    o, sigma = 0.9, 0.25  # sigma in pixels at scale 1
+    masses = {}
+    for antialiased in (False, True):
+        for scale in (1, 2, 4):
+            size = 16 * scale
+            f = 20.0 * scale
+            K = torch.tensor([[f, 0, size / 2 + 0.13], [0, f, size / 2 - 0.21], [0, 0, 1]])
+            out = op(
+                torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
+                torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=torch.float64),
+                torch.full((1, 3), sigma * 2.0 / 20.0, dtype=torch.float64),
+                torch.tensor([o], dtype=torch.float64),
+                torch.ones(1, 1, dtype=torch.float64),
+                torch.eye(4, dtype=torch.float64),
+                K.double(),
+                size,
+                size,
+                antialiased=antialiased,
+            )
+            masses[antialiased, scale] = out.alpha.sum().item() / scale**2
+            if antialiased:
+                var = (sigma * scale) ** 2  # the undilated variance, pixels² of this size
+                o_eff = o * var / (var + reference.DILATION)
+                expected = o * 2 * math.pi * sigma**2 * (1 - reference.ALPHA_MIN / o_eff)
+                assert masses[True, scale] == pytest.approx(expected, rel=0.01), scale
+    assert masses[False, 1] > 4 * masses[False, 4]  # (0.0625 + 0.3) / (0.0625 + 0.3 / 16)
+    assert masses[False, 4] > 1.1 * masses[True, 4]
 
 
 def anisotropic(scene: dict, kx: float, ky: float, cx: float, cy: float) -> dict:
@@ -594,6 +681,7 @@ def _bad_inputs():
             # failed only in the backward's in-place sum, with torch's message
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
+            ("antialiased-str", {"antialiased": "yes"}, "antialiased: expected True or False"),
             (
                 "sh-degree-float",
                 {"sh_degree": 1.0},
@@ -971,10 +1059,12 @@ def test_extreme_reference(name):
 
 
 @needs_cpp
+@pytest.mark.parametrize("antialiased", [False, True], ids=["plain", "antialiased"])
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32], ids=["float64", "float32"])
 @pytest.mark.parametrize("name", EXTREME)
-def test_extreme_cpp(name, dtype):
+def test_extreme_cpp(name, dtype, antialiased):
     scene = {k: v.to(dtype) if torch.is_tensor(v) else v for k, v in _extreme(name).items()}
+    scene["antialiased"] = antialiased
     out, grads = forward_backward(spikegs.rasterize, scene, dtype)
     check_finite_and_culled(out, grads)
     if dtype == torch.float64:

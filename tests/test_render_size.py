@@ -116,6 +116,27 @@ def test_widening_keeps_the_gaussians_axes_and_grows_with_depth():
     assert widened(double, VIEWMAT, trained, camera).params["log_scales"].dtype == torch.float64
 
 
+@pytest.mark.parametrize("scale", [4.0, 0.3])
+def test_an_antialiased_model_keeps_each_splats_mass_at_any_size(scale):
+    """An antialiased model's splat (`train.antialiased`) keeps its mass in any pixels: drawn 4x
+    larger it is the rasterizer's frame at that size as it is, not widened (which added mass:
+    the filter's compensation is taken from the widened covariance); 0.3 of the size averages a
+    40 px render, unwidened too. Its light, in training pixels, stays the training size's."""
+    model, dataset = _splat(0.6), _camera()
+    model.antialiased = True
+    full = render_view(model, VIEWMAT, dataset)
+    frame = render_scaled(model, VIEWMAT, dataset, scale)
+    if scale > 1:
+        as_it_is = render_view(model, VIEWMAT, _camera_scaled(dataset, scale))
+        np.testing.assert_array_equal(frame, as_it_is)
+    side = frame.shape[1]
+    assert frame.sum() * (SIDE / side) ** 2 == pytest.approx(full.sum(), rel=0.01)
+    model.antialiased = False  # the same splat drawn plain: widened, it gains
+    plain_full = render_view(model, VIEWMAT, dataset)
+    model.antialiased = True
+    assert plain_full.sum() > 1.2 * full.sum()
+
+
 def test_a_smaller_frame_is_the_mean_of_the_training_sizes_pixels():
     """Half the size: each pixel the mean of the 2x2 it covers at the training size, exactly;
     a sub-pixel splat keeps its light (its sum a quarter of the training size's), where drawn

@@ -3888,6 +3888,35 @@ def test_a_far_scene_is_saved_and_resumed_about_its_centre(dataset, tmp_path, mo
     assert resumed.model.params["means"].abs().max() < 3 * dataset.scene_radius
 
 
+def test_an_antialiased_run_trains_saves_and_scores_antialiased(dataset, tmp_path):
+    """`train.antialiased: true` draws every render with the antialiased 2D filter: the model,
+    its checkpoint and scene.ply (a comment) keep it, so eval scores what training drew; drawn
+    plain, the same Gaussians score otherwise. A ply's flag other than 0 or 1 is refused."""
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 6, "antialiased": True}}
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    trainer.train()
+    assert trainer.model.antialiased
+    state = torch.load(tmp_path / "run" / "checkpoints" / "last.pt", weights_only=True)
+    assert state["model"]["antialiased"] is True
+    ply = tmp_path / "run" / "scene.ply"
+    assert "spikegs antialiased 1" in PlyData.read(str(ply))["vertex"].comments
+    loaded = load_ply(ply)
+    assert loaded.antialiased
+    score = evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"]
+    assert score == pytest.approx(_mean_psnr(trainer.model, dataset), abs=1e-4)
+    loaded.antialiased = False
+    assert abs(_mean_psnr(loaded, dataset) - score) > 0.01
+    save_ply(loaded, tmp_path / "plain.ply")  # a plain model's file as before: no comment
+    assert not any(
+        "antialiased" in c for c in PlyData.read(str(tmp_path / "plain.ply"))["vertex"].comments
+    )
+    ply.write_bytes(ply.read_bytes().replace(b"spikegs antialiased 1", b"spikegs antialiased 2"))
+    with pytest.raises(ValueError, match="comment 'spikegs antialiased 2': expected 0..1"):
+        load_ply(ply)
+    with pytest.raises(ValueError, match=r"'train.antialiased' = 1 \(an integer\), expected true"):
+        load_config("tfp33", {"train": {"antialiased": 1}})
+
+
 def test_a_model_renders_about_its_origin():
     """A model whose means are measured from an origin far out renders what the same model at
     the world's origin does; its float32 world means and viewmats would cancel to error."""

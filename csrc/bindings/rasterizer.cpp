@@ -106,7 +106,8 @@ template <typename T>
 py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& scales,
                   const Array<T>& opacities, const Array<T>& colors, const Array<T>& viewmat,
                   const Array<T>& K, int width, int height, int sh_degree, int sh_coeffs,
-                  int channels, std::optional<Array<T>> background, T near_plane, T far_plane) {
+                  int channels, std::optional<Array<T>> background, T near_plane, T far_plane,
+                  bool antialiased) {
   auto ctx = std::make_shared<RasterContext<T>>();
   ctx->sh_degree = sh_degree, ctx->sh_coeffs = sh_coeffs, ctx->channels = channels;
   sr::Camera<T>& cam = ctx->cam;
@@ -115,6 +116,7 @@ py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& 
   std::copy(viewmat.data(), viewmat.data() + 16, cam.viewmat);
   cam.fx = K.data()[0], cam.fy = K.data()[4], cam.cx = K.data()[2], cam.cy = K.data()[5];
   cam.width = width, cam.height = height, cam.near_plane = near_plane, cam.far_plane = far_plane;
+  cam.antialiased = antialiased;
   // what the core assumes (spikegs.rasterize checks each with its own message): depths sorted by
   // their bits need 0 < near; the alpha cut-off needs opacities <= 1; tile counts fit an int
   if (!(cam.fx > 0 && cam.fy > 0 && std::isfinite(cam.fx) && std::isfinite(cam.fy)))
@@ -206,7 +208,7 @@ void bind_variant(py::module_& m, const std::string& suffix) {
         py::arg("scales"), py::arg("opacities"), py::arg("colors"), py::arg("viewmat"),
         py::arg("K"), py::arg("width"), py::arg("height"), py::arg("sh_degree"),
         py::arg("sh_coeffs"), py::arg("channels"), py::arg("background"), py::arg("near"),
-        py::arg("far"),
+        py::arg("far"), py::arg("antialiased") = false,
         "-> (image [H,W,C], alpha [H,W], radii [N], means2d [N,2], depths [N], context)");
   m.def(("rasterize_backward_" + suffix).c_str(), &backward<T>, py::arg("context"),
         py::arg("means"), py::arg("quats"), py::arg("scales"), py::arg("opacities"),

@@ -60,6 +60,8 @@ struct Splat {
   Vec3<T> J0, J1;  // rows of the projection Jacobian
   Vec3<T> V0, V1;  // rows of V = J W M
   T a, b, c, det;  // 2D covariance (+ dilation) and its determinant
+  T area;          // antialiased: |V0 x V1| = sqrt(det(V V^T)), the undilated covariance's
+  T compensation;  // the opacity's factor: area / sqrt(det) where antialiased, else 1
 };
 
 template <typename T>
@@ -118,6 +120,9 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   // the view matrix's too through their sum
   const T n_max = std::max(n0, n1);
   if (!is_finite(T(2) * n_max * std::sqrt(n_max))) return s;
+  s.area = cam.antialiased ? std::sqrt(glm::dot(cr, cr)) : T(0);
+  if (cam.antialiased && !(s.area > 0)) return s;  // flat: the compensation, opacity 0
+  s.compensation = cam.antialiased ? s.area / std::sqrt(s.det) : T(1);
   s.visible = true;
   return s;
 }
@@ -153,8 +158,9 @@ void project_forward(const GaussianParams<T>& prm, const Camera<T>& cam, Project
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     const Splat<T> s = build_splat(prm, cam, i);
-    const T o = prm.opacities[i];
-    if (!s.visible || !(o >= T(kAlphaMin))) continue;
+    if (!s.visible) continue;
+    const T o = prm.opacities[i] * s.compensation;
+    if (!(o >= T(kAlphaMin))) continue;
     const T mx = cam.fx * s.p.x / s.p.z + cam.cx, my = cam.fy * s.p.y / s.p.z + cam.cy;
     if (!(std::abs(mx) < T(kMaxMean2d) && std::abs(my) < T(kMaxMean2d))) continue;
     const T mid = T(0.5) * (s.a + s.c);
@@ -240,7 +246,7 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       const Vec3<T> mu(mean[0], mean[1], mean[2]);
       Vec3<T> dmu(T(0)), dpc(T(0));  // gradients of the world mean and the camera-space mean
 
-      g.opacities[i] += dp.opacity[i];
+      g.opacities[i] += dp.opacity[i] * s.compensation;
 
       // colour
       const T* col = prm.colors + i * prm.color_stride();
@@ -287,12 +293,21 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       const T idet = T(1) / s.det, eps = T(kDilation);
       // each term scaled by 1/det before the sum: for a float32 needle of ~1e18 the terms
       // overflow, or idet^2 underflows to 0 (inf * 0: NaN), while ddet itself is small
-      const T ddet = -(g0 * (s.c * idet) - g1 * (s.b * idet) + g2 * (s.a * idet)) * idet;
+      T ddet = -(g0 * (s.c * idet) - g1 * (s.b * idet) + g2 * (s.a * idet)) * idet;
       const Vec3<T> cr = glm::cross(s.V0, s.V1);
-      const Vec3<T> dV0 = T(2) * g2 * idet * s.V0 - g1 * idet * s.V1 +
-                          ddet * (T(2) * glm::cross(s.V1, cr) + T(2) * eps * s.V0);
-      const Vec3<T> dV1 = T(2) * g0 * idet * s.V1 - g1 * idet * s.V0 +
-                          ddet * (T(2) * glm::cross(cr, s.V0) + T(2) * eps * s.V1);
+      Vec3<T> dV0 = T(2) * g2 * idet * s.V0 - g1 * idet * s.V1;
+      Vec3<T> dV1 = T(2) * g0 * idet * s.V1 - g1 * idet * s.V0;
+      if (cam.antialiased) {
+        // compensation = |cr| / sqrt(det): d|cr| = u . d(cr), u = cr / |cr| (|cr| > 0: visible),
+        // bounded as a splat flattens, where gsplat's d sqrt(det_o) / d det_o is not
+        const T dcomp = dp.opacity[i] * prm.opacities[i], isqrt = T(1) / std::sqrt(s.det);
+        const Vec3<T> u = cr / s.area;
+        ddet -= T(0.5) * dcomp * s.compensation * idet;
+        dV0 += dcomp * isqrt * glm::cross(s.V1, u);
+        dV1 += dcomp * isqrt * glm::cross(u, s.V0);
+      }
+      dV0 += ddet * (T(2) * glm::cross(s.V1, cr) + T(2) * eps * s.V0);
+      dV1 += ddet * (T(2) * glm::cross(cr, s.V0) + T(2) * eps * s.V1);
       // V_r = (W M)^T J_r
       Vec3<T> dJ0 = s.WM * dV0, dJ1 = s.WM * dV1;
       const Mat3<T> dWM = glm::outerProduct(s.J0, dV0) + glm::outerProduct(s.J1, dV1);

@@ -14,6 +14,10 @@ struct Camera {
   T fx, fy, cx, cy;
   int width, height;
   T near_plane, far_plane;
+  // the antialiased variant of the 2D filter (Mip-Splatting's, gsplat's "antialiased" mode): each
+  // opacity scaled by sqrt(det(cov2d) / det(cov2d + dilation)), so that dilating a splat keeps
+  // its integral instead of adding to it
+  bool antialiased = false;
   int tiles_x() const { return (width + kTileSize - 1) / kTileSize; }
   int tiles_y() const { return (height + kTileSize - 1) / kTileSize; }
 };

@@ -129,6 +129,10 @@ class TrainConfig:
     seed: int = 0
     init_gaussians: int = 5000
     sh_degree: int = 0  # 0 suits a mono camera: leave out what the scene does not need
+    # the rasterizer's antialiased 2D filter (Mip-Splatting's; gsplat's "antialiased" mode):
+    # each opacity times sqrt(det Σ / det(Σ + 0.3 px²)), so that a splat keeps its integral at
+    # any resolution; eval and render draw the run's scene.ply as it trained
+    antialiased: bool = False
     eval_every: int = 500
     checkpoint_every: int = 500
     log_every: int = 25

@@ -67,6 +67,7 @@ class GaussianModel:
         background: torch.Tensor,
         sh_degree: int,
         origin=None,
+        antialiased: bool = False,
     ):
         missing = set(PARAMETER_NAMES) - set(params)
         if missing:
@@ -105,6 +106,13 @@ class GaussianModel:
         self.origin = np.zeros(3) if origin is None else np.array(origin, np.float64)  # [3]
         if self.origin.shape != (3,) or not np.isfinite(self.origin).all():
             raise ValueError(f"GaussianModel: origin expected 3 finite numbers, not {origin!r}")
+        if not isinstance(antialiased, bool):
+            raise ValueError(
+                f"GaussianModel: antialiased expected True or False, not {antialiased!r}"
+            )
+        # drawn with the antialiased 2D filter (`spikegs.rasterize`'s `antialiased`): a model
+        # trained so renders so
+        self.antialiased = antialiased
 
     @property
     def sh_degree(self) -> int:
@@ -244,6 +252,7 @@ class GaussianModel:
             far=FAR_PLANE,
             screen_points=screen_points,
             screen_abs=screen_abs,
+            antialiased=self.antialiased,
         )
 
     def state_dict(self) -> dict:
@@ -252,9 +261,17 @@ class GaussianModel:
             "background": self.background.detach().clone(),
             "sh_degree": self.sh_degree,
             "origin": self.origin.tolist(),
+            "antialiased": self.antialiased,
         }
 
     @classmethod
     def from_state_dict(cls, state: dict) -> GaussianModel:
-        # a checkpoint from before origins holds world means
-        return cls(state["params"], state["background"], state["sh_degree"], state.get("origin"))
+        # a checkpoint from before origins holds world means, one from before the antialiased
+        # filter was drawn without it
+        return cls(
+            state["params"],
+            state["background"],
+            state["sh_degree"],
+            state.get("origin"),
+            state.get("antialiased", False),
+        )

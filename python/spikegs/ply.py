@@ -68,6 +68,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     ]
     if model.origin.any():
         comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
+    if model.antialiased:  # a 3DGS viewer draws it without (docs/outputs.md, scene.ply)
+        comments.append("spikegs antialiased 1")
     # the comments go after 'element vertex N': SIBR's viewer (and its C++ kin) reads the count
     # from the header's third line, and read 0 Gaussians from a file comment there
     ply = PlyData([PlyElement.describe(vertex, "vertex", comments=comments)])
@@ -222,7 +224,8 @@ def load_ply(path: str | Path) -> GaussianModel:
             raise ValueError(
                 f"{path}: comment 'spikegs origin {tags['origin']}': expected 3 finite numbers"
             )
-    return GaussianModel(params, background, sh_degree, origin)
+    antialiased = bool(_tag_int(path, tags, "antialiased", 0, 0, 1))
+    return GaussianModel(params, background, sh_degree, origin, antialiased)
 
 
 def declares_channels(path: str | Path) -> bool:

@@ -117,6 +117,7 @@ class _RasterizeFunction(torch.autograd.Function):
             bg,
             settings["near"],
             settings["far"],
+            settings["antialiased"],
         )
         ctx.raster, ctx.core, ctx.image_shape = raster, core, image.shape
         ctx.screen_abs = screen_abs
@@ -177,6 +178,7 @@ def rasterize(
     far: float = CONSTANTS["far"],
     screen_points: torch.Tensor | None = None,
     screen_abs: torch.Tensor | None = None,
+    antialiased: bool = False,
 ) -> RasterizeResult:
     """Render N Gaussians into one [H, W, C] image of `width` × `height` pixels, differentiably.
 
@@ -194,7 +196,10 @@ def rasterize(
     `.retain_grad()` (gsplat's way) sees no gradient of the image. `screen_abs`, an optional
     [N, 2] tensor, has each backward add the compositing's per-pixel shares of that gradient
     summed in absolute value (AbsGS's densification signal: shares of opposite sign do not
-    cancel). Culled Gaussians get radius 0 and zero gradient.
+    cancel). `antialiased` scales each opacity by sqrt(det Σ / det(Σ + 0.3 I)) of its 2D
+    covariance Σ (Mip-Splatting's 2D filter, gsplat's "antialiased" mode): the 0.3 px² dilation
+    then keeps a splat's integral instead of adding to it, so that a splat under a pixel looks the
+    same at any resolution. Culled Gaussians get radius 0 and zero gradient.
     Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
@@ -288,6 +293,8 @@ def rasterize(
             f"near, far: {near!r}, {far!r} round to {near_t!r}, {far_t!r} in {dtype}, the "
             "inputs' dtype; expected 0 < near < far there"
         )
+    if not isinstance(antialiased, bool):
+        raise ValueError(f"antialiased: expected True or False, got {antialiased!r}")
     degree, coeffs = _sh_layout(colors, sh_degree)
     settings = dict(
         width=width,
@@ -297,6 +304,7 @@ def rasterize(
         channels=channels,
         near=float(near),
         far=float(far),
+        antialiased=antialiased,
     )
     scene = (means, quats, scales, opacities, colors, viewmat, background)
     outputs = _RasterizeFunction.apply(*scene, screen_points, screen_abs, K, settings)

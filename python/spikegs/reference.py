@@ -54,7 +54,20 @@ def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
 
 
 def _project(
-    means, quats, scales, opacities, colors, viewmat, K, width, height, sh_degree, near, far, keep
+    means,
+    quats,
+    scales,
+    opacities,
+    colors,
+    viewmat,
+    K,
+    width,
+    height,
+    sh_degree,
+    near,
+    far,
+    antialiased,
+    keep,
 ) -> _Splats:
     """Steps 1-10 of the projection for the Gaussians in `keep` [N] bool.
 
@@ -100,6 +113,10 @@ def _project(
     n_max = torch.maximum(n0, n1)  # the backward's terms reach 2 |V|^3: culled where that overflows
     keep = keep & torch.isfinite(2 * n_max * torch.sqrt(n_max))
     conics = torch.stack([c / det, -b / det, a / det], -1)  # [N, 3]
+    if antialiased:  # sqrt(det(V V^T) / det); 0 (culled below) for a flat splat
+        area = (cross * cross).sum(-1)
+        area = torch.sqrt(torch.where(area > 0, area, 1.0)) * (area > 0)
+        opacities = opacities * area / torch.sqrt(torch.where(keep, det, 1.0))
 
     # 7-8: 2D mean, opacity-aware radius, box cull
     means2d = torch.stack([fx * x / z + cx, fy * y / z + cy], -1)  # [N, 2]
@@ -211,6 +228,7 @@ def rasterize(
     near: float = NEAR,
     far: float = FAR,
     screen_points: torch.Tensor | None = None,
+    antialiased: bool = False,
 ) -> RasterizeResult:
     """Render N Gaussians exactly as docs/rasterizer.md says; differentiable through autograd.
 
@@ -218,6 +236,7 @@ def rasterize(
     or [N, K, C] (SH coefficients), viewmat [4, 4] world-to-camera, K [3, 3], background [C].
     `screen_points` [N, 2] (zeros) is added to the 2D means the compositing uses, so that its
     gradient is the screen-space gradient of the 2D means, as in `spikegs.rasterize`.
+    `antialiased` scales each opacity by sqrt(det Σ / det(Σ + dilation)) (step 6).
     Culled Gaussians get radius 0, mean2d 0, depth 0 and exactly zero gradient.
     """
     sh_degree = degree_of(colors, sh_degree)
@@ -243,6 +262,7 @@ def rasterize(
         sh_degree,
         near,
         far,
+        antialiased,
     )
     # Pass 1 finds the visible set; pass 2 recomputes with every culled row on safe values, so no
     # NaN or inf of a culled Gaussian can reach a gradient.

@@ -8,7 +8,9 @@ Gaussian in 3D by the filter its finer pixels miss at its depth in the view, and
 averages m×m pixels of a render at least the training images' size (BENCHMARKS.md, "Renders at
 another size": against a box-filtered ground truth of a textured scene, 4x larger 24.13 dB
 against 23.07 drawn as it is, 1/4 the size 33.15 dB against 20.03; on the Cornell box's broad
-walls the widening cost 0.14-0.25 dB at 1.5-2x and gained 0.15 at 4x).
+walls the widening cost 0.14-0.25 dB at 1.5-2x and gained 0.15 at 4x). A model trained with the
+antialiased filter (`train.antialiased`) keeps each splat's mass in any pixels: it is averaged the
+same way smaller, and drawn as it is larger (widened, its splats gained mass).
 """
 
 from __future__ import annotations
@@ -113,7 +115,9 @@ def render_scaled(
     dataset's camera with its images `scale` times as large, drawn no finer than the training
     camera (`trained`: train.json's `camera`; default the dataset's) drew it: each Gaussian
     `widened` where the frame's pixels are finer, the mean of `supersampling`'s m×m pixels where
-    they are coarser; `evaluate.render_view`'s image, bit for bit, in the training camera."""
+    they are coarser; `evaluate.render_view`'s image, bit for bit, in the training camera. An
+    antialiased model (`train.antialiased`) is drawn as it is in finer pixels: its filter keeps
+    each splat's mass, which widening would add to."""
     from .evaluate import render_view
 
     if scale == 1 and trained is None:  # (the dataset's camera is the training camera)
@@ -121,7 +125,8 @@ def render_scaled(
     trained = camera_keys(dataset.meta) if trained is None else trained
     m = supersampling(dataset, scale, trained)
     camera = scaled_camera(dataset, scale, m)
-    model = widened(model, viewmat, trained, camera)
+    if not model.antialiased:  # an antialiased model's splats keep their mass at any size:
+        model = widened(model, viewmat, trained, camera)  # widened, they gained some
     image = render_view(model, viewmat, camera)
     if m == 1:
         return image

@@ -3,16 +3,19 @@
 For each N (Gaussians), image size and channel count C, on the standard scene: forward and
 forward+backward medians (ms), evaluated (pixel, Gaussian) pairs and ns per pair, peak memory, the
 float32 error against float64, and the ratio against `spikegs.reference` (pure torch) timed once in
-the same run where it is affordable (N <= 1e4). Peak memory is the resident-set high-water mark
-(VmHWM in /proc/self/status) after resetting it (`echo 5 > /proc/self/clear_refs`), minus the
-resident set before the run: the C++ core's allocations are invisible to tracemalloc and torch's
-allocator counters, and ru_maxrss cannot be reset. It is measured in a fresh process, because an
-allocator that already holds memory from earlier runs shows no growth.
+the same run where it is affordable (N <= 1e4); the antialiased filter's forward+backward
+(`aa_*`): its time, its cost against the plain filter's and its float32 error. Peak memory is the
+resident-set high-water mark (VmHWM in /proc/self/status) after resetting it (`echo 5 >
+/proc/self/clear_refs`), minus the resident set before the run: the C++ core's allocations are
+invisible to tracemalloc and torch's allocator counters, and ru_maxrss cannot be reset. It is
+measured in a fresh process, because an allocator that already holds memory from earlier runs
+shows no growth.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import subprocess
 import sys
 import time
@@ -144,6 +147,12 @@ def measure(n: int, width: int, height: int, channels: int, repeats: int) -> dic
     out64, leaves64 = _render(rasterize, scene64, width, height, True)
     pairs, pairs_source = _pairs(out, width, height)
     grad_scale = max(leaves64["means"].grad.abs().max().item(), 1e-300)
+    # the antialiased 2D filter (each opacity times sqrt(det Σ / det(Σ + 0.3 px²))): its cost
+    # against the plain filter's, in the same process, and its float32 error
+    antialiased = functools.partial(rasterize, antialiased=True)
+    aa_s = median_seconds(lambda: _render(antialiased, scene, width, height, True), repeats)
+    out_aa, _ = _render(antialiased, scene, width, height, True)
+    out64_aa, _ = _render(antialiased, scene64, width, height, True)
     row = {
         "N": n,
         "size": f"{width}x{height}",
@@ -157,6 +166,9 @@ def measure(n: int, width: int, height: int, channels: int, repeats: int) -> dic
         "err_image_f32": _max_error(out.image, out64.image),
         "err_grad_means_f32_rel": _max_error(leaves["means"].grad, leaves64["means"].grad)
         / grad_scale,
+        "aa_fwd_bwd_ms": 1e3 * aa_s,
+        "aa_cost": aa_s / both_s,
+        "aa_err_image_f32": _max_error(out_aa.image, out64_aa.image),
     }
     if n <= REFERENCE_MAX_N:
         with _torch_threads(REFERENCE_THREADS):
