@@ -113,10 +113,10 @@ def _project(
     n_max = torch.maximum(n0, n1)  # the backward's terms reach 2 |V|^3: culled where that overflows
     keep = keep & torch.isfinite(2 * n_max * torch.sqrt(n_max))
     conics = torch.stack([c / det, -b / det, a / det], -1)  # [N, 3]
-    if antialiased:  # sqrt(det(V V^T) / det); 0 (culled below) for a flat splat
-        area = (cross * cross).sum(-1)
-        area = torch.sqrt(torch.where(area > 0, area, 1.0)) * (area > 0)
-        opacities = opacities * area / torch.sqrt(torch.where(keep, det, 1.0))
+    if antialiased:  # times sqrt(det(V V^T) / det): 0 (culled below) for a flat splat
+        undilated = (cross * cross).sum(-1)  # [N] det(V V^T)
+        root = torch.sqrt(torch.where(undilated > 0, undilated, 1.0)) * (undilated > 0)
+        opacities = opacities * root / torch.sqrt(torch.where(keep, det, 1.0))
 
     # 7-8: 2D mean, opacity-aware radius, box cull
     means2d = torch.stack([fx * x / z + cx, fy * y / z + cy], -1)  # [N, 2]
