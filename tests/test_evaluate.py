@@ -18,7 +18,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run, other_data, render_view, side_by_side
 from spikegs.image_io import linear_to_srgb, read_image
 from spikegs.image_labels import TITLE_HEIGHT, column_titles
-from spikegs.ply import load_ply
+from spikegs.ply import load_ply, save_ply
 from spikegs.targets import intensity_scale
 from spikegs.train import Trainer
 
@@ -57,6 +57,14 @@ def test_a_dataset_of_coarser_pixels_is_scored_with_a_warning(trained, run, tmp_
     for side, wider in ((20, "1.6"), (24, "1.33")):
         with pytest.warns(UserWarning, match=rf"pixels are {wider} times as wide as those .*alias"):
             evaluate_run(run, data[side], write_images=False)
+    with pytest.warns(UserWarning, match=r"20\.0 dB drawn so .*train.antialiased: true"):
+        evaluate_run(run, data[20], write_images=False)
+    plain = load_ply(run / "scene.ply")
+    plain.antialiased = True  # the run as if trained with the antialiased filter
+    save_ply(plain, run / "scene.ply")
+    with pytest.warns(UserWarning, match=r"25\.5 dB drawn so \(its antialiased filter\)") as said:
+        evaluate_run(run, data[20], write_images=False)
+    assert "aliases less" not in str(said[0].message)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         for side in (28, 64):

@@ -129,21 +129,26 @@ def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
 COARSER_PIXELS = 0.8
 
 
-def _coarser_pixels(run_dir: Path, train: dict, dataset) -> str | None:
+def _coarser_pixels(run_dir: Path, train: dict, dataset, antialiased: bool) -> str | None:
     """What says that `dataset`'s pixels are coarser than those the run trained on (by
-    COARSER_PIXELS; train.json's `camera`, absent from runs before it); None where they are not."""
+    COARSER_PIXELS; train.json's `camera`, absent from runs before it); None where they are not.
+    `antialiased`: the run's scene is drawn with the antialiased filter (`train.antialiased`),
+    which aliases less."""
     trained = train.get("camera")
     if trained is None:
         return None
     ratio = math.sqrt(dataset.meta["fx"] * dataset.meta["fy"] / (trained["fl_x"] * trained["fl_y"]))
     if ratio >= COARSER_PIXELS:
         return None
+    # TFP(33)+3DGS on `textured` (BENCHMARKS.md, "The antialiased 2D filter")
+    drawn = "25.5 dB drawn so (its antialiased filter)" if antialiased else "20.0 dB drawn so"
     return (
         f"{dataset.root}'s pixels are {1 / ratio:.3g} times as wide as those {run_dir} was "
         f"trained on: scored drawn at their size, as 3DGS draws, which aliases where the images "
         f"are a camera's (each pixel the light over its area): against such a truth at a quarter "
-        f"of the size, 20.0 dB drawn so and 33.2 as the mean of a render at the training size "
+        f"of the size, {drawn} and 33.2 as the mean of a render at the training size "
         f"(`spikegs render --scale` draws so: docs/outputs.md)"
+        + ("" if antialiased else "; a run trained with `train.antialiased: true` aliases less")
     )
 
 
@@ -293,11 +298,11 @@ def evaluate_run(
     train = read_summary(run_dir)
     name = _eval_name(run_dir, train, dataset, progress) + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
-    for said in (scene, _coarser_pixels(run_dir, train, dataset)):
-        if said:
-            warnings.warn(said, stacklevel=2)
     ply = trained_scene(run_dir)
     model = load_ply(ply)
+    for said in (scene, _coarser_pixels(run_dir, train, dataset, model.antialiased)):
+        if said:
+            warnings.warn(said, stacklevel=2)
     if model.channels != dataset.channels:
         resaved = model.channels == 3 and dataset.channels == 1 and not declares_channels(ply)
         raise ValueError(
