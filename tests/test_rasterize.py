@@ -104,11 +104,9 @@ def make_scene(
 
 def project(scene: dict) -> reference._Splats:
     """The reference's projection of a scene with direct colours, nothing culled upfront."""
-    inputs = (scene[k] for k in ARGS)
+    inputs = (*(scene[k] for k in ARGS), scene["width"], scene["height"])
     keep = torch.ones(scene["means"].shape[0], dtype=torch.bool)
-    return reference._project(
-        *inputs, scene["width"], scene["height"], None, 0.01, 1e10, False, keep
-    )
+    return reference._project(inputs, None, 0.01, 1e10, False, keep)
 
 
 def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:

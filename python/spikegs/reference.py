@@ -53,27 +53,14 @@ def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     return mask.view(-1, *([1] * (like.dim() - 1)))
 
 
-def _project(
-    means,
-    quats,
-    scales,
-    opacities,
-    colors,
-    viewmat,
-    K,
-    width,
-    height,
-    sh_degree,
-    near,
-    far,
-    antialiased,
-    keep,
-) -> _Splats:
-    """Steps 1-10 of the projection for the Gaussians in `keep` [N] bool.
+def _project(scene: tuple, sh_degree, near, far, antialiased: bool, keep) -> _Splats:
+    """Steps 1-10 of the projection of `scene` (means, quats, scales, opacities, colors, viewmat,
+    K, width, height, as `rasterize` takes them) for the Gaussians in `keep` [N] bool.
 
     Rows outside `keep`, and rows culled on the way, are computed from safe stand-in values chosen
     with torch.where, so that their (unused) results and their zero gradients stay finite.
     """
+    means, quats, scales, opacities, colors, viewmat, K, width, height = scene
     safe_quat = quats.new_tensor([1.0, 0.0, 0.0, 0.0])
     safe_point = means.new_tensor([0.0, 0.0, 1.0])
     means = torch.where(_rows(keep, means), means, 0.0)  # [N, 3]
@@ -249,21 +236,8 @@ def rasterize(
     ).all(0)
     qq = (quats * quats).sum(-1)  # [N]; as the core: |q|^2 that overflows or underflows culls
     keep = finite & (qq > 0) & qq.isfinite()  # [N]
-    args = (
-        means,
-        quats,
-        scales,
-        opacities,
-        colors,
-        viewmat,
-        K,
-        width,
-        height,
-        sh_degree,
-        near,
-        far,
-        antialiased,
-    )
+    scene = (means, quats, scales, opacities, colors, viewmat, K, width, height)
+    args = (scene, sh_degree, near, far, antialiased)
     # Pass 1 finds the visible set; pass 2 recomputes with every culled row on safe values, so no
     # NaN or inf of a culled Gaussian can reach a gradient.
     with torch.no_grad():
