@@ -209,6 +209,25 @@ def test_the_reference_rasterizer_is_timed_after_its_first_calls(monkeypatch):
     assert sizes == [rasterizer.WARMUP_N, 100, 100]
 
 
+def test_bench_rasterizer_times_the_antialiased_filter_beside_the_plain(monkeypatch):
+    """A row's aa_* columns are the antialiased filter's: its timed renders and its float32 and
+    float64 ones are drawn with it, its cost is its time over the plain filter's, its float32
+    error is small."""
+    core, filters = rasterizer.rasterize, []
+
+    def recorded(*args, antialiased=False, **kwargs):
+        filters.append(antialiased)
+        return core(*args, antialiased=antialiased, **kwargs)
+
+    monkeypatch.setattr(rasterizer, "rasterize", recorded)
+    monkeypatch.setattr(rasterizer, "_peak_rss_mb", lambda *args: None)  # (a fresh process)
+    monkeypatch.setattr(rasterizer, "REFERENCE_MAX_N", 0)  # (its timing is another test's)
+    row = rasterizer.measure(100, 16, 16, 1, repeats=1)
+    assert filters.count(True) >= 3 and filters[-2:] == [True, True] and False in filters
+    assert row["aa_cost"] == pytest.approx(row["aa_fwd_bwd_ms"] / row["fwd_bwd_ms"])
+    assert 0 <= row["aa_err_image_f32"] < 1e-4
+
+
 def test_bench_sim_draws_its_bar_only_on_a_terminal_and_never_with_no_progress(
     tmp_path, monkeypatch
 ):

@@ -3896,14 +3896,22 @@ def test_an_antialiased_run_trains_saves_and_scores_antialiased(dataset, tmp_pat
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     trainer.train()
     assert trainer.model.antialiased
-    state = torch.load(tmp_path / "run" / "checkpoints" / "last.pt", weights_only=True)
+    assert trainer.model.centred_at(trainer.model.origin + 1.0).antialiased  # a copy keeps it
+    checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
+    state = torch.load(checkpoint, weights_only=True)
     assert state["model"]["antialiased"] is True
+    state["iteration"] = 3  # resumed from half-way: the flag comes back from the checkpoint
+    torch.save(state, checkpoint)
+    (tmp_path / "run" / "scene.ply").unlink()
+    resumed = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    resumed.train(resume=True)
+    assert resumed.iteration == 6 and resumed.model.antialiased
     ply = tmp_path / "run" / "scene.ply"
     assert "spikegs antialiased 1" in PlyData.read(str(ply))["vertex"].comments
     loaded = load_ply(ply)
     assert loaded.antialiased
     score = evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"]
-    assert score == pytest.approx(_mean_psnr(trainer.model, dataset), abs=1e-4)
+    assert score == pytest.approx(_mean_psnr(resumed.model, dataset), abs=1e-4)
     loaded.antialiased = False
     assert abs(_mean_psnr(loaded, dataset) - score) > 0.01
     save_ply(loaded, tmp_path / "plain.ply")  # a plain model's file as before: no comment

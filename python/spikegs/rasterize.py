@@ -198,8 +198,8 @@ def rasterize(
     summed in absolute value (AbsGS's densification signal: shares of opposite sign do not
     cancel). `antialiased` scales each opacity by sqrt(det Σ / det(Σ + 0.3 I)) of its 2D
     covariance Σ (Mip-Splatting's 2D filter, gsplat's "antialiased" mode): the 0.3 px² dilation
-    then keeps a splat's integral instead of adding to it, so that a splat under a pixel looks the
-    same at any resolution. Culled Gaussians get radius 0 and zero gradient.
+    then keeps a splat's integral instead of adding to it, so that a splat under a pixel carries
+    the same light at any resolution. Culled Gaussians get radius 0 and zero gradient.
     Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
