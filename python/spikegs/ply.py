@@ -68,7 +68,7 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     ]
     if model.origin.any():
         comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
-    if model.antialiased:  # a 3DGS viewer draws it without (docs/outputs.md, scene.ply)
+    if model.antialiased:  # a 3DGS viewer draws it without (README, scene.ply in other tools)
         comments.append("spikegs antialiased 1")
     # the comments go after 'element vertex N': SIBR's viewer (and its C++ kin) reads the count
     # from the header's third line, and read 0 Gaussians from a file comment there
