@@ -137,6 +137,21 @@ def test_an_antialiased_model_keeps_each_splats_mass_at_any_size(scale):
     assert plain_full.sum() > 1.2 * full.sum()
 
 
+def test_a_3d_filtered_model_is_drawn_as_it_is_larger():
+    """A model with the 3D smoothing filter (`train.filter_3d`) is drawn 4x larger as it is, its
+    filter's widths kept: its Gaussians are already no finer than training sampled them, and
+    widened they blurred (BENCHMARKS.md); without the filter, the same model is widened."""
+    model, dataset = _splat(0.3), _camera()
+    model.filter_3d = torch.full((1,), 0.45 * DEPTH / FOCAL)  # sqrt(0.2) px at the depth
+    larger = _camera_scaled(dataset, 4.0)
+    frame = render_scaled(model, VIEWMAT, dataset, 4.0)
+    np.testing.assert_array_equal(frame, render_view(model, VIEWMAT, larger))
+    unfiltered = GaussianModel.from_state_dict({**model.state_dict(), "filter_3d": None})
+    thin = render_view(unfiltered, VIEWMAT, larger)
+    assert _variance(frame) > 2 * _variance(thin)  # the filter's width drawn
+    assert not np.array_equal(render_scaled(unfiltered, VIEWMAT, dataset, 4.0), thin)
+
+
 def test_a_smaller_frame_is_the_mean_of_the_training_sizes_pixels():
     """Half the size: each pixel the mean of the 2x2 it covers at the training size, exactly;
     a sub-pixel splat keeps its light (its sum a quarter of the training size's), where drawn

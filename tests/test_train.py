@@ -25,6 +25,7 @@ import torch
 import yaml
 from plyfile import PlyData, PlyElement
 from spikegs import _C
+from spikegs import densify as densify_module
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import CONFIG_DIR, Config, available_methods, load_config, load_saved_run
@@ -37,6 +38,7 @@ from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH, METHODS
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.file_lock import BUSY, Busy, exclusive_lock, shared_lock
+from spikegs.filter_3d import filter_widths
 from spikegs.gaussians import GaussianModel, frame_origin, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
 from spikegs.initial_intensity import ViewSample, projected_intensity
@@ -3923,6 +3925,80 @@ def test_an_antialiased_run_trains_saves_and_scores_antialiased(dataset, tmp_pat
         load_ply(ply)
     with pytest.raises(ValueError, match=r"'train.antialiased' = 1 \(an integer\), expected true"):
         load_config("tfp33", {"train": {"antialiased": 1}})
+
+
+def test_a_run_with_the_3d_filter_keeps_it_current_resumes_and_saves_it(
+    dataset, tmp_path, monkeypatch, ctrl_c
+):
+    """`train.filter_3d` gives the model its widths (filter_3d.py) from the start, recomputed
+    after each densification round and every FILTER_3D_EVERY iterations but the last, so that
+    every render has one per Gaussian, those of all the training views; a run interrupted and
+    resumed ends as the uninterrupted one, widths too; scene.ply keeps them and eval scores what
+    training drew (without them, the same Gaussians score otherwise); out of range, refused."""
+    monkeypatch.setattr(train_module, "FILTER_3D_EVERY", 25)
+    computed = []  # the iterations of each computation
+    compute = Trainer._filter_3d
+
+    def recorded(self):
+        compute(self)
+        computed.append(self.iteration)
+        # the widths of the Gaussians now in all the training views (the trainer takes 256 of
+        # the 278, spread over the stream): within 2 %
+        views = self.model.view_of(self.dataset.trajectory.pose_at(self.dataset.train_timestamps))
+        d, means = self.dataset, self.model.params["means"]
+        every_view = filter_widths(means, views, self.K, d.width, d.height, self.near, 0.2)
+        np.testing.assert_allclose(self.model.filter_3d, every_view, rtol=0.02)
+
+    monkeypatch.setattr(Trainer, "_filter_3d", recorded)
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 75, "filter_3d": 0.2}}
+    config = load_config("tfp33", overrides)
+    whole = Trainer(dataset, config, tmp_path / "whole", progress=False)
+    whole.train()
+    assert computed == [0, 25, 40, 50], computed  # 40: a densification round; not 75, the last
+    assert whole.model.filter_3d is not None and len(whole.model.filter_3d) == len(whole.model)
+    assert (whole.model.filter_3d > 0).all()
+
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
+    with pytest.raises(KeyboardInterrupt):
+        Trainer(dataset, config, tmp_path / "cut", progress=False).train()
+    monkeypatch.undo()
+    monkeypatch.setattr(train_module, "FILTER_3D_EVERY", 25)
+    resumed = Trainer(dataset, config, tmp_path / "cut", progress=False)
+    resumed.train(resume=True)
+    for name, value in whole.model.params.items():
+        assert torch.equal(value, resumed.model.params[name]), name
+    assert torch.equal(whole.model.filter_3d, resumed.model.filter_3d)
+
+    loaded = load_ply(tmp_path / "cut" / "scene.ply")
+    assert torch.equal(loaded.filter_3d, resumed.model.filter_3d)
+    score = evaluate_run(tmp_path / "cut", dataset, write_images=False)["psnr"]
+    assert score == pytest.approx(_mean_psnr(resumed.model, dataset), abs=1e-4)
+    loaded.filter_3d = None
+    assert abs(_mean_psnr(loaded, dataset) - score) > 0.01
+    for bad in (-0.1, 1e-4, 11.0):
+        with pytest.raises(ValueError, match=r"train.filter_3d.*Mip-Splatting's 0.2"):
+            load_config("tfp33", {"train": {"filter_3d": bad}})
+
+
+def test_a_round_that_keeps_the_count_but_moves_the_rows_recomputes_the_widths(
+    dataset, tmp_path, monkeypatch
+):
+    """A densification round whose clones and prunings keep the number of Gaussians moves their
+    rows: the widths are recomputed after it, not left on the rows' old Gaussians."""
+
+    def reversed_rows(self, model, optimizer, iteration):  # N kept, every row moved
+        flip = lambda name, v: v.flip(0)  # noqa: E731
+        densify_module._surgery(model, optimizer, flip, flip)
+
+    monkeypatch.setattr(Densifier, "_densify_and_prune", reversed_rows)
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 41, "filter_3d": 0.2}}
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    with pytest.warns(UserWarning, match="densification grew no Gaussian"):  # (none did)
+        trainer.train()
+    d, means = dataset, trainer.model.params["means"]
+    views = trainer.model.view_of(d.trajectory.pose_at(d.train_timestamps))
+    fresh = filter_widths(means, views, trainer.K, d.width, d.height, trainer.near, 0.2)
+    np.testing.assert_allclose(trainer.model.filter_3d, fresh, rtol=0.02)
 
 
 def test_a_model_renders_about_its_origin():

@@ -55,6 +55,10 @@ MAX_LR = 1.0  # learning rates above it move parameters by more than their own s
 # below, the gradients fall under Adam's eps (1e-15): 32² solids' tfp33 trained as at 1 down to
 # 1e-8, 2.7 dB worse at 1e-10, and not at all from 1e-14; a weight is 0 (off) or at least MIN_WEIGHT
 MAX_WEIGHT, MIN_WEIGHT = 1e6, 1e-6
+# train.filter_3d's variances (pixels²): a standard deviation over 3 pixels in the nearest view
+# blurs each Gaussian past what any training view shows; one of 0.03 pixels changes nothing a
+# render shows, yet `render --scale` would stop widening the run
+MIN_FILTER_3D, MAX_FILTER_3D = 1e-3, 10.0
 # train.init_gaussians: fewer is no scene. With the default densification schedule (scaled to 150
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
@@ -133,6 +137,11 @@ class TrainConfig:
     # each opacity times sqrt(det Σ / det(Σ + 0.3 px²)), so that a splat keeps its integral at
     # any resolution; eval and render draw the run's scene.ply as it trained
     antialiased: bool = False
+    # Mip-Splatting's 3D smoothing filter: each Gaussian convolved with an isotropic one of this
+    # variance in pixels² of the finest training view that sees it (the paper's 0.2), so that
+    # nothing finer than the training views sample is learnt or drawn nearer or larger; 0: off
+    # (filter_3d.py)
+    filter_3d: float = 0.0
     eval_every: int = 500
     checkpoint_every: int = 500
     log_every: int = 25
@@ -272,6 +281,14 @@ class Config:
             "train.init_gaussians",
             t.init_gaussians,
             f">= {MIN_GAUSSIANS} (fewer were pruned to an empty scene)",
+        )
+        _require(
+            t.filter_3d == 0 or MIN_FILTER_3D <= t.filter_3d <= MAX_FILTER_3D,
+            "train.filter_3d",
+            t.filter_3d,
+            f"0 (off) or a variance in pixels² of {MIN_FILTER_3D:g}..{MAX_FILTER_3D:g} "
+            f"(Mip-Splatting's 0.2; at {MAX_FILTER_3D:g} each Gaussian is wider than 3 pixels in "
+            f"its nearest view, under {MIN_FILTER_3D:g} it smooths nothing a render shows)",
         )
         for name in ("eval_every", "checkpoint_every", "log_every"):
             _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")

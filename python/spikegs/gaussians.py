@@ -8,6 +8,7 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
+from .filter_3d import smoothed
 from .number_checks import is_int
 from .rasterize import RasterizeResult, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
@@ -53,7 +54,9 @@ class GaussianModel:
 
     means [N, 3], log_scales [N, 3], quats [N, 4] (w, x, y, z, unnormalised), opacity_logits [N],
     sh_dc [N, 1, C] and sh_rest [N, K - 1, C] with K = (sh_degree + 1)², plus a learnable
-    background [C]. C = 1 for a mono spike camera.
+    background [C]. C = 1 for a mono spike camera. `filter_3d` [N] (world units, or None: off):
+    the 3D smoothing filter's widths that `render` convolves each Gaussian with (`filter_3d.py`),
+    not learnt.
 
     The means are measured from `origin` [3] (float64, world units; default the world's): a
     trainer puts it at the scene's centre, so that a scene far from the world's origin (UTM or
@@ -68,6 +71,7 @@ class GaussianModel:
         sh_degree: int,
         origin=None,
         antialiased: bool = False,
+        filter_3d: torch.Tensor | None = None,
     ):
         missing = set(PARAMETER_NAMES) - set(params)
         if missing:
@@ -113,6 +117,24 @@ class GaussianModel:
         # drawn with the antialiased 2D filter (`spikegs.rasterize`'s `antialiased`): a model
         # trained so renders so
         self.antialiased = antialiased
+        self.filter_3d = filter_3d  # (the setter checks it)
+
+    @property
+    def filter_3d(self) -> torch.Tensor | None:
+        """The 3D smoothing filter's standard deviations [N] (world units), or None (off)."""
+        return self._filter_3d
+
+    @filter_3d.setter
+    def filter_3d(self, widths: torch.Tensor | None) -> None:
+        if widths is not None:
+            means = self.params["means"]
+            if not isinstance(widths, torch.Tensor) or widths.shape != (len(self),):
+                found = list(widths.shape) if isinstance(widths, torch.Tensor) else widths
+                raise ValueError(f"GaussianModel: filter_3d [{len(self)}] expected, not {found}")
+            widths = widths.detach().to(means.dtype).clone()
+            if not (widths.isfinite() & (widths >= 0)).all():
+                raise ValueError("GaussianModel: filter_3d expected finite widths >= 0")
+        self._filter_3d = widths
 
     @property
     def sh_degree(self) -> int:
@@ -232,12 +254,21 @@ class GaussianModel:
     ) -> RasterizeResult:
         """Render from `viewmat` [4, 4], camera from this model's frame (`view_of` of a world-to-
         camera viewmat), with intrinsics `K` [3, 3], culling what lies nearer than `near` (world
-        units: `near_plane` of the scene's radius)."""
+        units: `near_plane` of the scene's radius); each Gaussian convolved with its `filter_3d`
+        width where the model has one."""
+        scales, opacities = self.scales, self.opacities
+        if self.filter_3d is not None:
+            if self.filter_3d.shape != (len(self),):  # (densified since it was computed)
+                raise ValueError(
+                    f"GaussianModel: filter_3d holds {len(self.filter_3d)} widths for "
+                    f"{len(self)} Gaussians: recompute it (filter_3d.filter_widths)"
+                )
+            scales, opacities = smoothed(scales, opacities, self.filter_3d)
         return rasterize(
             self.params["means"],
             self.params["quats"],
-            self.scales,
-            self.opacities,
+            scales,
+            opacities,
             self.sh,
             viewmat,
             K,
@@ -262,16 +293,18 @@ class GaussianModel:
             "sh_degree": self.sh_degree,
             "origin": self.origin.tolist(),
             "antialiased": self.antialiased,
+            "filter_3d": None if self.filter_3d is None else self.filter_3d.clone(),
         }
 
     @classmethod
     def from_state_dict(cls, state: dict) -> GaussianModel:
         # a checkpoint from before origins holds world means, one from before the antialiased
-        # filter was drawn without it
+        # or the 3D filter was drawn without them
         return cls(
             state["params"],
             state["background"],
             state["sh_degree"],
             state.get("origin"),
             state.get("antialiased", False),
+            state.get("filter_3d"),
         )

@@ -7,7 +7,9 @@ written with its higher coefficients zero (it renders the same) and a `spikegs s
 that the import reads back. Viewers expect three colour channels: a mono scene is written with its
 channel repeated and a `spikegs channels 1` comment, so that the import gives back exactly one.
 Colours are the model's linear intensities (a viewer, which shows them as display values, shows
-them darker than `spikegs render`); the background is a `spikegs background` comment.
+them darker than `spikegs render`); the background is a `spikegs background` comment. A model
+with the 3D smoothing filter (`train.filter_3d`) adds Mip-Splatting's `filter_3D` property, its
+widths (the scales and opacities stay the unfiltered ones, as Mip-Splatting writes them).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from .gaussians import GaussianModel
 from .sh import MAX_DEGREE
 
 FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file holds (degree 3)
+FILTER_3D = "filter_3D"  # the 3D smoothing filter's widths: Mip-Splatting's name and meaning
 
 
 def save_ply(model: GaussianModel, path: str | Path) -> None:
@@ -57,6 +60,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
     columns["opacity"] = p["opacity_logits"]
     columns.update({f"scale_{i}": p["log_scales"][:, i] for i in range(3)})
     columns.update({f"rot_{i}": p["quats"][:, i] for i in range(4)})
+    if model.filter_3d is not None:  # Mip-Splatting's property (a 3DGS viewer ignores it)
+        columns[FILTER_3D] = model.filter_3d.detach().cpu().numpy()
     vertex = np.empty(n, dtype=[(k, "f4") for k in columns])
     for k, v in columns.items():
         vertex[k] = v
@@ -225,7 +230,10 @@ def load_ply(path: str | Path) -> GaussianModel:
                 f"{path}: comment 'spikegs origin {tags['origin']}': expected 3 finite numbers"
             )
     antialiased = bool(_tag_int(path, tags, "antialiased", 0, 0, 1))
-    return GaussianModel(params, background, sh_degree, origin, antialiased)
+    widths = col([FILTER_3D])[:, 0] if FILTER_3D in names else None
+    if widths is not None and not (widths.isfinite() & (widths >= 0)).all():
+        raise ValueError(f"{path}: vertex property {FILTER_3D}: expected finite widths >= 0")
+    return GaussianModel(params, background, sh_degree, origin, antialiased, widths)
 
 
 def declares_channels(path: str | Path) -> bool:

@@ -48,8 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1.0,
         help="frames this many times the dataset's width and height (default 1; 4: a 128x128 "
         "scene's orbit at 512x512), each Gaussian drawn as wide as the training images showed "
-        "it (a run trained with train.antialiased: as it is); where the frame's pixels are "
-        "coarser than theirs, each the mean of a render at their size or finer",
+        "it (a run trained with train.antialiased or train.filter_3d: as it is); where the "
+        "frame's pixels are coarser than theirs, each the mean of a render at their size or "
+        "finer",
     )
     parser.add_argument(
         "--path",

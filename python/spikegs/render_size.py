@@ -10,7 +10,11 @@ another size": against a box-filtered ground truth of a textured scene, 4x large
 against 23.07 drawn as it is, 1/4 the size 33.15 dB against 20.03; on the Cornell box's broad
 walls the widening cost 0.14-0.25 dB at 1.5-2x and gained 0.15 at 4x). A model trained with the
 antialiased filter (`train.antialiased`) keeps each splat's mass in any pixels: it is averaged the
-same way smaller, and drawn as it is larger (widened, its splats gained mass).
+same way smaller, and drawn as it is larger (widened, its splats gained mass). So is one with the
+3D smoothing filter (`train.filter_3d`), which already keeps each Gaussian no finer than the
+training views sampled it (widened too, TFP(33)+3DGS's plain model with the filter scored 0.42
+and 0.83 dB lower at 4x on the textured scene and the Cornell box: BENCHMARKS.md, "Mip-Splatting's
+3D smoothing filter").
 """
 
 from __future__ import annotations
@@ -117,7 +121,8 @@ def render_scaled(
     `widened` where the frame's pixels are finer, the mean of `supersampling`'s m×m pixels where
     they are coarser; `evaluate.render_view`'s image, bit for bit, in the training camera. An
     antialiased model (`train.antialiased`) is drawn as it is in finer pixels: its filter keeps
-    each splat's mass, which widening would add to."""
+    each splat's mass, which widening would add to; so is one with the 3D smoothing filter
+    (`train.filter_3d`), whose Gaussians are no finer than training sampled them."""
     from .evaluate import render_view
 
     if scale == 1 and trained is None:  # (the dataset's camera is the training camera)
@@ -125,8 +130,10 @@ def render_scaled(
     trained = camera_keys(dataset.meta) if trained is None else trained
     m = supersampling(dataset, scale, trained)
     camera = scaled_camera(dataset, scale, m)
-    if not model.antialiased:  # an antialiased model's splats keep their mass at any size:
-        model = widened(model, viewmat, trained, camera)  # widened, they gained some
+    # an antialiased model's splats keep their mass at any size (widened, they gained some), a
+    # 3D-filtered model's Gaussians are as wide as training's sampling (widened, they blurred)
+    if not model.antialiased and model.filter_3d is None:
+        model = widened(model, viewmat, trained, camera)
     image = render_view(model, viewmat, camera)
     if m == 1:
         return image

@@ -27,6 +27,7 @@ from .data.dataset import POINTS, camera_keys, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
+from .filter_3d import filter_widths
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
@@ -58,6 +59,11 @@ SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views m
 # units 10x the sphere's covered 0.8 % and trained 10.8 dB below the right sphere, a radius 0.3x
 # the right one 9.4 % and 7.5 dB (BENCHMARKS.md, "The scene sphere's coverage, exact")
 MIN_SPHERE_COVERAGE = 0.15
+# the 3D filter's widths are recomputed this often as the Gaussians move (Mip-Splatting's 100),
+# and after every densification round, from at most FILTER_3D_VIEWS training views spread evenly
+# over the stream (a continuous path's neighbours differ little in depth: 726 views made the
+# widths of 50,000 Gaussians take 1.8 s, a tenth of 100 steps)
+FILTER_3D_EVERY, FILTER_3D_VIEWS = 100, 256
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
 # the bar while densification rounds remain, which slow the steps as they add Gaussians: its
 # time left marked "+" (a 30000-iteration run's was 0.4-0.75x the time it then took)
@@ -246,6 +252,7 @@ class Trainer:
         with torch.no_grad():
             self.model.background.copy_(torch.from_numpy(sample.median))
         self._start_optimisation()
+        self._filter_3d()  # (with the pose refiner's corrections, zero at the start)
         self.rng = np.random.default_rng(t.seed)
         self.iteration, self.train_seconds = 0, 0.0
 
@@ -471,8 +478,18 @@ class Trainer:
         return loss.item()
 
     def densify(self) -> None:
-        """The densification, pruning and opacity reset due after this iteration's update."""
+        """The densification, pruning and opacity reset due after this iteration's update, and
+        the 3D filter's widths recomputed after it (where the model has the filter) when a round
+        touched the Gaussians, or every FILTER_3D_EVERY iterations as they move; not at the
+        run's last, whose evaluation is taken before it."""
+        means = self.model.params["means"]
         self.densifier.step(self.model, self.optimizer, self.iteration)
+        # (a round replaces every parameter, the means too: its clones and prunings may keep
+        # the count and move the rows; an opacity reset replaces them too, harmlessly)
+        changed = self.model.params["means"] is not means
+        due = changed or self.iteration % FILTER_3D_EVERY == 0
+        if due and self.iteration < self.config.train.iterations:
+            self._filter_3d()
         if len(self.model) == 0:
             d = self.config.densify
             biased = biased_fit(self.brightness, self.config.supervision)
@@ -491,6 +508,24 @@ class Trainer:
                 f"iteration {self.iteration}: pruning removed every Gaussian ({causes}); prune "
                 f"less, or give the run more room" + (f". Before: {biased}" if biased else "")
             )
+
+    def _filter_3d(self) -> None:
+        """The model's 3D smoothing filter (`train.filter_3d`, none where 0) of its Gaussians
+        now, in the training views (the poses of FILTER_3D_VIEWS training timestamps at most,
+        each with its learnt correction when refining poses)."""
+        variance = self.config.train.filter_3d
+        if not variance:
+            return
+        d, count = self.dataset, len(self.dataset.train_timestamps)
+        indices = np.linspace(0, count - 1, min(count, FILTER_3D_VIEWS)).round().astype(int)
+        times = np.asarray(d.train_timestamps)[indices]
+        views = self.model.view_of(d.trajectory.pose_at(times))  # [M, 4, 4]
+        if self.poses is not None:
+            with torch.no_grad():
+                views = torch.stack([self.poses(v, int(i)) for v, i in zip(views, indices)])
+        self.model.filter_3d = filter_widths(
+            self.model.params["means"], views, self.K, d.width, d.height, self.near, variance
+        )
 
     # -- the loop ------------------------------------------------------------------------------
     def densifies_from(self, iteration: int) -> bool:
