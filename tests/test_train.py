@@ -4001,6 +4001,33 @@ def test_a_round_that_keeps_the_count_but_moves_the_rows_recomputes_the_widths(
     np.testing.assert_allclose(trainer.model.filter_3d, fresh, rtol=0.02)
 
 
+def test_the_widths_follow_the_pose_refiners_corrections(dataset, tmp_path):
+    """Refining poses, the widths are those of the corrected training views (training renders
+    from them), not of the trajectory's: a correction that moves every camera back moves them."""
+    overrides = {
+        **FAST,
+        "train": {**FAST["train"], "iterations": 2, "filter_3d": 0.2},
+        "pose_refine": {"enabled": True},
+    }
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    trainer._fresh_state()
+    before = trainer.model.filter_3d.clone()
+    with torch.no_grad():
+        trainer.poses.corrections[:, 5] = 0.5  # each camera moved along its axis (radius units)
+    trainer._filter_3d()
+    d, count = dataset, len(dataset.train_timestamps)
+    indices = np.linspace(0, count - 1, min(count, train_module.FILTER_3D_VIEWS)).round()
+    views = trainer.model.view_of(
+        d.trajectory.pose_at(np.asarray(d.train_timestamps)[indices.astype(int)])
+    )
+    with torch.no_grad():
+        corrected = torch.stack([trainer.poses(v, int(i)) for v, i in zip(views, indices)])
+    means = trainer.model.params["means"]
+    expected = filter_widths(means, corrected, trainer.K, d.width, d.height, trainer.near, 0.2)
+    torch.testing.assert_close(trainer.model.filter_3d, expected)
+    assert (trainer.model.filter_3d - before).abs().max() > 0.01 * before.max()
+
+
 def test_a_model_renders_about_its_origin():
     """A model whose means are measured from an origin far out renders what the same model at
     the world's origin does; its float32 world means and viewmats would cancel to error."""

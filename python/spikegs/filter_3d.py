@@ -66,7 +66,7 @@ def smoothed(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Scales [N, 3] and opacities [N] convolved with isotropic Gaussians of standard deviation
     `widths` [N]: sqrt(s² + w²) and o · Π s / sqrt(s² + w²), the product of the axes' ratios
-    (each in [0, 1]: det S² itself underflows float32 for scales under 1e-13); differentiable
+    (each in [0, 1]: det S² itself underflows float32 for scales under 3e-8); differentiable
     in the scales and opacities. By hypot, which neither overflows nor underflows (s² did from
     1e19 in float32); a scale of 0 is taken as the dtype's least normal number, so that a width
     of 0 beside it keeps the Gaussian as it is, not 0/0."""
