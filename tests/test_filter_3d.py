@@ -144,8 +144,7 @@ def test_a_model_with_the_filter_draws_its_smoothed_gaussians():
     float64; without it, the Gaussians as they are."""
     model = _model()
     state = model.state_dict()
-    for group in ("params",):
-        state[group] = {k: v.double() for k, v in state[group].items()}
+    state["params"] = {k: v.double() for k, v in state["params"].items()}
     model = GaussianModel.from_state_dict({**state, "background": state["background"].double()})
     views = torch.stack([_view(2.0), _view(3.0)])
     model.filter_3d = filter_widths(model.params["means"], views, K, SIDE, SIDE, 0.01, 0.2)

@@ -3927,6 +3927,14 @@ def test_an_antialiased_run_trains_saves_and_scores_antialiased(dataset, tmp_pat
         load_config("tfp33", {"train": {"antialiased": 1}})
 
 
+def _widths_in_every_view(trainer: Trainer) -> torch.Tensor:
+    """The 3D filter's widths [N] (V = 0.2) of the trainer's Gaussians now in every training
+    view: the trainer takes 256 of the 278, spread over the stream (within 2 % of these)."""
+    d, means = trainer.dataset, trainer.model.params["means"]
+    views = trainer.model.view_of(d.trajectory.pose_at(d.train_timestamps))
+    return filter_widths(means, views, trainer.K, d.width, d.height, trainer.near, 0.2)
+
+
 def test_a_run_with_the_3d_filter_keeps_it_current_resumes_and_saves_it(
     dataset, tmp_path, monkeypatch, ctrl_c
 ):
@@ -3942,12 +3950,7 @@ def test_a_run_with_the_3d_filter_keeps_it_current_resumes_and_saves_it(
     def recorded(self):
         compute(self)
         computed.append(self.iteration)
-        # the widths of the Gaussians now in all the training views (the trainer takes 256 of
-        # the 278, spread over the stream): within 2 %
-        views = self.model.view_of(self.dataset.trajectory.pose_at(self.dataset.train_timestamps))
-        d, means = self.dataset, self.model.params["means"]
-        every_view = filter_widths(means, views, self.K, d.width, d.height, self.near, 0.2)
-        np.testing.assert_allclose(self.model.filter_3d, every_view, rtol=0.02)
+        np.testing.assert_allclose(self.model.filter_3d, _widths_in_every_view(self), rtol=0.02)
 
     monkeypatch.setattr(Trainer, "_filter_3d", recorded)
     overrides = {**FAST, "train": {**FAST["train"], "iterations": 75, "filter_3d": 0.2}}
@@ -3995,10 +3998,7 @@ def test_a_round_that_keeps_the_count_but_moves_the_rows_recomputes_the_widths(
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     with pytest.warns(UserWarning, match="densification grew no Gaussian"):  # (none did)
         trainer.train()
-    d, means = dataset, trainer.model.params["means"]
-    views = trainer.model.view_of(d.trajectory.pose_at(d.train_timestamps))
-    fresh = filter_widths(means, views, trainer.K, d.width, d.height, trainer.near, 0.2)
-    np.testing.assert_allclose(trainer.model.filter_3d, fresh, rtol=0.02)
+    np.testing.assert_allclose(trainer.model.filter_3d, _widths_in_every_view(trainer), rtol=0.02)
 
 
 def test_the_widths_follow_the_pose_refiners_corrections(dataset, tmp_path):
