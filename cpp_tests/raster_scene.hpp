@@ -36,7 +36,7 @@ struct Scene {
     s.cam.fx = U(cam.fx), s.cam.fy = U(cam.fy), s.cam.cx = U(cam.cx), s.cam.cy = U(cam.cy);
     s.cam.width = cam.width, s.cam.height = cam.height;
     s.cam.near_plane = U(cam.near_plane), s.cam.far_plane = U(cam.far_plane);
-    s.cam.antialiased = cam.antialiased;
+    s.cam.antialiased = cam.antialiased, s.cam.dilation = U(cam.dilation);
     return s;
   }
 };

@@ -6,6 +6,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include "harness.hpp"
 #include "raster_scene.hpp"
@@ -54,12 +55,19 @@ Outcome run_filter(const Scene<double>& s, const char* label) {
   return {std::move(r), std::move(g), err};
 }
 
-// run_filter with the plain 2D filter, whose outcome it returns, and with the antialiased one
-// (each opacity scaled by sqrt(det cov2d / det(cov2d + dilation))), finite alike.
+// run_filter with the plain 2D filter, whose outcome it returns, with the antialiased one (each
+// opacity scaled by sqrt(det cov2d / det(cov2d + dilation))), and at the dilation's two ends (the
+// least: conics up to 100 px^-2), finite alike.
 Outcome run(const Scene<double>& s, const char* label) {
-  Scene<double> antialiased = s;
-  antialiased.cam.antialiased = true;
-  run_filter(antialiased, (std::string(label) + ", antialiased").c_str());
+  for (const auto& [antialiased, dilation, name] :
+       {std::tuple{true, kDilation, ", antialiased"},
+        std::tuple{false, kMinDilation, ", least dilation"},
+        std::tuple{true, kMinDilation, ", antialiased, least dilation"},
+        std::tuple{true, kMaxDilation, ", antialiased, most dilation"}}) {
+    Scene<double> filtered = s;
+    filtered.cam.antialiased = antialiased, filtered.cam.dilation = dilation;
+    run_filter(filtered, (std::string(label) + name).c_str());
+  }
   return run_filter(s, label);
 }
 

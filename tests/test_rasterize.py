@@ -106,7 +106,7 @@ def project(scene: dict) -> reference._Splats:
     """The reference's projection of a scene with direct colours, nothing culled upfront."""
     inputs = (*(scene[k] for k in ARGS), scene["width"], scene["height"])
     keep = torch.ones(scene["means"].shape[0], dtype=torch.bool)
-    return reference._project(inputs, None, 0.01, 1e10, False, keep)
+    return reference._project(inputs, None, 0.01, 1e10, False, reference.DILATION, keep)
 
 
 def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
@@ -119,7 +119,7 @@ def render(fn, scene: dict, **overrides) -> spikegs.RasterizeResult:
         sh_degree=s["sh_degree"],
         background=s["background"],
         screen_points=s["screen_points"],
-        **{k: s[k] for k in ("screen_abs", "near", "far", "antialiased") if k in s},
+        **{k: s[k] for k in ("screen_abs", "near", "far", "antialiased", "dilation") if k in s},
     )
 
 
@@ -289,17 +289,21 @@ def test_elongated_splats_across_tiles_match_reference(seed):
     compare_to_reference(scene, torch.float32, 1e-4)
 
 
-@pytest.mark.parametrize("antialiased", [False, True], ids=["plain", "antialiased"])
+@pytest.mark.parametrize(
+    "antialiased, dilation",
+    [(False, 0.3), (True, 0.3), (True, 0.1)],
+    ids=["plain", "antialiased", "mip-splatting"],
+)
 @pytest.mark.parametrize("sh_degree", [None, 1])
 @pytest.mark.parametrize("impl", ["reference", pytest.param("cpp", marks=needs_cpp)])
-def test_gradcheck(impl, sh_degree, antialiased):
+def test_gradcheck(impl, sh_degree, antialiased, dilation):
     """Finite differences in float64: opacities in [0.1, 0.7] and a few Gaussians keep every alpha
     away from the 0.99 clamp and the transmittance stop. screen_points is left out: it is a
     gradient tap whose value the C++ op does not read (its gradient is compared with the reference's
     in test_matches_reference)."""
     fn = spikegs.rasterize if impl == "cpp" else reference.rasterize
     scene = make_scene(5, 4, 17, 11, sh_degree=sh_degree, opacity=(0.1, 0.7), sigma_px=(1.5, 3.0))
-    scene["antialiased"] = antialiased
+    scene["antialiased"], scene["dilation"] = antialiased, dilation
     if sh_degree is not None:
         scene["colors"] *= 0.25  # colours stay well above the clamp at 0
     names = [k for k in PARAMS if k != "screen_points"]
@@ -339,6 +343,54 @@ def test_antialiased_matches_reference(case, dtype, rtol):
     drawn = render(spikegs.rasterize, scene)
     assert (drawn.radii <= plain.radii).all(), "a compensated splat reaches no farther"
     assert drawn.alpha.sum() < plain.alpha.sum(), "the compensation takes opacity away"
+
+
+@needs_cpp
+@pytest.mark.parametrize(
+    "dtype, rtol", [(torch.float64, 1e-9), (torch.float32, 1e-4)], ids=["float64", "float32"]
+)
+@pytest.mark.parametrize("antialiased", [False, True], ids=["plain", "antialiased"])
+@pytest.mark.parametrize("dilation", [0.01, 0.1, 10.0])
+def test_another_dilation_matches_reference(dilation, antialiased, dtype, rtol):
+    """A dilation other than 3DGS's 0.3 px² (Mip-Splatting's 0.1, and the range's two ends)
+    against the reference's, forward and every gradient, on needles across tiles and splats
+    under a pixel (at 0.01 px² their conics reach 100 px⁻²); the image is another than at 0.3."""
+    scene = make_scene(7600, 40, 70, 52, opacity=(0.2, 0.95), sigma_px=(0.05, 6.0))
+    scene["scales"][:10, 0] *= 8.0  # needles
+    scene["antialiased"], scene["dilation"] = antialiased, dilation
+    compare_to_reference(scene, dtype, rtol)
+    default = render(spikegs.rasterize, scene, dilation=0.3)
+    assert (render(spikegs.rasterize, scene).image - default.image).abs().max() > 0.01
+
+
+@needs_cpp
+@pytest.mark.parametrize("op", [spikegs.rasterize, reference.rasterize], ids=["core", "reference"])
+def test_a_splat_is_as_wide_as_its_variance_and_dilation(op):
+    """Independent of either rasterizer's maths: a round splat of variance σ² px² centred on a
+    pixel, drawn with dilation d, has its alpha at the next pixel exp(-1 / (2 (σ² + d))) times
+    the centre's; the centre's is o plain and o σ² / (σ² + d) antialiased (the integral kept)."""
+    o, size, f = 0.95, 9, 20.0
+    K = torch.tensor([[f, 0, 4.5], [0, f, 4.5], [0, 0, 1]], dtype=torch.float64)  # centre (4, 4)
+    for antialiased, variance in ((False, 1e-8), (True, 0.25)):
+        for d in (0.1, 0.3, 2.0, 10.0):
+            out = op(
+                torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
+                torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=torch.float64),
+                torch.full((1, 3), math.sqrt(variance) * 2.0 / f, dtype=torch.float64),
+                torch.tensor([o], dtype=torch.float64),
+                torch.ones(1, 1, dtype=torch.float64),
+                torch.eye(4, dtype=torch.float64),
+                K,
+                size,
+                size,
+                antialiased=antialiased,
+                dilation=d,
+            )
+            centre = o * variance / (variance + d) if antialiased else o
+            assert out.alpha[4, 4].item() == pytest.approx(centre, rel=1e-6), (antialiased, d)
+            ratio = math.exp(-1 / (2 * (variance + d)))
+            for pixel in ((4, 5), (5, 4), (3, 4), (4, 3)):
+                assert out.alpha[pixel].item() == pytest.approx(centre * ratio, rel=1e-6), d
 
 
 @needs_cpp
@@ -680,6 +732,11 @@ def _bad_inputs():
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
             ("antialiased-str", {"antialiased": "yes"}, "antialiased: expected True or False"),
+            ("dilation-small", {"dilation": 0.009}, r"dilation: expected pixels² in 0.01..10"),
+            ("dilation-large", {"dilation": 10.5}, r"dilation: expected pixels² in 0.01..10"),
+            ("dilation-nan", {"dilation": float("nan")}, "dilation: expected pixels²"),
+            ("dilation-bool", {"dilation": True}, "dilation: expected pixels²"),
+            ("dilation-str", {"dilation": "0.1"}, "dilation: expected pixels²"),
             (
                 "sh-degree-float",
                 {"sh_degree": 1.0},
@@ -746,6 +803,8 @@ def test_the_core_has_the_documented_constants():
         "alpha_min": reference.ALPHA_MIN,
         "transmittance_min": reference.T_MIN,
         "dilation": reference.DILATION,
+        "min_dilation": reference.MIN_DILATION,
+        "max_dilation": reference.MAX_DILATION,
         "clamp_margin": reference.CLAMP_MARGIN,
         "tile_size": 16,
         "near": reference.NEAR,
@@ -1343,6 +1402,8 @@ def test_the_core_binding_refuses_sizes_it_would_read_past():
         ({"K": s["K"][:2, :2]}, "viewmat must be 4x4, K 3x3"),
         ({"width": 0}, r"width and height in 1\.\.2\^20"),
         ({"height": 2**20 + 1}, r"width and height in 1\.\.2\^20"),
+        ({"dilation": 0.005}, r"dilation in min_dilation\.\.max_dilation"),
+        ({"dilation": float("inf")}, r"dilation in min_dilation\.\.max_dilation"),
     ):
         with pytest.raises(ValueError, match=message):
             forward(**changes)

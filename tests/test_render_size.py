@@ -61,12 +61,15 @@ def test_at_scale_one_the_frame_is_the_training_sizes_render():
     )
 
 
+@pytest.mark.parametrize("dilation", [0.3, 2.0])
 @pytest.mark.parametrize("scale", [2.0, 4.0])
-def test_a_larger_frame_draws_each_gaussian_as_wide_as_training_did(scale):
-    """A splat σ = 1.5 px at the training size shows σ² + 0.3 px² (the rasterizer's filter);
-    drawn `scale` times larger, it shows scale² times that in the frame's pixels, where drawn as
-    it is it would show scale²·σ² + 0.3 (at 4x: 2.27 against 2.55 training's pixels²)."""
+def test_a_larger_frame_draws_each_gaussian_as_wide_as_training_did(scale, dilation):
+    """A splat σ = 1.5 px at the training size shows σ² + d px² (the rasterizer's filter, the
+    model's dilation d); drawn `scale` times larger, it shows scale² times that in the frame's
+    pixels, where drawn as it is it would show scale²·σ² + d (at 4x and d = 0.3: 2.27 against
+    2.55 training's pixels²)."""
     model, dataset = _splat(1.5), _camera()
+    model.dilation = dilation
     trained = _variance(render_view(model, VIEWMAT, dataset))
     larger = render_scaled(model, VIEWMAT, dataset, scale)
     assert larger.shape == (SIDE * scale, SIDE * scale, 1)

@@ -1164,6 +1164,16 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     for origin in ([1.0, 2.0], [0.0, float("nan"), 0.0]):
         with pytest.raises(ValueError, match="GaussianModel: origin expected 3 finite numbers"):
             GaussianModel(model.params, torch.zeros(3), 1, origin=origin)
+    # a dilation out of the rasterizer's range, at construction or later, refused where set (not
+    # at the first render); a checkpoint from before dilations draws with 3DGS's
+    for dilation in (0.0, float("nan"), True):
+        with pytest.raises(ValueError, match="GaussianModel: dilation: expected pixels²"):
+            GaussianModel(model.params, torch.zeros(3), 1, dilation=dilation)
+        with pytest.raises(ValueError, match="GaussianModel: dilation: expected pixels²"):
+            model.dilation = dilation
+    state = {k: v for k, v in model.state_dict().items() if k != "dilation"}
+    state["background"] = torch.zeros(3)
+    assert GaussianModel.from_state_dict(state).dilation == 0.3
     with pytest.raises(ValueError, match=r"of one N expected, found \[4, 3\] and \[3, 1\]"):
         GaussianModel.from_points(torch.zeros(4, 3), torch.zeros(3, 1), 0.3)
 
@@ -3890,41 +3900,65 @@ def test_a_far_scene_is_saved_and_resumed_about_its_centre(dataset, tmp_path, mo
     assert resumed.model.params["means"].abs().max() < 3 * dataset.scene_radius
 
 
-def test_an_antialiased_run_trains_saves_and_scores_antialiased(dataset, tmp_path):
-    """`train.antialiased: true` draws every render with the antialiased 2D filter: the model,
-    its checkpoint and scene.ply (a comment) keep it, so eval scores what training drew; drawn
-    plain, the same Gaussians score otherwise. A ply's flag other than 0 or 1 is refused."""
-    overrides = {**FAST, "train": {**FAST["train"], "iterations": 6, "antialiased": True}}
+@pytest.mark.parametrize(
+    "key, value, default, comment, bad_comment, bad_config",
+    [
+        (
+            "antialiased",
+            True,
+            False,
+            "spikegs antialiased 1",
+            ("spikegs antialiased 2", "comment 'spikegs antialiased 2': expected 0..1"),
+            (1, r"'train.antialiased' = 1 \(an integer\), expected true"),
+        ),
+        (
+            "dilation",
+            0.1,
+            0.3,
+            "spikegs dilation 0.1",
+            ("spikegs dilation 0.001", r"comment 'spikegs dilation 0.001': expected pixels²"),
+            (11.0, r"train.dilation = 11.0, expected pixels² in 0.01..10"),
+        ),
+    ],
+    ids=["antialiased", "dilation"],
+)
+def test_a_run_with_another_2d_filter_trains_saves_and_scores_with_it(
+    dataset, tmp_path, key, value, default, comment, bad_comment, bad_config
+):
+    """`train.antialiased: true` (the antialiased 2D filter) or `train.dilation: 0.1` (its
+    variance, Mip-Splatting's) draws every render so: the model, its checkpoint and scene.ply (a
+    comment) keep it, so eval scores what training drew; drawn with 3DGS's filter, the same
+    Gaussians score otherwise, and save without the comment. A ply's or config's value out of
+    range is refused."""
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 6, key: value}}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     trainer.train()
-    assert trainer.model.antialiased
-    assert trainer.model.centred_at(trainer.model.origin + 1.0).antialiased  # a copy keeps it
+    assert getattr(trainer.model, key) == value
+    assert getattr(trainer.model.centred_at(trainer.model.origin + 1.0), key) == value  # a copy
     checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
     state = torch.load(checkpoint, weights_only=True)
-    assert state["model"]["antialiased"] is True
-    state["iteration"] = 3  # resumed from half-way: the flag comes back from the checkpoint
+    assert state["model"][key] == value
+    state["iteration"] = 3  # resumed from half-way: the filter comes back from the checkpoint
     torch.save(state, checkpoint)
     (tmp_path / "run" / "scene.ply").unlink()
     resumed = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     resumed.train(resume=True)
-    assert resumed.iteration == 6 and resumed.model.antialiased
+    assert resumed.iteration == 6 and getattr(resumed.model, key) == value
     ply = tmp_path / "run" / "scene.ply"
-    assert "spikegs antialiased 1" in PlyData.read(str(ply))["vertex"].comments
+    assert comment in PlyData.read(str(ply))["vertex"].comments
     loaded = load_ply(ply)
-    assert loaded.antialiased
+    assert getattr(loaded, key) == value
     score = evaluate_run(tmp_path / "run", dataset, write_images=False)["psnr"]
     assert score == pytest.approx(_mean_psnr(resumed.model, dataset), abs=1e-4)
-    loaded.antialiased = False
+    setattr(loaded, key, default)
     assert abs(_mean_psnr(loaded, dataset) - score) > 0.01
-    save_ply(loaded, tmp_path / "plain.ply")  # a plain model's file as before: no comment
-    assert not any(
-        "antialiased" in c for c in PlyData.read(str(tmp_path / "plain.ply"))["vertex"].comments
-    )
-    ply.write_bytes(ply.read_bytes().replace(b"spikegs antialiased 1", b"spikegs antialiased 2"))
-    with pytest.raises(ValueError, match="comment 'spikegs antialiased 2': expected 0..1"):
+    save_ply(loaded, tmp_path / "plain.ply")  # a 3DGS-filtered model's file as before
+    assert not any(key in c for c in PlyData.read(str(tmp_path / "plain.ply"))["vertex"].comments)
+    ply.write_bytes(ply.read_bytes().replace(comment.encode(), bad_comment[0].encode()))
+    with pytest.raises(ValueError, match=bad_comment[1]):
         load_ply(ply)
-    with pytest.raises(ValueError, match=r"'train.antialiased' = 1 \(an integer\), expected true"):
-        load_config("tfp33", {"train": {"antialiased": 1}})
+    with pytest.raises(ValueError, match=bad_config[1]):
+        load_config("tfp33", {"train": {key: bad_config[0]}})
 
 
 def _widths_in_every_view(trainer: Trainer) -> torch.Tensor:

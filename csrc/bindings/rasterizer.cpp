@@ -107,7 +107,7 @@ py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& 
                   const Array<T>& opacities, const Array<T>& colors, const Array<T>& viewmat,
                   const Array<T>& K, int width, int height, int sh_degree, int sh_coeffs,
                   int channels, std::optional<Array<T>> background, T near_plane, T far_plane,
-                  bool antialiased) {
+                  bool antialiased, T dilation) {
   auto ctx = std::make_shared<RasterContext<T>>();
   ctx->sh_degree = sh_degree, ctx->sh_coeffs = sh_coeffs, ctx->channels = channels;
   sr::Camera<T>& cam = ctx->cam;
@@ -116,13 +116,15 @@ py::tuple forward(const Array<T>& means, const Array<T>& quats, const Array<T>& 
   std::copy(viewmat.data(), viewmat.data() + 16, cam.viewmat);
   cam.fx = K.data()[0], cam.fy = K.data()[4], cam.cx = K.data()[2], cam.cy = K.data()[5];
   cam.width = width, cam.height = height, cam.near_plane = near_plane, cam.far_plane = far_plane;
-  cam.antialiased = antialiased;
+  cam.antialiased = antialiased, cam.dilation = dilation;
   // what the core assumes (spikegs.rasterize checks each with its own message): depths sorted by
   // their bits need 0 < near; the alpha cut-off needs opacities <= 1; tile counts fit an int
   if (!(cam.fx > 0 && cam.fy > 0 && std::isfinite(cam.fx) && std::isfinite(cam.fy)))
     throw py::value_error("rasterize: focal lengths fx, fy > 0 expected");
   if (!(T(0) < cam.near_plane && cam.near_plane < cam.far_plane))
     throw py::value_error("rasterize: 0 < near < far expected");
+  if (!(cam.dilation >= T(sr::kMinDilation) && cam.dilation <= T(sr::kMaxDilation)))
+    throw py::value_error("rasterize: a dilation in min_dilation..max_dilation px^2 expected");
   if (width < 1 || height < 1 || width > kMaxImageSize || height > kMaxImageSize)
     throw py::value_error("rasterize: width and height in 1..2^20 expected");
   const sr::GaussianParams<T> p =
@@ -208,7 +210,7 @@ void bind_variant(py::module_& m, const std::string& suffix) {
         py::arg("scales"), py::arg("opacities"), py::arg("colors"), py::arg("viewmat"),
         py::arg("K"), py::arg("width"), py::arg("height"), py::arg("sh_degree"),
         py::arg("sh_coeffs"), py::arg("channels"), py::arg("background"), py::arg("near"),
-        py::arg("far"), py::arg("antialiased") = false,
+        py::arg("far"), py::arg("antialiased") = false, py::arg("dilation") = T(sr::kDilation),
         "-> (image [H,W,C], alpha [H,W], radii [N], means2d [N,2], depths [N], context)");
   m.def(("rasterize_backward_" + suffix).c_str(), &backward<T>, py::arg("context"),
         py::arg("means"), py::arg("quats"), py::arg("scales"), py::arg("opacities"),
@@ -229,6 +231,8 @@ void bind_rasterizer(py::module_& m) {
   constants["alpha_min"] = sr::kAlphaMin;
   constants["transmittance_min"] = sr::kTransmittanceMin;
   constants["dilation"] = sr::kDilation;
+  constants["min_dilation"] = sr::kMinDilation;
+  constants["max_dilation"] = sr::kMaxDilation;
   constants["max_mean2d"] = sr::kMaxMean2d;
   constants["clamp_margin"] = sr::kClampMargin;
   constants["near"] = sr::kDefaultNear;

@@ -106,7 +106,7 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   s.J1 = Vec3<T>(0, cam.fy / z, -cam.fy * ty / (z * z));
   s.V0 = glm::transpose(s.WM) * s.J0;
   s.V1 = glm::transpose(s.WM) * s.J1;
-  const T eps = T(kDilation);
+  const T eps = cam.dilation;
   const T n0 = glm::dot(s.V0, s.V0), n1 = glm::dot(s.V1, s.V1);
   const Vec3<T> cr = glm::cross(s.V0, s.V1);
   s.a = n0 + eps;
@@ -290,7 +290,7 @@ void project_backward(const GaussianParams<T>& prm, const Camera<T>& cam, const 
       // dV0 = 2 da V0 + db V1) cancels large terms for a needle, whose V0 and V1 are nearly
       // parallel: float32 gradients of a 1000 x 0.2 px splat were 5 % off.
       const T g0 = dp.conic[3 * i], g1 = dp.conic[3 * i + 1], g2 = dp.conic[3 * i + 2];
-      const T idet = T(1) / s.det, eps = T(kDilation);
+      const T idet = T(1) / s.det, eps = cam.dilation;
       // each term scaled by 1/det before the sum: for a float32 needle of ~1e18 the terms
       // overflow, or idet^2 underflows to 0 (inf * 0: NaN), while ddet itself is small
       T ddet = -(g0 * (s.c * idet) - g1 * (s.b * idet) + g2 * (s.a * idet)) * idet;

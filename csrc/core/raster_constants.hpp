@@ -11,9 +11,11 @@ constexpr double kAlphaMax = 0.99;          // alpha = min(kAlphaMax, o * G)
 constexpr double kAlphaMin = 1.0 / 255.0;   // a (pixel, Gaussian) pair with alpha below is skipped
 constexpr double kTransmittanceMin = 1e-4;  // a pixel stops before T would fall below this
 constexpr double kDilation = 0.3;           // low-pass filter added to the 2D covariance (px^2)
+constexpr double kMinDilation = 0.01;       // the range a caller may set it in (Camera::dilation):
+constexpr double kMaxDilation = 10.0;       // conics stay below 1 / kMinDilation
 constexpr double kClampMargin = 0.3;        // frustum margin for the Jacobian, in half-FOV units
 // a splat whose 2D mean lies farther than this from the image origin, in x or y (px), is culled:
-// float32's power A dx² (A <= 1 / kDilation) and the backward's sums of dx² over up to 2^40
+// float32's power A dx² (A <= 1 / kMinDilation) and the backward's sums of dx² over up to 2^40
 // pixels stay finite within it (a NaN power reached exp's integer conversion: undefined)
 constexpr double kMaxMean2d = 1099511627776.0;  // 2^40
 constexpr double kDefaultNear = 0.01;

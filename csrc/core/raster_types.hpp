@@ -14,6 +14,9 @@ struct Camera {
   T fx, fy, cx, cy;
   int width, height;
   T near_plane, far_plane;
+  // the low-pass filter added to each 2D covariance's diagonal (px^2), kMinDilation..kMaxDilation
+  // (3DGS's 0.3, Mip-Splatting's 2D filter 0.1)
+  T dilation = T(kDilation);
   // the antialiased variant of the 2D filter (Mip-Splatting's, gsplat's "antialiased" mode): each
   // opacity scaled by sqrt(det(cov2d) / det(cov2d + dilation)), so that dilating a splat keeps
   // its integral instead of adding to it

@@ -34,6 +34,7 @@ from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
 from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
+from .rasterize import CONSTANTS
 from .yaml_files import read_yaml, yaml_text
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -137,6 +138,9 @@ class TrainConfig:
     # each opacity times sqrt(det Σ / det(Σ + 0.3 px²)), so that a splat keeps its integral at
     # any resolution; eval and render draw the run's scene.ply as it trained
     antialiased: bool = False
+    # the variance (px²) that the rasterizer's 2D filter adds to each splat's 2D covariance:
+    # 3DGS's 0.3, Mip-Splatting's 0.1 (beside its 3D filter's 0.2)
+    dilation: float = CONSTANTS["dilation"]
     # Mip-Splatting's 3D smoothing filter: each Gaussian convolved with an isotropic one of this
     # variance in pixels² of the finest training view that sees it (the paper's 0.2), so that
     # nothing finer than the training views sample is learnt or drawn nearer or larger; 0: off
@@ -289,6 +293,13 @@ class Config:
             f"0 (off) or a variance in pixels² of {MIN_FILTER_3D:g}..{MAX_FILTER_3D:g} "
             f"(Mip-Splatting's 0.2; at {MAX_FILTER_3D:g} each Gaussian is wider than 3 pixels in "
             f"its nearest view, under {MIN_FILTER_3D:g} it smooths nothing a render shows)",
+        )
+        low, high = CONSTANTS["min_dilation"], CONSTANTS["max_dilation"]
+        _require(
+            low <= t.dilation <= high,
+            "train.dilation",
+            t.dilation,
+            f"pixels² in {low:g}..{high:g} (3DGS's 0.3, Mip-Splatting's 0.1)",
         )
         for name in ("eval_every", "checkpoint_every", "log_every"):
             _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")

@@ -10,7 +10,7 @@ import torch
 
 from .filter_3d import smoothed
 from .number_checks import is_int
-from .rasterize import RasterizeResult, rasterize
+from .rasterize import CONSTANTS, RasterizeResult, check_dilation, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
@@ -56,7 +56,7 @@ class GaussianModel:
     sh_dc [N, 1, C] and sh_rest [N, K - 1, C] with K = (sh_degree + 1)², plus a learnable
     background [C]. C = 1 for a mono spike camera. `filter_3d` [N] (world units, or None: off):
     the 3D smoothing filter's widths that `render` convolves each Gaussian with (`filter_3d.py`),
-    not learnt.
+    not learnt. `antialiased` and `dilation` (px²) are the rasterizer's 2D filter it is drawn with.
 
     The means are measured from `origin` [3] (float64, world units; default the world's): a
     trainer puts it at the scene's centre, so that a scene far from the world's origin (UTM or
@@ -72,6 +72,7 @@ class GaussianModel:
         origin=None,
         antialiased: bool = False,
         filter_3d: torch.Tensor | None = None,
+        dilation: float = CONSTANTS["dilation"],
     ):
         missing = set(PARAMETER_NAMES) - set(params)
         if missing:
@@ -117,7 +118,18 @@ class GaussianModel:
         # drawn with the antialiased 2D filter (`spikegs.rasterize`'s `antialiased`): a model
         # trained so renders so
         self.antialiased = antialiased
-        self.filter_3d = filter_3d  # (the setter checks it)
+        self.filter_3d = filter_3d  # (the setters check it and the dilation)
+        self.dilation = dilation
+
+    @property
+    def dilation(self) -> float:
+        """The 2D filter's variance (px²) added to each splat's 2D covariance in `render`."""
+        return self._dilation
+
+    @dilation.setter
+    def dilation(self, dilation: float) -> None:
+        check_dilation(dilation, "GaussianModel: dilation")
+        self._dilation = float(dilation)
 
     @property
     def filter_3d(self) -> torch.Tensor | None:
@@ -284,6 +296,7 @@ class GaussianModel:
             screen_points=screen_points,
             screen_abs=screen_abs,
             antialiased=self.antialiased,
+            dilation=self.dilation,
         )
 
     def state_dict(self) -> dict:
@@ -294,12 +307,13 @@ class GaussianModel:
             "origin": self.origin.tolist(),
             "antialiased": self.antialiased,
             "filter_3d": None if self.filter_3d is None else self.filter_3d.clone(),
+            "dilation": self.dilation,
         }
 
     @classmethod
     def from_state_dict(cls, state: dict) -> GaussianModel:
         # a checkpoint from before origins holds world means, one from before the antialiased
-        # or the 3D filter was drawn without them
+        # or the 3D filter was drawn without them, one from before dilations at 0.3
         return cls(
             state["params"],
             state["background"],
@@ -307,4 +321,5 @@ class GaussianModel:
             state.get("origin"),
             state.get("antialiased", False),
             state.get("filter_3d"),
+            state.get("dilation", CONSTANTS["dilation"]),
         )

@@ -9,7 +9,8 @@ channel repeated and a `spikegs channels 1` comment, so that the import gives ba
 Colours are the model's linear intensities (a viewer, which shows them as display values, shows
 them darker than `spikegs render`); the background is a `spikegs background` comment. A model
 with the 3D smoothing filter (`train.filter_3d`) adds Mip-Splatting's `filter_3D` property, its
-widths (the scales and opacities stay the unfiltered ones, as Mip-Splatting writes them).
+widths (the scales and opacities stay the unfiltered ones, as Mip-Splatting writes them). The 2D
+filter, where not 3DGS's, is a comment: `spikegs antialiased 1`, `spikegs dilation V` (px²).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from plyfile import PlyData, PlyElement, PlyParseError
 
 from .atomic_save import write_atomically
 from .gaussians import GaussianModel
+from .rasterize import CONSTANTS, check_dilation
 from .sh import MAX_DEGREE
 
 FILE_SH_REST = 15  # SH coefficients per channel past the DC one that a file holds (degree 3)
@@ -75,6 +77,8 @@ def save_ply(model: GaussianModel, path: str | Path) -> None:
         comments.append("spikegs origin " + " ".join(f"{v!r}" for v in model.origin.tolist()))
     if model.antialiased:  # a 3DGS viewer draws it without (README, scene.ply in other tools)
         comments.append("spikegs antialiased 1")
+    if model.dilation != CONSTANTS["dilation"]:  # a 3DGS viewer draws it with 0.3 px²
+        comments.append(f"spikegs dilation {model.dilation!r}")
     # the comments go after 'element vertex N': SIBR's viewer (and its C++ kin) reads the count
     # from the header's third line, and read 0 Gaussians from a file comment there
     ply = PlyData([PlyElement.describe(vertex, "vertex", comments=comments)])
@@ -100,6 +104,20 @@ def _tag_int(path, tags: dict, key: str, default: int, lo: int, hi: int) -> int:
     if not re.fullmatch(r"\d+", text.strip()) or not lo <= int(text) <= hi:
         raise ValueError(f"{path}: comment 'spikegs {key} {text}': expected {lo}..{hi}")
     return int(text)
+
+
+def _tag_dilation(path, tags: dict) -> float:
+    """The 2D filter's dilation a file states (`spikegs dilation V`, px²), else 3DGS's 0.3;
+    ValueError naming the file for one out of the rasterizer's range."""
+    text = tags.get("dilation")
+    if text is None:
+        return CONSTANTS["dilation"]
+    try:
+        dilation = float(text)
+    except ValueError:
+        dilation = text
+    check_dilation(dilation, f"{path}: comment 'spikegs dilation {text}'")
+    return dilation
 
 
 def read_vertices(path: str | Path) -> PlyData:
@@ -230,10 +248,11 @@ def load_ply(path: str | Path) -> GaussianModel:
                 f"{path}: comment 'spikegs origin {tags['origin']}': expected 3 finite numbers"
             )
     antialiased = bool(_tag_int(path, tags, "antialiased", 0, 0, 1))
+    dilation = _tag_dilation(path, tags)
     widths = col([FILTER_3D])[:, 0] if FILTER_3D in names else None
     if widths is not None and not (widths.isfinite() & (widths >= 0)).all():
         raise ValueError(f"{path}: vertex property {FILTER_3D}: expected finite widths >= 0")
-    return GaussianModel(params, background, sh_degree, origin, antialiased, widths)
+    return GaussianModel(params, background, sh_degree, origin, antialiased, widths, dilation)
 
 
 def declares_channels(path: str | Path) -> bool:

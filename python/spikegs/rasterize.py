@@ -63,6 +63,17 @@ def _check_intrinsics(K: torch.Tensor) -> None:
         raise ValueError(f"K: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {k}")
 
 
+def check_dilation(dilation, name: str = "dilation") -> None:
+    """Raise ValueError unless `dilation` is a real number in the core's range (px²)."""
+    low, high = CONSTANTS["min_dilation"], CONSTANTS["max_dilation"]
+    real = isinstance(dilation, numbers.Real) and not isinstance(dilation, bool)
+    if not (real and low <= dilation <= high):
+        raise ValueError(
+            f"{name}: expected pixels² in {low:g}..{high:g} (3DGS's 0.3, Mip-Splatting's 0.1; "
+            f"below {low:g} a sub-pixel splat falls between pixels), got {dilation!r}"
+        )
+
+
 def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
     """(sh_degree, coefficients per Gaussian) for `colors`; degree -1 means direct colours."""
     degree = degree_of(colors, sh_degree)
@@ -118,6 +129,7 @@ class _RasterizeFunction(torch.autograd.Function):
             settings["near"],
             settings["far"],
             settings["antialiased"],
+            settings["dilation"],
         )
         ctx.raster, ctx.core, ctx.image_shape = raster, core, image.shape
         ctx.screen_abs = screen_abs
@@ -179,6 +191,7 @@ def rasterize(
     screen_points: torch.Tensor | None = None,
     screen_abs: torch.Tensor | None = None,
     antialiased: bool = False,
+    dilation: float = CONSTANTS["dilation"],
 ) -> RasterizeResult:
     """Render N Gaussians into one [H, W, C] image of `width` × `height` pixels, differentiably.
 
@@ -196,10 +209,11 @@ def rasterize(
     `.retain_grad()` (gsplat's way) sees no gradient of the image. `screen_abs`, an optional
     [N, 2] tensor, has each backward add the compositing's per-pixel shares of that gradient
     summed in absolute value (AbsGS's densification signal: shares of opposite sign do not
-    cancel). `antialiased` scales each opacity by sqrt(det Σ / det(Σ + 0.3 I)) of its 2D
-    covariance Σ (Mip-Splatting's 2D filter, gsplat's "antialiased" mode): the 0.3 px² dilation
-    then keeps a splat's integral instead of adding to it, so that a splat under a pixel carries
-    the same light at any resolution. Culled Gaussians get radius 0 and zero gradient.
+    cancel). `dilation` (px², 0.01..10) is added to each splat's 2D covariance Σ's diagonal: 3DGS's
+    low-pass filter, 0.3 by default, Mip-Splatting's 0.1. `antialiased` scales each opacity by
+    sqrt(det Σ / det(Σ + dilation I)) (Mip-Splatting's 2D filter, gsplat's "antialiased" mode):
+    the dilation then keeps a splat's integral instead of adding to it, so that a splat under a
+    pixel carries the same light at any resolution. Culled Gaussians get radius 0 and zero gradient.
     Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
@@ -295,6 +309,7 @@ def rasterize(
         )
     if not isinstance(antialiased, bool):
         raise ValueError(f"antialiased: expected True or False, got {antialiased!r}")
+    check_dilation(dilation)
     degree, coeffs = _sh_layout(colors, sh_degree)
     settings = dict(
         width=width,
@@ -305,6 +320,7 @@ def rasterize(
         near=float(near),
         far=float(far),
         antialiased=antialiased,
+        dilation=float(dilation),
     )
     scene = (means, quats, scales, opacities, colors, viewmat, background)
     outputs = _RasterizeFunction.apply(*scene, screen_points, screen_abs, K, settings)

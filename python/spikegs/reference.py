@@ -18,7 +18,8 @@ from .sh import degree_of, sh_basis
 ALPHA_MAX = 0.99  # alpha clamp
 ALPHA_MIN = 1.0 / 255.0  # a pair below is skipped
 T_MIN = 1e-4  # a pixel stops below this transmittance
-DILATION = 0.3  # added to the 2D covariance's diagonal (pixels²)
+DILATION = 0.3  # the default added to the 2D covariance's diagonal (pixels²)
+MIN_DILATION, MAX_DILATION = 0.01, 10.0  # the range the op takes it in
 CLAMP_MARGIN = 0.3  # the Jacobian's clamp, beyond the image, in tan(fov/2) units
 NEAR, FAR = 0.01, 1e10  # the default clipping planes (world units)
 MAX_MEAN2D = 2.0**40  # a 2D mean farther from the image origin in x or y (pixels) is culled
@@ -53,7 +54,7 @@ def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
     return mask.view(-1, *([1] * (like.dim() - 1)))
 
 
-def _project(scene: tuple, sh_degree, near, far, antialiased: bool, keep) -> _Splats:
+def _project(scene: tuple, sh_degree, near, far, antialiased: bool, dilation, keep) -> _Splats:
     """Steps 1-10 of the projection of `scene` (means, quats, scales, opacities, colors, viewmat,
     K, width, height, as `rasterize` takes them) for the Gaussians in `keep` [N] bool.
 
@@ -93,9 +94,9 @@ def _project(scene: tuple, sh_degree, near, far, antialiased: bool, keep) -> _Sp
     V0 = torch.einsum("ni,nij->nj", J0, WM)  # [N, 3] rows of V = J W M
     V1 = torch.einsum("ni,nij->nj", J1, WM)
     n0, n1, b = (V0 * V0).sum(-1), (V1 * V1).sum(-1), (V0 * V1).sum(-1)  # [N]
-    a, c = n0 + DILATION, n1 + DILATION
+    a, c = n0 + dilation, n1 + dilation
     cross = torch.linalg.cross(V0, V1)  # [N, 3]
-    det = (cross * cross).sum(-1) + DILATION * (n0 + n1) + DILATION * DILATION  # [N]
+    det = (cross * cross).sum(-1) + dilation * (n0 + n1) + dilation * dilation  # [N]
     keep = keep & torch.isfinite(det) & (det > 0)
     n_max = torch.maximum(n0, n1)  # the backward's terms reach 2 |V|^3: culled where that overflows
     keep = keep & torch.isfinite(2 * n_max * torch.sqrt(n_max))
@@ -216,6 +217,7 @@ def rasterize(
     far: float = FAR,
     screen_points: torch.Tensor | None = None,
     antialiased: bool = False,
+    dilation: float = DILATION,
 ) -> RasterizeResult:
     """Render N Gaussians exactly as docs/rasterizer.md says; differentiable through autograd.
 
@@ -223,7 +225,8 @@ def rasterize(
     or [N, K, C] (SH coefficients), viewmat [4, 4] world-to-camera, K [3, 3], background [C].
     `screen_points` [N, 2] (zeros) is added to the 2D means the compositing uses, so that its
     gradient is the screen-space gradient of the 2D means, as in `spikegs.rasterize`.
-    `antialiased` scales each opacity by sqrt(det Σ / det(Σ + dilation)) (step 6).
+    `dilation` (px²) is added to each 2D covariance Σ's diagonal; `antialiased` scales each
+    opacity by sqrt(det Σ / det(Σ + dilation)) (step 6).
     Culled Gaussians get radius 0, mean2d 0, depth 0 and exactly zero gradient.
     """
     sh_degree = degree_of(colors, sh_degree)
@@ -237,7 +240,7 @@ def rasterize(
     qq = (quats * quats).sum(-1)  # [N]; as the core: |q|^2 that overflows or underflows culls
     keep = finite & (qq > 0) & qq.isfinite()  # [N]
     scene = (means, quats, scales, opacities, colors, viewmat, K, width, height)
-    args = (scene, sh_degree, near, far, antialiased)
+    args = (scene, sh_degree, near, far, antialiased, dilation)
     # Pass 1 finds the visible set; pass 2 recomputes with every culled row on safe values, so no
     # NaN or inf of a culled Gaussian can reach a gradient.
     with torch.no_grad():

@@ -1,9 +1,10 @@
 """Renders at a size other than the training images': drawn no finer than training saw the scene.
 
-The rasterizer widens every splat by DILATION px² of the image it draws (3DGS's low-pass filter),
-and training fitted the Gaussians with that filter at the training images' size. Drawn S times
-larger, a splat keeps only 1/S² of it and thin Gaussians thin further; drawn smaller, every pixel
-takes one sample of a scene fitted to finer pixels and aliases. So a larger frame widens each
+The rasterizer widens every splat by its dilation, px² of the image it draws (3DGS's low-pass
+filter, 0.3 unless `train.dilation` says otherwise), and training fitted the Gaussians with that
+filter at the training images' size. Drawn S times larger, a splat keeps only 1/S² of it and thin
+Gaussians thin further; drawn smaller, every pixel takes one sample of a scene fitted to finer
+pixels and aliases. So a larger frame widens each
 Gaussian in 3D by the filter its finer pixels miss at its depth in the view, and a smaller one
 averages m×m pixels of a render at least the training images' size (BENCHMARKS.md, "Renders at
 another size": against a box-filtered ground truth of a textured scene, 4x larger 24.13 dB
@@ -27,7 +28,6 @@ import torch
 
 from .data.dataset import camera_keys
 from .gaussians import GaussianModel
-from .rasterize import CONSTANTS
 
 MAX_SIDE = 8192  # pixels a side of a scaled frame (8192² colour: 0.8 GB a render)
 
@@ -95,7 +95,7 @@ def widened(
 ) -> GaussianModel:
     """The model with each Gaussian's covariance grown by k·I (world units²), k the low-pass
     filter that `camera`'s pixels, finer than the training camera's (`trained`: fl_x, fl_y),
-    miss at its depth z in world-to-camera `viewmat` [4, 4]: DILATION · z² · (1/(fx₀·fy₀) −
+    miss at its depth z in world-to-camera `viewmat` [4, 4]: dilation · z² · (1/(fx₀·fy₀) −
     1/(fx·fy)), as wide in the image as training drew it (the model itself where they are no
     finer). Growing the covariance by a multiple of I keeps its axes: the scales s become
     sqrt(s² + k)."""
@@ -104,7 +104,7 @@ def widened(
         return model
     viewmat = np.asarray(viewmat, np.float64)
     depth = model.world_means() @ torch.from_numpy(viewmat[2, :3]) + viewmat[2, 3]  # [N]
-    k = CONSTANTS["dilation"] * depth.square() * float(finer)  # [N], float64: 1/px² → world
+    k = model.dilation * depth.square() * float(finer)  # [N], float64: 1/px² → world
     state = model.state_dict()
     log_scales = state["params"]["log_scales"]  # [N, 3]
     variances = (2 * log_scales.double()).exp()  # float64: no underflow

@@ -248,7 +248,7 @@ class Trainer:
                 max_scale,
             )
         self.model.origin = origin
-        self.model.antialiased = t.antialiased
+        self.model.antialiased, self.model.dilation = t.antialiased, t.dilation
         with torch.no_grad():
             self.model.background.copy_(torch.from_numpy(sample.median))
         self._start_optimisation()
