@@ -1404,6 +1404,7 @@ def test_the_core_binding_refuses_sizes_it_would_read_past():
         ({"height": 2**20 + 1}, r"width and height in 1\.\.2\^20"),
         ({"dilation": 0.005}, r"dilation in min_dilation\.\.max_dilation"),
         ({"dilation": float("inf")}, r"dilation in min_dilation\.\.max_dilation"),
+        ({"dilation": float("nan")}, r"dilation in min_dilation\.\.max_dilation"),
     ):
         with pytest.raises(ValueError, match=message):
             forward(**changes)

@@ -1174,6 +1174,11 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     state = {k: v for k, v in model.state_dict().items() if k != "dilation"}
     state["background"] = torch.zeros(3)
     assert GaussianModel.from_state_dict(state).dilation == 0.3
+    # a numpy scalar is kept as a float: its repr in scene.ply's comment was np.float64(0.25)
+    model = GaussianModel.from_state_dict(state)
+    model.dilation = np.float64(0.25)
+    save_ply(model, tmp_path / "numpy.ply")
+    assert load_ply(tmp_path / "numpy.ply").dilation == 0.25
     with pytest.raises(ValueError, match=r"of one N expected, found \[4, 3\] and \[3, 1\]"):
         GaussianModel.from_points(torch.zeros(4, 3), torch.zeros(3, 1), 0.3)
 

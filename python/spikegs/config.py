@@ -135,7 +135,7 @@ class TrainConfig:
     init_gaussians: int = 5000
     sh_degree: int = 0  # 0 suits a mono camera: leave out what the scene does not need
     # the rasterizer's antialiased 2D filter (Mip-Splatting's; gsplat's "antialiased" mode):
-    # each opacity times sqrt(det Σ / det(Σ + 0.3 px²)), so that a splat keeps its integral at
+    # each opacity times sqrt(det Σ / det(Σ + dilation)), so that a splat keeps its integral at
     # any resolution; eval and render draw the run's scene.ply as it trained
     antialiased: bool = False
     # the variance (px²) that the rasterizer's 2D filter adds to each splat's 2D covariance:
