@@ -118,8 +118,8 @@ class GaussianModel:
         # drawn with the antialiased 2D filter (`spikegs.rasterize`'s `antialiased`): a model
         # trained so renders so
         self.antialiased = antialiased
-        self.filter_3d = filter_3d  # (the setters check it and the dilation)
-        self.dilation = dilation
+        self.filter_3d = filter_3d  # (the setter checks it)
+        self.dilation = dilation  # (so does this one)
 
     @property
     def dilation(self) -> float:

@@ -4,18 +4,17 @@ The rasterizer widens every splat by its dilation, px² of the image it draws (3
 filter, 0.3 unless `train.dilation` says otherwise), and training fitted the Gaussians with that
 filter at the training images' size. Drawn S times larger, a splat keeps only 1/S² of it and thin
 Gaussians thin further; drawn smaller, every pixel takes one sample of a scene fitted to finer
-pixels and aliases. So a larger frame widens each
-Gaussian in 3D by the filter its finer pixels miss at its depth in the view, and a smaller one
-averages m×m pixels of a render at least the training images' size (BENCHMARKS.md, "Renders at
-another size": against a box-filtered ground truth of a textured scene, 4x larger 24.13 dB
-against 23.07 drawn as it is, 1/4 the size 33.15 dB against 20.03; on the Cornell box's broad
-walls the widening cost 0.14-0.25 dB at 1.5-2x and gained 0.15 at 4x). A model trained with the
-antialiased filter (`train.antialiased`) keeps each splat's mass in any pixels: it is averaged the
-same way smaller, and drawn as it is larger (widened, its splats gained mass). So is one with the
-3D smoothing filter (`train.filter_3d`), which already keeps each Gaussian no finer than the
-training views sampled it (widened too, TFP(33)+3DGS's plain model with the filter scored 0.42
-and 0.83 dB lower at 4x on the textured scene and the Cornell box: BENCHMARKS.md, "Mip-Splatting's
-3D smoothing filter").
+pixels and aliases. So a larger frame widens each Gaussian in 3D by the filter its finer pixels miss
+at its depth in the view, and a smaller one averages m×m pixels of a render at least the training
+images' size (BENCHMARKS.md, "Renders at another size": against a box-filtered ground truth of a
+textured scene, 4x larger 24.13 dB against 23.07 drawn as it is, 1/4 the size 33.15 dB against
+20.03; on the Cornell box's broad walls the widening cost 0.14-0.25 dB at 1.5-2x and gained 0.15 at
+4x). A model trained with the antialiased filter (`train.antialiased`) keeps each splat's mass in
+any pixels: it is averaged the same way smaller, and drawn as it is larger (widened, its splats
+gained mass). So is one with the 3D smoothing filter (`train.filter_3d`), which already keeps each
+Gaussian no finer than the training views sampled it (widened too, TFP(33)+3DGS's plain model with
+the filter scored 0.42 and 0.83 dB lower at 4x on the textured scene and the Cornell box:
+BENCHMARKS.md, "Mip-Splatting's 3D smoothing filter").
 """
 
 from __future__ import annotations
