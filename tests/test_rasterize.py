@@ -363,6 +363,24 @@ def test_another_dilation_matches_reference(dilation, antialiased, dtype, rtol):
     assert (render(spikegs.rasterize, scene).image - default.image).abs().max() > 0.01
 
 
+def _round_splat(op, angle: float, o: float, K, size: int, **options) -> spikegs.RasterizeResult:
+    """One round splat of opacity `o` and colour 1 on the optical axis at depth 2, as wide as
+    `angle` (its σ over its depth: σ·f pixels at focal length f), drawn by `op` (either
+    rasterizer, float64) through K [3, 3] in a `size` × `size` image with `options`."""
+    return op(
+        torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
+        torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=torch.float64),
+        torch.full((1, 3), 2.0 * angle, dtype=torch.float64),
+        torch.tensor([o], dtype=torch.float64),
+        torch.ones(1, 1, dtype=torch.float64),
+        torch.eye(4, dtype=torch.float64),
+        K,
+        size,
+        size,
+        **options,
+    )
+
+
 @needs_cpp
 @pytest.mark.parametrize("op", [spikegs.rasterize, reference.rasterize], ids=["core", "reference"])
 def test_a_splat_is_as_wide_as_its_variance_and_dilation(op):
@@ -373,18 +391,8 @@ def test_a_splat_is_as_wide_as_its_variance_and_dilation(op):
     K = torch.tensor([[f, 0, 4.5], [0, f, 4.5], [0, 0, 1]], dtype=torch.float64)  # centre (4, 4)
     for antialiased, variance in ((False, 1e-8), (True, 0.25)):
         for d in (0.1, 0.3, 2.0, 10.0):
-            out = op(
-                torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
-                torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=torch.float64),
-                torch.full((1, 3), math.sqrt(variance) * 2.0 / f, dtype=torch.float64),
-                torch.tensor([o], dtype=torch.float64),
-                torch.ones(1, 1, dtype=torch.float64),
-                torch.eye(4, dtype=torch.float64),
-                K,
-                size,
-                size,
-                antialiased=antialiased,
-                dilation=d,
+            out = _round_splat(
+                op, math.sqrt(variance) / f, o, K, size, antialiased=antialiased, dilation=d
             )
             centre = o * variance / (variance + d) if antialiased else o
             assert out.alpha[4, 4].item() == pytest.approx(centre, rel=1e-6), (antialiased, d)
@@ -428,18 +436,7 @@ def test_an_antialiased_splat_keeps_its_mass_at_any_resolution(op):
             size = 16 * scale
             f = 20.0 * scale
             K = torch.tensor([[f, 0, size / 2 + 0.13], [0, f, size / 2 - 0.21], [0, 0, 1]])
-            out = op(
-                torch.tensor([[0.0, 0.0, 2.0]], dtype=torch.float64),
-                torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=torch.float64),
-                torch.full((1, 3), sigma * 2.0 / 20.0, dtype=torch.float64),
-                torch.tensor([o], dtype=torch.float64),
-                torch.ones(1, 1, dtype=torch.float64),
-                torch.eye(4, dtype=torch.float64),
-                K.double(),
-                size,
-                size,
-                antialiased=antialiased,
-            )
+            out = _round_splat(op, sigma / 20.0, o, K.double(), size, antialiased=antialiased)
             masses[antialiased, scale] = out.alpha.sum().item() / scale**2
             if antialiased:
                 var = (sigma * scale) ** 2  # the undilated variance, pixels² of this size

@@ -34,7 +34,7 @@ from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
 from .number_checks import SEED_MAX, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
-from .rasterize import CONSTANTS
+from .rasterize import CONSTANTS, DILATION_EXPECTED, is_dilation
 from .yaml_files import read_yaml, yaml_text
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -294,13 +294,7 @@ class Config:
             f"(Mip-Splatting's 0.2; at {MAX_FILTER_3D:g} each Gaussian is wider than 3 pixels in "
             f"its nearest view, under {MIN_FILTER_3D:g} it smooths nothing a render shows)",
         )
-        low, high = CONSTANTS["min_dilation"], CONSTANTS["max_dilation"]
-        _require(
-            low <= t.dilation <= high,
-            "train.dilation",
-            t.dilation,
-            f"pixels² in {low:g}..{high:g} (3DGS's 0.3, Mip-Splatting's 0.1)",
-        )
+        _require(is_dilation(t.dilation), "train.dilation", t.dilation, DILATION_EXPECTED)
         for name in ("eval_every", "checkpoint_every", "log_every"):
             _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")
         for f in dataclasses.fields(self.lr):

@@ -63,15 +63,24 @@ def _check_intrinsics(K: torch.Tensor) -> None:
         raise ValueError(f"K: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {k}")
 
 
+_LOW, _HIGH = CONSTANTS["min_dilation"], CONSTANTS["max_dilation"]
+# what a dilation must be, for the errors of `check_dilation` and the config's `train.dilation`
+DILATION_EXPECTED = (
+    f"pixels² in {_LOW:g}..{_HIGH:g} (3DGS's 0.3, Mip-Splatting's 0.1; below {_LOW:g} a sub-pixel "
+    f"splat falls between pixels)"
+)
+
+
+def is_dilation(value) -> bool:
+    """Whether `value` is a real number in the core's range of dilations (px²)."""
+    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    return real and _LOW <= value <= _HIGH
+
+
 def check_dilation(dilation, name: str = "dilation") -> None:
     """Raise ValueError unless `dilation` is a real number in the core's range (px²)."""
-    low, high = CONSTANTS["min_dilation"], CONSTANTS["max_dilation"]
-    real = isinstance(dilation, numbers.Real) and not isinstance(dilation, bool)
-    if not (real and low <= dilation <= high):
-        raise ValueError(
-            f"{name}: expected pixels² in {low:g}..{high:g} (3DGS's 0.3, Mip-Splatting's 0.1; "
-            f"below {low:g} a sub-pixel splat falls between pixels), got {dilation!r}"
-        )
+    if not is_dilation(dilation):
+        raise ValueError(f"{name}: expected {DILATION_EXPECTED}, got {dilation!r}")
 
 
 def _sh_layout(colors: torch.Tensor, sh_degree: int | None) -> tuple[int, int]:
