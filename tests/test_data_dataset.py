@@ -18,6 +18,7 @@ from spikegs.data import (
     SCENES,
     Dataset,
     FrameSequenceSource,
+    ProceduralSource,
     Trajectory,
     load_dataset,
     simulate_dataset,
@@ -30,13 +31,14 @@ from spikegs.data.dataset import (
     write_parts,
 )
 from spikegs.data.dataset import TestView as View
-from spikegs.data.simulate import warn_about_data
+from spikegs.data.simulate import clean_source, warn_about_data
 from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
 from spikegs.data.transforms_file import camera_matrix
 from spikegs.spikes import SpikeStream
 from spikegs.spikes.simulate import SimParams
 from spikegs.spikes.stream import save_dat
+from spikegs.targets import intensity_scale
 
 SMALL = dict(height=24, width=32, readouts=400, test_on_path=2, test_off_path=2, progress=False)
 
@@ -53,6 +55,7 @@ def test_round_trip(small):
     assert ds.meta["scene"] == "solids" and ds.meta["seed"] == 3
     assert ds.meta["readout_period_s"] == 25e-6 and ds.meta["flip"] is True
     assert ds.meta["sim"]["rate_at_one"] == 0.25
+    assert ds.meta["spp"] == 1  # a built-in scene's pixel centres, by default
     assert ds.K.dtype == np.float32 and ds.K[0, 2] == 16 and ds.K[1, 2] == 12
     assert len(ds.stream) == ds.num_readouts == 400
     np.testing.assert_array_equal(ds.stream.packed(), small.stream.packed())
@@ -499,6 +502,22 @@ def test_negative_view_counts_refused(tmp_path):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "seed": seed, "color": True})
     with pytest.raises(ValueError, match="spp .* expected samples per pixel >= 1, found 0"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 0})
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_built_in_scene_simulated_at_an_spp_keeps_it_to_its_clean_images(tmp_path):
+    """--spp 4 for a built-in scene: each pixel its box's mean light, in the held-out images and
+    in what meta.json rebuilds (clean_source: the oracle's targets); refused unless a square."""
+    ds = simulate_dataset("solids", tmp_path / "s4", **{**SMALL, "spp": 4})
+    assert ds.meta["spp"] == 4 and load_dataset(ds.root).meta["spp"] == 4
+    view = next(v for v in ds.test_views if v.readout is not None)
+    source = clean_source(ds)
+    clean = source.image_at(ds.trajectory, view.readout)  # [H, W, 1]
+    np.testing.assert_allclose(clean, view.image / intensity_scale(ds), atol=1e-6)
+    centres = ProceduralSource("solids", SCENES["solids"](), 32, 24, K=source.K)
+    assert np.abs(centres.image_at(ds.trajectory, view.readout) - clean).max() > 0.05
+    with pytest.raises(ValueError, match=r"spp \(--spp\): .* expected a square .* found 2"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 2})
     assert not (tmp_path / "x").exists()
 
 

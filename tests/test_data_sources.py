@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy import special
 from scipy.spatial.transform import Rotation
 from spikegs.data import (
     SCENES,
@@ -20,6 +21,7 @@ from spikegs.data import (
     real,
     simulate_dataset,
 )
+from spikegs.data.scenes import GaussianScene
 from spikegs.data.sources import MissingDependencyError, MitsubaSource, import_mitsuba
 from spikegs.data.trajectory import check_rigid, look_at
 from spikegs.data.transforms_file import (
@@ -65,6 +67,57 @@ def test_procedural_scenes(name):
     assert gray.shape == (30, 40, 1) and color.shape == (30, 40, 3) and gray.dtype == np.float32
     np.testing.assert_allclose(gray[..., 0], color @ LUMA_709, atol=1e-5)  # Rec. 709 luma
     assert gray.std() > 0.02  # the scene is in view
+
+
+def _splat_scene(sigma_px: float, opacity: float, focal: float, depth: float) -> GaussianScene:
+    """A white round Gaussian `depth` ahead of a camera at the origin looking along +z, whose
+    image has std `sigma_px` pixels at `focal`, and a second one behind the camera (culled), so
+    that the scene has a radius."""
+    sigma = sigma_px * depth / focal
+    return GaussianScene(
+        means=np.array([[0.0, 0.0, depth], [0.0, 0.0, -depth]]),
+        quats=np.array([[1.0, 0, 0, 0]] * 2),
+        scales=np.full((2, 3), sigma),
+        opacities=np.full(2, opacity),
+        colors=np.ones((2, 3)),
+        background=np.zeros(3),
+    )
+
+
+def _box_means(opacity, var, centre, side) -> np.ndarray:
+    """Each pixel's mean over its unit box of opacity · exp(-|x - centre|² / (2 var)), pixel i
+    spanning [i, i + 1) on each axis (centres at +0.5): [side, side]."""
+    edges = (np.arange(side + 1) - np.asarray(centre)[:, None]) / np.sqrt(var)  # [2, side + 1]
+    mass = np.diff(special.ndtr(edges), axis=1) * np.sqrt(2 * np.pi * var)  # [2, side]: x, y
+    return opacity * mass[1][:, None] * mass[0][None, :]
+
+
+def test_a_built_in_scene_s_pixels_take_their_box_s_mean_light_at_spp():
+    """spp = s² draws s×s samples a pixel and averages them: each pixel the mean of a sub-pixel
+    Gaussian over its box (closed form, erf), within the midpoint rule's error; spp 1 (the
+    default) samples the centre, widened by the rasterizer's 0.3 px², and misses it by far."""
+    focal, side, centre = 50.0, 12, (6.3, 5.8)  # the splat off the pixel grid, x and y apart
+    scene = _splat_scene(0.45, 0.8, focal, depth=3.0)
+    K = np.array([[focal, 0, centre[0]], [0, focal, centre[1]], [0, 0, 1]])
+    errors = {}
+    for spp in (1, 16, 64):
+        image = ProceduralSource("splat", scene, side, side, K=K, spp=spp).render(np.eye(4))
+        assert image.shape == (side, side, 1) and image.dtype == np.float32
+        # the rasterizer widens each fine pixel's splat by 0.3 fine px²: 0.3 / spp px²
+        expected = _box_means(0.8, 0.45**2 + 0.3 / spp, centre, side)
+        errors[spp] = np.abs(image[..., 0] - expected).max()
+    assert errors[64] < 0.003 and errors[16] < 0.01, errors  # of a peak of 0.47
+    assert errors[1] > 0.05, errors  # (0.09) a point sample of the splat, not its box's light
+    colour = ProceduralSource("splat", scene, side, side, channels=3, K=K, spp=16)
+    image = colour.render(np.eye(4))
+    assert image.shape == (side, side, 3) and colour.spp == 16
+    np.testing.assert_array_equal(image[..., :1], image[..., 1:2])  # white: each channel alike
+
+
+@pytest.mark.parametrize("spp", [0, 2, 8, -4, 2.0, True, "4"])
+def test_a_built_in_scene_s_spp_is_a_square(spp):
+    with pytest.raises(ValueError, match=r"spp \(--spp\): .* s×s grid, so expected a square"):
+        ProceduralSource("solids", SCENES["solids"](), 16, 16, spp=spp)
 
 
 def write_transforms(path, name, frames, viewmats, K, ext):
@@ -230,10 +283,12 @@ def test_frame_sequence_source(tmp_path):
     with pytest.warns(UserWarning) as caught:
         again = simulate_dataset(
             tmp_path, tmp_path / "ds2", height=32, width=32, readouts=501, test_on_path=2,
-            test_off_path=2, progress=False, speed=0.5, up=[0, 1, 0],
+            test_off_path=2, progress=False, speed=0.5, up=[0, 1, 0], spp=4,
         )  # fmt: skip
     _said(caught, r"is a frame sequence, .*: speed, up \(a built-in or Mi", *MOTION)
+    _said(caught, r"frame sequence, whose frames are the light: spp \(--spp, .*\) ignored")
     assert again.meta["up"] is None and again.meta["degrees_per_readout"] is None
+    assert again.meta["spp"] is None
 
 
 def test_frame_sequence_frames_are_stored_one_at_a_time(tmp_path, monkeypatch, alive_arrays):
@@ -455,6 +510,7 @@ def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path, mitsuba):
         test_off_path=1, frame_every=60, up=[0, 2, 0], progress=False,
     )  # fmt: skip
     assert ds.meta["up"] == [0.0, 1.0, 0.0]
+    assert ds.meta["spp"] == 1 and make_source(scene, 8, 8, 1).spp == 16  # given; the default
     with pytest.raises(ValueError, match=r"up: expected a non-zero direction \[x, y, z\]"):
         simulate_dataset(scene, tmp_path / "bad", up=[0, 0, 0], progress=False)
     source = MitsubaSource(scene, 8, 8, spp=1, up=[0, 3, 0])  # a direction: made a unit one

@@ -82,8 +82,9 @@ def clean_source(dataset: Dataset) -> Source:
         )
     # with the camera it was simulated with (a wide frame's framing changed on 2026-11-30)
     K = intrinsics_matrix(dataset.meta)
+    spp = dataset.meta.get("spp") or 1  # (pixel centres before the key was written)
     return ProceduralSource(
-        scene, SCENES[scene](), dataset.width, dataset.height, dataset.channels, K=K
+        scene, SCENES[scene](), dataset.width, dataset.height, dataset.channels, K=K, spp=spp
     )
 
 
@@ -298,18 +299,22 @@ def make_source(
     height: int,
     channels: int,
     *,
-    spp: int = 16,
+    spp: int | None = None,
     up=WORLD_UP,
 ) -> Source:
     """The source of `scene`: a built-in name (SCENES), a Mitsuba .xml file or dict, a NeRF-style
     transforms JSON (or a directory holding transforms_train.json / transforms.json) or a Source.
-    `up` [3]: the axis a built-in or Mitsuba scene's spiral ascends along (a unit vector)."""
+    `up` [3]: the axis a built-in or Mitsuba scene's spiral ascends along (a unit vector); `spp`:
+    samples per pixel of a built-in or Mitsuba scene (None: its own default, 1 or 16)."""
     if isinstance(scene, Source):
         return scene
+    rendered = {"up": up} if spp is None else {"up": up, "spp": spp}
     if isinstance(scene, dict):
-        return MitsubaSource(scene, width, height, channels, spp=spp, up=up)
+        return MitsubaSource(scene, width, height, channels, **rendered)
     if str(scene) in SCENES:
-        return ProceduralSource(str(scene), SCENES[str(scene)](), width, height, channels, up)
+        return ProceduralSource(
+            str(scene), SCENES[str(scene)](), width, height, channels, **rendered
+        )
     path = Path(scene)
     if path.is_dir():  # a NeRF layout: its training frames, with transforms_test.json beside
         root = path
@@ -318,7 +323,7 @@ def make_source(
         if path != root:
             warn_unread_transforms(root, [path, test])
     if path.suffix.lower() == ".xml":
-        return MitsubaSource(path, width, height, channels, spp=spp, up=up)
+        return MitsubaSource(path, width, height, channels, **rendered)
     if path.suffix.lower() == ".json":  # a missing file: from_transforms names it
         return FrameSequenceSource.from_transforms(path, width, height, channels)
     expected = (
@@ -399,7 +404,7 @@ def simulate_dataset(
     test_on_path: int | None = None,
     test_off_path: int | None = None,
     train_every: int | None = None,
-    spp: int = 16,
+    spp: int | None = None,
     flip: bool = True,
     progress: bool = True,
     up=None,
@@ -413,7 +418,9 @@ def simulate_dataset(
     `test_on_path`, `test_off_path`: held-out views on and off the path (default
     DEFAULT_TEST_VIEWS each, or as many as a frame sequence has; fewer than a count given are
     warned of); `train_every`: readouts between training timestamps (default
-    `default_train_every`); `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
+    `default_train_every`); `spp`: samples per pixel of a built-in scene (a square, s×s: each pixel
+    its box's mean light; default 1, its centre) or a Mitsuba scene (default 16), recorded in
+    meta.json; `sim_params`: SimParams fields (threshold, rate_at_one, ...)."""
     params = SimParams(**sim_params)
     asked = (test_on_path, test_off_path)
     motion = {"speed": speed, "frame_every": frame_every, "up": up}  # a frame sequence has its own
@@ -424,23 +431,24 @@ def simulate_dataset(
     test_off_path = DEFAULT_TEST_VIEWS if test_off_path is None else test_off_path
     # numpy numbers and whole floats were written into meta.json (a TypeError after the
     # simulation, or a dataset that does not load): converted or refused before any work
-    height, width, readouts, test_on_path, test_off_path, spp = whole_numbers(
+    height, width, readouts, test_on_path, test_off_path = whole_numbers(
         height=height,
         width=width,
         readouts=readouts,
         test_on_path=test_on_path,
         test_off_path=test_off_path,
-        spp=spp,
     )
     if train_every is not None:
         (train_every,) = whole_numbers(train_every=train_every)
+    if spp is not None:
+        (spp,) = whole_numbers(spp=spp)
     speed, frame_every = finite_numbers(speed=speed, frame_every=frame_every)
     flip, color = as_flag("flip", flip), as_flag("color", color)
     if height < 1 or width < 1:
         raise ValueError(
             f"height, width (--height, --width): expected >= 1 pixel, found {height}, {width}"
         )
-    if spp < 1:
+    if spp is not None and spp < 1:
         raise ValueError(f"spp (--spp): expected samples per pixel >= 1, found {spp}")
     if not is_seed(seed):
         raise ValueError(f"seed (--seed): expected an integer in 0..2**64 - 1, found {seed}")
@@ -483,6 +491,12 @@ def simulate_dataset(
         warnings.warn(
             f"scene '{source.name}' is a frame sequence, whose frames and poses set the camera's "
             f"motion: {', '.join(given)} (a built-in or Mitsuba scene's orbit) ignored",
+            stacklevel=2,
+        )
+    if source.kind == "frames" and spp is not None:
+        warnings.warn(
+            f"scene '{source.name}' is a frame sequence, whose frames are the light: spp (--spp, "
+            f"a built-in or Mitsuba scene's samples per pixel) ignored",
             stacklevel=2,
         )
     if (source.height, source.width, source.channels) != (height, width, channels):
@@ -593,6 +607,7 @@ def simulate_dataset(
         "luma": "rec709-linear" if channels == 1 else None,
         "image_scale": rate,
         "train_every": train_every,
+        "spp": getattr(source, "spp", None),  # a rendered scene's samples per pixel
     }
     # one process writes `out`, none reading it (a training's SIM cache, its spikes): the checks
     # again under the lock, which --overwrite's deletion keeps

@@ -64,7 +64,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         help="readouts between training timestamps (default: at most 1024 timestamps)",
     )
-    parser.add_argument("--spp", type=int, default=16, help="samples per pixel (Mitsuba)")
+    parser.add_argument(
+        "--spp",
+        type=int,
+        help="samples per pixel: a Mitsuba scene's (default 16), or a built-in scene's on an s×s "
+        "grid, each pixel its box's mean light as a camera's (a square; default 1, its centre)",
+    )
     parser.add_argument("--no-flip", action="store_true", help="write .dat rows top-down")
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
     add_no_progress(parser, "", "--quiet")

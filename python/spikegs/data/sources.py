@@ -23,7 +23,8 @@ import torch
 
 from ..image_io import to_channels
 from ..missing_dependency import MissingDependencyError
-from ..rasterize import rasterize
+from ..number_checks import is_int
+from ..rasterize import MAX_SIZE, rasterize
 from ..spikes.simulate import sample_times
 from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
@@ -168,7 +169,11 @@ class RenderSource(Source):
 
 
 class ProceduralSource(RenderSource):
-    """A built-in Gaussian scene rendered by the project's rasterizer."""
+    """A built-in Gaussian scene rendered by the project's rasterizer.
+
+    `spp` samples per pixel on an s×s grid (a square: 1, 4, 9, ...): the frame is drawn s times
+    larger and each s×s block averaged, a camera pixel's box (the mean of its area's light, as
+    Mitsuba's box filter gives it); 1 samples each pixel's centre."""
 
     kind = "procedural"
 
@@ -181,29 +186,55 @@ class ProceduralSource(RenderSource):
         channels: int = 1,
         up=WORLD_UP,
         K: np.ndarray | None = None,
+        spp: int = 1,
     ):
         super().__init__(width, height, channels, scene.center, scene.radius, up=up, K=K)
         self.name = name
+        self._grid = grid_side(spp)
+        self.spp = self._grid**2
+        if max(width, height) * self._grid > MAX_SIZE:
+            raise ValueError(
+                f"spp (--spp) {spp}: {width}x{height} frames would be drawn at "
+                f"{width * self._grid}x{height * self._grid}, over the rasterizer's {MAX_SIZE} a "
+                f"side"
+            )
         tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
         self._gaussians = [
             tensor(a) for a in (scene.means, scene.quats, scene.scales, scene.opacities)
         ]
         self._colors = tensor(to_channels(scene.colors, channels))  # [N, C]
         self._background = tensor(to_channels(scene.background, channels))  # [C]
-        self._K = tensor(self.K)
+        # pixel centres at +0.5: pixel i's box [i, i + 1) is fine pixels s·i .. s·i + s - 1
+        self._K = tensor(self.K * np.array([[self._grid], [self._grid], [1.0]]))
 
     def render(self, viewmat: np.ndarray) -> np.ndarray:
+        s = self._grid
         with torch.no_grad():
             out = rasterize(
                 *self._gaussians,
                 self._colors,
                 torch.as_tensor(viewmat, dtype=torch.float32),
                 self._K,
-                self.width,
-                self.height,
+                self.width * s,
+                self.height * s,
                 background=self._background,
             )
-        return out.image.numpy()
+        image = out.image.numpy()  # [sH, sW, C]
+        if s == 1:
+            return image
+        return image.reshape(self.height, s, self.width, s, -1).mean(axis=(1, 3), dtype=np.float32)
+
+
+def grid_side(spp) -> int:
+    """s for `spp` = s² samples per pixel; ValueError where `spp` is not the square of a whole
+    number >= 1."""
+    side = math.isqrt(spp) if is_int(spp) and spp >= 1 else 0
+    if side * side != spp or side == 0:
+        raise ValueError(
+            f"spp (--spp): a built-in scene samples each pixel on an s×s grid, so expected a "
+            f"square (1, 4, 9, 16, ...), found {spp!r}"
+        )
+    return side
 
 
 def import_mitsuba():
@@ -267,7 +298,7 @@ class MitsubaSource(RenderSource):
         center = (lo + hi) / 2 if center is None else center
         radius = np.linalg.norm(hi - lo) / 2 if radius is None else radius
         super().__init__(width, height, channels, center, radius, fov_deg=fov_deg, up=up)
-        self._mi, self._spp = mi, int(spp)
+        self._mi, self.spp = mi, int(spp)
         self._sensor = mi.load_dict(
             {
                 "type": "perspective",
@@ -280,7 +311,7 @@ class MitsubaSource(RenderSource):
                     "rfilter": {"type": "box"},
                     "pixel_format": "rgb",
                 },
-                "sampler": {"type": "independent", "sample_count": self._spp},
+                "sampler": {"type": "independent", "sample_count": self.spp},
             }
         )
         self._params = mi.traverse(self._sensor)
@@ -290,7 +321,7 @@ class MitsubaSource(RenderSource):
         c2w = np.linalg.inv(viewmat) @ np.diag([-1.0, -1.0, 1.0, 1.0])  # OpenCV -> Mitsuba axes
         self._params["to_world"] = self._mi.ScalarTransform4f(c2w.tolist())
         self._params.update()
-        rgb = np.array(self._mi.render(self._scene, sensor=self._sensor, spp=self._spp, seed=0))
+        rgb = np.array(self._mi.render(self._scene, sensor=self._sensor, spp=self.spp, seed=0))
         if not self._negative_warned and (rgb < 0).any():  # a negative emitter's radiance
             self._negative_warned = True
             warnings.warn(
