@@ -16,6 +16,7 @@ pytest.importorskip("spikegs._C")
 
 from spikegs import _C  # noqa: E402
 from spikegs.bench import rasterizer, sim, spikes, stiff, train  # noqa: E402
+from spikegs.data import load_dataset  # noqa: E402
 from spikegs.demo import DEMO_OVERRIDES  # noqa: E402
 from spikegs.sim import SIM  # noqa: E402
 from spikegs.spikes import SimParams, simulate_spikes  # noqa: E402
@@ -354,6 +355,8 @@ def test_ablation_order_says_on_how_many_seeds_it_holds():
         (["bench", "rasterizer", "--seeds", "1"], "--seeds: options of bench train"),
         (["bench", "sim", "--methods", "tfi"], "--methods: options of bench train"),
         (["bench", "rasterizer", "--grad-threshold", "1e-4"], "--grad-threshold: options of"),
+        (["bench", "spikes", "--spp", "16"], "--spp: options of bench train, not of bench"),
+        (["bench", "all", "--quick", "--spp", "2"], "spp (--spp): a built-in scene samples each"),
     ],
 )
 def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
@@ -395,6 +398,19 @@ def test_train_runs_every_seed(tmp_path):
     assert result["schedule"]["densify"]["grad_threshold"] == demo_threshold  # the default
     assert tfp33["seeds"][0]["psnr"] != tfp33["seeds"][1]["psnr"]  # two runs, not one twice
     assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()
+
+
+def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(tmp_path, capsys):
+    """`bench train --spp 4`: the scenes as a camera sees them (each pixel its box's mean light),
+    said in the table's heading and recorded; a dataset cached at another spp is simulated again."""
+    result = train.run(quick=True, out=tmp_path, methods=["tfp33"], spp=4)
+    assert result["data"]["spp"] == 4
+    assert "64x64 at 4 spp, 4 test views" in capsys.readouterr().out
+    root = tmp_path / "data" / train.HEADLINE_SCENE
+    dataset = load_dataset(root)
+    assert dataset.meta["spp"] == 4
+    assert train._matches(dataset, train.HEADLINE_SCENE, {**train.QUICK_DATA, "spp": 4})
+    assert not train._matches(dataset, train.HEADLINE_SCENE, {**train.QUICK_DATA, "spp": 1})
 
 
 @pytest.mark.parametrize("text", ["0", "-0.0001", "nan", "inf", "x"])

@@ -76,12 +76,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="bench train: densification threshold for every method (default: the demo's "
         f"{DEMO_OVERRIDES['densify']['grad_threshold']})",
     )
+    parser.add_argument(
+        "--spp",
+        type=positive_int,
+        help="bench train: samples per pixel of the simulated scenes, on an s×s grid (a square: "
+        "each pixel its box's mean light, as a camera's; default 1, the pixel centres)",
+    )
 
 
 def _train_options(args: argparse.Namespace) -> dict:
     """bench train's keyword arguments from the command line."""
     options = {"equal_time": True} if args.equal_time else {}
-    for name in ("seeds", "iterations", "grad_threshold"):
+    for name in ("seeds", "iterations", "grad_threshold", "spp"):
         if getattr(args, name) is not None:
             options[name] = getattr(args, name)
     for name in ("scenes", "methods"):
@@ -113,8 +119,11 @@ def run(args: argparse.Namespace) -> int:
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out)
-    if "train" in parts:  # a bad scene, method, seed count or output fails before any part runs
+    if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
+        from ..data.sources import grid_side
         from .train import check_outputs, run_names, selection
+
+        grid_side(train_options.get("spp", 1))
 
         seeds, equal_time = train_options.get("seeds", 1), args.equal_time
         scenes, methods = selection(

@@ -42,6 +42,7 @@ from ..data import load_dataset, simulate_dataset
 from ..data.dataset import check_output
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every
+from ..data.sources import grid_side
 from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
 from ..method_titles import EQUAL_TIME  # a baseline's run given SpikeGS's seconds: name, folder
@@ -92,8 +93,10 @@ def _matches(dataset, scene: str, settings: dict) -> bool:
     ts = np.asarray(dataset.train_timestamps)
     want_every = default_train_every(settings["readouts"])
     every = int(np.diff(ts).min()) if len(ts) > 1 else want_every
-    found = (meta["scene"], meta["height"], meta["width"], meta["num_readouts"], every)
-    want = (scene, settings["height"], settings["width"], settings["readouts"], want_every)
+    spp = meta.get("spp") or 1  # (pixel centres before meta.json said so)
+    found = (meta["scene"], meta["height"], meta["width"], meta["num_readouts"], every, spp)
+    want = (scene, *(settings[k] for k in ("height", "width", "readouts")), want_every)
+    want += (settings["spp"],)
     views_wanted = (settings["test_on_path"], settings["test_off_path"])
     return found == want and (on_path, len(views) - on_path) == views_wanted
 
@@ -355,14 +358,16 @@ def run(
     methods: Sequence[str] | None = None,
     grad_threshold: float | None = None,
     equal_time: bool = False,
+    spp: int = 1,
 ) -> dict:
     """Train `methods` (default: METHODS, QUICK_METHODS when quick) on `scenes` (default: every
     built-in one, HEADLINE_SCENE when quick) with `seeds` seeds each, densifying at the demo's
     threshold or `grad_threshold`, and with `equal_time` each baseline again at SpikeGS's time;
+    the scenes simulated at `spp` samples a pixel (ProceduralSource: a square, 1 the centres);
     print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds, equal_time)
-    settings = QUICK_DATA if quick else FULL_DATA
+    settings = {**(QUICK_DATA if quick else FULL_DATA), "spp": grid_side(spp) ** 2}
     overrides = schedule(iterations, quick, grad_threshold)
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:
@@ -394,7 +399,7 @@ def run(
             "ablation_order": order,
             "ablation_order_seeds": ablation_seeds(runs),
         }
-        size = f"{dataset.width}x{dataset.height}"
+        size = f"{dataset.width}x{dataset.height}" + (f" at {spp} spp" if spp > 1 else "")
         print(
             f"{scene} ({size}, {len(dataset.test_views)} test views, {length}{stretched}, "
             f"{seeds} seed{'s' if seeds > 1 else ''})"
