@@ -356,7 +356,6 @@ def test_ablation_order_says_on_how_many_seeds_it_holds():
         (["bench", "sim", "--methods", "tfi"], "--methods: options of bench train"),
         (["bench", "rasterizer", "--grad-threshold", "1e-4"], "--grad-threshold: options of"),
         (["bench", "spikes", "--spp", "16"], "--spp: options of bench train, not of bench"),
-        (["bench", "all", "--quick", "--spp", "2"], "spp (--spp): a built-in scene samples each"),
     ],
 )
 def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
@@ -365,6 +364,15 @@ def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
 
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def test_bench_all_refuses_a_non_square_spp_before_any_part(tmp_path, capsys):
+    from spikegs.cli import main
+
+    assert main(["bench", "all", "--quick", "--spp", "2", "--out", str(tmp_path / "b")]) == 2
+    said = capsys.readouterr()
+    assert "spp (--spp): a built-in scene samples each" in said.err
+    assert "==" not in said.out and not (tmp_path / "b" / "rasterizer.json").exists()
 
 
 def test_train_selection_names_what_is_unknown():

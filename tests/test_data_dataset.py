@@ -518,6 +518,8 @@ def test_a_built_in_scene_simulated_at_an_spp_keeps_it_to_its_clean_images(tmp_p
     assert np.abs(centres.image_at(ds.trajectory, view.readout) - clean).max() > 0.05
     with pytest.raises(ValueError, match=r"spp \(--spp\): .* expected a square .* found 2"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 2})
+    with pytest.raises(ValueError, match="spp: the source 'solids' given sets its own"):
+        simulate_dataset(centres, tmp_path / "x", **{**SMALL, "spp": 16})  # (16 was dropped)
     assert not (tmp_path / "x").exists()
 
 

@@ -38,6 +38,7 @@ from spikegs.data.view_geometry import (
     view_sphere,
 )
 from spikegs.image_io import LUMA_709, srgb_to_linear, write_image
+from spikegs.rasterize import MAX_SIZE
 from spikegs.spikes import save_dat
 
 # the warnings of a frame sequence whose frames lie 100 readouts apart, ~1 degree a readout
@@ -84,33 +85,38 @@ def _splat_scene(sigma_px: float, opacity: float, focal: float, depth: float) ->
     )
 
 
-def _box_means(opacity, var, centre, side) -> np.ndarray:
+def _box_means(opacity, var, centre, width, height) -> np.ndarray:
     """Each pixel's mean over its unit box of opacity · exp(-|x - centre|² / (2 var)), pixel i
-    spanning [i, i + 1) on each axis (centres at +0.5): [side, side]."""
-    edges = (np.arange(side + 1) - np.asarray(centre)[:, None]) / np.sqrt(var)  # [2, side + 1]
-    mass = np.diff(special.ndtr(edges), axis=1) * np.sqrt(2 * np.pi * var)  # [2, side]: x, y
-    return opacity * mass[1][:, None] * mass[0][None, :]
+    spanning [i, i + 1) on each axis (centres at +0.5): [height, width]."""
+
+    def mass(side, c):  # [side]: each pixel's share of a unit-peak 1D Gaussian's integral
+        return np.diff(special.ndtr((np.arange(side + 1) - c) / np.sqrt(var))) * np.sqrt(
+            2 * np.pi * var
+        )
+
+    return opacity * mass(height, centre[1])[:, None] * mass(width, centre[0])[None, :]
 
 
 def test_a_built_in_scene_s_pixels_take_their_box_s_mean_light_at_spp():
     """spp = s² draws s×s samples a pixel and averages them: each pixel the mean of a sub-pixel
     Gaussian over its box (closed form, erf), within the midpoint rule's error; spp 1 (the
     default) samples the centre, widened by the rasterizer's 0.3 px², and misses it by far."""
-    focal, side, centre = 50.0, 12, (6.3, 5.8)  # the splat off the pixel grid, x and y apart
+    focal, width, height = 50.0, 12, 9  # a wide frame: rows and columns told apart
+    centre = (6.3, 4.2)  # the splat off the pixel grid, x and y apart
     scene = _splat_scene(0.45, 0.8, focal, depth=3.0)
     K = np.array([[focal, 0, centre[0]], [0, focal, centre[1]], [0, 0, 1]])
     errors = {}
     for spp in (1, 16, 64):
-        image = ProceduralSource("splat", scene, side, side, K=K, spp=spp).render(np.eye(4))
-        assert image.shape == (side, side, 1) and image.dtype == np.float32
+        image = ProceduralSource("splat", scene, width, height, K=K, spp=spp).render(np.eye(4))
+        assert image.shape == (height, width, 1) and image.dtype == np.float32
         # the rasterizer widens each fine pixel's splat by 0.3 fine px²: 0.3 / spp px²
-        expected = _box_means(0.8, 0.45**2 + 0.3 / spp, centre, side)
+        expected = _box_means(0.8, 0.45**2 + 0.3 / spp, centre, width, height)
         errors[spp] = np.abs(image[..., 0] - expected).max()
     assert errors[64] < 0.003 and errors[16] < 0.01, errors  # of a peak of 0.47
     assert errors[1] > 0.05, errors  # (0.09) a point sample of the splat, not its box's light
-    colour = ProceduralSource("splat", scene, side, side, channels=3, K=K, spp=16)
+    colour = ProceduralSource("splat", scene, width, height, channels=3, K=K, spp=16)
     image = colour.render(np.eye(4))
-    assert image.shape == (side, side, 3) and colour.spp == 16
+    assert image.shape == (height, width, 3) and colour.spp == 16
     np.testing.assert_array_equal(image[..., :1], image[..., 1:2])  # white: each channel alike
 
 
@@ -118,6 +124,14 @@ def test_a_built_in_scene_s_pixels_take_their_box_s_mean_light_at_spp():
 def test_a_built_in_scene_s_spp_is_a_square(spp):
     with pytest.raises(ValueError, match=r"spp \(--spp\): .* s×s grid, so expected a square"):
         ProceduralSource("solids", SCENES["solids"](), 16, 16, spp=spp)
+
+
+def test_a_built_in_scene_s_spp_is_refused_where_its_frame_would_pass_the_rasterizer_s_size():
+    """Refused when made, not at its first render: the rasterizer's side, s times a frame's."""
+    side = MAX_SIZE // 4 + 1
+    with pytest.raises(ValueError, match=rf"spp \(--spp\) 16: {side}x4 frames would be drawn at"):
+        ProceduralSource("solids", SCENES["solids"](), side, 4, spp=16)
+    assert ProceduralSource("solids", SCENES["solids"](), side - 1, 4, spp=16).spp == 16
 
 
 def write_transforms(path, name, frames, viewmats, K, ext):
@@ -517,6 +531,8 @@ def test_mitsuba_orbit_ascends_along_the_scenes_up(tmp_path, mitsuba):
     np.testing.assert_array_equal(source.up, [0, 1, 0])
     with pytest.raises(ValueError, match="up: the source 'mitsuba-dict' given sets its own"):
         simulate_dataset(source, tmp_path / "bad", height=8, width=8, up=[0, 1, 0])
+    with pytest.raises(ValueError, match="spp: the source 'mitsuba-dict' given sets its own"):
+        simulate_dataset(source, tmp_path / "bad", height=8, width=8, spp=4)
 
 
 def test_mitsuba_fov_sets_intrinsics_and_the_rendered_view(mitsuba):

@@ -486,6 +486,8 @@ def simulate_dataset(
     source = make_source(scene, width, height, channels, spp=spp, up=up)
     if isinstance(scene, RenderSource) and motion["up"] is not None:
         raise ValueError(f"up: the source '{source.name}' given sets its own (its up)")
+    if isinstance(scene, Source) and source.kind != "frames" and spp is not None:  # (dropped)
+        raise ValueError(f"spp: the source '{source.name}' given sets its own (its spp)")
     given = [name for name, value in motion.items() if value is not None]
     if source.kind == "frames" and given:  # (dropped in silence, before)
         warnings.warn(
