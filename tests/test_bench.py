@@ -367,6 +367,8 @@ def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
 
 
 def test_bench_all_refuses_a_non_square_spp_before_any_part(tmp_path, capsys):
+    """`bench all --spp 2` is refused before the rasterizer, spikes and sim parts run (a check
+    left to bench train ran them first)."""
     from spikegs.cli import main
 
     assert main(["bench", "all", "--quick", "--spp", "2", "--out", str(tmp_path / "b")]) == 2

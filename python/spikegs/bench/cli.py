@@ -124,7 +124,6 @@ def run(args: argparse.Namespace) -> int:
         from .train import check_outputs, run_names, selection
 
         grid_side(train_options.get("spp", 1))
-
         seeds, equal_time = train_options.get("seeds", 1), args.equal_time
         scenes, methods = selection(
             args.quick,

@@ -41,7 +41,7 @@ from ..curves import save_curves
 from ..data import load_dataset, simulate_dataset
 from ..data.dataset import check_output
 from ..data.scenes import SCENES
-from ..data.simulate import default_train_every
+from ..data.simulate import default_train_every, simulated_spp
 from ..data.sources import grid_side
 from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
@@ -93,7 +93,7 @@ def _matches(dataset, scene: str, settings: dict) -> bool:
     ts = np.asarray(dataset.train_timestamps)
     want_every = default_train_every(settings["readouts"])
     every = int(np.diff(ts).min()) if len(ts) > 1 else want_every
-    spp = meta.get("spp") or 1  # (pixel centres before meta.json said so)
+    spp = simulated_spp(meta)
     found = (meta["scene"], meta["height"], meta["width"], meta["num_readouts"], every, spp)
     want = (scene, *(settings[k] for k in ("height", "width", "readouts")), want_every)
     want += (settings["spp"],)
@@ -367,7 +367,8 @@ def run(
     print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds, equal_time)
-    settings = {**(QUICK_DATA if quick else FULL_DATA), "spp": grid_side(spp) ** 2}
+    grid_side(spp)  # a square, else refused before any work
+    settings = {**(QUICK_DATA if quick else FULL_DATA), "spp": int(spp)}
     overrides = schedule(iterations, quick, grad_threshold)
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:

@@ -82,10 +82,21 @@ def clean_source(dataset: Dataset) -> Source:
         )
     # with the camera it was simulated with (a wide frame's framing changed on 2026-11-30)
     K = intrinsics_matrix(dataset.meta)
-    spp = dataset.meta.get("spp") or 1  # (pixel centres before the key was written)
     return ProceduralSource(
-        scene, SCENES[scene](), dataset.width, dataset.height, dataset.channels, K=K, spp=spp
+        scene,
+        SCENES[scene](),
+        dataset.width,
+        dataset.height,
+        dataset.channels,
+        K=K,
+        spp=simulated_spp(dataset.meta),
     )
+
+
+def simulated_spp(meta: dict) -> int:
+    """The samples per pixel a built-in scene's dataset was simulated at (meta.json's `spp`; 1, the
+    pixel centres, in a dataset from before the key was written)."""
+    return meta.get("spp") or 1
 
 
 def simulated_trajectory(dataset: Dataset) -> Trajectory:
