@@ -25,6 +25,7 @@ import math
 import numpy as np
 import torch
 
+from .box_filter import block_means
 from .data.dataset import camera_keys
 from .gaussians import GaussianModel
 
@@ -133,9 +134,4 @@ def render_scaled(
     # 3D-filtered model's Gaussians are as wide as training's sampling (widened, they blurred)
     if not model.antialiased and model.filter_3d is None:
         model = widened(model, viewmat, trained, camera)
-    image = render_view(model, viewmat, camera)
-    if m == 1:
-        return image
-    height, width, channels = image.shape  # [m·h, m·w, C]
-    blocks = image.reshape(height // m, m, width // m, m, channels)
-    return blocks.mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+    return block_means(render_view(model, viewmat, camera), m)  # [m·h, m·w, C] → [h, w, C]

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..box_filter import block_means
 from ..image_io import to_channels
 from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_int
@@ -219,10 +220,7 @@ class ProceduralSource(RenderSource):
                 self.height * s,
                 background=self._background,
             )
-        image = out.image.numpy()  # [sH, sW, C]
-        if s == 1:
-            return image
-        return image.reshape(self.height, s, self.width, s, -1).mean(axis=(1, 3), dtype=np.float32)
+        return block_means(out.image.numpy(), s)  # [sH, sW, C] → [H, W, C]
 
 
 def grid_side(spp) -> int:
