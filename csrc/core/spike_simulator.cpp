@@ -14,10 +14,6 @@
 namespace spikegs {
 namespace {
 
-// Stream keys: one for the per-pixel constants, one for the per-readout draws.
-constexpr uint64_t kPixelStream = 0x5049584C5F434F4Eull;
-constexpr uint64_t kReadoutStream = 0x524541444F555453ull;
-
 // Light at one readout: frames f and f+1 mixed with weight a on the second.
 struct Segment {
   int64_t f;

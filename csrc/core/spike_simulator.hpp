@@ -25,6 +25,13 @@
 
 namespace spikegs {
 
+// The simulator's random streams, each keyed mix64(seed ^ stream): pixel i's constants are
+// normal_pair(random_bits(pixel key, 2i)) (threshold z0, dark current z1) and the uniform of
+// random_bits(pixel key, 2i + 1) (initial voltage); readout t's draws at pixel i (of hw) are
+// normal_pair(random_bits(readout key, t·hw + i)) (shot noise z0, threshold noise z1).
+constexpr uint64_t kPixelStream = 0x5049584C5F434F4Eull;
+constexpr uint64_t kReadoutStream = 0x524541444F555453ull;
+
 struct SimParams {
   double threshold = 100.0;      // θ: photo-electrons per spike; shot noise of one spike ~ 1/√θ
   double rate_at_one = 0.25;     // spikes per readout at intensity 1.0 (the calibration knob)
