@@ -433,7 +433,7 @@ TEST_CASE(simulator_readout_at_a_frame_time_sees_that_frame) {
 }
 
 // The simulator against its model in double (reference_spikes), with every noise on and large, in
-// calls of 1 to 50 readouts, and with the noises and the random start off. A draw taken from the
+// calls of 1 to 63 readouts, and with the noises and the random start off. A draw taken from the
 // wrong stream or normal (the threshold noise from the shot noise's), the nominal threshold for a
 // pixel's own, or a readout count not advanced changes most pixels' trains. Float against
 // double may flip a decision within rounding of the threshold: up to 1 % of the pixels may differ.
