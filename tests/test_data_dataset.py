@@ -1053,12 +1053,15 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
         ("fx", 10**400, "fx expected a finite number > 0"),
         ("width", 10**400, "width expected an integer > 0 and at most 1048576"),  # passed
         ("height", 2**20 + 1, "height expected an integer > 0 and at most 1048576"),
+        ("spp", 0, "spp expected an integer > 0, found 0"),  # a hand edit: it read as 1
+        ("spp", 2.5, "spp expected an integer > 0, found 2.5"),
     ],
 )
 def test_meta_values_out_of_range_are_named(tmp_path, key, value, message):
     meta = {"width": 64, "height": 48, "fx": 40.0, key: value}
     with pytest.raises(ValueError, match=message):
-        check_meta_values(meta, tmp_path / "meta.json", ["height", "width", "fx"])
+        check_meta_values(meta, tmp_path / "meta.json", ["height", "width", "fx", key])
+    check_meta_values({**meta, "spp": None}, tmp_path / "meta.json", ["spp"])  # a frame sequence
 
 
 @pytest.mark.parametrize(

@@ -868,7 +868,7 @@ def _check_meta(meta: dict, path: Path) -> None:
             f"{path}: format_version {json_text(version)}, this SpikeGS reads {FORMAT_VERSION} "
             f"(an integer)"
         )
-    optional = [k for k in ("raw_width", "col_offset", "scene", "source") if k in meta]
+    optional = [k for k in ("raw_width", "col_offset", "scene", "source", "spp") if k in meta]
     check_meta_values(meta, path, [*required, "scene_center", "scene_radius", *optional])
 
 
@@ -892,7 +892,7 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
     for key in keys:
         if key in ("height", "width"):
             number(key, 0, integer=True, high=MAX_SIZE)  # the rasterizer's
-        elif key == "num_readouts":
+        elif key == "num_readouts" or (key == "spp" and meta[key] is not None):  # null: frames
             number(key, 0, integer=True)
         elif key == "channels" and (meta[key] not in (1, 3) or isinstance(meta[key], bool)):
             raise ValueError(

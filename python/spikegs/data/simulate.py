@@ -95,8 +95,9 @@ def clean_source(dataset: Dataset) -> Source:
 
 def simulated_spp(meta: dict) -> int:
     """The samples per pixel a built-in scene's dataset was simulated at (meta.json's `spp`; 1, the
-    pixel centres, in a dataset from before the key was written)."""
-    return meta.get("spp") or 1
+    pixel centres, in a dataset from before the key was written; null, a frame sequence's)."""
+    spp = meta.get("spp")
+    return 1 if spp is None else spp
 
 
 def simulated_trajectory(dataset: Dataset) -> Trajectory:
