@@ -366,14 +366,23 @@ def test_bench_options_that_would_do_nothing_are_refused(argv, message, capsys):
     assert message in capsys.readouterr().err
 
 
-def test_bench_all_refuses_a_non_square_spp_before_any_part(tmp_path, capsys):
-    """`bench all --spp 2` is refused before the rasterizer, spikes and sim parts run (a check
-    left to bench train ran them first)."""
+@pytest.mark.parametrize(
+    "spp, message",
+    [
+        ("2", "spp (--spp): a built-in scene samples each"),
+        (str(16384**2), "spp (--spp) 268435456: 64x64 frames would be drawn at 1048576x1048576"),
+        (str(8192**2), "frames would be drawn at 524288x524288, 4096.0 GiB a frame, over half"),
+    ],
+)
+def test_bench_all_refuses_an_spp_it_cannot_draw_before_any_part(spp, message, tmp_path, capsys):
+    """`bench all --spp 2` (not a square) or an spp whose frames pass the rasterizer's side or
+    the memory (the quick scenes' 64² at 8192² spp: 4 TiB a frame) is refused before the
+    rasterizer, spikes and sim parts run (a check left to bench train ran them first)."""
     from spikegs.cli import main
 
-    assert main(["bench", "all", "--quick", "--spp", "2", "--out", str(tmp_path / "b")]) == 2
+    assert main(["bench", "all", "--quick", "--spp", spp, "--out", str(tmp_path / "b")]) == 2
     said = capsys.readouterr()
-    assert "spp (--spp): a built-in scene samples each" in said.err
+    assert message in said.err
     assert "==" not in said.out and not (tmp_path / "b" / "rasterizer.json").exists()
 
 

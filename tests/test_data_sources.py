@@ -134,6 +134,22 @@ def test_a_built_in_scene_s_spp_is_refused_where_its_frame_would_pass_the_raster
     assert ProceduralSource("solids", SCENES["solids"](), side - 1, 4, spp=16).spp == 16
 
 
+def test_a_built_in_scene_s_spp_is_refused_where_its_frame_would_fill_half_the_memory(monkeypatch):
+    """A frame drawn s times larger needs (C + 3) floats a fine pixel: refused when made where
+    that passes half the memory this process may use (it was an allocation of 64 GiB at 64² and
+    spp 2048², a machine's whole memory at less), accepted at the half."""
+    from spikegs.data import sources
+
+    half = 64 * 4 * 64 * 4 * (3 + 3) * 4  # 64x64 colour at spp 16: 1.5 MiB
+    monkeypatch.setattr(sources, "machine_memory", lambda: 2 * half)
+    assert ProceduralSource("solids", SCENES["solids"](), 64, 64, channels=3, spp=16).spp == 16
+    monkeypatch.setattr(sources, "machine_memory", lambda: 2 * half - 1)
+    match = r"spp \(--spp\) 16: 64x64 frames would be drawn at 256x256, 0.0 GiB a frame, over half"
+    with pytest.raises(ValueError, match=match):
+        ProceduralSource("solids", SCENES["solids"](), 64, 64, channels=3, spp=16)
+    assert ProceduralSource("solids", SCENES["solids"](), 64, 64, spp=16).spp == 16  # mono: 1 MiB
+
+
 def write_transforms(path, name, frames, viewmats, K, ext):
     """A NeRF-synthetic-style transforms JSON: OpenGL camera-to-world, extensionless file paths."""
     (path.parent / name).mkdir(parents=True, exist_ok=True)

@@ -357,7 +357,7 @@ def _run(args: argparse.Namespace) -> int:
     except MemoryError as err:  # numpy's names the size (a 100000² simulation: 37 GiB)
         print(
             f"spikegs {args.command}: out of memory: {err or 'an allocation failed'}; smaller "
-            f"sizes (height, width, readouts, Gaussians)",
+            f"sizes (height, width, readouts, spp, Gaussians)",
             file=sys.stderr,
         )
         return 1

@@ -42,7 +42,7 @@ from ..data import load_dataset, simulate_dataset
 from ..data.dataset import check_output
 from ..data.scenes import SCENES
 from ..data.simulate import default_train_every, simulated_spp
-from ..data.sources import grid_side
+from ..data.sources import drawn_side
 from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
 from ..method_titles import EQUAL_TIME  # a baseline's run given SpikeGS's seconds: name, folder
@@ -367,8 +367,9 @@ def run(
     print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds, equal_time)
-    grid_side(spp)  # a square, else refused before any work
-    settings = {**(QUICK_DATA if quick else FULL_DATA), "spp": int(spp)}
+    data = QUICK_DATA if quick else FULL_DATA
+    drawn_side(spp, data["width"], data["height"])  # a square that fits, else refused before work
+    settings = {**data, "spp": int(spp)}
     overrides = schedule(iterations, quick, grad_threshold)
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:

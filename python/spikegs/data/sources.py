@@ -23,6 +23,7 @@ import torch
 
 from ..box_filter import block_means
 from ..image_io import to_channels
+from ..machine_memory import machine_memory
 from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_int
 from ..rasterize import MAX_SIZE, rasterize
@@ -191,14 +192,8 @@ class ProceduralSource(RenderSource):
     ):
         super().__init__(width, height, channels, scene.center, scene.radius, up=up, K=K)
         self.name = name
-        self._grid = grid_side(spp)
+        self._grid = drawn_side(spp, width, height, channels)
         self.spp = self._grid**2
-        if max(width, height) * self._grid > MAX_SIZE:
-            raise ValueError(
-                f"spp (--spp) {spp}: {width}x{height} frames would be drawn at "
-                f"{width * self._grid}x{height * self._grid}, over the rasterizer's {MAX_SIZE} a "
-                f"side"
-            )
         tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
         self._gaussians = [
             tensor(a) for a in (scene.means, scene.quats, scene.scales, scene.opacities)
@@ -221,6 +216,26 @@ class ProceduralSource(RenderSource):
                 background=self._background,
             )
         return block_means(out.image.numpy(), s)  # [sH, sW, C] → [H, W, C]
+
+
+def drawn_side(spp, width: int, height: int, channels: int = 1) -> int:
+    """s, the side of the s×s grid on which a built-in scene's `width`×`height` frames of
+    `channels` take `spp` samples a pixel (`grid_side`); ValueError where the frame drawn s times
+    larger passes the rasterizer's side or half the memory this process may use."""
+    s = grid_side(spp)
+    drawn = f"spp (--spp) {spp}: {width}x{height} frames would be drawn at {width * s}x{height * s}"
+    if max(width, height) * s > MAX_SIZE:
+        raise ValueError(f"{drawn}, over the rasterizer's {MAX_SIZE} a side")
+    # (C + 3) floats a fine pixel: its image, its alpha and the core's buffers (measured 23
+    # bytes a pixel in colour)
+    frame_bytes = width * s * height * s * (channels + 3) * 4
+    if frame_bytes > machine_memory() // 2:
+        raise ValueError(
+            f"{drawn}, {frame_bytes / 2**30:.1f} GiB a frame, over half the "
+            f"{machine_memory() / 2**30:.1f} GiB this process may use: a smaller spp, or "
+            f"smaller frames"
+        )
+    return s
 
 
 def grid_side(spp) -> int:
