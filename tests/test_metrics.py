@@ -80,3 +80,22 @@ def test_ssim_of_an_even_short_side_takes_the_largest_odd_window_under_it(rows, 
     pred = np.clip(gt + 0.1 * rng.standard_normal(gt.shape), 0, 1)
     want = structural_similarity(gt, pred, data_range=1.0, win_size=window)
     assert ssim(pred, gt) == pytest.approx(want, abs=1e-12)
+
+
+def test_ssim_of_a_line_image_is_1d_ssim_and_a_point_or_a_short_side_is_refused():
+    """A side of one pixel is dropped: a row or a column, mono or colour, scores as 1-D SSIM of
+    its values (untested before: keeping the side of 1 took a window of 1, refused); a single
+    pixel, or a side of 2, leaves no window of 3 and is refused."""
+    from skimage.metrics import structural_similarity
+
+    rng = np.random.default_rng(3)
+    gt = rng.random((20, 3))
+    pred = np.clip(gt + 0.1 * rng.standard_normal(gt.shape), 0, 1)
+    want = structural_similarity(gt, pred, data_range=1.0, win_size=7, channel_axis=-1)
+    assert ssim(pred[None], gt[None]) == pytest.approx(want, abs=1e-12)  # a row [1, 20, 3]
+    assert ssim(pred[:, None], gt[:, None]) == pytest.approx(want, abs=1e-12)  # a column
+    mono = structural_similarity(gt[:, 0], pred[:, 0], data_range=1.0, win_size=7)
+    assert ssim(pred[None, :, 0], gt[None, :, 0]) == pytest.approx(mono, abs=1e-12)  # [1, 20]
+    for shape in ((1, 1), (1, 1, 3), (2, 8)):
+        with pytest.raises(ValueError, match="SSIM needs sides of 1 or at least 3 pixels"):
+            ssim(np.zeros(shape), np.zeros(shape))

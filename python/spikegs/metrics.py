@@ -53,10 +53,8 @@ def ssim(pred, gt) -> float:
     1-D SSIM); a side of 2 pixels, or a single pixel, is a ValueError."""
     pred, gt = _pair(pred, gt)
     shape = list(pred.shape[:2])
-    if pred.ndim == 2:
-        pred, gt = pred[..., None], gt[..., None]
-    keep = tuple(n for n in pred.shape[:2] if n > 1) or (1,)
-    pred, gt = pred.reshape(*keep, -1), gt.reshape(*keep, -1)  # [H', W', C] or [L, C]
+    keep = tuple(n for n in shape if n > 1) or (1,)
+    pred, gt = pred.reshape(*keep, -1), gt.reshape(*keep, -1)  # [H', W', C] or [L, C] (C ≥ 1)
     side = min(min(keep), 7)
     win = side if side % 2 else side - 1
     if win < 3:
