@@ -99,3 +99,15 @@ def test_ssim_of_a_line_image_is_1d_ssim_and_a_point_or_a_short_side_is_refused(
     for shape in ((1, 1), (1, 1, 3), (2, 8)):
         with pytest.raises(ValueError, match="SSIM needs sides of 1 or at least 3 pixels"):
             ssim(np.zeros(shape), np.zeros(shape))
+
+
+def test_psnr_is_10_log10_of_one_over_the_mean_squared_error():
+    """PSNR at data range 1 written out, mono and colour (a data range of 1.1 scored 0.83 dB
+    higher and passed every test: each compared PSNR with PSNR)."""
+    rng = np.random.default_rng(4)
+    for shape in ((9, 11), (9, 11, 3)):
+        gt = rng.random(shape)
+        pred = np.clip(gt + 0.05 * rng.standard_normal(shape), 0, 1)
+        want = 10 * np.log10(1 / np.mean((pred - gt) ** 2))
+        assert psnr(pred, gt) == pytest.approx(want, abs=1e-10)
+    assert psnr(gt, gt) == float("inf")

@@ -224,3 +224,4 @@ def test_a_scale_leaving_a_side_under_one_or_over_the_most_pixels_is_refused(sca
     with pytest.raises(ValueError, match=r"scale \(--scale\) .*a side from 1 to 8192 pixels"):
         scaled_size(SIDE, SIDE, scale)
     assert scaled_size(SIDE, 2 * SIDE, MAX_SIDE / (2 * SIDE)) == (MAX_SIDE // 2, MAX_SIDE)
+    assert scaled_size(SIDE, 2 * SIDE, 1 / SIDE) == (1, 2)  # each end of the range is a side
