@@ -590,3 +590,19 @@ def test_eval_with_aligned_poses_names_the_views_still_moving(trained, run, monk
     message = str(caught[0].message)
     assert message.startswith(f"4 test view(s) ({', '.join(names[:3])}, ...)")
     assert "7 or 8 of 8 views turned 10° came back, 2 to 5 of 8 turned 20°" in message
+
+
+def test_the_aligning_bar_shows_only_while_poses_are_aligned(trained, run, monkeypatch, capsys):
+    """`progress` shows a bar over the views aligned; a scoring without --align-poses shows none
+    (a bar "aligning poses" over views that were not aligned passed every test)."""
+    from spikegs import evaluate
+    from spikegs.pose_align import Alignment
+
+    def aligned(model, viewmat, image, dataset):
+        return Alignment(np.asarray(viewmat, np.float64), 1, True, 0.0)
+
+    monkeypatch.setattr(evaluate, "aligned_pose", aligned)
+    data = trained[0]
+    for align_poses in (False, True):
+        evaluate_run(run, data, write_images=False, progress=True, align_poses=align_poses)
+        assert ("aligning poses" in capsys.readouterr().err) == align_poses
