@@ -73,8 +73,9 @@ def scaled_keys(keys: dict, scale: float, supersample: int = 1) -> dict:
     }
 
 
-def scaled_camera(dataset, scale: float, supersample: int = 1) -> Camera:
-    """The dataset's camera with its images `scaled_keys`' size."""
+def scaled_camera(dataset, scale: float, supersample: int) -> Camera:
+    """The dataset's camera with its images `scaled_keys`' size, each pixel split into
+    `supersample`²."""
     keys = scaled_keys(camera_keys(dataset.meta), scale, supersample)
     K = np.array([[keys["fl_x"], 0, keys["cx"]], [0, keys["fl_y"], keys["cy"]], [0, 0, 1]])
     return Camera(K, keys["w"], keys["h"], dataset.scene_center, dataset.scene_radius)
