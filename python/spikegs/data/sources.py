@@ -228,12 +228,11 @@ def drawn_side(spp, width: int, height: int, channels: int = 1) -> int:
         raise ValueError(f"{drawn}, over the rasterizer's {MAX_SIZE} a side")
     # (C + 3) floats a fine pixel: its image, its alpha and the core's buffers (measured 23
     # bytes a pixel in colour)
-    frame_bytes = width * s * height * s * (channels + 3) * 4
-    if frame_bytes > machine_memory() // 2:
+    frame_bytes, memory = width * s * height * s * (channels + 3) * 4, machine_memory()
+    if frame_bytes > memory // 2:
         raise ValueError(
-            f"{drawn}, {frame_bytes / 2**30:.1f} GiB a frame, over half the "
-            f"{machine_memory() / 2**30:.1f} GiB this process may use: a smaller spp, or "
-            f"smaller frames"
+            f"{drawn}, {frame_bytes / 2**30:.1f} GiB a frame, over half the {memory / 2**30:.1f} "
+            f"GiB this process may use: a smaller spp, or smaller frames"
         )
     return s
 
