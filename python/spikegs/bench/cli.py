@@ -120,11 +120,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out)
     if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
-        from ..data.sources import drawn_side
-        from .train import FULL_DATA, QUICK_DATA, check_outputs, run_names, selection
+        from .train import check_outputs, data_settings, run_names, selection
 
-        data = QUICK_DATA if args.quick else FULL_DATA
-        drawn_side(train_options.get("spp", 1), data["width"], data["height"])
+        data_settings(args.quick, train_options.get("spp", 1))
         seeds, equal_time = train_options.get("seeds", 1), args.equal_time
         scenes, methods = selection(
             args.quick,

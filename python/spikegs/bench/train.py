@@ -349,6 +349,15 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
                 )
 
 
+def data_settings(quick: bool, spp) -> dict:
+    """The scenes' simulation settings (QUICK_DATA or FULL_DATA) at `spp` samples a pixel;
+    ValueError, before any work, where the frames cannot be drawn at it (`drawn_side`: not a
+    square, past the rasterizer's side or half the memory)."""
+    data = QUICK_DATA if quick else FULL_DATA
+    drawn_side(spp, data["width"], data["height"])
+    return {**data, "spp": int(spp)}
+
+
 def run(
     quick: bool,
     out: Path,
@@ -367,9 +376,7 @@ def run(
     print a table per scene, write JSON and plots."""
     iterations = iterations or (QUICK_ITERATIONS if quick else FULL_ITERATIONS)
     scenes, methods = selection(quick, scenes, methods, seeds, equal_time)
-    data = QUICK_DATA if quick else FULL_DATA
-    drawn_side(spp, data["width"], data["height"])  # a square that fits, else refused before work
-    settings = {**data, "spp": int(spp)}
+    settings = data_settings(quick, spp)
     overrides = schedule(iterations, quick, grad_threshold)
     length = f"{iterations} iterations"  # the tables' and plots' schedule, as given
     if grad_threshold is not None:
