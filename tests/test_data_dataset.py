@@ -800,31 +800,35 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
                 load_dataset(_edited_copy(small, tmp_path / case, name, edit))
 
 
-def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small):
+@pytest.mark.parametrize("offset", [4, 0])
+def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
     """A real camera stores 416-pixel rows for a 400-pixel image: meta.json's raw_width and
     col_offset were ignored (a raw recording could not be read); a spikegs.json beside meta.json
-    is not read, and says so."""
+    is not read, and says so. The extra columns after the image (col_offset 0) too: such rows
+    are the camera's, not a frame to try read with height and width swapped."""
     root = tmp_path / "wide"
     shutil.copytree(small.root, root)
     stream = small.streams[0]
     bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
     wide = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
-    wide[:, :, 4 : 4 + bits.shape[2]] = bits
+    wide[:, :, offset : offset + bits.shape[2]] = bits
     save_dat(root / "spikes.dat", wide, flip=small.meta["flip"])
     meta = json.loads((root / "meta.json").read_text())
     with pytest.raises(ValueError, match="whole number"):  # rows wider than meta.json says
         load_dataset(root)
     (root / "meta.json").write_text(
-        json.dumps({**meta, "raw_width": bits.shape[2] + 9, "col_offset": 4})
+        json.dumps({**meta, "raw_width": bits.shape[2] + 9, "col_offset": offset})
     )
-    loaded = load_dataset(root).streams[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # read as meta.json says, nothing to warn of
+        loaded = load_dataset(root).streams[0]
     np.testing.assert_array_equal(loaded.tfp(100, 33), stream.tfp(100, 33))
     for bad in ({"raw_width": bits.shape[2] + 3, "col_offset": 4}, {"col_offset": -1}):
         (root / "meta.json").write_text(json.dumps({**meta, **bad}))
         with pytest.raises(ValueError, match="raw_width|col_offset"):
             load_dataset(root)
     (root / "meta.json").write_text(
-        json.dumps({**meta, "raw_width": bits.shape[2] + 9, "col_offset": 4})
+        json.dumps({**meta, "raw_width": bits.shape[2] + 9, "col_offset": offset})
     )
     (root / "spikegs.json").write_text('{"rate_at_one": 0.3}')
     with pytest.warns(UserWarning, match="spikegs.json is not read"):

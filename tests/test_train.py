@@ -1337,6 +1337,20 @@ def test_every_method_config_loads():
         ("spikegs", {"supervision": {"dssim_weight": 1e-40}}, "dssim_weight.*eps"),
         ("spikegs", {"supervision": {"exposure_weight": 2e6}}, "exposure_weight.*float32"),
         ("spikegs", {"supervision": {"dssim_weight": 1e15}}, "dssim_weight.*ratios"),
+        # no loss at all (both weights 0): nothing would train
+        ("tfp33", {"supervision": {"instant_weight": 0.0}}, "supervision = 'no loss'"),
+        # the exposure loss's window and poses are checked at any weight it trains with, the
+        # least (1e-6) too, not only at spikegs's 4
+        (
+            "spikegs",
+            {"supervision": {"exposure_weight": 1e-6, "exposure_poses": 1}},
+            "exposure_poses.* >= 2",
+        ),
+        (
+            "spikegs",
+            {"supervision": {"exposure_weight": 1.0, "exposure_window": 1}},
+            "exposure_window.* >= 3 with the",
+        ),
     ],
 )
 def test_config_validation(name, overrides, message):
