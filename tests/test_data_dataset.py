@@ -1142,11 +1142,13 @@ def test_a_timestamp_whose_65_readout_window_leaves_the_stream_is_refused(tmp_pa
         load_dataset(write_tiny(tmp_path / "d", timestamps=(40, T - 32)))
 
 
-def test_poses_that_stop_a_readout_short_of_the_end_are_refused(tmp_path):
+@pytest.mark.parametrize("first, last", [(0.0, T - 2.0), (1.0, T - 1.0)])
+def test_poses_that_miss_the_first_or_the_last_readout_are_refused(tmp_path, first, last):
     """trajectory.json must cover [0, T - 1]: poses ending at T - 2 leave the last readout
-    without a pose (pose_at(T - 1) raises); refused on load."""
-    with pytest.raises(ValueError, match=r"poses cover readouts \[0.0, 98.0\], expected \[0, 99\]"):
-        load_dataset(write_tiny(tmp_path / "d", readouts=(0.0, T - 2.0)))
+    without a pose (pose_at(T - 1) raises), poses from readout 1 the first; refused on load."""
+    covered = rf"poses cover readouts \[{first}, {last}\], expected \[0, 99\]"
+    with pytest.raises(ValueError, match=covered):
+        load_dataset(write_tiny(tmp_path / "d", readouts=(first, last)))
 
 
 def test_poses_past_the_last_readout_are_said_to_be_unused(tmp_path):

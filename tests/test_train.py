@@ -2710,6 +2710,11 @@ def test_iterations_override_scales_the_densification_schedule():
     # 666.7 to 667 (truncation, 66 and 666, passed every test, whose factors gave whole numbers)
     d = load_config("spikegs").with_iterations(2000).densify
     assert (d.start, d.every, d.opacity_reset_every) == (333, 67, 667)
+    # a value out of range, scaled to another length, is named as validation names it (not a
+    # ZeroDivisionError from the scaling's search for a round)
+    for bad, key in (({"every": 0}, "every"), ({"start": -1}, "start"), ({"stop": -1}, "stop")):
+        with pytest.raises(ValueError, match=f"config: densify.{key} = "):
+            load_config("spikegs", {"densify": bad}, iterations=100)
 
 
 def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
