@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import os
 import re
 import shutil
@@ -1049,6 +1050,32 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
     check_meta_values(meta, tmp_path / "meta.json", ["cx", "cy"])
     with pytest.raises(ValueError, match="cx 1200.0 puts the image centre 71° off"):
         check_meta_values({**meta, "cx": 1200.0}, tmp_path / "meta.json", ["cx"])
+
+
+@pytest.mark.parametrize("key, size", [("cx", 64), ("cy", 48)])
+@pytest.mark.parametrize("side", [1, -1])
+def test_the_principal_points_angle_is_taken_from_the_image_centre(tmp_path, key, size, side):
+    """The bound of 60° off the optical axis holds either side of the image's centre (width / 2
+    for cx, height / 2 for cy): 59.9° accepted, 60.1° refused (a centre at a third of the width,
+    9° off at these sizes, passed every test, whose points lay far inside or outside)."""
+    meta = {"width": 64, "height": 48, "fx": 400.0, "fy": 400.0}
+    for angle in (59.9, 60.1):
+        point = size / 2 + side * 400 * math.tan(math.radians(angle))
+        edited = ({**meta, key: point}, tmp_path / "meta.json", [key])
+        if angle < 60:
+            check_meta_values(*edited)
+        else:
+            with pytest.raises(ValueError, match=f"{key} .* puts the image centre 60° off"):
+                check_meta_values(*edited)
+
+
+def test_raw_width_equal_to_the_width_is_accepted_without_col_offset(tmp_path):
+    """Rows stored as wide as the image (raw_width = width, col_offset unset: 0) are read; a
+    col_offset of 1 then leaves the last column out of the stored rows."""
+    meta, path = {"width": 64, "raw_width": 64}, tmp_path / "meta.json"
+    check_meta_values(meta, path, ["raw_width"])
+    with pytest.raises(ValueError, match="width \\+ col_offset = 65, found 64"):
+        check_meta_values({**meta, "col_offset": 1}, path, ["raw_width", "col_offset"])
 
 
 @pytest.mark.parametrize(
