@@ -1330,6 +1330,8 @@ def test_every_method_config_loads():
         ("only_instant", {"supervision": {"instant_until": "densify"}}, "instant_until.*exposure"),
         ("spikegs", {"lr": {"background": 1e30}}, "lr.background"),
         ("spikegs", {"pose_refine": {"lr": 5.0}}, "pose_refine.lr"),
+        # a rate over 1 moves a parameter by more than its scale a step: the bound is 1
+        ("spikegs", {"lr": {"quats": 1.01}}, "lr.quats = 1.01, expected 0..1.0 "),
         # overflowed Adam's squared gradients at the first step, after SIM had trained
         ("spikegs", {"supervision": {"instant_weight": 1e30}}, "instant_weight.*1e-06..1,000,000"),
         # trained nothing (the gradients under Adam's eps), silently
@@ -1419,6 +1421,7 @@ def test_config_edges_of_the_ranges_are_accepted():
         "sim": {"iterations": 1, "crop": 1, "batch": 1, "window": 1},
         "densify": {"start": 0, "every": 1, "opacity_reset_every": 0, "min_opacity": 0.0},
     }
+    edges["lr"] = {"quats": 1.0}  # MAX_LR
     config = load_config("spikegs", edges)
     assert (config.train.seed, config.sim.crop, config.densify.every) == (2**64 - 1, 1, 1)
     # a cap of exactly the initial Gaussians: a run that never grows (> for >= refused it)
@@ -1629,14 +1632,22 @@ def test_a_bad_key_is_named_with_its_file(tmp_path):
 
 def test_a_value_of_the_wrong_kind_is_shown_as_yaml_spells_it(tmp_path):
     """An empty key read "= None is a NoneType, expected int", and `instant: no` "= False is a
-    bool, expected str": Python's words for what the file spells null and false."""
+    bool, expected str": Python's words for what the file spells null and false. The hint to
+    quote yes or no follows a true or false where text goes, not a number there nor a true
+    where a number goes (whole messages: that hint after every wrong kind passed)."""
+    quote = " (YAML reads an unquoted yes, no, on or off as true or false: quote the text)"
     for text, message in (
         ("train:\n  iterations:\n", "'train.iterations' = null (empty), expected an integer"),
-        ("supervision: {instant: no}\n", "'supervision.instant' = false, expected text (YAML"),
-        ("train: 20\n", "'train' = 20 (an integer), expected a section"),
+        ("supervision: {instant: no}\n", f"'supervision.instant' = false, expected text{quote}"),
+        ("supervision: {instant: 5}\n", "'supervision.instant' = 5 (an integer), expected text"),
+        ("train: {iterations: yes}\n", "'train.iterations' = true, expected an integer"),
+        (
+            "train: 20\n",
+            "'train' = 20 (an integer), expected a section (its keys, indented below it)",
+        ),
     ):
         (tmp_path / "c.yaml").write_text(f"base: tfp33\n{text}")
-        with pytest.raises(ValueError, match=re.escape(message)):
+        with pytest.raises(ValueError, match=re.escape(message) + "$"):
             load_config(tmp_path / "c.yaml")
 
 
