@@ -56,22 +56,27 @@ def as_llff():
 
 @pytest.fixture
 def moved_world():
-    """`moved_world(dataset, offset)`: `dataset` with its world moved by `offset` [3] (poses, test
-    views and scene centre), as if captured there (UTM or GPS coordinates)."""
+    """`moved_world(dataset, offset, scale=1)`: `dataset` with its world scaled by `scale` about
+    the origin, then moved by `offset` [3] (poses, test views, scene centre and radius), as if
+    captured there (UTM or GPS coordinates) in other units."""
     from spikegs.data.dataset import Dataset
     from spikegs.data.trajectory import Trajectory
 
-    def moved(dataset, offset) -> Dataset:
+    def moved(dataset, offset, scale: float = 1.0) -> Dataset:
         offset = np.asarray(offset, np.float64)
 
-        def move(viewmats):  # world-to-camera [..., 4, 4]: t - R·offset
+        def move(viewmats):  # world-to-camera [..., 4, 4]: scale·t - R·offset
             out = np.array(viewmats, np.float64)
-            out[..., :3, 3] -= out[..., :3, :3] @ offset
+            out[..., :3, 3] = scale * out[..., :3, 3] - out[..., :3, :3] @ offset
             return out
 
         trajectory = Trajectory(dataset.trajectory.readouts, move(dataset.trajectory.viewmats))
         views = [dataclasses.replace(v, viewmat=move(v.viewmat)) for v in dataset.test_views]
-        meta = {**dataset.meta, "scene_center": list(dataset.scene_center + offset)}
+        meta = {
+            **dataset.meta,
+            "scene_center": list(scale * dataset.scene_center + offset),
+            "scene_radius": scale * dataset.scene_radius,
+        }
         timestamps = dataset.train_timestamps
         return Dataset(dataset.root, meta, dataset.streams, trajectory, timestamps, views)
 

@@ -983,6 +983,9 @@ def test_a_scene_far_from_the_origin_is_warned_of(small, moved_world):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         moved_world(small, np.full(3, 100.0))
+    # a scene in other units, its cameras under a unit from its centre (0.3): judged alike
+    with pytest.warns(UserWarning, match="lies 1.73e\\+05 units from the origin, .* round by"):
+        moved_world(small, np.full(3, 1e5), scale=0.1)
 
 
 def test_a_scene_radius_out_of_scale_with_the_cameras_is_warned_of(small):
