@@ -4150,6 +4150,16 @@ def test_a_scene_is_trained_about_its_centre_from_ten_radii_out():
         assert np.array_equal(frame_origin(far, radius), far)
 
 
+def test_an_instant_target_off_or_trained_on_no_step_is_none():
+    """The instant target a run reads (and trains SIM for): none where instant_weight is 0 (sim
+    still named), or where L_instant trains until densification's window ends and a run of 1
+    step has none; sim from 2 steps (a weight of 0 read as sim passed every test)."""
+    off = load_config("spikegs", {"supervision": {"instant_weight": 0.0}})
+    assert off.supervision.instant == "sim" and off.instant_target() == "none"
+    assert load_config("spikegs", iterations=1).instant_target() == "none"
+    assert load_config("spikegs", iterations=2).instant_target() == "sim"
+
+
 def test_a_method_without_an_instant_target_densifies_on_its_exposure_renders(dataset, tmp_path):
     """only_exposure (instant: none) with densify.instant_only: no instant render to take the
     signal from, so the exposure's renders give it, over the exposure's weight (instant_only
