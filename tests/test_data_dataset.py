@@ -1321,6 +1321,28 @@ def test_the_light_checks_gather_the_lit_rates_a_view_at_a_time():
     assert all(text in messages for text in said), (said, messages)
 
 
+@pytest.mark.parametrize("height, judged", [(16, True), (15, False)])
+def test_rows_wider_than_given_are_judged_from_16_rows(tmp_path, height, judged):
+    """A camera's rows of 8 pixels more than the width, read without raw_width: warned of in a
+    frame of 16 rows (WIDER_MIN_SIZE, where random frames stop scoring as wider by chance), not
+    in one of 15 (a floor of 17 passed: the tests' frames were 32 rows or more). 402 readouts
+    make whole frames of either row width."""
+    width = 24
+    data = simulate_dataset(
+        "solids", tmp_path / "d", **{**SMALL, "height": height, "width": width, "readouts": 402}
+    )
+    n = len(data.stream)
+    raw = np.random.default_rng(0).integers(0, 2, (n, height, width + 8), dtype=np.uint8)
+    raw[..., 4 : 4 + width] = data.stream.window(n // 2, n)  # [n, height, width]
+    save_dat(tmp_path / "raw.dat", raw)
+    stream = SpikeStream.open(tmp_path / "raw.dat", height, width)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warn_rows_out_of_line(stream, "meta.json")
+    said = [str(w.message) for w in caught]
+    assert len(said) == judged and all(f"set raw_width {width + 8}" in m for m in said), said
+
+
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_a_recording_read_with_height_and_width_swapped_is_warned_of(scene, tmp_path):
     """Height and width swapped give frames of as many bytes: the spikes were read without a
