@@ -473,8 +473,10 @@ def test_mitsuba_source_convention_and_dataset(tmp_path, mitsuba):
     source = MitsubaSource(scene, 16, 16, channels=3, spp=1, center=[0, 0, 0], radius=1.0)
     traj = source.trajectory(101, 1.0)
     viewmat = traj.pose_at(60.0)
-    image = source.render(viewmat)  # [16, 16, 3]
-    assert image.shape == (16, 16, 3)
+    with warnings.catch_warnings():  # black, not below 0: nothing to warn of (black warned)
+        warnings.simplefilter("error", UserWarning)
+        image = source.render(viewmat)  # [16, 16, 3]
+    assert image.shape == (16, 16, 3) and (image == 0).any()
     mask = image[..., 0] > 0.5
     assert mask.sum() > 3
     np.testing.assert_allclose(image[mask], [[1.0, 0.5, 0.25]] * mask.sum(), atol=1e-5)
@@ -493,6 +495,22 @@ def test_mitsuba_source_convention_and_dataset(tmp_path, mitsuba):
         progress=False,
     )
     assert ds.meta["source"] == "mitsuba" and len(ds.test_views) == 3
+
+
+def test_mitsuba_draws_a_point_far_off_the_image_centre_where_k_projects_it(mitsuba):
+    """A ball 24 and 20 pixels off a 64² image's centre, right and up, lies where K projects it:
+    the axes' flip that turns OpenCV's camera into Mitsuba's is exactly -1 (-1.1, which moves a
+    point 2.4 pixels there, passed: the other tests' balls lay 2 pixels off the centre)."""
+    source = MitsubaSource(
+        glowing_ball([0, 0, 0], 0.1), 64, 64, spp=1, center=[0, 0, 0], radius=1.0
+    )
+    viewmat = source.trajectory(2, 1.0).pose_at(0.0)  # [4, 4] world-to-camera
+    depth, pixel = 2.0, np.array([32.0 + 24, 32.0 - 20, 1.0])
+    point = viewmat[:3, :3].T @ (depth * np.linalg.solve(source.K, pixel) - viewmat[:3, 3])
+    source = MitsubaSource(glowing_ball(point, 0.08), 64, 64, spp=1, center=[0, 0, 0], radius=1.0)
+    mask = source.render(viewmat)[..., 0] > 0.5  # [64, 64]
+    assert mask.sum() > 3
+    assert_drawn_where_projected(source, viewmat, mask, point)
 
 
 def test_up_rotation_turns_z_into_up():
@@ -604,6 +622,10 @@ def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path, mitsuba):
     for scene, message in cases:
         with pytest.raises(ValueError, match=message):
             MitsubaSource(scene, 16, 16)
+    # a flat scene (one rectangle: no thickness along z) has shapes: accepted
+    light = {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}
+    flat = {"type": "scene", "integrator": {"type": "path"}}
+    MitsubaSource({**flat, "card": {"type": "rectangle", "emitter": light}}, 16, 16)
     (tmp_path / "bad.xml").write_text("<scene version='3.0.0'><shape")
     with pytest.raises(ValueError, match="Mitsuba scene 'bad' does not load"):
         MitsubaSource(tmp_path / "bad.xml", 16, 16)
@@ -738,6 +760,19 @@ def test_forward_facing_views_need_a_scene_sphere(tmp_path):
         FrameSequenceSource("fw", frames, forward, np.eye(3))
     source = FrameSequenceSource("fw", frames, forward, np.eye(3), center=[0, 0, 3], radius=1)
     assert source.scene_center.tolist() == [0, 0, 3] and source.scene_radius == 1
+
+
+def test_a_frame_sequences_held_out_readouts_keep_the_margin_and_spread_inside_it():
+    """11 frames over readouts 0..100 (one every 10), a margin of 10: the held-out views may lie
+    on readouts 10..90, both ends included (90 = 100 - 10 left out passed); 3 of them lie
+    between the ends (30, 50, 70; the ends taken passed), and 8 of the 9, whose picks between
+    the ends would repeat, spread over all."""
+    frames = np.zeros((11, 4, 4, 1), np.float32)
+    viewmats = [look_at([3.0 * np.cos(a), 3.0 * np.sin(a), 0], [0, 0, 0]) for a in range(11)]
+    source = FrameSequenceSource("seq", frames, viewmats, np.eye(3), center=[0, 0, 0], radius=1)
+    assert source.on_path_times(101, 20, 10).tolist() == list(range(10, 91, 10))
+    assert source.on_path_times(101, 3, 10).tolist() == [30, 50, 70]
+    assert source.on_path_times(101, 8, 10).tolist() == [10, 20, 30, 40, 60, 70, 80, 90]
 
 
 def test_simulate_takes_a_forward_sweeps_scene_sphere_from_its_transforms_file(tmp_path):
