@@ -13,7 +13,11 @@ import warnings
 import numpy as np
 import pytest
 from spikegs.data import SCENES, ProceduralSource
-from spikegs.data.sources import FrameSequenceSource, RenderSource
+from spikegs.data.sources import (
+    FrameSequenceSource,
+    RenderSource,
+    warn_if_names_order_the_path,
+)
 from spikegs.data.trajectory import Trajectory, look_at, orbit_eye
 from spikegs.data.transforms_file import OPENGL_TO_OPENCV
 from spikegs.data.view_geometry import optical_axes
@@ -388,3 +392,14 @@ def test_frames_listed_out_of_their_names_time_order_are_warned_of(tmp_path):
     path.write_text(json.dumps(doc))
     with pytest.warns(UserWarning, match="times as long as in their file names' order"):
         FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
+
+
+def test_a_dollys_frames_listed_out_of_order_are_warned_of(tmp_path):
+    """The path is the cameras' centres: a sideways dolly (every camera looking the same way)
+    listed out of its names' order is warned of (its optical axes' path, of length 0 for a
+    dolly, passed every test: a ring's axes turn as its centres move)."""
+    viewmats = np.stack([look_at([x, -3.0, 0.0], [x, 0.0, 0.0]) for x in np.arange(8.0)])
+    order = [0, 7, 1, 6, 2, 5, 3, 4]
+    names = [f"r_{i}" for i in order]
+    with pytest.warns(UserWarning, match="times as long as in their file names' order"):
+        warn_if_names_order_the_path(tmp_path / "dolly.json", names, viewmats[order])
