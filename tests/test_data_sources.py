@@ -513,6 +513,15 @@ def test_mitsuba_draws_a_point_far_off_the_image_centre_where_k_projects_it(mits
     assert_drawn_where_projected(source, viewmat, mask, point)
 
 
+def test_a_mitsuba_scene_is_orbited_about_its_bounding_box(mitsuba):
+    """Without a centre and radius given, a Mitsuba scene's sphere is its bounding box's: the
+    centre midway (a third of the way passed every test: each gave its centre) and the radius
+    half the diagonal."""
+    source = MitsubaSource(glowing_ball([1.0, 2.0, -3.0], 0.5), 8, 8, spp=1)
+    np.testing.assert_allclose(source.scene_center, [1.0, 2.0, -3.0], atol=1e-5)
+    assert source.scene_radius == pytest.approx(0.5 * np.sqrt(3), rel=1e-4)
+
+
 def test_up_rotation_turns_z_into_up():
     """The identity, exactly, for +z (the built-in scenes' datasets stay bit for bit), a proper
     rotation taking +z to any other unit vector, -z a half turn."""
