@@ -1053,6 +1053,10 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
     check_meta_values(meta, tmp_path / "meta.json", ["cx", "cy"])
     with pytest.raises(ValueError, match="cx 1200.0 puts the image centre 71° off"):
         check_meta_values({**meta, "cx": 1200.0}, tmp_path / "meta.json", ["cx"])
+    # a focal under a pixel (an 8-pixel frame at fx 0.5: 166° of view, accepted) is judged too
+    tiny = {"width": 8, "height": 8, "fx": 0.5, "fy": 0.5, "cx": 6.0, "cy": 4.0}
+    with pytest.raises(ValueError, match="cx 6.0 puts the image centre 76° off"):
+        check_meta_values(tiny, tmp_path / "meta.json", ["fx", "fy", "cx", "cy"])
 
 
 @pytest.mark.parametrize("key, size", [("cx", 64), ("cy", 48)])
@@ -1197,6 +1201,9 @@ def test_a_pseudo_ground_truths_window_is_kept(tmp_path):
     assert [v.window for v in load_dataset(root).test_views] == [65]
     path = root / "test_views.json"
     doc = json.loads(path.read_text())
+    doc["frames"][0]["pseudo_window"] = 1  # the least: one readout's spikes (> 1 passed)
+    path.write_text(json.dumps(doc))
+    assert [v.window for v in load_dataset(root).test_views] == [1]
     for bad in ("65", 6.5, 0, True):
         doc["frames"][0]["pseudo_window"] = bad
         path.write_text(json.dumps(doc))

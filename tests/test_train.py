@@ -1422,6 +1422,7 @@ def test_config_edges_of_the_ranges_are_accepted():
         "densify": {"start": 0, "every": 1, "opacity_reset_every": 0, "min_opacity": 0.0},
     }
     edges["lr"] = {"quats": 1.0}  # MAX_LR
+    edges["supervision"] = {"exposure_poses": 2}  # the least an exposure averages
     config = load_config("spikegs", edges)
     assert (config.train.seed, config.sim.crop, config.densify.every) == (2**64 - 1, 1, 1)
     # a cap of exactly the initial Gaussians: a run that never grows (> for >= refused it)
