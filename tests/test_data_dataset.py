@@ -1064,7 +1064,7 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
 def test_the_principal_points_angle_is_taken_from_the_image_centre(tmp_path, key, size, side):
     """The bound of 60° off the optical axis holds either side of the image's centre (width / 2
     for cx, height / 2 for cy): 59.9° accepted, 60.1° refused (a centre at a third of the width,
-    9° off at these sizes, passed every test, whose points lay far inside or outside)."""
+    which moves the bound 0.4° here, passed every test, whose points lay far inside or out)."""
     meta = {"width": 64, "height": 48, "fx": 400.0, "fy": 400.0}
     for angle in (59.9, 60.1):
         point = size / 2 + side * 400 * math.tan(math.radians(angle))

@@ -396,8 +396,8 @@ def test_frames_listed_out_of_their_names_time_order_are_warned_of(tmp_path):
 
 def test_a_frame_sequence_is_named_after_its_folder(tmp_path):
     """A transforms file's scene (meta.json's `scene`, the tables' rows) is its folder's name,
-    lego for lego/transforms.json; the file's own name only for a file without a folder (each
-    a name: 'transforms', the stem, passed for every file)."""
+    lego for lego/transforms.json; the file's own name only for a path without a folder (`and`
+    for `or`, which named every such scene 'transforms', passed)."""
     path = tmp_path / "lego" / "transforms.json"
     write_transforms(path, "seq", ring_viewmats(np.arange(0, 80, 10)))
     assert FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1).name == "lego"
