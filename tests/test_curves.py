@@ -87,6 +87,13 @@ def test_the_title_says_where_views_are_scored_against_a_pseudo_ground_truth(tmp
         "(1 of them)",
         "llff: PSNR over the 1 test views during training",
     ]
+    # an earlier log scores the first view alone: the note reads that view only (the first two
+    # read passed)
+    old = {"tfp33": (_log(tmp_path / "old", [LOG[1]]), 0.0)}
+    views = [SimpleNamespace(name=name) for name in ("on_000", "pseudo_016")]
+    dataset = SimpleNamespace(meta={"scene": "llff"}, root=tmp_path, test_views=views)
+    save_logged_curves(tmp_path / "curve.png", old, dataset)
+    assert titles[-1].split("\n")[0] == "llff: PSNR of the test view on_000 during training"
 
 
 def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
