@@ -77,23 +77,25 @@ def test_the_title_says_where_views_are_scored_against_a_pseudo_ground_truth(tmp
     titles = []
     monkeypatch.setattr(curves, "save_curves", lambda path, methods, m, title: titles.append(title))
     run = {"tfp33": (_log(tmp_path / "run", [dict(LOG[1], psnr_mean=21.0)]), 0.0)}
-    for names in (["pseudo_008", "pseudo_016"], ["on_000", "pseudo_016"], ["on_000"]):
+    # an earlier log scores the first view alone: the note reads that view only (the first two
+    # read passed)
+    old = {"tfp33": (_log(tmp_path / "old", [LOG[1]]), 0.0)}
+    for log, names in (
+        (run, ["pseudo_008", "pseudo_016"]),
+        (run, ["on_000", "pseudo_016"]),
+        (run, ["on_000"]),
+        (old, ["on_000", "pseudo_016"]),
+    ):
         views = [SimpleNamespace(name=name) for name in names]
         dataset = SimpleNamespace(meta={"scene": "llff"}, root=tmp_path, test_views=views)
-        save_logged_curves(tmp_path / "curve.png", run, dataset)
+        save_logged_curves(tmp_path / "curve.png", log, dataset)
     assert [t.split("\n")[0] for t in titles] == [
         "llff: PSNR over the 2 test views during training, against TFP pseudo ground truth",
         "llff: PSNR over the 2 test views during training, against TFP pseudo ground truth "
         "(1 of them)",
         "llff: PSNR over the 1 test views during training",
+        "llff: PSNR of the test view on_000 during training",
     ]
-    # an earlier log scores the first view alone: the note reads that view only (the first two
-    # read passed)
-    old = {"tfp33": (_log(tmp_path / "old", [LOG[1]]), 0.0)}
-    views = [SimpleNamespace(name=name) for name in ("on_000", "pseudo_016")]
-    dataset = SimpleNamespace(meta={"scene": "llff"}, root=tmp_path, test_views=views)
-    save_logged_curves(tmp_path / "curve.png", old, dataset)
-    assert titles[-1].split("\n")[0] == "llff: PSNR of the test view on_000 during training"
 
 
 def test_a_method_without_sim_is_drawn_as_one(tmp_path, monkeypatch):
