@@ -37,6 +37,7 @@ from spikegs.data.nerf_layout import _spike_candidates
 from spikegs.data.real import (
     _spaced_hold_out,
     check_orientation,
+    first_of,
     held_out_mask,
     rate_from_images,
     stream_dataset,
@@ -294,12 +295,16 @@ def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, t
     with pytest.warns(UserWarning, match=few):
         assert len(log(np.arange(0, VIEWS * LENGTH, 17)).train_timestamps) > 400
     assert [v.readout for v in log(every5, test_views=[20, 120]).test_views] == [100.0, 600.0]
+    with pytest.raises(ValueError, match="no training timestamp left"):  # the user's, kept
+        log(every5, test_views=list(range(0, 140, 8)))
     # an uneven log, a pose every 10 readouts up to 350 then every 50: every 8th pose leaves
     # the dense half no timestamp, where the sparse half keeps enough that the spaced rule
     # stays out; the stretch is named (trained unsaid from the neighbouring stretches)
     uneven = np.concatenate([np.arange(0, 350, 10), np.arange(350, VIEWS * LENGTH, 50)])  # [42]
-    with pytest.warns(UserWarning, match=r"no training timestamp between readouts 32-3\d\d: "):
+    untrained = r"no training timestamp between readouts 32-3\d\d: "
+    with pytest.warns(UserWarning, match=untrained) as said:
         assert len(log(uneven).train_timestamps) > 100
+    assert not any("a train_every under" in str(w.message) for w in said)  # train_every is 1
     with warnings.catch_warnings():  # held-out poses of the user's: as chosen, unsaid
         warnings.simplefilter("error")
         log(uneven, test_views=[3, 11, 19, 27])  # 80 readouts apart: 32-334 untrained
@@ -315,6 +320,12 @@ def test_ordinals_read_as_english():
         "1st", "2nd", "3rd", "4th", "11th", "12th", "13th", "21st", "22nd", "101st", "111th",
         "131st", "208th",
     ]  # fmt: skip
+
+
+def test_a_list_in_a_message_counts_what_it_leaves_out():
+    assert first_of(list("abcde")) == "a, b, c, d, e"
+    assert first_of(list("abcdef")) == "a, b, c, d, e and 1 more"
+    assert first_of(list("abc"), shown=2) == "a, b and 1 more"
 
 
 def test_poses_whose_cameras_look_away_are_named(sim, llff_stream, tmp_path):
