@@ -651,6 +651,10 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     write_options(root, train_every=7, test_views=[0, 13])  # 130 apart: one readout between
     with pytest.raises(ValueError, match=r"130 readouts apart; a smaller train_every, or fewer"):
         load_dataset(root)
+    write_options(root, train_every=300, test_views=[5])  # timestamps at 32, 332: none inside
+    one = r"clear of the held-out pose; a smaller train_every, or fewer"  # no spacing of one
+    with pytest.raises(ValueError, match=one):
+        load_dataset(root)
     write_options(root, train_every=1, test_views=[0, 13])  # readout 265 trains
     assert load_dataset(root).train_timestamps.tolist() == [265]
     (root / "spikegs.json").unlink()

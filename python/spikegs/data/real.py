@@ -492,11 +492,12 @@ def stream_dataset(
         apart = f", which lie {spacing:g} readouts apart" if len(held) > 1 else ""
         smaller = "a smaller train_every, or " if every > 1 and spacing > HOLD_OUT_GAP else ""
         least = _spaced_hold_out(readouts, every, clearances=1)  # the closest that leave one
+        poses = f"each of the {held.size} held-out poses" if held.size > 1 else "the held-out pose"
         raise ValueError(
             f"{source}: no training timestamp left: timestamps every {every} readouts "
             f"(train_every) of the stream, {WINDOW_MARGIN} or more inside the poses' readouts "
             f"[{trajectory.start:g}, {trajectory.end:g}], keep {2 * WINDOW_MARGIN} readouts "
-            f"clear of each of the {held.size} held-out poses{which}{apart}; {smaller}fewer "
+            f"clear of {poses}{which}{apart}; {smaller}fewer "
             f"held-out poses further apart (test_views, pose indices, e.g. every "
             f"{ordinal(least)}: {readout_number(least * _pose_step(readouts))} readouts apart), "
             f"in spikegs.json"
