@@ -1074,6 +1074,9 @@ def test_llff_sphere_ignores_loose_far_bounds(sim, llff, tmp_path):
     ds = load_dataset(root)
     assert ds.scene_radius < 2 * sim.scene_radius
     assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.1 * sim.scene_radius
+    write_options(root, scene_radius=7)  # about the computed centre
+    alone = load_dataset(root)
+    assert alone.meta["scene_radius"] == 7 and np.allclose(alone.scene_center, ds.scene_center)
     write_options(root, scene_center=[1, 2, 3], scene_radius=7)  # the override stays
     ds = load_dataset(root)
     assert ds.meta["scene_center"] == [1, 2, 3] and ds.meta["scene_radius"] == 7
