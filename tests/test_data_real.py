@@ -19,6 +19,7 @@ from spikegs import SpikeStream
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
+from spikegs.data.correlation import correlation
 from spikegs.data.dataset import Dataset
 from spikegs.data.llff import (
     _check_stream_length,
@@ -1792,6 +1793,17 @@ def test_spikes_upside_down_against_their_images_warn_of_flip():
     scrambled = np.random.default_rng(0).permutation(image.reshape(-1)).reshape(image.shape)
     with pytest.warns(UserWarning, match=r"hardly match .* \(median correlation -?0\.\d\d over 3"):
         check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, True, "x")
+
+
+def test_correlation_refuses_images_of_two_shapes():
+    """Pearson's r of two images; an image against one of another shape (its row means, say)
+    raises where numpy broadcast it into a number."""
+    image = np.random.default_rng(0).random((12, 16))
+    assert correlation(image, 2 * image + 1) == pytest.approx(1.0)
+    assert correlation(image, -image) == pytest.approx(-1.0)
+    assert correlation(image, np.ones_like(image)) == 0.0  # flat
+    with pytest.raises(ValueError, match=r"shapes \(12, 16\) and \(12, 1\)"):
+        correlation(image, image.mean(-1, keepdims=True))
 
 
 def test_flip_warning_needs_most_views_to_match_upside_down_by_a_margin():
