@@ -1069,18 +1069,26 @@ def test_options_test_view_listed_twice_warns(tmp_path):
 
 
 def test_llff_sphere_ignores_loose_far_bounds(sim, llff, tmp_path):
-    """Cameras orbiting the scene: the sphere follows the optical axes and near bounds."""
+    """Cameras orbiting the scene: the sphere is centred where the optical axes meet and reaches
+    each camera's near bound, in whatever units the poses are in."""
     root = copy(llff, tmp_path)
     edit_poses(root, lambda rows: rows.__setitem__((slice(None), 16), 1000.0))
     ds = load_dataset(root)
     assert ds.scene_radius < 2 * sim.scene_radius
     assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.1 * sim.scene_radius
+    rows = np.load(root / "poses_bounds.npy")  # [N, 17]: t in columns 3, 8, 13; near in 15
+    reach = np.linalg.norm(rows[:, [3, 8, 13]] - ds.scene_center, axis=1) - rows[:, 15]
+    assert ds.scene_radius == pytest.approx(reach.max())  # to each camera's near bound
     write_options(root, scene_radius=7)  # about the computed centre
     alone = load_dataset(root)
     assert alone.meta["scene_radius"] == 7 and np.allclose(alone.scene_center, ds.scene_center)
     write_options(root, scene_center=[1, 2, 3], scene_radius=7)  # the override stays
-    ds = load_dataset(root)
-    assert ds.meta["scene_center"] == [1, 2, 3] and ds.meta["scene_radius"] == 7
+    given = load_dataset(root)
+    assert given.meta["scene_center"] == [1, 2, 3] and given.meta["scene_radius"] == 7
+    (root / "spikegs.json").unlink()
+    rows[:, [3, 8, 13, 15, 16]] /= 100  # every length: in units 100 times larger, a reach under 1
+    np.save(root / "poses_bounds.npy", rows)
+    assert load_dataset(root).scene_radius == pytest.approx(ds.scene_radius / 100)
 
 
 def test_llff_sphere_warns_when_loose(sim):
