@@ -510,21 +510,6 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys, monkeypatch
     )
 
 
-def test_nerf_sharp_image_with_alpha_is_composited_over_white(nerf, tmp_path):
-    """A test view's transparent pixels are white, as NeRF synthetic's images were rendered."""
-    from PIL import Image
-
-    root = copy(nerf, tmp_path)
-    (root / "test" / "r_0.exr").unlink()
-    rgba = np.zeros((H, W, 4), np.uint8)  # transparent below, opaque black above
-    rgba[: H // 2, :, 3] = 255
-    Image.fromarray(rgba, "RGBA").save(root / "test" / "r_0.png")
-    ds = load_dataset(root)
-    sharp = ds.test_views[0].image  # [H, W, 1]
-    np.testing.assert_allclose(sharp[H // 2 :], ds.meta["image_scale"], rtol=1e-6)
-    np.testing.assert_array_equal(sharp[: H // 2], 0.0)
-
-
 def test_nerf_of_no_stated_size_and_no_sharp_image_asks_for_one(nerf, tmp_path):
     """Transforms files without w, h and no sharp test image (r_0's left out): the frame size
     is unknown, and spikegs.json's height and width are asked for (and then read)."""
