@@ -270,10 +270,16 @@ def test_frame_sequence_source(tmp_path):
         write_transforms(cropped / "transforms.json", "train", train, train_poses, truth.K, ".exr")
         frame = train[int(file[-1])].copy()
         frame[10, 20, 0] = value
+        frame[0, 0] = 0.0  # black, not below 0: not counted
         write_image(cropped / "train" / f"{file}.exr", frame)
         with pytest.warns(UserWarning, match=rf"1 frame\(s\) hold 1 values below 0 .*{file}"):
             low = FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
         assert low.frames.min() >= 0 and low.frames[int(file[-1]), 10, 20, 0] == 0
+    write_transforms(cropped / "transforms.json", "train", train, train_poses, truth.K, ".exr")
+    write_image(cropped / "train" / "r_5.exr", np.where(train[5] < 0.3, 0.0, train[5]))  # black
+    with warnings.catch_warnings():  # black, not below 0: nothing to warn of
+        warnings.simplefilter("error")
+        FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
 
     # half resolution, mono: intrinsics scale, luma of the frames
     half = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 16, 16)
@@ -893,17 +899,21 @@ def test_simulated_frames_cameras_checked_before_the_frames_are_read(tmp_path):
     [
         ("camera_angle_x", 40, r"in \(0, pi\) radians, found 40 \(40 degrees would be 0.698"),
         ("camera_angle_x", -0.7, r"in \(0, pi\) radians, found -0.7$"),
-        # the range's open ends: π (a focal of 0, read as degrees) and 0
+        # the ranges' open ends, each key's: π (a focal of 0, read as degrees) and 0
         (
             "camera_angle_x",
             np.pi,
             r"in \(0, pi\) radians, found 3.14159\d+ \(3.14159 degrees would",
         ),
+        ("camera_angle_x", 0, r"in \(0, pi\) radians, found 0$"),
         ("camera_angle_y", 0, r"in \(0, pi\) radians, found 0$"),
+        ("camera_angle_y", np.pi, r"in \(0, pi\) radians, found 3.14159\d+ \(3.14159 degrees"),
         ("fl_x", -50.8, r"> 0 \(pixels\), found -50.8"),
+        ("fl_x", 0, r"> 0 \(pixels\), found 0"),
         ("fl_y", 0, r"> 0 \(pixels\), found 0"),
         ("fl_y", -30, r"> 0 \(pixels\), found -30"),
         ("w", 0, "a positive integer"),
+        ("h", 0, "a positive integer"),
         ("h", 23.5, "a positive integer"),
         ("w", 36.5, "a positive integer"),
     ],
