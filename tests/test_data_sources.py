@@ -1108,9 +1108,12 @@ def test_a_raw_row_crop_is_read_only_within_a_pixel_of_the_stored_rows():
     for width in (49, 50, 51):  # a pixel either way: the same aspect ratio (the width rounded)
         assert columns((25, width), None) == (50, 0)
     assert columns((25, 57), 56) == (56, 3)
+    refused = r"t.json: the camera is for 25x5\d images .* 25x50 spikes"
     for src in ((25, 54), (25, 58)):  # 2 px from either: another aspect ratio
-        with pytest.raises(ValueError, match=r"t.json: the camera is for 25x5\d images .*FIX"):
+        with pytest.raises(ValueError, match=refused + r" \(or the 56 stored pixels of a row, "):
             columns(src, 56)
+    with pytest.raises(ValueError, match=refused + ": .*FIX"):  # no stored rows to name
+        columns((25, 54), None)
 
 
 @pytest.mark.parametrize("radius, warned", [(1.0, False), (5.0, False), (1.0, True)])
