@@ -1049,11 +1049,17 @@ def test_options_of_none_leave_the_files_values(tmp_path):
 
 def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):
     """A .dat that is no whole number of readouts at the options' frame size: the error names
-    the stored rows read (raw_width's 12 pixels, not the image's 6) and the first column kept."""
+    the stored rows read (raw_width's 12 pixels, not the image's 6) and the first column kept;
+    and the file, once, whether the stream's own message named it or not (rows too narrow)."""
     save_dat(tmp_path / "view.dat", np.ones((10, 4, 8), bool))  # 40 bytes: not 4x12 frames
     options = Options(raw_width=12, col_offset=2)
-    with pytest.raises(ValueError, match=r"view.dat: .*frames of 4x6 pixels, rows of 12 from col"):
+    rows = r"view.dat: .*frames of 4x6 pixels, rows of 12 from col"
+    with pytest.raises(ValueError, match=rows) as said:
         open_spikes(tmp_path / "view.dat", 4, 6, options)
+    assert str(said.value).count("view.dat") == 1
+    narrow = Options(raw_width=7, col_offset=2)
+    with pytest.raises(ValueError, match=r"view.dat: stored rows of at least col_offset \+ width"):
+        open_spikes(tmp_path / "view.dat", 4, 6, narrow)
 
 
 def test_options_scene_center_needs_its_radius(tmp_path):
