@@ -699,6 +699,10 @@ def test_read_frame_takes_alpha_association_and_encoding_from_metadata(tmp_path)
         np.testing.assert_allclose(
             read_frame(tmp_path / name, 1.0), 0.5 * linear + 0.5, atol=1e-4, err_msg=name
         )
+    clear = rgba(0.3)
+    clear[1, 1] = 0.0  # associated sRGB, wholly transparent: the background (not 0 / 0)
+    _write_tiff(tmp_path / "clear.tif", clear, oiio.UINT16, unassociated=False)
+    np.testing.assert_allclose(read_frame(tmp_path / "clear", 1.0)[1, 1], 1.0)
     _write_tiff(tmp_path / "extra.tif", rgba(0.6), oiio.UINT16, unassociated=False, alpha=False)
     np.testing.assert_allclose(read_frame(tmp_path / "extra", 1.0), linear, atol=1e-4)  # no alpha
     # a non-finite value in a channel left out (a renderer's depth: inf in the background) is
