@@ -104,9 +104,10 @@ def transforms_viewmats(path: Path, doc: dict) -> np.ndarray:
     return np.linalg.inv(rigid_c2w(c2w, str(path), "frame"))
 
 
-def intrinsics_text(K: np.ndarray, digits: int = 6) -> str:
-    """fx, fy, cx, cy of a camera matrix [3, 3] to `digits` significant digits, for a message."""
-    return ", ".join(f"{v:.{digits}g}" for v in intrinsics_keys(K).values())
+def intrinsics_text(K: np.ndarray) -> str:
+    """fx, fy, cx, cy of a camera matrix [3, 3] to 9 significant digits (two cameras 1e-6 apart
+    told apart), for a message."""
+    return ", ".join(f"{v:.9g}" for v in intrinsics_keys(K).values())
 
 
 def _camera_text(camera: dict) -> str:
@@ -287,9 +288,9 @@ def one_camera_matrix(
             differ = "their distortion differs" if same_K else "their fx, fy, cx, cy differ"
             raise ValueError(
                 f"{sources[i]}: frame '{frames[i]['file_path']}' has intrinsics "
-                f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i, 9)}), frame "
+                f"{_camera_text(other)} (fx, fy, cx, cy {intrinsics_text(K_i)}), frame "
                 f"'{frames[first]['file_path']}' of {sources[first]} {_camera_text(camera)} "
-                f"({intrinsics_text(K, 9)}): {differ}; one camera expected"
+                f"({intrinsics_text(K)}): {differ}; one camera expected"
             )
     return K
 
