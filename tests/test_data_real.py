@@ -1015,9 +1015,9 @@ def test_options_validated(key, value, tmp_path):
 
 def test_options_valid_values_pass(tmp_path):
     values = dict(height=16, width=24, flip=False, test_views=[1], scene_center=[0, 0.5, 1])
-    write_options(tmp_path, **values, rate_at_one=0.25, scene_radius=0.5)  # (under 1: a length)
+    write_options(tmp_path, **values, rate_at_one=0.25, scene_radius=2)
     options = read_options(tmp_path, {"train_every": np.int64(3)})
-    assert options.train_every == 3 and options.scene_radius == 0.5 and options.flip is False
+    assert options.train_every == 3 and options.scene_radius == 2 and options.flip is False
 
 
 def test_options_accept_the_ends_of_their_ranges(tmp_path):
