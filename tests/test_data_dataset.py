@@ -32,7 +32,7 @@ from spikegs.data.dataset import (
     write_parts,
 )
 from spikegs.data.dataset import TestView as View
-from spikegs.data.simulate import clean_source, warn_about_data
+from spikegs.data.simulate import camera_motion, clean_source, warn_about_data
 from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
 from spikegs.data.transforms_file import camera_matrix
@@ -57,6 +57,7 @@ def test_round_trip(small):
     assert ds.meta["readout_period_s"] == 25e-6 and ds.meta["flip"] is True
     assert ds.meta["sim"]["rate_at_one"] == 0.25
     assert ds.meta["spp"] == 1  # a built-in scene's pixel centres, by default
+    assert ds.meta["luma"] == "rec709-linear"  # mono: what its one channel holds
     assert ds.K.dtype == np.float32 and ds.K[0, 2] == 16 and ds.K[1, 2] == 12
     assert len(ds.stream) == ds.num_readouts == 400
     np.testing.assert_array_equal(ds.stream.packed(), small.stream.packed())
@@ -144,18 +145,24 @@ def test_determinism_for_a_seed(tmp_path, small):
 
 
 def constant_source(
-    level: float, size: int = 16, test_views: bool = True, lit: int | None = None
+    level: float,
+    size: int = 16,
+    test_views: bool = True,
+    lit: int | None = None,
+    last: np.ndarray | None = None,
 ) -> FrameSequenceSource:
     """A static camera looking at a constant image (and, held out, from beside it); `lit`: at a
-    square of that many pixels a side, on black."""
+    square of that many pixels a side, on black; `last` [4, 4]: the second frame's pose
+    (default: the first's)."""
     frames = np.full((2, size, size, 1), level, np.float32)
     if lit is not None:
         frames[:, lit:] = frames[:, :, lit:] = 0.0
     viewmat = look_at([0, -3, 0], [0, 0, 0])
+    poses = [viewmat, viewmat if last is None else last]
     held_out = [("side", look_at([0.1, -3, 0], [0, 0, 0]), frames[0])] if test_views else []
     K = intrinsics(size, size, 40)
-    return FrameSequenceSource(  # one pose: no axes to converge, the scene sphere given
-        "constant", frames, [viewmat, viewmat], K, test_views=held_out, center=[0, 0, 0], radius=1.0
+    return FrameSequenceSource(  # no axes to converge: the scene sphere given
+        "constant", frames, poses, K, test_views=held_out, center=[0, 0, 0], radius=1.0
     )
 
 
@@ -174,6 +181,25 @@ def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     assert rate == pytest.approx(0.6 * p["rate_at_one"] + p["dark_rate"], rel=0.01)
     for view in ds.test_views:
         np.testing.assert_allclose(view.image, 0.6 * p["rate_at_one"], rtol=1e-6)
+
+
+def test_a_camera_that_turns_or_moves_is_not_still(tmp_path):
+    """The warning of a scene seen from one place needs both: a camera turning 10° where it
+    stands, or moving 0.5 (half the scene radius) without turning, is not still. The turn is
+    the angle between optical axes."""
+    eye, turn = np.array([0.0, -3.0, 0.0]), np.radians(10.0)  # constant_source's camera
+    turned = look_at(eye, eye + [np.sin(turn), np.cos(turn), 0])
+    moved = look_at(eye + [0.5, 0, 0], [0.5, 0, 0])
+    for name, pose, motion in (("turned", turned, (10.0, 0.0)), ("moved", moved, (0.0, 0.5))):
+        source = constant_source(0.6, last=pose)
+        assert camera_motion(source.trajectory(400, 0.0)) == pytest.approx(motion, abs=1e-3)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            simulate_dataset(
+                source, tmp_path / name, **{**SMALL, "height": 16, "width": 16, "test_on_path": 0}
+            )
+        said = [str(w.message) for w in caught]
+        assert not any("from one place" in m for m in said), said
 
 
 def test_a_refused_simulation_leaves_no_dataset_and_keeps_the_one_it_would_replace(tmp_path):
@@ -314,11 +340,16 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     black_case = (constant_source(0.6, lit=0), still, ("turns 0° and", empty, *black))
     cases.append(black_case)
     cases.append(("solids", {"speed": 360.0}, "appears still or turning backwards"))
-    cases.append(("solids", {"frame_every": 100.0}, "cross-fades them"))  # 18.9 dB against 21.4
+    # twice a turn, the least speed that aliases (and blurs, and crosses pixels between frames)
+    aliased = (r"turns up to 5760\.0°", "cross-fades them", "appears still or turning backwards")
+    cases.append(("solids", {"speed": 180.0}, aliased))
+    # 18.9 dB against 21.4; a rendered scene's remedy, not a frame sequence's
+    cases.append(("solids", {"frame_every": 100.0}, "cross-fades them.*; a smaller frame_every"))
     # one training view, which cannot place a scene in depth (it trained in silence)
     cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
     one = {"readouts": 194, "test_on_path": 1, "train_every": 1}  # the held-out view's margins
     cases.append(("solids", one, r"one training timestamp \(readout 161;.*--test-on-path"))
+    cases.append(("solids", {"train_every": 100}, ()))  # two: not warned of
     with pytest.raises(ValueError, match=r"no training timestamp: .*; a smaller train_every"):
         simulate_dataset("solids", tmp_path / "none", **{**SMALL, **one, "train_every": 7})
     # light that saturates every pixel: flagged while simulating, then refused on loading
@@ -486,6 +517,8 @@ def test_negative_view_counts_refused(tmp_path):
         ValueError, match=r"frame_every \(--frame-every\): expected >= 1, found 1e-05"
     ):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "frame_every": 1e-5})
+    ds = simulate_dataset("solids", tmp_path / "every", **{**SMALL, "frame_every": 1})  # the least
+    assert ds.meta["frame_every"] == 1
     # a bad size was named after a complaint about readouts; a NaN speed as non-rigid poses
     with pytest.raises(
         ValueError, match=r"height, width \(--height, --width\): expected >= 1 pixel, found 0, 32"
@@ -517,6 +550,8 @@ def test_a_built_in_scene_simulated_at_an_spp_keeps_it_to_its_clean_images(tmp_p
     np.testing.assert_allclose(clean, view.image / intensity_scale(ds), atol=1e-6)
     centres = ProceduralSource("solids", SCENES["solids"](), 32, 24, K=source.K)
     assert np.abs(centres.image_at(ds.trajectory, view.readout) - clean).max() > 0.05
+    del ds.meta["spp"]  # a dataset from before meta.json held it: simulated at pixel centres
+    assert clean_source(ds).spp == 1
     with pytest.raises(ValueError, match=r"spp \(--spp\): .* expected a square .* found 2"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "spp": 2})
     with pytest.raises(ValueError, match="spp: the source 'solids' given sets its own"):
@@ -558,6 +593,7 @@ def test_colour_dataset_has_one_stream_per_channel(tmp_path):
     assert ds.channels == 3 and len(ds.streams) == 3 and ds.stream == ds.streams
     assert [s.path.name for s in ds.streams] == ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
     assert ds.test_views[0].image.shape == (24, 32, 3)
+    assert ds.meta["luma"] is None  # no luma: the channels as they are
     assert len({s.path.read_bytes() for s in ds.streams}) == 3  # independent channel noise
 
 
@@ -941,6 +977,8 @@ def test_unknown_scene_lists_the_known_ones(tmp_path):
         simulate_dataset("teapot", tmp_path / "x", **SMALL)
     assert all(name in str(err.value) for name in SCENES)
     assert not (tmp_path / "x").exists()  # nothing written before the scene is known
+    with pytest.raises(FileNotFoundError, match="scene scenes/teapot not found"):  # a path
+        simulate_dataset("scenes/teapot", tmp_path / "x", **SMALL)
 
 
 def test_frames_and_poses_of_different_counts():
@@ -1283,6 +1321,25 @@ def test_a_view_lit_in_one_colour_is_lit():
     image[:20, :20, 0], image[:10, :10, 0] = 0.0, 0.2  # 0.6 %: said
     with pytest.warns(UserWarning, match=r"1 of 1 held-out views have under 1% of their pixels"):
         warn_about_data(views, trajectory, SimParams(rate_at_one=0.25))
+
+
+def test_the_light_checks_at_their_edges():
+    """Light firing once every readout (intensity 1/rate_at_one) saturates the camera, said;
+    white (intensity 1, an 8-bit frame's 255) is not brighter than white; a black scene without
+    a dark current is not said to be buried by one (a dark_rate of 0 against light of 0)."""
+    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
+    params = SimParams(rate_at_one=0.25, dark_rate=0.0)
+
+    def said(rate: float) -> str:
+        views = [View("v", np.eye(4), np.full((8, 8, 1), rate, np.float32), None)]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            warn_about_data(views, trajectory, params)
+        return " ".join(str(w.message) for w in caught)
+
+    assert "100% of the held-out views' pixels fire every readout" in said(1.0)
+    assert said(0.25) == "" and "brighter than white" in said(0.26)
+    assert "black" in said(0.0) and "dark_rate" not in said(0.0)
 
 
 def test_the_light_checks_gather_the_lit_rates_a_view_at_a_time():

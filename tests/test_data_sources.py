@@ -1142,6 +1142,9 @@ def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
     assert [str(w.message)[:30] for w in caught] == (
         ["the scene moves up to 23.0 pix"] if warned else []
     ), [str(w.message) for w in caught]
+    if warned:  # two frames, the first and the last: a frame sequence's remedy, not frame_every
+        with pytest.warns(UserWarning, match=r"two frames of the sequence: .*a denser frame"):
+            warn_about_frames(source, trajectory, trajectory.readouts[[0, -1]])
 
 
 def test_frames_between_two_readouts_are_warned_of():
@@ -1156,7 +1159,8 @@ def test_frames_between_two_readouts_are_warned_of():
     source = FrameSequenceSource("still", frames, viewmats, K, center=np.zeros(3), radius=1.0)
     trajectory = source.trajectory(7, 0.0)
     for frames, unread in ((20, 8), (13, 6)):
-        with pytest.warns(UserWarning, match=f"{unread} of {frames} light frames lie between two"):
+        said = f"{unread} of {frames} light frames lie between two .*each of the 7 readouts"
+        with pytest.warns(UserWarning, match=said):
             warn_about_frames(source, trajectory, np.linspace(0, 6, frames))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
