@@ -491,9 +491,11 @@ def test_a_pose_turns_only_against_the_widest_blur():
 
 def test_a_view_with_nothing_in_it_keeps_its_pose_and_a_nan_leaves_it_unsettled():
     """The dot grid behind the camera renders nothing: no step changes the error, and the pose is
-    kept, settled (the normal equations are floored, not singular); a NaN in the image stops the
-    alignment unsettled, its pose finite."""
-    from spikegs.pose_align import aligned_pose
+    kept, settled (the normal equations are floored, not singular), a step in each of its three
+    phases; the share unexplained is the same in any units (the image a hundredth as bright),
+    nan for a flat image, which has no structure; a NaN in the image stops the alignment
+    unsettled, its pose finite."""
+    from spikegs.pose_align import aligned_pose, blur_sigmas
 
     viewmat, model, camera = _dot_grid(32, 3.0)
     image = render_view(model, viewmat, camera)
@@ -501,11 +503,37 @@ def test_a_view_with_nothing_in_it_keeps_its_pose_and_a_nan_leaves_it_unsettled(
     away[2, 3] = -10.0  # (the plane 10 units behind the camera)
     kept = aligned_pose(model, away, image, camera)
     assert kept.settled and np.allclose(kept.viewmat, away, atol=1e-12)
+    assert kept.steps == len(blur_sigmas(32, 32)) + 1 == 3
     assert kept.unexplained > 1  # (nothing rendered: the image's mean unexplained too)
+    dim = aligned_pose(model, away, image / 100, camera, 1)
+    assert dim.unexplained == pytest.approx(kept.unexplained, rel=1e-5)
+    assert np.isnan(aligned_pose(model, away, np.full_like(image, 0.3), camera, 1).unexplained)
     image[3, 4] = np.nan
     stopped = aligned_pose(model, viewmat, image, camera)
     assert not stopped.settled and np.isfinite(stopped.viewmat).all()
     assert np.isnan(stopped.unexplained)
+
+
+def test_the_share_unexplained_is_measured_at_the_widest_blur():
+    """The share of an image's coarse structure unexplained is measured at its widest blur (2 px
+    at 32², the first of `blur_sigmas`), and on the sharp images under 16 px (none at 8²): here
+    all of the image (nothing rendered) over its structure about its mean."""
+    from spikegs.losses import gaussian_blur
+    from spikegs.pose_align import aligned_pose, blur_sigmas
+
+    for width, sigma in ((32, 2.0), (8, 0.0)):
+        viewmat, model, camera = _dot_grid(width, 3.0)
+        image = render_view(model, viewmat, camera)
+        away = viewmat.copy()
+        away[2, 3] = -10.0  # (the plane behind the camera)
+        assert blur_sigmas(width, width)[:1] == ([sigma] if sigma else [])
+        maps = torch.tensor(image).permute(2, 0, 1)[None]  # [1, C, H, W]
+        shown, structure = maps, maps - maps.mean()  # (nothing rendered: all of it left)
+        if sigma:
+            shown, structure = gaussian_blur(shown, sigma), gaussian_blur(structure, sigma)
+        left = shown.square().sum() / structure.square().sum()
+        found = aligned_pose(model, away, image, camera, 1)
+        assert found.unexplained == pytest.approx(float(left), rel=1e-4), width
 
 
 def test_eval_with_aligned_poses_scores_each_view_from_its_aligned_pose(trained, run):

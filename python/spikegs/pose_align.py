@@ -131,7 +131,9 @@ def aligned_pose(
                     break
                 damping *= 4
     widest = sigmas[0] if sigmas else 0.0
-    structure = _squared_sum(_blurred(target - target.mean((0, 1)), widest))
+    # the mean summed in float64: a flat image's is its value, its structure none (float32's
+    # left 1e-8 a pixel, 1e14 of it unexplained)
+    structure = _squared_sum(_blurred(target - target.double().mean((0, 1)).float(), widest))
     left = _squared_sum(residual(pose, widest))
     unexplained = left / structure if structure > 0 else math.nan
     return _aligned(pose, start, viewmat, steps, settled, unexplained)
