@@ -1,6 +1,9 @@
 """Videos (video.py): the frame-rate bounds of a GIF, the codec an .mp4 prefers, and frames
 written as they come."""
 
+import gc
+import warnings
+
 import numpy as np
 import pytest
 from spikegs import video
@@ -15,6 +18,34 @@ def test_a_gif_takes_up_to_50_fps(tmp_path):
     assert gif_delays_ms(3, 50) == [20, 20, 20]
     with pytest.raises(ValueError, match="--fps 51: a GIF holds at most 50"):
         check_video_output(tmp_path / "a.gif", 51)
+
+
+def test_a_video_takes_1_to_1000_fps(tmp_path):
+    """Each end of the frame rate's range is a video's; 0 and 1001 are refused."""
+    for name, fps in (("a.gif", 1), ("a.mp4", 1), ("a.mp4", 1000)):
+        check_video_output(tmp_path / name, fps)
+    for fps in (0, 1001):
+        with pytest.raises(ValueError, match=f"--fps: expected 1 to 1000, got {fps}"):
+            check_video_output(tmp_path / "a.mp4", fps)
+
+
+def test_a_gif_loops_and_an_mp4_states_its_colours(tmp_path):
+    """An orbit's GIF plays on a loop (Netscape's loop count 0: forever); an .mp4 states what
+    swscale's conversion made, so that players do not guess: BT.601 (SMPTE 170M, 6) matrix and
+    primaries, the sRGB transfer (13), limited range (1). MPEG-4 takes no x264 options."""
+    import av
+    from PIL import Image
+
+    frames = gradient_noise()[:3]
+    write_video(tmp_path / "v.gif", frames, 20)
+    with Image.open(tmp_path / "v.gif") as gif:
+        assert gif.info["loop"] == 0 and gif.n_frames == 3
+    write_video(tmp_path / "v.mp4", frames, 20)
+    with av.open(str(tmp_path / "v.mp4")) as container:
+        context = container.streams.video[0].codec_context
+        tags = context.colorspace, context.color_primaries, context.color_trc
+        assert (*tags, context.color_range) == (6, 6, 13, 1)
+    assert video.mp4_options("mpeg4") == video.MP4_QUALITY["mpeg4"]
 
 
 def test_mp4_prefers_h264_and_falls_back_to_mpeg4(monkeypatch, tmp_path):
@@ -33,17 +64,22 @@ def test_mp4_prefers_h264_and_falls_back_to_mpeg4(monkeypatch, tmp_path):
 def test_frames_that_stop_coming_leave_the_previous_video(tmp_path, name, error):
     """`spikegs render` encodes each frame as it is rendered, inside the video's atomic write: a
     render that fails (or a Ctrl-C) after two frames raises its own error, and leaves the previous
-    video whole and no temporary file (an error of any kind, not only a write's OSError)."""
+    video whole, no temporary file and no file open (an error of any kind, not only a write's
+    OSError)."""
     path = tmp_path / name
     path.write_bytes(b"previous")
 
     def frames():
         yield from np.zeros((2, 16, 16, 3), np.uint8)
-        raise error
+        raise type(error)(*error.args)  # (the parameter's own would keep its traceback)
 
-    with pytest.raises(type(error)):
-        write_video(path, frames(), 10, count=3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(type(error)):
+            write_video(path, frames(), 10, count=3)
+        gc.collect()  # (a file left open says so once collected: Pillow's GIF, on a Ctrl-C)
     assert path.read_bytes() == b"previous" and sorted(tmp_path.iterdir()) == [path]
+    assert not [w for w in caught if w.category is ResourceWarning], [str(w) for w in caught]
 
 
 @pytest.mark.parametrize("name", ["orbit.mp4", "orbit.gif"])

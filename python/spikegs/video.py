@@ -175,16 +175,19 @@ def write_video(
         count = len(frames) if count is None else count
 
         def write(tmp: Path) -> None:
-            # each as Pillow takes it; the first (which checked_frames finds or refuses) saves
+            # each as Pillow takes it; the first (which checked_frames finds or refuses) saves,
+            # into a file of ours, closed whatever stops it (Pillow's own stayed open where a
+            # render's Ctrl-C, no Exception, stopped the frames)
             images = (Image.fromarray(frame) for frame in checked_frames(path, frames, count))
-            next(images).save(
-                tmp,
-                format="GIF",
-                save_all=True,
-                append_images=images,
-                duration=gif_delays_ms(count, fps),
-                loop=0,
-            )
+            with open(tmp, "wb") as file:
+                next(images).save(
+                    file,
+                    format="GIF",
+                    save_all=True,
+                    append_images=images,
+                    duration=gif_delays_ms(count, fps),
+                    loop=0,
+                )
 
         write_atomically(path, write)  # no truncated animation at `path`
     else:
