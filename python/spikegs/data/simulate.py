@@ -47,6 +47,7 @@ from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, Rende
 from .trajectory import WORLD_UP, Trajectory, project_points, unit_vector
 from .transforms_file import TRANSFORMS, warn_unread_transforms
 
+DEFAULT_SIZE = 128  # pixels a side
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
 # the light rendered every 8 readouts, or more often where the scene would move more than
@@ -405,8 +406,8 @@ def simulate_dataset(
     scene: str | Path | dict | Source,
     out: str | Path,
     *,
-    height: int = 128,
-    width: int = 128,
+    height: int = DEFAULT_SIZE,
+    width: int = DEFAULT_SIZE,
     readouts: int = DEFAULT_READOUTS,
     speed: float | None = None,
     seed: int = 0,

@@ -14,6 +14,7 @@ from .scenes import SCENES
 from .simulate import (
     DEFAULT_FRAME_EVERY,
     DEFAULT_READOUTS,
+    DEFAULT_SIZE,
     DEFAULT_SPEED,
     DEFAULT_TEST_VIEWS,
     FRAME_MOTION_PX,
@@ -30,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "solids)",
     )
     parser.add_argument("--out", type=Path, required=True, help="output dataset folder")
-    parser.add_argument("--height", type=int, default=128, help="image rows, pixels")
-    parser.add_argument("--width", type=int, default=128, help="image columns, pixels")
+    parser.add_argument("--height", type=int, default=DEFAULT_SIZE, help="image rows, pixels")
+    parser.add_argument("--width", type=int, default=DEFAULT_SIZE, help="image columns, pixels")
     parser.add_argument(
         "--readouts", type=int, default=DEFAULT_READOUTS, help="readouts (25 µs each)"
     )
