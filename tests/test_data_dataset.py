@@ -111,6 +111,8 @@ def test_test_views(small):
     on = [v for v in small.test_views if v.readout is not None]
     off = [v for v in small.test_views if v.readout is None]
     assert len(on) == 2 and len(off) == 2
+    # spread evenly between the readouts 64 from either end of the 400 (65-readout windows fit)
+    assert [v.readout for v in on] == [154, 245]
     for view in on:
         # on the path, clear of every training window of 65 readouts
         np.testing.assert_allclose(view.viewmat, small.trajectory.pose_at(view.readout), atol=1e-12)
@@ -1307,35 +1309,47 @@ def test_simulate_holds_its_test_images_once(tmp_path, monkeypatch, alive_arrays
     assert len(ds.test_views) == 4
 
 
+def data_warnings(images: list[np.ndarray], params: SimParams) -> str:
+    """The warnings, joined, of `warn_about_data` for held-out views of `images` [H, W, C]
+    (firing rates) from a camera standing still for two readouts."""
+    views = [View(f"v{i}", np.eye(4), image, None) for i, image in enumerate(images)]
+    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warn_about_data(views, trajectory, params)
+    return " ".join(str(w.message) for w in caught)
+
+
 def test_a_view_lit_in_one_colour_is_lit():
     """The empty-view warning counts pixels, not channel values: a red object over 2.4 % of a
     colour view on black is a view of something (it counted a third of its area, 0.8 %)."""
     image = np.zeros((128, 128, 3), np.float32)
     image[:20, :20, 0] = 0.2  # red only
-    views = [View("red", np.eye(4), image, None)]
-    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        warn_about_data(views, trajectory, SimParams(rate_at_one=0.25))
-    assert not any("pixels lit" in str(w.message) for w in caught), [str(w.message) for w in caught]
+    assert "pixels lit" not in data_warnings([image], SimParams(rate_at_one=0.25))
     image[:20, :20, 0], image[:10, :10, 0] = 0.0, 0.2  # 0.6 %: said
-    with pytest.warns(UserWarning, match=r"1 of 1 held-out views have under 1% of their pixels"):
-        warn_about_data(views, trajectory, SimParams(rate_at_one=0.25))
+    said = "1 of 1 held-out views have under 1% of their pixels"
+    assert said in data_warnings([image], SimParams(rate_at_one=0.25))
+
+
+def test_a_scene_is_grey_only_where_its_three_channels_agree():
+    """R = G = B in every held-out view is a grey scene, said; two channels alike (R = B, or
+    G = B) are colour."""
+    grey = np.full((8, 8, 3), 0.1, np.float32)
+    assert "the scene is grey" in data_warnings([grey], SimParams(rate_at_one=0.25))
+    for channel in (1, 0):  # green unlike red and blue, red unlike green and blue
+        coloured = grey.copy()
+        coloured[..., channel] = 0.2
+        assert "grey" not in data_warnings([grey, coloured], SimParams(rate_at_one=0.25))
 
 
 def test_the_light_checks_at_their_edges():
     """Light firing once every readout (intensity 1/rate_at_one) saturates the camera, said;
     white (intensity 1, an 8-bit frame's 255) is not brighter than white; a black scene without
     a dark current is not said to be buried by one (a dark_rate of 0 against light of 0)."""
-    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
     params = SimParams(rate_at_one=0.25, dark_rate=0.0)
 
     def said(rate: float) -> str:
-        views = [View("v", np.eye(4), np.full((8, 8, 1), rate, np.float32), None)]
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            warn_about_data(views, trajectory, params)
-        return " ".join(str(w.message) for w in caught)
+        return data_warnings([np.full((8, 8, 1), rate, np.float32)], params)
 
     assert "100% of the held-out views' pixels fire every readout" in said(1.0)
     assert said(0.25) == "" and "brighter than white" in said(0.26)
