@@ -634,6 +634,55 @@ def test_the_failure_says_images_far_apart_only_where_neighbours_match_with_para
     assert "far apart" not in turning and "spread the images over more readouts" in turning
 
 
+def test_the_failure_says_what_mapping_managed_and_each_reason_at_its_edge():
+    """Mapping not tried (no pair with parallax), or k of n registered against the 3 at least
+    needed; too few images under 10, not at 10; few features under MIN_FEATURES (100), not at it;
+    images far apart where each of its conditions holds with equality (half the n - 1 neighbour
+    pairs matched, half the pairs with parallax)."""
+    stats = {
+        "images": 10,
+        "features": sfm.MIN_FEATURES,
+        "pairs": 6,
+        "parallax_pairs": 3,
+        "beyond_neighbours": 1,
+        "inliers": 100,
+    }
+    assert sfm.MIN_FEATURES == 100
+    tried = sfm._failure({**stats, "images": 11}, 2, 0.2, Path("x"), from_sim=False)
+    assert "2 of 11 images registered (needed 3)" in tried
+    assert "images far apart on the path: 5 of the 6 matched pairs" in tried
+    assert "too few images" not in tried and "few features" not in tried
+    untried = sfm._failure({**stats, "images": 9}, None, 0.5, Path("x"), from_sim=False)
+    assert "no matched image pair shows parallax" in untried and "registered" not in untried
+    assert "too few images (9): raise --count or lower --every" in untried
+    assert "too few images" not in sfm._failure(stats, 0, 0.5, Path("x"), from_sim=False)
+    # far apart: neighbours 5 of 10 pairs (n = 11), as many beyond them (under n / 2), half the
+    # pairs with parallax; not with one neighbour pair (of 8, n = 10) or one parallax pair fewer
+    far = {**stats, "images": 11, "pairs": 10, "parallax_pairs": 5, "beyond_neighbours": 5}
+    for case, said in (({}, True), ({"images": 10, "pairs": 8, "beyond_neighbours": 4}, False)):
+        case = sfm._failure({**far, **case}, 0, 0.5, Path("x"), from_sim=False)
+        assert ("far apart" in case) == said, case
+    short = sfm._failure({**far, "parallax_pairs": 4}, 0, 0.5, Path("x"), from_sim=False)
+    assert "far apart" not in short
+    # as many matched pairs, and pairs with parallax, as images: neither said to be few
+    full = {**stats, "pairs": 10, "parallax_pairs": 10, "beyond_neighbours": 10}
+    full = sfm._failure(full, 0, 0.5, Path("x"), from_sim=False)
+    assert "far apart" not in full and "few matching pairs" not in full and "spread" not in full
+
+
+def test_sfm_reads_its_images_gamma_encoded(tmp_path):
+    """SIFT sees contrast in the darks: the images written for SfM are 255 x^(1/2.2), rounded
+    (its points' colours are linearised back with the same gamma)."""
+    pytest.importorskip("pycolmap")
+    from PIL import Image
+
+    images = np.random.default_rng(0).random((3, 32, 32)).astype(np.float32)  # noise: no pair
+    with pytest.raises(ValueError, match="structure from motion failed"):
+        reconstruct(images, np.array([0, 10, 20]), tmp_path / "sfm")
+    written = np.asarray(Image.open(tmp_path / "sfm" / "images" / "00000010.png"))
+    np.testing.assert_array_equal(written, np.round(255 * images[1] ** (1 / 2.2)))
+
+
 def test_the_failure_names_stated_intrinsics_held_fixed():
     """A focal stated in mm (or ×10) registers none of 120 images of 128² solids, and the message
     named only the images: it now gives the focal SfM held and its field of view. Not where the
@@ -749,7 +798,8 @@ def test_aligned_reconstruction_moves_its_points_with_its_cameras():
     """A reconstruction in a frame scaled by 0.5, turned and moved from the trajectory's: after
     `align` its points are back in the trajectory's world (where points3d.ply places the first
     Gaussians) and project to the same pixels as before (a cloud left unshifted passed every
-    test: up to 4.3 world units off here), and its trajectory spans readouts 0..num-1."""
+    test: up to 4.3 world units off here), and its trajectory spans readouts 0..num-1 (adding
+    none where its images reach both ends). Three registered images are enough."""
     rng = np.random.default_rng(3)
     angles = np.radians(np.linspace(0, 90, 10))
     eyes = 3 * np.stack([np.cos(angles), np.sin(angles), 0.5 * np.ones(10)], -1)
@@ -777,6 +827,14 @@ def test_aligned_reconstruction_moves_its_points_with_its_cameras():
     np.testing.assert_allclose(after, before, atol=1e-6)
     trajectory = aligned.trajectory(120)
     assert (trajectory.start, trajectory.end) == (0.0, 119.0)
+    # registered at both ends of the stream: its poses as they are, none added there
+    ends = _recon(readouts - 5, aligned.viewmats, recon.K, points, None, 10)
+    np.testing.assert_array_equal(ends.trajectory(91).readouts, readouts - 5)
+    # three registered images are enough to align
+    three = _recon(readouts[:3], recon.viewmats[:3], recon.K, recon.points, None, 3)
+    np.testing.assert_allclose(
+        align(three, Trajectory(readouts, truth)).viewmats, truth[:3], atol=1e-9
+    )
 
 
 def test_scene_bounds_from_points_are_robust_to_outliers():
@@ -870,6 +928,27 @@ def test_sigterm_stays_pythons_after_pycolmap_loads():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0 and done.stdout == "terminated\n", done.stderr[-500:]
+
+
+def test_pycolmap_loads_in_a_thread_other_than_the_main_one():
+    """SIGTERM's Python handler is put back after pycolmap loads in the main thread only (where
+    signal.signal may be called): `reconstruct` in a worker thread loads it without a
+    ValueError."""
+    import threading
+
+    pytest.importorskip("pycolmap")
+    errors = []
+
+    def load():
+        try:
+            sfm.import_pycolmap()
+        except Exception as err:  # (to be seen by the test's thread)
+            errors.append(err)
+
+    thread = threading.Thread(target=load)
+    thread.start()
+    thread.join()
+    assert errors == []
 
 
 def test_a_point_cloud_starts_init_gaussians_of_its_points_at_their_spacing(tiny, tmp_path):
