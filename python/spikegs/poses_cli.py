@@ -71,6 +71,9 @@ from .spikes.stream import centred_range
 from .strict_json import json_text, read_json
 
 MIN_IMAGES = 8
+DEFAULT_WINDOW = 33  # readouts of an SfM image's TFP
+DEFAULT_COUNT = 40  # images spread evenly over the stream
+DEFAULT_MIN_REGISTERED = 0.5  # the fraction of images SfM must register
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
@@ -85,18 +88,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "earlier one kept as trajectory.json.bak), points3d.ply, meta.json's camera and the "
         "training timestamps; SfM's work in DATASET/sfm",
     )
-    parser.add_argument("--window", type=int, default=33, help="TFP window, odd (default 33)")
+    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="TFP window, odd")
     when = parser.add_mutually_exclusive_group()
     when.add_argument("--every", type=int, help="an image every N readouts")
-    when.add_argument("--count", type=int, default=40, help="images spread evenly (default 40)")
+    when.add_argument("--count", type=int, default=DEFAULT_COUNT, help="images spread evenly")
     parser.add_argument(
         "--sim", action="store_true", help="images from the cached SIM (DATASET/sim/*.pt), not TFP"
     )
     parser.add_argument(
         "--min-registered",
         type=float,
-        default=0.5,
-        help="fail below this fraction of registered images (default 0.5)",
+        default=DEFAULT_MIN_REGISTERED,
+        help="fail below this fraction of registered images",
     )
 
 
@@ -308,11 +311,11 @@ def _reprojection_report(recon: Reconstruction) -> dict:
 
 def estimate_poses(
     root: str | Path,
-    window: int = 33,
+    window: int = DEFAULT_WINDOW,
     every: int | None = None,
-    count: int = 40,
+    count: int = DEFAULT_COUNT,
     sim: bool = False,
-    min_registered: float = 0.5,
+    min_registered: float = DEFAULT_MIN_REGISTERED,
 ) -> dict:
     """Run SfM on the dataset at `root` and write its poses and points there; returns the report
     (also written to DATASET/sfm/report.json). Busy while another process writes the dataset or
