@@ -22,7 +22,7 @@ from spikegs.bench.poses import noisy_dataset, refined_pose_errors
 from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
-from spikegs.data.dataset import POINTS, check_output
+from spikegs.data.dataset import POINTS, check_output, field_of_view_deg
 from spikegs.data.trajectory import Trajectory, look_at, project_points
 from spikegs.evaluate import evaluate_run
 from spikegs.gaussians import MIN_START_INTENSITY, GaussianModel
@@ -477,7 +477,15 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
 def test_an_implausible_estimated_focal_is_flagged():
     meta = {"width": 64, "scene_center": [0, 0, 0], "scene_radius": 1.0}
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), np.zeros((0, 3)), None, 3)
-    for focal, flagged in ((1671.0, True), (56.0, False), (10.0, True)):  # 2.2, 59.5, 145 deg
+    cases = [(1671.0, True), (56.0, False), (10.0, True)]  # 2.2, 59.5, 145 deg
+    for edge, outward in ((10.0, np.inf), (140.0, -np.inf)):  # 10 and 140 deg are plausible
+        focal = 32 / np.tan(np.radians(edge / 2))
+        assert field_of_view_deg(64, focal) == edge  # (exact in float64 here)
+        beyond = focal
+        while field_of_view_deg(64, beyond) == edge:  # the nearest focal past the edge
+            beyond = np.nextafter(beyond, outward)
+        cases += [(focal, False), (beyond, True)]
+    for focal, flagged in cases:
         recon.K = np.array([[focal, 0, 32], [0, focal, 32], [0, 0, 1]])
         messages = _complete_meta(dict(meta), recon, estimated=True)
         assert any("field of view" in m for m in messages) == flagged, (focal, messages)
@@ -499,6 +507,7 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
         # what training reads later: SfM ran, wrote every file, and training refused them
         ({"fx": "175.8", "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number"),
         ({"fx": -175.8, "fy": 175.8, "cx": 64.0, "cy": 64.0}, "fx expected a finite number > 0"),
+        ({"fx": 175.8}, r"states \['fx'\] of the intrinsics"),
         ({"fx": 175.8, "fy": 175.8}, r"states \['fx', 'fy'\] of the intrinsics"),  # replaced
         ({"fx": 175.8, "fy": 175.8, "cx": 64.0}, r"states \['fx', 'fy', 'cx'\] of the"),
         ({"scene_center": "origin"}, "scene_center expected 3 finite numbers"),
@@ -703,21 +712,37 @@ def test_the_failure_names_stated_intrinsics_held_fixed():
     assert "held fixed" not in sfm._failure(stats, None, 0.5, Path("x"), False, K, 128)
 
 
+def _stop_before_matching(*args, **kwargs):
+    """A stand-in for SfM that fails at once: the checks before it ran, and what it was told."""
+    raise ValueError("stopped before matching")
+
+
 def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
     tmp_path, monkeypatch, capsys
 ):
     """--count 100000 on a 400-readout stream quietly took 368 images and matched their 67k
     pairs for minutes without a word."""
     still = _solids(tmp_path / "still", 16, 400, speed=0.0005)
-
-    def stop(*args, **kwargs):
-        raise ValueError("stopped before matching")
-
-    monkeypatch.setattr("spikegs.poses_cli.reconstruct", stop)
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", _stop_before_matching)
     assert main(["poses", str(still.root), "--count", "100000"]) == 2
     err = capsys.readouterr().err
     assert "--count 100000: the stream has 368 readouts" in err, err
     assert "SfM: 368 images, 67528 pairs matched exhaustively (slow:" in err, err
+
+
+def test_the_option_checks_let_their_edges_through(tmp_path, monkeypatch, capsys):
+    """--window 1, --every 1, --min-registered 1 and exactly 8 images (the fewest) reach SfM;
+    --count 1 passes its own check and is refused as too few images."""
+    still = _solids(tmp_path / "still", 16, 200, speed=0.0005)
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", _stop_before_matching)
+    for flags, said in (
+        (["--window", "1", "--count", "8"], "SfM: 8 images"),
+        (["--every", "1"], "SfM: 168 images"),  # windows of 33 centred on 16..183
+        (["--min-registered", "1", "--count", "8"], "SfM: 8 images"),
+        (["--count", "1"], "too few images for structure from motion: 1 (at least 8)"),
+    ):
+        assert main(["poses", str(still.root), *flags]) == 2, flags
+        assert said in capsys.readouterr().err, flags
 
 
 def test_alignment_uses_the_cameras_orientations_on_a_short_arc():
@@ -908,6 +933,7 @@ def test_image_readouts_reach_both_ends_of_the_stream():
     assert _image_readouts(100, 33, 1, 0).tolist() == list(range(16, 84))
     assert _image_readouts(100, 33, None, 3).tolist() == [16, 50, 83]
     assert _image_readouts(100, 33, 10, 0).tolist() == [16, 26, 36, 46, 56, 66, 76]
+    assert _image_readouts(33, 33, None, 3).tolist() == [16]  # a window the stream's length
 
 
 def test_sigterm_stays_pythons_after_pycolmap_loads():
@@ -1181,6 +1207,11 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
     views = _held_out_split(streams, trajectory, registered, 8, truth)[0]
     assert [v.readout for v in views] == [32.0, 450.0]
     np.testing.assert_allclose([v.viewmat[0, 3] for v in views], [32.0, 450.0], rtol=1e-12)
+    registered = np.array([100, *range(200, 900, 100), 967])  # 967: the last with room
+    assert [v.readout for v in _held_out_split(streams, trajectory, registered, 8, truth)[0]] == [
+        100.0,
+        967.0,
+    ]
     registered = np.array([8, *range(300, 700, 50), 896])  # 8 (no room) and 650 held out
     views, ks = _held_out_split(streams, trajectory, registered, 8, truth)
     assert [v.readout for v in views] == [650.0]
@@ -1288,9 +1319,14 @@ def test_a_split_of_its_own_keeps_the_timestamps_whose_windows_sfm_posed(
     np.testing.assert_array_equal(np.loadtxt(root / "train_timestamps.txt.bak"), before)
 
 
-def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(textured, tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    "stated", [("scene_center", "scene_radius"), ("scene_center",), ("scene_radius",), ()]
+)
+def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(
+    textured, tmp_path, monkeypatch, stated
+):
     """No trajectory.json to align to: the poses stay in SfM's frame, and meta.json's
-    scene_center / scene_radius, which cannot be in that frame, are said to be kept."""
+    scene_center / scene_radius, either of which cannot be in that frame, are said to be kept."""
     from spikegs import poses_cli
 
     root = tmp_path / "data"
@@ -1298,19 +1334,24 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(textured, tmp_pa
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
     monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
     (root / "trajectory.json").unlink()
+    meta = json.loads((root / "meta.json").read_text())
+    unstated = {"scene_center", "scene_radius"} - set(stated)
+    (root / "meta.json").write_text(json.dumps({k: meta[k] for k in meta.keys() - unstated}))
     summary = poses_cli.estimate_poses(root, count=10)["summary"]
     assert "no trajectory to align to: the poses are in SfM's own frame" in summary
-    assert "warning: scene_center / scene_radius in meta.json are kept" in summary
+    warned = "warning: scene_center / scene_radius in meta.json are kept" in summary
+    assert warned == bool(stated), summary
 
 
-def _with_a_stuck_pixel(tiny, root: Path) -> Path:
-    """A copy of the `tiny` dataset at `root` whose pixel (12, 17) fires at every readout."""
+def _with_stuck_pixels(tiny, root: Path) -> Path:
+    """A copy of the `tiny` dataset at `root` whose pixels (12, 17) and (20, 17) (one column:
+    two defects, not one) fire at every readout."""
     from spikegs.spikes import DatWriter
 
     shutil.copytree(tiny.root, root)
     size = tiny.height
     bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
-    bits[:, 12, 17] = True  # [T, H, W]
+    bits[:, [12, 20], 17] = True  # [T, H, W]
     with DatWriter(root / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
         writer.write_bits(bits)
     return root
@@ -1320,13 +1361,13 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     """A stuck pixel (a spike at every readout, 4-20 times the scene's rate) is a white dot at
     one place in every TFP image, a feature that does not move with the camera: SfM is fed the
     images with it given its 8 neighbours' (upper) median (pixel_defects), and the summary counts
-    it.
+    each.
     Fed as it was, it showed 1 (clipped white) in every image."""
     from spikegs import poses_cli
     from spikegs.sim import SIM
     from spikegs.sim_train import save_sim
 
-    root = _with_a_stuck_pixel(tiny, tmp_path / "data")
+    root = _with_stuck_pixels(tiny, tmp_path / "data")
     fed = []
     logged = _logged_sfm(root)
 
@@ -1340,8 +1381,8 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
     around = np.delete(images[:, 11:14, 16:19].reshape(len(images), 9), 4, axis=1)  # [N, 8]
     np.testing.assert_array_equal(images[:, 12, 17], np.sort(around, axis=1)[:, 4])  # upper
     assert images[:, 12, 17].max() < 1.0
-    assert report["defects"] == 1
-    assert "1 hot, stuck or dead pixels of the sensor" in report["summary"]
+    assert report["defects"] == 2
+    assert "2 hot, stuck or dead pixels of the sensor" in report["summary"]
     # SIM's images gave simulated mono scenes' poses 2.5-7 times closer: said, and how
     assert "SIM's are cleaner, and put simulated mono scenes' poses" in report["summary"]
     assert f"`spikegs sim-train {root}`, then --sim" in report["summary"]
@@ -1373,7 +1414,7 @@ def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, 
     from spikegs import poses_cli, sim_train
     from spikegs.sim import SIM
 
-    root = _with_a_stuck_pixel(tiny, tmp_path / "data")
+    root = _with_stuck_pixels(tiny, tmp_path / "data")
     monkeypatch.setattr(poses_cli, "_cached_sim", lambda root: SIM(window=9).eval())
     read, infer = [], sim_train.infer_sim
 
@@ -1382,15 +1423,21 @@ def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, 
         return infer(model, stream, readouts, **kwargs)
 
     monkeypatch.setattr(sim_train, "infer_sim", reading)
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+    told, logged = [], _logged_sfm(root)
+
+    def sfm_of(*args, from_sim, **kwargs):
+        told.append(from_sim)  # SfM's failure hints then know the images are SIM's
+        return logged(*args, **kwargs)
+
+    monkeypatch.setattr(poses_cli, "reconstruct", sfm_of)
     report = poses_cli.estimate_poses(root, count=10, sim=True)
-    assert "SIM's are cleaner" not in report["summary"]
+    assert told == [True] and "SIM's are cleaner" not in report["summary"]
     (stream,) = read
     spikes = stream.window(len(stream) // 2, 9)  # [9, H, W]
     assert not spikes[:, 12, 17].all()
     y, x = _stand_in(stream, 12, 17)
     np.testing.assert_array_equal(spikes[:, 12, 17], spikes[:, y, x])
-    assert report["defects"] == 1
+    assert report["defects"] == 2
 
 
 def _stand_in(stream, y: int, x: int) -> tuple[int, int]:
@@ -1433,5 +1480,31 @@ def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_i
     np.testing.assert_allclose(view.image[12, 17, 0], np.sort(around)[4] / gain, rtol=1e-6)
     np.testing.assert_allclose(view.image[0, 0, 0], tfp[0, 0] / gain, rtol=1e-6)
     note = dataset.meta["test_ground_truth"]
+    assert (note["sharp_images"], note["pseudo"]) == (0, 1)
     assert note["pseudo_defects"].startswith("1 hot, stuck or dead pixels")
     assert note["pseudo_flicker"].startswith("divided by the light's flicker: period 200.0")
+
+
+def test_a_raw_recordings_default_stride_is_that_of_its_registered_readouts(
+    tiny, tmp_path, monkeypatch
+):
+    """A raw recording's train_every defaults to the stride for the readouts SfM posed, both ends
+    counted (not the stream's); a train_every stated in meta.json, 1 included, is kept."""
+    from spikegs import poses_cli
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    shutil.copy(tiny.root / "spikes.dat", raw / "spikes.dat")
+    keys = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
+    (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
+    spans = []
+    monkeypatch.setattr(poses_cli, "default_train_every", lambda span: spans.append(span) or 2)
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root, slice(2, -3)))
+    poses_cli.estimate_poses(raw, count=12)
+    posed = _image_readouts(len(tiny.stream), 33, None, 12)[2:-3]
+    assert spans == [posed[-1] - posed[0] + 1]
+    assert json.loads((raw / "meta.json").read_text())["train_every"] == 2
+    meta = json.loads((raw / "meta.json").read_text())
+    (raw / "meta.json").write_text(json.dumps({**meta, "train_every": 1}))
+    poses_cli.estimate_poses(raw, count=12)
+    assert len(spans) == 1 and np.diff(load_dataset(raw).train_timestamps).min() == 1
