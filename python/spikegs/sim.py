@@ -114,6 +114,14 @@ class SIM(nn.Module):
         branch's m shift convolutions and the blind spot's shift reach 2m + 1 rows out."""
         return 4 * len(self.shift) + 3
 
+    @staticmethod
+    def spanning_layers(height: int, width: int) -> int:
+        """The fewest shift layers whose every output on `height`×`width` frames sees every
+        other pixel: a branch's m layers reach 2m + 1 pixels along its axis and m across, so
+        from a corner the far pixel lies in the field of the branch along the longer side from
+        this many layers on."""
+        return max(1, -(-(max(height, width) - 2) // 2), min(height, width) - 1)
+
     def num_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
 

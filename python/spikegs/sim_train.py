@@ -135,9 +135,7 @@ def train_sim(
             f"sees the zero border where inference sees the frame; crop {model.field()} or more",
             stacklevel=2,
         )
-    # a branch's m layers reach 2m + 1 pixels along its axis and m across: from a corner pixel,
-    # the far one lies in the field of the branch along the longer side from this many layers on
-    spanning = max(1, -(-(max(height, width) - 2) // 2), min(height, width) - 1)
+    spanning = model.spanning_layers(height, width)
     if len(model.shift) > spanning:
         warnings.warn(
             f"SIM's shift_layers {len(model.shift)} on {height}×{width} frames: {spanning} reach "
