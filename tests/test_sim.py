@@ -145,20 +145,37 @@ def test_a_crop_under_the_field_is_warned_of(scene):
         train_sim(small, valid_timestamps(small, 33), 33, steps=1, crop=64, progress=False)
 
 
+def _sees_every_other_pixel(height: int, width: int, layers: int) -> bool:
+    """Whether every output of a SIM with `layers` shift layers on `height`×`width` frames
+    depends on every pixel but its own (its gradient, positive weights: no path cancels)."""
+    model = SIM(window=3, shift_layers=layers).double().train()
+    with torch.no_grad():  # (SIM starts at zero)
+        for weights in model.parameters():
+            weights.copy_(torch.rand_like(weights) * 0.1 + 0.01)
+    x = torch.rand(1, 3, height, width, dtype=torch.float64, requires_grad=True)
+    out = model(x)[0, 0]  # [H, W]
+    for y, x_ in np.ndindex(height, width):
+        (grad,) = torch.autograd.grad(out[y, x_], x, retain_graph=True)
+        if int((grad.abs().sum((0, 1)) > 0).sum()) < height * width - 1:
+            return False
+    return True
+
+
+@pytest.mark.parametrize("height, width", [(2, 2), (1, 5), (3, 3), (5, 3), (8, 6), (4, 9)])
+def test_spanning_layers_are_the_fewest_that_see_every_pixel(height, width):
+    """SIM.spanning_layers, the count past which train_sim warns, measured: the fewest shift
+    layers whose every output sees every other pixel (a corner's field: 2m + 1 rows down and m
+    columns across)."""
+    layers = SIM.spanning_layers(height, width)
+    assert _sees_every_other_pixel(height, width, layers)
+    assert layers == 1 or not _sees_every_other_pixel(height, width, layers - 1)
+
+
 def test_shift_layers_past_the_frame_are_warned_of():
-    """On an 8×6 frame 5 shift layers reach every pixel from every other (a corner's field: 2m + 1
-    rows down and m columns across, measured: 39, 44, 47 of the 47 other pixels at m = 3, 4, 5):
-    a 6th is said to add the zero border only, with the number that suffices; 5 are not."""
+    """On an 8×6 frame 5 shift layers reach every pixel from every other: a 6th is said to add
+    the zero border only, with the number that suffices; 5 are not."""
     small = BernoulliStream(lambda k: np.full((8, 6), 0.2), 60)
     ts = valid_timestamps(small, 33)
-    for layers, seen in ((4, 44), (5, 47)):  # 47: every pixel but the blind spot
-        model = SIM(window=5, shift_layers=layers).double().train()
-        with torch.no_grad():  # positive weights: no path cancels (SIM starts at zero)
-            for weights in model.parameters():
-                weights.copy_(torch.rand_like(weights) * 0.1 + 0.01)
-        x = torch.rand(1, 5, 8, 6, dtype=torch.float64, requires_grad=True)
-        model(x)[0, 0, 0, 0].backward()
-        assert int((x.grad.abs().sum((0, 1)) > 0).sum()) == seen, layers
     with pytest.warns(UserWarning, match="shift_layers 6 on 8×6 frames: 5 reach every") as caught:
         train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=6)
     assert len(caught) == 1
@@ -272,6 +289,7 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     reused, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     assert seconds == 0 and torch.equal(reused.head[-1].bias, first.head[-1].bias)
     assert "SIM:" not in capsys.readouterr().err  # loaded: nothing said
+    assert train_or_load(path, stream, ts, 33, force=True, **tiny)[1] > 0  # --force: retrained
     payload = torch.load(path, weights_only=True)  # a SIM saved before every readout was hashed
     payload["meta"]["data"] = spikes_fingerprint(stream, ts, sampled=True)
     torch.save(payload, path)
@@ -993,6 +1011,8 @@ def test_a_torn_training_state_is_said_and_trained_over(tmp_path, capsys):
     SIM trained from step 0, to the SIM of a training never interrupted."""
     stream, path = SpikeArray(12, 12, 40), tmp_path / "sim.pt"
     ts, settings = _ts(stream), dict(steps=2, batch_size=1, crop=12, progress=False, seed=1)
+    assert sim_train._resumable(path.with_name("sim.pt.partial"), {}) is None  # none: no news
+    assert capsys.readouterr().err == ""
     path.with_name("sim.pt.partial").write_bytes(b"half")
     torn, _, _ = train_or_load(path, stream, ts, W, **settings)
     assert "sim.pt.partial: unreadable (" in capsys.readouterr().err
@@ -1035,6 +1055,44 @@ def test_fast_inference_is_bfloat16_only_where_the_cpu_has_it(monkeypatch):
         monkeypatch.setattr(sim_train, "bf16_is_fast", lambda native=native: native)
         assert next(fast_inference_model(model).parameters()).dtype == dtype
         assert next(fast_inference_model(model, torch.float64).parameters()).dtype == torch.float64
+
+
+def test_bf16_is_native_with_either_flag_in_cpuinfo(monkeypatch):
+    """AVX-512 BF16 or AMX (either flag in /proc/cpuinfo) computes bfloat16 natively; neither,
+    or no /proc/cpuinfo to read (macOS, Windows), does not."""
+    read_text = Path.read_text
+    cases = (("avx512f avx512_bf16", True), ("amx_bf16 amx_tile", True), ("avx2 fma", False))
+    for flags, native in (*cases, (None, False)):
+
+        def cpuinfo(path, *args, flags=flags, **kwargs):
+            if str(path) != "/proc/cpuinfo":
+                return read_text(path, *args, **kwargs)
+            if flags is None:
+                raise FileNotFoundError(path)
+            return f"flags\t\t: {flags}\n"
+
+        monkeypatch.setattr(Path, "read_text", cpuinfo)
+        assert sim_train.bf16_is_fast.__wrapped__() == native, flags
+
+
+def test_the_bar_shows_the_mean_loss_of_the_last_50_steps_every_50():
+    """A step a tick; every 50th, the mean of the last 50 losses beside the bar."""
+
+    class Bar:
+        def __init__(self):
+            self.n, self.shown = 0, []
+
+        def update(self, n):
+            self.n += n
+
+        def set_postfix(self, loss):
+            self.shown.append((self.n, loss))
+
+    bar, losses = Bar(), []
+    for step in range(120):
+        losses.append(float(step))
+        sim_train._show_step(bar, losses)
+    assert bar.n == 120 and bar.shown == [(49, "24.5000"), (99, "74.5000")]
 
 
 def test_recorded_seconds_are_positive_numbers_or_zero(tmp_path):
