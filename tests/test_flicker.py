@@ -18,7 +18,7 @@ from spikegs.flicker import Flicker, _region_totals, find_flicker
 from spikegs.found_once import forget
 from spikegs.spikes import SimParams
 from spikegs.spikes.simulate import simulate_channels
-from spikegs.targets import build_targets
+from spikegs.targets import build_targets, intensity_scale
 
 
 def _grey(depth: float, period: float, phase: float, readouts: int = 2000) -> SpikeStream:
@@ -281,7 +281,11 @@ def test_sim_train_scores_each_method_on_the_steady_light(tmp_path, capsys):
             assert main(["sim-train", str(root), "--steps", "3", "--no-progress"]) == 0
         records.append(json.loads(next((root / "sim").glob("*.pt.json")).read_text()))
     steady, found = records
-    assert "the light flickers with a period of 25" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "the light flickers with a period of 25" in out
+    assert "each method's images divided by it, as training's targets are" in out
+    offset = -20 * np.log10(intensity_scale(clean))  # a rate's PSNR above its intensity's
+    assert f"(PSNR {offset:.1f} dB above eval's" in steady["units"]
     assert steady["flicker"] is None and found["flicker"]["divided"]
     for name in ("TFP(33)", "TFP(65)", "TFI"):
         fall = steady["scores"][name]["psnr"] - found["scores"][name]["psnr"]
