@@ -398,26 +398,36 @@ def test_a_closed_stdout_does_not_fail_a_command_whose_reader_left(
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="reads /proc/self/fd")
-def test_a_command_started_with_stderr_closed_runs_with_it_on_dev_null(tmp_path):
+@pytest.mark.parametrize("fd", [0, 1, 2])
+def test_a_command_started_with_a_standard_stream_closed_runs_with_it_on_dev_null(tmp_path, fd):
     """`spikegs train ... 2>&-` stopped at its first look at stderr (Python's None for a closed
     descriptor: AttributeError, exit 1, nothing said or trained), and the next file it opened
-    took descriptor 2, where C and C++ code's messages go: stderr is /dev/null instead."""
+    took descriptor 2, where C and C++ code's messages go: stderr is /dev/null instead, and so
+    is a closed stdin (read: nothing) or stdout (written to)."""
     script = (
-        "import os, spikegs.cli as cli\n"
+        "import os, sys, spikegs.cli as cli\n"
         "def run():\n"
+        "    read = sys.stdin.read() if FD == 0 else ''\n"
+        "    print('said'), print('said', file=sys.stderr)\n"
+        "    link = os.readlink('/proc/self/fd/FD')\n"
         "    with open(os.environ['OUT'], 'w') as out:\n"
-        "        out.write(f'{cli.show_bars(False)} {os.readlink(\"/proc/self/fd/2\")}')\n"
+        "        out.write(f'{read!r} {cli.show_bars(False)} {link}')\n"
         "    return 0\n"
         "cli.main = run\n"
         "cli.console()\n"
-    )
+    ).replace("FD", str(fd))
     out = tmp_path / "out"
     env = {**os.environ, "OUT": str(out)}
-    done = subprocess.run([sys.executable, "-c", script], env=env, preexec_fn=lambda: os.close(2))
-    assert done.returncode == 0 and out.read_text() == f"False {os.devnull}"
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        env=env,
+        capture_output=True,
+        preexec_fn=lambda: os.close(fd),
+    )
+    assert done.returncode == 0 and out.read_text() == f"'' False {os.devnull}"
 
 
-def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys):
+def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys, monkeypatch):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read
     as the option it begins, which a script's turns ambiguous, or another's, when options are
@@ -428,10 +438,16 @@ def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsy
         err = capsys.readouterr().err
         assert exit.value.code == 2 and err.startswith("usage: spikegs train ")
         assert f"spikegs train: error: unrecognized arguments: {wrong} 3" in err
-    with pytest.raises(SystemExit) as exit:  # an option before the command is the top level's
-        main(["--bogus", "train", "DATA", "--out", "RUN"])
+    with pytest.raises(SystemExit) as exit:  # a word that is the command's name, after it
+        main(["train", "DATA", "--out", "RUN", "train"])
     err = capsys.readouterr().err
-    assert exit.value.code == 2 and "spikegs: error: unrecognized arguments: --bogus" in err
+    assert exit.value.code == 2 and "spikegs train: error: unrecognized arguments: train" in err
+    for argv in (["--bogus", "train", "DATA", "--out", "RUN"], None):  # None: sys.argv's
+        monkeypatch.setattr(sys, "argv", ["spikegs", "--bogus", "train", "DATA", "--out", "RUN"])
+        with pytest.raises(SystemExit) as exit:  # an option before the command: the top level's
+            main(argv)
+        err = capsys.readouterr().err
+        assert exit.value.code == 2 and "spikegs: error: unrecognized arguments: --bogus" in err
     with pytest.raises(SystemExit) as exit:
         main(["--version"])
     assert exit.value.code == 0 and capsys.readouterr().out == f"spikegs {spikegs.__version__}\n"
