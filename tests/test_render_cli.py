@@ -214,6 +214,31 @@ def test_the_span_is_sqrt_3_standard_deviations_wide_within_the_cameras_reach():
     np.testing.assert_allclose([turned.min(), turned.max()], [30 - half, 30 + half], atol=1e-6)
 
 
+def test_the_span_is_an_ellipse_over_both_principal_directions():
+    """Cameras on a grid of azimuths 0 to 40 and elevations 0 to 20 (its principal directions
+    the axes): the loop is the ellipse about (20, 10) with radii 20 and 10 (each their reach,
+    under sqrt(3) standard deviations: 24.5 and 14.1) -- not a line along the major axis."""
+    views = [(a, e) for a in range(0, 41, 10) for e in (0, 10, 20)]
+    cameras = _looking_in([orbit_eye(CENTER, 4.0, a, e) for a, e in views])
+    span, path = orbit_viewmats(cameras, CENTER, 24, UP)
+    azimuths, elevations = _azimuths_elevations(span)
+    assert path == "span"
+    radius = np.hypot((azimuths - 20.0) / 20.0, (elevations - 10.0) / 10.0)  # [F]
+    np.testing.assert_allclose(radius, 1.0, atol=1e-9)
+
+
+def test_cameras_straight_along_a_tilted_up_give_a_finite_circle():
+    """Cameras straight above and below the centre along 40 tilted ups: their offsets' share
+    along the up, rounded, passes +-1 for some, clipped before its arcsine (else a NaN
+    elevation, and a NaN orbit)."""
+    for up in Rotation.random(40, random_state=1).apply(UP):
+        eyes = [CENTER + 3.0 * up, CENTER - 4.0 * up]
+        hint = np.eye(3)[np.argmin(np.abs(up))]  # an axis across the up
+        cameras = Trajectory(np.arange(2.0), np.stack([look_at(e, CENTER, hint) for e in eyes]))
+        orbit, path = orbit_viewmats(cameras, CENTER, 4, up)
+        assert path == "circle" and np.isfinite(orbit).all()
+
+
 def test_cameras_pitched_alike_show_their_mean_up():
     """Cameras at one azimuth pitched -30 to 30 degrees towards the centre (a crane shot) all
     share a level right axis, which leaves the up open within the plane across it: their mean
@@ -260,8 +285,9 @@ def test_a_direction_that_is_not_finite_is_refused(text):
 
 def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     """Each frame is the render sRGB-encoded and rounded to 8 bits (not truncated), a mono render
-    repeated on R, G and B: renders of sRGB 100.7/255 and 100.3/255 give 101 and 100."""
-    values = np.array([100.7, 100.3]) / 255.0
+    repeated on R, G and B: renders of sRGB 100.53/255 and 100.47/255 give 101 and 100 (halves
+    round up)."""
+    values = np.array([100.53, 100.47]) / 255.0
     mono = np.empty((2, 3, 1))
     mono[0], mono[1] = srgb_to_linear(values[0]), srgb_to_linear(values[1])  # rows: [2, 3, 1]
     monkeypatch.setattr(evaluate, "render_view", lambda model, viewmat, dataset: mono)
