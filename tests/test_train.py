@@ -2086,15 +2086,20 @@ def test_a_demo_whose_disk_refuses_its_time_too_still_says_how_to_go_on(
 def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
     """`spikegs demo --out DATASET` (or a run folder) ran the whole demo into it, its dataset,
     runs and figures among the dataset's or run's own files, and said nothing."""
-    data, run = tmp_path / "data", tmp_path / "run"
-    for folder, name in ((data, "meta.json"), (run, "config.yaml")):
-        folder.mkdir()
-        (folder / name).write_text("{}")
-    for out, held in ((data, "a dataset (meta.json)"), (run, "a spikegs run (config.yaml)")):
+    held = {  # a file in --out: what the refusal says it holds
+        "meta.json": "a dataset (meta.json)",
+        "poses_bounds.npy": "a dataset (poses_bounds.npy)",  # LLFF's: no part of ours
+        "spikes.dat": "a dataset (its spikes)",  # a part, in no dataset layout
+        "config.yaml": "a spikegs run (config.yaml)",
+    }
+    for name, says in held.items():
+        out = tmp_path / name.replace(".", "_")
+        out.mkdir()
+        (out / name).write_text("{}")
         for resume in ([], ["--resume"]):
             assert main(["demo", "--no-progress", "--out", str(out), *resume]) == 2
-            assert f"--out {out} holds {held}" in capsys.readouterr().err
-            assert sorted(p.name for p in out.iterdir()) == [held.split("(")[1][:-1]]
+            assert f"--out {out} holds {says}" in capsys.readouterr().err
+            assert [p.name for p in out.iterdir()] == [name]
 
 
 def test_a_demo_resumed_over_a_run_config_not_a_runs_names_it(tmp_path, capsys):
@@ -2111,6 +2116,27 @@ def test_a_demo_resumed_over_a_run_config_not_a_runs_names_it(tmp_path, capsys):
         saved.write_text(text)
         assert main(["demo", "--no-progress", "--resume", "--out", str(saved.parents[2])]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_a_resumed_demo_reads_its_dataset_before_what_it_recorded_as_it_started(tmp_path):
+    """--resume takes the scene and camera from the demo's dataset (meta.json), else from what
+    the demo recorded as it started (a demo stopped while simulating), and the iterations from
+    that record where no run began: any whole number over 0, 1 too."""
+    from spikegs.demo import STARTED_FILE, started_color, started_iterations, started_scene
+
+    out = tmp_path / "demo"
+    (out / "data").mkdir(parents=True)
+    record = {"scene": "wires", "color": True, "iterations": 1}
+    (out / STARTED_FILE).write_text(json.dumps(record))
+    assert (started_scene(out), started_color(out), started_iterations(out)) == ("wires", True, 1)
+    for meta in ("[]", "{"):  # no dataset's settings to read: the record's
+        (out / "data" / "meta.json").write_text(meta)
+        assert (started_scene(out), started_color(out)) == ("wires", True)
+    (out / "data" / "meta.json").write_text('{"scene": "solids", "channels": 1}')
+    assert (started_scene(out), started_color(out)) == ("solids", False)
+    for iterations in (0, -5, 2.5, "80"):  # not a length: the default's
+        (out / STARTED_FILE).write_text(json.dumps({**record, "iterations": iterations}))
+        assert started_iterations(out) is None
 
 
 def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
@@ -2133,8 +2159,10 @@ def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     line = gain_line(results)
     assert line.startswith("SpikeGS - TFP(33)+3DGS: +2.69 dB at equal iterations (1500 each; ")
     assert "SpikeGS 75 s with SIM's training, 6.1x the baseline's 12 s" in line
-    results["spikegs"]["psnr"] = 29.2199  # a tie prints no -0.00
-    assert "+0.00 dB" in gain_line(results)
+    results["spikegs"]["psnr"] = 29.216  # a lead that rounds to nothing prints no -0.00
+    assert "-0.00" not in gain_line(results) and "+0.00 dB" in gain_line(results)
+    results["tfp33"]["train_seconds"] = 0.5  # a ratio to a baseline under a second
+    assert "SpikeGS 75 s with SIM's training, 149.6x the baseline's 0 s" in gain_line(results)
     results["tfp33"]["train_seconds"] = 0.0  # no ratio to a baseline that took no time
     assert gain_line(results).endswith("SpikeGS 75 s with SIM's training, the baseline's 0 s)")
 
@@ -2181,6 +2209,11 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert 0 < curve[0]["train_seconds"] < curve[1]["train_seconds"]
     printed = capsys.readouterr()
     assert "holds no demo to continue; starting one" in printed.err
+    # its stages, and each run's evaluations where no bar shows them
+    stages = [line for line in printed.err.splitlines() if line.startswith("[")]
+    assert stages[-2:] == ["[2/3] training spikegs", "[3/3] training tfp33"]
+    for method in METHODS:
+        assert f"{method}: iteration 80/80, held-out PSNR " in printed.err
     printed = printed.out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
     assert "dB at equal iterations (80 each; SpikeGS " in printed  # the budget it compares at
