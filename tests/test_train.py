@@ -41,6 +41,7 @@ from spikegs.file_lock import BUSY, Busy, exclusive_lock, shared_lock
 from spikegs.filter_3d import filter_widths
 from spikegs.gaussians import GaussianModel, frame_origin, near_plane
 from spikegs.image_io import read_image, srgb_to_linear, write_image
+from spikegs.image_labels import row_labels
 from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import ENDING, HANGUP, Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
@@ -2176,7 +2177,13 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     _tiny_demo(monkeypatch, sim_iterations=5)
     out = tmp_path / "demo"
     argv = ["demo", "--iterations", "80", "--no-progress", "--out"]
-    assert main([*argv, str(out), "--resume"]) == 0  # nothing to resume: a fresh demo
+    labelled = []  # the comparison's row labels
+    with monkeypatch.context() as patch:
+        patch.setattr(
+            "spikegs.demo.row_labels",
+            lambda texts, *a: labelled.append(texts) or row_labels(texts, *a),
+        )
+        assert main([*argv, str(out), "--resume"]) == 0  # nothing to resume: a fresh demo
     results = json.loads((out / "results.json").read_text())
     assert set(results["methods"]) == {"spikegs", "tfp33"}
     for method, scores in results["methods"].items():
@@ -2202,6 +2209,12 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     row = comparison[16:48, LABEL_WIDTH:]
     expected = [side["spikegs"][:, :32], side["tfp33"][:, 32:64], side["spikegs"][:, 32:64]]
     np.testing.assert_allclose(row, np.concatenate(expected, axis=1), atol=1e-6)
+    psnr = {m: json.loads((out / "runs" / m / "eval.json").read_text())["views"] for m in METHODS}
+    assert labelled[0] == [  # the view, then each method's PSNR there, in the columns' order
+        first,
+        f"TFP(33) {psnr['tfp33'][first]['psnr']:.2f}",
+        f"SpikeGS {psnr['spikegs'][first]['psnr']:.2f}",
+    ]
     # curves.png: error against time, every 50 iterations and at the end
     assert read_image(out / "curves.png").ndim == 3
     curve = logged_curve(out / "runs" / "spikegs")
