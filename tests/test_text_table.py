@@ -1,6 +1,7 @@
 """The aligned text tables of the demo, sim-train and the benchmarks (text_table.py)."""
 
-from spikegs.text_table import print_table
+import pytest
+from spikegs.text_table import column_format, print_table
 
 
 def test_a_columns_floats_share_their_decimals(capsys):
@@ -37,6 +38,23 @@ def test_fixed_decimals_only_within_their_range_and_headers_set_the_width(capsys
         "       0.0005  2e+06  43.10   0.00",
         "       0.0007  3e+06   5.20  43.10",
     ]
+
+
+@pytest.mark.parametrize(
+    "values, spec",
+    [
+        ([0.001], ".6f"),  # the range's ends: 0.001 in, 1e6 out
+        ([0.00099], ".4g"),
+        ([999999.0], ".0f"),
+        ([1e6], ".4g"),
+        ([1.0, 999.0], ".1f"),  # within a factor 1000, and at it
+        ([1.0, 1000.0], ".4g"),
+        ([-2.0, 1999.0], ".0f"),  # sizes: signs take no part
+        ([-2.0, -2000.0], ".4g"),
+    ],
+)
+def test_fixed_decimals_hold_up_to_each_end_of_their_range(values, spec):
+    assert column_format(values) == spec
 
 
 def test_no_rows_print_nothing(capsys):
