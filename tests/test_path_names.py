@@ -4,6 +4,7 @@ names, symbolic links to other disks or to nothing."""
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
 import sys
 from pathlib import Path
@@ -56,6 +57,11 @@ def test_short_names_fit_and_stay_distinct(limit):
     assert all(len(os.fsencode(s)) <= limit for s in shortened)
     assert len(set(shortened)) == 3 and shortened[2] == names[2]  # one that fits: as it is
     assert all(s.encode("utf-8") for s in shortened)  # whole characters
+    long = "x" * (
+        limit + 1
+    )  # one byte over: its first bytes, "~" and 12 hex digits, `limit` in all
+    digest = hashlib.sha1(long.encode()).hexdigest()[:12]
+    assert short_name(long, limit) == "x" * (limit - 13) + "~" + digest
 
 
 def test_a_failed_clean_up_keeps_the_writes_error(tmp_path, monkeypatch):
