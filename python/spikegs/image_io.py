@@ -136,7 +136,7 @@ def read_stored_image(path: str | Path) -> StoredImage:
     The file's metadata, not its extension, says which channel is alpha (an unspecified extra
     channel is not), whether colour is premultiplied, and whether it is sRGB (errors as
     `read_image`); ValueError where a value is not finite (a renderer's NaN firefly in an EXR
-    made every score NaN)."""
+    made every score NaN) and where it holds alpha alone (a mask)."""
     pixels, spec = _read(path, unassociated_alpha=True)
     space = spec.get_string_attribute("oiio:ColorSpace").lower()
     floating = spec.format.basetype in (oiio.HALF, oiio.FLOAT, oiio.DOUBLE)
@@ -145,6 +145,8 @@ def read_stored_image(path: str | Path) -> StoredImage:
     a = spec.alpha_channel
     alpha = pixels[..., a : a + 1] if a >= 0 else None
     others = np.delete(pixels, a, axis=2) if a >= 0 else pixels  # [H, W, C - 1 or C]
+    if others.shape[2] == 0:  # a mask (an EXR of alpha alone) broadcast to colour obscurely
+        raise ValueError(f"{path}: no colour channel, alpha alone: a mask, not a picture")
     colour = others[..., : 3 if others.shape[2] >= 3 else 1]
     for name, values in (("colour", colour), ("alpha", alpha)):  # a depth channel may be inf
         bad = ~np.isfinite(values) if values is not None else None
