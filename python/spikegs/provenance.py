@@ -12,11 +12,12 @@ from typing import Any
 from .cpu_quota import cpu_quota, usable_cpus
 
 
-def _first_cpu() -> dict[str, str]:
-    """The first CPU's fields in /proc/cpuinfo ({} where there is none to read)."""
+def _first_cpu(cpuinfo: str) -> dict[str, str]:
+    """The first CPU's fields in `cpuinfo`, Linux's /proc/cpuinfo ({} where there is none to
+    read)."""
     fields: dict[str, str] = {}
     try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+        with open(cpuinfo, encoding="utf-8", errors="replace") as f:
             for line in f:
                 key, _, value = line.partition(":")
                 if not key.strip():  # the first CPU's block ends
@@ -27,11 +28,11 @@ def _first_cpu() -> dict[str, str]:
     return fields
 
 
-def cpu_record() -> dict[str, Any]:
+def cpu_record(cpuinfo: str = "/proc/cpuinfo") -> dict[str, Any]:
     """The CPU's model name (else the platform's word for it); on x86 its family, model and
     stepping (a virtual machine's model name may be a vendor's word alone) and whether it
     computes bfloat16 natively (SIM's bf16 inference)."""
-    fields = _first_cpu()
+    fields = _first_cpu(cpuinfo)
     record: dict[str, Any] = {"cpu": fields.get("model name") or platform.processor() or "unknown"}
     if "cpu family" in fields:
         flags = fields.get("flags", "").split()
