@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import hashlib
 import os
+import subprocess
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -22,6 +23,7 @@ from spikegs.atomic_save import (
     temporary_name,
     write_atomically,
     write_text_atomically,
+    write_text_if_changed,
 )
 from spikegs.data.dataset import STAGING, is_view_name, move_in
 from spikegs.evaluate import _eval_name
@@ -204,6 +206,37 @@ def test_a_temporarys_writer_is_alive_unless_its_process_is_gone(tmp_path, monke
     assert theirs.exists()
 
 
+def test_a_live_writers_temporary_stays_and_its_writer_is_only_asked(tmp_path):
+    """A live process's temporary stays, the process untouched (signal 0 asks whether it
+    exists, sends nothing); once it is gone, its temporary is swept."""
+    writer = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        tmp = tmp_path / f".scores.json.{writer.pid}.tmp"
+        tmp.write_text("being written")
+        sweep_temporaries(tmp_path)
+        assert tmp.exists()
+        with pytest.raises(subprocess.TimeoutExpired):  # alive: a signal would end it by then
+            writer.wait(timeout=0.5)
+    finally:
+        writer.kill()
+        writer.wait()
+    sweep_temporaries(tmp_path)
+    assert not tmp.exists()
+
+
+def test_text_is_written_only_where_the_file_holds_other_text(tmp_path):
+    """A finished run's file holding the text already is left as it is (the same inode and
+    time), one holding other text replaced."""
+    path = tmp_path / "train.json"
+    write_text_if_changed(path, "é")
+    before = path.stat()
+    write_text_if_changed(path, "é")
+    after = path.stat()
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+    write_text_if_changed(path, "e")
+    assert path.read_text(encoding="utf-8") == "e"
+
+
 def test_an_error_naming_another_file_keeps_its_name(tmp_path):
     """A write's error that names a file other than its temporary (an input it read) is raised
     as it is, not renamed to the file asked for."""
@@ -219,11 +252,12 @@ def test_an_error_naming_another_file_keeps_its_name(tmp_path):
 
 def test_a_figure_without_a_suffix_is_a_png(tmp_path):
     """save_figure writes the format of its suffix, PNG where there is none (matplotlib refused
-    the empty format)."""
+    the empty format), at 120 dpi."""
     import matplotlib.pyplot as plt
 
-    save_figure(plt.figure(figsize=(1, 1)), tmp_path / "curve")
+    save_figure(plt.figure(figsize=(2, 1)), tmp_path / "curve")
     assert (tmp_path / "curve").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert read_image(tmp_path / "curve").shape[:2] == (120, 240)
 
 
 def test_a_command_suggested_for_a_path_starting_with_a_dash_reads_it_as_a_path(
