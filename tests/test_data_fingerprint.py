@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 from spikegs.data.trajectory import Trajectory
-from spikegs.data_fingerprint import data_fingerprint, spikes_fingerprint
+from spikegs.data_fingerprint import data_fingerprint, same_data, spikes_fingerprint
 from spikegs.spikes.stream import SpikeStream
 
 
@@ -82,3 +82,21 @@ def test_the_digest_of_a_stream_is_frozen():
     packed = np.packbits(bits, axis=-1, bitorder="little")  # [7, 3, 2]
     want = hashlib.sha256(np.array([7, 3, 10], np.int64).tobytes() + packed.tobytes()).digest()
     assert SpikeStream.from_bits(bits).digest() == want
+
+
+def test_poses_and_intrinsics_equal_to_6_decimals_are_the_same_data():
+    """Interpolated poses and calibrations that differ in their 7th decimal (another machine's
+    BLAS and libm) must still resume."""
+    K = lambda f: np.array([[f, 0, 5], [0, f, 1.5], [0, 0, 1]])  # noqa: E731
+    one = data_fingerprint(_dataset(center_x=0.1234561, K=K(20.1234561)), 7.0)
+    assert one == data_fingerprint(_dataset(center_x=0.1234562, K=K(20.1234562)), 7.0)
+
+
+def test_a_run_resumes_on_its_own_data_alone():
+    """A saved fingerprint matches today's or the sampled one of the same data, never
+    another dataset's."""
+    data, other = _dataset(), _dataset(center_x=1.0)
+    assert same_data(data_fingerprint(data, 7.0), data, 7.0)
+    assert same_data(data_fingerprint(data, 7.0, sampled=True), data, 7.0)
+    assert not same_data(data_fingerprint(other, 7.0), data, 7.0)
+    assert not same_data(data_fingerprint(other, 7.0, sampled=True), data, 7.0)
