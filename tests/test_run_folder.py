@@ -4,11 +4,12 @@ other are named for what they are."""
 
 import errno
 import json
+import re
 
 import pytest
 from spikegs.cli import main
 from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files
-from spikegs.run_summary import trained_scene
+from spikegs.run_summary import read_summary, trained_scene
 
 
 def test_evaluations_of_other_datasets_are_a_runs_files(tmp_path):
@@ -33,6 +34,22 @@ def test_a_started_run_without_a_checkpoint_may_be_trained_over(tmp_path):
     for name in ("config.yaml", "log.jsonl", ".lock"):
         (run / name).write_text("")
     check_fresh_run_dir(run, run / "checkpoints" / "last.pt")
+
+
+def test_a_finished_runs_files_and_files_not_a_runs_are_refused_each_by_name(tmp_path):
+    """A fresh run refuses a finished run's files (its checkpoint gone) naming those alone, and
+    a user's notes as files that are not a run's."""
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("notes.txt", "scene.ply", "train.json"):
+        (run / name).write_text("")
+    checkpoint = run / "checkpoints" / "last.pt"
+    with pytest.raises(FileExistsError, match=r"holds a finished run \(scene.ply, train.json\) "):
+        check_fresh_run_dir(run, checkpoint)
+    (run / "scene.ply").unlink()
+    (run / "train.json").unlink()
+    with pytest.raises(FileExistsError, match=r"holds files that are not a run's \(notes.txt\)"):
+        check_fresh_run_dir(run, checkpoint)
 
 
 def test_a_stopped_run_in_a_folder_not_writable_says_how_to_finish_it(tmp_path, monkeypatch):
@@ -69,3 +86,26 @@ def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, cap
         err = capsys.readouterr().err
         assert "run: a run folder (its config.yaml, train.json), not a dataset" in err
         assert f"the run's dataset is {data}" in err
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("intensity_scale", 0, "intensity_scale expected a finite number > 0, found 0"),
+        ("intensity_scale", -1.5, "intensity_scale expected a finite number > 0, found -1.5"),
+        ("intensity_scale", "2", 'intensity_scale expected a finite number > 0, found "2"'),
+        ("camera", {"fl_x": 40, "fl_y": 0}, "camera expected fl_x and fl_y, finite numbers > 0"),
+        ("camera", {"fl_x": -40, "fl_y": 40}, "camera expected fl_x and fl_y"),
+        ("camera", {"fl_x": 40}, "camera expected fl_x and fl_y"),
+        ("camera", {"fl_x": "40", "fl_y": 40}, "camera expected fl_x and fl_y"),
+        ("camera", [40, 40], "camera expected fl_x and fl_y"),
+    ],
+)
+def test_a_train_json_edited_by_hand_is_refused_by_field(tmp_path, field, value, message):
+    """An intensity scale or focal length of 0, negative or text is named; a run from before
+    both fields reads as it is."""
+    (tmp_path / "train.json").write_text(json.dumps({"dataset": "data"}))
+    assert read_summary(tmp_path) == {"dataset": "data"}
+    (tmp_path / "train.json").write_text(json.dumps({"dataset": "data", field: value}))
+    with pytest.raises(ValueError, match=re.escape(message)):
+        read_summary(tmp_path)
