@@ -10,6 +10,7 @@ import fcntl
 import json
 import multiprocessing
 import os
+from pathlib import Path
 
 import pytest
 from spikegs.cli import main
@@ -28,6 +29,16 @@ def simulated(tmp_path_factory):
     root = tmp_path_factory.mktemp("concurrent") / "data"
     simulate_dataset("solids", root, **SMALL)
     return root
+
+
+def test_the_busy_exit_status_is_the_documented_one():
+    """Scripts retry on the status the README and docs/datasets.md give: sysexits.h's
+    EX_TEMPFAIL, 75."""
+    root = Path(__file__).parents[1]
+    readme = (root / "README.md").read_text(encoding="utf-8")
+    datasets = (root / "docs" / "datasets.md").read_text(encoding="utf-8")
+    assert f"{BUSY} where another process trains the run" in " ".join(readme.split())
+    assert f"`busy:`, exit status {BUSY}, before any work" in datasets
 
 
 def test_a_dataset_being_simulated_is_not_simulated_over(tmp_path):
