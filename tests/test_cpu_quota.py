@@ -5,6 +5,7 @@ import types
 
 import pytest
 from spikegs import _C, cpu_quota, thread_count
+from spikegs.cgroup_files import cgroup_files
 from spikegs.cpu_quota import cpu_quota as quota_of
 from spikegs.cpu_quota import quota_threads
 from spikegs.thread_count import default_threads, set_loaded_threads
@@ -50,6 +51,18 @@ def test_threads_round_the_quota_up_below_the_usable_cpus(tmp_path, monkeypatch)
     assert quota_threads(membership, root) is None
 
 
+def test_the_usable_cpus_are_this_processs_affinity_else_the_machines(monkeypatch):
+    """A cpuset's CPUs (this process's affinity, pid 0); where the OS keeps none (macOS) the
+    machine's count, 1 where even that is unknown."""
+    monkeypatch.setattr(cpu_quota.os, "sched_getaffinity", lambda pid: {3} if pid == 0 else {})
+    monkeypatch.setattr(cpu_quota.os, "cpu_count", lambda: 8)
+    assert cpu_quota.usable_cpus() == 1
+    monkeypatch.delattr(cpu_quota.os, "sched_getaffinity")
+    assert cpu_quota.usable_cpus() == 8
+    monkeypatch.setattr(cpu_quota.os, "cpu_count", lambda: None)
+    assert cpu_quota.usable_cpus() == 1
+
+
 def test_the_users_thread_count_stands():
     environ = {}
     assert default_threads(environ, 2) == 2 and environ == {"OMP_NUM_THREADS": "2"}
@@ -84,6 +97,19 @@ def test_the_cores_thread_count_is_at_least_one():
     for n in (0, -5):
         with pytest.raises(ValueError, match=f"n expected >= 1, found {n}"):
             _C.set_max_threads(n)
+
+
+def test_a_groups_limit_files_run_from_its_own_to_the_roots(tmp_path):
+    """Each group's file, then its ancestors' up to the root, for a v1 controller mounted under
+    its controllers' names and its own, and the v2 hierarchy; a colon in a group's name is the
+    name's."""
+    root, membership = tmp_path / "cgroup", tmp_path / "self_cgroup"
+    _file(membership, "4:cpu,cpuacct:/a:b/c\n0::/x/y\n")
+    v1 = [root / "cpu,cpuacct", root / "cpu"]
+    assert cgroup_files("cpu", "q", "max", membership, root) == [
+        *(base / p for base in v1 for p in ("a:b/c/q", "a:b/q", "q")),
+        *(root / p for p in ("x/y/max", "x/max", "max")),
+    ]
 
 
 def test_a_quota_at_the_root_of_a_namespaced_group_counts(tmp_path, monkeypatch):

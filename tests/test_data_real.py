@@ -1823,6 +1823,7 @@ def test_correlation_refuses_images_of_two_shapes():
     assert correlation(image, 2 * image + 1) == pytest.approx(1.0)
     assert correlation(image, -image) == pytest.approx(-1.0)
     assert correlation(image, np.ones_like(image)) == 0.0  # flat
+    assert correlation(1e-4 * image, 1e-4 * image) == pytest.approx(1.0)  # faint, not flat
     with pytest.raises(ValueError, match=r"shapes \(12, 16\) and \(12, 1\)"):
         correlation(image, image.mean(-1, keepdims=True))
 
