@@ -48,3 +48,16 @@ def test_a_limit_above_the_machines_memory_leaves_the_machines(monkeypatch):
     assert machine_memory() == physical
     monkeypatch.setattr("spikegs.machine_memory.cgroup_limit", lambda: physical // 4)
     assert machine_memory() == physical // 4
+
+
+def test_a_system_that_tells_no_memory_is_taken_for_16_gib(monkeypatch):
+    """sysconf without the names (not POSIX): 16 GiB, or a lower cgroup limit."""
+
+    def unknown(name):
+        raise ValueError(f"unrecognized configuration name {name}")
+
+    monkeypatch.setattr(os, "sysconf", unknown)
+    monkeypatch.setattr("spikegs.machine_memory.cgroup_limit", lambda: None)
+    assert machine_memory() == 16 << 30
+    monkeypatch.setattr("spikegs.machine_memory.cgroup_limit", lambda: 2 << 30)
+    assert machine_memory() == 2 << 30
