@@ -195,6 +195,21 @@ def test_a_core_wrong_in_both_precisions_fails_bench_stiff(tmp_path, monkeypatch
     assert "scales 1e-6..1e3: ref_err 0.501 > 1e-06" in failures
 
 
+def test_a_gradient_to_a_culled_gaussian_fails_bench_stiff(tmp_path, monkeypatch):
+    """A core whose image is right but whose gradient reaches every Gaussian, those behind the
+    camera too: the cases that name Gaussians without a gradient fail on them."""
+    core = stiff.rasterize
+
+    def leaking(means, *args, **kwargs):
+        out = core(means, *args, **kwargs)
+        leak = 1e-3 * (means.sum() - means.sum().detach())  # 0, with a gradient to every mean
+        return out._replace(image=out.image + leak)
+
+    monkeypatch.setattr(stiff, "rasterize", leaking)
+    failures = stiff.run(quick=True, out=tmp_path)["failures"]
+    assert "near plane and behind camera: zero_grad NO" in failures
+
+
 def test_the_reference_rasterizer_is_timed_after_its_first_calls(monkeypatch):
     """bench rasterizer timed the pure-torch reference's very first call, 15-20 % slower than
     later ones (torch's first calls; a benchmark audit): a render of 10 Gaussians goes first."""
