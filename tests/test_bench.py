@@ -8,9 +8,11 @@ import dataclasses
 import json
 import math
 import tempfile
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import torch
 
 pytest.importorskip("spikegs._C")
 
@@ -208,6 +210,20 @@ def test_a_gradient_to_a_culled_gaussian_fails_bench_stiff(tmp_path, monkeypatch
     monkeypatch.setattr(stiff, "rasterize", leaking)
     failures = stiff.run(quick=True, out=tmp_path)["failures"]
     assert "near plane and behind camera: zero_grad NO" in failures
+
+
+def test_the_pairs_are_the_cores_count_else_each_visible_boxs_pixels(monkeypatch):
+    """A row's pairs are the core's own count; an output without the core's context (the
+    reference's) is estimated from each visible Gaussian's box, clipped to the image."""
+    monkeypatch.setattr(rasterizer, "_peak_rss_mb", lambda *args: None)
+    row = rasterizer.measure(100, 16, 16, 1, repeats=1)
+    assert row["pairs_source"] == "core" and row["pairs"] > 0
+    out = SimpleNamespace(
+        image=torch.zeros(16, 16, 1),
+        radii=torch.tensor([2, 0, 3]),  # a 4x4 box, a culled one, one cut by the left edge
+        means2d=torch.tensor([[8.0, 8.0], [5.0, 5.0], [-1.0, 8.0]]),
+    )
+    assert rasterizer._pairs(out, 16, 16) == (4 * 4 + 2 * 6, "box estimate")
 
 
 def test_the_reference_rasterizer_is_timed_after_its_first_calls(monkeypatch):
@@ -537,8 +553,6 @@ def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypa
     """The margins are at equal iterations, where SpikeGS renders K poses a step and trains SIM
     first (a helper's audit: ~6 times a baseline's seconds in the demo); `--equal-time` trains
     each baseline again with its schedule stretched to SpikeGS's seconds, SIM's included."""
-    from types import SimpleNamespace
-
     from spikegs.cli import main
 
     trained = []
