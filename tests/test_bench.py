@@ -127,6 +127,9 @@ def test_bench_spikes_simulator_times_are_medians(monkeypatch):
     rows = spikes._simulator_vs_numpy(np.zeros((3, 2, 8), np.float32), 4)
     assert [(r["readouts/s"], r["numpy readouts/s"]) for r in rows] == [(2.0, 0.1)] * 2
     assert rows[0]["vs numpy"] == 20.0
+    # spikes that differ are counted without noise alone (with it the draws differ)
+    assert [r["noise"] for r in rows] == ["default", "none"] and "spikes differing" not in rows[0]
+    assert rows[1]["spikes differing"] == 0
 
 
 def _spike_statistics(packed: np.ndarray, width: int) -> tuple[float, float, float]:
