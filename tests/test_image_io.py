@@ -79,6 +79,26 @@ def test_an_image_of_alpha_alone_is_refused_as_a_mask(tmp_path):
         read_stored_image(tmp_path / "matte.exr")
 
 
+class _FullDisk:
+    """An OpenImageIO writer whose `step` ("write_image" or "close") fails as on a full disk,
+    saying so through its geterror."""
+
+    def __init__(self, out, step: str):
+        self._out, self._step = out, step
+
+    def __getattr__(self, name):
+        return getattr(self._out, name)
+
+    def write_image(self, pixels):
+        return self._out.write_image(pixels) and self._step != "write_image"
+
+    def close(self):
+        return self._out.close() and self._step != "close"
+
+    def geterror(self):
+        return "No space left on device"
+
+
 class _SilentlyTorn:
     """OpenImageIO's writer on a full disk as PNG's behaved: every call says it succeeded, and
     the file holds `kept` of its bytes."""
@@ -100,19 +120,38 @@ class _SilentlyTorn:
         return True
 
 
-@pytest.mark.parametrize("kept", [0.0, 0.5])
-def test_an_image_that_reads_back_torn_is_not_kept(tmp_path, monkeypatch, kept):
-    """A writer saying it succeeded over an empty file (one OpenImageIO cannot open) or a torn
-    one (it opens, its pixels do not read): an OSError naming the image, the one before kept."""
+@pytest.mark.parametrize(
+    ("failing", "reason"),
+    [
+        (lambda out: _FullDisk(out, "write_image"), "No space left on device"),
+        (lambda out: _FullDisk(out, "close"), "No space left on device"),
+        (lambda out: _SilentlyTorn(out, 0.0), "what was written reads back torn or empty"),
+        (lambda out: _SilentlyTorn(out, 0.5), "what was written reads back torn or empty"),
+    ],
+    ids=["write fails", "close fails", "all said written, empty", "all said written, torn"],
+)
+def test_an_image_not_written_names_it_and_keeps_the_one_before(
+    tmp_path, monkeypatch, failing, reason
+):
+    """OpenImageIO's writer failing (a full disk: writing or closing the file), or saying it
+    succeeded over a file it left empty (one OpenImageIO cannot open) or torn (it opens, its
+    pixels do not read): an OSError naming the image asked for, with the reason; the image
+    written before stays and no temporary is left."""
     import OpenImageIO as oiio
 
     grey = np.full((16, 16, 3), 0.25, np.float32)
-    path = tmp_path / "v.png"
+    path = tmp_path / "v.exr"
     write_image(path, grey)
     create = oiio.ImageOutput.create
-    monkeypatch.setattr(oiio.ImageOutput, "create", lambda name: _SilentlyTorn(create(name), kept))
-    with pytest.raises(OSError, match=r"cannot write .*v\.png: what was written reads back torn"):
+    monkeypatch.setattr(oiio.ImageOutput, "create", lambda name: failing(create(name)))
+    with pytest.raises(OSError, match=rf"cannot write .*v\.exr: {reason}"):
         write_image(path, 2 * grey)
     monkeypatch.undo()
-    assert os.listdir(tmp_path) == ["v.png"]
-    np.testing.assert_allclose(read_image(path), linear_to_srgb(grey), atol=0.5 / 255)
+    assert os.listdir(tmp_path) == ["v.exr"]
+    np.testing.assert_array_equal(read_image(path), grey)
+
+
+def test_an_image_of_no_known_format_is_refused_by_name(tmp_path):
+    with pytest.raises(OSError, match=r"cannot write .*v\.xyz: OpenImageIO could not find a"):
+        write_image(tmp_path / "v.xyz", np.zeros((2, 2, 3), np.float32))
+    assert os.listdir(tmp_path) == []
