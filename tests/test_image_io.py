@@ -1,4 +1,5 @@
-"""The colour conversions of linear light and the reading of a file's stored channels."""
+"""image_io.py: the colour conversions of linear light, a file's stored channels, and writes
+that fail."""
 
 import os
 
@@ -16,7 +17,7 @@ from spikegs.image_io import (
 
 def test_srgb_decoding_matches_the_standards_values_on_each_side_of_its_knee():
     """IEC 61966-2-1's published values: 8-bit 10 on the linear segment, 11 (just above the knee
-    at 0.04045) on the power curve, mid-grey 0.5; encoding undoes decoding everywhere."""
+    at 0.04045) on the power curve, 128; encoding undoes decoding everywhere."""
     values = np.array([0, 10, 11, 128, 255]) / 255
     expected = [0.0, 0.0030353, 0.0033465, 0.2158605, 1.0]
     np.testing.assert_allclose(srgb_to_linear(values), expected, rtol=2e-5)

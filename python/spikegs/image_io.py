@@ -145,7 +145,7 @@ def read_stored_image(path: str | Path) -> StoredImage:
     a = spec.alpha_channel
     alpha = pixels[..., a : a + 1] if a >= 0 else None
     others = np.delete(pixels, a, axis=2) if a >= 0 else pixels  # [H, W, C - 1 or C]
-    if others.shape[2] == 0:  # a mask (an EXR of alpha alone) broadcast to colour obscurely
+    if others.shape[2] == 0:  # alpha alone (an EXR matte): no colour to composite or score
         raise ValueError(f"{path}: no colour channel, alpha alone: a mask, not a picture")
     colour = others[..., : 3 if others.shape[2] >= 3 else 1]
     for name, values in (("colour", colour), ("alpha", alpha)):  # a depth channel may be inf

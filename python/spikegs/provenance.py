@@ -31,7 +31,7 @@ def _first_cpu(cpuinfo: str) -> dict[str, str]:
 def cpu_record(cpuinfo: str = "/proc/cpuinfo") -> dict[str, Any]:
     """The CPU's model name (else the platform's word for it); on x86 its family, model and
     stepping (a virtual machine's model name may be a vendor's word alone) and whether it
-    computes bfloat16 natively (SIM's bf16 inference)."""
+    computes bfloat16 natively (SIM's bf16 inference); read from `cpuinfo`'s first block."""
     fields = _first_cpu(cpuinfo)
     record: dict[str, Any] = {"cpu": fields.get("model name") or platform.processor() or "unknown"}
     if "cpu family" in fields:
