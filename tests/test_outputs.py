@@ -363,6 +363,7 @@ def test_a_hung_up_command_keeps_the_lines_its_log_file_holds(tmp_path):
     works were lost, and a test runner's captured output with them."""
     script = (
         "import os, signal, spikegs.cli as cli\n"
+        "signal.signal(signal.SIGHUP, signal.SIG_DFL)\n"  # (a suite run under nohup: ignored)
         "print('last line')\n"  # (held: stdout is a file)
         "def run(args):\n"
         "    os.kill(os.getpid(), signal.SIGHUP)\n"

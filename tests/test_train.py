@@ -61,6 +61,14 @@ FAST = {
 ONE_DENSIFYING_STEP = {"start": 1, "stop": 1, "every": 1, "opacity_reset_every": 0}
 
 NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
+# `python -m spikegs` with SIGHUP at its default, as a terminal's shell starts it: a suite run
+# under nohup passes its SIG_IGN on to a child, which the command rightly keeps ignored
+SPIKEGS_HANGUP_DEFAULT = [
+    sys.executable,
+    "-c",
+    "import signal; signal.signal(signal.SIGHUP, signal.SIG_DFL); import spikegs.cli as cli; "
+    "cli.console()",
+]
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
 
@@ -627,7 +635,7 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status,
     train = {**FAST["train"], "iterations": 100000, "checkpoint_every": 100000}
     config.write_text(yaml.safe_dump({"base": "tfp33", **FAST, "train": train}))
     run = tmp_path / "run"
-    command = [sys.executable, "-m", "spikegs", "train", str(dataset.root), "--out", str(run)]
+    command = [*SPIKEGS_HANGUP_DEFAULT, "train", str(dataset.root), "--out", str(run)]
     training = subprocess.Popen(
         [*command, "--config", str(config), "--no-progress"],
         stdout=subprocess.DEVNULL,
