@@ -453,7 +453,9 @@ def test_train_runs_every_seed(tmp_path):
     assert (tmp_path / "runs" / train.HEADLINE_SCENE / "tfp33-seed1" / "train.json").exists()
 
 
-def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(tmp_path, capsys):
+def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(
+    tmp_path, capsys, monkeypatch
+):
     """`bench train --spp 4`: the scenes as a camera sees them (each pixel its box's mean light),
     said in the table's heading and recorded; a dataset cached at another spp is simulated again."""
     result = train.run(quick=True, out=tmp_path, methods=["tfp33"], spp=4)
@@ -462,8 +464,13 @@ def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(tmp
     root = tmp_path / "data" / train.HEADLINE_SCENE
     dataset = load_dataset(root)
     assert dataset.meta["spp"] == 4
-    assert train._matches(dataset, train.HEADLINE_SCENE, {**train.QUICK_DATA, "spp": 4})
+    made_so = {**train.QUICK_DATA, "spp": 4}
+    assert train._matches(dataset, train.HEADLINE_SCENE, made_so)
     assert not train._matches(dataset, train.HEADLINE_SCENE, {**train.QUICK_DATA, "spp": 1})
+    assert train.dataset_for(train.HEADLINE_SCENE, root, made_so)[1] == 0.0  # reused
+    every = train.default_train_every(made_so["readouts"])
+    monkeypatch.setattr(train, "default_train_every", lambda readouts: every + 1)
+    assert not train._matches(dataset, train.HEADLINE_SCENE, made_so)  # other training views
 
 
 @pytest.mark.parametrize("text", ["0", "-0.0001", "nan", "inf", "x"])
