@@ -8,6 +8,7 @@ import dataclasses
 import json
 import math
 import tempfile
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -381,6 +382,17 @@ def test_ablation_order_says_on_how_many_seeds_it_holds():
     assert train.ablation_line({"spikegs": methods["spikegs"]}) is None
 
 
+def test_bench_writes_into_the_documented_folder_without_out(tmp_path, monkeypatch):
+    """Without --out: bench-results, or bench-results-quick with --quick (the README's)."""
+    from spikegs.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    outs = []
+    monkeypatch.setattr(stiff, "run", lambda quick, out: outs.append(out) or {"failures": []})
+    assert main(["bench", "stiff", "--quick"]) == 0 and main(["bench", "stiff"]) == 0
+    assert outs == [Path("bench-results-quick"), Path("bench-results")]
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -494,7 +506,9 @@ def test_train_grad_threshold_reaches_every_run(tmp_path, capsys):
     assert "100 iterations, densify threshold 0.0005, 1 seed" in capsys.readouterr().out
     result = json.loads((tmp_path / "train.json").read_text())
     assert result["schedule"]["densify"]["grad_threshold"] == 0.0005
-    for scores in result["scenes"][train.HEADLINE_SCENE]["methods"].values():
+    methods = result["scenes"][train.HEADLINE_SCENE]["methods"]
+    assert {m: r["uses_sim"] for m, r in methods.items()} == {"spikegs": True, "tfp33": False}
+    for scores in methods.values():
         # both SSIMs at the end (3DGS's, the papers', beside scikit-image's), the curve one
         assert 0 < scores["ssim_3dgs"] <= 1 and scores["ssim_3dgs"] != scores["ssim"]
         assert [("ssim_3dgs" in p) for p in scores["curve"]][-2:] == [False, True]
