@@ -469,7 +469,8 @@ def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(
     tmp_path, capsys, monkeypatch
 ):
     """`bench train --spp 4`: the scenes as a camera sees them (each pixel its box's mean light),
-    said in the table's heading and recorded; a dataset cached at another spp is simulated again."""
+    said in the table's heading and recorded; a dataset cached at another spp, or with its
+    training views spaced otherwise, is simulated again, one made so reused."""
     result = train.run(quick=True, out=tmp_path, methods=["tfp33"], spp=4)
     assert result["data"]["spp"] == 4
     assert "64x64 at 4 spp, 4 test views" in capsys.readouterr().out

@@ -66,8 +66,10 @@ NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
 SPIKEGS_HANGUP_DEFAULT = [
     sys.executable,
     "-c",
-    "import signal; signal.signal(signal.SIGHUP, signal.SIG_DFL); import spikegs.cli as cli; "
-    "cli.console()",
+    "import signal, spikegs.cli as cli\n"
+    "if hasattr(signal, 'SIGHUP'):\n"
+    "    signal.signal(signal.SIGHUP, signal.SIG_DFL)\n"
+    "cli.console()\n",
 ]
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
