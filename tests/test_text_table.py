@@ -63,3 +63,18 @@ def test_no_rows_print_nothing(capsys):
     print_table([])
     print_table([], ["method", "psnr"])
     assert capsys.readouterr().out == ""
+
+
+def test_columns_are_the_first_rows_keys(capsys):
+    """Without columns named, a table's columns are its first row's keys (a one-row table has
+    no second row to read them from): a later row's key the first lacks is not printed, one it
+    lacks prints empty."""
+    print_table([{"method": "SIM", "psnr": 43.1}])
+    print_table([{"method": "SIM", "psnr": 43.1}, {"method": "TFI", "ssim": 0.9}])
+    assert capsys.readouterr().out.splitlines() == [
+        "method   psnr",
+        "   SIM  43.10",
+        "method   psnr",
+        "   SIM  43.10",
+        "   TFI       ",
+    ]
