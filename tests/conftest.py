@@ -32,6 +32,22 @@ def ctrl_c():
 
 
 @pytest.fixture
+def console_signals():
+    """SIGINT, SIGTERM and SIGHUP as the test found them, after `console()` (which sets them to
+    be ignored once a command is stopped, and SIGTERM and SIGHUP to raise Terminated); SIGTERM
+    and SIGHUP at their defaults for the test and the commands it starts, as in a fresh process
+    (a suite run under nohup passes SIGHUP on ignored, and a command rightly keeps it so)."""
+    from spikegs.interrupt import ENDING
+
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, *ENDING)}
+    for s in ENDING:
+        signal.signal(s, signal.SIG_DFL)
+    yield previous
+    for s, handler in previous.items():
+        signal.signal(s, handler)
+
+
+@pytest.fixture
 def as_llff():
     """`as_llff(dataset, root, spikes=None)`: `root`, made to hold `dataset`'s spikes (or the
     .dat file `spikes`) in the LLFF layout, one stream with a pose every 50 readouts (every 8th

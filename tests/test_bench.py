@@ -20,6 +20,7 @@ pytest.importorskip("spikegs._C")
 from spikegs import _C  # noqa: E402
 from spikegs.bench import rasterizer, sim, spikes, stiff, train  # noqa: E402
 from spikegs.data import load_dataset  # noqa: E402
+from spikegs.data.scenes import SCENES  # noqa: E402
 from spikegs.demo import DEMO_OVERRIDES  # noqa: E402
 from spikegs.sim import SIM  # noqa: E402
 from spikegs.spikes import SimParams, simulate_spikes  # noqa: E402
@@ -688,3 +689,60 @@ def test_rasterizer_figure_tells_every_size_apart_and_hides_no_line(tmp_path, mo
         assert not any(legend.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
     finally:
         plt.close(fig)
+
+
+def test_bench_poses_trains_the_true_poses_once_and_measures_the_noise_it_added(
+    tmp_path, monkeypatch, capsys
+):
+    """bench poses' logic in-process (CI's `bench all --quick` runs it whole in a child, its
+    figures unchecked): over two noise seeds the true poses train once and each noisy
+    condition twice; its training views lie on the perturbed keyframes, so their error before
+    refinement is the noise it added, exactly; the rows are the runs' medians and the share
+    recovered follows from them."""
+    from spikegs.bench import poses
+
+    setup = {"size": 24, "readouts": 330, "iterations": 30, "method": "tfp33", "repeats": 2}
+    monkeypatch.setattr(poses, "QUICK", setup)
+    results = poses.run(True, tmp_path)
+    runs, rows = results["runs"], results["rows"]
+    assert [len(runs[c]) for c in poses.CONDITIONS] == [1, 2, 2]
+    refined = rows[2]
+    assert refined["rotation_deg_before"] == pytest.approx(poses.NOISE_DEG, rel=1e-6)
+    assert refined["centre_before"] == pytest.approx(poses.NOISE_TRANSLATION, rel=1e-6)
+    assert 0 <= refined["views_improved"] <= 1
+    assert "rotation_deg_before" not in rows[1]
+    for row, condition in zip(rows, poses.CONDITIONS):
+        assert row["condition"] == condition
+        assert row["psnr"] == np.median([r["psnr"] for r in runs[condition]])
+    psnr = [r["psnr"] for r in rows]
+    assert results["psnr_recovered_fraction"] == pytest.approx(
+        (psnr[2] - psnr[1]) / (psnr[0] - psnr[1])
+    )
+    assert json.loads((tmp_path / "poses.json").read_text())["rows"] == rows
+    assert (tmp_path / "poses.png").stat().st_size > 0
+    assert "median of 2 noise seeds" in capsys.readouterr().out
+
+
+def test_bench_sim_scores_each_method_once_and_times_variants_of_one_network(tmp_path, capsys):
+    """bench sim's logic in-process (CI's `bench all --quick` runs it whole in a child, its
+    figures unchecked): one row per method and scene, SIM's in both precisions and the others
+    once; each timed variant computes the float32 network's output (the straightforward one, its
+    padded border aside, their baseline) and each training step its gradients; the gain is
+    SIM's over TFP(33)."""
+    results = sim.run(True, tmp_path)
+    methods = [r["method"] for r in results["quality"]]
+    assert sorted(methods) == sorted({*methods}) and {"SIM float32", "SIM bfloat16"} < {*methods}
+    assert {"TFP(33)", "TFP(65)"} < {*methods}
+    psnr = {r["method"]: r["psnr"] for r in results["quality"]}
+    [(scene, gain)] = results["psnr_gain_over_tfp33_db"].items()
+    assert gain == psnr["SIM bfloat16"] - psnr["TFP(33)"] and scene == list(SCENES)[0]
+    inference = results["inference"]
+    assert (inference["height"], inference["width"]) == (64, 96)
+    fps = inference["rows"]
+    assert fps[0]["speedup"] == 1  # its error: where its square's zero padding leaks in
+    assert all(r["max_abs_err"] < (1e-2 if "bfloat16" in r["variant"] else 1e-6) for r in fps[1:])
+    steps = results["train_step"]
+    assert steps[0]["speedup"] == 1 and all(r["grad_err"] < 1e-4 for r in steps)
+    assert [t["steps"] for t in results["training"]] == [30]
+    assert "these scores check the run only" in capsys.readouterr().out
+    assert json.loads((tmp_path / "sim.json").read_text())["train_step"] == steps

@@ -292,6 +292,26 @@ def test_sim_train_scores_each_method_on_the_steady_light(tmp_path, capsys):
         assert abs(fall) < 1.5, name
 
 
+def test_sim_train_says_a_flicker_too_deep_to_divide_out_and_scores_as_found(
+    tmp_path, monkeypatch, capsys
+):
+    """A flicker found at depth 1 or more (a light switched on and off: a sinusoid that deep
+    takes the light to none) is not divided out of training's targets: sim-train says so, and
+    scores each method on the images as read, as where no flicker was found."""
+    data = simulate_dataset(
+        "solids", tmp_path / "d", height=24, width=24, readouts=400, test_on_path=2, progress=False
+    )
+    records = []
+    for found in (Flicker(depth=1.2, period=250.0, phase=0.0), None):
+        monkeypatch.setattr("spikegs.sim_cli.cached_flicker", lambda streams, bars, f=found: f)
+        assert main(["sim-train", str(data.root), "--steps", "3", "--no-progress"]) == 0
+        records.append(json.loads(next((data.root / "sim").glob("*.pt.json")).read_text()))
+    deep, none = records
+    assert "period of 250.0 readouts, depth 1.20: too deep to divide out" in capsys.readouterr().out
+    assert deep["flicker"]["divided"] is False and none["flicker"] is None
+    assert deep["scores"] == none["scores"]
+
+
 def test_a_pseudo_ground_truth_is_divided_by_the_flicker(tmp_path, as_llff, monkeypatch, capsys):
     """A recording without sharp test images (LLFF, one stream, a pose every 50 readouts): a
     held-out view's pseudo ground truth, TFP(65) of its spikes, is the steady light's, not the

@@ -17,7 +17,7 @@ from spikegs.cli import console, main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run
-from spikegs.interrupt import ENDING, HANGUP, progress_lost, raise_terminated, say
+from spikegs.interrupt import HANGUP, progress_lost, raise_terminated, say
 from spikegs.train import Trainer
 from tqdm import tqdm
 
@@ -107,19 +107,6 @@ def test_saying_to_a_gone_stderr_returns_its_error_and_to_a_full_one_raises(monk
         say("stopped")
     monkeypatch.undo()
     assert say("said") is None
-
-
-@pytest.fixture
-def console_signals():
-    """SIGINT, SIGTERM and SIGHUP as the test found them, after `console()` (which sets them to
-    be ignored once a command is stopped, and SIGTERM and SIGHUP to raise Terminated); SIGTERM
-    and SIGHUP at their defaults for the test, as in a fresh process."""
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, *ENDING)}
-    for s in ENDING:
-        signal.signal(s, signal.SIG_DFL)
-    yield previous
-    for s, handler in previous.items():
-        signal.signal(s, handler)
 
 
 def test_a_second_ctrl_c_while_exiting_prints_no_traceback(monkeypatch, console_signals):
@@ -357,13 +344,12 @@ def test_an_error_to_a_reader_that_left_exits_141_with_output_pending():
 
 
 @NO_HANGUP
-def test_a_hung_up_command_keeps_the_lines_its_log_file_holds(tmp_path):
+def test_a_hung_up_command_keeps_the_lines_its_log_file_holds(tmp_path, console_signals):
     """Stopped by SIGHUP, a command sent stdout and stderr to /dev/null before exiting (for a
     terminal gone, whose flush would fail): the last lines still held for a log file that
     works were lost, and a test runner's captured output with them."""
     script = (
         "import os, signal, spikegs.cli as cli\n"
-        "signal.signal(signal.SIGHUP, signal.SIG_DFL)\n"  # (a suite run under nohup: ignored)
         "print('last line')\n"  # (held: stdout is a file)
         "def run(args):\n"
         "    os.kill(os.getpid(), signal.SIGHUP)\n"

@@ -1343,17 +1343,23 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(
     assert warned == bool(stated), summary
 
 
+def _write_stuck_pixels(tiny, dat: Path, rows: list[int]) -> None:
+    """`tiny`'s spikes written to `dat` with its pixels (row, 17) of `rows` firing at every
+    readout."""
+    from spikegs.spikes import DatWriter
+
+    size = tiny.height
+    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
+    bits[:, rows, 17] = True  # [T, H, W]
+    with DatWriter(dat, size, size, tiny.meta["flip"]) as writer:
+        writer.write_bits(bits)
+
+
 def _with_stuck_pixels(tiny, root: Path) -> Path:
     """A copy of the `tiny` dataset at `root` whose pixels (12, 17) and (20, 17) (one column:
     two defects, not one) fire at every readout."""
-    from spikegs.spikes import DatWriter
-
     shutil.copytree(tiny.root, root)
-    size = tiny.height
-    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
-    bits[:, [12, 20], 17] = True  # [T, H, W]
-    with DatWriter(root / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
-        writer.write_bits(bits)
+    _write_stuck_pixels(tiny, root / "spikes.dat", [12, 20])
     return root
 
 
@@ -1455,15 +1461,10 @@ def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_i
     stuck pixel's 1 a readout and the flicker's phase, which training leaves out."""
     from spikegs import poses_cli
     from spikegs.flicker import Flicker
-    from spikegs.spikes import DatWriter
 
     raw = tmp_path / "raw"
     raw.mkdir()
-    size = tiny.height
-    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
-    bits[:, 12, 17] = True  # [T, H, W]
-    with DatWriter(raw / "spikes.dat", size, size, tiny.meta["flip"]) as writer:
-        writer.write_bits(bits)
+    _write_stuck_pixels(tiny, raw / "spikes.dat", [12])
     keys = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
     flicker = Flicker(depth=0.3, period=200.0, phase=0.0)

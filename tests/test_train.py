@@ -61,16 +61,6 @@ FAST = {
 ONE_DENSIFYING_STEP = {"start": 1, "stop": 1, "every": 1, "opacity_reset_every": 0}
 
 NO_HANGUP = pytest.mark.skipif(HANGUP is None, reason="no SIGHUP on this OS")
-# `python -m spikegs` with SIGHUP at its default, as a terminal's shell starts it: a suite run
-# under nohup passes its SIG_IGN on to a child, which the command rightly keeps ignored
-SPIKEGS_HANGUP_DEFAULT = [
-    sys.executable,
-    "-c",
-    "import signal, spikegs.cli as cli\n"
-    "if hasattr(signal, 'SIGHUP'):\n"
-    "    signal.signal(signal.SIGHUP, signal.SIG_DFL)\n"
-    "cli.console()\n",
-]
 
 TINY = dict(height=32, width=32, readouts=600, test_on_path=2, test_off_path=2, progress=False)
 
@@ -628,7 +618,9 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     "signum, status, said",
     [(signal.SIGTERM, 143, "terminated"), pytest.param(HANGUP, 129, "hung up", marks=NO_HANGUP)],
 )
-def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status, said):
+def test_spikegs_train_checkpoints_on_sigterm(
+    dataset, tmp_path, signum, status, said, console_signals
+):
     """The command as a batch scheduler's time limit stops it: SIGTERM killed it at once, its
     steps since the last checkpoint lost (here: all), nothing said; now it checkpoints the step
     it was in, says so and exits with 143 (128 + SIGTERM). SIGHUP (the terminal closed, an ssh
@@ -637,7 +629,7 @@ def test_spikegs_train_checkpoints_on_sigterm(dataset, tmp_path, signum, status,
     train = {**FAST["train"], "iterations": 100000, "checkpoint_every": 100000}
     config.write_text(yaml.safe_dump({"base": "tfp33", **FAST, "train": train}))
     run = tmp_path / "run"
-    command = [*SPIKEGS_HANGUP_DEFAULT, "train", str(dataset.root), "--out", str(run)]
+    command = [sys.executable, "-m", "spikegs", "train", str(dataset.root), "--out", str(run)]
     training = subprocess.Popen(
         [*command, "--config", str(config), "--no-progress"],
         stdout=subprocess.DEVNULL,
@@ -3555,32 +3547,6 @@ def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
         dim.observe("exposure", [one * 0.002], one * 0.01)
     assert "(its exposure renders hold 80 % of theirs" in biased_fit(edge, SupervisionConfig())
     assert "hold 20 % of their exposure" in biased_fit(dim, SupervisionConfig())
-
-
-def test_strict_json_nulls_non_finite_numbers_in_lists_and_number_arrays_refuse_booleans():
-    """dumps writes inf and NaN as null inside lists too (a list of per-view scores raised
-    ValueError with allow_nan off); number_array refuses booleans (true, false in a JSON file
-    are not 1 and 0)."""
-    from spikegs.number_checks import number_array
-    from spikegs.strict_json import dumps
-
-    assert (
-        dumps({"psnr": [float("inf"), 31.5, (float("nan"),)]}) == '{"psnr": [null, 31.5, [null]]}'
-    )
-    with pytest.raises(ValueError, match=re.escape("expected numbers, found true at [0]")):
-        number_array([True, False])
-    # a null in a pose log's matrix: named as JSON spells it, and where (was "object values")
-    with pytest.raises(ValueError, match=re.escape("expected numbers, found null at [1, 0]")):
-        number_array([[0, 1], [None, 2]])
-    for mixed in ([1.0, True], [[0, 1], (2, np.False_)]):  # numpy made these 1.0 and 0
-        with pytest.raises(ValueError, match="found true or false among them"):
-            number_array(mixed)
-    assert number_array([np.zeros(2), [1, 2]]).tolist() == [[0, 0], [1, 2]]
-    # an integer past int64 (JSON reads 1e30 written out as one) made an object array, where the
-    # search for what is not a number found none: StopIteration's traceback, not a message
-    assert number_array([[0, 10**30], [1, 2]]).tolist() == [[0, 1e30], [1, 2]]
-    with pytest.raises(ValueError, match=re.escape("found an integer past 1.8e308 at [1]")):
-        number_array([0, 10**400])
 
 
 def test_a_run_pruned_to_nothing_stops_with_a_message(dataset, tmp_path):
