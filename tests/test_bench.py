@@ -217,6 +217,32 @@ def test_a_gradient_to_a_culled_gaussian_fails_bench_stiff(tmp_path, monkeypatch
     assert "near plane and behind camera: zero_grad NO" in failures
 
 
+def test_bench_stiff_names_each_check_a_row_fails():
+    """Each of a row's checks, failed alone, is named with its value and bound (the float32
+    image's, and culls that differ from the reference's, no run of the cases fails)."""
+    good = {"ref_err": 0.0, "ref_culls": "same", "image_err": 0.0, "rel_means": 0.0}
+    good.update(non_finite="none", zero_grad="yes")
+    assert stiff.failed_checks(good) == []
+    failing = {
+        "ref_err": 2 * stiff.REFERENCE_ERROR_BOUND,
+        "ref_culls": "NO",
+        "image_err": 3 * stiff.FLOAT_ERROR_BOUND,
+        "rel_means": 4 * stiff.GRAD_ERROR_BOUND,
+        "non_finite": "image",
+        "zero_grad": "NO",
+    }
+    named = [
+        f"ref_err {2 * stiff.REFERENCE_ERROR_BOUND:.3g} > {stiff.REFERENCE_ERROR_BOUND:g}",
+        "ref_culls NO",
+        f"image_err {3 * stiff.FLOAT_ERROR_BOUND:.3g} > {stiff.FLOAT_ERROR_BOUND:g}",
+        f"rel_means {4 * stiff.GRAD_ERROR_BOUND:.3g} > {stiff.GRAD_ERROR_BOUND:g}",
+        "non-finite image",
+        "zero_grad NO",
+    ]
+    for (key, value), problem in zip(failing.items(), named):
+        assert stiff.failed_checks({**good, key: value}) == [problem]
+
+
 def test_the_pairs_are_the_cores_count_else_each_visible_boxs_pixels(monkeypatch):
     """A row's pairs are the core's own count; an output without the core's context (the
     reference's) is estimated from each visible Gaussian's box, clipped to the image."""
@@ -375,6 +401,10 @@ def test_ablation_order_says_on_how_many_seeds_it_holds():
     assert train.ablation_line(methods) == (
         "paper's ablation order (both > only instant > only exposure): holds in the mean "
         "over 2 seeds, on 1 of them"
+    )
+    exposure_ahead = {**methods, "only_exposure": train.over_seeds([_run(26.0), _run(28.5)])}
+    assert train.ablation_line(exposure_ahead).endswith(
+        ": spikegs > only_exposure > only_instant (means over 2 seeds)"
     )
     one = {name: train.over_seeds(r["seeds"][:1]) for name, r in methods.items()}
     assert train.ablation_seeds(one) == 1
@@ -703,13 +733,23 @@ def test_bench_poses_trains_the_true_poses_once_and_measures_the_noise_it_added(
 
     setup = {"size": 24, "readouts": 330, "iterations": 30, "method": "tfp33", "repeats": 2}
     monkeypatch.setattr(poses, "QUICK", setup)
+    errors, measure = [], poses.refined_pose_errors  # each seed's errors of each training view
+
+    def measured(*args):
+        errors.append(measure(*args))
+        return errors[-1]
+
+    monkeypatch.setattr(poses, "refined_pose_errors", measured)
     results = poses.run(True, tmp_path)
     runs, rows = results["runs"], results["rows"]
     assert [len(runs[c]) for c in poses.CONDITIONS] == [1, 2, 2]
+    for run, error in zip(runs[poses.CONDITIONS[2]], errors):
+        assert run["rotation_deg_after"] == np.median(error["rotation_deg_after"])
+        improved = error["rotation_deg_after"] < error["rotation_deg_before"]
+        assert run["views_improved"] == np.mean(improved) != 0.5  # (not its own complement)
     refined = rows[2]
     assert refined["rotation_deg_before"] == pytest.approx(poses.NOISE_DEG, rel=1e-6)
     assert refined["centre_before"] == pytest.approx(poses.NOISE_TRANSLATION, rel=1e-6)
-    assert 0 <= refined["views_improved"] <= 1
     assert "rotation_deg_before" not in rows[1]
     for row, condition in zip(rows, poses.CONDITIONS):
         assert row["condition"] == condition
@@ -743,6 +783,7 @@ def test_bench_sim_scores_each_method_once_and_times_variants_of_one_network(tmp
     assert all(r["max_abs_err"] < (1e-2 if "bfloat16" in r["variant"] else 1e-6) for r in fps[1:])
     steps = results["train_step"]
     assert steps[0]["speedup"] == 1 and all(r["grad_err"] < 1e-4 for r in steps)
-    assert [t["steps"] for t in results["training"]] == [30]
+    assert {(r["batch"], r["crop"]) for r in steps} == {(8, 32)}
+    assert [(t["height"], t["width"], t["steps"]) for t in results["training"]] == [(64, 96, 30)]
     assert "these scores check the run only" in capsys.readouterr().out
     assert json.loads((tmp_path / "sim.json").read_text())["train_step"] == steps

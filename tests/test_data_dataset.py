@@ -279,6 +279,21 @@ def test_a_stop_while_the_new_dataset_moves_in_lets_it_finish(tmp_path, monkeypa
     assert not (old / STAGING).exists()
 
 
+def test_a_staging_folder_a_killed_simulation_left_is_replaced_under_overwrite(tmp_path):
+    """A simulation killed (SIGKILL, a machine's reboot) leaves its staging folder inside the
+    dataset: `--overwrite` clears it before staging anew, none of its files kept."""
+    still = {**SMALL, "height": 16, "width": 16, "test_on_path": 0, "test_off_path": 1}
+    with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+        old = simulate_dataset(constant_source(0.6), tmp_path / "old", **still).root
+    (old / STAGING).mkdir()
+    (old / STAGING / "spikes.dat").write_bytes(b"torn")
+    (old / STAGING / "stray.txt").write_text("left by the killed run")
+    with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):
+        simulate_dataset(constant_source(0.3), old, overwrite=True, **still)
+    assert not (old / STAGING).exists() and not (old / "stray.txt").exists()
+    assert load_dataset(old).test_views[0].image.mean() == pytest.approx(0.3 * 0.25, rel=1e-5)
+
+
 def test_a_full_disk_under_overwrite_names_the_old_dataset_kept(tmp_path, monkeypatch):
     """The new dataset is written beside the one it replaces: a disk without room for both
     failed with '[Errno 28] No space left on device: DATASET/.simulating/spikes.dat', a path

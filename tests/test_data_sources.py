@@ -602,6 +602,8 @@ def test_mitsuba_scenes_that_cannot_render_are_named(tmp_path, mitsuba):
     (tmp_path / "bad.xml").write_text("<scene version='3.0.0'><shape")
     with pytest.raises(ValueError, match="Mitsuba scene 'bad' does not load"):
         MitsubaSource(tmp_path / "bad.xml", 16, 16)
+    with pytest.raises(FileNotFoundError, match="Mitsuba scene file not found: .*gone.xml"):
+        make_source(tmp_path / "gone.xml", 16, 16, 1)  # `spikegs simulate --scene` mistyped
 
 
 def test_read_frame_composites_alpha_once_in_linear_light(tmp_path):

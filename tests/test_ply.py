@@ -110,3 +110,13 @@ def test_a_grey_scene_round_trips_as_grey(tmp_path):
     np.testing.assert_array_equal(v["f_dc_0"], v["f_dc_2"])
     back = load_ply(tmp_path / "g.ply")
     assert back.channels == 1 and back.params["sh_dc"].shape == (5, 1, 1)
+
+
+def test_a_dilation_comment_that_is_not_a_number_is_named():
+    """scene.ply's `spikegs dilation V` comment holding no number: refused naming the file and
+    the comment, as one out of the rasterizer's range (not float()'s bare ValueError)."""
+    from spikegs.ply import _tag_dilation
+
+    with pytest.raises(ValueError, match="s.ply: comment 'spikegs dilation wide': expected pix"):
+        _tag_dilation("s.ply", {"dilation": "wide"})
+    assert _tag_dilation("s.ply", {"dilation": " 0.25"}) == 0.25 and _tag_dilation("s", {}) == 0.3

@@ -189,6 +189,10 @@ def test_sh_basis_is_orthonormal():
     Y = sh_basis(dirs, 3)  # [M, 16]
     gram = Y.T @ Y * (4 * math.pi / m)
     assert torch.allclose(gram, torch.eye(16, dtype=torch.float64), atol=1e-4)
+    assert sh_basis(dirs[:2], 0).shape == (2, 1)
+    for degree in (-1, 4):  # the rasterizer's degrees are 0..3
+        with pytest.raises(ValueError, match=f"sh degree must be in 0..3, got {degree}"):
+            sh_basis(dirs[:2], degree)
 
 
 def test_reference_single_gaussian_mass():

@@ -86,6 +86,11 @@ def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, cap
         err = capsys.readouterr().err
         assert "run: a run folder (its config.yaml, train.json), not a dataset" in err
         assert f"the run's dataset is {data}" in err
+    (run / "train.json").write_text('{"dataset": ')  # torn: the folder is named all the same
+    assert main(["train", str(run), "--out", str(tmp_path / "new")]) == 2
+    err = capsys.readouterr().err
+    assert "run: a run folder (its config.yaml, train.json), not a dataset" in err
+    assert "the run's dataset" not in err
 
 
 @pytest.mark.parametrize(

@@ -613,3 +613,15 @@ def test_negative_bits_are_refused(tmp_path, dtype):
     with DatWriter(tmp_path / "s.dat", 2, 8) as writer:
         with pytest.raises(ValueError, match="bits expected 0/1"):
             writer.write_bits(bits)
+
+
+def test_a_stream_says_where_it_lies_and_its_size(tmp_path):
+    """repr: the file a stream reads, or memory, and its readouts and frame size."""
+    bits = np.zeros((3, 4, 8), bool)
+    assert repr(SpikeStream.from_bits(bits)) == (
+        "SpikeStream(memory, readouts=3, height=4, width=8)"
+    )
+    path = save_dat(tmp_path / "s.dat", bits)
+    assert repr(SpikeStream.open(path, 4, 8)) == (
+        f"SpikeStream('{path}', readouts=3, height=4, width=8)"
+    )

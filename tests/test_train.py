@@ -1167,6 +1167,8 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     for origin in ([1.0, 2.0], [0.0, float("nan"), 0.0]):
         with pytest.raises(ValueError, match="GaussianModel: origin expected 3 finite numbers"):
             GaussianModel(model.params, torch.zeros(3), 1, origin=origin)
+    with pytest.raises(ValueError, match="GaussianModel: antialiased expected True or False"):
+        GaussianModel(model.params, torch.zeros(3), 1, antialiased="false")  # (a truthy string)
     # a dilation out of the rasterizer's range, at construction or later, refused where set (not
     # at the first render); a checkpoint from before dilations draws with 3DGS's
     for dilation in (0.0, float("nan"), True):
@@ -3796,6 +3798,22 @@ def test_a_checkpoint_on_a_disk_filling_mid_write_is_an_os_error(tmp_path):
         signal.signal(signal.SIGXFSZ, ignored)
     assert raised.value.errno == errno.EFBIG and raised.value.filename == str(path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_checkpoints_own_runtime_error_is_raised_as_it_is(tmp_path, monkeypatch):
+    """A RuntimeError of torch.save that no write caused (an object it cannot save) is not
+    taken for a full disk: raised as it is, the previous checkpoint kept, no temporary left."""
+    from spikegs.atomic_save import save_atomically
+
+    def cannot_save(obj, file):
+        raise RuntimeError("cannot pickle 'generator' object")
+
+    monkeypatch.setattr(torch, "save", cannot_save)
+    path = tmp_path / "last.pt"
+    path.write_bytes(b"previous")
+    with pytest.raises(RuntimeError, match="cannot pickle"):
+        save_atomically({"x": 1}, path)
+    assert list(tmp_path.iterdir()) == [path] and path.read_bytes() == b"previous"
 
 
 def test_images_and_point_clouds_are_written_whole(tmp_path, monkeypatch):
