@@ -212,6 +212,44 @@ def test_a_lock_file_of_another_users_locks_read_only(tmp_path, monkeypatch):
             simulate_dataset("solids", out, overwrite=True, **SMALL)
 
 
+def test_a_lock_file_that_opens_neither_way_is_named_where_a_lock_is_needed(tmp_path, monkeypatch):
+    """A .lock this process can open neither to append nor to read (another user's, mode 600):
+    taking the lock raises the append's error, naming the file; the check before work
+    (`refuse_if_held`) and a reader's shared lock go on without it (the folder's writes, or
+    none, say the rest)."""
+    from spikegs.file_lock import refuse_if_held, shared_lock
+
+    lock = tmp_path / ".lock"
+    lock.touch()
+    opened = Path.open
+
+    def unreadable(self, mode="r", *args, **kwargs):
+        if self.name == ".lock" and mode == "a":
+            raise PermissionError(13, "Permission denied", str(self))
+        if self.name == ".lock":  # (the read's own error: not the one to name)
+            raise OSError(5, "Input/output error", str(self))
+        return opened(self, mode, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "open", unreadable)
+    with pytest.raises(PermissionError) as raised, exclusive_lock(lock, "busy"):
+        pass
+    assert raised.value.filename == str(lock)
+    refuse_if_held(lock, "busy")
+    with shared_lock(lock, "busy"):
+        pass
+
+
+def test_without_flock_the_locks_are_none(tmp_path, monkeypatch):
+    """Where the OS has no fcntl (Windows) each lock is no lock: the block runs, no file made."""
+    from spikegs import file_lock
+
+    monkeypatch.setattr(file_lock, "fcntl", None)
+    with file_lock.exclusive_lock(tmp_path / ".lock", "busy"):
+        with file_lock.shared_lock(tmp_path / ".lock", "busy"):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_filesystem_without_locks_is_said_once_by_simulate(tmp_path, monkeypatch):
     """simulate's check before any work and its lock around the writes each warned "not locked"
     where the filesystem cannot lock (ENOLCK): once is enough."""

@@ -567,6 +567,20 @@ def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):
     assert np.array_equal(runs[0].points, runs[1].points)
 
 
+def test_structure_from_motion_registering_too_few_images_says_how_many(
+    textured, tmp_path, monkeypatch
+):
+    """Pairs with parallax, but mapping registers under `min_registered` of the images (here
+    none: no model): a ValueError with the count registered and needed, not poses of a few."""
+    import pycolmap
+
+    dataset = load_dataset(textured)
+    readouts = np.linspace(40, len(dataset.streams[0]) - 41, 12).round().astype(int)
+    monkeypatch.setattr(pycolmap, "incremental_mapping", lambda *args, **kwargs: {})
+    with pytest.raises(ValueError, match=r"0 of 12 images registered \(needed 6\)"):
+        reconstruct(spike_images(dataset.streams, readouts, 33), readouts, tmp_path / "sfm")
+
+
 def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
@@ -860,6 +874,46 @@ def test_aligned_reconstruction_moves_its_points_with_its_cameras():
     np.testing.assert_allclose(
         align(three, Trajectory(readouts, truth)).viewmats, truth[:3], atol=1e-9
     )
+
+
+def test_alignment_refuses_what_no_similarity_fits():
+    """Two registered images (three are needed), or centres that all coincide (no scale):
+    ValueError, not a wrong world."""
+    readouts = np.arange(4.0) * 10
+    eyes = np.stack([[3.0, x, 0.5] for x in (-1.0, -0.3, 0.3, 1.0)])
+    truth = np.stack([look_at(e, [0.0, 0.0, 0.0]) for e in eyes])  # [4, 4, 4]
+    two = _recon(readouts[:2], truth[:2], np.diag([50.0, 50.0, 1.0]), np.zeros((5, 3)), None, 2)
+    with pytest.raises(ValueError, match="align: needs >= 3 registered images, found 2"):
+        align(two, Trajectory(readouts, truth))
+    eye = np.tile(np.eye(3), (4, 1, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (numpy's 0/0 warned before the error)
+        with pytest.raises(ValueError, match="align: the registered cameras' centres coincide"):
+            similarity(np.ones((4, 3)), eye, eyes, eye)
+
+
+def test_poses_without_pycolmap_say_how_to_install(monkeypatch):
+    from spikegs.data.sources import MissingDependencyError
+
+    monkeypatch.setitem(sys.modules, "pycolmap", None)  # import pycolmap -> ImportError
+    with pytest.raises(MissingDependencyError, match=r"pip install 'spikegs\[sfm\]'"):
+        sfm.import_pycolmap()
+
+
+def test_spike_images_take_one_defect_map_a_channel(textured):
+    dataset = load_dataset(textured)
+    with pytest.raises(ValueError, match="spike_images: 2 defect maps for 1 channels"):
+        spike_images(dataset.streams, np.array([100]), 33, defects=[None, None])
+
+
+def test_gaussians_from_fewer_than_two_points_are_refused():
+    """One distinct point has no spacing to size Gaussians by (training falls back to random
+    Gaussians before it asks, with a warning): named, not a NaN scale."""
+    from spikegs.point_cloud import gaussians_from_points
+
+    colors = lambda means: torch.full((len(means), 1), 0.5)  # noqa: E731
+    with pytest.raises(ValueError, match=r"a point cloud of 1 distinct point\(s\) has no spacing"):
+        gaussians_from_points(np.zeros((1, 3)), 100, 0, torch.Generator(), colors)
 
 
 def test_scene_bounds_from_points_are_robust_to_outliers():

@@ -625,3 +625,23 @@ def test_a_stream_says_where_it_lies_and_its_size(tmp_path):
     assert repr(SpikeStream.open(path, 4, 8)) == (
         f"SpikeStream('{path}', readouts=3, height=4, width=8)"
     )
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
+@pytest.mark.parametrize("end", ["close", "discard"])
+def test_readouts_a_full_disk_refuses_at_the_close_leave_no_file(tmp_path, end):
+    """A few readouts are held in the file's buffer until it closes, where a full disk refuses
+    them: `close` raises ENOSPC naming the .dat asked for, `discard` (a failure already being
+    reported) says nothing more; neither leaves the .dat nor its temporary."""
+    dat = tmp_path / "s.dat"
+    writer = DatWriter(dat, 8, 8)
+    writer._file.close()
+    writer._file = open("/dev/full", "wb")  # noqa: SIM115 (the writer closes it)
+    writer.write_bits(np.zeros((2, 8, 8), bool))  # 16 bytes: buffered, not yet refused
+    if end == "close":
+        with pytest.raises(OSError) as raised:
+            writer.close()
+        assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(dat)
+    else:
+        writer.discard()
+    assert list(tmp_path.iterdir()) == []

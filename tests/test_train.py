@@ -2503,6 +2503,21 @@ def test_a_terminal_gets_a_bar_if_it_has_a_width(monkeypatch):
     os.close(master)
 
 
+def test_a_stream_that_only_says_it_is_a_terminal_gets_no_bar(monkeypatch):
+    """stderr replaced by an object whose isatty() is true but that has no file descriptor (a
+    notebook's or a logger's stream): no size to ask, no bar (not io's UnsupportedOperation)."""
+    import io
+
+    from spikegs.cli import show_bars
+
+    class SaysTerminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(sys, "stderr", SaysTerminal())
+    assert not show_bars(False)
+
+
 def test_train_seed_on_the_command_line_overrides_the_configs(tmp_path):
     """`spikegs train --seed` could be dropped (overrides = {}) with every test passing."""
     from spikegs.cli import build_parser

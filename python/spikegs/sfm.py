@@ -352,13 +352,18 @@ def similarity(
     mu_src, mu_dst = centres.mean(axis=0), known_centres.mean(axis=0)
     src, dst = centres - mu_src, known_centres - mu_dst  # [N, 3] centred
     spread_src, spread_dst = (src * src).sum(axis=1).mean(), (dst * dst).sum(axis=1).mean()
+    if not spread_src > 0:  # (its scale 0/0: numpy's RuntimeWarning before the error)
+        raise ValueError(
+            "align: the registered cameras' centres coincide: no similarity maps them onto the "
+            "trajectory's"
+        )
     cross = dst.T @ src / len(src)  # [3, 3]; the centres' term: maximise tr(R^T cross)
     orient = np.einsum("nij,nkj->ik", known_rotations, rotations) / len(src)  # sum R_t R_s^T / N
     # tr(R^T cross) ~ spread of the centres; tr(R^T orient) <= 3: weighted to the same scale
     u, _, vt = np.linalg.svd(cross + orient * np.sqrt(spread_src * spread_dst) / 3.0)
     rotation = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
     scale = float(np.einsum("ni,ni->", dst, src @ rotation.T) / len(src) / spread_src)
-    if not scale > 0:  # NaN too (one centre)
+    if not scale > 0:
         raise ValueError(
             f"align: the registered cameras' centres do not follow the trajectory's (scale "
             f"{scale:.3g}): no similarity maps them onto it"
