@@ -39,6 +39,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -161,6 +162,8 @@ def cover(modules: list, tests: list, package_dir: Path, out: Path) -> None:
         run = [sys.executable, "-m", "coverage", "run", f"--include={include}", "-m", "pytest"]
         plugins = ["-p", "mutation_contexts", "-p", "no:cacheprovider"]
         subprocess.run([*run, "-q", *plugins, *tests], env=env)
+        if not seconds.exists():
+            sys.exit("cover: pytest ran no session (its error above): no map written")
         report = Path(tmp, "coverage.json")
         to_json = ["json", "--show-contexts", "-o", str(report)]
         subprocess.run([sys.executable, "-m", "coverage", *to_json], env=env, check=True)
@@ -212,12 +215,12 @@ def run(module: str, mutants: Path, out: Path, tests: list, args) -> None:
                 package_dir = free.pop()
             target = package_dir / module
             target.write_text((mutants / f"{mid}.py").read_text())
-            start = os.times().elapsed
+            start = time.monotonic()
             try:
                 status, tail = _pytest(package_dir, chosen, args.timeout)
             finally:
                 shutil.copy(base / module, target)
-                seconds = os.times().elapsed - start
+                seconds = time.monotonic() - start
                 with lock:
                     free.append(package_dir)
         result = {"id": mid, "line": int(line), "what": what, "status": status,
