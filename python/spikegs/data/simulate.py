@@ -50,6 +50,7 @@ from .transforms_file import TRANSFORMS, warn_unread_transforms
 DEFAULT_SIZE = 128  # pixels a side
 DEFAULT_READOUTS = 4000  # 0.1 s of spike camera
 DEFAULT_SPEED = 0.15  # degrees of orbit per readout: 5° per 33 readouts, 600° in all
+DEFAULT_SEED = 0  # the simulator's noise
 # the light rendered every 8 readouts, or more often where the scene would move more than
 # FRAME_MOTION_PX between frames (default_frame_every); cross-faded between
 DEFAULT_FRAME_EVERY = 8
@@ -410,7 +411,7 @@ def simulate_dataset(
     width: int = DEFAULT_SIZE,
     readouts: int = DEFAULT_READOUTS,
     speed: float | None = None,
-    seed: int = 0,
+    seed: int = DEFAULT_SEED,
     overwrite: bool = False,
     color: bool = False,
     frame_every: float | None = None,

@@ -14,6 +14,7 @@ from .scenes import SCENES
 from .simulate import (
     DEFAULT_FRAME_EVERY,
     DEFAULT_READOUTS,
+    DEFAULT_SEED,
     DEFAULT_SIZE,
     DEFAULT_SPEED,
     DEFAULT_TEST_VIEWS,
@@ -48,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"the scene's up as X,Y,Z, the axis the orbit ascends along (default 0,0,1; 0,1,0 "
         f"for a y-up Mitsuba scene, such as its Cornell box; {orbit})",
     )
-    parser.add_argument("--seed", type=seed, default=0, help="simulator seed")
+    parser.add_argument("--seed", type=seed, default=DEFAULT_SEED, help="simulator seed")
     parser.add_argument(
         "--frame-every",
         type=finite_float,
