@@ -218,8 +218,8 @@ def test_a_gradient_to_a_culled_gaussian_fails_bench_stiff(tmp_path, monkeypatch
 
 
 def test_bench_stiff_names_each_check_a_row_fails():
-    """Each of a row's checks, failed alone, is named with its value and bound (the float32
-    image's, and culls that differ from the reference's, no run of the cases fails)."""
+    """Each of a row's checks, failed alone, is named with its value and bound: two of them
+    (the float32 image's error, culls unlike the reference's) no case's run fails."""
     good = {"ref_err": 0.0, "ref_culls": "same", "image_err": 0.0, "rel_means": 0.0}
     good.update(non_finite="none", zero_grad="yes")
     assert stiff.failed_checks(good) == []
