@@ -838,6 +838,27 @@ def test_far_plane_culls_as_the_reference_does(dtype):
     compare_to_reference(scene, dtype, 1e-9 if dtype == torch.float64 else 1e-4)
 
 
+@needs_cpp
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32], ids=["float64", "float32"])
+def test_a_quaternion_whose_norm_squared_is_subnormal_culls_as_in_the_reference(dtype):
+    """|q|² below the dtype's smallest normal number culls in both rasterizers; just above it,
+    both draw the rotation of q / |q|: -ffast-math's reciprocal square root made -inf of a
+    subnormal float32 |q|² (|q| < 1.1e-19), where the core culled what the reference drew."""
+    scene = make_scene(3, 20, 33, 17, dtype=dtype)
+    unit = scene["quats"] / scene["quats"].norm(dim=-1, keepdim=True)  # [N, 4]
+    root_tiny = math.sqrt(torch.finfo(dtype).tiny)
+    subnormal = torch.arange(20) % 2 == 0  # [N]: |q|² a quarter of the smallest normal
+    small = {**scene, "quats": unit * torch.where(subnormal, 0.5, 2.0)[:, None] * root_tiny}
+    out, ref = render(spikegs.rasterize, small), render(reference.rasterize, small)
+    assert torch.equal(out.radii, ref.radii), "radii"
+    drawn = render(spikegs.rasterize, {**scene, "quats": unit}).radii > 0
+    assert drawn.sum() >= 5 and torch.equal(out.radii > 0, drawn & ~subnormal)
+    rtol = 1e-9 if dtype == torch.float64 else 1e-4
+    for name in ("image", "alpha", "means2d", "depths"):
+        assert_near(getattr(out, name), getattr(ref, name), rtol, name)
+    check_finite_and_culled(*forward_backward(spikegs.rasterize, small, dtype))
+
+
 @pytest.mark.parametrize("channels", [1, 3, 4])
 def test_a_clamped_alpha_passes_no_gradient_for_any_channel_count(channels):
     """alpha = min(0.99, o·G) has no gradient where clamped; the backward has one loop for 1 and

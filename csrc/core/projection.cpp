@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/glm.hpp>
+#include <limits>
 
 #include "core/finite.hpp"
 #include "core/sh.hpp"
@@ -75,7 +76,9 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
       !all_finite(prm.colors + i * prm.color_stride(), prm.color_stride()))
     return s;
   const T qq = quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3];
-  if (!(qq > 0) || !is_finite(qq)) return s;
+  // culled below the smallest normal: -ffast-math's reciprocal square root made -inf of a
+  // subnormal |q|^2 (|q| < 1.1e-19 in float32), and 1/|q| there would reach the gradient
+  if (!(qq >= std::numeric_limits<T>::min()) || !is_finite(qq)) return s;
   s.qinv = T(1) / std::sqrt(qq);
   for (int k = 0; k < 4; ++k) s.qn[k] = quat[k] * s.qinv;
 

@@ -237,8 +237,8 @@ def rasterize(
             for t in (means, quats, scales, opacities, colors)
         ]
     ).all(0)
-    qq = (quats * quats).sum(-1)  # [N]; as the core: |q|^2 that overflows or underflows culls
-    keep = finite & (qq > 0) & qq.isfinite()  # [N]
+    qq = (quats * quats).sum(-1)  # [N]; as the core: |q|^2 that overflows or is subnormal culls
+    keep = finite & (qq >= torch.finfo(qq.dtype).tiny) & qq.isfinite()  # [N]
     scene = (means, quats, scales, opacities, colors, viewmat, K, width, height)
     args = (scene, sh_degree, near, far, antialiased, dilation)
     # Pass 1 finds the visible set; pass 2 recomputes with every culled row on safe values, so no
