@@ -69,6 +69,10 @@ def test_instant_loss_norms():
     assert float(instant_loss(render, target, "smooth_l1", 0.6)) == pytest.approx(0.075)
     with pytest.raises(ValueError, match="quantum"):  # its zone has no default unit
         instant_loss(render, target, "smooth_l1")
+    for quantum in (float("nan"), -0.1, float("inf"), "0.1"):  # torch: "negative values for beta"
+        with pytest.raises(ValueError, match=f"a finite number >= 0 .*got {quantum!r}"):
+            instant_loss(render, target, "smooth_l1", quantum)
+    assert float(instant_loss(render, target, "smooth_l1", 0.0)) == pytest.approx(0.3)  # L1
     assert float(exposure_loss([render, target], target)) == pytest.approx(0.15)
 
 
@@ -167,6 +171,10 @@ def test_images_of_other_shapes_or_types_than_the_render_are_refused():
         instant_loss(render, target, "L1")
     with pytest.raises(ValueError, match="expected one render or more"):
         exposure_loss([], target)
+    stacked = torch.stack([render, target])  # [K, H, W, C]: torch.stack refused a tensor
+    assert float(exposure_loss(stacked, target)) == float(exposure_loss([render, target], target))
+    with pytest.raises(ValueError, match=r"stacked \[K, H, W, C\] .* got a tensor \[8, 8, 1\]"):
+        exposure_loss(render, target)  # one render, not a list of it
     for poses in (0, 2.5):
         with pytest.raises(ValueError, match=f"integer number of poses >= 1 .* poses {poses}"):
             exposure_times(100.0, 33, poses)

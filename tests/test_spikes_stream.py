@@ -345,7 +345,7 @@ def test_windows_past_either_end_refused():
         with pytest.raises(ValueError, match="(start|stop): expected an int"):
             s.packed(start, stop)
     np.testing.assert_array_equal(s.packed(1.0, 3.0), s.packed(1, 3))  # as windows take them
-    for k in (5.5, float("nan"), [5.0, 6.5], float("inf"), -1e30, [5.0, 2.0**64]):
+    for k in (5.5, float("nan"), [5.0, 6.5], float("inf"), -1e30, [5.0, 2.0**64], [5, True]):
         with pytest.raises(ValueError, match="integer"):  # huge floats: not cast to garbage ints
             s.tfp(k, 3)
     np.testing.assert_array_equal(s.tfp(5.0, 3), s.tfp(5, 3))  # a readout time, e.g. a view's

@@ -1228,6 +1228,12 @@ def test_gaussian_model_refuses_sizes_without_gaussians():
     model = GaussianModel.from_points(torch.zeros(2, 3), torch.ones(2, 1), 0.1)
     with pytest.raises(ValueError, match="require grad .*detach"):
         model.view_of(torch.eye(4, requires_grad=True))
+    viewmat, moved = torch.eye(4, dtype=torch.float64), model.centred_at([1.0, 2.0, 3.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # np.array(tensor) warned (torch's __array__ has no copy)
+        local = moved.view_of(viewmat)  # [4, 4]: t + R·origin
+    assert local[:3, 3].tolist() == [1.0, 2.0, 3.0] and local.dtype == torch.float32
+    assert torch.equal(viewmat, torch.eye(4, dtype=torch.float64))  # the caller's, untouched
 
 
 def test_every_method_config_loads():

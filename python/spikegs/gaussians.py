@@ -220,7 +220,7 @@ class GaussianModel:
         the result)."""
         if isinstance(viewmats, torch.Tensor) and viewmats.requires_grad:
             raise ValueError("view_of: viewmats that require grad (not differentiable: detach)")
-        local = np.array(viewmats, np.float64)
+        local = np.asarray(viewmats, np.float64).copy()  # np.array warned on a torch tensor
         local[..., :3, 3] += local[..., :3, :3] @ self.origin
         return torch.as_tensor(local, dtype=torch.float32)
 

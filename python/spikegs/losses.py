@@ -16,8 +16,11 @@ def _smooth_l1(render: torch.Tensor, target: torch.Tensor, quantum: float | None
     """L1 with a quadratic zone one `quantum` wide (the target's step, one spike of its TFP
     window): over views its optimum is the mean of quantised counts, as L2's, with L1's gradient
     wherever the residual exceeds a spike."""
-    if quantum is None:
-        raise ValueError("smooth_l1 expected the target's quantum (one spike of its TFP window)")
+    if not (is_number(quantum) and 0 <= quantum < math.inf):  # torch: "negative values for beta"
+        raise ValueError(
+            f"smooth_l1 expected the target's quantum, a finite number >= 0 (one spike of its TFP "
+            f"window), got {quantum!r}"
+        )
     return F.smooth_l1_loss(render, target, beta=quantum)
 
 
@@ -84,18 +87,25 @@ def exposure_times(t: float, window: int, poses: int) -> np.ndarray:
 
 
 def exposure_loss(
-    renders: list[torch.Tensor],
+    renders: list[torch.Tensor] | torch.Tensor,
     target: torch.Tensor,
     norm: str = "l1",
     quantum: float | None = None,
 ) -> torch.Tensor:
     """L_exposure = |mean_k render(t_k) - TFP over Γ(t)|₁ (or another of NORMS); renders
-    K x [H, W, C], target [H, W, C]; `quantum`: one spike of the TFP window in target units."""
+    K x [H, W, C] (a list, or stacked [K, H, W, C]), target [H, W, C]; `quantum`: one spike of
+    the TFP window in target units."""
+    if isinstance(renders, torch.Tensor) and renders.dim() != 4:
+        raise ValueError(
+            f"exposure_loss: renders expected stacked [K, H, W, C] or a list of [H, W, C], got "
+            f"a tensor {list(renders.shape)}"
+        )
     if not len(renders):
         raise ValueError("exposure_loss: expected one render or more")
     for render in renders:
         check_images(render, target, "exposure_loss")
-    return _norm(norm)(torch.stack(renders).mean(dim=0), target, quantum)
+    stacked = renders if isinstance(renders, torch.Tensor) else torch.stack(list(renders))
+    return _norm(norm)(stacked.mean(dim=0), target, quantum)
 
 
 # a blur wider than this many pixels (σ) is made in Fourier space: the convolution's cost grows

@@ -30,7 +30,7 @@ import numpy as np
 from .. import _C
 from ..atomic_save import naming, temporary_name, written_path
 from ..cache_home import CACHED_FROM, cache_home, write_cached
-from ..number_checks import is_int, is_number, whole_numbers
+from ..number_checks import holds_bool, is_int, is_number, whole_numbers
 from ..shell_words import shell_path
 
 PathLike = str | os.PathLike
@@ -46,6 +46,8 @@ def _whole(value) -> bool:
 def as_readouts(k) -> tuple[np.ndarray, bool]:
     """`k` as a 1-D int64 array [B], and whether it was a single index; whole-number floats
     (a readout time such as `TestView.readout`) are accepted."""
+    if holds_bool(k):  # np.asarray read [4, True] as readouts 4 and 1
+        raise ValueError(f"readout index expected an int or a 1-D integer array, found {k!r}")
     arr = np.asarray(k)
     # uint64 against uint64: against a Python int numpy < 1.25 compared in float64 (2^63 passed)
     if arr.dtype.kind == "u" and arr.size and arr.max() > np.uint64(np.iinfo(np.int64).max):
