@@ -522,6 +522,14 @@ def test_negative_view_counts_refused(tmp_path):
         simulate_dataset(source, tmp_path / "x", **SMALL)  # another size than asked for
     with pytest.raises(ValueError, match=r"readouts: expected >= \d+ for 2 on-path held-out"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": 40})
+    # the default 8 on-path views need 1090 readouts: as many as fit, said (refused, though a
+    # frame sequence holds out as many as it has without the option)
+    fewer = {**SMALL, "readouts": 700, "test_on_path": None}
+    with pytest.warns(UserWarning, match="700 readouts hold 4 on-path held-out views of the de"):
+        ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
+    assert sum(v.readout is not None for v in ds.test_views) == 4
+    with pytest.raises(ValueError, match=r"readouts: expected >= 66 for 0 on-path held-out"):
+        simulate_dataset("solids", tmp_path / "x", **{**fewer, "readouts": 65})
     for zero in ({"frame_every": 0}, {"train_every": 0}):
         with pytest.raises(ValueError, match=f"{next(iter(zero))} .*: expected >= 1"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **zero})
@@ -1434,6 +1442,40 @@ def test_rows_wider_than_given_are_judged_from_16_rows(tmp_path, height, judged)
         warn_rows_out_of_line(stream, "meta.json")
     said = [str(w.message) for w in caught]
     assert len(said) == judged and all(f"set raw_width {width + 8}" in m for m in said), said
+
+
+def test_frames_given_at_half_their_size_are_warned_of(tmp_path):
+    """32x48 frames given as 16x24 (LLFF's hwf of images downsampled by 2, say) read each true
+    row as two rows, four frames to a frame: loaded and trained without a word. Read with rows
+    of 48, the width's double, the file gives an image: the size is named."""
+    data = simulate_dataset("solids", tmp_path / "d", **{**SMALL, "height": 32, "width": 48})
+    with pytest.warns(
+        UserWarning,
+        match=r"read as 16x24 give an image whose neighbouring rows correlate at -?0\.\d+, read "
+        r"with rows of 48 pixels at 0\.\d+: the frames are likely 48 pixels wide, 2 times the "
+        r"width given \(32x48 if the height is as far off",
+    ):
+        warn_rows_out_of_line(SpikeStream.open(data.stream.path, 16, 24), "meta.json")
+
+
+def test_a_flip_stated_wrong_in_meta_json_is_warned_of(small, tmp_path):
+    """A meta.json whose flip is wrong read every frame upside down without a word, where its
+    on-path test images show it (the LLFF and NeRF layouts warned from theirs)."""
+    wrong = _edited_copy(
+        small,
+        tmp_path / "wrong",
+        "meta.json",
+        lambda t: json.dumps({**json.loads(t), "flip": False}),
+    )
+    with pytest.warns(
+        UserWarning,
+        match=r"meta.json: the spikes match their views' sharp images better upside down .* over "
+        r"2 views\): flip \(False, in meta.json\) is likely wrong",
+    ):
+        load_dataset(wrong)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_dataset(small.root)
 
 
 @pytest.mark.parametrize("scene", list(SCENES))

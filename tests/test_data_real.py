@@ -330,8 +330,8 @@ def test_a_list_in_a_message_counts_what_it_leaves_out():
 
 
 def test_poses_whose_cameras_look_away_are_named(sim, llff_stream, tmp_path):
-    """An orbit's poses with z reversed (OpenGL's axes written as LLFF's down, right, backwards
-    columns were): every camera looks away from what it circles. The LLFF layout's frustum
+    """An orbit's poses with z reversed (OpenGL's matrices converted to LLFF's columns as
+    OpenCV's, as here): every camera looks away from what it circles. The LLFF layout's frustum
     sphere lies ahead of them all, so the poses trained (18.7 dB where the right ones gave 25.4)
     without a word; the point the optical axes meet at lies behind every camera."""
     root = copy(llff_stream, tmp_path)
@@ -526,6 +526,30 @@ def test_nerf_of_no_stated_size_and_no_sharp_image_asks_for_one(nerf, tmp_path):
     assert (load_dataset(root).height, load_dataset(root).width) == (H, W)
 
 
+def test_nerf_of_no_stated_size_takes_the_images_and_names_the_one_it_took(sim, nerf, tmp_path):
+    """Without w, h the frames' size is the first sharp test image's, else the first training
+    image's: a camera_angle_x camera's training images were passed over ("no sharp image"
+    said), and a test image of another crop was refused as "the camera's" size, unnamed."""
+    root = copy(nerf, tmp_path / "sizeless")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(root / name, lambda doc: [doc.pop(k) for k in ("w", "h")])
+    write_image(
+        root / "train" / "r_2.exr", make_source("solids", W, H, 1).render(view_poses(sim)[2])
+    )
+    sharp = read_image(root / "test" / "r_0.exr")  # [H, W, 1]
+    write_image(root / "test" / "r_0.exr", sharp[:, : W // 2])
+    with pytest.raises(
+        ValueError,
+        match=rf"train/r_2: image {W}x{H} .*, the camera \(sized as its first sharp image, "
+        rf"\./test/r_0\) is for {W // 2}x{H} images",
+    ):
+        load_dataset(root)
+    edit_json(root / "transforms_test.json", lambda doc: doc.update(frames=doc["frames"][1:]))
+    ds = load_dataset(root)  # r_1 held out, known by its spikes alone
+    assert (ds.height, ds.width) == (H, W) and ds.test_views[0].name == "pseudo_test_r_1"
+    np.testing.assert_allclose(ds.K, sim.K, rtol=1e-6)
+
+
 def test_nerf_unknown_convention_refused(nerf, tmp_path):
     """A convention other than opengl, opencv (any case) is refused by name; "OpenGL" reads as
     OpenGL (guards against a case-sensitive comparison reading it as OpenCV); two files of two
@@ -597,6 +621,10 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     (root / "spikes" / "zz.dat").mkdir()  # a folder: counted as a view's spikes
     with pytest.raises(ValueError, match="holds 10 poses .* holds 9 .dat files"):
         load_dataset(root)
+    (root / "spikes" / "zz.dat").rmdir()
+    shutil.copy(llff / "spikes" / "009.dat", root / "spikes" / "009.dat")
+    (root / "spikes" / "._009.dat").write_bytes(b"\0" * 4096)  # macOS's, on a foreign disk
+    assert load_dataset(root).meta["spike_files"][-1] == os.path.join("spikes", "009.dat")
 
     root = copy(llff, tmp_path / "size")
     with open(root / "spikes" / "003.dat", "ab") as f:
@@ -667,7 +695,10 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     # a frame size a quarter of the file's: 4x the readouts, the poses on the first quarter
     np.savetxt(root / "readouts.txt", np.arange(poses) * 8 + 40, fmt="%d")
     write_options(root, height=16, width=24, test_views=[0], pseudo_gt_window=33)
-    with pytest.warns(UserWarning, match=r"poses span readouts \[40, .* of the 2800 .* at 16x24"):
+    with (
+        pytest.warns(UserWarning, match=r"poses span readouts \[40, .* of the 2800 .* at 16x24"),
+        pytest.warns(UserWarning, match=r"likely 48 pixels wide, 2 times the width given"),
+    ):
         load_dataset(root)
 
 
@@ -795,10 +826,15 @@ def test_nerf_image_of_another_aspect_ratio_refused(nerf, tmp_path):
     np.testing.assert_allclose(resized.mean(), original.mean(), rtol=0.01)
     root = copy(nerf, tmp_path / "cropped")
     write_image(root / "test" / "r_0.exr", sharp[:, : W // 2])
-    with pytest.raises(ValueError, match=rf"r_0: image {W // 2}x{H} .*camera's images are {W}x{H}"):
+    with pytest.raises(
+        ValueError,
+        match=rf"r_0: image {W // 2}x{H} .*the camera \(its w, h\) is for {W}x{H} images",
+    ):
         load_dataset(root)
     write_image(root / "test" / "r_0.exr", sharp[:, 3:])  # 3 columns (6 %) short: another crop
-    with pytest.raises(ValueError, match=rf"r_0: image {W - 3}x{H} .*camera's images are {W}x{H}"):
+    with pytest.raises(
+        ValueError, match=rf"r_0: image {W - 3}x{H} .*the camera \(its w, h\) is for {W}x{H} images"
+    ):
         load_dataset(root)
 
 
@@ -1426,10 +1462,24 @@ def test_nerf_image_in_two_formats_named(nerf, tmp_path):
         load_dataset(root)
 
 
+def test_nerf_image_of_an_upper_case_extension_is_read(nerf, tmp_path):
+    """A file_path without an extension finds r_0.EXR as r_0.exr (a camera's upper-case
+    extensions were passed over unsaid: the view held out as a pseudo ground truth)."""
+    root = copy(nerf, tmp_path)
+    (root / "test" / "r_0.exr").rename(root / "test" / "r_0.EXR")
+    upper, lower = load_dataset(root), load_dataset(nerf)
+    assert [v.name for v in upper.test_views] == ["test_r_0", "pseudo_test_r_1"]
+    np.testing.assert_array_equal(upper.test_views[0].image, lower.test_views[0].image)
+    write_image(root / "test" / "r_0.Png", np.zeros_like(read_image(root / "test" / "r_0.EXR")))
+    with pytest.warns(UserWarning, match=r"several formats \(.Png, .EXR\): .Png is read"):
+        load_dataset(root)  # in IMAGE_EXTENSIONS' order, as lower-case ones
+
+
 def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):
     root = copy(nerf, tmp_path)
     write_options(root, height=H // 2, width=W // 2)  # the same .dat files as 16x24 frames
-    ds = load_dataset(root)
+    with pytest.warns(UserWarning, match=r"likely 48 pixels wide, 2 times the width given"):
+        ds = load_dataset(root)  # (its spikes read so are noise)
     assert (ds.height, ds.width) == (H // 2, W // 2)
     np.testing.assert_allclose(np.diag(ds.K)[:2], np.diag(sim.K)[:2] / 2, rtol=1e-6)
     write_options(root, height=H // 2)  # 16x48: non-square pixels (fy halved, fx kept)

@@ -218,7 +218,10 @@ def test_frame_sequence_source(tmp_path):
     cropped.mkdir()
     write_transforms(cropped / "transforms.json", "train", train, train_poses, truth.K, ".exr")
     write_image(cropped / "train" / "r_3.exr", train[3][:, :20])
-    with pytest.raises(ValueError, match=r"r_3: image 20x32 .*camera's images are 32x32"):
+    with pytest.raises(
+        ValueError,
+        match=r"r_3: image 20x32 .*the camera \(sized as its first frame\) is for 32x32 images",
+    ):
         FrameSequenceSource.from_transforms(cropped / "transforms.json", 32, 32, 3)
 
     # a float frame's round-off below 0 (-1e-7 in one channel: colour was refused, by index into
@@ -906,8 +909,9 @@ def test_aspect_ratio_of_the_camera_and_the_spikes_must_agree(tmp_path):
     (tmp_path / "square" / "spikegs.json").write_text(json.dumps({"height": 23, "width": 37}))
     with pytest.raises(
         ValueError,
-        match=r"transforms.json: the camera \(sized as the first sharp image\) is for 23x23 images "
-        r"\(height x width\), of another aspect ratio than the 23x37 spikes.*set height and width",
+        match=r"transforms.json: the camera \(sized as its first sharp image, \./images/f_0\) is "
+        r"for 23x23 images \(height x width\), of another aspect ratio than the 23x37 spikes.*set "
+        r"height and width",
     ):
         load_dataset(tmp_path / "square")
     camera = {"fl_x": 60.0, "cx": 26.0, "cy": 12.5, "w": 52, "h": 25}

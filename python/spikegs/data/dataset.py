@@ -35,6 +35,7 @@ from ..shell_words import shell_path
 from ..spikes import SpikeStream
 from ..strict_json import json_text, read_json
 from .correlation import correlation
+from .orientation import orientation_pairs, warn_if_upside_down
 from .trajectory import (
     PathLike,
     Trajectory,
@@ -469,6 +470,8 @@ WIDER_GAP = 0.2  # a reading with wider stored rows this much more coherent than
 WIDER_MIN_SIZE = 16  # rows and columns a frame needs to be read wider: random frames of 2-12 x
 # 2-16 pixels, the best of many widths' noisy scores, were told to set raw_width in 14 of 330 (a
 # review's) and 11 of 165 (seeded); none with the floor
+ROW_MULTIPLES = range(2, 9)  # stored rows of these many times the width are tried too: frames
+# given at 1/2 .. 1/8 of their size (a downsampled image's: LLFF's hwf for images_2 .. images_8)
 
 
 def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | None = None) -> float:
@@ -552,18 +555,20 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
 
 def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> None:
     """A UserWarning when the stream's file (frames of WIDER_MIN_SIZE or more rows and columns)
-    read with stored rows of another width R (width <= R < 2 width, whole frames of height·R bits
-    in the file) gives an image whose neighbouring rows correlate at SWAPPED_MIN or more and
-    WIDER_GAP over `as_read`, the rows as given: rows of R pixels read as fewer start each a few
-    pixels further along the scene, and frames of the wrong size blur the images of many
-    readouts into noise; read so, a right file's frames blur, unless the rows are a whole
-    multiple of its own, which 2·width excludes."""
+    read with stored rows of another width R (width <= R < 2 width, or a whole multiple of the
+    width in ROW_MULTIPLES; whole frames of height·R bits in the file) gives an image whose
+    neighbouring rows correlate at SWAPPED_MIN or more and WIDER_GAP over `as_read`, the rows as
+    given: rows of R pixels read as fewer start each a few pixels further along the scene (a
+    camera's extra columns), or each row of a frame given at 1/m of its size is 1/m of a true
+    row, and frames of the wrong size blur the images of many readouts into noise. Read with
+    rows m times its own, a right file's rows are true rows m apart: less alike, not more."""
     layout = stream.layout
     if min(stream.height, stream.width) < WIDER_MIN_SIZE:
         return
     size = stream.path.stat().st_size
     scores = {}
-    for row in range(stream.width, 2 * stream.width):
+    multiples = (m * stream.width for m in ROW_MULTIPLES)
+    for row in (*range(stream.width, 2 * stream.width), *multiples):
         frame_bytes = -(-stream.height * row // 8)
         if row == layout.row_bits or size % frame_bytes:
             continue
@@ -572,7 +577,19 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
     if not scores:
         return
     row = max(scores, key=scores.get)
-    if scores[row] >= SWAPPED_MIN and scores[row] - as_read >= WIDER_GAP:
+    if scores[row] < SWAPPED_MIN or scores[row] - as_read < WIDER_GAP:
+        return
+    m, given = row // stream.width, f"{stream.height}x{stream.width}"
+    if row % stream.width == 0 and size % -(-m * stream.height * row // 8) == 0:
+        warnings.warn(
+            f"{stream.path}: its frames read as {given} give an image whose neighbouring rows "
+            f"correlate at {as_read:.2f}, read with rows of {row} pixels at {scores[row]:.2f}: "
+            f"the frames are likely {row} pixels wide, {m} times the width given ("
+            f"{m * stream.height}x{row} if the height is as far off: a downsampled image's size? "
+            f"set height and width in {settings}); read so, training learns noise",
+            stacklevel=4,
+        )
+    else:
         warnings.warn(
             f"{stream.path}: its frames read as {stream.height}x{stream.width} with rows of "
             f"{layout.row_bits} pixels give an image whose neighbouring rows correlate at "
@@ -807,6 +824,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
         )
     _warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
+    _warn_if_upside_down(streams, sharp, meta_path, meta["flip"])
     if sharp and not stated_scales(meta):
         warnings.warn(
             f"{meta_path}: neither image_scale nor sim.rate_at_one (the firing rate of intensity "
@@ -825,6 +843,14 @@ UNITS_MIN_SPIKES = 1000  # spikes (per channel) those views' TFP must count to j
 UNITS_WINDOW = 33  # readouts of the TFP that the test images are compared with
 
 
+def _on_path(views: list[TestView], length: int) -> list[tuple[TestView, int]]:
+    """The test views whose TFP(UNITS_WINDOW) lies within a stream of `length` readouts, each
+    with its readout."""
+    half = UNITS_WINDOW // 2
+    readouts = [None if v.readout is None else round(v.readout) for v in views]
+    return [(v, k) for v, k in zip(views, readouts) if k is not None and half <= k < length - half]
+
+
 def _warn_about_test_units(
     streams: list[SpikeStream], views: list[TestView], path: Path, dark_rate: float
 ) -> None:
@@ -834,10 +860,7 @@ def _warn_about_test_units(
     in intensity or 8-bit units, not spikes a readout."""
     half = UNITS_WINDOW // 2
     images, rates = [], []
-    for view in views:
-        k = None if view.readout is None else round(view.readout)
-        if k is None or not half <= k < len(streams[0]) - half:
-            continue
+    for view, k in _on_path(views, len(streams[0])):
         images.append(float(np.mean(view.image)))
         rates.append(float(np.mean([s.tfp(k, 2 * half + 1) for s in streams])) - dark_rate)
     counted = sum(rates) * (2 * half + 1) * streams[0].height * streams[0].width  # light's spikes
@@ -853,6 +876,19 @@ def _warn_about_test_units(
             f"(or the spikes are not the images': dark current, another recording)",
             stacklevel=3,
         )
+
+
+def _warn_if_upside_down(
+    streams: list[SpikeStream], sharp: list[TestView], path: Path, flip: bool
+) -> None:
+    """`warn_if_upside_down` over the on-path sharp test views: TFP(UNITS_WINDOW) at each's
+    readout (the channels' mean) against its image [H, W, C]. A meta.json's flip stated wrong
+    read every frame upside down unsaid, where the LLFF and NeRF layouts warned."""
+    tfps = (
+        (np.mean([s.tfp(k, UNITS_WINDOW) for s in streams], axis=0), view.image)
+        for view, k in _on_path(sharp, len(streams[0]))
+    )
+    warn_if_upside_down(orientation_pairs(tfps), flip, str(path), META, stacklevel=3)
 
 
 def _check_meta(meta: dict, path: Path) -> None:

@@ -142,9 +142,9 @@ def _warn_if_looking_away(viewmats: np.ndarray, bounds: np.ndarray, source) -> N
             f"{source}: the cameras look away from the point their optical axes meet at (it "
             f"lies behind every one, {distance:.3g} away, the scene's near bounds "
             f"{np.median(bounds[:, 0]):.3g}), as an orbit's do whose poses were written in "
-            f"another convention (OpenGL's axes, y up and z backwards, where LLFF's columns are "
-            f"down, right, backwards): check the poses' convention (a rig looking outwards from "
-            f"its middle is right so)",
+            f"another convention (OpenCV's axes, right, down and forwards, where LLFF's columns "
+            f"are down, right, backwards; or OpenGL's matrices converted as OpenCV's): check the "
+            f"poses' convention (a rig looking outwards from its middle is right so)",
             stacklevel=3,
         )
 
@@ -233,8 +233,10 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
     """The `count` .dat files [count] of spikes/, in pose order; ValueError when there are not
     `count`, or when their names order differently as strings (LLFF's order of the poses) and in
     natural order (ours): which pose is whose would be ambiguous."""
-    # as strings, as LLFF's tools; a folder named *.dat is not a view's spikes
-    files = sorted((p for p in folder.glob("*.dat") if p.is_file()), key=lambda p: p.name)
+    # as strings, as LLFF's tools; a folder named *.dat is not a view's spikes, nor a hidden
+    # file (macOS's ._000.dat beside 000.dat on a foreign disk: counted as views, unnamed)
+    views = (p for p in folder.glob("*.dat") if p.is_file() and not p.name.startswith("."))
+    files = sorted(views, key=lambda p: p.name)
     if len(files) != count:
         others = sorted(
             p.name

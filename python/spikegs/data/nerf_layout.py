@@ -124,22 +124,28 @@ def _readable(root: Path, frame: dict) -> np.ndarray | None:
 PIXEL_KEYS = ("fl_x", "fl_y", "cx", "cy")  # intrinsics in the pixels of the frames' images
 
 
-def _first_shape(images: Iterator) -> tuple | None:
-    """(h, w) of the first image of `images` that is not None (read as needed), or None."""
-    return next((im.shape[:2] for im in images if im is not None), None)
+def _first_shape(images: Iterator) -> tuple[tuple, str] | None:
+    """(h, w) of the first image of `images`, (file_path, image or None) pairs read as needed,
+    that is not None, with its file_path; None where there is none."""
+    return next(((im.shape[:2], name) for name, im in images if im is not None), None)
 
 
 def _sizes(
     path: Path, camera: dict, tests: Iterator, training: Iterator, options: Options
 ) -> tuple[tuple, tuple, str]:
     """(h, w) the intrinsics are for, (h, w) of the spikes and what gives the first: the camera's
-    w, h, else the first sharp test image's size (`tests`), else, for intrinsics in pixels, the
-    first readable training image's (`training`); the images read as needed; each of height,
-    width from spikegs.json, else the first's."""
-    stated, what = stated_size(path, camera, "the first sharp image")
-    src = stated or _first_shape(tests)
-    if not src and any(k in camera for k in PIXEL_KEYS):  # (an angle's focal scales with the
-        src = _first_shape(training)  # spikes' width)
+    w, h, else the first sharp test image's size (`tests`), else, for intrinsics in pixels or
+    where spikegs.json does not give the spikes' size, the first readable training image's
+    (`training`; an angle's focal scales with the spikes' width); the images, (file_path, image)
+    pairs, read as needed; each of height, width from spikegs.json, else the first's."""
+    src, what = stated_size(path, camera, "the first sharp image")
+    if not src:
+        pixels = any(k in camera for k in PIXEL_KEYS)
+        found = _first_shape(tests) or (
+            _first_shape(training) if pixels or not (options.height and options.width) else None
+        )
+        if found:
+            src, what = found[0], f"the camera (sized as its first sharp image, {found[1]})"
     height = options.height or (src and src[0])
     width = options.width or (src and src[1])
     if not (height and width):
@@ -152,14 +158,14 @@ def _sizes(
 
 
 def _mono(
-    image: np.ndarray | None, src: tuple, size: tuple, columns: slice, name: str
+    image: np.ndarray | None, src: tuple, size: tuple, columns: slice, name: str, what: str
 ) -> np.ndarray | None:
     """Linear RGB [h, w, 3] -> luma [height, width, 1]: `fitted` to `size` (h, w) (ValueError
-    naming the image, `name`, when its aspect ratio is not the camera's (h, w) `src`), then its
-    `columns` kept (a raw-row crop)."""
+    naming the image, `name`, when its aspect ratio is not the camera's (h, w) `src`, which
+    `what` gives), then its `columns` kept (a raw-row crop)."""
     if image is None:
         return None
-    return to_channels(fitted(image, src, size, name)[:, columns], 1).astype(np.float32)
+    return to_channels(fitted(image, src, size, name, what)[:, columns], 1).astype(np.float32)
 
 
 def _frames(root: Path, options: Options):
@@ -254,10 +260,12 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         return image
 
     tests = (
-        keep(i, _image(root, f)) for i, (f, is_test) in enumerate(zip(frames, test)) if is_test
+        (f["file_path"], keep(i, _image(root, f)))
+        for i, (f, is_test) in enumerate(zip(frames, test))
+        if is_test
     )
     training = (
-        keep(i, _readable(root, f))
+        (f["file_path"], keep(i, _readable(root, f)))
         for i, (f, is_test) in enumerate(zip(frames, test))
         if not is_test
     )
@@ -281,7 +289,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     def mono(i: int, frame: dict) -> np.ndarray | None:
         image = sized.pop(i) if i in sized else _image(root, frame)
         name = f"{root / frame['file_path']}"
-        return _mono(image, src, (height, row), slice(shift, shift + width), name)
+        return _mono(image, src, (height, row), slice(shift, shift + width), name, what)
 
     def training_image(i: int, frame: dict, check: bool) -> np.ndarray | None:
         if calibrate:

@@ -22,7 +22,6 @@ from ..pixel_defects import defect_maps, repaired
 from ..spikes import SpikeStream
 from ..spikes.stream import centred_range
 from ..targets import intensity_scale
-from .correlation import correlation
 from .dataset import (
     FORMAT_VERSION,
     PSEUDO_PREFIX,
@@ -36,6 +35,7 @@ from .dataset import (
     repeated,
     stated_scales,
 )
+from .orientation import orientation_pairs, warn_if_upside_down
 from .real_options import OPTIONS_FILE, Options
 from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory, readout_number
@@ -254,7 +254,6 @@ def rate_from_images(views: Iterable[tuple[np.ndarray, np.ndarray]], source: str
     return rate
 
 
-FLIP_MARGIN = 0.2  # correlation by which the other orientation must match better, to warn
 ORIENTATION_VIEWS = 8  # training views' sharp images read for the check where none calibrates
 MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images under this is warned
 # of (0.99 for a well-read view; 0.25 for a .dat packed most significant bit first)
@@ -262,13 +261,10 @@ MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images un
 
 def check_orientation(views: Iterable[tuple[np.ndarray, np.ndarray]], flip: bool, source: str):
     """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] (`view_tfps`)
-    better upside down than as read, in most views (by FLIP_MARGIN in correlation): `flip` is
-    likely wrong, and the scene would train upside down; and when they match neither way (median
+    better upside down than as read, in most views (`warn_if_upside_down`): `flip` is likely
+    wrong, and the scene would train upside down; and when they match neither way (median
     correlation under MATCH_MIN): the spikes are not read as the images show them."""
-    pairs = [
-        (correlation(tfp, image.mean(-1)), correlation(tfp, image.mean(-1)[::-1]))
-        for tfp, image in views
-    ]
+    pairs = orientation_pairs(views)
     best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
     if best < MATCH_MIN:
         warnings.warn(
@@ -279,15 +275,7 @@ def check_orientation(views: Iterable[tuple[np.ndarray, np.ndarray]], flip: bool
             stacklevel=3,
         )
         return
-    better = [flipped - kept > FLIP_MARGIN for kept, flipped in pairs]
-    if pairs and sum(better) > len(pairs) / 2:
-        kept, flipped = np.median(np.asarray(pairs), axis=0)
-        warnings.warn(
-            f"{source}: the spikes match their views' sharp images better upside down (median "
-            f"correlation {flipped:.2f} flipped against {kept:.2f} as read, over {len(pairs)} "
-            f"views): flip ({flip}, in {OPTIONS_FILE}) is likely wrong",
-            stacklevel=3,
-        )
+    warn_if_upside_down(pairs, flip, source, OPTIONS_FILE, stacklevel=3)
 
 
 def views_dataset(

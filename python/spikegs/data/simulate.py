@@ -472,6 +472,16 @@ def simulate_dataset(
             f"test_on_path, test_off_path (--test-on-path, --test-off-path): expected counts "
             f">= 0, found {test_on_path}, {test_off_path}"
         )
+    room = (readouts - 2 * WINDOW_MARGIN - 2) // (4 * WINDOW_MARGIN)  # on-path views that fit
+    if asked[0] is None and room < test_on_path:  # the default: as many as fit, said
+        if room >= 0:  # (under none the stream is refused below)
+            warnings.warn(
+                f"{readouts} readouts hold {room} on-path held-out views of the default "
+                f"{test_on_path} (each {4 * WINDOW_MARGIN} readouts, {2 * WINDOW_MARGIN + 2} "
+                f"more in all): add readouts for more, or set --test-on-path",
+                stacklevel=2,
+            )
+        test_on_path = max(room, 0)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts:
         raise ValueError(

@@ -4,6 +4,7 @@ camera across frames), camera-to-world matrices as OpenCV viewmats, and frame im
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from pathlib import Path
 
@@ -153,7 +154,7 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
                 image = np.maximum(image, 0.0)
-            image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}")
+            image = fitted(image, src, (height, width), f"{path.parent / f['file_path']}", what)
             stack[j] = to_channels(image, channels)
         if negative:
             warnings.warn(
@@ -191,17 +192,19 @@ def is_opengl(path: Path, doc: dict) -> bool:
     return convention.lower() == "opengl"
 
 
-def fitted(image: np.ndarray, src: tuple, size: tuple, name: str) -> np.ndarray:
+def fitted(
+    image: np.ndarray, src: tuple, size: tuple, name: str, what: str = "the camera"
+) -> np.ndarray:
     """`image` [h, w, C] resized to (h, w) `size` if need be; ValueError naming it (`name`) unless
     it has the aspect ratio of the camera's (h, w) `src` (its width within a pixel or 1 % of the
-    camera's aspect at its height): another aspect ratio is another crop of the view, which
-    resizing would stretch."""
+    camera's aspect at its height), `what` giving that size: another aspect ratio is another
+    crop of the view, which resizing would stretch."""
     (h, w), (src_h, src_w) = image.shape[:2], src
     if abs(w - h * src_w / src_h) > max(1.0, 0.01 * w):
         raise ValueError(
-            f"{name}: image {w}x{h} (aspect {w / h:.3f}), the camera's images are {src_w}x"
-            f"{src_h} (aspect {src_w / src_h:.3f}): an image of another aspect ratio shows "
-            f"another crop of the view; crop or pad it to the camera's"
+            f"{name}: image {w}x{h} (aspect {w / h:.3f}), {what} is for {src_w}x{src_h} images "
+            f"(aspect {src_w / src_h:.3f}): an image of another aspect ratio shows another crop "
+            f"of the view; crop or pad it to the camera's"
         )
     if (h, w) == tuple(size):
         return image
@@ -378,8 +381,15 @@ def camera_matrix(
 
 
 def frame_files(base: Path) -> list[Path]:
-    """The image files a frame's file_path `base` names: itself, or with an extension added."""
-    candidates = [base] + [base.with_name(base.name + ext) for ext in IMAGE_EXTENSIONS]
+    """The image files a frame's file_path `base` names: itself, or with an extension of
+    IMAGE_EXTENSIONS added, in that order, in any case (a camera's r_0.PNG was passed over
+    unsaid, the view then held out without its image)."""
+    rank = {(base.name + ext).lower(): i for i, ext in enumerate(IMAGE_EXTENSIONS)}
+    try:
+        names = sorted((rank[n.lower()], n) for n in os.listdir(base.parent) if n.lower() in rank)
+    except OSError:  # no such folder: no image
+        names = []
+    candidates = [base] + [base.parent / n for _, n in names]
     return [p for p in candidates if p.is_file()]
 
 
