@@ -667,6 +667,11 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     # readouts given in seconds (readout x 25 us) sent the user to pseudo_gt_window; a pose log
     # too dense for the held-out poses' margins said only "no training timestamp left", then
     # gave the spacing of all poses for the held-out ones' and advised a train_every below 1
+    one = copy(llff_stream, tmp_path / "one")  # one pose: "(not seconds?)" was said too
+    np.save(one / "poses_bounds.npy", np.load(one / "poses_bounds.npy")[:1])
+    (one / "readouts.txt").write_text("300\n")
+    with pytest.raises(ValueError, match=r"training window needs: one pose spans none \(poses al"):
+        load_dataset(one)
     root = copy(llff_stream, tmp_path / "seconds")
     poses = len(np.loadtxt(root / "readouts.txt"))
     np.savetxt(root / "readouts.txt", np.arange(poses) * 50 * 25e-6)

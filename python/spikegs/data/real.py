@@ -439,11 +439,15 @@ def stream_dataset(
             f"({stream.path})"
         )
     if trajectory.end - trajectory.start < 2 * WINDOW_MARGIN:
+        cause = (
+            f"readouts are indices, {READOUT_PERIOD_S * 1e6:g} µs apart (not seconds?)"
+            if len(readouts) > 1
+            else "one pose spans none (poses along the recording are needed)"
+        )
         raise ValueError(
             f"{source}: the poses span readouts [{trajectory.start:g}, {trajectory.end:g}] of the "
             f"stream's {len(stream)}, less than the {2 * WINDOW_MARGIN + 1} readouts a training "
-            f"window needs: readouts are indices, {READOUT_PERIOD_S * 1e6:g} µs apart (not "
-            f"seconds?)"
+            f"window needs: {cause}"
         )
     # by default ~1024 timestamps over the readouts the poses span, not the whole recording's
     every = options.train_every or default_train_every(trajectory.end - trajectory.start + 1)
