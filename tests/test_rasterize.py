@@ -1007,6 +1007,26 @@ def test_a_batch_of_gradients_is_refused_clearly():
     assert row.abs().sum() > 0
 
 
+@needs_cpp
+def test_torch_func_transforms_are_refused_clearly():
+    """torch.func.grad, vmap and jacrev said only that the Function "must override the
+    setup_context staticmethod"; the reference runs under them."""
+    scene = make_scene(5, 4, 17, 11)
+
+    def loss(fn, m):
+        return render(fn, scene, means=m).image.sum()
+
+    for transform in (torch.func.grad, torch.func.jacrev):
+        with pytest.raises(RuntimeError, match="does not run under torch.func's transforms"):
+            transform(lambda m: loss(spikegs.rasterize, m))(scene["means"])
+    with pytest.raises(RuntimeError, match="does not run under torch.func's transforms"):
+        torch.func.vmap(lambda m: loss(spikegs.rasterize, m))(scene["means"][None])
+    by_func = torch.func.grad(lambda m: loss(reference.rasterize, m))(scene["means"])
+    means = scene["means"].clone().requires_grad_()
+    loss(spikegs.rasterize, means).backward()
+    torch.testing.assert_close(by_func, means.grad, rtol=1e-9, atol=1e-12)
+
+
 def test_only_a_batch_of_gradients_is_said_to_be_one():
     """_grad_array turns torch's "Batching rule" error alone into the batch's message; another
     tensor numpy cannot take (one requiring grad, which the create_graph check keeps out of a

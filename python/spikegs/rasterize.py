@@ -332,5 +332,14 @@ def rasterize(
         dilation=float(dilation),
     )
     scene = (means, quats, scales, opacities, colors, viewmat, background)
-    outputs = _RasterizeFunction.apply(*scene, screen_points, screen_abs, K, settings)
+    try:
+        outputs = _RasterizeFunction.apply(*scene, screen_points, screen_abs, K, settings)
+    except RuntimeError as err:  # torch said only "... must override the setup_context ..."
+        if "setup_context" not in str(err):
+            raise
+        raise RuntimeError(
+            "spikegs.rasterize does not run under torch.func's transforms (grad, vmap, jacrev, "
+            "...): its backward takes one gradient without a graph; use torch.autograd.grad or "
+            f".backward() (spikegs.reference.rasterize runs under them) ({err})"
+        ) from None
     return RasterizeResult(*outputs)
