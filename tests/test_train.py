@@ -34,7 +34,7 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.data.view_geometry import optical_axes
 from spikegs.data_fingerprint import data_fingerprint, same_data
-from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH, METHODS
+from spikegs.demo import DEMO_OVERRIDES, LABEL_WIDTH, METHODS, gain_line
 from spikegs.densify import Densifier, DensifyConfig
 from spikegs.evaluate import evaluate_run, render_view, view_metrics
 from spikegs.file_lock import BUSY, Busy, exclusive_lock, shared_lock
@@ -2119,6 +2119,7 @@ def test_a_demo_resumed_over_a_run_config_not_a_runs_names_it(tmp_path, capsys):
     "invalid literal for int()", naming no file."""
     saved = tmp_path / "demo" / "runs" / "spikegs" / "config.yaml"
     saved.parent.mkdir(parents=True)
+    (tmp_path / "demo" / ".demo_started.json").write_text("{}")  # a demo started there
     for text, message in (
         ("", "config.yaml is empty: the run's settings are lost"),
         ("train: [\n", "config.yaml: not readable as YAML"),
@@ -2156,7 +2157,6 @@ def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     s against 12). The line said the gain alone, which read as the lead at an equal budget; at
     SpikeGS's time the baseline scores higher (BENCHMARKS.md, "The baselines at SpikeGS's
     time"). It now names the budget and both methods' seconds."""
-    from spikegs.demo import gain_line
 
     results = {  # the demo's results.json "methods" (this audit's run on the AVX-512 machine)
         "spikegs": {
@@ -2240,11 +2240,21 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     printed = printed.out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
     assert "dB at equal iterations (80 each; SpikeGS " in printed  # the budget it compares at
-    # --resume on the finished demo trains nothing and keeps its time (was this process's alone)
-    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0
-    again_results = json.loads((out / "results.json").read_text())
-    assert again_results["total_seconds"] > results["total_seconds"]
-    assert again_results["methods"] == results["methods"]
+    # --resume on the finished demo prints it again: nothing trained, evaluated or rewritten
+    # (its time was this process's alone, then grew by each one's evaluation); --iterations
+    # other than its own refused first, in the demo's words (train's, after its dataset)
+    written = (out / "results.json").read_bytes()
+    with monkeypatch.context() as patch:
+        patch.setattr("spikegs.demo.demo_dataset", lambda *a: pytest.fail("worked"))
+        assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0
+        again = capsys.readouterr()
+        assert "holds a finished demo; its results:" in again.err
+        assert gain_line(results["methods"]) in again.out
+        assert f"total {results['total_seconds']:.0f} s" in again.out
+        assert main(["demo", "--no-progress", "--resume", "--iterations", "90", "--out", str(out)])
+        said = "was started with 80 iterations, not 90; leave out --iterations to continue it"
+        assert said in capsys.readouterr().err
+    assert (out / "results.json").read_bytes() == written
 
     # a fresh demo refuses, before any work, to delete a run or data folder holding a user's
     # files; an earlier demo's results stay
@@ -2264,37 +2274,56 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     assert main([*argv, str(filed)]) == 2
     assert "runs/tfp33 is a file; give the demo another --out" in capsys.readouterr().err
     assert (filed / "runs" / "tfp33").read_text() == "mine"
-    # nor a spikegs run or dataset of a folder no demo started in (`--out` naming a project)
+    # nor a spikegs run or dataset of a folder no demo started in (`--out` naming a project),
+    # nor its results.json of another content, which passed for a demo's (its runs deleted)
     project = tmp_path / "project"
     shutil.copytree(out / "runs" / "spikegs", project / "runs" / "spikegs")
     assert main([*argv, str(project)]) == 2
-    assert "holds a dataset or run no demo wrote" in capsys.readouterr().err
+    assert "holds runs/spikegs, which no demo wrote" in capsys.readouterr().err
+    (project / "results.json").write_text("{}")
+    (project / "curves.png").write_bytes(b"mine")
+    for overwrite in ([], ["--overwrite"]):
+        assert main([*argv, str(project), *overwrite]) == 2
+        said = "holds results.json, curves.png, runs/spikegs, which no demo wrote"
+        assert said in capsys.readouterr().err
     assert (project / "runs" / "spikegs" / "scene.ply").is_file()
+    assert (project / "results.json").read_text() == "{}"
     older = tmp_path / "older"  # a demo of before 2026-11-25 left a results.json, no start file
     shutil.copytree(out, older)
     (older / ".demo_started.json").unlink()
     with monkeypatch.context() as patch:
         patch.setattr("spikegs.demo.demo_dataset", _ctrl_c)  # got past the checks
-        assert main([*argv, str(older)]) == 130
+        assert main([*argv, str(older), "--overwrite"]) == 130
     # --resume refuses a user's files in a run folder before any work (after SIM and SpikeGS)
-    (out / "runs" / "tfp33" / "notes.txt").write_text("mine")
+    stopped = tmp_path / "stopped"  # a demo stopped before its results
+    shutil.copytree(out, stopped)
+    (stopped / "results.json").unlink()
+    (stopped / "runs" / "tfp33" / "notes.txt").write_text("mine")
     with monkeypatch.context() as patch:
         patch.setattr("spikegs.demo.demo_dataset", lambda *a: pytest.fail("worked"))
-        assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 2
+        assert main(["demo", "--no-progress", "--resume", "--out", str(stopped)]) == 2
         assert "notes.txt" in capsys.readouterr().err
-        (out / "runs" / "tfp33" / "notes.txt").unlink()
+        (stopped / "runs" / "tfp33" / "notes.txt").unlink()
         # Ctrl-C while it writes its figures: said how to go on, as in the stages before
         patch.setattr("spikegs.demo.write_figures", _ctrl_c)
-        patch.setattr("spikegs.demo.demo_dataset", lambda *a: load_dataset(out / "data"))
-        assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
+        patch.setattr("spikegs.demo.demo_dataset", lambda *a: load_dataset(stopped / "data"))
+        assert main(["demo", "--no-progress", "--resume", "--out", str(stopped)]) == 130
         assert "with --resume continues" in capsys.readouterr().err
-        # a fresh demo deletes every earlier run and figure as it starts: stopped before its
+        # a fresh demo over an earlier one is refused (its results were deleted unasked); with
+        # --overwrite it deletes every earlier run and figure as it starts: stopped before its
         # last method, it left that method's finished run, which --resume refused
         patch.setattr("spikegs.demo.demo_dataset", _ctrl_c)
         copy_of = tmp_path / "copy"
         shutil.copytree(out, copy_of)
-        assert main([*argv, str(copy_of)]) == 130
+        assert main([*argv, str(copy_of)]) == 2
+        said = "holds a finished demo: --resume continues it (printed again), --overwrite starts"
+        assert said in capsys.readouterr().err and (copy_of / "results.json").is_file()
+        assert main([*argv, str(copy_of), "--overwrite"]) == 130
         assert not (copy_of / "runs" / "tfp33").exists() and not (copy_of / "curves.png").exists()
+        assert main([*argv, str(copy_of)]) == 2  # stopped: an interrupted demo's is kept too
+        assert "holds an interrupted demo: --resume continues it, --overwrite" in (
+            capsys.readouterr().err
+        )
     # one demo per OUT: a second one deleted the first one's dataset and run, lock and all
 
     with run_lock(out):

@@ -77,6 +77,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "holds no demo, one starts (said on stderr), so a script may always pass it",
     )
     parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="start afresh where --out holds an earlier demo, deleting its dataset, runs and "
+        "results (refused otherwise: --resume continues it, a finished one printed again)",
+    )
+    parser.add_argument(
         "--color",
         action="store_true",
         help="a colour spike camera, a stream per channel (on --resume, the demo's own camera)",
@@ -136,6 +142,30 @@ def _started(out: Path) -> dict:
     except (FileNotFoundError, ValueError):
         return {}
     return started if isinstance(started, dict) else {}
+
+
+def finished_results(out: Path) -> dict | None:
+    """OUT/results.json where a demo wrote it (its "methods" hold the demo's methods and its
+    "total_seconds" a number), else None: a file of that name no demo wrote is not a demo's."""
+    try:
+        results = json.loads(read_text(out / RESULTS))
+    except (FileNotFoundError, ValueError):
+        return None
+    ours = (
+        isinstance(results, dict)
+        and isinstance(results.get("methods"), dict)
+        and set(METHODS) <= set(results["methods"])
+        and isinstance(results.get("total_seconds"), (int, float))
+    )
+    return results if ours else None
+
+
+def held_demo(out: Path) -> str | None:
+    """What demo `out` holds: "a finished demo" (a demo's results.json), "an interrupted demo"
+    (STARTED_FILE without one), None for none."""
+    if finished_results(out) is not None:
+        return "a finished demo"
+    return "an interrupted demo" if (out / STARTED_FILE).is_file() else None
 
 
 def started_iterations(out: Path) -> int | None:
@@ -207,24 +237,37 @@ def check_not_dataset_or_run(out: Path) -> None:
     )
 
 
-def check_fresh_out(out: Path) -> None:
+def check_fresh_out(out: Path, overwrite: bool) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
-    spikegs run's (a user's own run there keeps its notes, renders, ...), or holding anything
-    where no demo ran in OUT (neither STARTED_FILE nor RESULTS, which demos before 2026-11-25
-    left alone: `--out` naming a project's folder, whose runs/spikegs and data are its own)."""
+    spikegs run's (a user's own run there keeps its notes, renders, ...), or, where no demo ran
+    in OUT (`held_demo`: a demo's results.json, which demos before 2026-11-25 left alone, or
+    STARTED_FILE), holding anything, or a results.json or figure of the demo's names (`--out`
+    naming a project's folder, whose runs/spikegs, data and results are its own; a results.json
+    of any content was taken for a demo's); and, without `overwrite`, where an earlier demo is
+    there (its results were deleted unasked)."""
     from .data.dataset import check_output
 
     check_output(out / "data", overwrite=True)
     check_run_dirs(out)
-    if not ((out / STARTED_FILE).is_file() or (out / RESULTS).is_file()):
-        for held in (out / "data", *(out / "runs" / m for m in METHODS)):
-            if holds_files(held):
-                raise FileExistsError(
-                    f"{held} holds a dataset or run no demo wrote ({out} holds neither "
-                    f"{STARTED_FILE} nor {RESULTS}), which a demo would replace; give it "
-                    f"another --out"
-                )
+    held = held_demo(out)
+    if held is not None and not overwrite:
+        again = " (printed again)" if held == "a finished demo" else ""
+        raise FileExistsError(
+            f"--out {out} holds {held}: --resume continues it{again}, --overwrite starts "
+            f"afresh, deleting its dataset, runs and results; or give another --out"
+        )
+    if held is None:
+        named = [name for name in (RESULTS, COMPARISON, CURVES) if (out / name).exists()]
+        for part in (out / "data", *(out / "runs" / m for m in METHODS)):
+            if holds_files(part):
+                named.append(str(part.relative_to(out)))
+        if named:
+            raise FileExistsError(
+                f"{out} holds {', '.join(named)}, which no demo wrote (it holds neither a "
+                f"demo's {RESULTS} nor {STARTED_FILE}) and a demo would replace; give it another "
+                f"--out"
+            )
 
 
 def check_run_dirs(out: Path) -> None:
@@ -311,8 +354,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_folder_output(out, images=True)
     check_not_dataset_or_run(out)
-    # a demo writes STARTED_FILE as it starts: a folder without anything holds none
-    if args.resume and not holds_files(out):
+    # a demo writes STARTED_FILE as it starts: a folder without it (or a demo's results) holds
+    # none, even where it holds other files (they went on as a demo without its start record)
+    if args.resume and held_demo(out) is None:
         print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
         args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     out.mkdir(parents=True, exist_ok=True)
@@ -329,12 +373,24 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     # --resume without --scene or --iterations goes on with those the demo was started with
     scene = args.scene or (started_scene(out) if args.resume else None) or DEFAULT_SCENE
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
-    iterations = args.iterations or (started_iterations(out) if args.resume else None)
+    started = started_iterations(out) if args.resume else None
+    iterations = args.iterations or started
     color = args.color or (started_color(out) if args.resume else False)
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
+    if args.resume:  # refused at its run's settings, after its dataset, in train's words
+        started = started or DEMO_OVERRIDES["train"]["iterations"]
+        if args.iterations is not None and args.iterations != started:
+            raise ValueError(
+                f"--resume: the demo in {out} was started with {started} iterations, not "
+                f"{args.iterations}; leave out --iterations to continue it, or give another --out"
+            )
+        finished = _printable(finished_results(out), scene, color)
+        if finished is not None:  # nothing to train: evaluated and timed again before
+            print(f"--resume: {out} holds a finished demo; its results:", file=sys.stderr)
+            return _print_results(finished, out)
     if not args.resume:
-        check_fresh_out(out)
+        check_fresh_out(out, args.overwrite)
         # an earlier demo's, all at once: a fresh demo stopped before its last method left that
         # method's finished run, which --resume then refused as trained with other settings
         for method in METHODS:
@@ -373,6 +429,23 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         "environment": environment(),  # this process's; each run's train.json names its own
     }
     write_text_atomically(out / RESULTS, strict_json.dumps(payload, indent=2))
+    return _print_results(payload, out)
+
+
+def _printable(finished: dict | None, scene: str, color: bool) -> dict | None:
+    """A finished demo's results.json (`finished_results`) of `scene` and camera, holding what
+    `_print_results` prints (an older demo's may lack its iterations); else None."""
+    if finished is None or finished.get("scene") != scene:
+        return None
+    printed = {"psnr", "ssim", "train_seconds", "gaussians", "sim_seconds", "iterations"}
+    runs = [finished["methods"][m] for m in METHODS]
+    whole = all(isinstance(r, dict) and printed <= set(r) for r in runs)
+    return finished if whole and finished.get("channels") == (3 if color else 1) else None
+
+
+def _print_results(payload: dict, out: Path) -> int:
+    """The demo's table and headline from its results.json `payload`; 0."""
+    results = payload["methods"]
     print()
     print_table(
         [
@@ -380,7 +453,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
             for m, r in results.items()
         ]
     )
-    print(f"\n{gain_line(results)}; total {total:.0f} s; results in {out}")
+    print(f"\n{gain_line(results)}; total {payload['total_seconds']:.0f} s; results in {out}")
     return 0
 
 
