@@ -425,6 +425,23 @@ def test_bench_writes_into_the_documented_folder_without_out(tmp_path, monkeypat
 
 
 @pytest.mark.parametrize(
+    "name, held", [("train.json", "a spikegs run (train.json)"), ("meta.json", "a dataset (meta")]
+)
+def test_bench_refuses_an_out_that_holds_a_run_or_a_dataset(
+    name, held, tmp_path, monkeypatch, capsys
+):
+    """`bench train --out RUN` wrote its train.json over the run's (eval then refused the run),
+    and its datasets, runs and figures among the run's or a dataset's files."""
+    from spikegs.cli import main
+
+    monkeypatch.setattr(stiff, "run", lambda quick, out: pytest.fail("worked"))
+    (tmp_path / name).write_text("{}")
+    assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 2
+    assert f"--out {tmp_path} holds {held}" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == [name]
+
+
+@pytest.mark.parametrize(
     "argv, message",
     [
         (["bench", "train", "--methods", ","], "--methods ',': expected comma-separated names"),

@@ -30,7 +30,7 @@ from .interrupt import say
 from .method_titles import method_title
 from .provenance import environment
 from .regular_file import is_blank, read_text
-from .run_folder import RUN_FILES, refuse_foreign_files, run_lock
+from .run_folder import refuse_dataset_or_run, refuse_foreign_files, run_lock
 from .run_summary import CONFIG, EVAL, LOCK, last_checkpoint
 from .text_table import print_table
 
@@ -215,28 +215,6 @@ def holds_files(folder: Path) -> bool:
     return folder.is_dir() and any(p.name != LOCK for p in folder.iterdir())
 
 
-def check_not_dataset_or_run(out: Path) -> None:
-    """FileExistsError, before any work, where OUT itself holds a dataset or a spikegs run (--out
-    naming one, as simulate's or train's does): a demo, fresh or resumed, would write its own
-    dataset, runs and figures in among its files."""
-    from .data.dataset import holds_dataset, layout_files
-
-    if not out.is_dir():
-        return
-    run = sorted(p.name for p in out.iterdir() if p.name in RUN_FILES - {LOCK})
-    marks = layout_files(out)
-    if run:
-        held = f"a spikegs run ({', '.join(run)})"
-    elif marks or holds_dataset(out):
-        held = f"a dataset ({', '.join(marks) or 'its spikes'})"
-    else:
-        return
-    raise FileExistsError(
-        f"--out {out} holds {held}, among which a demo would write its own files (its dataset "
-        f"in {out / 'data'}, its runs in {out / 'runs'}); give the demo another --out"
-    )
-
-
 def check_fresh_out(out: Path, overwrite: bool) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
@@ -353,7 +331,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     check_folder_output(out, images=True)
-    check_not_dataset_or_run(out)
+    refuse_dataset_or_run(out, "a demo")
     # a demo writes STARTED_FILE as it starts: a folder without it (or a demo's results) holds
     # none, even where it holds other files (they went on as a demo without its start record)
     if args.resume and held_demo(out) is None:

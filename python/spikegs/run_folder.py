@@ -66,3 +66,26 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
             f"files; give another --out"
         )
     refuse_foreign_files(run_dir, "; give an empty or new --out")
+
+
+def refuse_dataset_or_run(out: Path, writer: str) -> None:
+    """FileExistsError, before any work, where OUT itself holds a dataset or a spikegs run
+    (--out naming one, as simulate's or train's does): `writer` ("a demo", "spikegs bench")
+    would write its own dataset, runs and figures in among its files (bench's train.json over a
+    run's, which eval then refused)."""
+    from .data.dataset import holds_dataset, layout_files
+
+    if not out.is_dir():
+        return
+    run = sorted(p.name for p in out.iterdir() if p.name in RUN_FILES - {LOCK})
+    marks = layout_files(out)
+    if run:
+        held = f"a spikegs run ({', '.join(run)})"
+    elif marks or holds_dataset(out):
+        held = f"a dataset ({', '.join(marks) or 'its spikes'})"
+    else:
+        return
+    raise FileExistsError(
+        f"--out {out} holds {held}, among which {writer} would write its own files (datasets "
+        f"in {out / 'data'}, runs in {out / 'runs'}, figures); give it another --out"
+    )

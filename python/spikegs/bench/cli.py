@@ -12,6 +12,7 @@ from ..cli import add_no_progress, positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
 from ..file_lock import exclusive_lock
 from ..output_paths import check_folder_output
+from ..run_folder import refuse_dataset_or_run
 from ..run_summary import LOCK
 from .train import (
     FULL_ITERATIONS,
@@ -119,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out)
+    refuse_dataset_or_run(Path(args.out), "spikegs bench")
     if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
         from .train import check_outputs, data_settings, run_names, selection
 
