@@ -314,12 +314,19 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
     assert "not a saved SIM; training SIM afresh" in capsys.readouterr().err
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
-    # other training settings at the same path (sim-train --out FILE): retrained, said why (it
-    # was reused, steps and all)
+    # other training settings at the same path: a cache's retrained, said why (it was reused,
+    # steps and all); a file the user named (sim-train --out FILE: `keep`) refused, unless
+    # forced (it was replaced)
     capsys.readouterr()
-    assert train_or_load(path, stream, ts, 33, **{**tiny, "steps": 3, "seed": 7})[1] > 0
+    other = {**tiny, "steps": 3, "seed": 7}
+    with pytest.raises(FileExistsError, match=r"a SIM trained with other settings \(steps 2, now"):
+        train_or_load(path, stream, ts, 33, keep=True, **other)
+    assert torch.load(path, weights_only=True)["meta"]["steps"] == 2
+    assert train_or_load(path, stream, ts, 33, keep=True, **tiny)[1] == 0  # its own: reused
+    assert train_or_load(path, stream, ts, 33, **other)[1] > 0
     assert "trained with other settings (steps 2, now 3, seed" in capsys.readouterr().err
     assert torch.load(path, weights_only=True)["meta"]["steps"] == 3
+    assert train_or_load(path, stream, ts, 33, keep=True, force=True, **tiny)[1] > 0
     # no temporary file left (the lock file that one process a SIM takes stays, empty)
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name, f"{path.name}.lock"]
 

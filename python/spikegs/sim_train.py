@@ -302,11 +302,18 @@ def _crop_taken(settings: dict, side: int) -> dict:
 
 
 def _cached(
-    path: Path, window: int, data: tuple[str, ...], settings: dict, side: int, say: bool = True
+    path: Path,
+    window: int,
+    data: tuple[str, ...],
+    settings: dict,
+    side: int,
+    say: bool = True,
+    keep: bool = False,
 ) -> SIM | None:
     """The SIM saved at `path` if it was trained for `window` on spikes of a fingerprint in
     `data` from this package's start with training `settings` (train_sim's keywords) on frames
-    whose larger side is `side`; None (saying why where a file is there, if `say`) otherwise."""
+    whose larger side is `side`; None (saying why where a file is there, if `say`) otherwise;
+    FileExistsError saying why where a file is there and `keep` (a file the user named)."""
     if not path.exists():
         return None
     try:
@@ -329,6 +336,11 @@ def _cached(
             if same
             else "trained on other spikes, for another window or from another start"
         )
+    if keep:
+        raise FileExistsError(
+            f"{path}: a SIM {why}, which training would replace; --force trains afresh over it, "
+            f"or give another --out"
+        )
     if say:
         print(f"{path}: {why}; training SIM afresh", file=sys.stderr)
     return None
@@ -343,12 +355,18 @@ def user_cache(name: str, data: str) -> Path | None:
 
 
 def train_or_load(
-    path: Path, stream, timestamps, window: int = SimConfig.window, force: bool = False, **kwargs
+    path: Path,
+    stream,
+    timestamps,
+    window: int = SimConfig.window,
+    force: bool = False,
+    keep: bool = False,
+    **kwargs,
 ):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
     `spikes_fingerprint`) with these settings (`kwargs`), unless `force`; else train one and save
-    it there. Where `path`'s
-    folder cannot be written (a read-only dataset), `user_cache` stands in for it.
+    it there (a SIM there trained otherwise refused where `keep`: a file the user named). Where
+    `path`'s folder cannot be written (a read-only dataset), `user_cache` stands in for it.
 
     Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps
     included, the path it was loaded from or saved at).
@@ -359,7 +377,7 @@ def train_or_load(
     settings = {k: v for k, v in kwargs.items() if k != "progress"}
     first = _streams(stream)[0]
     side = max(first.height, first.width)
-    model = None if force else _cached(path, window, known, settings, side, say=False)
+    model = None if force else _cached(path, window, known, settings, side, say=False, keep=keep)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):

@@ -222,14 +222,16 @@ def trained_sim(
     streams: list | None = None,
 ):
     """(SIM, seconds spent training it, path): the one cached for `sim`'s settings (at `path`, by
-    default `sim_path`; `train_or_load` may cache elsewhere), else trained on every channel's
-    stream (`streams`, by default the dataset's) at the training timestamps."""
+    default `sim_path`; `train_or_load` may cache elsewhere; a SIM trained otherwise at a `path`
+    given is refused, not replaced, unless `force`), else trained on every channel's stream
+    (`streams`, by default the dataset's) at the training timestamps."""
     model, seconds, path = train_or_load(
         path or sim_path(dataset, sim, seed),
         streams or dataset.streams,  # a colour camera's channels share one SIM
         dataset.train_timestamps,
         sim.window,
         force=force,
+        keep=path is not None,
         steps=sim.iterations,
         batch_size=sim.batch,
         crop=sim_crop(dataset, sim),  # as the cache's name has it
