@@ -110,13 +110,19 @@ def test_a_video_named_by_its_suffix_alone_is_refused_as_such(tmp_path):
 
 
 @LINUX
-def test_a_non_utf8_folder_is_refused_by_name(tmp_path):
+def test_a_non_utf8_folder_is_refused_by_name(tmp_path, capfd):
     """OpenImageIO takes UTF-8 names only: a Latin-1 folder (café) was a TypeError traceback
     from its binding, after a simulation had written its spikes."""
+    from spikegs.cli import main
+
     latin = tmp_path / os.fsdecode(b"caf\xe9")
     with pytest.raises(ValueError, match="not a UTF-8 name"):
         check_folder_output(latin, images=True)
-    check_folder_output(latin)  # a run folder: training writes no OpenImageIO file
+    check_folder_output(latin)  # a folder of no OpenImageIO file (a SIM's)
+    for command in (["train", "data", "--method", "tfp33"], ["bench", "stiff", "--quick"]):
+        # a run's eval images go into RUN/eval: eval refused the run that train had made
+        assert main([*command, "--out", str(latin)]) == 2
+        assert "not a UTF-8 name" in capfd.readouterr().err and not latin.exists()
     latin.mkdir()
     with pytest.raises(ValueError, match="not a UTF-8 file name"):
         write_image(latin / "v.png", np.zeros((2, 2), np.float32))

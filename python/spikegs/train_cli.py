@@ -150,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     from .data.dataset import reading_dataset
 
     config = config_from_args(args)  # bad method or config: refused before any work
-    check_folder_output(args.out)
+    check_folder_output(args.out, images=True)  # eval's images go into RUN/eval
     # no simulation or `spikegs poses` rewrites the dataset under the training (Busy while one does)
     with reading_dataset(args.dataset):
         return _train(args, config)

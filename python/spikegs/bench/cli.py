@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     given = [f"--{k.replace('_', '-')}" for k in train_options]  # the options of bench train's
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
-    check_folder_output(args.out)
+    check_folder_output(args.out, images=True)  # its figures, its runs' eval images
     refuse_dataset_or_run(Path(args.out), "spikegs bench")
     if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
         from .train import check_outputs, data_settings, run_names, selection
