@@ -950,8 +950,13 @@ def _dead_pid() -> int:
 def test_refuses_to_overwrite_a_run(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
-    with pytest.raises(FileExistsError):
+    finished = "holds a run; a finished one \\(train.json\\): eval or render it, or train into"
+    with pytest.raises(FileExistsError, match=finished):  # (--resume: "nothing to train")
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    (tmp_path / "run" / "train.json").rename(tmp_path / "train.json")  # as if stopped
+    with pytest.raises(FileExistsError, match="holds a run; pass --resume to continue it, or"):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    (tmp_path / "train.json").rename(tmp_path / "run" / "train.json")
     shutil.rmtree(tmp_path / "run" / "checkpoints")  # as if stopped before its first checkpoint
     (tmp_path / "run" / "train.json").unlink()
     (tmp_path / "run" / "scene.ply").unlink()

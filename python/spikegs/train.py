@@ -619,10 +619,12 @@ class Trainer:
                 what = "no checkpoint yet" if started else "no run to continue, nothing written"
                 print(f"{self.run_dir}: {what}; training from the start", file=sys.stderr)
             if not resume and self.checkpoint_path.exists():
-                raise FileExistsError(
-                    f"{self.run_dir} already holds a run; pass --resume to continue it, or "
-                    f"another --out"
+                how = (  # --resume said "nothing to train" of a finished run
+                    "a finished one (train.json): eval or render it, or train into"
+                    if (self.run_dir / SUMMARY).is_file()
+                    else "pass --resume to continue it, or"
                 )
+                raise FileExistsError(f"{self.run_dir} already holds a run; {how} another --out")
             state = self._read_checkpoint() if from_checkpoint else None
             if state is not None:  # said: a resumed run printed nothing before its next line
                 it, iterations = state["iteration"], self.config.train.iterations
