@@ -2457,6 +2457,8 @@ def test_render_refuses_an_unwritable_video_before_rendering(
     cases = [("dir.gif", []), ("v.mp4", ["--fps", "0"]), ("v.gif", ["--fps", "1000"])]
     cases += [("v.mp4", ["--fps", "99999999999"])]  # PyAV's OverflowError, after rendering
     cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
+    (tmp_path / "cams.gif.json").mkdir()  # where its cameras go: said after rendering, exit 0
+    cases += [("cams.gif", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
     monkeypatch.setattr("spikegs.video.MP4_CODECS", ("vp6",))  # FFmpeg decodes it only
