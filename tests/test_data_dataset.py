@@ -425,6 +425,11 @@ def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):
             **{**SMALL, "speed": 0.0, "test_on_path": 0, "test_off_path": 3},
         )
     assert [v.name for v in still.test_views] == ["off_000"]
+    # by default too (it held one of the default 8 unsaid); a frame sequence's defaults are as
+    # many as it has (tests/test_data_sources.py)
+    default = {**SMALL, "speed": 0.0, "test_on_path": 0, "test_off_path": None}
+    with pytest.warns(UserWarning, match="1 off-path test views of the 0 and 8 asked or by def"):
+        simulate_dataset("solids", tmp_path / "still8", **default)
 
 
 def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):

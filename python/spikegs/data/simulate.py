@@ -562,10 +562,14 @@ def simulate_dataset(
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
     check_test_views(views, f"scene '{source.name}'")  # before any work
-    if any(n is not None and got < n for n, got in zip(asked, (len(on_path), off_path))):
-        warnings.warn(  # a frame sequence holds so many frames and test views
+    # a frame sequence holds so many frames and test views: its defaults are as many as it has;
+    # an orbit's are said where it gives fewer (a still camera's arc held one off-path view)
+    wanted = asked if source.kind == "frames" else (test_on_path, test_off_path)
+    if any(n is not None and got < n for n, got in zip(wanted, (len(on_path), off_path))):
+        how = "asked" if wanted == asked else "asked or by default"
+        warnings.warn(
             f"scene '{source.name}' gives {len(on_path)} on-path and {off_path} off-path "
-            f"test views of the {test_on_path} and {test_off_path} asked (an on-path view is a "
+            f"test views of the {test_on_path} and {test_off_path} {how} (an on-path view is a "
             f"frame {2 * WINDOW_MARGIN} readouts or more from the ends, distinct; an orbit's "
             f"off-path views lie a degree or more apart over the arc it turns)",
             stacklevel=2,
