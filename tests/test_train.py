@@ -2245,6 +2245,11 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
     printed = printed.out
     assert "spikegs" in printed and "tfp33" in printed and "SpikeGS - TFP(33)+3DGS" in printed
     assert "dB at equal iterations (80 each; SpikeGS " in printed  # the budget it compares at
+    # its folder given where a run or a dataset goes: its runs and dataset named
+    assert main(["eval", str(out)]) == 2
+    assert "a folder of runs (runs/spikegs, runs/tfp33: a demo's" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match=r"data holds one \(a demo's folder\?\)"):
+        load_dataset(out)
     # --resume on the finished demo prints it again: nothing trained, evaluated or rewritten
     # (its time was this process's alone, then grew by each one's evaluation); --iterations
     # other than its own refused first, in the demo's words (train's, after its dataset)

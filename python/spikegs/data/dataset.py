@@ -746,10 +746,12 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
         if run is not None:
             raise FileNotFoundError(run)
         partial = " (its spikes without a meta.json: an interrupted simulation?)"
+        within = f"; {root / 'data'} holds one (a demo's folder?)"
         raise FileNotFoundError(
             f"{root}: no dataset found: none of {META} (simulated or spikegs poses), "
             f"{POSES_BOUNDS} (LLFF) or {' / '.join(TRANSFORMS)} (NeRF layout)"
-            f"{partial if holds_dataset(root) else ''}; docs/datasets.md"
+            f"{partial if holds_dataset(root) else ''}"
+            f"{within if layout_files(root / 'data') else ''}; docs/datasets.md"
         )
     # a meta.json marks spikegs's own layout; another layout's files beside it are not read
     not_read = (
