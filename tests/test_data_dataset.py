@@ -971,8 +971,15 @@ def test_existing_dataset_needs_overwrite(tmp_path):
     out = tmp_path / "ds"
     simulate_dataset("wires", out, **SMALL)
     (out / "sim").mkdir()  # a cache derived from the old spikes
+    cached = ["sim_w33_seed0.pt", "sim_w33_seed0.pt.json", "sim_w33_seed0.pt.lock", "a.pt.partial"]
+    for name in [*cached, ".sim_w33_seed0.pt.123.tmp"]:
+        (out / "sim" / name).write_bytes(b"")
     with pytest.raises(FileExistsError, match="--overwrite"):
         simulate_dataset("wires", out, **SMALL)
+    (out / "sim" / "readme.txt").write_text("mine")  # deleted with the cache, unasked
+    with pytest.raises(FileExistsError, match=r"not a dataset's \(sim/readme.txt\)"):
+        simulate_dataset("wires", out, overwrite=True, **SMALL)
+    (out / "sim" / "readme.txt").unlink()
     ds = simulate_dataset("wires", out, overwrite=True, seed=1, **SMALL)
     assert ds.meta["seed"] == 1 and not (out / "sim").exists()
     (out / "notes.txt").write_text("mine")  # --overwrite deletes the directory: refused

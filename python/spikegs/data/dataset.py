@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic_save import NAME_MAX, target_name, write_text_atomically
+from ..atomic_save import NAME_MAX, is_temporary, target_name, write_text_atomically
 from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
@@ -254,6 +254,8 @@ DERIVED = (
     TIMESTAMPS_BACKUP,
     LOCK,
 )
+SIM_SUFFIXES = (".pt", ".pt.json", ".pt.lock", ".pt.partial")  # what DATASET/sim holds: SIMs,
+# their scores, locks and interrupted trainings' states
 WRITERS = "spikegs simulate or poses"
 READERS = "train, sim-train, eval or render"
 
@@ -357,6 +359,13 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
         )
     names = [p.name for p in out.iterdir()] if out.is_dir() else []
     others = sorted(n for n in names if target_name(n) not in PARTS and n not in DERIVED)
+    cached = out / "sim"  # SIMs of the old spikes, deleted with them: nothing else (a user's)
+    if cached.is_dir():
+        others += sorted(
+            f"sim/{p.name}"
+            for p in cached.iterdir()
+            if not (is_temporary(p.name) or p.name.endswith(SIM_SUFFIXES))
+        )
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"
