@@ -1797,7 +1797,7 @@ def test_dssim_term_is_off_unless_configured(dataset, tmp_path, monkeypatch):
     assert not torch.equal(means[0.0], means[0.2])
 
 
-def test_render_writes_an_orbit_gif(dataset, tmp_path):
+def test_render_writes_an_orbit_gif(dataset, tmp_path, capsys):
     from PIL import Image
 
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
@@ -1806,6 +1806,9 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path):
     assert main(["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "3"]) == 0
     with Image.open(gif) as im:
         assert im.n_frames == 3 and im.size == (dataset.width, dataset.height)
+    one = tmp_path / "one.gif"  # "1 frames, ..."
+    assert main(["render", str(tmp_path / "run"), "--out", str(one), "--frames", "1"]) == 0
+    assert "\n1 frame, a loop over the views" in capsys.readouterr().out
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "x.avi")]) == 2
     mp4 = tmp_path / "orbit.mp4"  # no ffmpeg on PATH needed
     assert main(["render", str(tmp_path / "run"), "--out", str(mp4), "--frames", "3"]) == 0

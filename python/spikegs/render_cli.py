@@ -225,7 +225,8 @@ def run(args: argparse.Namespace) -> int:
     trained = read_summary(args.run).get("camera")  # (a run from before it: the dataset's)
     frames = orbit_frames(load_ply(ply), dataset, viewmats, args.scale, trained)  # as written
     write_video(args.out, frames, args.fps, count=len(viewmats))
-    print(f"{len(viewmats)} frames, {PATH_TEXT[path]} -> {args.out}")
+    count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
+    print(f"{count}, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
     try:  # (the video stands without it, as sim-train's table does)
         save_orbit(
