@@ -1874,7 +1874,7 @@ def test_render_writes_each_frame_as_it_is_rendered(dataset, tmp_path, monkeypat
         assert _decoded(tmp_path / video).shape == (48, 120, 160, 3)
 
 
-def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, capsys):
+def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, capsys, monkeypatch):
     """VIDEO.json holds the orbit's poses in trajectory.json's layout (camera to world, OpenCV,
     the dataset's camera) and what rendered them: another method can be rendered at the same
     views; on --path trajectory, each frame's readout too (it loads as a trajectory). A place
@@ -1911,10 +1911,18 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
     np.testing.assert_allclose(path.readouts, readouts, rtol=1e-12)
     np.testing.assert_allclose(path.viewmats, dataset.trajectory.pose_at(readouts), atol=1e-12)
     assert json.loads(walk.with_name("walk.gif.json").read_text())["orbit"] == "trajectory"
-    (tmp_path / "o.gif.json").mkdir()  # a folder in its place
+    (tmp_path / "o.gif.json").mkdir()  # a folder in its place: refused before rendering
     capsys.readouterr()
-    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif")]) == 0
-    assert (tmp_path / "o.gif").is_file()
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif")]) == 2
+    assert "o.gif.json: is a folder" in capsys.readouterr().err
+    assert not (tmp_path / "o.gif").exists()
+
+    def disk_full(*args, **kwargs):  # after the video: it stands
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("spikegs.render_cli.save_orbit", disk_full)
+    assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "p.gif")]) == 0
+    assert (tmp_path / "p.gif").is_file()
     assert "cameras not written beside the video: " in capsys.readouterr().err
 
 
@@ -3297,8 +3305,8 @@ def test_a_fresh_run_refuses_a_directory_with_other_files(dataset, tmp_path, cap
     (started / "checkpoints").mkdir()
     Trainer(dataset, config, started, progress=False).train()
     argv = ["train", str(dataset.root), "--no-progress", "--out"]
-    assert main([*argv, str(started)]) == 2  # now a run: refused, naming the flag
-    assert "pass --resume" in capsys.readouterr().err
+    assert main([*argv, str(started)]) == 2  # now a finished run: refused, saying so
+    assert "holds a run; a finished one (train.json)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("flag", ["--method", "--config", "--out"])
