@@ -611,6 +611,20 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert 0 < stats["beyond_neighbours"] < stats["pairs"], stats
 
 
+def test_poses_refuses_a_dataset_it_cannot_write_before_any_work(tmp_path, monkeypatch, capsys):
+    """A read-only dataset: its lock's "[Errno 30] Read-only file system: .lock" (no fix named),
+    or, where a .lock was there, all the images' work and then sfm/'s "File exists"."""
+    from spikegs import poses_cli
+    from spikegs.cli import main
+
+    (tmp_path / "meta.json").write_text("{}")
+    monkeypatch.setattr(poses_cli, "writable_folder", lambda folder: folder != tmp_path)
+    monkeypatch.setattr(poses_cli, "_estimate_poses", lambda *a: pytest.fail("worked"))
+    assert main(["poses", str(tmp_path)]) == 2
+    assert "not writable, where spikegs poses writes the poses" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["meta.json"]
+
+
 def test_the_failure_hint_offers_sim_only_where_the_images_are_not_sims():
     stats = {
         "images": 20,
@@ -623,6 +637,18 @@ def test_the_failure_hint_offers_sim_only_where_the_images_are_not_sims():
     tfp, sims = (sfm._failure(stats, 4, 0.5, Path("x"), from_sim=s) for s in (False, True))
     assert "a longer --window, or --sim, gives cleaner images" in tfp
     assert "a longer --window gives cleaner images" in sims and "--sim" not in sims
+    # a raw recording's SIM needs poses first: --sim sent it to sim-train, which sent it back
+    raw = sfm._failure(stats, 4, 0.5, Path("x"), from_sim=False, can_sim=False)
+    assert "a longer --window gives cleaner images" in raw and "--sim" not in raw
+
+
+def test_the_failure_says_no_pair_matched_where_none_did():
+    """Noise matched no pair, and was told that no pair showed parallax, and to spread its
+    images over more readouts."""
+    stats = {"images": 40, "features": 300, "pairs": 0, "parallax_pairs": 0, "inliers": 0}
+    noise = sfm._failure({**stats, "beyond_neighbours": 0}, None, 0.5, Path("x"), from_sim=False)
+    assert "no image pair matched, so nothing can be triangulated" in noise
+    assert "spread" not in noise and "few matching pairs" in noise
 
 
 def test_the_failure_says_images_far_apart_and_not_to_spread_them_further():
@@ -708,8 +734,9 @@ def test_sfm_reads_its_images_gamma_encoded(tmp_path):
 
 def test_the_failure_names_stated_intrinsics_held_fixed():
     """A focal stated in mm (or ×10) registers none of 120 images of 128² solids, and the message
-    named only the images: it now gives the focal SfM held and its field of view. Not where the
-    intrinsics were estimated, nor where mapping was not tried."""
+    named only the images: it now gives the focal SfM held and its field of view, where mapping
+    was not tried too (fx 8 of 88 matched pairs without parallax: the camera's motion alone was
+    blamed). Not where the intrinsics were estimated."""
     stats = {
         "images": 120,
         "features": 700,
@@ -719,11 +746,13 @@ def test_the_failure_names_stated_intrinsics_held_fixed():
         "inliers": 30000,
     }
     K = np.array([[8.79, 0, 64], [0, 8.79, 64], [0, 0, 1]])  # 175.8 px as if in mm at 20 µm
-    message = sfm._failure(stats, 0, 0.5, Path("x"), False, K, 128)
+    message = sfm._failure(stats, 0, 0.5, Path("x"), False, K=K, width=128)
     assert "held fixed (fx = 8.79 px, a 164° horizontal field of view)" in message
     assert "remove fx, fy, cx, cy for SfM to estimate them" in message
     assert "held fixed" not in sfm._failure(stats, 0, 0.5, Path("x"), False)
-    assert "held fixed" not in sfm._failure(stats, None, 0.5, Path("x"), False, K, 128)
+    assert "held fixed (fx = 8.79" in sfm._failure(
+        stats, None, 0.5, Path("x"), False, K=K, width=128
+    )
 
 
 def _stop_before_matching(*args, **kwargs):
@@ -742,6 +771,23 @@ def test_poses_says_when_it_caps_the_count_and_when_matching_will_be_slow(
     err = capsys.readouterr().err
     assert "--count 100000: the stream has 368 readouts" in err, err
     assert "SfM: 368 images, 67528 pairs matched exhaustively (slow:" in err, err
+
+
+def test_a_failed_or_stopped_run_keeps_the_live_poses_report(tmp_path, monkeypatch, capsys):
+    """SfM's folder is replaced as a run starts: a re-run that failed (or was stopped) deleted
+    sfm/report.json, the record of the poses still in use."""
+    still = _solids(tmp_path / "still", 16, 200, speed=0.0005)
+    (still.root / "sfm").mkdir()
+    (still.root / "sfm" / "report.json").write_text('{"registered": 40}')
+
+    def replaced_then_failed(images, readouts, work_dir, *args, **kwargs):
+        shutil.rmtree(work_dir)  # as reconstruct does first
+        _stop_before_matching()
+
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", replaced_then_failed)
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    assert "stopped before matching" in capsys.readouterr().err
+    assert (still.root / "sfm" / "report.json").read_text() == '{"registered": 40}'
 
 
 def test_the_option_checks_let_their_edges_through(tmp_path, monkeypatch, capsys):
@@ -794,17 +840,24 @@ def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_pat
     """Where the first images did not register, the trajectory holds the first registered pose
     back to readout 0: a third of fine-texture's training views trained on poses 10-31 degrees
     off, silently. Those timestamps are dropped, the original list kept."""
-    (tmp_path / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in range(40, 961, 40)))
-    ks, inside = _registered_timestamps(tmp_path, np.array([220, 500, 900]))
+    root = tmp_path / "data"
+    root.mkdir()
+    (root / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in range(40, 961, 40)))
+    ks, inside = _registered_timestamps(root, np.array([220, 500, 900]))
     assert ks[inside].tolist() == list(range(240, 881, 40))  # windows of 33 within [220, 900]
-    said = _keep_timestamps(tmp_path, ks, inside, np.array([220, 500, 900]))
+    said = _keep_timestamps(root, ks, inside, np.array([220, 500, 900]))
     assert "kept 17 of 24 training timestamps" in said
-    kept = np.loadtxt(tmp_path / "train_timestamps.txt").tolist()
+    kept = np.loadtxt(root / "train_timestamps.txt").tolist()
     assert kept == list(range(240, 881, 40))
-    assert _registered_timestamps(tmp_path, np.array([0, 500, 999])) is None  # all inside
-    check_output(tmp_path, overwrite=True)  # the .bak is a dataset's part: simulate replaces it
+    ks, inside = _registered_timestamps(root, np.array([0, 500, 999]))  # all, from the .bak
+    assert inside.all() and len(ks) == 24
+    uncut = tmp_path / "uncut"  # all inside, none dropped before: nothing to rewrite
+    uncut.mkdir()
+    (uncut / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in range(40, 961, 40)))
+    assert _registered_timestamps(uncut, np.array([0, 500, 999])) is None
+    check_output(root, overwrite=True)  # the .bak is a dataset's part: simulate replaces it
     with pytest.raises(ValueError, match=r"no training timestamp .* readouts \[400, 420\]"):
-        _registered_timestamps(tmp_path, np.array([400, 420]))
+        _registered_timestamps(root, np.array([400, 420]))
 
 
 def test_similarity_never_mirrors_the_world():
@@ -1236,13 +1289,23 @@ def test_a_timestamps_window_may_reach_the_registered_ends(tmp_path):
 
 def test_a_second_pose_run_keeps_the_original_timestamps_backup(tmp_path):
     """train_timestamps.txt.bak holds the list before the first run that dropped timestamps; a
-    second run, dropping more, leaves it (it held the first run's cut)."""
+    second run, dropping more, leaves it (it held the first run's cut), and takes its timestamps
+    from it: one registering a wider span than the first widens them again (they stayed the
+    first run's for good), the whole span all of them."""
     original = "".join(f"{k}\n" for k in range(40, 961, 40))
     (tmp_path / "train_timestamps.txt").write_text(original)
     for registered in ([220, 500, 900], [300, 500, 700]):
         ks, inside = _registered_timestamps(tmp_path, np.array(registered))
         _keep_timestamps(tmp_path, ks, inside, np.array(registered))
     assert np.loadtxt(tmp_path / "train_timestamps.txt").tolist() == list(range(320, 681, 40))
+    assert (tmp_path / "train_timestamps.txt.bak").read_text() == original
+    for registered, kept in (
+        ([100, 500, 900], range(120, 881, 40)),
+        ([0, 999], range(40, 961, 40)),
+    ):
+        ks, inside = _registered_timestamps(tmp_path, np.array(registered))
+        _keep_timestamps(tmp_path, ks, inside, np.array(registered))
+        assert np.loadtxt(tmp_path / "train_timestamps.txt").tolist() == list(kept)
     assert (tmp_path / "train_timestamps.txt.bak").read_text() == original
 
 
@@ -1267,9 +1330,18 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
         967.0,
     ]
     registered = np.array([8, *range(300, 700, 50), 896])  # 8 (no room) and 650 held out
-    views, ks = _held_out_split(streams, trajectory, registered, 8, truth)
+    views, ks, spaced = _held_out_split(streams, trajectory, registered, 8, truth)
     assert [v.readout for v in views] == [650.0]
-    assert (ks.min(), ks.max()) == (40, 864)
+    assert (ks.min(), ks.max()) == (40, 864) and spaced is None
+    # images dense in readouts (a high --count): every 8th held out left 15 of 105 timestamps;
+    # spaced ones, as a pose log's stream holds out, leave over 4 times as many
+    dense = np.arange(40, 960, 20)  # [46]
+    views, ks, spaced = _held_out_split(streams, trajectory, dense, 8, truth)
+    assert len(ks) > 4 * 15 and len(views) >= 1
+    assert "leaves 15 training timestamps (each keeps 64 readouts clear of a held-out view): " in (
+        spaced
+    )
+    assert spaced.endswith(f"which leaves {len(ks)}")
 
 
 def test_a_raw_recordings_split_that_comes_out_empty_is_refused_saying_why():
@@ -1538,6 +1610,35 @@ def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_i
     assert (note["sharp_images"], note["pseudo"]) == (0, 1)
     assert note["pseudo_defects"].startswith("1 hot, stuck or dead pixels")
     assert note["pseudo_flicker"].startswith("divided by the light's flicker: period 200.0")
+
+
+def test_a_stop_while_the_poses_are_written_waits_for_them(tiny, tmp_path, monkeypatch, ctrl_c):
+    """Ctrl-C between the trajectory and meta.json left SfM's poses beside a recording's bare
+    meta.json: the next run, told to remove the timestamps, aligned to them as to a pose log
+    ("error 0.00 deg") and kept them as the original. The writes now end first, then it stops."""
+    import signal
+
+    from spikegs import poses_cli
+
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    shutil.copy(tiny.root / "spikes.dat", raw / "spikes.dat")
+    keys = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
+    (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
+    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root))
+    write_parts = poses_cli.write_parts
+
+    def stopped_midway(root, meta, trajectory, *args):
+        trajectory.save_json(root / "trajectory.json")  # (as write_parts begins)
+        signal.raise_signal(signal.SIGINT)
+        write_parts(root, meta, trajectory, *args)
+
+    monkeypatch.setattr(poses_cli, "write_parts", stopped_midway)
+    with pytest.raises(KeyboardInterrupt):
+        poses_cli.estimate_poses(raw, count=10)
+    assert json.loads((raw / "meta.json").read_text())["held_out_by"] == poses_cli.HELD_OUT_BY
+    assert (raw / "sfm" / "report.json").is_file() and (raw / "points3d.ply").is_file()
+    assert len(load_dataset(raw).test_views) == 1
 
 
 def test_a_raw_recordings_default_stride_is_that_of_its_registered_readouts(

@@ -52,15 +52,21 @@ from .data.dataset import (
     writing_dataset,
 )
 from .data.real import (
+    FEW_KEPT,
     HOLDOUT_EVERY,
     NEEDED_WINDOW,
     PSEUDO_PREFIX,
+    _spaced_hold_out,
+    _spaced_mask,
     ground_truth_note,
+    ordinal,
     pseudo_truth,
 )
 from .data.simulate import default_train_every, train_timestamps
 from .data.trajectory import Trajectory
+from .interrupt import deferred_interrupt, interruption
 from .number_checks import is_int
+from .output_paths import writable_folder
 from .pixel_defects import defect_maps, repaired_spikes
 from .point_cloud import write_points
 from .pose_refine import pose_errors
@@ -211,14 +217,17 @@ def _stated_train_every(meta: dict, meta_path: Path) -> int | None:
 
 
 def _registered_timestamps(root: Path, registered: np.ndarray):
-    """The dataset's training timestamps [M] and which [M] have the exposure loss's default window
-    (t ± 16) between the first and last registered readouts (outside them the poses are held
-    constant: wrong by as much as the camera turns there); None where all do. ValueError where
-    none does, or where the file is malformed."""
-    ks = read_timestamps(root / TIMESTAMPS)  # [M]
+    """The dataset's training timestamps [M], those before any poses run dropped some (its .bak,
+    where there is one: a run registering a narrower span narrowed them for good), and which [M]
+    have the exposure loss's default window (t ± 16) between the first and last registered
+    readouts (outside them the poses are held constant: wrong by as much as the camera turns
+    there); None where all do and none was dropped. ValueError where none does, or where the
+    file is malformed."""
+    backup = root / TIMESTAMPS_BACKUP
+    ks = read_timestamps(backup if backup.is_file() else root / TIMESTAMPS)  # [M]
     reach = SupervisionConfig.exposure_window // 2
     inside = (ks - reach >= registered[0]) & (ks + reach <= registered[-1])
-    if inside.all():
+    if inside.all() and not backup.is_file():
         return None
     if not inside.any():
         raise ValueError(
@@ -246,25 +255,46 @@ def _keep_timestamps(root: Path, ks: np.ndarray, inside: np.ndarray, registered)
 
 def _held_out_split(
     streams, trajectory: Trajectory, registered: np.ndarray, train_every: int, truth
-) -> tuple[list[TestView], np.ndarray]:
+) -> tuple[list[TestView], np.ndarray, str | None]:
     """A raw recording's held-out views and training timestamps [M]: every HOLDOUT_EVERY-th
     `registered` readout whose TFP(65) fits in the stream is held out, `truth(k, 65)` [H, W, C]
     its ground truth (`pseudo_truth`: TFP with the sensor's defects repaired and a flicker of the
     light divided, as the real-data loaders make it); timestamps every `train_every` readouts
     whose 65-readout windows lie between the first and last registered readouts (the trajectory
-    is held constant outside) and clear of the held-out views'. ValueError when either comes out
-    empty."""
+    is held constant outside) and clear of the held-out views'. Images dense in readouts (a high
+    --count: 8 of 160 timestamps trained, unsaid) hold out spaced ones instead where those keep
+    FEW_KEPT times as many timestamps, as a pose log's stream does (`real._spaced_hold_out`),
+    and the line that says so; else None. ValueError when either comes out empty."""
     num = len(streams[0])
     lo, hi = centred_range(num, NEEDED_WINDOW)  # readouts whose ground-truth window fits
-    held = [int(k) for k in registered[::HOLDOUT_EVERY] if lo <= k <= hi]
-    if not held:
+    fits = (lo <= registered) & (registered <= hi)  # [R]
+    every_nth = np.zeros(len(registered), bool)
+    every_nth[::HOLDOUT_EVERY] = True
+    if not (every_nth & fits).any():
         raise ValueError(
             f"no held-out view: none of the registered images at readouts "
             f"{registered[::HOLDOUT_EVERY].tolist()} has room for a {NEEDED_WINDOW}-readout "
             f"ground truth in the {num}-readout stream"
         )
-    ks = train_timestamps(num, np.array(held), train_every)
-    ks = ks[(ks - WINDOW_MARGIN >= registered[0]) & (ks + WINDOW_MARGIN <= registered[-1])]
+
+    def clear_of(test: np.ndarray) -> np.ndarray:  # timestamps [M] clear of registered[test]
+        ks = train_timestamps(num, registered[test], train_every)
+        return ks[(ks - WINDOW_MARGIN >= registered[0]) & (ks + WINDOW_MARGIN <= registered[-1])]
+
+    test, note = every_nth & fits, None
+    ks, nth = clear_of(test), _spaced_hold_out(registered, train_every)
+    if nth > HOLDOUT_EVERY:
+        spaced = _spaced_mask(fits, nth)
+        spaced_ks = clear_of(spaced)
+        if spaced.any() and len(ks) * FEW_KEPT < len(spaced_ks):
+            note = (
+                f"every {HOLDOUT_EVERY}th registered image, the default held-out views, leaves "
+                f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear "
+                f"of a held-out view): held out every {ordinal(nth)} instead, which leaves "
+                f"{len(spaced_ks)}"
+            )
+            test, ks = spaced, spaced_ks
+    held = [int(k) for k in registered[test]]
     if not len(ks):
         raise ValueError(
             f"no training timestamp: the registered readouts [{registered[0]}, {registered[-1]}] "
@@ -281,7 +311,7 @@ def _held_out_split(
         )
         for k in held
     ]
-    return views, ks
+    return views, ks, note
 
 
 def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) -> dict:
@@ -321,6 +351,11 @@ def estimate_poses(
     (also written to DATASET/sfm/report.json). Busy while another process writes the dataset or
     trains from it."""
     args = (window, every, count, sim, min_registered)
+    if Path(root).is_dir() and not writable_folder(Path(root)):  # (its lock's EROFS, or all the
+        raise ValueError(  # images' work, then sfm/'s "File exists", said no more)
+            f"{root}: not writable, where spikegs poses writes the poses, points and split (and "
+            f"its work in {WORK_DIR}/); copy the dataset to a writable folder"
+        )
     if not takes_lock(Path(root)):  # refused as a dataset without meta.json, nothing made
         return _estimate_poses(Path(root), *args)
     with writing_dataset(root):  # its poses and split, read as they change: one process at a time
@@ -397,9 +432,23 @@ def _estimate_poses(
         k in meta for k in ("fx", "fy", "cx", "cy")
     ):
         K = intrinsics_matrix(meta)
-    recon = reconstruct(
-        images, readouts, root / WORK_DIR, K, min_registered, from_sim=sim_model is not None
-    )
+    report_path = root / WORK_DIR / "report.json"  # the live poses' (SfM's folder is replaced)
+    live_report = report_path.read_text() if report_path.is_file() else None
+    try:
+        recon = reconstruct(  # a SIM trains on a dataset with poses: not a raw recording's first
+            images,
+            readouts,
+            root / WORK_DIR,
+            K,
+            min_registered,
+            from_sim=sim_model is not None,
+            can_sim=(root / TRAJECTORY).is_file(),
+        )
+    except BaseException:  # failed or stopped: the poses still in use keep their report
+        if live_report is not None and not report_path.is_file():
+            report_path.parent.mkdir(parents=True, exist_ok=True)
+            write_text_atomically(report_path, live_report)
+        raise
     defective = int(defects.any(0).sum())  # pixels, in any channel
     report = {
         "images": recon.num_images,
@@ -457,7 +506,6 @@ def _estimate_poses(
             + (" — against the first spikegs poses run's poses, not a pose log" if ours else "")
         )
         if not backup.exists():
-            shutil.copy2(reference_path, backup)
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
     kept = None if raw else _registered_timestamps(root, recon.readouts)  # checked before writes
@@ -465,24 +513,35 @@ def _estimate_poses(
         span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover
         train_every = stated_every or default_train_every(span)
         truth, notes = pseudo_truth(streams)
-        views, ks = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
+        views, ks, spaced = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
         note = {**ground_truth_note(0, len(views)), **notes}
         meta.update(train_every=train_every, test_ground_truth=note, held_out_by=HELD_OUT_BY)
-        shutil.rmtree(root / TEST_DIR, ignore_errors=True)  # a previous run's held-out images
-        write_parts(root, meta, trajectory, ks, views)
+        where = f"every {HOLDOUT_EVERY}th registered image" if spaced is None else "spaced"
         messages.append(
             f"wrote {TRAJECTORY}, {POINTS}, {META}, {TIMESTAMPS} ({len(ks)} training timestamps) "
-            f"and {TEST_VIEWS}: {len(views)} held-out views at every {HOLDOUT_EVERY}th registered "
-            f"image, their ground truth TFP({NEEDED_WINDOW}) of their own spikes (named "
-            f"{PSEUDO_PREFIX}*)"
+            f"and {TEST_VIEWS}: {len(views)} held-out views at {where}, their ground truth "
+            f"TFP({NEEDED_WINDOW}) of their own spikes (named {PSEUDO_PREFIX}*)"
         )
+        messages += [spaced] if spaced else []
     else:
-        trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
-        write_text_atomically(meta_path, json.dumps(meta, indent=1))
         messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
-        if kept is not None:
-            messages.append(_keep_timestamps(root, *kept, recon.readouts))
-    write_points(root / POINTS, recon.points, recon.colors)
-    report["summary"] = "\n".join(messages)
-    write_text_atomically(root / WORK_DIR / "report.json", json.dumps(report, indent=1))
+    # written whole, not torn by a stop: one between the trajectory and meta.json left SfM's
+    # poses, which the next run aligned to as a pose log ("error 0.00 deg") and kept as its .bak
+    stop = "\n{signal}: stopping once the poses, points and split are written"
+    with deferred_interrupt(stop) as interrupted:
+        if reference is not None and not backup.exists():
+            shutil.copy2(reference_path, backup)
+        if raw:
+            shutil.rmtree(root / TEST_DIR, ignore_errors=True)  # a previous run's held-out images
+            write_parts(root, meta, trajectory, ks, views)
+        else:
+            trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
+            write_text_atomically(meta_path, json.dumps(meta, indent=1))
+            if kept is not None:
+                messages.append(_keep_timestamps(root, *kept, recon.readouts))
+        write_points(root / POINTS, recon.points, recon.colors)
+        report["summary"] = "\n".join(messages)
+        write_text_atomically(report_path, json.dumps(report, indent=1))
+    if interrupted():
+        raise interruption(interrupted())
     return report

@@ -104,11 +104,14 @@ def reconstruct(
     min_registered: float = 0.5,
     seed: int = 0,
     from_sim: bool = False,
+    can_sim: bool = True,
 ) -> Reconstruction:
     """Incremental SfM on grey images [N, H, W] taken at `readouts` [N], in `work_dir` (replaced:
     images/, database.db, sparse/). Known intrinsics `K` are held fixed, else a pinhole camera is
     estimated. ValueError, with the numbers and the likely cause, when fewer than `min_registered`
-    of the images are registered (`from_sim`: the images are SIM's, which its hints then know)."""
+    of the images are registered (`from_sim`: the images are SIM's, which its hints then know;
+    `can_sim`: a SIM can be trained for them, else --sim is not suggested: a raw recording's
+    needs poses first)."""
     pycolmap = import_pycolmap()
     work = Path(work_dir)
     shutil.rmtree(work, ignore_errors=True)
@@ -144,8 +147,10 @@ def reconstruct(
             database, matching_options=matching, verification_options=verification
         )
         stats = _match_stats(database, len(names))
+        failure = {"images": work / "images", "from_sim": from_sim, "can_sim": can_sim, "K": K}
+        failure["width"] = images.shape[2]
         if stats["parallax_pairs"] == 0:
-            raise ValueError(_failure(stats, None, min_registered, work / "images", from_sim))
+            raise ValueError(_failure(stats, None, min_registered, **failure))
         models = pycolmap.incremental_mapping(
             database, work / "images", work / "sparse", _mapper_options(K is None, seed)
         )
@@ -154,11 +159,7 @@ def reconstruct(
     model = max(models.values(), key=lambda m: m.num_reg_images(), default=None)
     registered = 0 if model is None else model.num_reg_images()
     if registered < max(3, min_registered * len(names)):
-        raise ValueError(
-            _failure(
-                stats, registered, min_registered, work / "images", from_sim, K, images.shape[2]
-            )
-        )
+        raise ValueError(_failure(stats, registered, min_registered, **failure))
     return _read_model(model, names, readouts)
 
 
@@ -268,26 +269,29 @@ def _failure(
     min_registered: float,
     images: Path,
     from_sim: bool,
+    can_sim: bool = True,
     K: np.ndarray | None = None,
     width: int | None = None,
 ) -> str:
     """The failure message: what SfM managed (`registered` None: mapping not tried), in numbers,
-    the likely reasons, and where its `images` (SIM's where `from_sim`) are to look at. `K` [3, 3]:
-    the stated intrinsics SfM held fixed, for images `width` px wide."""
+    the likely reasons, and where its `images` (SIM's where `from_sim`; `can_sim`: SIM's could
+    be made) are to look at. `K` [3, 3]: the stated intrinsics SfM held fixed, for images
+    `width` px wide (a focal in mm failed as "no parallax", unnamed)."""
     n = stats["images"]
     need = max(3, int(np.ceil(min_registered * n)))
-    outcome = (
-        "no matched image pair shows parallax, so nothing can be triangulated"
-        if registered is None
-        else f"{registered} of {n} images registered (needed {need})"
-    )
+    if registered is not None:
+        outcome = f"{registered} of {n} images registered (needed {need})"
+    elif stats["pairs"] == 0:  # (noise: "no pair shows parallax" sent to more readouts)
+        outcome = "no image pair matched, so nothing can be triangulated"
+    else:
+        outcome = "no matched image pair shows parallax, so nothing can be triangulated"
     reasons = []
     if n < 10:
         reasons.append(f"too few images ({n}): raise --count or lower --every")
     if stats["features"] < MIN_FEATURES:
         reasons.append(
             "few features: textureless or noisy images (a longer --window"
-            + ("" if from_sim else ", or --sim,")
+            + ("" if from_sim or not can_sim else ", or --sim,")
             + " gives cleaner images)"
         )
     # few pairs but of neighbours on the path, most of them matched and with parallax: each
@@ -311,12 +315,12 @@ def _failure(
         reasons.append(
             "few matching pairs: too little overlap between images, or repetitive texture"
         )
-    if stats["parallax_pairs"] < n and not far:
+    if 0 < stats["pairs"] and stats["parallax_pairs"] < n and not far:
         reasons.append(
             "too little parallax (a short stream, or a camera that barely moves or only turns): "
             "spread the images over more readouts"
         )
-    if K is not None and registered is not None:  # a focal in mm, or ×10, registers none
+    if K is not None:  # a focal in mm, or ×10, registers none
         reasons.append(
             f"the intrinsics stated in meta.json are held fixed (fx = {K[0, 0]:.4g} px, a "
             f"{field_of_view_deg(width, K[0, 0]):.0f}° horizontal field of view): wrong ones "
