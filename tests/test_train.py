@@ -1318,6 +1318,9 @@ def test_every_method_config_loads():
         ("spikegs", {"densify": {"percent_dense": -0.1}}, "densify.percent_dense"),
         ("spikegs", {"densify": {"min_opacity": 1.0}}, "densify.min_opacity"),
         ("spikegs", {"densify": {"max_world_size": -1.0}}, "densify.max_world_size"),
+        # a radius is 1 pixel or more: 0.5 pruned 6.7k of 6.8k Gaussians in one round, unsaid
+        ("spikegs", {"densify": {"max_screen_size": 0.5}}, "densify.max_screen_size.*>= 1 pix"),
+        ("spikegs", {"densify": {"max_screen_size": -1.0}}, "densify.max_screen_size"),
         ("spikegs", {"train": {"init_gaussians": 1}}, "train.init_gaussians"),
         ("spikegs", {"train": {"seed": -1}}, "train.seed"),
         ("spikegs", {"train": {"seed": 2**64}}, "train.seed"),
@@ -2188,6 +2191,10 @@ def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     assert "SpikeGS 75 s with SIM's training, 6.1x the baseline's 12 s" in line
     results["spikegs"]["psnr"] = 29.216  # a lead that rounds to nothing prints no -0.00
     assert "-0.00" not in gain_line(results) and "+0.00 dB" in gain_line(results)
+    # the difference of the table's 18.99 and 18.50, not +0.50 from the unrounded scores
+    pair = {"spikegs": {**results["spikegs"], "psnr": 18.9939}}
+    pair["tfp33"] = {**results["tfp33"], "psnr": 18.4986}
+    assert gain_line(pair).startswith("SpikeGS - TFP(33)+3DGS: +0.49 dB")
     results["tfp33"]["train_seconds"] = 0.5  # a ratio to a baseline under a second
     assert "SpikeGS 75 s with SIM's training, 149.6x the baseline's 0 s" in gain_line(results)
     results["tfp33"]["train_seconds"] = 0.0  # no ratio to a baseline that took no time
@@ -3638,7 +3645,7 @@ def test_a_run_pruned_to_nothing_by_screen_size_names_that_setting(dataset, tmp_
     message named densify.min_opacity and densify.max_world_size instead (max_world_size 0.0,
     which never prunes, where that was set)."""
     densify = {"start": 1, "stop": 30, "every": 1, "opacity_reset_every": 2}
-    densify.update(max_screen_size=1e-9, max_world_size=0.0)
+    densify.update(max_screen_size=1.0, max_world_size=0.0)
     overrides = {"train": {**FAST["train"], "iterations": 40}, "densify": densify}
     trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
     trainer._fresh_state()
@@ -3647,7 +3654,7 @@ def test_a_run_pruned_to_nothing_by_screen_size_names_that_setting(dataset, tmp_
     trainer.iteration = 3  # a round after the first opacity reset, at 2: size pruning is on
     with pytest.raises(ValueError, match="pruning removed every Gaussian") as stopped:
         trainer.densify()
-    assert "densify.max_screen_size 1e-09" in str(stopped.value)
+    assert "densify.max_screen_size 1.0" in str(stopped.value)
     assert "min_opacity" not in str(stopped.value)
     assert "max_world_size" not in str(stopped.value)
 

@@ -347,8 +347,15 @@ class Config:
             d.grad_threshold,
             "> 0 (at 0 every Gaussian is cloned or split each round, up to max_gaussians)",
         )
-        for name in ("percent_dense", "max_screen_size", "max_world_size"):
+        for name in ("percent_dense", "max_world_size"):
             _require(getattr(d, name) >= 0, f"densify.{name}", getattr(d, name), ">= 0")
+        _require(  # a visible Gaussian's radius is a whole pixel or more: one round pruned 6.7k
+            d.max_screen_size == 0 or d.max_screen_size >= 1,  # of 6.8k at 0.5, unsaid
+            "densify.max_screen_size",
+            d.max_screen_size,
+            "0 (never) or >= 1 pixel (a visible Gaussian's radius is 1 pixel or more: under 1 "
+            "prunes every one)",
+        )
         _require(
             0 <= d.min_opacity < 1,
             "densify.min_opacity",
