@@ -211,6 +211,28 @@ class Trainer:
                 stacklevel=2,
             )
 
+    def _warn_if_the_exposure_densifies(self) -> None:
+        """A warning where the exposure loss's gradient outweighs the instant losses' in the
+        densification signal: with densify.instant_only, an odd exposure_poses' centre pose is
+        the instant render, whose screen-space gradient densifies, and takes λ/K of the exposure
+        loss's gradient there (divided by the instant weight alone): the model grows with λ
+        (a helper's 32² runs: 7.3k Gaussians at λ = 4, 55k at 40, 199k, the cap, at 400; 4.3k
+        to 4.8k at K = 4). Rendered apart, the centre cost SpikeGS 0.7-0.9 dB at the default λ:
+        left as measured (BENCHMARKS.md, "The exposure loss in the densification signal")."""
+        s, d = self.config.supervision, self.config.densify
+        poses = s.exposure_poses if s.exposure_weight > 0 else 0
+        instant, share = s.instant_total_weight(), s.exposure_weight / max(poses, 1)
+        if d.instant_only and instant and poses % 2 and share > instant:
+            warnings.warn(
+                f"supervision.exposure_weight {s.exposure_weight:g} over {poses} exposure "
+                f"poses: the centre pose, the instant render's, adds {share:.3g} of the "
+                f"exposure loss's gradient to the densification signal against the instant "
+                f"losses' {instant:g} (densify.instant_only divides by theirs alone): the model "
+                f"grows with the weight (55k Gaussians at 40 where 4 grew 7.3k); an even "
+                f"exposure_poses keeps the exposure out of it",
+                stacklevel=3,
+            )
+
     def _fresh_state(self) -> None:
         t = self.config.train
         self.environments: list[dict] = []  # what trained the run (`_record_environment`)
@@ -603,6 +625,7 @@ class Trainer:
             # poses, or a point cloud, that cannot train are refused before any work
             self._check_scene_in_view()
             self.cloud_points  # noqa: B018
+            self._warn_if_the_exposure_densifies()
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained
