@@ -356,7 +356,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     color = args.color or (started_color(out) if args.resume else False)
     if iterations is not None:
         configs = {m: c.with_iterations(iterations) for m, c in configs.items()}
-    if args.resume:  # refused at its run's settings, after its dataset, in train's words
+    if args.resume:  # other iterations refused in the demo's words (train's came after SIM)
         started = started or DEMO_OVERRIDES["train"]["iterations"]
         if args.iterations is not None and args.iterations != started:
             raise ValueError(

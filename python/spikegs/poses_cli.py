@@ -527,7 +527,7 @@ def _estimate_poses(
         messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
     # written whole, not torn by a stop: one between the trajectory and meta.json left SfM's
     # poses, which the next run aligned to as a pose log ("error 0.00 deg") and kept as its .bak
-    stop = "\n{signal}: stopping once the poses, points and split are written"
+    stop = "\n{signal}: stopping once the poses and points are written"
     with deferred_interrupt(stop) as interrupted:
         if reference is not None and not backup.exists():
             shutil.copy2(reference_path, backup)

@@ -217,7 +217,7 @@ class Trainer:
         the instant render, whose screen-space gradient densifies, and takes λ/K of the exposure
         loss's gradient there (divided by the instant weight alone): the model grows with λ
         (a helper's 32² runs: 7.3k Gaussians at λ = 4, 55k at 40, 199k, the cap, at 400; 4.3k
-        to 4.8k at K = 4). Rendered apart, the centre cost SpikeGS 0.7-0.9 dB at the default λ:
+        to 4.8k at K = 4). Rendered apart, the centre cost SpikeGS 0.6-0.8 dB at the default λ:
         left as measured (BENCHMARKS.md, "The exposure loss in the densification signal")."""
         s, d = self.config.supervision, self.config.densify
         poses = s.exposure_poses if s.exposure_weight > 0 else 0
