@@ -920,6 +920,7 @@ def test_an_exposure_weight_that_would_grow_the_model_is_warned_of(dataset, tmp_
     cases = [({"exposure_weight": 40.0}, {}, True), ({}, {}, False)]
     cases += [({"exposure_weight": 40.0, "exposure_poses": 4}, {}, False)]
     cases += [({"exposure_weight": 40.0}, {"instant_only": False}, False)]
+    cases += [({"exposure_weight": 40.0, "instant": "tfi"}, {}, False)]  # its pose t + 0.5
     for supervision, densify, warned in cases:
         config = load_config("spikegs", {"supervision": supervision, "densify": densify})
         trainer = Trainer(dataset, config, tmp_path / "run", progress=False)

@@ -222,7 +222,8 @@ class Trainer:
         s, d = self.config.supervision, self.config.densify
         poses = s.exposure_poses if s.exposure_weight > 0 else 0
         instant, share = s.instant_total_weight(), s.exposure_weight / max(poses, 1)
-        if d.instant_only and instant and poses % 2 and share > instant:
+        shared = poses % 2 and s.instant != "tfi"  # (TFI's instant pose is half a readout on)
+        if d.instant_only and instant and shared and share > instant:
             warnings.warn(
                 f"supervision.exposure_weight {s.exposure_weight:g} over {poses} exposure "
                 f"poses: the centre pose, the instant render's, adds {share:.3g} of the "
