@@ -52,17 +52,16 @@ from .data.dataset import (
     writing_dataset,
 )
 from .data.real import (
-    FEW_KEPT,
     HOLDOUT_EVERY,
     NEEDED_WINDOW,
     PSEUDO_PREFIX,
-    _spaced_hold_out,
-    _spaced_mask,
     ground_truth_note,
     ordinal,
     pseudo_truth,
+    spaced_instead,
+    timestamps_clear_of,
 )
-from .data.simulate import default_train_every, train_timestamps
+from .data.simulate import default_train_every
 from .data.trajectory import Trajectory
 from .interrupt import deferred_interrupt, interruption
 from .number_checks import is_int
@@ -263,7 +262,7 @@ def _held_out_split(
     whose 65-readout windows lie between the first and last registered readouts (the trajectory
     is held constant outside) and clear of the held-out views'. Images dense in readouts (a high
     --count: 8 of 160 timestamps trained, unsaid) hold out spaced ones instead where those keep
-    FEW_KEPT times as many timestamps, as a pose log's stream does (`real._spaced_hold_out`),
+    FEW_KEPT times as many timestamps, as a pose log's stream does (`real.spaced_instead`),
     and the line that says so; else None. ValueError when either comes out empty."""
     num = len(streams[0])
     lo, hi = centred_range(num, NEEDED_WINDOW)  # readouts whose ground-truth window fits
@@ -278,22 +277,21 @@ def _held_out_split(
         )
 
     def clear_of(test: np.ndarray) -> np.ndarray:  # timestamps [M] clear of registered[test]
-        ks = train_timestamps(num, registered[test], train_every)
-        return ks[(ks - WINDOW_MARGIN >= registered[0]) & (ks + WINDOW_MARGIN <= registered[-1])]
+        first, last = registered[0], registered[-1]
+        return timestamps_clear_of(num, registered[test], train_every, first, last)
 
     test, note = every_nth & fits, None
-    ks, nth = clear_of(test), _spaced_hold_out(registered, train_every)
-    if nth > HOLDOUT_EVERY:
-        spaced = _spaced_mask(fits, nth)
-        spaced_ks = clear_of(spaced)
-        if spaced.any() and len(ks) * FEW_KEPT < len(spaced_ks):
-            note = (
-                f"every {HOLDOUT_EVERY}th registered image, the default held-out views, leaves "
-                f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear "
-                f"of a held-out view): held out every {ordinal(nth)} instead, which leaves "
-                f"{len(spaced_ks)}"
-            )
-            test, ks = spaced, spaced_ks
+    ks = clear_of(test)
+    instead = spaced_instead(registered, fits, train_every, len(ks), clear_of)
+    if instead is not None:
+        spaced, spaced_ks, nth = instead
+        note = (
+            f"every {HOLDOUT_EVERY}th registered image, the default held-out views, leaves "
+            f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear "
+            f"of a held-out view): held out every {ordinal(nth)} instead, which leaves "
+            f"{len(spaced_ks)}"
+        )
+        test, ks = spaced, spaced_ks
     held = [int(k) for k in registered[test]]
     if not len(ks):
         raise ValueError(

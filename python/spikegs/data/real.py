@@ -152,6 +152,30 @@ def _spaced_hold_out(readouts: np.ndarray, every: int, clearances: int = HOLDOUT
     return max(HOLDOUT_EVERY, math.ceil(clearances * (HOLD_OUT_GAP + every) / step))
 
 
+def timestamps_clear_of(
+    num: int, held: np.ndarray, every: int, first: float, last: float
+) -> np.ndarray:
+    """Training timestamps [M] every `every` readouts of a `num`-readout stream, clear of the
+    held-out readouts `held`, whose 65-readout windows lie within [first, last] (the poses')."""
+    ks = train_timestamps(num, held, every)  # [M]
+    return ks[(ks - WINDOW_MARGIN >= first) & (ks + WINDOW_MARGIN <= last)]
+
+
+def spaced_instead(
+    readouts: np.ndarray, fits: np.ndarray, every: int, kept: int, clear_of
+) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """Where the default held-out poses of a dense pose log (readouts [P], every HOLDOUT_EVERY-th
+    of those that `fits`) keep `kept` training timestamps and spaced ones (`_spaced_hold_out`,
+    `_spaced_mask`) FEW_KEPT times as many (`clear_of(mask)`: the timestamps a mask keeps):
+    (their mask [P], their timestamps, every how many); else None."""
+    nth = _spaced_hold_out(readouts, every)
+    if nth <= HOLDOUT_EVERY:
+        return None
+    spaced = _spaced_mask(fits, nth)
+    spaced_ks = clear_of(spaced)
+    return (spaced, spaced_ks, nth) if spaced.any() and kept * FEW_KEPT < len(spaced_ks) else None
+
+
 def _spaced_mask(fits: np.ndarray, nth: int) -> np.ndarray:
     """Mask [P] of every `nth` pose from half that on, of those that `fits` [P] (their pseudo
     ground truth's window fits in the stream); the middle one of them where they are fewer."""
@@ -453,30 +477,30 @@ def stream_dataset(
     every = options.train_every or default_train_every(trajectory.end - trajectory.start + 1)
 
     def clear_of(test: np.ndarray) -> np.ndarray:  # training timestamps [M] clear of `test`
-        ks = train_timestamps(len(stream), readouts[test], every)  # [M]
-        return ks[(ks - WINDOW_MARGIN >= trajectory.start) & (ks + WINDOW_MARGIN <= trajectory.end)]
+        return timestamps_clear_of(
+            len(stream), readouts[test], every, trajectory.start, trajectory.end
+        )
 
     window = options.pseudo_gt_window or NEEDED_WINDOW
     lo, hi = centred_range(len(stream), window)  # readouts whose window fits
     fits = (lo <= np.round(readouts)) & (np.round(readouts) <= hi)  # [P] poses that can be scored
     ks = clear_of(test)
-    nth = _spaced_hold_out(readouts, every)
-    if options.test_views is None and nth > HOLDOUT_EVERY:  # the default, on a dense pose log
-        spaced = _spaced_mask(fits, nth)
-        spaced_ks = clear_of(spaced)
-        if spaced.any() and len(ks) * FEW_KEPT < len(spaced_ks):
-            picked = np.flatnonzero(spaced).tolist()
-            warnings.warn(
-                f"{source}: every {HOLDOUT_EVERY}th pose, the default held-out views, leaves "
-                f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear of "
-                f"a held-out pose): held out pose{'s' if len(picked) > 1 else ''} "
-                f"{', '.join(map(str, picked[:5]))}{', ...' if len(picked) > 5 else ''} instead "
-                f"({len(picked)} of {len(readouts)}, every {ordinal(nth)} of those with room for "
-                f"the pseudo ground truth's window), which leave {len(spaced_ks)}; test_views in "
-                f"spikegs.json chooses others",
-                stacklevel=3,
-            )
-            test, ks = spaced, spaced_ks
+    default = options.test_views is None  # the default held-out poses, on a dense pose log
+    instead = spaced_instead(readouts, fits, every, len(ks), clear_of) if default else None
+    if instead is not None:
+        spaced, spaced_ks, nth = instead
+        picked = np.flatnonzero(spaced).tolist()
+        warnings.warn(
+            f"{source}: every {HOLDOUT_EVERY}th pose, the default held-out views, leaves "
+            f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear of "
+            f"a held-out pose): held out pose{'s' if len(picked) > 1 else ''} "
+            f"{', '.join(map(str, picked[:5]))}{', ...' if len(picked) > 5 else ''} instead "
+            f"({len(picked)} of {len(readouts)}, every {ordinal(nth)} of those with room for "
+            f"the pseudo ground truth's window), which leave {len(spaced_ks)}; test_views in "
+            f"spikegs.json chooses others",
+            stacklevel=3,
+        )
+        test, ks = spaced, spaced_ks
     if not len(ks):
         held = readouts[test]
         spacing = float(np.median(np.diff(held))) if len(held) > 1 else math.inf
