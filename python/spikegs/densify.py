@@ -46,8 +46,9 @@ class DensifyConfig:
     # SpikeGS grew the fewest Gaussians). SpikeGS gained in 10 of 10 paired runs: +0.16 / +0.59 /
     # +0.33 dB on fine-texture / solids / wires at 128² over 3 seeds, +0.84 at 256²
     # (BENCHMARKS.md). An odd K's centre exposure pose shares the instant render, and λ/K of
-    # the exposure's gradient with it (BENCHMARKS.md, "The exposure loss in the densification
-    # signal": rendered apart, SpikeGS lost 0.7-0.9 dB at 128²)
+    # the exposure's gradient with it; the signal is then over the larger of the two weights,
+    # so that it stops growing with λ (BENCHMARKS.md, "The exposure loss in the densification
+    # signal": rendered apart, SpikeGS lost 0.6-0.8 dB at 128²)
     instant_only: bool = True
 
     def first_iteration(self) -> int:

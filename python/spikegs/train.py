@@ -211,29 +211,6 @@ class Trainer:
                 stacklevel=2,
             )
 
-    def _warn_if_the_exposure_densifies(self) -> None:
-        """A warning where the exposure loss's gradient outweighs the instant losses' in the
-        densification signal: with densify.instant_only, an odd exposure_poses' centre pose is
-        the instant render, whose screen-space gradient densifies, and takes λ/K of the exposure
-        loss's gradient there (divided by the instant weight alone): the model grows with λ
-        (a helper's 32² runs: 7.3k Gaussians at λ = 4, 55k at 40, 199k, the cap, at 400; 4.3k
-        to 4.8k at K = 4). Rendered apart, the centre cost SpikeGS 0.6-0.8 dB at the default λ:
-        left as measured (BENCHMARKS.md, "The exposure loss in the densification signal")."""
-        s, d = self.config.supervision, self.config.densify
-        poses = s.exposure_poses if s.exposure_weight > 0 else 0
-        instant, share = s.instant_total_weight(), s.exposure_weight / max(poses, 1)
-        shared = poses % 2 and s.instant != "tfi"  # (TFI's instant pose is half a readout on)
-        if d.instant_only and instant and shared and share > instant:
-            warnings.warn(
-                f"supervision.exposure_weight {s.exposure_weight:g} over {poses} exposure "
-                f"poses: the centre pose, the instant render's, adds {share:.3g} of the "
-                f"exposure loss's gradient to the densification signal against the instant "
-                f"losses' {instant:g} (densify.instant_only divides by theirs alone): the model "
-                f"grows with the weight (55k Gaussians at 40 where 4 grew 7.3k); an even "
-                f"exposure_poses keeps the exposure out of it",
-                stacklevel=3,
-            )
-
     def _fresh_state(self) -> None:
         t = self.config.train
         self.environments: list[dict] = []  # what trained the run (`_record_environment`)
@@ -447,10 +424,10 @@ class Trainer:
         tap = {"screen_abs" if absgrad else "screen_points": screen} if densifying else {}
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         # densify.instant_only: the exposure's renders (but for one it shares with the instant
-        # pose, an odd K's centre) give the signal nothing
+        # pose, an odd K's centre, whose loss weight there is `shared`) give the signal nothing
         instant_only = self.config.densify.instant_only and instant_trains
         exposure_tap = {} if instant_only else tap
-        loss, instant = torch.zeros(()), None
+        loss, instant, shared = torch.zeros(()), None, 0.0
         terms = {}  # the step's unweighted loss terms by name
         # the instant pose (at the time its target shows: TFI's is half a readout on), then the
         # exposure's
@@ -475,6 +452,7 @@ class Trainer:
             for k, viewmat in enumerate(viewmats[1:]):
                 if instant is not None and not offset and 2 * k + 1 == s.exposure_poses:
                     renders.append(instant.image)  # an odd K's centre pose is t: render it once
+                    shared = s.exposure_weight / s.exposure_poses  # λ/K
                     continue
                 r = self.model.render(viewmat, self.K, w, h, self.near, **exposure_tap)
                 radii = torch.maximum(radii, r.radii)
@@ -494,9 +472,14 @@ class Trainer:
         self._check_parameters()
         self.loss_terms = {name: term.item() for name, term in terms.items()}
         if densifying:
-            # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the weights
+            # the screen-space gradient of a unit-weight loss, as in 3DGS, whatever the weights;
+            # with instant_only, over the instant losses' weight or a shared centre's λ/K, the
+            # larger: at the default λ = 4, K = 5 the instant's, beyond λ/K's, so the signal
+            # stops growing with λ (BENCHMARKS.md, "The exposure loss in the densification
+            # signal")
             screen_grad = screen if absgrad else screen.grad
-            weight = s.instant_total_weight() if instant_only else s.total_weight()
+            instant_weight = max(s.instant_total_weight(), shared)
+            weight = instant_weight if instant_only else s.total_weight()
             self.densifier.observe(radii, screen_grad / weight, w, h)
         return loss.item()
 
@@ -626,7 +609,6 @@ class Trainer:
             # poses, or a point cloud, that cannot train are refused before any work
             self._check_scene_in_view()
             self.cloud_points  # noqa: B018
-            self._warn_if_the_exposure_densifies()
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained
