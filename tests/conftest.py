@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import os
 import shutil
 import signal
 import sys
@@ -162,6 +164,19 @@ class AliveArrays:
 @pytest.fixture
 def alive_arrays() -> AliveArrays:
     return AliveArrays()
+
+
+@pytest.fixture
+def listed_folders(monkeypatch) -> collections.Counter:
+    """How often each folder (its path as text) is listed by os.listdir during the test."""
+    listed, listdir = collections.Counter(), os.listdir
+
+    def counted(path="."):
+        listed[str(path)] += 1
+        return listdir(path)
+
+    monkeypatch.setattr(os, "listdir", counted)
+    return listed
 
 
 @pytest.fixture

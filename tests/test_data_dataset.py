@@ -943,6 +943,22 @@ def test_an_8_bit_test_view_is_decoded_from_srgb(tmp_path, small):
     np.testing.assert_allclose(loaded.image, view.image, atol=2e-3)
 
 
+def test_a_test_views_file_path_without_extension_finds_its_image(tmp_path, small):
+    """A test view's file_path finds its image without an extension, in any case, as a transforms
+    file's frame does (test_views.json alone needed it: "dataset file not found")."""
+    root = tmp_path / "bare"
+    shutil.copytree(small.root, root)
+    doc = json.loads((root / "test_views.json").read_text())
+    first = doc["frames"][0]
+    stored = root / first["file_path"]
+    stored.rename(stored.with_suffix(".EXR"))
+    first["file_path"] = first["file_path"].rsplit(".", 1)[0]
+    (root / "test_views.json").write_text(json.dumps(doc))
+    for loaded, view in zip(load_dataset(root).test_views, small.test_views, strict=True):
+        assert loaded.name == view.name
+        np.testing.assert_array_equal(loaded.image, view.image)
+
+
 def test_poses_rounded_to_4_decimals_load(tmp_path, small):
     """One rigidity rule with the LLFF/NeRF loaders: poses within 1e-3 of rigid are made rigid."""
 

@@ -862,8 +862,8 @@ def test_nerf_test_images_are_read_one_at_a_time(nerf, tmp_path, monkeypatch, al
     read_paths = []
     read = nerf_layout._image
 
-    def counted(root, frame):
-        image = read(root, frame)
+    def counted(root, frame, listings):
+        image = read(root, frame, listings)
         if image is not None:
             read_paths.append(frame["file_path"])
             alive_arrays.track(image)
@@ -1077,7 +1077,7 @@ def test_no_held_out_view_is_refused(llff, tmp_path):
     too."""
     root = copy(llff, tmp_path)
     write_options(root, test_views=[])
-    with pytest.raises(ValueError, match="no test view .set test_views in spikegs.json"):
+    with pytest.raises(ValueError, match=r"test_views expected a non-empty list .*, found \[\]"):
         load_dataset(root)
     write_options(root, test_views=list(range(VIEWS)))
     with pytest.raises(ValueError, match="no training timestamp left once the test views are"):
@@ -1478,6 +1478,14 @@ def test_nerf_image_of_an_upper_case_extension_is_read(nerf, tmp_path):
     write_image(root / "test" / "r_0.Png", np.zeros_like(read_image(root / "test" / "r_0.EXR")))
     with pytest.warns(UserWarning, match=r"several formats \(.Png, .EXR\): .Png is read"):
         load_dataset(root)  # in IMAGE_EXTENSIONS' order, as lower-case ones
+
+
+def test_nerf_image_folders_are_listed_once_a_load(nerf, tmp_path, listed_folders):
+    """Each folder of frame images is listed once a load, not once a frame (a 1000-frame folder:
+    1000 listings, each of 1000 names)."""
+    root = copy(nerf, tmp_path)
+    load_dataset(root)
+    assert [listed_folders[str(root / name)] for name in ("train", "test")] == [1, 1]
 
 
 def test_nerf_frame_size_from_the_options_scales_the_camera(sim, nerf, tmp_path):

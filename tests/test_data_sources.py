@@ -162,6 +162,17 @@ def write_transforms(path, name, frames, viewmats, K, ext):
     path.write_text(json.dumps({"camera_angle_x": fov, "frames": entries}))
 
 
+def test_a_transforms_files_image_folder_is_listed_once(tmp_path, listed_folders):
+    """The frames' folder is listed once, not once a frame (a 1000-frame folder: 1000 listings,
+    each of 1000 names)."""
+    truth = ProceduralSource("solids", SCENES["solids"](), 8, 8)
+    poses = truth.trajectory(1001, 0.5).pose_at(np.linspace(0, 1000, 4))  # [4, 4, 4]
+    frames = np.stack([truth.render(v) for v in poses])  # [4, 8, 8, 1]
+    write_transforms(tmp_path / "transforms.json", "train", frames, poses, truth.K, ".png")
+    FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 8, 8)
+    assert listed_folders[str(tmp_path / "train")] == 1
+
+
 def test_8_bit_images_hold_srgb_as_they_are_tagged(tmp_path):
     """Eval PNGs, comparison.png and videos held linear values in files tagged sRGB: a mid grey
     (linear 0.216, sRGB 128) was stored as 55 and shown 5.7x too dark."""

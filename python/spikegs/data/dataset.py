@@ -646,8 +646,10 @@ def check_test_views(views: list[TestView], where) -> None:
 
 
 def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[TestView]:
+    from .transforms_file import frame_file  # (it imports this module)
+
     path = existing_file(root, TEST_VIEWS)
-    views = []
+    views, listings = [], {}  # each image folder listed once (`frame_files`)
     for i, frame in enumerate(read_camera_doc(path, camera)):
         missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
         if missing:
@@ -668,18 +670,18 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
         if c2w.shape != (4, 4):
             raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
         c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
-        stored = read_stored_image(existing_file(root, frame["file_path"]))
+        file = frame_file(root / frame["file_path"], listings)  # as a transforms file's frame
+        stored = read_stored_image(file)
         if stored.alpha is not None:
             raise ValueError(
-                f"{root / frame['file_path']}: a test view with an alpha channel; expected "
-                f"{shape[2]} channel(s) of firing rate"
+                f"{file}: a test view with an alpha channel; expected {shape[2]} channel(s) of "
+                f"firing rate"
             )
         # 8-bit files hold sRGB (write_image encodes them so): back to linear units
         image = srgb_to_linear(stored.colour) if stored.srgb else stored.colour  # [H, W, C]
         if image.shape != shape:
             raise ValueError(
-                f"{root / frame['file_path']}: expected an image of shape {list(shape)}, "
-                f"found {list(image.shape)}"
+                f"{file}: expected an image of shape {list(shape)}, found {list(image.shape)}"
             )
         views.append(
             TestView(

@@ -105,18 +105,19 @@ def _find_spikes(root: Path, frames: list, sources: list) -> list[Path | None]:
     return found
 
 
-def _image(root: Path, frame: dict) -> np.ndarray | None:
-    """The frame's image, linear RGB [h, w, 3], or None when there is none."""
+def _image(root: Path, frame: dict, listings: dict) -> np.ndarray | None:
+    """The frame's image, linear RGB [h, w, 3], or None when there is none (`listings`:
+    `frame_files`')."""
     try:
-        return read_frame(root / frame["file_path"], background=1.0)
+        return read_frame(root / frame["file_path"], 1.0, listings)
     except FileNotFoundError:
         return None
 
 
-def _readable(root: Path, frame: dict) -> np.ndarray | None:
+def _readable(root: Path, frame: dict, listings: dict) -> np.ndarray | None:
     """`_image`, or None where the file cannot be read: for a training image only checked."""
     try:
-        return _image(root, frame)
+        return _image(root, frame, listings)
     except ValueError:
         return None
 
@@ -242,8 +243,9 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     path, cameras = sources[0], read_cameras(docs, frames, sources)
     camera = cameras[0]
     spikes = _find_spikes(root, frames, sources)
+    listings: dict = {}  # each image folder listed once (`frame_files`)
     for frame, source, found, is_test in zip(frames, sources, spikes, test):
-        if found is None and not (is_test and frame_files(root / frame["file_path"])):
+        if found is None and not (is_test and frame_files(root / frame["file_path"], listings)):
             tried = [str(p) for p in _spike_candidates(root, frame, source)]
             where = f"tried {', '.join(tried)}" if tried else "its spike_path is null"
             raise FileNotFoundError(
@@ -260,12 +262,12 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         return image
 
     tests = (
-        (f["file_path"], keep(i, _image(root, f)))
+        (f["file_path"], keep(i, _image(root, f, listings)))
         for i, (f, is_test) in enumerate(zip(frames, test))
         if is_test
     )
     training = (
-        (f["file_path"], keep(i, _readable(root, f)))
+        (f["file_path"], keep(i, _readable(root, f, listings)))
         for i, (f, is_test) in enumerate(zip(frames, test))
         if not is_test
     )
@@ -287,7 +289,7 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
 
     def mono(i: int, frame: dict) -> np.ndarray | None:
-        image = sized.pop(i) if i in sized else _image(root, frame)
+        image = sized.pop(i) if i in sized else _image(root, frame, listings)
         name = f"{root / frame['file_path']}"
         return _mono(image, src, (height, row), slice(shift, shift + width), name, what)
 

@@ -220,8 +220,6 @@ def _finish(
     meta["num_readouts"] = len(stream)
     if not len(timestamps):
         raise ValueError(f"{root}: no training timestamp left once the test views are held out")
-    if not held_out:
-        raise ValueError(f"{root}: no test view (set test_views in spikegs.json)")
     dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
     sharp = [h for h in held_out if h.image is not None]
     scale = intensity_scale(dataset) if sharp else 1.0

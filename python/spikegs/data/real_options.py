@@ -67,8 +67,11 @@ CHECKS = {
     "raw_width": (_positive_int, "a positive integer"),
     "col_offset": (lambda v: is_int(v) and v >= 0, "an integer >= 0"),
     "test_views": (
-        lambda v: isinstance(v, (list, tuple)) and all(is_int(i) and i >= 0 for i in v),
-        "a list of view indices (integers >= 0)",
+        lambda v: (
+            isinstance(v, (list, tuple)) and len(v) > 0 and all(is_int(i) and i >= 0 for i in v)
+        ),
+        "a non-empty list of view indices (integers >= 0; leave test_views out for the default, "
+        "every 8th)",
     ),
     "train_every": (_positive_int, "a positive integer"),
     "pseudo_gt_window": (lambda v: _positive_int(v) and v % 2 == 1, "an odd positive integer"),

@@ -132,8 +132,10 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
     viewmats = [transforms_viewmats(path, doc) for path, doc in zip(paths, docs)]  # [F_i, 4, 4]
     frames, sources, frame_docs = flat_frames(paths, docs)
     cameras = read_cameras(frame_docs, frames, sources)
+    listings: dict = {}  # each folder listed once (`frame_files`)
     firsts = [
-        read_frame(p.parent / d["frames"][0]["file_path"], background) for p, d in zip(paths, docs)
+        read_frame(p.parent / d["frames"][0]["file_path"], background, listings)
+        for p, d in zip(paths, docs)
     ]
     # the aspect ratio and the frames' cameras as one (no crop here), before another frame is
     # read: a camera without w, h is for its file's images (their first one's size)
@@ -150,7 +152,7 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
         stack = np.empty((len(doc["frames"]), height, width, channels), np.float32)
         negative = []  # (file, values below 0, the lowest) a frame
         for j, f in enumerate(doc["frames"]):
-            image = read_frame(path.parent / f["file_path"], background) if j else first
+            image = read_frame(path.parent / f["file_path"], background, listings) if j else first
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
                 image = np.maximum(image, 0.0)
@@ -380,24 +382,37 @@ def camera_matrix(
     return K
 
 
-def frame_files(base: Path) -> list[Path]:
+def frame_files(base: Path, listings: dict | None = None) -> list[Path]:
     """The image files a frame's file_path `base` names: itself, or with an extension of
     IMAGE_EXTENSIONS added, in that order, in any case (a camera's r_0.PNG was passed over
-    unsaid, the view then held out without its image)."""
-    rank = {(base.name + ext).lower(): i for i, ext in enumerate(IMAGE_EXTENSIONS)}
+    unsaid, the view then held out without its image). `listings`: {folder: its names
+    (`_names_by_lower_case`)}, filled as folders are listed: one dict across a load's frames
+    lists each folder once."""
+    listings = {} if listings is None else listings
+    if base.parent not in listings:
+        listings[base.parent] = _names_by_lower_case(base.parent)
+    names = listings[base.parent]
+    found = [n for ext in IMAGE_EXTENSIONS for n in names.get((base.name + ext).lower(), [])]
+    return [p for p in [base, *(base.parent / n for n in found)] if p.is_file()]
+
+
+def _names_by_lower_case(folder: Path) -> dict[str, list[str]]:
+    """The names in `folder` under their lower-case form, each list sorted; {} where there is no
+    such folder."""
+    names: dict[str, list[str]] = {}
     try:
-        names = sorted((rank[n.lower()], n) for n in os.listdir(base.parent) if n.lower() in rank)
+        listed = sorted(os.listdir(folder))
     except OSError:  # no such folder: no image
-        names = []
-    candidates = [base] + [base.parent / n for _, n in names]
-    return [p for p in candidates if p.is_file()]
+        listed = []
+    for name in listed:
+        names.setdefault(name.lower(), []).append(name)
+    return names
 
 
-def read_frame(base: Path, background: float) -> np.ndarray:
-    """Linear RGB [h, w, 3] of an image file (extension optional, as in NeRF synthetic), an alpha
-    channel composited over `background` in linear light, colour read as the file's metadata
-    says: sRGB or linear, associated with alpha (EXR) or not (PNG)."""
-    files = frame_files(base)
+def frame_file(base: Path, listings: dict | None = None) -> Path:
+    """The image file a frame's file_path `base` names, the first of `frame_files` (`listings`:
+    theirs); FileNotFoundError where there is none, a warning where there are several."""
+    files = frame_files(base, listings)
     if not files:
         raise FileNotFoundError(
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
@@ -408,9 +423,17 @@ def read_frame(base: Path, background: float) -> np.ndarray:
             f"{base.parent}: frame images in several formats "
             f"({', '.join(p.suffix for p in files)}): {found.suffix} is read, the first of "
             f"{', '.join(IMAGE_EXTENSIONS)}",
-            stacklevel=2,
+            stacklevel=3,
         )
-    stored = read_stored_image(found)
+    return found
+
+
+def read_frame(base: Path, background: float, listings: dict | None = None) -> np.ndarray:
+    """Linear RGB [h, w, 3] of an image file (`frame_file`: extension optional, as in NeRF
+    synthetic; `listings` its), an alpha channel composited over `background` in linear light,
+    colour read as the file's metadata says: sRGB or linear, associated with alpha (EXR) or not
+    (PNG)."""
+    stored = read_stored_image(frame_file(base, listings))
     colour = np.broadcast_to(stored.colour, (*stored.colour.shape[:2], 3)).astype(np.float64)
     alpha = None if stored.alpha is None else stored.alpha.astype(np.float64)  # [h, w, 1]
     if stored.srgb:
