@@ -2076,7 +2076,7 @@ def test_a_demo_resumed_over_torn_side_files_goes_on_from_its_defaults(
     iterations, camera), .demo_seconds and results.json (the seconds spent before). One torn or
     edited by hand (not JSON, not an object, no number) counts as none: the defaults and no
     earlier seconds, not an error naming a file the user never wrote."""
-    from spikegs.demo import DEFAULT_SCENE, earlier_seconds, started_iterations
+    from spikegs.demo import DEFAULT_SCENE, earlier_seconds, finished_results, started_iterations
 
     out = tmp_path / "demo"
     out.mkdir()
@@ -2098,9 +2098,34 @@ def test_a_demo_resumed_over_torn_side_files_goes_on_from_its_defaults(
     assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 130
     assert started[1] == (DEFAULT_SCENE, True, False)
     (out / ".demo_seconds").unlink()
-    for results, earlier in (('{"total_seconds": null}', 0.0), ('{"total_seconds": 7.5}', 7.5)):
+    finished = json.dumps({"methods": dict.fromkeys(METHODS, {}), "total_seconds": 7.5})
+    for results, earlier in (('{"total_seconds": null}', 0.0), (finished, 7.5)):
         (out / "results.json").write_text(results)
-        assert earlier_seconds(out) == earlier
+        assert earlier_seconds(out, finished_results(out)) == earlier
+
+
+def test_a_resumed_finished_demo_reads_its_results_once(tmp_path, monkeypatch, capsys):
+    """--resume over a finished demo reads its results.json once, with OUT locked (it was read
+    three times: for whether a demo is there, before the lock, for its seconds, and for its
+    results)."""
+    from spikegs import demo
+
+    out = tmp_path / "demo"
+    out.mkdir()
+    printed = dict(psnr=20.0, ssim=0.5, train_seconds=1.0, gaussians=10, sim_seconds=0.0)
+    methods = dict.fromkeys(METHODS, {**printed, "iterations": 20})
+    results = dict(methods=methods, scene=demo.DEFAULT_SCENE, channels=1, total_seconds=3.0)
+    (out / "results.json").write_text(json.dumps(results))
+    read, read_text = [], demo.read_text
+
+    def counted(path):
+        read.append(path.name)
+        return read_text(path)
+
+    monkeypatch.setattr(demo, "read_text", counted)
+    assert main(["demo", "--no-progress", "--resume", "--out", str(out)]) == 0
+    assert "holds a finished demo; its results:" in capsys.readouterr().err
+    assert read.count("results.json") == 1
 
 
 def test_a_demo_whose_disk_refuses_its_time_too_still_says_how_to_go_on(

@@ -121,18 +121,14 @@ COMPARISON, CURVES = "comparison.png", "curves.png"  # the demo's figures
 LABEL_WIDTH = 88  # pixels of comparison.png's row labels: the view, each method's PSNR there
 
 
-def earlier_seconds(out: Path) -> float:
+def earlier_seconds(out: Path, finished: dict | None) -> float:
     """The seconds that earlier processes of the demo in `out` spent: those of its interrupted
-    processes, or a finished demo's total_seconds (resumed, it has nothing left to train); 0
-    where none recorded."""
+    processes, or the total_seconds of `finished`, its results.json (`finished_results`:
+    resumed, it has nothing left to train); 0 where none recorded."""
     try:
         return float(read_text(out / SECONDS_FILE))
     except (FileNotFoundError, ValueError):
-        pass
-    try:
-        return float(json.loads(read_text(out / RESULTS))["total_seconds"])
-    except (FileNotFoundError, ValueError, KeyError, TypeError):
-        return 0.0
+        return 0.0 if finished is None else float(finished["total_seconds"])
 
 
 def _started(out: Path) -> dict:
@@ -160,10 +156,10 @@ def finished_results(out: Path) -> dict | None:
     return results if ours else None
 
 
-def held_demo(out: Path) -> str | None:
-    """What demo `out` holds: "a finished demo" (a demo's results.json), "an interrupted demo"
-    (STARTED_FILE without one), None for none."""
-    if finished_results(out) is not None:
+def held_demo(out: Path, finished: dict | None) -> str | None:
+    """What demo `out` holds: "a finished demo" (`finished`, its `finished_results`), "an
+    interrupted demo" (STARTED_FILE without them), None for none."""
+    if finished is not None:
         return "a finished demo"
     return "an interrupted demo" if (out / STARTED_FILE).is_file() else None
 
@@ -215,20 +211,20 @@ def holds_files(folder: Path) -> bool:
     return folder.is_dir() and any(p.name != LOCK for p in folder.iterdir())
 
 
-def check_fresh_out(out: Path, overwrite: bool) -> None:
+def check_fresh_out(out: Path, overwrite: bool, finished: dict | None) -> None:
     """FileExistsError, before any work, where a fresh demo in `out` would delete what is not an
     earlier demo's: OUT/data or OUT/runs/METHOD holding files that are not a dataset's or a
     spikegs run's (a user's own run there keeps its notes, renders, ...), or, where no demo ran
-    in OUT (`held_demo`: a demo's results.json, which demos before 2026-11-25 left alone, or
-    STARTED_FILE), holding anything, or a results.json or figure of the demo's names (`--out`
-    naming a project's folder, whose runs/spikegs, data and results are its own; a results.json
-    of any content was taken for a demo's); and, without `overwrite`, where an earlier demo is
-    there (its results were deleted unasked)."""
+    in OUT (`held_demo`: `finished`, its `finished_results`, a demo's results.json, which demos
+    before 2026-11-25 left alone, or STARTED_FILE), holding anything, or a results.json or
+    figure of the demo's names (`--out` naming a project's folder, whose runs/spikegs, data and
+    results are its own; a results.json of any content was taken for a demo's); and, without
+    `overwrite`, where an earlier demo is there (its results were deleted unasked)."""
     from .data.dataset import check_output
 
     check_output(out / "data", overwrite=True)
     check_run_dirs(out)
-    held = held_demo(out)
+    held = held_demo(out, finished)
     if held is not None and not overwrite:
         again = " (printed again)" if held == "a finished demo" else ""
         raise FileExistsError(
@@ -332,11 +328,6 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_folder_output(out, images=True)
     refuse_dataset_or_run(out, "a demo")
-    # a demo writes STARTED_FILE as it starts: a folder without it (or a demo's results) holds
-    # none, even where it holds other files (they went on as a demo without its start record)
-    if args.resume and held_demo(out) is None:
-        print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
-        args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out):  # one demo per OUT: a second one would delete the first one's files
         return _demo(args, out)
@@ -346,8 +337,14 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     """`run` once OUT is locked."""
     start = time.perf_counter()
     sweep_temporaries(out)  # one demo here: a figure or results.json a killed one half-wrote
+    finished = finished_results(out)  # read once, with OUT locked
+    # a demo writes STARTED_FILE as it starts: a folder without it (or a demo's results) holds
+    # none, even where it holds other files (they went on as a demo without its start record)
+    if args.resume and held_demo(out, finished) is None:
+        print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
+        args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
     progress = show_bars(args.no_progress)  # else a line at each evaluation
-    earlier = earlier_seconds(out) if args.resume else 0.0
+    earlier = earlier_seconds(out, finished) if args.resume else 0.0
     # --resume without --scene or --iterations goes on with those the demo was started with
     scene = args.scene or (started_scene(out) if args.resume else None) or DEFAULT_SCENE
     configs = {m: load_config(m, DEMO_OVERRIDES) for m in METHODS}
@@ -363,12 +360,12 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
                 f"--resume: the demo in {out} was started with {started} iterations, not "
                 f"{args.iterations}; leave out --iterations to continue it, or give another --out"
             )
-        finished = _printable(finished_results(out), scene, color)
-        if finished is not None:  # nothing to train: evaluated and timed again before
+        printable = _printable(finished, scene, color)
+        if printable is not None:  # nothing to train: evaluated and timed again before
             print(f"--resume: {out} holds a finished demo; its results:", file=sys.stderr)
-            return _print_results(finished, out)
+            return _print_results(printable, out)
     if not args.resume:
-        check_fresh_out(out, args.overwrite)
+        check_fresh_out(out, args.overwrite, finished)
         # an earlier demo's, all at once: a fresh demo stopped before its last method left that
         # method's finished run, which --resume then refused as trained with other settings
         for method in METHODS:
