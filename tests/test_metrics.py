@@ -111,3 +111,16 @@ def test_psnr_is_10_log10_of_one_over_the_mean_squared_error():
         want = 10 * np.log10(1 / np.mean((pred - gt) ** 2))
         assert psnr(pred, gt) == pytest.approx(want, abs=1e-10)
     assert psnr(gt, gt) == float("inf")
+
+
+@pytest.mark.parametrize("metric", [psnr, ssim, ssim_3dgs])
+def test_metrics_refuse_images_that_are_not_finite(metric):
+    """A NaN or inf scored NaN (or -inf dB), unsaid: refused, naming the image, how many of its
+    pixels and where the first lies."""
+    gt = np.random.default_rng(5).random((9, 11, 3))
+    pred = gt.copy()
+    pred[2, 3, 1], pred[4, 5] = np.nan, np.inf
+    with pytest.raises(ValueError, match=r"pred \(the render\): 2 of 99 pixels not finite .* "):
+        metric(pred, gt)
+    with pytest.raises(ValueError, match=r"gt \(the ground truth\): 2 of 99 .* row 2, column 3"):
+        metric(gt, pred)

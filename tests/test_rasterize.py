@@ -283,6 +283,13 @@ def test_a_degree_below_the_coefficients_matches_reference(sh_degree, channels):
 
 
 @needs_cpp
+def test_degree_0_of_16_channels_matches_reference_given_its_degree():
+    """[N, 1, 16], refused without sh_degree (a mono scene's [N, C, K] reads the same), renders
+    16 channels of degree 0 where sh_degree=0 says so."""
+    compare_to_reference(make_scene(360, 12, 21, 14, 16, sh_degree=0), torch.float64, 1e-9)
+
+
+@needs_cpp
 @pytest.mark.parametrize("seed", range(3))
 def test_elongated_splats_across_tiles_match_reference(seed):
     """Long, thin splats at every angle crossing tile edges and corners: the core composites only
@@ -733,6 +740,7 @@ def _bad_inputs():
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),
             ("antialiased-str", {"antialiased": "yes"}, "antialiased: expected True or False"),
+            ("antialiased-int", {"antialiased": 1}, "antialiased: expected True or False"),
             ("dilation-small", {"dilation": 0.009}, r"dilation: expected pixels² in 0.01..10"),
             ("dilation-large", {"dilation": 10.5}, r"dilation: expected pixels² in 0.01..10"),
             ("dilation-nan", {"dilation": float("nan")}, "dilation: expected pixels²"),
@@ -774,6 +782,12 @@ def _bad_inputs():
                 "sh-channels-first",
                 {"colors": s["colors"].mT, "sh_degree": None, "background": None},
                 "transpose",
+            ),
+            # a mono scene's [N, C, K]: rendered as degree 0 of 4 channels, unsaid
+            (
+                "sh-mono-channels-first",
+                {"colors": s["colors"][..., :1].mT, "sh_degree": None, "background": None},
+                r"\[6, 1, 4\] is SH degree 0 of 4 channels .* colors\.transpose\(1, 2\)",
             ),
             (
                 "sh-degree-4",
@@ -896,10 +910,20 @@ def test_an_alpha_exactly_at_the_clamp_passes_no_gradient(dtype):
         assert o.grad.item() == 0.0, fn
 
 
-def test_near_and_far_as_numbers_or_scalar_tensors():
-    plain = render(spikegs.rasterize, _BAD_SCENE, near=0.05, far=50)
-    tensors = render(spikegs.rasterize, _BAD_SCENE, near=torch.tensor(0.05), far=torch.tensor(50))
-    assert torch.equal(plain.image, tensors.image)
+@pytest.mark.parametrize("number", [torch.tensor, np.float64, np.float32], ids=["0-d", "f8", "f4"])
+def test_number_arguments_as_numpy_scalars_or_scalar_tensors(number):
+    """near, far and dilation alike (a 0-d tensor's dilation was refused, its near taken)."""
+    values = {"near": 0.05, "far": 50, "dilation": 0.1}
+    plain = render(spikegs.rasterize, _BAD_SCENE, **values)
+    given = render(spikegs.rasterize, _BAD_SCENE, **{k: number(v) for k, v in values.items()})
+    assert torch.equal(plain.image, given.image)
+
+
+def test_antialiased_as_a_numpy_bool():
+    """np.bool_ (a numpy comparison's result) is a bool: it was refused."""
+    plain = render(spikegs.rasterize, _BAD_SCENE, antialiased=True)
+    given = render(spikegs.rasterize, _BAD_SCENE, antialiased=np.bool_(True))
+    assert torch.equal(plain.image, given.image)
 
 
 @needs_cpp

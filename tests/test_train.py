@@ -1137,6 +1137,32 @@ def test_ply_edge_cases(tmp_path):
             load_ply(tmp_path / "o.ply")
 
 
+def test_a_config_whose_learning_rates_are_all_0_is_warned_of():
+    """Every learning rate 0 trained to its end unsaid, nothing moving; sh_rest's counts only at
+    an SH degree above 0, the poses' only where they are refined."""
+    names = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "background")
+    frozen = {"lr": dict.fromkeys(names, 0.0)}  # sh_rest's rate kept: degree 0 has no such
+    with pytest.warns(UserWarning, match=r"lr.means, .*, lr.background: every learning rate is 0"):
+        load_config("tfp33", frozen)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_config("tfp33", {**frozen, "train": {"sh_degree": 1}})
+        load_config("tfp33", {**frozen, "pose_refine": {"enabled": True}})
+        load_config("tfp33", {"lr": {**frozen["lr"], "quats": 1e-3}})
+
+
+def test_gaussian_model_takes_numpy_bools_and_scalar_tensors():
+    """antialiased=np.bool_(True) was refused; a 0-d tensor's dilation too (the rasterizer's
+    near took one)."""
+    model = GaussianModel.random(4, (0, 0, 2), 0.5, 1, generator=torch.Generator().manual_seed(0))
+    given = GaussianModel(
+        model.params, torch.zeros(1), 0, antialiased=np.bool_(True), dilation=torch.tensor(0.1)
+    )
+    assert given.antialiased is True and given.dilation == pytest.approx(0.1)
+    K = torch.tensor([[8.0, 0, 4], [0, 8, 4], [0, 0, 1]])
+    assert given.render(torch.eye(4), K, 8, 8, 0.01).image.shape == (8, 8, 1)
+
+
 def test_a_ply_without_a_background_comment_loads_on_black(tmp_path):
     """Another tool's 3DGS .ply (no `spikegs background` comment) renders on black, as 3DGS's
     viewers do (a default of ones put it on white), said: a run's scene.ply re-saved by a viewer
@@ -1185,8 +1211,9 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
     for origin in ([1.0, 2.0], [0.0, float("nan"), 0.0]):
         with pytest.raises(ValueError, match="GaussianModel: origin expected 3 finite numbers"):
             GaussianModel(model.params, torch.zeros(3), 1, origin=origin)
-    with pytest.raises(ValueError, match="GaussianModel: antialiased expected True or False"):
-        GaussianModel(model.params, torch.zeros(3), 1, antialiased="false")  # (a truthy string)
+    for flag in ("false", 1):  # (a truthy string; an int)
+        with pytest.raises(ValueError, match="GaussianModel: antialiased: expected True or False"):
+            GaussianModel(model.params, torch.zeros(3), 1, antialiased=flag)
     # a dilation out of the rasterizer's range, at construction or later, refused where set (not
     # at the first render); a checkpoint from before dilations draws with 3DGS's
     for dilation in (0.0, float("nan"), True):

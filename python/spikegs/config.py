@@ -24,6 +24,7 @@ import contextlib
 import copy
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -589,7 +590,28 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
-    return _validated_scaled(config, factors)
+    config = _validated_scaled(config, factors)
+    _warn_if_nothing_learns(config)
+    return config
+
+
+def _warn_if_nothing_learns(config: Config) -> None:
+    """A UserWarning where the learning rate of every parameter the run updates is 0 (sh_rest's
+    counts only at sh_degree > 0, pose_refine's only where it is enabled; means_final only
+    decays lr.means): such a run trained to its end unsaid, no step moving anything."""
+    rates = {f"lr.{f.name}": getattr(config.lr, f.name) for f in dataclasses.fields(config.lr)}
+    del rates["lr.means_final"]
+    if config.train.sh_degree == 0:  # no coefficients beyond the DC's
+        del rates["lr.sh_rest"]
+    if config.pose_refine.enabled:
+        rates["pose_refine.lr"] = config.pose_refine.lr
+    if not any(rates.values()):
+        warnings.warn(
+            f"{', '.join(rates)}: every learning rate is 0, so no step changes a parameter "
+            f"(densification alone clones, splits and prunes the Gaussians); 3DGS's are "
+            f"1e-4..5e-2",
+            stacklevel=3,
+        )
 
 
 def _own_name(path: Path, inherited: str | None) -> str:

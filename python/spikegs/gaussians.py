@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from .filter_3d import smoothed
-from .number_checks import is_int
+from .number_checks import as_flag, is_int
 from .rasterize import CONSTANTS, RasterizeResult, check_dilation, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
 
@@ -111,13 +111,9 @@ class GaussianModel:
         self.origin = np.zeros(3) if origin is None else np.array(origin, np.float64)  # [3]
         if self.origin.shape != (3,) or not np.isfinite(self.origin).all():
             raise ValueError(f"GaussianModel: origin expected 3 finite numbers, not {origin!r}")
-        if not isinstance(antialiased, bool):
-            raise ValueError(
-                f"GaussianModel: antialiased expected True or False, not {antialiased!r}"
-            )
         # drawn with the antialiased 2D filter (`spikegs.rasterize`'s `antialiased`): a model
         # trained so renders so
-        self.antialiased = antialiased
+        self.antialiased = as_flag("GaussianModel: antialiased", antialiased)
         self.filter_3d = filter_3d  # (the setter checks it)
         self.dilation = dilation  # (so does this one)
 

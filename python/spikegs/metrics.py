@@ -10,8 +10,9 @@ from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
     """`pred` and `gt` (arrays or tensors) as float64 [H, W] or [H, W, C] images; ValueError for
-    integer codes (data range 1: 8-bit 200 against 100 scored -40 dB) or a channels-first image
-    (a [3, H, W] tensor's layout was scored as 3 rows of W pixels with H channels)."""
+    integer codes (data range 1: 8-bit 200 against 100 scored -40 dB), a channels-first image
+    (a [3, H, W] tensor's layout was scored as 3 rows of W pixels with H channels) or values
+    that are not finite (a NaN scored NaN, unsaid)."""
     pred, gt = _image(pred), _image(gt)
     if pred.shape != gt.shape or pred.ndim not in (2, 3):
         raise ValueError(
@@ -22,7 +23,21 @@ def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
             f"expected [H, W, C] images, got {list(pred.shape)}: channels first? "
             f"np.moveaxis(image, 0, -1)"
         )
+    _check_finite(pred, "pred (the render)")
+    _check_finite(gt, "gt (the ground truth)")
     return np.asarray(pred, np.float64), np.asarray(gt, np.float64)  # (no copy of float64)
+
+
+def _check_finite(image: np.ndarray, name: str) -> None:
+    """ValueError naming `name`, how many of its pixels hold a NaN or inf and where the first is."""
+    bad = ~np.isfinite(image)
+    if bad.any():
+        pixels = bad.any(axis=2) if bad.ndim == 3 else bad  # [H, W]
+        y, x = map(int, np.argwhere(pixels)[0])
+        raise ValueError(
+            f"{name}: {int(pixels.sum())} of {pixels.size} pixels not finite (NaN or inf), the "
+            f"first at row {y}, column {x}: expected finite images (a NaN scores NaN)"
+        )
 
 
 def _image(x) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""Checks of numbers read from files (JSON, YAML: true and false are not numbers there) and of
-seeds."""
+"""Checks of numbers read from files (JSON, YAML: true and false are not numbers there), of
+seeds and of flags."""
 
 from __future__ import annotations
 
@@ -15,6 +15,13 @@ from .strict_json import json_text
 def is_int(value) -> bool:
     """Whether `value` is an integer (not a bool)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def as_flag(name: str, value) -> bool:
+    """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: expected True or False, found {value!r}")
+    return bool(value)
 
 
 SEED_MAX = 2**64 - 1  # torch.manual_seed's range, and the simulator's

@@ -5,13 +5,12 @@ The maths is in docs/rasterizer.md.
 
 from __future__ import annotations
 
-import numbers
 from typing import NamedTuple
 
 import torch
 
 from . import _C
-from .number_checks import is_int
+from .number_checks import as_flag, is_int, is_real
 from .sh import degree_of
 
 CONSTANTS = _C.constants  # tile_size, alpha_max, alpha_min, transmittance_min, dilation, ...
@@ -71,10 +70,17 @@ DILATION_EXPECTED = (
 )
 
 
+def _as_number(value):
+    """A one-element tensor's value as a Python number (`.item()`), anything else as given: a
+    number argument takes either."""
+    return value.item() if isinstance(value, torch.Tensor) and value.numel() == 1 else value
+
+
 def is_dilation(value) -> bool:
-    """Whether `value` is a real number in the core's range of dilations (px²)."""
-    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
-    return real and _LOW <= value <= _HIGH
+    """Whether `value` is a real number (or a one-element tensor holding one) in the core's
+    range of dilations (px²)."""
+    value = _as_number(value)
+    return is_real(value) and _LOW <= value <= _HIGH
 
 
 def check_dilation(dilation, name: str = "dilation") -> None:
@@ -206,9 +212,10 @@ def rasterize(
 
     means [N, 3], quats [N, 4] (w, x, y, z, any norm), scales [N, 3] and opacities [N] (already
     activated), colors [N, C] (direct) or [N, K, C] (SH coefficients, degree `sh_degree` or
-    sqrt(K) - 1), viewmat [4, 4] world-to-camera (OpenCV; its top 3x4 rows read as an affine
-    map, not checked for rigidity), K [3, 3] intrinsics (no gradient: one requiring grad is
-    refused), background [C]. Pixel (u, v) has its centre at (u + 0.5, v + 0.5) in K's pixels.
+    sqrt(K) - 1; a mono scene's are [N, K, 1], and [N, 1, 4 | 9 | 16] needs `sh_degree`),
+    viewmat [4, 4] world-to-camera (OpenCV; its top 3x4 rows read as an affine map, not checked
+    for rigidity), K [3, 3] intrinsics (no gradient: one requiring grad is refused), background
+    [C]. Pixel (u, v) has its centre at (u + 0.5, v + 0.5) in K's pixels.
     All float32 (the fast core) or all float64 (the double core, for gradcheck), on the CPU; one
     camera a call (no batch dimension). Returns RasterizeResult: image [H, W, C], alpha [H, W],
     radii [N] int32, means2d [N, 2] pixels, depths [N].
@@ -222,7 +229,8 @@ def rasterize(
     low-pass filter, 0.3 by default, Mip-Splatting's 0.1. `antialiased` scales each opacity by
     sqrt(det Σ / det(Σ + dilation I)) (Mip-Splatting's 2D filter, gsplat's "antialiased" mode):
     the dilation then keeps a splat's integral instead of adding to it, so that a splat under a
-    pixel carries the same light at any resolution. Culled Gaussians get radius 0 and zero gradient.
+    pixel carries the same light at any resolution. `near`, `far` and `dilation` take a number
+    (numpy's too) or a one-element tensor. Culled Gaussians get radius 0 and zero gradient.
     Every output but `radii` is differentiable, once (docs/rasterizer.md).
     """
     if not isinstance(means, torch.Tensor) or means.dtype not in (torch.float32, torch.float64):
@@ -299,11 +307,8 @@ def rasterize(
         if not 0 < value <= MAX_SIZE:
             raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")
     width, height = int(width), int(height)
-    near, far = (
-        v.item() if isinstance(v, torch.Tensor) and v.numel() == 1 else v for v in (near, far)
-    )
-    real = lambda v: isinstance(v, numbers.Real) and not isinstance(v, bool)  # noqa: E731
-    if not (real(near) and real(far) and 0 < near < far):
+    near, far = _as_number(near), _as_number(far)
+    if not (is_real(near) and is_real(far) and 0 < near < far):
         raise ValueError(
             f"near, far: expected real numbers with 0 < near < far, got near={near!r}, far={far!r}"
         )
@@ -316,8 +321,7 @@ def rasterize(
             f"near, far: {near!r}, {far!r} round to {near_t!r}, {far_t!r} in {dtype}, the "
             "inputs' dtype; expected 0 < near < far there"
         )
-    if not isinstance(antialiased, bool):
-        raise ValueError(f"antialiased: expected True or False, got {antialiased!r}")
+    antialiased = as_flag("antialiased", antialiased)
     check_dilation(dilation)
     degree, coeffs = _sh_layout(colors, sh_degree)
     settings = dict(

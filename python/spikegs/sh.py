@@ -36,7 +36,9 @@ def num_coeffs(degree: int) -> int:
 
 def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
     """The SH degree that renders `colors`: None for direct colours [N, C]; for coefficients
-    [N, K, C], `sh_degree` or, where None, sqrt(K) - 1. ValueError naming what does not fit."""
+    [N, K, C], `sh_degree` or, where None, sqrt(K) - 1. ValueError naming what does not fit, and
+    for [N, 1, 4 | 9 | 16] without `sh_degree`, which is degree 0 of that many channels or a
+    mono scene's coefficients in the [N, C, K] layout."""
     if colors.dim() == 2:
         if sh_degree is not None:
             raise ValueError(
@@ -54,6 +56,12 @@ def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
         c = colors.shape[2]
+        if k == 1 and c in (4, 9, 16):
+            raise ValueError(
+                f"colors: {list(colors.shape)} is SH degree 0 of {c} channels in the [N, K, C] "
+                f"layout, or a mono scene's {c} coefficients in a [N, C, K] one: pass "
+                f"sh_degree=0 for the first, colors.transpose(1, 2) for the second"
+            )
         if num_coeffs(sh_degree) != k and c in (4, 9, 16) and k <= 4:
             raise ValueError(
                 f"colors: expected SH coefficients [N, K, C], got {list(colors.shape)}, "

@@ -14,10 +14,9 @@ import numpy as np
 from tqdm import tqdm
 
 from ..interrupt import deferred_interrupt, interruption
-from ..number_checks import finite_numbers, is_seed, whole_numbers
+from ..number_checks import as_flag, finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
 from ..spikes.simulate import simulate_channels
-from ..spikes.stream import as_flag
 from .dataset import (
     FORMAT_VERSION,
     LOCK,

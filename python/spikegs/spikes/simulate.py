@@ -22,8 +22,8 @@ import numpy as np
 from scipy.special import ndtri
 
 from .. import _C
-from ..number_checks import is_int, is_number, is_seed, number_array
-from .stream import DatWriter, PathLike, SpikeStream, as_flag, check_chunk
+from ..number_checks import as_flag, is_int, is_number, is_seed, number_array
+from .stream import DatWriter, PathLike, SpikeStream, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
 Source = np.ndarray | Callable[[float], np.ndarray]

@@ -30,7 +30,7 @@ import numpy as np
 from .. import _C
 from ..atomic_save import naming, temporary_name, written_path
 from ..cache_home import CACHED_FROM, cache_home, write_cached
-from ..number_checks import holds_bool, is_int, is_number, whole_numbers
+from ..number_checks import as_flag, holds_bool, is_int, is_number, whole_numbers
 from ..shell_words import shell_path
 
 PathLike = str | os.PathLike
@@ -60,13 +60,6 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
             f"of shape {arr.shape}" + (f" ({arr.tolist()})" if arr.size < 5 else "")
         )
     return arr.astype(np.int64).reshape(-1), arr.ndim == 0
-
-
-def as_flag(name: str, value) -> bool:
-    """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name}: expected True or False, found {value!r}")
-    return bool(value)
 
 
 def centred_range(length: int, w: int) -> tuple[int, int]:
