@@ -435,6 +435,13 @@ def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsy
             main(argv)
         err = capsys.readouterr().err
         assert exit.value.code == 2 and "spikegs: error: unrecognized arguments: --bogus" in err
+    # a shortened --version, alone or before a command: argparse said "the following arguments
+    # are required: COMMAND", or the command's missing arguments
+    for argv in (["--vers"], ["--vers", "train"]):
+        with pytest.raises(SystemExit) as exit:
+            main(argv)
+        err = capsys.readouterr().err
+        assert exit.value.code == 2 and f"spikegs: error: unrecognized arguments: {argv[0]}" in err
     with pytest.raises(SystemExit) as exit:
         main(["--version"])
     assert exit.value.code == 0 and capsys.readouterr().out == f"spikegs {spikegs.__version__}\n"

@@ -424,7 +424,8 @@ def test_resume_after_interruption_equals_uninterrupted(
         evaluate_run(tmp_path / "cut", dataset)  # (it said: train the run first)
     for command in (["eval"], ["render", "--out", str(tmp_path / "o.gif")]):
         assert main([command[0], str(tmp_path / "cut"), *command[1:]]) == 2
-        assert "finish it with spikegs train DATASET" in capsys.readouterr().err
+        said = capsys.readouterr().err  # the dataset the checkpoint names, not a placeholder
+        assert f"finish it with spikegs train {Path(dataset.root).resolve()} --out" in said
     # while another process trains it, --resume would be refused: eval says so instead, and
     # exits BUSY (a script's retry may succeed; 2, usage errors' and bad input's, it may not)
     with exclusive_lock(tmp_path / "cut" / ".lock", "held"):
@@ -3454,6 +3455,33 @@ def test_eval_of_a_run_killed_before_its_train_json_says_to_resume(dataset, tmp_
     (run / "train.json").unlink()
     assert main(["eval", str(run)]) == 2
     assert "stopped while writing its results; finish it with" in capsys.readouterr().err
+
+
+def test_a_full_disk_at_the_end_of_train_says_that_resume_finishes_it(
+    dataset, tmp_path, monkeypatch, capsys
+):
+    """scene.ply refused by a full disk said only "[Errno 28] No space left on device" (the last
+    checkpoint kept, --resume finishes the run); eval's note said "spikegs train DATASET", the
+    dataset its checkpoint names."""
+    run = tmp_path / "run"
+    command = ["train", str(dataset.root), "--method", "tfp33", "--iterations", "2"]
+    command += ["--out", str(run), "--no-progress"]
+
+    def full(model, path):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(train_module, "save_ply", full)
+    assert main(command) == 2
+    said = capsys.readouterr().err
+    assert (
+        f"No space left on device: {run / 'scene.ply'}; once there is room, spikegs train "
+        f"{dataset.root} --out {run} --resume finishes the run from its last checkpoint"
+    ) in said
+    assert main(["eval", str(run)]) == 2
+    said = capsys.readouterr().err
+    assert f"finish it with spikegs train {Path(dataset.root).resolve()} --out {run}" in said
+    monkeypatch.undo()
+    assert main([*command, "--resume"]) == 0 and (run / "scene.ply").is_file()
 
 
 def test_eval_sweeps_what_a_killed_scoring_half_wrote(dataset, tmp_path):

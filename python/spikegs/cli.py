@@ -7,6 +7,7 @@ import codecs
 import contextlib
 import importlib
 import io
+import itertools
 import math
 import os
 import signal
@@ -125,6 +126,10 @@ USAGE = """3D Gaussian Splatting trained from spike-camera streams.
   spikegs render RUN --out orbit.mp4         a novel-view orbit
 
 `spikegs COMMAND --help` for each command's options."""
+
+
+# the options `spikegs` takes before a command's name (argparse's help, and `--version`)
+TOP_OPTIONS = ("-h", "--help", "--version")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -319,12 +324,17 @@ def _stopped(stop: KeyboardInterrupt) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args, unknown = parser.parse_known_args(argv)
-    if unknown:  # with the command's usage (the top level's named no option of it), unless
-        words = sys.argv[1:] if argv is None else argv  # it came before the command's name
-        first = unknown[0]
-        before = first in words and words.index(first) < words.index(args.command)
-        (parser if before else args._parser).error(f"unrecognized arguments: {' '.join(unknown)}")
+    words = sys.argv[1:] if argv is None else argv
+    # an option before the command's name that the top level does not take: argparse said
+    # "the following arguments are required: COMMAND" for `spikegs --vers`, and the command's
+    # missing arguments for `spikegs --vers train`
+    before = itertools.takewhile(lambda word: word.startswith("-") and word != "--", words)
+    unknown = [word for word in before if word not in TOP_OPTIONS]
+    if unknown:
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    args, unknown = parser.parse_known_args(words)
+    if unknown:  # with the command's usage (the top level's named no option of it)
+        args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     with warnings.catch_warnings():
         warnings.showwarning = _warning_printer(args.command, warnings.showwarning)
         return _run(args)

@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 from .cli import add_no_progress, show_bars
-from .shell_words import shell_path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,7 +32,14 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     if dataset is not None:
         return dataset
     from .file_lock import refuse_if_held
-    from .run_summary import LOCK, SUMMARY, last_checkpoint, read_summary, trained_scene
+    from .run_summary import (
+        LOCK,
+        SUMMARY,
+        last_checkpoint,
+        read_summary,
+        resume_command,
+        trained_scene,
+    )
 
     summary = read_summary(run_dir)
     if "dataset" not in summary:
@@ -48,7 +54,7 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
             # killed between scene.ply and train.json, its last writes: --resume writes the rest
             raise FileNotFoundError(
                 f"{run_dir / SUMMARY} not found: the run stopped while writing its results; "
-                f"finish it with spikegs train DATASET --out {shell_path(run_dir)} --resume"
+                f"finish it with {resume_command(run_dir)}"
             )
         raise FileNotFoundError(
             f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"

@@ -26,6 +26,22 @@ def last_checkpoint(run_dir: Path) -> Path:
     return Path(run_dir) / CHECKPOINTS / "last.pt"
 
 
+def resume_command(run_dir: Path, dataset: Path | None = None) -> str:
+    """`spikegs train DATASET --out RUN --resume`, which finishes a run stopped with a checkpoint:
+    DATASET `dataset`, else the one its checkpoint names (the word DATASET where that cannot be
+    read: a torn file, a checkpoint from before the key)."""
+    if dataset is None:
+        import torch
+
+        try:  # (mapped: a large scene's parameters are not read for a message)
+            state = torch.load(last_checkpoint(run_dir), "cpu", mmap=True, weights_only=True)
+            dataset = state.get("dataset") if isinstance(state, dict) else None
+        except Exception:  # torch, pickle and zip raise their own kinds for a torn file
+            dataset = None
+    where = "DATASET" if not isinstance(dataset, (str, Path)) else shell_path(dataset)
+    return f"spikegs train {where} --out {shell_path(run_dir)} --resume"
+
+
 def read_summary(run_dir: Path) -> dict:
     """RUN/train.json's object ({} where there is none); ValueError naming the file where it is
     not JSON, not an object, or holds a dataset that is not a path, a scale that is not a finite
@@ -69,8 +85,8 @@ def trained_scene(run_dir: Path) -> Path:
             pass
     if last_checkpoint(run_dir).exists():
         raise FileNotFoundError(
-            f"{ply} not found: the run stopped before its end; finish it with spikegs train "
-            f"DATASET --out {shell_path(run_dir)} --resume"
+            f"{ply} not found: the run stopped before its end; finish it with "
+            f"{resume_command(run_dir)}"
         )
     if not Path(run_dir).is_dir():
         what = "a file, not a run folder" if Path(run_dir).exists() else "no such run folder"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import sys
 import warnings
@@ -23,7 +24,7 @@ from .config import (
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
 from .regular_file import is_blank
-from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint
+from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint, resume_command
 from .yaml_files import read_yaml
 
 
@@ -166,14 +167,24 @@ def _train(args: argparse.Namespace, config) -> int:
     trainer = Trainer(dataset, config, args.out, progress=bars)
     summary = None
     try:
-        summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
-    finally:  # a run stopped in its last step finished all the same: its curve and summary too
-        if trainer.iteration >= config.train.iterations:
-            runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
-            save_logged_curves(Path(args.out) / CURVE, runs, dataset)
-            written = Path(args.out) / SUMMARY  # written before the stop is raised
-            if summary is None and written.is_file():
-                summary = strict_json.read_json(written)
-            if summary is not None:  # (a script reads it from stdout)
-                print(strict_json.dumps(summary, indent=2))
+        try:
+            summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
+        finally:  # a run stopped in its last step finished all the same: its curve and summary
+            if trainer.iteration >= config.train.iterations:
+                runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
+                save_logged_curves(Path(args.out) / CURVE, runs, dataset)
+                written = Path(args.out) / SUMMARY  # written before the stop is raised
+                if summary is None and written.is_file():
+                    summary = strict_json.read_json(written)
+                if summary is not None:  # (a script reads it from stdout)
+                    print(strict_json.dumps(summary, indent=2))
+    except OSError as err:  # a full disk (scene.ply at the end, a checkpoint): said how to go on
+        if err.errno != errno.ENOSPC or not last_checkpoint(args.out).is_file():
+            raise
+        where = "" if err.filename is None else f": {err.filename}"
+        raise OSError(
+            err.errno,
+            f"{err.strerror}{where}; once there is room, "
+            f"{resume_command(args.out, args.dataset)} finishes the run from its last checkpoint",
+        ) from err
     return 0
