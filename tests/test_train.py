@@ -28,7 +28,14 @@ from spikegs import _C
 from spikegs import densify as densify_module
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
-from spikegs.config import CONFIG_DIR, Config, available_methods, load_config, load_saved_run
+from spikegs.config import (
+    CONFIG_DIR,
+    Config,
+    available_methods,
+    load_config,
+    load_saved_run,
+    warn_if_nothing_learns,
+)
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.trajectory import Trajectory, look_at
@@ -1138,18 +1145,24 @@ def test_ply_edge_cases(tmp_path):
             load_ply(tmp_path / "o.ply")
 
 
-def test_a_config_whose_learning_rates_are_all_0_is_warned_of():
-    """Every learning rate 0 trained to its end unsaid, nothing moving; sh_rest's counts only at
-    an SH degree above 0, the poses' only where they are refined."""
+def test_a_run_whose_learning_rates_are_all_0_is_warned_of(dataset, tmp_path):
+    """Every learning rate 0 trained to its end unsaid, nothing moving (a config made in Python
+    too: the trainer warns); sh_rest's counts only at an SH degree above 0, the poses' only where
+    they are refined."""
     names = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "background")
     frozen = {"lr": dict.fromkeys(names, 0.0)}  # sh_rest's rate kept: degree 0 has no such
+    train = {**FAST["train"], "iterations": 1, "checkpoint_every": 1}
+    config = load_config("tfp33", {**FAST, **frozen, "train": train})
     with pytest.warns(UserWarning, match=r"lr.means, .*, lr.background: every learning rate is 0"):
-        load_config("tfp33", frozen)
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        load_config("tfp33", {**frozen, "train": {"sh_degree": 1}})
-        load_config("tfp33", {**frozen, "pose_refine": {"enabled": True}})
-        load_config("tfp33", {"lr": {**frozen["lr"], "quats": 1e-3}})
+        for overrides in (
+            {**frozen, "train": {"sh_degree": 1}},
+            {**frozen, "pose_refine": {"enabled": True}},
+            {"lr": {**frozen["lr"], "quats": 1e-3}},
+        ):
+            warn_if_nothing_learns(load_config("tfp33", overrides))
 
 
 def test_gaussian_model_takes_numpy_bools_and_scalar_tensors():

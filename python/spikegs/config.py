@@ -590,15 +590,14 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
-    config = _validated_scaled(config, factors)
-    _warn_if_nothing_learns(config)
-    return config
+    return _validated_scaled(config, factors)
 
 
-def _warn_if_nothing_learns(config: Config) -> None:
-    """A UserWarning where the learning rate of every parameter the run updates is 0 (sh_rest's
-    counts only at sh_degree > 0, pose_refine's only where it is enabled; means_final only
-    decays lr.means): such a run trained to its end unsaid, no step moving anything."""
+def warn_if_nothing_learns(config: Config) -> None:
+    """A UserWarning, to the caller's caller, where the learning rate of every parameter a run of
+    `config` updates is 0 (sh_rest's counts only at sh_degree > 0, pose_refine's only where it
+    is enabled; means_final only decays lr.means): such a run trained to its end unsaid, no step
+    moving anything."""
     rates = {f"lr.{f.name}": getattr(config.lr, f.name) for f in dataclasses.fields(config.lr)}
     del rates["lr.means_final"]
     if config.train.sh_degree == 0:  # no coefficients beyond the DC's

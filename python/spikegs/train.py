@@ -21,7 +21,7 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
-from .config import MIN_GAUSSIANS, Config, differences, with_defaults
+from .config import MIN_GAUSSIANS, Config, differences, warn_if_nothing_learns, with_defaults
 from .curves import logged_curve
 from .data.dataset import POINTS, camera_keys, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
@@ -609,6 +609,7 @@ class Trainer:
             # poses, or a point cloud, that cannot train are refused before any work
             self._check_scene_in_view()
             self.cloud_points  # noqa: B018
+            warn_if_nothing_learns(self.config)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained
