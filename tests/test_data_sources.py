@@ -398,7 +398,10 @@ def test_frame_sequence_rounded_poses_made_rigid_and_malformed_files_named(tmp_p
 
 def test_mitsuba_missing_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "mitsuba", None)  # import mitsuba -> ImportError
-    with pytest.raises(MissingDependencyError, match=r"pip install 'spikegs\[mitsuba\]'"):
+    with pytest.raises(
+        MissingDependencyError,
+        match=r"pip install mitsuba \(or, in a checkout of spikegs, pip install '\.\[mitsuba\]'\)",
+    ):
         import_mitsuba()
 
 

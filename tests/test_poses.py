@@ -949,7 +949,10 @@ def test_poses_without_pycolmap_say_how_to_install(monkeypatch):
     from spikegs.data.sources import MissingDependencyError
 
     monkeypatch.setitem(sys.modules, "pycolmap", None)  # import pycolmap -> ImportError
-    with pytest.raises(MissingDependencyError, match=r"pip install 'spikegs\[sfm\]'"):
+    with pytest.raises(
+        MissingDependencyError,
+        match=r"pip install pycolmap \(or, in a checkout of spikegs, pip install '\.\[sfm\]'\)",
+    ):
         sfm.import_pycolmap()
 
 

@@ -1,5 +1,6 @@
 """Camera poses from spikes: spike images (TFP or SIM) at chosen readouts, structure from motion
-with pycolmap (`pip install 'spikegs[sfm]'`), poses as OpenCV world-to-camera viewmats.
+with pycolmap (`pip install pycolmap`, or the checkout's `pip install '.[sfm]'`), poses as
+OpenCV world-to-camera viewmats.
 
 SfM recovers poses and points up to a similarity (rotation, translation and scale of the world);
 `align` maps them onto a known trajectory by the similarity that fits the camera centres and
@@ -171,7 +172,7 @@ def import_pycolmap():
     except ImportError as err:
         raise MissingDependencyError(
             "poses from spikes need pycolmap, which is not installed: "
-            "pip install 'spikegs[sfm]' (or pip install pycolmap)"
+            "pip install pycolmap (or, in a checkout of spikegs, pip install '.[sfm]')"
         ) from err
     # glog's failure handler took SIGTERM below Python (a stack dump, not 'terminated')
     if handler is not None and threading.current_thread() is threading.main_thread():

@@ -256,7 +256,7 @@ def import_mitsuba():
     except ImportError as err:
         raise MissingDependencyError(
             "a Mitsuba scene needs Mitsuba 3, which is not installed: "
-            "pip install 'spikegs[mitsuba]' (or pip install mitsuba)"
+            "pip install mitsuba (or, in a checkout of spikegs, pip install '.[mitsuba]')"
         ) from err
     mi.set_variant("scalar_rgb")
     return mi
