@@ -40,4 +40,5 @@ if ! has_glm; then
     exit 1
   fi
 fi
+echo "install-deps: torch 2.13.0, scikit-build-core, pybind11, cmake, ninja (pip)" >&2
 python -m pip install -q "torch==2.13.0" "scikit-build-core>=0.10" "pybind11>=2.12" cmake ninja
