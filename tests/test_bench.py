@@ -441,6 +441,18 @@ def test_bench_refuses_an_out_that_holds_a_run_or_a_dataset(
     assert [p.name for p in tmp_path.iterdir()] == [name]
 
 
+def test_bench_runs_again_where_bench_train_wrote_its_results(tmp_path, monkeypatch):
+    """bench train's own OUT/train.json (a run's summary's name) refused every later bench into
+    its folder, bench-results-quick too, as a run's; a run's train.json still is (above)."""
+    from spikegs.bench.common import write_results
+    from spikegs.cli import main
+
+    write_results(tmp_path, "train", {"data": {}})
+    ran = []
+    monkeypatch.setattr(stiff, "run", lambda quick, out: ran.append(out) or {"failures": []})
+    assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 0 and ran == [tmp_path]
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

@@ -8,6 +8,7 @@ from pathlib import Path
 from .atomic_save import is_temporary
 from .file_lock import exclusive_lock
 from .run_summary import CHECKPOINTS, CONFIG, CURVE, EVAL, LOCK, LOG, SCENE, SUMMARY
+from .strict_json import read_json
 
 
 def run_lock(run_dir: Path):
@@ -68,6 +69,15 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
     refuse_foreign_files(run_dir, "; give an empty or new --out")
 
 
+def _bench_results(path: Path) -> bool:
+    """Whether `path` holds a benchmark's results (`bench.common`'s object, its "benchmark"
+    named): `bench train` writes OUT/train.json, a run's summary's name."""
+    try:
+        return "benchmark" in read_json(path)
+    except (OSError, ValueError):
+        return False
+
+
 def refuse_dataset_or_run(out: Path, writer: str) -> None:
     """FileExistsError, before any work, where OUT itself holds a dataset or a spikegs run
     (--out naming one, as simulate's or train's does): `writer` ("a demo", "spikegs bench")
@@ -78,6 +88,8 @@ def refuse_dataset_or_run(out: Path, writer: str) -> None:
     if not out.is_dir():
         return
     run = sorted(p.name for p in out.iterdir() if p.name in RUN_FILES - {LOCK})
+    if run == [SUMMARY] and _bench_results(out / SUMMARY):  # `bench train`'s own, not a run's
+        run = []
     marks = layout_files(out)
     if run:
         held = f"a spikegs run ({', '.join(run)})"
