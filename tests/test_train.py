@@ -3512,6 +3512,38 @@ def test_eval_sweeps_what_a_killed_scoring_half_wrote(dataset, tmp_path):
     assert not any(path.exists() for path in killed)
 
 
+def test_eval_stopped_midway_keeps_its_earlier_images_with_its_earlier_scores(
+    dataset, tmp_path, monkeypatch
+):
+    """Ctrl-C in a scoring left RUN/eval/ with the new side-by-sides of the views scored so far
+    beside eval.json's earlier scores (a run trained on since: images and scores of two
+    scenes); the images now land with their scores, and nothing temporary stays."""
+    from spikegs import evaluate as evaluate_module
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    evaluate_run(run, dataset)
+    before = {p.name: p.read_bytes() for p in [run / "eval.json", *(run / "eval").iterdir()]}
+    rendered, render = [], evaluate_module.render_view
+
+    def stopped_at_the_third(model, viewmat, data):
+        if len(rendered) == 2:
+            raise KeyboardInterrupt
+        rendered.append(viewmat)
+        return render(model, viewmat, data) * 0.5  # (another scene's images)
+
+    monkeypatch.setattr(evaluate_module, "render_view", stopped_at_the_third)
+    with pytest.raises(KeyboardInterrupt):
+        evaluate_run(run, dataset)
+    after = {p.name: p.read_bytes() for p in [run / "eval.json", *(run / "eval").iterdir()]}
+    assert after == before and len(rendered) == 2  # (temporaries too would be listed)
+    monkeypatch.setattr(evaluate_module, "render_view", lambda *args: render(*args) * 0.5)
+    scored = evaluate_run(run, dataset)["views"]  # and a whole scoring replaces them all
+    changed = {p.name for p in (run / "eval").iterdir() if p.read_bytes() != before[p.name]}
+    assert changed == {f"{view}.png" for view in scored}
+
+
 def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monkeypatch):
     """A render identical to its ground truth has an infinite PSNR, which Python's json wrote as
     the token Infinity, refused by JSON.parse, jq and serde: it is null."""

@@ -132,18 +132,33 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     is removed when writing fails; a killed process's stays until swept (`sweep_dead_writes` as
     `path` is written again, `sweep_temporaries` in a run folder when training or scoring starts
     and in a demo's, `sweep_killed_writes` in SIM's cache)."""
-    path = written_path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    sweep_dead_writes(path)  # a killed writer's temporary of `path` (eval's images, a video)
-    tmp = path.with_name(temporary_name(path, str(os.getpid())))
+    tmp, target = staged_write(path, write)
     try:
-        write(tmp)
-        tmp.replace(path)
+        tmp.replace(target)
     except OSError as err:  # named by the file asked for, not the hidden temporary one
-        raise naming(err, path, tmp)  # noqa: B904 (its cause set, where it is another)
-    finally:  # (an error of its own would replace the write's)
+        raise naming(err, target, tmp)  # noqa: B904 (its cause set, where it is another)
+    finally:  # (an error of its own would replace the rename's)
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
+
+
+def staged_write(path: Path, write: Callable[[Path], None]) -> tuple[Path, Path]:
+    """`write_atomically` but for its rename: (the temporary file written, where it is to land),
+    for the caller to rename when the files written with it are all whole (`spikegs eval`'s
+    images, published with their scores); the temporary is removed where `write` fails."""
+    target = written_path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    sweep_dead_writes(target)  # a killed writer's temporary of `path` (eval's images, a video)
+    tmp = target.with_name(temporary_name(target, str(os.getpid())))
+    try:
+        write(tmp)
+    except BaseException as err:  # (Ctrl-C mid-write too)
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        if isinstance(err, OSError):  # named by the file asked for, not the hidden temporary
+            raise naming(err, target, tmp)  # noqa: B904 (its cause set, where it is another)
+        raise
+    return tmp, target
 
 
 def write_text_atomically(path: Path, text: str) -> None:

@@ -18,7 +18,7 @@ from .data.dataset import is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
-from .image_io import srgb_to_linear, write_image
+from .image_io import srgb_to_linear, stage_image
 from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output, writable_folder
@@ -336,30 +336,17 @@ def evaluate_run(
     earlier = _scored_views(scores_file)  # {view: its scores then}
     for gone in set(earlier) - {v.name for v in dataset.test_views}:
         (folder / f"{gone}.png").unlink(missing_ok=True)
-    views, radius = {}, float(dataset.scene_radius)
-    bar = tqdm(dataset.test_views, "aligning poses", disable=not (progress and align_poses))
-    for view in bar:
-        # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
-        # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
-        pseudo = view.name.startswith(PSEUDO_PREFIX)
-        gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
-        gt = np.clip(gt, 0, 1)  # what is scored, and shown
-        aligned = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else None
-        viewmat = aligned.viewmat if aligned else view.viewmat
-        pred = np.clip(render_view(model, viewmat, dataset), 0, 1)
-        views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
-        if aligned:  # how far the pose moved: degrees, and the centre in scene radii
-            degrees, moved = (float(e[0]) for e in pose_errors(viewmat[None], view.viewmat[None]))
-            views[view.name].update(
-                aligned_rotation_deg=degrees,
-                aligned_centre=moved / radius,
-                aligned_steps=aligned.steps,
-                aligned_settled=aligned.settled,
-                aligned_unexplained=aligned.unexplained,
-            )
-        if write_images:
-            image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
-            write_image(folder / f"{view.name}.png", image)
+    # the side-by-sides are written beside theirs and renamed onto them once the scores are: a
+    # scoring stopped on the way left the earlier scores beside some of the new images
+    staged = []  # [(temporary file, the image it becomes)]
+    images = folder if write_images else None
+    try:
+        views = _score_views(
+            model, dataset, (scale, run_scale), align_poses, progress, images, staged
+        )
+    except BaseException:
+        _discard(staged)
+        raise
     if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
         for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
             (folder / f"{view}.png").unlink(missing_ok=True)
@@ -424,5 +411,57 @@ def evaluate_run(
                 stacklevel=2,
             )
     result["file"] = str(scores_file.resolve())  # not as typed: where it lies
-    write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
+    try:
+        write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
+        for tmp, image in staged:
+            tmp.replace(image)
+    finally:
+        _discard(staged)  # (where the scores could not be written)
     return result
+
+
+def _score_views(
+    model: GaussianModel,
+    dataset,
+    scales: tuple[float, float],
+    align_poses: bool,
+    progress: bool,
+    folder: Path | None,
+    staged: list,
+) -> dict:
+    """`evaluate_run`'s scores of each test view {name: scores} (`scales`: the dataset's and
+    the run's intensity scales; `align_poses`, `progress` its), each view's side-by-side written
+    to a temporary file beside FOLDER/VIEW.png and appended to `staged` (no images where
+    `folder` is None)."""
+    scale, run_scale = scales
+    views, radius = {}, float(dataset.scene_radius)
+    bar = tqdm(dataset.test_views, "aligning poses", disable=not (progress and align_poses))
+    for view in bar:
+        # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
+        # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
+        pseudo = view.name.startswith(PSEUDO_PREFIX)
+        gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
+        gt = np.clip(gt, 0, 1)  # what is scored, and shown
+        aligned = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else None
+        viewmat = aligned.viewmat if aligned else view.viewmat
+        pred = np.clip(render_view(model, viewmat, dataset), 0, 1)
+        views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
+        if aligned:  # how far the pose moved: degrees, and the centre in scene radii
+            degrees, moved = (float(e[0]) for e in pose_errors(viewmat[None], view.viewmat[None]))
+            views[view.name].update(
+                aligned_rotation_deg=degrees,
+                aligned_centre=moved / radius,
+                aligned_steps=aligned.steps,
+                aligned_settled=aligned.settled,
+                aligned_unexplained=aligned.unexplained,
+            )
+        if folder is not None:
+            image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
+            staged.append(stage_image(folder / f"{view.name}.png", image))
+    return views
+
+
+def _discard(staged: list) -> None:
+    """Remove the temporary files in `staged` ([(temporary, image)]) not renamed."""
+    for tmp, _ in staged:
+        tmp.unlink(missing_ok=True)

@@ -3,13 +3,14 @@ colour conversions of linear light (sRGB, Rec. 709 luma)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 
-from .atomic_save import write_atomically
+from .atomic_save import staged_write, write_atomically
 from .output_paths import utf8_name
 
 
@@ -58,10 +59,20 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     """Write linear float `image` [H, W] or [H, W, C]: EXR/TIFF as they are; PNG/JPEG, which
     OpenImageIO tags as sRGB, sRGB-encoded (clipped to [0, 1]) and quantised to 8 bits, so that
     viewers show the intensities and `read_frame` decodes them back."""
+    write_atomically(Path(path), _image_writer(Path(path), image))  # a kill keeps the previous
+
+
+def stage_image(path: str | Path, image: np.ndarray) -> tuple[Path, Path]:
+    """`write_image` but for the last rename: (the temporary file written, `path` or its link's
+    target), for the caller to rename onto it (`atomic_save.staged_write`)."""
+    return staged_write(Path(path), _image_writer(Path(path), image))
+
+
+def _image_writer(path: Path, image: np.ndarray) -> Callable[[Path], None]:
+    """A function writing `image` to a temporary file, in `path`'s format (`write_image`)."""
     image = np.asarray(image, dtype=np.float32)
     if image.ndim == 2:
         image = image[..., None]  # OpenImageIO needs (H, W, 1) for one channel
-    path = Path(path)
     spec = oiio.ImageSpec(image.shape[1], image.shape[0], image.shape[2], oiio.FLOAT)
     if path.suffix.lower() in (".png", ".jpg", ".jpeg"):
         image = linear_to_srgb(image).astype(np.float32)
@@ -91,7 +102,7 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
                 f"a quota reached?)"
             )
 
-    write_atomically(path, write)  # a kill mid-write keeps the previous image (or none)
+    return write
 
 
 @dataclass(frozen=True)
