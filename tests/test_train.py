@@ -2561,11 +2561,29 @@ def test_render_refuses_an_unwritable_video_before_rendering(
     cases += [("afile/v.gif", []), ("afile/v.mp4", [])]
     (tmp_path / "cams.gif.json").mkdir()  # where its cameras go: said after rendering, exit 0
     cases += [("cams.gif", [])]
+    # a link to a file in a folder that is not there (that folder was made, wherever it was)
+    (tmp_path / "dangling.gif").symlink_to(tmp_path / "missing" / "x.gif")
+    cases += [("dangling.gif", [])]
     for out, extra in cases:
         assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / out), *extra]) == 2
+    assert not (tmp_path / "missing").exists()
     monkeypatch.setattr("spikegs.video.MP4_CODECS", ("vp6",))  # FFmpeg decodes it only
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "v.mp4")]) == 2
     assert "none of the encoders" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="names as bytes: Linux file systems")
+def test_render_refuses_names_its_record_cannot_hold(dataset, tmp_path, monkeypatch, capfd):
+    """A video or run not named in UTF-8 rendered, and the cameras' record beside the video
+    held their names as lone surrogates ("\\udcef"), which strict JSON parsers refuse (eval
+    refuses such a run)."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / os.fsdecode(b"r\xefn")
+    Trainer(dataset, config, run, progress=False).train()
+    monkeypatch.setattr("spikegs.render_cli.orbit_frames", lambda *a: pytest.fail("rendered"))
+    for video in (os.fsdecode(b"v\xefn.gif"), "v.gif"):
+        assert main(["render", str(run), "--out", str(tmp_path / video)]) == 2
+        assert "not a UTF-8 name, which the cameras' record" in capfd.readouterr().err
 
 
 def test_cli_names_unreadable_and_unwritable_paths(dataset, tmp_path, capsys):

@@ -48,13 +48,27 @@ def _check_no_file_on_path(path: Path, flag: str, folders) -> None:
 
 def check_file_output(path: Path, flag: str = "--out") -> None:
     """ValueError unless a file can be written at `path`: not a directory, no file on its folder
-    path, its folder writable."""
+    path, its folder writable, and, where it is a symbolic link to nothing, its target's folder
+    there (written through the link, it was made, wherever the link pointed)."""
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{flag} {path}: is a folder; give a file name")
     _check_no_file_on_path(path, flag, path.parents)
     if not writable_folder(path.parent):
         raise ValueError(f"{flag} {path}: its folder is not writable")
+    target = Path(os.path.realpath(path))
+    if path.is_symlink() and not path.exists() and not target.parent.is_dir():
+        raise ValueError(
+            f"{flag} {path}: a symbolic link to {os.readlink(path)}, whose folder does not "
+            f"exist; make that folder first, or remove the link"
+        )
+
+
+def check_utf8_name(path: Path, flag: str, why: str) -> None:
+    """ValueError where `path` (absolute) is not a UTF-8 name (`utf8_name`), saying `why` it
+    must be one."""
+    if utf8_name(Path(path).absolute()) is None:
+        raise ValueError(f"{flag} {path}: not a UTF-8 name, which {why}; rename it")
 
 
 def check_folder_output(folder: Path, flag: str = "--out", images: bool = False) -> None:
@@ -67,11 +81,8 @@ def check_folder_output(folder: Path, flag: str = "--out", images: bool = False)
     _check_no_file_on_path(folder, flag, [folder, *folder.parents])
     if not writable_folder(folder):
         raise ValueError(f"{flag} {folder}: not writable")
-    if images and utf8_name(folder.absolute()) is None:
-        raise ValueError(
-            f"{flag} {folder}: not a UTF-8 name, which OpenImageIO (spikegs's image files) "
-            f"cannot open; rename it"
-        )
+    if images:
+        check_utf8_name(folder, flag, "OpenImageIO (spikegs's image files) cannot open")
 
 
 def record_beside(path: Path) -> Path:

@@ -12,7 +12,7 @@ import numpy as np
 
 from .cli import add_no_progress, direction, output_file, positive_float, positive_int, show_bars
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
-from .output_paths import check_file_output, record_beside
+from .output_paths import check_file_output, check_utf8_name, record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
 # directions that the cameras' right axes span with less than this fraction of their main spread
@@ -206,6 +206,8 @@ def run(args: argparse.Namespace) -> int:
     from .run_summary import read_summary, trained_scene
 
     check_video_output(args.out, args.fps)
+    for path, flag in ((args.out, "--out"), (args.run, "RUN")):  # (as strict JSON holds them)
+        check_utf8_name(path, flag, "the cameras' record beside the video names")
     # the cameras' record too (a folder of its name was said after the rendering, exit 0)
     check_file_output(record_beside(args.out), "--out's cameras, beside it:")
     ply = trained_scene(args.run)
