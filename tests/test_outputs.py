@@ -414,6 +414,29 @@ def test_a_command_started_with_a_standard_stream_closed_runs_with_it_on_dev_nul
     assert done.returncode == 0 and out.read_text() == f"'' False {os.devnull}"
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["eval", "RUN", "--dataset", ""],
+        ["eval", ""],
+        ["render", "RUN", "--out", "v.gif", "--dataset", ""],
+        ["render", "", "--out", "v.gif"],
+        ["train", "", "--method", "tfp33", "--out", "RUN"],
+        ["sim-train", ""],
+        ["poses", ""],
+        ["simulate", "--out", ""],
+        ["demo", "--out", ""],
+        ["bench", "stiff", "--out", ""],
+    ],
+)
+def test_an_empty_path_is_refused_while_parsing(argv, capsys):
+    """`eval RUN --dataset ""` said "./: no dataset found": an empty path was the current
+    folder (Path('')), for every path argument but train's --out and --config."""
+    with pytest.raises(SystemExit) as exit:
+        main(argv)
+    assert exit.value.code == 2 and "expected a path, found ''" in capsys.readouterr().err
+
+
 def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsys, monkeypatch):
     """An unknown option printed the top level's usage (`spikegs [-h] COMMAND ...`) under
     `spikegs: error:`, every other error the command's; a shortened one (`--iter 3`) was read

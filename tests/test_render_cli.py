@@ -283,6 +283,18 @@ def test_a_direction_that_is_not_finite_is_refused(text):
         direction(text)
 
 
+def test_an_up_with_a_leading_minus_sign_is_read_as_a_value():
+    """`--up -1,0,0` was argparse's "expected one argument" (a word starting with a minus sign
+    read as an option); `--up=-1,0,0` alone worked."""
+    from spikegs.cli import build_parser, joined_vectors
+
+    for command in (["render", "RUN", "--out", "v.gif"], ["simulate", "--out", "D"]):
+        for up in ("-1,0,0", "-.5,0,1", "0,-1,0"):
+            args = build_parser().parse_args(joined_vectors([*command, "--up", up]))
+            assert np.allclose(args.up, direction(up)), (command, up)
+    assert joined_vectors(["render", "R", "--up", "--out", "v.gif"])[2:4] == ["--up", "--out"]
+
+
 def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     """Each frame is the render sRGB-encoded and rounded to 8 bits (not truncated), a mono render
     repeated on R, G and B: renders of sRGB 100.53/255 and 100.47/255 give 101 and 100 (halves

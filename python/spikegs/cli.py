@@ -10,6 +10,7 @@ import io
 import itertools
 import math
 import os
+import re
 import signal
 import sys
 import warnings
@@ -101,7 +102,7 @@ def file_path(text: str) -> Path:
     """An argparse type: a path, refused while parsing when empty (Path('') is the current
     directory)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError("expected a file path, found ''")
+        raise argparse.ArgumentTypeError("expected a path, found ''")
     return Path(text)
 
 
@@ -130,6 +131,21 @@ USAGE = """3D Gaussian Splatting trained from spike-camera streams.
 
 # the options `spikegs` takes before a command's name (argparse's help, and `--version`)
 TOP_OPTIONS = ("-h", "--help", "--version")
+# options whose value is X,Y,Z (`direction`), and a value of them starting with a minus sign
+VECTOR_OPTIONS = ("--up",)
+NEGATIVE_VECTOR = re.compile(r"-[\d.]")
+
+
+def joined_vectors(words: list[str]) -> list[str]:
+    """`words` with `--up -1,0,0` as `--up=-1,0,0`: argparse takes a word starting with a minus
+    sign for an option unless it is a plain negative number ("--up: expected one argument")."""
+    joined = []
+    for word in words:
+        if joined and joined[-1] in VECTOR_OPTIONS and NEGATIVE_VECTOR.match(word):
+            joined[-1] = f"{joined[-1]}={word}"
+        else:
+            joined.append(word)
+    return joined
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -332,7 +348,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [word for word in before if word not in TOP_OPTIONS]
     if unknown:
         parser.error(f"unrecognized arguments: {' '.join(unknown)}")
-    args, unknown = parser.parse_known_args(words)
+    args, unknown = parser.parse_known_args(joined_vectors(words))
     if unknown:  # with the command's usage (the top level's named no option of it)
         args._parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     with warnings.catch_warnings():

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import strict_json
 from .atomic_save import sweep_temporaries, write_text_atomically
-from .cli import add_no_progress, positive_int, show_bars
+from .cli import add_no_progress, file_path, positive_int, show_bars
 from .config import load_config, load_saved_run
 from .curves import save_logged_curves
 from .data.scenes import SCENES
@@ -57,7 +57,7 @@ DEMO_OVERRIDES = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=Path("spikegs-demo"), help="output folder")
+    parser.add_argument("--out", type=file_path, default=Path("spikegs-demo"), help="output folder")
     parser.add_argument(
         "--scene",
         choices=sorted(SCENES),

@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .cli import add_no_progress, show_bars
+from .cli import add_no_progress, file_path, show_bars
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
-    parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
+    parser.add_argument("run", type=file_path, help="run folder (spikegs train --out)")
+    parser.add_argument("--dataset", type=file_path, help="dataset folder (default: the run's own)")
     parser.add_argument(
         "--no-images",
         action="store_true",

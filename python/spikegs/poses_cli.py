@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic_save import write_text_atomically
+from .cli import file_path
 from .config import SupervisionConfig
 from .data.dataset import (
     INTRINSICS_FROM_SFM,
@@ -88,7 +89,7 @@ WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and repor
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "dataset",
-        type=Path,
+        type=file_path,
         help="dataset folder (meta.json and spikes), written in place: trajectory.json (an "
         "earlier one kept as trajectory.json.bak), points3d.ply, meta.json's camera and the "
         "training timestamps; SfM's work in DATASET/sfm",

@@ -10,7 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import add_no_progress, direction, output_file, positive_float, positive_int, show_bars
+from .cli import (
+    add_no_progress,
+    direction,
+    file_path,
+    output_file,
+    positive_float,
+    positive_int,
+    show_bars,
+)
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
 from .output_paths import check_file_output, check_utf8_name, record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
@@ -32,9 +40,9 @@ PATH_TEXT = {  # what each path shows, as `spikegs render` says
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="run folder (spikegs train --out)")
+    parser.add_argument("run", type=file_path, help="run folder (spikegs train --out)")
     parser.add_argument("--out", type=output_file, required=True, help="video file: .gif or .mp4")
-    parser.add_argument("--dataset", type=Path, help="dataset folder (default: the run's own)")
+    parser.add_argument("--dataset", type=file_path, help="dataset folder (default: the run's own)")
     parser.add_argument("--frames", type=positive_int, default=60, help="frames in one orbit")
     parser.add_argument(
         "--fps",

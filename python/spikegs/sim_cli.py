@@ -12,7 +12,7 @@ from pathlib import Path
 
 from . import strict_json
 from .atomic_save import write_text_atomically
-from .cli import add_no_progress, output_file, positive_int, seed, show_bars
+from .cli import add_no_progress, file_path, output_file, positive_int, seed, show_bars
 from .config import Config, SimConfig, SupervisionConfig, TrainConfig
 from .data.dataset import load_dataset, reading_dataset
 from .data.real import pseudo_views_note
@@ -40,7 +40,9 @@ FLAGS = {
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sim = SimConfig()
-    parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
+    parser.add_argument(
+        "dataset", type=file_path, help="dataset folder (spikegs simulate writes one)"
+    )
     parser.add_argument(
         "--window", type=positive_int, default=sim.window, help="spike window, readouts"
     )

@@ -29,7 +29,9 @@ from .yaml_files import read_yaml
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", type=Path, help="dataset folder (spikegs simulate writes one)")
+    parser.add_argument(
+        "dataset", type=file_path, help="dataset folder (spikegs simulate writes one)"
+    )
     which = parser.add_mutually_exclusive_group()
     which.add_argument(
         "--method",

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import add_no_progress, positive_float, positive_int, show_bars
+from ..cli import add_no_progress, file_path, positive_float, positive_int, show_bars
 from ..demo import DEMO_OVERRIDES
 from ..file_lock import exclusive_lock
 from ..output_paths import check_folder_output
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
     parser.add_argument(
         "--out",
-        type=Path,
+        type=file_path,
         default=None,
         help="output folder (default bench-results, or bench-results-quick with --quick: a quick "
         "run does not replace a full one's files)",

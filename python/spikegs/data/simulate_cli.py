@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
-from pathlib import Path
 
-from ..cli import add_no_progress, direction, finite_float, seed, show_bars
+from ..cli import add_no_progress, direction, file_path, finite_float, seed, show_bars
 from ..output_paths import check_folder_output
 from ..spikes import SimParams
 from .scenes import SCENES
@@ -31,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "transforms JSON / a folder holding transforms_train.json or transforms.json (default: "
         "solids)",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output dataset folder")
+    parser.add_argument("--out", type=file_path, required=True, help="output dataset folder")
     parser.add_argument("--height", type=int, default=DEFAULT_SIZE, help="image rows, pixels")
     parser.add_argument("--width", type=int, default=DEFAULT_SIZE, help="image columns, pixels")
     parser.add_argument(
