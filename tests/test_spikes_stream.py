@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import errno
 import os
+import pickle
 import subprocess
 import sys
 import tracemalloc
@@ -645,3 +647,24 @@ def test_readouts_a_full_disk_refuses_at_the_close_leave_no_file(tmp_path, end):
     else:
         writer.discard()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stream_pickles_its_file_by_path_and_its_memory_by_bytes(tmp_path):
+    """A SpikeStream could not be pickled (its SpikeLayout), so no stream or dataset reached a
+    spawned worker or copy.deepcopy; a file's stream now travels as its path (not its memory
+    map's bytes), opened again only while it is the file it was, cropped and flipped alike."""
+    bits = np.random.default_rng(0).random((2000, 5, 11)) < 0.3
+    memory = SpikeStream.from_bits(bits)
+    again = pickle.loads(pickle.dumps(memory))
+    assert again.digest() == memory.digest() and again.path is None
+    raw = np.zeros((2000, 5, 16), bool)
+    raw[..., 3:14] = bits
+    path = save_dat(tmp_path / "s.dat", raw, flip=False)
+    opened = SpikeStream.open(path, 5, 11, flip=False, raw_width=16, col_offset=3)
+    pickled = pickle.dumps(opened)
+    assert len(pickled) < raw.size / 8  # (the path, not the file's bytes)
+    for copy_of in (pickle.loads(pickled), copy.deepcopy(opened)):
+        assert copy_of.digest() == memory.digest() and copy_of.path == path.resolve()
+    os.utime(path, ns=(1, 1))  # (another file now, for all it can tell)
+    with pytest.raises(ValueError, match="s.dat: changed since a SpikeStream opened it"):
+        pickle.loads(pickled)

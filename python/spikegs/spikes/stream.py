@@ -177,6 +177,16 @@ class SpikeStream:
         layout = _C.SpikeLayout.memory(bits.shape[1], bits.shape[2])
         return cls(_C.spike_pack(bits, layout), layout)
 
+    def __reduce__(self):
+        """Pickled (spawned workers, copy.deepcopy): a stream opened from a file is opened there
+        again, by its path (its memory map pickled whole was the file's bytes, and a
+        SpikeLayout no pickle at all); one in memory carries its bytes."""
+        lay = self._layout
+        layout = (lay.height, lay.width, lay.flip, lay.row_bits, lay.col_offset)
+        if self._opened is not None:
+            return _reopened, (*self._opened, layout)
+        return _from_bytes, (np.asarray(self._data), layout, self.path)
+
     def __len__(self) -> int:
         return self._len
 
@@ -297,6 +307,23 @@ class SpikeStream:
         mem = _C.SpikeLayout.memory(self.height, self.width)
         out = _C.spike_repack(self._data, self._layout, start, stop - start, mem)
         return out.reshape(stop - start, self.height, (self.width + 7) // 8)
+
+
+def _reopened(path: Path, identity: str | None, layout: tuple) -> SpikeStream:
+    """A pickled stream's file opened again (`SpikeStream.__reduce__`); ValueError where it is
+    no longer the file that was opened (replaced, grown or cut since: other spikes)."""
+    if _file_identity(path) != identity:
+        raise ValueError(
+            f"{path}: changed since a SpikeStream opened it (pickled for another process): open "
+            f"it again"
+        )
+    height, width, flip, row_bits, col_offset = layout
+    return SpikeStream.open(path, height, width, flip, row_bits, col_offset)
+
+
+def _from_bytes(data: np.ndarray, layout: tuple, path: Path | None) -> SpikeStream:
+    """A pickled in-memory stream (`SpikeStream.__reduce__`)."""
+    return SpikeStream(data, _C.SpikeLayout.dat(*layout), path)
 
 
 def _file_identity(path: Path) -> str | None:
