@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -426,6 +427,21 @@ def test_sim_params_of_the_wrong_type_are_named():
     params = SimParams(threshold=np.int64(50), shot_noise=np.bool_(False))  # numpy scalars: fine
     assert (params.threshold, params.shot_noise) == (50.0, False)
     assert type(params.threshold) is float and type(params.shot_noise) is bool
+    # a field set afterwards skipped every check ("0.5" reached the core as a string): frozen,
+    # and another value checked through dataclasses.replace
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        params.rate_at_one = "0.5"
+    with pytest.raises(ValueError, match="rate_at_one: expected a number, found '0.5'"):
+        dataclasses.replace(params, rate_at_one="0.5")
+    assert dataclasses.replace(params, rate_at_one=0.5).rate_at_one == 0.5
+
+
+def test_a_tiny_rate_at_one_saturates_without_overflow():
+    """rate_at_one under ~3e-33 overflowed float32 where the light that saturates is capped (a
+    RuntimeWarning, an error under np.errstate(all="raise")); the spikes were right."""
+    with np.errstate(all="raise"):
+        packed = simulate_spikes(np.full((1, 2, 8), 3e38), 5, params=SimParams(rate_at_one=1e-38))
+    assert (packed == 255).all()  # every pixel fires every readout
 
 
 def test_a_threshold_of_a_few_photo_electrons_warns():
