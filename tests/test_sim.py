@@ -38,6 +38,7 @@ from spikegs.sim_train import (
     train_sim,
     user_cache,
 )
+from spikegs.spikes import SpikeStream
 from spikegs.spikes.stream import centred_range
 
 
@@ -1130,8 +1131,6 @@ def test_training_crops_reach_every_edge_of_the_frame(monkeypatch):
     """Crops of 7 on an 8×8 frame start at row and column 0 or 1, each: spikes on the last row
     and column alone, some crops hold each (offsets to height - crop exclusive never trained on
     the frame's last row, and passed every test)."""
-    from spikegs.spikes import SpikeStream
-
     bits = np.zeros((10, 8, 8), bool)
     bits[:, -1, :3] = True  # the last row, away from the last column
     bits[:, :3, -1] = True  # the last column, away from the last row
@@ -1145,3 +1144,21 @@ def test_training_crops_reach_every_edge_of_the_frame(monkeypatch):
     crops = np.concatenate(seen)  # [32, 3, 7, 7]
     assert crops.shape == (32, 3, 7, 7)
     assert crops[:, :, -1, :].any() and crops[:, :, :, -1].any()
+
+
+def test_the_api_refuses_what_would_fail_later_by_name():
+    """train_sim's crop, batch or steps under 1 failed in torch or numpy at the first step, a
+    timestamp whose window runs past the stream at the first step to draw it (minutes in);
+    infer_sim of no timestamps in np.concatenate; a SIM given numpy's integers refused them."""
+    stream = SpikeStream.from_bits(np.random.default_rng(0).random((100, 12, 12)) < 0.3)
+    for setting in ({"crop": 0}, {"batch_size": 0}, {"steps": 0}):
+        (name,) = setting
+        with pytest.raises(ValueError, match=f"SIM {name} expected a positive int, found 0"):
+            train_sim(stream, [50], 33, progress=False, **setting)
+    with pytest.raises(ValueError, match=r"timestamps \[5, 99\]: .* \(centres 16..83 fit\)"):
+        train_sim(stream, [5, 50, 99], 33, steps=1, progress=False)
+    model, _ = train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
+    assert infer_sim(model, stream, []).shape == (0, 12, 12, 1)
+    assert SIM(window=np.int64(5)).config["window"] == 5
+    with pytest.raises(ValueError, match=r"SIM input expected \[B, 5, H, W\], H, W ≥ 1"):
+        SIM(window=5)(torch.zeros(2, 5, 0, 7))

@@ -21,6 +21,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .number_checks import is_int
+
 # The side each branch looks towards, as a (row, col) step in the unrotated frame: k = 0 up,
 # 1 right, 2 down, 3 left (torch.rot90 by k = 1 puts the original right side on top).
 _DIRS = ((-1, 0), (0, 1), (1, 0), (0, -1))
@@ -72,12 +74,16 @@ class SIM(nn.Module):
         super().__init__()
         sizes = {"window": window, "out_channels": out_channels, "width": width}
         sizes.update(head_width=head_width, shift_layers=shift_layers, head_layers=head_layers)
-        for name, value in sizes.items():
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+        for name, value in sizes.items():  # (numpy's integers too, as Python ints)
+            if not is_int(value) or value < 1:
                 raise ValueError(f"SIM {name} expected a positive int, found {value!r}")
+        window, out_channels, width, head_width, shift_layers, head_layers = map(
+            int, sizes.values()
+        )
         target_window = window if target_window is None else target_window
-        if not isinstance(target_window, int) or isinstance(target_window, bool):
+        if not is_int(target_window):
             raise ValueError(f"SIM target window expected an int, found {target_window!r}")
+        target_window = int(target_window)
         if not (1 <= target_window <= window and (window - target_window) % 2 == 0):
             raise ValueError(
                 f"SIM target window {target_window}: expected 1..{window} and centred in the "
@@ -139,9 +145,16 @@ class SIM(nn.Module):
     def check_input(self, x: torch.Tensor) -> None:
         """ValueError unless x is a spike window [B, window, H, W] in the weights' dtype."""
         dtype = self.head[-1].weight.dtype
-        if not isinstance(x, torch.Tensor) or x.dim() != 4 or x.shape[1] != self.window:
+        if (
+            not isinstance(x, torch.Tensor)
+            or x.dim() != 4
+            or x.shape[1] != self.window
+            or min(x.shape[2:]) < 1
+        ):
             found = list(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
-            raise ValueError(f"SIM input expected [B, {self.window}, H, W], found {found}")
+            raise ValueError(
+                f"SIM input expected [B, {self.window}, H, W], H, W ≥ 1, found {found}"
+            )
         if x.dtype != dtype:
             raise ValueError(f"SIM input expected dtype {dtype} (the weights'), found {x.dtype}")
 

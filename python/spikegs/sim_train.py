@@ -29,6 +29,7 @@ from .losses import SIM_LOSSES
 from .number_checks import is_int, is_number
 from .output_paths import record_beside, writable_folder
 from .sim import SIM, START
+from .spikes.stream import centred_range
 
 CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
 
@@ -115,6 +116,9 @@ def train_sim(
     timestamps = np.asarray(timestamps)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")
+    for name, value in {"steps": steps, "batch_size": batch_size, "crop": crop}.items():
+        if not is_int(value) or value < 1:  # (torch's errors, or numpy's, at the first step)
+            raise ValueError(f"SIM {name} expected a positive int, found {value!r}")
     if loss not in SIM_LOSSES:
         raise ValueError(f"SIM loss '{loss}': expected one of {', '.join(SIM_LOSSES)}")
     rng = np.random.default_rng(seed)
@@ -127,6 +131,7 @@ def train_sim(
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps)
     streams = _streams(stream)
+    _check_windows(streams, timestamps, window)
     height, width = streams[0].height, streams[0].width
     ch, cw = min(crop, height), min(crop, width)
     if crop < min(model.field(), max(height, width)):
@@ -464,12 +469,28 @@ def predict(model: SIM, windows: np.ndarray) -> np.ndarray:
     return y.float().permute(0, 2, 3, 1).numpy()
 
 
+def _check_windows(streams: list, timestamps: np.ndarray, window: int) -> None:
+    """ValueError, before training, where a timestamp's window of `window` readouts runs past a
+    stream's ends (the first step to draw it raised, minutes in)."""
+    readouts = min(len(s) for s in streams)
+    lo, hi = centred_range(readouts, window)
+    outside = timestamps[(timestamps < lo) | (timestamps > hi)]  # ([lo, hi] fit)
+    if outside.size:
+        raise ValueError(
+            f"training timestamps {outside[:3].tolist()}{' ...' if outside.size > 3 else ''}: "
+            f"their windows of {window} readouts run past the stream's {readouts} readouts "
+            f"(centres {lo}..{hi} fit)"
+        )
+
+
 def infer_sim(
     model: SIM, stream, timestamps: Sequence[int], batch_size: int = 4, dtype=None
 ) -> np.ndarray:
     """SIM images at `timestamps`: float32 [N, H, W, C], computed in `dtype` (`_fast_dtype`)."""
     fast = fast_inference_model(model, dtype)
     timestamps = np.asarray(timestamps)
+    if not timestamps.size:  # (np.concatenate of none)
+        return np.zeros((0, stream.height, stream.width, model.out_channels), np.float32)
     chunks = [
         predict(fast, stream.window(timestamps[i : i + batch_size], model.window))
         for i in range(0, len(timestamps), batch_size)
