@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import errno
+import gc
 import os
 import pickle
 import subprocess
@@ -668,3 +669,13 @@ def test_a_stream_pickles_its_file_by_path_and_its_memory_by_bytes(tmp_path):
     os.utime(path, ns=(1, 1))  # (another file now, for all it can tell)
     with pytest.raises(ValueError, match="s.dat: changed since a SpikeStream opened it"):
         pickle.loads(pickled)
+
+
+def test_a_writer_dropped_unclosed_leaves_no_hidden_file(tmp_path):
+    """A DatWriter never closed left its hidden .tmp beside the file for good, unsaid."""
+    writer = DatWriter(tmp_path / "a.dat", 2, 3)
+    writer.write_bits(np.ones((4, 2, 3), bool))
+    with pytest.warns(ResourceWarning, match="a.dat: dropped without close"):
+        del writer
+        gc.collect()
+    assert list(tmp_path.iterdir()) == []

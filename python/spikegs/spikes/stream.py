@@ -23,6 +23,7 @@ import os
 import shutil
 import sys
 import uuid
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -449,6 +450,19 @@ class DatWriter:
             pass  # the error that led here is the one to report
         finally:
             self._partial.unlink(missing_ok=True)
+
+    def __del__(self) -> None:
+        """A writer dropped unclosed leaves no hidden file (one was left for good), with a
+        ResourceWarning, as an unclosed file gives; `path` is untouched."""
+        file = getattr(self, "_file", None)  # (None where __init__ failed before it)
+        if file is not None and not file.closed:
+            warnings.warn(
+                f"DatWriter {self.path}: dropped without close(), its readouts discarded and "
+                f"{self.path.name} untouched (write in a with block, or close it)",
+                ResourceWarning,
+                stacklevel=2,
+            )
+            self.discard()
 
     def __enter__(self) -> DatWriter:
         return self
