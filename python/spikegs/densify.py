@@ -238,7 +238,8 @@ class Densifier:
             f"densification grew no Gaussian: the largest mean screen-space gradient its rounds "
             f"saw, {self.strongest:.3g}, is under densify.grad_threshold "
             f"{self.config.grad_threshold:g}, so the run kept its initial Gaussians (fewer "
-            f"where pruned): lower the threshold where the renders look coarse"
+            f"where pruned): lower the threshold under {self.strongest:.3g} where the renders "
+            f"look coarse"
         )
 
     def state_dict(self) -> dict:
