@@ -182,7 +182,9 @@ def intensity_scale(dataset) -> float:
         warnings.warn(
             f"{dataset.root}: TFP(33) is 0 at 99.5 % or more of the pixels of {len(ts)} training "
             f"windows spread over the stream: the intensity scale (the firing rate of intensity "
-            f"1) is taken as 1; state it (meta.json's image_scale, or spikegs.json's rate_at_one)",
+            f"1) is taken as 1; state it (meta.json's image_scale, or spikegs.json's "
+            f"rate_at_one: the camera's TFP over a white patch divided by that patch's "
+            f"intensity, docs/training.md)",
             stacklevel=1,  # here: said once, however many callers ask
         )
         return 1.0
