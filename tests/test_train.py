@@ -4347,6 +4347,23 @@ def test_end_of_run_warnings_that_follow_a_small_sphere_say_so(dataset, tmp_path
         assert len(grew) == 1 and (first in grew[0]) == named, grew
 
 
+def test_a_model_grown_to_its_cap_is_said(dataset, tmp_path):
+    """A threshold far too low grew the model to densify.max_gaussians, 10x slower, unsaid (a
+    helper's 32² run: 198,809 of the 200,000 cap); the cap's reach is said as the run ends, and
+    kept across a resume."""
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 81}}
+    overrides["densify"] = {**FAST["densify"], "grad_threshold": 1e-9, "max_gaussians": 1000}
+    config = load_config("tfp33", overrides)
+    with pytest.warns(UserWarning, match=r"reached densify.max_gaussians 1,000: a round left up"):
+        Trainer(dataset, config, tmp_path / "capped", progress=False).train()
+    saved = torch.load(tmp_path / "capped" / "checkpoints" / "last.pt", weights_only=True)
+    assert saved["densifier"]["capped"] > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        overrides["densify"] = FAST["densify"]
+        Trainer(dataset, load_config("tfp33", overrides), tmp_path / "free", False).train()
+
+
 def test_a_round_that_keeps_the_count_but_moves_the_rows_recomputes_the_widths(
     dataset, tmp_path, monkeypatch
 ):

@@ -110,6 +110,7 @@ class Densifier:
         self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
         self.pruned: dict[str, int] = {}  # the last round's: Gaussians each pruning setting removed
         self.strongest = 0.0  # the largest mean gradient a round has seen (inf: not recorded)
+        self.capped = 0  # the most Gaussians over the threshold a round left for max_gaussians
 
     def _resize(self, n: int) -> None:
         if self.grad_sum.shape[0] != n:
@@ -179,6 +180,7 @@ class Densifier:
         selected = grads >= c.grad_threshold  # [N] bool
         room = max(c.max_gaussians - n, 0)
         if int(selected.sum()) > room:  # keep the strongest gradients under the cap
+            self.capped = max(self.capped, int(selected.sum()) - room)
             order = torch.argsort(grads, descending=True)
             selected = torch.zeros(n, dtype=torch.bool)
             selected[order[:room]] = True
@@ -242,12 +244,26 @@ class Densifier:
             f"look coarse"
         )
 
+    def capped_note(self) -> str | None:
+        """What to say where a round left Gaussians over the threshold, neither cloned nor split,
+        for densify.max_gaussians (a threshold far too low grew the model to the cap, unsaid),
+        else None."""
+        if not self.capped:
+            return None
+        return (
+            f"densification reached densify.max_gaussians {self.config.max_gaussians:,}: a round "
+            f"left up to {self.capped:,} Gaussians over densify.grad_threshold "
+            f"{self.config.grad_threshold:g} as they were; raise the cap where memory allows, "
+            f"or the threshold where so many was not meant (0.0002-0.0003 with absgrad)"
+        )
+
     def state_dict(self) -> dict:
         return {
             "grad_sum": self.grad_sum,
             "count": self.count,
             "max_radii": self.max_radii,
             "strongest": self.strongest,
+            "capped": self.capped,
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -257,3 +273,4 @@ class Densifier:
             state["max_radii"],
         )
         self.strongest = state.get("strongest", float("inf"))  # an earlier version's: unknown
+        self.capped = state.get("capped", 0)

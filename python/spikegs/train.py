@@ -770,7 +770,8 @@ class Trainer:
         followers = [self.densifier.unreached(self.iteration)]
         followers += [biased_fit(self.brightness, self.config.supervision)]
         first = self._sphere_first() if any(followers) else ""
-        for said in [psnr_fall(logged_curve(self.run_dir))] + [f and f + first for f in followers]:
+        said_first = [psnr_fall(logged_curve(self.run_dir)), self.densifier.capped_note()]
+        for said in said_first + [f and f + first for f in followers]:
             if said:
                 warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
         summary = {
