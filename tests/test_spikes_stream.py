@@ -679,3 +679,16 @@ def test_a_writer_dropped_unclosed_leaves_no_hidden_file(tmp_path):
         del writer
         gc.collect()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_window_or_interval_given_as_a_0d_tensor_or_array_is_taken():
+    """`tfp(torch.tensor(3), 5)` was taken and `tfp(3, torch.tensor(5))` refused: a window,
+    a TFI interval and packed's bounds take a 0-d tensor or array as their readouts do."""
+    import torch
+
+    stream = SpikeStream.from_bits(np.random.default_rng(1).random((40, 3, 5)) < 0.4)
+    np.testing.assert_array_equal(stream.tfp(20, torch.tensor(5)), stream.tfp(20, 5))
+    np.testing.assert_array_equal(stream.tfi(20, np.array(8)), stream.tfi(20, 8))
+    np.testing.assert_array_equal(stream.packed(np.int64(2), torch.tensor(6)), stream.packed(2, 6))
+    with pytest.raises(ValueError, match="window length expected an int"):
+        stream.tfp(20, torch.tensor(True))

@@ -39,8 +39,10 @@ TFI_DEFAULT_MAX_INTERVAL: int = _C.TFI_DEFAULT_MAX_INTERVAL
 
 
 def _whole(value) -> bool:
-    """Whether `value` is a whole number (an int, or a float such as 33.0; not inf, NaN, None or
-    a bool)."""
+    """Whether `value` is a whole number (an int, or a float such as 33.0, or a 0-d array or
+    tensor of one, as readout indices may be; not inf, NaN, None or a bool)."""
+    if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):
+        value = value.item()
     return is_int(value) or (is_number(value) and float(value).is_integer())
 
 
