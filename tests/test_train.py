@@ -3461,6 +3461,29 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
         evaluate_run(tmp_path / "run", dataset, write_images=False)
 
 
+def test_a_grey_scene_without_its_channel_count_scored_on_colour_is_said(dataset, tmp_path):
+    """A mono scene.ply re-saved by another tool (its 'channels 1' comment dropped) reads as RGB:
+    on a mono dataset refused (above), on a colour one it was scored as grey, unsaid."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    colour = simulate_dataset(
+        "solids", tmp_path / "rgb", height=16, width=16, readouts=200, color=True,
+        test_on_path=1, test_off_path=1, progress=False,
+    )  # fmt: skip
+    ply = tmp_path / "run" / "scene.ply"
+    ply.write_bytes(re.sub(rb"comment spikegs [^\n]*\n", b"", ply.read_bytes()))
+    with pytest.warns(UserWarning, match="every Gaussian is grey .* scored on the colour"):
+        evaluate_run(tmp_path / "run", colour, write_images=False)
+    gen = torch.Generator().manual_seed(0)
+    rgb = GaussianModel.from_points(torch.zeros(20, 3), torch.rand(20, 3, generator=gen), 0.1)
+    save_ply(rgb, ply)
+    ply.write_bytes(re.sub(rb"comment spikegs [^\n]*\n", b"", ply.read_bytes()))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        evaluate_run(tmp_path / "run", colour, write_images=False)
+    assert not [w for w in caught if "is grey" in str(w.message)]
+
+
 def test_eval_refuses_its_output_paths_before_rendering(dataset, tmp_path):
     """A folder where eval.json goes (or a file where its images go) failed with a bare errno
     message, after every side-by-side image had been rendered and written."""

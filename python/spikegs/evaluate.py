@@ -317,6 +317,14 @@ def evaluate_run(
                 else "score a run on a dataset with as many channels as it was trained on"
             )
         )
+    if model.channels == 3 and not declares_channels(ply) and _grey(model):
+        warnings.warn(
+            f"{ply}: every Gaussian is grey (R = G = B) and the file states no channel count: a "
+            f"mono scene re-saved by another tool (which drops spikegs's 'comment spikegs "
+            f"channels 1') reads as RGB, and is scored on the colour dataset {dataset.root} as "
+            f"grey; add that line after 'element vertex N' where it is mono",
+            stacklevel=2,
+        )
     scale = intensity_scale(dataset)
     run_scale = _run_scale(train, dataset)  # the units the run renders in
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
@@ -418,6 +426,13 @@ def evaluate_run(
     finally:
         _discard(staged)  # (where the scores could not be written)
     return result
+
+
+def _grey(model: GaussianModel) -> bool:
+    """Whether every colour coefficient of `model` is the same in its three channels (a mono
+    scene as 3DGS's files hold it: R = G = B)."""
+    sh = model.sh.detach()  # [N, K, 3]
+    return bool(torch.equal(sh[..., 0], sh[..., 1]) and torch.equal(sh[..., 0], sh[..., 2]))
 
 
 def _score_views(
