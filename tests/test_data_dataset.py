@@ -631,6 +631,14 @@ def test_colour_dataset_has_one_stream_per_channel(tmp_path):
     assert ds.test_views[0].image.shape == (24, 32, 3)
     assert ds.meta["luma"] is None  # no luma: the channels as they are
     assert len({s.path.read_bytes() for s in ds.streams}) == 3  # independent channel noise
+    # meta.json stating a mono camera beside a colour camera's files: "spikes.dat not found"
+    # said nothing of spikes_r/g/b.dat
+    meta = json.loads((ds.root / "meta.json").read_text())
+    meta.update(channels=1)
+    del meta["spike_files"]
+    (ds.root / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(FileNotFoundError, match="spikes_b.dat, a colour camera's: meta.json's"):
+        load_dataset(ds.root)
 
 
 def test_missing_files_and_nan_poses(tmp_path, small):

@@ -442,6 +442,14 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     FileNotFoundError naming a missing one, ValueError naming one that does not hold the
     readouts meta.json says."""
     num = int(meta["num_readouts"])
+    other = spike_files(1 if len(names) == 3 else 3)  # the other kind of camera's files
+    missing = [n for n in names if not (root / n).is_file()]
+    if missing and all((root / n).is_file() for n in other):
+        raise FileNotFoundError(
+            f"dataset file not found: {root / missing[0]}; {root} holds {', '.join(other)}, a "
+            f"{'colour' if len(other) == 3 else 'mono'} camera's: {META}'s channels "
+            f"{meta['channels']} should be {len(other)}"
+        )
     streams = [
         SpikeStream.open(
             existing_file(root, n),
