@@ -11,6 +11,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from .atomic_save import staged_write, write_atomically
+from .number_checks import non_finite_pixels
 from .output_paths import utf8_name
 
 
@@ -160,11 +161,11 @@ def read_stored_image(path: str | Path) -> StoredImage:
         raise ValueError(f"{path}: no colour channel, alpha alone: a mask, not a picture")
     colour = others[..., : 3 if others.shape[2] >= 3 else 1]
     for name, values in (("colour", colour), ("alpha", alpha)):  # a depth channel may be inf
-        bad = ~np.isfinite(values) if values is not None else None
-        if bad is not None and bad.any():
-            y, x, c = map(int, np.argwhere(bad)[0])
+        found = None if values is None else non_finite_pixels(values)
+        if found is not None:
+            count, (y, x, c) = found
             raise ValueError(
-                f"{path}: {int(bad.any(axis=2).sum())} pixel(s) of {name} not finite, the first "
-                f"{values[y, x, c]} at row {y}, column {x}: fix the image"
+                f"{path}: {count} pixel(s) of {name} not finite, the first {values[y, x, c]} at "
+                f"row {y}, column {x}: fix the image"
             )
     return StoredImage(colour, alpha, premultiplied=not unassociated, srgb=srgb)

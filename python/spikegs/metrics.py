@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
+from .number_checks import non_finite_pixels
+
 
 def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
     """`pred` and `gt` (arrays or tensors) as float64 [H, W] or [H, W, C] images; ValueError for
@@ -30,13 +32,12 @@ def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
 
 def _check_finite(image: np.ndarray, name: str) -> None:
     """ValueError naming `name`, how many of its pixels hold a NaN or inf and where the first is."""
-    bad = ~np.isfinite(image)
-    if bad.any():
-        pixels = bad.any(axis=2) if bad.ndim == 3 else bad  # [H, W]
-        y, x = map(int, np.argwhere(pixels)[0])
+    found = non_finite_pixels(image)
+    if found is not None:
+        count, (y, x, *_) = found
         raise ValueError(
-            f"{name}: {int(pixels.sum())} of {pixels.size} pixels not finite (NaN or inf), the "
-            f"first at row {y}, column {x}: expected finite images (a NaN scores NaN)"
+            f"{name}: {count} of {image.shape[0] * image.shape[1]} pixels not finite (NaN or "
+            f"inf), the first at row {y}, column {x}: expected finite images (a NaN scores NaN)"
         )
 
 

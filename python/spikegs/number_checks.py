@@ -1,5 +1,5 @@
 """Checks of numbers read from files (JSON, YAML: true and false are not numbers there), of
-seeds and of flags."""
+seeds, of flags and of images (values that are not finite)."""
 
 from __future__ import annotations
 
@@ -30,6 +30,16 @@ SEED_MAX = 2**64 - 1  # torch.manual_seed's range, and the simulator's
 def is_seed(value) -> bool:
     """Whether `value` is an integer seed in 0..SEED_MAX (one outside would wrap around)."""
     return is_int(value) and 0 <= value <= SEED_MAX
+
+
+def non_finite_pixels(image: np.ndarray) -> tuple[int, tuple[int, ...]] | None:
+    """(how many pixels of `image` [H, W] or [H, W, C] hold a NaN or inf, the index of the first
+    such value, row-major), or None where every value is finite."""
+    bad = ~np.isfinite(image)
+    if not bad.any():
+        return None
+    pixels = bad.any(axis=2) if bad.ndim == 3 else bad  # [H, W]
+    return int(pixels.sum()), tuple(map(int, np.argwhere(bad)[0]))
 
 
 def is_real(value) -> bool:
