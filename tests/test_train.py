@@ -3585,6 +3585,26 @@ def test_eval_stopped_midway_keeps_its_earlier_images_with_its_earlier_scores(
     assert changed == {f"{view}.png" for view in scored}
 
 
+def test_eval_stopped_by_a_warning_made_an_error_leaves_no_temporary(
+    dataset, tmp_path, monkeypatch
+):
+    """A warning after the views are scored (PSNR inf), made an error by the caller, stopped the
+    scoring before eval.json was written: the side-by-sides staged beside their images stayed
+    until the next scoring swept them. Now nothing temporary stays, the earlier files kept."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    evaluate_run(run, dataset)
+    before = {p.name: p.read_bytes() for p in [run / "eval.json", *(run / "eval").iterdir()]}
+    monkeypatch.setattr("spikegs.evaluate.psnr", lambda pred, gt: float("inf"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="PSNR inf, and so is the mean"):
+            evaluate_run(run, dataset)
+    after = {p.name: p.read_bytes() for p in [run / "eval.json", *(run / "eval").iterdir()]}
+    assert after == before  # (temporaries too would be listed)
+
+
 def test_eval_json_is_standard_json_for_a_perfect_render(dataset, tmp_path, monkeypatch):
     """A render identical to its ground truth has an infinite PSNR, which Python's json wrote as
     the token Infinity, refused by JSON.parse, jq and serde: it is null."""

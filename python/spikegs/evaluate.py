@@ -348,83 +348,80 @@ def evaluate_run(
     # scoring stopped on the way left the earlier scores beside some of the new images
     staged = []  # [(temporary file, the image it becomes)]
     images = folder if write_images else None
-    try:
+    try:  # (the temporaries left, where the scoring stops or the scores are not written)
         views = _score_views(
             model, dataset, (scale, run_scale), align_poses, progress, images, staged
         )
-    except BaseException:
-        _discard(staged)
-        raise
-    if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
-        for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
-            (folder / f"{view}.png").unlink(missing_ok=True)
-    exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
-    if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
-        listed = _first_three(exact)
-        warnings.warn(
-            f"{len(exact)} test view(s) ({listed}) match the render exactly once both are "
-            f"clipped to [0, 1] (saturated or empty views?): PSNR inf, and so is the mean; each "
-            f"view's score is in {name}.json",
-            stacklevel=2,
-        )
-    result = {
-        "method": train.get("method") or _configured_method(run_dir),
-        "dataset": str(Path(dataset.root).resolve()),
-        "scene": dataset.meta.get("scene"),
-        **_means(list(views.values())),  # psnr, ssim, ssim_3dgs over every test view
-        # the views on the camera's path (at a readout of the stream) and off it (novel views)
-        "on_path": _group([v for v in views.values() if v["readout"] is not None]),
-        "off_path": _group([v for v in views.values() if v["readout"] is None]),
-        "iterations": train.get("iterations"),
-        "seed": train.get("seed"),
-        "train_seconds": train.get("train_seconds"),
-        "sim_seconds": train.get("sim_seconds"),
-        "gaussians": len(model),
-        # real data without sharp images: scored against a TFP pseudo ground truth (pseudo_*)
-        "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
-        "views": views,
-        "environment": environment(),  # of this scoring; train.json's names what trained it
-    }
-    if align_poses:
-        unsettled = [name for name, v in views.items() if not v["aligned_settled"]]
-        result["aligned_poses"] = {
-            "steps": max(v["aligned_steps"] for v in views.values()),  # the most a view took
-            "max_steps": MAX_STEPS,
-            **{
-                f"{key}_median": _finite_median(v[f"aligned_{key}"] for v in views.values())
-                for key in ("steps", "rotation_deg", "centre", "unexplained")
-            },
-            "unsettled": unsettled,
-            "suspect": _suspect(views),
+        if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
+            for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
+                (folder / f"{view}.png").unlink(missing_ok=True)
+        exact = [view for view, scores in views.items() if scores["psnr"] == math.inf]
+        if exact:  # the mean is inf (null in eval.json) and hides the other views' scores
+            listed = _first_three(exact)
+            warnings.warn(
+                f"{len(exact)} test view(s) ({listed}) match the render exactly once both "
+                f"are clipped to [0, 1] (saturated or empty views?): PSNR inf, and so is the "
+                f"mean; each view's score is in {name}.json",
+                stacklevel=2,
+            )
+        result = {
+            "method": train.get("method") or _configured_method(run_dir),
+            "dataset": str(Path(dataset.root).resolve()),
+            "scene": dataset.meta.get("scene"),
+            **_means(list(views.values())),  # psnr, ssim, ssim_3dgs over every test view
+            # the views on the camera's path (at a readout of the stream) and off it (novel views)
+            "on_path": _group([v for v in views.values() if v["readout"] is not None]),
+            "off_path": _group([v for v in views.values() if v["readout"] is None]),
+            "iterations": train.get("iterations"),
+            "seed": train.get("seed"),
+            "train_seconds": train.get("train_seconds"),
+            "sim_seconds": train.get("sim_seconds"),
+            "gaussians": len(model),
+            # real data without sharp images: scored against a TFP pseudo ground truth (pseudo_*)
+            "ground_truth": dataset.meta.get("test_ground_truth", "sharp images (synthetic)"),
+            "views": views,
+            "environment": environment(),  # of this scoring; train.json's names what trained it
         }
-        if unsettled:
-            listed = _first_three(unsettled)
-            warnings.warn(
-                f"{len(unsettled)} test view(s) ({listed}) were still moving when their "
-                f"alignment stopped at {max(views[v]['aligned_steps'] for v in unsettled)} "
-                "steps: their given poses lie too far from what their images show, and their "
-                "aligned scores are not the scene's (the reach depends on the scene: on 128² "
-                "solids, fine-texture and wires 7 or 8 of 8 views turned 10° came back, 2 to 5 of "
-                "8 turned 20°: docs/outputs.md)",
-                stacklevel=2,
-            )
-        suspect = result["aligned_poses"]["suspect"]
-        if suspect:
-            listed = _first_three(suspect)
-            warnings.warn(
-                f"{len(suspect)} test view(s) ({listed}) leave over {SUSPECT_RATIO:g} times the "
-                "median view's share of their images' coarse structure unexplained once aligned "
-                f"(up to {max(views[v]['aligned_unexplained'] for v in suspect):.2f}): likely "
-                "settled off their poses, their aligned scores not the scene's (docs/outputs.md)",
-                stacklevel=2,
-            )
-    result["file"] = str(scores_file.resolve())  # not as typed: where it lies
-    try:
+        if align_poses:
+            unsettled = [name for name, v in views.items() if not v["aligned_settled"]]
+            result["aligned_poses"] = {
+                "steps": max(v["aligned_steps"] for v in views.values()),  # the most a view took
+                "max_steps": MAX_STEPS,
+                **{
+                    f"{key}_median": _finite_median(v[f"aligned_{key}"] for v in views.values())
+                    for key in ("steps", "rotation_deg", "centre", "unexplained")
+                },
+                "unsettled": unsettled,
+                "suspect": _suspect(views),
+            }
+            if unsettled:
+                listed = _first_three(unsettled)
+                warnings.warn(
+                    f"{len(unsettled)} test view(s) ({listed}) were still moving when their "
+                    f"alignment stopped at {max(views[v]['aligned_steps'] for v in unsettled)} "
+                    "steps: their given poses lie too far from what their images show, and "
+                    "their aligned scores are not the scene's (the reach depends on the scene: on "
+                    "128² solids, fine-texture and wires 7 or 8 of 8 views turned 10° came back, "
+                    "2 to 5 of 8 turned 20°: docs/outputs.md)",
+                    stacklevel=2,
+                )
+            suspect = result["aligned_poses"]["suspect"]
+            if suspect:
+                listed = _first_three(suspect)
+                warnings.warn(
+                    f"{len(suspect)} test view(s) ({listed}) leave over {SUSPECT_RATIO:g} times "
+                    "the median view's share of their images' coarse structure unexplained once "
+                    f"aligned (up to {max(views[v]['aligned_unexplained'] for v in suspect):.2f}): "
+                    "likely settled off their poses, their aligned scores not the scene's "
+                    "(docs/outputs.md)",
+                    stacklevel=2,
+                )
+        result["file"] = str(scores_file.resolve())  # not as typed: where it lies
         write_text_atomically(scores_file, strict_json.dumps(result, indent=2))
         for tmp, image in staged:
             tmp.replace(image)
     finally:
-        _discard(staged)  # (where the scores could not be written)
+        _discard(staged)
     return result
 
 
