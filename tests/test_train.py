@@ -163,6 +163,29 @@ def _few_steps(iterations: int, **overrides) -> dict:
     return {"train": train, "densify": quiet, **overrides}
 
 
+def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
+    few_views, dataset, tmp_path
+):
+    """`spikegs` at its defaults (λ = 4, the instant loss ending with densification) on 3
+    training timestamps is told of the sparse views' settings before any work (at 9 of solids
+    they scored 1.35 dB higher); those settings, a method of one loss, or many timestamps are
+    not."""
+    spikegs = load_config("spikegs", _few_steps(2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match=r"3 training timestamps.*exposure_weight: 1, "):
+            Trainer(few_views, spikegs, tmp_path / "run", progress=False).train()
+        assert not (tmp_path / "run").exists()  # (told before the run folder is made)
+        sparse = {"supervision": {"exposure_weight": 1.0, "instant_until": "run"}}
+        for data, config in (
+            (few_views, load_config("spikegs", {**_few_steps(2), **sparse})),
+            (few_views, load_config("only_exposure", _few_steps(2))),
+            (few_views, load_config("tfp33", _few_steps(2))),
+            (dataset, spikegs),  # (134 timestamps)
+        ):
+            Trainer(data, config, tmp_path / "other", progress=False)._warn_if_few_timestamps()
+
+
 def test_a_run_steps_at_the_scheduled_rates_visits_every_timestamp_and_logs_in_its_units(
     few_views, tmp_path
 ):
