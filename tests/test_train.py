@@ -181,6 +181,10 @@ def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
             (few_views, load_config("spikegs", {**_few_steps(2), **sparse})),
             (few_views, load_config("only_exposure", _few_steps(2))),
             (few_views, load_config("tfp33", _few_steps(2))),
+            (
+                few_views,
+                load_config("spikegs", {**_few_steps(2), "supervision": {"instant_weight": 0.0}}),
+            ),
             (dataset, spikegs),  # (134 timestamps)
         ):
             Trainer(data, config, tmp_path / "other", progress=False)._warn_if_few_timestamps()

@@ -221,7 +221,7 @@ class Trainer:
         """A UserWarning where both losses train with the dense views' settings on fewer than
         FEW_TIMESTAMPS training timestamps: the sparse views' scored higher there."""
         s, n = self.config.supervision, len(self.dataset.train_timestamps)
-        both = s.instant != "none" and s.exposure_weight > 0
+        both = s.instant != "none" and s.instant_weight > 0 and s.exposure_weight > 0
         if not both or n >= FEW_TIMESTAMPS:
             return
         if s.exposure_weight > s.instant_weight or s.instant_until == "densify":
