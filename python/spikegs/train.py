@@ -222,9 +222,8 @@ class Trainer:
         FEW_TIMESTAMPS training timestamps: the sparse views' scored higher there."""
         s, n = self.config.supervision, len(self.dataset.train_timestamps)
         both = s.instant != "none" and s.instant_weight > 0 and s.exposure_weight > 0
-        if not both or n >= FEW_TIMESTAMPS:
-            return
-        if s.exposure_weight > s.instant_weight or s.instant_until == "densify":
+        dense = s.exposure_weight > s.instant_weight or s.instant_until == "densify"
+        if both and dense and n < FEW_TIMESTAMPS:
             warnings.warn(
                 f"{self.dataset.root}: {n} training timestamps, and supervision's exposure_weight "
                 f"{s.exposure_weight:g} against instant_weight {s.instant_weight:g}, "
@@ -790,12 +789,14 @@ class Trainer:
         if not (finished and (self.run_dir / SCENE).exists()):
             save_ply(self.model, self.run_dir / SCENE)
         # densification that grew nothing and renders off the targets' brightness follow from a
-        # scene sphere too small, where there is one
-        followers = [self.densifier.unreached(self.iteration)]
-        followers += [biased_fit(self.brightness, self.config.supervision)]
-        first = self._sphere_first() if any(followers) else ""
-        said_first = [psnr_fall(logged_curve(self.run_dir)), self.densifier.capped_note()]
-        for said in said_first + [f and f + first for f in followers]:
+        # scene sphere too small, where there is one: said with it
+        followers = [
+            self.densifier.unreached(self.iteration),
+            biased_fit(self.brightness, self.config.supervision),
+        ]
+        sphere = self._sphere_first() if any(followers) else ""
+        others = [psnr_fall(logged_curve(self.run_dir)), self.densifier.capped_note()]
+        for said in others + [f and f + sphere for f in followers]:
             if said:
                 warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
         summary = {
