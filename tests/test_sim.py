@@ -587,7 +587,7 @@ def test_compare_methods_reports_all(scene, trained):
     rates, stream = scene
     ts = np.array([40, 70])
     gt = np.stack([rates(k) for k in ts])  # [2, H, W]
-    scores = compare_methods(trained[0], stream, ts, gt)
+    scores = compare_methods(trained[0], [stream], ts, gt[..., None])
     assert set(scores) == {"SIM", "TFP(33)", "TFP(65)", "TFI"}
     assert all(np.isfinite(s["psnr"]) and -1 <= s["ssim"] <= 1 for s in scores.values())
     # each row the images it names (TFP(65) computed over 33 readouts passed)
@@ -606,10 +606,10 @@ def test_compare_methods_reports_all(scene, trained):
     pseudo[1] = stream.tfp(ts[1], 65) * 1.01  # (as a flicker's division or a repair leaves it)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        mixed = compare_methods(trained[0], stream, ts, pseudo, own=[None, "TFP(65)"])
+        mixed = compare_methods(trained[0], [stream], ts, pseudo[..., None], own=[None, "TFP(65)"])
     assert mixed["TFP(65)"]["psnr"] == pytest.approx(psnr(stream.tfp(ts[0], 65), gt[0]))
     assert mixed["TFP(33)"] != scores["TFP(33)"]  # scored on both views, one ground truth new
-    alone = compare_methods(trained[0], stream, ts, stream.tfp(ts, 65))  # (no name: equal)
+    alone = compare_methods(trained[0], [stream], ts, stream.tfp(ts, 65)[..., None])  # (equal)
     assert set(alone) == {"SIM", "TFP(33)", "TFI"}
 
 
@@ -626,7 +626,7 @@ def test_compare_methods_divide_each_image_by_the_flicker_over_its_readouts(scen
     with torch.no_grad():  # (its random start's output is below 0 here, clamped to 0 throughout)
         model.head[-1].bias.fill_(0.3)
     flicker = Flicker(depth=0.5, period=50.0, phase=0.3)
-    scores = compare_methods(model, stream, ts, gt, flicker=flicker)
+    scores = compare_methods(model, [stream], ts, gt[..., None], flicker=flicker)
 
     def light(first, span):  # [2] the mean of 1 + depth sin over readouts first .. + span - 1
         t = first[:, None] + np.arange(span)
@@ -642,7 +642,7 @@ def test_compare_methods_divide_each_image_by_the_flicker_over_its_readouts(scen
         assert scores[name]["psnr"] == pytest.approx(expected, rel=1e-5), name
     # a dataset that kept no name, its pseudo ground truth the view's own TFP(65) as the spikes
     # show it (made before the flicker was divided out of it): that row still leaves it out
-    alone = compare_methods(model, stream, ts, stream.tfp(ts, 65), flicker=flicker)
+    alone = compare_methods(model, [stream], ts, stream.tfp(ts, 65)[..., None], flicker=flicker)
     assert set(alone) == {"SIM", "TFP(33)", "TFI"}
 
 

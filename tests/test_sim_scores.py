@@ -1,5 +1,5 @@
-"""SIM's scores on a dataset (sim_scores.evaluate_dataset): a colour camera's scores are the mean
-over its channels, each channel against its own ground truth, and a method whose image a view's
+"""SIM's scores on a dataset (sim_scores.evaluate_dataset): a colour camera's views are scored
+with their channels together, as `spikegs eval` scores them, and a method whose image a view's
 pseudo ground truth is, is left out of that view."""
 
 from __future__ import annotations
@@ -8,8 +8,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from spikegs.metrics import psnr, ssim
 from spikegs.sim import SIM
-from spikegs.sim_scores import compare_methods, evaluate_dataset
+from spikegs.sim_scores import evaluate_dataset
 from spikegs.spikes.stream import SpikeStream
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
@@ -34,21 +35,25 @@ def _colour_dataset(tmp_path, pseudo: bool = False):
     return SimpleNamespace(root=tmp_path, streams=streams, test_views=views)
 
 
-def test_a_colour_datasets_scores_are_the_channels_mean(tmp_path):
+def test_a_colour_datasets_scores_pool_the_channels_as_eval_does(tmp_path):
+    """Each view's channels are scored together (`metrics.psnr` and `ssim` on [H, W, C], as
+    `spikegs eval` scores a colour render), not channel by channel and averaged: the mean of
+    the channels' PSNRs lies above the pooled one wherever their errors differ."""
     dataset, model = _colour_dataset(tmp_path), SIM(window=33)
-    ts = np.array([40, 60])  # the on-path views' readouts
-    per_channel = [
-        compare_methods(model, s, ts, np.stack([v.image[..., c] for v in dataset.test_views[:2]]))
-        for c, s in enumerate(dataset.streams)
-    ]
+    views = dataset.test_views[:2]  # on the path, at readouts 40 and 60
     scores = evaluate_dataset(model, dataset)
     assert set(scores) == {"SIM", "TFP(33)", "TFP(65)", "TFI"}
-    for name, metrics in scores.items():
-        for m, value in metrics.items():
-            want = (per_channel[0][name][m] + per_channel[1][name][m]) / 2
-            assert value == pytest.approx(want, rel=1e-12), (name, m)
-    # the channels' scores differ (other rates), so the mean is neither channel's alone
-    assert per_channel[0]["TFP(33)"]["psnr"] != pytest.approx(per_channel[1]["TFP(33)"]["psnr"])
+    for name, images in (
+        ("TFP(33)", [np.stack([s.tfp(k, 33) for s in dataset.streams], -1) for k in (40, 60)]),
+        ("TFI", [np.stack([s.tfi(k) for s in dataset.streams], -1) for k in (40, 60)]),
+    ):
+        for m, metric in (("psnr", psnr), ("ssim", ssim)):
+            want = np.mean([metric(p, v.image) for p, v in zip(images, views)])
+            assert scores[name][m] == pytest.approx(want, rel=1e-12), (name, m)
+        channels_mean = np.mean(
+            [psnr(p[..., c], v.image[..., c]) for p, v in zip(images, views) for c in (0, 1)]
+        )
+        assert channels_mean > scores[name]["psnr"] + 0.1, name
 
 
 def test_a_pseudo_ground_truths_own_method_is_left_out(tmp_path):

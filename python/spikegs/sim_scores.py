@@ -16,34 +16,39 @@ from .targets import TFI_TIME
 
 def compare_methods(
     model: SIM,
-    stream,
+    streams: Sequence,
     timestamps: Sequence[int],
     gt: np.ndarray,
     dtype=None,
     own: Sequence[str | None] | None = None,
     flicker: Flicker | None = None,
 ) -> dict[str, dict[str, float]]:
-    """Mean PSNR/SSIM of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt` [N, H, W]; a
-    view whose ground truth is a method's own image (`own` [N], the method's name or None: a
-    pseudo ground truth, TFP of the view's spikes, whatever was repaired or divided out of it
-    since; or equal to it: a dataset that kept no name) is left out of that method's mean, and
-    a method left no view is left out. Each image is divided by a `flicker` of the light over
-    the readouts it shows, as training's targets are.
+    """Mean PSNR/SSIM over views of SIM, TFP(33), TFP(65) and TFI at `timestamps` against `gt`
+    [N, H, W, C], one SpikeStream of `streams` a channel; a colour view is scored as `spikegs
+    eval` scores one, its channels pooled in the PSNR and averaged in the SSIM. A view whose
+    ground truth is a method's own image (`own` [N], the method's name or None: a pseudo ground
+    truth, TFP of the view's spikes, whatever was repaired or divided out of it since; or equal
+    to it: a dataset that kept no name) is left out of that method's mean, and a method left no
+    view is left out. Each image is divided by a `flicker` of the light over the readouts it
+    shows, as training's targets are.
     TFI(t) spans readouts t and t + 1 (training compares it with the render at t + 0.5); it is
     scored here against the image at t, half a readout apart (at the default speed 0.075° of
     orbit, a fraction of a pixel), small beside its noise."""
     timestamps = np.asarray(timestamps)
     own = [None] * len(timestamps) if own is None else own
-    sim = infer_sim(model, stream, timestamps, dtype=dtype)[..., 0]
-    images = {  # [N, H, W] each, and the readouts of the light it shows: span, time offset
-        "SIM": (sim, model.target.stop - model.target.start, 0.0),
-        "TFP(33)": (stream.tfp(timestamps, 33), 33, 0.0),
-        "TFP(65)": (stream.tfp(timestamps, 65), 65, 0.0),
-        "TFI": (stream.tfi(timestamps), 1, TFI_TIME),
+    decoded = {  # each [N, H, W, C], and the readouts of the light it shows: span, time offset
+        "SIM": (
+            lambda s: infer_sim(model, s, timestamps, dtype=dtype)[..., 0],
+            (model.target.stop - model.target.start, 0.0),
+        ),
+        "TFP(33)": (lambda s: s.tfp(timestamps, 33), (33, 0.0)),
+        "TFP(65)": (lambda s: s.tfp(timestamps, 65), (65, 0.0)),
+        "TFI": (lambda s: s.tfi(timestamps), (1, TFI_TIME)),
     }
     gt = np.asarray(gt, dtype=np.float32)
     scores = {}
-    for name, (raw, span, offset) in images.items():
+    for name, (decode, (span, offset)) in decoded.items():
+        raw = np.stack([decode(s) for s in streams], -1)
         pred = raw if flicker is None else flicker.divided(raw, timestamps, span, offset)
         # (a dataset that kept no name: its pseudo ground truth equal to the image, divided or
         # not: one made before the flicker was divided out of it)
@@ -74,24 +79,9 @@ def evaluate_dataset(
 ) -> dict[str, dict[str, float]]:
     """`compare_methods` on a dataset's held-out on-path views, against their clean images (a
     pseudo ground truth's own TFP left out), reading `streams` (default the dataset's; one a
-    channel), divided by a `flicker` of the light; the mean over channels for a colour camera."""
+    channel), divided by a `flicker` of the light."""
     views = on_path_views(dataset)
     timestamps = np.array([round(v.readout) for v in views])
     own = [None if v.window is None else f"TFP({v.window})" for v in views]
-    per_channel = [
-        compare_methods(
-            model,
-            stream,
-            timestamps,
-            np.stack([v.image[..., c] for v in views]),
-            dtype,
-            own,
-            flicker,
-        )
-        for c, stream in enumerate(streams or dataset.streams)
-    ]  # C x {method: {metric: value}}; gt [N, H, W] firing rates
-    return {
-        name: {m: float(np.mean([r[name][m] for r in per_channel])) for m in scores}
-        for name, scores in per_channel[0].items()
-        if all(name in r for r in per_channel)
-    }
+    gt = np.stack([v.image for v in views])  # [N, H, W, C] firing rates
+    return compare_methods(model, streams or dataset.streams, timestamps, gt, dtype, own, flicker)
