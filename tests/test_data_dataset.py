@@ -641,6 +641,19 @@ def test_colour_dataset_has_one_stream_per_channel(tmp_path):
         load_dataset(ds.root)
 
 
+def test_the_other_cameras_spike_files_beside_a_datasets_own_are_named_unread(tmp_path):
+    """A mono camera's spikes.dat beside a colour dataset's spikes_r/g/b.dat, and a colour
+    camera's beside a mono one's, are warned of as not read; the dataset loads as before."""
+    for color in (True, False):
+        ds = simulate_dataset("wires", tmp_path / f"c{color}", color=color, **SMALL)
+        stray = ["spikes.dat"] if color else ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
+        for name in stray:
+            (ds.root / name).write_bytes(ds.streams[0].path.read_bytes())
+        with pytest.warns(UserWarning, match=f"{', '.join(stray)} not read: meta.json's ch"):
+            again = load_dataset(ds.root)
+        assert [s.path.name for s in again.streams] == [s.path.name for s in ds.streams]
+
+
 def test_missing_files_and_nan_poses(tmp_path, small):
     for name in (
         "meta.json",

@@ -440,15 +440,23 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     """The spike files ROOT/names, memory-mapped as `meta` (meta.json) describes them (height,
     width, flip, num_readouts; raw_width and col_offset for a camera's wider rows);
     FileNotFoundError naming a missing one, ValueError naming one that does not hold the
-    readouts meta.json says."""
+    readouts meta.json says; a UserWarning names the other kind of camera's files beside them,
+    which are not read."""
     num = int(meta["num_readouts"])
     other = spike_files(1 if len(names) == 3 else 3)  # the other kind of camera's files
+    kind = "colour" if len(other) == 3 else "mono"
     missing = [n for n in names if not (root / n).is_file()]
     if missing and all((root / n).is_file() for n in other):
         raise FileNotFoundError(
             f"dataset file not found: {root / missing[0]}; {root} holds {', '.join(other)}, a "
-            f"{'colour' if len(other) == 3 else 'mono'} camera's: {META}'s channels "
-            f"{meta['channels']} should be {len(other)}"
+            f"{kind} camera's: {META}'s channels {meta['channels']} should be {len(other)}"
+        )
+    unread = [n for n in other if (root / n).is_file()]
+    if unread and not missing:
+        warnings.warn(
+            f"{root}: {', '.join(unread)} not read: {META}'s channels {meta['channels']} reads "
+            f"{', '.join(names)} (a {kind} camera's files beside them: another recording's?)",
+            stacklevel=3,
         )
     streams = [
         SpikeStream.open(
