@@ -956,6 +956,26 @@ def test_poses_without_pycolmap_say_how_to_install(monkeypatch):
         sfm.import_pycolmap()
 
 
+def test_poses_without_pycolmap_are_refused_before_any_image_is_made(
+    tiny, tmp_path, monkeypatch, capsys
+):
+    """Without pycolmap `spikegs poses` stops before it announces SfM or makes an image (it
+    printed 'SfM: 10 images, 45 pairs matched exhaustively' and made them first), the dataset
+    as it was."""
+    from spikegs import poses_cli
+    from spikegs.data.sources import MissingDependencyError
+
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    before = sorted(p.name for p in root.iterdir())
+    monkeypatch.setitem(sys.modules, "pycolmap", None)  # import pycolmap -> ImportError
+    monkeypatch.setattr(poses_cli, "spike_images", lambda *args: pytest.fail("images made"))
+    with pytest.raises(MissingDependencyError, match="pip install pycolmap"):
+        poses_cli.estimate_poses(root, count=10)
+    assert "SfM:" not in capsys.readouterr().err
+    assert sorted(p.name for p in root.iterdir()) == before
+
+
 def test_spike_images_take_one_defect_map_a_channel(textured):
     dataset = load_dataset(textured)
     with pytest.raises(ValueError, match="spike_images: 2 defect maps for 1 channels"):
@@ -1405,9 +1425,17 @@ def test_a_second_pose_run_aligns_to_the_original_pose_log(textured, tmp_path, m
         return _recon(readouts, log.pose_at(readouts), K, points, colors, 10)
 
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
-    monkeypatch.setattr(poses_cli, "reconstruct", logged_poses)
+    _stub_sfm(monkeypatch, logged_poses)
     report = poses_cli.estimate_poses(root, count=10)
     assert report["rotation_error_deg_max"] < 1e-6, report
+
+
+def _stub_sfm(monkeypatch, reconstruct) -> None:
+    """`spikegs poses` with `reconstruct` standing in for SfM, pycolmap then unneeded."""
+    from spikegs import poses_cli
+
+    monkeypatch.setattr(poses_cli, "import_pycolmap", lambda: None)
+    monkeypatch.setattr(poses_cli, "reconstruct", reconstruct)
 
 
 def _logged_sfm(root: Path, keep=slice(None)):
@@ -1438,7 +1466,7 @@ def test_a_split_of_its_own_keeps_the_timestamps_whose_windows_sfm_posed(
     shutil.copytree(textured, root)
     before = np.loadtxt(root / "train_timestamps.txt")
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root, slice(3, -3)))
+    _stub_sfm(monkeypatch, _logged_sfm(root, slice(3, -3)))
     report = poses_cli.estimate_poses(root, count=20)
     kept = np.loadtxt(root / "train_timestamps.txt")
     assert f"kept {len(kept)} of {len(before)} training timestamps" in report["summary"]
@@ -1461,7 +1489,7 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(
     root = tmp_path / "data"
     shutil.copytree(textured, root)
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+    _stub_sfm(monkeypatch, _logged_sfm(root))
     (root / "trajectory.json").unlink()
     meta = json.loads((root / "meta.json").read_text())
     unstated = {"scene_center", "scene_radius"} - set(stated)
@@ -1510,7 +1538,7 @@ def test_sfm_is_fed_images_with_the_sensors_defects_repaired(tiny, tmp_path, mon
         fed.append(images)
         return logged(images, *args, **kwargs)
 
-    monkeypatch.setattr(poses_cli, "reconstruct", sfm_of)
+    _stub_sfm(monkeypatch, sfm_of)
     report = poses_cli.estimate_poses(root, count=10)
     (images,) = fed  # [N, H, W]
     around = np.delete(images[:, 11:14, 16:19].reshape(len(images), 9), 4, axis=1)  # [N, 8]
@@ -1535,7 +1563,7 @@ def test_the_hint_for_sim_is_a_command_to_paste_and_not_given_to_a_colour_camera
 
     for color in (False, True):
         root = _solids(tmp_path / f"a {color}", 16, 300, color=color).root
-        monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(root))
+        _stub_sfm(monkeypatch, _logged_sfm(root))
         summary = poses_cli.estimate_poses(root, count=10)["summary"]
         told = f"`spikegs sim-train '{root}'`, then --sim" in summary
         assert told != color and ("SIM's are cleaner" in summary) != color, summary
@@ -1564,7 +1592,7 @@ def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, 
         told.append(from_sim)  # SfM's failure hints then know the images are SIM's
         return logged(*args, **kwargs)
 
-    monkeypatch.setattr(poses_cli, "reconstruct", sfm_of)
+    _stub_sfm(monkeypatch, sfm_of)
     report = poses_cli.estimate_poses(root, count=10, sim=True)
     assert told == [True] and "SIM's are cleaner" not in report["summary"]
     (stream,) = read
@@ -1598,7 +1626,7 @@ def test_a_raw_recordings_pseudo_ground_truth_is_made_as_the_real_loaders_make_i
     (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
     flicker = Flicker(depth=0.3, period=200.0, phase=0.0)
     monkeypatch.setattr("spikegs.data.real.cached_flicker", lambda streams, progress: flicker)
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root))
+    _stub_sfm(monkeypatch, _logged_sfm(tiny.root))
     poses_cli.estimate_poses(raw, count=10)
     dataset = load_dataset(raw)
     (view,) = dataset.test_views
@@ -1628,7 +1656,7 @@ def test_a_stop_while_the_poses_are_written_waits_for_them(tiny, tmp_path, monke
     shutil.copy(tiny.root / "spikes.dat", raw / "spikes.dat")
     keys = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root))
+    _stub_sfm(monkeypatch, _logged_sfm(tiny.root))
     write_parts = poses_cli.write_parts
 
     def stopped_midway(root, meta, trajectory, *args):
@@ -1658,7 +1686,7 @@ def test_a_raw_recordings_default_stride_is_that_of_its_registered_readouts(
     (raw / "meta.json").write_text(json.dumps({k: tiny.meta[k] for k in keys}))
     spans = []
     monkeypatch.setattr(poses_cli, "default_train_every", lambda span: spans.append(span) or 2)
-    monkeypatch.setattr(poses_cli, "reconstruct", _logged_sfm(tiny.root, slice(2, -3)))
+    _stub_sfm(monkeypatch, _logged_sfm(tiny.root, slice(2, -3)))
     poses_cli.estimate_poses(raw, count=12)
     posed = _image_readouts(len(tiny.stream), 33, None, 12)[2:-3]
     assert spans == [posed[-1] - posed[0] + 1]

@@ -70,7 +70,7 @@ from .output_paths import writable_folder
 from .pixel_defects import defect_maps, repaired_spikes
 from .point_cloud import write_points
 from .pose_refine import pose_errors
-from .sfm import Reconstruction, align, reconstruct, spike_images
+from .sfm import Reconstruction, align, import_pycolmap, reconstruct, spike_images
 from .shell_words import shell_path
 from .spikes import SpikeStream
 from .spikes.stream import centred_range
@@ -412,6 +412,7 @@ def _estimate_poses(
             f"{window}-readout window on; using them all",
             file=sys.stderr,
         )
+    import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
     sim_model = _cached_sim(root) if sim else None  # none cached: refused before announcing SfM
     pairs = len(readouts) * (len(readouts) - 1) // 2
     print(
