@@ -2219,6 +2219,17 @@ def test_a_demo_whose_disk_refuses_its_time_too_still_says_how_to_go_on(
     assert (out / ".demo_seconds").read_text() == "12.5"
 
 
+def test_a_demo_refuses_resume_and_overwrite_together(tmp_path, capsys):
+    """--resume with --overwrite went on with the demo and passed over --overwrite unsaid: the
+    two are refused together, before anything is written."""
+    out = tmp_path / "demo"
+    with pytest.raises(SystemExit) as stop:
+        main(["demo", "--no-progress", "--resume", "--overwrite", "--out", str(out)])
+    assert stop.value.code == 2
+    assert "argument --overwrite: not allowed with argument --resume" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
     """`spikegs demo --out DATASET` (or a run folder) ran the whole demo into it, its dataset,
     runs and figures among the dataset's or run's own files, and said nothing."""

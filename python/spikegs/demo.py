@@ -69,14 +69,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="training iterations per method, densification scaled with them (default: "
         f"{DEMO_OVERRIDES['train']['iterations']}; on --resume, those the demo started with)",
     )
-    parser.add_argument(
+    fresh_or_not = parser.add_mutually_exclusive_group()  # (--overwrite deleted what resumes)
+    fresh_or_not.add_argument(
         "--resume",
         action="store_true",
         help="continue an interrupted demo in --out: its dataset, SIM's saved training state and "
         "each run's last checkpoint (the same results as a demo never interrupted); where --out "
         "holds no demo, one starts (said on stderr), so a script may always pass it",
     )
-    parser.add_argument(
+    fresh_or_not.add_argument(
         "--overwrite",
         action="store_true",
         help="start afresh where --out holds an earlier demo, deleting its dataset, runs and "
