@@ -113,6 +113,8 @@ def video(run: Path, path: Path) -> dict:
 def main() -> None:
     run = Path(sys.argv[1])
     errors = shifts(run)
+    if not errors:
+        sys.exit(f"{run / 'eval'}: no side-by-side images (spikegs eval without --no-images)")
     best = min(errors, key=errors.get)
     dy = sub_pixel(errors[-1, 0], errors[0, 0], errors[1, 0])
     dx = sub_pixel(errors[0, -1], errors[0, 0], errors[0, 1])

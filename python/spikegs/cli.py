@@ -367,7 +367,7 @@ def _run(args: argparse.Namespace) -> int:
     except Busy as err:  # another process holds the run: a retry may succeed
         print(f"spikegs {args.command}: busy: {err}", file=sys.stderr)
         return BUSY
-    # bad input, missing or unwritable files, an extra not installed (pip install 'spikegs[..]'),
+    # bad input, missing or unwritable files, an extra not installed (pip install '.[..]'),
     # a warning that PYTHONWARNINGS=error or -W error made an exception (a traceback before)
     except (ValueError, OSError, MissingDependencyError, Warning) as err:
         warned = isinstance(err, Warning)
