@@ -12,7 +12,7 @@ section "Scenes not tuned on"); Mitsuba 3 (`pip install ".[mitsuba]"`):
                           (transforms.json, NeRF layout, sRGB PNGs at 32 spp) and 8 off-path
                           views above it (55°, 1.15x as far: transforms_test.json)
 
-usage: python scripts/scenes_not_tuned_on/make.py OUT   (~1 min on 2 cores, most of it the frames)
+usage: python scripts/scenes_not_tuned_on/make.py OUT   (~30 s on 2 cores, most of it the frames)
 """
 
 from __future__ import annotations
