@@ -36,19 +36,17 @@ def compare_methods(
     orbit, a fraction of a pixel), small beside its noise."""
     timestamps = np.asarray(timestamps)
     own = [None] * len(timestamps) if own is None else own
-    decoded = {  # each [N, H, W, C], and the readouts of the light it shows: span, time offset
-        "SIM": (
-            lambda s: infer_sim(model, s, timestamps, dtype=dtype)[..., 0],
-            (model.target.stop - model.target.start, 0.0),
-        ),
-        "TFP(33)": (lambda s: s.tfp(timestamps, 33), (33, 0.0)),
-        "TFP(65)": (lambda s: s.tfp(timestamps, 65), (65, 0.0)),
-        "TFI": (lambda s: s.tfi(timestamps), (1, TFI_TIME)),
+    decoded = [_decoded(model, s, timestamps, dtype) for s in streams]  # C x {name: [N, H, W]}
+    light = {  # the readouts of the light each image shows: span, time offset
+        "SIM": (model.target.stop - model.target.start, 0.0),
+        "TFP(33)": (33, 0.0),
+        "TFP(65)": (65, 0.0),
+        "TFI": (1, TFI_TIME),
     }
     gt = np.asarray(gt, dtype=np.float32)
     scores = {}
-    for name, (decode, (span, offset)) in decoded.items():
-        raw = np.stack([decode(s) for s in streams], -1)
+    for name, (span, offset) in light.items():
+        raw = np.stack([channel[name] for channel in decoded], -1)  # [N, H, W, C]
         pred = raw if flicker is None else flicker.divided(raw, timestamps, span, offset)
         # (a dataset that kept no name: its pseudo ground truth equal to the image, divided or
         # not: one made before the flicker was divided out of it)
@@ -63,6 +61,16 @@ def compare_methods(
                 "ssim": float(np.mean([ssim(p, g) for p, g in pairs])),
             }
     return scores
+
+
+def _decoded(model: SIM, stream, timestamps: np.ndarray, dtype) -> dict[str, np.ndarray]:
+    """SIM's, TFP(33)'s, TFP(65)'s and TFI's images [N, H, W] of one stream at `timestamps`."""
+    return {
+        "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
+        "TFP(33)": stream.tfp(timestamps, 33),
+        "TFP(65)": stream.tfp(timestamps, 65),
+        "TFI": stream.tfi(timestamps),
+    }
 
 
 def on_path_views(dataset) -> list:
