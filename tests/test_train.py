@@ -252,6 +252,7 @@ def test_the_step_loss_adds_the_weighted_dssim_term(few_views, tmp_path, monkeyp
 
 
 @pytest.mark.parametrize("until, instant_steps", [("run", 6), ("densify", 3)])
+@pytest.mark.filterwarnings("ignore:.*training timestamps, and supervision")  # (3: tested above)
 def test_the_instant_loss_trains_until_densification_stops_where_configured(
     few_views, tmp_path, monkeypatch, until, instant_steps
 ):
@@ -3499,6 +3500,9 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
         evaluate_run(tmp_path / "run", dataset, write_images=False)
 
 
+@pytest.mark.filterwarnings(  # what the comments' loss and the smaller colour frames also say
+    "ignore:.*no 'spikegs background' comment", "ignore:.*pixels are 2 times as wide"
+)
 def test_a_grey_scene_without_its_channel_count_scored_on_colour_is_said(dataset, tmp_path):
     """A mono scene.ply re-saved by another tool (its 'channels 1' comment dropped) reads as RGB:
     on a mono dataset refused (above), on a colour one it was scored as grey, unsaid."""
