@@ -60,10 +60,11 @@ SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views m
 # the right one 9.4 % and 7.5 dB (BENCHMARKS.md, "The scene sphere's coverage, exact")
 MIN_SPHERE_COVERAGE = 0.15
 # both losses with the dense views' settings (λ over the instant weight, or the instant loss
-# ending with densification) on fewer training timestamps than this are warned of: at 9 of 128²
-# solids (3 seeds) equal weights and the instant loss to the end scored 1.35 ± 0.39 dB higher,
-# at 15 the two were level (+0.04 ± 0.06), at 29 (2 seeds, older code) λ = 4 led (BENCHMARKS.md,
-# "Few training timestamps at the seventy-fifth session's code")
+# ending with densification) on fewer training timestamps than this are warned of: at 9 (128²,
+# 3 seeds) equal weights and the instant loss to the end scored higher on every built-in scene
+# (solids +1.35 ± 0.39, wires +0.95 ± 0.12, fine-texture +1.14 ± 0.12 dB); at 15 of solids the
+# two were level (+0.04 ± 0.06), at 29 (2 seeds, older code) λ = 4 led (BENCHMARKS.md, "Few
+# training timestamps at the seventy-fifth session's code" and "... on wires and fine-texture")
 FEW_TIMESTAMPS = 12
 # the 3D filter's widths are recomputed this often as the Gaussians move (Mip-Splatting's 100),
 # and after every densification round, from at most FILTER_3D_VIEWS training views spread evenly
@@ -219,8 +220,7 @@ class Trainer:
 
     def _warn_if_few_timestamps(self) -> None:
         """A UserWarning where both losses train with the dense views' settings on fewer than
-        FEW_TIMESTAMPS training timestamps: the sparse views' scored higher there (9 timestamps,
-        3 seeds: +1.35 on solids, +0.95 on wires, +1.14 dB on fine-texture)."""
+        FEW_TIMESTAMPS training timestamps: the sparse views' scored higher there."""
         s, n = self.config.supervision, len(self.dataset.train_timestamps)
         both = s.instant != "none" and s.instant_weight > 0 and s.exposure_weight > 0
         dense = s.exposure_weight > s.instant_weight or s.instant_until == "densify"

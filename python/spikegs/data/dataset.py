@@ -446,12 +446,12 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     other = spike_files(1 if len(names) == 3 else 3)  # the other kind of camera's files
     kind = "colour" if len(other) == 3 else "mono"
     missing = [n for n in names if not (root / n).is_file()]
-    if missing and all((root / n).is_file() for n in other):
+    unread = [n for n in other if (root / n).is_file()]
+    if missing and unread == other:
         raise FileNotFoundError(
             f"dataset file not found: {root / missing[0]}; {root} holds {', '.join(other)}, a "
             f"{kind} camera's: {META}'s channels {meta['channels']} should be {len(other)}"
         )
-    unread = [n for n in other if (root / n).is_file()]
     if unread and not missing:
         warnings.warn(
             f"{root}: {', '.join(unread)} not read: {META}'s channels {meta['channels']} reads "
