@@ -484,6 +484,17 @@ def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):
     assert (tmp_path / "curves.png").stat().st_size > 0
 
 
+def test_a_folder_name_that_is_not_utf8_is_plotted(tmp_path):
+    """A dataset in a Latin-1 folder (b"caf\\xe9", os.fsdecode's surrogate escape) trained to the
+    end, then its curve.png failed in the font (TypeError, exit status 1, the run complete)."""
+    from spikegs.curves import save_curves
+
+    curve = [{"train_seconds": s, "psnr": p} for s, p in ((1.0, 20.0), (2.0, 21.0))]
+    methods = {"tfp33": {"curve": curve, "sim_seconds": 0.0, "uses_sim": False}}
+    save_curves(tmp_path / "curves.png", methods, ("psnr",), os.fsdecode(b"caf\xe9_llff"))
+    assert (tmp_path / "curves.png").stat().st_size > 0
+
+
 def test_a_bar_whose_output_is_gone_leaves_the_next_bar_its_line(gone_stderr):
     """A bar whose output went away was turned off but stayed in tqdm's list of bars (its close
     returns early when off), so a later bar in the same process was drawn on the line below it."""

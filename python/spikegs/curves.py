@@ -74,7 +74,10 @@ def _pseudo_note(views) -> str:
 
 def _as_text(text: str) -> str:
     """`text` (a method, scene or view name) drawn as written: matplotlib reads $...$ as TeX and
-    refused a method named "lam$^$2" at the end of its run."""
+    refused a method named "lam$^$2" at the end of its run; a name's bytes that are not UTF-8 (a
+    Latin-1 folder's, os.fsdecode's surrogate escapes) drawn as U+FFFD, where the font refused
+    them (TypeError) at the end of the run."""
+    text = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
     return text.replace("$", r"\$")
 
 
