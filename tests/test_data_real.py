@@ -773,19 +773,31 @@ def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
         load_dataset(root)
 
 
-def test_eval_keeps_the_runs_units_when_the_datasets_scale_changes(nerf, tmp_path):
-    """A run scored again after its dataset's intensity scale changed (rate_at_one added, or
-    sharp training images) gets the same scores: a sharp test image is intensity whatever the
-    scale, and a pseudo ground truth (TFP) is put in the units the run was trained in."""
+def test_eval_scores_a_runs_renders_in_the_datasets_scale_stated_since(nerf, tmp_path):
+    """A run scored again after its dataset's intensity scale changed (rate_at_one set where it
+    trained in a guessed or fitted one, as eval's warning asks) got the same scores, in the
+    scale it trained in: a render is a firing rate over that scale, and is now scored in the
+    scale stated, said; a pseudo ground truth (TFP) is put in the run's units, unchanged."""
+    from spikegs.evaluate import render_view
+    from spikegs.metrics import psnr
+    from spikegs.ply import load_ply
+
     root = copy(nerf, tmp_path)
     ds = load_dataset(root)
     Trainer(ds, load_config("tfp33", FAST), tmp_path / "run", progress=False).train()
     before = evaluate_run(tmp_path / "run", ds)["views"]
     assert set(before) == {"test_r_0", "pseudo_test_r_1"}  # one sharp, one pseudo
-    write_options(root, rate_at_one=2 * ds.meta["image_scale"])
-    after = evaluate_run(tmp_path / "run", load_dataset(root))["views"]
-    for name in before:
-        assert after[name]["psnr"] == pytest.approx(before[name]["psnr"], abs=1e-9), name
+    fitted = ds.meta["image_scale"]
+    write_options(root, rate_at_one=2 * fitted)
+    stated = load_dataset(root)
+    with pytest.warns(UserWarning, match=r"now states .*: its renders' firing rates are scored"):
+        after = evaluate_run(tmp_path / "run", stated)["views"]
+    assert after["pseudo_test_r_1"]["psnr"] == pytest.approx(before["pseudo_test_r_1"]["psnr"])
+    view = next(v for v in stated.test_views if v.name == "test_r_0")
+    render = render_view(load_ply(tmp_path / "run" / "scene.ply"), view.viewmat, stated)
+    gt = np.clip(view.image / (2 * fitted), 0, 1)  # the sharp image's intensity
+    assert after["test_r_0"]["psnr"] == pytest.approx(psnr(np.clip(render / 2, 0, 1), gt))
+    assert after["test_r_0"]["psnr"] != pytest.approx(before["test_r_0"]["psnr"])
 
 
 def test_nerf_bad_input(nerf, tmp_path):

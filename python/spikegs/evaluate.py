@@ -296,7 +296,8 @@ def evaluate_run(
     pose aligned to its image (`pose_align`), into NAME-aligned.json and NAME-aligned/."""
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
-    name = _eval_name(run_dir, train, dataset, progress) + ("-aligned" if align_poses else "")
+    own = _eval_name(run_dir, train, dataset, progress)
+    name = own + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     ply = trained_scene(run_dir)
     model = load_ply(ply)
@@ -327,6 +328,17 @@ def evaluate_run(
         )
     scale = intensity_scale(dataset)
     run_scale = _run_scale(train, dataset)  # the units the run renders in
+    # the render's intensity 1 in the sharp images' units: on the run's own data whose scale
+    # changed since (a rate_at_one set where it trained in a guessed one), the scale it trained
+    # in over the one stated now; on another dataset the render's intensity is the truth's
+    units = run_scale / scale if own == EVAL else 1.0
+    if units != 1 and any(not v.name.startswith(PSEUDO_PREFIX) for v in dataset.test_views):
+        warnings.warn(
+            f"{run_dir} trained in an intensity scale of {run_scale:.4g} spikes a readout for "
+            f"intensity 1, and {dataset.root} now states {scale:.4g}: its renders' firing rates "
+            f"are scored in the scale stated now (x {units:.4g})",
+            stacklevel=2,
+        )
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
     # refused before any view is rendered, not after the images are written
     if not writable_folder(run_dir):
@@ -350,7 +362,7 @@ def evaluate_run(
     images = folder if write_images else None
     try:  # (the temporaries left, where the scoring stops or the scores are not written)
         views = _score_views(
-            model, dataset, (scale, run_scale), align_poses, progress, images, staged
+            model, dataset, (scale, run_scale, units), align_poses, progress, images, staged
         )
         if not write_images:  # side-by-sides of an earlier scoring these scores no longer match
             for view in (v for v, s in views.items() if v in earlier and _changed(earlier[v], s)):
@@ -435,28 +447,31 @@ def _grey(model: GaussianModel) -> bool:
 def _score_views(
     model: GaussianModel,
     dataset,
-    scales: tuple[float, float],
+    scales: tuple[float, float, float],
     align_poses: bool,
     progress: bool,
     folder: Path | None,
     staged: list,
 ) -> dict:
     """`evaluate_run`'s scores of each test view {name: scores} (`scales`: the dataset's and
-    the run's intensity scales; `align_poses`, `progress` its), each view's side-by-side written
+    the run's intensity scales, and the render's intensity 1 in the sharp images' units;
+    `align_poses`, `progress` its), each view's side-by-side written
     to a temporary file beside FOLDER/VIEW.png and appended to `staged` (no images where
     `folder` is None)."""
-    scale, run_scale = scales
+    scale, run_scale, sharp_units = scales
     views, radius = {}, float(dataset.scene_radius)
     bar = tqdm(dataset.test_views, "aligning poses", disable=not (progress and align_poses))
     for view in bar:
-        # a sharp image is intensity x the dataset's scale; a pseudo ground truth, TFP of the
-        # view's own spikes, is put in the run's units (the dataset's scale may have changed since)
+        # a sharp image is intensity x the dataset's scale, and the render is scored in its
+        # units (scored unconverted until 2026-12-06); a pseudo ground truth, TFP of the view's
+        # own spikes, in the run's units
         pseudo = view.name.startswith(PSEUDO_PREFIX)
+        units = 1.0 if pseudo else sharp_units
         gt = np.asarray(view.image, dtype=np.float32) / (run_scale if pseudo else scale)
         gt = np.clip(gt, 0, 1)  # what is scored, and shown
-        aligned = aligned_pose(model, view.viewmat, gt, dataset) if align_poses else None
+        aligned = aligned_pose(model, view.viewmat, gt / units, dataset) if align_poses else None
         viewmat = aligned.viewmat if aligned else view.viewmat
-        pred = np.clip(render_view(model, viewmat, dataset), 0, 1)
+        pred = np.clip(units * render_view(model, viewmat, dataset), 0, 1)
         views[view.name] = {**view_metrics(pred, gt), "readout": view.readout}  # (None: off path)
         if aligned:  # how far the pose moved: degrees, and the centre in scene radii
             degrees, moved = (float(e[0]) for e in pose_errors(viewmat[None], view.viewmat[None]))
