@@ -1,8 +1,9 @@
 """The audit behind docs/datasets.md's figures for frames read at the wrong size: spike files
-given at 1/m of their frame size (LLFF's hwf of downsampled images), which `warn_rows_out_of_line`
-should name, and files read right under fast motion, hot pixels or few spikes, which it should
-not. Simulates the built-in scenes at several sizes, speeds and seeds into OUT (minutes on two
-cores) and prints both counts; OUT/audit.json holds each stream's row.
+given at 1/m of their frame size (LLFF's hwf of downsampled images) or at m times it (the
+full-size images' hwf), which `warn_rows_out_of_line` should name, and files read right under
+fast motion, hot pixels or few spikes, which it should not. Simulates the built-in scenes at
+several sizes, speeds and seeds into OUT (minutes on two cores) and prints the counts;
+OUT/audit.json holds each stream's row.
 
     python scripts/frame_size_audit.py OUT
 """
@@ -23,7 +24,10 @@ from spikegs.spikes.stream import SpikeStream, save_dat
 
 # (frame sizes, speeds in degrees a readout: None the default) of each part
 FRACTIONS = ([(16, 16), (16, 24), (24, 32), (32, 48), (48, 64)], [None, 2.0])
-RIGHT = ([(16, 16), (16, 32), (24, 24), (32, 32), (40, 24)], [3.0, 8.0])
+RIGHT = ([(16, 16), (16, 32), (24, 24), (32, 32), (40, 24), (32, 48), (48, 64)], [3.0, 8.0])
+SCALES = (-4, -2, 1, 2, 4)  # the size given: -m is 1/m of the frames' own, m is m times it
+# what the warning says of a file given at 1/m of its size, and at m times it
+NAMED = {False: "times the width", True: "of the size given"}
 SEEDS = (0, 1, 2)
 
 
@@ -56,26 +60,28 @@ def simulated(out: Path, scene: str, size: tuple, speed, seed: int, readouts: in
 
 
 def fractions(out: Path) -> list[dict]:
-    """Streams given at 1/m of their size (m = 1 read right), with and without 3 % hot pixels."""
+    """Streams given at 1/m of their size and at m times it (SCALES; 1 read right), with and
+    without 3 % hot pixels."""
     rows = []
     sizes, speeds = FRACTIONS
     for scene, size, speed, seed in itertools.product(SCENES, sizes, speeds, SEEDS[:2]):
         data, bits = simulated(out, scene, size, speed, seed, 800)
         bits[:, np.random.default_rng(seed).random(size) < 0.03] = 1
         save_dat(data.root / "hot.dat", bits)
-        for path, m in itertools.product((data.stream.path, data.root / "hot.dat"), (1, 2, 4)):
-            if size[0] % m or size[1] % m:
+        for path, m in itertools.product((data.stream.path, data.root / "hot.dat"), SCALES):
+            if m < 0 and (size[0] % m or size[1] % m):
                 continue
-            stream = SpikeStream.open(path, size[0] // m, size[1] // m)
+            given = [n * m if m > 0 else n // -m for n in size]
+            stream = SpikeStream.open(path, *given)
             said = warned(stream)
-            judged = min(stream.height, stream.width) >= WIDER_MIN_SIZE
+            judged = min(size if m > 0 else given) >= WIDER_MIN_SIZE
             rows.append(
                 dict(
                     stream=f"{data.root.name}/{path.name}",
                     m=m,
                     judged=judged,
                     as_read=round(_rows_alike(stream), 2),
-                    named="times the width" in said,
+                    named=NAMED[m > 0] in said,
                     warned=bool(said),
                 )
             )
@@ -117,11 +123,12 @@ def main() -> None:
         warnings.simplefilter("ignore")  # the simulator's on fast motion
         given, read = fractions(out), right(out)
     (out / "audit.json").write_text(json.dumps({"fractions": given, "right": read}, indent=1))
-    small = [r for r in given if r["m"] > 1 and r["judged"]]
-    print(
-        f"given at 1/m, judged (16 rows and columns or more): {len(small)}, named "
-        f"{sum(r['named'] for r in small)}"
-    )
+    for larger in (False, True):
+        wrong = [r for r in given if (r["m"] > 1 if larger else r["m"] < 0) and r["judged"]]
+        print(
+            f"given at {'m times' if larger else '1/m of'} their size, judged (frames of 16 rows "
+            f"and columns or more): {len(wrong)}, named {sum(r['named'] for r in wrong)}"
+        )
     ok = [r for r in given if r["m"] == 1] + read
     print(
         f"read right: {len(ok)} ({sum(r['as_read'] < 0.5 for r in ok)} under 0.5, searched), "

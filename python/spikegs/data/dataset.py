@@ -574,8 +574,42 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
                 stacklevel=3,
             )
             return
+    if simple and _warned_if_frames_smaller(stream, as_read, settings):
+        return
     if as_read < SWAPPED_MIN:
         _warn_if_rows_wider(stream, as_read, settings)
+
+
+def _warned_if_frames_smaller(stream: SpikeStream, as_read: float, settings: str) -> bool:
+    """Whether a UserWarning was given that the stream's file read as frames of 1/m the height
+    and width (m in ROW_MULTIPLES, frames of WIDER_MIN_SIZE or more rows and columns, whole ones
+    in the file) gives an image whose neighbouring rows correlate at SWAPPED_MIN or more and
+    SWAPPED_GAP over `as_read`: a size stated m times the spikes' (the full-size images' of LLFF's
+    hwf or a transforms file's w, h) reads m² readouts as one frame, each row m true rows side by
+    side, and loaded without a word (its rows, true rows m apart, still alike). Read at 1/m of
+    its size, a right file's rows are pieces of one row: measured -0.68 to 0.06."""
+    size = stream.path.stat().st_size
+    scores = {}
+    for m in ROW_MULTIPLES:
+        height, width = stream.height // m, stream.width // m
+        whole = stream.height % m == 0 and stream.width % m == 0
+        if not whole or min(height, width) < WIDER_MIN_SIZE or size % -(-height * width // 8):
+            continue
+        smaller = SpikeStream.open(stream.path, height, width, stream.layout.flip)
+        scores[m] = _rows_alike(smaller)
+    m = max(scores, key=scores.get, default=None)
+    if m is None or scores[m] < SWAPPED_MIN or scores[m] - as_read < SWAPPED_GAP:
+        return False
+    smaller = f"{stream.height // m}x{stream.width // m}"
+    warnings.warn(
+        f"{stream.path}: its frames read as {stream.height}x{stream.width} give an image whose "
+        f"neighbouring rows correlate at {as_read:.2f}, read as {smaller} at {scores[m]:.2f}: "
+        f"the frames are likely {smaller}, 1/{m} of the size given (the full-size images' size? "
+        f"set height and width in {settings}); read so, each frame holds {m * m} readouts side "
+        f"by side and training learns noise",
+        stacklevel=4,
+    )
+    return True
 
 
 def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> None:
