@@ -837,6 +837,20 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             ),
             "trajectory.json: malformed frames",
         ),
+        # a frame without its readout said "malformed frames ('readout')"
+        "time for readout": (
+            "trajectory.json",
+            lambda text: json.dumps(
+                {
+                    **json.loads(text),
+                    "frames": [
+                        {"time": f["readout"], "transform_matrix": f["transform_matrix"]}
+                        for f in json.loads(text)["frames"]
+                    ],
+                }
+            ),
+            r"trajectory.json: frame 0 has no readout \(each frame .* \['time', 'transform_m",
+        ),
         # numpy reads a true among numbers as 1: a pose with its first entry true
         "bool in a pose": (
             "trajectory.json",
@@ -1511,6 +1525,26 @@ def test_frames_given_at_half_their_size_are_warned_of(tmp_path):
         r"width given \(32x48 if the height is as far off",
     ):
         warn_rows_out_of_line(SpikeStream.open(data.stream.path, 16, 24), "meta.json")
+
+
+@pytest.mark.parametrize("scene", list(SCENES))
+def test_frames_given_at_twice_their_size_are_warned_of(scene, tmp_path):
+    """32x48 frames given as 64x96 (the full-size images' hwf, or a transforms file's w and h)
+    read four readouts as one frame, each row two true rows side by side, and loaded without a
+    word: the rows as read, true rows two apart, still alike. Read at half the size the file
+    gives an image, and the size is named; a right file read so gives none, and is not warned
+    of."""
+    data = simulate_dataset(scene, tmp_path / "d", **{**SMALL, "height": 32, "width": 48})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_rows_out_of_line(SpikeStream.open(data.stream.path, 32, 48, flip=True), "meta.json")
+    with pytest.warns(
+        UserWarning,
+        match=r"read as 64x96 give an image whose neighbouring rows correlate at -?0\.\d+, read "
+        r"as 32x48 at 0\.\d+: the frames are likely 32x48, 1/2 of the size given .* set height "
+        r"and width in meta.json\); read so, each frame holds 4 readouts",
+    ):
+        warn_rows_out_of_line(SpikeStream.open(data.stream.path, 64, 96, flip=True), "meta.json")
 
 
 def test_a_flip_stated_wrong_in_meta_json_is_warned_of(small, tmp_path):

@@ -1264,7 +1264,10 @@ def test_malformed_files(llff, nerf, tmp_path):
         load_dataset(root)
     (root / "spikegs.json").unlink()
     (root / "poses_bounds.npy").write_bytes(pickle.dumps([[0.0] * 17]))
-    with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):
+    with pytest.raises(ValueError, match="poses_bounds.npy: not an .npy file"):
+        load_dataset(root)
+    np.savetxt(root / "poses_bounds.npy", np.zeros((3, 17)))  # numpy spoke of allow_pickle
+    with pytest.raises(ValueError, match=r"not an \.npy file \(no numpy header: text .* np.save"):
         load_dataset(root)
     np.save(root / "poses_bounds.npy", np.array([[None] * 17]), allow_pickle=True)
     with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):

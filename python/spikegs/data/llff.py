@@ -149,10 +149,20 @@ def _warn_if_looking_away(viewmats: np.ndarray, bounds: np.ndarray, source) -> N
         )
 
 
+NPY_MAGIC, ZIP_MAGIC = b"\x93NUMPY", b"PK"  # how an .npy file and an .npz archive begin
+
+
 def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Poses [N, 3, 5] and bounds [N, 2] of poses_bounds.npy, checked."""
     if not path.is_file():
         raise FileNotFoundError(f"LLFF poses file not found: {path}")
+    with open(path, "rb") as file:
+        head = file.read(len(NPY_MAGIC))
+    if head != NPY_MAGIC and not head.startswith(ZIP_MAGIC):  # np.load's error spoke of pickles
+        raise ValueError(
+            f"{path}: not an .npy file (no numpy header: text written by np.savetxt, say): "
+            f"write the [N, 17] array with np.save"
+        )
     try:
         arr = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as err:

@@ -23,6 +23,7 @@ from ..strict_json import json_text, read_json
 
 PathLike = str | os.PathLike
 CONVENTION = "opencv"
+FRAME_KEYS = ("readout", "transform_matrix")  # what every frame of a trajectory file holds
 WORLD_UP = np.array([0.0, 0.0, 1.0])  # the spiral ascends along +z
 
 
@@ -276,6 +277,14 @@ class Trajectory:
         frames = read_camera_doc(path, camera, _compact_matrix)
         if not frames:
             raise ValueError(f"{path}: no frames (poses)")
+        for i, frame in enumerate(frames):  # (a KeyError said "malformed frames ('readout')")
+            missing = [key for key in FRAME_KEYS if key not in frame]
+            if missing:
+                raise ValueError(
+                    f"{path}: frame {i} has no {' or '.join(missing)} (each frame needs "
+                    f"readout, the readout index of its pose, and transform_matrix, "
+                    f"camera-to-world 4x4); found the keys {sorted(frame)}"
+                )
         try:
             readouts = number_array([f["readout"] for f in frames])  # [P]
             matrices = [f["transform_matrix"] for f in frames]  # [P] of [4, 4]
