@@ -35,6 +35,7 @@ from spikegs.data.llff import (
     viewmats_from_llff,
 )
 from spikegs.data.nerf_layout import _spike_candidates
+from spikegs.data.orientation import other_bit_order
 from spikegs.data.real import (
     _spaced_hold_out,
     check_orientation,
@@ -741,6 +742,12 @@ def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
     (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
     with pytest.warns(UserWarning, match=r"better upside down .* over 7 views\): flip \(False"):
         load_dataset(root)
+    # the held-out views' sharp images, where the training views have none (unsaid before)
+    root = copy(nerf, tmp_path / "held")
+    write_view(sim, root / "spike_data" / "r_0.dat", 0)  # test/r_0: its spikes and image
+    (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
+    with pytest.warns(UserWarning, match=r"better upside down .* over 1 views\): flip \(False"):
+        load_dataset(root)
 
 
 def test_nerf_intensity_scale_from_training_images(sim, nerf, tmp_path):
@@ -1022,7 +1029,10 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
     root = copy(llff_stream, tmp_path)
     hwf = (2 * H, 2 * W, 2 * sim.K[0, 0])  # poses made for images at twice the spikes' size
     edit_poses(root, lambda rows: rows.__setitem__((slice(None), [4, 9, 14]), hwf))
-    with pytest.raises(ValueError, match="hwf .*set height and width in spikegs.json"):
+    with (
+        pytest.raises(ValueError, match="hwf .*set height and width in spikegs.json"),
+        pytest.warns(UserWarning, match=f"the frames are likely {H}x{W}, 1/2 of the size given"),
+    ):
         load_dataset(root)  # 64x96 frames: a quarter of the readouts
     write_options(root, height=H, width=W)
     assert len(load_dataset(root).stream) == VIEWS * LENGTH
@@ -1883,15 +1893,22 @@ def test_spikes_upside_down_against_their_images_warn_of_flip():
     image = (rows / 11 + 0.3 * (cols > 10))[..., None]  # dark top, bright bottom, a right stripe
     upside_down = [(image[::-1, :, 0] * 0.25, image)] * 3
     with pytest.warns(UserWarning, match="better upside down"):
-        check_orientation(upside_down, True, "x")
+        check_orientation(upside_down, Options(), "x")
     mirrored = [(image[:, ::-1, 0] * 0.25, image)] * 3
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_orientation(mirrored, True, "x")
-    # spikes that match neither way up (a .dat packed most significant bit first, say)
+        check_orientation(mirrored, Options(), "x")
+    # a .dat packed most significant bit first: each byte's 8 pixels reversed (a 48x64 view of
+    # solids correlated at 0.57 so, above MATCH_MIN: loaded unsaid before)
+    texture = np.random.default_rng(1).random((12, 16, 1))
+    for flip in (True, False):
+        packed_msb = [(other_bit_order(texture[..., 0], flip) * 0.25, texture)] * 3
+        with pytest.warns(UserWarning, match=r"bits read in the other order .* most significant"):
+            check_orientation(packed_msb, Options(flip=flip), "x")
+    # spikes that match neither way up (another pixel order, say)
     scrambled = np.random.default_rng(0).permutation(image.reshape(-1)).reshape(image.shape)
     with pytest.warns(UserWarning, match=r"hardly match .* \(median correlation -?0\.\d\d over 3"):
-        check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, True, "x")
+        check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, Options(), "x")
 
 
 def test_correlation_refuses_images_of_two_shapes():
@@ -1918,11 +1935,11 @@ def test_flip_warning_needs_most_views_to_match_upside_down_by_a_margin():
         return np.cos(t) * flat + np.sin(t) * flat[::-1], image
 
     with pytest.warns(UserWarning, match="better upside down"):
-        check_orientation([view(60)] * 3, True, "x")
+        check_orientation([view(60)] * 3, Options(), "x")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_orientation([view(49)] * 3, True, "x")
-        check_orientation([view(60), view(30)], True, "x")  # one view of two
+        check_orientation([view(49)] * 3, Options(), "x")
+        check_orientation([view(60), view(30)], Options(), "x")  # one view of two
 
 
 def test_a_view_of_the_longest_window_loads_and_one_readout_less_is_refused(sim, llff, tmp_path):

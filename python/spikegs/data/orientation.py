@@ -1,6 +1,7 @@
 """Whether spikes match their views' sharp images better upside down: the `flip` of the file
 that reads them is likely wrong, and the scene would train upside down (real.py's layouts, whose
-flip is in spikegs.json, and meta.json's, whose flip is its own)."""
+flip is in spikegs.json, and meta.json's, whose flip is its own); or with each byte's bits read
+in the other order (`other_bit_order`)."""
 
 from __future__ import annotations
 
@@ -37,3 +38,16 @@ def warn_if_upside_down(
             f"views): flip ({flip}, in {settings}) is likely wrong",
             stacklevel=stacklevel + 1,
         )
+
+
+def other_bit_order(image: np.ndarray, flip: bool) -> np.ndarray:
+    """`image` [H, W], per-pixel figures of a .dat read least significant bit first (TFP, spike
+    counts), as read most significant bit first: each byte's 8 pixels, in the file's order (rows
+    bottom-up where `flip`), in reverse; a frame's last byte, where H·W leaves it partial, as it
+    is. For frames of `width` pixels a stored row (no raw_width, col_offset)."""
+    stored = (image[::-1] if flip else image).ravel()
+    whole = np.arange(stored.size // 8 * 8)
+    reordered = stored.copy()
+    reordered[whole] = stored[whole - whole % 8 + 7 - whole % 8]
+    reordered = reordered.reshape(image.shape)
+    return reordered[::-1] if flip else reordered
