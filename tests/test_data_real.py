@@ -619,6 +619,10 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
     ):
         load_dataset(root)
     (root / "spikes" / "009.DAT").unlink()
+    (root / "spikes" / "009.dat").symlink_to(tmp_path / "unmounted" / "009.dat")  # dangling
+    with pytest.raises(ValueError, match=r"9 .dat files; .* \(links to nothing: 009.dat\)"):
+        load_dataset(root)
+    (root / "spikes" / "009.dat").unlink()
     (root / "spikes" / "zz.dat").mkdir()  # a folder: counted as a view's spikes
     with pytest.raises(ValueError, match="holds 10 poses .* holds 9 .dat files"):
         load_dataset(root)
@@ -1112,6 +1116,10 @@ def test_options_of_none_leave_the_files_values(tmp_path):
     write_options(tmp_path, height=16, flip=False)
     options = read_options(tmp_path, {"height": None, "flip": None, "width": 24})
     assert (options.height, options.width, options.flip) == (16, 24, False)
+    # null in the file is the default, for every key (flip's and col_offset's reached the
+    # reader as None, and its error blamed the .dat)
+    (tmp_path / "spikegs.json").write_text('{"flip": null, "col_offset": null, "height": null}')
+    assert read_options(tmp_path, {}) == Options()
 
 
 def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):
@@ -1503,6 +1511,22 @@ def test_nerf_image_of_an_upper_case_extension_is_read(nerf, tmp_path):
     write_image(root / "test" / "r_0.Png", np.zeros_like(read_image(root / "test" / "r_0.EXR")))
     with pytest.warns(UserWarning, match=r"several formats \(.Png, .EXR\): .Png is read"):
         load_dataset(root)  # in IMAGE_EXTENSIONS' order, as lower-case ones
+
+
+def test_nerf_image_named_with_another_extension_is_read_and_said(nerf, tmp_path):
+    """A file_path ending in .png beside the frame's r_0.exr: the image was not found (the
+    view held out against its own TFP, unsaid, where the size was given); it is read, said."""
+    root = copy(nerf, tmp_path)
+    edit_json(
+        root / "transforms_test.json",
+        lambda doc: doc["frames"][0].update(file_path="./test/r_0.png"),
+    )
+    with pytest.warns(
+        UserWarning, match=r"test: frame images named .png \(file_path\), found as .exr: read"
+    ):
+        named = load_dataset(root)
+    assert [v.name for v in named.test_views] == ["test_r_0", "pseudo_test_r_1"]
+    np.testing.assert_array_equal(named.test_views[0].image, load_dataset(nerf).test_views[0].image)
 
 
 def test_nerf_image_folders_are_listed_once_a_load(nerf, tmp_path, listed_folders):

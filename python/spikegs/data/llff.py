@@ -253,10 +253,14 @@ def _spike_files(folder: Path, count: int, source: Path) -> list[Path]:
             for p in folder.iterdir()
             if p.is_file() and p.suffix != ".dat" and not p.name.startswith(".")
         )
+        # a link to a disk not mounted, or a file moved: counted out unnamed ("15 .dat files"
+        # where ls shows 16 names)
+        dangling = sorted(p.name for p in folder.glob("*.dat") if p.is_symlink() and not p.exists())
         raise ValueError(
             f"{source} holds {count} poses but {folder} holds {len(files)} .dat files; "
             f"expected one per pose, in name order"
             + (f" (not read, not named *.dat: {first_of(others)})" if others else "")
+            + (f" (links to nothing: {first_of(dangling)})" if dangling else "")
         )
     natural = sorted(files, key=lambda p: natural_key(p.name))
     if natural != files:

@@ -107,7 +107,8 @@ def read_options(root: Path, overrides: dict) -> Options:
     twice = sorted({i for i in views if views.count(i) > 1})
     if twice:
         warnings.warn(f"{path}: test_views lists {twice} more than once", stacklevel=2)
-    return Options(**values)
+    # null: the default, for every key (flip's and col_offset's None reached the reader)
+    return Options(**{key: value for key, value in values.items() if value is not None})
 
 
 def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:

@@ -384,16 +384,19 @@ def camera_matrix(
 
 def frame_files(base: Path, listings: dict | None = None) -> list[Path]:
     """The image files a frame's file_path `base` names: itself, or with an extension of
-    IMAGE_EXTENSIONS added, in that order, in any case (a camera's r_0.PNG was passed over
-    unsaid, the view then held out without its image). `listings`: {folder: its names
-    (`_names_by_lower_case`)}, filled as folders are listed: one dict across a load's frames
-    lists each folder once."""
+    IMAGE_EXTENSIONS added, or, where it ends in one, in place of it, in that order, in any
+    case (a camera's r_0.PNG was passed over unsaid, the view then held out without its
+    image). `listings`: {folder: its names (`_names_by_lower_case`)}, filled as folders are
+    listed: one dict across a load's frames lists each folder once."""
     listings = {} if listings is None else listings
     if base.parent not in listings:
         listings[base.parent] = _names_by_lower_case(base.parent)
     names = listings[base.parent]
-    found = [n for ext in IMAGE_EXTENSIONS for n in names.get((base.name + ext).lower(), [])]
-    return [p for p in [base, *(base.parent / n for n in found)] if p.is_file()]
+    # a path with an image's extension, as its stem too (r_0.png listed, r_0.jpg written:
+    # every view was held out without its image, unsaid)
+    stems = [base.name] + [base.stem] * (base.suffix.lower() in IMAGE_EXTENSIONS)
+    found = [n for s in stems for ext in IMAGE_EXTENSIONS for n in names.get((s + ext).lower(), [])]
+    return [p for p in dict.fromkeys([base, *(base.parent / n for n in found)]) if p.is_file()]
 
 
 def _names_by_lower_case(folder: Path) -> dict[str, list[str]]:
@@ -418,7 +421,13 @@ def frame_file(base: Path, listings: dict | None = None) -> Path:
             f"frame image not found: {base} (tried {', '.join(IMAGE_EXTENSIONS)})"
         )
     found = files[0]
-    if len(files) > 1 and found != base:  # one message per folder, not per frame
+    if found != base and found.stem == base.stem and base.suffix.lower() in IMAGE_EXTENSIONS:
+        warnings.warn(  # one message per folder, not per frame
+            f"{base.parent}: frame images named {base.suffix} (file_path), found as "
+            f"{found.suffix}: read",
+            stacklevel=3,
+        )
+    elif len(files) > 1 and found != base:  # one message per folder, not per frame
         warnings.warn(
             f"{base.parent}: frame images in several formats "
             f"({', '.join(p.suffix for p in files)}): {found.suffix} is read, the first of "
