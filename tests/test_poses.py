@@ -548,6 +548,12 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     assert main(["poses", str(raw)]) == 2  # was: poses, then train found no timestamps
     assert "test_views.json without train_timestamps.txt" in capsys.readouterr().err
     (raw / "test_views.json").unlink()
+    # no SIM on a recording without poses: poses first (sim-train sent the user back here)
+    assert main(["poses", str(raw), "--sim"]) == 2
+    said = capsys.readouterr().err
+    assert re.search(
+        r"run `spikegs poses .*` \(SfM on TFP images\) first, then `spikegs sim-t", said
+    )
     (raw / "spikes.dat").write_bytes(bytes((raw / "spikes.dat").stat().st_size))  # dark
     assert main(["poses", str(raw)]) == 2  # was a generic SfM failure, after SfM
     assert re.search(r"spikes.dat: no spikes .* height, .* in meta.json", capsys.readouterr().err)
@@ -585,7 +591,9 @@ def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
     assert main(["poses", str(textured), "--sim"]) == 2  # no SIM cached: said before "SfM: ..."
-    assert capsys.readouterr().err.startswith("spikegs poses: error: --sim: no trained SIM")
+    said = capsys.readouterr().err
+    assert said.startswith("spikegs poses: error: --sim: no trained SIM")
+    assert "; run `spikegs sim-train " in said  # (poses there: SIM can train)
     (textured / "sim").mkdir()
     torch.save({"weights": [1.0]}, textured / "sim" / "notes.pt")  # not a SIM: passed over
     assert main(["poses", str(textured), "--sim"]) == 2
@@ -1288,7 +1296,7 @@ def test_poses_sim_takes_the_latest_trained_sim(tmp_path, monkeypatch):
         os.utime(tmp_path / "sim" / name, (when, when))
     monkeypatch.setattr(sim_train, "is_sim_file", lambda path: True)
     monkeypatch.setattr(sim_train, "load_sim", lambda path: path.name)
-    assert _cached_sim(tmp_path) == "c.pt"
+    assert _cached_sim(tmp_path, posed=True) == "c.pt"
 
 
 def test_a_scene_centre_without_a_radius_is_estimated_with_it():
@@ -1578,7 +1586,7 @@ def test_sim_reads_the_spikes_with_the_sensors_defects_repaired(tiny, tmp_path, 
     from spikegs.sim import SIM
 
     root = _with_stuck_pixels(tiny, tmp_path / "data")
-    monkeypatch.setattr(poses_cli, "_cached_sim", lambda root: SIM(window=9).eval())
+    monkeypatch.setattr(poses_cli, "_cached_sim", lambda root, posed: SIM(window=9).eval())
     read, infer = [], sim_train.infer_sim
 
     def reading(model, stream, readouts, **kwargs):

@@ -136,13 +136,19 @@ def _saved_sims(root: Path) -> list[Path]:
     return sorted(saved, key=lambda p: p.stat().st_mtime)
 
 
-def _cached_sim(root: Path):
-    """The dataset's most recently trained SIM (`_saved_sims`), said which."""
+def _cached_sim(root: Path, posed: bool):
+    """The dataset's most recently trained SIM (`_saved_sims`), said which; `posed`: whether
+    the recording has poses already (SIM trains on a dataset with them)."""
     from .sim_train import load_sim
 
     cached = _saved_sims(root)
     if not cached:
-        raise ValueError(f"--sim: no trained SIM in {root / 'sim'}; run `spikegs sim-train` first")
+        where = shell_path(root)
+        first = "" if posed else f"`spikegs poses {where}` (SfM on TFP images) first, then "
+        raise ValueError(
+            f"--sim: no trained SIM in {root / 'sim'}; run {first}`spikegs sim-train {where}`, "
+            f"then --sim"
+        )
     print(
         f"--sim: the latest of {len(cached)} trained SIM(s), {cached[-1].name} (its name gives "
         f"its window, steps, ...; `spikegs sim-train`, training or reusing one, makes it the "
@@ -413,7 +419,8 @@ def _estimate_poses(
             file=sys.stderr,
         )
     import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
-    sim_model = _cached_sim(root) if sim else None  # none cached: refused before announcing SfM
+    posed = reference is not None
+    sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
     pairs = len(readouts) * (len(readouts) - 1) // 2
     print(
         f"SfM: {len(readouts)} images, {pairs} pairs matched exhaustively"
