@@ -190,6 +190,19 @@ def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
             Trainer(data, config, tmp_path / "other", progress=False)._warn_if_few_timestamps()
 
 
+def test_one_training_timestamp_is_warned_of_by_any_method(few_views, tmp_path):
+    """A real layout's one training view trained without a word (`spikegs simulate` warns of
+    one training timestamp, the loaders did not): every method is told, before any work."""
+    one = copy.copy(few_views)
+    one.train_timestamps = few_views.train_timestamps[:1]
+    said = r"one training timestamp \(readout \d+\): every step trains on one view"
+    for method in ("tfp33", "spikegs"):
+        with pytest.warns(UserWarning, match=said):
+            Trainer(
+                one, load_config(method, _few_steps(2)), tmp_path, False
+            )._warn_if_few_timestamps()
+
+
 def test_a_run_steps_at_the_scheduled_rates_visits_every_timestamp_and_logs_in_its_units(
     few_views, tmp_path
 ):

@@ -62,9 +62,12 @@ MIN_SPHERE_COVERAGE = 0.15
 # both losses with the dense views' settings (λ over the instant weight, or the instant loss
 # ending with densification) on fewer training timestamps than this are warned of: at 9 (128²,
 # 3 seeds) equal weights and the instant loss to the end scored higher on every built-in scene
-# (solids +1.35 ± 0.39, wires +0.95 ± 0.12, fine-texture +1.14 ± 0.12 dB); at 15 of solids the
-# two were level (+0.04 ± 0.06), at 29 (2 seeds, older code) λ = 4 led (BENCHMARKS.md, "Few
-# training timestamps at the seventy-fifth session's code" and "... on wires and fine-texture")
+# (solids +1.35 ± 0.39, wires +0.95 ± 0.12, fine-texture +1.14 ± 0.12 dB); at 15 the defaults
+# led on wires (+0.80 ± 0.28), the two were level on solids (+0.04 ± 0.06) and the sparse ones
+# still led on fine-texture (+0.80 ± 0.03), the defaults again at 29 (+0.24 ± 0.25): each scene
+# turns at its own count, and below 12 the advice held on all (BENCHMARKS.md, "Few training
+# timestamps at the seventy-fifth session's code", "... on wires and fine-texture" and "Where
+# the sparse-view settings stop leading")
 FEW_TIMESTAMPS = 12
 # the 3D filter's widths are recomputed this often as the Gaussians move (Mip-Splatting's 100),
 # and after every densification round, from at most FILTER_3D_VIEWS training views spread evenly
@@ -219,9 +222,19 @@ class Trainer:
             )
 
     def _warn_if_few_timestamps(self) -> None:
-        """A UserWarning where both losses train with the dense views' settings on fewer than
-        FEW_TIMESTAMPS training timestamps: the sparse views' scored higher there."""
+        """A UserWarning where the dataset has one training timestamp (a real layout's one
+        training view: loaded unsaid, where `spikegs simulate` warns of one), or where both
+        losses train with the dense views' settings on fewer than FEW_TIMESTAMPS: the sparse
+        views' scored higher there."""
         s, n = self.config.supervision, len(self.dataset.train_timestamps)
+        if n == 1:
+            warnings.warn(
+                f"{self.dataset.root}: one training timestamp (readout "
+                f"{self.dataset.train_timestamps[0]:g}): every step trains on one view, which "
+                f"cannot place the scene in depth; the test views' scores say little",
+                stacklevel=3,
+            )
+            return
         both = s.instant != "none" and s.instant_weight > 0 and s.exposure_weight > 0
         dense = s.exposure_weight > s.instant_weight or s.instant_until == "densify"
         if both and dense and n < FEW_TIMESTAMPS:
