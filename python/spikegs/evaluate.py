@@ -457,9 +457,8 @@ def _score_views(
 ) -> dict:
     """`evaluate_run`'s scores of each test view {name: scores} (`scales`: the dataset's and
     the run's intensity scales, and the render's intensity 1 in the sharp images' units;
-    `align_poses`, `progress` its), each view's side-by-side written
-    to a temporary file beside FOLDER/VIEW.png and appended to `staged` (no images where
-    `folder` is None)."""
+    `align_poses`, `progress` its), each view's side-by-side written to a temporary file beside
+    FOLDER/VIEW.png and appended to `staged` (no images where `folder` is None)."""
     scale, run_scale, sharp_units = scales
     views, radius = {}, float(dataset.scene_radius)
     bar = tqdm(dataset.test_views, "aligning poses", disable=not (progress and align_poses))

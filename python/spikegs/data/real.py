@@ -294,7 +294,8 @@ def check_orientation(views: Iterable[tuple[np.ndarray, np.ndarray]], options, s
     for tfp, image in views:
         pairs += orientation_pairs([(tfp, image)])
         if options.raw_width in (None, tfp.shape[1]) and options.col_offset == 0:
-            reordered.append(max(*orientation_pairs([(other_bit_order(tfp, options.flip), image)])))
+            (other,) = orientation_pairs([(other_bit_order(tfp, options.flip), image)])
+            reordered.append(max(other))  # the better way up
     better = [other - max(pair) > FLIP_MARGIN for other, pair in zip(reordered, pairs)]
     if better and sum(better) > len(better) / 2:
         warnings.warn(
