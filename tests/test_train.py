@@ -1591,6 +1591,8 @@ def test_a_config_file_of_no_mapping_or_a_bad_base_is_named(tmp_path):
         ("- a list\n", "list.yaml: expected a mapping at the top level"),
         ("base: 3\n", "list.yaml: base = 3, expected a method name or a YAML file"),
         ("base: ' '\n", "list.yaml: base = ' ', expected a method name"),
+        # an empty base trained the dataclass defaults, as a file without one, unsaid
+        ("base:\n", r"list.yaml: base = null, expected .* file \(without a base, leave the key"),
         ("base: common.txt\n", r"list.yaml: base: config file common.txt: expected a .yaml"),
     ]:
         (tmp_path / "list.yaml").write_text(text)
@@ -1634,6 +1636,40 @@ def test_a_file_named_like_a_method_must_start_from_it(tmp_path):
         load_config(tmp_path / "tfp33.yaml")
 
 
+def test_settings_a_method_never_reads_are_warned_of(tmp_path):
+    """SIM's settings beside `base: tfp33`, the exposure loss's at exposure_weight 0 and pose
+    refinement's with it off were taken, unsaid, and written to the run's config.yaml as if they
+    had trained it (while an unread supervision.instant_window is refused)."""
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(
+        "base: tfp33\nsim: {window: 17, loss: l2}\nsupervision: {exposure_poses: 9}\n"
+        "pose_refine: {lr: 0.0001}\n"
+    )
+    said = (
+        r"config file .*mine.yaml sets what method 'mine' never reads: pose_refine.lr "
+        r"\(pose_refine.enabled is false\); sim.window \(the instant target is tfp: no SIM is "
+        r"trained\); supervision.exposure_poses \(supervision.exposure_weight is 0: no exposure "
+        r"loss\). They change nothing"  # (sim.loss: l2 is what it started from: not said)
+    )
+    with pytest.warns(UserWarning, match=said):
+        load_config(mine)
+    child = tmp_path / "child.yaml"  # a base file's are named with it
+    child.write_text("base: mine.yaml\ntrain: {iterations: 100}\n")
+    with pytest.warns(UserWarning, match=r"mine.yaml sets what method 'child' never reads: pose"):
+        load_config(child)
+    # read ones, and what a built-in method leaves unread (only_exposure's smooth-L1 instant
+    # norm): nothing said
+    mine.write_text("base: spikegs\nsim: {window: 17}\nsupervision: {exposure_poses: 9}\n")
+    child.write_text("base: only_exposure\ntrain: {iterations: 100}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for config in (mine, child, *available_methods()):
+            load_config(config)
+    mine.write_text("base: only_exposure\nsupervision: {instant_norm: l2}\n")
+    with pytest.warns(UserWarning, match=r"instant_norm \(no instant target\)"):
+        load_config(mine)
+
+
 def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
     """`base: tfp33` with `method: spikegs` trained TFP(33)+3DGS recorded as spikegs; method names
     that are no names ('', '../x') were taken."""
@@ -1643,7 +1679,8 @@ def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
     (tmp_path / "k.yaml").write_text("base: spikegs\nmethod: spikegs\ntrain: {iterations: 90}\n")
     assert load_config(tmp_path / "k.yaml").method == "spikegs"  # the same supervision
     (tmp_path / "sims.yaml").write_text("base: tfp33\nmethod: tfp33\nsim: {iterations: 7}\n")
-    assert load_config(tmp_path / "sims.yaml").method == "tfp33"  # tfp33 uses no SIM
+    with pytest.warns(UserWarning, match="sim.iterations .the instant target is tfp: no SIM"):
+        assert load_config(tmp_path / "sims.yaml").method == "tfp33"  # tfp33 uses no SIM
     # a run saved when spikegs meant other settings, before pose_refine existed, resumes as it was
     (tmp_path / "run").mkdir()
     old = load_config("spikegs", {"supervision": {"instant_norm": "l1"}})
@@ -2327,7 +2364,9 @@ def test_demo_headline_says_its_budget_is_equal_iterations_and_what_each_took():
     pair["tfp33"] = {**results["tfp33"], "psnr": 18.4986}
     assert gain_line(pair).startswith("SpikeGS - TFP(33)+3DGS: +0.49 dB")
     results["tfp33"]["train_seconds"] = 0.5  # a ratio to a baseline under a second
-    assert "SpikeGS 75 s with SIM's training, 149.6x the baseline's 0 s" in gain_line(results)
+    assert "SpikeGS 75 s with SIM's training, 149.6x the baseline's 0.5 s" in gain_line(results)
+    results["tfp33"]["train_seconds"] = 9.46  # (12.26 above: whole seconds from 10)
+    assert "7.9x the baseline's 9.5 s" in gain_line(results)
     results["tfp33"]["train_seconds"] = 0.0  # no ratio to a baseline that took no time
     assert gain_line(results).endswith("SpikeGS 75 s with SIM's training, the baseline's 0 s)")
 
@@ -3334,14 +3373,35 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert "train.iterations: 3 in the run, 5 now (a run's length sets its schedule" in (
         capsys.readouterr().err
     )
-    # config.yaml emptied or deleted: the defaults stood in for the run's settings
+    # config.yaml emptied or deleted: the defaults stood in for the run's settings (refused);
+    # then the user was asked for them, though the checkpoint holds them: written from it
+    written = (tmp_path / "run" / "config.yaml").read_text()
     for lost in ("", None):
         if lost is None:
             (tmp_path / "run" / "config.yaml").unlink()
         else:
             (tmp_path / "run" / "config.yaml").write_text(lost)
-        assert main([*argv, "--resume"]) == 2
-        assert "config.yaml is missing or empty" in capsys.readouterr().err
+        assert main([*argv, "--resume"]) == 0
+        assert "config.yaml was missing or empty: written again from the settings in " in (
+            capsys.readouterr().err
+        )
+        assert (tmp_path / "run" / "config.yaml").read_text() == written
+    (tmp_path / "run" / "config.yaml").unlink()  # with no checkpoint to take them from: asked
+    (tmp_path / "run" / "checkpoints" / "last.pt").rename(tmp_path / "last.pt")
+    assert main([*argv, "--resume"]) == 2
+    assert "config.yaml is missing or empty; name the run's settings again" in (
+        capsys.readouterr().err
+    )
+    (tmp_path / "last.pt").rename(tmp_path / "run" / "checkpoints" / "last.pt")
+    # config.yaml edited: "resume with the same method and settings", where it named none
+    edited = yaml.safe_load(written)
+    edited["lr"]["means"] = 1e-4
+    (tmp_path / "run" / "config.yaml").write_text(dump_yaml(edited))
+    assert main([*argv, "--resume"]) == 2
+    said = capsys.readouterr().err
+    assert f"trained with, where {tmp_path / 'run' / 'config.yaml'} (edited since?) and" in said
+    assert "lr.means: 0.00048 in the run, 0.0001 now" in said
+    (tmp_path / "run" / "config.yaml").write_text(written)
     # a section emptied (`supervision:`, null in YAML) or not a section: named, not a TypeError
     # from the keys added since the run was saved
     for section in ("", " 3"):

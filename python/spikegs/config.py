@@ -590,7 +590,54 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
-    return _validated_scaled(config, factors)
+    config = _validated_scaled(config, factors)
+    if not saved_run:  # (a run's config.yaml sets every key)
+        warn_if_unread(config, read.get(SET_IN, {}))
+    return config
+
+
+def unread_settings(config: Config) -> dict[str, str]:
+    """{'section.key': why} of the settings that a run of `config` never reads: SIM's without
+    SIM targets, the exposure loss's at exposure_weight 0, the instant loss's without an instant
+    target, pose refinement's with it off (those it refuses unless at their defaults, as
+    instant_window beside SIM targets, are left to `Config.validate`)."""
+    s, instant = config.supervision, config.instant_target()
+    unread = {}
+    if instant != "sim":
+        why = f"the instant target is {instant}: no SIM is trained"
+        unread |= {f"sim.{f.name}": why for f in dataclasses.fields(SimConfig)}
+    if s.exposure_weight == 0:
+        why = "supervision.exposure_weight is 0: no exposure loss"
+        keys = ("exposure_window", "exposure_poses", "exposure_norm")
+        unread |= {f"supervision.{key}": why for key in keys}
+    if instant == "none":
+        why = "no instant target"
+        keys = ("instant_window", "instant_norm", "instant_until")
+        unread |= {f"supervision.{key}": why for key in keys}
+    if not config.pose_refine.enabled:
+        unread["pose_refine.lr"] = "pose_refine.enabled is false"
+    return unread
+
+
+def warn_if_unread(config: Config, set_in: dict[str, Path]) -> None:
+    """A UserWarning naming the settings that a config file changes from what it starts from
+    (`set_in`: 'section.key' → the file) and a run of `config` never reads (`unread_settings`),
+    with why: they were accepted and written to the run's config.yaml as if they had trained it
+    (sim: keys beside `base: tfp33`)."""
+    unread = unread_settings(config)
+    found = {key: path for key, path in set_in.items() if key in unread}
+    if not found:
+        return
+    reasons = {}
+    for key in sorted(found):
+        reasons.setdefault(unread[key], []).append(key)
+    files = ", ".join(sorted({str(path) for path in found.values()}))
+    warnings.warn(
+        f"config file {files} sets what method '{config.method}' never reads: "
+        + "; ".join(f"{', '.join(keys)} ({why})" for why, keys in reasons.items())
+        + ". They change nothing",
+        stacklevel=3,
+    )
 
 
 def warn_if_nothing_learns(config: Config) -> None:
@@ -683,9 +730,13 @@ def _read(
         raise ValueError(f"{path}: not readable as YAML: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping at the top level")
+    has_base = "base" in data  # an empty `base:` trained the defaults under the file's name
     base = data.pop("base", None)
-    if base is not None and (not isinstance(base, str) or not base.strip()):
-        raise ValueError(f"{path}: base = {yaml_text(base)}, expected a method name or a YAML file")
+    if has_base and (not isinstance(base, str) or not base.strip()):
+        unset = " (without a base, leave the key out: the dataclass defaults)" * (base is None)
+        raise ValueError(
+            f"{path}: base = {yaml_text(base)}, expected a method name or a YAML file{unset}"
+        )
     try:  # each file's keys and types where it sets them: a typo in a base named with its file
         _apply(Config(), data, "")
     except ValueError as err:
@@ -699,6 +750,18 @@ def _read(
         merged = _read(base_path, seen | {path})
     if not seen and "method" not in data:  # the file given names no method: its own name
         data["method"] = _own_name(path, merged.get("method"))
+    if path.parent != CONFIG_DIR.resolve():  # a user's file: what it changes, for warn_if_unread
+        inherited = Config()
+        _apply(inherited, _settings(merged), "")
+        merged.setdefault(SET_IN, {}).update(
+            {
+                f"{section}.{key}": path
+                for section, values in data.items()
+                if isinstance(values, dict)
+                for key, value in values.items()
+                if value != getattr(getattr(inherited, section), key)
+            }
+        )
     _layer(merged, data)
     if not seen and not saved_run:  # named, or named after itself like a built-in method
         _check_named(path, merged)
@@ -815,6 +878,8 @@ def with_defaults(saved: dict) -> dict:
 
 # a merged config dict's record of the train.iterations each schedule key it sets was given for
 LENGTHS = "_schedule_lengths"
+# its record of the file (not a built-in method's) that sets each 'section.key', where one does
+SET_IN = "_set_in"
 
 
 def _length(layer: dict) -> int | None:
@@ -836,8 +901,8 @@ def _layer(into: dict, layer: dict) -> None:
 
 
 def _settings(merged: dict) -> dict:
-    """A merged config dict without its LENGTHS record."""
-    return {k: v for k, v in merged.items() if k != LENGTHS}
+    """A merged config dict without its LENGTHS and SET_IN records."""
+    return {k: v for k, v in merged.items() if k not in (LENGTHS, SET_IN)}
 
 
 def _merge(into: dict, update: dict) -> None:

@@ -132,7 +132,14 @@ def _finite_nonnegative(values: torch.Tensor | None) -> bool:
 class Trainer:
     """Trains a GaussianModel on `dataset` with the supervision of `config`, in `run_dir`."""
 
-    def __init__(self, dataset, config: Config, run_dir: str | Path, progress: bool = True):
+    def __init__(
+        self,
+        dataset,
+        config: Config,
+        run_dir: str | Path,
+        progress: bool = True,
+        settings_file: Path | None = None,
+    ):
         # a copy: a sweep that edits one Config between constructing its trainers (or after one
         # trained, before resuming it) trained every run with the last settings; validated, as
         # load_config validates: a value edited out of range (densify.every = 0, a float
@@ -151,6 +158,9 @@ class Trainer:
         # the world's origin)
         self.origin = frame_origin(dataset.scene_center, self.radius)
         self.checkpoint_path = last_checkpoint(self.run_dir)
+        # the file `config` was read from where a resume takes the run's own (RUN/config.yaml):
+        # a checkpoint's other settings are then that file's edits
+        self.settings_file = settings_file
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
         self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
@@ -366,9 +376,15 @@ class Trainer:
         )
         if changed:
             longer = any(c.startswith("train.iterations") for c in changed)
+            same = "the same method and settings"
+            if self.settings_file is not None:  # (it named none: the run's own file was edited)
+                same = (
+                    f"the settings it trained with, where {self.settings_file} (edited since?) "
+                    f"and --iterations and --seed state others now"
+                )
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
-                f"the same method and settings (or train into another --out). Differing: "
+                f"{same} (or train into another --out). Differing: "
                 + "; ".join(changed)
                 + (
                     " (a run's length sets its schedule, densification, learning-rate decay and "

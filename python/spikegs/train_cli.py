@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import math
 import sys
 import warnings
 from pathlib import Path
 
+import torch
 import yaml
 
 from . import strict_json
+from .atomic_save import write_text_if_changed
 from .cli import add_no_progress, file_path, positive_int, seed, show_bars
 from .config import (
     DEFAULT_METHOD,
@@ -25,7 +28,7 @@ from .curves import save_logged_curves
 from .output_paths import check_folder_output
 from .regular_file import is_blank
 from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint, resume_command
-from .yaml_files import read_yaml
+from .yaml_files import dump_yaml, read_yaml
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,16 +72,7 @@ def config_from_args(args: argparse.Namespace):
             f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
-    # --method naming a checkpointed run's own built-in method resumes with its settings, as
-    # without --method (a batch script's one command): after an upgrade that changed the
-    # method's defaults, the checkpoint was refused as trained with other settings
-    same_method = (
-        args.config is None
-        and given in available_methods()
-        and last_checkpoint(args.out).is_file()
-        and given == _saved_method(saved)
-    )
-    own = args.resume and saved.is_file() and (given is None or same_method)
+    own = resumes_own_settings(args)
     # an empty one: the defaults would stand in for the run's
     empty = own and is_blank(saved)
     if given is None and args.resume and not Path(args.out).exists():
@@ -87,11 +81,8 @@ def config_from_args(args: argparse.Namespace):
             f"needs no --resume)"
         )
     if given is None and args.resume and (empty or not own):
-        raise ValueError(
-            f"--resume: {saved} is missing or empty; name the run's settings again with --method "
-            f"or --config (a checkpoint is checked against them; a run stopped before its first "
-            f"one starts over)"
-        )
+        _restore_settings(args.out, saved)
+        own = True
     if not own:
         config = load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
         older = older_run_keys(read_yaml(args.config) or {}) if args.config is not None else {}
@@ -118,6 +109,44 @@ def config_from_args(args: argparse.Namespace):
                 file=sys.stderr,
             )
     return config
+
+
+def _restore_settings(out: str, saved: Path) -> None:
+    """Write a run's missing or empty config.yaml (`saved`) from the settings that its last
+    checkpoint holds, said (the defaults stood in for them, refused by the checkpoint);
+    ValueError where there is none to take them from."""
+    checkpoint, settings = last_checkpoint(out), None
+    if checkpoint.is_file():
+        with contextlib.suppress(Exception):  # a torn or foreign file: as none (resume names it)
+            settings = torch.load(checkpoint, map_location="cpu", weights_only=True)["config"]
+    if not isinstance(settings, dict):
+        raise ValueError(
+            f"--resume: {saved} is missing or empty; name the run's settings again with --method "
+            f"or --config (a checkpoint is checked against them; a run stopped before its first "
+            f"one starts over)"
+        )
+    write_text_if_changed(saved, dump_yaml(settings))
+    warnings.warn(
+        f"{saved} was missing or empty: written again from the settings in {checkpoint}, "
+        f"which the run resumes with",
+        stacklevel=3,
+    )
+
+
+def resumes_own_settings(args: argparse.Namespace) -> bool:
+    """Whether `spikegs train` resumes with the run's own settings, RUN/config.yaml: --resume
+    where it exists, without --method or --config, or with --method naming a checkpointed run's
+    own built-in method (a batch script's one command: after an upgrade that changed the
+    method's defaults, the checkpoint was refused as trained with other settings)."""
+    saved = Path(args.out) / CONFIG
+    given = args.config if args.config is not None else args.method
+    same_method = (
+        args.config is None
+        and given in available_methods()
+        and last_checkpoint(args.out).is_file()
+        and given == _saved_method(saved)
+    )
+    return args.resume and saved.is_file() and (given is None or same_method)
 
 
 def _saved_method(saved: Path) -> str | None:
@@ -166,7 +195,8 @@ def _train(args: argparse.Namespace, config) -> int:
 
     bars = show_bars(args.no_progress)
     dataset = load_dataset(args.dataset, bars)
-    trainer = Trainer(dataset, config, args.out, progress=bars)
+    settings = Path(args.out) / CONFIG if resumes_own_settings(args) else None
+    trainer = Trainer(dataset, config, args.out, progress=bars, settings_file=settings)
     summary = None
     try:
         try:
