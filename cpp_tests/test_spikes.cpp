@@ -1,5 +1,6 @@
 // Spike-stream core: layouts round trip, window counts and TFI against naive loops, simulator.
 #include <algorithm>
+#include <bitset>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -404,6 +405,29 @@ TEST_CASE(simulator_rate_is_calibrated_and_capped) {
   bool saturated = true;
   for (int64_t x = 0; x < W; ++x) saturated = saturated && rate[3 * W + x] == 1.0f;
   CHECK(saturated, "overexposed pixels fire once per readout, never more");
+}
+
+// Light up to float's largest saturates a pixel, which fires at its rate once the light falls:
+// θ · rate_at_one · I overflowed to inf above ~1.4e37, the voltage to NaN (inf - inf with shot
+// noise, 0 · inf without), and the pixel never fired again.
+TEST_CASE(simulator_survives_the_brightest_light) {
+  const int64_t W = 64, T = 2000;
+  for (const bool shot : {true, false}) {
+    SimParams params;
+    params.shot_noise = shot;
+    SpikeSimulator sim(1, W, params, 11);
+    const std::vector<float> bright(W, std::numeric_limits<float>::max()), one(W, 1.0f);
+    const std::vector<double> at = {0.0};
+    std::vector<uint8_t> lit(size_t(50 * 8)), after(size_t(T * 8));
+    sim.run(bright.data(), at.data(), 1, 50, lit.data());
+    sim.run(one.data(), at.data(), 1, T, after.data());
+    int64_t fired = 0, fired_after = 0;
+    for (const uint8_t byte : lit) fired += int64_t(std::bitset<8>(byte).count());
+    for (const uint8_t byte : after) fired_after += int64_t(std::bitset<8>(byte).count());
+    CHECK(fired == 50 * W, "shot noise ", shot, ": ", fired, " of ", 50 * W, " readouts fired");
+    const double rate = double(fired_after) / double(T * W);
+    CHECK(std::abs(rate - 0.25) < 0.01, "shot noise ", shot, ": rate ", rate, " after, want 0.25");
+  }
 }
 
 // A readout at exactly a frame's time sees that frame's light, not the previous frame's

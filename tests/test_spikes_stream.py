@@ -10,6 +10,7 @@ import pickle
 import subprocess
 import sys
 import tracemalloc
+import warnings
 
 import numpy as np
 import pytest
@@ -352,6 +353,9 @@ def test_windows_past_either_end_refused():
         with pytest.raises(ValueError, match="integer"):  # huge floats: not cast to garbage ints
             s.tfp(k, 3)
     np.testing.assert_array_equal(s.tfp(5.0, 3), s.tfp(5, 3))  # a readout time, e.g. a view's
+    with warnings.catch_warnings():  # float16 cannot hold the bound (numpy warned of overflow)
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(s.tfp(np.float16([5]), 3), s.tfp([5], 3))
     big = np.iinfo(np.int64)
     for k in (big.max, big.max - 1, big.min):  # k + w would overflow: refused, no crash
         for read in (s.window, s.counts, s.tfp):

@@ -40,6 +40,10 @@ void SimParams::validate() const {
         temporal_sigma);
 }
 
+float SimParams::saturated_light() const {
+  return float(std::min(1e6 / rate_at_one, double(std::numeric_limits<float>::max())));
+}
+
 SpikeSimulator::SpikeSimulator(int64_t height, int64_t width, const SimParams& params,
                                uint64_t seed)
     : height_(height), width_(width), params_(params), key_(mix64(seed ^ kReadoutStream)) {
@@ -97,6 +101,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
 
   const int64_t H = height_, W = width_, hw = H * W, row_bytes = (W + 7) / 8;
   const float gain = float(params_.threshold * params_.rate_at_one);
+  const float most = params_.saturated_light();
   const float shot = params_.shot_noise ? 1.0f : 0.0f;
   const float tsig = float(params_.temporal_sigma);
   const uint64_t key = key_;
@@ -117,7 +122,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
 #pragma omp simd
         for (int64_t x = 0; x < W; ++x) {
           const NormalPair z = normal_pair(random_bits(key, counter0 + uint64_t(x)));
-          const float light = std::max(i0[x] + a * (i1[x] - i0[x]), 0.0f);
+          const float light = std::clamp(i0[x] + a * (i1[x] - i0[x]), 0.0f, most);
           const float mu = gain * light + dark[x];
           const float th = theta[x], vx = v[x] + mu + shot * std::sqrt(mu) * z.z0;
           const bool fire = vx >= th * std::max(1.0f + tsig * z.z1, 0.1f);
