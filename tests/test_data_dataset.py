@@ -539,7 +539,7 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.warns(UserWarning, match="700 readouts hold 4 on-path held-out views of the de"):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
     assert sum(v.readout is not None for v in ds.test_views) == 4
-    with pytest.raises(ValueError, match=r"readouts \(--readouts\): expected >= 66, found 65: a"):
+    with pytest.raises(ValueError, match=r"readouts \(--readouts\): expected >= 66, found 65: two"):
         simulate_dataset("solids", tmp_path / "x", **{**fewer, "readouts": 65})  # (none held out:
     # it said to hold out fewer)
     for zero in ({"frame_every": 0}, {"train_every": 0}):

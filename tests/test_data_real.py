@@ -1282,7 +1282,10 @@ def test_malformed_files(llff, nerf, tmp_path):
         load_dataset(root)
     (root / "spikegs.json").unlink()
     (root / "poses_bounds.npy").write_bytes(pickle.dumps([[0.0] * 17]))
-    with pytest.raises(ValueError, match="poses_bounds.npy: not an .npy file"):
+    with pytest.raises(ValueError, match=r"poses_bounds.npy: not an .npy file \(no numpy header\)"):
+        load_dataset(root)
+    (root / "poses_bounds.npy").write_bytes(b"")  # (a copy cut short: was called savetxt's text)
+    with pytest.raises(ValueError, match=r"poses_bounds.npy: not an .npy file \(empty\): write"):
         load_dataset(root)
     np.savetxt(root / "poses_bounds.npy", np.zeros((3, 17)))  # numpy spoke of allow_pickle
     with pytest.raises(ValueError, match=r"not an \.npy file \(no numpy header: text .* np.save"):

@@ -493,6 +493,9 @@ def test_a_folder_name_that_is_not_utf8_is_plotted(tmp_path):
     methods = {"tfp33": {"curve": curve, "sim_seconds": 0.0, "uses_sim": False}}
     save_curves(tmp_path / "curves.png", methods, ("psnr",), os.fsdecode(b"caf\xe9_llff"))
     assert (tmp_path / "curves.png").stat().st_size > 0
+    # a lone surrogate that is no escaped byte (meta.json's "caf\\ud800", as JSON reads it)
+    save_curves(tmp_path / "lone.png", methods, ("psnr",), "caf\ud800")
+    assert (tmp_path / "lone.png").stat().st_size > 0
 
 
 def test_a_bar_whose_output_is_gone_leaves_the_next_bar_its_line(gone_stderr):

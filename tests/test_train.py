@@ -190,17 +190,21 @@ def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
             Trainer(data, config, tmp_path / "other", progress=False)._warn_if_few_timestamps()
 
 
-def test_one_training_timestamp_is_warned_of_by_any_method(few_views, tmp_path):
+def test_one_training_timestamp_is_warned_of_by_any_method(few_views, tmp_path, monkeypatch):
     """A real layout's one training view trained without a word (`spikegs simulate` warns of
-    one training timestamp, the loaders did not): every method is told, before any work."""
+    one training timestamp, the loaders did not): every method is told, before any work (the
+    targets, SIM's training among them, stand in for it here by stopping the run)."""
     one = copy.copy(few_views)
     one.train_timestamps = few_views.train_timestamps[:1]
     said = r"one training timestamp \(readout \d+\): every step trains on one view"
+
+    def no_work(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.train.build_targets", no_work)
     for method in ("tfp33", "spikegs"):
-        with pytest.warns(UserWarning, match=said):
-            Trainer(
-                one, load_config(method, _few_steps(2)), tmp_path, False
-            )._warn_if_few_timestamps()
+        with pytest.warns(UserWarning, match=said), pytest.raises(KeyboardInterrupt):
+            Trainer(one, load_config(method, _few_steps(2)), tmp_path / method, False).train()
 
 
 def test_a_run_steps_at_the_scheduled_rates_visits_every_timestamp_and_logs_in_its_units(
@@ -1668,6 +1672,10 @@ def test_settings_a_method_never_reads_are_warned_of(tmp_path):
     mine.write_text("base: only_exposure\nsupervision: {instant_norm: l2}\n")
     with pytest.warns(UserWarning, match=r"instant_norm \(no instant target\)"):
         load_config(mine)
+    mine.write_text("supervision: {instant_until: densify}\n")  # what leaves no instant target
+    with warnings.catch_warnings():  # in a 1-step run: read
+        warnings.simplefilter("error")
+        assert load_config(mine, iterations=1).instant_target() == "none"
 
 
 def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
@@ -3370,9 +3378,9 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     assert "other settings" in capsys.readouterr().err
     # a finished run lengthened: refused, its schedule scaled with its length (said why)
     assert main([*argv, "--resume", "--iterations", "5"]) == 2
-    assert "train.iterations: 3 in the run, 5 now (a run's length sets its schedule" in (
-        capsys.readouterr().err
-    )
+    said = capsys.readouterr().err
+    assert "train.iterations: 3 in the run, 5 now (a run's length sets its schedule" in said
+    assert "put them back" not in said  # (--iterations, not the run's config.yaml, differs)
     # config.yaml emptied or deleted: the defaults stood in for the run's settings (refused);
     # then the user was asked for them, though the checkpoint holds them: written from it
     written = (tmp_path / "run" / "config.yaml").read_text()
@@ -3399,7 +3407,7 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     (tmp_path / "run" / "config.yaml").write_text(dump_yaml(edited))
     assert main([*argv, "--resume"]) == 2
     said = capsys.readouterr().err
-    assert f"trained with, where {tmp_path / 'run' / 'config.yaml'} (edited since?) and" in said
+    assert f"trained with: put them back in {tmp_path / 'run' / 'config.yaml'} (or" in said
     assert "lr.means: 0.00048 in the run, 0.0001 now" in said
     (tmp_path / "run" / "config.yaml").write_text(written)
     # a section emptied (`supervision:`, null in YAML) or not a section: named, not a TypeError

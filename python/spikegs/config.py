@@ -610,7 +610,7 @@ def unread_settings(config: Config) -> dict[str, str]:
         why = "supervision.exposure_weight is 0: no exposure loss"
         keys = ("exposure_window", "exposure_poses", "exposure_norm")
         unread |= {f"supervision.{key}": why for key in keys}
-    if instant == "none":
+    if s.instant == "none" or s.instant_weight == 0:  # (not where instant_until ends it at once)
         why = "no instant target"
         keys = ("instant_window", "instant_norm", "instant_until")
         unread |= {f"supervision.{key}": why for key in keys}

@@ -4,6 +4,7 @@ runs that train SIM first starting at SIM's training time (matplotlib)."""
 from __future__ import annotations
 
 import json
+import re
 import textwrap
 from pathlib import Path
 
@@ -76,9 +77,8 @@ def _as_text(text: str) -> str:
     """`text` (a method, scene or view name) drawn as written: matplotlib reads $...$ as TeX and
     refused a method named "lam$^$2" at the end of its run; a name's bytes that are not UTF-8 (a
     Latin-1 folder's, os.fsdecode's surrogate escapes) drawn as U+FFFD, where the font refused
-    them (TypeError) at the end of the run."""
-    text = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-    return text.replace("$", r"\$")
+    them (TypeError) at the end of the run; any other lone surrogate (JSON's "\\ud800") too."""
+    return re.sub("[\ud800-\udfff]", "\ufffd", text).replace("$", r"\$")
 
 
 # Okabe and Ito's colours, told apart with colour-blindness; each method a marker of its own too,

@@ -73,8 +73,8 @@ def _eval_name(run_dir: Path, train: dict, dataset, progress: bool = False) -> s
     RUN/NAME/*.png), so that scoring another dataset keeps the run's own scores;
     'eval-DATASETNAME-2', -3, ... where an evaluation of another dataset of the same directory
     name holds the name. The run's folder with other data in it (simulated again, new poses) is
-    another dataset, warned of; a new intensity scale is not (evaluate_run scores in the run's
-    units). `progress`: as `_holds_run_data`'s."""
+    another dataset, warned of; a new intensity scale is not (evaluate_run converts the renders
+    to the scale the dataset states now). `progress`: as `_holds_run_data`'s."""
     own = train.get("dataset")
     if own is None:
         return EVAL

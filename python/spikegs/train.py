@@ -21,7 +21,14 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import save_atomically, sweep_temporaries, write_text_if_changed
-from .config import MIN_GAUSSIANS, Config, differences, warn_if_nothing_learns, with_defaults
+from .config import (
+    MIN_GAUSSIANS,
+    SCHEDULE_KEYS,
+    Config,
+    differences,
+    warn_if_nothing_learns,
+    with_defaults,
+)
 from .curves import logged_curve
 from .data.dataset import POINTS, camera_keys, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
@@ -377,11 +384,12 @@ class Trainer:
         if changed:
             longer = any(c.startswith("train.iterations") for c in changed)
             same = "the same method and settings"
-            if self.settings_file is not None:  # (it named none: the run's own file was edited)
-                same = (
-                    f"the settings it trained with, where {self.settings_file} (edited since?) "
-                    f"and --iterations and --seed state others now"
-                )
+            # what --iterations and --seed change (the schedule scaled with the length)
+            given = ("train.iterations:", "train.seed:")
+            given += tuple(f"densify.{key}:" for key in SCHEDULE_KEYS) if longer else ()
+            if self.settings_file is not None and any(not c.startswith(given) for c in changed):
+                # (it named no settings: the run's own file was edited)
+                same = f"the settings it trained with: put them back in {self.settings_file}"
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
                 f"{same} (or train into another --out). Differing: "

@@ -159,10 +159,10 @@ def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
     with open(path, "rb") as file:
         head = file.read(len(NPY_MAGIC))
     if head != NPY_MAGIC and not head.startswith(ZIP_MAGIC):  # np.load's error spoke of pickles
-        raise ValueError(
-            f"{path}: not an .npy file (no numpy header: text written by np.savetxt, say): "
-            f"write the [N, 17] array with np.save"
-        )
+        what = "empty" if not head else "no numpy header"
+        if head and head.isascii() and head.decode().strip(" \t\r\n+-.0123456789eE") == "":
+            what += ": text written by np.savetxt, say"  # (numbers as text)
+        raise ValueError(f"{path}: not an .npy file ({what}): write the [N, 17] array with np.save")
     try:
         arr = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as err:

@@ -494,8 +494,9 @@ def simulate_dataset(
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts and not test_on_path:  # (holding out fewer than none frees none)
         raise ValueError(
-            f"readouts (--readouts): expected >= {min_readouts}, found {readouts}: a training "
-            f"timestamp needs the {2 * WINDOW_MARGIN + 1}-readout window around it in the stream"
+            f"readouts (--readouts): expected >= {min_readouts}, found {readouts}: two training "
+            f"timestamps at the least, each with the {2 * WINDOW_MARGIN + 1}-readout window "
+            f"around it in the stream"
         )
     if readouts < min_readouts:
         raise ValueError(
