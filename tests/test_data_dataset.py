@@ -37,7 +37,7 @@ from spikegs.data.sources import intrinsics
 from spikegs.data.trajectory import look_at
 from spikegs.data.transforms_file import camera_matrix
 from spikegs.spikes import SpikeStream
-from spikegs.spikes.simulate import SimParams
+from spikegs.spikes.simulate import SimParams, simulate_spikes
 from spikegs.spikes.stream import save_dat
 from spikegs.targets import intensity_scale
 
@@ -1546,6 +1546,20 @@ def test_frames_given_at_twice_their_size_are_warned_of(scene, tmp_path):
         r"and width in meta.json\); read so, each frame holds 4 readouts",
     ):
         warn_rows_out_of_line(SpikeStream.open(data.stream.path, 64, 96, flip=True), "meta.json")
+
+
+@pytest.mark.parametrize("half_period", [1, 3, 8])
+def test_right_files_of_horizontal_stripes_are_not_warned_of(half_period, tmp_path):
+    """A right 64x64 file of horizontal stripes was told its frames are likely 32x32 or 16x16
+    (half periods 2-8 rows) or its rows 120 or 384 pixels (1, 3): read so, its rows are pieces of
+    one uniform row, alike as much as true neighbours. Read so, its frames do not follow one
+    another as a camera's readouts do (each pixel's next one is another pixel's)."""
+    rows = np.arange(64)[:, None] // half_period % 2 == 0
+    light = np.where(rows, 1.6, 0.2) * np.ones((1, 64), np.float32)  # [64, 64]
+    simulate_spikes(light[None], 1200, out=tmp_path / "s.dat", seed=half_period)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_rows_out_of_line(SpikeStream.open(tmp_path / "s.dat", 64, 64), "meta.json")
 
 
 def test_a_flip_stated_wrong_in_meta_json_is_warned_of(small, tmp_path):
