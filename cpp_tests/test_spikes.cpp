@@ -407,18 +407,26 @@ TEST_CASE(simulator_rate_is_calibrated_and_capped) {
   CHECK(saturated, "overexposed pixels fire once per readout, never more");
 }
 
-// Light up to float's largest saturates a pixel, which fires at its rate once the light falls:
-// θ · rate_at_one · I overflowed to inf above ~1.4e37, the voltage to NaN (inf - inf with shot
-// noise, 0 · inf without), and the pixel never fired again.
+// The most light the simulator takes (saturated_light) saturates a pixel, which fires at its rate
+// once the light falls; more is refused: up to float's largest was taken, θ · rate_at_one · I
+// overflowed to inf above ~1.4e37, the voltage to NaN (inf - inf with shot noise, 0 · inf
+// without), and the pixel never fired again.
 TEST_CASE(simulator_survives_the_brightest_light) {
   const int64_t W = 64, T = 2000;
   for (const bool shot : {true, false}) {
     SimParams params;
     params.shot_noise = shot;
     SpikeSimulator sim(1, W, params, 11);
-    const std::vector<float> bright(W, std::numeric_limits<float>::max()), one(W, 1.0f);
+    const std::vector<float> bright(W, params.saturated_light()), one(W, 1.0f);
     const std::vector<double> at = {0.0};
     std::vector<uint8_t> lit(size_t(50 * 8)), after(size_t(T * 8));
+    const float biggest = std::numeric_limits<float>::max();
+    for (const float more : {std::nextafter(bright[0], biggest), biggest}) {
+      std::vector<float> brighter = bright;
+      brighter[W / 2] = more;
+      CHECK(throws_invalid([&] { sim.run(brighter.data(), at.data(), 1, 50, lit.data()); }),
+            "light of ", more, " taken");
+    }
     sim.run(bright.data(), at.data(), 1, 50, lit.data());
     sim.run(one.data(), at.data(), 1, T, after.data());
     int64_t fired = 0, fired_after = 0;
@@ -431,29 +439,30 @@ TEST_CASE(simulator_survives_the_brightest_light) {
 }
 
 // A readout at exactly a frame's time sees that frame's light, not the previous frame's
-// interpolated to weight 1: from a frame of 1e20, 1e20 + (2.4 - 1e20) is 0 in float. Noise off,
-// one pixel, θ = 100, 25 photo-electrons per unit of light: readout 0 fires and banks θ (the
-// cap), readout 1 (light 2.4: 60 e) fires and keeps 60, readout 2 (60 more) fires; with the
-// light lost at readout 1 it kept 0, and readout 2 did not fire.
+// interpolated to weight 1: from a frame of 4e6 (the most light, saturated_light),
+// 4e6 + (2.4 - 4e6) is 2.5 in float. Noise off, one pixel, θ = 100, 25 photo-electrons per unit
+// of light: readout 0 fires and banks θ (the cap), readout 1 (light 2.4: 60 e) fires and keeps
+// 60, readout 2 (1.55: 38.75 e more) does not fire; with 2.5 read at readout 1 it kept 62.5, and
+// readout 2 fired.
 TEST_CASE(simulator_readout_at_a_frame_time_sees_that_frame) {
   SimParams params;
   params.dark_rate = 0, params.dark_sigma = 0, params.fpn_sigma = 0, params.temporal_sigma = 0;
   params.shot_noise = false, params.random_init = false;
-  const std::vector<float> frames = {1e20f, 2.4f, 2.4f};  // [3, 1, 1]
+  const std::vector<float> frames = {params.saturated_light(), 2.4f, 1.55f};  // [3, 1, 1]
   const std::vector<double> times = {0.0, 1.0, 2.0};
   SpikeSimulator sim(1, 1, params, 5);
   std::vector<uint8_t> out(3, 0xff);
   sim.run(frames.data(), times.data(), 3, 3, out.data());
-  CHECK(out[0] == 1 && out[1] == 1 && out[2] == 1, "spikes ", int(out[0]), int(out[1]), int(out[2]),
-        ", expected 111");
+  CHECK(out[0] == 1 && out[1] == 1 && out[2] == 0, "spikes ", int(out[0]), int(out[1]), int(out[2]),
+        ", expected 110");
   // the same readouts in two calls, the first ending at its last frame's time (a chunk's end),
-  // which it read as frames[0] + 1 · (frames[1] - frames[0]): 0 light, and spikes 110
+  // which it read as frames[0] + 1 · (frames[1] - frames[0]): 2.5, and spikes 111
   SpikeSimulator split(1, 1, params, 5);
   std::vector<uint8_t> parts(3, 0xff);
   split.run(frames.data(), times.data(), 2, 2, parts.data());
   split.run(frames.data() + 1, times.data() + 1, 2, 1, parts.data() + 2);
   CHECK(parts == out, "spikes in two calls ", int(parts[0]), int(parts[1]), int(parts[2]),
-        ", expected 111");
+        ", expected 110");
 }
 
 // The simulator against its model in double (reference_spikes), with every noise on and large, in

@@ -378,15 +378,22 @@ def test_bad_input_refused():
 
 def test_the_core_simulator_refuses_light_that_is_not_finite_or_negative():
     """A direct caller of the core's simulator (simulate_spikes checks first) passed NaN light: the
-    pixel's voltage became NaN and it never fired again, in that run or any later one."""
-    sim = _C.SpikeSimulator(2, 3, SimParams().to_core(), 0)
-    for bad in (np.nan, np.inf, -1.0):
+    pixel's voltage became NaN and it never fired again, in that run or any later one; so did
+    light over FLT_MAX / (θ · rate_at_one), 1.4e37 at the defaults, whose charge overflowed: the
+    core takes up to saturated_light, which simulate_spikes caps at."""
+    params = SimParams().to_core()
+    sim = _C.SpikeSimulator(2, 3, params, 0)
+    most = np.float32(params.saturated_light)
+    assert most == 1e6 / params.rate_at_one
+    for bad in (np.nan, np.inf, -1.0, np.nextafter(most, np.inf), np.finfo(np.float32).max):
         frames = np.ones((2, 2, 3), np.float32)
         frames[1, 1, 1] = bad
         with pytest.raises(
-            ValueError, match="finite intensities >= 0, found .* at frame 1, pixel 4"
+            ValueError, match=r"intensities in \[0, 4e\+06\] .*, found .* at frame 1, pixel 4"
         ):
             sim.run(frames, np.array([0.0, 9.0]), 10)
+    lit = _C.SpikeSimulator(2, 3, params, 0).run(np.full((2, 2, 3), most), np.array([0.0, 9.0]), 10)
+    assert (lit == 0b111).all()  # the most fires every readout
     assert sim.run(np.ones((2, 2, 3), np.float32), np.array([0.0, 9.0]), 10).shape == (10, 2, 1)
 
 

@@ -210,7 +210,7 @@ void bind_spikes(py::module_& m) {
       .def_readwrite("shot_noise", &SimParams::shot_noise)
       .def_readwrite("random_init", &SimParams::random_init)
       .def_property_readonly("saturated_light", &SimParams::saturated_light,
-                             "the light each readout's is capped at (fires every readout)");
+                             "the most light the simulator takes (fires every readout)");
   py::class_<SpikeSimulator>(m, "SpikeSimulator", "Integrate-and-fire spike camera simulator")
       .def(py::init<int64_t, int64_t, const SimParams&, uint64_t>(), py::arg("height"),
            py::arg("width"), py::arg("params"), py::arg("seed"))

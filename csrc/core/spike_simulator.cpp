@@ -77,10 +77,13 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
     if (!is_finite(times[f]) || (f > 0 && !(times[f] > times[f - 1])))
       fail("frame times expected finite and strictly increasing, found ", times[f], " at frame ",
            f);
-  for (int64_t i = 0; i < num_frames * height_ * width_; ++i)  // a NaN pixel would never fire again
-    if (!is_finite(frames[i]) || !(frames[i] >= 0.0f))
-      fail("frames expected finite intensities >= 0, found ", frames[i], " at frame ",
-           i / (height_ * width_), ", pixel ", i % (height_ * width_));
+  // a NaN pixel would never fire again, nor one lit past saturated_light (its charge overflowed)
+  const float most = params_.saturated_light();
+  for (int64_t i = 0; i < num_frames * height_ * width_; ++i)
+    if (!is_finite(frames[i]) || !(frames[i] >= 0.0f) || frames[i] > most)
+      fail("frames expected intensities in [0, ", most,
+           "] (saturated_light: any more fires every readout all the same), found ", frames[i],
+           " at frame ", i / (height_ * width_), ", pixel ", i % (height_ * width_));
   if (num_frames > 1 && n > 0 && (times[0] > double(t0) || times[num_frames - 1] < double(last)))
     fail("frame times expected to cover readouts [", t0, ", ", last, "], found [", times[0], ", ",
          times[num_frames - 1], "]");
@@ -101,7 +104,6 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
 
   const int64_t H = height_, W = width_, hw = H * W, row_bytes = (W + 7) / 8;
   const float gain = float(params_.threshold * params_.rate_at_one);
-  const float most = params_.saturated_light();
   const float shot = params_.shot_noise ? 1.0f : 0.0f;
   const float tsig = float(params_.temporal_sigma);
   const uint64_t key = key_;
@@ -122,7 +124,7 @@ void SpikeSimulator::run(const float* frames, const double* times, int64_t num_f
 #pragma omp simd
         for (int64_t x = 0; x < W; ++x) {
           const NormalPair z = normal_pair(random_bits(key, counter0 + uint64_t(x)));
-          const float light = std::clamp(i0[x] + a * (i1[x] - i0[x]), 0.0f, most);
+          const float light = std::max(i0[x] + a * (i1[x] - i0[x]), 0.0f);
           const float mu = gain * light + dark[x];
           const float th = theta[x], vx = v[x] + mu + shot * std::sqrt(mu) * z.z0;
           const bool fire = vx >= th * std::max(1.0f + tsig * z.z1, 0.1f);

@@ -47,10 +47,10 @@ struct SimParams {
   // Throws std::invalid_argument (expected vs found) for a value out of range.
   void validate() const;
 
-  // The light the simulator caps each readout's at: a million times the light that fires every
-  // readout fires every readout, as any more does, and its charge stays finite in float (above
+  // The most light the simulator takes: a million times the light that fires every readout
+  // fires every readout, as any more does, and its charge stays finite in float (above
   // FLT_MAX / (θ · rate_at_one), 1.4e37 at the defaults, it overflowed to a NaN voltage, and the
-  // pixel never fired again).
+  // pixel never fired again). Callers cap their light at it (simulate_spikes does).
   float saturated_light() const;
 };
 
