@@ -539,9 +539,9 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.warns(UserWarning, match="700 readouts hold 4 on-path held-out views of the de"):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
     assert sum(v.readout is not None for v in ds.test_views) == 4
+    # none held out: it said to hold out fewer
     with pytest.raises(ValueError, match=r"readouts \(--readouts\): expected >= 66, found 65: two"):
-        simulate_dataset("solids", tmp_path / "x", **{**fewer, "readouts": 65})  # (none held out:
-    # it said to hold out fewer)
+        simulate_dataset("solids", tmp_path / "x", **{**fewer, "readouts": 65})
     for zero in ({"frame_every": 0}, {"train_every": 0}):
         with pytest.raises(ValueError, match=f"{next(iter(zero))} .*: expected >= 1"):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, **zero})

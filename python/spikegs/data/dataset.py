@@ -646,10 +646,10 @@ def _warned_if_frames_smaller(stream: SpikeStream, as_read: float, settings: str
     m = max(scores, key=scores.get, default=None)
     if m is None or scores[m] < SWAPPED_MIN or scores[m] - as_read < SWAPPED_GAP:
         return False
-    smaller = SpikeStream.open(
+    read_so = SpikeStream.open(
         stream.path, stream.height // m, stream.width // m, stream.layout.flip
     )
-    if not _in_turn(smaller, stream):
+    if not _in_turn(read_so, stream):
         return False
     smaller = f"{stream.height // m}x{stream.width // m}"
     warnings.warn(

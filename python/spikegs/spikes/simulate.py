@@ -310,7 +310,7 @@ def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimPa
     simulated with seed `seeds[c]` (the same spikes whatever the chunks)."""
     height, width, channels = frames.shape
     sims = [_C.SpikeSimulator(height, width, params.to_core(), int(s)) for s in seeds]
-    saturated = np.float32(params.to_core().saturated_light)  # the core's most
+    saturated = np.float32(params.to_core().saturated_light)  # the most light the core takes
     most = max(2, CHUNK_LIGHT_BYTES // max(1, 4 * height * width * channels))  # frames a chunk
     t0 = 0
     while t0 < num_readouts:
