@@ -1293,6 +1293,11 @@ def test_malformed_files(llff, nerf, tmp_path):
     np.save(root / "poses_bounds.npy", np.array([[None] * 17]), allow_pickle=True)
     with pytest.raises(ValueError, match="poses_bounds.npy: not a numeric .npy array"):
         load_dataset(root)
+    np.save(root / "poses_bounds.npy", np.full((3, 17), 1 + 1j))  # its imaginary parts dropped
+    with pytest.raises(
+        ValueError, match=r"expected a numeric .npy array \[N, 17\], found dtype co"
+    ):
+        load_dataset(root)
 
     root = copy(nerf, tmp_path / "nerf")
     edit_json(root / "transforms_test.json", lambda doc: doc["frames"][1]["transform_matrix"].pop())
@@ -2216,3 +2221,23 @@ def test_default_train_every_spaces_the_readouts_the_poses_span(llff_stream, tmp
     ds = load_dataset(root)
     assert len(ds.stream) == 2800 and ds.trajectory.end == 650
     assert ds.meta["train_every"] == 1 and np.diff(ds.train_timestamps).min() == 1
+
+
+def test_a_dataset_file_that_is_no_file_is_named(nerf, llff_stream, tmp_path):
+    """A transforms_test.json or spikegs.json that is a link to nothing, a folder or a device read
+    as left out: its held-out views or its options were dropped without a word, and a folder
+    named meta.json or poses_bounds.npy was told missing."""
+    root = copy(nerf, tmp_path / "test_link")
+    (root / "transforms_test.json").unlink()
+    (root / "transforms_test.json").symlink_to(root / "gone.json")
+    with pytest.raises(ValueError, match=r"transforms_test.json: a link to nothing .*, not a file"):
+        load_dataset(root)
+    root = copy(llff_stream, tmp_path / "options")
+    (root / "spikegs.json").symlink_to("/dev/null")
+    with pytest.raises(ValueError, match=r"spikegs.json: a device, FIFO or socket, not a file"):
+        load_dataset(root)
+    (root / "spikegs.json").unlink()
+    (root / "poses_bounds.npy").unlink()
+    (root / "poses_bounds.npy").mkdir()
+    with pytest.raises(ValueError, match=r"poses_bounds.npy: a folder, not a file"):
+        load_dataset(root)

@@ -577,6 +577,12 @@ def test_bad_shapes_refused(tmp_path):
         SpikeStream.open(path, 4, 16, raw_width=16.5)
     with pytest.raises(ValueError, match="raw_width expected a positive int or None, found 0"):
         SpikeStream.open(path, 4, 16, raw_width=0)  # the core's sentinel for "= width"
+    # past int64 (a spikegs.json's raw_width of 1e30 written as digits): pybind11's TypeError
+    for huge in (10**30, 2**63):
+        with pytest.raises(
+            ValueError, match=rf"sizes.dat: raw_width: expected an int within .*{huge}"
+        ):
+            SpikeStream.open(path, 4, 16, raw_width=huge)
     with pytest.raises(ValueError, match="width: expected an int, found 13.0"):
         SpikeStream.from_packed(np.zeros((3, 4, 2), np.uint8), 4, 13.0)
 

@@ -60,8 +60,13 @@ def is_number(value) -> bool:
 
 def whole_numbers(**values) -> list[int]:
     """`values` as Python ints, in the order given (numpy integers converted); ValueError naming
-    every one that is not an integer (a whole float too: 16.0 pixels is a slip, not a size)."""
-    bad = [f"{k}: expected an int, found {v!r}" for k, v in values.items() if not is_int(v)]
+    every one that is not an integer (a whole float too: 16.0 pixels is a slip, not a size) or
+    lies outside int64's range (the core's: a raw_width of 10**30 was pybind11's TypeError)."""
+    bad = [
+        f"{k}: expected an int{' within ±2^63' * is_int(v)}, found {v!r}"
+        for k, v in values.items()
+        if not (is_int(v) and -(2**63) <= v < 2**63)
+    ]
     if bad:
         raise ValueError("; ".join(bad))
     return [int(v) for v in values.values()]

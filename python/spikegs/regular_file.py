@@ -4,6 +4,7 @@ FIFO (whose read waits forever for a writer)."""
 
 from __future__ import annotations
 
+import os
 import stat
 from pathlib import Path
 
@@ -16,6 +17,24 @@ def is_special(path: Path) -> bool:
     except OSError:  # missing, or a link loop
         return False
     return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def is_given(path: Path) -> bool:
+    """Whether a dataset's file `path`, which may be left out, is there: a file or a link to one;
+    ValueError naming it where its name holds something else (a folder, a link to nothing or a
+    loop, a device or FIFO), which read as left out dropped that file's settings unsaid."""
+    path = Path(path)
+    if path.is_file() and not is_special(path):
+        return True
+    if not os.path.lexists(path):
+        return False
+    if path.is_dir():
+        what = "a folder"
+    elif path.is_symlink() and not path.exists():
+        what = "a link to nothing (or a loop of links)"
+    else:
+        what = "a device, FIFO or socket"
+    raise ValueError(f"{path}: {what}, not a file")
 
 
 def read_text(path: Path, encoding: str = "utf-8") -> str:

@@ -65,6 +65,8 @@ def read_json(path: Path, object_hook: Callable[[dict], dict] | None = None) -> 
         raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise ValueError(f"{path}: not valid JSON ({err})") from None
+    except RecursionError:  # Python's parser recurses per level: ~1000 deep was a traceback
+        raise ValueError(f"{path}: not valid JSON for spikegs (nested too deeply)") from None
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: expected a JSON object {{...}}, found {type(doc).__name__}")
     return doc

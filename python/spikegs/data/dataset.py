@@ -30,7 +30,7 @@ from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
 from ..number_checks import is_int, is_number, number_array
 from ..rasterize import MAX_SIZE
-from ..regular_file import read_text
+from ..regular_file import is_given, read_text
 from ..run_summary import CONFIG, SUMMARY, read_summary
 from ..shell_words import shell_path
 from ..spikes import SpikeStream
@@ -430,9 +430,10 @@ def write_parts(
 
 
 def existing_file(root: Path, name: str) -> Path:
-    """ROOT/name; FileNotFoundError naming it when it is not a file."""
+    """ROOT/name; FileNotFoundError naming it when it is missing, ValueError when its name holds
+    something else than a file (`is_given`: a folder was said to be missing)."""
     path = root / name
-    if not path.is_file():
+    if not is_given(path):
         raise FileNotFoundError(f"dataset file not found: {path}")
     return path
 
@@ -851,8 +852,8 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     from .nerf_layout import TRANSFORMS, load_nerf_layout
 
     others = [name for name in layout_files(root) if name != META]
-    if not (root / META).is_file():
-        if (root / POSES_BOUNDS).is_file():
+    if not is_given(root / META):
+        if is_given(root / POSES_BOUNDS):
             if len(others) > 1:
                 unread = ", ".join(name for name in others if name != POSES_BOUNDS)
                 warnings.warn(

@@ -167,7 +167,7 @@ def _read_poses_bounds(path: Path) -> tuple[np.ndarray, np.ndarray]:
         arr = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as err:
         raise ValueError(f"{path}: not a numeric .npy array ({err})") from None
-    if not isinstance(arr, np.ndarray) or not np.issubdtype(arr.dtype, np.number):
+    if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "iuf":  # (complex: numbers too)
         what = "an .npz archive" if not isinstance(arr, np.ndarray) else f"dtype {arr.dtype}"
         raise ValueError(f"{path}: expected a numeric .npy array [N, 17], found {what}")
     if arr.ndim != 2 or arr.shape[1] != 17 or len(arr) == 0:

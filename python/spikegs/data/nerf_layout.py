@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..image_io import to_channels
+from ..regular_file import is_given
 from ..strict_json import json_text
 from .dataset import POINTS, Dataset, repeated, warn_rows_out_of_line
 from .real import ORIENTATION_VIEWS, camera_meta, held_out_mask, scene_sphere, views_dataset
@@ -174,7 +175,8 @@ def _frames(root: Path, options: Options):
     mask [F]: transforms_train.json + transforms_test.json, else transforms.json or
     transforms_train.json alone with every 8th frame (or test_views) held out."""
     train, test, single = (root / name for name in TRANSFORMS)
-    if train.is_file() and test.is_file():
+    given = {path: is_given(path) for path in (train, test, single)}  # a folder named so: said
+    if given[train] and given[test]:
         if options.test_views is not None:
             raise ValueError(
                 f"{root / OPTIONS_FILE}: test_views is for a single transforms file; {test.name} "
@@ -191,12 +193,12 @@ def _frames(root: Path, options: Options):
                 stacklevel=3,
             )
     else:
-        if test.is_file() and not train.is_file() and not single.is_file():
+        if given[test] and not given[train] and not given[single]:
             raise FileNotFoundError(
                 f"{root}: {test.name} without training frames: add {train.name} (or a "
                 f"{single.name} whose every 8th frame is held out)"
             )
-        path = train if train.is_file() else single
+        path = train if given[train] else single
         docs, paths = [read_transforms_doc(path)], [path]
     warn_unread_transforms(root, paths)
     frames, sources, frame_docs = flat_frames(paths, docs)

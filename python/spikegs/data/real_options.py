@@ -25,6 +25,7 @@ import warnings
 from pathlib import Path
 
 from ..number_checks import is_int, is_number
+from ..regular_file import is_given
 from ..spikes import SpikeStream
 from ..strict_json import json_text, read_json
 from .dataset import check_stream_image
@@ -88,7 +89,7 @@ def read_options(root: Path, overrides: dict) -> Options:
     """ROOT/spikegs.json (if any) with `overrides` on top; ValueError naming an unknown key or a
     value of the wrong type or range."""
     path = root / OPTIONS_FILE
-    values = read_json(path) if path.is_file() else {}
+    values = read_json(path) if is_given(path) else {}
     values.update({k: v for k, v in overrides.items() if v is not None})
     known = [f.name for f in dataclasses.fields(Options)]
     unknown = sorted(set(values) - set(known))

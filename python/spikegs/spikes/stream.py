@@ -131,12 +131,15 @@ class SpikeStream:
         [col_offset, col_offset + width) are kept (raw camera files with extra columns)."""
         path = Path(path)
         raw = 0 if raw_width is None else raw_width  # 0: the core's "raw_width = width"
-        height, width, raw, col_offset = whole_numbers(
-            height=height, width=width, raw_width=raw, col_offset=col_offset
-        )
-        if raw_width is not None and raw < 1:
-            raise ValueError(f"raw_width expected a positive int or None, found {raw_width!r}")
-        layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
+        try:  # (the file named: the sizes come from a dataset's files)
+            height, width, raw, col_offset = whole_numbers(
+                height=height, width=width, raw_width=raw, col_offset=col_offset
+            )
+            if raw_width is not None and raw < 1:
+                raise ValueError(f"raw_width expected a positive int or None, found {raw_width!r}")
+            layout = _C.SpikeLayout.dat(height, width, as_flag("flip", flip), raw, col_offset)
+        except ValueError as err:
+            raise ValueError(f"{path}: {err}") from None
         if path.is_dir():  # its size was read as a cut-off recording's, to truncate
             raise IsADirectoryError(f"{path}: a folder, not a spike .dat file")
         size = path.stat().st_size
