@@ -697,6 +697,14 @@ def _edited_copy(small, root: Path, name: str, edit) -> Path:
     return root
 
 
+def _far_poses(text: str) -> str:
+    """trajectory.json's text with every camera 1e300 units along x."""
+    doc = json.loads(text)
+    for frame in doc["frames"]:
+        frame["transform_matrix"][0][3] = 1e300
+    return json.dumps(doc)
+
+
 def test_malformed_test_views_and_json_refused(tmp_path, small):
     def views(edit):
         return lambda text: json.dumps(edit(json.loads(text)))
@@ -895,6 +903,10 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "cy off": ("meta.json", rewrite_meta(cy=-100), r"cy -100 puts the image centre \d\d° off"),
         # a 180° pinhole trained without a word
         "fx tiny": ("meta.json", rewrite_meta(fx=1e-9), r"fx 1e-09 gives a 180° field of view"),
+        # ... and a 0° one was inf in float32 (training blamed the poses)
+        "fx huge": ("meta.json", rewrite_meta(fx=1e300), r"fx 1e\+300 gives a .*, 0.001° to 170°"),
+        # translations of 1e300 loaded; training stopped on an infinite view matrix, no file named
+        "far poses": ("trajectory.json", _far_poses, r"lie 1e\+300 units from the origin: exp"),
         "inf": ("train_timestamps.txt", lambda t: t + "1e400\n", r"integer readouts.*inf"),
         "past the end": (
             "train_timestamps.txt",

@@ -57,6 +57,13 @@ WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits i
 FORMAT_VERSION = 1
 MAX_OFF_AXIS_DEG = 60  # the image centre's angle off the optical axis: a crop's, not a typo's
 MAX_FIELD_DEG = 170  # a pinhole's field of view across the image (fx 1e-9: 180°, trained unsaid)
+# and the least (fx 1e300 was inf in float32, and training blamed the poses): a 1200 mm lens on a
+# full frame sees 2°
+MIN_FIELD_DEG = 1e-3
+# camera centres and the scene centre farther from the origin (in any unit) are refused: float64
+# keeps a pose there to ~1e-4 units (the Earth's centred coordinates in mm: 6e9), and translations
+# of 1e300 loaded, then training stopped on an infinite view matrix naming no file
+MAX_COORDINATE = 1e12
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
 INTRINSICS_FROM_SFM = "sfm"  # meta.json's intrinsics_from where `spikegs poses` estimated them
 
@@ -148,9 +155,21 @@ class Dataset:
         self.test_views: list[TestView] = test_views
         self.scene_center = np.asarray(meta["scene_center"], np.float64)  # [3]
         self.scene_radius = float(meta["scene_radius"])
+        self._check_coordinates()
         self._warn_about_float32_rounding()
         self._warn_about_scene_size()
         self._warn_about_one_viewpoint()
+
+    def _check_coordinates(self) -> None:
+        """ValueError where a camera centre or the scene centre lies MAX_COORDINATE or farther
+        from the origin: poses in other units, or corrupt."""
+        far = max(float(np.abs(self.trajectory.centers).max()), *np.abs(self.scene_center))
+        if not far < MAX_COORDINATE:
+            raise ValueError(
+                f"{self.root}: camera centres or the scene centre lie {far:.3g} units from the "
+                f"origin: expected under {MAX_COORDINATE:.0e} (float64 poses keep no detail "
+                f"there): check the poses and their units"
+            )
 
     def _camera_distance(self) -> float:
         """The cameras' median distance from the scene centre; 0 where it is rounding alone
@@ -1064,11 +1083,11 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             number(key, 0)
             size = meta.get("width" if key == "fx" else "height")
             field = field_of_view_deg(size, meta[key]) if is_number(size) else 0
-            if field > MAX_FIELD_DEG:
+            if not MIN_FIELD_DEG <= field <= MAX_FIELD_DEG and is_number(size):
                 raise ValueError(
-                    f"{path}: {key} {meta[key]!r} gives a {field:.0f}° field of view across "
-                    f"{size} pixels; a pinhole camera's focal length in pixels expected, under "
-                    f"{MAX_FIELD_DEG}° of view"
+                    f"{path}: {key} {meta[key]!r} gives a {field:.3g}° field of view across "
+                    f"{size} pixels; a pinhole camera's focal length in pixels expected, "
+                    f"{MIN_FIELD_DEG:g}° to {MAX_FIELD_DEG}° of view"
                 )
         elif key in ("cx", "cy"):
             number(key)
