@@ -810,7 +810,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         "matrix": (
             "test_views.json",
             views(pose("abc")),
-            "transform_matrix not numbers",
+            r"view 'on_000': transform_matrix expected 4 rows of 4 numbers, found \"abc\"",
         ),
         "scaled": (
             "test_views.json",
@@ -818,7 +818,11 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             "'on_000': the pose is not rigid",
         ),
         "last row": ("test_views.json", views(pose(skewed_last_row())), r"not rigid.* = 0.5 "),
-        "3x4": ("test_views.json", views(pose(np.eye(4)[:3])), r"expected 4x4, found \[3, 4\]"),
+        "3x4": (
+            "test_views.json",
+            views(pose(np.eye(4)[:3])),
+            r"expected 4 rows of 4 numbers, found \[\[1.0, 0.0, 0.0, 0.0\], \[0.0, 1.0, 0",
+        ),
         "missing keys": (
             "meta.json",
             lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "fy"}),
@@ -876,7 +880,7 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
                     ],
                 }
             ),
-            "trajectory.json: malformed frames .*true or false",
+            r"trajectory.json: frame 0 \(readout 0\): transform_matrix .*true or false",
         ),
         "frames": (
             "test_views.json",

@@ -28,7 +28,7 @@ import numpy as np
 from ..atomic_save import NAME_MAX, is_temporary, target_name, write_text_atomically
 from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
-from ..number_checks import is_int, is_number, number_array
+from ..number_checks import is_int, is_number
 from ..rasterize import MAX_SIZE
 from ..regular_file import is_given, read_text
 from ..run_summary import CONFIG, SUMMARY, read_summary
@@ -40,6 +40,7 @@ from .orientation import orientation_pairs, warn_if_upside_down
 from .trajectory import (
     PathLike,
     Trajectory,
+    four_by_four,
     read_camera_doc,
     rigid_c2w,
     write_camera_doc,
@@ -785,10 +786,7 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
         if missing:
             raise ValueError(f"{path}: frame {i} has no {', '.join(missing)}")
         where = f"{path}: view {frame['name']!r}"
-        try:
-            c2w = number_array(frame["transform_matrix"])  # [4, 4]
-        except ValueError as err:
-            raise ValueError(f"{where}: transform_matrix not numbers ({err})") from None
+        c2w = four_by_four(where, frame["transform_matrix"])  # [4, 4]
         readout, window = frame.get("readout"), frame.get("pseudo_window")
         if not isinstance(frame["file_path"], str) or not (readout is None or is_number(readout)):
             raise ValueError(f"{where}: file_path expected a path and readout a finite number")
@@ -797,8 +795,6 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
                 f"{where}: pseudo_window expected a whole number of readouts >= 1 "
                 f"on the path (a readout), found {window!r}"
             )
-        if c2w.shape != (4, 4):
-            raise ValueError(f"{where}: transform_matrix expected 4x4, found {list(c2w.shape)}")
         c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
         file = frame_file(root / frame["file_path"], listings)  # as a transforms file's frame
         stored = read_stored_image(file)

@@ -285,6 +285,7 @@ class Trajectory:
                     f"readout, the readout index of its pose, and transform_matrix, "
                     f"camera-to-world 4x4); found the keys {sorted(frame)}"
                 )
+            _check_matrix(path, i, frame)
         try:
             readouts = number_array([f["readout"] for f in frames])  # [P]
             matrices = [f["transform_matrix"] for f in frames]  # [P] of [4, 4]
@@ -317,6 +318,28 @@ def write_camera_doc(path: Path, frames: Iterable[dict], **extra) -> None:
             file.write("\n ]\n}\n")
 
     write_atomically(path, write)
+
+
+def _check_matrix(path: Path, i: int, frame: dict) -> None:
+    """ValueError naming frame `i` of the file at `path` where its transform_matrix is not 4 rows
+    of 4 numbers (numpy's 'inhomogeneous shape after 1 dimensions' named no frame)."""
+    matrix = frame["transform_matrix"]
+    if not (isinstance(matrix, np.ndarray) and matrix.shape == (4, 4)):  # (`_compact_matrix`'s)
+        four_by_four(f"{path}: frame {i} (readout {json_text(frame['readout'])})", matrix)
+
+
+def four_by_four(where: str, matrix) -> np.ndarray:
+    """A JSON transform_matrix as float64 [4, 4]; ValueError saying `where` it is not 4 rows of
+    4 numbers, as written, or which value is no number (a true or false, a string, a null)."""
+    rows = isinstance(matrix, list) and len(matrix) == 4
+    if not (rows and all(isinstance(row, list) and len(row) == 4 for row in matrix)):
+        raise ValueError(
+            f"{where}: transform_matrix expected 4 rows of 4 numbers, found {json_text(matrix)}"
+        )
+    try:
+        return number_array(matrix)
+    except ValueError as err:
+        raise ValueError(f"{where}: transform_matrix {err}") from None
 
 
 def _compact_matrix(frame: dict) -> dict:
