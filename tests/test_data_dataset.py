@@ -830,6 +830,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         ),
         "zero": ("trajectory.json", zero_pose, r"trajectory.json: the pose of frame 5 .* = 1 "),
         "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
+        # an empty one was "frame image not found: DATASET", naming neither view nor file
+        "empty path": (
+            "test_views.json",
+            views(frame0(file_path="")),
+            r"test_views.json: view 'on_000': file_path expected a path .*, found \"\" and",
+        ),
         "nan readout": ("test_views.json", views(frame0(readout=float("nan"))), "readout a finite"),
         "readout": (
             "test_views.json",
@@ -912,6 +918,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
         # translations of 1e300 loaded; training stopped on an infinite view matrix, no file named
         "far poses": ("trajectory.json", _far_poses, r"lie 1e\+300 units from the origin: exp"),
         "inf": ("train_timestamps.txt", lambda t: t + "1e400\n", r"integer readouts.*inf"),
+        # a 30-digit one was named as -9223372036854775808 (int64's cast)
+        "digits": (
+            "train_timestamps.txt",
+            lambda t: t + "1" * 30 + "\n",
+            r"readouts, found \[1\.1+e\+29",
+        ),
         "past the end": (
             "train_timestamps.txt",
             lambda t: t + "5\n",

@@ -788,8 +788,12 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
         where = f"{path}: view {frame['name']!r}"
         c2w = four_by_four(where, frame["transform_matrix"])  # [4, 4]
         readout, window = frame.get("readout"), frame.get("pseudo_window")
-        if not isinstance(frame["file_path"], str) or not (readout is None or is_number(readout)):
-            raise ValueError(f"{where}: file_path expected a path and readout a finite number")
+        path_given = isinstance(frame["file_path"], str) and frame["file_path"].strip()
+        if not path_given or not (readout is None or is_number(readout)):  # ("": the folder)
+            raise ValueError(
+                f"{where}: file_path expected a path and readout a finite number, found "
+                f"{json_text(frame['file_path'])} and {json_text(readout)}"
+            )
         if window is not None and not (is_int(window) and window >= 1 and readout is not None):
             raise ValueError(
                 f"{where}: pseudo_window expected a whole number of readouts >= 1 "
@@ -1157,7 +1161,8 @@ def read_column(path: Path, what: str) -> np.ndarray:
 def read_timestamps(path: Path) -> np.ndarray:
     """The integer readouts [M] of a train_timestamps.txt; ValueError naming the file."""
     values = read_column(path, "integer readout")  # [M]
-    bad = values[~(np.isfinite(values) & (values == np.round(values)))]  # NaN, inf too
+    whole = np.isfinite(values) & (values == np.round(values)) & (np.abs(values) < 2.0**62)
+    bad = values[~whole]  # NaN, inf and 30-digit ones too (int64 printed them as -2^63)
     if bad.size:
         raise ValueError(f"{path}: expected integer readouts, found {bad[:5].tolist()}")
     unique, counts = np.unique(values, return_counts=True)

@@ -347,7 +347,16 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         warn_rows_out_of_line(stream, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(
-            root, meta, stream, readouts, viewmats, test, options, str(source), progress
+            root,
+            meta,
+            stream,
+            readouts,
+            viewmats,
+            test,
+            options,
+            str(source),
+            progress,
+            readouts_file=root / READOUTS,
         )
         _warn_partial_span(stream, readouts, poses[0, :, 4])
         return dataset

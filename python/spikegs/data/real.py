@@ -472,17 +472,20 @@ def stream_dataset(
     options: Options,
     source: str,
     progress: bool = False,
+    readouts_file: Path | None = None,
 ) -> Dataset:
-    """One continuous stream with a pose [P, 4, 4] at each readout [P]: training timestamps every
-    `train_every` readouts (default: ~1024 over the readouts the poses span) clear of the held-out
-    poses; a held-out pose whose pseudo-ground-truth window does not fit in the stream is not
-    evaluated. `progress`: as `_finish`'s."""
+    """One continuous stream with a pose [P, 4, 4] (from `source`) at each readout [P] (from
+    `readouts_file`, else `source` too): training timestamps every `train_every` readouts
+    (default: ~1024 over the readouts the poses span) clear of the held-out poses; a held-out
+    pose whose pseudo-ground-truth window does not fit in the stream is not evaluated.
+    `progress`: as `_finish`'s."""
     trajectory = Trajectory(readouts, viewmats, source=source)
+    readouts_file = source if readouts_file is None else readouts_file
     first, last = light_span(len(stream))
     if trajectory.start < first or trajectory.end > last:
         raise ValueError(
-            f"{source}: pose readouts span [{trajectory.start:g}, {trajectory.end:g}], outside "
-            f"[{first:g}, {last:g}], the light the stream's {len(stream)} readouts record "
+            f"{readouts_file}: pose readouts span [{trajectory.start:g}, {trajectory.end:g}], "
+            f"outside [{first:g}, {last:g}], the light the stream's {len(stream)} readouts record "
             f"({stream.path})"
         )
     if trajectory.end - trajectory.start < 2 * WINDOW_MARGIN:
@@ -492,9 +495,9 @@ def stream_dataset(
             else "one pose spans none (poses along the recording are needed)"
         )
         raise ValueError(
-            f"{source}: the poses span readouts [{trajectory.start:g}, {trajectory.end:g}] of the "
-            f"stream's {len(stream)}, less than the {2 * WINDOW_MARGIN + 1} readouts a training "
-            f"window needs: {cause}"
+            f"{readouts_file}: the poses span readouts [{trajectory.start:g}, "
+            f"{trajectory.end:g}] of the stream's {len(stream)}, less than the "
+            f"{2 * WINDOW_MARGIN + 1} readouts a training window needs: {cause}"
         )
     # by default ~1024 timestamps over the readouts the poses span, not the whole recording's
     every = options.train_every or default_train_every(trajectory.end - trajectory.start + 1)
