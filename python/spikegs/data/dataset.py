@@ -656,21 +656,18 @@ def _warned_if_frames_smaller(stream: SpikeStream, as_read: float, settings: str
     true neighbours where its rows are uniform (horizontal stripes): the frames read so must
     follow one another as readouts too (`_in_turn`)."""
     size = stream.path.stat().st_size
-    scores = {}
+    readings, scores = {}, {}  # the file read at 1/m of its size, and how alike its rows are
     for m in ROW_MULTIPLES:
         height, width = stream.height // m, stream.width // m
         whole = stream.height % m == 0 and stream.width % m == 0
         if not whole or min(height, width) < WIDER_MIN_SIZE or size % -(-height * width // 8):
             continue
-        smaller = SpikeStream.open(stream.path, height, width, stream.layout.flip)
-        scores[m] = _rows_alike(smaller)
+        readings[m] = SpikeStream.open(stream.path, height, width, stream.layout.flip)
+        scores[m] = _rows_alike(readings[m])
     m = max(scores, key=scores.get, default=None)
     if m is None or scores[m] < SWAPPED_MIN or scores[m] - as_read < SWAPPED_GAP:
         return False
-    read_so = SpikeStream.open(
-        stream.path, stream.height // m, stream.width // m, stream.layout.flip
-    )
-    if not _in_turn(read_so, stream):
+    if not _in_turn(readings[m], stream):
         return False
     smaller = f"{stream.height // m}x{stream.width // m}"
     warnings.warn(
@@ -699,14 +696,14 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
     if min(stream.height, stream.width) < WIDER_MIN_SIZE:
         return
     size = stream.path.stat().st_size
-    scores = {}
+    wider, scores = {}, {}  # the file read with rows of R pixels, and how alike they are
     multiples = (m * stream.width for m in ROW_MULTIPLES)
     for row in (*range(stream.width, 2 * stream.width), *multiples):
         frame_bytes = -(-stream.height * row // 8)
         if row == layout.row_bits or size % frame_bytes:
             continue
-        wider = SpikeStream.open(stream.path, stream.height, stream.width, layout.flip, row)
-        scores[row] = _rows_alike(wider)
+        wider[row] = SpikeStream.open(stream.path, stream.height, stream.width, layout.flip, row)
+        scores[row] = _rows_alike(wider[row])
     if not scores:
         return
     row = max(scores, key=scores.get)
@@ -714,8 +711,7 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
         return
     m, given = row // stream.width, f"{stream.height}x{stream.width}"
     larger = row % stream.width == 0 and size % -(-m * stream.height * row // 8) == 0
-    wider = SpikeStream.open(stream.path, stream.height, stream.width, layout.flip, row)
-    readings = [wider]
+    readings = [wider[row]]
     if larger:  # the height as far off too: frames of m² readouts read as one
         readings.append(SpikeStream.open(stream.path, m * stream.height, row, layout.flip))
     if not any(_in_turn(other, stream) for other in readings):

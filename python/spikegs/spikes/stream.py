@@ -55,10 +55,10 @@ def as_readouts(k) -> tuple[np.ndarray, bool]:
     # uint64 against uint64: against a Python int numpy < 1.25 compared in float64 (2^63 passed)
     if arr.dtype.kind == "u" and arr.size and arr.max() > np.uint64(np.iinfo(np.int64).max):
         raise ValueError(f"readout index expected below 2^63, found {arr.max()}")
-    if np.issubdtype(arr.dtype, np.floating):  # (float16 cannot hold the bound: it warned)
-        arr = arr.astype(np.float64)
-    if arr.dtype == np.float64 and np.all(np.abs(arr) < 2.0**62):  # NaN: False
-        arr = arr.astype(np.int64) if np.all(arr == np.round(arr)) else arr
+    if np.issubdtype(arr.dtype, np.floating):
+        arr = arr.astype(np.float64)  # (float16 cannot hold the bound: numpy warned)
+        if np.all(np.abs(arr) < 2.0**62) and np.all(arr == np.round(arr)):  # NaN: False
+            arr = arr.astype(np.int64)
     if arr.ndim > 1 or not (arr.size == 0 or np.issubdtype(arr.dtype, np.integer)):
         raise ValueError(
             f"readout index expected an int or a 1-D integer array, found {arr.dtype} "
