@@ -1490,12 +1490,44 @@ def test_pose_gap_warning_ignores_short_gaps_and_stays_short():
     )
 
 
+def test_gaps_in_a_trajectory_json_are_warned_of(sim, tmp_path):
+    """A trajectory.json (the simulator's, or `spikegs poses`') missing 199 poses is slerped
+    across as a pose log's gaps are, and said so (unsaid until 2026-12-06)."""
+    root = copy(sim.root, tmp_path)
+    full = Trajectory.load_json(root / "trajectory.json")
+    keep = (full.readouts <= 200) | (full.readouts >= 400)
+    Trajectory(full.readouts[keep], full.viewmats[keep]).save_json(root / "trajectory.json")
+    inside = np.sum((sim.train_timestamps > 200) & (sim.train_timestamps < 400))
+    with pytest.warns(UserWarning, match=rf"trajectory.json: .* gaps .* \[200, 400\] \({inside}\)"):
+        load_dataset(root)
+
+
 def test_partial_trajectory_points_to_the_llff_layout(sim, tmp_path):
     root = copy(sim.root, tmp_path)
     part = Trajectory.load_json(root / "trajectory.json")
     keep = part.readouts >= 100
     Trajectory(part.readouts[keep], part.viewmats[keep]).save_json(root / "trajectory.json")
     with pytest.raises(ValueError, match=r"poses cover readouts \[1\d\d.*readouts.txt"):
+        load_dataset(root)
+
+
+def test_nerf_frame_listed_twice_names_the_files_listing_it(nerf, tmp_path):
+    """A test frame listed twice in transforms_test.json is named with that file (it named
+    transforms_train.json, which did not list it); listed in both files, both."""
+    root = copy(nerf, tmp_path)
+    test = root / "transforms_test.json"
+    edit_json(test, lambda doc: doc["frames"].append(doc["frames"][0]))
+    with pytest.raises(
+        ValueError, match=r"^frame \"./test/r_0\" listed 2 times \(in \S*transforms_test.json\)"
+    ):
+        load_dataset(root)
+    edit_json(test, lambda doc: doc["frames"].pop())
+    second = json.loads(test.read_text())["frames"][1]  # test/r_1, spikes without image
+    edit_json(root / "transforms_train.json", lambda doc: doc["frames"].append(second))
+    with pytest.raises(
+        ValueError,
+        match=r"listed 2 times \(in \S*transforms_train.json and \S*transforms_test.json\)",
+    ):
         load_dataset(root)
 
 
@@ -1776,7 +1808,9 @@ def test_nerf_test_views_of_one_name_refused(nerf, tmp_path):
 
     edit_json(root / "transforms_test.json", add_twin)
     with pytest.raises(
-        ValueError, match=r"frames \['test/r_0', 'test_r/0'\] both become view 'test_r_0'"
+        ValueError,
+        match=r"frames \['test/r_0', 'test_r/0'\] \(in \S*transforms_test.json\) both become "
+        r"view 'test_r_0'",
     ):
         load_dataset(root)
 
@@ -1858,7 +1892,9 @@ def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):
         doc["frames"].append({**doc["frames"][1], "spike_path": "custom/twin.dat"})
 
     edit_json(root / "transforms_train.json", add_twin)
-    with pytest.raises(ValueError, match=r"expected unique, found twice: \['train_r_3'\]"):
+    with pytest.raises(
+        ValueError, match=r'frame "./train/r_3" listed 2 times \(in \S*train.json\)'
+    ):
         load_dataset(root)
 
 
@@ -1888,8 +1924,10 @@ def test_llff_holds_out_every_8th_view_from_view_0():
     """LLFF's convention: views 0, 8, 16, ... (a mask from 1 held out 1, 9 instead)."""
     assert np.flatnonzero(held_out_mask(17, None, "x")).tolist() == [0, 8, 16]
     assert np.flatnonzero(held_out_mask(5, [1, 3], "x")).tolist() == [1, 3]
-    with pytest.raises(ValueError, match=r"test_views \[5\] outside the 5 views \[0, 5\)"):
-        held_out_mask(5, [1, 5], "x")  # one past the last view: not an IndexError
+    with pytest.raises(
+        ValueError, match=r"^d/spikegs.json: test_views \[5\] outside the 5 views \[0, 5\) of d/x$"
+    ):
+        held_out_mask(5, [1, 5], "d/x")  # one past the last view: not an IndexError
 
 
 def test_view_tfp_spans_the_whole_odd_view():

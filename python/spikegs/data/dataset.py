@@ -947,6 +947,9 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
             f"{2 * WINDOW_MARGIN + 1}-readout window around each inside the stream's {num}), "
             f"found {outside[:5].tolist()}"
         )
+    from .real import warn_pose_gaps  # (real.py reads this module's names)
+
+    warn_pose_gaps(trajectory.readouts, timestamps, str(root / TRAJECTORY))  # a pose log's
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)

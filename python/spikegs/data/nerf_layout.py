@@ -236,12 +236,35 @@ def warn_unused_keys(root: Path, paths: list[Path], docs: list[dict], frames: li
         )
 
 
+def _view_names(root: Path, frames: list, sources: list) -> list[str]:
+    """Each frame's view name [F], its file path without extension and '/' as '_'; ValueError
+    where a frame is listed twice, naming the files that list it, or two become one name."""
+    bases = [_base(root, f["file_path"]).as_posix() for f in frames]
+    names = [b.replace("/", "_") for b in bases]  # a view's name names its files: no folders
+    for name in repeated(names):
+        listed = [(f, b, s) for f, b, n, s in zip(frames, bases, names, sources) if n == name]
+        clash = sorted({b for _, b, _ in listed})
+        # the files that list them (the first file alone was named until 2026-12-06)
+        files = " and ".join(dict.fromkeys(str(s) for *_, s in listed))
+        if len(clash) > 1:
+            raise ValueError(
+                f"frames {clash} (in {files}) both become view '{name}' ('/' turns into '_'); "
+                f"rename one of them"
+            )
+        raise ValueError(
+            f"frame {json_text(listed[0][0]['file_path'])} listed {len(listed)} times (in "
+            f"{files}): a view is listed once"
+        )
+    return names
+
+
 def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     """Open a NeRF/nerfstudio-layout directory with spikes per frame (module docstring);
     `overrides` are spikegs.json options. Every file is checked before any spike is read."""
     root = Path(path)
     options = read_options(root, overrides)
     frames, sources, docs, viewmats, test = _frames(root, options)
+    names = _view_names(root, frames, sources)  # before any file is read
     path, cameras = sources[0], read_cameras(docs, frames, sources)
     camera = cameras[0]
     spikes = _find_spikes(root, frames, sources)
@@ -314,13 +337,4 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     first = next((s for s in streams if s is not None), None)
     if first is not None:
         warn_rows_out_of_line(first, OPTIONS_FILE)  # (the views share a frame size)
-    bases = [_base(root, f["file_path"]).as_posix() for f in frames]
-    names = [b.replace("/", "_") for b in bases]  # a view's name names its files: no folders
-    for name in repeated(names):
-        clash = sorted({b for b, n in zip(bases, names) if n == name})
-        if len(clash) > 1:
-            raise ValueError(
-                f"{path}: frames {clash} both become view '{name}' ('/' turns into '_'); "
-                f"rename one of them"
-            )
     return views_dataset(root, meta, names, viewmats, streams, images, test, options, str(path))

@@ -195,11 +195,15 @@ def ordinal(n: int) -> str:
 
 
 def held_out_mask(count: int, indices: list[int] | None, source: str) -> np.ndarray:
-    """Mask [count] of the test views: `indices`, or every HOLDOUT_EVERY-th from 0."""
+    """Mask [count] of the test views: `indices` (spikegs.json's test_views), or every
+    HOLDOUT_EVERY-th from 0; `source`, the file of the views, is in the dataset's folder."""
     indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
     bad = [i for i in indices if not 0 <= i < count]
-    if bad:
-        raise ValueError(f"{source}: test_views {bad} outside the {count} views [0, {count})")
+    if bad:  # (named `source` alone until 2026-12-06, whose views were right)
+        raise ValueError(
+            f"{Path(source).parent / OPTIONS_FILE}: test_views {bad} outside the {count} views "
+            f"[0, {count}) of {source}"
+        )
     mask = np.zeros(count, bool)
     mask[indices] = True
     return mask
