@@ -705,6 +705,26 @@ def _far_poses(text: str) -> str:
     return json.dumps(doc)
 
 
+def test_test_views_sharing_an_image_are_warned_of(tmp_path, small):
+    """Two test views whose file_path names one image (a frame copied, its path left): each is
+    scored against it, said (unsaid until 2026-12-06); views of their own images are not."""
+
+    def share(text):
+        doc = json.loads(text)
+        doc["frames"][1]["file_path"] = doc["frames"][0]["file_path"]
+        return json.dumps(doc)
+
+    names = [v.name for v in small.test_views[:2]]
+    root = _edited_copy(small, tmp_path / "shared", "test_views.json", share)
+    with pytest.warns(
+        UserWarning, match=rf"test views {re.escape(repr(names))} read \S+: each is scored"
+    ):
+        load_dataset(root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_dataset(small.root)
+
+
 def test_malformed_test_views_and_json_refused(tmp_path, small):
     def views(edit):
         return lambda text: json.dumps(edit(json.loads(text)))

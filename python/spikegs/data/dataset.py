@@ -777,6 +777,7 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
 
     path = existing_file(root, TEST_VIEWS)
     views, listings = [], {}  # each image folder listed once (`frame_files`)
+    readers: dict[Path, list[str]] = collections.defaultdict(list)  # image file -> its views
     for i, frame in enumerate(read_camera_doc(path, camera)):
         missing = [k for k in ("name", "transform_matrix", "file_path") if k not in frame]
         if missing:
@@ -797,6 +798,7 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
             )
         c2w = rigid_c2w(c2w, where)  # rounded poses made rigid, before inverting
         file = frame_file(root / frame["file_path"], listings)  # as a transforms file's frame
+        readers[file.resolve()].append(frame["name"])
         stored = read_stored_image(file)
         if stored.alpha is not None:
             raise ValueError(
@@ -819,6 +821,13 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
             )
         )
     check_test_views(views, path)
+    shared = [f"{names} read {file}" for file, names in readers.items() if len(names) > 1]
+    if shared:  # (unsaid until 2026-12-06)
+        warnings.warn(
+            f"{path}: test views {'; '.join(shared[:3])}: each is scored against that one image "
+            f"(a frame copied without its file_path changed?)",
+            stacklevel=3,
+        )
     return views
 
 
