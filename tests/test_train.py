@@ -620,6 +620,38 @@ def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path
     assert json.loads((run / "train.json").read_text())["dataset"] == str(moved.root.resolve())
 
 
+def test_a_finished_runs_damaged_files_are_named_with_a_way_out(dataset, tmp_path, capsys):
+    """A damaged scene.ply was left as it was by --resume ("nothing to train", exit 0), and eval
+    named it with no way out: eval says --resume writes it again, which it does; config.yaml or
+    log.jsonl of random bytes said "'utf-8' codec can't decode" naming no file, and a folder
+    named .lock "Is a directory": each is named, with what to do."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
+    run = tmp_path / "run"
+    Trainer(dataset, config, run, progress=False).train()
+    scene = (run / "scene.ply").read_bytes()
+    (run / "scene.ply").write_bytes(scene[: len(scene) // 2])
+    with pytest.raises(ValueError, match=r"scene.ply: not a readable PLY .* --resume writes it"):
+        evaluate_run(run, dataset)
+    capsys.readouterr()
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    assert "scene.ply: not a readable PLY" in capsys.readouterr().err
+    assert (run / "scene.ply").read_bytes() == scene  # written again, as trained
+    noise = np.random.default_rng(0).integers(128, 256, 300, dtype=np.uint8).tobytes()
+    (run / "log.jsonl").write_bytes(noise)
+    with pytest.raises(ValueError, match=r"log.jsonl: not UTF-8 text .*; move it away"):
+        Trainer(dataset, config, run, progress=False).train(resume=True)
+    (run / "config.yaml").write_bytes(noise)
+    args = build_parser().parse_args(["train", "d", "--out", str(run), "--resume"])
+    with pytest.raises(
+        ValueError, match=r"config.yaml: not UTF-8 text .*; delete it, and --resume"
+    ):
+        config_from_args(args)
+    (run / ".lock").unlink()
+    (run / ".lock").mkdir()
+    with pytest.raises(ValueError, match=r"\.lock: a folder, not a lock file; remove it"):
+        Trainer(dataset, config, run, progress=False).train(resume=True)
+
+
 def test_the_bars_time_left_is_marked_while_densifying(dataset, tmp_path, capsys):
     """The bar's time left came from the steps so far, while densification multiplied the
     Gaussians and the time a step takes: a 30000-iteration run's said 0.4-0.75x the time it
@@ -1887,7 +1919,13 @@ def test_cli_says_out_of_memory_without_a_traceback(tmp_path, monkeypatch, capsy
 
     monkeypatch.setattr("spikegs.data.simulate_cli.simulate_dataset", too_big)
     assert main(["simulate", "--out", str(tmp_path / "big")]) == 1
-    assert "out of memory: Unable to allocate 37.3 GiB" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "out of memory: Unable to allocate 37.3 GiB" in said and "(--height, --width" in said
+    # each command names its own options: sim-train's named the dataset's sizes for a
+    # --batch-size of 10^9 (7.45 GiB, 40 s in)
+    monkeypatch.setattr("spikegs.sim_cli._run", too_big)
+    assert main(["sim-train", str(tmp_path), "--batch-size", "1000000000"]) == 1
+    assert "; smaller sizes (--batch-size, --crop, --window)\n" in capsys.readouterr().err
 
 
 def test_cli_prints_our_warnings_as_messages(tmp_path, monkeypatch, capsys):
@@ -3110,6 +3148,10 @@ def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
         ["bench", "all", "--iterations", "0"],
         ["bench", "train", "--seeds", "-1"],
         ["sim-train", "data", "--steps", "zero"],
+        # 2**63: trained on (iterations), or numpy's messages after loading (frames, crops)
+        ["train", "data", "--out", "run", "--iterations", str(2**63)],
+        ["render", "run", "--out", "o.gif", "--frames", str(2**63)],
+        ["sim-train", "data", "--batch-size", str(2**63)],
     ],
 )
 def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
@@ -3118,7 +3160,17 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
     with pytest.raises(SystemExit) as exit_info:
         build_parser().parse_args(argv)
     assert exit_info.value.code == 2
-    assert "expected a positive integer" in capsys.readouterr().err
+    assert "expected a positive integer below 2^63" in capsys.readouterr().err
+
+
+def test_counts_in_a_config_lie_below_2_to_the_63():
+    """train.iterations: 2**63 in a config file trained on, a step at a time; so do SIM's."""
+    for overrides in ({"train": {"iterations": 2**63}}, {"sim": {"batch": 2**63}}):
+        with pytest.raises(ValueError, match=r"= 9223372036854775808.*below 2\^63"):
+            load_config("spikegs", overrides)
+    with pytest.raises(ValueError, match=r"train.iterations = 9223372036854775808"):
+        load_config("spikegs", iterations=2**63)
+    assert load_config("spikegs", iterations=2**63 - 1).train.iterations == 2**63 - 1
 
 
 def test_python_dash_m_spikegs_is_the_command():

@@ -20,6 +20,9 @@ from .file_lock import BUSY, Busy
 from .interrupt import ENDING, NAMES, Terminated, raise_terminated, say
 from .missing_dependency import MissingDependencyError
 
+# what an out-of-memory error asks to make smaller, unless a command's module names its own
+# options (MEMORY_SIZES: sim-train's named the dataset's sizes for a --batch-size of 10^9)
+MEMORY_SIZES = "height, width, readouts, spp, Gaussians"
 # sub-command -> (module implementing it, one-line help)
 COMMANDS = {
     "demo": (
@@ -37,13 +40,14 @@ COMMANDS = {
 
 
 def positive_int(text: str) -> int:
-    """An argparse type: a whole number >= 1, refused while parsing (before any work starts)."""
+    """An argparse type: a whole number in 1..2**63 - 1, refused while parsing (before any work
+    starts: 2**63 iterations trained on, 2**63 frames or crops stopped on numpy's messages)."""
     try:
         value = int(text)
     except ValueError:
         value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found '{text}'")
+    if not 1 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"expected a positive integer below 2^63, found '{text}'")
     return value
 
 
@@ -211,7 +215,8 @@ def build_parser() -> argparse.ArgumentParser:
             allow_abbrev=False,
         )
         module.add_arguments(command)
-        command.set_defaults(_run=module.run, _parser=command)
+        sizes = getattr(module, "MEMORY_SIZES", MEMORY_SIZES)  # (a command's own, if it has)
+        command.set_defaults(_run=module.run, _parser=command, _sizes=sizes)
     return parser
 
 
@@ -383,7 +388,7 @@ def _run(args: argparse.Namespace) -> int:
     except MemoryError as err:  # numpy's names the size (a 100000² simulation: 37 GiB)
         print(
             f"spikegs {args.command}: out of memory: {err or 'an allocation failed'}; smaller "
-            f"sizes (height, width, readouts, spp, Gaussians)",
+            f"sizes ({args._sizes})",
             file=sys.stderr,
         )
         return 1

@@ -33,9 +33,10 @@ import yaml
 
 from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
-from .number_checks import SEED_MAX, is_int, is_number, is_seed
+from .number_checks import SEED_MAX, is_count, is_int, is_number, is_seed
 from .pose_refine import PoseRefineConfig
 from .rasterize import CONSTANTS, DILATION_EXPECTED, is_dilation
+from .regular_file import NotText
 from .yaml_files import read_yaml, yaml_text
 
 # installed: spikegs/configs (CMake installs the repository's configs/ there); in-tree: configs/
@@ -65,6 +66,7 @@ MIN_FILTER_3D, MAX_FILTER_3D = 1e-3, 10.0
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
 MIN_GAUSSIANS = 16
+COUNTS = ">= 1 (and below 2^63)"  # what a count of steps or things expects
 # densify keys counted in iterations: their defaults are for TrainConfig.iterations, and a run of
 # another length scales them (0 stays: stop = half the run, no opacity reset)
 SCHEDULE_KEYS = ("start", "stop", "every", "opacity_reset_every")
@@ -278,7 +280,7 @@ class Config:
             "none",
             "exposure_weight > 0 when there is no instant target",
         )
-        _require(t.iterations >= 1, "train.iterations", t.iterations, ">= 1")
+        _require(is_count(t.iterations), "train.iterations", t.iterations, COUNTS)
         _require(is_seed(t.seed), "train.seed", t.seed, f"0..{SEED_MAX} (2**64 - 1)")
         _require(0 <= t.sh_degree <= 3, "train.sh_degree", t.sh_degree, "0..3")
         _require(
@@ -297,7 +299,7 @@ class Config:
         )
         _require(is_dilation(t.dilation), "train.dilation", t.dilation, DILATION_EXPECTED)
         for name in ("eval_every", "checkpoint_every", "log_every"):
-            _require(getattr(t, name) >= 1, f"train.{name}", getattr(t, name), ">= 1")
+            _require(is_count(getattr(t, name)), f"train.{name}", getattr(t, name), COUNTS)
         for f in dataclasses.fields(self.lr):
             _require(
                 0 <= getattr(self.lr, f.name) <= MAX_LR,
@@ -378,7 +380,7 @@ class Config:
             "0 (the whole window) or an odd number of readouts <= sim.window",
         )
         for name in ("iterations", "crop", "batch", "shift_layers"):
-            _require(getattr(sim, name) >= 1, f"sim.{name}", getattr(sim, name), ">= 1")
+            _require(is_count(getattr(sim, name)), f"sim.{name}", getattr(sim, name), COUNTS)
         _require(sim.loss in SIM_LOSSES, "sim.loss", sim.loss, " or ".join(SIM_LOSSES))
         _require(
             0 <= self.pose_refine.lr <= MAX_LR,
@@ -410,7 +412,7 @@ class Config:
         """A copy that trains for `iterations` steps, its densification schedule (start, stop,
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
         run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
-        _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
+        _require(is_count(iterations), "train.iterations", iterations, COUNTS)
         config = copy.deepcopy(self)
         factor = iterations / config.train.iterations
         _scale_schedule(config.densify, SCHEDULE_KEYS, factor)
@@ -582,7 +584,7 @@ def load_config(
     lengths = read.get(LENGTHS, {})  # what each schedule key set was given for
     _apply(config, _settings(read), "")
     if iterations is not None:
-        _require(is_int(iterations) and iterations >= 1, "train.iterations", iterations, ">= 1")
+        _require(is_count(iterations), "train.iterations", iterations, COUNTS)
         config.train.iterations = iterations
     factors = {}
     for key in SCHEDULE_KEYS:  # unset keys are for the default length; each scaled once
@@ -726,8 +728,9 @@ def _read(
         raise ValueError(f"config: 'base' chain loops at {path}")
     try:
         data = read_yaml(path) or {}
-    except (yaml.YAMLError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: not readable as YAML: {err}") from None
+    except (yaml.YAMLError, NotText) as err:
+        detail = err.detail if isinstance(err, NotText) else err  # (the file named once)
+        raise ValueError(f"{path}: not readable as YAML: {detail}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping at the top level")
     has_base = "base" in data  # an empty `base:` trained the defaults under the file's name

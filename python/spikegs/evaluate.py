@@ -22,12 +22,12 @@ from .image_io import srgb_to_linear, stage_image
 from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
 from .output_paths import check_file_output, check_folder_output, writable_folder
-from .ply import declares_channels, load_ply
+from .ply import declares_channels
 from .pose_align import MAX_STEPS, aligned_pose
 from .pose_refine import pose_errors
 from .provenance import environment
 from .regular_file import read_text
-from .run_summary import CONFIG, EVAL, read_summary, trained_scene
+from .run_summary import CONFIG, EVAL, read_summary, trained_model, trained_scene
 from .shell_words import shell_path
 from .targets import intensity_scale
 
@@ -300,7 +300,7 @@ def evaluate_run(
     name = own + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     ply = trained_scene(run_dir)
-    model = load_ply(ply)
+    model = trained_model(run_dir)
     for said in (scene, _coarser_pixels(run_dir, train, dataset, model.antialiased)):
         if said:
             warnings.warn(said, stacklevel=2)

@@ -64,9 +64,10 @@ def _opened(path: Path):
     a finished run looked rewritten), else read-only, all that flock needs (a lock file of
     another user's in a shared folder; a read-only folder's); the append's OSError where neither
     opens; ValueError where it is a device, FIFO or socket (a shared dataset's FIFO .lock: the
-    open waited forever for a reader)."""
-    if is_special(path):
-        raise ValueError(f"{path}: a device, FIFO or socket, not a lock file; remove it")
+    open waited forever for a reader) or a folder (whose open said "Is a directory" alone)."""
+    if is_special(path) or path.is_dir():
+        what = "a folder" if path.is_dir() else "a device, FIFO or socket"
+        raise ValueError(f"{path}: {what}, not a lock file; remove it")
     try:
         return path.open("a")
     except OSError as err:

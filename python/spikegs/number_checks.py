@@ -17,6 +17,12 @@ def is_int(value) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
+def is_count(value) -> bool:
+    """Whether `value` is a whole number of steps or things, 1..2**63 - 1 (2**63 iterations were
+    trained on, a step at a time)."""
+    return is_int(value) and 1 <= value < 2**63
+
+
 def as_flag(name: str, value) -> bool:
     """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
     if not isinstance(value, (bool, np.bool_)):

@@ -37,13 +37,33 @@ def is_given(path: Path) -> bool:
     raise ValueError(f"{path}: {what}, not a file")
 
 
+class NotText(UnicodeDecodeError):
+    """A file read as text that is not (a UnicodeDecodeError, whose message named no file: a
+    run's config.yaml or log.jsonl of random bytes said only "'utf-8' codec can't decode")."""
+
+    def __init__(self, path: Path, err: UnicodeDecodeError):
+        super().__init__(err.encoding, err.object, err.start, err.end, err.reason)
+        self.path = path
+
+    @property
+    def detail(self) -> str:
+        """The message without the file's name, for one that names it."""
+        return f"not UTF-8 text ({super().__str__()})"
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.detail}"
+
+
 def read_text(path: Path, encoding: str = "utf-8") -> str:
-    """`path.read_text(encoding)`; ValueError naming `path` where it `is_special`. A missing file
-    or a folder raises read_text's OSError."""
+    """`path.read_text(encoding)`; ValueError naming `path` where it `is_special`, NotText where
+    it cannot be decoded. A missing file or a folder raises read_text's OSError."""
     path = Path(path)
     if is_special(path):
         raise ValueError(f"{path}: a device, FIFO or socket, not a file; spikegs reads files only")
-    return path.read_text(encoding=encoding)
+    try:
+        return path.read_text(encoding=encoding)
+    except UnicodeDecodeError as err:
+        raise NotText(path, err) from None
 
 
 def is_blank(path: Path) -> bool:

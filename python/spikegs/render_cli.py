@@ -38,6 +38,8 @@ PATH_TEXT = {  # what each path shows, as `spikegs render` says
     "trajectory": "the cameras' recorded path",
 }
 
+MEMORY_SIZES = "--frames, --scale"  # (`cli.MEMORY_SIZES`)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=file_path, help="run folder (spikegs train --out)")
@@ -209,16 +211,15 @@ def run(args: argparse.Namespace) -> int:
     from .data.dataset import GuessedUnitsWarning, reading_dataset
     from .eval_cli import run_dataset
     from .evaluate import other_data
-    from .ply import load_ply
     from .render_size import scaled_size
-    from .run_summary import read_summary, trained_scene
+    from .run_summary import read_summary, trained_model, trained_scene
 
     check_video_output(args.out, args.fps)
     for path, flag in ((args.out, "--out"), (args.run, "RUN")):  # (as strict JSON holds them)
         check_utf8_name(path, flag, "the cameras' record beside the video names")
     # the cameras' record too (a folder of its name was said after the rendering, exit 0)
     check_file_output(record_beside(args.out), "--out's cameras, beside it:")
-    ply = trained_scene(args.run)
+    trained_scene(args.run)  # (a run without one refused before its dataset loads)
     root = run_dataset(args.run, args.dataset)
     with reading_dataset(root), warnings.catch_warnings():  # (not rewritten as it is read)
         # the test images' units matter to scores, not to an orbit
@@ -233,7 +234,8 @@ def run(args: argparse.Namespace) -> int:
     scaled_size(dataset.width, dataset.height, args.scale)  # (refused before any rendering)
     viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
     trained = read_summary(args.run).get("camera")  # (a run from before it: the dataset's)
-    frames = orbit_frames(load_ply(ply), dataset, viewmats, args.scale, trained)  # as written
+    model = trained_model(args.run)
+    frames = orbit_frames(model, dataset, viewmats, args.scale, trained)  # as written
     write_video(args.out, frames, args.fps, count=len(viewmats))
     count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
     print(f"{count}, {PATH_TEXT[path]} -> {args.out}")

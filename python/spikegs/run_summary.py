@@ -111,3 +111,20 @@ def trained_scene(run_dir: Path) -> Path:
             f"one of them, e.g. {shell_path(Path(run_dir) / runs[0])}"
         )
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
+
+
+def trained_model(run_dir: Path):
+    """The GaussianModel of `trained_scene`; its ValueError where scene.ply cannot be read, saying
+    that --resume writes it again where the run has its checkpoint (a damaged scene.ply was named
+    without a way out)."""
+    from .ply import load_ply  # (torch's: commands that read train.json alone need none)
+
+    ply = trained_scene(run_dir)
+    try:
+        return load_ply(ply)
+    except ValueError as err:
+        if not last_checkpoint(run_dir).is_file():
+            raise
+        raise ValueError(
+            f"{err}; {resume_command(run_dir)} writes it again from the run's checkpoint"
+        ) from None

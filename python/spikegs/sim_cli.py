@@ -37,6 +37,8 @@ FLAGS = {
     "train.seed": "--seed",
 }
 
+MEMORY_SIZES = "--batch-size, --crop, --window"  # (`cli.MEMORY_SIZES`)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sim = SimConfig()

@@ -41,7 +41,7 @@ from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt, interruption, progress_lost
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .pixel_defects import hide
-from .ply import save_ply
+from .ply import load_ply, save_ply
 from .point_cloud import (
     ball_points,
     distinct_points,
@@ -54,7 +54,7 @@ from .point_cloud import (
 from .pose_refine import PoseRefiner, make_refiner
 from .provenance import environment
 from .psnr_fall import psnr_fall
-from .regular_file import read_text
+from .regular_file import NotText, read_text
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint
 from .targets import build_targets, check_targets, intensity_scale
@@ -91,8 +91,12 @@ def _cut_log(path: Path, iteration: int) -> None:
     """Keep `path`'s records up to `iteration` (those of steps that a resumed run repeats, or all
     of a run that never checkpointed, are dropped)."""
     kept = []
+    fix = "move it away to resume without the records before the checkpoint"
     if iteration > 0 and path.exists():
-        lines = [line for line in read_text(path).splitlines() if line.strip()]
+        try:
+            lines = [line for line in read_text(path).splitlines() if line.strip()]
+        except NotText as err:
+            raise ValueError(f"{err}; {fix}") from None
         for number, line in enumerate(lines, start=1):
             try:
                 record = json.loads(line)
@@ -100,7 +104,9 @@ def _cut_log(path: Path, iteration: int) -> None:
             except (ValueError, KeyError, TypeError) as err:
                 if number == len(lines):  # a last line cut short by a kill mid-write
                     break
-                raise ValueError(f"{path}: line {number} is not a log record ({err})") from None
+                raise ValueError(
+                    f"{path}: line {number} is not a log record ({err}); {fix}"
+                ) from None
             if step <= iteration:
                 kept.append(line)
     write_text_if_changed(path, "".join(line + "\n" for line in kept))  # a kill keeps them all
@@ -738,6 +744,22 @@ class Trainer:
                 if self.targets is not None:
                     self.targets.release()
 
+    def _scene_readable(self) -> bool:
+        """Whether a finished run's scene.ply is there and loads (kept as it is then: another
+        tool's edit too); one that does not is said, and written again (--resume left a damaged
+        one as it was, and eval named it with no way out)."""
+        path = self.run_dir / SCENE
+        if not path.exists():
+            return False
+        try:
+            with warnings.catch_warnings():  # (what it holds is the user's: eval says it)
+                warnings.simplefilter("ignore")
+                load_ply(path)
+        except ValueError as err:
+            print(f"{err}: written again from the checkpoint", file=sys.stderr)
+            return False
+        return True
+
     def _from_checkpoint(self, resume: bool) -> bool:
         """Whether training goes on from RUN's checkpoint (else from the start); --resume of a run
         stopped before its first checkpoint (in SIM's training, say: SIM resumes itself), or
@@ -825,7 +847,7 @@ class Trainer:
             raise gone
         if not finished:
             self.save_checkpoint()
-        if not (finished and (self.run_dir / SCENE).exists()):
+        if not (finished and self._scene_readable()):
             save_ply(self.model, self.run_dir / SCENE)
         # densification that grew nothing and renders off the targets' brightness follow from a
         # scene sphere too small, where there is one: said with it

@@ -26,7 +26,7 @@ from .config import (
 )
 from .curves import save_logged_curves
 from .output_paths import check_folder_output
-from .regular_file import is_blank
+from .regular_file import NotText, is_blank
 from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint, resume_command
 from .yaml_files import dump_yaml, read_yaml
 
@@ -73,8 +73,12 @@ def config_from_args(args: argparse.Namespace):
         )
     given = args.config if args.config is not None else args.method  # "" is refused by name
     own = resumes_own_settings(args)
-    # an empty one: the defaults would stand in for the run's
-    empty = own and is_blank(saved)
+    try:  # an empty one: the defaults would stand in for the run's
+        empty = own and is_blank(saved)
+    except NotText as err:
+        raise ValueError(
+            f"{err}; delete it, and --resume writes it again from the checkpoint's settings"
+        ) from None
     if given is None and args.resume and not Path(args.out).exists():
         raise ValueError(
             f"--resume: {args.out} does not exist: nothing to resume (check the path; a new run "

@@ -21,6 +21,8 @@ from .simulate import (
     simulate_dataset,
 )
 
+MEMORY_SIZES = "--height, --width, --readouts, --spp"  # (`cli.MEMORY_SIZES`)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
