@@ -531,8 +531,13 @@ def test_negative_view_counts_refused(tmp_path):
     assert not (tmp_path / "tall").exists()
     with pytest.raises(ValueError, match=r"source 'solids' gives 128x3x1 images, expected 24x32"):
         simulate_dataset(source, tmp_path / "x", **SMALL)  # another size than asked for
-    with pytest.raises(ValueError, match=r"readouts: expected >= \d+ for 2 on-path held-out"):
-        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": 40})
+    for readouts in (40, -1):  # (-1 was named as if the held-out views alone wanted more)
+        with pytest.raises(
+            ValueError,
+            match=rf"readouts \(--readouts\): expected >= 322, found {readouts}: 66 for two "
+            r"training timestamps, .* and 128 for each of the 2 on-path held-out views",
+        ):
+            simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": readouts})
     # the default 8 on-path views need 1090 readouts: as many as fit, said (refused, though a
     # frame sequence holds out as many as it has without the option)
     fewer = {**SMALL, "readouts": 700, "test_on_path": None}
@@ -563,6 +568,9 @@ def test_negative_view_counts_refused(tmp_path):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "height": 0, "readouts": 10})
     with pytest.raises(ValueError, match="expected finite numbers, found speed=nan"):
         simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": float("nan")})
+    # a speed whose orbit overflows: numpy's warnings, then "the pose of index 2 is not rigid"
+    with pytest.raises(ValueError, match=r"speed \(--speed\): .* over the 400 .*, found 1e\+308"):
+        simulate_dataset("solids", tmp_path / "x", **{**SMALL, "speed": 1e308})
     # whole floats were simulated, then not loaded; a fractional train_every gave timestamps
     # inside the held-out windows
     for bad in ({"readouts": 400.0}, {"height": 16.0}, {"train_every": 2.5}):

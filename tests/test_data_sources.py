@@ -349,6 +349,9 @@ def test_frame_sequence_missing_image(tmp_path):
         make_source(tmp_path / "r_0.png", 8, 8, 1)
     with pytest.raises(ValueError, match="unknown scene 'teapot': expected a built-in"):
         make_source("teapot", 8, 8, 1)
+    for empty in ("", " "):  # "" searched the current folder ("scene folder . holds no ...")
+        with pytest.raises(ValueError, match=r"^scene \(--scene\): empty; expected a built-in"):
+            make_source(empty, 8, 8, 1)
     with pytest.raises(FileNotFoundError, match="transforms file not found: .*T.JSON"):
         make_source(tmp_path / "T.JSON", 8, 8, 1)  # an upper-case suffix: was "unknown scene"
     train_dir = tmp_path / "train"

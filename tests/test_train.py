@@ -3453,6 +3453,11 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
         capsys.readouterr().err
     )
     (tmp_path / "last.pt").rename(tmp_path / "run" / "checkpoints" / "last.pt")
+    # --out the dataset: it said the dataset's config.yaml was missing (and --method, then, was
+    # refused again); a dataset, said
+    assert main(["train", str(dataset.root), "--out", str(dataset.root), "--resume"]) == 2
+    said = capsys.readouterr().err
+    assert f"--out {dataset.root}: a dataset (its meta.json), not a run folder" in said
     # config.yaml edited: "resume with the same method and settings", where it named none
     edited = yaml.safe_load(written)
     edited["lr"]["means"] = 1e-4

@@ -124,6 +124,14 @@ def _restore_settings(out: str, saved: Path) -> None:
         with contextlib.suppress(Exception):  # a torn or foreign file: as none (resume names it)
             settings = torch.load(checkpoint, map_location="cpu", weights_only=True)["config"]
     if not isinstance(settings, dict):
+        from .data.dataset import layout_files  # (the data package is not needed otherwise)
+
+        marks = layout_files(Path(out))
+        if marks:  # (it said the dataset's config.yaml was missing)
+            raise ValueError(
+                f"--out {out}: a dataset (its {', '.join(marks)}), not a run folder: nothing "
+                f"to resume (--out names the run's folder)"
+            )
         raise ValueError(
             f"--resume: {saved} is missing or empty; name the run's settings again with --method "
             f"or --config (a checkpoint is checked against them; a run stopped before its first "

@@ -338,6 +338,12 @@ def make_source(
         return ProceduralSource(
             str(scene), SCENES[str(scene)](), width, height, channels, **rendered
         )
+    expected = (
+        f"expected a built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a transforms "
+        f"JSON (or a folder holding transforms_train.json or transforms.json)"
+    )
+    if not str(scene).strip():  # (Path("") is the current folder: it was searched)
+        raise ValueError(f"scene (--scene): empty; {expected}")
     path = Path(scene)
     if path.is_dir():  # a NeRF layout: its training frames, with transforms_test.json beside
         root = path
@@ -349,10 +355,6 @@ def make_source(
         return MitsubaSource(path, width, height, channels, **rendered)
     if path.suffix.lower() == ".json":  # a missing file: from_transforms names it
         return FrameSequenceSource.from_transforms(path, width, height, channels)
-    expected = (
-        f"expected a built-in scene ({', '.join(SCENES)}), a Mitsuba .xml file, or a transforms "
-        f"JSON (or a folder holding transforms_train.json or transforms.json)"
-    )
     if path.is_dir():
         raise ValueError(f"scene folder {path} holds no {' or '.join(TRANSFORMS[::2])}; {expected}")
     if path.exists():
@@ -466,6 +468,12 @@ def simulate_dataset(
     if spp is not None:
         (spp,) = whole_numbers(spp=spp)
     speed, frame_every = finite_numbers(speed=speed, frame_every=frame_every)
+    if not math.isfinite(speed * readouts):  # (numpy's warnings, then "the pose ... not rigid")
+        raise ValueError(
+            f"speed (--speed): expected degrees a readout that turn the orbit by a finite "
+            f"angle over the {readouts} readouts, found {speed:g} (at 180 or more a readout "
+            f"the orbit aliases)"
+        )
     flip, color = as_flag("flip", flip), as_flag("color", color)
     if height < 1 or width < 1:
         raise ValueError(
@@ -499,9 +507,12 @@ def simulate_dataset(
             f"around it in the stream"
         )
     if readouts < min_readouts:
-        raise ValueError(
-            f"readouts: expected >= {min_readouts} for {test_on_path} on-path held-out views "
-            f"(test_on_path, --test-on-path), found {readouts}: add readouts or hold out fewer"
+        raise ValueError(  # (-1 was named as if the held-out views alone wanted more)
+            f"readouts (--readouts): expected >= {min_readouts}, found {readouts}: "
+            f"{2 * WINDOW_MARGIN + 2} for two training timestamps, each with the "
+            f"{2 * WINDOW_MARGIN + 1}-readout window around it, and {4 * WINDOW_MARGIN} for each "
+            f"of the {test_on_path} on-path held-out views (test_on_path, --test-on-path): add "
+            f"readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
     if train_every < 1:

@@ -144,7 +144,7 @@ def rigid_c2w(matrices: np.ndarray, source: str, item: str = "view") -> np.ndarr
             else f"max |R R^T - I| (and bottom row vs [0, 0, 0, 1]) = {deviation[i]:.3g} "
             f"(tolerance {RIGID_TOLERANCE}), det R = {det[i]:.4g}"
         )
-        others = f"; all {item}s refused: {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
+        others = f"; every {item} refused: {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}"
         raise ValueError(
             f"{source}: the pose{f' of {item} {i}' if batch else ''} is not rigid (a rotation and "
             f"translation): {detail}{others if batch and bad.size > 1 else ''}"
