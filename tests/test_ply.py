@@ -49,6 +49,8 @@ OURS = ["spikegs background 0 0 0"]  # no warning about the background
         # words where numbers go: named, not a float()'s ValueError
         (3, 0, ["spikegs background a b c"], "'spikegs background a b c': expected 3 finite"),
         (3, 0, [*OURS, "spikegs origin x y z"], "'spikegs origin x y z': expected 3 finite"),
+        # f_dc_2 missing: it said "expected a multiple of 2 f_rest_* properties"
+        (2, 45, OURS, r"f_dc_\* properties \['f_dc_0', 'f_dc_1'\]: expected f_dc_0 \(grey\) or"),
     ],
 )
 def test_load_ply_refuses_by_name(tmp_path, dc, rest, comments, message):
@@ -110,6 +112,14 @@ def test_a_grey_scene_round_trips_as_grey(tmp_path):
     np.testing.assert_array_equal(v["f_dc_0"], v["f_dc_2"])
     back = load_ply(tmp_path / "g.ply")
     assert back.channels == 1 and back.params["sh_dc"].shape == (5, 1, 1)
+    # its colour changed by a tool that kept the comment: dropped, said (unsaid until 2026-12-06)
+    v["f_dc_1"][3] += 0.25
+    grey = ["spikegs channels 1", "spikegs background 0"]
+    PlyData([PlyElement.describe(v, "vertex", comments=grey)]).write(str(tmp_path / "edited.ply"))
+    with pytest.warns(
+        UserWarning, match=r"'spikegs channels 1', but its f_dc_\* differ by up to 0.25"
+    ):
+        assert load_ply(tmp_path / "edited.ply").channels == 1
 
 
 def test_a_dilation_comment_that_is_not_a_number_is_named():

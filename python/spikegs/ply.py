@@ -164,6 +164,10 @@ def load_ply(path: str | Path) -> GaussianModel:
     for kind, found in (("f_dc", dc_names), ("f_rest", rest_names)):
         if found != [f"{kind}_{i}" for i in range(len(found))]:  # f_dc_0, f_dc_1, f_dc_3
             raise ValueError(f"{path}: {kind}_* properties {found}: expected {kind}_0 onwards")
+    if stored not in (1, 3):  # (f_dc_2 missing was "expected a multiple of 2 f_rest_*")
+        raise ValueError(
+            f"{path}: f_dc_* properties {dc_names}: expected f_dc_0 (grey) or f_dc_0..f_dc_2 (RGB)"
+        )
     if len(rest_names) % stored:
         raise ValueError(f"{path}: expected a multiple of {stored} f_rest_* properties")
     rest = len(rest_names) // stored  # per channel
@@ -193,6 +197,16 @@ def load_ply(path: str | Path) -> GaussianModel:
 
     n = len(v)
     f_rest = col(rest_names).reshape(n, stored, rest).transpose(1, 2)  # [N, rest, stored]
+    if channels < stored:  # a mono file (save_ply's grey in R, G and B): colour is dropped
+        dc = col(dc_names)  # [N, stored]
+        spread = float(torch.nan_to_num((dc - dc[:, :1]).abs().amax(), nan=0.0)) if n else 0.0
+        if spread > 0:  # (unsaid until 2026-12-06: a tool's colour edit kept the comment)
+            warnings.warn(
+                f"{path}: comment 'spikegs channels {channels}', but its f_dc_* differ by up to "
+                f"{spread:.3g} across R, G and B: read as grey, f_dc_0 alone (remove the comment "
+                f"to read the colour)",
+                stacklevel=2,
+            )
     params = {
         "means": col(["x", "y", "z"]),
         "log_scales": col([f"scale_{i}" for i in range(3)]),
