@@ -209,9 +209,18 @@ def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run
     views = {"../keep": {"psnr": 1.0, "ssim": 0.5}, "gone_view": {"psnr": 1.0, "ssim": 0.5}}
     (run / "eval" / "gone_view.png").write_bytes(b"an earlier side-by-side")
     (run / "eval.json").write_text(json.dumps({"dataset": str(data.root), "views": views}))
-    evaluate_run(run, data)
+    now = sorted(v.name for v in data.test_views)
+    with pytest.warns(  # the scores of other views replaced, said (unsaid until 2026-12-06)
+        UserWarning,
+        match=rf"eval.json scored 1 test view; .* holds {len(now)} now \(without gone_view, "
+        rf"with {now[0]}, ",
+    ):
+        evaluate_run(run, data)
     assert (run / "keep.png").read_bytes() == b"the user's"
     assert not (run / "eval" / "gone_view.png").exists()  # a view no longer there: removed
+    with warnings.catch_warnings():  # the same views again: nothing to say
+        warnings.simplefilter("error")
+        evaluate_run(run, data, write_images=False)
 
 
 def test_an_unnamed_scene_is_no_other_scene(trained, run):

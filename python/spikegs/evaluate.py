@@ -356,8 +356,23 @@ def evaluate_run(
         sweep_temporaries(written)
     # an earlier scoring's side-by-sides of views this dataset no longer has (not a user's files)
     earlier = _scored_views(scores_file)  # {view: its scores then}
-    for gone in set(earlier) - {v.name for v in dataset.test_views}:
-        (folder / f"{gone}.png").unlink(missing_ok=True)
+    now = [v.name for v in dataset.test_views]
+    gone, added = sorted(set(earlier) - set(now)), sorted(set(now) - set(earlier))
+    for view in gone:
+        (folder / f"{view}.png").unlink(missing_ok=True)
+    if earlier and (gone or added):  # (its means replaced by another set's, unsaid)
+        changes = [
+            f"{what} {_first_three(views)}"
+            for what, views in (("without", gone), ("with", added))
+            if views
+        ]
+        warnings.warn(
+            f"{scores_file} scored {len(earlier)} test view{'s' * (len(earlier) != 1)}; "
+            f"{dataset.root} holds {len(now)} "
+            f"now ({', '.join(changes)}): its scores and means are replaced by theirs, which "
+            f"the earlier ones (and the training log's) do not compare with",
+            stacklevel=2,
+        )
     # the side-by-sides are written beside theirs and renamed onto them once the scores are: a
     # scoring stopped on the way left the earlier scores beside some of the new images
     staged = []  # [(temporary file, the image it becomes)]
