@@ -484,6 +484,22 @@ def test_a_fixed_pattern_spread_that_moves_the_mean_rate_warns():
     assert rate / (0.4 * params.rate_at_one) == pytest.approx(fpn_gain(0.5), rel=0.03)
 
 
+def test_a_dark_current_spread_that_empties_most_pixels_warns():
+    """dark_sigma 1e308 (or 1000) was taken in silence, its dark current none at all (the
+    mean rate that of dark_rate 0); a spread whose 64x64 pixels fire well under dark_rate is said,
+    with the mean over 20,000 pixels' draws, and the simulated frame's mean is as low."""
+    with pytest.warns(UserWarning, match=r"dark_sigma 1e\+308: .* fire 0 times dark_rate's"):
+        SimParams(dark_sigma=1e308)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        SimParams(dark_sigma=2.5)  # -2.7 %
+        SimParams(dark_sigma=1000.0, dark_rate=0.0)  # no dark current to spread
+    with pytest.warns(UserWarning, match=r"dark_sigma 5: .* fire 0.251 times"):
+        params = SimParams(dark_sigma=5.0, dark_rate=0.01, shot_noise=False, temporal_sigma=0.0)
+    spikes = simulate_spikes(np.zeros((1, 64, 64), np.float32), 2000, params=params)
+    assert np.unpackbits(spikes, axis=-1).mean() < 0.5 * params.dark_rate  # most pixels: none
+
+
 def test_frames_without_times_span_readouts_0_to_the_last():
     """Frames without frame_times are spread evenly over readouts [0, T - 1]: the same spikes,
     bit for bit, as frame_times [0, T - 1] given (spread over [0, T] the ramp reached 1 a readout
