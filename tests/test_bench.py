@@ -772,10 +772,14 @@ def test_bench_poses_trains_the_true_poses_once_and_measures_the_noise_it_added(
     results = poses.run(True, tmp_path)
     runs, rows = results["runs"], results["rows"]
     assert [len(runs[c]) for c in poses.CONDITIONS] == [1, 2, 2]
+    shares = []  # each run's share of views improved
     for run, error in zip(runs[poses.CONDITIONS[2]], errors):
         assert run["rotation_deg_after"] == np.median(error["rotation_deg_after"])
-        improved = error["rotation_deg_after"] < error["rotation_deg_before"]
-        assert run["views_improved"] == np.mean(improved) != 0.5  # (not its own complement)
+        shares.append(np.mean(error["rotation_deg_after"] < error["rotation_deg_before"]))
+        assert run["views_improved"] == shares[-1]
+    # a share other than 0.5 tells it from its complement (one run's was 0.5 on a CPU whose
+    # float code trains otherwise: 5 of 10 views)
+    assert shares != [0.5] * len(shares), shares
     refined = rows[2]
     assert refined["rotation_deg_before"] == pytest.approx(poses.NOISE_DEG, rel=1e-6)
     assert refined["centre_before"] == pytest.approx(poses.NOISE_TRANSLATION, rel=1e-6)
