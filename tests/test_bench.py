@@ -820,3 +820,22 @@ def test_bench_sim_scores_each_method_once_and_times_variants_of_one_network(tmp
     assert [(t["height"], t["width"], t["steps"]) for t in results["training"]] == [(64, 96, 30)]
     assert "these scores check the run only" in capsys.readouterr().out
     assert json.loads((tmp_path / "sim.json").read_text())["train_step"] == steps
+
+
+@pytest.mark.timeout(30)
+def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tmp_path):
+    """A user's file in a run folder that the benchmark replaces is refused before any work, for
+    each seed it runs and not for another; --seeds 2**63 - 1 checked each of its names, for ever
+    (it hung before any output)."""
+    runs = tmp_path / "runs" / "solids"
+    for name in ("tfp33-seed1", "tfp33-seed01", "tfp65"):
+        (runs / name).mkdir(parents=True)
+        (runs / name / "notes.txt").write_text("the user's")
+    train.check_outputs(tmp_path, ["solids"], ["tfp33"], 1)  # seed 1 is not run
+    for seeds in (2, 2**63 - 1):
+        with pytest.raises(FileExistsError, match=r"tfp33-seed1 holds files that are not a run's"):
+            train.check_outputs(tmp_path, ["solids"], ["tfp33"], seeds)
+    with pytest.raises(FileExistsError, match=r"solids/tfp65 holds files"):
+        train.check_outputs(tmp_path, ["solids"], ["tfp65"], 1)
+    (runs / "tfp33-seed1" / "notes.txt").unlink()
+    train.check_outputs(tmp_path, ["solids"], ["tfp33"], 2**63 - 1)  # nothing of the user's

@@ -808,6 +808,10 @@ def test_the_option_checks_let_their_edges_through(tmp_path, monkeypatch, capsys
         (["--every", "1"], "SfM: 168 images"),  # windows of 33 centred on 16..183
         (["--min-registered", "1", "--count", "8"], "SfM: 8 images"),
         (["--count", "1"], "too few images for structure from motion: 1 (at least 8)"),
+        # windows of 199 fit 2 centres in 200 readouts: it said "raise --count or lower --every"
+        (["--window", "199"], "a 199-readout window: a shorter --window"),
+        # 2**63 - 1 images evenly: numpy's IndexError; as many as there are, said
+        (["--count", str(2**63 - 1)], "--count 9223372036854775807: the stream has 168 readouts"),
     ):
         assert main(["poses", str(still.root), *flags]) == 2, flags
         assert said in capsys.readouterr().err, flags

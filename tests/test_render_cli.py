@@ -295,6 +295,18 @@ def test_an_up_with_a_leading_minus_sign_is_read_as_a_value():
     assert joined_vectors(["render", "R", "--up", "--out", "v.gif"])[2:4] == ["--up", "--out"]
 
 
+def test_an_up_with_the_recorded_path_is_refused_before_any_work(tmp_path, capsys):
+    """--up with --path trajectory was ignored without a word (the video byte-identical to one
+    without it): refused, before the run is looked for."""
+    from spikegs.cli import main
+
+    argv = ["render", str(tmp_path / "no-run"), "--out", str(tmp_path / "v.gif")]
+    assert main([*argv, "--path", "trajectory", "--up", "1,0,0"]) == 2
+    assert "--up sets the axis of an orbit" in capsys.readouterr().err
+    assert main([*argv, "--path", "circle", "--up", "1,0,0"]) == 2  # then: the run is missing
+    assert "--up" not in capsys.readouterr().err
+
+
 def test_orbit_frames_round_to_the_nearest_8_bit_value(monkeypatch):
     """Each frame is the render sRGB-encoded and rounded to 8 bits (not truncated), a mono render
     repeated on R, G and B: renders of sRGB 100.53/255 and 100.47/255 give 101 and 100 (halves

@@ -219,7 +219,7 @@ def test_the_scaled_camera_scales_focal_lengths_and_centre_as_the_sides():
     assert centroid == pytest.approx(22.0, abs=0.05)
 
 
-@pytest.mark.parametrize("scale", [0.01, MAX_SIDE / SIDE + 0.1])
+@pytest.mark.parametrize("scale", [0.01, MAX_SIDE / SIDE + 0.1, 1e308])  # 1e308: OverflowError
 def test_a_scale_leaving_a_side_under_one_or_over_the_most_pixels_is_refused(scale):
     with pytest.raises(ValueError, match=r"scale \(--scale\) .*a side from 1 to 8192 pixels"):
         scaled_size(SIDE, SIDE, scale)

@@ -368,9 +368,9 @@ def evaluate_run(
         ]
         warnings.warn(
             f"{scores_file} scored {len(earlier)} test view{'s' * (len(earlier) != 1)}; "
-            f"{dataset.root} holds {len(now)} "
-            f"now ({', '.join(changes)}): its scores and means are replaced by theirs, which "
-            f"the earlier ones (and the training log's) do not compare with",
+            f"{dataset.root} holds {len(now)} now ({', '.join(changes)}): its scores and means "
+            f"are replaced by theirs, which the earlier ones (and the training log's) do not "
+            f"compare with",
             stacklevel=2,
         )
     # the side-by-sides are written beside theirs and renamed onto them once the scores are: a

@@ -77,6 +77,7 @@ from .spikes.stream import centred_range
 from .strict_json import json_text, read_json
 
 MIN_IMAGES = 8
+MEMORY_SIZES = "--count, --every (the images SfM reads)"  # (`cli.MEMORY_SIZES`)
 DEFAULT_WINDOW = 33  # readouts of an SfM image's TFP
 DEFAULT_COUNT = 40  # images spread evenly over the stream
 DEFAULT_MIN_REGISTERED = 0.5  # the fraction of images SfM must register
@@ -124,6 +125,7 @@ def _image_readouts(num_readouts: int, window: int, every: int | None, count: in
         raise ValueError(f"--window {window}: longer than the stream's {num_readouts} readouts")
     if every is not None:
         return np.arange(first, last + 1, every)
+    count = min(count, last - first + 1)  # (2**63 - 1 evenly: numpy's IndexError)
     return np.unique(np.round(np.linspace(first, last, count)).astype(np.int64))
 
 
@@ -408,9 +410,11 @@ def _estimate_poses(
     stated_every = _stated_train_every(meta, meta_path) if raw else None
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
-        raise ValueError(
+        centres = len(_image_readouts(num, window, 1, 0))  # every one the window fits around
+        fix = "a shorter --window" if centres < MIN_IMAGES else "raise --count or lower --every"
+        raise ValueError(  # (a window leaving 2 centres was told to raise --count)
             f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
-            f"{num} readouts with a {window}-readout window: raise --count or lower --every"
+            f"{num} readouts with a {window}-readout window: {fix}"
         )
     if every is None and len(readouts) < count:
         print(

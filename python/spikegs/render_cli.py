@@ -215,6 +215,11 @@ def run(args: argparse.Namespace) -> int:
     from .run_summary import read_summary, trained_model, trained_scene
 
     check_video_output(args.out, args.fps)
+    if args.up is not None and args.path == "trajectory":  # (ignored unsaid)
+        raise ValueError(
+            "--up sets the axis of an orbit (--path auto, circle or span); --path trajectory "
+            "renders the recorded cameras as they were"
+        )
     for path, flag in ((args.out, "--out"), (args.run, "RUN")):  # (as strict JSON holds them)
         check_utf8_name(path, flag, "the cameras' record beside the video names")
     # the cameras' record too (a folder of its name was said after the rendering, exit 0)

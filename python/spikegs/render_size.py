@@ -47,13 +47,16 @@ class Camera:
 def scaled_size(width: int, height: int, scale: float) -> tuple[int, int]:
     """(width, height) `scale` times a `width`×`height` image's, rounded; ValueError where a side
     would be under 1 or over MAX_SIDE pixels."""
-    size = round(width * scale), round(height * scale)
+    # (1e308: inf, which round() raised on)
+    size = [
+        round(side) if math.isfinite(side) else side for side in (width * scale, height * scale)
+    ]
     if not all(1 <= side <= MAX_SIDE for side in size):
         raise ValueError(
             f"scale (--scale) {scale:g}: {width}x{height} images would render at "
             f"{size[0]}x{size[1]}; a side from 1 to {MAX_SIDE} pixels"
         )
-    return size
+    return size[0], size[1]
 
 
 def scaled_keys(keys: dict, scale: float, supersample: int = 1) -> dict:

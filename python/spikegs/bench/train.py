@@ -341,11 +341,15 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
     afresh, its folder deleted first, and a scene's dataset folder replaced unless it matches."""
     for scene in scenes:
         check_output(Path(out) / "data" / scene, overwrite=True)
-        for m in methods:
-            for seed in range(seeds):
+        # the run folders there that a run would delete (every name of --seeds 2**63 - 1 was
+        # checked, for ever)
+        runs = Path(out) / "runs" / scene
+        for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
+            method, _, seed = folder.name.rpartition("-seed")
+            named = (method, int(seed)) if seed.isdecimal() else (folder.name, 0)
+            if named[0] in methods and named[1] < seeds and folder.name == run_name(*named):
                 refuse_foreign_files(
-                    Path(out) / "runs" / scene / run_name(m, seed),
-                    ", which the benchmark would delete with its run; give another --out",
+                    folder, ", which the benchmark would delete with its run; give another --out"
                 )
 
 
