@@ -3618,7 +3618,8 @@ def test_eval_names_a_channel_mismatch(dataset, tmp_path):
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     gen = torch.Generator().manual_seed(0)
-    rgb = GaussianModel.from_points(torch.zeros(20, 3), torch.rand(20, 3, generator=gen), 0.1)
+    grey = torch.rand(20, 1, generator=gen).expand(20, 3)  # a mono scene's, as R, G and B
+    rgb = GaussianModel.from_points(torch.zeros(20, 3), grey, 0.1)
     save_ply(rgb, tmp_path / "run" / "scene.ply")  # an RGB run's own file, which says so
     with pytest.raises(ValueError, match="renders 3 .* has 1: score a run on a dataset with as"):
         evaluate_run(tmp_path / "run", dataset)
