@@ -839,3 +839,7 @@ def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tm
         train.check_outputs(tmp_path, ["solids"], ["tfp65"], 1)
     (runs / "tfp33-seed1" / "notes.txt").unlink()
     train.check_outputs(tmp_path, ["solids"], ["tfp33"], 2**63 - 1)  # nothing of the user's
+    (runs / "x-seed2").mkdir()  # a method of that name: its seed 0's folder
+    (runs / "x-seed2" / "notes.txt").write_text("the user's")
+    with pytest.raises(FileExistsError, match=r"solids/x-seed2 holds files"):
+        train.check_outputs(tmp_path, ["solids"], ["x-seed2"], 1)

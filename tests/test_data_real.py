@@ -1500,6 +1500,21 @@ def test_gaps_in_a_trajectory_json_are_warned_of(sim, tmp_path):
     inside = np.sum((sim.train_timestamps > 200) & (sim.train_timestamps < 400))
     with pytest.warns(UserWarning, match=rf"trajectory.json: .* gaps .* \[200, 400\] \({inside}\)"):
         load_dataset(root)
+    edit_json(root / "meta.json", lambda meta: meta.update(poses_from="sfm"))  # `spikegs poses`'
+    with pytest.warns(UserWarning, match=r"each gap; SfM registered no image there: `spikegs pos"):
+        load_dataset(root)
+    # as `spikegs poses` pads its registered poses to the stream's ends, its timestamps between
+    # them: no gap said
+    registered = (full.readouts >= 150) & (full.readouts <= 500)
+    padded = np.concatenate([[0.0], full.readouts[registered], [full.end]])
+    ends = full.viewmats[registered][[0, -1]]
+    views = np.concatenate([ends[:1], full.viewmats[registered], ends[1:]])
+    Trajectory(padded, views).save_json(root / "trajectory.json")
+    kept = sim.train_timestamps[(sim.train_timestamps > 166) & (sim.train_timestamps < 484)]
+    (root / "train_timestamps.txt").write_text("".join(f"{k}\n" for k in kept))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        load_dataset(root)
 
 
 def test_partial_trajectory_points_to_the_llff_layout(sim, tmp_path):

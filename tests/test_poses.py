@@ -446,7 +446,8 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
     assert main(["poses", str(raw), "--count", "30"]) == 0
     assert "3 held-out views at every 8th registered image" in capsys.readouterr().out
-    assert json.loads((raw / "meta.json").read_text())["intrinsics_from"] == "sfm"
+    written = json.loads((raw / "meta.json").read_text())
+    assert written["intrinsics_from"] == written["poses_from"] == "sfm"  # (a gap: SfM's, said)
     dataset = load_dataset(raw)
     views = dataset.test_views
     assert [v.name[:7] for v in views] == ["pseudo_"] * 3 and dataset.meta["train_every"] == 1

@@ -8,6 +8,7 @@ import errno
 import itertools
 import json
 import os
+import pickle
 import re
 import shutil
 import signal
@@ -53,6 +54,7 @@ from spikegs.initial_intensity import ViewSample, projected_intensity
 from spikegs.interrupt import ENDING, HANGUP, Terminated, deferred_interrupt, raise_terminated
 from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
+from spikegs.regular_file import NotText, read_text
 from spikegs.run_folder import run_lock
 from spikegs.targets import build_targets, intensity_scale
 from spikegs.train import Trainer, _means_lr, _optimizer
@@ -636,6 +638,10 @@ def test_a_finished_runs_damaged_files_are_named_with_a_way_out(dataset, tmp_pat
     Trainer(dataset, config, run, progress=False).train(resume=True)
     assert "scene.ply: not a readable PLY" in capsys.readouterr().err
     assert (run / "scene.ply").read_bytes() == scene  # written again, as trained
+    other = re.sub(rb"comment spikegs [^\n]*\n", b"", scene)  # another tool's re-save: kept
+    (run / "scene.ply").write_bytes(other)
+    Trainer(dataset, config, run, progress=False).train(resume=True)
+    assert (run / "scene.ply").read_bytes() == other
     noise = np.random.default_rng(0).integers(128, 256, 300, dtype=np.uint8).tobytes()
     (run / "log.jsonl").write_bytes(noise)
     with pytest.raises(ValueError, match=r"log.jsonl: not UTF-8 text .*; move it away"):
@@ -646,6 +652,14 @@ def test_a_finished_runs_damaged_files_are_named_with_a_way_out(dataset, tmp_pat
         ValueError, match=r"config.yaml: not UTF-8 text .*; delete it, and --resume"
     ):
         config_from_args(args)
+    checkpoint = run / "checkpoints" / "last.pt"  # without it, nothing to write it from: asked
+    checkpoint.rename(tmp_path / "last.pt")
+    with pytest.raises(ValueError, match=r"not UTF-8 text .*; name the run's settings again with"):
+        config_from_args(args)
+    (tmp_path / "last.pt").rename(checkpoint)
+    with pytest.raises(NotText) as caught:  # a copy (or a pickle) keeps the file and message
+        read_text(run / "config.yaml")
+    assert str(pickle.loads(pickle.dumps(caught.value))) == str(caught.value)
     (run / ".lock").unlink()
     (run / ".lock").mkdir()
     with pytest.raises(ValueError, match=r"\.lock: a folder, not a lock file; remove it"):

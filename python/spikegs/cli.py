@@ -42,11 +42,13 @@ COMMANDS = {
 def positive_int(text: str) -> int:
     """An argparse type: a whole number in 1..2**63 - 1, refused while parsing (before any work
     starts: 2**63 iterations trained on, 2**63 frames or crops stopped on numpy's messages)."""
+    from .number_checks import is_count  # (numpy: not at every spikegs start)
+
     try:
         value = int(text)
     except ValueError:
         value = 0
-    if not 1 <= value < 2**63:
+    if not is_count(value):
         raise argparse.ArgumentTypeError(f"expected a positive integer below 2^63, found '{text}'")
     return value
 

@@ -728,9 +728,10 @@ def _read(
         raise ValueError(f"config: 'base' chain loops at {path}")
     try:
         data = read_yaml(path) or {}
-    except (yaml.YAMLError, NotText) as err:
-        detail = err.detail if isinstance(err, NotText) else err  # (the file named once)
-        raise ValueError(f"{path}: not readable as YAML: {detail}") from None
+    except NotText as err:  # (the file named once)
+        raise ValueError(f"{path}: not readable as YAML: {err.detail}") from None
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not readable as YAML: {err}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: expected a mapping at the top level")
     has_base = "base" in data  # an empty `base:` trained the defaults under the file's name

@@ -27,7 +27,7 @@ from .pose_align import MAX_STEPS, aligned_pose
 from .pose_refine import pose_errors
 from .provenance import environment
 from .regular_file import read_text
-from .run_summary import CONFIG, EVAL, read_summary, trained_model, trained_scene
+from .run_summary import CONFIG, EVAL, SCENE, read_summary, trained_model
 from .shell_words import shell_path
 from .targets import intensity_scale
 
@@ -299,8 +299,8 @@ def evaluate_run(
     own = _eval_name(run_dir, train, dataset, progress)
     name = own + ("-aligned" if align_poses else "")
     scene = _other_scene(run_dir, train, dataset, "is scored on")
-    ply = trained_scene(run_dir)
     model = trained_model(run_dir)
+    ply = run_dir / SCENE  # (`trained_model`'s)
     for said in (scene, _coarser_pixels(run_dir, train, dataset, model.antialiased)):
         if said:
             warnings.warn(said, stacklevel=2)

@@ -28,6 +28,7 @@ from .data.dataset import (
     INTRINSICS_FROM_SFM,
     META,
     POINTS,
+    POSES_FROM_SFM,
     TEST_DIR,
     TEST_VIEWS,
     TIMESTAMPS,
@@ -77,7 +78,7 @@ from .spikes.stream import centred_range
 from .strict_json import json_text, read_json
 
 MIN_IMAGES = 8
-MEMORY_SIZES = "--count, --every (the images SfM reads)"  # (`cli.MEMORY_SIZES`)
+MEMORY_SIZES = "a lower --count, or a higher --every"  # (`cli.MEMORY_SIZES`)
 DEFAULT_WINDOW = 33  # readouts of an SfM image's TFP
 DEFAULT_COUNT = 40  # images spread evenly over the stream
 DEFAULT_MIN_REGISTERED = 0.5  # the fraction of images SfM must register
@@ -410,7 +411,8 @@ def _estimate_poses(
     stated_every = _stated_train_every(meta, meta_path) if raw else None
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
-        centres = len(_image_readouts(num, window, 1, 0))  # every one the window fits around
+        first, last = centred_range(num, window)  # the readouts the window fits around
+        centres = last - first + 1
         fix = "a shorter --window" if centres < MIN_IMAGES else "raise --count or lower --every"
         raise ValueError(  # (a window leaving 2 centres was told to raise --count)
             f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
@@ -519,6 +521,7 @@ def _estimate_poses(
         if not backup.exists():
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
+    meta["poses_from"] = POSES_FROM_SFM  # (a gap between registered images: said as SfM's)
     kept = None if raw else _registered_timestamps(root, recon.readouts)  # checked before writes
     if raw:  # held-out views and training timestamps too, so that the recording trains
         span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover

@@ -45,6 +45,9 @@ class NotText(UnicodeDecodeError):
         super().__init__(err.encoding, err.object, err.start, err.end, err.reason)
         self.path = path
 
+    def __reduce__(self):  # (copied or pickled: args are UnicodeDecodeError's five)
+        return type(self), (self.path, UnicodeDecodeError(*self.args))
+
     @property
     def detail(self) -> str:
         """The message without the file's name, for one that names it."""

@@ -63,9 +63,10 @@ def read_json(path: Path, object_hook: Callable[[dict], dict] | None = None) -> 
         doc = json.loads(text, object_pairs_hook=pairs_hook)
     except _RepeatedKeys as err:
         raise ValueError(f"{path}: keys given twice in an object, which is meant? {err}") from None
-    except (json.JSONDecodeError, NotText) as err:
-        detail = err.detail if isinstance(err, NotText) else err  # (the file named once)
-        raise ValueError(f"{path}: not valid JSON ({detail})") from None
+    except NotText as err:  # (the file named once)
+        raise ValueError(f"{path}: not valid JSON ({err.detail})") from None
+    except json.JSONDecodeError as err:
+        raise ValueError(f"{path}: not valid JSON ({err})") from None
     except RecursionError:  # Python's parser recurses per level: ~1000 deep was a traceback
         raise ValueError(f"{path}: not valid JSON for spikegs (nested too deeply)") from None
     if not isinstance(doc, dict):

@@ -76,9 +76,12 @@ def config_from_args(args: argparse.Namespace):
     try:  # an empty one: the defaults would stand in for the run's
         empty = own and is_blank(saved)
     except NotText as err:
-        raise ValueError(
-            f"{err}; delete it, and --resume writes it again from the checkpoint's settings"
-        ) from None
+        fix = (  # (`_restore_settings`, which needs the checkpoint)
+            "delete it, and --resume writes it again from the checkpoint's settings"
+            if last_checkpoint(args.out).is_file()
+            else "name the run's settings again with --method or --config"
+        )
+        raise ValueError(f"{err}; {fix}") from None
     if given is None and args.resume and not Path(args.out).exists():
         raise ValueError(
             f"--resume: {args.out} does not exist: nothing to resume (check the path; a new run "

@@ -346,8 +346,8 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
         runs = Path(out) / "runs" / scene
         for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
             method, _, seed = folder.name.rpartition("-seed")
-            named = (method, int(seed)) if seed.isdecimal() else (folder.name, 0)
-            if named[0] in methods and named[1] < seeds and folder.name == run_name(*named):
+            seeded = seed.isdecimal() and method in methods and int(seed) < seeds
+            if folder.name in methods or (seeded and folder.name == run_name(method, int(seed))):
                 refuse_foreign_files(
                     folder, ", which the benchmark would delete with its run; give another --out"
                 )

@@ -67,6 +67,7 @@ MIN_FIELD_DEG = 1e-3
 MAX_COORDINATE = 1e12
 PSEUDO_PREFIX = "pseudo_"  # a test view scored against TFP of its own spikes, no sharp image
 INTRINSICS_FROM_SFM = "sfm"  # meta.json's intrinsics_from where `spikegs poses` estimated them
+POSES_FROM_SFM = "sfm"  # meta.json's poses_from where `spikegs poses` wrote trajectory.json
 
 
 def stated_scales(meta: dict) -> dict:
@@ -958,7 +959,12 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
         )
     from .real import warn_pose_gaps  # (real.py reads this module's names)
 
-    warn_pose_gaps(trajectory.readouts, timestamps, str(root / TRAJECTORY))  # a pose log's
+    fix = (  # (SfM's were told to "check the pose log")
+        "SfM registered no image there: `spikegs poses` with more images (--count) or --sim"
+        if meta.get("poses_from") == POSES_FROM_SFM
+        else "check the pose log"
+    )
+    warn_pose_gaps(trajectory.readouts, timestamps, str(root / TRAJECTORY), fix)
     shape = (int(meta["height"]), int(meta["width"]), int(meta["channels"]))
     test_views = _read_test_views(root, shape, camera)
     _check_held_out(test_views, timestamps, num, root)

@@ -412,11 +412,13 @@ def first_of(items: list[str], shown: int = 5) -> str:
     return ", ".join(items[:shown]) + (f" and {more} more" if more > 0 else "")
 
 
-def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) -> None:
+def warn_pose_gaps(
+    readouts: np.ndarray, timestamps: np.ndarray, source: str, fix: str = "check the pose log"
+) -> None:
     """A UserWarning naming the gaps in a pose log (readouts [P], sorted) wider than GAP_FACTOR
     median spacings and than a training window, that training timestamps [M] fall into: their
     poses are interpolated across the gap (a motion-capture dropout), which a curved path does
-    not follow."""
+    not follow; `fix`, what to do."""
     spacing = np.diff(readouts)  # [P - 1], P >= 2 (`_pose_step`)
     wide = (spacing > GAP_FACTOR * np.median(spacing)) & (spacing > NEEDED_WINDOW)
     gaps = []
@@ -430,7 +432,7 @@ def warn_pose_gaps(readouts: np.ndarray, timestamps: np.ndarray, source: str) ->
             f"{source}: training timestamps in gaps of the poses (readouts, timestamps inside) "
             f"{first_of(gaps)}, against a median spacing of "
             f"{readout_number(np.median(spacing))} readouts: their poses are interpolated across "
-            f"each gap; check the pose log",
+            f"each gap; {fix}",
             stacklevel=3,
         )
 

@@ -123,7 +123,9 @@ class SimParams:
 def _normal_quantiles() -> np.ndarray:
     """The standard normal's quantiles [20000] at the midpoints of 20,000 equal probability bins:
     a mean over them is a mean over that many pixels' draws, without their sampling noise."""
-    return ndtri((np.arange(20000) + 0.5) / 20000)
+    z = ndtri((np.arange(20000) + 0.5) / 20000)
+    z.flags.writeable = False  # (one array for every caller)
+    return z
 
 
 def fpn_gain(fpn_sigma: float) -> float:
