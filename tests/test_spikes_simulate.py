@@ -466,6 +466,8 @@ def test_a_threshold_of_a_few_photo_electrons_warns():
     for threshold in (1e38, 1e-46, 1e-4):  # float voltages overflowed, or the threshold was 0:
         with pytest.raises(ValueError, match="threshold expected in \\[0.001, 1e30\\]"):
             SimParams(threshold=threshold)  # every readout fired
+    with pytest.raises(ValueError, match="SimParams threshold: .* a 401-digit integer, beyond"):
+        SimParams(threshold=10**400)  # float()'s OverflowError named no field
 
 
 def test_a_fixed_pattern_spread_that_moves_the_mean_rate_warns():

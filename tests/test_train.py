@@ -3177,6 +3177,29 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
     assert "expected a positive integer below 2^63" in capsys.readouterr().err
 
 
+def test_the_python_api_names_what_it_was_given(dataset, tmp_path):
+    """A notebook's slips: a path for the dataset, a dict for the config (AttributeErrors deep in
+    the trainer and evaluate_run); a sweep's numpy numbers as overrides (yaml_text raised on them
+    building a message); a negative weight named as instant_until's."""
+    config = load_config("tfp33", FAST)
+    with pytest.raises(TypeError, match=r"Trainer: dataset expected a Dataset .*found str"):
+        Trainer(str(dataset.root), config, tmp_path / "run")
+    with pytest.raises(TypeError, match=r"Trainer: config expected a Config .*found dict"):
+        Trainer(dataset, {"train": {}}, tmp_path / "run")
+    with pytest.raises(TypeError, match=r"evaluate_run: dataset expected a Dataset .*NoneType"):
+        evaluate_run(tmp_path / "run", None)
+    swept = {
+        "exposure_weight": np.float64(4),
+        "exposure_poses": np.int32(9),
+        "deflicker": np.False_,
+    }
+    s = load_config("spikegs", {"supervision": swept}).supervision
+    assert (s.exposure_weight, s.exposure_poses, s.deflicker) == (4.0, 9, False)
+    assert type(s.exposure_poses) is int and type(s.deflicker) is bool
+    with pytest.raises(ValueError, match=r"supervision.exposure_weight = -1"):
+        load_config("spikegs", {"supervision": {"exposure_weight": -1.0}})
+
+
 def test_counts_in_a_config_lie_below_2_to_the_63():
     """train.iterations: 2**63 in a config file trained on, a step at a time; so do SIM's."""
     for overrides in ({"train": {"iterations": 2**63}}, {"sim": {"batch": 2**63}}):

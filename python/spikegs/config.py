@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from .densify import DensifyConfig
@@ -202,6 +203,16 @@ class Config:
         )
         for name, value in _numbers(self):
             _require(math.isfinite(value), name, value, "a finite number")
+        # the weights' range before the checks that read them (-1 was named as instant_until's)
+        for name in ("instant_weight", "exposure_weight", "dssim_weight"):
+            _require(
+                getattr(s, name) == 0 or MIN_WEIGHT <= getattr(s, name) <= MAX_WEIGHT,
+                f"supervision.{name}",
+                getattr(s, name),
+                f"0 (off) or {MIN_WEIGHT:g}..{MAX_WEIGHT:,.0f} (only the weights' ratios matter "
+                f"within it: Adam's steps and densification do not see their scale; near 1e20 "
+                f"Adam's squared gradients overflow float32, and under 1e-9 its eps swamps them)",
+            )
         _require(
             s.instant in ("sim", "tfp", "tfi", "clean", "none"),
             "supervision.instant",
@@ -242,15 +253,6 @@ class Config:
                 s.exposure_poses,
                 f">= 2 and at most supervision.exposure_window ({s.exposure_window}): one render "
                 f"a readout at most (more would reach past the window)",
-            )
-        for name in ("instant_weight", "exposure_weight", "dssim_weight"):
-            _require(
-                getattr(s, name) == 0 or MIN_WEIGHT <= getattr(s, name) <= MAX_WEIGHT,
-                f"supervision.{name}",
-                getattr(s, name),
-                f"0 (off) or {MIN_WEIGHT:g}..{MAX_WEIGHT:,.0f} (only the weights' ratios matter "
-                f"within it: Adam's steps and densification do not see their scale; near 1e20 "
-                f"Adam's squared gradients overflow float32, and under 1e-9 its eps swamps them)",
             )
         _require(
             s.dssim_weight == 0 or (s.instant != "none" and s.instant_weight > 0),
@@ -547,6 +549,8 @@ def _apply(target, overrides: dict, where: str) -> None:
                 raise _wrong_kind(f"{where}{key}", value, "a section (its keys, indented below it)")
             _apply(current, value, f"{where}{key}.")
             continue
+        if isinstance(value, np.generic):  # a sweep's np.linspace value: yaml_text raised on it
+            value = value.item()
         kind = type(current)
         if kind is float and is_int(value):
             if not is_number(value):  # float() raised OverflowError

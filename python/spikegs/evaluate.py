@@ -14,7 +14,7 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
-from .data.dataset import is_view_name
+from .data.dataset import check_dataset, is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
@@ -294,6 +294,7 @@ def evaluate_run(
     where the run's own dataset folder is loaded to tell whether it still holds the run's data
     (its flicker search), and over the views aligned. `align_poses`: each view scored from its
     pose aligned to its image (`pose_align`), into NAME-aligned.json and NAME-aligned/."""
+    check_dataset(dataset, "evaluate_run")
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
     own = _eval_name(run_dir, train, dataset, progress)

@@ -30,7 +30,7 @@ from .config import (
     with_defaults,
 )
 from .curves import logged_curve
-from .data.dataset import POINTS, camera_keys, reading_dataset
+from .data.dataset import POINTS, camera_keys, check_dataset, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -157,6 +157,12 @@ class Trainer:
         # trained, before resuming it) trained every run with the last settings; validated, as
         # load_config validates: a value edited out of range (densify.every = 0, a float
         # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
+        check_dataset(dataset, "Trainer")
+        if not isinstance(config, Config):  # (a dict: "'dict' object has no attribute 'validate'")
+            raise TypeError(
+                f"Trainer: config expected a Config (spikegs.config.load_config(METHOD, "
+                f"overrides) makes one), found {type(config).__name__} {config!r:.80}"
+            )
         self.dataset, self.config, self.progress = (
             dataset,
             copy.deepcopy(config).validate(),

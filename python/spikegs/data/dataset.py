@@ -282,6 +282,16 @@ WRITERS = "spikegs simulate or poses"
 READERS = "train, sim-train, eval or render"
 
 
+def check_dataset(dataset, where: str) -> None:
+    """TypeError unless `dataset` is a loaded Dataset (a path given to the Trainer or
+    evaluate_run failed on "'str' object has no attribute 'meta'")."""
+    if not isinstance(dataset, Dataset):
+        raise TypeError(
+            f"{where}: dataset expected a Dataset (spikegs.data.load_dataset(PATH) opens one), "
+            f"found {type(dataset).__name__} {dataset!r:.80}"
+        )
+
+
 def _in_use(root: Path, remedy: str) -> str:
     return (
         f"{root} is in use by another process ({WRITERS} writing it, or {READERS} reading it); "

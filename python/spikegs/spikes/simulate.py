@@ -77,7 +77,13 @@ class SimParams:
             else:
                 if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
                     raise ValueError(f"SimParams {field.name}: expected a number, found {value!r}")
-                value = float(value)
+                try:
+                    value = float(value)
+                except OverflowError:  # (10**400: float()'s message named no field)
+                    raise ValueError(
+                        f"SimParams {field.name}: expected a number, found a "
+                        f"{len(str(abs(value)))}-digit integer, beyond a float's range"
+                    ) from None
             object.__setattr__(self, field.name, value)  # (frozen)
         _C.SpikeSimulator(1, 1, self.to_core(), 0)  # validates the ranges
         if self.shot_noise and self.threshold < MIN_SHOT_THRESHOLD:
