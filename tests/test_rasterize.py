@@ -736,6 +736,17 @@ def _bad_inputs():
             ("K-sparse", {"K": s["K"].to_sparse()}, "K: expected a dense"),  # NotImplementedError
             # rendered, and K.grad stayed None after the backward
             ("K-requires-grad", {"K": s["K"].clone().requires_grad_()}, "K: the intrinsics get no"),
+            # taken as numbers, their gradient none, unsaid
+            (
+                "dilation-requires-grad",
+                {"dilation": torch.tensor(0.3, requires_grad=True)},
+                "dilation: gets no gradient",
+            ),
+            (
+                "near-requires-grad",
+                {"near": torch.tensor(0.01, requires_grad=True)},
+                "near: gets no gradient",
+            ),
             # failed only in the backward's in-place sum, with torch's message
             ("screen-abs-expanded", {"screen_abs": torch.zeros(1, 2).expand(6, 2)}, "expanded"),
             ("sh-degree-bool", {"sh_degree": True}, "sh_degree"),

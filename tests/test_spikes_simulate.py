@@ -197,6 +197,8 @@ def test_a_callable_is_sampled_at_the_frame_times_given():
         simulate_spikes(nan_later, 1234568, frame_times=[0.0, 1234567.0], chunk=10**6)
     with pytest.raises(ValueError, match=r"frame_times expected \[F\] with F >= 1, found \[0\]"):
         simulate_spikes(light, 120, frame_times=[])
+    with pytest.raises(ValueError, match=r'^frame_times: expected numbers, found "ab"'):
+        simulate_spikes(light, 120, frame_times="ab")  # (it named no argument)
     with pytest.raises(ValueError, match=r"covering readouts \[0, 119\]"):
         simulate_spikes(light, 120, frame_times=[0.0, 100.0])
 

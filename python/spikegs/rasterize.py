@@ -307,6 +307,12 @@ def rasterize(
         if not 0 < value <= MAX_SIZE:
             raise ValueError(f"{name}: expected a positive int up to {MAX_SIZE}, got {value!r}")
     width, height = int(width), int(height)
+    for name, value in (("near", near), ("far", far), ("dilation", dilation)):
+        if isinstance(value, torch.Tensor) and value.requires_grad:  # (taken as a number, unsaid)
+            raise ValueError(
+                f"{name}: gets no gradient (a learnt {name} would stay as it is); pass a number "
+                f"or {name}.detach()"
+            )
     near, far = _as_number(near), _as_number(far)
     if not (is_real(near) and is_real(far) and 0 < near < far):
         raise ValueError(

@@ -224,7 +224,10 @@ def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
 def _checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
     """`frame_times` as floats [F] (F = `count`, or any F >= 1 where None); ValueError unless
     finite, strictly increasing and covering readouts [0, last]."""
-    times = number_array(frame_times)
+    try:
+        times = number_array(frame_times)
+    except ValueError as err:  # (it named no argument: 'expected numbers, found "ab" at []')
+        raise ValueError(f"frame_times: {err}") from None
     if times.ndim != 1 or len(times) != (count or len(times)) or not len(times):
         expected = f"[{count}]" if count else "[F] with F >= 1"
         raise ValueError(f"frame_times expected {expected}, found {list(times.shape)}")
