@@ -3188,6 +3188,13 @@ def test_the_python_api_names_what_it_was_given(dataset, tmp_path):
         Trainer(dataset, {"train": {}}, tmp_path / "run")
     with pytest.raises(TypeError, match=r"evaluate_run: dataset expected a Dataset .*NoneType"):
         evaluate_run(tmp_path / "run", None)
+    # truthy words were flags: "no" drew the bar, wrote eval's images, replaced a dataset
+    with pytest.raises(ValueError, match=r"Trainer: progress: expected True or False, found 'no'"):
+        Trainer(dataset, config, tmp_path / "run", progress="no")
+    with pytest.raises(ValueError, match=r"evaluate_run: write_images: expected True or False"):
+        evaluate_run(tmp_path / "run", dataset, write_images="no")
+    with pytest.raises(ValueError, match=r"^overwrite: expected True or False, found 1"):
+        simulate_dataset("solids", tmp_path / "data", **{**TINY, "overwrite": 1})
     swept = {
         "exposure_weight": np.float64(4),
         "exposure_poses": np.int32(9),

@@ -21,6 +21,7 @@ from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import srgb_to_linear, stage_image
 from .image_labels import column_titles, title_scale
 from .metrics import psnr, ssim, ssim_3dgs
+from .number_checks import as_flag
 from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels
 from .pose_align import MAX_STEPS, aligned_pose
@@ -295,6 +296,10 @@ def evaluate_run(
     (its flicker search), and over the views aligned. `align_poses`: each view scored from its
     pose aligned to its image (`pose_align`), into NAME-aligned.json and NAME-aligned/."""
     check_dataset(dataset, "evaluate_run")
+    flags = {"write_images": write_images, "progress": progress, "align_poses": align_poses}
+    write_images, progress, align_poses = (  # ("no" wrote the images)
+        as_flag(f"evaluate_run: {name}", flag) for name, flag in flags.items()
+    )
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
     own = _eval_name(run_dir, train, dataset, progress)

@@ -40,6 +40,7 @@ from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt, interruption, progress_lost
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
+from .number_checks import as_flag
 from .pixel_defects import hide
 from .ply import load_ply, save_ply
 from .point_cloud import (
@@ -158,6 +159,7 @@ class Trainer:
         # load_config validates: a value edited out of range (densify.every = 0, a float
         # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
         check_dataset(dataset, "Trainer")
+        progress = as_flag("Trainer: progress", progress)  # ("no" drew the bar)
         if not isinstance(config, Config):  # (a dict: "'dict' object has no attribute 'validate'")
             raise TypeError(
                 f"Trainer: config expected a Config (spikegs.config.load_config(METHOD, "

@@ -475,6 +475,8 @@ def simulate_dataset(
             f"the orbit aliases)"
         )
     flip, color = as_flag("flip", flip), as_flag("color", color)
+    # (truthy words were taken: progress="no" drew bars, overwrite=1 replaced a dataset)
+    progress, overwrite = as_flag("progress", progress), as_flag("overwrite", overwrite)
     if height < 1 or width < 1:
         raise ValueError(
             f"height, width (--height, --width): expected >= 1 pixel, found {height}, {width}"
