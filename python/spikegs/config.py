@@ -34,7 +34,7 @@ import yaml
 
 from .densify import DensifyConfig
 from .losses import NORMS, SIM_LOSSES
-from .number_checks import SEED_MAX, is_count, is_int, is_number, is_seed
+from .number_checks import SEED_MAX, is_count, is_int, is_number, is_seed, past_float
 from .pose_refine import PoseRefineConfig
 from .rasterize import CONSTANTS, DILATION_EXPECTED, is_dilation
 from .regular_file import NotText
@@ -554,10 +554,7 @@ def _apply(target, overrides: dict, where: str) -> None:
         kind = type(current)
         if kind is float and is_int(value):
             if not is_number(value):  # float() raised OverflowError
-                raise ValueError(
-                    f"config: '{where}{key}' = a {len(str(abs(value)))}-digit integer, beyond a "
-                    f"float's range"
-                )
+                raise ValueError(f"config: '{where}{key}' = {past_float(value)}")
             value = float(value)
         if type(value) is not kind:
             raise _wrong_kind(f"{where}{key}", value, KIND_WORDS[kind])

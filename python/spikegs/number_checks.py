@@ -23,6 +23,12 @@ def is_count(value) -> bool:
     return is_int(value) and 1 <= value < 2**63
 
 
+def past_float(value: int) -> str:
+    """An integer a float cannot hold as a message names it ("a 401-digit integer, beyond a
+    float's range": its own digits would fill the message)."""
+    return f"a {len(str(abs(value)))}-digit integer, beyond a float's range"
+
+
 def as_flag(name: str, value) -> bool:
     """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
     if not isinstance(value, (bool, np.bool_)):

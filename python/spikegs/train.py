@@ -154,10 +154,6 @@ class Trainer:
         progress: bool = True,
         settings_file: Path | None = None,
     ):
-        # a copy: a sweep that edits one Config between constructing its trainers (or after one
-        # trained, before resuming it) trained every run with the last settings; validated, as
-        # load_config validates: a value edited out of range (densify.every = 0, a float
-        # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
         check_dataset(dataset, "Trainer")
         progress = as_flag("Trainer: progress", progress)  # ("no" drew the bar)
         if not isinstance(config, Config):  # (a dict: "'dict' object has no attribute 'validate'")
@@ -165,6 +161,10 @@ class Trainer:
                 f"Trainer: config expected a Config (spikegs.config.load_config(METHOD, "
                 f"overrides) makes one), found {type(config).__name__} {config!r:.80}"
             )
+        # a copy: a sweep that edits one Config between constructing its trainers (or after one
+        # trained, before resuming it) trained every run with the last settings; validated, as
+        # load_config validates: a value edited out of range (densify.every = 0, a float
+        # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
         self.dataset, self.config, self.progress = (
             dataset,
             copy.deepcopy(config).validate(),

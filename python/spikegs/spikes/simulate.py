@@ -26,7 +26,7 @@ import numpy as np
 from scipy.special import ndtri
 
 from .. import _C
-from ..number_checks import as_flag, is_int, is_number, is_seed, number_array
+from ..number_checks import as_flag, is_int, is_number, is_seed, number_array, past_float
 from .stream import DatWriter, PathLike, SpikeStream, check_chunk
 
 _CORE_DEFAULTS = _C.SimParams()
@@ -81,8 +81,7 @@ class SimParams:
                     value = float(value)
                 except OverflowError:  # (10**400: float()'s message named no field)
                     raise ValueError(
-                        f"SimParams {field.name}: expected a number, found a "
-                        f"{len(str(abs(value)))}-digit integer, beyond a float's range"
+                        f"SimParams {field.name}: expected a number, found {past_float(value)}"
                     ) from None
             object.__setattr__(self, field.name, value)  # (frozen)
         _C.SpikeSimulator(1, 1, self.to_core(), 0)  # validates the ranges
