@@ -764,22 +764,24 @@ def test_bench_poses_trains_the_true_poses_once_and_measures_the_noise_it_added(
     monkeypatch.setattr(poses, "QUICK", setup)
     errors, measure = [], poses.refined_pose_errors  # each seed's errors of each training view
 
-    def measured(*args):
-        errors.append(measure(*args))
-        return errors[-1]
+    def measured(*args):  # the views' errors after refinement set: 7 of 10 better, 3 worse
+        error = measure(*args)
+        before = error["rotation_deg_before"]
+        better = np.arange(len(before)) < round(0.7 * len(before))
+        error["rotation_deg_after"] = np.where(better, before / 2, before * 2)
+        errors.append(error)
+        return error
 
     monkeypatch.setattr(poses, "refined_pose_errors", measured)
     results = poses.run(True, tmp_path)
     runs, rows = results["runs"], results["rows"]
     assert [len(runs[c]) for c in poses.CONDITIONS] == [1, 2, 2]
-    shares = []  # each run's share of views improved
     for run, error in zip(runs[poses.CONDITIONS[2]], errors):
         assert run["rotation_deg_after"] == np.median(error["rotation_deg_after"])
-        shares.append(np.mean(error["rotation_deg_after"] < error["rotation_deg_before"]))
-        assert run["views_improved"] == shares[-1]
-    # a share other than 0.5 tells it from its complement (one run's was 0.5 on a CPU whose
-    # float code trains otherwise: 5 of 10 views)
-    assert shares != [0.5] * len(shares), shares
+        # set, not trained: a share other than 0.5, which its complement is not (training's own
+        # was exactly 5 of 10 on one CPU, where this asked for another share of it)
+        improved = np.mean(error["rotation_deg_after"] < error["rotation_deg_before"])
+        assert run["views_improved"] == improved == pytest.approx(0.7, abs=0.05)
     refined = rows[2]
     assert refined["rotation_deg_before"] == pytest.approx(poses.NOISE_DEG, rel=1e-6)
     assert refined["centre_before"] == pytest.approx(poses.NOISE_TRANSLATION, rel=1e-6)
