@@ -225,3 +225,7 @@ def test_a_scale_leaving_a_side_under_one_or_over_the_most_pixels_is_refused(sca
         scaled_size(SIDE, SIDE, scale)
     assert scaled_size(SIDE, 2 * SIDE, MAX_SIDE / (2 * SIDE)) == (MAX_SIDE // 2, MAX_SIDE)
     assert scaled_size(SIDE, 2 * SIDE, 1 / SIDE) == (1, 2)  # each end of the range is a side
+    # halves round up, as both sides do: half to even made 5x7 at 0.5 render 2x4 (a 5 and a 3
+    # both 2), and refused 64x1 as 32x0
+    assert scaled_size(5, 7, 0.5) == (3, 4) and scaled_size(3, 3, 0.5) == (2, 2)
+    assert scaled_size(64, 1, 0.5) == (32, 1)

@@ -45,11 +45,13 @@ class Camera:
 
 
 def scaled_size(width: int, height: int, scale: float) -> tuple[int, int]:
-    """(width, height) `scale` times a `width`×`height` image's, rounded; ValueError where a side
-    would be under 1 or over MAX_SIDE pixels."""
-    # (1e308: inf, which round() raised on)
+    """(width, height) `scale` times a `width`×`height` image's, each rounded half up (round()'s
+    half to even made 5x7 at 0.5 render 2x4, a 3 and a 5 both 2, and 64x1 refused as 32x0);
+    ValueError where a side would be under 1 or over MAX_SIDE pixels."""
+    # (1e308: inf, which rounding raised on)
     size = [
-        round(side) if math.isfinite(side) else side for side in (width * scale, height * scale)
+        math.floor(side + 0.5) if math.isfinite(side) else side
+        for side in (width * scale, height * scale)
     ]
     if not all(1 <= side <= MAX_SIDE for side in size):
         raise ValueError(
