@@ -265,6 +265,48 @@ def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsy
     assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
 
 
+@pytest.mark.parametrize(
+    "entry", [["-c", "from spikegs.cli import console; console()"], ["-m", "spikegs"]]
+)
+def test_a_ctrl_c_while_the_package_imports_torch_says_interrupted(tmp_path, entry):
+    """Ctrl-C in a command's first ~2 s, while the package imported torch (before `console` could
+    set any handler: the console script imports the package first), printed Python's
+    traceback through torch's import, a third time reported."""
+    (tmp_path / "sitecustomize.py").write_text(
+        "import sys\n"
+        "class StopAtTorch:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'torch':\n"
+        "            raise KeyboardInterrupt\n"
+        "sys.meta_path.insert(0, StopAtTorch())\n"
+    )
+    path = os.pathsep.join([str(tmp_path), *sys.path])
+    command = [sys.executable, *entry, "--version"]
+    done = subprocess.run(
+        command, env={**os.environ, "PYTHONPATH": path}, capture_output=True, text=True
+    )
+    assert (done.returncode, done.stderr) == (-signal.SIGINT, "interrupted\n")
+
+
+def test_the_import_hook_passes_other_errors_on_and_is_gone_once_loaded():
+    """The package's import puts back the hook it replaced; one left by a Ctrl-C passes other
+    errors to the hook it replaced."""
+    from spikegs.interrupt import ImportInterrupted
+
+    assert not isinstance(sys.excepthook, ImportInterrupted)
+    before, seen = sys.excepthook, []
+    sys.excepthook = lambda *error: seen.append(error[0])
+    try:
+        with pytest.raises(KeyboardInterrupt), ImportInterrupted():
+            raise KeyboardInterrupt
+        hook = sys.excepthook
+        assert isinstance(hook, ImportInterrupted)  # left for the top level to call
+        hook(ValueError, ValueError("bad"), None)
+        assert seen == [ValueError] and sys.excepthook is not hook
+    finally:
+        sys.excepthook = before
+
+
 def test_a_ctrl_c_in_code_run_from_a_string_exits_130_under_python_m(tmp_path):
     """A Ctrl-C landing in code Python runs from a string (a dataclass's generated __init__, a
     namedtuple's __new__, which modules imported mid-command define) marks it unhandled for the

@@ -2,6 +2,8 @@
 
 import os
 
+from .interrupt import ImportInterrupted
+
 try:  # torch's oneMKL ends the process where it is gone, with a broken install's message
     os.getcwd()
 except FileNotFoundError:
@@ -10,20 +12,22 @@ except FileNotFoundError:
         "load ('Intel oneMKL FATAL ERROR: Cannot load libtorch_cpu.so'): cd to one that exists"
     ) from None
 
-from . import thread_count  # a CPU quota's threads in OMP_NUM_THREADS, before torch loads
+with ImportInterrupted():  # a Ctrl-C while the package loads (torch): no traceback
+    from . import thread_count  # a CPU quota's threads in OMP_NUM_THREADS, before torch loads
 
-# torch and spikegs._C may each bring an OpenMP runtime (a torch wheel whose libgomp has another
-# name; torch 2.13's CPU wheel and _C share one libgomp.so.1); threads of one spinning after a
-# parallel region starve the other on a small machine (fwd+bwd 2.6x slower measured on 2 cores).
-# Set before torch is imported only: a script that imports torch first keeps torch's policy.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    # torch and spikegs._C may each bring an OpenMP runtime (a torch wheel whose libgomp has
+    # another name; torch 2.13's CPU wheel and _C share one libgomp.so.1); threads of one
+    # spinning after a parallel region starve the other on a small machine (fwd+bwd 2.6x slower
+    # measured on 2 cores). Set before torch is imported only: a script that imports torch
+    # first keeps torch's policy.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-import torch
+    import torch
 
-from . import _C
-from .rasterize import RasterizeResult, rasterize
-from .sim import SIM
-from .spikes import SimParams, SpikeStream, save_dat, simulate_spikes
+    from . import _C
+    from .rasterize import RasterizeResult, rasterize
+    from .sim import SIM
+    from .spikes import SimParams, SpikeStream, save_dat, simulate_spikes
 
 
 def _one_thread_after_fork() -> None:

@@ -286,8 +286,8 @@ def console() -> None:
     ignores it). Once stopped, further signals are ignored while the interpreter exits (a
     second Ctrl-C, pressed as people do, printed 'Exception ignored in atexit callback ...
     KeyboardInterrupt' from its clean-up). A Ctrl-C while the command's modules import says
-    'interrupted' too, not a traceback (one during the package's own import, torch's, before
-    this runs, still ends in Python's traceback). A command that finished ignores them too: a
+    'interrupted' too, not a traceback (as one during the package's own import, torch's, before
+    this runs: `ImportInterrupted`). A command that finished ignores them too: a
     signal landing in the interpreter's exit (about a second, torch's teardown) replaced the
     status it earned (0) with a kill. A character the output's codec lacks (θ, µ or — through a
     Latin-1 or ASCII stdout) prints escaped (as Python's stderr does), not as a

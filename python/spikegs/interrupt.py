@@ -59,6 +59,35 @@ def say(message: str) -> OSError | None:
     return None
 
 
+class ImportInterrupted:
+    """A block of the package's imports (torch's and its core's: about 2 s at a command's start,
+    before any handler of the `spikegs` command can be set, its console script importing the
+    package first) whose Ctrl-C, left to the top level, says 'interrupted' as one later does,
+    not a 30-60-line traceback through torch's import (the exit status stays Python's for an
+    unhandled Ctrl-C). It is `sys.excepthook` within the block, and after it while a Ctrl-C
+    leaves it; once called, the hook it replaced is back, and gets any other exception."""
+
+    def __enter__(self):
+        self.previous = sys.excepthook
+        sys.excepthook = self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        if kind is None or not issubclass(kind, KeyboardInterrupt):
+            self._restore()
+
+    def __call__(self, kind, value, traceback) -> None:
+        self._restore()
+        if issubclass(kind, KeyboardInterrupt):
+            say("interrupted")
+        else:
+            self.previous(kind, value, traceback)
+
+    def _restore(self) -> None:
+        """Put back the hook replaced, unless another replaced this one since."""
+        if sys.excepthook is self:
+            sys.excepthook = self.previous
+
+
 def output_gone(err: OSError) -> bool:
     """Whether `err` says that an output stream is gone: its reader left (EPIPE), its terminal
     closed (EIO)."""
