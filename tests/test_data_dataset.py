@@ -705,6 +705,14 @@ def _edited_copy(small, root: Path, name: str, edit) -> Path:
     return root
 
 
+def _microsecond_poses(text: str) -> str:
+    """trajectory.json's text with each pose's readout in µs (x 25)."""
+    doc = json.loads(text)
+    for frame in doc["frames"]:
+        frame["readout"] *= 25
+    return json.dumps(doc)
+
+
 def _far_poses(text: str) -> str:
     """trajectory.json's text with every camera 1e300 units along x."""
     doc = json.loads(text)
@@ -957,6 +965,14 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             lambda t: t + "5\n",
             r"expected timestamps within \[32, .*found \[5\]",
         ),
+        # the clock in µs: readouts past the end, named as such, not as a stray line
+        "timestamps in µs": (
+            "train_timestamps.txt",
+            lambda t: "".join(f"{25 * int(k)}\n" for k in t.split()),
+            r"found \[\d+, .*\]\. Readouts in µs\? .*25 µs apart: divided by 25, the last",
+        ),
+        # trained on the poses' first 1/25, warned of as 'a pose log that ran on'
+        "poses in µs": ("trajectory.json", _microsecond_poses, r"Readouts in µs\? .*25 µs apart"),
     }
     for case, (name, edit, message) in cases.items():
         with warnings.catch_warnings():

@@ -1044,6 +1044,9 @@ def test_llff_stream_frame_size_errors(sim, llff_stream, tmp_path):
     np.savetxt(root / "readouts.txt", readouts + 50100, fmt="%d")  # the camera's own counter
     with pytest.raises(ValueError, match=r"the first at 50100\): readouts.txt holds 0-based"):
         load_dataset(root)
+    np.savetxt(root / "readouts.txt", readouts * 25, fmt="%d")  # a clock in µs
+    with pytest.raises(ValueError, match=r"up to readout \d+\. Readouts in µs\? They are readout"):
+        load_dataset(root)  # (it asked for the spikes' frame size first)
     np.savetxt(root / "readouts.txt", readouts - readouts[0] - 5, fmt="%d")  # a negative first
     with pytest.raises(ValueError, match=r"readouts.txt: pose readouts span \[-5, "):  # (it named
         load_dataset(root)  # poses_bounds.npy)

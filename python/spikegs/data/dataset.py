@@ -949,6 +949,12 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
             f"expected [0, {num - 1}] (poses for part of a recording: the LLFF layout, one "
             f"spikes.dat with readouts.txt; docs/datasets.md)"
         )
+    in_us = microseconds_hint(trajectory.end, num)
+    if in_us:  # (as a pose log that ran on, it trained the stream on its first 1/25 unsaid)
+        raise ValueError(
+            f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start:g}, "
+            f"{trajectory.end:g}], the stream holds {num}.{in_us}"
+        )
     if trajectory.end > num - 1:  # a pose log that ran on, or a stream cut short: said
         warnings.warn(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start:g}, "
@@ -965,7 +971,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
         raise ValueError(
             f"{root / TIMESTAMPS}: expected timestamps within [{lo}, {hi}] (a "
             f"{2 * WINDOW_MARGIN + 1}-readout window around each inside the stream's {num}), "
-            f"found {outside[:5].tolist()}"
+            f"found {outside[:5].tolist()}.{microseconds_hint(timestamps.max(), num)}"
         )
     from .real import warn_pose_gaps  # (real.py reads this module's names)
 
@@ -1194,6 +1200,21 @@ def read_timestamps(path: Path) -> np.ndarray:
         twice = unique[counts > 1][:5].astype(np.int64).tolist()
         raise ValueError(f"{path}: readouts listed twice: {twice}")
     return values.astype(np.int64)
+
+
+def microseconds_hint(last: float, num_readouts: int) -> str:
+    """Where readouts that reach `last` run past a stream of `num_readouts` as far as a clock in
+    µs would (read as µs, they span most of it), a sentence saying so; else "". A pose log or
+    timestamps in µs trained on the first 1/25 of the poses, said to be 'a pose log that ran on
+    after the recording'."""
+    period_us = READOUT_PERIOD_S * 1e6
+    if not (num_readouts - 1) / 2 <= last / period_us <= num_readouts - 0.5 < last:
+        return ""
+    return (
+        f" Readouts in µs? They are readout indices, {period_us:g} µs apart: divided by "
+        f"{period_us:g}, the last ({last:.10g}) is readout {last / period_us:.6g} of the "
+        f"stream's {num_readouts}."
+    )
 
 
 def _check_held_out(views: list[TestView], timestamps: np.ndarray, num: int, root: Path) -> None:

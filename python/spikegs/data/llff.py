@@ -22,7 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import Dataset, check_intrinsics, read_column, warn_rows_out_of_line
+from .dataset import (
+    Dataset,
+    check_intrinsics,
+    microseconds_hint,
+    read_column,
+    warn_rows_out_of_line,
+)
 from .real import (
     camera_meta,
     first_of,
@@ -283,7 +289,10 @@ def _check_stream_length(stream, readouts: np.ndarray, hwf: np.ndarray, options)
     if readouts[-1] <= end:
         return
     size = f"{stream.height}x{stream.width}"
-    if readouts[0] > end:  # every pose past the end: a counter, not an index
+    in_us = microseconds_hint(readouts[-1], len(stream))
+    if in_us:  # (the frame size was suggested first)
+        cause = in_us.lstrip()
+    elif readouts[0] > end:  # every pose past the end: a counter, not an index
         cause = (
             f"Every pose lies past the end (the first at {readout_number(readouts[0])}): "
             f"{READOUTS} holds 0-based readout indices into the spike file, not the camera's own "

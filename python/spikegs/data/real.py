@@ -32,6 +32,7 @@ from .dataset import (
     TestView,
     check_test_views,
     intrinsics_keys,
+    microseconds_hint,
     repeated,
     stated_scales,
 )
@@ -492,7 +493,7 @@ def stream_dataset(
         raise ValueError(
             f"{readouts_file}: pose readouts span [{trajectory.start:g}, {trajectory.end:g}], "
             f"outside [{first:g}, {last:g}], the light the stream's {len(stream)} readouts record "
-            f"({stream.path})"
+            f"({stream.path}).{microseconds_hint(trajectory.end, len(stream))}"
         )
     if trajectory.end - trajectory.start < 2 * WINDOW_MARGIN:
         cause = (
