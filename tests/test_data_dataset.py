@@ -1654,6 +1654,23 @@ def test_a_flip_stated_wrong_in_meta_json_is_warned_of(small, tmp_path):
         load_dataset(small.root)
 
 
+def test_a_dat_packed_most_significant_bit_first_is_warned_of_by_meta_json(small, tmp_path):
+    """Each byte's bits in the other order (np.packbits' default) read every frame scrambled
+    without a word in the meta.json layout (4.3 dB lower on a 48x64 `solids`), where its on-path
+    test images show it, as they show a wrong flip (the LLFF and NeRF layouts warned)."""
+    msb = tmp_path / "msb"
+    shutil.copytree(small.root, msb)
+    dat = msb / "spikes.dat"
+    bits = np.unpackbits(np.fromfile(dat, np.uint8), bitorder="little")
+    np.packbits(bits, bitorder="big").tofile(dat)
+    with pytest.warns(
+        UserWarning,
+        match=r"meta.json: the spikes match their views' sharp images better with each byte's "
+        r"bits read in the other order .* over 2 views\): the .dat files are likely written most",
+    ):
+        load_dataset(msb)
+
+
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_a_recording_read_with_height_and_width_swapped_is_warned_of(scene, tmp_path):
     """Height and width swapped give frames of as many bytes: the spikes were read without a

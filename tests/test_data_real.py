@@ -35,10 +35,9 @@ from spikegs.data.llff import (
     viewmats_from_llff,
 )
 from spikegs.data.nerf_layout import _spike_candidates
-from spikegs.data.orientation import other_bit_order
+from spikegs.data.orientation import check_orientation, other_bit_order
 from spikegs.data.real import (
     _spaced_hold_out,
-    check_orientation,
     first_of,
     held_out_mask,
     rate_from_images,
@@ -46,7 +45,7 @@ from spikegs.data.real import (
     view_tfps,
     warn_pose_gaps,
 )
-from spikegs.data.real_options import Options, open_spikes, read_options
+from spikegs.data.real_options import OPTIONS_FILE, Options, open_spikes, read_options
 from spikegs.data.trajectory import Trajectory, look_at
 from spikegs.data.transforms_file import OPENGL_TO_OPENCV
 from spikegs.data.view_stream import ViewStreams
@@ -1984,22 +1983,22 @@ def test_spikes_upside_down_against_their_images_warn_of_flip():
     image = (rows / 11 + 0.3 * (cols > 10))[..., None]  # dark top, bright bottom, a right stripe
     upside_down = [(image[::-1, :, 0] * 0.25, image)] * 3
     with pytest.warns(UserWarning, match="better upside down"):
-        check_orientation(upside_down, Options(), "x")
+        check_orientation(upside_down, True, "x", OPTIONS_FILE)
     mirrored = [(image[:, ::-1, 0] * 0.25, image)] * 3
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_orientation(mirrored, Options(), "x")
+        check_orientation(mirrored, True, "x", OPTIONS_FILE)
     # a .dat packed most significant bit first: each byte's 8 pixels reversed (a 48x64 view of
     # solids correlated at 0.57 so, above MATCH_MIN: loaded unsaid before)
     texture = np.random.default_rng(1).random((12, 16, 1))
     for flip in (True, False):
         packed_msb = [(other_bit_order(texture[..., 0], flip) * 0.25, texture)] * 3
         with pytest.warns(UserWarning, match=r"bits read in the other order .* most significant"):
-            check_orientation(packed_msb, Options(flip=flip), "x")
+            check_orientation(packed_msb, flip, "x", OPTIONS_FILE)
     # spikes that match neither way up (another pixel order, say)
     scrambled = np.random.default_rng(0).permutation(image.reshape(-1)).reshape(image.shape)
     with pytest.warns(UserWarning, match=r"hardly match .* \(median correlation -?0\.\d\d over 3"):
-        check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, Options(), "x")
+        check_orientation([(scrambled[..., 0] * 0.25, image)] * 3, True, "x", OPTIONS_FILE)
 
 
 def test_correlation_refuses_images_of_two_shapes():
@@ -2026,11 +2025,11 @@ def test_flip_warning_needs_most_views_to_match_upside_down_by_a_margin():
         return np.cos(t) * flat + np.sin(t) * flat[::-1], image
 
     with pytest.warns(UserWarning, match="better upside down"):
-        check_orientation([view(60)] * 3, Options(), "x")
+        check_orientation([view(60)] * 3, True, "x", OPTIONS_FILE)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        check_orientation([view(49)] * 3, Options(), "x")
-        check_orientation([view(60), view(30)], Options(), "x")  # one view of two
+        check_orientation([view(49)] * 3, True, "x", OPTIONS_FILE)
+        check_orientation([view(60), view(30)], True, "x", OPTIONS_FILE)  # one view of two
 
 
 def test_a_view_of_the_longest_window_loads_and_one_readout_less_is_refused(sim, llff, tmp_path):

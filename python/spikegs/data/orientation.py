@@ -51,3 +51,56 @@ def other_bit_order(image: np.ndarray, flip: bool) -> np.ndarray:
     reordered[whole] = stored[whole - whole % 8 + 7 - whole % 8]
     reordered = reordered.reshape(image.shape)
     return reordered[::-1] if flip else reordered
+
+
+MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images under this is warned
+# of (0.99 for a well-read view; 0.25 to 0.57 for a .dat packed most significant bit first, which
+# the other bit order's reading names)
+
+
+def check_orientation(
+    views: Iterable[tuple[np.ndarray, np.ndarray]],
+    flip: bool,
+    source: str,
+    settings: str,
+    raw_width: int | None = None,
+    col_offset: int = 0,
+) -> None:
+    """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] better with
+    each byte's bits in the other order (`other_bit_order`, where the stored rows are the
+    frame's: no `raw_width` other than its width, no `col_offset`), or upside down
+    (`warn_if_upside_down`), than as read, by FLIP_MARGIN in most views: the .dat's bit order,
+    or `flip` (stated in `settings`), is likely wrong and the scene would train scrambled or
+    upside down; and when they match neither way (median correlation under MATCH_MIN): the
+    spikes are not read as the images show them. Flat images (a black view) are left out."""
+    pairs, reordered = [], []  # per view: (as read, upside down); the other bit order's best
+    for tfp, image in views:
+        if np.ptp(image) == 0:  # a flat image (black) matches no way up
+            continue
+        pairs += orientation_pairs([(tfp, image)])
+        if raw_width in (None, tfp.shape[1]) and col_offset == 0:
+            (other,) = orientation_pairs([(other_bit_order(tfp, flip), image)])
+            reordered.append(max(other))  # the better way up
+    better = [other - max(pair) > FLIP_MARGIN for other, pair in zip(reordered, pairs)]
+    if better and sum(better) > len(better) / 2:
+        warnings.warn(
+            f"{source}: the spikes match their views' sharp images better with each byte's bits "
+            f"read in the other order (median correlation {np.median(reordered):.2f} against "
+            f"{np.median([max(pair) for pair in pairs]):.2f} as read, over {len(pairs)} views): "
+            f"the .dat files are likely written most significant bit first (np.packbits' "
+            f"default), where the least significant bit comes first (np.packbits(..., "
+            f"bitorder='little'))",
+            stacklevel=3,
+        )
+        return
+    best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
+    if best < MATCH_MIN:
+        warnings.warn(
+            f"{source}: the spikes hardly match their views' sharp images (median correlation "
+            f"{best:.2f} over {len(pairs)} views, either way up): a .dat written in another bit "
+            f"order (least significant bit first expected) or pixel order, the wrong frame size "
+            f"(height, width, raw_width, col_offset in {settings}), or images of other views?",
+            stacklevel=3,
+        )
+        return
+    warn_if_upside_down(pairs, flip, source, settings, stacklevel=3)

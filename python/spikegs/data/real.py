@@ -36,7 +36,7 @@ from .dataset import (
     repeated,
     stated_scales,
 )
-from .orientation import FLIP_MARGIN, orientation_pairs, other_bit_order, warn_if_upside_down
+from .orientation import check_orientation
 from .real_options import OPTIONS_FILE, Options
 from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory, readout_number
@@ -283,47 +283,6 @@ def rate_from_images(views: Iterable[tuple[np.ndarray, np.ndarray]], source: str
 
 ORIENTATION_VIEWS = 8  # sharp images read for the check: training views' where none calibrates,
 # and held-out views' with spikes
-MATCH_MIN = 0.5  # a median correlation of the spikes with their sharp images under this is warned
-# of (0.99 for a well-read view; 0.25 to 0.57 for a .dat packed most significant bit first, which
-# the other bit order's reading names)
-
-
-def check_orientation(views: Iterable[tuple[np.ndarray, np.ndarray]], options, source: str):
-    """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] (`view_tfps`)
-    better with each byte's bits in the other order (`other_bit_order`, stored rows of the
-    frame's width), or upside down (`warn_if_upside_down`), than as read, by FLIP_MARGIN in most
-    views: the .dat's bit order, or `options.flip`, is likely wrong and the scene would train
-    scrambled or upside down; and when they match neither way (median correlation under
-    MATCH_MIN): the spikes are not read as the images show them."""
-    pairs, reordered = [], []  # per view: (as read, upside down); the other bit order's best
-    for tfp, image in views:
-        pairs += orientation_pairs([(tfp, image)])
-        if options.raw_width in (None, tfp.shape[1]) and options.col_offset == 0:
-            (other,) = orientation_pairs([(other_bit_order(tfp, options.flip), image)])
-            reordered.append(max(other))  # the better way up
-    better = [other - max(pair) > FLIP_MARGIN for other, pair in zip(reordered, pairs)]
-    if better and sum(better) > len(better) / 2:
-        warnings.warn(
-            f"{source}: the spikes match their views' sharp images better with each byte's bits "
-            f"read in the other order (median correlation {np.median(reordered):.2f} against "
-            f"{np.median([max(pair) for pair in pairs]):.2f} as read, over {len(pairs)} views): "
-            f"the .dat files are likely written most significant bit first (np.packbits' "
-            f"default), where the least significant bit comes first (np.packbits(..., "
-            f"bitorder='little'))",
-            stacklevel=3,
-        )
-        return
-    best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
-    if best < MATCH_MIN:
-        warnings.warn(
-            f"{source}: the spikes hardly match their views' sharp images (median correlation "
-            f"{best:.2f} over {len(pairs)} views, either way up): a .dat written in another bit "
-            f"order (least significant bit first expected) or pixel order, the wrong frame size "
-            f"(height, width, raw_width, col_offset in {OPTIONS_FILE}), or images of other views?",
-            stacklevel=3,
-        )
-        return
-    warn_if_upside_down(pairs, options.flip, source, OPTIONS_FILE, stacklevel=3)
 
 
 def views_dataset(
@@ -390,7 +349,9 @@ def views_dataset(
     sharp = [i for i in present if not test[i] and images[i] is not None]
     held = [i for i in present if test[i] and images[i] is not None][:ORIENTATION_VIEWS]
     checked = view_tfps((streams[i], images[i]) for i in sharp + held)
-    check_orientation(checked, options, source)
+    check_orientation(
+        checked, options.flip, source, OPTIONS_FILE, options.raw_width, options.col_offset
+    )
     if sharp and "rate_at_one" not in meta:
         tfps = view_tfps((streams[i], images[i]) for i in sharp)
         meta["rate_at_one"] = rate_from_images(tfps, source)
