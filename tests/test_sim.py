@@ -523,8 +523,14 @@ def test_sim_saves_its_state_on_ctrl_c(tmp_path, capsys, scene, trained, ctrl_c)
     ts = valid_timestamps(stream, 33)
     with pytest.raises(KeyboardInterrupt):  # the 30 s have not passed: saved for the Ctrl-C
         train_or_load(path, _SigInt(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
-    assert "SIM's training stops after this step" in capsys.readouterr().err
+    assert "SIM's training stops after this step, its state saved" in capsys.readouterr().err
     assert torch.load(path.with_name("sim.pt.partial"), weights_only=True)["step"] == 13
+    # without a checkpoint (bench sim's) no state is saved, nor said to be
+    with pytest.raises(KeyboardInterrupt):
+        train_sim(_SigInt(stream, 12 * TRAIN["batch_size"] + 1), ts, 33, seed=3, **TRAIN)
+    assert (
+        capsys.readouterr().err.strip().startswith("Ctrl-C: SIM's training stops after this step (")
+    )
     resumed, _, _ = train_or_load(path, stream, ts, 33, seed=3, **TRAIN)
     for a, b in zip(resumed.state_dict().values(), trained[0].state_dict().values()):
         assert torch.equal(a, b)

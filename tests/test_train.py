@@ -713,6 +713,22 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
+@pytest.mark.parametrize("resumable", [True, False])
+def test_a_ctrl_c_promises_resume_only_where_one_can_resume(
+    dataset, tmp_path, monkeypatch, capsys, ctrl_c, resumable
+):
+    """A benchmark's run, trained afresh each time (`bench train` has no --resume and deletes
+    the run), said it stopped 'with a checkpoint to --resume from'."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 60}})
+    _interrupt_during(Densifier, "step", 40, monkeypatch, signals=1)
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=False, resumable=resumable)
+    with pytest.raises(KeyboardInterrupt):
+        trainer.train()
+    err = capsys.readouterr().err
+    assert "Ctrl-C: stopping after this step" in err
+    assert ("with a checkpoint to --resume from" in err) == resumable, err
+
+
 @pytest.mark.parametrize(
     "signum, status, said",
     [(signal.SIGTERM, 143, "terminated"), pytest.param(HANGUP, 129, "hung up", marks=NO_HANGUP)],

@@ -178,7 +178,8 @@ def train_sim(
         }
         save_atomically(state, checkpoint)
 
-    message = "\n{signal}: SIM's training stops after this step, its state saved"
+    kept = ", its state saved" if checkpoint is not None else ""  # (bench sim's keeps none)
+    message = "\n{signal}: SIM's training stops after this step" + kept
     # (the bar's output gone at its close: the steps are done, the caller's output says so)
     with deferred_interrupt(message, " (again: at once)") as interrupted, quiet_close(bar):
         for step in range(first, steps):

@@ -153,9 +153,13 @@ class Trainer:
         run_dir: str | Path,
         progress: bool = True,
         settings_file: Path | None = None,
+        resumable: bool = True,
     ):
         check_dataset(dataset, "Trainer")
         progress = as_flag("Trainer: progress", progress)  # ("no" drew the bar)
+        # False where the caller trains the run afresh each time (the benchmarks): a Ctrl-C's
+        # message then promises no --resume, which they have not
+        self.resumable = as_flag("Trainer: resumable", resumable)
         if not isinstance(config, Config):  # (a dict: "'dict' object has no attribute 'validate'")
             raise TypeError(
                 f"Trainer: config expected a Config (spikegs.config.load_config(METHOD, "
@@ -819,7 +823,9 @@ class Trainer:
         self.seconds_left = float("nan")
         self._paced = None  # (iteration, train_seconds) at the previous evaluation
         self.loss_terms: dict[str, float] = {}  # the last step's unweighted terms, for the log
-        stop_message = "\n{signal}: stopping after this step, with a checkpoint to --resume from"
+        stop_message = "\n{signal}: stopping after this step" + (
+            ", with a checkpoint to --resume from" if self.resumable else ""
+        )
         again = " ({signal} again stops at once, keeping the last checkpoint)"
         gone = None  # the progress output's loss (its reader left, its terminal closed)
         with deferred_interrupt(stop_message, again) as interrupted:

@@ -50,12 +50,28 @@ def median_seconds(fn: Callable[[], Any], repeats: int = 5, warmup: int = 1) -> 
     return statistics.median(times)
 
 
-def write_results(out_dir: Path, name: str, results: dict[str, Any]) -> Path:
-    """Write `results` (plus the machine description) to `out_dir/name.json`."""
+def median_ratio(
+    numerator: Callable[[], Any], denominator: Callable[[], Any], repeats: int = 5
+) -> float:
+    """Median over `repeats` pairs, timed in turn after one untimed call of each, of
+    `numerator()`'s seconds over `denominator()`'s: a ratio the machine's load moves less than
+    two medians timed apart do (an anti-aliasing cost of about 1 measured 0.35 to 2.08 so)."""
+    numerator(), denominator()
+    ratios = []
+    for _ in range(repeats):
+        top = median_seconds(numerator, repeats=1, warmup=0)
+        ratios.append(top / median_seconds(denominator, repeats=1, warmup=0))
+    return statistics.median(ratios)
+
+
+def write_results(out_dir: Path, name: str, results: dict[str, Any], quick: bool) -> Path:
+    """Write `results` (plus the machine description, and whether `quick`: a check that the
+    bench runs, whose figures are no measurement) to `out_dir/name.json`."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.json"
     # the load at the end, the bench's own threads included (a snapshot, where a bench has none)
-    payload = {"benchmark": name, "machine": environment(), "load_average": os.getloadavg()}
+    payload = {"benchmark": name, "quick": quick, "machine": environment()}
+    payload["load_average"] = os.getloadavg()
     payload.update(results)
     write_text_atomically(path, strict_json.dumps(payload, indent=2))
     return path

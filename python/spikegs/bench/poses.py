@@ -108,7 +108,8 @@ def _run(dataset, setup: dict, quick: bool, refine: bool, run_dir: Path) -> tupl
     """Train `setup`'s method on `dataset` and score it on the test views (true poses)."""
     overrides = schedule(setup["iterations"], quick)
     overrides["pose_refine"] = {"enabled": refine}  # its default learning rate
-    trainer = Trainer(dataset, load_config(setup["method"], overrides), run_dir, progress=False)
+    config = load_config(setup["method"], overrides)
+    trainer = Trainer(dataset, config, run_dir, progress=False, resumable=False)
     summary = trainer.train()
     result = evaluate_run(run_dir, dataset, write_images=False)
     scores = {k: result[k] for k in ("psnr", "ssim", "gaussians")}
@@ -193,7 +194,7 @@ def run(quick: bool, out: Path) -> dict:
         f"solids {setup['size']}x{setup['size']}, {len(dataset.train_timestamps)} training views, "
         f"{setup['method']}, {setup['iterations']} iterations, noise {NOISE_DEG} deg + "
         f"{NOISE_TRANSLATION:.0%} radius every {KEYFRAME_EVERY} readouts, median of "
-        f"{setup['repeats']} noise seeds"
+        f"{setup['repeats']} noise seed{'s' * (setup['repeats'] > 1)}"
     )
     print_table(rows, COLUMNS)
     print(f"refinement recovers {recovered:.0%} of the PSNR lost to pose noise")
@@ -209,6 +210,6 @@ def run(quick: bool, out: Path) -> dict:
         "runs": runs,
         "psnr_recovered_fraction": recovered,
     }
-    write_results(out, "poses", results)
+    write_results(out, "poses", results, quick)
     _plot(rows, errors, setup, out / "poses.png")
     return results

@@ -165,6 +165,7 @@ def run(quick: bool, out: Path, progress: bool = False) -> dict:
     print(f"SIM: {model.num_parameters()} parameters")
     print_table(training)
     print_table(quality)
+    print(f"inference at {size[0]}x{size[1]} (height x width):")
     print_table(fps_rows)
     print_table(step_rows)
     for scene, gain in gains.items():
@@ -181,5 +182,5 @@ def run(quick: bool, out: Path, progress: bool = False) -> dict:
         "inference": {"height": size[0], "width": size[1], "rows": fps_rows},
         "train_step": step_rows,
     }
-    write_results(out, "sim", results)
+    write_results(out, "sim", results, quick)
     return results

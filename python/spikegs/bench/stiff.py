@@ -314,5 +314,5 @@ def run(quick: bool, out: Path) -> dict:
         "cases": rows,
         "failures": failures,  # `spikegs bench` exits 1 where there are any
     }
-    write_results(out, "stiff", results)
+    write_results(out, "stiff", results, quick)
     return results

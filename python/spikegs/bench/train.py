@@ -67,6 +67,12 @@ QUICK_DATA = {"height": 64, "width": 64, "readouts": 600, "test_on_path": 2, "te
 QUICK_SIM_ITERATIONS = 20
 
 
+def evaluations(iterations: int) -> int:
+    """The evaluations of a run of `iterations` on `schedule`'s: every ⌈iterations / POINTS⌉
+    iterations and the last (POINTS, or fewer for a run of fewer iterations: 3 of 3)."""
+    return math.ceil(iterations / math.ceil(iterations / POINTS))
+
+
 def schedule(iterations: int, quick: bool, grad_threshold: float | None = None) -> dict:
     """Config overrides: the demo's schedule with its densification stretched to `iterations`,
     evaluated at POINTS regular iterations, one checkpoint at the end; `grad_threshold` replaces
@@ -146,7 +152,8 @@ def train_method(dataset, config: Config, run_dir: Path) -> dict:
         scores = held_out_scores(trainer, tuple(SSIMS) if final else ("ssim",))
         curve.append({**point, **scores, "gaussians": len(trainer.model)})
 
-    summary = Trainer(dataset, config, run_dir, progress=False).train(on_eval=record)
+    trainer = Trainer(dataset, config, run_dir, progress=False, resumable=False)
+    summary = trainer.train(on_eval=record)
     return {
         "psnr": curve[-1]["psnr"],
         "ssim": curve[-1]["ssim"],
@@ -265,6 +272,29 @@ def ablation_line(methods: dict) -> str | None:
     else:
         order += f" (means over {seeds} seeds)"
     return f"paper's ablation order (both > only instant > only exposure): {order}"
+
+
+def equal_time_margins(methods: dict) -> dict[str, dict]:
+    """SpikeGS's PSNR margin over each baseline trained at equal time and over its equal-time
+    run, seed by seed (`paired_gains`): name -> {"mean", "std"}; {} where none was trained."""
+    names = [m for b in BASELINES if b + EQUAL_TIME in methods for m in (b, b + EQUAL_TIME)]
+    return {name: paired_gains(methods, name)["spikegs"] for name in names}
+
+
+def equal_time_lines(methods: dict, margins: dict[str, dict]) -> list[str]:
+    """The printed margins of `equal_time_margins`: each baseline's at equal iterations and at
+    equal time, with the seconds that time reached against SpikeGS's budget (medians)."""
+    lines = []
+    for name in [m for m in margins if m.endswith(EQUAL_TIME)]:
+        budget = methods["spikegs"]["train_seconds"] + methods["spikegs"]["sim_seconds"]
+        base = name.removesuffix(EQUAL_TIME)
+        at = {m: f"{margins[m]['mean']:+.2f}" for m in (base, name)}
+        lines.append(
+            f"SpikeGS's margin over {base}: {at[base]} dB at equal iterations, {at[name]} dB at "
+            f"equal time ({name}: {methods[name]['iterations']} iterations in "
+            f"{methods[name]['train_seconds']:.1f} s, SpikeGS {budget:.1f} s with SIM's training)"
+        )
+    return lines
 
 
 def _table(methods: dict, gains: dict[str, dict], iterations: bool = False) -> list[dict]:
@@ -409,6 +439,7 @@ def run(
             "wall_seconds": wall,
             "methods": runs,
             "gain_over_tfp33_db": paired_gains(runs),
+            "spikegs_margin_db": equal_time_margins(runs),
             "ablation_order": order,
             "ablation_order_seeds": ablation_seeds(runs),
         }
@@ -425,6 +456,8 @@ def run(
             )
         if order is not None:
             print(ablation_line(runs))
+        for line in equal_time_lines(runs, results[scene]["spikegs_margin_db"]):
+            print(line)
         views = f"mean over the {len(dataset.test_views)} test views, seed 0's run"
         title = f"{scene} {size}, {length} per method{stretched}; {views}"
         save_curves(out / f"train_{scene}.png", runs, ("psnr", "ssim"), title)
@@ -439,7 +472,7 @@ def run(
         "equal_time": equal_time,
         "seeds": seeds,
         "schedule": overrides,
-        "points_per_run": POINTS,
+        "points_per_run": evaluations(iterations),
         "time_axis": "SIM methods: sim_seconds + train_seconds; others: train_seconds "
         "(the steps: updates, densification and each timestamp's targets made at its first visit; "
         "evaluations, checkpoints and SIM's training excluded)",
@@ -449,5 +482,5 @@ def run(
         "total_seconds": time.perf_counter() - start,
         "scenes": results,
     }
-    write_results(out, "train", payload)
+    write_results(out, "train", payload, quick)
     return payload
