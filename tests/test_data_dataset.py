@@ -1023,7 +1023,9 @@ def test_test_images_unlike_the_frame_and_binary_timestamps_are_named(tmp_path, 
 
     image = small.test_views[0].image  # [H, W, 1]
     for case, stored, message in [
-        ("narrow", image[:, :-1], r"on_000.exr: expected an image of shape \[\d+, \d+, 1\]"),
+        ("narrow", image[:, :-1], r"on_000.exr: expected an image of shape \[\d+, \d+, 1\] .*1\]$"),
+        # (it named the image, not meta.json, where height and width were swapped)
+        ("turned", image.transpose(1, 0, 2), r"\]: height and width swapped in meta.json\?"),
         ("alpha", np.concatenate([image] * 4, axis=2), "on_000.exr: a test view with an alpha"),
     ]:
         root = tmp_path / case

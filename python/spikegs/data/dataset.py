@@ -819,8 +819,11 @@ def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[Test
         # 8-bit files hold sRGB (write_image encodes them so): back to linear units
         image = srgb_to_linear(stored.colour) if stored.srgb else stored.colour  # [H, W, C]
         if image.shape != shape:
+            swapped = image.shape == (shape[1], shape[0], shape[2]) != shape
             raise ValueError(
-                f"{file}: expected an image of shape {list(shape)}, found {list(image.shape)}"
+                f"{file}: expected an image of shape {list(shape)} (height, width, channels of "
+                f"{META}), found {list(image.shape)}"
+                + (f": height and width swapped in {META}?" if swapped else "")
             )
         views.append(
             TestView(
