@@ -648,7 +648,11 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
 
     root = copy(llff, tmp_path / "nospikes")
     shutil.rmtree(root / "spikes")
-    with pytest.raises(FileNotFoundError, match="spikes/"):
+    with pytest.raises(FileNotFoundError, match=r"spikes/ .*readouts.txt$"):
+        load_dataset(root)
+    for channel in "rgb":  # a colour camera's files: said to be the meta.json layout's
+        (root / f"spikes_{channel}.dat").write_bytes(b"")
+    with pytest.raises(FileNotFoundError, match=r"\(spikes_r.dat, .*: a colour camera's files, wh"):
         load_dataset(root)
 
     root = copy(llff_stream, tmp_path / "noreadouts")

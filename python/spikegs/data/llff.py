@@ -27,6 +27,7 @@ from .dataset import (
     check_intrinsics,
     microseconds_hint,
     read_column,
+    spike_files,
     warn_rows_out_of_line,
 )
 from .real import (
@@ -370,9 +371,16 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         _warn_partial_span(stream, readouts, poses[0, :, 4])
         return dataset
     if not folder.is_dir():
+        colour = [name for name in spike_files(3) if (root / name).exists()]
         raise FileNotFoundError(
             f"spikes not found in {root}: expected {SPIKES_DIR}/ (one .dat per view) or {STREAM} "
             f"with {READOUTS}"
+            + (
+                f" ({', '.join(colour)}: a colour camera's files, which the meta.json layout "
+                f"reads; this layout is mono)"
+                if colour
+                else ""
+            )
         )
     files = _spike_files(folder, len(poses), source)
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
