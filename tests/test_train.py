@@ -2135,6 +2135,32 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
     assert main(["render", str(tmp_path / "run"), "--out", str(tmp_path / "p.gif")]) == 0
     assert (tmp_path / "p.gif").is_file()
     assert "cameras not written beside the video: " in capsys.readouterr().err
+    monkeypatch.undo()
+
+
+def test_a_stop_as_the_video_lands_waits_for_its_cameras(
+    dataset, tmp_path, capsys, monkeypatch, ctrl_c
+):
+    """A SIGTERM or Ctrl-C the moment a new video replaced an old one kept the old video's
+    cameras (60 frames at 48²) beside the new (400 at 192²): the stop waits for the new ones;
+    the frame count is printed after both files (a full stdout left the video without them)."""
+    from spikegs.render_cli import save_orbit
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    gif, render = tmp_path / "o.gif", ["render", str(tmp_path / "run")]
+    assert main([*render, "--out", str(gif), "--frames", "3"]) == 0
+
+    def stopped_as_it_lands(*args, **kwargs):  # the signal after the video, before its cameras
+        os.kill(os.getpid(), signal.SIGINT)
+        save_orbit(*args, **kwargs)
+
+    monkeypatch.setattr("spikegs.render_cli.save_orbit", stopped_as_it_lands)
+    capsys.readouterr()
+    assert main([*render, "--out", str(gif), "--frames", "5"]) == 130
+    assert len(json.loads(gif.with_name("o.gif.json").read_text())["frames"]) == 5
+    out, err = capsys.readouterr()
+    assert "Ctrl-C: stopping once the video's cameras are written" in err and out == ""
 
 
 @pytest.mark.parametrize("fps", [20, 24, 40])

@@ -20,6 +20,7 @@ from .cli import (
     show_bars,
 )
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
+from .interrupt import deferred_interrupt, interruption
 from .output_paths import check_file_output, check_utf8_name, record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
@@ -241,25 +242,33 @@ def run(args: argparse.Namespace) -> int:
     trained = read_summary(args.run).get("camera")  # (a run from before it: the dataset's)
     model = trained_model(args.run)
     frames = orbit_frames(model, dataset, viewmats, args.scale, trained)  # as written
-    write_video(args.out, frames, args.fps, count=len(viewmats))
-    count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
-    print(f"{count}, {PATH_TEXT[path]} -> {args.out}")
     cameras = record_beside(args.out)
-    try:  # (the video stands without it, as sim-train's table does)
-        save_orbit(
-            cameras,
-            viewmats,
-            dataset,
-            readouts,
-            video=args.out,
-            run=args.run,
-            fps=args.fps,
-            path=path,
-            scale=args.scale,
-        )
+    write_video(args.out, frames, args.fps, count=len(viewmats))
+    # the video's cameras written with it, not left a previous video's by a stop between the two
+    # (a SIGTERM as the new video landed kept the old 60 frames' cameras beside its 400)
+    stop = "\n{signal}: stopping once the video's cameras are written"
+    with deferred_interrupt(stop) as interrupted:
+        try:  # (the video stands without it, as sim-train's table does)
+            save_orbit(
+                cameras,
+                viewmats,
+                dataset,
+                readouts,
+                video=args.out,
+                run=args.run,
+                fps=args.fps,
+                path=path,
+                scale=args.scale,
+            )
+        except OSError as err:
+            cameras = None
+            print(f"cameras not written beside the video: {err}", file=sys.stderr)
+    if interrupted():
+        raise interruption(interrupted())
+    count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
+    print(f"{count}, {PATH_TEXT[path]} -> {args.out}")  # (after the files: a full stdout's error
+    if cameras is not None:  # left the video without its cameras)
         print(f"cameras: {cameras}")
-    except OSError as err:
-        print(f"cameras not written beside the video: {err}", file=sys.stderr)
     return 0
 
 
