@@ -96,15 +96,18 @@ class _Stderr:
         pass
 
 
-def test_saying_to_a_gone_stderr_returns_its_error_and_to_a_full_one_raises(monkeypatch):
-    """say(): a stderr whose reader left (EPIPE) or whose terminal closed (EIO) is gone, its
-    error returned for the caller to stop quietly with; any other failure (stderr sent to a file
-    on a full disk) is not a gone output and is raised, not taken for one."""
-    for gone in (errno.EPIPE, errno.EIO):
+def test_saying_to_a_gone_or_full_stderr_returns_its_error_and_to_a_broken_one_raises(
+    monkeypatch,
+):
+    """say(): a stderr whose reader left (EPIPE), whose terminal closed (EIO) or whose file's
+    disk or quota is full (a batch log: it raised, and the command ended with exit 1 and no
+    word) is gone, its error returned for the caller to stop quietly with; any other failure is
+    not a gone output and is raised, not taken for one."""
+    for gone in (errno.EPIPE, errno.EIO, errno.ENOSPC, errno.EDQUOT):
         monkeypatch.setattr(sys, "stderr", _Stderr(gone))
         assert say("stopped").errno == gone
-    monkeypatch.setattr(sys, "stderr", _Stderr(errno.ENOSPC))
-    with pytest.raises(OSError, match="No space left on device"):
+    monkeypatch.setattr(sys, "stderr", _Stderr(errno.EBADF))
+    with pytest.raises(OSError, match="Bad file descriptor"):
         say("stopped")
     monkeypatch.undo()
     assert say("said") is None
@@ -200,13 +203,14 @@ def test_a_stop_said_to_a_closed_terminal_still_stops(monkeypatch, console_signa
         (None, 2),
         (OSError(errno.EIO, "Input/output error"), 129),
         (BrokenPipeError(errno.EPIPE, "Broken pipe"), 141),
+        (OSError(errno.ENOSPC, "No space left on device"), 2),  # (exit 1, a traceback unsaid)
     ],
 )
 def test_an_error_it_cannot_say_ends_the_command_quietly(monkeypatch, gone_stderr, stderr, status):
     """A command whose terminal closed under it without a SIGHUP (a job left running by a shell
     that exited) failed writing there (EIO), then again saying so: a traceback, exit 1. An
     error it cannot say ends it quietly with 129, as SIGHUP would (141 where stderr's reader
-    left); one it can, with 2."""
+    left; to a full disk its own, 2); one it can, with 2."""
 
     def run(args):
         raise OSError(errno.EIO, "Input/output error")
@@ -363,6 +367,22 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert (done.returncode, done.stdout, done.stderr) == (141, "", "")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (Linux's)")
+def test_results_to_a_full_disk_are_no_success(tmp_path):
+    """A command whose results could not be printed (stdout's file on a full disk) exited 120
+    with Python's 'Exception ignored ... No space left on device' after a success: 2, quietly
+    (stderr's file full too), as an unwritable file's."""
+    script = (
+        "import spikegs.cli as cli\n"
+        "cli.main = lambda: print('psnr 30.1') or 0\n"  # (held: stdout is a file)
+        "cli.console()\n"
+    )
+    held = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-c", script], stdout=full, stderr=full, env=held)
+    assert done.returncode == 2
 
 
 def test_an_error_to_a_reader_that_left_exits_141_with_output_pending():

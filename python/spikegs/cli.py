@@ -17,7 +17,7 @@ import warnings
 from pathlib import Path
 
 from .file_lock import BUSY, Busy
-from .interrupt import ENDING, NAMES, Terminated, raise_terminated, say
+from .interrupt import ENDING, FULL, NAMES, Terminated, raise_terminated, say
 from .missing_dependency import MissingDependencyError
 
 # what an out-of-memory error asks to make smaller, unless a command's module names its own
@@ -303,8 +303,8 @@ def console() -> None:
         status = _stopped(stop)
     except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
         status = BROKEN_PIPE
-    if status in (BROKEN_PIPE, HUNG_UP):  # an output's reader or terminal gone
-        _drop_unflushable_outputs()
+    if _drop_unflushable_outputs() and status == 0:  # what it printed is lost: no success
+        status = 2
     for signum in NAMES:  # the status is decided: nothing left to stop
         signal.signal(signum, signal.SIG_IGN)
     _forget_unhandled_interrupt()
@@ -320,10 +320,12 @@ def _forget_unhandled_interrupt() -> None:
     eval("None")
 
 
-def _drop_unflushable_outputs() -> None:
+def _drop_unflushable_outputs() -> bool:
     """Send stdout or stderr to /dev/null where what it still holds cannot be flushed (its
-    reader or terminal gone): exit's flush would fail on it and exit 120. An output that
-    flushes is left as it is (a log file a hung-up command wrote to keeps its last lines)."""
+    reader or terminal gone, its disk full): exit's flush would fail on it and exit 120; whether
+    one was. An output that flushes is left as it is (a log file a hung-up command wrote to
+    keeps its last lines)."""
+    dropped = False
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
@@ -334,6 +336,8 @@ def _drop_unflushable_outputs() -> None:
             with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
                 os.dup2(devnull, stream.fileno())
             os.close(devnull)
+            dropped = True
+    return dropped
 
 
 def _stopped(stop: KeyboardInterrupt) -> int:
@@ -381,7 +385,7 @@ def _run(args: argparse.Namespace) -> int:
         note = " (a warning, which PYTHONWARNINGS or -W makes an error)" if warned else ""
         # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
         unsaid = say(f"spikegs {args.command}: error: {err}{note}")
-        if unsaid is None:
+        if unsaid is None or unsaid.errno in FULL:  # (a full stderr's: the error's own status)
             return 2
         return BROKEN_PIPE if isinstance(unsaid, BrokenPipeError) else HUNG_UP
     except FloatingPointError as err:  # training diverged: the message says where and why

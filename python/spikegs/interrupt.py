@@ -48,8 +48,8 @@ def raise_terminated(signum, frame) -> None:
 
 def say(message: str) -> OSError | None:
     """`message` on stderr; the error that kept it unsaid where stderr is gone (its terminal
-    closed: EIO, with SIGHUP or not; its reader left: EPIPE), where stopping must not fail on
-    saying so, else None."""
+    closed: EIO, with SIGHUP or not; its reader left: EPIPE; its file's disk full), where
+    stopping must not fail on saying so, else None."""
     try:
         print(message, file=sys.stderr, flush=True)
     except OSError as err:
@@ -88,10 +88,16 @@ class ImportInterrupted:
             sys.excepthook = self.previous
 
 
+# an output's file whose disk or quota is full (a batch job's log): it takes no more, as a gone
+# one; taken for the work's error, it stopped a run mid-step with no word and no checkpoint (500
+# steps lost) where the run's own disk had room
+FULL = tuple(getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, name))
+
+
 def output_gone(err: OSError) -> bool:
     """Whether `err` says that an output stream is gone: its reader left (EPIPE), its terminal
-    closed (EIO)."""
-    return err.errno in (errno.EPIPE, errno.EIO)
+    closed (EIO), its file's disk or quota is full (FULL)."""
+    return err.errno in (errno.EPIPE, errno.EIO, *FULL)
 
 
 def progress_lost(show: Callable[[], None], bar) -> OSError | None:
