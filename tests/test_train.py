@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import copy
 import errno
+import io
 import itertools
 import json
 import os
@@ -3801,6 +3802,21 @@ def test_a_full_disk_at_the_end_of_train_says_that_resume_finishes_it(
     assert f"finish it with spikegs train {Path(dataset.root).resolve()} --out {run}" in said
     monkeypatch.undo()
     assert main([*command, "--resume"]) == 0 and (run / "scene.ply").is_file()
+    # a full stdout, the finished run's summary printed there: told to --resume, which had
+    # nothing to finish
+    capsys.readouterr()
+    monkeypatch.setattr(sys, "stdout", _FullOutput())
+    assert main([*command, "--resume"]) == 2
+    said = capsys.readouterr().err
+    assert "left on device: stdout, where the summary was printed (the run is finished: " in said
+    assert "--resume finishes" not in said
+
+
+class _FullOutput(io.StringIO):
+    """An output whose file's disk is full: every write raises ENOSPC."""
+
+    def write(self, text):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
 def test_eval_sweeps_what_a_killed_scoring_half_wrote(dataset, tmp_path):
