@@ -830,7 +830,8 @@ def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, 
     monkeypatch.setattr("spikegs.sim_cli.trained_sim", ctrl_c)
     assert main(["sim-train", str(root), "--no-progress"]) == 130
     assert calls == [False]
-    assert "the same command (without --force) continues" in capsys.readouterr().err
+    said = capsys.readouterr().err  # (stopped before training: while waiting for a lock, say)
+    assert "the same command (without --force) continues from SIM's last saved state, if" in said
 
 
 @pytest.mark.parametrize("path", ["forward", "forward_rotated"])

@@ -133,8 +133,8 @@ def _run(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt:  # (stderr may be gone: a closed terminal's SIGHUP)
         say(
-            "\nthe same command (without --force) continues from SIM's state, saved every "
-            f"{CHECKPOINT_S:g} s"
+            "\nthe same command (without --force) continues from SIM's last saved state, if "
+            f"its training had begun (saved every {CHECKPOINT_S:g} s and as it stops)"
         )
         raise
     done = f"trained in {seconds:.1f} s" if seconds else "reused"
