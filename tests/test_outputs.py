@@ -370,19 +370,46 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (Linux's)")
-def test_results_to_a_full_disk_are_no_success(tmp_path):
-    """A command whose results could not be printed (stdout's file on a full disk) exited 120
-    with Python's 'Exception ignored ... No space left on device' after a success: 2, quietly
-    (stderr's file full too), as an unwritable file's."""
+@pytest.mark.parametrize(
+    "full, status, said",
+    [
+        (
+            "stdout",
+            2,
+            "spikegs: error: stdout: No space left on device: what the command printed is lost\n",
+        ),
+        ("stderr", 0, None),  # (its results printed whole)
+        ("both", 2, None),
+        ("reader gone", 141, ""),  # (README's status for a reader that left)
+    ],
+)
+def test_results_that_cannot_be_printed_are_no_success(tmp_path, full, status, said):
+    """A command whose results could not be printed (stdout's file on a full disk, its reader
+    gone before the exit's flush) exited 120 with Python's 'Exception ignored ... No space left
+    on device' after a success: 2, said where stderr can say it (141 where the reader left); a
+    full stderr alone loses no result."""
     script = (
         "import spikegs.cli as cli\n"
-        "cli.main = lambda: print('psnr 30.1') or 0\n"  # (held: stdout is a file)
+        "cli.main = lambda: print('psnr 30.1') or 0\n"  # (held: stdout is a file or a pipe)
         "cli.console()\n"
     )
     held = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
-    with open("/dev/full", "w") as full:
-        done = subprocess.run([sys.executable, "-c", script], stdout=full, stderr=full, env=held)
-    assert done.returncode == 2
+    read, write = os.pipe()
+    if full == "reader gone":
+        os.close(read)
+    with open("/dev/full", "w") as disk:
+        stdout = disk if full in ("stdout", "both") else write
+        stderr = disk if full in ("stderr", "both") else subprocess.PIPE
+        command = [sys.executable, "-c", script]
+        done = subprocess.run(command, env=held, stdout=stdout, stderr=stderr)
+    os.close(write)
+    if full != "reader gone":
+        printed = os.read(read, 100)
+        os.close(read)
+        assert printed == (b"psnr 30.1\n" if full == "stderr" else b"")
+    assert done.returncode == status
+    if said is not None:
+        assert done.stderr.decode() == said
 
 
 def test_an_error_to_a_reader_that_left_exits_141_with_output_pending():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import codecs
 import contextlib
+import errno
 import importlib
 import io
 import itertools
@@ -303,8 +304,10 @@ def console() -> None:
         status = _stopped(stop)
     except BrokenPipeError:  # the reader left (`| head`): quiet, as a tool SIGPIPE ends
         status = BROKEN_PIPE
-    if _drop_unflushable_outputs() and status == 0:  # what it printed is lost: no success
-        status = 2
+    lost = _drop_unflushable_outputs().get("stdout")
+    if lost is not None and status == 0:  # its results, printed, are lost: no success
+        status = _lost_output_status(lost)
+        _drop_unflushable_outputs()  # (what that said, to a stderr whose disk is full too)
     for signum in NAMES:  # the status is decided: nothing left to stop
         signal.signal(signum, signal.SIG_IGN)
     _forget_unhandled_interrupt()
@@ -320,24 +323,35 @@ def _forget_unhandled_interrupt() -> None:
     eval("None")
 
 
-def _drop_unflushable_outputs() -> bool:
+def _drop_unflushable_outputs() -> dict[str, OSError]:
     """Send stdout or stderr to /dev/null where what it still holds cannot be flushed (its
-    reader or terminal gone, its disk full): exit's flush would fail on it and exit 120; whether
-    one was. An output that flushes is left as it is (a log file a hung-up command wrote to
-    keeps its last lines)."""
-    dropped = False
-    for stream in (sys.stdout, sys.stderr):
+    reader or terminal gone, its disk full): exit's flush would fail on it and exit 120 with
+    Python's 'Exception ignored'; the error of each so sent ("stdout", "stderr"). An output that
+    flushes is left as it is (a log file a hung-up command wrote to keeps its last lines)."""
+    dropped = {}
+    for name, stream in (("stdout", sys.stdout), ("stderr", sys.stderr)):
         try:
             stream.flush()
         except (AttributeError, ValueError):  # None (its descriptor closed as Python started)
             continue  # or closed: exit's flush passes it by too
-        except OSError:
+        except OSError as err:
             devnull = os.open(os.devnull, os.O_WRONLY)
             with contextlib.suppress(OSError, ValueError):  # (a stream without a file)
                 os.dup2(devnull, stream.fileno())
             os.close(devnull)
-            dropped = True
+            dropped[name] = err
     return dropped
+
+
+def _lost_output_status(err: OSError) -> int:
+    """The status of a command whose printed results `err` kept from stdout: its reader gone
+    (141), its terminal (129), else (its disk full: 2) said on stderr where it can be."""
+    if isinstance(err, BrokenPipeError):
+        return BROKEN_PIPE
+    if err.errno == errno.EIO:
+        return HUNG_UP
+    say(f"spikegs: error: stdout: {err.strerror or err}: what the command printed is lost")
+    return 2
 
 
 def _stopped(stop: KeyboardInterrupt) -> int:
