@@ -65,14 +65,16 @@ def check_orientation(
     settings: str,
     raw_width: int | None = None,
     col_offset: int = 0,
+    judge_match: bool = True,
 ) -> None:
     """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] better with
     each byte's bits in the other order (`other_bit_order`, where the stored rows are the
     frame's: no `raw_width` other than its width, no `col_offset`), or upside down
     (`warn_if_upside_down`), than as read, by FLIP_MARGIN in most views: the .dat's bit order,
     or `flip` (stated in `settings`), is likely wrong and the scene would train scrambled or
-    upside down; and when they match neither way (median correlation under MATCH_MIN): the
-    spikes are not read as the images show them. Flat images (a black view) are left out."""
+    upside down; and, where `judge_match`, when they match neither way (median correlation
+    under MATCH_MIN): the spikes are not read as the images show them. Flat images (a black
+    view) are left out."""
     pairs, reordered = [], []  # per view: (as read, upside down); the other bit order's best
     for tfp, image in views:
         if np.ptp(image) == 0:  # a flat image (black) matches no way up
@@ -94,7 +96,7 @@ def check_orientation(
         )
         return
     best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
-    if best < MATCH_MIN:
+    if best < MATCH_MIN and judge_match:
         warnings.warn(
             f"{source}: the spikes hardly match their views' sharp images (median correlation "
             f"{best:.2f} over {len(pairs)} views, either way up): a .dat written in another bit "
