@@ -269,27 +269,52 @@ def test_a_ctrl_c_before_the_command_runs_prints_no_traceback(monkeypatch, capsy
     assert exit.value.code == 130 and capsys.readouterr().err == "interrupted\n"
 
 
-@pytest.mark.parametrize(
-    "entry", [["-c", "from spikegs.cli import console; console()"], ["-m", "spikegs"]]
+_STOP_AT_TORCH = (  # sitecustomize: a Ctrl-C as the package imports torch
+    "import sys\n"
+    "class StopAtTorch:\n"
+    "    def find_spec(self, name, path=None, target=None):\n"
+    "        if name == 'torch':\n"
+    "            raise KeyboardInterrupt\n"
+    "sys.meta_path.insert(0, StopAtTorch())\n"
 )
+
+
+def _stopped_at_torch(tmp_path, *entry) -> subprocess.CompletedProcess:
+    """`python ENTRY...`, a Ctrl-C landing as the package imports torch."""
+    (tmp_path / "sitecustomize.py").write_text(_STOP_AT_TORCH)
+    path = os.pathsep.join([str(tmp_path), *sys.path])
+    env = {**os.environ, "PYTHONPATH": path}
+    return subprocess.run([sys.executable, *entry], env=env, capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("entry", ["console script", "-m"])
 def test_a_ctrl_c_while_the_package_imports_torch_says_interrupted(tmp_path, entry):
     """Ctrl-C in a command's first ~2 s, while the package imported torch (before `console` could
     set any handler: the console script imports the package first), printed Python's
     traceback through torch's import, a third time reported."""
-    (tmp_path / "sitecustomize.py").write_text(
-        "import sys\n"
-        "class StopAtTorch:\n"
-        "    def find_spec(self, name, path=None, target=None):\n"
-        "        if name == 'torch':\n"
-        "            raise KeyboardInterrupt\n"
-        "sys.meta_path.insert(0, StopAtTorch())\n"
-    )
-    path = os.pathsep.join([str(tmp_path), *sys.path])
-    command = [sys.executable, *entry, "--version"]
-    done = subprocess.run(
-        command, env={**os.environ, "PYTHONPATH": path}, capture_output=True, text=True
-    )
+    script = tmp_path / "bin" / "spikegs"  # as pip writes it
+    script.parent.mkdir()
+    script.write_text("from spikegs.cli import console\nconsole()\n")
+    command = [str(script)] if entry == "console script" else ["-m", "spikegs"]
+    done = _stopped_at_torch(tmp_path, *command, "--version")
     assert (done.returncode, done.stderr) == (-signal.SIGINT, "interrupted\n")
+
+
+def test_a_script_that_imports_the_package_keeps_its_own_ctrl_c(tmp_path):
+    """A script or REPL importing the package (not the command) keeps Python's hook: one that
+    caught the Ctrl-C landing in that import printed 'interrupted' alone for its own later one,
+    its traceback gone (the review)."""
+    script = (
+        "import sys\n"
+        "try:\n"
+        "    import spikegs\n"
+        "except KeyboardInterrupt:\n"
+        "    print(sys.excepthook is sys.__excepthook__)\n"
+        "raise KeyboardInterrupt\n"
+    )
+    done = _stopped_at_torch(tmp_path, "-c", script)
+    assert done.stdout == "True\n" and done.stderr.startswith("Traceback"), done.stderr
+    assert done.returncode == -signal.SIGINT
 
 
 def test_the_import_hook_passes_other_errors_on_and_is_gone_once_loaded():
@@ -301,7 +326,7 @@ def test_the_import_hook_passes_other_errors_on_and_is_gone_once_loaded():
     before, seen = sys.excepthook, []
     sys.excepthook = lambda *error: seen.append(error[0])
     try:
-        with pytest.raises(KeyboardInterrupt), ImportInterrupted():
+        with pytest.raises(KeyboardInterrupt), ImportInterrupted(armed=True):
             raise KeyboardInterrupt
         hook = sys.excepthook
         assert isinstance(hook, ImportInterrupted)  # left for the top level to call

@@ -2,7 +2,7 @@
 
 import os
 
-from .interrupt import ImportInterrupted
+from .interrupt import ImportInterrupted, running_as_command
 
 try:  # torch's oneMKL ends the process where it is gone, with a broken install's message
     os.getcwd()
@@ -12,7 +12,7 @@ except FileNotFoundError:
         "load ('Intel oneMKL FATAL ERROR: Cannot load libtorch_cpu.so'): cd to one that exists"
     ) from None
 
-with ImportInterrupted():  # a Ctrl-C while the package loads (torch): no traceback
+with ImportInterrupted(running_as_command()):  # a command's Ctrl-C as torch loads: no traceback
     from . import thread_count  # a CPU quota's threads in OMP_NUM_THREADS, before torch loads
 
     # torch and spikegs._C may each bring an OpenMP runtime (a torch wheel whose libgomp has

@@ -17,6 +17,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 
 class Terminated(KeyboardInterrupt):
@@ -59,17 +60,32 @@ def say(message: str) -> OSError | None:
     return None
 
 
+def running_as_command() -> bool:
+    """Whether this process is the `spikegs` command (its console script, or `python -m
+    spikegs`), not a script, REPL or notebook that imports the package."""
+    if Path(sys.argv[0]).stem == "spikegs":
+        return True
+    argv = getattr(sys, "orig_argv", [])
+    return "-mspikegs" in argv or any(a == "-m" and b == "spikegs" for a, b in zip(argv, argv[1:]))
+
+
 class ImportInterrupted:
     """A block of the package's imports (torch's and its core's: about 2 s at a command's start,
     before any handler of the `spikegs` command can be set, its console script importing the
     package first) whose Ctrl-C, left to the top level, says 'interrupted' as one later does,
     not a 30-60-line traceback through torch's import (the exit status stays Python's for an
-    unhandled Ctrl-C). It is `sys.excepthook` within the block, and after it while a Ctrl-C
-    leaves it; once called, the hook it replaced is back, and gets any other exception."""
+    unhandled Ctrl-C). Where `armed` (the command: `running_as_command`; a script that catches
+    the Ctrl-C would keep the hook for its own), it is `sys.excepthook` within the block, and
+    after it while a Ctrl-C leaves it; once called, the hook it replaced is back, and gets any
+    other exception."""
+
+    def __init__(self, armed: bool):
+        self.armed = armed
 
     def __enter__(self):
         self.previous = sys.excepthook
-        sys.excepthook = self
+        if self.armed:
+            sys.excepthook = self
 
     def __exit__(self, kind, value, traceback) -> None:
         if kind is None or not issubclass(kind, KeyboardInterrupt):
