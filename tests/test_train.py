@@ -3777,24 +3777,25 @@ def test_eval_of_a_run_killed_before_its_train_json_says_to_resume(dataset, tmp_
     assert "stopped while writing its results; finish it with" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("full", [errno.ENOSPC, errno.EDQUOT])
 def test_a_full_disk_at_the_end_of_train_says_that_resume_finishes_it(
-    dataset, tmp_path, monkeypatch, capsys
+    dataset, tmp_path, monkeypatch, capsys, full
 ):
     """scene.ply refused by a full disk said only "[Errno 28] No space left on device" (the last
     checkpoint kept, --resume finishes the run); eval's note said "spikegs train DATASET", the
-    dataset its checkpoint names."""
+    dataset its checkpoint names. A full quota (EDQUOT) likewise."""
     run = tmp_path / "run"
     command = ["train", str(dataset.root), "--method", "tfp33", "--iterations", "2"]
     command += ["--out", str(run), "--no-progress"]
 
-    def full(model, path):
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    def disk_full(model, path):
+        raise OSError(full, os.strerror(full), str(path))
 
-    monkeypatch.setattr(train_module, "save_ply", full)
+    monkeypatch.setattr(train_module, "save_ply", disk_full)
     assert main(command) == 2
     said = capsys.readouterr().err
     assert (
-        f"No space left on device: {run / 'scene.ply'}; once there is room, spikegs train "
+        f"{os.strerror(full)}: {run / 'scene.ply'}; once there is room, spikegs train "
         f"{dataset.root} --out {run} --resume finishes the run from its last checkpoint"
     ) in said
     assert main(["eval", str(run)]) == 2

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import errno
 import math
 import sys
 import warnings
@@ -25,6 +24,7 @@ from .config import (
     older_run_keys,
 )
 from .curves import save_logged_curves
+from .interrupt import FULL
 from .output_paths import check_folder_output
 from .regular_file import NotText, is_blank
 from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint, resume_command
@@ -212,7 +212,7 @@ def _train(args: argparse.Namespace, config) -> int:
     dataset = load_dataset(args.dataset, bars)
     settings = Path(args.out) / CONFIG if resumes_own_settings(args) else None
     trainer = Trainer(dataset, config, args.out, progress=bars, settings_file=settings)
-    summary, printing = None, False
+    summary, unprinted = None, None
     try:
         try:
             summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
@@ -224,17 +224,20 @@ def _train(args: argparse.Namespace, config) -> int:
                 if summary is None and written.is_file():
                     summary = strict_json.read_json(written)
                 if summary is not None:  # (a script reads it from stdout)
-                    printing = True
-                    print(strict_json.dumps(summary, indent=2))
+                    try:
+                        print(strict_json.dumps(summary, indent=2))
+                    except OSError as err:  # a full stdout: the run is finished, no --resume
+                        if err.errno not in FULL:
+                            raise
+                        unprinted = OSError(
+                            err.errno,
+                            f"{err.strerror}: stdout, where the summary was printed (the run is "
+                            f"finished: {written} holds it)",
+                        )
+                        raise unprinted from err
     except OSError as err:  # a full disk (scene.ply at the end, a checkpoint): said how to go on
-        if err.errno != errno.ENOSPC or not last_checkpoint(args.out).is_file():
+        if err is unprinted or err.errno not in FULL or not last_checkpoint(args.out).is_file():
             raise
-        if printing:  # the finished run's summary, to a full stdout: nothing to --resume
-            raise OSError(
-                err.errno,
-                f"{err.strerror}: stdout, where the summary was printed (the run is finished: "
-                f"{Path(args.out) / SUMMARY} holds it)",
-            ) from err
         where = "" if err.filename is None else f": {err.filename}"
         raise OSError(
             err.errno,
