@@ -705,6 +705,20 @@ def _edited_copy(small, root: Path, name: str, edit) -> Path:
     return root
 
 
+def test_readouts_in_microseconds_are_told_from_a_log_that_ran_on():
+    """Readouts reaching past a 400-readout stream as a µs clock's would (÷ 25: half the stream
+    to half as far past it) are said to be µs: one that ran on a readout past the recording was
+    not; a log that ran on a little, or 60 times as far, is not said to be µs."""
+    from spikegs.data.dataset import microseconds_hint
+
+    for last in (399 * 25, 400 * 25, 200 * 25, 600 * 25):
+        assert "Readouts in µs? They are readout indices, 25 µs apart" in microseconds_hint(
+            last, 400
+        )
+    for last in (399, 420, 4000, 60 * 400, 199 * 25 - 1):
+        assert microseconds_hint(last, 400) == "", last
+
+
 def _microsecond_poses(text: str) -> str:
     """trajectory.json's text with each pose's readout in µs (x 25)."""
     doc = json.loads(text)

@@ -956,7 +956,8 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     if in_us:  # (as a pose log that ran on, it trained the stream on its first 1/25 unsaid)
         raise ValueError(
             f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start:g}, "
-            f"{trajectory.end:g}], the stream holds {num}.{in_us}"
+            f"{trajectory.end:g}], the stream holds {num}.{in_us} Else, a pose log that ran on "
+            f"far after the recording: remove its poses past readout {num - 1}."
         )
     if trajectory.end > num - 1:  # a pose log that ran on, or a stream cut short: said
         warnings.warn(
@@ -1220,11 +1221,12 @@ def read_timestamps(path: Path) -> np.ndarray:
 
 def microseconds_hint(last: float, num_readouts: int) -> str:
     """Where readouts that reach `last` run past a stream of `num_readouts` as far as a clock in
-    µs would (read as µs, they span most of it), a sentence saying so; else "". A pose log or
-    timestamps in µs trained on the first 1/25 of the poses, said to be 'a pose log that ran on
-    after the recording'."""
+    µs would (read as µs, from half the stream to half as far past it: a µs log that ran on a
+    little), a sentence saying so; else "". A pose log or timestamps in µs trained on the first
+    1/25 of the poses, said to be 'a pose log that ran on after the recording'."""
     period_us = READOUT_PERIOD_S * 1e6
-    if not (num_readouts - 1) / 2 <= last / period_us <= num_readouts - 0.5 < last:
+    as_us = last / period_us  # [half the stream, 1.5 times it], where as readouts it is past it
+    if not (num_readouts - 1) / 2 <= as_us <= 1.5 * num_readouts or last <= num_readouts - 0.5:
         return ""
     return (
         f" Readouts in µs? They are readout indices, {period_us:g} µs apart: divided by "
