@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import warnings
 from collections.abc import Iterator
@@ -260,7 +261,9 @@ def run(args: argparse.Namespace) -> int:
                 path=path,
                 scale=args.scale,
             )
-        except OSError as err:
+        except OSError as err:  # (an earlier video's, left, would describe this one)
+            with contextlib.suppress(OSError):
+                cameras.unlink(missing_ok=True)
             cameras = None
             print(f"cameras not written beside the video: {err}", file=sys.stderr)
     if interrupted():

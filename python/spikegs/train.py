@@ -826,7 +826,9 @@ class Trainer:
         stop_message = "\n{signal}: stopping after this step" + (
             ", with a checkpoint to --resume from" if self.resumable else ""
         )
-        again = " ({signal} again stops at once, keeping the last checkpoint)"
+        again = " ({signal} again stops at once" + (
+            ", keeping the last checkpoint)" if self.resumable else ")"
+        )
         gone = None  # the progress output's loss (its reader left, its terminal closed)
         with deferred_interrupt(stop_message, again) as interrupted:
             try:

@@ -275,8 +275,9 @@ def ablation_line(methods: dict) -> str | None:
 
 
 def equal_time_margins(methods: dict) -> dict[str, dict]:
-    """SpikeGS's PSNR margin over each baseline trained at equal time and over its equal-time
-    run, seed by seed (`paired_gains`): name -> {"mean", "std"}; {} where none was trained."""
+    """SpikeGS's PSNR margin, seed by seed (`paired_gains`), over each baseline that has an
+    equal-time run, at equal iterations (its own run) and at equal time (that run): name ->
+    {"mean", "std"}; {} where none was trained."""
     names = [m for b in BASELINES if b + EQUAL_TIME in methods for m in (b, b + EQUAL_TIME)]
     return {name: paired_gains(methods, name)["spikegs"] for name in names}
 
