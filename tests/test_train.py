@@ -4678,6 +4678,27 @@ def test_end_of_run_warnings_that_follow_a_small_sphere_say_so(dataset, tmp_path
         assert len(grew) == 1 and (first in grew[0]) == named, grew
 
 
+def test_test_views_that_look_away_from_the_scene_are_named(dataset, tmp_path):
+    """Nothing checked the test views' poses: a frame sequence's transforms_test.json in OpenCV
+    axes where the file said OpenGL (or in centimetres) scored its off-path views 4.4 dB low,
+    their renders flat grey, unsaid; a run now names the views the scene sphere hardly covers.
+    A run of right views says nothing of them."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 1}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Trainer(dataset, config, tmp_path / "right", progress=False).train()
+    turned = copy.copy(dataset)
+    views = [copy.copy(v) for v in dataset.test_views]
+    views[1].viewmat = np.diag([1.0, -1.0, -1.0, 1.0]) @ views[1].viewmat  # looks away
+    turned.test_views = views
+    with pytest.warns(
+        UserWarning,
+        match=rf"covers 1 of the {len(views)} test views' images little or not at all "
+        rf"\({views[1].name} 0.0 %; the median training view \d+\.\d %\): their poses in another",
+    ):
+        Trainer(turned, config, tmp_path / "turned", progress=False).train()
+
+
 def test_a_model_grown_to_its_cap_is_said(dataset, tmp_path):
     """A threshold far too low grew the model to densify.max_gaussians, 10x slower, unsaid (a
     helper's 32² run: 198,809 of the 200,000 cap); the cap's reach is said as the run ends, and

@@ -59,14 +59,17 @@ def in_training_views(points: np.ndarray, dataset) -> np.ndarray:
     )
 
 
-def view_coverage(center, radius: float, dataset, cells: int = 16) -> np.ndarray:
-    """The share of each training view at `sample_timestamps` [M] that the ball (center,
-    radius) covers: of its image cut into `cells` x `cells` parts, those whose middle's ray
-    meets the ball in front of the camera (every part, from inside the ball). Exact: points
-    spread through the ball and projected to whole pixels filled no more than `width` of the
-    columns (8x6 images: under 19 % at most) and, around the cameras, a few parts of a view
-    that the ball fills."""
-    viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
+def view_coverage(
+    center, radius: float, dataset, cells: int = 16, viewmats: np.ndarray | None = None
+) -> np.ndarray:
+    """The share of each training view at `sample_timestamps` (or of each of `viewmats` [M, 4,
+    4], in the dataset's camera) [M] that the ball (center, radius) covers: of its image cut
+    into `cells` x `cells` parts, those whose middle's ray meets the ball in front of the camera
+    (every part, from inside the ball). Exact: points spread through the ball and projected to
+    whole pixels filled no more than `width` of the columns (8x6 images: under 19 % at most)
+    and, around the cameras, a few parts of a view that the ball fills."""
+    if viewmats is None:
+        viewmats = dataset.trajectory.pose_at(sample_timestamps(dataset))  # [M, 4, 4]
     K = np.asarray(dataset.K, np.float64)
     middles = (np.arange(cells) + 0.5) / cells  # [cells] as shares of a side
     x, y = np.meshgrid(middles * dataset.width, middles * dataset.height)  # [cells, cells] pixels
