@@ -231,6 +231,16 @@ def test_frame_sequence_source(tmp_path):
     assert [w for w in said if re.search(upsampled + r".*, 32x32\) are upsampled", str(w.message))]
     assert not [w for w in said if "transforms_train.json: " in str(w.message)]
 
+    # one frame: said to need two (its axes were said not to converge, then, with a scene sphere
+    # given, a stack of [1, H, W, C] refused naming no file)
+    single = tmp_path / "single"
+    single.mkdir()
+    write_transforms(
+        single / "transforms.json", "train", train[:1], train_poses[:1], truth.K, ".exr"
+    )
+    with pytest.raises(ValueError, match=r"transforms.json: 1 frame; a frame sequence needs 2"):
+        FrameSequenceSource.from_transforms(single / "transforms.json", 32, 32, 3)
+
     # a frame of another aspect ratio than the first is another crop of the view
     cropped = tmp_path / "cropped"
     cropped.mkdir()

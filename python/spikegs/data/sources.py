@@ -434,6 +434,11 @@ class FrameSequenceSource(Source):
         paths = [path] + ([Path(test_path)] if test_path else [])
         images, poses, K, doc = read_transforms(paths, width, height, channels, background)
         frames, viewmats = images[0], poses[0]
+        if len(frames) < 2:  # (said not to converge, then a stack of 1 refused naming no file)
+            raise ValueError(
+                f"{path}: {len(frames)} frame; a frame sequence needs 2 or more along the "
+                f"camera's path (the light between two is interpolated)"
+            )
         warn_if_names_order_the_path(path, [f["file_path"] for f in doc["frames"]], viewmats)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
