@@ -302,7 +302,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     )
     # the frames' cameras checked as one before the training images are read
     K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
-    fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
+    fix = (
+        f'state "convention": "opencv" in {path.name} where its matrices are OpenCV\'s; else set '
+        f"scene_center and scene_radius in {root / OPTIONS_FILE}"
+    )
     center, radius = view_sphere(
         viewmats, path, fix, center=options.scene_center, radius=options.scene_radius
     )

@@ -441,7 +441,10 @@ class FrameSequenceSource(Source):
             )
         warn_if_names_order_the_path(path, [f["file_path"] for f in doc["frames"]], viewmats)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
-        fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
+        fix = (  # (a sphere given for OpenCV matrices read as OpenGL simulated, train refused)
+            f'state "convention": "opencv" in {path.name} where its matrices are OpenCV\'s; '
+            f"else add scene_center [x, y, z] and scene_radius to it"
+        )
         center, radius = view_sphere(
             viewmats,
             path,
