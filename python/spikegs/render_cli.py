@@ -268,9 +268,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"cameras not written beside the video: {err}", file=sys.stderr)
     if interrupted():
         raise interruption(interrupted())
+    # said once both files are written (a full stdout's error left the video without its cameras)
     count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
-    print(f"{count}, {PATH_TEXT[path]} -> {args.out}")  # (after the files: a full stdout's error
-    if cameras is not None:  # left the video without its cameras)
+    print(f"{count}, {PATH_TEXT[path]} -> {args.out}")
+    if cameras is not None:
         print(f"cameras: {cameras}")
     return 0
 

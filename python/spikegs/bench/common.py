@@ -70,8 +70,12 @@ def write_results(out_dir: Path, name: str, results: dict[str, Any], quick: bool
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.json"
     # the load at the end, the bench's own threads included (a snapshot, where a bench has none)
-    payload = {"benchmark": name, "quick": quick, "machine": environment()}
-    payload["load_average"] = os.getloadavg()
-    payload.update(results)
+    payload = {
+        "benchmark": name,
+        "quick": quick,
+        "machine": environment(),
+        "load_average": os.getloadavg(),
+        **results,
+    }
     write_text_atomically(path, strict_json.dumps(payload, indent=2))
     return path
