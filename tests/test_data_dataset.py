@@ -627,7 +627,9 @@ def test_simulate_names_each_option_it_refuses(tmp_path, capsys):
 
 
 def test_a_source_without_held_out_views_is_refused_before_any_work(tmp_path):
-    with pytest.raises(ValueError, match="scene 'constant': no held-out test view"):
+    with pytest.raises(
+        ValueError, match=r"scene 'constant' \(its frames .*\): no held-out test view"
+    ):
         source = constant_source(0.6, test_views=False)
         simulate_dataset(source, tmp_path / "x", height=16, width=16, readouts=4000)
     assert not (tmp_path / "x").exists()

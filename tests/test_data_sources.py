@@ -240,6 +240,13 @@ def test_frame_sequence_source(tmp_path):
     )
     with pytest.raises(ValueError, match=r"transforms.json: 1 frame; a frame sequence needs 2"):
         FrameSequenceSource.from_transforms(single / "transforms.json", 32, 32, 3)
+    # two, at the recording's ends, and no test file: no test view, said with the ways to one
+    pair = train[[0, 5]], train_poses[[0, 5]]
+    write_transforms(single / "transforms.json", "train", *pair, truth.K, ".exr")
+    with pytest.raises(
+        ValueError, match=r"readouts of the recording's ends hold no on-path view: "
+    ):
+        simulate_dataset(single / "transforms.json", tmp_path / "two", height=32, width=32)
 
     # a frame of another aspect ratio than the first is another crop of the view
     cropped = tmp_path / "cropped"

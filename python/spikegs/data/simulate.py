@@ -589,7 +589,14 @@ def simulate_dataset(
         for name, viewmat, image in source.off_path_views(test_off_path, **arc)
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
-    check_test_views(views, f"scene '{source.name}'")  # before any work
+    where = f"scene '{source.name}'"
+    if not views and source.kind == "frames":  # (said with no way to give one)
+        where += (
+            f" (its frames within {2 * WINDOW_MARGIN} readouts of the recording's ends hold no "
+            f"on-path view: more frames or readouts, or test frames: a transforms_test.json "
+            f"beside its file, FrameSequenceSource's test_views)"
+        )
+    check_test_views(views, where)  # before any work
     # a frame sequence holds so many frames and test views: its defaults are as many as it has;
     # an orbit's are said where it gives fewer (a still camera's arc held one off-path view)
     wanted = asked if source.kind == "frames" else (test_on_path, test_off_path)
