@@ -769,8 +769,8 @@ def test_forward_facing_views_need_a_scene_sphere(tmp_path):
     with pytest.raises(
         ValueError,
         match=r"forward.transforms.json: the cameras' optical axes do not converge in front of "
-        r'them .*"convention": "opencv" in transforms.json .*; else set scene_center and '
-        r"scene_radius in .*spikegs.json .*mean viewing direction",
+        r"them .*set scene_center and scene_radius in .*spikegs.json, or, where its matrices are "
+        r"in the other convention .*mean viewing direction",
     ):
         load_dataset(root)
     (root / "spikegs.json").write_text(json.dumps({"scene_center": [0, 0, 3], "scene_radius": 1}))
@@ -809,8 +809,8 @@ def test_simulate_takes_a_forward_sweeps_scene_sphere_from_its_transforms_file(t
     write_transforms(path, "train", frames, forward, K, ".exr")
     with pytest.raises(  # (OpenCV matrices unlabelled, the other cause, got only the sphere)
         ValueError,
-        match=r'state "convention": "opencv" in transforms.json where its matrices are OpenCV.s; '
-        r"else add scene_center .x, y, z. and scene_radius to it",
+        match=r"add scene_center .x, y, z. and scene_radius to transforms.json, or, where its "
+        r'matrices are in the other convention than transforms.json states, state theirs ."conv',
     ):
         FrameSequenceSource.from_transforms(path, 24, 16)
     doc = json.loads(path.read_text())

@@ -44,6 +44,7 @@ from .transforms_file import (
     frame_files,
     is_opengl,
     one_camera_matrix,
+    other_convention_fix,
     read_cameras,
     read_frame,
     read_transforms_doc,
@@ -302,12 +303,14 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     )
     # the frames' cameras checked as one before the training images are read
     K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
-    fix = (
-        f'state "convention": "opencv" in {path.name} where its matrices are OpenCV\'s; else set '
-        f"scene_center and scene_radius in {root / OPTIONS_FILE}"
-    )
+    fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
     center, radius = view_sphere(
-        viewmats, path, fix, center=options.scene_center, radius=options.scene_radius
+        viewmats,
+        path,
+        fix,
+        center=options.scene_center,
+        radius=options.scene_radius,
+        axes_fix=other_convention_fix(path),
     )
     # [H, W, 1] intensity or None; a training frame's image (read one at a time) calibrates the
     # intensity scale where spikegs.json gives none, and checks the spikes' orientation: the first

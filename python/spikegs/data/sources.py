@@ -31,7 +31,7 @@ from ..spikes.simulate import sample_times
 from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
 from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
-from .transforms_file import read_transforms
+from .transforms_file import other_convention_fix, read_transforms
 from .view_geometry import optical_axes, view_sphere
 
 SPHERE_FIX = "pass center and radius (the scene sphere) to FrameSequenceSource"
@@ -441,16 +441,14 @@ class FrameSequenceSource(Source):
             )
         warn_if_names_order_the_path(path, [f["file_path"] for f in doc["frames"]], viewmats)
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
-        fix = (  # (a sphere given for OpenCV matrices read as OpenGL simulated, train refused)
-            f'state "convention": "opencv" in {path.name} where its matrices are OpenCV\'s; '
-            f"else add scene_center [x, y, z] and scene_radius to it"
-        )
+        fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
             viewmats,
             path,
             fix,
             center=doc.get("scene_center") if center is None else center,
             radius=doc.get("scene_radius") if radius is None else radius,
+            axes_fix=other_convention_fix(path),
         )
         tests = []
         if len(paths) == 2:

@@ -196,6 +196,16 @@ def camera_number(path: Path, key: str, value) -> float:
     return number
 
 
+def other_convention_fix(path: Path) -> str:
+    """What `view_sphere` adds where a transforms file's cameras do not converge: its matrices
+    may be in the other convention than it states (OpenCV ones unlabelled were told to give a
+    scene sphere alone, which simulated them and left train to refuse)."""
+    return (
+        f", or, where its matrices are in the other convention than {path.name} states, state "
+        f'theirs ("convention": "opencv" or "opengl")'
+    )
+
+
 def is_opengl(path: Path, doc: dict) -> bool:
     """Whether a transforms file's camera-to-world matrices are OpenGL's (y up, z back: the
     default) or OpenCV's ("convention": "opencv"); ValueError naming the file for another value."""

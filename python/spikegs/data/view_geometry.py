@@ -67,12 +67,19 @@ def converging_centre(
 
 
 def view_sphere(
-    viewmats: np.ndarray, source, fix: str, *, center=None, radius: float | None = None
+    viewmats: np.ndarray,
+    source,
+    fix: str,
+    *,
+    center=None,
+    radius: float | None = None,
+    axes_fix: str = "",
 ) -> tuple[np.ndarray, float]:
     """The scene sphere's centre [3] and radius: `center`, `radius` where given (a centre needs
     its radius; a radius alone keeps the computed centre), else `converging_centre`'s; ValueError
     naming `source` and how to `fix` it when one is needed and the optical axes of viewmats
-    [F, 4, 4] do not converge in front of the cameras."""
+    [F, 4, 4] do not converge in front of the cameras (then `axes_fix` too: a file's stated
+    convention)."""
     if radius is not None and not (is_number(radius) and radius > 0):
         raise ValueError(f"{source}: scene radius expected a finite number > 0, found {radius!r}")
     if center is not None:
@@ -101,7 +108,7 @@ def view_sphere(
             f"or parallel views, directions within about ±2°, or axes whose nearest point lies "
             f"behind a camera, as poses in another convention than their file states give: "
             f"OpenCV matrices where OpenGL's are read, or world-to-camera ones), so the scene's "
-            f"centre and size are unknown; {fix} (the "
+            f"centre and size are unknown; {fix}{axes_fix} (the "
             f"cameras' mean position is {position}, their mean viewing direction {direction}: a "
             f"scene D ahead of them is centred at position + D * direction)"
         )
