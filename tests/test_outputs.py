@@ -300,10 +300,12 @@ def test_a_ctrl_c_while_the_package_imports_torch_says_interrupted(tmp_path, ent
     assert (done.returncode, done.stderr) == (-signal.SIGINT, "interrupted\n")
 
 
-def test_a_script_that_imports_the_package_keeps_its_own_ctrl_c(tmp_path):
+@pytest.mark.parametrize("options", [[], ["-m", "spikegs"]])
+def test_a_script_that_imports_the_package_keeps_its_own_ctrl_c(tmp_path, options):
     """A script or REPL importing the package (not the command) keeps Python's hook: one that
     caught the Ctrl-C landing in that import printed 'interrupted' alone for its own later one,
-    its traceback gone (the review)."""
+    its traceback gone (the review); a script's own option `-m spikegs` (a method's name) is
+    not the command (the second review)."""
     script = (
         "import sys\n"
         "try:\n"
@@ -312,7 +314,7 @@ def test_a_script_that_imports_the_package_keeps_its_own_ctrl_c(tmp_path):
         "    print(sys.excepthook is sys.__excepthook__)\n"
         "raise KeyboardInterrupt\n"
     )
-    done = _stopped_at_torch(tmp_path, "-c", script)
+    done = _stopped_at_torch(tmp_path, "-c", script, *options)
     assert done.stdout == "True\n" and done.stderr.startswith("Traceback"), done.stderr
     assert done.returncode == -signal.SIGINT
 

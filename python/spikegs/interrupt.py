@@ -61,12 +61,11 @@ def say(message: str) -> OSError | None:
 
 
 def running_as_command() -> bool:
-    """Whether this process is the `spikegs` command (its console script, or `python -m
-    spikegs`), not a script, REPL or notebook that imports the package."""
-    if Path(sys.argv[0]).stem == "spikegs":
-        return True
-    argv = getattr(sys, "orig_argv", [])
-    return "-mspikegs" in argv or any(a == "-m" and b == "spikegs" for a, b in zip(argv, argv[1:]))
+    """Whether this process is the `spikegs` command (its console script, spikegs-script.py
+    where a Windows launcher runs one, or `python -m spikegs[.cli]`: runpy imports the package
+    while sys.argv[0] is still "-m"), not a script, REPL or notebook that imports the package
+    (`python plot.py -m spikegs`, an option's value, was taken for the command)."""
+    return sys.argv[0] == "-m" or Path(sys.argv[0]).stem.removesuffix("-script") == "spikegs"
 
 
 class ImportInterrupted:
