@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import warnings
 from collections.abc import Iterator
@@ -262,10 +261,13 @@ def run(args: argparse.Namespace) -> int:
                 scale=args.scale,
             )
         except OSError as err:  # (an earlier video's, left, would describe this one)
-            with contextlib.suppress(OSError):
+            said = f"cameras not written beside the video: {err}"
+            try:
                 cameras.unlink(missing_ok=True)
+            except OSError as kept:
+                said += f"; {cameras}, an earlier video's, is left: {kept.strerror}"
             cameras = None
-            print(f"cameras not written beside the video: {err}", file=sys.stderr)
+            print(said, file=sys.stderr)
     if interrupted():
         raise interruption(interrupted())
     # said once both files are written (a full stdout's error left the video without its cameras)
