@@ -439,8 +439,14 @@ def test_bench_refuses_an_out_that_holds_a_run_or_a_dataset(
     monkeypatch.setattr(stiff, "run", lambda quick, out: pytest.fail("worked"))
     (tmp_path / name).write_text("{}")
     assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 2
-    assert f"--out {tmp_path} holds {held}" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert f"--out {tmp_path} holds {held}" in said
+    # stiff writes no datasets or runs, as it said it would (bench train does)
+    assert "spikegs bench stiff would write its own files (figures, JSON)" in said
     assert [p.name for p in tmp_path.iterdir()] == [name]
+    monkeypatch.setattr(train, "run", lambda *args, **kwargs: pytest.fail("worked"))
+    assert main(["bench", "train", "--quick", "--out", str(tmp_path)]) == 2
+    assert f"own files (datasets in {tmp_path / 'data'}, runs in " in capsys.readouterr().err
 
 
 def test_bench_runs_again_where_bench_train_wrote_its_results(tmp_path, monkeypatch):

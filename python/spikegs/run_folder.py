@@ -78,11 +78,11 @@ def _bench_results(path: Path) -> bool:
         return False
 
 
-def refuse_dataset_or_run(out: Path, writer: str) -> None:
+def refuse_dataset_or_run(out: Path, writer: str, datasets: bool = True) -> None:
     """FileExistsError, before any work, where OUT itself holds a dataset or a spikegs run
     (--out naming one, as simulate's or train's does): `writer` ("a demo", "spikegs bench")
-    would write its own dataset, runs and figures in among its files (bench's train.json over a
-    run's, which eval then refused)."""
+    would write its own files in among its files (bench's train.json over a run's, which eval
+    then refused): datasets and runs in OUT/data and OUT/runs where `datasets`, figures, JSON."""
     from .data.dataset import holds_dataset, layout_files
 
     if not out.is_dir():
@@ -97,7 +97,8 @@ def refuse_dataset_or_run(out: Path, writer: str) -> None:
         held = f"a dataset ({', '.join(marks) or 'its spikes'})"
     else:
         return
+    own = f"datasets in {out / 'data'}, runs in {out / 'runs'}, " if datasets else ""
     raise FileExistsError(
-        f"--out {out} holds {held}, among which {writer} would write its own files (datasets "
-        f"in {out / 'data'}, runs in {out / 'runs'}, figures); give it another --out"
+        f"--out {out} holds {held}, among which {writer} would write its own files ({own}"
+        f"figures, JSON); give it another --out"
     )

@@ -120,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out, images=True)  # its figures, its runs' eval images
-    refuse_dataset_or_run(Path(args.out), "spikegs bench")
+    # (bench stiff said it would write datasets and runs, which only bench train writes there)
+    refuse_dataset_or_run(Path(args.out), f"spikegs bench {args.part}", "train" in parts)
     if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
         from .train import check_outputs, data_settings, run_names, selection
 
