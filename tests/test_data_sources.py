@@ -227,7 +227,7 @@ def test_frame_sequence_source(tmp_path):
     # truth: +2.3 dB for a trial's 32x32 test frames at 64x64); training frames are the light
     with pytest.warns(UserWarning) as said:
         FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 64, 64, 3)
-    upsampled = r"transforms_test.json: 2 test frame\(s\) smaller than the dataset's 64x64 \(first "
+    upsampled = r"transforms_test.json: 2 test image\(s\) smaller than the dataset's 64x64 \(first "
     assert [w for w in said if re.search(upsampled + r".*, 32x32\) are upsampled", str(w.message))]
     assert not [w for w in said if "transforms_train.json: " in str(w.message)]
 
@@ -1039,6 +1039,16 @@ def test_nerf_test_image_sizes_pixel_intrinsics_and_its_alpha_is_over_white(tmp_
     sharp = ds.test_views[0].image[..., 0] / 0.25  # [23, 37] intensity
     np.testing.assert_allclose(sharp[:, :16], 1.0, atol=1e-3)  # (the resize filter's reach)
     np.testing.assert_allclose(sharp[:, 21:], 0.2, atol=0.005)  # 8-bit sRGB, decoded
+    # spikes at twice the test image's size: it is upsampled into ground truth, said (it scored
+    # a blurred truth unsaid; the frame sequence's test frames were warned of, these were not)
+    (root / "spikegs.json").write_text(json.dumps({**options, "height": 92, "width": 148}))
+    rng = np.random.default_rng(0)
+    for i in range(9):
+        save_dat(root / "spike_data" / f"f_{i}.dat", rng.random((70, 92, 148)) < 0.2)
+    with pytest.warns(
+        UserWarning, match=r"transforms.json: 1 test image\(s\) smaller than the data"
+    ):
+        load_dataset(root)
 
 
 def test_nerf_per_frame_cameras_one_to_1e6_and_w_h_together(tmp_path):

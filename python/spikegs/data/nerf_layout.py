@@ -51,6 +51,7 @@ from .transforms_file import (
     stated_size,
     transforms_viewmats,
     warn_unread_transforms,
+    warn_upsampled_tests,
 )
 from .view_geometry import view_sphere
 
@@ -319,8 +320,12 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     calibrate = options.rate_at_one is None
     checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
 
-    def mono(i: int, frame: dict) -> np.ndarray | None:
+    upsampled = []  # test images smaller than the spikes' frames: (file, w, h)
+
+    def mono(i: int, frame: dict, is_test: bool = False) -> np.ndarray | None:
         image = sized.pop(i) if i in sized else _image(root, frame, listings)
+        if is_test and image is not None and (image.shape[0] < height or image.shape[1] < row):
+            upsampled.append((frame["file_path"], image.shape[1], image.shape[0]))
         name = f"{root / frame['file_path']}"
         return _mono(image, src, (height, row), slice(shift, shift + width), name, what)
 
@@ -333,9 +338,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
             return None
 
     images = [
-        mono(i, frame) if is_test else training_image(i, frame, check)
+        mono(i, frame, True) if is_test else training_image(i, frame, check)
         for i, (frame, is_test, check) in enumerate(zip(frames, test, checked))
     ]
+    warn_upsampled_tests(path, upsampled, row, height, "or set height and width in spikegs.json")
     sized.clear()  # a training image that gave the size but is not checked
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)

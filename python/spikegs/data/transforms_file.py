@@ -168,18 +168,24 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
                 f"{negative[0][0]}), set to 0: light is not negative",
                 stacklevel=3,
             )
-        if upsampled:
-            name, w, h = upsampled[0]
-            warnings.warn(
-                f"{path}: {len(upsampled)} test frame(s) smaller than the dataset's {width}x"
-                f"{height} (first {name}, {w}x{h}) are upsampled to it as ground truth: a "
-                f"blurred truth scores renders higher than a sharp one (+2.3 dB in a trial of "
-                f"32x32 test frames at 64x64); give test frames at the dataset's size or larger, "
-                f"or simulate at theirs",
-                stacklevel=3,
-            )
+        warn_upsampled_tests(path, upsampled, width, height, "or simulate at theirs")
         images.append(stack)
     return images, viewmats, K, docs[0]
+
+
+def warn_upsampled_tests(path, upsampled: list, width: int, height: int, fix: str) -> None:
+    """A UserWarning where test images (file, w, h) of `path`'s are smaller than the dataset's
+    width x height: upsampled to it as ground truth, a blurred truth scores renders higher than
+    a sharp one; `fix` names the other way out."""
+    if upsampled:
+        name, w, h = upsampled[0]
+        warnings.warn(
+            f"{path}: {len(upsampled)} test image(s) smaller than the dataset's {width}x{height} "
+            f"(first {name}, {w}x{h}) are upsampled to it as ground truth: a blurred truth "
+            f"scores renders higher than a sharp one (+2.3 dB in a trial of 32x32 test frames "
+            f"at 64x64); give test images at the dataset's size or larger, {fix}",
+            stacklevel=4,
+        )
 
 
 def camera_number(path: Path, key: str, value) -> float:
