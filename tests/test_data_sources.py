@@ -231,6 +231,16 @@ def test_frame_sequence_source(tmp_path):
     assert [w for w in said if re.search(upsampled + r".*, 32x32\) are upsampled", str(w.message))]
     assert not [w for w in said if "transforms_train.json: " in str(w.message)]
 
+    # two frames naming one image: said (the light at both poses was that one view's, unsaid)
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    write_transforms(shared / "transforms.json", "train", train, train_poses, truth.K, ".exr")
+    doc = json.loads((shared / "transforms.json").read_text())
+    doc["frames"][4]["file_path"] = doc["frames"][2]["file_path"]
+    (shared / "transforms.json").write_text(json.dumps(doc))
+    with pytest.warns(UserWarning, match=r"transforms.json: frames 2 and 4 name one image \("):
+        FrameSequenceSource.from_transforms(shared / "transforms.json", 32, 32, 3)
+
     # one frame: said to need two (its axes were said not to converge, then, with a scene sphere
     # given, a stack of [1, H, W, C] refused naming no file)
     single = tmp_path / "single"

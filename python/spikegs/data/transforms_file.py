@@ -130,6 +130,7 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
     first frame is read, before any other."""
     docs = [read_transforms_doc(path) for path in paths]
     viewmats = [transforms_viewmats(path, doc) for path, doc in zip(paths, docs)]  # [F_i, 4, 4]
+    _warn_of_shared_images(paths[0], docs[0])
     frames, sources, frame_docs = flat_frames(paths, docs)
     cameras = read_cameras(frame_docs, frames, sources)
     listings: dict = {}  # each folder listed once (`frame_files`)
@@ -171,6 +172,23 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
         warn_upsampled_tests(path, upsampled, width, height, "or simulate at theirs")
         images.append(stack)
     return images, viewmats, K, docs[0]
+
+
+def _warn_of_shared_images(path: Path, doc: dict) -> None:
+    """A UserWarning where two of a frame sequence's frames name one image file: the light at
+    both poses is that one view's (a frame list copied, its file names left; taken unsaid)."""
+    seen: dict[str, int] = {}
+    for i, frame in enumerate(doc["frames"]):
+        name = os.path.normpath(frame["file_path"])
+        if name in seen:
+            warnings.warn(
+                f"{path}: frames {seen[name]} and {i} name one image ({frame['file_path']}): the "
+                f"light at both poses is that one view's (a frame list copied, its file names "
+                f"left?)",
+                stacklevel=4,
+            )
+            return
+        seen[name] = i
 
 
 def warn_upsampled_tests(path, upsampled: list, width: int, height: int, fix: str) -> None:
