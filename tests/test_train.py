@@ -26,7 +26,7 @@ import pytest
 import torch
 import yaml
 from plyfile import PlyData, PlyElement
-from spikegs import _C
+from spikegs import _C, train_cli
 from spikegs import densify as densify_module
 from spikegs import train as train_module
 from spikegs.cli import COMMANDS, USAGE, build_parser, main
@@ -3817,6 +3817,48 @@ def test_a_full_disk_at_the_end_of_train_says_that_resume_finishes_it(
     said = capsys.readouterr().err
     assert "left on device: stdout, where the summary was printed (the run is finished: " in said
     assert "--resume finishes" not in said
+
+
+def test_a_full_progress_output_after_the_last_step_says_the_run_is_finished(
+    dataset, tmp_path, monkeypatch, capsys
+):
+    """The last evaluation's line refused by a full disk, after train.json was written, was told
+    "--resume finishes the run", which had nothing to finish."""
+    run = tmp_path / "run"
+    command = ["train", str(dataset.root), "--method", "tfp33", "--iterations", "2"]
+    command += ["--out", str(run), "--no-progress"]
+
+    def full_at_the_end(trainer):
+        if trainer.iteration == 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(train_cli, "print_evaluation", full_at_the_end)
+    assert main(command) == 2
+    out, err = capsys.readouterr()
+    assert f"(the run is finished: {run / 'train.json'} holds it)" in err
+    assert "--resume finishes" not in err
+    assert json.loads(out)["iterations"] == 2  # its summary, printed as a finished run's
+
+
+def test_a_finished_runs_earlier_summary_is_not_printed_for_a_failed_resume(
+    dataset, tmp_path, monkeypatch, capsys
+):
+    """--resume of a finished run whose scene.ply could not be written again printed the earlier
+    finish's train.json on stdout, as a script reads a success's, before its exit status 2."""
+    run = tmp_path / "run"
+    command = ["train", str(dataset.root), "--method", "tfp33", "--iterations", "2"]
+    command += ["--out", str(run), "--no-progress"]
+    assert main(command) == 0
+    (run / "scene.ply").unlink()
+    capsys.readouterr()
+
+    def disk_full(model, path):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(train_module, "save_ply", disk_full)
+    assert main([*command, "--resume"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "--resume finishes the run from its last checkpoint" in err
 
 
 class _FullOutput(io.StringIO):

@@ -192,6 +192,7 @@ class Trainer:
         self.brightness = FitBrightness()  # of the steps this process takes
         self.targets = None  # a training's target images (`build_targets`), released after it
         self.found = None  # what they leave out (`Targets.found`), kept in the checkpoint
+        self.summary = None  # train.json's object once this process has written it
 
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
@@ -923,6 +924,7 @@ class Trainer:
         if self.found is not None:  # (none in a checkpoint from before the key)
             summary[FOUND] = self.found
         write_text_if_changed(self.run_dir / SUMMARY, strict_json.dumps(summary, indent=2))
+        self.summary = summary
         if stopped:
             raise interruption(stopped)
         if gone is not None:

@@ -212,20 +212,20 @@ def _train(args: argparse.Namespace, config) -> int:
     dataset = load_dataset(args.dataset, bars)
     settings = Path(args.out) / CONFIG if resumes_own_settings(args) else None
     trainer = Trainer(dataset, config, args.out, progress=bars, settings_file=settings)
-    summary, unprinted = None, None
+    unprinted = None
+    written = Path(args.out) / SUMMARY
     try:
         try:
-            summary = trainer.train(args.resume, on_eval=None if bars else print_evaluation)
+            trainer.train(args.resume, on_eval=None if bars else print_evaluation)
         finally:  # a run stopped in its last step finished all the same: its curve and summary
             if trainer.iteration >= config.train.iterations:
                 runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
                 save_logged_curves(Path(args.out) / CURVE, runs, dataset)
-                written = Path(args.out) / SUMMARY  # written before the stop is raised
-                if summary is None and written.is_file():
-                    summary = strict_json.read_json(written)
-                if summary is not None:  # (a script reads it from stdout)
+                # written before a stop is raised; an error before it leaves an earlier
+                # finish's train.json, which is not this training's summary
+                if trainer.summary is not None:  # (a script reads it from stdout)
                     try:
-                        print(strict_json.dumps(summary, indent=2))
+                        print(strict_json.dumps(trainer.summary, indent=2))
                     except OSError as err:  # a full stdout: the run is finished, no --resume
                         if err.errno not in FULL:
                             raise
@@ -239,6 +239,10 @@ def _train(args: argparse.Namespace, config) -> int:
         if err is unprinted or err.errno not in FULL or not last_checkpoint(args.out).is_file():
             raise
         where = "" if err.filename is None else f": {err.filename}"
+        if trainer.summary is not None:  # the progress output's, after the last step
+            raise OSError(
+                err.errno, f"{err.strerror}{where} (the run is finished: {written} holds it)"
+            ) from err
         raise OSError(
             err.errno,
             f"{err.strerror}{where}; once there is room, "
