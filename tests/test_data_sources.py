@@ -173,6 +173,26 @@ def test_a_transforms_files_image_folder_is_listed_once(tmp_path, listed_folders
     assert listed_folders[str(tmp_path / "train")] == 1
 
 
+def test_frames_named_by_another_case_of_extension_are_said_once_a_folder(tmp_path):
+    """file_path r_0.PNG for r_0.png: the warning came twice, once from the first frame read for
+    the size, once from the others, where it is one a folder."""
+    truth = ProceduralSource("solids", SCENES["solids"](), 8, 8)
+    poses = truth.trajectory(1001, 0.5).pose_at(np.linspace(0, 1000, 4))  # [4, 4, 4]
+    frames = np.stack([truth.render(v) for v in poses])  # [4, 8, 8, 1]
+    write_transforms(tmp_path / "transforms.json", "train", frames, poses, truth.K, ".png")
+    doc = json.loads((tmp_path / "transforms.json").read_text())
+    for frame in doc["frames"]:
+        frame["file_path"] += ".PNG"
+    (tmp_path / "transforms.json").write_text(json.dumps(doc))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")  # as a command shows them: once a message and place
+        FrameSequenceSource.from_transforms(tmp_path / "transforms.json", 8, 8)
+    said = [
+        w for w in caught if "frame images named .PNG (file_path), found as .png" in str(w.message)
+    ]
+    assert len(said) == 1
+
+
 def test_8_bit_images_hold_srgb_as_they_are_tagged(tmp_path):
     """Eval PNGs, comparison.png and videos held linear values in files tagged sRGB: a mid grey
     (linear 0.216, sRGB 128) was stored as 55 and shown 5.7x too dark."""

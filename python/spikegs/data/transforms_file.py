@@ -472,14 +472,14 @@ def frame_file(base: Path, listings: dict | None = None) -> Path:
         warnings.warn(  # one message per folder, not per frame
             f"{base.parent}: frame images named {base.suffix} (file_path), found as "
             f"{found.suffix}: read",
-            stacklevel=3,
+            stacklevel=2,  # one place for every frame: read_frame has two callers
         )
     elif len(files) > 1 and found != base:  # one message per folder, not per frame
         warnings.warn(
             f"{base.parent}: frame images in several formats "
             f"({', '.join(p.suffix for p in files)}): {found.suffix} is read, the first of "
             f"{', '.join(IMAGE_EXTENSIONS)}",
-            stacklevel=3,
+            stacklevel=2,
         )
     return found
 
