@@ -40,8 +40,11 @@ def to_channels(rgb: np.ndarray, channels: int) -> np.ndarray:
 
 def _reason(error: str) -> str:
     """OpenImageIO's error message, which some failures leave empty (a truncated file, a folder
-    that cannot be written)."""
-    return error.strip() or "OpenImageIO gave no reason (a truncated file, or no permission?)"
+    that cannot be written); libpng prints its own line to stderr then, which the words allow."""
+    return error.strip() or (
+        "OpenImageIO returned no reason (a truncated file, or no permission? its image library "
+        "may have printed one above)"
+    )
 
 
 def _name(path: str | Path) -> str:
