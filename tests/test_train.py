@@ -3262,6 +3262,10 @@ def test_counts_in_a_config_lie_below_2_to_the_63():
     with pytest.raises(ValueError, match=r"train.iterations = 9223372036854775808"):
         load_config("spikegs", iterations=2**63)
     assert load_config("spikegs", iterations=2**63 - 1).train.iterations == 2**63 - 1
+    # a float count was told "expected >= 1 (and below 2^63)", which 100.0 is (a file's: "expected
+    # an integer")
+    with pytest.raises(ValueError, match=r"= 100.0, expected a whole number >= 1 \(and below"):
+        load_config("spikegs", iterations=100.0)
 
 
 def test_python_dash_m_spikegs_is_the_command():

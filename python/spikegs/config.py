@@ -67,7 +67,7 @@ MIN_FILTER_3D, MAX_FILTER_3D = 1e-3, 10.0
 # steps, 32² solids) 1 and 2 random Gaussians were all pruned by the opacity reset (an empty
 # model), 4 kept 29; the demo starts from 5000
 MIN_GAUSSIANS = 16
-COUNTS = ">= 1 (and below 2^63)"  # what a count of steps or things expects
+COUNTS = "a whole number >= 1 (and below 2^63)"  # what a count of steps or things expects
 # densify keys counted in iterations: their defaults are for TrainConfig.iterations, and a run of
 # another length scales them (0 stays: stop = half the run, no opacity reset)
 SCHEDULE_KEYS = ("start", "stop", "every", "opacity_reset_every")
