@@ -775,6 +775,9 @@ def _bad_inputs():
                 {"colors": s["colors"][..., None]},
                 r"expected shape \[N, C\] or \[N, K, C\]",
             ),
+            # a degree out of range with direct colours: was told it needs SH coefficients
+            ("sh-degree-negative", {"colors": s["colors"][:, 0], "sh_degree": -1}, "expected 0..3"),
+            ("sh-degree-5", {"sh_degree": 5}, r"sh_degree: expected 0..3, got 5"),
             # was "sh_degree: expected 0..3, got -1", a degree the caller never passed
             ("sh-k-zero", {"colors": s["colors"][:, :0], "sh_degree": None}, "at least 1 SH"),
             (

@@ -39,6 +39,10 @@ def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
     [N, K, C], `sh_degree` or, where None, sqrt(K) - 1. ValueError naming what does not fit, and
     for [N, 1, 4 | 9 | 16] without `sh_degree`, which is degree 0 of that many channels or a
     mono scene's coefficients in the [N, C, K] layout."""
+    if sh_degree is not None and not is_int(sh_degree):
+        raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
+    if sh_degree is not None and not 0 <= sh_degree <= MAX_DEGREE:  # (said of the colours' shape)
+        raise ValueError(f"sh_degree: expected 0..{MAX_DEGREE}, got {sh_degree}")
     if colors.dim() == 2:
         if sh_degree is not None:
             raise ValueError(
@@ -51,8 +55,6 @@ def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
     k = colors.shape[1]
     if k < 1:
         raise ValueError(f"colors: expected at least 1 SH coefficient, got {list(colors.shape)}")
-    if sh_degree is not None and not is_int(sh_degree):
-        raise ValueError(f"sh_degree: expected an int, got {sh_degree!r}")
     if sh_degree is None:
         sh_degree = math.isqrt(k) - 1
         c = colors.shape[2]
@@ -74,8 +76,6 @@ def degree_of(colors: torch.Tensor, sh_degree: int | None) -> int | None:
                 f"colors: {k} SH coefficients are degree {sh_degree}, up to {MAX_DEGREE} "
                 f"rendered: pass sh_degree={MAX_DEGREE} to use the first {num_coeffs(MAX_DEGREE)}"
             )
-    if not 0 <= sh_degree <= MAX_DEGREE:
-        raise ValueError(f"sh_degree: expected 0..{MAX_DEGREE}, got {sh_degree}")
     if k < num_coeffs(sh_degree):
         raise ValueError(
             f"colors: sh_degree {sh_degree} needs {num_coeffs(sh_degree)} coefficients, got {k}"
