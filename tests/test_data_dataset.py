@@ -544,6 +544,14 @@ def test_negative_view_counts_refused(tmp_path):
     with pytest.warns(UserWarning, match="700 readouts hold 4 on-path held-out views of the de"):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
     assert sum(v.readout is not None for v in ds.test_views) == 4
+    # an unknown scene is refused first, not warned of its run's length before (the API's
+    # names beside the command's)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="unknown scene 'sphere'"):
+            simulate_dataset("sphere", tmp_path / "unknown", **fewer)
+    with pytest.warns(UserWarning, match=r"or set test_on_path \(--test-on-path\)"):
+        simulate_dataset("solids", tmp_path / "fewer2", **fewer)
     # none held out: it said to hold out fewer
     with pytest.raises(ValueError, match=r"readouts \(--readouts\): expected >= 66, found 65: two"):
         simulate_dataset("solids", tmp_path / "x", **{**fewer, "readouts": 65})

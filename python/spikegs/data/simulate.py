@@ -492,13 +492,13 @@ def simulate_dataset(
             f">= 0, found {test_on_path}, {test_off_path}"
         )
     room = (readouts - 2 * WINDOW_MARGIN - 2) // (4 * WINDOW_MARGIN)  # on-path views that fit
-    if asked[0] is None and room < test_on_path:  # the default: as many as fit, said
+    fewer_views = None  # the default held out as many as fit: said once the scene is known
+    if asked[0] is None and room < test_on_path:
         if room >= 0:  # (under none the stream is refused below)
-            warnings.warn(
+            fewer_views = (
                 f"{readouts} readouts hold {room} on-path held-out views of the default "
                 f"{test_on_path} (each {4 * WINDOW_MARGIN} readouts, {2 * WINDOW_MARGIN + 2} "
-                f"more in all): add readouts for more, or set --test-on-path",
-                stacklevel=2,
+                f"more in all): add readouts for more, or set test_on_path (--test-on-path)"
             )
         test_on_path = max(room, 0)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
@@ -536,6 +536,8 @@ def simulate_dataset(
     check_output(out, overwrite)  # before any work
     channels = 3 if color else 1
     source = make_source(scene, width, height, channels, spp=spp, up=up)
+    if fewer_views is not None:  # (an unknown scene was refused after it)
+        warnings.warn(fewer_views, stacklevel=2)
     if isinstance(scene, RenderSource) and motion["up"] is not None:
         raise ValueError(f"up: the source '{source.name}' given sets its own (its up)")
     if isinstance(scene, Source) and source.kind != "frames" and spp is not None:  # (dropped)
