@@ -1744,6 +1744,46 @@ def test_settings_a_method_never_reads_are_warned_of(tmp_path):
         assert load_config(mine, iterations=1).instant_target() == "none"
 
 
+@pytest.mark.parametrize(
+    "text, said",
+    [
+        # no reset before densification's end at 1500: as 0, unsaid (and with it no size pruning)
+        (
+            "densify: {opacity_reset_every: 1500, max_screen_size: 1.0}",
+            r"densify.max_screen_size \(size pruning follows the first opacity reset, and none "
+            r"falls in the run\); densify.opacity_reset_every \(no opacity reset falls in the "
+            r"run: the first, at iteration 1500, must come before densification's end \(1500\)",
+        ),
+        ("densify: {opacity_reset_every: 0, max_world_size: 0.2}", r"max_world_size \(size prun"),
+        ("lr: {sh_rest: 0.01}", r"lr.sh_rest \(train.sh_degree is 0: no coefficients beyond"),
+        (  # densification off: its settings trained nothing
+            "densify: {start: 3000, grad_threshold: 0.001, max_gaussians: 9000}",
+            r"densify.grad_threshold, densify.max_gaussians \(no densification round falls in the "
+            r"run's 3000 iterations \(densify.start 3000, every 100, to 1500\)\)",
+        ),
+        ("densify: {instant_only: false}", r"densify.instant_only \(one loss alone: its renders"),
+    ],
+)
+def test_densification_and_sh_settings_a_run_never_reads_are_warned_of(tmp_path, text, said):
+    """Settings that trained byte-identical scenes to their defaults, unsaid (the config trial):
+    an opacity reset period whose first reset falls past densification's end, size pruning
+    without a reset, sh_rest's rate at SH degree 0, densification's settings where no round
+    falls in the run, instant_only with one loss."""
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(f"base: tfp33\n{text}\n")
+    with pytest.warns(UserWarning, match=said):
+        load_config(mine)
+    # read where they train: a reset at 1000, SH degree 1, densification from 500, two losses
+    mine.write_text(
+        "base: spikegs\ntrain: {sh_degree: 1}\ndensify: {opacity_reset_every: 1000, "
+        "max_screen_size: 1.0, grad_threshold: 0.001, instant_only: false}\n"
+        "lr: {sh_rest: 0.01}\n"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_config(mine)
+
+
 def test_a_file_naming_a_method_must_have_its_supervision(tmp_path):
     """`base: tfp33` with `method: spikegs` trained TFP(33)+3DGS recorded as spikegs; method names
     that are no names ('', '../x') were taken."""

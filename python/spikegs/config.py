@@ -619,8 +619,40 @@ def unread_settings(config: Config) -> dict[str, str]:
         why = "no instant target"
         keys = ("instant_window", "instant_norm", "instant_until")
         unread |= {f"supervision.{key}": why for key in keys}
+    if s.exposure_weight == 0 or s.instant == "none" or s.instant_weight == 0:
+        why = "one loss alone: its renders give the densification signal"
+        unread["densify.instant_only"] = why
     if not config.pose_refine.enabled:
         unread["pose_refine.lr"] = "pose_refine.enabled is false"
+    if config.train.sh_degree == 0:
+        unread["lr.sh_rest"] = "train.sh_degree is 0: no coefficients beyond the DC's"
+    return unread | _unread_densify(config.densify, config.train.iterations)
+
+
+def _unread_densify(d: DensifyConfig, iterations: int) -> dict[str, str]:
+    """{'densify.key': why} of the densification settings that a run of `iterations` never
+    reads: the rounds' where none falls in the run, opacity_reset_every where no reset does (the
+    first, at that iteration, at or past densification's end or within a period of the run's
+    end: `Densifier._resets_opacity`), and the size pruning's, which follows the first reset."""
+    unread, stop = {}, d.last_iteration(iterations)
+    if not d.last_round(iterations):
+        why = (
+            f"no densification round falls in the run's {iterations} iterations (densify.start "
+            f"{d.start}, every {d.every}, to {stop})"
+        )
+        keys = ("grad_threshold", "percent_dense", "min_opacity", "max_gaussians", "absgrad")
+        keys += ("instant_only", "max_screen_size", "max_world_size")
+        unread |= {f"densify.{key}": why for key in keys}
+    every = d.opacity_reset_every
+    if every and not (every < stop and 2 * every <= iterations):
+        unread["densify.opacity_reset_every"] = (
+            f"no opacity reset falls in the run: the first, at iteration {every}, must come "
+            f"before densification's end ({stop}) with a period of the run's {iterations} "
+            f"iterations left after it"
+        )
+    if not every or "densify.opacity_reset_every" in unread:
+        why = "size pruning follows the first opacity reset, and none falls in the run"
+        unread |= {f"densify.{key}": why for key in ("max_screen_size", "max_world_size")}
     return unread
 
 
