@@ -1744,6 +1744,23 @@ def test_settings_a_method_never_reads_are_warned_of(tmp_path):
         assert load_config(mine, iterations=1).instant_target() == "none"
 
 
+def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
+    """A file's value out of range was "config: supervision.exposure_poses = 1, expected >= 2",
+    naming no file: through a base chain, which one set it went unsaid (the config trial)."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "par.yaml").write_text("base: spikegs\nsupervision: {exposure_poses: 1}\n")
+    (tmp_path / "kid.yaml").write_text("base: sub/par.yaml\nmethod: kid\n")
+    parent = tmp_path / "sub" / "par.yaml"
+    with pytest.raises(
+        ValueError, match=rf"^{re.escape(str(parent))}: supervision.exposure_poses = 1, expected"
+    ):
+        load_config(tmp_path / "kid.yaml")
+    # a scaled schedule key: the file, and the scaling
+    (tmp_path / "kid.yaml").write_text("base: spikegs\ndensify: {start: 1400, stop: 1000}\n")
+    with pytest.raises(ValueError, match=r"kid.yaml: densify.start = 140, .*; scaled to train"):
+        load_config(tmp_path / "kid.yaml", iterations=300)
+
+
 @pytest.mark.parametrize(
     "text, said",
     [

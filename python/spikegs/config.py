@@ -421,20 +421,26 @@ class Config:
         config.train.iterations = iterations
         if factor != 1:
             _keep_a_round(config.densify, iterations)
-        return _validated_scaled(config, dict.fromkeys(SCHEDULE_KEYS, factor))
+        return _validated_scaled(config, dict.fromkeys(SCHEDULE_KEYS, factor), {})
 
 
-def _validated_scaled(config: Config, factors: dict[str, float]) -> Config:
-    """`config.validate()`, where the setting refused is a densification value scaled to the run's
-    length (by `factors`, per schedule key) saying so: the value named is not the one written."""
+def _validated_scaled(config: Config, factors: dict[str, float], set_in: dict[str, Path]) -> Config:
+    """`config.validate()`, where the setting refused is named with the file that set it (`set_in`:
+    'section.key' → the file; through a base chain the key's file was not said) and, where it is a
+    densification value scaled to the run's length (by `factors`, per schedule key), saying so:
+    the value named is not the one written."""
     try:
         return config.validate()
     except ConfigError as err:
         key = err.name.removeprefix("densify.")
+        where = f"{set_in[err.name]}: " if err.name in set_in else ""
+        said = where + str(err).removeprefix("config: ") if where else str(err)
         if factors.get(key, 1) == 1:
-            raise
+            if not where:
+                raise
+            raise ValueError(said) from None
         raise ValueError(
-            f"{err}; scaled to train.iterations = {config.train.iterations} from the run length "
+            f"{said}; scaled to train.iterations = {config.train.iterations} from the run length "
             f"it was set for, the default {TrainConfig.iterations} where unset "
             f"(densify.{key} x {factors[key]:.3g})"
         ) from None
@@ -595,7 +601,7 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
-    config = _validated_scaled(config, factors)
+    config = _validated_scaled(config, factors, read.get(SET_IN, {}))
     if not saved_run:  # (a run's config.yaml sets every key)
         warn_if_unread(config, read.get(SET_IN, {}))
     return config
