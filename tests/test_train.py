@@ -1917,12 +1917,28 @@ def test_a_value_of_the_wrong_kind_is_shown_as_yaml_spells_it(tmp_path):
     """An empty key read "= None is a NoneType, expected int", and `instant: no` "= False is a
     bool, expected str": Python's words for what the file spells null and false. The hint to
     quote yes or no follows a true or false where text goes, not a number there nor a true
-    where a number goes (whole messages: that hint after every wrong kind passed)."""
+    where a number goes (whole messages: that hint after every wrong kind passed). A key of a
+    few words lists them (`instant_until: 1500` was told "expected text", and `exposure_norm: off`
+    to quote the text, which 'off' is not either: the config trial)."""
     quote = " (YAML reads an unquoted yes, no, on or off as true or false: quote the text)"
+    instants = "one of sim, tfp, tfi, clean, none"
     for text, message in (
         ("train:\n  iterations:\n", "'train.iterations' = null (empty), expected an integer"),
-        ("supervision: {instant: no}\n", f"'supervision.instant' = false, expected text{quote}"),
-        ("supervision: {instant: 5}\n", "'supervision.instant' = 5 (an integer), expected text"),
+        ("method: no\n", f"'method' = false, expected text{quote}"),
+        ("supervision: {instant: no}\n", f"'supervision.instant' = false, expected {instants}"),
+        (
+            "supervision: {instant: 5}\n",
+            f"'supervision.instant' = 5 (an integer), expected {instants}",
+        ),
+        (
+            "supervision: {instant_until: 1500}\n",
+            "'supervision.instant_until' = 1500 (an integer), expected one of run, densify",
+        ),
+        (
+            "supervision: {exposure_norm: off}\n",
+            "'supervision.exposure_norm' = false, expected one of l1, l2, smooth_l1",
+        ),
+        ("sim: {loss: 1}\n", "'sim.loss' = 1 (an integer), expected one of l1, l2"),
         ("train: {iterations: yes}\n", "'train.iterations' = true, expected an integer"),
         (
             "train: 20\n",

@@ -49,6 +49,15 @@ CONFIG_DIR = next(
 DEFAULT_METHOD = "spikegs"  # the configuration when no method or file is named
 # supervision.instant_until: every step, or until densification ends
 INSTANT_UNTIL = ("run", "densify")
+INSTANT_TARGETS = ("sim", "tfp", "tfi", "clean", "none")
+# the text settings of a fixed set of words, each 'section.key' with its words
+CHOICES = {
+    "supervision.instant": INSTANT_TARGETS,
+    "supervision.instant_until": INSTANT_UNTIL,
+    "supervision.instant_norm": tuple(NORMS),
+    "supervision.exposure_norm": tuple(NORMS),
+    "sim.loss": tuple(SIM_LOSSES),
+}
 MAX_LR = 1.0  # learning rates above it move parameters by more than their own scale a step
 # supervision's loss weights: only their ratios matter (Adam's steps do not see the loss's scale,
 # and densification divides the weights out), and a term weighted 2**24 (1.7e7) times another
@@ -214,10 +223,10 @@ class Config:
                 f"Adam's squared gradients overflow float32, and under 1e-9 its eps swamps them)",
             )
         _require(
-            s.instant in ("sim", "tfp", "tfi", "clean", "none"),
+            s.instant in INSTANT_TARGETS,
             "supervision.instant",
             s.instant,
-            "one of sim, tfp, tfi, clean, none",
+            f"one of {', '.join(INSTANT_TARGETS)}",
         )
         for name in ("instant_window", "exposure_window"):
             value = getattr(s, name)
@@ -563,7 +572,9 @@ def _apply(target, overrides: dict, where: str) -> None:
                 raise ValueError(f"config: '{where}{key}' = {past_float(value)}")
             value = float(value)
         if type(value) is not kind:
-            raise _wrong_kind(f"{where}{key}", value, KIND_WORDS[kind])
+            words = CHOICES.get(f"{where}{key}")  # (then no word of the YAML's true is one)
+            expected = f"one of {', '.join(words)}" if words else KIND_WORDS[kind]
+            raise _wrong_kind(f"{where}{key}", value, expected)
         setattr(target, key, value)
 
 
