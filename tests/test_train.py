@@ -1487,6 +1487,12 @@ def test_every_method_config_loads():
         ("spikegs", {"densify": {"max_screen_size": 0.5}}, "densify.max_screen_size.*>= 1 pix"),
         ("spikegs", {"densify": {"max_screen_size": -1.0}}, "densify.max_screen_size"),
         ("spikegs", {"train": {"init_gaussians": 1}}, "train.init_gaussians"),
+        # the cap under the initial count: named without that count (the config trial)
+        (
+            "spikegs",
+            {"train": {"init_gaussians": 300000}},
+            r"max_gaussians = 200000, expected >= train.init_gaussians \(300,000\): raise the cap",
+        ),
         ("spikegs", {"train": {"seed": -1}}, "train.seed"),
         ("spikegs", {"train": {"seed": 2**64}}, "train.seed"),
         # exponential decay cannot reach 0: lr.means_final 0 kept the rate constant

@@ -380,7 +380,7 @@ class Config:
             d.max_gaussians >= t.init_gaussians,
             "densify.max_gaussians",
             d.max_gaussians,
-            ">= train.init_gaussians",
+            f">= train.init_gaussians ({t.init_gaussians:,}): raise the cap, or start with fewer",
         )
         _require(sim.window >= 1 and sim.window % 2 == 1, "sim.window", sim.window, "odd, >= 1")
         _require(
