@@ -1674,6 +1674,18 @@ def test_a_config_file_of_no_mapping_or_a_bad_base_is_named(tmp_path):
         (tmp_path / "list.yaml").write_text(text)
         with pytest.raises(ValueError, match=message):
             load_config(tmp_path / "list.yaml")
+    # an upper-case suffix is a YAML file (MINE.YAML was "expected a .yaml or .yml file"), here
+    # and to --config
+    (tmp_path / "MINE.YAML").write_text("base: tfp33\ntrain: {iterations: 20}\n")
+    assert load_config(tmp_path / "MINE.YAML").train.iterations == 20
+    assert (
+        config_from_args(
+            build_parser().parse_args(
+                ["train", "d", "--config", str(tmp_path / "MINE.YAML"), "--out", "r"]
+            )
+        ).method
+        == "MINE"
+    )
 
 
 def test_a_config_file_names_its_method_unless_it_names_one(tmp_path):

@@ -829,7 +829,7 @@ def _config_path(name_or_path: str | Path, relative_to: Path | None) -> Path:
     to the current directory) or a built-in method's name; ValueError or FileNotFoundError
     naming it."""
     path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml"):
+    if path.suffix.lower() not in (".yaml", ".yml"):  # (MINE.YAML too)
         if len(path.parts) > 1 or path.suffix:  # a file's path, not a method's name
             raise ValueError(f"config file {path}: expected a .yaml or .yml file")
         path = CONFIG_DIR / f"{name_or_path}.yaml"

@@ -67,7 +67,7 @@ def config_from_args(args: argparse.Namespace):
     run's own RUN/config.yaml) with the command-line overrides applied."""
     overrides = {} if args.seed is None else {"train": {"seed": args.seed}}
     saved = Path(args.out) / CONFIG
-    if args.config is not None and Path(args.config).suffix not in (".yaml", ".yml"):
+    if args.config is not None and Path(args.config).suffix.lower() not in (".yaml", ".yml"):
         raise ValueError(
             f"--config {args.config}: expected a .yaml or .yml file (--method NAME names a method)"
         )
