@@ -567,6 +567,33 @@ def test_eval_with_aligned_poses_scores_each_view_from_its_aligned_pose(trained,
     assert "aligned_poses" not in plain
 
 
+def test_an_aligned_scoring_keeps_a_plain_scoring_of_a_dataset_named_like_it(
+    trained, run, tmp_path
+):
+    """A dataset whose folder is named 'aligned' is scored into eval-aligned.json, which an
+    aligned scoring of the run's own dataset then replaced unsaid; one named 'x-aligned' so lost
+    its scores to x's aligned scoring (the eval trial). Each now takes the next free name."""
+    data = trained[0]
+    copies = {}
+    for name in ("aligned", "x", "x-aligned"):
+        shutil.copytree(data.root, tmp_path / name)
+        copies[name] = load_dataset(tmp_path / name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (the copies: the run's data elsewhere)
+        evaluate_run(run, copies["aligned"], write_images=False)
+        evaluate_run(run, copies["x-aligned"], write_images=False)
+        kept = {n: (run / f"{n}.json").read_text() for n in ("eval-aligned", "eval-x-aligned")}
+        evaluate_run(run, data, write_images=False, align_poses=True)
+        evaluate_run(run, copies["x"], write_images=False, align_poses=True)
+        assert {n: (run / f"{n}.json").read_text() for n in kept} == kept
+        for name, root in (("eval-aligned-2", data.root), ("eval-x-aligned-2", tmp_path / "x")):
+            doc = json.loads((run / f"{name}.json").read_text())
+            assert "aligned_poses" in doc and doc["dataset"] == str(Path(root).resolve()), name
+        # scored again, each goes back to its own file
+        evaluate_run(run, data, write_images=False, align_poses=True)
+    assert not (run / "eval-aligned-3.json").exists()
+
+
 def test_eval_with_aligned_poses_names_the_views_likely_settled_off(trained, run, monkeypatch):
     """A view whose aligned render leaves over twice the median view's share of its image's coarse
     structure unexplained, and at least a tenth, is named in a warning and in eval-aligned.json's

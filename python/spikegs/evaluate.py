@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -181,6 +182,23 @@ def _holds_run_data(folder: Path, data: str, scale: float, progress: bool = Fals
         return False
 
 
+def _aligned_name(run_dir: Path, own: str, root: Path) -> str:
+    """OWN-aligned, the name of an aligned scoring (`own`: `_eval_name`'s, of dataset `root`), or
+    OWN-aligned-2, -3, ... where that name holds another scoring: the plain one of a dataset
+    whose folder is named 'aligned' (eval-aligned) or 'NAME-aligned', which it replaced unsaid."""
+    for i in itertools.count(1):
+        name = f"{own}-aligned" + (f"-{i}" if i > 1 else "")
+        path = run_dir / f"{name}.json"
+        if not path.exists():
+            return name
+        with contextlib.suppress(ValueError):  # unreadable: its name is not reused
+            doc = json.loads(read_text(path))
+            if not isinstance(doc, dict) or "aligned_poses" not in doc:
+                continue
+            if own == EVAL or doc.get("dataset") == str(Path(root).resolve()):
+                return name
+
+
 def _scored_dataset(path: Path) -> str | None:
     """The dataset an evaluation file scored; None where there is no such file ('' where it is
     unreadable: its name is not reused)."""
@@ -303,7 +321,7 @@ def evaluate_run(
     run_dir = Path(run_dir)
     train = read_summary(run_dir)
     own = _eval_name(run_dir, train, dataset, progress)
-    name = own + ("-aligned" if align_poses else "")
+    name = _aligned_name(run_dir, own, dataset.root) if align_poses else own
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     model = trained_model(run_dir)
     ply = run_dir / SCENE  # (`trained_model`'s)
