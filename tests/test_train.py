@@ -3315,6 +3315,21 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
     assert "expected a positive integer below 2^63" in capsys.readouterr().err
 
 
+def test_a_render_of_more_frames_than_its_cameras_fit_is_refused_while_parsing(capsys):
+    """--frames 2^63 - 1 raised numpy's IndexError with a traceback (--path trajectory), and 10^8
+    built 5.8 GB of cameras before the first frame (the eval trial)."""
+    command = ["render", "run", "--out", "o.gif", "--frames"]
+    assert build_parser().parse_args([*command, "1000000"]).frames == 10**6
+    for frames in ("1000001", str(2**63 - 1)):
+        with pytest.raises(SystemExit) as exit_info:
+            build_parser().parse_args([*command, frames])
+        assert exit_info.value.code == 2
+        assert (
+            f"expected at most 1,000,000 frames (over 9 hours at 30 a second), found {frames}"
+            in capsys.readouterr().err
+        )
+
+
 def test_the_python_api_names_what_it_was_given(dataset, tmp_path):
     """A notebook's slips: a path for the dataset, a dict for the config (AttributeErrors deep in
     the trainer and evaluate_run); a sweep's numpy numbers as overrides (yaml_text raised on them

@@ -40,13 +40,28 @@ PATH_TEXT = {  # what each path shows, as `spikegs render` says
 }
 
 MEMORY_SIZES = "--frames, --scale"  # (`cli.MEMORY_SIZES`)
+# an orbit's frames at most: 9 hours at 30 frames a second (every camera is made before the first
+# frame: 10^8 took 5.8 GB, and 2^63 - 1 numpy's IndexError)
+MAX_FRAMES = 1_000_000
+
+
+def frame_count(text: str) -> int:
+    """An argparse type: a number of frames in 1..MAX_FRAMES."""
+    frames = positive_int(text)
+    if frames > MAX_FRAMES:
+        raise argparse.ArgumentTypeError(
+            f"expected at most {MAX_FRAMES:,} frames (over 9 hours at 30 a second), found {text}"
+        )
+    return frames
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=file_path, help="run folder (spikegs train --out)")
     parser.add_argument("--out", type=output_file, required=True, help="video file: .gif or .mp4")
     parser.add_argument("--dataset", type=file_path, help="dataset folder (default: the run's own)")
-    parser.add_argument("--frames", type=positive_int, default=60, help="frames in one orbit")
+    parser.add_argument(
+        "--frames", type=frame_count, default=60, help=f"frames in one orbit, up to {MAX_FRAMES:,}"
+    )
     parser.add_argument(
         "--fps",
         type=int,
