@@ -8,7 +8,7 @@ import re
 
 import pytest
 from spikegs.cli import main
-from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files
+from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files, run_lock
 from spikegs.run_summary import read_summary, trained_scene
 
 
@@ -86,6 +86,12 @@ def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, cap
         err = capsys.readouterr().err
         assert "run: a run folder (its config.yaml, train.json), not a dataset" in err
         assert f"the run's dataset is {data}" in err
+    # while a training holds the run's lock: named so, not "being written by another process
+    # (spikegs simulate or poses); wait for it to end", then this after the wait (the eval trial)
+    with run_lock(run):
+        for argv in (["train", str(run), "--out", str(tmp_path / "new")], ["poses", str(run)]):
+            assert main(argv) == 2
+            assert "run: a run folder (its config.yaml, train.json)" in capsys.readouterr().err
     (run / "train.json").write_text('{"dataset": ')  # torn: the folder is named all the same
     assert main(["train", str(run), "--out", str(tmp_path / "new")]) == 2
     err = capsys.readouterr().err

@@ -361,7 +361,11 @@ def takes_lock(root: Path) -> bool:
     """Whether a command using the folder `root` as a dataset locks it: where it holds a lock or
     (a part of) a dataset. A folder holding neither is left without a lock file: it has nothing
     to read (an empty or mistyped one; a simulation starting there makes the lock before any
-    part), or no spikegs process writes it (an LLFF or NeRF layout)."""
+    part), or no spikegs process writes it (an LLFF or NeRF layout). A run folder given for a
+    dataset takes none: its lock is its training's, which made it "being written by spikegs
+    simulate or poses; wait", and load_dataset names it as a run folder."""
+    if run_folder_note(root) is not None and not holds_dataset(root):
+        return False
     return (root / LOCK).exists() or holds_dataset(root)
 
 
