@@ -2224,13 +2224,17 @@ def test_render_writes_the_orbits_cameras_beside_the_video(dataset, tmp_path, ca
     assert "o.gif.json: is a folder" in capsys.readouterr().err
     assert not (tmp_path / "o.gif").exists()
 
-    def disk_full(*args, **kwargs):  # after the video: it stands
-        raise OSError(errno.ENOSPC, "No space left on device")
+    def disk_full(*args, **kwargs):  # after the video: it stands, and the status says an
+        raise OSError(errno.ENOSPC, "No space left on device")  # output was not written (it was 0)
 
     monkeypatch.setattr("spikegs.render_cli.save_orbit", disk_full)
-    assert main(["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "5"]) == 0
+    assert main(["render", str(tmp_path / "run"), "--out", str(gif), "--frames", "5"]) == 2
     assert gif.is_file() and not gif.with_name("orbit.gif.json").exists()  # (3 frames' cameras)
-    assert "cameras not written beside the video: " in capsys.readouterr().err
+    out, err = capsys.readouterr()
+    assert (
+        f"No space left on device: the cameras not written beside the video {gif}, which st" in err
+    )
+    assert "5 frames, " in out and "cameras: " not in out
     monkeypatch.undo()
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -262,8 +261,9 @@ def run(args: argparse.Namespace) -> int:
     # the video's cameras written with it, not left a previous video's by a stop between the two
     # (a SIGTERM as the new video landed kept the old 60 frames' cameras beside its 400)
     stop = "\n{signal}: stopping once the video's cameras are written"
+    unwritten = None  # the cameras' error: the video stands, said after it (exit status 2)
     with deferred_interrupt(stop) as interrupted:
-        try:  # (the video stands without it, as sim-train's table does)
+        try:
             save_orbit(
                 cameras,
                 viewmats,
@@ -276,20 +276,23 @@ def run(args: argparse.Namespace) -> int:
                 scale=args.scale,
             )
         except OSError as err:  # (an earlier video's, left, would describe this one)
-            said = f"cameras not written beside the video: {err}"
+            said = (
+                f"{err.filename or cameras}: {err.strerror or err}: the cameras not written "
+                f"beside the video {args.out}, which stands"
+            )
             try:
                 cameras.unlink(missing_ok=True)
             except OSError as kept:
                 said += f"; {cameras}, an earlier video's, is left: {kept.strerror}"
-            cameras = None
-            print(said, file=sys.stderr)
+            cameras, unwritten = None, OSError(err.errno, said)
     if interrupted():
         raise interruption(interrupted())
     # said once both files are written (a full stdout's error left the video without its cameras)
     count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
     print(f"{count}, {PATH_TEXT[path]} -> {args.out}")
-    if cameras is not None:
-        print(f"cameras: {cameras}")
+    if unwritten is not None:  # an output not written: as a full disk's (a script's status 2)
+        raise unwritten
+    print(f"cameras: {cameras}")
     return 0
 
 
