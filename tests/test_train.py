@@ -4019,6 +4019,11 @@ def test_eval_stopped_midway_keeps_its_earlier_images_with_its_earlier_scores(
         return render(model, viewmat, data) * 0.5  # (another scene's images)
 
     monkeypatch.setattr(evaluate_module, "render_view", stopped_at_the_third)
+    first = shutil.copytree(run, tmp_path / "first", ignore=shutil.ignore_patterns("eval*"))
+    with pytest.raises(KeyboardInterrupt):  # a first scoring left an empty eval/ (the eval trial)
+        evaluate_run(first, dataset)
+    assert not (first / "eval").exists() and not (first / "eval.json").exists()
+    rendered.clear()
     with pytest.raises(KeyboardInterrupt):
         evaluate_run(run, dataset)
     after = {p.name: p.read_bytes() for p in [run / "eval.json", *(run / "eval").iterdir()]}

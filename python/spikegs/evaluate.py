@@ -374,6 +374,7 @@ def evaluate_run(
             f"score the copy)"
         )
     check_file_output(scores_file, "eval's scores")
+    made = write_images and not folder.exists()  # a stopped first scoring leaves none behind
     if write_images:
         check_folder_output(folder, "eval's images", images=True)
     for written in (run_dir, folder):  # what a killed scoring (or training) half-wrote there
@@ -475,6 +476,9 @@ def evaluate_run(
             tmp.replace(image)
     finally:
         _discard(staged)
+        if made:  # (rmdir removes only an empty folder: the images written stay)
+            with contextlib.suppress(OSError):
+                folder.rmdir()
     return result
 
 
