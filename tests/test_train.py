@@ -4161,7 +4161,7 @@ def test_eval_without_images_removes_the_side_by_sides_its_scores_no_longer_matc
     assert [name for name, png in images.items() if not png.exists()] == [changed]
 
 
-def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):
+def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path, capsys):
     with pytest.raises(FileNotFoundError, match="nope: no such run folder"):
         evaluate_run(tmp_path / "nope", dataset)  # it said: scene.ply not found, train first
     (tmp_path / "tiny.yaml").write_text("base: spikegs\n")  # was "no such run folder" too
@@ -4170,6 +4170,16 @@ def test_eval_of_a_missing_run_folder_says_so(dataset, tmp_path):
     (tmp_path / "empty").mkdir()  # a run folder never trained: no scene, no checkpoint
     with pytest.raises(FileNotFoundError, match="scene.ply not found: train the run first"):
         evaluate_run(tmp_path / "empty", dataset)
+    # a scene.ply alone (another tool's): eval and render take it with --dataset, unsaid before
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    (tmp_path / "imported").mkdir()
+    shutil.copy(tmp_path / "run" / "scene.ply", tmp_path / "imported")
+    assert main(["eval", str(tmp_path / "imported"), "--no-images"]) == 2
+    assert "a scene.ply from another tool is scored and rendered with --dataset DATASET" in (
+        capsys.readouterr().err
+    )
+    assert main(["eval", str(tmp_path / "imported"), "--dataset", str(dataset.root)]) == 0
 
 
 def test_eval_on_another_scene_says_so(dataset, tmp_path):

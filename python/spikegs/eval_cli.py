@@ -57,7 +57,8 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
                 f"finish it with {resume_command(run_dir)}"
             )
         raise FileNotFoundError(
-            f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run?"
+            f"{run_dir / SUMMARY} not found or without a dataset: is {run_dir} a finished run? "
+            f"(a scene.ply from another tool is scored and rendered with --dataset DATASET)"
         )
     own = Path(summary["dataset"])
     if not own.is_dir():
