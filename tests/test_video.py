@@ -31,8 +31,9 @@ def test_a_video_takes_1_to_1000_fps(tmp_path):
 
 def test_a_gif_loops_and_an_mp4_states_its_colours(tmp_path):
     """An orbit's GIF plays on a loop (Netscape's loop count 0: forever); an .mp4 states what
-    swscale's conversion made, so that players do not guess: BT.601 (SMPTE 170M, 6) matrix and
-    primaries, the sRGB transfer (13), limited range (1). MPEG-4 takes no x264 options."""
+    swscale's conversion made, so that players do not guess: the BT.601 (SMPTE 170M, 6) matrix,
+    limited range (1), and the frames' sRGB primaries (BT.709's, 1: SMPTE 170M's were stated, the
+    eval trial) and transfer (13). MPEG-4 takes no x264 options."""
     import av
     from PIL import Image
 
@@ -44,7 +45,7 @@ def test_a_gif_loops_and_an_mp4_states_its_colours(tmp_path):
     with av.open(str(tmp_path / "v.mp4")) as container:
         context = container.streams.video[0].codec_context
         tags = context.colorspace, context.color_primaries, context.color_trc
-        assert (*tags, context.color_range) == (6, 6, 13, 1)
+        assert (*tags, context.color_range) == (6, 1, 13, 1)
     assert video.mp4_options("mpeg4") == video.MP4_QUALITY["mpeg4"]
 
 

@@ -72,7 +72,8 @@ def mp4_codec() -> str:
     return codec
 
 
-BT601, SRGB_TRANSFER, LIMITED_RANGE = 6, 13, 1  # FFmpeg's AVColorSpace/Primaries, TRC, Range
+# FFmpeg's AVColorSpace (the matrix), AVColorPrimaries, AVColorTransferCharacteristic, AVColorRange
+BT601_MATRIX, BT709_PRIMARIES, SRGB_TRANSFER, LIMITED_RANGE = 6, 1, 13, 1
 
 
 def _even(frame: np.ndarray) -> np.ndarray:
@@ -141,11 +142,12 @@ def write_mp4(path: Path, frames: Iterable[np.ndarray], fps: int, count: int | N
                     stream = container.add_stream(codec, rate=fps, options=options)
                     stream.height, stream.width = frame.shape[:2]
                     stream.pix_fmt = "yuv420p"
-                    # what swscale's rgb24 -> yuv420p conversion makes, stated so that players
-                    # do not guess: BT.601 (SMPTE 170M) matrix and primaries, limited range, sRGB
-                    # transfer
+                    # stated so that players do not guess: the BT.601 (SMPTE 170M) matrix and
+                    # limited range that swscale's rgb24 -> yuv420p conversion uses, and the
+                    # frames' own sRGB primaries (BT.709's; SMPTE 170M's, stated before, shifted
+                    # a colour-managed player's gamut) and transfer
                     context = stream.codec_context
-                    context.colorspace, context.color_primaries = BT601, BT601
+                    context.colorspace, context.color_primaries = BT601_MATRIX, BT709_PRIMARIES
                     context.color_trc, context.color_range = SRGB_TRANSFER, LIMITED_RANGE
                 container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
             container.mux(stream.encode())  # flush the encoder's delayed frames
