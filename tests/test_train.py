@@ -33,6 +33,7 @@ from spikegs.cli import COMMANDS, USAGE, build_parser, main
 from spikegs.config import (
     CONFIG_DIR,
     Config,
+    ConfigError,
     available_methods,
     load_config,
     load_saved_run,
@@ -1777,6 +1778,19 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
     (tmp_path / "kid.yaml").write_text("base: spikegs\ndensify: {start: 1400, stop: 1000}\n")
     with pytest.raises(ValueError, match=r"kid.yaml: densify.start = 140, .*; scaled to train"):
         load_config(tmp_path / "kid.yaml", iterations=300)
+    # a ConfigError still, naming the setting; a value the overrides set is not the file's
+    with pytest.raises(ConfigError) as refused:
+        load_config(tmp_path / "kid.yaml")
+    assert refused.value.name == "densify.start" and str(refused.value).startswith(str(tmp_path))
+    (tmp_path / "c.yaml").write_text(
+        "base: spikegs\nsupervision: {exposure_poses: 3}\ntrain: {seed: 5}\n"
+    )
+    for overrides, said in (
+        ({"supervision": {"exposure_poses": 1}}, "config: supervision.exposure_poses = 1, "),
+        ({"densify": {"start": 1500}, "train": {"seed": -1}}, "config: train.seed = -1, "),
+    ):
+        with pytest.raises(ConfigError, match=f"^{re.escape(said)}"):
+            load_config(tmp_path / "c.yaml", overrides)
 
 
 @pytest.mark.parametrize(
@@ -1785,11 +1799,14 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
         # no reset before densification's end at 1500: as 0, unsaid (and with it no size pruning)
         (
             "densify: {opacity_reset_every: 1500, max_screen_size: 1.0}",
-            r"densify.max_screen_size \(size pruning follows the first opacity reset, and none "
-            r"falls in the run\); densify.opacity_reset_every \(no opacity reset falls in the "
-            r"run: the first, at iteration 1500, must come before densification's end \(1500\)",
+            r"densify.max_screen_size \(size pruning is done by the densification rounds after "
+            r"the first opacity reset, and none follows one\); densify.opacity_reset_every \(no "
+            r"opacity reset falls in the run: the first, at iteration 1500, must come before "
+            r"densification's end \(1500\)",
         ),
-        ("densify: {opacity_reset_every: 0, max_world_size: 0.2}", r"max_world_size \(size prun"),
+        ("densify: {opacity_reset_every: 0, max_screen_size: 2.0}", r"max_screen_size \(size p"),
+        # the reset at 1000 with the last round: a round at 1000 prunes before it (the review)
+        ("densify: {stop: 1050, max_screen_size: 2.0}", r"max_screen_size \(size pruning is"),
         ("lr: {sh_rest: 0.01}", r"lr.sh_rest \(train.sh_degree is 0: no coefficients beyond"),
         (  # densification off: its settings trained nothing
             "densify: {start: 3000, grad_threshold: 0.001, max_gaussians: 9000}",
@@ -1808,7 +1825,8 @@ def test_densification_and_sh_settings_a_run_never_reads_are_warned_of(tmp_path,
     mine.write_text(f"base: tfp33\n{text}\n")
     with pytest.warns(UserWarning, match=said):
         load_config(mine)
-    # read where they train: a reset at 1000, SH degree 1, densification from 500, two losses
+    # read where they train: a reset at 1000, SH degree 1, densification from 500, two losses;
+    # max_world_size caps the initial Gaussians' size, with no reset too (the review)
     mine.write_text(
         "base: spikegs\ntrain: {sh_degree: 1}\ndensify: {opacity_reset_every: 1000, "
         "max_screen_size: 1.0, grad_threshold: 0.001, instant_only: false}\n"
@@ -1816,6 +1834,8 @@ def test_densification_and_sh_settings_a_run_never_reads_are_warned_of(tmp_path,
     )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        load_config(mine)
+        mine.write_text("base: tfp33\ndensify: {opacity_reset_every: 0, max_world_size: 0.2}\n")
         load_config(mine)
 
 

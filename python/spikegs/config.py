@@ -442,17 +442,18 @@ def _validated_scaled(config: Config, factors: dict[str, float], set_in: dict[st
         return config.validate()
     except ConfigError as err:
         key = err.name.removeprefix("densify.")
-        where = f"{set_in[err.name]}: " if err.name in set_in else ""
-        said = where + str(err).removeprefix("config: ") if where else str(err)
-        if factors.get(key, 1) == 1:
-            if not where:
-                raise
-            raise ValueError(said) from None
-        raise ValueError(
-            f"{said}; scaled to train.iterations = {config.train.iterations} from the run length "
-            f"it was set for, the default {TrainConfig.iterations} where unset "
-            f"(densify.{key} x {factors[key]:.3g})"
-        ) from None
+        scaled = factors.get(key, 1) != 1
+        if err.name not in set_in and not scaled:
+            raise
+        expected = err.expected + (
+            f"; scaled to train.iterations = {config.train.iterations} from the run length it "
+            f"was set for, the default {TrainConfig.iterations} where unset (densify.{key} x "
+            f"{factors[key]:.3g})"
+            if scaled
+            else ""
+        )
+        where = str(set_in.get(err.name, "config"))
+        raise ConfigError(err.name, err.value, expected, where) from None
 
 
 def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
@@ -486,11 +487,12 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
 
 
 class ConfigError(ValueError):
-    """A setting refused by `Config.validate`: `name` is its 'section.key'."""
+    """A setting refused by `Config.validate`: `name` is its 'section.key', `where` the file that
+    set it ('config' where none did)."""
 
-    def __init__(self, name: str, value, expected: str):
-        super().__init__(f"config: {name} = {value!r}, expected {expected}")
-        self.name = name
+    def __init__(self, name: str, value, expected: str, where: str = "config"):
+        super().__init__(f"{where}: {name} = {value!r}, expected {expected}")
+        self.name, self.value, self.expected = name, value, expected
 
 
 def _require(ok: bool, name: str, value, expected: str) -> None:
@@ -601,6 +603,11 @@ def load_config(
     read = _read(name, set(), saved_run=saved_run)
     if overrides:
         _layer(read, copy.deepcopy(overrides))
+        # a key the overrides set is theirs, not the file's (a refusal named the file)
+        set_in = read.get(SET_IN, {})
+        for section, values in overrides.items():
+            for key in values if isinstance(values, dict) else ():
+                set_in.pop(f"{section}.{key}", None)
     lengths = read.get(LENGTHS, {})  # what each schedule key set was given for
     _apply(config, _settings(read), "")
     if iterations is not None:
@@ -650,16 +657,16 @@ def _unread_densify(d: DensifyConfig, iterations: int) -> dict[str, str]:
     """{'densify.key': why} of the densification settings that a run of `iterations` never
     reads: the rounds' where none falls in the run, opacity_reset_every where no reset does (the
     first, at that iteration, at or past densification's end or within a period of the run's
-    end: `Densifier._resets_opacity`), and the size pruning's, which follows the first reset."""
-    unread, stop = {}, d.last_iteration(iterations)
-    if not d.last_round(iterations):
+    end: `Densifier._resets_opacity`), and max_screen_size where no round follows a reset
+    (`Densifier._after_first_reset`)."""
+    unread, stop, last = {}, d.last_iteration(iterations), d.last_round(iterations)
+    if not last:
         why = (
             f"no densification round falls in the run's {iterations} iterations (densify.start "
             f"{d.start}, every {d.every}, to {stop})"
         )
         keys = ("grad_threshold", "percent_dense", "min_opacity", "max_gaussians", "absgrad")
-        keys += ("instant_only", "max_screen_size", "max_world_size")
-        unread |= {f"densify.{key}": why for key in keys}
+        unread |= {f"densify.{key}": why for key in (*keys, "instant_only", "max_screen_size")}
     every = d.opacity_reset_every
     if every and not (every < stop and 2 * every <= iterations):
         unread["densify.opacity_reset_every"] = (
@@ -667,9 +674,12 @@ def _unread_densify(d: DensifyConfig, iterations: int) -> dict[str, str]:
             f"before densification's end ({stop}) with a period of the run's {iterations} "
             f"iterations left after it"
         )
-    if not every or "densify.opacity_reset_every" in unread:
-        why = "size pruning follows the first opacity reset, and none falls in the run"
-        unread |= {f"densify.{key}": why for key in ("max_screen_size", "max_world_size")}
+    # (max_world_size prunes there too, and caps the initial Gaussians' size: read)
+    if last and (not every or "densify.opacity_reset_every" in unread or last <= every):
+        unread["densify.max_screen_size"] = (
+            "size pruning is done by the densification rounds after the first opacity reset, "
+            "and none follows one"
+        )
     return unread
 
 
