@@ -3973,6 +3973,16 @@ def test_a_full_progress_output_after_the_last_step_says_the_run_is_finished(
     assert "--resume finishes" not in err
     assert json.loads(out)["iterations"] == 2  # its summary, printed as a finished run's
 
+    # curve.png refused after train.json: --resume writes it (and prints the summary), as said
+    def curve_full(path, runs, dataset):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.undo()
+    monkeypatch.setattr(train_cli, "save_logged_curves", curve_full)
+    command[command.index(str(run))] = str(tmp_path / "run2")
+    assert main(command) == 2
+    assert "--resume finishes the run from its last checkpoint" in capsys.readouterr().err
+
 
 def test_a_finished_runs_earlier_summary_is_not_printed_for_a_failed_resume(
     dataset, tmp_path, monkeypatch, capsys

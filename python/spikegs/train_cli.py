@@ -212,11 +212,14 @@ def _train(args: argparse.Namespace, config) -> int:
     dataset = load_dataset(args.dataset, bars)
     settings = Path(args.out) / CONFIG if resumes_own_settings(args) else None
     trainer = Trainer(dataset, config, args.out, progress=bars, settings_file=settings)
-    unprinted = None
+    unprinted = trained = None  # the summary's printing's error; the training's own
     written = Path(args.out) / SUMMARY
     try:
         try:
             trainer.train(args.resume, on_eval=None if bars else print_evaluation)
+        except OSError as err:
+            trained = err
+            raise
         finally:  # a run stopped in its last step finished all the same: its curve and summary
             if trainer.iteration >= config.train.iterations:
                 runs = {config.method: (trainer.run_dir, trainer.sim_seconds)}
@@ -239,7 +242,7 @@ def _train(args: argparse.Namespace, config) -> int:
         if err is unprinted or err.errno not in FULL or not last_checkpoint(args.out).is_file():
             raise
         where = "" if err.filename is None else f": {err.filename}"
-        if trainer.summary is not None:  # the progress output's, after the last step
+        if err is trained and trainer.summary is not None:  # its progress output's, at the end
             raise OSError(
                 err.errno, f"{err.strerror}{where} (the run is finished: {written} holds it)"
             ) from err
