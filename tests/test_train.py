@@ -2282,6 +2282,14 @@ def test_a_stop_as_the_video_lands_waits_for_its_cameras(
     out, err = capsys.readouterr()
     assert "Ctrl-C: stopping once the video's cameras are written" in err and out == ""
 
+    def stopped_and_full(*args, **kwargs):  # and then not written: said before the stop's word
+        os.kill(os.getpid(), signal.SIGINT)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(args[0]))
+
+    monkeypatch.setattr("spikegs.render_cli.save_orbit", stopped_and_full)
+    assert main([*render, "--out", str(gif), "--frames", "5"]) == 130
+    assert "No space left on device: the cameras not written beside" in capsys.readouterr().err
+
 
 @pytest.mark.parametrize("fps", [20, 24, 40])
 def test_gif_plays_at_its_frame_rate(tmp_path, fps):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -286,6 +287,8 @@ def run(args: argparse.Namespace) -> int:
                 said += f"; {cameras}, an earlier video's, is left: {kept.strerror}"
             cameras, unwritten = None, OSError(err.errno, said)
     if interrupted():
+        if unwritten is not None:  # (the stop's "terminated" alone implied they were written)
+            print(unwritten.strerror, file=sys.stderr)
         raise interruption(interrupted())
     # said once both files are written (a full stdout's error left the video without its cameras)
     count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
