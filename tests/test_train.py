@@ -4259,7 +4259,7 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
     for _ in range(MIN_STEPS - 1):
         record.observe("instant", [one * 0.1], one)
     record.observe("black", [one], 0 * one)
-    assert record.ratios() == {"exposure": (pytest.approx(0.6), STEPS)}
+    assert record.ratios() == {"exposure": (pytest.approx(0.6), STEPS, None)}
     said = biased_fit(record, SupervisionConfig(exposure_norm="l1"))
     assert said.startswith("the renders hold 60 % of their exposure targets' brightness")
     assert "exposure_norm l1 fits the median" in said
@@ -4286,6 +4286,30 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
         for _ in range(MIN_STEPS):
             record.observe("exposure", [one * ratio], one)
         assert (biased_fit(record, SupervisionConfig()) is not None) == said, ratio
+
+
+def test_fit_brightness_judges_each_colour_channel():
+    """A colour scene's dim blue fitted at 39 % of its targets' brightness pooled with red and
+    green (93 % in all) at 93 %, unsaid (the colour trial): each channel is judged, the one
+    furthest off named; a channel near black beside the others (a red scene's blue) is not."""
+    from spikegs.config import SupervisionConfig
+    from spikegs.fit_brightness import MIN_STEPS, FitBrightness, biased_fit
+
+    target = torch.tensor([1.5, 1.0, 0.3]).expand(2, 2, 3)  # [H, W, C]
+    render = torch.tensor([1.39, 1.09, 0.117]).expand(2, 2, 3)
+    record = FitBrightness()
+    for _ in range(MIN_STEPS):
+        record.observe("exposure", [render], target)
+    ratio, steps, channel = record.ratios()["exposure"]
+    assert (round(ratio, 2), steps, channel) == (0.39, MIN_STEPS, "blue")
+    assert "39 % of their exposure targets' brightness in blue over the last 50 steps" in (
+        biased_fit(record, SupervisionConfig())
+    )
+    red = FitBrightness()  # blue at 5 % of red's light, fitted at 10 % of it: not judged
+    for _ in range(MIN_STEPS):
+        red.observe("exposure", [torch.tensor([1.0, 0.95, 0.005]).expand(2, 2, 3)],
+                    torch.tensor([1.0, 1.0, 0.05]).expand(2, 2, 3))  # fmt: skip
+    assert red.ratios()["exposure"][2] == "green" and biased_fit(red, SupervisionConfig()) is None
 
 
 def test_fit_brightness_names_the_likely_cause_only_where_it_applies():
