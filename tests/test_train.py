@@ -3392,7 +3392,7 @@ def test_the_python_api_names_what_it_was_given(dataset, tmp_path):
         load_config("spikegs", {"supervision": {"exposure_weight": -1.0}})
 
 
-def test_counts_in_a_config_lie_below_2_to_the_63():
+def test_counts_in_a_config_lie_below_2_to_the_63(tmp_path):
     """train.iterations: 2**63 in a config file trained on, a step at a time; so do SIM's."""
     for overrides in ({"train": {"iterations": 2**63}}, {"sim": {"batch": 2**63}}):
         with pytest.raises(ValueError, match=r"= 9223372036854775808.*below 2\^63"):
@@ -3404,6 +3404,11 @@ def test_counts_in_a_config_lie_below_2_to_the_63():
     # an integer")
     with pytest.raises(ValueError, match=r"= 100.0, expected a whole number >= 1 \(and below"):
         load_config("spikegs", iterations=100.0)
+    # a file's own length out of range, replaced by --iterations, trained on unsaid (the trial)
+    for written in ("-5", "0", str(10**23)):
+        (tmp_path / "neg.yaml").write_text(f"base: spikegs\ntrain: {{iterations: {written}}}\n")
+        with pytest.raises(ConfigError, match=r"neg.yaml: train.iterations = "):
+            load_config(tmp_path / "neg.yaml", iterations=20)
 
 
 def test_python_dash_m_spikegs_is_the_command():

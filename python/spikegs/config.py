@@ -612,6 +612,9 @@ def load_config(
     _apply(config, _settings(read), "")
     if iterations is not None:
         _require(is_count(iterations), "train.iterations", iterations, COUNTS)
+        if not is_count(config.train.iterations):  # the file's, replaced: refused all the same
+            where = str(read.get(SET_IN, {}).get("train.iterations", "config"))
+            raise ConfigError("train.iterations", config.train.iterations, COUNTS, where)
         config.train.iterations = iterations
     factors = {}
     for key in SCHEDULE_KEYS:  # unset keys are for the default length; each scaled once
