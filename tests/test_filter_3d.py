@@ -259,6 +259,17 @@ def test_the_filter_is_checked_kept_and_written_as_mip_splattings_property(tmp_p
     with pytest.raises(ValueError, match="vertex property filter_3D: expected finite widths"):
         with pytest.warns(UserWarning, match="no 'spikegs background' comment"):
             load_ply(tmp_path / "negative.ply")
+    # fused: the filter folded into the scales and opacities, the renders the same, and a file
+    # of 62 values a Gaussian, which SIBR reads (the filter_3D property shifted its records)
+    fused = loaded.fused()
+    assert fused.filter_3d is None and loaded.filter_3d is not None and fused.fused() is fused
+    torch.testing.assert_close(
+        fused.render(_view(2.0), K, SIDE, SIDE, 0.01).image, image, rtol=0, atol=1e-6
+    )
+    unfiltered = GaussianModel.from_state_dict({**loaded.state_dict(), "filter_3d": None})
+    assert (unfiltered.render(_view(2.0), K, SIDE, SIDE, 0.01).image - image).abs().max() > 1e-3
+    save_ply(fused, tmp_path / "fused.ply")
+    assert len(PlyData.read(str(tmp_path / "fused.ply"))["vertex"].data.dtype.names) == 62
     model.filter_3d = None
     save_ply(model, tmp_path / "plain.ply")
     assert FILTER_3D not in PlyData.read(str(tmp_path / "plain.ply"))["vertex"].data.dtype.names

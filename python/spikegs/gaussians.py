@@ -234,6 +234,20 @@ class GaussianModel:
         state["origin"] = origin.tolist()
         return GaussianModel.from_state_dict(state)
 
+    def fused(self) -> GaussianModel:
+        """This model with its 3D smoothing filter folded into its scales and opacities (itself
+        where it has none): the same renders, and a .ply without Mip-Splatting's filter_3D
+        property, which 3DGS's SIBR viewer cannot read (its fixed 62-value records)."""
+        if self.filter_3d is None:
+            return self
+        state = self.state_dict()
+        with torch.no_grad():
+            scales, opacities = smoothed(self.scales, self.opacities, self.filter_3d)
+        state["params"]["log_scales"] = scales.log()
+        state["params"]["opacity_logits"] = torch.logit(opacities)
+        state["filter_3d"] = None
+        return GaussianModel.from_state_dict(state)
+
     @property
     def channels(self) -> int:
         return self.params["sh_dc"].shape[-1]
