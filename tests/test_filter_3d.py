@@ -270,6 +270,24 @@ def test_the_filter_is_checked_kept_and_written_as_mip_splattings_property(tmp_p
     assert (unfiltered.render(_view(2.0), K, SIDE, SIDE, 0.01).image - image).abs().max() > 1e-3
     save_ply(fused, tmp_path / "fused.ply")
     assert len(PlyData.read(str(tmp_path / "fused.ply"))["vertex"].data.dtype.names) == 62
+    # opaque Gaussians (logits 20 and 40 round to an opacity of 1) kept finite, to their logit
+    # where the width is 0 (inf was written: the second review); widths of another count named
+    opaque = _model(4)
+    opaque.params["opacity_logits"].data = torch.tensor([20.0, 40.0, 0.0, -30.0])
+    opaque.filter_3d = torch.tensor([0.0, 1e-6, 0.0, 0.01])
+    logits = opaque.fused().params["opacity_logits"].detach()
+    assert logits.isfinite().all() and logits[0] == 20.0 and logits[2] == 0.0, logits
+    _, factors = smoothed(opaque.scales.double(), torch.ones(4, dtype=torch.float64),
+                          opaque.filter_3d.double())  # fmt: skip
+    torch.testing.assert_close(  # 1 - o for the opaque ones: o itself rounds to 1
+        torch.sigmoid(-logits.double()),
+        1 - torch.sigmoid(torch.tensor([20.0, 40.0, 0.0, -30.0], dtype=torch.float64)) * factors,
+        rtol=1e-5,  # (the float32 logit's rounding)
+        atol=0,
+    )
+    opaque.params = {k: v[:3] for k, v in opaque.params.items()}  # densified since: stale
+    with pytest.raises(ValueError, match="filter_3d holds 4 widths for 3 Gaussians"):
+        opaque.fused()
     model.filter_3d = None
     save_ply(model, tmp_path / "plain.ply")
     assert FILTER_3D not in PlyData.read(str(tmp_path / "plain.ply"))["vertex"].data.dtype.names

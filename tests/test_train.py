@@ -4310,6 +4310,12 @@ def test_fit_brightness_judges_each_colour_channel():
     assert "39 % of their exposure targets' brightness in blue over the last 50 steps" in (
         biased_fit(record, SupervisionConfig())
     )
+    # beside a term fitted, its ratio in that channel (its red's, its worst, was quoted)
+    for _ in range(MIN_STEPS):
+        record.observe("instant", [target * torch.tensor([1.2, 1.0, 0.98])], target)
+    said = biased_fit(record, SupervisionConfig(instant="sim", exposure_norm="smooth_l1"))
+    assert "in blue over the last 50 steps: a biased or unconverged fit (its instant " in said
+    assert "(its instant renders hold 98 % of theirs" in said
     red = FitBrightness()  # blue at 5 % of red's light, fitted at 10 % of it: not judged
     for _ in range(MIN_STEPS):
         red.observe("exposure", [torch.tensor([1.0, 0.95, 0.005]).expand(2, 2, 3)],

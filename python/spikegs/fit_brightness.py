@@ -41,30 +41,35 @@ class FitBrightness:
         means = self._means.setdefault(term, deque(maxlen=STEPS))
         means.append((render.tolist(), target.mean(dim=(0, 1)).tolist()))
 
-    def ratios(self) -> dict[str, tuple[float, int, str | None]]:
-        """{term: (its renders' mean brightness / its targets', steps, channel)}, for the terms
-        observed on MIN_STEPS steps or more whose targets are not black: of the channel furthest
-        from 1 (by the ratio's logarithm) among those not DARK_CHANNEL, named for a colour
-        scene (None for mono)."""
+    def channel_ratios(self) -> dict[str, tuple[dict[str | None, float], int]]:
+        """{term: ({channel: its renders' mean brightness / its targets'}, steps)}, for the terms
+        observed on MIN_STEPS steps or more whose targets are not black, over their channels
+        not DARK_CHANNEL: a colour scene's named (CHANNEL_NAMES), a mono scene's None."""
         ratios = {}
         for term, means in self._means.items():
             renders = [sum(r[c] for r, _ in means) for c in range(len(means[0][0]))]  # [C]
             targets = [sum(t[c] for _, t in means) for c in range(len(renders))]
-            if len(means) < MIN_STEPS or max(targets) <= 0:
-                continue
-            judged = [c for c, t in enumerate(targets) if t >= DARK_CHANNEL * max(targets)]
-            ratio = {c: renders[c] / targets[c] for c in judged}
-            worst = max(judged, key=lambda c: abs(math.log(max(ratio[c], 1e-30))))
-            name = CHANNEL_NAMES[worst] if len(renders) == 3 else None
-            ratios[term] = (ratio[worst], len(means), name)
+            names = CHANNEL_NAMES if len(renders) == 3 else [None]
+            if len(means) >= MIN_STEPS and max(targets) > 0:
+                lit = [c for c, t in enumerate(targets) if t >= DARK_CHANNEL * max(targets)]
+                ratios[term] = ({names[c]: renders[c] / targets[c] for c in lit}, len(means))
+        return ratios
+
+    def ratios(self) -> dict[str, tuple[float, int, str | None]]:
+        """{term: (ratio, steps, channel)} of `channel_ratios`' channel furthest from 1 (by the
+        ratio's logarithm) in each term."""
+        ratios = {}
+        for term, (by_channel, steps) in self.channel_ratios().items():
+            worst = max(by_channel, key=lambda c: abs(math.log(max(by_channel[c], 1e-30))))
+            ratios[term] = (by_channel[worst], steps, worst)
         return ratios
 
 
 def biased_fit(brightness: FitBrightness, supervision) -> str | None:
     """What is said of the terms whose ratio lies outside [LOW, HIGH] (None: none), naming an
     L1 norm on TFP's spike counts as the likely cause where the term has one."""
-    said, ratios = [], brightness.ratios()
-    for term, (ratio, steps, channel) in ratios.items():
+    said, by_channel = [], brightness.channel_ratios()
+    for term, (ratio, steps, channel) in brightness.ratios().items():
         if LOW <= ratio <= HIGH:
             continue
         text = (
@@ -72,7 +77,11 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
             + (f" in {channel}" if channel else "")
             + f" over the last {steps} steps: a biased or unconverged fit"
         )
-        fitted = [(other, r) for other, (r, _, _) in ratios.items() if LOW <= r <= HIGH]
+        fitted = [  # the other terms' ratios in that channel, where fitted
+            (other, ratios[channel])
+            for other, (ratios, _) in by_channel.items()
+            if LOW <= ratios.get(channel, 0.0) <= HIGH
+        ]
         counts = term == "exposure" or supervision.instant == "tfp"  # TFP's whole counts
         if getattr(supervision, f"{term}_norm") == "l1" and counts and ratio < LOW:
             window = getattr(supervision, f"{term}_window")

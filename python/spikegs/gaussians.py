@@ -234,17 +234,35 @@ class GaussianModel:
         state["origin"] = origin.tolist()
         return GaussianModel.from_state_dict(state)
 
+    def _check_filter_3d(self) -> None:
+        """ValueError where `filter_3d` holds another count of widths than Gaussians (densified
+        since it was computed)."""
+        if self.filter_3d.shape != (len(self),):
+            raise ValueError(
+                f"GaussianModel: filter_3d holds {len(self.filter_3d)} widths for "
+                f"{len(self)} Gaussians: recompute it (filter_3d.filter_widths)"
+            )
+
     def fused(self) -> GaussianModel:
         """This model with its 3D smoothing filter folded into its scales and opacities (itself
         where it has none): the same renders, and a .ply without Mip-Splatting's filter_3D
         property, which 3DGS's SIBR viewer cannot read (its fixed 62-value records)."""
         if self.filter_3d is None:
             return self
-        state = self.state_dict()
+        self._check_filter_3d()
+        state, dtype = self.state_dict(), self.params["log_scales"].dtype
+        # in float64 and in logits: an opacity that rounds to 1 (a logit over ~17 in float32,
+        # ~37 in float64) had a logit of inf, written to the .ply
         with torch.no_grad():
-            scales, opacities = smoothed(self.scales, self.opacities, self.filter_3d)
-        state["params"]["log_scales"] = scales.log()
-        state["params"]["opacity_logits"] = torch.logit(opacities)
+            logits = self.params["opacity_logits"].double()  # [N]
+            scales = self.params["log_scales"].double().exp().clamp_min(torch.finfo(dtype).tiny)
+            wide = torch.hypot(scales, self.filter_3d.double()[:, None])  # [N, 3], as smoothed
+            log_f = (scales.log() - wide.log()).sum(dim=1)  # [N] log of the opacity's factor
+            # logit(σ(l) f) = log(σ(l) f) - log(σ(-l) + σ(l) (1 - f))
+            held = torch.sigmoid(-logits) - torch.sigmoid(logits) * torch.expm1(log_f)
+            fused = log_f - torch.nn.functional.softplus(-logits) - held.log()
+        state["params"]["log_scales"] = wide.log().to(dtype)
+        state["params"]["opacity_logits"] = fused.to(dtype)
         state["filter_3d"] = None
         return GaussianModel.from_state_dict(state)
 
@@ -280,11 +298,7 @@ class GaussianModel:
         width where the model has one."""
         scales, opacities = self.scales, self.opacities
         if self.filter_3d is not None:
-            if self.filter_3d.shape != (len(self),):  # (densified since it was computed)
-                raise ValueError(
-                    f"GaussianModel: filter_3d holds {len(self.filter_3d)} widths for "
-                    f"{len(self)} Gaussians: recompute it (filter_3d.filter_widths)"
-                )
+            self._check_filter_3d()
             scales, opacities = smoothed(scales, opacities, self.filter_3d)
         return rasterize(
             self.params["means"],

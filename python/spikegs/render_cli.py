@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +19,7 @@ from .cli import (
     show_bars,
 )
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
-from .interrupt import deferred_interrupt, interruption
+from .interrupt import deferred_interrupt, interruption, say
 from .output_paths import check_file_output, check_utf8_name, record_beside
 from .video import GIF_MAX_FPS, MAX_FPS, check_video_output, write_video
 
@@ -288,7 +287,7 @@ def run(args: argparse.Namespace) -> int:
             cameras, unwritten = None, OSError(err.errno, said)
     if interrupted():
         if unwritten is not None:  # (the stop's "terminated" alone implied they were written)
-            print(unwritten.strerror, file=sys.stderr)
+            say(unwritten.strerror)  # (a gone stderr must not replace the stop)
         raise interruption(interrupted())
     # said once both files are written (a full stdout's error left the video without its cameras)
     count = f"{len(viewmats)} frame{'s' if len(viewmats) != 1 else ''}"  # ("1 frames")
