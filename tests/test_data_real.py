@@ -494,6 +494,13 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys, monkeypatch
     os.utime(out, (0, 0))
     assert main([*args, "--out", str(out)]) == 0  # reused: the latest SIM for poses --sim
     assert "reused" in capsys.readouterr().out and out.stat().st_mtime > 0
+
+    def read_only(path, times=None):  # a read-only dataset's SIM: its reuse crashed on EROFS
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+
+    monkeypatch.setattr("spikegs.sim_cli.os.utime", read_only)
+    assert main([*args, "--out", str(out)]) == 0 and "reused" in capsys.readouterr().out
+    monkeypatch.undo()
     named = tmp_path / "w.json"  # its table was written over the weights it named
     assert main([*args, "--out", str(named)]) == 0 and main([*args, "--out", str(named)]) == 0
     assert "reused" in capsys.readouterr().out and (tmp_path / "w.json.json").is_file()

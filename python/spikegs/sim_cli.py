@@ -4,6 +4,7 @@ compare it with TFP(33), TFP(65) and TFI on the held-out on-path views."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -138,8 +139,9 @@ def _run(args: argparse.Namespace) -> int:
         )
         raise
     done = f"trained in {seconds:.1f} s" if seconds else "reused"
-    if not seconds:
-        os.utime(out)  # the latest SIM now, as `spikegs poses --sim` picks (by modification time)
+    if not seconds:  # the latest SIM now, as `spikegs poses --sim` picks (by modification time)
+        with contextlib.suppress(OSError):  # (a read-only dataset's reused SIM: it crashed)
+            os.utime(out)
     print(f"SIM ({model.num_parameters()} parameters) {done}: {out}")
     # the light's flicker, divided out of every method's images as out of training's targets
     found = cached_flicker(dataset.streams, bars) if config.supervision.deflicker else None
