@@ -136,7 +136,10 @@ def test_field_is_the_square_an_output_depends_on(layers):
 def test_a_crop_under_the_field_is_warned_of(scene):
     """A 4² crop trains on the zero border, inferred on whole frames: said, once."""
     stream, ts = scene[1], valid_timestamps(scene[1], 33)
-    with pytest.warns(UserWarning, match="SIM crop 4: under the 15-pixel square") as caught:
+    said = (
+        r"SIM crop 4: under the 15-pixel square .* \(sim-train --crop, a method config's sim.crop\)"
+    )
+    with pytest.warns(UserWarning, match=said) as caught:  # (the option named: the SIM trial)
         train_sim(stream, ts, 33, steps=1, batch_size=1, crop=4, progress=False)
     assert len(caught) == 1
     with warnings.catch_warnings():
@@ -177,7 +180,8 @@ def test_shift_layers_past_the_frame_are_warned_of():
     the zero border only, with the number that suffices; 5 are not."""
     small = BernoulliStream(lambda k: np.full((8, 6), 0.2), 60)
     ts = valid_timestamps(small, 33)
-    with pytest.warns(UserWarning, match="shift_layers 6 on 8×6 frames: 5 reach every") as caught:
+    said = r"shift_layers 6 on 8×6 frames: 5 reach every.* \(a method config's; sim-train trains"
+    with pytest.warns(UserWarning, match=said) as caught:
         train_sim(small, ts, 33, steps=1, crop=64, progress=False, shift_layers=6)
     assert len(caught) == 1
     with warnings.catch_warnings():

@@ -137,7 +137,8 @@ def train_sim(
     if crop < min(model.field(), max(height, width)):
         warnings.warn(
             f"SIM crop {crop}: under the {model.field()}-pixel square an output sees, so training "
-            f"sees the zero border where inference sees the frame; crop {model.field()} or more",
+            f"sees the zero border where inference sees the frame; crop {model.field()} or more "
+            f"(sim-train --crop, a method config's sim.crop)",
             stacklevel=2,
         )
     spanning = model.spanning_layers(height, width)
@@ -145,7 +146,8 @@ def train_sim(
         warnings.warn(
             f"SIM's shift_layers {len(model.shift)} on {height}×{width} frames: {spanning} reach "
             f"every pixel from every other, the others add the zero border only and cost time; "
-            f"sim.shift_layers {spanning} or fewer",
+            f"sim.shift_layers {spanning} or fewer (a method config's; sim-train trains the "
+            f"default, {SimConfig.shift_layers})",
             stacklevel=2,
         )
     losses, first, earlier = [], 0, 0.0  # earlier: seconds of the steps in a resumed state
