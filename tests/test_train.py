@@ -3966,6 +3966,23 @@ def test_a_full_disk_at_the_end_of_train_says_that_resume_finishes_it(
     assert "--resume finishes" not in said
 
 
+def test_a_stop_in_sims_training_says_the_run_goes_on_from_its_saved_state(
+    dataset, tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C while a spikegs run trained its SIM said "interrupted" alone, where sim-train says
+    that its saved state goes on (the SIM trial); a TFP run, which trains no SIM, says nothing."""
+
+    def stopped(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_module, "build_targets", stopped)
+    for method, said in (("spikegs", True), ("tfp33", False)):
+        with pytest.raises(KeyboardInterrupt):
+            Trainer(dataset, load_config(method, FAST), tmp_path / method, progress=False).train()
+        err = capsys.readouterr().err
+        assert ("SIM's training, if it had begun, goes on from its last saved state" in err) == said
+
+
 def test_a_full_progress_output_after_the_last_step_says_the_run_is_finished(
     dataset, tmp_path, monkeypatch, capsys
 ):

@@ -38,7 +38,7 @@ from .filter_3d import filter_widths
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
-from .interrupt import deferred_interrupt, interruption, progress_lost
+from .interrupt import deferred_interrupt, interruption, progress_lost, say
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
 from .number_checks import as_flag
 from .pixel_defects import hide
@@ -58,6 +58,7 @@ from .psnr_fall import psnr_fall
 from .regular_file import NotText, read_text
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint
+from .sim_train import CHECKPOINT_S as SIM_CHECKPOINT_S
 from .targets import build_targets, check_targets, intensity_scale
 from .yaml_files import dump_yaml
 
@@ -826,7 +827,16 @@ class Trainer:
         # a finished run needs no targets; SIM's training time for this run: trained now or
         # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
         if not finished:
-            self.targets = build_targets(self.dataset, self.config, self.progress)
+            try:
+                self.targets = build_targets(self.dataset, self.config, self.progress)
+            except KeyboardInterrupt:  # (it said "interrupted" alone)
+                if self.config.instant_target() == "sim":
+                    say(
+                        f"\nSIM's training, if it had begun, goes on from its last saved state "
+                        f"when this run is trained again (saved every {SIM_CHECKPOINT_S:g} s and "
+                        f"as it stops)"
+                    )
+                raise
         # (an earlier version's checkpoint of a cached SIM kept 0: the cache's time stands in)
         saved = state.get("sim_seconds", 0.0) if state else 0.0
         self.sim_seconds = saved if finished or saved else self.targets.sim_seconds
