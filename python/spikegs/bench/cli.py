@@ -61,8 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--methods",
-        help=f"bench train: comma-separated methods (default: all but {', '.join(VARIANTS)}, "
-        f"{','.join(QUICK_METHODS)} with --quick)",
+        help=f"bench train: comma-separated methods (default: every method but "
+        f"{', '.join(VARIANTS)}; with --quick, {','.join(QUICK_METHODS)})",
     )
     parser.add_argument(
         "--equal-time",
