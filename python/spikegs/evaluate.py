@@ -188,26 +188,31 @@ def _aligned_name(run_dir: Path, own: str, root: Path) -> str:
     whose folder is named 'aligned' (eval-aligned) or 'NAME-aligned', which it replaced unsaid."""
     for i in itertools.count(1):
         name = f"{own}-aligned" + (f"-{i}" if i > 1 else "")
-        path = run_dir / f"{name}.json"
-        if not path.exists():
+        doc = _scoring(run_dir / f"{name}.json")
+        if doc is None:
             return name
-        with contextlib.suppress(ValueError):  # unreadable: its name is not reused
-            doc = json.loads(read_text(path))
-            if not isinstance(doc, dict) or "aligned_poses" not in doc:
-                continue
-            if own == EVAL or doc.get("dataset") == str(Path(root).resolve()):
-                return name
+        mine = own == EVAL or doc.get("dataset") == str(Path(root).resolve())
+        if "aligned_poses" in doc and mine:  # (an unreadable one's name is not reused)
+            return name
+
+
+def _scoring(path: Path) -> dict | None:
+    """An evaluation file's object; None where there is no such file ({} where it is unreadable
+    or holds no object: its name is not reused)."""
+    if not path.exists():
+        return None
+    try:
+        doc = json.loads(read_text(path))
+    except ValueError:
+        return {}
+    return doc if isinstance(doc, dict) else {}
 
 
 def _scored_dataset(path: Path) -> str | None:
     """The dataset an evaluation file scored; None where there is no such file ('' where it is
     unreadable: its name is not reused)."""
-    if not path.exists():
-        return None
-    try:
-        return str(json.loads(read_text(path)).get("dataset", ""))
-    except (ValueError, AttributeError):
-        return ""
+    doc = _scoring(path)
+    return None if doc is None else str(doc.get("dataset", ""))
 
 
 def _scored_views(path: Path) -> dict:

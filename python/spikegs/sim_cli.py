@@ -24,7 +24,7 @@ from .output_paths import check_file_output, record_beside
 from .pixel_defects import sensor_defects
 from .provenance import environment
 from .sim_scores import evaluate_dataset, on_path_views
-from .sim_train import CHECKPOINT_S, is_sim_file, recorded_seconds
+from .sim_train import SAVED_EVERY, is_sim_file, recorded_seconds
 from .targets import check_targets, intensity_scale, trained_sim
 from .text_table import print_table
 
@@ -135,7 +135,7 @@ def _run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # (stderr may be gone: a closed terminal's SIGHUP)
         say(
             "\nthe same command (without --force) continues from SIM's last saved state, if "
-            f"its training had begun (saved every {CHECKPOINT_S:g} s and as it stops)"
+            f"its training had begun ({SAVED_EVERY})"
         )
         raise
     done = f"trained in {seconds:.1f} s" if seconds else "reused"

@@ -32,6 +32,7 @@ from .sim import SIM, START
 from .spikes.stream import centred_range
 
 CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
+SAVED_EVERY = f"saved every {CHECKPOINT_S:g} s and as it stops"  # what a stop's message says
 
 
 @functools.lru_cache(maxsize=1)

@@ -58,7 +58,7 @@ from .psnr_fall import psnr_fall
 from .regular_file import NotText, read_text
 from .run_folder import check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint
-from .sim_train import CHECKPOINT_S as SIM_CHECKPOINT_S
+from .sim_train import SAVED_EVERY
 from .targets import build_targets, check_targets, intensity_scale
 from .yaml_files import dump_yaml
 
@@ -833,8 +833,7 @@ class Trainer:
                 if self.config.instant_target() == "sim":
                     say(
                         f"\nSIM's training, if it had begun, goes on from its last saved state "
-                        f"when this run is trained again (saved every {SIM_CHECKPOINT_S:g} s and "
-                        f"as it stops)"
+                        f"when this run is trained again ({SAVED_EVERY})"
                     )
                 raise
         # (an earlier version's checkpoint of a cached SIM kept 0: the cache's time stands in)
