@@ -614,14 +614,19 @@ def test_a_built_in_scene_simulated_at_an_spp_keeps_it_to_its_clean_images(tmp_p
 
 def test_simulate_names_each_option_it_refuses(tmp_path, capsys):
     """--train-every 0 said "frame_every and train_every expected positive, found 8.0, 0" (a
-    frame_every never given), --test-off-path -1 named test_off_path only, and --speed nan
-    "expected finite numbers, found speed=nan": each names its option now."""
+    frame_every never given), --test-off-path -1 named test_off_path only, --speed nan
+    "expected finite numbers, found speed=nan" and --threshold 0 "threshold expected in ...":
+    each names its option now."""
     cases = [
         ("--train-every", "0", "train_every (--train-every): expected >= 1 readout, found 0"),
         ("--frame-every", "0", "frame_every (--frame-every): expected >= 1, found 0"),
         ("--test-off-path", "-1", "(--test-on-path, --test-off-path): expected counts >= 0"),
         ("--speed", "nan", "argument --speed: expected a finite number, found 'nan'"),
         ("--threshold", "inf", "argument --threshold: expected a finite number, found 'inf'"),
+        # the simulator's ranges named the field alone ("threshold expected in [0.001, 1e30]")
+        ("--threshold", "0", "argument --threshold: threshold expected in [0.001, 1e30], found 0"),
+        ("--rate-at-one", "2", "argument --rate-at-one: rate_at_one expected in (0, 1], found 2"),
+        ("--dark-sigma", "-1", "argument --dark-sigma: dark_sigma expected finite, >= 0"),
     ]
     for option, value, message in cases:
         argv = ["simulate", "--out", str(tmp_path / "x"), option, value]

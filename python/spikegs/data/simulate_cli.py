@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+import warnings
 
 from ..cli import add_no_progress, direction, file_path, finite_float, seed, show_bars
 from ..output_paths import check_folder_output
@@ -88,8 +89,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             )
         else:
             sim.add_argument(
-                flag, type=finite_float, default=field.default, help=field.metadata["help"]
+                flag,
+                type=_sim_param(field.name),
+                default=field.default,
+                help=field.metadata["help"],
             )
+
+
+def _sim_param(name: str):
+    """An argparse type for the SimParams field `name`: a finite number in the simulator's range,
+    refused while parsing with its option named (the range's own message names the field)."""
+
+    def parse(text: str) -> float:
+        value = finite_float(text)
+        try:
+            with warnings.catch_warnings():  # (warned of once, as the dataset is simulated)
+                warnings.simplefilter("ignore")
+                SimParams(**{name: value})
+        except ValueError as refused:
+            raise argparse.ArgumentTypeError(str(refused)) from None
+        return value
+
+    return parse
 
 
 def run(args: argparse.Namespace) -> int:
