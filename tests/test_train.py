@@ -3334,7 +3334,6 @@ def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
         ["sim-train", "data", "--steps", "zero"],
         # 2**63: trained on (iterations), or numpy's messages after loading (frames, crops)
         ["train", "data", "--out", "run", "--iterations", str(2**63)],
-        ["render", "run", "--out", "o.gif", "--frames", str(2**63)],
         ["sim-train", "data", "--batch-size", str(2**63)],
     ],
 )
@@ -3349,16 +3348,18 @@ def test_counts_on_the_command_line_are_refused_before_any_work(argv, capsys):
 
 def test_a_render_of_more_frames_than_its_cameras_fit_is_refused_while_parsing(capsys):
     """--frames 2^63 - 1 raised numpy's IndexError with a traceback (--path trajectory), and 10^8
-    built 5.8 GB of cameras before the first frame (the eval trial)."""
+    built 5.8 GB of cameras before the first frame (the eval trial); 0 was told "a positive
+    integer below 2^63", not the range it takes (the CLI-help trial)."""
     command = ["render", "run", "--out", "o.gif", "--frames"]
     assert build_parser().parse_args([*command, "1000000"]).frames == 10**6
-    for frames in ("1000001", str(2**63 - 1)):
+    assert build_parser().parse_args([*command, "1"]).frames == 1
+    for frames in ("1000001", str(2**63 - 1), str(2**63), "0", "-1", "ten", "2.5"):
         with pytest.raises(SystemExit) as exit_info:
             build_parser().parse_args([*command, frames])
         assert exit_info.value.code == 2
         assert (
-            f"expected at most 1,000,000 frames (over 9 hours at 30 a second), found {frames}"
-            in capsys.readouterr().err
+            "expected 1 to 1,000,000 frames (1,000,000: over 9 hours at 30 a second), "
+            f"found '{frames}'" in capsys.readouterr().err
         )
 
 

@@ -15,7 +15,6 @@ from .cli import (
     file_path,
     output_file,
     positive_float,
-    positive_int,
     show_bars,
 )
 from .data.trajectory import WORLD_UP, look_at, orbit_eye, unit_vector, up_rotation
@@ -45,11 +44,15 @@ MAX_FRAMES = 1_000_000
 
 
 def frame_count(text: str) -> int:
-    """An argparse type: a number of frames in 1..MAX_FRAMES."""
-    frames = positive_int(text)
-    if frames > MAX_FRAMES:
+    """An argparse type: a number of frames in 1..MAX_FRAMES, its range said when refused."""
+    try:
+        frames = int(text)
+    except ValueError:
+        frames = 0
+    if not 1 <= frames <= MAX_FRAMES:
         raise argparse.ArgumentTypeError(
-            f"expected at most {MAX_FRAMES:,} frames (over 9 hours at 30 a second), found {text}"
+            f"expected 1 to {MAX_FRAMES:,} frames ({MAX_FRAMES:,}: over 9 hours at 30 a second), "
+            f"found '{text}'"
         )
     return frames
 
