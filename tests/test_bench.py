@@ -501,10 +501,18 @@ def test_bench_all_refuses_an_spp_it_cannot_draw_before_any_part(spp, message, t
 
 
 def test_train_selection_names_what_is_unknown():
+    """Each name refused is told with its option ("unknown nope, tfp99; scenes: ...; methods:
+    ..." named neither, the CLI-help trial)."""
     assert train.selection(quick=True) == ([train.HEADLINE_SCENE], list(train.QUICK_METHODS))
-    with pytest.raises(ValueError, match="unknown nope, tfp99.*methods: spikegs"):
-        train.selection(False, ["solids", "nope"], ["tfp99"])
-    with pytest.raises(ValueError, match="seeds 0"):
+    with pytest.raises(ValueError) as refused:
+        train.selection(False, ["solids", "nope"], ["tfp99", "tfi"])
+    assert str(refused.value) == (
+        "bench train --scenes nope: unknown; known: solids, wires, fine-texture; --methods "
+        f"tfp99: unknown; known: {', '.join([*train.METHODS, 'sim17'])}"
+    )
+    with pytest.raises(ValueError, match=r"^bench train --methods bogus: unknown; known: spikeg"):
+        train.selection(False, None, ["bogus"])
+    with pytest.raises(ValueError, match=r"^bench train --seeds: expected >= 1, found 0$"):
         train.selection(False, seeds=0)
 
 

@@ -335,12 +335,15 @@ def selection(
     scenes = list(dict.fromkeys(scenes or ([HEADLINE_SCENE] if quick else SCENES)))
     methods = list(dict.fromkeys(methods or (QUICK_METHODS if quick else METHODS)))
     known = [*METHODS, *(m for m in available_methods() if m not in METHODS)]
-    unknown = [s for s in scenes if s not in SCENES] + [m for m in methods if m not in known]
-    if unknown or seeds < 1:
-        raise ValueError(
-            f"bench train: unknown {', '.join(unknown) or f'seeds {seeds}'}; scenes: "
-            f"{', '.join(SCENES)}; methods: {', '.join(known)}; seeds >= 1"
-        )
+    refused = [
+        f"--{option} {', '.join(unknown)}: unknown; known: {', '.join(names)}"
+        for option, given, names in (("scenes", scenes, SCENES), ("methods", methods, known))
+        if (unknown := [name for name in given if name not in names])
+    ]
+    if seeds < 1:
+        refused.append(f"--seeds: expected >= 1, found {seeds}")
+    if refused:
+        raise ValueError(f"bench train {'; '.join(refused)}")
     if equal_time and ("spikegs" not in methods or not equal_time_methods(methods)):
         raise ValueError(
             f"bench train --equal-time: expected spikegs and a baseline ({', '.join(BASELINES)}) "
