@@ -34,7 +34,12 @@ PARTS = {
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("part", choices=[*PARTS, "all"], help="which benchmark to run")
+    parser.add_argument(  # (metavar: the name a missing part's error says, as usage shows it)
+        "part",
+        choices=[*PARTS, "all"],
+        metavar="part",
+        help=f"which benchmark to run: {', '.join(PARTS)}, or all (each in turn)",
+    )
     parser.add_argument("--quick", action="store_true", help="small sizes: checks the suite runs")
     parser.add_argument(
         "--out",
