@@ -30,7 +30,7 @@ def test_every_scene_is_in_the_tables_of_scenes():
     """The scenes module's table, docs/datasets.md's and the README's `simulate --scene` row."""
     datasets = (ROOT / "docs" / "datasets.md").read_text(encoding="utf-8")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    row = re.search(r"`spikegs simulate --scene ([^ ]+)", readme).group(1).split("\\|")
+    row = re.search(r"`spikegs simulate \[--scene ([^ \]]+)", readme).group(1).split("\\|")
     for name in scenes.SCENES:
         assert f"| `{name}`" in scenes.__doc__, name
         assert f"| `{name}` |" in datasets, name
