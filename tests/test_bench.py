@@ -445,8 +445,12 @@ def test_bench_refuses_an_out_that_holds_a_run_or_a_dataset(
     assert "spikegs bench stiff would write its own files (figures, JSON)" in said
     assert [p.name for p in tmp_path.iterdir()] == [name]
     monkeypatch.setattr(train, "run", lambda *args, **kwargs: pytest.fail("worked"))
-    assert main(["bench", "train", "--quick", "--out", str(tmp_path)]) == 2
-    assert f"own files (datasets in {tmp_path / 'data'}, runs in " in capsys.readouterr().err
+    for scenes, data in (("solids", "its dataset"), ("solids,wires", "datasets")):
+        argv = ["bench", "train", "--quick", "--scenes", scenes, "--out", str(tmp_path)]
+        assert main(argv) == 2
+        assert f"own files ({data} in {tmp_path / 'data'}, its runs in {tmp_path / 'runs'}" in (
+            capsys.readouterr().err
+        )
 
 
 def test_bench_runs_again_where_bench_train_wrote_its_results(tmp_path, monkeypatch):

@@ -2513,7 +2513,8 @@ def test_a_demo_refuses_resume_and_overwrite_together(tmp_path, capsys):
 
 def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
     """`spikegs demo --out DATASET` (or a run folder) ran the whole demo into it, its dataset,
-    runs and figures among the dataset's or run's own files, and said nothing."""
+    runs and figures among the dataset's or run's own files, and said nothing; the refusal names
+    what the demo writes (one dataset, as it does)."""
     held = {  # a file in --out: what the refusal says it holds
         "meta.json": "a dataset (meta.json)",
         "poses_bounds.npy": "a dataset (poses_bounds.npy)",  # LLFF's: no part of ours
@@ -2526,7 +2527,10 @@ def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
         (out / name).write_text("{}")
         for resume in ([], ["--resume"]):
             assert main(["demo", "--no-progress", "--out", str(out), *resume]) == 2
-            assert f"--out {out} holds {says}" in capsys.readouterr().err
+            err = capsys.readouterr().err
+            assert f"--out {out} holds {says}" in err
+            # its one dataset was told "datasets in OUT/data" (the CLI-help trial)
+            assert f"own files (its dataset in {out / 'data'}, its runs in " in err
             assert [p.name for p in out.iterdir()] == [name]
 
 

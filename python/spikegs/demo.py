@@ -328,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     check_folder_output(out, images=True)
-    refuse_dataset_or_run(out, "a demo")
+    refuse_dataset_or_run(out, "a demo", datasets=1)
     out.mkdir(parents=True, exist_ok=True)
     with run_lock(out):  # one demo per OUT: a second one would delete the first one's files
         return _demo(args, out)

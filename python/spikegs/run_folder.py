@@ -78,11 +78,12 @@ def _bench_results(path: Path) -> bool:
         return False
 
 
-def refuse_dataset_or_run(out: Path, writer: str, datasets: bool = True) -> None:
+def refuse_dataset_or_run(out: Path, writer: str, datasets: int) -> None:
     """FileExistsError, before any work, where OUT itself holds a dataset or a spikegs run
     (--out naming one, as simulate's or train's does): `writer` ("a demo", "spikegs bench")
     would write its own files in among its files (bench's train.json over a run's, which eval
-    then refused): datasets and runs in OUT/data and OUT/runs where `datasets`, figures, JSON."""
+    then refused): figures, JSON, and where it makes `datasets` (one, or more), they and its
+    runs in OUT/data and OUT/runs."""
     from .data.dataset import holds_dataset, layout_files
 
     if not out.is_dir():
@@ -97,7 +98,8 @@ def refuse_dataset_or_run(out: Path, writer: str, datasets: bool = True) -> None
         held = f"a dataset ({', '.join(marks) or 'its spikes'})"
     else:
         return
-    own = f"datasets in {out / 'data'}, runs in {out / 'runs'}, " if datasets else ""
+    data = "its dataset" if datasets == 1 else "datasets"
+    own = f"{data} in {out / 'data'}, its runs in {out / 'runs'}, " if datasets else ""
     raise FileExistsError(
         f"--out {out} holds {held}, among which {writer} would write its own files ({own}"
         f"figures, JSON); give it another --out"

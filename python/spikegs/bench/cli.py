@@ -125,8 +125,7 @@ def run(args: argparse.Namespace) -> int:
     if given and "train" not in parts:
         raise ValueError(f"{', '.join(given)}: options of bench train, not of bench {args.part}")
     check_folder_output(args.out, images=True)  # its figures, its runs' eval images
-    # (bench stiff said it would write datasets and runs, which only bench train writes there)
-    refuse_dataset_or_run(Path(args.out), f"spikegs bench {args.part}", "train" in parts)
+    scenes = []  # those whose datasets and runs bench train writes
     if "train" in parts:  # a bad scene, method, seed count, spp or output fails before any part
         from .train import check_outputs, data_settings, run_names, selection
 
@@ -140,6 +139,8 @@ def run(args: argparse.Namespace) -> int:
             equal_time,
         )
         check_outputs(Path(args.out), scenes, run_names(methods, equal_time), seeds)
+    # (bench stiff said it would write datasets and runs, which only bench train writes there)
+    refuse_dataset_or_run(Path(args.out), f"spikegs bench {args.part}", len(scenes))
     failures = []
     with bench_lock(Path(args.out)):
         for part in parts:
