@@ -95,7 +95,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=direction,
         help="the world's up as X,Y,Z, the orbit's axis (default: the up a dataset was simulated "
         "with, meta.json's `up`, else as the cameras show it, `world_up`; a top-down or "
-        "forward-facing capture leaves it open)",
+        "forward-facing capture leaves it open); not with --path trajectory, whose cameras are "
+        "the recorded ones",
     )
     add_no_progress(parser)
 

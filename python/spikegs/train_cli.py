@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="continue from RUN's last checkpoint (a run stopped before its first one starts over)",
+        help="continue from RUN's last checkpoint (a run stopped before its first one starts "
+        "over, and one not begun starts: a batch script may pass it from its first submission)",
     )
     add_no_progress(parser, ": a line to stderr as it starts and at each evaluation instead")
 

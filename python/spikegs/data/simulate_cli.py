@@ -60,9 +60,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"between two; a built-in or Mitsuba scene's)",
     )
     parser.add_argument("--color", action="store_true", help="colour camera: one .dat per channel")
-    default = f"(default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has)"
-    parser.add_argument("--test-on-path", type=int, help=f"held-out on-path views {default}")
-    parser.add_argument("--test-off-path", type=int, help=f"off-path test views {default}")
+    default = f"default {DEFAULT_TEST_VIEWS}, or as many as a frame sequence has"
+    parser.add_argument(
+        "--test-on-path",
+        type=int,
+        help=f"held-out on-path views ({default}; the default fewer, with a warning, where "
+        f"--readouts leaves too little room for them)",
+    )
+    parser.add_argument("--test-off-path", type=int, help=f"off-path test views ({default})")
     parser.add_argument(
         "--train-every",
         type=int,
