@@ -58,7 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--resume",
         action="store_true",
         help="continue from RUN's last checkpoint (a run stopped before its first one starts "
-        "over, and one not begun starts: a batch script may pass it from its first submission)",
+        "over, and one not begun starts where --method or --config names its settings: a batch "
+        "script may pass them with --resume from its first submission)",
     )
     add_no_progress(parser, ": a line to stderr as it starts and at each evaluation instead")
 
