@@ -1554,3 +1554,35 @@ def test_a_float32_splat_whose_determinant_overflows_is_culled():
     out, grads = forward_backward(spikegs.rasterize, scene, torch.float32)
     assert out.radii.tolist()[0] == 0 and out.radii.tolist()[1] > 0
     check_finite_and_culled(out, grads)
+
+
+@needs_cpp
+@pytest.mark.parametrize("dtype, far", [(torch.float32, 1.35e19), (torch.float64, 1e154)])
+def test_sh_colour_of_a_gaussian_whose_squared_distance_overflows(dtype, far):
+    """rasterizer.md step 9: the view direction is d/|d| whatever its size. |d|² overflowed at
+    distances past 1.8e19 (float32) and 1.3e154 (float64): float32 rendered black with NaN
+    gradients (means, SH, the viewmat's), float64 band 0 alone (the C++-core trial)."""
+
+    def rendered(dtype, distance):
+        leaves = {
+            "means": torch.tensor([[distance, 0.0, distance]], dtype=dtype),
+            "quats": torch.tensor([[1.0, 0.0, 0.0, 0.0]], dtype=dtype),
+            "scales": torch.ones(1, 3, dtype=dtype),
+            "opacities": torch.tensor([0.8], dtype=dtype),
+            "colors": torch.tensor([[[0.1], [0.3], [-0.2], [0.25]]], dtype=dtype),  # degree 1
+            "viewmat": torch.eye(4, dtype=dtype),
+        }
+        leaves = {name: t.requires_grad_() for name, t in leaves.items()}
+        K = torch.tensor([[1.0, 0, 7.0], [0, 1.0, 8.0], [0, 0, 1]], dtype=dtype)  # at (8, 8)
+        out = spikegs.rasterize(*leaves.values(), K, 16, 16, far=3 * distance)
+        out.image.sum().backward()
+        return out.image.double(), {name: t.grad.double() for name, t in leaves.items()}
+
+    image, grads = rendered(dtype, far)
+    near_image, near_grads = rendered(torch.float64, 1e3)  # the same direction, (1, 0, 1)/√2
+    assert image.sum() > 0.5
+    torch.testing.assert_close(image, near_image, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(grads["colors"], near_grads["colors"], rtol=1e-5, atol=1e-6)
+    assert all(g.isfinite().all() for g in grads.values())
+    # the direction's slope falls as 1/|d|: the means' gradient is the near one's x 1e3 / far
+    torch.testing.assert_close(grads["means"] * far / 1e3, near_grads["means"], rtol=1e-3, atol=0)

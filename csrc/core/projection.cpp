@@ -132,14 +132,29 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
 
 // Viewing direction for SH: unit vector from the camera centre to the mean, and that distance;
 // zero at the centre (a mean there is culled unless the viewmat is not rigid: -W^T t is then not
-// the camera's centre), where every SH band above 0 is zero.
+// the camera's centre), where every SH band above 0 is zero, and where the offset itself is not
+// finite (a non-rigid viewmat's). Where |d|^2 leaves the normal range, d is normalised by its
+// largest component first: |d|^2 overflowed past 1.8e19 in float32 (a black splat, NaN
+// gradients) and 1.3e154 in double (band 0 alone), and underflowed to a zero direction.
 template <typename T>
 Vec3<T> view_direction(const T* mean, const Camera<T>& cam, T& length) {
   const Mat3<T> W = rotation_of(cam.viewmat);
   const Vec3<T> t(cam.viewmat[3], cam.viewmat[7], cam.viewmat[11]);
   const Vec3<T> d = Vec3<T>(mean[0], mean[1], mean[2]) + glm::transpose(W) * t;  // mean - campos
-  length = glm::length(d);
-  return length > T(0) ? d / length : Vec3<T>(T(0));
+  const T squared = glm::dot(d, d);
+  if (is_finite(squared) && squared >= std::numeric_limits<T>::min()) {
+    length = std::sqrt(squared);
+    return d / length;
+  }
+  const T largest = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+  if (!(largest > T(0)) || !is_finite(largest)) {
+    length = T(0);
+    return Vec3<T>(T(0));
+  }
+  const Vec3<T> scaled = d / largest;  // its largest component +-1: |scaled| in [1, sqrt 3]
+  const T scaled_length = glm::length(scaled);
+  length = largest * scaled_length;
+  return scaled / scaled_length;
 }
 
 }  // namespace
