@@ -526,8 +526,21 @@ def test_slightly_negative_light_is_refused():
 def test_frame_times_must_start_at_readout_0():
     """Frames from readout 1 on leave readout 0 unlit: refused as frames ending early are."""
     frames = np.ones((2, 4, 4), np.float32)
-    with pytest.raises(ValueError, match=r"covering readouts \[0, 9\]"):
+    with pytest.raises(ValueError, match=r"covering readouts \[0, 9\], found 2 times in \[1"):
         simulate_spikes(frames, 10, frame_times=[1.0, 9.0])
+
+
+def test_frame_times_refused_name_what_is_wrong():
+    """One NaN time was told "found 2 times in [nan, nan]" (the C++-core trial)."""
+    frames = np.ones((4, 4, 4), np.float32)
+    cases = {
+        (0.0, float("nan"), 9.0): r"found a time that is not finite, nan at index 1",
+        (0.0, 5.0, 5.0, 9.0): r"found 5\.0 at index 2 after 5\.0",
+        (0.0, 3.0): r"covering readouts \[0, 9\], found 2 times in \[0\.0, 3\.0\]",
+    }
+    for times, says in cases.items():
+        with pytest.raises(ValueError, match=says):
+            simulate_spikes(frames[: len(times)], 10, frame_times=list(times))
 
 
 def test_light_beyond_float32_fires_every_readout_without_a_warning():

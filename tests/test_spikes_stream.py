@@ -466,6 +466,18 @@ def test_dat_writer_refuses_what_it_would_write_wrong(tmp_path):
     assert SpikeStream.open(tmp_path / "x.dat", 8, 8).tfp(1, 1).min() == 1
 
 
+def test_save_dat_of_a_stream_says_it_takes_an_array(tmp_path):
+    """A SpikeStream given to save_dat was told "bits expected [T, H, W], found shape []"."""
+    from spikegs.spikes import save_dat
+
+    stream = SpikeStream.from_bits(np.ones((3, 2, 2), np.uint8))
+    with pytest.raises(ValueError, match=r"bits expected an array \[T, H, W\], found a Spik"):
+        save_dat(tmp_path / "x.dat", stream)
+    with pytest.raises(ValueError, match=r"bits expected \[T, H, W\], found shape \[2, 2\]"):
+        save_dat(tmp_path / "x.dat", np.ones((2, 2), np.uint8))
+    assert not (tmp_path / "x.dat").exists()
+
+
 def test_dat_writer_replaces_the_file_when_done(tmp_path, monkeypatch):
     """A stream open on a .dat keeps reading it while a new one is written to the same path (the
     file was truncated in place: its reader read zeros, or died of SIGBUS past the last page, so

@@ -230,15 +230,17 @@ def _checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
     if times.ndim != 1 or len(times) != (count or len(times)) or not len(times):
         expected = f"[{count}]" if count else "[F] with F >= 1"
         raise ValueError(f"frame_times expected {expected}, found {list(times.shape)}")
-    if len(times) > 1 and not (
-        np.isfinite(times).all()
-        and (np.diff(times) > 0).all()
-        and times[0] <= 0 <= last <= times[-1]
-    ):
-        raise ValueError(
-            f"frame times expected finite, strictly increasing and covering readouts "
-            f"[0, {last}], found {len(times)} times in [{times.min()}, {times.max()}]"
-        )
+    if len(times) == 1:
+        return times
+    expected = f"frame times expected finite, strictly increasing and covering readouts [0, {last}]"
+    if not np.isfinite(times).all():
+        i = int(np.flatnonzero(~np.isfinite(times))[0])
+        raise ValueError(f"{expected}, found a time that is not finite, {times[i]} at index {i}")
+    if not (np.diff(times) > 0).all():
+        i = int(np.flatnonzero(np.diff(times) <= 0)[0]) + 1
+        raise ValueError(f"{expected}, found {times[i]} at index {i} after {times[i - 1]}")
+    if not times[0] <= 0 <= last <= times[-1]:
+        raise ValueError(f"{expected}, found {len(times)} times in [{times[0]}, {times[-1]}]")
     return times
 
 

@@ -368,8 +368,12 @@ def _write_digest(path: Path, digest: bytes) -> None:
 
 
 def _readouts_of(bits) -> np.ndarray:
-    """`bits` as an array of readouts [T, H, W]; ValueError for another number of dimensions."""
+    """`bits` as an array of readouts [T, H, W]; ValueError for another number of dimensions, or
+    for what is no array (a SpikeStream: `.window` or `.tfp` reads its readouts)."""
+    given = bits
     bits = np.asarray(bits)
+    if bits.ndim == 0 and bits.dtype == object:  # (np.asarray wrapped it: "found shape []")
+        raise ValueError(f"bits expected an array [T, H, W], found a {type(given).__name__}")
     if bits.ndim != 3:
         raise ValueError(f"bits expected [T, H, W], found shape {list(bits.shape)}")
     return bits
