@@ -791,6 +791,28 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     assert "--window: config: sim.window = 201 readouts does not fit" in capsys.readouterr().err
 
 
+def test_a_batch_that_cannot_fit_in_memory_is_refused_before_a_step(scene, monkeypatch):
+    """`sim-train --batch-size 5000` was killed by the kernel at 24 GB, with no word: a step's
+    memory, at least STEP_BYTES_PER_MAP a crop pixel and feature map, is checked first."""
+    from spikegs import sim_train
+
+    stream, ts = scene[1], valid_timestamps(scene[1], 33)
+    maps = 33 + 32 * 3 + 32 * 3  # the window's, width per shift layer, head_width per head layer
+    crop = min(stream.height, stream.width, 16)
+    monkeypatch.setattr(sim_train, "machine_memory", lambda: 2**30)
+    batch = 2**30 // (sim_train.STEP_BYTES_PER_MAP * maps * crop * crop) + 1
+    monkeypatch.setattr(SIM, "forward_rotated", lambda *a, **k: pytest.fail("stepped"))
+    said = rf"SIM batch {batch} of {crop}x{crop} crops: a training step needs over 1.0 GiB, more "
+    said += r"than the 1.0 GiB this process may use; a smaller batch \(sim-train --batch-size"
+    with pytest.raises(ValueError, match=said):
+        train_sim(stream, ts, 33, steps=1, batch_size=batch, crop=crop, progress=False)
+    # a wider network holds more maps a pixel: a third of that batch, 9 times as wide, is refused
+    with pytest.raises(ValueError, match=f"SIM batch {batch // 3} of "):
+        train_sim(
+            stream, ts, 33, steps=1, batch_size=batch // 3, crop=crop, width=288, progress=False
+        )
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
