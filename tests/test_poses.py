@@ -445,7 +445,7 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
     (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
     assert main(["poses", str(raw), "--count", "30"]) == 0
-    assert "3 held-out views at every 8th registered image" in capsys.readouterr().out
+    assert "3 held-out views (every 8th registered image)" in capsys.readouterr().out
     written = json.loads((raw / "meta.json").read_text())
     assert written["intrinsics_from"] == written["poses_from"] == "sfm"  # (a gap: SfM's, said)
     dataset = load_dataset(raw)
@@ -1377,7 +1377,11 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
     assert "leaves 15 training timestamps (each keeps 64 readouts clear of a held-out view): " in (
         spaced
     )
-    assert spaced.endswith(f"which leaves {len(ks)}")
+    # (it said "held out every 55th instead" of 46 images: the one in the middle, the poses trial)
+    assert spaced.endswith(
+        "held out the image at readout 580 instead (1 of 46, the middle one of those with room "
+        f"for the pseudo ground truth's window), which leaves {len(ks)}"
+    )
 
 
 def test_a_raw_recordings_split_that_comes_out_empty_is_refused_saying_why():

@@ -58,9 +58,9 @@ from .data.real import (
     NEEDED_WINDOW,
     PSEUDO_PREFIX,
     ground_truth_note,
-    ordinal,
     pseudo_truth,
     spaced_instead,
+    spaced_words,
     timestamps_clear_of,
 )
 from .data.simulate import default_train_every
@@ -295,10 +295,14 @@ def _held_out_split(
     instead = spaced_instead(registered, fits, train_every, len(ks), clear_of)
     if instead is not None:
         spaced, spaced_ks, nth = instead
+        picked = registered[spaced].tolist()
         note = (
             f"every {HOLDOUT_EVERY}th registered image, the default held-out views, leaves "
             f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear "
-            f"of a held-out view): held out every {ordinal(nth)} instead, which leaves "
+            f"of a held-out view): held out the image{'s' if len(picked) > 1 else ''} at "
+            f"readout{'s' if len(picked) > 1 else ''} {', '.join(map(str, picked[:5]))}"
+            f"{', ...' if len(picked) > 5 else ''} instead ({len(picked)} of {len(registered)}, "
+            f"{spaced_words(nth, len(picked))}), which leave{'s' if len(picked) == 1 else ''} "
             f"{len(spaced_ks)}"
         )
         test, ks = spaced, spaced_ks
@@ -530,11 +534,12 @@ def _estimate_poses(
         views, ks, spaced = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
         note = {**ground_truth_note(0, len(views)), **notes}
         meta.update(train_every=train_every, test_ground_truth=note, held_out_by=HELD_OUT_BY)
-        where = f"every {HOLDOUT_EVERY}th registered image" if spaced is None else "spaced"
+        where = f"every {HOLDOUT_EVERY}th registered image" if spaced is None else "spaced: below"
         messages.append(
             f"wrote {TRAJECTORY}, {POINTS}, {META}, {TIMESTAMPS} ({len(ks)} training timestamps) "
-            f"and {TEST_VIEWS}: {len(views)} held-out views at {where}, their ground truth "
-            f"TFP({NEEDED_WINDOW}) of their own spikes (named {PSEUDO_PREFIX}*)"
+            f"and {TEST_VIEWS}: {len(views)} held-out view{'s' if len(views) > 1 else ''} "
+            f"({where}), their ground truth TFP({NEEDED_WINDOW}) of their own spikes (named "
+            f"{PSEUDO_PREFIX}*)"
         )
         messages += [spaced] if spaced else []
     else:

@@ -189,6 +189,13 @@ def _spaced_mask(fits: np.ndarray, nth: int) -> np.ndarray:
     return mask
 
 
+def spaced_words(nth: int, picked: int) -> str:
+    """How `spaced_instead`'s `picked` views were chosen: every `nth` of those with room for the
+    pseudo ground truth's window, or, one alone, the middle one of those."""
+    which = f"every {ordinal(nth)}" if picked > 1 else "the middle one"
+    return f"{which} of those with room for the pseudo ground truth's window"
+
+
 def ordinal(n: int) -> str:
     """'1st', '2nd', '3rd', '4th', '11th', '131st'."""
     last = "th" if n % 100 in (11, 12, 13) else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
@@ -489,8 +496,8 @@ def stream_dataset(
             f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear of "
             f"a held-out pose): held out pose{'s' if len(picked) > 1 else ''} "
             f"{', '.join(map(str, picked[:5]))}{', ...' if len(picked) > 5 else ''} instead "
-            f"({len(picked)} of {len(readouts)}, every {ordinal(nth)} of those with room for "
-            f"the pseudo ground truth's window), which leave {len(spaced_ks)}; test_views in "
+            f"({len(picked)} of {len(readouts)}, {spaced_words(nth, len(picked))}), which "
+            f"leave{'s' if len(picked) == 1 else ''} {len(spaced_ks)}; test_views in "
             f"spikegs.json chooses others",
             stacklevel=3,
         )
