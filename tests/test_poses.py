@@ -541,6 +541,15 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     assert main(["poses", str(raw), "--count", "30"]) == 2
     assert "trajectory.json: no convention" in capsys.readouterr().err
     assert not (raw / "sfm").exists()
+    # a log of the first half alone: SfM ran in full, then "pose_at: t=516.0 outside the
+    # trajectory's readouts" named no file (the poses trial)
+    doc = json.loads((textured / "trajectory.json").read_text())
+    doc["frames"] = [f for f in doc["frames"] if f["readout"] < 500]
+    (raw / "trajectory.json").write_text(json.dumps(doc))
+    assert main(["poses", str(raw), "--count", "30"]) == 2
+    said = f"{raw / 'trajectory.json'}: poses cover readouts [0.0, 499.0], expected [0, 999]"
+    assert said in capsys.readouterr().err
+    assert not (raw / "sfm").exists()
     # each of these ran SfM (or announced it) before failing, or failed only in training
     (raw / "trajectory.json").unlink()
     assert main(["poses", str(raw), "--window", "1001"]) == 2  # was "too few images: 2"

@@ -41,6 +41,7 @@ from .data.dataset import (
     check_dataset_folder,
     check_meta_values,
     check_stream_image,
+    check_trajectory_covers,
     field_of_view_deg,
     intrinsics_keys,
     intrinsics_matrix,
@@ -401,6 +402,8 @@ def _estimate_poses(
     reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
+    if reference is not None:  # (a partial one failed after SfM, in its alignment)
+        check_trajectory_covers(reference, num, reference_path)
     # a raw recording (or one this command completed before) gets held-out views and timestamps
     present = [name for name in (TIMESTAMPS, TEST_VIEWS) if (root / name).exists()]
     if len(present) == 1:

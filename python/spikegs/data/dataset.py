@@ -882,6 +882,17 @@ def run_folder_note(root: Path) -> str | None:
     return note + (f"; the run's dataset is {own}" if own else "")
 
 
+def check_trajectory_covers(trajectory: Trajectory, num: int, path: Path) -> None:
+    """ValueError where the poses of `path` leave out some of a `num`-readout stream's readouts
+    (poses for part of a recording, which its layout does not hold)."""
+    if trajectory.start > 0 or trajectory.end < num - 1:
+        raise ValueError(
+            f"{path}: poses cover readouts [{trajectory.start}, {trajectory.end}], expected "
+            f"[0, {num - 1}] (poses for part of a recording: the LLFF layout, one spikes.dat "
+            f"with readouts.txt; docs/datasets.md)"
+        )
+
+
 def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     """Open a dataset directory, checking every file before returning (FileNotFoundError names a
     missing file, ValueError a malformed one); the spikes are memory-mapped, not read. Without a
@@ -950,12 +961,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     # the files' copies of the camera predate intrinsics that `spikegs poses` estimated
     camera = None if meta.get("intrinsics_from") == INTRINSICS_FROM_SFM else camera_keys(meta)
     trajectory = Trajectory.load_json(existing_file(root, TRAJECTORY), camera)
-    if trajectory.start > 0 or trajectory.end < num - 1:
-        raise ValueError(
-            f"{root / TRAJECTORY}: poses cover readouts [{trajectory.start}, {trajectory.end}], "
-            f"expected [0, {num - 1}] (poses for part of a recording: the LLFF layout, one "
-            f"spikes.dat with readouts.txt; docs/datasets.md)"
-        )
+    check_trajectory_covers(trajectory, num, root / TRAJECTORY)
     in_us = microseconds_hint(trajectory.end, num)
     if in_us:  # (as a pose log that ran on, it trained the stream on its first 1/25 unsaid)
         raise ValueError(
