@@ -530,6 +530,16 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     (tmp_path / "llff").mkdir()  # a layout with poses of its own, or no dataset at all
     assert main(["poses", str(tmp_path / "llff")]) == 2
     assert "an LLFF or NeRF layout brings its own poses" in capsys.readouterr().err
+    # an LLFF layout's continuous stream, a part of ours by name: refused, and left without a
+    # lock file as outputs.md says (the poses trial)
+    for name in ("spikes.dat", "poses_bounds.npy"):
+        shutil.copy(textured / "spikes.dat", tmp_path / "llff" / name)
+    assert main(["poses", str(tmp_path / "llff")]) == 2
+    assert "an LLFF or NeRF layout brings its own poses" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "llff").iterdir()) == [
+        "poses_bounds.npy",
+        "spikes.dat",
+    ]
     # the pose log SfM's poses are aligned to, read after SfM had run for minutes
     raw = tmp_path / "log"
     raw.mkdir()

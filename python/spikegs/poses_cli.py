@@ -26,6 +26,7 @@ from .cli import file_path
 from .config import SupervisionConfig
 from .data.dataset import (
     INTRINSICS_FROM_SFM,
+    LOCK,
     META,
     POINTS,
     POSES_FROM_SFM,
@@ -369,7 +370,11 @@ def estimate_poses(
             f"{root}: not writable, where spikegs poses writes the poses, points and split (and "
             f"its work in {WORK_DIR}/); copy the dataset to a writable folder"
         )
-    if not takes_lock(Path(root)):  # refused as a dataset without meta.json, nothing made
+    # refused as a dataset without meta.json, nothing made: a folder holding neither a lock nor
+    # meta.json is no dataset a spikegs process writes (an LLFF layout's spikes.dat: it was
+    # left a lock file, though refused)
+    unlocked = not (Path(root) / LOCK).exists() and not (Path(root) / META).is_file()
+    if unlocked or not takes_lock(Path(root)):
         return _estimate_poses(Path(root), *args)
     with writing_dataset(root):  # its poses and split, read as they change: one process at a time
         return _estimate_poses(Path(root), *args)
