@@ -415,6 +415,7 @@ def test_poses_from_spikes_recover_the_trajectory(textured, tmp_path, capsys):
     assert "SfM: 30 images, 435 pairs matched exhaustively\n" in printed.err
     assert report["registered"] >= 0.8 * report["images"], report
     assert report["rotation_error_deg_median"] < 3.0, report
+    assert report["pose_reference"] == "pose log"
     assert report["centre_error_median"] < 0.07, report
     # the reprojection error in pixels: COLMAP's per-point means, weighted by their tracks, are
     # the mean over every observation
@@ -473,6 +474,9 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     assert sorted(p.stem for p in (raw / "test").iterdir()) == [v.name for v in again.test_views]
     out = capsys.readouterr().out  # intrinsics estimated afresh; poses compared, not scored
     assert "SfM's estimate" in out and "not a pose log" in out and "rotation difference" in out
+    # the report's figures say against what too (the summary alone did: the poses trial)
+    report = json.loads((raw / "sfm" / "report.json").read_text())
+    assert report["pose_reference"] == "first spikegs poses run"
 
 
 def test_an_implausible_estimated_focal_is_flagged():

@@ -520,6 +520,7 @@ def _estimate_poses(
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM, not a pose log: a difference
+        report["pose_reference"] = "first spikegs poses run" if ours else "pose log"
         word = "difference" if ours else "error"
         messages.append(
             f"aligned to {reference_path.name} by a similarity on the camera centres and "
