@@ -611,6 +611,26 @@ def test_structure_from_motion_registering_too_few_images_says_how_many(
         reconstruct(spike_images(dataset.streams, readouts, 33), readouts, tmp_path / "sfm")
 
 
+def test_poses_with_sim_read_the_sims_own_window(textured, monkeypatch, capsys):
+    """--sim --window 65 read the SIM's 33-readout windows, the images centred as 65's, unsaid,
+    and --sim --window 1 failed on "window of 33 readouts centred on k=0" (the poses trial)."""
+    from spikegs import poses_cli
+    from spikegs.sim import SIM
+
+    sim = SIM(window=17)
+    assert poses_cli._image_window(None, sim) == poses_cli._image_window(17, sim) == 17
+    assert poses_cli._image_window(None, None) == poses_cli.DEFAULT_WINDOW
+    assert poses_cli._image_window(65, None) == 65
+    monkeypatch.setattr(poses_cli, "_cached_sim", lambda root, posed: sim)
+    for window in ("65", "1"):
+        assert main(["poses", str(textured), "--sim", "--window", window]) == 2
+        assert (
+            f"--window {window} with --sim: SIM reads the 17-readout windows it was trained on; "
+            f"leave --window out, or train a SIM of {window} readouts" in capsys.readouterr().err
+        )
+    assert not (textured / "sfm").exists()
+
+
 def test_poses_from_spikes_fail_clearly(textured, tmp_path, capsys):
     assert main(["poses", str(textured), "--count", "5"]) == 2
     assert "too few images for structure from motion: 5" in capsys.readouterr().err
@@ -668,7 +688,9 @@ def test_the_failure_hint_offers_sim_only_where_the_images_are_not_sims():
     }
     tfp, sims = (sfm._failure(stats, 4, 0.5, Path("x"), from_sim=s) for s in (False, True))
     assert "a longer --window, or --sim, gives cleaner images" in tfp
-    assert "a longer --window gives cleaner images" in sims and "--sim" not in sims
+    # (--window with --sim is refused: SIM reads its own window)
+    assert "a SIM of a longer window, `spikegs sim-train --window N`, gives cleaner" in sims
+    assert "--sim" not in sims
     # a raw recording's SIM needs poses first: --sim sent it to sim-train, which sent it back
     raw = sfm._failure(stats, 4, 0.5, Path("x"), from_sim=False, can_sim=False)
     assert "a longer --window gives cleaner images" in raw and "--sim" not in raw

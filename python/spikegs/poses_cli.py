@@ -98,7 +98,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "earlier one kept as trajectory.json.bak), points3d.ply, meta.json's camera and the "
         "training timestamps; SfM's work in DATASET/sfm",
     )
-    parser.add_argument("--window", type=int, default=DEFAULT_WINDOW, help="TFP window, odd")
+    parser.add_argument(
+        "--window",
+        type=int,
+        help=f"TFP window, odd (default {DEFAULT_WINDOW}; with --sim, the SIM's own)",
+    )
     when = parser.add_mutually_exclusive_group()
     when.add_argument("--every", type=int, help="an image every N readouts")
     when.add_argument("--count", type=int, default=DEFAULT_COUNT, help="images spread evenly")
@@ -161,6 +165,20 @@ def _cached_sim(root: Path, posed: bool):
         file=sys.stderr,
     )
     return load_sim(cached[-1])
+
+
+def _image_window(window: int | None, sim_model) -> int:
+    """The readouts an image reads: `window` (DEFAULT_WINDOW where None), or a SIM's own, which
+    a `window` given otherwise would not change (it moved the images' centres alone, unsaid)."""
+    if sim_model is None:
+        return DEFAULT_WINDOW if window is None else window
+    if window is not None and window != sim_model.window:
+        raise ValueError(
+            f"--window {window} with --sim: SIM reads the {sim_model.window}-readout windows it "
+            f"was trained on; leave --window out, or train a SIM of {window} readouts "
+            f"(`spikegs sim-train --window {window}`), the latest then read"
+        )
+    return sim_model.window
 
 
 def _recording(root: Path, meta: dict) -> list[SpikeStream]:
@@ -355,7 +373,7 @@ def _reprojection_report(recon: Reconstruction) -> dict:
 
 def estimate_poses(
     root: str | Path,
-    window: int = DEFAULT_WINDOW,
+    window: int | None = None,
     every: int | None = None,
     count: int = DEFAULT_COUNT,
     sim: bool = False,
@@ -381,7 +399,7 @@ def estimate_poses(
 
 
 def _estimate_poses(
-    root: Path, window: int, every: int | None, count: int, sim: bool, min_registered: float
+    root: Path, window: int | None, every: int | None, count: int, sim: bool, min_registered: float
 ) -> dict:
     """`estimate_poses`, its dataset locked."""
     root = Path(root)
@@ -394,7 +412,7 @@ def _estimate_poses(
             f"and spike files; an LLFF or NeRF layout brings its own poses: docs/datasets.md)"
         )
     meta = read_json(meta_path)
-    if window < 1 or window % 2 == 0:
+    if window is not None and (window < 1 or window % 2 == 0):
         raise ValueError(f"--window: expected an odd window >= 1, got {window}")
     if every is not None and every < 1:
         raise ValueError(f"--every: expected >= 1 readout, got {every}")
@@ -421,6 +439,10 @@ def _estimate_poses(
     ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
     raw = ours or not split
     stated_every = _stated_train_every(meta, meta_path) if raw else None
+    import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
+    posed = reference is not None
+    sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
+    window = _image_window(window, sim_model)
     readouts = _image_readouts(num, window, every, count)
     if len(readouts) < MIN_IMAGES:
         first, last = centred_range(num, window)  # the readouts the window fits around
@@ -436,9 +458,6 @@ def _estimate_poses(
             f"{window}-readout window on; using them all",
             file=sys.stderr,
         )
-    import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
-    posed = reference is not None
-    sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
     pairs = len(readouts) * (len(readouts) - 1) // 2
     print(
         f"SfM: {len(readouts)} images, {pairs} pairs matched exhaustively"

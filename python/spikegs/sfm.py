@@ -290,11 +290,12 @@ def _failure(
     if n < 10:
         reasons.append(f"too few images ({n}): raise --count or lower --every")
     if stats["features"] < MIN_FEATURES:
-        reasons.append(
-            "few features: textureless or noisy images (a longer --window"
-            + ("" if from_sim or not can_sim else ", or --sim,")
-            + " gives cleaner images)"
+        cleaner = (  # (--window with --sim is refused: SIM reads its own)
+            "a SIM of a longer window, `spikegs sim-train --window N`, gives cleaner images"
+            if from_sim
+            else "a longer --window" + (", or --sim," if can_sim else "") + " gives cleaner images"
         )
+        reasons.append(f"few features: textureless or noisy images ({cleaner})")
     # few pairs but of neighbours on the path, most of them matched and with parallax: each
     # image overlaps the next only (a long path, or a fast camera, for the images: 40 over 600°
     # of an orbit matched 34 such pairs, 8 more). Not where no pair matched, nor where the pairs
