@@ -618,6 +618,34 @@ def test_eval_with_aligned_poses_names_the_views_likely_settled_off(trained, run
     assert result["aligned_poses"]["unexplained_median"] == pytest.approx(0.275)
 
 
+def test_views_whose_renders_explain_nothing_are_named_whatever_the_median(
+    trained, run, monkeypatch
+):
+    """A run in SfM's own frame scored on a dataset of other poses: every render blank, each
+    view "settled" leaving 1.22 of its image's coarse structure unexplained, none suspect (the
+    median as high), no warning and exit 0 (the poses trial). A share of 1 or more (a flat
+    render's) is named in its own warning and suspect; the others by the median rule still."""
+    from spikegs import evaluate
+    from spikegs.pose_align import Alignment
+
+    shares = iter([1.22, 1.3, 1.0, 0.2])
+
+    def aligned(model, viewmat, image, dataset):
+        return Alignment(np.asarray(viewmat, np.float64), 4, True, next(shares))
+
+    monkeypatch.setattr(evaluate, "aligned_pose", aligned)
+    turned = _turned(trained[0], load_ply(run / "scene.ply"))
+    names = [v.name for v in turned.test_views]
+    with pytest.warns(UserWarning) as said:
+        result = evaluate_run(run, turned, write_images=False, align_poses=True)
+    messages = [str(w.message) for w in said]
+    blank = [m for m in messages if "leave all of their images' coarse structure" in m]
+    assert len(blank) == 1 and blank[0].startswith(f"3 test view(s) ({', '.join(names[:3])})")
+    assert "(up to 1.30, where a flat render leaves 1 or more): the scene is not in" in blank[0]
+    assert not any("likely settled off" in m for m in messages)  # (the same views, said once)
+    assert result["aligned_poses"]["suspect"] == names[:3]
+
+
 def test_a_view_without_coarse_structure_takes_no_part_in_the_median(trained, run, monkeypatch):
     """An image with no coarse structure leaves a NaN share: the median (eval-aligned.json's and
     the suspect rule's) is the other views', not NaN."""

@@ -282,6 +282,10 @@ def side_by_side(
 # needs most views right (with 6 of 8 lost none stands out)
 SUSPECT_RATIO = 2.0
 SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely differ by noise)
+# a view leaving this share or more explains none of it (a flat render leaves 1 or more): the scene
+# is out of its view, suspect whatever the others leave (a run in SfM's own frame scored on poses
+# of another, every view's render blank, "settled" at 1.22 each: the poses trial)
+NOTHING_EXPLAINED = 1.0
 
 
 def _first_three(names: list[str]) -> str:
@@ -299,11 +303,11 @@ def _finite_median(values) -> float:
 def _suspect(views: dict) -> list[str]:
     """The views (names) of `views` {name: scores} whose aligned render leaves over SUSPECT_RATIO
     times the median view's share of its image's coarse structure unexplained, and at least
-    SUSPECT_LEAST."""
+    SUSPECT_LEAST; or NOTHING_EXPLAINED, whatever the median."""
     shares = {name: v["aligned_unexplained"] for name, v in views.items()}
     median = _finite_median(shares.values())
     bound = max(SUSPECT_RATIO * median, SUSPECT_LEAST) if math.isfinite(median) else math.inf
-    return [name for name, share in shares.items() if share > bound]
+    return [name for name, share in shares.items() if share > bound or share >= NOTHING_EXPLAINED]
 
 
 def evaluate_run(
@@ -464,7 +468,18 @@ def evaluate_run(
                     "2 to 5 of 8 turned 20°: docs/outputs.md)",
                     stacklevel=2,
                 )
-            suspect = result["aligned_poses"]["suspect"]
+            blank = [n for n, v in views.items() if v["aligned_unexplained"] >= NOTHING_EXPLAINED]
+            if blank:
+                warnings.warn(
+                    f"{len(blank)} test view(s) ({_first_three(blank)}) leave all of their images' "
+                    "coarse structure unexplained once aligned (up to "
+                    f"{max(views[v]['aligned_unexplained'] for v in blank):.2f}, where a flat "
+                    "render leaves 1 or more): the scene is not in their view, their aligned "
+                    "scores not the scene's (a run trained in another frame than these poses, "
+                    "SfM's own say, or on another scene)",
+                    stacklevel=2,
+                )
+            suspect = [v for v in result["aligned_poses"]["suspect"] if v not in blank]
             if suspect:
                 listed = _first_three(suspect)
                 warnings.warn(
