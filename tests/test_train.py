@@ -2389,7 +2389,7 @@ def test_demo_runs_a_colour_camera_and_resumes_it(tmp_path, monkeypatch, capsys)
     assert main(["demo", "--iterations", "20", "--no-progress", "--out", str(mono)]) == 0
     capsys.readouterr()
     assert main(["demo", "--color", "--no-progress", "--resume", "--out", str(mono)]) == 2
-    assert "holds a mono dataset; leave out --color" in capsys.readouterr().err
+    assert "was started with a mono camera; leave out --color" in capsys.readouterr().err
 
 
 @pytest.mark.filterwarnings("ignore:.*differ in brightness from the exposure targets")
@@ -2451,6 +2451,47 @@ def test_a_demo_resumed_over_torn_side_files_goes_on_from_its_defaults(
     for results, earlier in (('{"total_seconds": null}', 0.0), (finished, 7.5)):
         (out / "results.json").write_text(results)
         assert earlier_seconds(out, finished_results(out)) == earlier
+
+
+def test_a_resumed_demo_goes_on_with_the_scene_and_camera_it_started_with(
+    tmp_path, monkeypatch, capsys
+):
+    """Two ways --resume trained a demo it was not (the demo trial): `--overwrite --scene wires`
+    over a solids demo, stopped while simulating, left the old dataset's meta.json, which
+    --resume continued (solids, its cached SIM); and a demo stopped before its dataset existed
+    went on with a `--scene` or `--color` given to --resume, unsaid."""
+    from spikegs.demo import STARTED_FILE, started_scene
+
+    out = tmp_path / "demo"
+    (out / "data").mkdir(parents=True)
+    (out / "data" / "meta.json").write_text('{"scene": "solids", "channels": 1}')
+    (out / STARTED_FILE).write_text('{"scene": "solids", "iterations": null, "color": false}')
+    started = []
+
+    def stopped(scene, data, resume, progress, color):
+        started.append((scene, resume, color, (data / "meta.json").exists()))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.demo.demo_dataset", stopped)
+    argv = ["demo", "--no-progress", "--out", str(out)]
+    assert main([*argv, "--overwrite", "--scene", "wires"]) == 130
+    assert started == [("wires", False, False, False)] and started_scene(out) == "wires"
+    assert main([*argv, "--resume"]) == 130
+    assert started[1] == ("wires", True, False, False)  # simulated again, not solids resumed
+    capsys.readouterr()
+    for wrong, says in (
+        (["--scene", "fine-texture"], "was started with scene 'wires', not 'fine-texture'; leave"),
+        (["--color"], "was started with a mono camera; leave out --color to continue it"),
+    ):
+        assert main([*argv, "--resume", *wrong]) == 2
+        assert f"--resume: the demo in {out} {says}" in capsys.readouterr().err
+    assert len(started) == 2
+    # --resume where no demo ran said "starting one", then refused the folder's files
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "results.json").write_text("{}")
+    assert main(["demo", "--no-progress", "--resume", "--out", str(tmp_path / "notes")]) == 2
+    err = capsys.readouterr().err
+    assert "results.json, which no demo wrote" in err and "starting one" not in err
 
 
 def test_a_resumed_finished_demo_reads_its_results_once(tmp_path, monkeypatch, capsys):

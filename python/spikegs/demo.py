@@ -94,7 +94,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):
     """The demo's dataset: simulated into `data` (`color`: an RGB camera), or, on `resume`, the
     one a demo already simulated there (meta.json is written last: a folder without it is
-    simulated again)."""
+    simulated again), refused where its scene or camera is not `scene`'s or `color`'s (a
+    meta.json edited by hand: `_check_resumed_scene` refuses the others first)."""
     from .data import load_dataset, simulate_dataset
 
     if resume and (data / "meta.json").exists():
@@ -341,9 +342,9 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     finished = finished_results(out)  # read once, with OUT locked
     # a demo writes STARTED_FILE as it starts: a folder without it (or a demo's results) holds
     # none, even where it holds other files (they went on as a demo without its start record)
-    if args.resume and held_demo(out, finished) is None:
-        print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
-        args = argparse.Namespace(**{**vars(args), "resume": False})  # a fresh demo, as started
+    nothing_to_resume = args.resume and held_demo(out, finished) is None
+    if nothing_to_resume:  # a fresh demo, as started (said once OUT is found fit for one)
+        args = argparse.Namespace(**{**vars(args), "resume": False})
     progress = show_bars(args.no_progress)  # else a line at each evaluation
     earlier = earlier_seconds(out, finished) if args.resume else 0.0
     # --resume without --scene or --iterations goes on with those the demo was started with
@@ -361,12 +362,19 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
                 f"--resume: the demo in {out} was started with {started} iterations, not "
                 f"{args.iterations}; leave out --iterations to continue it, or give another --out"
             )
+        _check_resumed_scene(out, args.scene, args.color)
         printable = _printable(finished, scene, color)
         if printable is not None:  # nothing to train: evaluated and timed again before
             print(f"--resume: {out} holds a finished demo; its results:", file=sys.stderr)
             return _print_results(printable, out)
     if not args.resume:
         check_fresh_out(out, args.overwrite, finished)
+        if nothing_to_resume:
+            print(f"--resume: {out} holds no demo to continue; starting one", file=sys.stderr)
+        # an earlier demo's dataset is simulated again: a stop before the new one's meta.json
+        # (written last) left the old one's, which --resume then continued, the scene and
+        # camera this demo started with aside
+        (out / "data" / "meta.json").unlink(missing_ok=True)
         # an earlier demo's, all at once: a fresh demo stopped before its last method left that
         # method's finished run, which --resume then refused as trained with other settings
         for method in METHODS:
@@ -406,6 +414,23 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     }
     write_text_atomically(out / RESULTS, strict_json.dumps(payload, indent=2))
     return _print_results(payload, out)
+
+
+def _check_resumed_scene(out: Path, scene: str | None, color: bool) -> None:
+    """ValueError where --resume names another scene (`scene`) or camera (`color`) than the
+    demo's own (`started_scene`, `started_color`): stopped before its dataset existed, it went on
+    with the one named, unsaid, as its dataset's check refuses once there."""
+    own = started_scene(out)
+    if scene is not None and own is not None and scene != own:
+        raise ValueError(
+            f"--resume: the demo in {out} was started with scene '{own}', not '{scene}'; leave "
+            f"out --scene to continue it, or give another --out"
+        )
+    if color and not started_color(out):
+        raise ValueError(
+            f"--resume: the demo in {out} was started with a mono camera; leave out --color to "
+            f"continue it, or give another --out"
+        )
 
 
 def _printable(finished: dict | None, scene: str, color: bool) -> dict | None:
