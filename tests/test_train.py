@@ -3006,6 +3006,9 @@ def test_a_log_gets_lines(dataset, tmp_path, capsys):
     assert "short: iteration 2/4, held-out PSNR" in err and "short: iteration 4/4" in err
     assert "\r" not in err
     assert not show_bars(False)
+    one = ["--iterations", "1", "--out", str(tmp_path / "one")]  # ("training 1 iterations")
+    assert main([*run[:4], *one]) == 0
+    assert capsys.readouterr().err.startswith(f"short: training 1 iteration into {tmp_path}")
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="pseudo-terminals: POSIX only")

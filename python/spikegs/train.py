@@ -776,8 +776,9 @@ class Trainer:
                     file=sys.stderr,
                 )
             elif not self.progress:  # a log heard of the run first at its first evaluation
+                count = self.config.train.iterations
                 print(
-                    f"{self.config.method}: training {self.config.train.iterations} iterations "
+                    f"{self.config.method}: training {count} iteration{'s' if count > 1 else ''} "
                     f"into {self.run_dir}",
                     file=sys.stderr,
                     flush=True,
