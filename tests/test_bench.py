@@ -242,6 +242,14 @@ def test_bench_stiff_names_each_check_a_row_fails():
     ]
     for (key, value), problem in zip(failing.items(), named):
         assert stiff.failed_checks({**good, key: value}) == [problem]
+    # a NaN error (the reference's image NaN) passed every bound: NaN > bound is false (the
+    # bench trial)
+    for key, bound in (
+        ("ref_err", stiff.REFERENCE_ERROR_BOUND),
+        ("image_err", stiff.FLOAT_ERROR_BOUND),
+        ("rel_means", stiff.GRAD_ERROR_BOUND),
+    ):
+        assert stiff.failed_checks({**good, key: math.nan}) == [f"{key} nan > {bound:g}"]
 
 
 def test_the_pairs_are_the_cores_count_else_each_visible_boxs_pixels(monkeypatch):
