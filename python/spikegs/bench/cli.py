@@ -45,8 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         type=file_path,
         default=None,
-        help="output folder (default bench-results, or bench-results-quick with --quick: a quick "
-        "run does not replace a full one's files)",
+        help="output folder (default bench-results, or bench-results-quick with --quick, so "
+        "that a quick run leaves a full one's files in the default folder alone; given, a part "
+        "run into it replaces its own files there, quick or not)",
     )
     add_no_progress(parser, " in bench sim's SIM training")
     parser.add_argument(
