@@ -662,6 +662,16 @@ def test_train_draws_the_headline_only_with_spikegs_or_a_baseline(tmp_path, caps
         assert main([*argv, "--out", str(out)]) == 0
         assert (out / "headline.png").exists() == drawn
         assert "legend" not in capsys.readouterr().err
+    # a re-run into that folder with other scenes or no headline method left the earlier run's
+    # figures beside a train.json they no longer describe (the bench trial)
+    out = tmp_path / "tfp33"
+    (out / "train_wires.png").write_bytes((out / "train_solids.png").read_bytes())
+    argv = ["bench", "train", "--quick", "--scenes", "solids", "--methods", "oracle"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert not (out / "headline.png").exists() and not (out / "train_wires.png").exists()
+    assert (out / "train_solids.png").exists()
+    said = "removed an earlier run's train_wires.png, headline.png, of scenes or methods not run"
+    assert said in capsys.readouterr().out
 
 
 def test_train_refuses_a_users_files_in_its_run_folders_before_any_work(tmp_path, monkeypatch):

@@ -487,4 +487,17 @@ def run(
         "scenes": results,
     }
     write_results(out, "train", payload, quick)
+    stale = [f"train_{s}.png" for s in SCENES if s not in scenes]
+    _remove_stale_figures(out, stale + ([] if shown else ["headline.png"]))
     return payload
+
+
+def _remove_stale_figures(out: Path, names: list[str]) -> None:
+    """Delete an earlier run's figures `names` in OUT, which the train.json just written does
+    not describe (a re-run with other scenes, or with no headline method, left them beside it),
+    said in a line."""
+    removed = [name for name in names if (out / name).is_file()]
+    for name in removed:
+        (out / name).unlink()
+    if removed:
+        print(f"removed an earlier run's {', '.join(removed)}, of scenes or methods not run now")
