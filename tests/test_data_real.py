@@ -736,6 +736,26 @@ def test_guessed_intensity_scale_of_sharp_test_images_is_named(sim, nerf, tmp_pa
         load_dataset(root)
 
 
+def test_sharp_test_images_in_other_units_are_named_from_their_spikes(sim, nerf, tmp_path):
+    """A NeRF test image already in firing-rate units (or linear values in an sRGB PNG) beside a
+    stated rate_at_one scored 16.5 dB where 26.9 was due, unsaid, where meta.json's layout warns
+    (the real-layout trial): a held-out view with spikes and a sharp image checks the units."""
+    root = copy(nerf, tmp_path)
+    write_view(sim, root / "spike_data" / "r_0.dat", 0)  # test/r_0: its spikes and image
+    (root / "spikegs.json").write_text(json.dumps({"rate_at_one": 0.25}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # intensities, as they should be: nothing to say
+        load_dataset(root)
+    sharp = make_source("solids", W, H, 1).render(view_poses(sim)[0])  # [H, W, 1]
+    write_image(root / "test" / "r_0.exr", sharp * 0.25)  # firing rates
+    with pytest.warns(
+        UserWarning,
+        match=r"the on-path test images average 0\.2\d* times their spikes' firing rate .* sharp "
+        r"images are expected in linear intensity, 1 for white \(8-bit ones sRGB-encoded\)",
+    ):
+        load_dataset(root)
+
+
 def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
     """A wrong `flip` trained the scene upside down without a word, though the training views'
     sharp images showed it."""

@@ -1010,7 +1010,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
             DarkSpikesWarning,
             stacklevel=2,
         )
-    _warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
+    warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if not drowned:  # (its spikes match their images no way up: said above)
         _check_orientation(streams, sharp, meta_path, meta)
@@ -1043,13 +1043,21 @@ def _on_path(views: list[TestView], length: int) -> list[tuple[TestView, int]]:
     return [(v, k) for v, k in zip(views, readouts) if k is not None and half <= k < length - half]
 
 
-def _warn_about_test_units(
-    streams: list[SpikeStream], views: list[TestView], path: Path, dark_rate: float
+FIRING_RATE_UNITS = "test images are expected in firing-rate units (intensity x image_scale)"
+
+
+def warn_about_test_units(
+    streams: list[SpikeStream],
+    views: list[TestView],
+    path: Path,
+    dark_rate: float,
+    expected: str = FIRING_RATE_UNITS,
 ) -> None:
     """A UserWarning where the on-path test views' images [H, W, C] average over UNITS_RATIO
     times more, or less, than the firing rate of their spikes' light (TFP(33) at their readouts,
     each channel its stream's, less the stated `dark_rate`, which the images leave out): images
-    in intensity or 8-bit units, not spikes a readout."""
+    in intensity or 8-bit units, not spikes a readout (`expected`: the units the file's images
+    are to be in, and how they become firing rates)."""
     half = UNITS_WINDOW // 2
     images, rates = [], []
     for view, k in _on_path(views, len(streams[0])):
@@ -1063,9 +1071,9 @@ def _warn_about_test_units(
         warnings.warn(
             f"{path}: the on-path test images average {ratio:.3g} times their spikes' firing "
             f"rate (TFP(33) at their readouts: {np.mean(rates):.3g} spikes a readout, the "
-            f"images {np.mean(images):.3g}): test images are expected in firing-rate units "
-            f"(intensity x image_scale), and PSNR against images in other units means nothing "
-            f"(or the spikes are not the images': dark current, another recording)",
+            f"images {np.mean(images):.3g}): {expected}, and PSNR against images in other "
+            f"units means nothing (or the spikes are not the images': dark current, another "
+            f"recording)",
             stacklevel=3,
         )
 

@@ -35,6 +35,7 @@ from .dataset import (
     microseconds_hint,
     repeated,
     stated_scales,
+    warn_about_test_units,
 )
 from .orientation import check_orientation
 from .real_options import OPTIONS_FILE, Options
@@ -42,6 +43,12 @@ from .simulate import default_train_every, train_timestamps
 from .trajectory import Trajectory, readout_number
 from .view_stream import ViewStreams
 
+# what a real layout's sharp images are in (firing rates once scaled): test images in firing-rate
+# units with rate_at_one stated scored 16.5 dB where 26.9 was due, unsaid (the real-layout trial)
+SHARP_UNITS = (
+    "sharp images are expected in linear intensity, 1 for white (8-bit ones sRGB-encoded), which "
+    f"rate_at_one in {OPTIONS_FILE} turns into firing rates"
+)
 NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
 HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
 PSEUDO_NOTE = "TFP of the held-out view's own spikes, not a sharp image: views named pseudo_*"
@@ -235,7 +242,8 @@ def _finish(
     dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
     sharp = [h for h in held_out if h.image is not None]
     scale = intensity_scale(dataset) if sharp else 1.0
-    if sharp and not stated_scales(meta):
+    stated = stated_scales(meta)  # (before image_scale is set to the scale taken)
+    if sharp and not stated:
         warnings.warn(
             f"{root}: the test views' sharp images are put in firing-rate units by a guess, "
             f"TFP(33)'s 99.5th percentile ({scale:.4g} spikes a readout for intensity 1), and "
@@ -258,6 +266,10 @@ def _finish(
     if sharp:
         meta["image_scale"] = scale
     check_test_views(dataset.test_views, root)
+    if sharp and stated:  # (a guessed scale is warned of above)
+        named = {h.name for h in sharp}  # their images in firing-rate units, against their TFP
+        views = [v for v in dataset.test_views if v.name in named]
+        warn_about_test_units([stream], views, root, 0.0, SHARP_UNITS)
     return dataset
 
 
