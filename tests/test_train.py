@@ -4364,6 +4364,15 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
         for _ in range(MIN_STEPS):
             record.observe("exposure", [one * ratio], one)
         assert (biased_fit(record, SupervisionConfig()) is not None) == said, ratio
+    # renders below 0 (a learnt background at -17, every learning rate 1.0) held "-627 %" of
+    # their targets' brightness, told of the L1 norm (the stability trial)
+    record = FitBrightness()
+    for _ in range(MIN_STEPS):
+        record.observe("exposure", [one * -6.27], one)
+    assert biased_fit(record, SupervisionConfig(exposure_norm="l1")) == (
+        "the exposure renders average below 0 over the last 50 steps: a diverging fit (nothing "
+        "keeps the learnt background at or above 0; learning rates too high?)"
+    )
 
 
 def test_fit_brightness_judges_each_colour_channel():

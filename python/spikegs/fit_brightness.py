@@ -72,6 +72,14 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
     for term, (ratio, steps, channel) in brightness.ratios().items():
         if LOW <= ratio <= HIGH:
             continue
+        if ratio < 0:  # (it held "-627 %" of its targets' brightness: the stability trial's)
+            said.append(
+                f"the {term} renders average below 0"
+                + (f" in {channel}" if channel else "")
+                + f" over the last {steps} steps: a diverging fit (nothing keeps the learnt "
+                "background at or above 0; learning rates too high?)"
+            )
+            continue
         text = (
             f"the renders hold {round(100 * ratio)} % of their {term} targets' brightness"
             + (f" in {channel}" if channel else "")
