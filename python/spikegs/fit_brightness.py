@@ -25,6 +25,9 @@ LOW, HIGH = 0.8, 1.25  # a ratio outside [LOW, HIGH] is a biased fit
 # judged (a ratio of near-black means: noise)
 DARK_CHANNEL = 0.1
 CHANNEL_NAMES = ("red", "green", "blue")
+# renders averaging below 0 by over a fifth of their targets' brightness diverged (every learning
+# rate 1.0: a learnt background at -17); a hair under, a black recording's fit's round-off, not
+DIVERGED = -0.2
 
 
 class FitBrightness:
@@ -72,7 +75,7 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
     for term, (ratio, steps, channel) in brightness.ratios().items():
         if LOW <= ratio <= HIGH:
             continue
-        if ratio < 0:  # (it held "-627 %" of its targets' brightness: the stability trial's)
+        if ratio < DIVERGED:  # (it held "-627 %" of its targets' brightness: the stability trial)
             said.append(
                 f"the {term} renders average below 0"
                 + (f" in {channel}" if channel else "")
