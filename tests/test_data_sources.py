@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import sys
 import warnings
 
@@ -252,6 +253,18 @@ def test_frame_sequence_source(tmp_path):
     upsampled = r"transforms_test.json: 2 test image\(s\) smaller than the dataset's 64x64 \(first "
     assert [w for w in said if re.search(upsampled + r".*, 32x32\) are upsampled", str(w.message))]
     assert not [w for w in said if "transforms_train.json: " in str(w.message)]
+    # a training frame smaller than the others: its light and the on-path truth from it blurred,
+    # unsaid (the scene-sources trial)
+    small = tmp_path / "small"
+    shutil.copytree(tmp_path, small, ignore=shutil.ignore_patterns("small"))
+    frame = json.loads((small / "transforms_train.json").read_text())["frames"][3]["file_path"]
+    write_image(small / f"{frame}.exr", train[3][::2, ::2])  # 16x16 of 32x32
+    with pytest.warns(
+        UserWarning,
+        match=r"transforms_train.json: 1 frame\(s\) smaller than its first, 32x32 \(first "
+        r".*, 16x16\): each is resized to the dataset's 32x32, the smaller ones' light",
+    ):
+        FrameSequenceSource.from_transforms(small / "transforms_train.json", 32, 32, 3)
 
     # two frames naming one image: said (the light at both poses was that one view's, unsaid)
     shared = tmp_path / "shared"
