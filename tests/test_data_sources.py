@@ -244,6 +244,15 @@ def test_frame_sequence_source(tmp_path):
     np.testing.assert_allclose(traj.readouts, np.linspace(0, 500, 6))
     np.testing.assert_allclose(source.image_at(traj, 150.0), train[1] / 2 + train[2] / 2, atol=1e-6)
     (_, v0, im0), _ = source.off_path_views(5)
+    # a test file's first 8 of 20 views listed around a ring saw 126° of it (the scene-sources
+    # trial): they are taken evenly over its list, named by their place in it
+    ring = [(f"off_{i:03d}", test_poses[i % 2], test[i % 2]) for i in range(20)]
+    spread = FrameSequenceSource("ring", train, train_poses, truth.K, test_views=ring)
+    assert [name for name, *_ in spread.off_path_views(8)] == [
+        f"off_{i:03d}" for i in (0, 3, 5, 8, 11, 14, 16, 19)
+    ]
+    assert len(spread.off_path_views(20)) == len(spread.off_path_views(99)) == 20
+    assert spread.off_path_views(0) == [] and spread.off_path_views(1)[0][0] == "off_000"
     np.testing.assert_allclose(v0, test_poses[0], atol=1e-6)
     np.testing.assert_allclose(im0, test[0], atol=0.01)  # 8-bit sRGB, decoded
     # test frames smaller than the dataset were upsampled as its ground truth unsaid (a blurred

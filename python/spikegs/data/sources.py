@@ -491,4 +491,9 @@ class FrameSequenceSource(Source):
         return inside[pick]
 
     def off_path_views(self, count: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        return self._test_views[:count]  # the file's own, wherever its path goes
+        """Up to `count` of the test file's frames (wherever the path goes), evenly over its
+        list, each named by its place there (off_NNN): its first `count` saw 126° of a ring of 20
+        listed in order (the scene-sources trial)."""
+        listed = len(self._test_views)
+        pick = np.round(np.linspace(0, listed - 1, min(count, listed))).astype(int)
+        return [self._test_views[i] for i in np.unique(pick)]
