@@ -301,6 +301,10 @@ def test_frame_sequence_source(tmp_path):
         ValueError, match=r"readouts of the recording's ends hold no on-path view: "
     ):
         simulate_dataset(single / "transforms.json", tmp_path / "two", height=32, width=32)
+    # none asked: the plain refusal, not the frames blamed (the scene-sources trial)
+    none = {"test_on_path": 0, "test_off_path": 0, "height": 32, "width": 32}
+    with pytest.raises(ValueError, match=r"source0': no held-out test view; evaluation and train"):
+        simulate_dataset(tmp_path / "transforms_train.json", tmp_path / "none", **none)
 
     # a frame of another aspect ratio than the first is another crop of the view
     cropped = tmp_path / "cropped"

@@ -592,7 +592,9 @@ def simulate_dataset(
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
     where = f"scene '{source.name}'"
-    if not views and source.kind == "frames":  # (said with no way to give one)
+    # (said with no way to give one, not where both counts asked were 0: "the frames hold no
+    # on-path view" blamed the data, the scene-sources trial)
+    if not views and source.kind == "frames" and asked != (0, 0):
         where += (
             f" (its frames within {2 * WINDOW_MARGIN} readouts of the recording's ends hold no "
             f"on-path view: more frames or readouts, or test frames: a transforms_test.json "
