@@ -1010,6 +1010,27 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
                 load_dataset(_edited_copy(small, tmp_path / case, name, edit))
 
 
+def test_wider_rows_that_read_as_more_readouts_name_raw_width(tmp_path, small):
+    """A camera's rows twice the image's width read as twice the readouts: "N readouts of HxW,
+    meta.json says M (or its height and width are wrong)", raw_width unnamed (the real-layout
+    trial); the width at which the file holds meta.json's readouts is said."""
+    root = tmp_path / "wide"
+    shutil.copytree(small.root, root)
+    stream = small.streams[0]
+    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
+    wide = np.zeros((*bits.shape[:2], 2 * bits.shape[2]), bool)
+    wide[:, :, : bits.shape[2]] = bits
+    save_dat(root / "spikes.dat", wide, flip=small.meta["flip"])
+    height, width = bits.shape[1:]
+    with pytest.raises(
+        ValueError,
+        match=rf"{2 * len(stream)} readouts of {height}x{width}, meta.json says {len(stream)} "
+        rf"\(or its height and width are wrong; it holds {len(stream)} readouts of "
+        rf"{height}x{2 * width}: rows wider than the image\? raw_width {2 * width} and col_",
+    ):
+        load_dataset(root)
+
+
 @pytest.mark.parametrize("offset", [4, 0])
 def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
     """A real camera stores 416-pixel rows for a 400-pixel image: meta.json's raw_width and

@@ -508,11 +508,31 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     ]
     for name, stream in zip(names, streams):
         if len(stream) != num:
+            wider = None if meta.get("raw_width") else _wider_rows(stream, num)
+            hint = (  # (a camera's 72-pixel rows of a 64-pixel image named no raw_width)
+                f"; it holds {num} readouts of {stream.height}x{wider}: rows wider than the "
+                f"image? raw_width {wider} and col_offset in {META}"
+                if wider
+                else ""
+            )
             raise ValueError(
                 f"{root / name}: {len(stream)} readouts of {meta['height']}x{meta['width']}, "
-                f"{META} says {num} (or its height and width are wrong)"
+                f"{META} says {num} (or its height and width are wrong{hint})"
             )
     return streams
+
+
+def _wider_rows(stream: SpikeStream, num: int) -> int | None:
+    """The row width, over the stream's and at most 4 times it, at which its file holds `num`
+    whole frames of its height; None where none does."""
+    size = stream.path.stat().st_size
+    if num < 1 or size % num:
+        return None
+    frame = size // num  # bytes
+    for width in range(stream.width + 1, 4 * stream.width + 1):
+        if -(-stream.height * width // 8) == frame:
+            return width
+    return None
 
 
 SILENT_SHARE = 0.01  # check_stream_image: a stream with fewer pixels that ever fire (or never
