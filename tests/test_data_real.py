@@ -558,6 +558,27 @@ def test_nerf_of_no_stated_size_takes_the_images_and_names_the_one_it_took(sim, 
     np.testing.assert_allclose(ds.K, sim.K, rtol=1e-6)
 
 
+def test_a_test_file_whose_poses_break_convergence_is_named(nerf, tmp_path):
+    """transforms_test.json in OpenCV axes (read as OpenGL's) kept the optical axes from
+    converging, and the error named transforms_train.json, whose poses were right (the
+    real-layout trial): the test file is named."""
+    root = copy(nerf, tmp_path)
+
+    def opencv(doc):  # each camera turned about its own x axis: its optical axis reversed
+        for frame in doc["frames"]:
+            frame["transform_matrix"] = (
+                np.array(frame["transform_matrix"]) @ OPENGL_TO_OPENCV
+            ).tolist()
+
+    edit_json(root / "transforms_test.json", opencv)
+    with pytest.raises(
+        ValueError,
+        match=r"transforms_test.json: its poses keep the cameras' optical axes from converging "
+        r"in front of them, where transforms_train.json's alone converge",
+    ):
+        load_dataset(root)
+
+
 def test_nerf_unknown_convention_refused(nerf, tmp_path):
     """A convention other than opengl, opencv (any case) is refused by name; "OpenGL" reads as
     OpenGL (guards against a case-sensitive comparison reading it as OpenCV); two files of two

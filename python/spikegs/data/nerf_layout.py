@@ -53,7 +53,7 @@ from .transforms_file import (
     warn_unread_transforms,
     warn_upsampled_tests,
 )
-from .view_geometry import view_sphere
+from .view_geometry import AXES_SPREAD_MIN, converging_centre, view_sphere
 
 SPIKE_DIR = "spike_data"
 
@@ -260,6 +260,26 @@ def _view_names(root: Path, frames: list, sources: list) -> list[str]:
     return names
 
 
+def _check_test_files_converge(viewmats: np.ndarray, test, sources: list[Path], path: Path):
+    """ValueError naming a test file (of `sources` [F], where `test` [F] marks the test frames)
+    whose poses keep the cameras' optical axes (viewmats [F, 4, 4]) from converging where the
+    training file's (`path`) alone converge: the error named the training file, which was right
+    (a transforms_test.json in OpenCV axes, the real-layout trial)."""
+    test = np.asarray(test, bool)
+    others = sorted({str(s) for s, is_test in zip(sources, test) if is_test and s != path})
+    if (
+        others
+        and converging_centre(viewmats, AXES_SPREAD_MIN) is None
+        and converging_centre(viewmats[~test], AXES_SPREAD_MIN) is not None
+    ):
+        raise ValueError(
+            f"{others[0]}: its poses keep the cameras' optical axes from converging in front of "
+            f"them, where {path.name}'s alone converge: matrices in another convention than the "
+            f"file states (OpenCV's where OpenGL's are read), or world-to-camera ones; state "
+            f'theirs ("convention": "opencv" or "opengl") or mend them'
+        )
+
+
 def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     """Open a NeRF/nerfstudio-layout directory with spikes per frame (module docstring);
     `overrides` are spikegs.json options. Every file is checked before any spike is read."""
@@ -305,6 +325,8 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     # the frames' cameras checked as one before the training images are read
     K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
     fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
+    if options.scene_center is None:
+        _check_test_files_converge(viewmats, test, sources, path)
     center, radius = view_sphere(
         viewmats,
         path,
