@@ -282,10 +282,12 @@ def side_by_side(
 # needs most views right (with 6 of 8 lost none stands out)
 SUSPECT_RATIO = 2.0
 SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely differ by noise)
-# a view leaving this share or more explains none of it (a flat render leaves 1 or more): the scene
-# is out of its view, suspect whatever the others leave (a run in SfM's own frame scored on poses
-# of another, every view's render blank, "settled" at 1.22 each: the poses trial)
-NOTHING_EXPLAINED = 1.0
+# an aligned render whose correlation with its image is under this bears no likeness to it: the
+# scene is out of its view, suspect whatever the others leave (a run in SfM's own frame scored on
+# poses of another, every view's render blank, "settled" leaving 1.22 each, none suspect: the
+# poses trial). The correlation, not the share left: a render of the right picture 1.66 times
+# too bright leaves 1.62 (a review), and correlates as a right one does
+NO_LIKENESS = 0.2
 
 
 def _first_three(names: list[str]) -> str:
@@ -303,11 +305,29 @@ def _finite_median(values) -> float:
 def _suspect(views: dict) -> list[str]:
     """The views (names) of `views` {name: scores} whose aligned render leaves over SUSPECT_RATIO
     times the median view's share of its image's coarse structure unexplained, and at least
-    SUSPECT_LEAST; or NOTHING_EXPLAINED, whatever the median."""
+    SUSPECT_LEAST; or whose render bears no likeness to its image (`_unlike`)."""
     shares = {name: v["aligned_unexplained"] for name, v in views.items()}
     median = _finite_median(shares.values())
     bound = max(SUSPECT_RATIO * median, SUSPECT_LEAST) if math.isfinite(median) else math.inf
-    return [name for name, share in shares.items() if share > bound or share >= NOTHING_EXPLAINED]
+    unlike = _unlike(views)
+    return [name for name, share in shares.items() if share > bound or name in unlike]
+
+
+def _unlike(views: dict) -> list[str]:
+    """The views (names) of `views` whose aligned render correlates with its image under
+    NO_LIKENESS (a NaN correlation, of an image with no structure, judges nothing)."""
+    return [name for name, v in views.items() if v["aligned_correlation"] < NO_LIKENESS]
+
+
+def _correlation(pred: np.ndarray, gt: np.ndarray) -> float:
+    """The Pearson correlation of a render and its image [H, W, C] as scored: 0 for a flat
+    render (it shows nothing of the image), NaN for a flat image (nothing to show)."""
+    pred, gt = pred.astype(np.float64).ravel(), gt.astype(np.float64).ravel()
+    if not gt.std() > 0:
+        return math.nan
+    if not pred.std() > 0:
+        return 0.0
+    return float(np.corrcoef(pred, gt)[0, 1])
 
 
 def evaluate_run(
@@ -468,15 +488,15 @@ def evaluate_run(
                     "2 to 5 of 8 turned 20°: docs/outputs.md)",
                     stacklevel=2,
                 )
-            blank = [n for n, v in views.items() if v["aligned_unexplained"] >= NOTHING_EXPLAINED]
+            blank = _unlike(views)
             if blank:
                 warnings.warn(
-                    f"{len(blank)} test view(s) ({_first_three(blank)}) leave all of their images' "
-                    "coarse structure unexplained once aligned (up to "
-                    f"{max(views[v]['aligned_unexplained'] for v in blank):.2f}, where a flat "
-                    "render leaves 1 or more): the scene is not in their view, their aligned "
-                    "scores not the scene's (a run trained in another frame than these poses, "
-                    "SfM's own say, or on another scene)",
+                    f"{len(blank)} test view(s) ({_first_three(blank)}) bear no likeness to their "
+                    "images once aligned (their renders' correlation with them at most "
+                    f"{max(views[v]['aligned_correlation'] for v in blank):.2f}, under "
+                    f"{NO_LIKENESS:g}): the scene is not in their view, their aligned scores not "
+                    "the scene's (a run trained in another frame than these poses, SfM's own "
+                    "say, or on another scene)",
                     stacklevel=2,
                 )
             suspect = [v for v in result["aligned_poses"]["suspect"] if v not in blank]
@@ -545,6 +565,7 @@ def _score_views(
                 aligned_steps=aligned.steps,
                 aligned_settled=aligned.settled,
                 aligned_unexplained=aligned.unexplained,
+                aligned_correlation=_correlation(pred, gt),
             )
         if folder is not None:
             image = side_by_side(gt, pred, pseudo, views[view.name]["psnr"])
