@@ -283,14 +283,18 @@ def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, t
 
     said = r"every 8th pose, the default held-out views, leaves 0 training timestamps .* held out "
     every5 = np.arange(0, VIEWS * LENGTH, 5)  # [140]; windows fit at readouts 32-667: poses 7-133
-    one = r"the middle one of those with room"  # (it said "every 208th": the poses trial)
-    with pytest.warns(UserWarning, match=said + rf"pose 111 instead \(1 of 140, {one}"):
+    room = r"of those with room for the pseudo ground truth's window"
+    with pytest.warns(  # (a review: "the middle one", where 7-133 fit)
+        UserWarning, match=said + rf"pose 111 instead \(1 of 140, every 208th {room}, from the 105t"
+    ):
         ds = log(every5)
     assert [(v.name, v.readout) for v in ds.test_views] == [("pseudo_view_111", 555.0)]
     assert len(ds.train_timestamps) and not (abs(ds.train_timestamps - 555) <= 64).any()
-    with pytest.warns(UserWarning, match=said + rf"pose 112 instead \(1 of 140, {one}"):
+    with pytest.warns(UserWarning, match=said + r"pose 112 instead \(1 of 140, every 210th"):
         log(every5, train_every=2)  # 8 clearances of 129 + 2 readouts
-    with pytest.warns(UserWarning, match=said + r"pose 83 instead"):  # fewer than half of 520
+    with pytest.warns(
+        UserWarning, match=said + rf"pose 83 instead \(1 of 151, the middle one {room}"
+    ):
         assert log(np.arange(0, 301, 2)).test_views[0].readout == 166.0  # the middle one
     # every 17 readouts: every 8th pose, 136 apart, leaves a few timestamps between them
     few = r"every 8th pose, the default held-out views, leaves [1-9]\d? training timestamps"

@@ -1422,10 +1422,10 @@ def test_a_raw_recordings_split_reaches_the_registered_and_ground_truth_ends():
     assert "leaves 15 training timestamps (each keeps 64 readouts clear of a held-out view): " in (
         spaced
     )
-    # (it said "held out every 55th instead" of 46 images: the one in the middle, the poses trial)
+    # (it said "held out every 55th instead" of 46 images, one: the poses trial)
     assert spaced.endswith(
-        "held out the image at readout 580 instead (1 of 46, the middle one of those with room "
-        f"for the pseudo ground truth's window), which leaves {len(ks)}"
+        "held out the image at readout 580 instead (1 of 46, every 55th of those with room for "
+        f"the pseudo ground truth's window, from the 28th), which leaves {len(ks)}"
     )
 
 

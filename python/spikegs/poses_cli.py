@@ -322,7 +322,7 @@ def _held_out_split(
             f"of a held-out view): held out the image{'s' if len(picked) > 1 else ''} at "
             f"readout{'s' if len(picked) > 1 else ''} {', '.join(map(str, picked[:5]))}"
             f"{', ...' if len(picked) > 5 else ''} instead ({len(picked)} of {len(registered)}, "
-            f"{spaced_words(nth, len(picked))}), which leave{'s' if len(picked) == 1 else ''} "
+            f"{spaced_words(nth, fits)}), which leave{'s' if len(picked) == 1 else ''} "
             f"{len(spaced_ks)}"
         )
         test, ks = spaced, spaced_ks

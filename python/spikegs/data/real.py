@@ -196,11 +196,15 @@ def _spaced_mask(fits: np.ndarray, nth: int) -> np.ndarray:
     return mask
 
 
-def spaced_words(nth: int, picked: int) -> str:
-    """How `spaced_instead`'s `picked` views were chosen: every `nth` of those with room for the
-    pseudo ground truth's window, or, one alone, the middle one of those."""
-    which = f"every {ordinal(nth)}" if picked > 1 else "the middle one"
-    return f"{which} of those with room for the pseudo ground truth's window"
+def spaced_words(nth: int, fits: np.ndarray) -> str:
+    """How `_spaced_mask(fits, nth)` chose its views: every `nth` of those that `fits` [P] from
+    half that on, or, where none lies there, the middle one of them."""
+    room = "of those with room for the pseudo ground truth's window"
+    if not len(
+        np.flatnonzero(fits)[nth // 2 :: nth]
+    ):  # (said "the middle one" of pose 111 of 7-133)
+        return f"the middle one {room}"
+    return f"every {ordinal(nth)} {room}, from the {ordinal(nth // 2 + 1)}"
 
 
 def ordinal(n: int) -> str:
@@ -508,7 +512,7 @@ def stream_dataset(
             f"{len(ks)} training timestamps (each keeps {2 * WINDOW_MARGIN} readouts clear of "
             f"a held-out pose): held out pose{'s' if len(picked) > 1 else ''} "
             f"{', '.join(map(str, picked[:5]))}{', ...' if len(picked) > 5 else ''} instead "
-            f"({len(picked)} of {len(readouts)}, {spaced_words(nth, len(picked))}), which "
+            f"({len(picked)} of {len(readouts)}, {spaced_words(nth, fits)}), which "
             f"leave{'s' if len(picked) == 1 else ''} {len(spaced_ks)}; test_views in "
             f"spikegs.json chooses others",
             stacklevel=3,
