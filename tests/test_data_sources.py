@@ -270,10 +270,13 @@ def test_frame_sequence_source(tmp_path):
     write_image(small / f"{frame}.exr", train[3][::2, ::2])  # 16x16 of 32x32
     with pytest.warns(
         UserWarning,
-        match=r"transforms_train.json: 1 frame\(s\) smaller than its first, 32x32 \(first "
-        r".*, 16x16\): each is resized to the dataset's 32x32, the smaller ones' light",
+        match=r"transforms_train.json: 1 frame\(s\) smaller than its first, 32x32, and than "
+        r"the dataset's 32x32 \(first .*, 16x16\) are upsampled to it: their light",
     ):
         FrameSequenceSource.from_transforms(small / "transforms_train.json", 32, 32, 3)
+    with warnings.catch_warnings():  # at its size, not upsampled (the others downsampled)
+        warnings.simplefilter("error")
+        FrameSequenceSource.from_transforms(small / "transforms_train.json", 16, 16, 3)
 
     # two frames naming one image: said (the light at both poses was that one view's, unsaid)
     shared = tmp_path / "shared"

@@ -153,12 +153,13 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
         stack = np.empty((len(doc["frames"]), height, width, channels), np.float32)
         negative = []  # (file, values below 0, the lowest) a frame
         upsampled = []  # test frames smaller than the dataset's: (file, width, height)
-        smaller = []  # frames smaller than their file's first: (file, width, height)
+        smaller = []  # frames upsampled, smaller than their file's first: (file, width, height)
         for j, f in enumerate(doc["frames"]):
             image = read_frame(path.parent / f["file_path"], background, listings) if j else first
-            if i and (image.shape[0] < height or image.shape[1] < width):
+            below = image.shape[0] < height or image.shape[1] < width  # upsampled to the size
+            if i and below:
                 upsampled.append((f["file_path"], image.shape[1], image.shape[0]))
-            elif image.shape[0] < first.shape[0]:
+            elif below and image.shape[:2] < first.shape[:2]:  # (same aspect: both sides)
                 smaller.append((f["file_path"], image.shape[1], image.shape[0]))
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
@@ -177,9 +178,9 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
             name, w, h = smaller[0]
             warnings.warn(
                 f"{path}: {len(smaller)} frame(s) smaller than its first, {first.shape[1]}x"
-                f"{first.shape[0]} (first {name}, {w}x{h}): each is resized to the dataset's "
-                f"{width}x{height}, the smaller ones' light, and the ground truth of a view "
-                f"made from it, blurred; give the frames at one size",
+                f"{first.shape[0]}, and than the dataset's {width}x{height} (first {name}, "
+                f"{w}x{h}) are upsampled to it: their light, and the ground truth of a view made "
+                f"from it, blurred; give the frames at one size",
                 stacklevel=3,
             )
         images.append(stack)
