@@ -436,6 +436,25 @@ def test_poses_from_spikes_recover_the_trajectory(textured, tmp_path, capsys):
     assert len(dataset.trajectory) >= report["registered"]
 
 
+def test_a_raw_recordings_pose_log_is_named_as_such_on_every_run(textured, tmp_path, capsys):
+    """A recording with a pose log and no split: its second run read the log (kept as the .bak)
+    as "the first spikegs poses run's poses", its errors called differences (the review)."""
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    shutil.copy(textured / "spikes.dat", raw / "spikes.dat")
+    shutil.copy(textured / "trajectory.json", raw / "trajectory.json")  # the pose log
+    meta = json.loads((textured / "meta.json").read_text())
+    keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
+    (raw / "meta.json").write_text(json.dumps({k: meta[k] for k in keys}))
+    for run in range(2):
+        assert main(["poses", str(raw), "--count", "30"]) == 0, run
+        out = capsys.readouterr().out
+        assert "rotation error median" in out and "not a pose log" not in out, run
+        report = json.loads((raw / "sfm" / "report.json").read_text())
+        assert report["pose_reference"] == "pose log", run
+    assert (raw / "trajectory.json.bak").read_bytes() == (textured / "trajectory.json").read_bytes()
+
+
 def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsys):
     """Spikes and a meta.json without intrinsics, poses, timestamps or held-out views: `spikegs
     poses` writes them all, held-out views with TFP(65) ground truth, and the result trains."""

@@ -167,6 +167,21 @@ def _cached_sim(root: Path, posed: bool):
     return load_sim(cached[-1])
 
 
+SFM_REFERENCE, LOG_REFERENCE = "first spikegs poses run", "pose log"  # meta's pose_reference
+
+
+def _reference_is_sfm(meta: dict, backed_up: bool, ours: bool) -> bool:
+    """Whether the trajectory the poses are aligned to is an earlier run's SfM, not a pose log:
+    trajectory.json where no .bak is (`backed_up`), as meta.json's poses_from says; else the
+    .bak, as meta.json's pose_reference recorded when it was made. A dataset posed before that
+    record: by whether this command made its split (`ours`), which took a recording's pose log,
+    backed up by the first run, for its first run's SfM (the review)."""
+    if not backed_up:
+        return meta.get("poses_from") == POSES_FROM_SFM
+    recorded = meta.get("pose_reference")
+    return recorded == SFM_REFERENCE if recorded in (SFM_REFERENCE, LOG_REFERENCE) else ours
+
+
 def _image_window(window: int | None, sim_model) -> int:
     """The readouts an image reads: `window` (DEFAULT_WINDOW where None), or a SIM's own, which
     a `window` given otherwise would not change (it moved the images' centres alone, unsaid)."""
@@ -538,9 +553,11 @@ def _estimate_poses(
     messages += _complete_meta(meta, recon, estimated=K is None)
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
-        # a raw recording's reference is the first run's SfM, not a pose log: a difference
-        report["pose_reference"] = "first spikegs poses run" if ours else "pose log"
-        word = "difference" if ours else "error"
+        # a raw recording's reference is the first run's SfM where it had no pose log: a
+        # difference, not an error
+        sfm = _reference_is_sfm(meta, backup.exists(), ours)
+        report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
+        word = "difference" if sfm else "error"
         messages.append(
             f"aligned to {reference_path.name} by a similarity on the camera centres and "
             f"orientations: rotation "
@@ -548,7 +565,7 @@ def _estimate_poses(
             f"{report['rotation_error_deg_max']:.2f}), centre {word} median "
             f"{report['centre_error_median']:.2%} of the scene radius "
             f"(max {report['centre_error_max']:.2%})"
-            + (" — against the first spikegs poses run's poses, not a pose log" if ours else "")
+            + (" — against the first spikegs poses run's poses, not a pose log" if sfm else "")
         )
         if not backup.exists():
             messages.append(f"the previous trajectory is kept as {backup.name}")
