@@ -647,6 +647,12 @@ def test_poses_with_sim_read_the_sims_own_window(textured, monkeypatch, capsys):
             f"--window {window} with --sim: SIM reads the 17-readout windows it was trained on; "
             f"leave --window out, or train a SIM of {window} readouts" in capsys.readouterr().err
         )
+    # where the SIM's window does not fit, it is named, not --window (refused with --sim)
+    monkeypatch.setattr(poses_cli, "_cached_sim", lambda root, posed: SIM(window=1001))
+    assert main(["poses", str(textured), "--sim"]) == 2
+    assert "SIM's window (spikegs sim-train --window N) 1001: longer than the stream's 1000" in (
+        capsys.readouterr().err
+    )
     assert not (textured / "sfm").exists()
 
 

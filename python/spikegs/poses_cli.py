@@ -125,11 +125,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _image_readouts(num_readouts: int, window: int, every: int | None, count: int) -> np.ndarray:
-    """Readouts [N] whose `window` fits in the stream: every `every`, else `count` evenly."""
+def _image_readouts(
+    num_readouts: int, window: int, every: int | None, count: int, option: str = "--window"
+) -> np.ndarray:
+    """Readouts [N] whose `window` fits in the stream: every `every`, else `count` evenly;
+    `option`: what sets the window, for the error where it does not fit."""
     first, last = centred_range(num_readouts, window)
     if first > last:
-        raise ValueError(f"--window {window}: longer than the stream's {num_readouts} readouts")
+        raise ValueError(f"{option} {window}: longer than the stream's {num_readouts} readouts")
     if every is not None:
         return np.arange(first, last + 1, every)
     count = min(count, last - first + 1)  # (2**63 - 1 evenly: numpy's IndexError)
@@ -458,11 +461,13 @@ def _estimate_poses(
     posed = reference is not None
     sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
     window = _image_window(window, sim_model)
-    readouts = _image_readouts(num, window, every, count)
+    # (with --sim, --window is refused: SIM's own is set by sim-train's, the review)
+    option = "--window" if sim_model is None else "SIM's window (spikegs sim-train --window N)"
+    readouts = _image_readouts(num, window, every, count, option)
     if len(readouts) < MIN_IMAGES:
         first, last = centred_range(num, window)  # the readouts the window fits around
         centres = last - first + 1
-        fix = "a shorter --window" if centres < MIN_IMAGES else "raise --count or lower --every"
+        fix = f"a shorter {option}" if centres < MIN_IMAGES else "raise --count or lower --every"
         raise ValueError(  # (a window leaving 2 centres was told to raise --count)
             f"too few images for structure from motion: {len(readouts)} (at least {MIN_IMAGES}); "
             f"{num} readouts with a {window}-readout window: {fix}"
