@@ -308,6 +308,9 @@ def test_frame_sequence_source(tmp_path):
     none = {"test_on_path": 0, "test_off_path": 0, "height": 32, "width": 32}
     with pytest.raises(ValueError, match=r"source0': no held-out test view; evaluation and train"):
         simulate_dataset(tmp_path / "transforms_train.json", tmp_path / "none", **none)
+    del none["test_off_path"]  # the default, of a sequence without test frames (the review)
+    with pytest.raises(ValueError, match=r"\(no on-path view asked, and no test frames: a tran"):
+        simulate_dataset(single / "transforms.json", tmp_path / "none", **none)
 
     # a frame of another aspect ratio than the first is another crop of the view
     cropped = tmp_path / "cropped"

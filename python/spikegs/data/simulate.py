@@ -594,11 +594,13 @@ def simulate_dataset(
     where = f"scene '{source.name}'"
     # (said with no way to give one, not where both counts asked were 0: "the frames hold no
     # on-path view" blamed the data, the scene-sources trial)
-    if not views and source.kind == "frames" and asked != (0, 0):
+    tests = "test frames: a transforms_test.json beside its file, FrameSequenceSource's test_views"
+    if not views and source.kind == "frames" and asked == (0, None):  # (the review)
+        where += f" (no on-path view asked, and no {tests})"
+    elif not views and source.kind == "frames" and asked != (0, 0):
         where += (
             f" (its frames within {2 * WINDOW_MARGIN} readouts of the recording's ends hold no "
-            f"on-path view: more frames or readouts, or test frames: a transforms_test.json "
-            f"beside its file, FrameSequenceSource's test_views)"
+            f"on-path view: more frames or readouts, or {tests})"
         )
     check_test_views(views, where)  # before any work
     # a frame sequence holds so many frames and test views: its defaults are as many as it has;
