@@ -493,6 +493,9 @@ def test_sim_train_notes_pseudo_ground_truth(nerf, tmp_path, capsys, monkeypatch
     assert "note: 1 views without a sharp image" in printed
     assert "(PSNR of firing rates, spikes a readout, over a data range of 1: " in printed
     scores = json.loads((tmp_path / "sim.pt.json").read_text())  # the table, for a script
+    # which views the means are over, on stdout too (the numbers audit: the JSON alone said)
+    n = len(scores["views"])
+    assert f"the means over the {n} test views on the camera's path, at their readouts)" in printed
     assert scores["sim"] == str(out.resolve()) and scores["trained_now"] and scores["seconds"] > 0
     assert set(scores["scores"]) >= {"SIM", "TFP(33)", "TFI"}
     assert all(f"{s['psnr']:.4g}" in printed for s in scores["scores"].values())  # the table's
