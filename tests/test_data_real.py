@@ -1026,6 +1026,16 @@ def test_llff_hwf_of_another_aspect_or_a_raw_crop(sim, llff_stream, tmp_path):
     ds = load_dataset(root)
     np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
     np.testing.assert_allclose(ds.K, [[f, 0, W / 2 + 4], [0, f, H / 2], [0, 0, 1]], rtol=1e-6)
+    # hwf written width first, the size set right: told to set the size it had set (a review)
+    root = copy(llff_stream, tmp_path / "wh")
+    edit_poses(root, lambda rows: rows.__setitem__((slice(None), [4, 9, 14]), (W, H, f)))
+    write_options(root, height=H, width=W)
+    with pytest.raises(
+        ValueError,
+        match=rf"hwf is for {W}x{H} images .*; hwf gives the spikes' height and width in the "
+        r"other order: written so \(LLFF's hwf is height, width, focal\)\?$",
+    ):
+        load_dataset(root)
 
 
 def test_streams_without_information_refused(sim, llff, llff_stream, nerf, tmp_path):

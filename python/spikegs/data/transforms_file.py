@@ -385,10 +385,18 @@ def frame_columns(
     frame, shift = (raw_width, col_offset) if crop else (width, 0)
     if abs(scaled - frame) > 1:
         stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
+        # (an LLFF hwf written [w, h, f] was told to set the size the user had set: a review)
+        swapped = (
+            f"; {what} gives the spikes' height and width in the other order: written so "
+            f"(LLFF's hwf is height, width, focal)?"
+            if (src_h, src_w) == (width, height)
+            else ""
+        )
         raise ValueError(
             f"{source}: {what} is for {src_h:g}x{src_w:g} images (height x width), of another "
             f"aspect ratio than the {height}x{width} spikes{stored}: {src_w / src_h:.4g} vs "
             f"{width / height:.4g}, the focal would differ in x and y (non-square pixels); {fix}"
+            f"{swapped}"
         )
     return frame, shift
 
