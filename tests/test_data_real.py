@@ -1026,7 +1026,7 @@ def test_llff_hwf_of_another_aspect_or_a_raw_crop(sim, llff_stream, tmp_path):
     ds = load_dataset(root)
     np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
     np.testing.assert_allclose(ds.K, [[f, 0, W / 2 + 4], [0, f, H / 2], [0, 0, 1]], rtol=1e-6)
-    # hwf written width first, the size set right: told to set the size it had set (a review)
+    # hwf written width first, the size set right: told to set the size it had set (the trial)
     root = copy(llff_stream, tmp_path / "wh")
     edit_poses(root, lambda rows: rows.__setitem__((slice(None), [4, 9, 14]), (W, H, f)))
     write_options(root, height=H, width=W)

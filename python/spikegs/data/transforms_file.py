@@ -385,7 +385,8 @@ def frame_columns(
     frame, shift = (raw_width, col_offset) if crop else (width, 0)
     if abs(scaled - frame) > 1:
         stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
-        # (an LLFF hwf written [w, h, f] was told to set the size the user had set: a review)
+        # (an LLFF hwf written [w, h, f] was told to set the size the user had set: the
+        # real-layout trial)
         swapped = (
             f"; {what} gives the spikes' height and width in the other order: written so "
             f"(LLFF's hwf is height, width, focal)?"
