@@ -1033,7 +1033,7 @@ def test_llff_hwf_of_another_aspect_or_a_raw_crop(sim, llff_stream, tmp_path):
     with pytest.raises(
         ValueError,
         match=rf"hwf is for {W}x{H} images .*; hwf gives the spikes' height and width in the "
-        r"other order: written so \(LLFF's hwf is height, width, focal\)\?$",
+        r"other order: one of the two transposed\? \(LLFF's hwf is height, width, focal\)$",
     ):
         load_dataset(root)
 

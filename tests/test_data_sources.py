@@ -270,9 +270,13 @@ def test_frame_sequence_source(tmp_path):
     write_image(small / f"{frame}.exr", train[3][::2, ::2])  # 16x16 of 32x32
     with pytest.warns(
         UserWarning,
-        match=r"transforms_train.json: 1 frame\(s\) smaller than its first, 32x32, and than "
+        match=r"transforms_train.json: 1 frame\(s\) smaller than its largest, 32x32, and than "
         r"the dataset's 32x32 \(first .*, 16x16\) are upsampled to it: their light",
     ):
+        FrameSequenceSource.from_transforms(small / "transforms_train.json", 32, 32, 3)
+    first = json.loads((small / "transforms_train.json").read_text())["frames"][0]["file_path"]
+    write_image(small / f"{first}.exr", train[0][::2, ::2])  # the first small too (a review)
+    with pytest.warns(UserWarning, match=r"2 frame\(s\) smaller than its largest, 32x32, and"):
         FrameSequenceSource.from_transforms(small / "transforms_train.json", 32, 32, 3)
     with warnings.catch_warnings():  # at its size, not upsampled (the others downsampled)
         warnings.simplefilter("error")
@@ -308,9 +312,18 @@ def test_frame_sequence_source(tmp_path):
     none = {"test_on_path": 0, "test_off_path": 0, "height": 32, "width": 32}
     with pytest.raises(ValueError, match=r"source0': no held-out test view; evaluation and train"):
         simulate_dataset(tmp_path / "transforms_train.json", tmp_path / "none", **none)
-    del none["test_off_path"]  # the default, of a sequence without test frames (the review)
-    with pytest.raises(ValueError, match=r"\(no on-path view asked, and no test frames: a tran"):
-        simulate_dataset(single / "transforms.json", tmp_path / "none", **none)
+    # of a sequence without test frames, none on the path asked: not the frames blamed, and test
+    # frames offered only where off-path views are asked (the reviews)
+    for off, said in (
+        (None, r"\(no on-path view asked, and no test frames: a transforms_test.json beside"),
+        (3, r"\(no on-path view asked, and no test frames: a transforms_test.json beside"),
+    ):
+        with pytest.raises(ValueError, match=said):
+            options = {**none, "test_off_path": off}
+            simulate_dataset(single / "transforms.json", tmp_path / "none", **options)
+    options = {**none, "test_on_path": None}  # the default on-path views, none off it
+    with pytest.raises(ValueError, match=r"hold no on-path view: more frames or readouts\)"):
+        simulate_dataset(single / "transforms.json", tmp_path / "none", **options)
 
     # a frame of another aspect ratio than the first is another crop of the view
     cropped = tmp_path / "cropped"

@@ -595,13 +595,15 @@ def simulate_dataset(
     # (said with no way to give one, not where both counts asked were 0: "the frames hold no
     # on-path view" blamed the data, the scene-sources trial)
     tests = "test frames: a transforms_test.json beside its file, FrameSequenceSource's test_views"
-    if not views and source.kind == "frames" and asked == (0, None):  # (the review)
-        where += f" (no on-path view asked, and no {tests})"
-    elif not views and source.kind == "frames" and asked != (0, 0):
-        where += (
-            f" (its frames within {2 * WINDOW_MARGIN} readouts of the recording's ends hold no "
-            f"on-path view: more frames or readouts, or {tests})"
-        )
+    if not views and source.kind == "frames" and asked != (0, 0):  # (none asked: said plainly)
+        if asked[0] == 0:  # (its frames were blamed for the on-path views not asked: the reviews)
+            where += f" (no on-path view asked, and no {tests})"
+        else:
+            where += (
+                f" (its frames within {2 * WINDOW_MARGIN} readouts of the recording's ends hold "
+                f"no on-path view: more frames or readouts"
+                + (f", or {tests})" if asked[1] != 0 else ")")
+            )
     check_test_views(views, where)  # before any work
     # a frame sequence holds so many frames and test views: its defaults are as many as it has;
     # an orbit's are said where it gives fewer (a still camera's arc held one off-path view)

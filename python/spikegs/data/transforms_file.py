@@ -153,14 +153,14 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
         stack = np.empty((len(doc["frames"]), height, width, channels), np.float32)
         negative = []  # (file, values below 0, the lowest) a frame
         upsampled = []  # test frames smaller than the dataset's: (file, width, height)
-        smaller = []  # frames upsampled, smaller than their file's first: (file, width, height)
+        below = []  # frames upsampled to the dataset's size: (file, width, height)
+        largest = (0, 0)  # the file's largest frame (height, width)
         for j, f in enumerate(doc["frames"]):
             image = read_frame(path.parent / f["file_path"], background, listings) if j else first
-            below = image.shape[0] < height or image.shape[1] < width  # upsampled to the size
-            if i and below:
-                upsampled.append((f["file_path"], image.shape[1], image.shape[0]))
-            elif below and image.shape[:2] < first.shape[:2]:  # (same aspect: both sides)
-                smaller.append((f["file_path"], image.shape[1], image.shape[0]))
+            h, w = image.shape[:2]
+            largest = max(largest, (h, w))
+            if h < height or w < width:
+                (upsampled if i else below).append((f["file_path"], w, h))
             if (image < 0).any():  # a renderer's or denoiser's round-off in float images (EXR)
                 negative.append((f["file_path"], int((image < 0).sum()), float(image.min())))
                 image = np.maximum(image, 0.0)
@@ -174,13 +174,16 @@ def read_transforms(paths: list[Path], width: int, height: int, channels: int, b
                 stacklevel=3,
             )
         warn_upsampled_tests(path, upsampled, width, height, "or simulate at theirs")
-        if smaller:  # (a training frame's light, and the on-path truth from it, blurred unsaid)
+        # (a training frame's light, and the on-path truth from it, blurred unsaid, where the
+        # others are not: frames all upsampled alike are the scene as given)
+        smaller = [(n, w, h) for n, w, h in below if h < largest[0] or w < largest[1]]
+        if smaller:
             name, w, h = smaller[0]
             warnings.warn(
-                f"{path}: {len(smaller)} frame(s) smaller than its first, {first.shape[1]}x"
-                f"{first.shape[0]}, and than the dataset's {width}x{height} (first {name}, "
-                f"{w}x{h}) are upsampled to it: their light, and the ground truth of a view made "
-                f"from it, blurred; give the frames at one size",
+                f"{path}: {len(smaller)} frame(s) smaller than its largest, {largest[1]}x"
+                f"{largest[0]}, and than the dataset's {width}x{height} (first {name}, {w}x{h}) "
+                f"are upsampled to it: their light, and the ground truth of a view made from it, "
+                f"blurred; give the frames at one size",
                 stacklevel=3,
             )
         images.append(stack)
@@ -387,9 +390,9 @@ def frame_columns(
         stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
         # (an LLFF hwf written [w, h, f] was told to set the size the user had set: the
         # real-layout trial)
-        swapped = (
-            f"; {what} gives the spikes' height and width in the other order: written so "
-            f"(LLFF's hwf is height, width, focal)?"
+        swapped = (  # (which of the two, the layout's: LLFF's hwf is easily written w, h, f)
+            f"; {what} gives the spikes' height and width in the other order: one of the two "
+            f"transposed?" + (" (LLFF's hwf is height, width, focal)" if what == "hwf" else "")
             if (src_h, src_w) == (width, height)
             else ""
         )
