@@ -455,6 +455,27 @@ def test_a_raw_recordings_pose_log_is_named_as_such_on_every_run(textured, tmp_p
     assert (raw / "trajectory.json.bak").read_bytes() == (textured / "trajectory.json").read_bytes()
 
 
+def test_what_a_poses_reference_is_is_read_from_its_records():
+    """trajectory.json: SfM's where meta.json says its poses are; the .bak: as meta.json recorded
+    it when made, else as the last report named it, else by whose the split is (datasets posed
+    before either record: a review found a pose log posed once so called SfM's)."""
+    from spikegs.poses_cli import _reference_is_sfm
+
+    sfm, log = {"poses_from": "sfm"}, {}
+    assert _reference_is_sfm(sfm, False, True, None) and not _reference_is_sfm(
+        log, False, True, None
+    )
+    recorded = {"pose_reference": "pose log"}
+    assert not _reference_is_sfm({**sfm, **recorded}, True, True, None)
+    assert _reference_is_sfm({"pose_reference": "first spikegs poses run"}, True, False, None)
+    reported = json.dumps({"pose_reference": "pose log"})
+    assert not _reference_is_sfm(sfm, True, True, reported)
+    for report in (None, "{torn", "[]", json.dumps({"images": 30})):
+        assert _reference_is_sfm(sfm, True, True, report) and not _reference_is_sfm(
+            sfm, True, False, report
+        )
+
+
 def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsys):
     """Spikes and a meta.json without intrinsics, poses, timestamps or held-out views: `spikegs
     poses` writes them all, held-out views with TFP(65) ground truth, and the result trains."""

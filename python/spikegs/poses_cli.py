@@ -173,16 +173,25 @@ def _cached_sim(root: Path, posed: bool):
 SFM_REFERENCE, LOG_REFERENCE = "first spikegs poses run", "pose log"  # meta's pose_reference
 
 
-def _reference_is_sfm(meta: dict, backed_up: bool, ours: bool) -> bool:
+def _reference_is_sfm(meta: dict, backed_up: bool, ours: bool, report: str | None) -> bool:
     """Whether the trajectory the poses are aligned to is an earlier run's SfM, not a pose log:
     trajectory.json where no .bak is (`backed_up`), as meta.json's poses_from says; else the
-    .bak, as meta.json's pose_reference recorded when it was made. A dataset posed before that
-    record: by whether this command made its split (`ours`), which took a recording's pose log,
-    backed up by the first run, for its first run's SfM (the review)."""
+    .bak, as meta.json's pose_reference recorded when it was made, or, a dataset posed before
+    that record, the last run's `report` (sfm/report.json's text) where it named a pose log;
+    else by whether this command made its split (`ours`), which took a recording's pose log,
+    backed up by the first run, for its first run's SfM (the reviews)."""
     if not backed_up:
         return meta.get("poses_from") == POSES_FROM_SFM
     recorded = meta.get("pose_reference")
-    return recorded == SFM_REFERENCE if recorded in (SFM_REFERENCE, LOG_REFERENCE) else ours
+    if recorded in (SFM_REFERENCE, LOG_REFERENCE):
+        return recorded == SFM_REFERENCE
+    try:
+        reported = json.loads(report or "null")
+    except ValueError:
+        reported = None
+    if isinstance(reported, dict) and reported.get("pose_reference") == LOG_REFERENCE:
+        return False
+    return ours
 
 
 def _image_window(window: int | None, sim_model) -> int:
@@ -560,7 +569,7 @@ def _estimate_poses(
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM where it had no pose log: a
         # difference, not an error
-        sfm = _reference_is_sfm(meta, backup.exists(), ours)
+        sfm = _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
         messages.append(
