@@ -652,6 +652,24 @@ def test_views_whose_renders_bear_no_likeness_are_named_whatever_the_median(
     assert all(views[n]["aligned_correlation"] > 0.5 for n in names if n not in away)
 
 
+def test_a_renders_likeness_to_a_noisy_image_is_judged_over_blocks():
+    """A right render against a noisy pseudo ground truth (TFP of few spikes) correlates under
+    0.2 pixel by pixel: taken for a scene out of view (the second review). Over blocks, 1/16 of
+    the side, the noise averages out; a flat render is 0, a flat image NaN."""
+    from spikegs.evaluate import NO_LIKENESS, _correlation
+
+    render = np.full((64, 64, 1), 0.3)
+    render[:, 32:] = 0.7  # two halves: a std of 0.2
+    noisy = render + np.random.default_rng(0).normal(0, 1.0, render.shape)
+    pixels = np.corrcoef(render.ravel(), noisy.ravel())[0, 1]
+    assert pixels < NO_LIKENESS < 0.5 < _correlation(render, noisy)
+    assert _correlation(np.full_like(render, 0.4), noisy) == 0.0
+    assert np.isnan(_correlation(render, np.full_like(render, 0.4)))
+    assert _correlation(render[:5, :7], noisy[:5, :7]) == pytest.approx(
+        np.corrcoef(render[:5, :7].ravel(), noisy[:5, :7].ravel())[0, 1]
+    )  # (under 16 pixels a side: the pixels themselves)
+
+
 def test_a_view_without_coarse_structure_takes_no_part_in_the_median(trained, run, monkeypatch):
     """An image with no coarse structure leaves a NaN share: the median (eval-aligned.json's and
     the suspect rule's) is the other views', not NaN."""

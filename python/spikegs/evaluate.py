@@ -290,6 +290,19 @@ SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely di
 NO_LIKENESS = 0.2
 
 
+def _varies(values: np.ndarray) -> bool:
+    """Whether `values` vary by more than their means' rounding (a flat image's blocks differ
+    in the last bits)."""
+    return bool(values.std() > 1e-9 * np.abs(values).max())
+
+
+def _block_means(image: np.ndarray, side: int) -> np.ndarray:
+    """`image` [H, W, C] averaged over side x side blocks (its edge rows and columns beyond the
+    last whole block left out): [H // side, W // side, C]."""
+    h, w, c = image.shape[0] // side, image.shape[1] // side, image.shape[2]
+    return image[: h * side, : w * side].reshape(h, side, w, side, c).mean(axis=(1, 3))
+
+
 def _first_three(names: list[str]) -> str:
     """`names` as a warning lists them: the first three, and "..." for any more."""
     return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
@@ -319,13 +332,19 @@ def _unlike(views: dict) -> list[str]:
     return [name for name, v in views.items() if v["aligned_correlation"] < NO_LIKENESS]
 
 
+LIKENESS_BLOCKS = 16  # the correlation's blocks a side (at least): a pixel's noise averaged
+
+
 def _correlation(pred: np.ndarray, gt: np.ndarray) -> float:
-    """The Pearson correlation of a render and its image [H, W, C] as scored: 0 for a flat
-    render (it shows nothing of the image), NaN for a flat image (nothing to show)."""
-    pred, gt = pred.astype(np.float64).ravel(), gt.astype(np.float64).ravel()
-    if not gt.std() > 0:
+    """The Pearson correlation of a render and its image [H, W, C] as scored, over blocks of
+    1/LIKENESS_BLOCKS of the shorter side (a pseudo ground truth's noise, TFP of few spikes,
+    pulled a right render's pixels under NO_LIKENESS: the second review): 0 for a flat render
+    (it shows nothing of the image), NaN for a flat image (nothing to show)."""
+    side = max(1, min(gt.shape[:2]) // LIKENESS_BLOCKS)
+    pred, gt = (_block_means(x.astype(np.float64), side).ravel() for x in (pred, gt))
+    if not _varies(gt):
         return math.nan
-    if not pred.std() > 0:
+    if not _varies(pred):
         return 0.0
     return float(np.corrcoef(pred, gt)[0, 1])
 
