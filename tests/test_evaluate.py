@@ -175,6 +175,20 @@ def test_scores_without_a_later_metric_do_not_count_as_changed(trained, run):
     assert all(png.exists() for png in pngs)
 
 
+def test_a_non_finite_score_is_the_null_an_earlier_scoring_wrote():
+    """eval.json holds an inf PSNR or a NaN correlation as null: read back, null against the
+    same score again counted as a change (NaN != NaN), and --no-images deleted the view's
+    side-by-side at every scoring (the second review)."""
+    from spikegs.evaluate import _changed
+
+    now = {"psnr": np.inf, "aligned_correlation": np.nan, "ssim": 0.9}
+    assert not _changed({"psnr": None, "aligned_correlation": None, "ssim": 0.9}, now)
+    assert not _changed({"psnr": np.inf, "aligned_correlation": np.nan, "ssim": 0.9}, now)
+    assert _changed({"psnr": 30.0, "aligned_correlation": None, "ssim": 0.9}, now)
+    assert _changed({"psnr": None, "aligned_correlation": 0.7, "ssim": 0.9}, now)
+    assert _changed({"psnr": None, "aligned_correlation": None, "ssim": 0.8}, now)
+
+
 def test_an_earlier_score_that_is_no_mapping_counts_as_changed(trained, run):
     """A view's entry in an earlier eval.json that holds no scores (null, a number: hand-edited,
     another tool's): its side-by-side no longer matches, and --no-images removes it; the others

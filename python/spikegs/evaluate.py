@@ -238,10 +238,17 @@ def _group(views: list[dict]) -> dict:
 
 def _changed(old, new: dict) -> bool:
     """Whether a view's scores `new` differ from an earlier scoring's `old` (a score that scoring
-    did not record, ssim_3dgs before 2026-11-29, is no change)."""
+    did not record, ssim_3dgs before 2026-11-29, is no change; a non-finite one is the null
+    eval.json holds for it: NaN != NaN deleted a flat image's side-by-side at every scoring)."""
     if not isinstance(old, dict):
         return True
-    return any(old.get(key, value) != value for key, value in new.items())
+
+    def same(was, now) -> bool:
+        if isinstance(now, float) and not math.isfinite(now):
+            return was is None or was == now or (isinstance(was, float) and math.isnan(was))
+        return was == now
+
+    return not all(same(old.get(key, value), value) for key, value in new.items())
 
 
 def _configured_method(run_dir: Path) -> str | None:
