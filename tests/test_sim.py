@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import functools
 import hashlib
+import json
 import os
 import shutil
 import signal
@@ -837,6 +838,26 @@ def test_sim_train_cli_refuses_bad_options_before_training(
     monkeypatch.setattr("spikegs.sim_cli.load_dataset", lambda *a: pytest.fail("loaded"))
     assert main(["sim-train", "data", *args]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_sim_train_writes_its_scores_before_printing_them(tmp_path, monkeypatch, capsys):
+    """A stdout on a full disk (`> /dev/full`) stopped sim-train at its table, before the scores
+    file beside the weights, which outputs.md promises (the environment trial)."""
+    from spikegs.cli import main
+    from spikegs.data import simulate_dataset
+
+    root = tmp_path / "on"
+    small = dict(height=16, width=16, readouts=200, test_on_path=1, test_off_path=0)
+    simulate_dataset("solids", root, progress=False, **small)
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("spikegs.sim_cli.print_table", full)
+    out = tmp_path / "sim.pt"
+    args = ["sim-train", str(root), "--steps", "2", "--crop", "16", "--batch-size", "1"]
+    assert main([*args, "--no-progress", "--out", str(out)]) == 2
+    assert json.loads((tmp_path / "sim.pt.json").read_text())["sim"] == str(out.resolve())
 
 
 def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, capsys):

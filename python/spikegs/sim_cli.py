@@ -147,24 +147,7 @@ def _run(args: argparse.Namespace) -> int:
     found = cached_flicker(dataset.streams, bars) if config.supervision.deflicker else None
     flicker = divisible(found)
     scores = evaluate_dataset(model, dataset, streams=defects.streams, flicker=flicker)
-    print_table([{"method": name, **s} for name, s in scores.items()])
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
-    print(
-        f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
-        f"the same error in the intensity units of spikegs eval; SSIM higher too; the means over "
-        f"the {len(views)} test views on the camera's path, at their readouts)"
-    )
-    if defects.pixels:
-        print(
-            f"({defects.pixels} hot, stuck or dead pixels of the sensor fire as a neighbour in "
-            f"the spikes every method reads, as SIM's training reads them)"
-        )
-    if found is not None:
-        done = "each method's images divided by it" if flicker else "too deep to divide out"
-        print(
-            f"(the light flickers with a period of {found.period:.1f} readouts, depth "
-            f"{found.depth:.2f}: {done}, as training's targets are)"
-        )
     record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {
         "sim": str(Path(out).resolve()),
@@ -182,11 +165,33 @@ def _run(args: argparse.Namespace) -> int:
         "flicker": None if found is None else {**asdict(found), "divided": flicker is not None},
         "environment": environment(),
     }
-    try:  # (reused weights may lie where nothing is written: the table above stands)
+    # written before the table is printed: a stdout on a full disk left it unwritten (the
+    # environment trial); reused weights may lie where nothing is written: the table stands
+    written = None
+    try:
         write_text_atomically(record, strict_json.dumps(summary, indent=2))
-        print(f"scores: {record}")
+        written = f"scores: {record}"
     except OSError as err:
         print(f"scores not written beside the weights: {err}", file=sys.stderr)
+    print_table([{"method": name, **s} for name, s in scores.items()])
+    print(
+        f"(PSNR of firing rates, spikes a readout, over a data range of 1: {units:.1f} dB above "
+        f"the same error in the intensity units of spikegs eval; SSIM higher too; the means over "
+        f"the {len(views)} test views on the camera's path, at their readouts)"
+    )
+    if defects.pixels:
+        print(
+            f"({defects.pixels} hot, stuck or dead pixels of the sensor fire as a neighbour in "
+            f"the spikes every method reads, as SIM's training reads them)"
+        )
+    if found is not None:
+        done = "each method's images divided by it" if flicker else "too deep to divide out"
+        print(
+            f"(the light flickers with a period of {found.period:.1f} readouts, depth "
+            f"{found.depth:.2f}: {done}, as training's targets are)"
+        )
+    if written:
+        print(written)
     note = pseudo_views_note(v.name for v in views)
     if note:
         print(
