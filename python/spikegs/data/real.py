@@ -200,9 +200,8 @@ def spaced_words(nth: int, fits: np.ndarray) -> str:
     """How `_spaced_mask(fits, nth)` chose its views: every `nth` of those that `fits` [P] from
     half that on, or, where none lies there, the middle one of them."""
     room = "of those with room for the pseudo ground truth's window"
-    if not len(
-        np.flatnonzero(fits)[nth // 2 :: nth]
-    ):  # (said "the middle one" of pose 111 of 7-133)
+    strided = np.flatnonzero(fits)[nth // 2 :: nth]  # (pose 111 of 7-133 was "the middle one")
+    if not len(strided):
         return f"the middle one {room}"
     return f"every {ordinal(nth)} {room}, from the {ordinal(nth // 2 + 1)}"
 

@@ -592,11 +592,11 @@ def simulate_dataset(
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path
     where = f"scene '{source.name}'"
-    # (said with no way to give one, not where both counts asked were 0: "the frames hold no
-    # on-path view" blamed the data, the scene-sources trial)
+    # said with the ways to a view; none asked (0, 0): plainly, by check_test_views. The frames
+    # were blamed for holding no on-path view where none was asked (the trial and the reviews)
     tests = "test frames: a transforms_test.json beside its file, FrameSequenceSource's test_views"
-    if not views and source.kind == "frames" and asked != (0, 0):  # (none asked: said plainly)
-        if asked[0] == 0:  # (its frames were blamed for the on-path views not asked: the reviews)
+    if not views and source.kind == "frames" and asked != (0, 0):
+        if asked[0] == 0:
             where += f" (no on-path view asked, and no {tests})"
         else:
             where += (

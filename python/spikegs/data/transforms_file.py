@@ -388,9 +388,9 @@ def frame_columns(
     frame, shift = (raw_width, col_offset) if crop else (width, 0)
     if abs(scaled - frame) > 1:
         stored = f" (or the {raw_width} stored pixels of a row, raw_width)" if raw_width else ""
-        # (an LLFF hwf written [w, h, f] was told to set the size the user had set: the
-        # real-layout trial)
-        swapped = (  # (which of the two, the layout's: LLFF's hwf is easily written w, h, f)
+        # sizes in the other order said (an LLFF hwf written w, h, f was told to set the size
+        # already set: the real-layout trial); LLFF's order named for an hwf alone
+        swapped = (
             f"; {what} gives the spikes' height and width in the other order: one of the two "
             f"transposed?" + (" (LLFF's hwf is height, width, focal)" if what == "hwf" else "")
             if (src_h, src_w) == (width, height)
