@@ -15,6 +15,7 @@ from tqdm.auto import tqdm
 
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
+from .box_filter import block_means
 from .data.dataset import check_dataset, is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
@@ -303,13 +304,6 @@ def _varies(values: np.ndarray) -> bool:
     return bool(values.std() > 1e-9 * np.abs(values).max())
 
 
-def _block_means(image: np.ndarray, side: int) -> np.ndarray:
-    """`image` [H, W, C] averaged over side x side blocks (its edge rows and columns beyond the
-    last whole block left out): [H // side, W // side, C]."""
-    h, w, c = image.shape[0] // side, image.shape[1] // side, image.shape[2]
-    return image[: h * side, : w * side].reshape(h, side, w, side, c).mean(axis=(1, 3))
-
-
 def _first_three(names: list[str]) -> str:
     """`names` as a warning lists them: the first three, and "..." for any more."""
     return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
@@ -348,7 +342,8 @@ def _correlation(pred: np.ndarray, gt: np.ndarray) -> float:
     pulled a right render's pixels under NO_LIKENESS: the second review): 0 for a flat render
     (it shows nothing of the image), NaN for a flat image (nothing to show)."""
     side = max(1, min(gt.shape[:2]) // LIKENESS_BLOCKS)
-    pred, gt = (_block_means(x.astype(np.float64), side).ravel() for x in (pred, gt))
+    h, w = gt.shape[0] // side * side, gt.shape[1] // side * side  # whole blocks
+    pred, gt = (block_means(x[:h, :w], side).astype(np.float64).ravel() for x in (pred, gt))
     if not _varies(gt):
         return math.nan
     if not _varies(pred):
