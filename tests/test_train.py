@@ -2492,6 +2492,11 @@ def test_a_resumed_demo_goes_on_with_the_scene_and_camera_it_started_with(
     ):
         assert main([*argv, "--resume", *wrong]) == 2
         assert f"--resume: the demo in {out} {says}" in capsys.readouterr().err
+    # a dataset's meta.json naming a scene no demo simulates (edited): refused, not trained
+    (out / "data" / "meta.json").write_text('{"scene": "mine", "channels": 1}')
+    assert main([*argv, "--resume"]) == 2
+    said = f"--resume: the demo in {out} was started with scene 'mine', not 'solids'; leave"
+    assert said in capsys.readouterr().err
     assert len(started) == 2
     # --resume where no demo ran said "starting one", then refused the folder's files
     (tmp_path / "notes").mkdir()

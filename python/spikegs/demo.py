@@ -94,22 +94,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def demo_dataset(scene: str, data: Path, resume: bool, progress: bool, color: bool = False):
     """The demo's dataset: simulated into `data` (`color`: an RGB camera), or, on `resume`, the
     one a demo already simulated there (meta.json is written last: a folder without it is
-    simulated again), refused where its scene or camera is not `scene`'s or `color`'s (a
-    meta.json edited by hand: `_check_resumed_scene` refuses the others first)."""
+    simulated again), of `scene` and that camera (`_check_resumed_scene` refused another)."""
     from .data import load_dataset, simulate_dataset
 
     if resume and (data / "meta.json").exists():
         dataset = load_dataset(data)
-        if dataset.meta.get("scene") != scene:
-            raise ValueError(
-                f"--resume: {data} holds scene '{dataset.meta.get('scene')}', not '{scene}'; "
-                f"leave out --scene to continue it, or give another --out"
-            )
-        if dataset.channels != (3 if color else 1):
-            raise ValueError(
-                f"--resume: {data} holds a {'colour' if dataset.channels == 3 else 'mono'} "
-                f"dataset; leave out --color to continue it, or give another --out"
-            )
         print(f"[1/3] resuming with the spike dataset in {data}", file=sys.stderr)
         return dataset
     print(f"[1/3] simulating the spike dataset -> {data}", file=sys.stderr)
@@ -193,11 +182,17 @@ def _dataset_meta(out: Path) -> dict | None:
     return meta if isinstance(meta, dict) else None
 
 
-def started_scene(out: Path) -> str | None:
-    """The scene of the demo in `out` (its dataset's, else what it recorded when it started),
-    None where neither names a built-in one."""
+def _own_scene(out: Path) -> str | None:
+    """The scene of the demo in `out` as written: its dataset's, else what it recorded when it
+    started; None where neither names one."""
     meta = _dataset_meta(out)
     scene = _started(out).get("scene") if meta is None else meta.get("scene")
+    return scene if isinstance(scene, str) else None
+
+
+def started_scene(out: Path) -> str | None:
+    """The scene of the demo in `out` (`_own_scene`), None where it is no built-in one."""
+    scene = _own_scene(out)
     return scene if scene in SCENES else None
 
 
@@ -362,7 +357,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
                 f"--resume: the demo in {out} was started with {started} iterations, not "
                 f"{args.iterations}; leave out --iterations to continue it, or give another --out"
             )
-        _check_resumed_scene(out, args.scene, args.color)
+        _check_resumed_scene(out, scene, color)
         printable = _printable(finished, scene, color)
         if printable is not None:  # nothing to train: evaluated and timed again before
             print(f"--resume: {out} holds a finished demo; its results:", file=sys.stderr)
@@ -416,12 +411,13 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
     return _print_results(payload, out)
 
 
-def _check_resumed_scene(out: Path, scene: str | None, color: bool) -> None:
-    """ValueError where --resume names another scene (`scene`) or camera (`color`) than the
-    demo's own (`started_scene`, `started_color`): stopped before its dataset existed, it went on
-    with the one named, unsaid, as its dataset's check refuses once there."""
-    own = started_scene(out)
-    if scene is not None and own is not None and scene != own:
+def _check_resumed_scene(out: Path, scene: str, color: bool) -> None:
+    """ValueError where the scene (`scene`) or camera (`color`) a resumed demo would train is not
+    the demo's own (`_own_scene`, `started_color`): its dataset's, or, stopped before that
+    existed, what it recorded as it started (a --scene or --color given to --resume went on
+    with the one named, unsaid). The one check of both, dataset or record."""
+    own = _own_scene(out)
+    if own is not None and scene != own:
         raise ValueError(
             f"--resume: the demo in {out} was started with scene '{own}', not '{scene}'; leave "
             f"out --scene to continue it, or give another --out"
