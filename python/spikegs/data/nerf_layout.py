@@ -264,7 +264,8 @@ def _check_test_files_converge(viewmats: np.ndarray, test, sources: list[Path], 
     """ValueError naming a test file (of `sources` [F], where `test` [F] marks the test frames)
     whose poses keep the cameras' optical axes (viewmats [F, 4, 4]) from converging where the
     training file's (`path`) alone converge: the error named the training file, which was right
-    (a transforms_test.json in OpenCV axes, the real-layout trial)."""
+    (a transforms_test.json in OpenCV axes, the real-layout trial). Called where the scene
+    sphere failed, so that a loading whose views converge finds their centre once."""
     test = np.asarray(test, bool)
     others = sorted({str(s) for s, is_test in zip(sources, test) if is_test and s != path})
     if (
@@ -325,16 +326,18 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     # the frames' cameras checked as one before the training images are read
     K = one_camera_matrix(cameras, frames, sources, src, (height, row), shift)
     fix = f"set scene_center and scene_radius in {root / OPTIONS_FILE}"
-    if options.scene_center is None:
+    try:
+        center, radius = view_sphere(
+            viewmats,
+            path,
+            fix,
+            center=options.scene_center,
+            radius=options.scene_radius,
+            axes_fix=other_convention_fix(path),
+        )
+    except ValueError:  # (the test file named where its poses, not the training file's, fail)
         _check_test_files_converge(viewmats, test, sources, path)
-    center, radius = view_sphere(
-        viewmats,
-        path,
-        fix,
-        center=options.scene_center,
-        radius=options.scene_radius,
-        axes_fix=other_convention_fix(path),
-    )
+        raise
     # [H, W, 1] intensity or None; a training frame's image (read one at a time) calibrates the
     # intensity scale where spikegs.json gives none, and checks the spikes' orientation: the first
     # ORIENTATION_VIEWS training frames' where it gives one (the check was skipped then), those
