@@ -522,6 +522,12 @@ def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
     return streams
 
 
+def _frame_bytes(height: int, row: int) -> int:
+    """Bytes of a .dat frame of `height` rows of `row` bits: ceil(height·row / 8), its last byte
+    padded."""
+    return -(-height * row // 8)
+
+
 def _wider_rows(stream: SpikeStream, num: int) -> int | None:
     """The row width, over the stream's and at most 4 times it, at which its file holds `num`
     whole frames of its height; None where none does."""
@@ -530,7 +536,7 @@ def _wider_rows(stream: SpikeStream, num: int) -> int | None:
         return None
     frame = size // num  # bytes
     for width in range(stream.width + 1, 4 * stream.width + 1):
-        if -(-stream.height * width // 8) == frame:
+        if _frame_bytes(stream.height, width) == frame:
             return width
     return None
 
@@ -695,7 +701,7 @@ def _warned_if_frames_smaller(stream: SpikeStream, as_read: float, settings: str
     for m in ROW_MULTIPLES:
         height, width = stream.height // m, stream.width // m
         whole = stream.height % m == 0 and stream.width % m == 0
-        if not whole or min(height, width) < WIDER_MIN_SIZE or size % -(-height * width // 8):
+        if not whole or min(height, width) < WIDER_MIN_SIZE or size % _frame_bytes(height, width):
             continue
         readings[m] = SpikeStream.open(stream.path, height, width, stream.layout.flip)
         scores[m] = _rows_alike(readings[m])
@@ -734,7 +740,7 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
     wider, scores = {}, {}  # the file read with rows of R pixels, and how alike they are
     multiples = (m * stream.width for m in ROW_MULTIPLES)
     for row in (*range(stream.width, 2 * stream.width), *multiples):
-        frame_bytes = -(-stream.height * row // 8)
+        frame_bytes = _frame_bytes(stream.height, row)
         if row == layout.row_bits or size % frame_bytes:
             continue
         wider[row] = SpikeStream.open(stream.path, stream.height, stream.width, layout.flip, row)
@@ -745,7 +751,7 @@ def _warn_if_rows_wider(stream: SpikeStream, as_read: float, settings: str) -> N
     if scores[row] < SWAPPED_MIN or scores[row] - as_read < WIDER_GAP:
         return
     m, given = row // stream.width, f"{stream.height}x{stream.width}"
-    larger = row % stream.width == 0 and size % -(-m * stream.height * row // 8) == 0
+    larger = row % stream.width == 0 and size % _frame_bytes(m * stream.height, row) == 0
     readings = [wider[row]]
     if larger:  # the height as far off too: frames of m² readouts read as one
         readings.append(SpikeStream.open(stream.path, m * stream.height, row, layout.flip))
