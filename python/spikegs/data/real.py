@@ -184,11 +184,15 @@ def spaced_instead(
     return (spaced, spaced_ks, nth) if spaced.any() and kept * FEW_KEPT < len(spaced_ks) else None
 
 
+def _strided(fits: np.ndarray, nth: int) -> np.ndarray:
+    """The indices of every `nth` of those that `fits` [P], from half that on."""
+    return np.flatnonzero(fits)[nth // 2 :: nth]
+
+
 def _spaced_mask(fits: np.ndarray, nth: int) -> np.ndarray:
     """Mask [P] of every `nth` pose from half that on, of those that `fits` [P] (their pseudo
     ground truth's window fits in the stream); the middle one of them where they are fewer."""
-    candidates = np.flatnonzero(fits)
-    picked = candidates[nth // 2 :: nth]
+    candidates, picked = np.flatnonzero(fits), _strided(fits, nth)
     if not len(picked) and len(candidates):
         picked = candidates[len(candidates) // 2 :][:1]
     mask = np.zeros(len(fits), bool)
@@ -200,8 +204,7 @@ def spaced_words(nth: int, fits: np.ndarray) -> str:
     """How `_spaced_mask(fits, nth)` chose its views: every `nth` of those that `fits` [P] from
     half that on, or, where none lies there, the middle one of them."""
     room = "of those with room for the pseudo ground truth's window"
-    strided = np.flatnonzero(fits)[nth // 2 :: nth]  # (pose 111 of 7-133 was "the middle one")
-    if not len(strided):
+    if not len(_strided(fits, nth)):  # (pose 111 of 7-133 was called "the middle one")
         return f"the middle one {room}"
     return f"every {ordinal(nth)} {room}, from the {ordinal(nth // 2 + 1)}"
 
