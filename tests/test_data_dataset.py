@@ -1066,6 +1066,31 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
         load_dataset(root)
 
 
+@pytest.mark.parametrize(("offset", "stated"), [(4, 0), (0, 4), (9, 3)])
+def test_a_wrong_col_offset_is_named_by_the_sharp_test_views(tmp_path, small, offset, stated):
+    """A camera's wider rows cropped from another column than the image's (raw_width right,
+    col_offset left out or wrong) trained on a crop beside the test images', unsaid (20.3 dB
+    where 26.9 was due): the sharp test views match the spikes better from the right column,
+    which the warning names."""
+    root = tmp_path / "wide"
+    shutil.copytree(small.root, root)
+    stream = small.streams[0]
+    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
+    wide = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
+    wide[:, :, offset : offset + bits.shape[2]] = bits
+    save_dat(root / "spikes.dat", wide, flip=small.meta["flip"])
+    meta = json.loads((root / "meta.json").read_text())
+    meta.update(raw_width=bits.shape[2] + 9, col_offset=stated)
+    (root / "meta.json").write_text(json.dumps(meta))
+    way = "further along" if offset > stated else "back"
+    with pytest.warns(UserWarning) as said:
+        load_dataset(root)
+    shifted = [str(w.message) for w in said if "their stored rows" in str(w.message)]
+    assert len(shifted) == 1, [str(w.message) for w in said]
+    assert f"{abs(offset - stated)} columns {way} their stored rows" in shifted[0]
+    assert f"col_offset ({stated}, in meta.json) is likely {offset}," in shifted[0]
+
+
 def test_test_images_unlike_the_frame_and_binary_timestamps_are_named(tmp_path, small):
     """A test image of another size or with an alpha channel, and a timestamps file that is no
     text, are refused naming the file; blank lines and # comments in it are skipped."""

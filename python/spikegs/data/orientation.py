@@ -11,6 +11,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from .correlation import correlation
+from .crop_offset import warn_if_shifted
 
 FLIP_MARGIN = 0.2  # correlation by which the other orientation must match better, to warn
 
@@ -69,16 +70,19 @@ def check_orientation(
 ) -> None:
     """A UserWarning when the views' TFPs [H, W] match their sharp images [H, W, C] better with
     each byte's bits in the other order (`other_bit_order`, where the stored rows are the
-    frame's: no `raw_width` other than its width, no `col_offset`), or upside down
-    (`warn_if_upside_down`), than as read, by FLIP_MARGIN in most views: the .dat's bit order,
-    or `flip` (stated in `settings`), is likely wrong and the scene would train scrambled or
-    upside down; and, where `judge_match`, when they match neither way (median correlation
-    under MATCH_MIN): the spikes are not read as the images show them. Flat images (a black
-    view) are left out."""
+    frame's: no `raw_width` other than its width, no `col_offset`), from another first column
+    of a camera's wider rows (`warn_if_shifted`), or upside down (`warn_if_upside_down`), than
+    as read, by FLIP_MARGIN in most views: the .dat's bit order, `col_offset` or `flip` (stated
+    in `settings`) is likely wrong and the scene would train scrambled, shifted or upside down;
+    and, where `judge_match`, when they match neither way (median correlation under
+    MATCH_MIN): the spikes are not read as the images show them. Flat images (a black view)
+    are left out."""
     pairs, reordered = [], []  # per view: (as read, upside down); the other bit order's best
+    kept = []  # the views not flat: (TFP, image)
     for tfp, image in views:
         if np.ptp(image) == 0:  # a flat image (black) matches no way up
             continue
+        kept.append((tfp, image))
         pairs += orientation_pairs([(tfp, image)])
         if raw_width in (None, tfp.shape[1]) and col_offset == 0:
             (other,) = orientation_pairs([(other_bit_order(tfp, flip), image)])
@@ -94,6 +98,10 @@ def check_orientation(
             f"bitorder='little'))",
             stacklevel=3,
         )
+        return
+    if raw_width is not None and warn_if_shifted(
+        kept, raw_width, col_offset, source, settings, stacklevel=3
+    ):
         return
     best = float(np.median([max(pair) for pair in pairs])) if pairs else 1.0
     if best < MATCH_MIN and judge_match:
