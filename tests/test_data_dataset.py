@@ -1031,6 +1031,27 @@ def test_wider_rows_that_read_as_more_readouts_name_raw_width(tmp_path, small):
         load_dataset(root)
 
 
+@pytest.mark.parametrize("extra", [1, 4, 10])
+def test_wider_rows_are_not_named_swapped_where_they_read_more_alike(tmp_path, small, extra):
+    """Rows of a few noise columns more than the image, whose frames read with height and width
+    swapped have alike rows too (36-pixel rows of a 24x32 image: 0.68 swapped), were named a
+    swapped size; set so, they train noise unsaid. The more alike reading, the wider rows (0.78
+    there), is named."""
+    stream = small.streams[0]
+    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
+    height, width = bits.shape[1:]
+    bits = bits[: len(bits) // width * width]  # whole frames as read, and swapped
+    wide = np.random.default_rng(1).random((len(bits), height, width + extra)) < 0.3
+    wide[:, :, :width] = bits  # the extra columns: noise
+    path = tmp_path / "spikes.dat"
+    save_dat(path, wide, flip=True)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        warn_rows_out_of_line(SpikeStream.open(path, height, width, True), "spikegs.json")
+    messages = [str(w.message) for w in said]
+    assert len(messages) == 1 and f"set raw_width {width + extra}" in messages[0], messages
+
+
 @pytest.mark.parametrize("offset", [4, 0])
 def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
     """A real camera stores 416-pixel rows for a 400-pixel image: meta.json's raw_width and
