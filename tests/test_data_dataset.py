@@ -50,6 +50,16 @@ def small(tmp_path_factory):
     return simulate_dataset("solids", tmp_path_factory.mktemp("ds") / "solids", seed=3, **SMALL)
 
 
+def test_a_dataset_loaded_from_a_relative_path_stays_found_after_a_chdir(small, monkeypatch):
+    """A dataset loaded as "data" kept its root relative: after a chdir, training looked for its
+    points3d.ply and SIM cache under the new directory (random Gaussians, a new sim/ folder)
+    and recorded a dataset path no eval could find, unsaid."""
+    monkeypatch.chdir(small.root.parent)
+    ds = load_dataset(small.root.name)
+    monkeypatch.chdir(small.root.parent.parent)
+    assert (ds.root / "meta.json").is_file() and ds.root == small.root.absolute()
+
+
 def test_round_trip(small):
     ds = load_dataset(small.root)
     assert (ds.height, ds.width, ds.channels) == (24, 32, 1)

@@ -142,10 +142,11 @@ ONE_POINT_SHARE, TURN_DEG = 0.05, 10.0
 
 class Dataset:
     """A loaded dataset. `stream` is the SpikeStream of a mono dataset and the list [r, g, b] of a
-    colour one; `streams` is always the list, one SpikeStream per channel."""
+    colour one; `streams` is always the list, one SpikeStream per channel. `root` is kept
+    absolute: a relative one, after a chdir, lost its points3d.ply and SIM cache unsaid."""
 
     def __init__(self, root: Path, meta: dict, streams, trajectory, train_timestamps, test_views):
-        self.root = root
+        self.root = Path(root).absolute()  # (a later chdir does not move it, as for streams)
         self.meta = meta
         self.height, self.width = int(meta["height"]), int(meta["width"])
         self.channels = int(meta["channels"])
