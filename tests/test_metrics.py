@@ -5,11 +5,12 @@ import pytest
 from spikegs.metrics import psnr, ssim, ssim_3dgs
 
 
-@pytest.mark.parametrize("shape", [(20,), (2, 8, 8, 3)])
+@pytest.mark.parametrize("shape", [(20,), (2, 8, 8, 3), (0, 5, 3), (8, 0)])
 @pytest.mark.parametrize("metric", [psnr, ssim, ssim_3dgs])
 def test_metrics_refuse_what_is_not_an_image(metric, shape):
     """[H, W] or [H, W, C] only: a batch [N, H, W, C] (or a line of values) is refused, not scored
-    as one image."""
+    as one image; an empty image too (PSNR and SSIM scored NaN, 3DGS's SSIM raised torch's
+    kernel-size error)."""
     x = np.random.default_rng(0).random(shape)
     with pytest.raises(ValueError, match=r"expected two \[H, W\] or \[H, W, C\] images"):
         metric(x, x)
@@ -39,6 +40,25 @@ def test_metrics_refuse_codes_and_channels_first_and_take_tensors(metric):
     assert metric(torch.from_numpy(a), torch.from_numpy(near)) == pytest.approx(exact, abs=1e-9)
     half = torch.from_numpy(a).bfloat16()  # none in numpy: taken as its values
     assert metric(half, torch.from_numpy(b)) == pytest.approx(metric(half.double().numpy(), b))
+
+
+def test_view_metrics_take_what_the_metrics_take_and_name_unknown_ssims():
+    """evaluate.view_metrics, the call the README shows, clipped before the metrics saw their
+    input: a tensor requiring grad raised "Can't call numpy() on Tensor that requires grad", a
+    bfloat16 one "unsupported ScalarType"; ssims="ssim" was read a letter at a time (KeyError:
+    's')."""
+    import torch
+    from spikegs.evaluate import view_metrics
+
+    rng = np.random.default_rng(0)
+    a, b = rng.random((16, 16, 1)), rng.random((16, 16, 1))
+    expected = view_metrics(a, b)
+    assert view_metrics(torch.from_numpy(a).requires_grad_(), b) == expected
+    half = torch.from_numpy(a).bfloat16()
+    assert view_metrics(half, b) == view_metrics(half.double().numpy(), b)
+    assert view_metrics(a, b, "ssim") == {"psnr": expected["psnr"], "ssim": expected["ssim"]}
+    with pytest.raises(ValueError, match="ssims: unknown .'SSIM'.; known: ssim, ssim_3dgs"):
+        view_metrics(a, b, ["SSIM"])
 
 
 def test_ssim_3dgs_is_3dgs_evaluations_ssim():

@@ -22,7 +22,7 @@ from .data_fingerprint import same_data
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import srgb_to_linear, stage_image
 from .image_labels import column_titles, title_scale
-from .metrics import psnr, ssim, ssim_3dgs
+from .metrics import image_pair, psnr, ssim, ssim_3dgs
 from .number_checks import as_flag
 from .output_paths import check_file_output, check_folder_output, writable_folder
 from .ply import declares_channels
@@ -57,8 +57,14 @@ SCORES = ("psnr", *SSIMS)  # what eval.json means over the views
 def view_metrics(
     pred: np.ndarray, gt: np.ndarray, ssims: tuple[str, ...] = tuple(SSIMS)
 ) -> dict[str, float]:
-    """PSNR and the SSIMS named in `ssims` (none: PSNR alone) of `pred` against `gt`, both
-    [H, W, C] intensities, clipped to [0, 1]."""
+    """PSNR and the SSIMS named in `ssims` (none: PSNR alone; one name alone as a string) of
+    `pred` against `gt`, both [H, W, C] intensities (arrays or tensors, as `metrics` takes
+    them), clipped to [0, 1]. ValueError for a name not in SSIMS."""
+    ssims = (ssims,) if isinstance(ssims, str) else tuple(ssims)
+    unknown = [name for name in ssims if name not in SSIMS]
+    if unknown:
+        raise ValueError(f"ssims: unknown {unknown}; known: {', '.join(SSIMS)}")
+    pred, gt = image_pair(pred, gt)  # (a tensor requiring grad, or bfloat16, failed in np.clip)
     pred, gt = np.clip(pred, 0, 1), np.clip(gt, 0, 1)
     return {"psnr": psnr(pred, gt), **{name: SSIMS[name](pred, gt) for name in ssims}}
 

@@ -10,15 +10,15 @@ from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 from .number_checks import non_finite_pixels
 
 
-def _pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
+def image_pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
     """`pred` and `gt` (arrays or tensors) as float64 [H, W] or [H, W, C] images; ValueError for
     integer codes (data range 1: 8-bit 200 against 100 scored -40 dB), a channels-first image
-    (a [3, H, W] tensor's layout was scored as 3 rows of W pixels with H channels) or values
-    that are not finite (a NaN scored NaN, unsaid)."""
+    (a [3, H, W] tensor's layout was scored as 3 rows of W pixels with H channels), an empty
+    image (scored NaN) or values that are not finite (a NaN scored NaN, unsaid)."""
     pred, gt = _image(pred), _image(gt)
-    if pred.shape != gt.shape or pred.ndim not in (2, 3):
+    if pred.shape != gt.shape or pred.ndim not in (2, 3) or pred.size == 0:
         raise ValueError(
-            f"expected two [H, W] or [H, W, C] images, got {pred.shape} and {gt.shape}"
+            f"expected two [H, W] or [H, W, C] images, not empty, got {pred.shape} and {gt.shape}"
         )
     if pred.ndim == 3 and pred.shape[0] <= 4 < pred.shape[2]:
         raise ValueError(
@@ -57,7 +57,7 @@ def _image(x) -> np.ndarray:
 
 def psnr(pred, gt) -> float:
     """PSNR in dB with data range 1 (inf for identical images, without numpy's warning)."""
-    pred, gt = _pair(pred, gt)
+    pred, gt = image_pair(pred, gt)
     with np.errstate(divide="ignore"):
         return float(peak_signal_noise_ratio(gt, pred, data_range=1.0))
 
@@ -67,7 +67,7 @@ def ssim(pred, gt) -> float:
     11×11 Gaussian one, `ssim_3dgs`; colour channels averaged). A side shorter than 7
     pixels takes the largest odd window that fits, a side of one pixel is dropped (a line image:
     1-D SSIM); a side of 2 pixels, or a single pixel, is a ValueError."""
-    pred, gt = _pair(pred, gt)
+    pred, gt = image_pair(pred, gt)
     shape = list(pred.shape[:2])
     keep = tuple(n for n in shape if n > 1) or (1,)
     pred, gt = pred.reshape(*keep, -1), gt.reshape(*keep, -1)  # [H', W', C] or [L, C] (C ≥ 1)
@@ -87,7 +87,7 @@ def ssim_3dgs(pred, gt) -> float:
 
     from .losses import dssim  # (1 - SSIM) / 2 with this window
 
-    pred, gt = _pair(pred, gt)
+    pred, gt = image_pair(pred, gt)
     if pred.ndim == 2:
         pred, gt = pred[..., None], gt[..., None]
     return float(1 - 2 * dssim(torch.from_numpy(pred), torch.from_numpy(gt)))
