@@ -125,7 +125,8 @@ def test_never_more_than_one_spike_per_readout():
     # 4.0 = one spike per readout; up to float32's largest, whose charge overflows float32
     levels = np.array([2.0, 4.0, 8.0, 1e3, 1e30, 1e38, np.finfo(np.float32).max], np.float32)
     frames = np.repeat(levels[None, :, None], 16, axis=2)  # [1, 7, 16]
-    r = rates(simulate_spikes(frames, 2000), 16).mean(1)
+    with pytest.warns(UserWarning, match="86% of the light is at or above 1/rate_at_one = 4,"):
+        r = rates(simulate_spikes(frames, 2000), 16).mean(1)
     assert r[0] == pytest.approx(0.5, rel=0.02)
     assert (r <= 1).all() and (r[2:] == 1).all()
 
@@ -448,7 +449,7 @@ def test_sim_params_of_the_wrong_type_are_named():
 def test_a_tiny_rate_at_one_saturates_without_overflow():
     """rate_at_one under ~3e-33 overflowed float32 where the light that saturates is capped (a
     RuntimeWarning, an error under np.errstate(all="raise")); the spikes were right."""
-    with np.errstate(all="raise"):
+    with np.errstate(all="raise"), pytest.warns(UserWarning, match="100% of the light"):
         packed = simulate_spikes(np.full((1, 2, 8), 3e38), 5, params=SimParams(rate_at_one=1e-38))
     assert (packed == 255).all()  # every pixel fires every readout
 
@@ -545,10 +546,11 @@ def test_frame_times_refused_name_what_is_wrong():
 
 def test_light_beyond_float32_fires_every_readout_without_a_warning():
     """float64 light past float32's range is taken at float32's largest value (then capped where
-    a pixel fires every readout): every readout fires, and no overflow warning."""
+    a pixel fires every readout): every readout fires, and no overflow warning (the light's
+    saturation is)."""
     frames = np.full((1, 2, 8), 1e300, np.float64)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    with warnings.catch_warnings(), pytest.warns(UserWarning, match="100% of the light"):
+        warnings.simplefilter("error", RuntimeWarning)
         packed = simulate_spikes(frames, 20)
     assert (packed == 0xFF).all()
 
@@ -561,3 +563,22 @@ def test_a_callable_is_sampled_at_most_max_light_times(monkeypatch):
     with pytest.raises(ValueError, match="frame_every 0.05 samples the light 10 / 0.05 times"):
         simulate_spikes(light, 11, frame_every=0.05)  # 200 times
     assert simulate_spikes(light, 11, frame_every=0.125).shape[0] == 11  # 80 times
+
+
+def test_light_in_other_units_and_a_channel_last_image_are_warned_of():
+    """8-bit codes as floats fired 98 % of a random image's pixels every readout, and an [H, W, 1]
+    image was simulated as H frames of W×1 pixels, both unsaid: each is warned of; light in
+    range, frames of a few channels' width given their own times, and a bright scene's few
+    saturated pixels are not."""
+    codes = np.random.default_rng(0).random((1, 16, 16), np.float32) * 255
+    with pytest.warns(UserWarning, match=r"9\d% of the light is at or above 1/rate_at_one = 4,"):
+        simulate_spikes(codes, 50)
+    with pytest.warns(UserWarning, match=r"frames \[16, 16, 1\] read as 16 frames of 16x1 pix"):
+        simulate_spikes(np.full((16, 16, 1), 0.5, np.float32), 50)
+    bright = np.full((1, 16, 16), 0.5, np.float32)
+    bright[0, :4] = 10.0  # a quarter of the light saturates
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        simulate_spikes(bright, 50)
+        simulate_spikes(codes / 255, 50)
+        simulate_spikes(np.full((2, 16, 3), 0.5, np.float32), 50, frame_times=[0, 49])

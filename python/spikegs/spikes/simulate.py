@@ -170,6 +170,12 @@ _CHECKED_VALUES = 16 << 20  # light values checked at a time by _checked_frame
 # the frames are large (1080x1920 rendered every 2 readouts: 129 frames a 256-readout chunk, 1.1 GB
 # mono, 3.2 GB colour, and one channel's stack of them as much again); a chunk holds 2 at least
 CHUNK_LIGHT_BYTES = 256 << 20
+# more of the light than this share at or above 1/rate_at_one, where a pixel fires every readout,
+# is warned of: intensities in other units (8-bit codes as floats: 98 % of a random image's
+# pixels saturated at the default rate_at_one, unsaid); a bright scene's few saturated pixels
+# are the simulate command's to judge (its held-out views' 1 %)
+SATURATED_SHARE = 0.5
+CHANNEL_LAST_SIZES = (1, 3, 4)  # an [H, W, C] image's last axis, read as [F, H, W] frames
 
 
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
@@ -279,6 +285,16 @@ class _Frames:
             if frames.ndim != 1 + frame_ndim or len(frames) == 0:
                 axes = "[F, H, W]" if channels is None else "[F, H, W, C]"
                 raise ValueError(f"frames expected {axes} with F >= 1, found {list(frames.shape)}")
+            # an image's rows outnumber its channels, and come without times
+            image = frame_times is None and len(frames) > frames.shape[-1]
+            if channels is None and frames.shape[-1] in CHANNEL_LAST_SIZES and image:
+                count, height, width = frames.shape
+                warnings.warn(
+                    f"frames {list(frames.shape)} read as {count} frames of {height}x{width} "
+                    f"pixels: an [H, W, C] image? One frame of one channel is image[None, ..., "
+                    f"0] (a colour one: simulate_channels)",
+                    stacklevel=3,
+                )
             shape, read = frames.shape[1:], frames.__getitem__
             if frame_times is None:
                 if len(frames) > 1 and last == 0:
@@ -349,11 +365,26 @@ def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimPa
     sims = [_C.SpikeSimulator(height, width, params.to_core(), int(s)) for s in seeds]
     saturated = np.float32(params.to_core().saturated_light)  # the most light the core takes
     most = max(2, CHUNK_LIGHT_BYTES // max(1, 4 * height * width * channels))  # frames a chunk
+    every_readout = np.float32(1 / params.rate_at_one) if params.rate_at_one > 0 else np.inf
+    above, values = 0, 0  # the held frames' values at or above it, and all (a frame per chunk)
     t0 = 0
     while t0 < num_readouts:
         t1 = frames.end_within(t0, min(t0 + chunk, num_readouts), most)
-        yield t0, t1, _chunk_spikes(sims, *frames.covering(t0, t1), t1 - t0, saturated)
+        held, times = frames.covering(t0, t1)
+        above += sum(int(np.count_nonzero(frame >= every_readout)) for frame in held)
+        values += sum(frame.size for frame in held)
+        spikes = _chunk_spikes(sims, held, times, t1 - t0, saturated)
+        del held  # (the next chunk's frames are read without this one's held here)
+        yield t0, t1, spikes
         t0 = t1
+    if values and above / values > SATURATED_SHARE:
+        warnings.warn(
+            f"{above / values:.0%} of the light is at or above 1/rate_at_one = "
+            f"{every_readout:.3g}, where a pixel fires every readout: intensities in other units? "
+            f"(1.0 fires rate_at_one = {params.rate_at_one:g} a readout; an 8-bit image's codes "
+            f"as floats: spikegs.image_io.srgb_to_linear(image / 255))",
+            stacklevel=3,
+        )
 
 
 def _chunk_spikes(sims: list, held: list, times: np.ndarray, n: int, saturated) -> list:
