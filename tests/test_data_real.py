@@ -408,6 +408,24 @@ def test_poses_bounds_rows_checked_at_their_edges(tmp_path):
             _read_poses_bounds(path)
 
 
+def test_to_poses_bounds_names_an_argument_of_another_shape():
+    """One viewmat [4, 4], one bounds pair for every view, an hwf of two values or a NaN pose
+    failed inside numpy ("too many indices", a concatenation's dimensions) or were written:
+    each is named; right arguments give the rows."""
+    viewmats, hwf, bounds = np.tile(np.eye(4), (3, 1, 1)), (H, W, 50.0), np.tile([1.0, 9.0], (3, 1))
+    assert to_poses_bounds(viewmats, hwf, bounds).shape == (3, 17)
+    nan = viewmats.copy()
+    nan[1, 0, 3] = np.nan
+    for args, said in [
+        ((viewmats[0], hwf, bounds[:1]), r"viewmats: expected \[N, 4, 4\], found \[4, 4\]"),
+        ((viewmats, hwf, np.array([1.0, 9.0])), r"bounds: expected \[3, 2\] \(near, far a view"),
+        ((viewmats, (H, W), bounds), r"hwf: expected \(height, width, focal\), found"),
+        ((nan, hwf, bounds), "viewmats: values not finite"),
+    ]:
+        with pytest.raises(ValueError, match=said):
+            to_poses_bounds(*args)
+
+
 def test_a_poses_bounds_file_not_an_n_by_17_number_array_is_named(tmp_path):
     """poses_bounds.npy missing (load_llff called on another folder), an .npz archive, an
     array of text and one of another shape are refused naming the file."""

@@ -77,8 +77,23 @@ def viewmats_from_llff(poses: np.ndarray, source: str = POSES_BOUNDS) -> np.ndar
 
 
 def to_poses_bounds(viewmats: np.ndarray, hwf, bounds: np.ndarray) -> np.ndarray:
-    """OpenCV viewmats [N, 4, 4], hwf (height, width, focal), bounds [N, 2] -> [N, 17] rows."""
-    c2w = np.linalg.inv(np.asarray(viewmats, np.float64))  # [N, 4, 4]
+    """OpenCV viewmats [N, 4, 4], hwf (height, width, focal), bounds [N, 2] -> [N, 17] rows.
+    ValueError naming the argument of another shape or with values not finite (one viewmat
+    [4, 4], or one bounds pair for all views, failed inside numpy)."""
+    viewmats = np.asarray(viewmats, np.float64)
+    bounds, hwf = np.asarray(bounds, np.float64), np.asarray(hwf, np.float64)
+    if viewmats.ndim != 3 or viewmats.shape[1:] != (4, 4):
+        raise ValueError(f"viewmats: expected [N, 4, 4], found {list(viewmats.shape)}")
+    if bounds.shape != (len(viewmats), 2):
+        raise ValueError(
+            f"bounds: expected [{len(viewmats)}, 2] (near, far a view), found {list(bounds.shape)}"
+        )
+    if hwf.shape != (3,):
+        raise ValueError(f"hwf: expected (height, width, focal), found {hwf.tolist()}")
+    for name, values in (("viewmats", viewmats), ("bounds", bounds), ("hwf", hwf)):
+        if not np.isfinite(values).all():
+            raise ValueError(f"{name}: values not finite (NaN or inf)")
+    c2w = np.linalg.inv(viewmats)  # [N, 4, 4]
     poses = np.concatenate(
         [
             c2w[:, :3, :3] @ LLFF_TO_OPENCV,
@@ -87,7 +102,7 @@ def to_poses_bounds(viewmats: np.ndarray, hwf, bounds: np.ndarray) -> np.ndarray
         ],
         axis=2,
     )  # [N, 3, 5]
-    return np.concatenate([poses.reshape(-1, 15), np.asarray(bounds, np.float64)], axis=1)
+    return np.concatenate([poses.reshape(-1, 15), bounds], axis=1)
 
 
 def frustum_sphere(
