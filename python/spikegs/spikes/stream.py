@@ -155,7 +155,8 @@ class SpikeStream:
         cls, packed: np.ndarray, height: int | None = None, width: int | None = None
     ) -> SpikeStream:
         """Wrap packed [T, H, ceil(W/8)] uint8 (LSB first, row 0 on top; height: H by default),
-        sharing its memory, not copying it: edits of the array after show in the stream.
+        sharing its memory where it is C-contiguous (edits of the array after show in the
+        stream); another layout (a strided slice, a transpose) is copied first.
         `width` is required: a row of B bytes holds 8B - 7 to 8B columns (a guess of 8B gave
         `simulate_spikes`' 13-wide frames 3 columns that never fire)."""
         packed = np.asarray(packed)
