@@ -595,8 +595,9 @@ def load_config(
     method, DEFAULT_METHOD), with `overrides` (nested dicts) applied, validated. `iterations`
     (`--iterations`) sets the run's length as `Config.with_iterations` does, in one rounding with
     the scaling of the schedule keys (SCHEDULE_KEYS): each from the length it was given for, the
-    train.iterations set beside it in its file or in `overrides`, else the default length
-    (`{"densify": {"start": 100}}` at iterations=20 starts at 1). `saved_run`: the file is a
+    train.iterations set beside it in its file or in `overrides`, else the one its base (the
+    file, for `overrides`) sets, else the default length (`{"densify": {"start": 100}}` at
+    iterations=20 starts at 1). `saved_run`: the file is a
     run's own config.yaml, which keeps its method's name with that method's settings of the day."""
     config = Config()
     name = DEFAULT_METHOD if name_or_path is None else name_or_path
