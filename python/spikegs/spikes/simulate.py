@@ -172,8 +172,8 @@ _CHECKED_VALUES = 16 << 20  # light values checked at a time by _checked_frame
 CHUNK_LIGHT_BYTES = 256 << 20
 # more of the light than this share at or above 1/rate_at_one, where a pixel fires every readout,
 # is warned of: intensities in other units (8-bit codes as floats: 98 % of a random image's
-# pixels saturated at the default rate_at_one, unsaid); a bright scene's few saturated pixels
-# are the simulate command's to judge (its held-out views' 1 %)
+# pixels saturated at the default rate_at_one, unsaid) by simulate_spikes; a bright scene's
+# saturated pixels are the simulate command's to judge (its held-out views' 1 %)
 SATURATED_SHARE = 0.5
 CHANNEL_LAST_SIZES = (1, 3, 4)  # an [H, W, C] image's last axis, read as [F, H, W] frames
 
@@ -357,10 +357,18 @@ def _checked_run(num_readouts, seeds: list, params, chunk) -> tuple[int, SimPara
     return int(num_readouts), params
 
 
-def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimParams, chunk: int):
+def _spike_chunks(
+    frames: _Frames,
+    num_readouts: int,
+    seeds: list,
+    params: SimParams,
+    chunk: int,
+    warn_saturated: bool = False,
+):
     """Yield (t0, t1, spikes) for each `chunk` readouts [t0, t1), fewer where their frames would
     hold more than CHUNK_LIGHT_BYTES: spikes [C] packed uint8 [t1 - t0, H, ceil(W/8)], channel c
-    simulated with seed `seeds[c]` (the same spikes whatever the chunks)."""
+    simulated with seed `seeds[c]` (the same spikes whatever the chunks). `warn_saturated`: a
+    UserWarning at the end where over SATURATED_SHARE of the light fires every readout."""
     height, width, channels = frames.shape
     sims = [_C.SpikeSimulator(height, width, params.to_core(), int(s)) for s in seeds]
     saturated = np.float32(params.to_core().saturated_light)  # the most light the core takes
@@ -377,7 +385,7 @@ def _spike_chunks(frames: _Frames, num_readouts: int, seeds: list, params: SimPa
         del held  # (the next chunk's frames are read without this one's held here)
         yield t0, t1, spikes
         t0 = t1
-    if values and above / values > SATURATED_SHARE:
+    if warn_saturated and values and above / values > SATURATED_SHARE:
         warnings.warn(
             f"{above / values:.0%} of the light is at or above 1/rate_at_one = "
             f"{every_readout:.3g}, where a pixel fires every readout: intensities in other units? "
@@ -429,7 +437,8 @@ def simulate_spikes(
     writer = DatWriter(out, height, width, flip) if out is not None else None
     packed = None if writer else np.empty((num_readouts, height, (width + 7) // 8), np.uint8)
     with writer or contextlib.nullcontext():
-        for t0, t1, (spikes,) in _spike_chunks(frames, num_readouts, [seed], params, chunk):
+        chunks = _spike_chunks(frames, num_readouts, [seed], params, chunk, warn_saturated=True)
+        for t0, t1, (spikes,) in chunks:
             if writer:
                 writer.write_packed(spikes)
             else:
