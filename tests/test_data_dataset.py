@@ -675,6 +675,44 @@ def test_colour_dataset_has_one_stream_per_channel(tmp_path):
         load_dataset(ds.root)
 
 
+def test_colour_files_in_another_order_or_one_upside_down_are_named(tmp_path):
+    """spike_files listing red and blue swapped (a colour mosaic split with its pattern read
+    wrong), or one channel's file stored the other way up, trained 3 to 7 dB low unsaid: the
+    check of the channels' mean passed both. Each file is matched with its channel of the sharp
+    test images: the swap and the flipped file are named, the right dataset is not."""
+    options = {**SMALL, "height": 32, "width": 32, "readouts": 600, "test_on_path": 4}
+    ds = simulate_dataset("solids", tmp_path / "rgb", color=True, **options)
+
+    def channel_warnings() -> list[str]:
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            load_dataset(ds.root)
+        return [str(w.message) for w in said if "views, " in str(w.message)]
+
+    assert channel_warnings() == []
+    red, blue = ds.root / "spikes_r.dat", ds.root / "spikes_b.dat"
+    red.rename(tmp_path / "r.dat")
+    blue.rename(red)
+    (tmp_path / "r.dat").rename(blue)
+    (said,) = channel_warnings()
+    assert (
+        re.search(
+            r"channel 0's images match spikes_b\.dat \(median correlation 0\.\d+\) "
+            r"better than spikes_r\.dat",
+            said,
+        )
+        and "another order" in said
+    ), said
+    red.rename(tmp_path / "b.dat")
+    blue.rename(red)
+    (tmp_path / "b.dat").rename(blue)
+    stream = load_dataset(ds.root).streams[2]
+    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
+    save_dat(blue, bits, flip=not ds.meta["flip"])
+    (said,) = channel_warnings()
+    assert "the spikes of spikes_b.dat match their channel of the images better upside" in said
+
+
 def test_the_other_cameras_spike_files_beside_a_datasets_own_are_named_unread(tmp_path):
     """A mono camera's spikes.dat beside a colour dataset's spikes_r/g/b.dat, and a colour
     camera's beside a mono one's, are warned of as not read; the dataset loads as before."""

@@ -35,6 +35,7 @@ from ..run_summary import CONFIG, SUMMARY, read_summary
 from ..shell_words import shell_path
 from ..spikes import SpikeStream
 from ..strict_json import json_text, read_json
+from .channel_order import check_channels
 from .correlation import correlation
 from .orientation import check_orientation
 from .trajectory import (
@@ -1129,17 +1130,22 @@ def _check_orientation(
     frame upside down unsaid, where the LLFF and NeRF layouts warned; a .dat packed most
     significant bit first, read scrambled, trained 4.3 dB low unsaid (a 48x64 `solids`). Views
     whose TFP counts under ORIENTATION_MIN_COUNT spikes a pixel are left out: light that faint
-    matches its image no way up (said apart, by the simulation's checks)."""
-    views = []
+    matches its image no way up (said apart, by the simulation's checks). A colour dataset's
+    files are checked each against its channel too (`check_channels`)."""
+    views, channels = [], []  # (the channels' mean TFP, image); (each's TFP [C], image)
     for view, k in _on_path(sharp, len(streams[0])):
-        tfp = np.mean([s.tfp(k, UNITS_WINDOW) for s in streams], axis=0)  # [H, W]
+        tfps = [s.tfp(k, UNITS_WINDOW) for s in streams]  # [C] of [H, W]
+        tfp = np.mean(tfps, axis=0)  # [H, W]
         if tfp.mean() * UNITS_WINDOW >= ORIENTATION_MIN_COUNT:
             views.append((tfp, view.image))
+            channels.append((tfps, view.image))
     raw = (meta.get("raw_width"), meta.get("col_offset", 0))
     # a simulation's noise alone keeps TFP under MATCH_MIN (a 24x32 fine-texture at rate_at_one
     # 0.1 and threshold noise 5: 0.48): the two readings are compared there, not judged alone
     judge = "sim" not in meta
     check_orientation(views, meta["flip"], str(path), META, *raw, judge_match=judge)
+    if len(streams) > 1:
+        check_channels(channels, [s.path.name for s in streams], str(path))
 
 
 def _check_meta(meta: dict, path: Path) -> None:
