@@ -25,6 +25,7 @@ from spikegs.data import (
     simulate_dataset,
 )
 from spikegs.data.dataset import (
+    META_KEYS,
     STAGING,
     DarkSpikesWarning,
     check_meta_values,
@@ -711,6 +712,19 @@ def test_colour_files_in_another_order_or_one_upside_down_are_named(tmp_path):
     save_dat(blue, bits, flip=not ds.meta["flip"])
     (said,) = channel_warnings()
     assert "the spikes of spikes_b.dat match their channel of the images better upside" in said
+
+
+def test_keys_meta_json_does_not_read_are_named(small, tmp_path):
+    """A `"bayer_pattern": "RGGB"` beside a mosaic's one spikes.dat (trained as a mono camera's
+    checkerboard) or a misspelt optional key (`rate_at_1`: the rate guessed) loaded unsaid:
+    each key nothing reads is named; every key spikegs writes is read without a word."""
+    root = tmp_path / "keys"
+    shutil.copytree(small.root, root)
+    meta = json.loads((root / "meta.json").read_text())
+    assert set(meta) <= set(META_KEYS)
+    (root / "meta.json").write_text(json.dumps({**meta, "bayer_pattern": "RGGB", "rate_at_1": 1}))
+    with pytest.warns(UserWarning, match=r"meta.json: bayer_pattern, rate_at_1: not meta.json's "):
+        load_dataset(root)
 
 
 def test_the_other_cameras_spike_files_beside_a_datasets_own_are_named_unread(tmp_path):

@@ -1148,13 +1148,34 @@ def _check_orientation(
         check_channels(channels, [s.path.name for s in streams], str(path))
 
 
+# every key a meta.json may hold: what `spikegs simulate` and `spikegs poses` write, a recording's
+# optional ones (docs/datasets.md), and a real layout's in-memory ones
+META_KEYS = (
+    *("format_version", "scene", "source", "height", "width", "channels", "num_readouts"),
+    *("readout_period_s", "flip", "raw_width", "col_offset", "spike_files", "seed", "sim"),
+    *("fx", "fy", "cx", "cy", "scene_center", "scene_radius", "degrees_per_readout"),
+    *("frame_every", "up", "luma", "image_scale", "train_every", "spp", "rate_at_one"),
+    *("intrinsics_from", "poses_from", "pose_reference", "held_out_by", "test_ground_truth"),
+    *("rate_at_one_from", "layout", "near", "far", "view_readouts"),
+)
+
+
 def _check_meta(meta: dict, path: Path) -> None:
     """ValueError naming `path` (meta.json) and the key unless every value training reads is
-    there and of its type and range."""
+    there and of its type and range; a UserWarning naming keys not in META_KEYS, which nothing
+    reads (a `"bayer_pattern": "RGGB"` beside a mosaic's one .dat loaded unsaid, as a mono
+    camera's; a misspelt optional key, `"rate_at_1"`, left the rate guessed)."""
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
     if missing:
         raise ValueError(f"{path}: missing keys {missing}")
+    unknown = sorted(set(meta) - set(META_KEYS))
+    if unknown:
+        warnings.warn(
+            f"{path}: {', '.join(unknown)}: not {META}'s keys, not read (a misspelling? the keys "
+            f"read are in docs/datasets.md, `meta.json`; spikegs demosaics nothing)",
+            stacklevel=3,
+        )
     version = meta.get("format_version", FORMAT_VERSION)
     if version != FORMAT_VERSION or isinstance(version, (bool, str)):  # 1.0 is 1
         raise ValueError(
