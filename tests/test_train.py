@@ -4243,6 +4243,28 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
         shutil.move(moved, dataset.root)  # the module's dataset, for the tests after this one
 
 
+def test_eval_on_another_dataset_of_another_scale_says_so(dataset, tmp_path):
+    """A run scored on another dataset takes its renders' intensity as the dataset's: where the
+    scales differ (an LLFF stream's guessed 0.18 against its simulation's 0.25: 20.35 dB where
+    25.62 was due) it was unsaid; a warning names both. The same scale says nothing."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    for name, factor in (("same", 1.0), ("other", 0.5)):
+        shutil.copytree(dataset.root, tmp_path / name)
+        meta = json.loads((tmp_path / name / "meta.json").read_text())
+        meta["sim"]["rate_at_one"] *= factor
+        meta["image_scale"] *= factor
+        (tmp_path / name / "meta.json").write_text(json.dumps(meta))
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            evaluate_run(tmp_path / "run", load_dataset(tmp_path / name), write_images=False)
+        scales = [
+            str(w.message) for w in said if "its renders' intensity is scored" in str(w.message)
+        ]
+        assert len(scales) == (name == "other"), scales
+    assert f"states {meta['image_scale']:.4g}: its renders' intensity is scored as" in scales[0]
+
+
 def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path, capsys):
     """The run's dataset simulated again into the same folder (other poses) is another dataset:
     it overwrote the run's eval.json without a word."""

@@ -421,6 +421,14 @@ def evaluate_run(
             f"are scored in the scale stated now (x {units:.4g})",
             stacklevel=2,
         )
+    elif changed and own != EVAL:  # (an LLFF stream's guessed 0.18 on its simulation's 0.25:
+        warnings.warn(  # 20.35 dB where its renders in that scale scored 25.62, unsaid)
+            f"{run_dir} trained in an intensity scale of {run_scale:.4g} spikes a readout for "
+            f"intensity 1, {dataset.root} states {scale:.4g}: its renders' intensity is scored "
+            f"as the dataset's, which is the same light only where the scales agree (give both "
+            f"the same rate_at_one: docs/datasets.md)",
+            stacklevel=2,
+        )
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
     # refused before any view is rendered, not after the images are written
     if not writable_folder(run_dir):
