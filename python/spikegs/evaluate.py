@@ -296,6 +296,10 @@ def side_by_side(
 # needs most views right (with 6 of 8 lost none stands out)
 SUSPECT_RATIO = 2.0
 SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely differ by noise)
+# test views moving a median over this many degrees once aligned are warned of: exact poses of
+# 32² runs moved 9-12° (under-fit or coarse scenes drift to where the render matches better, all
+# alike, none suspect), a well-fit 64² one's 0.67°, SfM's poses lie 1-3° off (the eval trial)
+DRIFT_DEG = 5.0
 # an aligned render whose correlation with its image is under this bears no likeness to it: the
 # scene is out of its view, suspect whatever the others leave (a run in SfM's own frame scored on
 # poses of another, every view's render blank, "settled" leaving 1.22 each, none suspect: the
@@ -542,6 +546,16 @@ def evaluate_run(
                     "the median view's share of their images' coarse structure unexplained once "
                     f"aligned (up to {max(views[v]['aligned_unexplained'] for v in suspect):.2f}): "
                     "likely settled off their poses, their aligned scores not the scene's "
+                    "(docs/outputs.md)",
+                    stacklevel=2,
+                )
+            drift = result["aligned_poses"]["rotation_deg_median"]
+            if drift > DRIFT_DEG:
+                warnings.warn(
+                    f"the test views moved a median {drift:.2f}° once aligned (over "
+                    f"{DRIFT_DEG:g}°; a well-fit scene moves them under 1° from their true poses, "
+                    "SfM's poses lie 1-3° off): an under-fit or coarse scene lets them drift to "
+                    "where its render matches better, and their aligned scores flatter it "
                     "(docs/outputs.md)",
                     stacklevel=2,
                 )
