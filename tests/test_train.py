@@ -2148,6 +2148,25 @@ def test_render_writes_an_orbit_gif(dataset, tmp_path, capsys):
     assert _decoded(mp4).shape == (3, dataset.height, dataset.width, 3)
 
 
+def test_render_shows_a_bar_over_its_frames_unless_told_not_to(
+    dataset, tmp_path, capsys, monkeypatch
+):
+    """An orbit's frames render with a bar in a terminal (3000 frames at --scale 4 printed
+    nothing until they were written), none under --no-progress, which render offered."""
+    from spikegs import render_cli
+
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    monkeypatch.setattr(render_cli, "show_bars", lambda off: not off)  # a terminal's stderr
+    command = ["render", str(tmp_path / "run"), "--out", str(tmp_path / "o.gif"), "--frames", "3"]
+    capsys.readouterr()
+    assert main(command) == 0
+    err = capsys.readouterr().err
+    assert "rendering: 100%" in err and "3/3" in err, err
+    assert main([*command, "--no-progress"]) == 0
+    assert "rendering" not in capsys.readouterr().err
+
+
 def test_render_scale_sizes_the_frames_and_their_cameras(dataset, tmp_path, capsys):
     """--scale 1.5: frames 1.5 times the dataset's width and height, and VIDEO.json's camera
     with them (focal lengths and centre scaled alike); a scale leaving no pixel is refused before

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from .cli import (
     add_no_progress,
@@ -259,7 +260,13 @@ def run(args: argparse.Namespace) -> int:
     viewmats, path, readouts = dataset_orbit(dataset, args.frames, args.up, args.path)
     trained = read_summary(args.run).get("camera")  # (a run from before it: the dataset's)
     model = trained_model(args.run)
-    frames = orbit_frames(model, dataset, viewmats, args.scale, trained)  # as written
+    frames = tqdm(  # as written (3000 frames at --scale 4 printed nothing until they were)
+        orbit_frames(model, dataset, viewmats, args.scale, trained),
+        "rendering",
+        total=len(viewmats),
+        unit="frame",
+        disable=not show_bars(args.no_progress),
+    )
     cameras = record_beside(args.out)
     write_video(args.out, frames, args.fps, count=len(viewmats))
     # the video's cameras written with it, not left a previous video's by a stop between the two
