@@ -50,10 +50,8 @@ def warn_if_shifted(
         best = max(scores, key=scores.get)
         found.append((best, scores[best], scores[0]))
     moved = [s for s, top, kept in found if s != 0 and top - kept > SHIFT_MARGIN]
-    if not moved or len(moved) <= len(found) / 2:
-        return False
-    shift, count = collections.Counter(moved).most_common(1)[0]
-    if count <= len(found) / 2:  # shifts that disagree: no one column to name
+    shift, count = collections.Counter(moved).most_common(1)[0] if moved else (0, 0)
+    if count <= len(found) / 2:  # (shifts that disagree name no one column)
         return False
     top, kept = np.median([(t, k) for s, t, k in found if s == shift], axis=0)
     warnings.warn(
