@@ -28,6 +28,7 @@ from spikegs.data.dataset import (
     META_KEYS,
     STAGING,
     DarkSpikesWarning,
+    FaintLightWarning,
     check_meta_values,
     warn_rows_out_of_line,
     write_parts,
@@ -712,6 +713,22 @@ def test_colour_files_in_another_order_or_one_upside_down_are_named(tmp_path):
     save_dat(blue, bits, flip=not ds.meta["flip"])
     (said,) = channel_warnings()
     assert "the spikes of spikes_b.dat match their channel of the images better upside" in said
+
+
+def test_faint_light_is_named_on_loading(small, tmp_path):
+    """A stream whose lit pixels fire under FAINTEST_MEASURED was warned of only as `spikegs
+    simulate` made it: a recording's loaded unsaid, and training's falling PSNR was blamed on
+    its learning rates. Loading names it (not again as simulate loads what it made); the
+    default light, none."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        faint = simulate_dataset("solids", tmp_path / "faint", rate_at_one=0.02, **SMALL)
+    assert not [w for w in said if w.category is FaintLightWarning]
+    with pytest.warns(FaintLightWarning, match=r"lit pixels fire 0\.00\d+ spikes a readout on av"):
+        load_dataset(faint.root)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FaintLightWarning)
+        load_dataset(small.root)
 
 
 def test_keys_meta_json_does_not_read_are_named(small, tmp_path):

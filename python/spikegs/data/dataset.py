@@ -90,6 +90,18 @@ class DarkSpikesWarning(UserWarning):
     as it makes one)."""
 
 
+class FaintLightWarning(UserWarning):
+    """A stream's lit pixels fire under FAINTEST_MEASURED (simulate says so as it makes one)."""
+
+
+# the faintest light measured (lit pixels' spikes a readout): SpikeGS saw solids at rate_at_one
+# 0.08, 32.3 dB (BENCHMARKS.md, "Scenes not tuned on"); fainter is unmeasured: at 0.01 a 64²
+# solids rendered its learnt background alone, at 0.05 a 32² one's held-out PSNR fell 3 dB as
+# training fitted shot noise, warned of as learning rates too high (the stiff-scenes trial)
+FAINTEST_MEASURED = 0.012
+LIT_SHARE = 0.01  # pixels firing over this share of the 99.5th percentile's rate are lit
+
+
 def intrinsics_matrix(meta: dict) -> np.ndarray:
     """K [3, 3] float64 of meta.json's fx, fy, cx, cy."""
     return np.array([[meta["fx"], 0, meta["cx"]], [0, meta["fy"], meta["cy"]], [0, 0, 1]], float)
@@ -606,6 +618,27 @@ def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | Non
     )
 
 
+def warn_if_faint(stream: SpikeStream, settings: str, dark_rate: float = 0.0) -> None:
+    """A FaintLightWarning where the stream's lit pixels (over LIT_SHARE of the 99.5th
+    percentile's rate, less `dark_rate`, stated in `settings`) fire under FAINTEST_MEASURED
+    spikes a readout over the whole stream: a recording's faint light was said nowhere."""
+    n = len(stream)
+    rates = stream.counts(n // 2, n) / n - dark_rate  # [H, W]
+    lit = rates[rates > LIT_SHARE * np.percentile(rates, 99.5)]
+    light = float(lit.mean()) if lit.size else 0.0
+    if light < FAINTEST_MEASURED:
+        dark = f", less {settings}'s dark_rate {dark_rate:g}" if dark_rate else ""
+        warnings.warn(
+            f"{stream.path}: its lit pixels fire {light:.3g} spikes a readout on average{dark}, "
+            f"fainter than any light SpikeGS was measured on ({FAINTEST_MEASURED:g}; a "
+            f"33-readout TFP counts {33 * light:.2g} spikes): training fits shot noise, or "
+            f"learns the background alone, and a held-out PSNR that falls is the light's, not "
+            f"the learning rates'",
+            FaintLightWarning,
+            stacklevel=3,
+        )
+
+
 def _rows_alike(stream: SpikeStream) -> float:
     """How alike neighbouring rows of the stream's images are: the median over
     STRUCTURE_WINDOWS of the correlation of their counts' ranks (which a camera's hot pixels do
@@ -1057,6 +1090,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if not drowned:  # (its spikes match their images no way up: said above)
+        warn_if_faint(streams[0], META, dark if is_number(dark) else 0.0)
         _check_orientation(streams, sharp, meta_path, meta)
     if sharp and not stated_scales(meta):
         warnings.warn(

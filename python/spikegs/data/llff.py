@@ -28,6 +28,7 @@ from .dataset import (
     microseconds_hint,
     read_column,
     spike_files,
+    warn_if_faint,
     warn_rows_out_of_line,
 )
 from .real import (
@@ -370,6 +371,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
         stream = open_spikes(root / STREAM, height, width, options)
         warn_rows_out_of_line(stream, OPTIONS_FILE)
+        warn_if_faint(stream, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(
             root,
@@ -401,6 +403,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
     streams = [open_spikes(p, height, width, options) for p in files]
     warn_rows_out_of_line(streams[0], OPTIONS_FILE)  # (the views share a frame size)
+    warn_if_faint(streams[0], OPTIONS_FILE)  # (and a light, say)
     names = [p.stem for p in files]
     return views_dataset(
         root,

@@ -31,7 +31,7 @@ import numpy as np
 from ..image_io import to_channels
 from ..regular_file import is_given
 from ..strict_json import json_text
-from .dataset import POINTS, Dataset, repeated, warn_rows_out_of_line
+from .dataset import POINTS, Dataset, repeated, warn_if_faint, warn_rows_out_of_line
 from .real import ORIENTATION_VIEWS, camera_meta, held_out_mask, scene_sphere, views_dataset
 from .real_options import ASPECT_FIX, OPTIONS_FILE, Options, open_spikes, read_options
 from .trajectory import PathLike
@@ -374,4 +374,5 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     first = next((s for s in streams if s is not None), None)
     if first is not None:
         warn_rows_out_of_line(first, OPTIONS_FILE)  # (the views share a frame size)
+        warn_if_faint(first, OPTIONS_FILE)  # (and a light, say)
     return views_dataset(root, meta, names, viewmats, streams, images, test, options, str(path))

@@ -18,6 +18,7 @@ from ..number_checks import as_flag, finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
 from ..spikes.simulate import simulate_channels
 from .dataset import (
+    FAINTEST_MEASURED,
     FORMAT_VERSION,
     LOCK,
     READOUT_PERIOD_S,
@@ -26,6 +27,7 @@ from .dataset import (
     WINDOW_MARGIN,
     DarkSpikesWarning,
     Dataset,
+    FaintLightWarning,
     TestView,
     check_meta_values,
     check_output,
@@ -61,9 +63,6 @@ MAX_DEFAULT_TIMESTAMPS = 1024  # one stream: train_every defaults to give at mos
 SATURATED_FRACTION = 0.01
 LIT_INTENSITY = 0.01  # pixels brighter than this are the scene's, when judging its light
 EMPTY_VIEW = 0.01  # a held-out view with fewer lit pixels than this fraction scores its black
-# the faintest light measured (lit pixels' spikes a readout): SpikeGS saw solids at rate_at_one
-# 0.08, 32.3 dB (BENCHMARKS.md, "Scenes not tuned on"); fainter is unmeasured
-FAINTEST_MEASURED = 0.012
 DARK_FRACTION = 0.1
 BLUR_WINDOW, BLUR_DEGREES = 33, 15.0
 # a path turning less than this many degrees and moving less than this fraction of the scene
@@ -732,4 +731,5 @@ def simulate_dataset(
             raise interruption(interrupted())
         with warnings.catch_warnings():  # (said above, before the work: warn_about_data)
             warnings.simplefilter("ignore", DarkSpikesWarning)
+            warnings.simplefilter("ignore", FaintLightWarning)
             return load_dataset(out)
