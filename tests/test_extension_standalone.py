@@ -3,6 +3,8 @@ a torch library (libtorch*, libc10*), so one build works with any torch version.
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -34,3 +36,25 @@ def test_the_extension_loads_without_torch():
     done = subprocess.run([sys.executable, "-c", LOAD_ALONE], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split("\n")[:2] == ["[]", "[]"], done.stdout
+
+
+def test_a_package_without_its_extension_says_it_is_not_built(tmp_path):
+    """The package's Python files without spikegs._C (a checkout's python/ on PYTHONPATH, unbuilt,
+    or shadowing an installed copy) raised "cannot import name '_C' from partially initialized
+    module 'spikegs' (most likely due to a circular import)": it says the extension is not built
+    and how to build it."""
+    import spikegs
+
+    package = Path(spikegs.__file__).parent
+    shutil.copytree(package, tmp_path / "spikegs", ignore=shutil.ignore_patterns("_C*"))
+    done = subprocess.run(
+        [sys.executable, "-c", "import spikegs"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(tmp_path)},
+    )
+    assert done.returncode == 1
+    said = done.stderr.strip().splitlines()[-1]
+    assert said.startswith("ImportError: spikegs's C++ extension (spikegs._C) is not built in"), (
+        said
+    )

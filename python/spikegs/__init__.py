@@ -1,5 +1,6 @@
 """SpikeGS: 3D Gaussian Splatting trained from spike-camera streams."""
 
+import importlib.util
 import os
 
 from .interrupt import ImportInterrupted, running_as_command
@@ -24,7 +25,17 @@ with ImportInterrupted(running_as_command()):  # a command's Ctrl-C as torch loa
 
     import torch
 
-    from . import _C
+    try:
+        from . import _C
+    except ImportError:
+        if importlib.util.find_spec(f"{__name__}._C") is not None:  # built, and failed loading
+            raise  # (for another CPU: its own message)
+        raise ImportError(  # (Python's said "cannot import name '_C' ... circular import")
+            f"spikegs's C++ extension (spikegs._C) is not built in {os.path.dirname(__file__)}: "
+            f"install the package (`pip install .` in its checkout), or build it in place for "
+            f"PYTHONPATH=python (-DSPIKEGS_INPLACE=ON: docs/install.md); a checkout's python/ "
+            f"folder on the path hides an installed copy"
+        ) from None
     from .rasterize import RasterizeResult, rasterize
     from .sim import SIM
     from .spikes import SimParams, SpikeStream, save_dat, simulate_spikes
