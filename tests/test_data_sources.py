@@ -507,6 +507,9 @@ def test_mitsuba_missing_says_how_to_install(monkeypatch):
         match=r"pip install mitsuba \(or, in a checkout of spikegs, pip install '\.\[mitsuba\]'\)",
     ):
         import_mitsuba()
+    # a mistyped scene file is said to be missing, not Mitsuba (which asked to install it)
+    with pytest.raises(FileNotFoundError, match="Mitsuba scene file not found: typo.xml"):
+        MitsubaSource("typo.xml", 16, 16)
 
 
 def test_every_command_reports_a_missing_extra(monkeypatch, tmp_path, capsys):

@@ -285,9 +285,9 @@ class MitsubaSource(RenderSource):
         radius: float | None = None,
         up=WORLD_UP,
     ):
+        if not isinstance(scene, dict) and not Path(scene).is_file():  # (a typo's path asked
+            raise FileNotFoundError(f"Mitsuba scene file not found: {scene}")  # for Mitsuba)
         mi = import_mitsuba()
-        if not isinstance(scene, dict) and not Path(scene).is_file():
-            raise FileNotFoundError(f"Mitsuba scene file not found: {scene}")
         self.name = "mitsuba-dict" if isinstance(scene, dict) else Path(scene).stem
         try:  # Mitsuba's parse errors are plain Exceptions
             self._scene = (
