@@ -4516,6 +4516,24 @@ def test_a_run_pruned_to_nothing_by_screen_size_names_that_setting(dataset, tmp_
     assert "densify.max_screen_size 1.0" in str(stopped.value)
     assert "min_opacity" not in str(stopped.value)
     assert "max_world_size" not in str(stopped.value)
+    assert str(stopped.value).endswith("; prune less, or give the run more room")
+
+
+def test_a_run_pruned_to_nothing_after_its_fit_went_dark_names_the_fit(
+    dataset, tmp_path, monkeypatch
+):
+    """tfp33 on faint light fits black (L1 on a window's few spikes), and pruning then takes
+    every Gaussian: the message led with "prune less, or give the run more room", the fit
+    after it. The fit is the remedy named."""
+    from spikegs import train
+
+    dark = "the renders hold 0 % of their exposure targets' brightness"
+    monkeypatch.setattr(train, "biased_fit", lambda brightness, supervision: dark)
+    overrides = {**FAST, "densify": {**FAST["densify"], "min_opacity": 0.999, "start": 1}}
+    trainer = Trainer(dataset, load_config("tfp33", overrides), tmp_path / "run", progress=False)
+    with pytest.raises(ValueError, match=f"; a fit gone wrong first: {dark}$") as stopped:
+        trainer.train()
+    assert "prune less" not in str(stopped.value)
 
 
 def test_eval_of_a_run_whose_dataset_is_gone_says_to_pass_one(dataset, tmp_path, capsys):

@@ -640,9 +640,15 @@ class Trainer:
                 f"pixels in a view",
             }
             causes = "; ".join(f"{n:,} {why[name]}" for name, n in self.densifier.pruned.items())
+            # a fit gone wrong first (dim data's L1 fit to black): the pruning took what it left,
+            # and "prune less" led the message on faint light (the stiff-scenes trial)
+            remedy = (
+                f"a fit gone wrong first: {biased}"
+                if biased
+                else "prune less, or give the run more room"
+            )
             raise ValueError(
-                f"iteration {self.iteration}: pruning removed every Gaussian ({causes}); prune "
-                f"less, or give the run more room" + (f". Before: {biased}" if biased else "")
+                f"iteration {self.iteration}: pruning removed every Gaussian ({causes}); {remedy}"
             )
 
     def _filter_3d(self) -> None:
