@@ -1131,6 +1131,18 @@ def test_wider_rows_are_not_named_swapped_where_they_read_more_alike(tmp_path, s
     assert len(messages) == 1 and f"set raw_width {width + extra}" in messages[0], messages
 
 
+def _wider_rows_copy(data, root: Path, offset: int) -> tuple[np.ndarray, dict]:
+    """`data` copied to `root` with its spikes stored in rows of 9 pixels more, the image from
+    column `offset`, the rest random; its bits [T, H, W] and meta.json (unchanged)."""
+    shutil.copytree(data.root, root)
+    stream = data.streams[0]
+    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
+    wide = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
+    wide[:, :, offset : offset + bits.shape[2]] = bits
+    save_dat(root / "spikes.dat", wide, flip=data.meta["flip"])
+    return bits, json.loads((root / "meta.json").read_text())
+
+
 @pytest.mark.parametrize("offset", [4, 0])
 def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
     """A real camera stores 416-pixel rows for a 400-pixel image: meta.json's raw_width and
@@ -1138,13 +1150,8 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
     is not read, and says so. The extra columns after the image (col_offset 0) too: such rows
     are the camera's, not a frame to try read with height and width swapped."""
     root = tmp_path / "wide"
-    shutil.copytree(small.root, root)
+    bits, meta = _wider_rows_copy(small, root, offset)
     stream = small.streams[0]
-    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
-    wide = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
-    wide[:, :, offset : offset + bits.shape[2]] = bits
-    save_dat(root / "spikes.dat", wide, flip=small.meta["flip"])
-    meta = json.loads((root / "meta.json").read_text())
     with pytest.raises(ValueError, match="whole number"):  # rows wider than meta.json says
         load_dataset(root)
     (root / "meta.json").write_text(
@@ -1173,13 +1180,7 @@ def test_a_wrong_col_offset_is_named_by_the_sharp_test_views(tmp_path, small, of
     where 26.9 was due): the sharp test views match the spikes better from the right column,
     which the warning names."""
     root = tmp_path / "wide"
-    shutil.copytree(small.root, root)
-    stream = small.streams[0]
-    bits = stream.window(len(stream) // 2, len(stream))  # [T, H, W]: every readout
-    wide = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
-    wide[:, :, offset : offset + bits.shape[2]] = bits
-    save_dat(root / "spikes.dat", wide, flip=small.meta["flip"])
-    meta = json.loads((root / "meta.json").read_text())
+    bits, meta = _wider_rows_copy(small, root, offset)
     meta.update(raw_width=bits.shape[2] + 9, col_offset=stated)
     (root / "meta.json").write_text(json.dumps(meta))
     way = "further along" if offset > stated else "back"
