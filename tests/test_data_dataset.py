@@ -413,7 +413,8 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         assert all(any(re.search(m, x) for x in said) for m in messages), (messages, said)
         assert all(any(re.search(m, x) for m in messages) for x in said), (messages, said)
     # loading says it again where the light adds no more spikes than the dark current (the
-    # dark_rate 0.9 dataset's 0.04 and the black scene's 0); not the units, nor of other data
+    # dark_rate 0.9 dataset's 0.04 and the black scene's 0), or is fainter than any measured
+    # (rate_at_one 1e-4's); not the units, nor of other data
     for i, case in enumerate(cases):
         if case[2] is saturated:  # (refused)
             continue
@@ -421,8 +422,10 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             warnings.simplefilter("always")
             load_dataset(tmp_path / str(i))
         expected = [DarkSpikesWarning] if i == 0 or case is black_case else []
+        expected += [FaintLightWarning] if case[1] is faint else []
         assert [w.category for w in caught] == expected, [str(w.message) for w in caught]
-        assert all("no more than the dark current" in str(w.message) for w in caught)
+        said = {DarkSpikesWarning: "no more than the dark current", FaintLightWarning: "fainter"}
+        assert all(said[w.category] in str(w.message) for w in caught)
 
 
 def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):

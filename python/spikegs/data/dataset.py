@@ -95,11 +95,14 @@ class FaintLightWarning(UserWarning):
 
 
 # the faintest light measured (lit pixels' spikes a readout): SpikeGS saw solids at rate_at_one
-# 0.08, 32.3 dB (BENCHMARKS.md, "Scenes not tuned on"); fainter is unmeasured: at 0.01 a 64²
-# solids rendered its learnt background alone, at 0.05 a 32² one's held-out PSNR fell 3 dB as
-# training fitted shot noise, warned of as learning rates too high (the stiff-scenes trial)
+# 0.08, 32.3 dB (BENCHMARKS.md, "Scenes not tuned on"); fainter is unmeasured: at rate_at_one
+# 0.01 (lit pixels 0.0017) a 64² solids rendered its learnt background alone, at 0.05 (0.009) a
+# 32² one's held-out PSNR fell 3 dB as training fitted shot noise, warned of as learning rates
+# too high (the stiff-scenes trial)
 FAINTEST_MEASURED = 0.012
-LIT_SHARE = 0.01  # pixels firing over this share of the 99.5th percentile's rate are lit
+LIT_SHARE = 0.01  # pixels firing over this share of the 99.9th percentile's rate are lit,
+LIT_SPIKES = 3  # with this many spikes or more (a dark pixel's spike is no light),
+HOT_RATE = 0.9  # and under this rate (a hot pixel's is no scene's light)
 
 
 def intrinsics_matrix(meta: dict) -> np.ndarray:
@@ -584,8 +587,11 @@ ROW_MULTIPLES = range(2, 9)  # stored rows of these many times the width are tri
 IN_TURN_MIN, IN_TURN_READOUTS, IN_TURN_PIXELS = 0.01, 512, 1 << 14
 
 
-def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | None = None) -> float:
-    """The stream's mean firing rate (spikes a pixel a readout); ValueError naming its file when
+def check_stream_image(
+    stream: SpikeStream, settings: str, sim_rate: float | None = None
+) -> np.ndarray:
+    """The stream's firing rates [H, W] (spikes a readout, each pixel's over the whole stream,
+    one pass, which `warn_if_faint` takes too); ValueError naming its file when
     under SILENT_SHARE of its pixels ever fire, or all but that share fire at every readout: no
     image in it (one pass over the spikes); `settings` names the file of its frame size,
     `sim_rate` a simulated stream's rate_at_one (its light at fault, not its file)."""
@@ -593,7 +599,7 @@ def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | Non
     counts = stream.counts(n // 2, n)  # [H, W] spikes per pixel over the whole stream
     firing, saturated = float((counts > 0).mean()), float((counts == n).mean())
     if firing >= SILENT_SHARE and saturated <= 1 - SILENT_SHARE:
-        return float(counts.mean()) / n
+        return counts / n
     dark = firing < SILENT_SHARE
     if dark:
         what = "no spikes" if firing == 0 else f"spikes at {firing:.2%} of the pixels only"
@@ -618,18 +624,28 @@ def check_stream_image(stream: SpikeStream, settings: str, sim_rate: float | Non
     )
 
 
-def warn_if_faint(stream: SpikeStream, settings: str, dark_rate: float = 0.0) -> None:
-    """A FaintLightWarning where the stream's lit pixels (over LIT_SHARE of the 99.5th
-    percentile's rate, less `dark_rate`, stated in `settings`) fire under FAINTEST_MEASURED
-    spikes a readout over the whole stream: a recording's faint light was said nowhere."""
-    n = len(stream)
-    rates = stream.counts(n // 2, n) / n - dark_rate  # [H, W]
-    lit = rates[rates > LIT_SHARE * np.percentile(rates, 99.5)]
-    light = float(lit.mean()) if lit.size else 0.0
+def warn_if_faint(
+    rates: list[np.ndarray], readouts: int, source: Path, settings: str, dark_rate: float = 0.0
+) -> None:
+    """A FaintLightWarning where the brightest channel's lit pixels fire under FAINTEST_MEASURED
+    spikes a readout: `rates` [C] of [H, W], each channel's over its `readouts`
+    (`check_stream_image`), less `dark_rate` (stated in `settings`); lit, pixels over LIT_SHARE
+    of the 99.9th percentile's rate and of LIT_SPIKES or more spikes (a dark pixel's spike or two
+    in a short stream is no light), hot ones (HOT_RATE or more) left out of both. A recording's
+    faint light was said nowhere; `source` names its file."""
+    light = 0.0
+    for channel in rates:
+        usable = channel[channel < HOT_RATE]
+        if usable.size:
+            light_rates = usable - dark_rate
+            lit = (light_rates > LIT_SHARE * np.percentile(light_rates, 99.9)) & (
+                usable * readouts >= LIT_SPIKES
+            )
+            light = max(light, float(light_rates[lit].mean()) if lit.any() else 0.0)
     if light < FAINTEST_MEASURED:
         dark = f", less {settings}'s dark_rate {dark_rate:g}" if dark_rate else ""
         warnings.warn(
-            f"{stream.path}: its lit pixels fire {light:.3g} spikes a readout on average{dark}, "
+            f"{source}: its lit pixels fire {light:.3g} spikes a readout on average{dark}, "
             f"fainter than any light SpikeGS was measured on ({FAINTEST_MEASURED:g}; a "
             f"33-readout TFP counts {33 * light:.2g} spikes): training fits shot noise, or "
             f"learns the background alone, and a held-out PSNR that falls is the light's, not "
@@ -1024,7 +1040,8 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     streams = open_streams(root, names, meta)
     sim = meta.get("sim") if isinstance(meta.get("sim"), dict) else {}  # the simulator's
     sim_rate = sim.get("rate_at_one") if is_number(sim.get("rate_at_one")) else None
-    rate = np.mean([check_stream_image(s, META, sim_rate) for s in streams])  # spikes a readout
+    rates = [check_stream_image(s, META, sim_rate) for s in streams]  # [C] of [H, W]
+    rate = float(np.mean([r.mean() for r in rates]))  # spikes a readout
     warn_rows_out_of_line(streams[0], META)  # (the channels share a frame size)
     if (root / "spikegs.json").is_file():
         warnings.warn(
@@ -1090,7 +1107,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     warn_about_test_units(streams, test_views, root / TEST_VIEWS, dark if is_number(dark) else 0.0)
     sharp = [v for v in test_views if not v.name.startswith(PSEUDO_PREFIX)]
     if not drowned:  # (its spikes match their images no way up: said above)
-        warn_if_faint(streams[0], META, dark if is_number(dark) else 0.0)
+        warn_if_faint(rates, num, streams[0].path, META, dark if is_number(dark) else 0.0)
         _check_orientation(streams, sharp, meta_path, meta)
     if sharp and not stated_scales(meta):
         warnings.warn(

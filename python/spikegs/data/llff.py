@@ -369,9 +369,9 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
             )
         readouts = _read_readouts(root / READOUTS, len(poses))
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
-        stream = open_spikes(root / STREAM, height, width, options)
+        stream, rates = open_spikes(root / STREAM, height, width, options)
         warn_rows_out_of_line(stream, OPTIONS_FILE)
-        warn_if_faint(stream, OPTIONS_FILE)
+        warn_if_faint([rates], len(stream), stream.path, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(
             root,
@@ -401,9 +401,10 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         )
     files = _spike_files(folder, len(poses), source)
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
-    streams = [open_spikes(p, height, width, options) for p in files]
+    opened = [open_spikes(p, height, width, options) for p in files]  # (stream, rates)
+    streams = [stream for stream, _ in opened]
     warn_rows_out_of_line(streams[0], OPTIONS_FILE)  # (the views share a frame size)
-    warn_if_faint(streams[0], OPTIONS_FILE)  # (and a light, say)
+    warn_if_faint([opened[0][1]], len(streams[0]), streams[0].path, OPTIONS_FILE)  # (a light)
     names = [p.stem for p in files]
     return views_dataset(
         root,

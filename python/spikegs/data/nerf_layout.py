@@ -370,9 +370,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     sized.clear()  # a training image that gave the size but is not checked
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
-    streams = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
-    first = next((s for s in streams if s is not None), None)
+    opened = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
+    streams = [None if o is None else o[0] for o in opened]  # (stream, rates) each
+    first = next((o for o in opened if o is not None), None)
     if first is not None:
-        warn_rows_out_of_line(first, OPTIONS_FILE)  # (the views share a frame size)
-        warn_if_faint(first, OPTIONS_FILE)  # (and a light, say)
+        warn_rows_out_of_line(first[0], OPTIONS_FILE)  # (the views share a frame size)
+        warn_if_faint([first[1]], len(first[0]), first[0].path, OPTIONS_FILE)  # (a light)
     return views_dataset(root, meta, names, viewmats, streams, images, test, options, str(path))

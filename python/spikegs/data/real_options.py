@@ -24,6 +24,8 @@ import dataclasses
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from ..number_checks import is_int, is_number
 from ..regular_file import is_given
 from ..spikes import SpikeStream
@@ -112,10 +114,13 @@ def read_options(root: Path, overrides: dict) -> Options:
     return Options(**{key: value for key, value in values.items() if value is not None})
 
 
-def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeStream:
-    """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop;
-    FileNotFoundError or ValueError naming the file (empty, not of the expected layout, or
-    without information: `check_stream_image`). Its callers found `path` a file."""
+def open_spikes(
+    path: Path, height: int, width: int, options: Options
+) -> tuple[SpikeStream, np.ndarray]:
+    """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop,
+    with its firing rates [H, W] (`check_stream_image`'s pass); FileNotFoundError or ValueError
+    naming the file (empty, not of the expected layout, or without information). Its callers
+    found `path` a file."""
     if path.stat().st_size == 0:
         raise ValueError(f"{path}: empty spike file (no readout)")
     try:
@@ -130,5 +135,4 @@ def open_spikes(path: Path, height: int, width: int, options: Options) -> SpikeS
             f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
             f"if these are wrong)"
         ) from err
-    check_stream_image(stream, OPTIONS_FILE)
-    return stream
+    return stream, check_stream_image(stream, OPTIONS_FILE)
