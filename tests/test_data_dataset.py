@@ -734,6 +734,34 @@ def test_faint_light_is_named_on_loading(small, tmp_path):
         load_dataset(small.root)
 
 
+@pytest.mark.parametrize("blue", [0.05, 0.3])
+def test_a_dim_channel_in_its_own_file_is_not_named_out_of_order(blue):
+    """Blue at 5-30 % of red (a warm light): its own file's few spikes match the blue image
+    worse than red's file does, which named spikes_r.dat as blue's though red's file was red's
+    own best match (the review); files in another order are judged as an order. A true swap
+    of red and blue is named whatever the blue's level."""
+    from spikegs.data.channel_order import check_channels
+
+    rng = np.random.default_rng(1)
+    y, x = np.mgrid[:48, :48]
+    base, other = 0.5 + 0.5 * np.sin(x / 5) * np.cos(y / 7), 0.5 + 0.5 * np.cos(x / 4 + y / 6)
+    files = ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
+    for structure in ("shared", "apart"):  # blue as red's pattern, and a pattern of its own
+        views = []
+        for shift in range(0, 18, 3):
+            red = np.roll(base, shift, axis=1)
+            own = red if structure == "shared" else np.roll(other, shift, axis=1)
+            image = np.stack([red, 0.8 * red, blue * own], -1) * 0.25  # firing rates
+            views.append(([rng.poisson(image[..., c] * 33) / 33 for c in range(3)], image))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_channels(views, files, "meta.json")
+        if structure == "apart":
+            swapped = [([tfps[2], tfps[1], tfps[0]], image) for tfps, image in views]
+            with pytest.warns(UserWarning, match="channel 0's images match spikes_b.dat"):
+                check_channels(swapped, files, "meta.json")
+
+
 def test_keys_meta_json_does_not_read_are_named(small, tmp_path):
     """A `"bayer_pattern": "RGGB"` beside a mosaic's one spikes.dat (trained as a mono camera's
     checkerboard) or a misspelt optional key (`rate_at_1`: the rate guessed) loaded unsaid:

@@ -6,6 +6,7 @@ with its red and blue swapped). Both trained 3 to 7 dB low unsaid (a 48x48 colou
 
 from __future__ import annotations
 
+import itertools
 import warnings
 
 import numpy as np
@@ -28,28 +29,34 @@ def check_channels(
     views: list[tuple[list[np.ndarray], np.ndarray]], files: list[str], settings: str
 ) -> None:
     """UserWarnings where, in most `views` (each: the channels' TFPs [C] of [H, W] and a sharp
-    image [H, W, C], not flat), an image channel matches another file's spikes, or its own file's
-    upside down, better than its own file's as read, by FLIP_MARGIN: `files` [C], named in
-    `settings`, are likely in another order, or such a file stored the other way up (unless all
-    are: the dataset's `flip`, which `check_orientation` names)."""
+    image [H, W, C], not flat), the image's channels match `files` [C] (named in `settings`)
+    in another order, each channel it moves better by FLIP_MARGIN than its own file (the files
+    likely listed in another order), or some files' spikes (not all: the dataset's `flip`,
+    which `check_orientation` names) match their channel better upside down, by FLIP_MARGIN
+    (stored the other way up). Orders, not channels alone: a dim channel matches a brighter
+    file better than its own noisy one (blue at 30 % of red) where no other order fits."""
     scores = [channel_correlations(tfps, image) for tfps, image in views if np.ptp(image) > 0]
     if not scores:
         return
     scores = np.array(scores)  # [V, C, C + 1]
     channels = len(files)
     own = scores[:, np.arange(channels), np.arange(channels)]  # [V, C]
-    others, upside = [], []  # (channel, the file it matches better); channels better flipped
-    for c in range(channels):
-        best = int(np.bincount(scores[:, c].argmax(-1), minlength=channels + 1).argmax())
-        ahead = scores[:, c, best] - own[:, c] > FLIP_MARGIN  # [V]
-        if best != c and ahead.sum() > len(scores) / 2:
-            (upside if best == channels else others).append((c, best))
-    if others:
+    best, gain = None, 0.0  # the other order most views fit in every channel it moves
+    for order in itertools.permutations(range(channels)):
+        moved = [c for c in range(channels) if order[c] != c]
+        if not moved:
+            continue
+        ahead = scores[:, moved, [order[c] for c in moved]] - own[:, moved]  # [V, M]
+        fits = (ahead > FLIP_MARGIN).all(axis=1)  # [V]
+        if fits.sum() > len(scores) / 2 and np.median(ahead.sum(axis=1)) > gain:
+            best, gain = order, float(np.median(ahead.sum(axis=1)))
+    if best is not None:
         said = "; ".join(
-            f"channel {c}'s images match {files[s]} (median correlation "
-            f"{np.median(scores[:, c, s]):.2f}) better than {files[c]} "
+            f"channel {c}'s images match {files[best[c]]} (median correlation "
+            f"{np.median(scores[:, c, best[c]]):.2f}) better than {files[c]} "
             f"({np.median(own[:, c]):.2f})"
-            for c, s in others
+            for c in range(channels)
+            if best[c] != c
         )
         warnings.warn(
             f"{settings}: over {len(scores)} views, {said}: spike_files are likely in another "
@@ -57,15 +64,16 @@ def check_channels(
             f"pattern read wrong?)",
             stacklevel=3,
         )
+    flipped = scores[:, :, channels] - own > FLIP_MARGIN  # [V, C]
+    upside = [c for c in range(channels) if flipped[:, c].sum() > len(scores) / 2]
     if upside and len(upside) < channels:
-        flipped = [c for c, _ in upside]
-        names = ", ".join(files[c] for c in flipped)
+        names = ", ".join(files[c] for c in upside)
         warnings.warn(
             f"{settings}: over {len(scores)} views, the spikes of {names} match their channel "
             f"of the images better upside down (median correlation "
-            f"{np.median(scores[:, flipped, channels]):.2f} against "
-            f"{np.median(own[:, flipped]):.2f} as read), the other files' as read: "
-            f"{'they are' if len(flipped) > 1 else 'it is'} likely stored the other way up "
+            f"{np.median(scores[:, upside, channels]):.2f} against "
+            f"{np.median(own[:, upside]):.2f} as read), the other files' as read: "
+            f"{'they are' if len(upside) > 1 else 'it is'} likely stored the other way up "
             f"(rows top-down where flip says bottom-up, or the reverse)",
             stacklevel=3,
         )
