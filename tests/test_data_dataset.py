@@ -1204,21 +1204,30 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
         load_dataset(root)
 
 
-@pytest.mark.parametrize(("offset", "stated"), [(4, 0), (0, 4), (9, 3)])
+@pytest.mark.parametrize(("offset", "stated"), [(4, 0), (0, 4), (9, 3), (4, 4)])
 def test_a_wrong_col_offset_is_named_by_the_sharp_test_views(tmp_path, small, offset, stated):
     """A camera's wider rows cropped from another column than the image's (raw_width right,
     col_offset left out or wrong) trained on a crop beside the test images', unsaid (20.3 dB
     where 26.9 was due): the sharp test views match the spikes better from the right column,
-    which the warning names."""
+    which the warning names. A hot column at the image's edge, which a shift drops, named a
+    wrong one for a right col_offset (the review): not now."""
     root = tmp_path / "wide"
     bits, meta = _wider_rows_copy(small, root, offset)
+    if offset == stated:  # a hot first column of the image: it fires every readout
+        stored = np.random.default_rng(0).random((*bits.shape[:2], bits.shape[2] + 9)) < 0.5
+        stored[:, :, offset : offset + bits.shape[2]] = bits
+        stored[:, :, offset] = True
+        save_dat(root / "spikes.dat", stored, flip=small.meta["flip"])
     meta.update(raw_width=bits.shape[2] + 9, col_offset=stated)
     (root / "meta.json").write_text(json.dumps(meta))
     way = "further along" if offset > stated else "back"
-    with pytest.warns(UserWarning) as said:
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
         load_dataset(root)
     shifted = [str(w.message) for w in said if "their stored rows" in str(w.message)]
-    assert len(shifted) == 1, [str(w.message) for w in said]
+    assert len(shifted) == (offset != stated), [str(w.message) for w in said]
+    if offset == stated:
+        return
     assert f"{abs(offset - stated)} columns {way} their stored rows" in shifted[0]
     assert f"col_offset ({stated}, in meta.json) is likely {offset}," in shifted[0]
 

@@ -9,17 +9,19 @@ import collections
 import warnings
 
 import numpy as np
+from scipy.stats import rankdata
 
 from .correlation import correlation
 
 SHIFT_MARGIN = 0.1  # correlation by which another first column must match better, to warn
 # (4 columns off on that `solids`: 0.06-0.24 as read, 0.91-0.96 shifted; the right column's
-# neighbours lie 0.06-0.12 under it)
+# neighbours lie 0.06-0.12 under it; Pearson's of the values, the ranks' now)
 
 
 def shifted_correlation(tfp: np.ndarray, image: np.ndarray, shift: int) -> float:
     """Correlation of `tfp` [H, W] read `shift` columns further along its stored rows with
-    `image` [H, W], over the columns both hold: image[:, j] against tfp[:, j + shift]."""
+    `image` [H, W], over the columns both hold: image[:, j] against tfp[:, j + shift]. Pass
+    ranks (`warn_if_shifted`): a hot column, firing every readout, weighs as a bright one."""
     width = tfp.shape[1]
     return correlation(
         tfp[:, max(shift, 0) : width + min(shift, 0)],
@@ -45,8 +47,9 @@ def warn_if_shifted(
     reach = width // 2
     shifts = range(max(-col_offset, -reach), min(raw_width - width - col_offset, reach) + 1)
     found = []  # per view: (best shift, its correlation, as read)
-    for tfp, image in views:
-        scores = {s: shifted_correlation(tfp, image.mean(-1), s) for s in shifts}
+    for tfp, image in views:  # ranks: a hot edge column, which shifts drop, named one
+        tfp, image = rankdata(tfp).reshape(tfp.shape), rankdata(image.mean(-1)).reshape(tfp.shape)
+        scores = {s: shifted_correlation(tfp, image, s) for s in shifts}
         best = max(scores, key=scores.get)
         found.append((best, scores[best], scores[0]))
     moved = [s for s, top, kept in found if s != 0 and top - kept > SHIFT_MARGIN]
