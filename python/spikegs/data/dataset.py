@@ -15,6 +15,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -720,14 +721,16 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
     if stream.path is None or min(stream.height, stream.width) < 2:  # a line has no rows
         return
     as_read = _rows_alike(stream)
-    wider = _rows_wider(stream, as_read) if as_read < SWAPPED_MIN else None
+    # the wider rows' reading, scored once where it is asked for (every width opened: not where
+    # a swapped reading fails on its own)
+    wider = functools.cache(lambda: _rows_wider(stream, as_read) if as_read < SWAPPED_MIN else None)
     layout = stream.layout
     simple = layout.row_bits == stream.width and layout.col_offset == 0
     if simple and stream.height != stream.width:
         swapped = SpikeStream.open(stream.path, stream.width, stream.height, layout.flip)
         other = _rows_alike(swapped)
-        more_alike = wider is None or other >= wider[1]
-        if other >= SWAPPED_MIN and other - as_read >= SWAPPED_GAP and more_alike:
+        alike = other >= SWAPPED_MIN and other - as_read >= SWAPPED_GAP
+        if alike and (wider() is None or other >= wider()[1]):  # (the more alike reading)
             warnings.warn(
                 f"{stream.path}: its frames read as {stream.height}x{stream.width} give an "
                 f"image whose neighbouring rows correlate at {as_read:.2f}, read as "
@@ -738,8 +741,8 @@ def warn_rows_out_of_line(stream: SpikeStream, settings: str) -> None:
             return
     if simple and _warned_if_frames_smaller(stream, as_read, settings):
         return
-    if wider is not None:
-        _warn_rows_wider(stream, as_read, *wider, settings)
+    if wider() is not None:
+        _warn_rows_wider(stream, as_read, *wider(), settings)
 
 
 def _warned_if_frames_smaller(stream: SpikeStream, as_read: float, settings: str) -> bool:
