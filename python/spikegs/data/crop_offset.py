@@ -15,7 +15,7 @@ from .correlation import correlation
 
 SHIFT_MARGIN = 0.1  # correlation by which another first column must match better, to warn
 # (4 columns off on that `solids`: 0.06-0.24 as read, 0.91-0.96 shifted; the right column's
-# neighbours lie 0.06-0.12 under it; Pearson's of the values, the ranks' now)
+# neighbours lie 0.06-0.12 under it: the values' correlation; the ranks', 0.34 against 0.79)
 
 
 def shifted_correlation(tfp: np.ndarray, image: np.ndarray, shift: int) -> float:
