@@ -5276,6 +5276,8 @@ def test_a_held_out_psnr_that_falls_is_said(dataset, tmp_path, monkeypatch):
     assert psnr_fall(curve(20.0, 18.01)) is None  # under 3 dB
     said = psnr_fall(curve(18.0, float("nan"), 18.99, 13.93, 30.0, float("inf")))
     assert said.startswith("the held-out PSNR fell 5.06 dB, from 18.99 at iteration 300 to 13.93")
+    # faint light's fall (a 32² solids at 0.009 spikes a readout: 3 dB) was blamed on the rates
+    assert "on light too faint to count a spike in a window, one that fits its shot noise" in said
     logged = tmp_path / "logged"  # log.jsonl writes an infinite PSNR (a perfect render) as null
     logged.mkdir()
     records = [{"iteration": i, "seconds": i, "psnr": p} for i, p in ((1, None), (2, 20.0))]

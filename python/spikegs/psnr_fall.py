@@ -1,5 +1,5 @@
 """The held-out PSNR falling during a run: a fit that diverged (learning rates too high) or, with
-few training views, one that overfits them."""
+few training views, one that overfits them, or, on faint light, one that fits its shot noise."""
 
 from __future__ import annotations
 
@@ -31,6 +31,8 @@ def psnr_fall(curve: list[dict]) -> str | None:
     return (
         f"the held-out PSNR fell {db:.2f} dB, from {peak:.2f} at iteration {then} to {psnr:.2f} "
         f"at {at} (log.jsonl): a fit that diverged (learning rates too high: every lr x20 fell "
-        f"5 dB) or, with few training views, one that overfits them; check `lr:` against the "
-        f"method's (docs/training.md, 'When a run goes wrong')"
+        f"5 dB) or, with few training views, one that overfits them, or on light too faint to "
+        f"count a spike in a window, one that fits its shot noise (loading names such light: a "
+        f"FaintLightWarning); check `lr:` against the method's (docs/training.md, 'When a run "
+        f"goes wrong')"
     )
