@@ -381,14 +381,14 @@ def _spike_chunks(
     while t0 < num_readouts:
         t1 = frames.end_within(t0, min(t0 + chunk, num_readouts), most)
         held, times = frames.covering(t0, t1)
-        for frame in held:  # (one lighting several chunks counts in each)
+        for frame in held if warn_saturated else ():  # (one lighting several chunks: each)
             found, judged = _at_or_above(frame, every_readout)
             above, values = above + found, values + judged
         spikes = _chunk_spikes(sims, held, times, t1 - t0, saturated)
         del held  # (the next chunk's frames are read without this one's held here)
         yield t0, t1, spikes
         t0 = t1
-    if warn_saturated and values and above / values > SATURATED_SHARE:
+    if values and above / values > SATURATED_SHARE:  # (counted where warn_saturated)
         warnings.warn(
             f"{above / values:.0%} of the light is at or above 1/rate_at_one = "
             f"{every_readout:.3g}, where a pixel fires every readout: intensities in other units? "
