@@ -12,6 +12,7 @@ import weakref
 
 import numpy as np
 import pytest
+import torch
 
 
 @pytest.fixture(autouse=True)
@@ -217,3 +218,12 @@ def longest_pause():
         return max(b - a for a, b in zip(times, times[1:])) / (end - start)
 
     return least
+
+
+@pytest.fixture
+def float64_default():
+    """torch's default dtype float64 for the test, as a script may set it (restored after)."""
+    previous = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    yield
+    torch.set_default_dtype(previous)

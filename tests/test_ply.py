@@ -122,6 +122,40 @@ def test_a_grey_scene_round_trips_as_grey(tmp_path):
         assert load_ply(tmp_path / "edited.ply").channels == 1
 
 
+def test_a_scene_loads_as_float32_whatever_torchs_default_dtype(tmp_path, float64_default):
+    """A script whose torch default dtype is float64 could load no scene.ply: its background and
+    an empty f_rest were made in the default dtype, and the model refused the mixed dtypes."""
+    gen = torch.Generator().manual_seed(0)
+    model = GaussianModel.random(5, (0, 0, 0), 1.0, 1, 3, gen)
+    save_ply(model, tmp_path / "s.ply")
+    back = load_ply(tmp_path / "s.ply")
+    assert back.dtype == back.background.dtype == back.params["sh_rest"].dtype == torch.float32
+    assert all(torch.equal(back.params[k], model.params[k]) for k in model.params)
+
+
+def test_a_model_of_a_dtype_the_rasterizer_does_not_render_is_refused_by_name():
+    """A bfloat16 model failed on saving (numpy's "unsupported ScalarType"), a float16 one on
+    rendering; a float64 one renders from float32 cameras (its viewmat's dtype was refused)."""
+    model = GaussianModel.random(5, (0, 0, 3), 1.0, 1, 1, torch.Generator().manual_seed(0))
+    state = model.state_dict()
+    for dtype in (torch.bfloat16, torch.float16):
+        params = {k: v.to(dtype) for k, v in state["params"].items()}
+        with pytest.raises(
+            ValueError,
+            match=f"one floating dtype expected; means {str(dtype)[6:]}.*float32 or float64",
+        ):
+            GaussianModel(params, state["background"].to(dtype), 1)
+    wide = GaussianModel(
+        {k: v.double() for k, v in state["params"].items()}, state["background"].double(), 1
+    )
+    view = wide.view_of(torch.eye(4, dtype=torch.float32))
+    K = torch.tensor([[8.0, 0, 4], [0, 8, 4], [0, 0, 1]], dtype=wide.dtype)
+    image = wide.render(view, K, 8, 8, 0.01).image
+    narrow = model.render(model.view_of(np.eye(4)), K.float(), 8, 8, 0.01).image
+    assert view.dtype == image.dtype == torch.float64
+    torch.testing.assert_close(image.float(), narrow, atol=1e-5, rtol=0)
+
+
 def test_a_dilation_comment_that_is_not_a_number_is_named():
     """scene.ply's `spikegs dilation V` comment holding no number: refused naming the file and
     the comment, as one out of the rasterizer's range (not float()'s bare ValueError)."""

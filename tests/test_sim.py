@@ -124,6 +124,18 @@ def test_parameter_count():
     assert 15_000 <= n <= 45_000
 
 
+def test_a_sim_is_float32_whatever_torchs_default_dtype(float64_default):
+    """A script whose torch default dtype is float64 made float64 weights, which refused the
+    float32 spike windows that train them ("SIM input expected dtype torch.float64")."""
+    torch.manual_seed(0)
+    wide = SIM(window=5)
+    torch.set_default_dtype(torch.float32)
+    torch.manual_seed(0)
+    plain = SIM(window=5)
+    assert {p.dtype for p in wide.parameters()} == {torch.float32}
+    assert all(torch.equal(a, b) for a, b in zip(wide.parameters(), plain.parameters()))
+
+
 @pytest.mark.parametrize("layers", [1, 3])
 def test_field_is_the_square_an_output_depends_on(layers):
     torch.manual_seed(0)

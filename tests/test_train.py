@@ -599,6 +599,22 @@ def test_a_run_and_its_callers_random_numbers_leave_each_other_alone(dataset, tm
     assert all(torch.equal(ours[k], theirs[k]) for k in ours)
 
 
+def test_a_script_whose_torch_default_dtype_is_float64_trains_the_same_run(
+    dataset, tmp_path, float64_default
+):
+    """The README's Trainer in a script that set torch's default dtype to float64 stopped at its
+    first step ("screen_abs: expected dtype torch.float32 (the dtype of means)"): the step's
+    zero tap and loss were made in the default dtype. It trains the float32 default's run."""
+    wide = Trainer(dataset, load_config("tfp33", FAST), tmp_path / "wide", progress=False)
+    wide.train()
+    torch.set_default_dtype(torch.float32)
+    plain = Trainer(dataset, load_config("tfp33", FAST), tmp_path / "plain", progress=False)
+    plain.train()
+    assert len(plain.model) > FAST["train"]["init_gaussians"]  # (densified)
+    ours, theirs = plain.model.params, wide.model.params
+    assert all(torch.equal(ours[k], theirs[k]) for k in ours)
+
+
 def test_resume_of_a_finished_run_says_so_and_rewrites_nothing(dataset, tmp_path, capsys):
     """It said "resuming at iteration 40 of 40", then "finished at iteration 40; nothing to
     train", and wrote each of the run's files again; a run killed after its last checkpoint
@@ -1359,19 +1375,15 @@ def test_gaussian_model_refuses_what_it_cannot_render_or_save(tmp_path):
         GaussianModel.from_points(torch.zeros(4, 3), torch.zeros(3, 1), 0.3)
 
 
-def test_gaussian_models_start_in_float32_whatever_the_default_dtype():
+def test_gaussian_models_start_in_float32_whatever_the_default_dtype(float64_default):
     """Under torch.set_default_dtype(float64) (for gradcheck) `random` and `from_points` built
     float32 means beside float64 scales, rotations and opacities, which `render` refused; a
     model of mixed dtypes is refused where it is built, naming them."""
-    previous = torch.get_default_dtype()
-    torch.set_default_dtype(torch.float64)
-    try:
-        model = GaussianModel.random(50, (0, 0, 0), 1.0, 1, 1, torch.Generator().manual_seed(0))
-        viewmat = torch.as_tensor(look_at([0.0, -4.0, 0.0], [0, 0, 0]), dtype=torch.float32)
-        K = torch.tensor([[20.0, 0, 8], [0, 20, 8], [0, 0, 1]], dtype=torch.float32)
-        image = model.render(viewmat, K, 16, 16, 0.01).image
-    finally:
-        torch.set_default_dtype(previous)
+    model = GaussianModel.random(50, (0, 0, 0), 1.0, 1, 1, torch.Generator().manual_seed(0))
+    viewmat = torch.as_tensor(look_at([0.0, -4.0, 0.0], [0, 0, 0]), dtype=torch.float32)
+    K = torch.tensor([[20.0, 0, 8], [0, 20, 8], [0, 0, 1]], dtype=torch.float32)
+    image = model.render(viewmat, K, 16, 16, 0.01).image
+    torch.set_default_dtype(torch.float32)
     assert {p.dtype for p in (*model.params.values(), model.background, image)} == {torch.float32}
     reference = GaussianModel.random(50, (0, 0, 0), 1.0, 1, 1, torch.Generator().manual_seed(0))
     assert all(torch.equal(model.params[k], reference.params[k]) for k in model.params)

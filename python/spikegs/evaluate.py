@@ -43,7 +43,7 @@ def render_view(model: GaussianModel, viewmat: np.ndarray, dataset) -> np.ndarra
     with torch.no_grad():
         return model.render(
             model.view_of(viewmat),
-            torch.as_tensor(dataset.K, dtype=torch.float32),
+            torch.as_tensor(dataset.K, dtype=model.dtype),
             dataset.width,
             dataset.height,
             near_plane(dataset.scene_radius),

@@ -14,6 +14,7 @@ from .rasterize import CONSTANTS, RasterizeResult, check_dilation, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
 
 PARAMETER_NAMES = ("means", "log_scales", "quats", "opacity_logits", "sh_dc", "sh_rest")
+RENDERED_DTYPES = (torch.float32, torch.float64)  # the rasterizer's variants
 # the near plane: the rasterizer's 0.01 world units (gsplat's, and the znear of 3DGS's projection
 # matrix; 3DGS's renderer itself culls at depth 0.2), lowered in proportion for a scene of
 # radius under 1, whose units are small (at 0.01 every Gaussian of a scene a thousand times
@@ -96,9 +97,13 @@ class GaussianModel:
         wrong = [f"{k} {list(given[k].shape)}" for k, w in wanted.items() if given[k].shape != w]
         wrong += [f"sh_rest {list(rest.shape)}"] if (rest.shape[0], rest.shape[2]) != (n, c) else []
         dtypes = {k: given[k].dtype for k in wanted} | {"sh_rest": rest.dtype}
-        if len(set(dtypes.values())) > 1 or not given["means"].is_floating_point():
+        if len(set(dtypes.values())) > 1 or given["means"].dtype not in RENDERED_DTYPES:
+            # (a bfloat16 model failed on saving, a float16 one on rendering, each unnamed)
             found = ", ".join(f"{k} {str(d).removeprefix('torch.')}" for k, d in dtypes.items())
-            raise ValueError(f"GaussianModel: parameters of one floating dtype expected; {found}")
+            raise ValueError(
+                f"GaussianModel: parameters of one floating dtype expected; {found} (float32 or "
+                f"float64: those the rasterizer renders)"
+            )
         if wrong:  # unchecked, a background of 3 for 1 channel was saved and then refused
             raise ValueError(
                 f"GaussianModel: means [N, 3], log_scales [N, 3], quats [N, 4], opacity_logits "
@@ -211,14 +216,14 @@ class GaussianModel:
 
     def view_of(self, viewmats) -> torch.Tensor:
         """World-to-camera `viewmats` [..., 4, 4] (world frame; float64 keeps a far one exact)
-        as float32 viewmats of this model's frame: t + R·origin, summed in float64; not
+        as viewmats of this model's frame and dtype: t + R·origin, summed in float64; not
         differentiable (a tensor that requires grad is refused: apply a learnt correction to
         the result)."""
         if isinstance(viewmats, torch.Tensor) and viewmats.requires_grad:
             raise ValueError("view_of: viewmats that require grad (not differentiable: detach)")
         local = np.asarray(viewmats, np.float64).copy()  # np.array warned on a torch tensor
         local[..., :3, 3] += local[..., :3, :3] @ self.origin
-        return torch.as_tensor(local, dtype=torch.float32)
+        return torch.as_tensor(local, dtype=self.dtype)
 
     def world_means(self) -> torch.Tensor:
         """The means in the world frame, float64 [N, 3]."""
@@ -265,6 +270,11 @@ class GaussianModel:
         state["params"]["opacity_logits"] = fused.to(dtype)
         state["filter_3d"] = None
         return GaussianModel.from_state_dict(state)
+
+    @property
+    def dtype(self) -> torch.dtype:
+        """The parameters' dtype: float32 (trained, loaded) or float64."""
+        return self.params["means"].dtype
 
     @property
     def channels(self) -> int:

@@ -192,7 +192,7 @@ def load_ply(path: str | Path) -> GaussianModel:
 
     def col(keys):  # [N, len(keys)]
         if not keys:
-            return torch.zeros(len(v), 0)
+            return torch.zeros(len(v), 0, dtype=torch.float32)
         return torch.from_numpy(np.stack([np.asarray(v[k], np.float32) for k in keys], axis=1))
 
     n = len(v)
@@ -217,7 +217,9 @@ def load_ply(path: str | Path) -> GaussianModel:
     }
     if "background" in tags:
         try:
-            background = torch.tensor([float(x) for x in tags["background"].split()])
+            background = torch.tensor(
+                [float(x) for x in tags["background"].split()], dtype=torch.float32
+            )
         except ValueError:
             background = None
         if background is None or background.shape != (channels,) or not background.isfinite().all():
@@ -226,7 +228,7 @@ def load_ply(path: str | Path) -> GaussianModel:
                 f"{channels} finite numbers"
             )
     else:  # another tool's file, or ours re-saved by one: 3DGS's black (dB lost unsaid)
-        background = torch.zeros(channels)
+        background = torch.zeros(channels, dtype=torch.float32)
         warnings.warn(
             f"{path}: no 'spikegs background' comment (another tool's file, or re-saved by one): "
             f"rendered over black; add 'comment spikegs background V' (a value per channel, as "

@@ -550,14 +550,14 @@ class Trainer:
         # per-pixel sums, which each render's backward adds to, or the plain gradient of a zero
         # tap on the 2D means
         absgrad = self.config.densify.absgrad
-        screen = torch.zeros(len(self.model), 2, requires_grad=not absgrad)
+        screen = torch.zeros(len(self.model), 2, dtype=self.model.dtype, requires_grad=not absgrad)
         tap = {"screen_abs" if absgrad else "screen_points": screen} if densifying else {}
         radii = torch.zeros(len(self.model), dtype=torch.int32)
         # densify.instant_only: the exposure's renders (but for one it shares with the instant
         # pose, an odd K's centre, whose loss weight there is `shared`) give the signal nothing
         instant_only = self.config.densify.instant_only and instant_trains
         exposure_tap = {} if instant_only else tap
-        loss, instant, shared = torch.zeros(()), None, 0.0
+        loss, instant, shared = torch.zeros((), dtype=self.model.dtype), None, 0.0
         terms = {}  # the step's unweighted loss terms by name
         # the instant pose (at the time its target shows: TFI's is half a readout on), then the
         # exposure's
