@@ -17,6 +17,19 @@ def test_metrics_refuse_what_is_not_an_image(metric, shape):
 
 
 @pytest.mark.parametrize("metric", [psnr, ssim, ssim_3dgs])
+def test_images_of_other_channel_counts_are_named_as_such(metric):
+    """A colour model's render scored against a mono view was told "expected two [H, W] or [H, W,
+    C] images, not empty", of two non-empty [H, W, C] images: the shapes differ, in channels."""
+    rng = np.random.default_rng(0)
+    with pytest.raises(
+        ValueError, match=r"one shape.*\(8, 8, 3\) and \(8, 8, 1\): 3 channel\(s\) against 1"
+    ):
+        metric(rng.random((8, 8, 3)), rng.random((8, 8, 1)))
+    with pytest.raises(ValueError, match=r"one shape, not empty, got \(8, 8\) and \(8, 9\)$"):
+        metric(rng.random((8, 8)), rng.random((8, 9)))
+
+
+@pytest.mark.parametrize("metric", [psnr, ssim, ssim_3dgs])
 def test_metrics_refuse_codes_and_channels_first_and_take_tensors(metric):
     """8-bit codes (data range 1: 200 against 100 scored -40 dB) and a channels-first [3, H, W]
     image (scored as 3 rows with 32 channels) are refused; a torch tensor requiring grad (float32

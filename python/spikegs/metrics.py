@@ -17,8 +17,13 @@ def image_pair(pred, gt) -> tuple[np.ndarray, np.ndarray]:
     image (scored NaN) or values that are not finite (a NaN scored NaN, unsaid)."""
     pred, gt = _image(pred), _image(gt)
     if pred.shape != gt.shape or pred.ndim not in (2, 3) or pred.size == 0:
+        sizes = [image.shape[:2] for image in (pred, gt)]  # (a colour model on a mono dataset)
+        channels = [image.shape[2] if image.ndim == 3 else 1 for image in (pred, gt)]
+        other = sizes[0] == sizes[1] and channels[0] != channels[1] and min(pred.ndim, gt.ndim) > 1
         raise ValueError(
-            f"expected two [H, W] or [H, W, C] images, not empty, got {pred.shape} and {gt.shape}"
+            f"expected two [H, W] or [H, W, C] images of one shape, not empty, got {pred.shape} "
+            f"and {gt.shape}"
+            + (f": {channels[0]} channel(s) against {channels[1]}" if other else "")
         )
     if pred.ndim == 3 and pred.shape[0] <= 4 < pred.shape[2]:
         raise ValueError(
