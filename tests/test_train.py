@@ -1233,6 +1233,12 @@ def test_ply_edge_cases(tmp_path):
     save_ply(model, tmp_path / "nan.ply")
     with pytest.warns(UserWarning, match="nan.ply: 2 of its 20 Gaussians hold a NaN or infinite"):
         assert len(load_ply(tmp_path / "nan.ply")) == 20
+    # the opaque one is drawn (the warning said all were culled: "whose activated values are not
+    # finite", which a logit of inf's opacity 1 is)
+    with pytest.warns(
+        UserWarning, match=r"kept; the renderer culls 1 \(not finite once activated\), draws 1 \(an"
+    ):
+        load_ply(tmp_path / "nan.ply")
     # Gaussians without an orientation: culled by the renderer, which eval scored unsaid
     model.params["means"].data[1, 0] = 0.0
     model.params["opacity_logits"].data[2] = 0.0

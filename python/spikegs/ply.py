@@ -236,12 +236,19 @@ def load_ply(path: str | Path) -> GaussianModel:
             f"background",
             stacklevel=2,
         )
-    rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params.values()]  # [N, *]
-    broken = int((~torch.cat(rows, 1).isfinite()).any(1).sum())
-    if broken:
+    broken = int(_not_finite(params.values()).sum())
+    if broken:  # (an infinite opacity logit or a log-scale of -inf activates to a finite value)
+        activated = dict(params, log_scales=params["log_scales"].exp())
+        activated["opacity_logits"] = params["opacity_logits"].sigmoid()
+        culled = int(_not_finite(activated.values()).sum())
+        drawn = (
+            f", draws {broken - culled} (an infinite opacity logit as opacity 0 or 1, a log-scale "
+            f"of -inf as scale 0)"
+        )
         warnings.warn(
-            f"{path}: {broken} of its {n} Gaussians hold a NaN or infinite property: kept (the "
-            f"renderer culls a Gaussian whose activated values are not finite)",
+            f"{path}: {broken} of its {n} Gaussians hold a NaN or infinite property: kept; the "
+            f"renderer culls {culled} (not finite once activated)"
+            + (drawn if culled < broken else ""),
             stacklevel=2,
         )
     unrotated = int((params["quats"] == 0).all(1).sum())
@@ -275,3 +282,9 @@ def declares_channels(path: str | Path) -> bool:
     """Whether a .ply states its channel count (`comment spikegs channels N`, which save_ply writes
     and another tool's re-save drops)."""
     return "channels" in _tags(read_vertices(path))
+
+
+def _not_finite(params) -> torch.Tensor:
+    """[N] bool: the Gaussians holding a NaN or infinite value in any of `params` [N, ...]."""
+    rows = [p.flatten(1) if p.dim() > 1 else p[:, None] for p in params]  # [N, *]
+    return (~torch.cat(rows, 1).isfinite()).any(1)
