@@ -1585,27 +1585,30 @@ def test_a_split_of_its_own_keeps_the_timestamps_whose_windows_sfm_posed(
 
 
 @pytest.mark.parametrize(
-    "stated", [("scene_center", "scene_radius"), ("scene_center",), ("scene_radius",), ()]
+    "stated",
+    [("scene_center", "scene_radius", "up"), ("scene_center",), ("scene_radius",), ("up",), ()],
 )
 def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(
     textured, tmp_path, monkeypatch, stated
 ):
-    """No trajectory.json to align to: the poses stay in SfM's frame, and meta.json's
-    scene_center / scene_radius, either of which cannot be in that frame, are said to be kept."""
+    """No trajectory.json to align to (a raw recording: no split either): the poses stay in SfM's
+    frame, and meta.json's scene_center, scene_radius and up (an orbit's axis: `spikegs render`
+    tilted its orbit unsaid), which cannot be in that frame, are said to be kept."""
     from spikegs import poses_cli
 
     root = tmp_path / "data"
     shutil.copytree(textured, root)
     monkeypatch.setattr(poses_cli, "spike_images", lambda *args: None)
     _stub_sfm(monkeypatch, _logged_sfm(root))
-    (root / "trajectory.json").unlink()
+    for name in ("trajectory.json", "test_views.json", "train_timestamps.txt"):
+        (root / name).unlink()
     meta = json.loads((root / "meta.json").read_text())
-    unstated = {"scene_center", "scene_radius"} - set(stated)
+    unstated = {"scene_center", "scene_radius", "up"} - set(stated)
     (root / "meta.json").write_text(json.dumps({k: meta[k] for k in meta.keys() - unstated}))
     summary = poses_cli.estimate_poses(root, count=10)["summary"]
     assert "no trajectory to align to: the poses are in SfM's own frame" in summary
-    warned = "warning: scene_center / scene_radius in meta.json are kept" in summary
-    assert warned == bool(stated), summary
+    warned = f"warning: {' / '.join(stated)} in meta.json are kept" in summary
+    assert warned == bool(stated) and ("are kept" in summary) == bool(stated), summary
 
 
 def _write_stuck_pixels(tiny, dat: Path, rows: list[int]) -> None:
@@ -1803,3 +1806,97 @@ def test_a_raw_recordings_default_stride_is_that_of_its_registered_readouts(
     (raw / "meta.json").write_text(json.dumps({**meta, "train_every": 1}))
     poses_cli.estimate_poses(raw, count=12)
     assert len(spans) == 1 and np.diff(load_dataset(raw).train_timestamps).min() == 1
+
+
+@pytest.fixture
+def logged_copy(tiny, tmp_path, monkeypatch):
+    """A copy of `tiny` whose `spikegs poses` runs register its pose log's poses (`_logged_sfm`)."""
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    _stub_sfm(monkeypatch, _logged_sfm(root))
+    return root
+
+
+def _reopened_as(path: Path, matrix: np.ndarray) -> None:
+    """trajectory.json at `path` with each camera-to-world matrix multiplied by `matrix` [4, 4]
+    on the right (diag(1, -1, -1, 1): OpenGL's axes read as OpenCV's), or inverted (None)."""
+    doc = json.loads(path.read_text())
+    for frame in doc["frames"]:
+        c2w = np.array(frame["transform_matrix"])
+        frame["transform_matrix"] = (
+            np.linalg.inv(c2w) if matrix is None else c2w @ matrix
+        ).tolist()
+    path.write_text(json.dumps(doc))
+
+
+def test_a_pose_log_in_another_convention_is_said_after_the_alignment(logged_copy, capsys):
+    """A pose log of OpenCV's axes read as OpenGL's was aligned to, 78 deg off (world-to-camera
+    matrices: 48.6 deg), and SfM's poses written aligned to it, unsaid: the trainer then named
+    the poses' convention, of what was by then SfM's trajectory."""
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+    out = capsys.readouterr().out
+    assert "rotation error median 0.00 deg" in out and "warning: a median rotation" not in out
+    for matrix in (np.diag([1.0, -1, -1, 1]), None):
+        shutil.copy(logged_copy / "trajectory.json.bak", logged_copy / "trajectory.json")
+        _reopened_as(logged_copy / "trajectory.json", matrix)
+        (logged_copy / "trajectory.json.bak").unlink()
+        assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+        out = capsys.readouterr().out
+        assert re.search(r"rotation error median (\d+)\.", out).group(1) not in ("0", "1")
+        assert (
+            "warning: a median rotation error over 20 deg: a pose log in another convention" in out
+        )
+        shutil.copy(logged_copy / "trajectory.json.bak", logged_copy / "trajectory.json")
+        _reopened_as(logged_copy / "trajectory.json", matrix)  # (back to the true log)
+
+
+def test_a_pose_log_put_in_place_of_sfms_poses_is_not_written_over(logged_copy, capsys):
+    """A corrected pose log copied over trajectory.json (SfM's, the first log kept as the .bak)
+    was aligned to the .bak and written over, lost unsaid (--help: "an earlier one kept")."""
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+    log = logged_copy / "trajectory.json.bak"
+    corrected = log.read_bytes()
+    _reopened_as(log, None)  # the first log was wrong: world-to-camera
+    (logged_copy / "trajectory.json").write_bytes(corrected)
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 2
+    err = capsys.readouterr().err
+    assert "trajectory.json: another file than the last spikegs poses run wrote" in err
+    assert "to align to the new file, move it to trajectory.json.bak" in err
+    assert (logged_copy / "trajectory.json").read_bytes() == corrected
+    (logged_copy / "trajectory.json").replace(log)
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+    assert "rotation error median 0.00 deg" in capsys.readouterr().out
+    assert log.read_bytes() == corrected
+
+
+def test_a_raw_recordings_own_test_folder_and_a_later_pose_log_are_kept(logged_copy, capsys):
+    """A raw recording's test/ folder was deleted whole as its split was made (a README there
+    lost); a pose log put in place of its SfM poses (no .bak: it had none) was called the first
+    run's SfM ("rotation difference")."""
+    for name in ("trajectory.json", "train_timestamps.txt", "test_views.json"):
+        (logged_copy / name).rename(logged_copy / f"{name}.log")
+    meta = json.loads((logged_copy / "meta.json").read_text())
+    keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files", "fx", "fy")
+    (logged_copy / "meta.json").write_text(json.dumps({k: meta[k] for k in (*keys, "cx", "cy")}))
+    (logged_copy / "test" / "README.txt").write_text("the recording's notes")
+    assert main(["poses", str(logged_copy), "--count", "24"]) == 0
+    kept = sorted(p.name for p in (logged_copy / "test").iterdir() if "pseudo_" not in p.name)
+    assert "README.txt" in kept and len(list((logged_copy / "test").glob("pseudo_*"))) > 0
+    (logged_copy / "trajectory.json.log").replace(logged_copy / "trajectory.json")
+    assert main(["poses", str(logged_copy), "--count", "24"]) == 0
+    out = capsys.readouterr().out
+    assert "rotation error median 0.00 deg" in out and "not a pose log" not in out
+    assert (
+        json.loads((logged_copy / "sfm" / "report.json").read_text())["pose_reference"]
+        == "pose log"
+    )
+
+
+def test_a_split_without_its_pose_log_is_refused_before_any_work(logged_copy, capsys):
+    """Test views and timestamps kept beside SfM's poses, in a frame of their own, where the
+    pose log was removed: trained and scored in two frames (17.8 dB, a blank render, unsaid)."""
+    (logged_copy / "trajectory.json").unlink()
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 2
+    err = capsys.readouterr().err
+    assert "test_views.json and train_timestamps.txt without trajectory.json" in err
+    assert not (logged_copy / "sfm").exists()

@@ -14,6 +14,7 @@ the real-data loaders do), training timestamps between the registered images, cl
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shutil
 import sys
@@ -87,6 +88,10 @@ DEFAULT_MIN_REGISTERED = 0.5  # the fraction of images SfM must register
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
+# a median rotation error (degrees) past this after the alignment: the reference or SfM is wrong
+# (SfM's worst measured: 11.3° on `wires` from TFP; a pose log of world-to-camera matrices 48.6°,
+# of OpenGL's axes read as OpenCV's 78.4°)
+SUSPECT_ROTATION_DEG = 20.0
 WORK_DIR = "sfm"  # DATASET/sfm: images, COLMAP database, sparse model and report.json
 
 
@@ -185,13 +190,35 @@ def _reference_is_sfm(meta: dict, backed_up: bool, ours: bool, report: str | Non
     recorded = meta.get("pose_reference")
     if recorded in (SFM_REFERENCE, LOG_REFERENCE):
         return recorded == SFM_REFERENCE
+    if _reported(report).get("pose_reference") == LOG_REFERENCE:
+        return False
+    return ours
+
+
+def _reported(report: str | None) -> dict:
+    """The last run's report (sfm/report.json's text) as a dict; {} where there is none or it is
+    torn."""
     try:
         reported = json.loads(report or "null")
     except ValueError:
-        reported = None
-    if isinstance(reported, dict) and reported.get("pose_reference") == LOG_REFERENCE:
-        return False
-    return ours
+        return {}
+    return reported if isinstance(reported, dict) else {}
+
+
+def _digest(path: Path) -> str:
+    """The SHA-256 of the file at `path`, hex."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _replaced_trajectory(root: Path, report: str | None) -> bool:
+    """Whether ROOT's trajectory.json is another file than the last run wrote, as its `report`
+    (sfm/report.json's text) recorded it: a pose log put in its place."""
+    written = _reported(report).get("trajectory_sha256")
+    return (
+        written is not None
+        and (root / TRAJECTORY).is_file()
+        and _digest(root / TRAJECTORY) != written
+    )
 
 
 def _image_window(window: int | None, sim_model) -> int:
@@ -449,6 +476,16 @@ def _estimate_poses(
         raise ValueError(f"--min-registered: expected a fraction in (0, 1], got {min_registered}")
     streams = _recording(root, meta)  # every check before any work or any write
     backup = root / TRAJECTORY_BACKUP
+    report_path = root / WORK_DIR / "report.json"  # the live poses' (SfM's folder is replaced)
+    live_report = report_path.read_text() if report_path.is_file() else None
+    replaced = _replaced_trajectory(root, live_report)
+    if replaced and backup.exists():  # (aligned to the .bak, and written over: lost unsaid)
+        raise ValueError(
+            f"{root / TRAJECTORY}: another file than the last spikegs poses run wrote (a pose "
+            f"log put back?), where a run aligns to {backup.name}, the pose log kept then, and "
+            f"writes its poses over {TRAJECTORY}: to align to the new file, move it to "
+            f"{backup.name}; to align to {backup.name} again, remove {TRAJECTORY}"
+        )
     reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
@@ -464,6 +501,14 @@ def _estimate_poses(
         )
     split = bool(present)
     ours = meta.get("held_out_by") == HELD_OUT_BY  # an earlier run of this made the split
+    if reference is None and split and not ours:  # (trained and scored in two frames, unsaid)
+        raise ValueError(
+            f"{root}: {TEST_VIEWS} and {TIMESTAMPS} without {TRAJECTORY}: the held-out views' "
+            f"poses are in the frame of a pose log that is not there, which SfM's poses, in a "
+            f"frame of their own, cannot be aligned to: put the pose log back as {TRAJECTORY} "
+            f"to align to it, or remove {TEST_VIEWS} and {TIMESTAMPS} to have a split made from "
+            f"the registered images"
+        )
     raw = ours or not split
     stated_every = _stated_train_every(meta, meta_path) if raw else None
     import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
@@ -505,8 +550,6 @@ def _estimate_poses(
         k in meta for k in ("fx", "fy", "cx", "cy")
     ):
         K = intrinsics_matrix(meta)
-    report_path = root / WORK_DIR / "report.json"  # the live poses' (SfM's folder is replaced)
-    live_report = report_path.read_text() if report_path.is_file() else None
     try:
         recon = reconstruct(  # a SIM trains on a dataset with poses: not a raw recording's first
             images,
@@ -557,10 +600,12 @@ def _estimate_poses(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "
             "similarity (arbitrary rotation, translation and scale)"
         )
-        if "scene_center" in meta or "scene_radius" in meta:
+        framed = [key for key in ("scene_center", "scene_radius", "up") if key in meta]
+        if framed:  # (`up`: an orbit's axis, which `spikegs render` tilted unsaid)
             messages.append(
-                f"warning: scene_center / scene_radius in {META} are kept, but they cannot be in "
-                f"SfM's frame; remove them to have them estimated from the points"
+                f"warning: {' / '.join(framed)} in {META} are kept, but they cannot be in SfM's "
+                f"frame; remove them to have them estimated (the scene sphere from the points, "
+                f"an orbit's up from the cameras)"
             )
     else:
         recon = align(recon, reference)
@@ -569,7 +614,8 @@ def _estimate_poses(
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM where it had no pose log: a
         # difference, not an error
-        sfm = _reference_is_sfm(meta, backup.exists(), ours, live_report)
+        # (a pose log put in place of an earlier run's SfM is a pose log)
+        sfm = not replaced and _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
         messages.append(
@@ -581,6 +627,18 @@ def _estimate_poses(
             f"(max {report['centre_error_max']:.2%})"
             + (" — against the first spikegs poses run's poses, not a pose log" if sfm else "")
         )
+        if report["rotation_error_deg_median"] > SUSPECT_ROTATION_DEG:  # (written unsaid)
+            messages.append(
+                f"warning: a median rotation {word} over {SUSPECT_ROTATION_DEG:.0f} deg: "
+                + (
+                    "this run's SfM or the first one's went wrong"
+                    if sfm
+                    else "a pose log in another convention (world-to-camera matrices, or "
+                    "OpenGL's axes where OpenCV's are read: docs/datasets.md, 'Poses'), or "
+                    "SfM gone wrong"
+                )
+                + f"; the poses written are aligned to {reference_path.name}, as wrong as it"
+            )
         if not backup.exists():
             messages.append(f"the previous trajectory is kept as {backup.name}")
     trajectory = recon.trajectory(num)
@@ -610,7 +668,8 @@ def _estimate_poses(
         if reference is not None and not backup.exists():
             shutil.copy2(reference_path, backup)
         if raw:
-            shutil.rmtree(root / TEST_DIR, ignore_errors=True)  # a previous run's held-out images
+            for old in (root / TEST_DIR).glob(f"{PSEUDO_PREFIX}*"):  # a previous run's held-out
+                old.unlink()  # images (the folder's other files are not this command's)
             write_parts(root, meta, trajectory, ks, views)
         else:
             trajectory.save_json(root / TRAJECTORY, **camera_keys(meta))
@@ -619,6 +678,7 @@ def _estimate_poses(
                 messages.append(_keep_timestamps(root, *kept, recon.readouts))
         write_points(root / POINTS, recon.points, recon.colors)
         report["summary"] = "\n".join(messages)
+        report["trajectory_sha256"] = _digest(root / TRAJECTORY)  # (a pose log put in its place)
         write_text_atomically(report_path, json.dumps(report, indent=1))
     if interrupted():
         raise interruption(interrupted())
