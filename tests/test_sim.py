@@ -26,6 +26,7 @@ from spikegs.interrupt import Terminated, raise_terminated
 from spikegs.metrics import psnr, ssim, ssim_3dgs
 from spikegs.output_paths import writable_folder
 from spikegs.sim import SIM
+from spikegs.sim_cli import _is_scores_record
 from spikegs.sim_scores import compare_methods
 from spikegs.sim_train import (
     fast_inference_model,
@@ -835,6 +836,9 @@ def test_a_batch_that_cannot_fit_in_memory_is_refused_before_a_step(scene, monke
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
         # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache
         (["--out", "file"], "--out file: an existing file that is not a saved SIM"),
+        # its scores were written over a dataset's test_views.json, which then read as "no
+        # convention" (the sim-train trial)
+        (["--out", "test_views"], "its scores go to test_views.json, an existing file that is no"),
     ],
 )
 def test_sim_train_cli_refuses_bad_options_before_training(
@@ -847,6 +851,7 @@ def test_sim_train_cli_refuses_bad_options_before_training(
     monkeypatch.chdir(tmp_path)
     (tmp_path / "file").write_text("")
     (tmp_path / "adir").mkdir()
+    (tmp_path / "test_views.json").write_text('{"convention": "opencv", "frames": []}')
     monkeypatch.setattr("spikegs.sim_cli.load_dataset", lambda *a: pytest.fail("loaded"))
     assert main(["sim-train", "data", *args]) == 2
     assert message in capsys.readouterr().err
@@ -870,6 +875,7 @@ def test_sim_train_writes_its_scores_before_printing_them(tmp_path, monkeypatch,
     args = ["sim-train", str(root), "--steps", "2", "--crop", "16", "--batch-size", "1"]
     assert main([*args, "--no-progress", "--out", str(out)]) == 2
     assert json.loads((tmp_path / "sim.pt.json").read_text())["sim"] == str(out.resolve())
+    assert _is_scores_record(tmp_path / "sim.pt.json")  # (a later run writes over it)
 
 
 def test_sim_train_cli_says_how_to_continue_after_ctrl_c(tmp_path, monkeypatch, capsys):

@@ -88,6 +88,15 @@ def run(args: argparse.Namespace) -> int:
         return _run(args)
 
 
+def _is_scores_record(path: Path) -> bool:
+    """Whether the file at `path` holds a record of SIM's scores that this command wrote."""
+    try:
+        record = strict_json.read_json(path)
+    except (ValueError, OSError):
+        return False
+    return {"sim", "dataset", "scores"} <= record.keys()
+
+
 def _run(args: argparse.Namespace) -> int:
     """`run` once the dataset is locked."""
     sim = SimConfig(
@@ -109,6 +118,12 @@ def _run(args: argparse.Namespace) -> int:
         if Path(args.out).exists() and not is_sim_file(Path(args.out)):
             raise ValueError(  # (a cache's torn file is retrained over; a file named is not)
                 f"--out {args.out}: an existing file that is not a saved SIM; give another path"
+            )
+        record = record_beside(Path(args.out))
+        if record.exists() and not _is_scores_record(record):  # (`--out DATASET/test_views`
+            raise ValueError(  # wrote the scores over the dataset's test_views.json)
+                f"--out {args.out}: its scores go to {record}, an existing file that is not "
+                f"sim-train's record; give another path (SIM's weights are named *.pt)"
             )
     bars = show_bars(args.no_progress)
     try:  # the config's rules, and the window around the dataset's timestamps
