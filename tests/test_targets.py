@@ -3,19 +3,20 @@ while the memory budget lasts."""
 
 from __future__ import annotations
 
+import shutil
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
 from spikegs.config import load_config
-from spikegs.data import simulate_dataset
+from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
 from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
 from spikegs.machine_memory import machine_memory
 from spikegs.sim_train import infer_sim
-from spikegs.spikes import SpikeStream
+from spikegs.spikes import DatWriter, SpikeStream
 from spikegs.targets import (
     ImageBudget,
     TargetImages,
@@ -95,6 +96,29 @@ def test_sim_depth_is_a_setting_with_a_cache_of_its_own(dataset):
     assert len(model.shift) == 5 and path.name.endswith("_l2_m5_seed0.pt")
     model, _, path = trained_sim(dataset, shallow, 0, progress=False)  # not the deep one's cache
     assert len(model.shift) == 3 and path.name.endswith("_l2_seed0.pt")
+
+
+def test_a_sim_of_unrepaired_spikes_has_a_cache_of_its_own(dataset, tmp_path, capsys):
+    """supervision.mask_defects false trains SIM on the spikes as recorded, defects and all; its
+    runs and the default's shared one name and retrained over each other's SIM, "trained on other
+    spikes" where a dataset has a defect (the sim-train trial)."""
+    root = tmp_path / "data"
+    shutil.copytree(dataset.root, root, ignore=shutil.ignore_patterns("sim"))
+    stream = np.unpackbits(dataset.stream.packed(), axis=2, bitorder="little")[..., :24] > 0
+    stream[:, 5, 7] = True  # a stuck pixel, firing at every readout  [T, H, W]
+    with DatWriter(root / "spikes.dat", 24, 24, dataset.meta["flip"]) as writer:
+        writer.write_bits(stream)
+    stuck = load_dataset(root)
+    configs = [
+        load_config("spikegs", {**SIM_FAST, "supervision": {"mask_defects": m}})
+        for m in (False, True)
+    ]
+    with pytest.warns(UserWarning, match="1 hot or stuck pixels"):
+        for config in [*configs, *configs]:  # each twice, alternating: trained once each
+            build_targets(stuck, config, progress=False).instant[0]
+    raw, repaired = sorted(p.name for p in (root / "sim").glob("*.pt"))
+    assert raw.endswith("_l2_raw_seed0.pt") and raw.replace("_raw", "") == repaired
+    assert "training SIM afresh" not in capsys.readouterr().err
 
 
 def test_crops_larger_than_the_image_share_one_cache(dataset):

@@ -202,13 +202,15 @@ def sim_crop(dataset, sim: SimConfig) -> int:
     return min(sim.crop, max(dataset.height, dataset.width))
 
 
-def sim_path(dataset, sim: SimConfig, seed: int) -> Path:
-    """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings."""
+def sim_path(dataset, sim: SimConfig, seed: int, repaired: bool = True) -> Path:
+    """Where a dataset's trained SIM is cached, shared by the methods with the same SIM settings
+    and spikes: the sensor's defects `repaired` in them (supervision.mask_defects), or not
+    (`_raw`: runs of each, sharing a name, retrained over each other's SIM as on other spikes)."""
     depth = "" if sim.shift_layers == SimConfig.shift_layers else f"_m{sim.shift_layers}"
     crop = sim_crop(dataset, sim)
     name = (
         f"sim_w{sim.window}_t{sim.target_readouts()}_it{sim.iterations}_b{sim.batch}"
-        f"_c{crop}_{sim.loss}{depth}_seed{seed}.pt"
+        f"_c{crop}_{sim.loss}{depth}{'' if repaired else '_raw'}_seed{seed}.pt"
     )
     return Path(dataset.root) / "sim" / name
 
@@ -222,13 +224,15 @@ def trained_sim(
     force: bool = False,
     progress: bool = True,
     streams: list | None = None,
+    repaired: bool = True,
 ):
     """(SIM, seconds spent training it, path): the one cached for `sim`'s settings (at `path`, by
     default `sim_path`; `train_or_load` may cache elsewhere; a SIM trained otherwise at a `path`
     given is refused, not replaced, unless `force`), else trained on every channel's stream
-    (`streams`, by default the dataset's) at the training timestamps."""
+    (`streams`, by default the dataset's; the sensor's defects `repaired` in them or not) at the
+    training timestamps."""
     model, seconds, path = train_or_load(
-        path or sim_path(dataset, sim, seed),
+        path or sim_path(dataset, sim, seed, repaired),
         streams or dataset.streams,  # a colour camera's channels share one SIM
         dataset.train_timestamps,
         sim.window,
@@ -376,7 +380,12 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     if config.instant_target() != "none":
         if s.instant == "sim":
             model, sim_seconds, path = trained_sim(
-                dataset, config.sim, config.train.seed, progress=progress, streams=defects.streams
+                dataset,
+                config.sim,
+                config.train.seed,
+                progress=progress,
+                streams=defects.streams,
+                repaired=s.mask_defects,
             )
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
                 sim_seconds = recorded_seconds(path)
