@@ -1096,6 +1096,13 @@ def test_a_torn_training_state_is_said_and_trained_over(tmp_path, capsys):
     path.with_name("sim.pt.partial").write_bytes(b"half")
     torn, _, _ = train_or_load(path, stream, ts, W, **settings)
     assert "sim.pt.partial: unreadable (" in capsys.readouterr().err
+    # another file: torch's advice to load it with weights_only=False (which runs its code) was
+    # passed on (the sim-train trial)
+    (tmp_path / "other.partial").write_bytes(b"garbage\n")
+    assert sim_train._resumable(tmp_path / "other.partial", {}) is None
+    err = capsys.readouterr().err
+    assert "other.partial: unreadable (UnpicklingError: torn, or not" in err
+    assert "weights_only" not in err
     fresh, _ = train_sim(stream, ts, W, **settings)
     for a, b in zip(torn.state_dict().values(), fresh.state_dict().values()):
         assert torch.equal(a, b)

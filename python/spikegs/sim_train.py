@@ -242,8 +242,12 @@ def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
         return None
     try:
         state = torch.load(checkpoint, map_location="cpu", weights_only=True)
-    except Exception as err:  # a torn file: start afresh, as without one
-        print(f"{checkpoint}: unreadable ({err}); training SIM from the start", file=sys.stderr)
+    except Exception as err:  # a torn file: start afresh, as without one (torch's own message
+        print(  # advised loading it with weights_only=False, which runs a file's code)
+            f"{checkpoint}: unreadable ({type(err).__name__}: torn, or not a SIM training's "
+            f"state); training SIM from the start",
+            file=sys.stderr,
+        )
         return None
     if isinstance(state, dict) and state.get("key") == key:
         return state
