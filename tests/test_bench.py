@@ -569,6 +569,15 @@ def test_train_simulates_its_scenes_at_spp_and_reuses_only_a_dataset_made_so(
     assert train._matches(dataset, train.HEADLINE_SCENE, made_so)
     assert not train._matches(dataset, train.HEADLINE_SCENE, {**train.QUICK_DATA, "spp": 1})
     assert train.dataset_for(train.HEADLINE_SCENE, root, made_so)[1] == 0.0  # reused
+    # of its size but simulated otherwise, or posed by SfM: `spikegs simulate --color --threshold
+    # 10 --seed 7` into its folder was taken for its data (the bench trial)
+    threshold = {**dataset.meta["sim"], "threshold": 10.0}
+    others = [("seed", 7), ("channels", 3), ("sim", threshold), ("degrees_per_readout", 0.3)]
+    for key, value in [*others, ("frame_every", 4), ("up", [0, 1, 0]), ("poses_from", "sfm")]:
+        meta = {**dataset.meta, key: value}
+        other = SimpleNamespace(meta=meta, test_views=dataset.test_views)
+        other.train_timestamps = dataset.train_timestamps
+        assert not train._matches(other, train.HEADLINE_SCENE, made_so), key
     every = train.default_train_every(made_so["readouts"])
     monkeypatch.setattr(train, "default_train_every", lambda readouts: every + 1)
     assert not train._matches(dataset, train.HEADLINE_SCENE, made_so)  # other training views

@@ -28,6 +28,8 @@ reached is near SpikeGS's, not equal: the table shows it).
 from __future__ import annotations
 
 import copy
+import dataclasses
+import json
 import math
 import shutil
 import time
@@ -41,12 +43,20 @@ from ..curves import save_curves
 from ..data import load_dataset, simulate_dataset
 from ..data.dataset import check_output
 from ..data.scenes import SCENES
-from ..data.simulate import default_train_every, simulated_spp
+from ..data.simulate import (
+    DEFAULT_FRAME_EVERY,
+    DEFAULT_SEED,
+    DEFAULT_SPEED,
+    default_train_every,
+    simulated_spp,
+)
 from ..data.sources import drawn_side
+from ..data.trajectory import WORLD_UP
 from ..demo import DEMO_OVERRIDES, holds_files
 from ..evaluate import SSIMS, score_view
 from ..method_titles import EQUAL_TIME  # a baseline's run given SpikeGS's seconds: name, folder
 from ..run_folder import refuse_foreign_files
+from ..spikes import SimParams
 from ..text_table import print_table
 from ..train import Trainer
 from .common import write_results
@@ -93,8 +103,12 @@ def schedule(iterations: int, quick: bool, grad_threshold: float | None = None) 
 
 
 def _matches(dataset, scene: str, settings: dict) -> bool:
-    """Whether a loaded dataset was simulated from `scene` with `settings`."""
+    """Whether a loaded dataset was simulated from `scene` with `settings`, and otherwise as the
+    benchmark simulates (`SIMULATED`: a `spikegs simulate --color --threshold 10 --seed 7` of its
+    size was its data, unsaid), its poses not replaced by `spikegs poses`."""
     meta, views = dataset.meta, dataset.test_views
+    if any(meta.get(key) != value for key, value in SIMULATED.items()) or "poses_from" in meta:
+        return False
     on_path = sum(v.readout is not None for v in views)
     ts = np.asarray(dataset.train_timestamps)
     want_every = default_train_every(settings["readouts"])
@@ -105,6 +119,22 @@ def _matches(dataset, scene: str, settings: dict) -> bool:
     want += (settings["spp"],)
     views_wanted = (settings["test_on_path"], settings["test_off_path"])
     return found == want and (on_path, len(views) - on_path) == views_wanted
+
+
+# meta.json's records of what `simulate_dataset` takes at its defaults, as JSON reads them back
+SIMULATED = json.loads(
+    json.dumps(
+        {
+            "channels": 1,
+            "flip": True,
+            "seed": DEFAULT_SEED,
+            "sim": dataclasses.asdict(SimParams()),
+            "degrees_per_readout": DEFAULT_SPEED,
+            "frame_every": DEFAULT_FRAME_EVERY,
+            "up": WORLD_UP.tolist(),
+        }
+    )
+)
 
 
 def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
