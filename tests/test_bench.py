@@ -945,3 +945,15 @@ def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tm
     (runs / "x-seed2" / "notes.txt").write_text("the user's")
     with pytest.raises(FileExistsError, match=r"solids/x-seed2 holds files"):
         train.check_outputs(tmp_path, ["solids"], ["x-seed2"], 1)
+    # a file in a run's place: refused once the scene was simulated; a user's file in a scene's
+    # data folder, with the remedy of a folder the user never named (the bench trial)
+    (runs / "tfp50").write_text("the user's")
+    with pytest.raises(FileExistsError, match=r"solids/tfp50 is a file, where the benchmark wr"):
+        train.check_outputs(tmp_path, ["solids"], ["tfp50"], 1)
+    (tmp_path / "data" / "wires").mkdir(parents=True)
+    (tmp_path / "data" / "wires" / "mine.txt").write_text("the user's")
+    with pytest.raises(
+        FileExistsError,
+        match=r"\(mine.txt\); the benchmark simulates its scene there: give another --out$",
+    ):
+        train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)

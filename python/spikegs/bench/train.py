@@ -404,7 +404,12 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
     """Refuse, before any work, a user's files where the benchmark writes: each run is trained
     afresh, its folder deleted first, and a scene's dataset folder replaced unless it matches."""
     for scene in scenes:
-        check_output(Path(out) / "data" / scene, overwrite=True)
+        # (the remedy was "give an empty or new folder": one --out sets)
+        check_output(
+            Path(out) / "data" / scene,
+            True,
+            "the benchmark simulates its scene there: give another --out",
+        )
         # the run folders there that a run would delete (every name of --seeds 2**63 - 1 was
         # checked, for ever)
         runs = Path(out) / "runs" / scene
@@ -412,6 +417,10 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
             method, _, seed = folder.name.rpartition("-seed")
             seeded = seed.isdecimal() and method in methods and int(seed) < seeds
             if folder.name in methods or (seeded and folder.name == run_name(method, int(seed))):
+                if not folder.is_dir():  # (refused once the scene was simulated, tens of seconds)
+                    raise FileExistsError(
+                        f"{folder} is a file, where the benchmark writes a run; give another --out"
+                    )
                 refuse_foreign_files(
                     folder, ", which the benchmark would delete with its run; give another --out"
                 )

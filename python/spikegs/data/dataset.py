@@ -400,9 +400,12 @@ def near_held_out(timestamps: np.ndarray, held_out: np.ndarray) -> np.ndarray:
     return (gaps <= 2 * WINDOW_MARGIN).any(axis=1)
 
 
-def check_output(out: PathLike, overwrite: bool) -> Path:
+def check_output(
+    out: PathLike, overwrite: bool, remedy: str = "give an empty or new folder"
+) -> Path:
     """FileExistsError if `out` is a file, holds a dataset and not `overwrite`, or holds anything
-    that is not a dataset's (a replaced dataset's directory is deleted whole)."""
+    that is not a dataset's (a replaced dataset's directory is deleted whole), saying `remedy`
+    for those."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"{out} is a file, not a dataset folder")
@@ -423,7 +426,7 @@ def check_output(out: PathLike, overwrite: bool) -> Path:
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"
-            f"{', ...' if len(others) > 5 else ''}); give an empty or new folder"
+            f"{', ...' if len(others) > 5 else ''}); {remedy}"
         )
     return out
 
