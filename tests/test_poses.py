@@ -1900,3 +1900,19 @@ def test_a_split_without_its_pose_log_is_refused_before_any_work(logged_copy, ca
     err = capsys.readouterr().err
     assert "test_views.json and train_timestamps.txt without trajectory.json" in err
     assert not (logged_copy / "sfm").exists()
+
+
+def test_another_tools_point_cloud_is_kept_once_and_a_second_refused(logged_copy, capsys):
+    """A dataset's points3d.ply of another tool (a laser scan's) was written over by SfM's,
+    lost unsaid, where the pose log it replaced is kept as a .bak."""
+    write_points(logged_copy / POINTS, np.ones((5, 3)))
+    scan = (logged_copy / POINTS).read_bytes()
+    for run in range(2):  # the second run writes over its own points, keeping the scan's
+        assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+        out = capsys.readouterr().out
+        assert ("points3d.ply, another tool's, is kept as points3d.ply.bak" in out) == (run == 0)
+        assert (logged_copy / "points3d.ply.bak").read_bytes() == scan
+    write_points(logged_copy / POINTS, np.zeros((5, 3)))  # another scan: refused, nothing lost
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 2
+    assert "points3d.ply.bak holds an earlier one" in capsys.readouterr().err
+    assert len(read_points(logged_copy / POINTS)) == 5

@@ -30,6 +30,7 @@ from .data.dataset import (
     LOCK,
     META,
     POINTS,
+    POINTS_BACKUP,
     POSES_FROM_SFM,
     TEST_DIR,
     TEST_VIEWS,
@@ -88,6 +89,8 @@ DEFAULT_MIN_REGISTERED = 0.5  # the fraction of images SfM must register
 SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 cores
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
+# the keys of sfm/report.json that record the files a run wrote, by name
+DIGESTS = {TRAJECTORY: "trajectory_sha256", POINTS: "points_sha256"}
 # a median rotation error (degrees) past this after the alignment: the reference or SfM is wrong
 # (SfM's worst measured: 11.3° on `wires` from TFP; a pose log of world-to-camera matrices 48.6°,
 # of OpenGL's axes read as OpenCV's 78.4°)
@@ -210,15 +213,14 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _replaced_trajectory(root: Path, report: str | None) -> bool:
-    """Whether ROOT's trajectory.json is another file than the last run wrote, as its `report`
-    (sfm/report.json's text) recorded it: a pose log put in its place."""
-    written = _reported(report).get("trajectory_sha256")
-    return (
-        written is not None
-        and (root / TRAJECTORY).is_file()
-        and _digest(root / TRAJECTORY) != written
-    )
+def _written_over(path: Path, report: str | None) -> bool | None:
+    """Whether the file at `path` is another than the last run wrote there, as its `report`
+    (sfm/report.json's text) recorded it (`DIGESTS`): a pose log or another tool's points put in
+    its place; False where there is none, None where the report records none."""
+    if not path.is_file():
+        return False
+    written = _reported(report).get(DIGESTS[path.name])
+    return None if written is None else _digest(path) != written
 
 
 def _image_window(window: int | None, sim_model) -> int:
@@ -478,7 +480,17 @@ def _estimate_poses(
     backup = root / TRAJECTORY_BACKUP
     report_path = root / WORK_DIR / "report.json"  # the live poses' (SfM's folder is replaced)
     live_report = report_path.read_text() if report_path.is_file() else None
-    replaced = _replaced_trajectory(root, live_report)
+    replaced = bool(_written_over(root / TRAJECTORY, live_report))
+    # another tool's points (a dataset posed before the record: there while its poses are not SfM's)
+    others_points = _written_over(root / POINTS, live_report)
+    if others_points is None:
+        others_points = meta.get("poses_from") != POSES_FROM_SFM
+    if others_points and (root / POINTS_BACKUP).exists():  # (written over, lost unsaid)
+        raise ValueError(
+            f"{root / POINTS}: another tool's point cloud (not the last spikegs poses run's), "
+            f"which a run would write over, and {POINTS_BACKUP} holds an earlier one: move one "
+            f"of them elsewhere"
+        )
     if replaced and backup.exists():  # (aligned to the .bak, and written over: lost unsaid)
         raise ValueError(
             f"{root / TRAJECTORY}: another file than the last spikegs poses run wrote (a pose "
@@ -661,6 +673,8 @@ def _estimate_poses(
         messages += [spaced] if spaced else []
     else:
         messages.append(f"wrote {TRAJECTORY}, {POINTS} and {META}")
+    if others_points:
+        messages.append(f"the previous {POINTS}, another tool's, is kept as {POINTS_BACKUP}")
     # written whole, not torn by a stop: one between the trajectory and meta.json left SfM's
     # poses, which the next run aligned to as a pose log ("error 0.00 deg") and kept as its .bak
     stop = "\n{signal}: stopping once the poses and points are written"
@@ -676,9 +690,12 @@ def _estimate_poses(
             write_text_atomically(meta_path, json.dumps(meta, indent=1))
             if kept is not None:
                 messages.append(_keep_timestamps(root, *kept, recon.readouts))
+        if others_points:
+            shutil.copy2(root / POINTS, root / POINTS_BACKUP)
         write_points(root / POINTS, recon.points, recon.colors)
         report["summary"] = "\n".join(messages)
-        report["trajectory_sha256"] = _digest(root / TRAJECTORY)  # (a pose log put in its place)
+        # what this run wrote: a pose log or another tool's points put in their place is told
+        report.update({key: _digest(root / name) for name, key in DIGESTS.items()})
         write_text_atomically(report_path, json.dumps(report, indent=1))
     if interrupted():
         raise interruption(interrupted())

@@ -283,12 +283,14 @@ TIMESTAMPS_BACKUP = f"{TIMESTAMPS}.bak"  # the training timestamps before poses 
 # sim-train, eval, render); it stays behind, empty
 LOCK = ".lock"
 POINTS = "points3d.ply"  # a sparse point cloud the Gaussians start at (spikegs poses writes one)
+POINTS_BACKUP = f"{POINTS}.bak"  # another tool's point cloud that `spikegs poses` replaced
 # what a dataset directory holds besides its parts: test images, cached SIMs, `spikegs poses`
 DERIVED = (
     TEST_DIR,
     "sim",
     "sfm",
     POINTS,
+    POINTS_BACKUP,
     TRAJECTORY_BACKUP,
     TIMESTAMPS,
     TIMESTAMPS_BACKUP,
