@@ -1543,6 +1543,31 @@ def test_a_forked_child_renders_after_the_parent_did():
 
 
 @needs_cpp
+@pytest.mark.parametrize(
+    "dtype, depth, drawn",
+    [(torch.float32, 1e20, False), (torch.float32, 1e-19, False), (torch.float64, 1e20, True)],
+)
+def test_a_depth_whose_square_leaves_the_normal_range_is_culled(dtype, depth, drawn):
+    """A Gaussian 1e20 away in float32 (z² overflows), or 1e-19 near (z² underflows), was drawn
+    with NaN and infinite gradients of its mean and of the view matrix (the core trial): culled,
+    zero gradients; float64 draws it, its gradients those of a 1e20-fold scene (1/z)."""
+    scene = make_scene(2, 2, 37, 23, dtype=dtype)
+    scene["viewmat"] = torch.eye(4, dtype=dtype)
+    scene["means"] = torch.tensor([[0.3, 0.1, 1.0], [0.0, 0.0, 1.0]], dtype=dtype)
+    scene["scales"] = torch.full((2, 3), 0.01, dtype=dtype)
+    scene["K"] = torch.tensor([[30.0, 0, 18.5], [0, 30.0, 11.5], [0, 0, 1]], dtype=dtype)
+    scene.update(near=1e-35, far=3e38)
+    out, grads = forward_backward(spikegs.rasterize, scene, dtype)
+    scene["means"][0] *= depth
+    scene["scales"][0] *= depth
+    far, far_grads = forward_backward(spikegs.rasterize, scene, dtype)
+    assert far.radii.tolist() == [out.radii[0] if drawn else 0, out.radii[1]]
+    check_finite_and_culled(far, far_grads)
+    if drawn:  # (x and y: the depth output's own gradient is 1 at any depth)
+        torch.testing.assert_close(far_grads["means"][0, :2] * depth, grads["means"][0, :2])
+
+
+@needs_cpp
 def test_a_float32_splat_whose_determinant_overflows_is_culled():
     """DESIGN §4: a Gaussian whose 2D determinant is not finite is culled. A round splat ~1e10 px
     wide in float32: its covariance entries (~1e20) and the backward's largest terms (~1e30) are

@@ -121,6 +121,23 @@ def test_fixed_pattern_noise_spreads_and_is_floored_and_independent_of_the_dark_
     assert abs(np.corrcoef(1 / lit.ravel(), (unlit / lit).ravel())[0, 1]) < 0.15
 
 
+def test_a_threshold_past_floats_range_is_never_reached():
+    """A fixed-pattern spread whose threshold overflowed float (θ_i = inf) fired at readout 0 in
+    the dark (the initial voltage u·inf reached it), then never again (inf - inf: a NaN voltage):
+    146 of 256 dark pixels spiked once (the core trial). Float's largest is never reached."""
+    quiet = dict(dark_rate=0.0, temporal_sigma=0.0)
+    dark = np.zeros((1, 4, 64), np.float32)
+    with pytest.warns(UserWarning, match="fpn_sigma"):  # (its gain is said)
+        params = [
+            SimParams(fpn_sigma=1e40, **quiet),
+            SimParams(threshold=1e30, fpn_sigma=1e9, **quiet),
+        ]
+    for p in params:
+        assert np.unpackbits(simulate_spikes(dark, 200, params=p)).sum() == 0, p
+    lit = simulate_spikes(np.ones((1, 4, 64), np.float32), 200, params=params[0])
+    assert np.unpackbits(lit).sum() > 0  # (the pixels floored at 0.1 θ still fire)
+
+
 def test_never_more_than_one_spike_per_readout():
     # 4.0 = one spike per readout; up to float32's largest, whose charge overflows float32
     levels = np.array([2.0, 4.0, 8.0, 1e3, 1e30, 1e38, np.finfo(np.float32).max], np.float32)

@@ -61,7 +61,10 @@ SpikeSimulator::SpikeSimulator(int64_t height, int64_t width, const SimParams& p
   const double theta = params.threshold, ds = params.dark_sigma;
   for (int64_t i = 0; i < hw; ++i) {
     const NormalPair z = normal_pair(random_bits(pixel_key, 2 * uint64_t(i)));
-    theta_[i] = float(theta * std::max(1.0 + params.fpn_sigma * z.z0, 0.1));
+    // float's largest where the spread overflows it: inf fired at readout 0, in the dark (the
+    // initial voltage u·inf reached it), then never (inf - inf: a NaN voltage)
+    theta_[i] = float(std::min(theta * std::max(1.0 + params.fpn_sigma * z.z0, 0.1),
+                               double(std::numeric_limits<float>::max())));
     dark_[i] = float(theta * params.dark_rate * std::exp(ds * z.z1 - 0.5 * ds * ds));
     const float u = uniform_open(uint32_t(random_bits(pixel_key, 2 * uint64_t(i) + 1)));
     voltage_[i] = params.random_init ? u * theta_[i] : 0.0f;
