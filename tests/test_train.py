@@ -1839,6 +1839,13 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
             r"run's 3000 iterations \(densify.start 3000, every 100, to 1500\)\)",
         ),
         ("densify: {instant_only: false}", r"densify.instant_only \(one loss alone: its renders"),
+        # the base's 1000 as written, for a 60-iteration run: resets off, unsaid, where 999 was
+        # warned of (a schedule key is read at its file's length: the config trial)
+        (
+            "train: {iterations: 60}\ndensify: {opacity_reset_every: 1000}",
+            r"densify.opacity_reset_every \(no opacity reset falls in the run: the first, at "
+            r"iteration 1000, ",
+        ),
     ],
 )
 def test_densification_and_sh_settings_a_run_never_reads_are_warned_of(tmp_path, text, said):
@@ -3411,7 +3418,8 @@ def test_a_scaled_one_round_schedule_still_densifies_once(tmp_path):
     )
     with pytest.raises(ValueError, match="densify.every") as refused:
         load_config(path, iterations=500)
-    assert "scaled" not in str(refused.value)  # the values named are those written
+    # the values named are those written, by its file (whose path holds this test's "scaled")
+    assert "; scaled to" not in str(refused.value) and str(path) in str(refused.value)
     assert refused.value.name == "densify.every"  # a ConfigError names the setting it refuses
     # every 100000 (3000 iterations') at --iterations 60: the error named every = 2000, a value
     # nobody wrote; it says that it is scaled, and from what

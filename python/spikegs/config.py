@@ -831,13 +831,25 @@ def _read(
     if path.parent != CONFIG_DIR.resolve():  # a user's file: what it changes, for warn_if_unread
         inherited = Config()
         _apply(inherited, _settings(merged), "")
+        length = _length(data) or _length(merged) or TrainConfig.iterations  # its keys' (`_layer`)
+        lengths = merged.get(LENGTHS, {})
+
+        def changes(section: str, key: str, value) -> bool:
+            """Whether the file's `value` changes what `inherited` trains: a schedule key by the
+            fraction of its run (opacity_reset_every: 1000 beside iterations: 60 turned off the
+            base's resets, unsaid, where 999 was warned of)."""
+            was = getattr(getattr(inherited, section), key)
+            if section == "densify" and key in SCHEDULE_KEYS:
+                return value * lengths.get(key, TrainConfig.iterations) != was * length
+            return value != was
+
         merged.setdefault(SET_IN, {}).update(
             {
                 f"{section}.{key}": path
                 for section, values in data.items()
                 if isinstance(values, dict)
                 for key, value in values.items()
-                if value != getattr(getattr(inherited, section), key)
+                if changes(section, key, value)
             }
         )
     _layer(merged, data)
