@@ -1839,6 +1839,18 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
             r"run's 3000 iterations \(densify.start 3000, every 100, to 1500\)\)",
         ),
         ("densify: {instant_only: false}", r"densify.instant_only \(one loss alone: its renders"),
+        # TFI's and clean targets count no window: a smooth-L1 zone alone; clean targets and no
+        # exposure loss make nothing of the spikes (trained byte-identical scenes: the config
+        # trial)
+        (
+            "supervision: {instant: tfi, instant_window: 65}",
+            r"supervision.instant_window \(the instant target tfi counts no window: it sets "
+            r"smooth_l1's zone alone, and supervision.instant_norm is l1\)",
+        ),
+        (
+            "supervision: {instant: clean, deflicker: false, mask_defects: false}",
+            r"supervision.deflicker, supervision.mask_defects \(no target is made from the spikes",
+        ),
         # the base's 1000 as written, for a 60-iteration run: resets off, unsaid, where 999 was
         # warned of (a schedule key is read at its file's length: the config trial)
         (
@@ -1866,6 +1878,16 @@ def test_densification_and_sh_settings_a_run_never_reads_are_warned_of(tmp_path,
     )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        load_config(mine)
+        # read: TFI's window as smooth L1's zone; the spikes' settings beside an exposure loss
+        mine.write_text(
+            "base: tfp33\nsupervision: {instant: tfi, instant_window: 65, instant_norm: "
+            "smooth_l1}\n"
+        )
+        load_config(mine)
+        mine.write_text(
+            "base: tfp33\nsupervision: {instant: clean, exposure_weight: 1.0, deflicker: false}\n"
+        )
         load_config(mine)
         mine.write_text("base: tfp33\ndensify: {opacity_reset_every: 0, max_world_size: 0.2}\n")
         load_config(mine)

@@ -632,7 +632,9 @@ def load_config(
 def unread_settings(config: Config) -> dict[str, str]:
     """{'section.key': why} of the settings that a run of `config` never reads: SIM's without
     SIM targets, the exposure loss's at exposure_weight 0, the instant loss's without an instant
-    target, pose refinement's with it off (those it refuses unless at their defaults, as
+    target (and TFI's and clean targets' window but as smooth L1's zone), deflicker and
+    mask_defects where no target is made from the spikes, pose refinement's with it off (those
+    it refuses unless at their defaults, as
     instant_window beside SIM targets, are left to `Config.validate`)."""
     s, instant = config.supervision, config.instant_target()
     unread = {}
@@ -647,6 +649,14 @@ def unread_settings(config: Config) -> dict[str, str]:
         why = "no instant target"
         keys = ("instant_window", "instant_norm", "instant_until")
         unread |= {f"supervision.{key}": why for key in keys}
+    elif s.instant in ("tfi", "clean") and s.instant_norm != "smooth_l1":  # (TFI counts none)
+        unread["supervision.instant_window"] = (
+            f"the instant target {s.instant} counts no window: it sets smooth_l1's zone alone, "
+            f"and supervision.instant_norm is {s.instant_norm}"
+        )
+    if instant in ("none", "clean") and s.exposure_weight == 0:  # (targets.build_targets)
+        why = f"no target is made from the spikes (instant target {instant}, no exposure loss)"
+        unread |= {f"supervision.{key}": why for key in ("deflicker", "mask_defects")}
     if s.exposure_weight == 0 or s.instant == "none" or s.instant_weight == 0:
         why = "one loss alone: its renders give the densification signal"
         unread["densify.instant_only"] = why
