@@ -26,6 +26,25 @@ def test_evaluations_of_other_datasets_are_a_runs_files(tmp_path):
     assert foreign_files(run) == ["notes.txt"]
 
 
+def test_a_users_files_inside_a_runs_folders_are_not_a_runs(tmp_path):
+    """`spikegs demo --overwrite`, which says it refuses files no spikegs run wrote, deleted a
+    user's notes in eval/, checkpoints/ and an eval-notes.txt (named as another dataset's
+    scores), looking at the run folder's own names alone (the demo trial)."""
+    run = tmp_path / "run"
+    for folder in ("checkpoints", "eval", "eval-other"):
+        (run / folder).mkdir(parents=True)
+    written = ["checkpoints/last.pt", "eval/on_000.png", "eval-other/off_001.png", "eval.json"]
+    for name in [*written, "eval-other.json", "checkpoints/.last.pt.123.tmp"]:
+        (run / name).write_text("")
+    assert foreign_files(run) == []
+    mine = ["checkpoints/mine.pt", "eval-notes.txt", "eval-other/notes.txt", "eval/notes.txt"]
+    for name in mine:
+        (run / name).write_text("mine")
+    assert foreign_files(run) == mine
+    with pytest.raises(FileExistsError, match=r"not a run's \(checkpoints/mine.pt, eval-notes"):
+        refuse_foreign_files(run, "")
+
+
 def test_a_started_run_without_a_checkpoint_may_be_trained_over(tmp_path):
     """A run stopped before its first checkpoint (config.yaml, log.jsonl, .lock, checkpoints/)
     is no finished run: a fresh one starts there."""

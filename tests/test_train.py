@@ -2630,6 +2630,28 @@ def test_a_demo_refuses_resume_and_overwrite_together(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_demo_names_a_users_files_in_its_folders_with_a_remedy_to_follow(tmp_path):
+    """--overwrite deleted a user's notes in data/test/ and a run's eval/ (only the folders' own
+    names were looked at); a user's file in data/ was told "give an empty or new folder" of a
+    folder --out sets, and a resumed demo "give it another --out", which drops its progress (the
+    demo trial)."""
+    from spikegs.demo import check_fresh_out, check_run_dirs
+
+    out = tmp_path / "demo"
+    (out / "data" / "test").mkdir(parents=True)
+    (out / "data" / "test" / "notes.txt").write_text("mine")
+    said = r"data holds files that are not a dataset's \(test/notes.txt\); move them out, or give"
+    with pytest.raises(FileExistsError, match=said):
+        check_fresh_out(out, True, None)
+    (out / "data" / "test" / "notes.txt").unlink()
+    (out / "runs" / "spikegs" / "eval").mkdir(parents=True)
+    (out / "runs" / "spikegs" / "eval" / "notes.txt").write_text("mine")
+    with pytest.raises(FileExistsError, match=r"\(eval/notes.txt\): move them out, then --resu"):
+        check_run_dirs(out, resume=True)
+    with pytest.raises(FileExistsError, match=r"\(eval/notes.txt\), which a demo would delete"):
+        check_fresh_out(out, True, None)
+
+
 def test_a_demo_refuses_an_out_that_holds_a_dataset_or_a_run(tmp_path, capsys):
     """`spikegs demo --out DATASET` (or a run folder) ran the whole demo into it, its dataset,
     runs and figures among the dataset's or run's own files, and said nothing; the refusal names

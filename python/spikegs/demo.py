@@ -219,8 +219,9 @@ def check_fresh_out(out: Path, overwrite: bool, finished: dict | None) -> None:
     `overwrite`, where an earlier demo is there (its results were deleted unasked)."""
     from .data.dataset import check_output
 
-    check_output(out / "data", overwrite=True)
-    check_run_dirs(out)
+    # (its remedy was "give an empty or new folder", of a folder --out sets)
+    check_output(out / "data", True, "move them out, or give the demo another --out")
+    check_run_dirs(out, resume=False)
     held = held_demo(out, finished)
     if held is not None and not overwrite:
         again = " (printed again)" if held == "a finished demo" else ""
@@ -241,16 +242,20 @@ def check_fresh_out(out: Path, overwrite: bool, finished: dict | None) -> None:
             )
 
 
-def check_run_dirs(out: Path) -> None:
+def check_run_dirs(out: Path, resume: bool) -> None:
     """FileExistsError, before any work, where OUT/runs/METHOD holds files that are not a spikegs
-    run's (a fresh demo would delete them, a resumed one refuse them after its first stages)."""
+    run's (a fresh demo would delete them, a resumed one, on `resume`, refuse them after its
+    first stages)."""
+    remedy = (  # (a resumed demo was told to take another --out, losing its progress)
+        ": move them out, then --resume again"
+        if resume
+        else ", which a demo would delete with its run; move them out, or give it another --out"
+    )
     for method in METHODS:
         run_dir = out / "runs" / method
         if run_dir.exists() and not run_dir.is_dir():
             raise FileExistsError(f"{run_dir} is a file; give the demo another --out")
-        refuse_foreign_files(
-            run_dir, ", which a demo would delete with its run; give it another --out"
-        )
+        refuse_foreign_files(run_dir, remedy)
 
 
 def train_and_evaluate(
@@ -380,7 +385,7 @@ def _demo(args: argparse.Namespace, out: Path) -> int:
         started = {"scene": scene, "iterations": iterations, "color": color}
         write_text_atomically(out / STARTED_FILE, json.dumps(started))
     else:
-        check_run_dirs(out)
+        check_run_dirs(out, resume=True)
     try:  # the figures too: stopped while writing them, it says how to go on as well
         dataset = demo_dataset(scene, out / "data", args.resume, progress, color)
         results, view_psnrs = train_and_evaluate(dataset, configs, out, args.resume, progress)

@@ -7,7 +7,17 @@ from pathlib import Path
 
 from .atomic_save import is_temporary
 from .file_lock import exclusive_lock
-from .run_summary import CHECKPOINTS, CONFIG, CURVE, EVAL, LOCK, LOG, SCENE, SUMMARY
+from .run_summary import (
+    CHECKPOINTS,
+    CONFIG,
+    CURVE,
+    EVAL,
+    LOCK,
+    LOG,
+    SCENE,
+    SUMMARY,
+    last_checkpoint,
+)
 from .strict_json import read_json
 
 
@@ -28,13 +38,33 @@ RUN_FILES = RUN_STARTED | {SCENE, SUMMARY, CURVE, EVAL, f"{EVAL}.json"}
 
 
 def foreign_files(run_dir: Path) -> list[str]:
-    """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted."""
-    names = (p.name for p in run_dir.iterdir()) if run_dir.is_dir() else ()
-    return sorted(
-        n  # eval-DATASET*, and temporary files: a killed process's, swept when a run starts
-        for n in names
-        if n not in RUN_FILES and not n.startswith(f"{EVAL}-") and not is_temporary(n)
-    )
+    """The names in `run_dir` that neither `spikegs train` nor `spikegs eval` wrote, sorted, and
+    those in its folders as FOLDER/NAME: what is not the checkpoint in checkpoints/, not a
+    side-by-side (VIEW.png) in eval/ and eval-DATASET*/ (a user's notes there were deleted with
+    the run by `spikegs demo --overwrite`, which said it refuses them)."""
+    foreign = []
+    for path in sorted(run_dir.iterdir()) if run_dir.is_dir() else ():
+        name = path.name  # temporary files: a killed process's, swept when a run starts
+        other = name.startswith(f"{EVAL}-")  # another dataset's eval-DATASET*.json and folder
+        if is_temporary(name) or (other and name.endswith(".json") and path.is_file()):
+            continue
+        if path.is_dir() and (name in (CHECKPOINTS, EVAL) or other):
+            written = _checkpoint if name == CHECKPOINTS else _side_by_side
+            inner = (p.name for p in sorted(path.iterdir()))
+            foreign += [f"{name}/{n}" for n in inner if not (is_temporary(n) or written(n))]
+        elif name not in RUN_FILES or other:
+            foreign.append(name)
+    return sorted(foreign)
+
+
+def _checkpoint(name: str) -> bool:
+    """Whether `name` is the file that training writes in RUN/checkpoints."""
+    return name == Path(last_checkpoint(Path())).name
+
+
+def _side_by_side(name: str) -> bool:
+    """Whether `name` is one of eval's side-by-side images (VIEW.png)."""
+    return name.endswith(".png")
 
 
 def refuse_foreign_files(run_dir: Path, remedy: str) -> None:

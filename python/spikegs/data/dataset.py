@@ -418,13 +418,15 @@ def check_output(
         )
     names = [p.name for p in out.iterdir()] if out.is_dir() else []
     others = sorted(n for n in names if target_name(n) not in PARTS and n not in DERIVED)
-    cached = out / "sim"  # SIMs of the old spikes, deleted with them: nothing else (a user's)
-    if cached.is_dir():
-        others += sorted(
-            f"sim/{p.name}"
-            for p in cached.iterdir()
-            if not (is_temporary(p.name) or p.name.endswith(SIM_SUFFIXES))
-        )
+    # SIMs of the old spikes, and its held-out views' images (VIEW.exr), deleted with them:
+    # nothing else (a user's notes in test/ were deleted by `spikegs demo --overwrite`)
+    for folder, written in (("sim", SIM_SUFFIXES), (TEST_DIR, (".exr",))):
+        if (out / folder).is_dir():
+            others += sorted(
+                f"{folder}/{p.name}"
+                for p in (out / folder).iterdir()
+                if not (is_temporary(p.name) or p.name.endswith(written))
+            )
     if others:
         raise FileExistsError(
             f"{out} holds files that are not a dataset's ({', '.join(others[:5])}"
