@@ -1723,6 +1723,10 @@ def test_a_config_file_names_its_method_unless_it_names_one(tmp_path):
     copied = tmp_path / "tfp33.yaml"  # a copy of a method file keeps its method
     copied.write_text((CONFIG_DIR / "tfp33.yaml").read_text())
     assert load_config(copied) == load_config("tfp33")
+    # a link is named after itself, not the file it points to (a sweep's lam2.yaml -> a shared
+    # target.yaml trained as method 'target': the config trial)
+    (tmp_path / "lam2.yaml").symlink_to(tmp_path / "short.yaml")
+    assert load_config(tmp_path / "lam2.yaml").method == "lam2"
 
 
 def test_a_file_named_like_a_method_must_start_from_it(tmp_path):

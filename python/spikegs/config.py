@@ -746,18 +746,20 @@ def warn_if_nothing_learns(config: Config) -> None:
         )
 
 
-def _own_name(path: Path, inherited: str | None) -> str:
-    """The method name of a file that names none: its stem; a built-in method's name only for a
+def _own_name(path: Path, inherited: str | None, given: str | Path) -> str:
+    """The method name of a file that names none: its stem as `given` (a link's own: the file it
+    points to named the method), `path` the file itself; a built-in method's name only for a
     file that starts from that method (`inherited`: its base's method), else it would train under
     a name whose settings it lacks."""
-    builtin = CONFIG_DIR / f"{path.stem}.yaml"
-    if builtin.exists() and builtin.resolve() != path.resolve() and inherited != path.stem:
+    stem = Path(given).stem
+    builtin = CONFIG_DIR / f"{stem}.yaml"
+    if builtin.exists() and builtin.resolve() != path.resolve() and inherited != stem:
         raise ValueError(
-            f"config file {path} is named like the built-in method '{path.stem}' but does not "
-            f"start from it: add 'base: {path.stem}' to change that method, or 'method: NAME' "
+            f"config file {path} is named like the built-in method '{stem}' but does not "
+            f"start from it: add 'base: {stem}' to change that method, or 'method: NAME' "
             f"to name yours"
         )
-    return path.stem
+    return stem
 
 
 def differences(first: dict, second: dict, labels: tuple[str, str], prefix: str = "") -> list[str]:
@@ -837,7 +839,7 @@ def _read(
             raise type(err)(f"{path}: base: {err}") from None
         merged = _read(base_path, seen | {path})
     if not seen and "method" not in data:  # the file given names no method: its own name
-        data["method"] = _own_name(path, merged.get("method"))
+        data["method"] = _own_name(path, merged.get("method"), name_or_path)
     if path.parent != CONFIG_DIR.resolve():  # a user's file: what it changes, for warn_if_unread
         inherited = Config()
         _apply(inherited, _settings(merged), "")
