@@ -90,11 +90,12 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   // the Jacobian's depth terms take z^2: where it leaves the normal range, or fx / z^2 the
   // finite one, the gradients of the mean and the view matrix were NaN or inf while the forward
   // drew the splat (float32: a Gaussian 1e20 away, or 1e-19 near with fx 30); float32 draws z in
-  // about [1.1e-19, 1.8e19], float64 in [1.5e-154, 1.3e154], a large fx narrowing the near end
-  const T z2 = z * z;
-  if (!(z2 >= std::numeric_limits<T>::min()) || !is_finite(z2) ||
-      !is_finite(std::max(cam.fx, cam.fy) / z2))
-    return s;
+  // about [1.1e-19, 1.8e19], float64 in [1.5e-154, 1.3e154], a large fx narrowing the near end.
+  // Bounds on z itself: a z^2 here changed the Jacobian's rounding under -ffast-math.
+  const T root_max = std::sqrt(std::numeric_limits<T>::max());
+  const T z_min = std::max(std::sqrt(std::numeric_limits<T>::min()),
+                           std::sqrt(std::max(cam.fx, cam.fy)) / root_max);
+  if (!(z >= z_min && z <= root_max)) return s;
 
   s.R = quat_to_rotation(s.qn[0], s.qn[1], s.qn[2], s.qn[3]);
   s.M = s.R;
