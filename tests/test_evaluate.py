@@ -16,6 +16,7 @@ from spikegs import _C, evaluate
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.evaluate import evaluate_run, other_data, render_view, side_by_side
+from spikegs.gaussians import GaussianModel
 from spikegs.image_io import linear_to_srgb, read_image
 from spikegs.image_labels import TITLE_HEIGHT, column_titles
 from spikegs.ply import load_ply, save_ply
@@ -419,6 +420,16 @@ def test_a_pose_aligned_to_its_image_comes_back_to_the_pose_that_rendered_it(tra
         aligned_pose(model, turned.viewmat, image, data, 0)
     for key, value in model.params.items():  # (nothing is learnt: the model only renders)
         assert torch.equal(value, before[key]) and value.requires_grad, key
+    # a float64 model (which the API builds, and render_view renders) aligns too: its camera
+    # and pose were made float32 ("viewmat: expected dtype torch.float64": the review)
+    state = model.state_dict()
+    wide = GaussianModel(
+        {k: v.double() for k, v in state["params"].items()},
+        state["background"].double(),
+        model.sh_degree,
+    )
+    found = aligned_pose(wide, turned.viewmat, image, data)
+    assert found.settled and pose_errors(found.viewmat[None], view.viewmat[None])[0][0] < 0.01
 
 
 def test_a_pose_sliding_back_along_its_valley_settles_only_at_its_end(trained):

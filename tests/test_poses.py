@@ -1916,3 +1916,17 @@ def test_another_tools_point_cloud_is_kept_once_and_a_second_refused(logged_copy
     assert main(["poses", str(logged_copy), "--count", "8"]) == 2
     assert "points3d.ply.bak holds an earlier one" in capsys.readouterr().err
     assert len(read_points(logged_copy / POINTS)) == 5
+    # a dataset an older spikegs posed (its report records no digest, its meta.json no
+    # poses_from): its own cloud, written over as before, was kept as another tool's (the review)
+    (logged_copy / "points3d.ply.bak").unlink()
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 0  # (the scan kept as the .bak)
+    (logged_copy / "points3d.ply.bak").unlink()
+    capsys.readouterr()
+    report = json.loads((logged_copy / "sfm" / "report.json").read_text())
+    (logged_copy / "sfm" / "report.json").write_text(json.dumps({"registered": 8}))
+    meta = json.loads((logged_copy / "meta.json").read_text())
+    meta.pop("poses_from")
+    (logged_copy / "meta.json").write_text(json.dumps(meta))
+    assert report["points_sha256"] and main(["poses", str(logged_copy), "--count", "8"]) == 0
+    assert "another tool's" not in capsys.readouterr().out
+    assert not (logged_copy / "points3d.ply.bak").exists()

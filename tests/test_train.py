@@ -1236,7 +1236,7 @@ def test_ply_edge_cases(tmp_path):
     # the opaque one is drawn (the warning said all were culled: "whose activated values are not
     # finite", which a logit of inf's opacity 1 is)
     with pytest.warns(
-        UserWarning, match=r"kept; the renderer culls 1 \(not finite once activated\), draws 1 \(an"
+        UserWarning, match=r"culls 1 \(not finite once activated\); 1 activate to finite values, d"
     ):
         load_ply(tmp_path / "nan.ply")
     # Gaussians without an orientation: culled by the renderer, which eval scored unsaid

@@ -89,8 +89,8 @@ Splat<T> build_splat(const GaussianParams<T>& prm, const Camera<T>& cam, std::in
   if (!(z > cam.near_plane && z < cam.far_plane)) return s;
   // the Jacobian's depth terms take z^2: where it leaves the normal range, or fx / z^2 the
   // finite one, the gradients of the mean and the view matrix were NaN or inf while the forward
-  // drew the splat (float32: a Gaussian 1e20 away, or 1e-19 near with fx 30); float32 draws z in
-  // about [1.1e-19, 1.8e19], float64 in [1.5e-154, 1.3e154], a large fx narrowing the near end.
+  // drew the splat (float32: a Gaussian 1e20 away, or 1e-19 near with fx 30); float32 draws z
+  // up to 1.8e19, down to max(1.1e-19, 5.4e-20 sqrt(fx)), float64 up to 1.3e154.
   // Bounds on z itself: a z^2 here changed the Jacobian's rounding under -ffast-math.
   const T root_max = std::sqrt(std::numeric_limits<T>::max());
   const T z_min = std::max(std::sqrt(std::numeric_limits<T>::min()),

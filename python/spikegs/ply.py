@@ -241,14 +241,14 @@ def load_ply(path: str | Path) -> GaussianModel:
         activated = dict(params, log_scales=params["log_scales"].exp())
         activated["opacity_logits"] = params["opacity_logits"].sigmoid()
         culled = int(_not_finite(activated.values()).sum())
-        drawn = (
-            f", draws {broken - culled} (an infinite opacity logit as opacity 0 or 1, a log-scale "
-            f"of -inf as scale 0)"
+        finite = (  # (-inf's opacity 0 is culled as any too faint, a dot antialiased too)
+            f"; {broken - culled} activate to finite values, drawn or culled as any (an opacity "
+            f"logit of +inf is opacity 1, -inf 0; a log-scale of -inf a scale of 0)"
         )
         warnings.warn(
             f"{path}: {broken} of its {n} Gaussians hold a NaN or infinite property: kept; the "
             f"renderer culls {culled} (not finite once activated)"
-            + (drawn if culled < broken else ""),
+            + (finite if culled < broken else ""),
             stacklevel=2,
         )
     unrotated = int((params["quats"] == 0).all(1).sum())

@@ -78,16 +78,19 @@ def aligned_pose(
         raise ValueError(f"max_steps: expected at least 1, got {max_steps}")
     model = model.centred_at(frame_origin(dataset.scene_center, dataset.scene_radius))
     start = model.view_of(viewmat).double()  # [4, 4], the model's frame
-    K = torch.as_tensor(dataset.K, dtype=torch.float32)
+    K = torch.as_tensor(dataset.K, dtype=model.dtype)
     near = near_plane(dataset.scene_radius)
     radius = float(dataset.scene_radius)
     unit = torch.tensor([1.0, 1, 1, radius, radius, radius], dtype=torch.float64)
     target = torch.as_tensor(np.asarray(image, np.float32))
 
     def residual(pose: torch.Tensor, sigma: float) -> torch.Tensor:
-        """The render at `pose` [4, 4] less the image, blurred by `sigma` px: [P] float32."""
+        """The render at `pose` [4, 4] less the image, blurred by `sigma` px: [P], in the model's
+        dtype (float32 as trained)."""
         with torch.no_grad():
-            render = model.render(pose.float(), K, dataset.width, dataset.height, near).image
+            render = model.render(
+                pose.to(model.dtype), K, dataset.width, dataset.height, near
+            ).image
             return _blurred(render - target, sigma)
 
     def moved(twist: torch.Tensor, pose: torch.Tensor) -> torch.Tensor:

@@ -481,10 +481,11 @@ def _estimate_poses(
     report_path = root / WORK_DIR / "report.json"  # the live poses' (SfM's folder is replaced)
     live_report = report_path.read_text() if report_path.is_file() else None
     replaced = bool(_written_over(root / TRAJECTORY, live_report))
-    # another tool's points (a dataset posed before the record: there while its poses are not SfM's)
+    # another tool's points; where no digest is recorded, there while no spikegs poses ran (a
+    # report, or poses_from: an older run's cloud was kept as another tool's)
     others_points = _written_over(root / POINTS, live_report)
     if others_points is None:
-        others_points = meta.get("poses_from") != POSES_FROM_SFM
+        others_points = live_report is None and meta.get("poses_from") != POSES_FROM_SFM
     if others_points and (root / POINTS_BACKUP).exists():  # (written over, lost unsaid)
         raise ValueError(
             f"{root / POINTS}: another tool's point cloud (not the last spikegs poses run's), "
