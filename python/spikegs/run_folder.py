@@ -59,7 +59,7 @@ def foreign_files(run_dir: Path) -> list[str]:
 
 def _checkpoint(name: str) -> bool:
     """Whether `name` is the file that training writes in RUN/checkpoints."""
-    return name == Path(last_checkpoint(Path())).name
+    return name == last_checkpoint(Path()).name
 
 
 def _side_by_side(name: str) -> bool:
