@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
+from edited_spikes import write_edited_spikes
 from spikegs import SpikeStream, pixel_defects, sim_train, simulate_spikes
 from spikegs.cli import main
 from spikegs.config import load_config
@@ -16,7 +17,6 @@ from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.view_stream import ViewStreams
 from spikegs.metrics import psnr
 from spikegs.pixel_defects import find_defects, sensor_defects
-from spikegs.spikes import DatWriter
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
 
@@ -41,17 +41,17 @@ def defective(clean, tmp_path_factory):
     dead ones (none) at fixed sensor positions."""
     root = tmp_path_factory.mktemp("defects") / "defective"
     shutil.copytree(clean.root, root)
-    meta = json.loads((root / "meta.json").read_text())
-    bits = np.unpackbits(clean.stream.packed(), axis=2, bitorder="little")[..., :SIZE] > 0
     rng = np.random.default_rng(1)
-    for (y, x), rate in zip(HOT, (0.2, 0.5, 1.0)):
-        bits[:, y, x] |= rng.random(len(bits)) < rate
-    for y, x in STUCK:
-        bits[:, y, x] = True
-    for y, x in DEAD:
-        bits[:, y, x] = False
-    with DatWriter(root / "spikes.dat", SIZE, SIZE, meta["flip"]) as writer:
-        writer.write_bits(bits)
+
+    def defects(bits):  # [T, H, W]
+        for (y, x), rate in zip(HOT, (0.2, 0.5, 1.0)):
+            bits[:, y, x] |= rng.random(len(bits)) < rate
+        for y, x in STUCK:
+            bits[:, y, x] = True
+        for y, x in DEAD:
+            bits[:, y, x] = False
+
+    write_edited_spikes(clean, root / "spikes.dat", defects)
     return load_dataset(root)
 
 

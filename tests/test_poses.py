@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 import torch
+from edited_spikes import write_edited_spikes
 from plyfile import PlyData, PlyElement
 from scipy.spatial.transform import Rotation
 from spikegs import sfm
@@ -1614,13 +1615,11 @@ def test_poses_without_a_pose_log_warn_of_a_stated_scene_sphere(
 def _write_stuck_pixels(tiny, dat: Path, rows: list[int]) -> None:
     """`tiny`'s spikes written to `dat` with its pixels (row, 17) of `rows` firing at every
     readout."""
-    from spikegs.spikes import DatWriter
 
-    size = tiny.height
-    bits = np.unpackbits(tiny.stream.packed(), axis=2, bitorder="little")[..., :size] > 0
-    bits[:, rows, 17] = True  # [T, H, W]
-    with DatWriter(dat, size, size, tiny.meta["flip"]) as writer:
-        writer.write_bits(bits)
+    def stuck(bits):  # [T, H, W]
+        bits[:, rows, 17] = True
+
+    write_edited_spikes(tiny, dat, stuck)
 
 
 def _with_stuck_pixels(tiny, root: Path) -> Path:

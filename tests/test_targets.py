@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
+from edited_spikes import write_edited_spikes
 from spikegs.config import load_config
 from spikegs.data import load_dataset, simulate_dataset
 from spikegs.data.dataset import TRAJECTORY_BACKUP, Dataset
@@ -16,7 +17,7 @@ from spikegs.data.simulate import clean_source
 from spikegs.data.trajectory import Trajectory
 from spikegs.machine_memory import machine_memory
 from spikegs.sim_train import infer_sim
-from spikegs.spikes import DatWriter, SpikeStream
+from spikegs.spikes import SpikeStream
 from spikegs.targets import (
     ImageBudget,
     TargetImages,
@@ -104,10 +105,11 @@ def test_a_sim_of_unrepaired_spikes_has_a_cache_of_its_own(dataset, tmp_path, ca
     spikes" where a dataset has a defect (the sim-train trial)."""
     root = tmp_path / "data"
     shutil.copytree(dataset.root, root, ignore=shutil.ignore_patterns("sim"))
-    stream = np.unpackbits(dataset.stream.packed(), axis=2, bitorder="little")[..., :24] > 0
-    stream[:, 5, 7] = True  # a stuck pixel, firing at every readout  [T, H, W]
-    with DatWriter(root / "spikes.dat", 24, 24, dataset.meta["flip"]) as writer:
-        writer.write_bits(stream)
+
+    def stuck(bits):  # a pixel firing at every readout
+        bits[:, 5, 7] = True
+
+    write_edited_spikes(dataset, root / "spikes.dat", stuck)
     stuck = load_dataset(root)
     configs = [
         load_config("spikegs", {**SIM_FAST, "supervision": {"mask_defects": m}})
