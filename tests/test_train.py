@@ -2009,6 +2009,18 @@ def test_a_bad_key_is_named_with_its_file(tmp_path):
         load_saved_run(tmp_path / "config.yaml")
 
 
+def test_a_misspelt_base_is_told_base_among_the_known_keys(tmp_path):
+    """`bsae: spikegs` was told the known keys method, supervision, ..., pose_refine: a file's
+    `base`, the key meant, was not among them. A section's list names its fields alone."""
+    (tmp_path / "mine.yaml").write_text("bsae: spikegs\n")
+    with pytest.raises(ValueError, match=r"unknown key 'bsae'; known keys: .*pose_refine, base$"):
+        load_config(tmp_path / "mine.yaml")
+    (tmp_path / "mine.yaml").write_text("train: {base: spikegs}\n")
+    with pytest.raises(ValueError, match="unknown key 'train.base'") as err:
+        load_config(tmp_path / "mine.yaml")
+    assert not str(err.value).endswith(", base")
+
+
 def test_a_value_of_the_wrong_kind_is_shown_as_yaml_spells_it(tmp_path):
     """An empty key read "= None is a NoneType, expected int", and `instant: no` "= False is a
     bool, expected str": Python's words for what the file spells null and false. The hint to

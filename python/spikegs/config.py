@@ -554,12 +554,14 @@ def _wrong_kind(key: str, value, expected: str) -> ValueError:
     return ValueError(f"config: '{key}' = {found}, expected {expected}{quote}")
 
 
-def _apply(target, overrides: dict, where: str) -> None:
-    """Set the fields of dataclass `target` from `overrides`, section by section, checking types."""
+def _apply(target, overrides: dict, where: str, file_keys: tuple[str, ...] = ()) -> None:
+    """Set the fields of dataclass `target` from `overrides`, section by section, checking types;
+    `file_keys`: the keys a YAML file takes beside the fields (`base`), named among the known."""
     known = {f.name: f for f in dataclasses.fields(target)}
     for key, value in overrides.items():
         if key not in known:
-            raise ValueError(f"config: unknown key '{where}{key}'; known keys: {', '.join(known)}")
+            names = ", ".join([*known, *file_keys])
+            raise ValueError(f"config: unknown key '{where}{key}'; known keys: {names}")
         current = getattr(target, key)
         if dataclasses.is_dataclass(current):
             if not isinstance(value, dict):
@@ -828,7 +830,7 @@ def _read(
             f"{path}: base = {yaml_text(base)}, expected a method name or a YAML file{unset}"
         )
     try:  # each file's keys and types where it sets them: a typo in a base named with its file
-        _apply(Config(), data, "")
+        _apply(Config(), data, "", file_keys=("base",))
     except ValueError as err:
         raise ValueError(f"{path}: {str(err).removeprefix('config: ')}") from None
     merged = {}
