@@ -797,7 +797,8 @@ def test_sharp_test_images_in_other_units_are_named_from_their_spikes(sim, nerf,
     with pytest.warns(
         UserWarning,
         match=r"the on-path test images average 0\.2\d* times their spikes' firing rate .* sharp "
-        r"images are expected in linear intensity, 1 for white \(8-bit ones sRGB-encoded\)",
+        r"images are expected in linear intensity, 1 for white \(8- and 16-bit ones sRGB-encoded "
+        r"unless tagged linear\)",
     ):
         load_dataset(root)
 
@@ -2060,6 +2061,14 @@ def test_intensity_calibration_is_the_median_over_views():
     assert rate_from_images([views[0], views[2], black], "x") == pytest.approx(0.75)  # the median)
     with pytest.raises(ValueError, match="all black or their spikes too few"):
         rate_from_images([black, black], "x")
+    # images five times darker than their spikes' light: 1.25 was refused later as stated in
+    # meta.json or spikegs.json, files the user never wrote
+    with pytest.raises(
+        ValueError,
+        match=r"x: rate_at_one calibrated from 2 training views' sharp "
+        r"images is 1\.25, over 1 .* 16-bit image not tagged linear",
+    ):
+        rate_from_images([views[2], views[2]], "x")
 
 
 def test_spikes_upside_down_against_their_images_warn_of_flip():

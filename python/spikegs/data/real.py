@@ -45,9 +45,12 @@ from .view_stream import ViewStreams
 
 # what a real layout's sharp images are in (firing rates once scaled): test images in firing-rate
 # units with rate_at_one stated scored 16.5 dB where 26.9 was due, unsaid (the real-layout trial)
+# an integer image's values are read as sRGB unless its file says linear (a PNG's gAMA 1.0)
+LINEAR_UNTAGGED = "linear values in an 8- or 16-bit image not tagged linear, read as sRGB"
 SHARP_UNITS = (
-    "sharp images are expected in linear intensity, 1 for white (8-bit ones sRGB-encoded), which "
-    f"rate_at_one in {OPTIONS_FILE} turns into firing rates"
+    "sharp images are expected in linear intensity, 1 for white (8- and 16-bit ones "
+    f"sRGB-encoded unless tagged linear), which rate_at_one in {OPTIONS_FILE} turns into firing "
+    "rates"
 )
 NEEDED_WINDOW = 2 * WINDOW_MARGIN + 1  # the longest window training reads: TFP(65)
 HOLDOUT_EVERY = 8  # LLFF's convention: views 0, 8, 16, ... are held out
@@ -295,13 +298,21 @@ def rate_from_images(views: Iterable[tuple[np.ndarray, np.ndarray]], source: str
     and sharp images [H, W, 1] (`view_tfps`): the median over views of a view's mean firing
     rate over its image's mean intensity. Means, so that motion blur within a view and small
     misalignments cancel; the median, so that a wrong image (black, another view's) does not
-    move it. Black images are left out; ValueError when all are."""
+    move it. Black images are left out; ValueError when all are, and where the rate is over 1
+    (a camera fires once a readout at most: images darker than their spikes' light)."""
     ratios = [tfp.mean() / np.mean(image) for tfp, image in views if np.mean(image) > 0]
     rate = float(np.median(ratios)) if ratios else 0.0
     if not rate > 0:
         raise ValueError(
             f"{source}: the training views' sharp images are all black or their spikes too few "
-            f"to calibrate intensity; set rate_at_one in spikegs.json"
+            f"to calibrate intensity; set rate_at_one in {OPTIONS_FILE}"
+        )
+    if rate > 1:  # (refused later as if a file had stated it: the user had stated nothing)
+        raise ValueError(
+            f"{source}: rate_at_one calibrated from {len(ratios)} training views' sharp images "
+            f"is {rate:.3g}, over 1 spike a readout: the images are darker than the light their "
+            f"spikes record (another exposure, or {LINEAR_UNTAGGED}); set rate_at_one in "
+            f"{OPTIONS_FILE}"
         )
     return rate
 

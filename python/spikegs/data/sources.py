@@ -425,7 +425,8 @@ class FrameSequenceSource(Source):
     ) -> FrameSequenceSource:
         """Read a NeRF-style transforms JSON (OpenGL camera-to-world unless `"convention":
         "opencv"`), resize the frames to width × height; test frames from `test_path` or a sibling
-        transforms_test.json. 8-bit images are sRGB (decoded); alpha composited on `background`.
+        transforms_test.json. Integer images are sRGB (decoded) unless tagged linear; alpha
+        composited on `background`.
         The scene sphere: `center`, `radius`, else the file's scene_center and scene_radius, else
         `view_sphere`'s."""
         path = Path(path)
