@@ -1216,6 +1216,24 @@ def test_options_of_none_leave_the_files_values(tmp_path):
     assert read_options(tmp_path, {}) == Options()
 
 
+def test_a_bad_keyword_option_is_named_as_a_keyword_not_the_file(tmp_path):
+    """load_llff(DIR, hieght=32) and load_nerf_layout(DIR, rate_at_one=0) were told
+    "DIR/spikegs.json: unknown options" and "...rate_at_one ... found 0": a file absent, or
+    holding another value. The file's own errors still name it, after a keyword's."""
+    with pytest.raises(ValueError, match=r": keyword option\(s\) hieght: unknown options"):
+        read_options(tmp_path, {"hieght": 32})
+    write_options(tmp_path, rate_at_one=0.25, heigth=3)
+    with pytest.raises(ValueError, match=r"keyword option\(s\) hieght: unknown .*\['hieght'\];"):
+        read_options(tmp_path, {"hieght": 32})
+    with pytest.raises(ValueError, match=r"spikegs\.json: unknown options \['heigth'\]"):
+        read_options(tmp_path, {})
+    write_options(tmp_path, rate_at_one=0.25)
+    with pytest.raises(ValueError, match=r"keyword option\(s\) rate_at_one: rate_at_one expected"):
+        read_options(tmp_path, {"rate_at_one": 0})
+    with pytest.raises(ValueError, match=r"keyword option\(s\) scene_center: scene_center needs"):
+        read_options(tmp_path, {"scene_center": [0, 0, 1]})
+
+
 def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):
     """A .dat that is no whole number of readouts at the options' frame size: the error names
     the stored rows read (raw_width's 12 pixels, not the image's 6) and the first column kept;

@@ -88,23 +88,35 @@ CHECKS = {
 
 
 def read_options(root: Path, overrides: dict) -> Options:
-    """ROOT/spikegs.json (if any) with `overrides` on top; ValueError naming an unknown key or a
-    value of the wrong type or range."""
+    """ROOT/spikegs.json (if any) with `overrides` (a loader's keyword arguments) on top;
+    ValueError naming an unknown key or a value of the wrong type or range, and where it was
+    set: the file, or the keyword (the file was named for a keyword's, whether or not it held
+    that key)."""
     path = root / OPTIONS_FILE
     values = read_json(path) if is_given(path) else {}
-    values.update({k: v for k, v in overrides.items() if v is not None})
+    given = {k: v for k, v in overrides.items() if v is not None}
+    values.update(given)
+
+    def where(keys) -> str:
+        """Where options `keys` were set, to begin a message: the keywords, else the file."""
+        keywords = [key for key in keys if key in given]
+        return f"{root}: keyword option(s) {', '.join(keywords)}:" if keywords else f"{path}:"
+
     known = [f.name for f in dataclasses.fields(Options)]
-    unknown = sorted(set(values) - set(known))
-    if unknown:
-        raise ValueError(f"{path}: unknown options {unknown}; known: {', '.join(known)}")
+    for keys in (given, values):  # a keyword's first: `where` names it alone
+        unknown = sorted(set(keys) - set(known))
+        if unknown:
+            raise ValueError(
+                f"{where(unknown)} unknown options {unknown}; known: {', '.join(known)}"
+            )
     for key, value in values.items():
         check, expected = CHECKS[key]
         if value is not None and not check(value):
-            raise ValueError(f"{path}: {key} expected {expected}, found {json_text(value)}")
+            raise ValueError(f"{where([key])} {key} expected {expected}, found {json_text(value)}")
     if values.get("scene_center") is not None and values.get("scene_radius") is None:
         raise ValueError(
-            f"{path}: scene_center needs scene_radius (the radius computed from the poses is "
-            f"about the centre computed with it)"
+            f"{where(['scene_center'])} scene_center needs scene_radius (the radius computed from "
+            f"the poses is about the centre computed with it)"
         )
     views = values.get("test_views") or []
     twice = sorted({i for i in views if views.count(i) > 1})
