@@ -222,6 +222,29 @@ def test_nerf_layout_loads(sim, nerf):
     assert np.linalg.norm(ds.scene_center - sim.scene_center) < 0.5 * sim.scene_radius
 
 
+def test_nerf_paths_with_windows_separators_load_as_with_slashes(nerf, tmp_path):
+    """A Windows tool's transforms file (`.\\train\\r_2`, spike_path `custom\\last.dat`) was
+    told "spike file of frame '.\\train\\r_2' not found", and a held-out frame with a sharp
+    image and such a spike_path loaded as an image-only view without its spikes, unsaid."""
+    root = copy(nerf, tmp_path)
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(
+            root / name,
+            lambda doc: [
+                frame.update({k: frame[k].replace("/", "\\")})
+                for frame in doc["frames"]
+                for k in ("file_path", "spike_path")
+                if k in frame
+            ],
+        )
+    assert "\\\\last.dat" in (root / "transforms_train.json").read_text()  # (JSON's escape)
+    ours, theirs = load_dataset(nerf), load_dataset(root)
+    assert [v.name for v in theirs.test_views] == [v.name for v in ours.test_views]
+    assert theirs.meta["spike_files"] == ours.meta["spike_files"]
+    np.testing.assert_array_equal(theirs.train_timestamps, ours.train_timestamps)
+    np.testing.assert_array_equal(theirs.test_views[0].image, ours.test_views[0].image)
+
+
 def test_raw_stream_options(sim, llff_stream, tmp_path):
     """Rows with extra columns, stored top-down: spikegs.json crops and un-flips."""
     root = copy(llff_stream, tmp_path)

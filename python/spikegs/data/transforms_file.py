@@ -61,7 +61,8 @@ def warn_unread_transforms(root: Path, read: list[Path]) -> None:
 def read_transforms_doc(path: Path) -> dict:
     """A transforms JSON (NeRF / nerfstudio); FileNotFoundError, or ValueError naming `path`
     unless it is an object with a non-empty list of frames, each with a file_path (text) and a
-    transform_matrix."""
+    transform_matrix. A backslash in a frame's file_path or spike_path is read as a separator
+    (a Windows tool's `.\\images\\r_0.png` was a file name, not found)."""
     if not path.is_file():
         raise FileNotFoundError(f"transforms file not found: {path}")
     doc = read_json(path)
@@ -76,6 +77,10 @@ def read_transforms_doc(path: Path) -> dict:
             raise ValueError(f"{path}: frame {i} needs a file_path (text) and a transform_matrix")
     if not doc.get("frames"):
         raise ValueError(f"{path}: no frames")
+    for frame in doc["frames"]:
+        for key in ("file_path", "spike_path"):
+            if isinstance(frame.get(key), str):
+                frame[key] = frame[key].replace("\\", "/")
     return doc
 
 
