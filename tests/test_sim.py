@@ -333,6 +333,17 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
     assert "not a saved SIM; training SIM afresh" in capsys.readouterr().err
     assert train_or_load(path, stream, ts, 33, **tiny)[1] == 0
+    # a SIM's file edited, or another version's: its architecture or weights no SIM's (torch's
+    # TypeError or RuntimeError, naming no file, ended the run that read the cache)
+    good = torch.load(path, weights_only=True)
+    for edit in ({"config": {**good["config"], "bogus": 1}}, {"state_dict": {}}):
+        torch.save({**good, **edit}, stray)
+        with pytest.raises(ValueError, match=f"{stray}: not a saved SIM's architecture or weig"):
+            load_sim(stray)
+        torch.save({**good, **edit}, path)
+        capsys.readouterr()
+        assert train_or_load(path, stream, ts, 33, **tiny)[1] > 0
+        assert "architecture or weights (" in capsys.readouterr().err
     # other training settings at the same path: a cache's retrained, said why (it was reused,
     # steps and all); a file the user named (sim-train --out FILE: `keep`) refused, unless
     # forced (it was replaced)
@@ -1238,6 +1249,10 @@ def test_the_api_refuses_what_would_fail_later_by_name():
         train_sim(stream, [5, 50, 99], 33, steps=1, progress=False)
     model, _ = train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
     assert infer_sim(model, stream, []).shape == (0, 12, 12, 1)
+    # one readout alone: "len() of unsized object"; a batch of 0: "range() arg 3 must not be zero"
+    np.testing.assert_array_equal(infer_sim(model, stream, 50), infer_sim(model, stream, [50])[0])
+    with pytest.raises(ValueError, match="SIM batch_size expected a positive int, found 0"):
+        infer_sim(model, stream, [50], batch_size=0)
     assert SIM(window=np.int64(5)).config["window"] == 5
     with pytest.raises(ValueError, match=r"SIM input expected \[B, 5, H, W\], H, W ≥ 1"):
         SIM(window=5)(torch.zeros(2, 5, 0, 7))

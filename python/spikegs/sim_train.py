@@ -30,7 +30,7 @@ from .machine_memory import machine_memory
 from .number_checks import is_int, is_number
 from .output_paths import record_beside, writable_folder
 from .sim import SIM, START
-from .spikes.stream import centred_range
+from .spikes.stream import as_readouts, centred_range
 
 CHECKPOINT_S = 30.0  # SIM's training state saved at least this often (seconds)
 SAVED_EVERY = f"saved every {CHECKPOINT_S:g} s and as it stops"  # what a stop's message says
@@ -297,10 +297,16 @@ def is_sim_file(path: Path) -> bool:
 
 
 def _model_of(payload: dict) -> SIM:
-    # SIM's default init, replaced by the state, drew from torch's global generator (CPU's)
-    with torch.random.fork_rng(devices=[]):
-        model = SIM(**payload["config"])
-    model.load_state_dict(payload["state_dict"])
+    """The SIM of a saved payload (`_read_saved`'s), in eval mode; ValueError where its
+    architecture or weights are no SIM's (an edited or another program's file: torch's
+    TypeError or RuntimeError ended `spikegs train` where it reads its cache)."""
+    try:  # SIM's default init, replaced by the state, drew from torch's global generator (CPU's)
+        with torch.random.fork_rng(devices=[]):
+            model = SIM(**payload["config"])
+        model.load_state_dict(payload["state_dict"])
+    except (TypeError, RuntimeError, ValueError) as err:
+        detail = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
+        raise ValueError(f"not a saved SIM's architecture or weights ({detail})") from None
     return model.eval()
 
 
@@ -338,17 +344,18 @@ def _cached(
         return None
     try:
         payload = _read_saved(path)
+        model = _model_of(payload)
     except ValueError as err:
         why = str(err)
     else:
         # crops as trained, at most the larger side (SIMs saved before 2026-11-25 recorded the
         # crop asked for: a SIM of 32² frames saved as crop 64 was retrained, bit for bit)
         meta, now = (_crop_taken(m, side) for m in (payload["meta"], settings))
-        same = (payload["config"]["window"], meta.get("start")) == (window, START)
+        same = (model.window, meta.get("start")) == (window, START)
         same = same and meta.get("data") in data
         other = {k: (meta.get(k), v) for k, v in now.items() if meta.get(k) != v}
         if same and not other:
-            return _model_of(payload)
+            return model
         why = (
             "trained with other settings ("
             + ", ".join(f"{k} {was!r}, now {now!r}" for k, (was, now) in other.items())
@@ -515,13 +522,18 @@ def _check_windows(streams: list, timestamps: np.ndarray, window: int) -> None:
 def infer_sim(
     model: SIM, stream, timestamps: Sequence[int], batch_size: int = 4, dtype=None
 ) -> np.ndarray:
-    """SIM images at `timestamps`: float32 [N, H, W, C], computed in `dtype` (`_fast_dtype`)."""
-    fast = fast_inference_model(model, dtype)
-    timestamps = np.asarray(timestamps)
+    """SIM images at `timestamps` [N] (readouts, as the stream's readers take them): float32
+    [N, H, W, C], [H, W, C] at one readout given alone, computed in `dtype` (`_fast_dtype`),
+    `batch_size` windows at a time."""
+    if not is_int(batch_size) or batch_size < 1:  # (range() arg 3 must not be zero)
+        raise ValueError(f"SIM batch_size expected a positive int, found {batch_size!r}")
+    timestamps, single = as_readouts(timestamps)  # (a lone readout: len() of unsized object)
     if not timestamps.size:  # (np.concatenate of none)
         return np.zeros((0, stream.height, stream.width, model.out_channels), np.float32)
+    fast = fast_inference_model(model, dtype)
     chunks = [
         predict(fast, stream.window(timestamps[i : i + batch_size], model.window))
         for i in range(0, len(timestamps), batch_size)
     ]
-    return np.concatenate(chunks)
+    images = np.concatenate(chunks)
+    return images[0] if single else images
