@@ -171,6 +171,33 @@ def test_a_second_bench_into_one_folder_is_refused(tmp_path, capsys):
     assert os.listdir(out) == [".lock"]
 
 
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
+def test_a_scoring_waits_for_no_other_in_its_run(simulated, tmp_path, capsys):
+    """Two `spikegs eval RUN --dataset D` of datasets in folders of one name, at once: both chose
+    eval-data.json (the name free when each looked) and one's scores were lost, though both
+    said they were written. A scoring holds the run's lock: the second is refused, busy."""
+    from spikegs.config import load_config
+    from spikegs.data import load_dataset
+    from spikegs.train import Trainer
+
+    run = tmp_path / "run"
+    config = load_config("tfp33", {"train": {"iterations": 2, "eval_every": 2}})
+    Trainer(load_dataset(simulated), config, run, progress=False).train()
+    fork = multiprocessing.get_context("fork")
+    held, release = fork.Event(), fork.Event()
+    other = fork.Process(target=_hold, args=(run / ".lock", held, release))  # the first scoring
+    other.start()
+    try:
+        assert held.wait(60)
+        assert main(["eval", str(run), "--no-progress"]) == BUSY
+    finally:
+        release.set()
+        other.join(60)
+    assert "being scored or trained by another process" in capsys.readouterr().err
+    assert not (run / "eval.json").exists()
+    assert main(["eval", str(run), "--no-progress"]) == 0
+
+
 def test_eval_of_a_run_finishing_says_it_is_busy(tmp_path):
     """`spikegs eval RUN` between the run's scene.ply and its train.json, the last two writes of a
     training still under way, said that the run had stopped and to finish it with --resume (which

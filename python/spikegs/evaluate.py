@@ -19,6 +19,7 @@ from .box_filter import block_means
 from .data.dataset import check_dataset, is_view_name
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
+from .file_lock import exclusive_lock
 from .gaussians import GaussianModel, frame_origin, near_plane
 from .image_io import srgb_to_linear, stage_image
 from .image_labels import column_titles, title_scale
@@ -30,7 +31,7 @@ from .pose_align import MAX_STEPS, aligned_pose
 from .pose_refine import pose_errors
 from .provenance import environment
 from .regular_file import read_text
-from .run_summary import CONFIG, EVAL, SCENE, read_summary, trained_model
+from .run_summary import CONFIG, EVAL, LOCK, SCENE, read_summary, trained_model, trained_scene
 from .shell_words import shell_path
 from .targets import intensity_scale
 
@@ -379,6 +380,25 @@ def evaluate_run(
         as_flag(f"evaluate_run: {name}", flag) for name, flag in flags.items()
     )
     run_dir = Path(run_dir)
+    trained_scene(run_dir)  # a run unfinished, being trained, not there: said before the lock
+    # refused before any view is rendered, not after the images are written
+    if not writable_folder(run_dir):
+        raise ValueError(
+            f"{run_dir}: not writable, where eval writes its scores and images (a colleague's "
+            f"run, a read-only mount: copy it, cp -r {shell_path(run_dir)} COPY, and score the "
+            f"copy)"
+        )
+    # one process in the run at a time: two scorings of datasets of one folder name took one
+    # eval-NAME.json, one's scores lost though both said they were written
+    busy = f"{run_dir} is being scored or trained by another process; try again once it has ended"
+    with exclusive_lock(run_dir / LOCK, busy):
+        return _evaluate_locked(run_dir, dataset, write_images, progress, align_poses)
+
+
+def _evaluate_locked(
+    run_dir: Path, dataset, write_images: bool, progress: bool, align_poses: bool
+) -> dict:
+    """`evaluate_run` with RUN locked."""
     train = read_summary(run_dir)
     own = _eval_name(run_dir, train, dataset, progress)
     name = _aligned_name(run_dir, own, dataset.root) if align_poses else own
@@ -434,13 +454,6 @@ def evaluate_run(
             stacklevel=2,
         )
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"
-    # refused before any view is rendered, not after the images are written
-    if not writable_folder(run_dir):
-        raise ValueError(
-            f"{run_dir}: not writable, where eval writes {scores_file.name} and its images (a "
-            f"colleague's run, a read-only mount: copy it, cp -r {shell_path(run_dir)} COPY, and "
-            f"score the copy)"
-        )
     check_file_output(scores_file, "eval's scores")
     made = write_images and not folder.exists()  # a stopped first scoring leaves none behind
     if write_images:

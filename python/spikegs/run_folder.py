@@ -23,11 +23,11 @@ from .strict_json import read_json
 
 def run_lock(run_dir: Path):
     """An exclusive lock on RUN/.lock for a `with` block: Busy while another process trains in
-    RUN."""
+    RUN (or scores it: `evaluate_run`)."""
     return exclusive_lock(
         run_dir / LOCK,
-        busy=f"{run_dir} is being trained by another process; wait for it to end or train into "
-        f"another --out",
+        busy=f"{run_dir} is being trained by another process (or scored by spikegs eval); wait "
+        f"for it to end or train into another --out",
     )
 
 
