@@ -205,14 +205,40 @@ def test_an_earlier_score_that_is_no_mapping_counts_as_changed(trained, run):
     assert kept == sorted(doc["views"])[2:]
 
 
-def test_a_run_of_another_scene_is_said_by_other_data(trained, run):
+def test_a_run_of_another_scene_is_said_by_other_data(run, tmp_path):
     """other_data (which `spikegs render` warns with): a dataset of another scene name than the
-    run's is named, with both scenes."""
-    data = copy.copy(trained[0])
-    data.meta = {**data.meta, "scene": "wires"}
+    run's, and other data, is named, with both scenes."""
+    data = simulate_dataset("wires", tmp_path / "wires", **TINY)
     said = other_data(run, data)
     assert said.startswith(f"{run} was trained on scene 'solids' and renders along")
     assert said.endswith(", scene 'wires'")
+
+
+def test_a_copy_of_the_runs_data_in_another_folder_is_no_other_scene(trained, run):
+    """A real layout's scene is its folder's name: the run's own recording moved or copied under
+    another name was warned of as "trained on scene 'llB' and scored on ... scene 'llB_moved'",
+    though scored as the run's own (eval.json). Its data fingerprint decides."""
+    data = copy.copy(trained[0])
+    data.meta = {**data.meta, "scene": "moved_folder"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert other_data(run, data) is None
+        assert evaluate_run(run, data, write_images=False)["file"].endswith("eval.json")
+
+
+def test_another_tools_scene_scored_on_two_datasets_keeps_both(trained, run, tmp_path):
+    """A scene.ply without train.json (another tool's), scored with --dataset on one dataset then
+    another: the second's scores replaced eval.json and its images, unsaid. The first dataset
+    scored keeps eval.json, the others get eval-NAME.json."""
+    for name in ("train.json", "config.yaml"):
+        (run / name).unlink()
+    other = simulate_dataset("wires", tmp_path / "wires", **TINY)
+    first = evaluate_run(run, trained[0], write_images=False)
+    second = evaluate_run(run, other, write_images=False)
+    assert first["file"] == str(run.resolve() / "eval.json")
+    assert second["file"] == str(run.resolve() / "eval-wires.json")
+    assert json.loads((run / "eval.json").read_text())["psnr"] == first["psnr"] != second["psnr"]
+    assert evaluate_run(run, trained[0], write_images=False)["file"] == first["file"]
 
 
 def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run):

@@ -86,13 +86,15 @@ def _eval_name(run_dir: Path, train: dict, dataset, progress: bool = False) -> s
     another dataset, warned of; a new intensity scale is not (evaluate_run converts the renders
     to the scale the dataset states now). `progress`: as `_holds_run_data`'s."""
     own = train.get("dataset")
-    if own is None:
-        return EVAL
     root = Path(dataset.root).resolve()
+    # another tool's scene.ply (no train.json): eval.json is the first dataset's scored, the
+    # others' eval-NAME (a second dataset's scores replaced the first's, unsaid)
+    if own is None and _scored_dataset(run_dir / f"{EVAL}.json") in (None, str(root)):
+        return EVAL
     known = "data" in train  # runs from before fingerprints: their own folder is trusted
     scale = _run_scale(train, dataset)
     same = not known or same_data(train["data"], dataset, scale)
-    if Path(own).resolve() == root:
+    if own is not None and Path(own).resolve() == root:
         if same:
             return EVAL
         warnings.warn(
@@ -122,9 +124,12 @@ def _run_scale(train: dict, dataset) -> float:
 
 def _other_scene(run_dir: Path, train: dict, dataset, use: str) -> str | None:
     """'RUN was trained on scene A and `use` DATASET, scene B' where train.json's scene and the
-    dataset's differ; None where they agree or either is unnamed."""
+    dataset's differ; None where they agree, either is unnamed, or the dataset holds the run's
+    data (a real layout's scene is its folder's name: moved or copied, it was called another)."""
     trained_on, holds = train.get("scene"), dataset.meta.get("scene")
     if trained_on and holds and trained_on != holds:
+        if "data" in train and same_data(train["data"], dataset, _run_scale(train, dataset)):
+            return None
         return (
             f"{run_dir} was trained on scene '{trained_on}' and {use} {dataset.root}, scene "
             f"'{holds}'"
