@@ -385,6 +385,16 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     one = {"readouts": 194, "test_on_path": 1, "train_every": 1}  # the held-out view's margins
     cases.append(("solids", one, r"one training timestamp \(readout 161;.*--test-on-path"))
     cases.append(("solids", {"train_every": 100}, ()))  # two: not warned of
+    # a stride's timestamps mostly beside the held-out views (2 of 10 kept, unsaid)
+    sparse = {"readouts": 1500, "test_on_path": 8, "train_every": 150}
+    cases.append(
+        (
+            "solids",
+            sparse,
+            r"^2 training timestamps of the 10 that train_every 150 .*"
+            r"of the 8 on-path held-out views .*; a smaller train_every",
+        )
+    )
     with pytest.raises(ValueError, match=r"no training timestamp: .*; a smaller train_every"):
         simulate_dataset("solids", tmp_path / "none", **{**SMALL, **one, "train_every": 7})
     # light that saturates every pixel: flagged while simulating, then refused on loading

@@ -30,7 +30,7 @@ from .config import (
     with_defaults,
 )
 from .curves import logged_curve
-from .data.dataset import POINTS, camera_keys, check_dataset, reading_dataset
+from .data.dataset import FEW_TIMESTAMPS, POINTS, camera_keys, check_dataset, reading_dataset
 from .data_fingerprint import data_fingerprint, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -68,16 +68,6 @@ SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views m
 # units 10x the sphere's covered 0.8 % and trained 10.8 dB below the right sphere, a radius 0.3x
 # the right one 9.4 % and 7.5 dB (BENCHMARKS.md, "The scene sphere's coverage, exact")
 MIN_SPHERE_COVERAGE = 0.15
-# both losses with the dense views' settings (λ over the instant weight, or the instant loss
-# ending with densification) on fewer training timestamps than this are warned of: at 9 (128²,
-# 3 seeds) equal weights and the instant loss to the end scored higher on every built-in scene
-# (solids +1.35 ± 0.39, wires +0.95 ± 0.12, fine-texture +1.14 ± 0.12 dB); at 15 the defaults
-# led on wires (+0.80 ± 0.28), the two were level on solids (+0.04 ± 0.06) and the sparse ones
-# still led on fine-texture (+0.80 ± 0.03), the defaults again at 29 (+0.24 ± 0.25): each scene
-# turns at its own count, and below 12 the advice held on all (BENCHMARKS.md, "Few training
-# timestamps at the seventy-fifth session's code", "... on wires and fine-texture" and "Where
-# the sparse-view settings stop leading")
-FEW_TIMESTAMPS = 12
 # the 3D filter's widths are recomputed this often as the Gaussians move (Mip-Splatting's 100),
 # and after every densification round, from at most FILTER_3D_VIEWS training views spread evenly
 # over the stream (a continuous path's neighbours differ little in depth: 256 of 726 moved a
