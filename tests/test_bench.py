@@ -203,6 +203,27 @@ def test_a_core_wrong_in_both_precisions_fails_bench_stiff(tmp_path, monkeypatch
     assert "scales 1e-6..1e3: ref_err 0.501 > 1e-06" in failures
 
 
+def test_a_nan_in_the_references_alpha_fails_bench_stiff(tmp_path, monkeypatch):
+    """ref_err was Python's max over the image's, alpha's and gradients' errors, which drops a
+    NaN that is not first: a NaN in the reference's alpha (or a gradient) passed every check."""
+    drawn = stiff.reference.rasterize
+
+    def nan_alpha(*args, **kwargs):
+        out = drawn(*args, **kwargs)
+        return out._replace(
+            alpha=out.alpha
+            + torch.nn.functional.pad(
+                torch.full((1, 1), float("nan"), dtype=out.alpha.dtype),
+                (0, out.alpha.shape[1] - 1, 0, out.alpha.shape[0] - 1),
+            )
+        )
+
+    monkeypatch.setattr(stiff.reference, "rasterize", nan_alpha)
+    failures = stiff.run(quick=True, out=tmp_path)["failures"]
+    assert len(failures) == len(stiff.CASES)
+    assert all(failure.endswith(": ref_err nan > 1e-06") for failure in failures), failures
+
+
 def test_a_gradient_to_a_culled_gaussian_fails_bench_stiff(tmp_path, monkeypatch):
     """A core whose image is right but whose gradient reaches every Gaussian, those behind the
     camera too: the cases that name Gaussians without a gradient fail on them."""
