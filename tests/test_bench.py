@@ -58,6 +58,26 @@ def test_bench_spikes_numpy_tfi_is_the_cores(tmp_path, max_interval):
         np.testing.assert_array_equal(spikes._numpy_tfi(frames, k, max_interval), ours)
 
 
+def test_bench_spikes_tfp_error_looks_past_the_streams_start(tmp_path, monkeypatch):
+    """bench spikes' TFP max |diff| compared the 8 earliest of the sorted timestamps it timed
+    (readouts 10 to 192 of 20,000): a TFP wrong past readout 1000 reported 0."""
+    from spikegs.spikes import SpikeStream
+
+    readouts = 600
+    path = tmp_path / "s.dat"
+    spikes._write_random_stream(path, readouts)
+    stream = SpikeStream.open(path, spikes.HEIGHT, spikes.WIDTH)
+    frames = np.memmap(path, np.uint8, "r").reshape(readouts, spikes.HEIGHT, spikes.WIDTH // 8)
+    right = SpikeStream.tfp
+
+    def wrong_late(self, k, w):  # [H, W] or [B, H, W]: 1 too bright past the stream's middle
+        return right(self, k, w) + (np.asarray(k) >= readouts // 2)[..., None, None]
+
+    monkeypatch.setattr(SpikeStream, "tfp", wrong_late)
+    row = spikes._bench_tfp(stream, frames, 33, 40, 2, np.random.default_rng(0))
+    assert row["max |diff|"] == 1.0
+
+
 def test_bench_spikes_numpy_simulator_is_the_cores():
     """The simulator alternative of `bench spikes`: without noise it fires the core's spikes
     (interpolated light, a pixel saturated, one dark); at the default noise as many spikes as the
