@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import shutil
 import tempfile
 from pathlib import Path
 from types import SimpleNamespace
@@ -997,4 +998,14 @@ def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tm
         FileExistsError,
         match=r"\(mine.txt\); the benchmark simulates its scene there: give another --out$",
     ):
+        train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)
+    # a file where the scene's runs folder goes, or OUT/runs: "[Errno 20] Not a directory" once
+    # the scene was simulated
+    shutil.rmtree(tmp_path / "data" / "wires")
+    (tmp_path / "runs" / "wires").write_text("the user's")
+    with pytest.raises(FileExistsError, match=r"runs/wires is a file, where the benchmark writes"):
+        train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)
+    shutil.rmtree(tmp_path / "runs")
+    (tmp_path / "runs").write_text("the user's")
+    with pytest.raises(FileExistsError, match=r"/runs is a file, where the benchmark writes its"):
         train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)

@@ -413,6 +413,11 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
         # the run folders there that a run would delete (every name of --seeds 2**63 - 1 was
         # checked, for ever)
         runs = Path(out) / "runs" / scene
+        for above in (runs.parent, runs):  # (a file there: "[Errno 20] Not a directory", late)
+            if above.exists() and not above.is_dir():
+                raise FileExistsError(
+                    f"{above} is a file, where the benchmark writes its runs; give another --out"
+                )
         for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
             method, _, seed = folder.name.rpartition("-seed")
             seeded = seed.isdecimal() and method in methods and int(seed) < seeds
