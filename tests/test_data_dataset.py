@@ -772,6 +772,31 @@ def test_a_dim_channel_in_its_own_file_is_not_named_out_of_order(blue):
                 check_channels(swapped, files, "meta.json")
 
 
+def test_a_mosaic_split_wrong_is_named_file_by_file():
+    """An RGGB mosaic's stored rows split as GBRG: red's and blue's files hold green, green's
+    blue. No order fits that: the order warning named green and blue swapped alone (red's file
+    still green, unsaid, 12.6 dB where 19.4 was due) and called both files upside down (-0.01
+    against -0.26). Each file holding another channel is named; none is called upside down."""
+    from spikegs.data.channel_order import check_channels
+
+    rng = np.random.default_rng(2)
+    y, x = np.mgrid[:48, :48]
+    patterns = [np.sin(x / 5) * np.cos(y / 7), np.cos(x / 4 + y / 6), np.sin(x / 3 - y / 9)]
+    files = ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
+    views = []
+    for shift in range(0, 18, 3):
+        image = np.stack([0.5 + 0.5 * np.roll(p, shift, axis=1) for p in patterns], -1) * 0.25
+        tfps = [rng.poisson(image[..., c] * 33) / 33 for c in range(3)]
+        views.append(([tfps[1], tfps[2], tfps[1]], image))  # r: green, g: blue, b: green
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        check_channels(views, files, "meta.json")
+    said = [str(w.message) for w in said]
+    assert any("spikes_r.dat matches the images' channel 1" in text for text in said), said
+    assert not any("upside down" in text for text in said), said
+    assert any("another order" in text for text in said), said  # green and blue: an order
+
+
 def test_keys_meta_json_does_not_read_are_named(small, tmp_path):
     """A `"bayer_pattern": "RGGB"` beside a mosaic's one spikes.dat (trained as a mono camera's
     checkerboard) or a misspelt optional key (`rate_at_1`: the rate guessed) loaded unsaid:

@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 
 from .correlation import correlation
-from .orientation import FLIP_MARGIN
+from .orientation import FLIP_MARGIN, MATCH_MIN
 
 
 def channel_correlations(tfps: list[np.ndarray], image: np.ndarray) -> np.ndarray:
@@ -33,8 +33,10 @@ def check_channels(
     in another order, each channel it moves better by FLIP_MARGIN than its own file (the files
     likely listed in another order), or some files' spikes (not all: the dataset's `flip`,
     which `check_orientation` names) match their channel better upside down, by FLIP_MARGIN
-    (stored the other way up). Orders, not channels alone: a dim channel matches a brighter
-    file better than its own noisy one (blue at 30 % of red) where no other order fits."""
+    (stored the other way up), or files hold another channel than their own, the order aside
+    (`_warn_of_files_holding_another_channel`). Orders, not channels alone: a dim channel
+    matches a brighter file better than its own noisy one (blue at 30 % of red) where no other
+    order fits."""
     scores = [channel_correlations(tfps, image) for tfps, image in views if np.ptp(image) > 0]
     if not scores:
         return
@@ -64,8 +66,18 @@ def check_channels(
             f"pattern read wrong?)",
             stacklevel=3,
         )
+    named = {best[c] for c in range(channels) if best[c] != c} if best is not None else set()
+    named |= _warn_of_files_holding_another_channel(scores, files, settings, named)
     flipped = scores[:, :, channels] - own > FLIP_MARGIN  # [V, C]
-    upside = [c for c in range(channels) if flipped[:, c].sum() > len(scores) / 2]
+    # a file that matches its channel upside down (not merely less unlike it: a file holding
+    # another channel, -0.01 against -0.26, was called stored the other way up)
+    upside = [
+        c
+        for c in range(channels)
+        if flipped[:, c].sum() > len(scores) / 2
+        and np.median(scores[:, c, channels]) >= MATCH_MIN
+        and c not in named
+    ]
     if upside and len(upside) < channels:
         names = ", ".join(files[c] for c in upside)
         warnings.warn(
@@ -77,3 +89,36 @@ def check_channels(
             f"(rows top-down where flip says bottom-up, or the reverse)",
             stacklevel=3,
         )
+
+
+def _warn_of_files_holding_another_channel(
+    scores: np.ndarray, files: list[str], settings: str, named: set[int]
+) -> set[int]:
+    """A UserWarning naming the files (not in `named`, the order's) whose spikes match another
+    channel of the images better than their own, by FLIP_MARGIN in most views (`scores`
+    [V, C, C + 1] of `check_channels`): a mosaic split with two files holding one channel (an
+    RGGB sensor's stored rows read as GBRG give red's and blue's files green pixels) is no
+    other order. A file's own noise lowers its every correlation alike: a dim channel's file
+    is not named. Returns the files named."""
+    channels = len(files)
+    holding = {}  # file f: the channel c it matches best, other than its own
+    for f in sorted(set(range(channels)) - named):
+        ahead = scores[:, :channels, f] - scores[:, f, f][:, None]  # [V, C]: channel c over own
+        ahead[:, f] = -np.inf
+        c = int(np.argmax(np.median(ahead, axis=0)))
+        if (ahead[:, c] > FLIP_MARGIN).sum() > len(scores) / 2:
+            holding[f] = c
+    if holding:
+        said = "; ".join(
+            f"{files[f]} matches the images' channel {c} (median correlation "
+            f"{np.median(scores[:, c, f]):.2f}) better than its own, {f} "
+            f"({np.median(scores[:, f, f]):.2f})"
+            for f, c in holding.items()
+        )
+        warnings.warn(
+            f"{settings}: over {len(scores)} views, {said}: the files likely hold other channels "
+            f"than their names say (a colour filter mosaic split with its pattern read wrong: "
+            f"an RGGB sensor's rows stored bottom-up read as GBRG)",
+            stacklevel=4,
+        )
+    return set(holding)
