@@ -563,12 +563,18 @@ def test_negative_view_counts_refused(tmp_path):
             r"training timestamps, .* and 128 for each of the 2 on-path held-out views",
         ):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": readouts})
-    # the default 8 on-path views need 1090 readouts: as many as fit, said (refused, though a
-    # frame sequence holds out as many as it has without the option)
+    # the default 8 on-path views need 2129 readouts: as many as keep at most half the stream
+    # from training, said (refused, though a frame sequence holds out as many as it has without
+    # the option); as many as fit (4) left training timestamps at the two ends alone
     fewer = {**SMALL, "readouts": 700, "test_on_path": None}
-    with pytest.warns(UserWarning, match="700 readouts hold 4 on-path held-out views of the de"):
+    with pytest.warns(UserWarning, match=r"700 readouts hold 2 on-path held-out views of the de"):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
-    assert sum(v.readout is not None for v in ds.test_views) == 4
+    on_path = sorted(v.readout for v in ds.test_views if v.readout is not None)
+    assert len(on_path) == 2
+    between = ds.train_timestamps[
+        (ds.train_timestamps > on_path[0]) & (ds.train_timestamps < on_path[1])
+    ]
+    assert len(between) > 0
     # an unknown scene is refused first, not warned of its run's length before (the API's
     # names beside the command's)
     with warnings.catch_warnings():

@@ -491,15 +491,26 @@ def simulate_dataset(
             f"test_on_path, test_off_path (--test-on-path, --test-off-path): expected counts "
             f">= 0, found {test_on_path}, {test_off_path}"
         )
-    room = (readouts - 2 * WINDOW_MARGIN - 2) // (4 * WINDOW_MARGIN)  # on-path views that fit
-    fewer_views = None  # the default held out as many as fit: said once the scene is known
+    # the default's on-path views: their windows kept from training (4 WINDOW_MARGIN + 1
+    # readouts each) cover at most half the readouts training could use (as many as fit left
+    # training timestamps at the path's two ends alone: 1000 readouts held 7, 22 % of the path
+    # trained, off-path views 20.6 dB where 2 views gave 25.9)
+    held = 4 * WINDOW_MARGIN + 1
+    room = (readouts - 2 * WINDOW_MARGIN - 1) // (2 * held)
+    fewer_views = None  # said once the scene is known
     if asked[0] is None and room < test_on_path:
-        if room >= 0:  # (under none the stream is refused below)
-            fewer_views = (
+        fewer_views = (
+            None
+            if room < 0
+            # (under none the stream is refused below)
+            else (
                 f"{readouts} readouts hold {room} on-path held-out views of the default "
-                f"{test_on_path} (each {4 * WINDOW_MARGIN} readouts, {2 * WINDOW_MARGIN + 2} "
-                f"more in all): add readouts for more, or set test_on_path (--test-on-path)"
+                f"{test_on_path} (each keeps the {held} readouts around it from training; the "
+                f"default keeps at most half of the {readouts - 2 * WINDOW_MARGIN - 1} training "
+                f"could use: {2 * held * test_on_path + 2 * WINDOW_MARGIN + 1} readouts for "
+                f"{test_on_path}): add readouts for more, or set test_on_path (--test-on-path)"
             )
+        )
         test_on_path = max(room, 0)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts and not test_on_path:  # (holding out fewer than none frees none)
