@@ -148,6 +148,13 @@ def test_a_built_in_scene_s_spp_is_refused_where_its_frame_would_fill_half_the_m
     with pytest.raises(ValueError, match=match):
         ProceduralSource("solids", SCENES["solids"](), 64, 64, channels=3, spp=16)
     assert ProceduralSource("solids", SCENES["solids"](), 64, 64, spp=16).spp == 16  # mono: 1 MiB
+    # one sample a pixel (the default): the frames' size is at fault, not spp ("a smaller spp",
+    # below the least, was the remedy)
+    monkeypatch.setattr(sources, "machine_memory", lambda: 64 * 64 * 4 * 4)
+    match = r"height, width \(--height, --width\) 64, 64: frames drawn at their size, .*frames$"
+    with pytest.raises(ValueError, match=match) as said:
+        ProceduralSource("solids", SCENES["solids"](), 64, 64, spp=1)
+    assert "spp" not in str(said.value)
 
 
 def write_transforms(path, name, frames, viewmats, K, ext):

@@ -223,16 +223,23 @@ def drawn_side(spp, width: int, height: int, channels: int = 1) -> int:
     `channels` take `spp` samples a pixel (`grid_side`); ValueError where the frame drawn s times
     larger passes the rasterizer's side or half the memory this process may use."""
     s = grid_side(spp)
-    drawn = f"spp (--spp) {spp}: {width}x{height} frames would be drawn at {width * s}x{height * s}"
+    # (one sample a pixel, the least: the frames' size alone, named as such, not spp)
+    drawn = (
+        f"height, width (--height, --width) {height}, {width}: frames drawn at their size"
+        if s == 1
+        else f"spp (--spp) {spp}: {width}x{height} frames would be drawn at "
+        f"{width * s}x{height * s}"
+    )
+    remedy = "smaller frames" if s == 1 else "a smaller spp, or smaller frames"
     if max(width, height) * s > MAX_SIZE:
-        raise ValueError(f"{drawn}, over the rasterizer's {MAX_SIZE} a side")
+        raise ValueError(f"{drawn}, over the rasterizer's {MAX_SIZE} a side: {remedy}")
     # (C + 3) floats a fine pixel: its image, its alpha and the core's buffers (measured 23
     # bytes a pixel in colour)
     frame_bytes, memory = width * s * height * s * (channels + 3) * 4, machine_memory()
     if frame_bytes > memory // 2:
         raise ValueError(
             f"{drawn}, {frame_bytes / 2**30:.1f} GiB a frame, over half the {memory / 2**30:.1f} "
-            f"GiB this process may use: a smaller spp, or smaller frames"
+            f"GiB this process may use: {remedy}"
         )
     return s
 
