@@ -230,12 +230,13 @@ def warn_about_data(
     cos = (np.einsum("nkij,nkij->nk", rot[:, 1:], rot[:, :-1]) - 1) / 2  # tr(Rb Ra^T) = 1+2cos
     degrees = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).sum(1).max())
     if degrees > BLUR_DEGREES:
-        # at speed 0 the camera does not orbit: it turns only as the spiral climbs from its
-        # first elevation to its last over the recording (a short one: 16° in 33 of 80 readouts)
+        # where the orbit's speed turns it less than half of that, the camera turns as the
+        # spiral climbs from its first elevation to its last over the recording (a short one:
+        # 16° in 33 of 80 readouts, at any speed): a lower speed would not mend it
         slower = (
-            "more readouts (at speed 0 the orbit turns only as it climbs its elevations, over "
-            "the whole recording)"
-            if speed == 0
+            "more readouts (the orbit turns mostly as it climbs its elevations, over the whole "
+            "recording: a lower speed would not slow it)"
+            if speed is not None and abs(speed) * (BLUR_WINDOW - 1) < degrees / 2
             else "a lower speed (built-in scenes) or more readouts"
         )
         warnings.warn(
