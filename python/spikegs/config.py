@@ -3,8 +3,8 @@
 A YAML file overrides only what differs from what it starts from, section by section: `base: NAME`
 starts from another method's file, `base: FILE.yaml` from another file (a relative path is taken
 from the directory of the file that names it); without `base`, from the dataclass defaults (the
-paper's losses, eqs. 6 and 9: L1 norms, lambda = 1, which the paper leaves unstated; but SIM's loss
-is L2, where the paper's eq. 13 has L1: `sim: {loss: l1}`; `--method spikegs` is
+paper's losses, eqs. 7 and 10: L1 norms, lambda = 1, which the paper leaves unstated; but SIM's loss
+is L2, where the paper's eq. 15 has L1: `sim: {loss: l1}`; `--method spikegs` is
 configs/spikegs.yaml, smooth-L1 norms and lambda = 4). A file that sets no `method` is named after
 itself, whatever its base: an empty my_run.yaml trains the dataclass defaults as method `my_run`,
 and lam2.yaml (`base: spikegs`, another lambda) trains as `lam2`, never under another method's name
@@ -98,8 +98,10 @@ class SupervisionConfig:
     instant_until: str = "run"
     exposure_window: int = 33  # readouts of the virtual exposure around t
     exposure_poses: int = 5  # K renders averaged over the window
-    dssim_weight: float = 0.0  # optional D-SSIM term on the instant loss, as in 3DGS
-    # l1 (the paper's eqs. 6 and 9; over views it fits the median of a quantised TFP) | l2 |
+    # optional D-SSIM term on the instant loss, (1 - SSIM) / 2: 3DGS's 0.8 L1 + 0.2 (1 - SSIM) is
+    # instant_weight 0.8, dssim_weight 0.4
+    dssim_weight: float = 0.0
+    # l1 (the paper's eqs. 7 and 10; over views it fits the median of a quantised TFP) | l2 |
     # smooth_l1 (quadratic within one spike of the TFP window): both fit the mean
     instant_norm: str = "l1"
     exposure_norm: str = "l1"
@@ -177,7 +179,7 @@ class SimConfig:
     iterations: int = 1000
     crop: int = 64
     batch: int = 2
-    loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 13, biased when dim
+    loss: str = "l2"  # l2: conditional mean (Noise2Void); l1: the paper's eq. 15, biased when dim
     # shift convolutions per branch m: the blind spot sees a (2m+1)-wide block on each side. 5
     # costs ~1.4x the training; at 300 steps it moved SIM's bias by less than the seeds' spread
     # (BENCHMARKS.md, "SIM's depth")

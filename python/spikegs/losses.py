@@ -1,4 +1,4 @@
-"""The SpikeGS losses (paper eqs. 6, 9, 14) and an optional differentiable D-SSIM term."""
+"""The SpikeGS losses (paper eqs. 7, 10, 16) and an optional differentiable D-SSIM term."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ NORMS = {
     "smooth_l1": _smooth_l1,
 }
 
-# SIM's self-supervised loss against TFP (paper eq. 13: l1; l2 the mean, the default)
+# SIM's self-supervised loss against TFP (paper eq. 15: l1; l2 the mean, the default)
 SIM_LOSSES = {"l1": F.l1_loss, "l2": F.mse_loss}
 
 

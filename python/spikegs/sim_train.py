@@ -102,12 +102,12 @@ def train_sim(
     random one of them, and the one network serves every channel.
 
     The target is TFP of the centre `target_window` readouts of the input window (default: the
-    whole window, the paper's eq. 13). The blind spot keeps the pixel's own spikes out of the
+    whole window, the paper's eq. 15). The blind spot keeps the pixel's own spikes out of the
     input, so the optimum is the mean light over the target window given the neighbours' spikes
     over the whole window: a shorter target keeps the input's context for denoising but less of
     the window's motion blur (noisier targets cost training variance, not bias). `loss` "l2"
     (default) makes the optimum the conditional mean, the Noise2Void argument the paper states;
-    "l1" (the paper's eq. 13) makes it the conditional median, biased where a window holds few
+    "l1" (the paper's eq. 15) makes it the conditional median, biased where a window holds few
     spikes (a short window or a dim scene: 33.6 dB against 41.2 dB with l2 for a 17-readout
     window on `solids`).
     `bf16`: convolutions under bfloat16 autocast (float32 weights and loss), 2-3× faster; by
