@@ -356,6 +356,15 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert train_or_load(path, stream, ts, 33, **other)[1] > 0
     assert "trained with other settings (steps 2, now 3, seed" in capsys.readouterr().err
     assert torch.load(path, weights_only=True)["meta"]["steps"] == 3
+    # the thread count it trained at, recorded (SIM trained at another is another SIM, unsaid
+    # where cached); reused at another all the same, as the settings are
+    assert torch.load(path, weights_only=True)["meta"]["threads"] == torch.get_num_threads()
+    threads = torch.get_num_threads()
+    try:
+        torch.set_num_threads(threads + 1)
+        assert train_or_load(path, stream, ts, 33, **other)[1] == 0
+    finally:
+        torch.set_num_threads(threads)
     assert train_or_load(path, stream, ts, 33, keep=True, force=True, **tiny)[1] > 0
     # no temporary file left (the lock file that one process a SIM takes stays, empty)
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name, f"{path.name}.lock"]

@@ -456,8 +456,15 @@ def train_or_load(
         # sim-train's scores of the SIM replaced, removed first: a kill between the two leaves
         # the old weights without their record, never the new ones with the old one's
         record_beside(path).unlink(missing_ok=True)
-        save_sim(
-            model, path, final_loss=final_loss, seconds=seconds, data=data, start=START, **settings
+        save_sim(  # (the thread count: SIM's training differs with it, every weight)
+            model,
+            path,
+            final_loss=final_loss,
+            seconds=seconds,
+            data=data,
+            start=START,
+            threads=torch.get_num_threads(),
+            **settings,
         )
         partial.unlink(missing_ok=True)
         if quiet:
