@@ -231,7 +231,7 @@ def test_a_truncated_image_is_refused_by_name(tmp_path):
     assert _reason(" \n").endswith("its image library may have printed one above)")
 
 
-def test_frame_sequence_source(tmp_path):
+def test_frame_sequence_source(tmp_path, monkeypatch):
     truth = ProceduralSource("solids", SCENES["solids"](), 32, 32, channels=3)
     path = truth.trajectory(1001, 0.5)
     train_poses = path.pose_at(np.linspace(0, 1000, 6))  # [6, 4, 4]
@@ -244,6 +244,9 @@ def test_frame_sequence_source(tmp_path):
     write_transforms(tmp_path / "transforms_test.json", "test", test, test_poses, truth.K, ".png")
 
     source = FrameSequenceSource.from_transforms(tmp_path / "transforms_train.json", 32, 32, 3)
+    assert source.name == tmp_path.name
+    monkeypatch.chdir(tmp_path)  # `--scene .` was named after the file, transforms_train
+    assert make_source(".", 32, 32, 3).name == tmp_path.name
     np.testing.assert_allclose(source.viewmats, train_poses, atol=1e-6)  # OpenGL -> OpenCV
     np.testing.assert_allclose(source.K, truth.K, rtol=1e-6)
     np.testing.assert_allclose(source.frames, train, atol=1e-6)
