@@ -13,11 +13,13 @@ from .reference import quat_to_rotation
 
 @dataclass
 class DensifyConfig:
-    start: int = 500  # first iteration that densifies
-    stop: int = 0  # last iteration that densifies; 0: half the run (3DGS: 15k of 30k)
+    # first and last iterations that densify, both rounds (3DGS's 500 and 15000 exclude theirs:
+    # its rounds are 600..14900, 144 of them, start 501 and stop 14999 here)
+    start: int = 500
+    stop: int = 0  # 0: half the run (3DGS: 15k of 30k)
     every: int = 100  # densify and prune every this many iterations
     # mean screen-space gradient (NDC units) that triggers it, of the absolute per-pixel shares
-    # with `absgrad` (AbsGS), else of the plain gradient (3DGS: 0.0002 over 150 densify rounds;
+    # with `absgrad` (AbsGS), else of the plain gradient (3DGS: 0.0002 over 144 densify rounds;
     # our 3000-iteration default has 11, at 500..1500 every 100, and half that threshold gained
     # 0.0-1.1 dB). AbsGS at 0.0002 gained SpikeGS another 0.8 dB on solids and 1.1 on
     # fine-texture (BENCHMARKS.md)
