@@ -11,6 +11,7 @@ must be culled (or are transparent or clamped) get exactly zero gradient.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -224,7 +225,7 @@ def _max_abs(t: torch.Tensor) -> float:
 def _worst(errors: list[float]) -> float:
     """The largest of `errors`, NaN where one is (Python's max kept a NaN first alone: a NaN in
     the reference's alpha or gradients passed every check)."""
-    return max(errors) if not any(e != e for e in errors) else float("nan")
+    return float("nan") if any(math.isnan(e) for e in errors) else max(errors)
 
 
 def _relative_error(g32: torch.Tensor, g64: torch.Tensor) -> float:

@@ -111,7 +111,7 @@ def _warn_of_files_holding_another_channel(
     if holding:
         said = "; ".join(
             f"{files[f]} matches the images' channel {c} (median correlation "
-            f"{np.median(scores[:, c, f]):.2f}) better than its own, {f} "
+            f"{np.median(scores[:, c, f]):.2f}) better than its own channel {f} "
             f"({np.median(scores[:, f, f]):.2f})"
             for f, c in holding.items()
         )
