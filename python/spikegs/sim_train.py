@@ -305,7 +305,7 @@ def _model_of(payload: dict) -> SIM:
             model = SIM(**payload["config"])
         model.load_state_dict(payload["state_dict"])
     except (TypeError, RuntimeError, ValueError) as err:
-        detail = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
+        detail = (str(err).strip().splitlines() or [""])[0][:200]  # (torch's run to pages)
         raise ValueError(f"not a saved SIM's architecture or weights ({detail})") from None
     return model.eval()
 

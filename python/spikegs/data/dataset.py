@@ -57,9 +57,9 @@ META, TRAJECTORY, TIMESTAMPS, TEST_VIEWS = (
 TEST_DIR = "test"
 READOUT_PERIOD_S = 25e-6
 WINDOW_MARGIN = 32  # a 65-readout window centred on a training timestamp fits in the stream
-# training timestamps: a simulation keeping fewer (of those its stride spaces) says why; both
-# losses with the dense views' settings (λ over the instant weight, or the instant loss
-# ending with densification) on fewer training timestamps than this are warned of: at 9 (128²,
+# fewer training timestamps than this: a simulation that keeps fewer than half its stride's
+# says why, and both losses with the dense views' settings (λ over the instant weight, or the
+# instant loss ending with densification) are warned of: at 9 (128²,
 # 3 seeds) equal weights and the instant loss to the end scored higher on every built-in scene
 # (solids +1.35 ± 0.39, wires +0.95 ± 0.12, fine-texture +1.14 ± 0.12 dB); at 15 the defaults
 # led on wires (+0.80 ± 0.28), the two were level on solids (+0.04 ± 0.06) and the sparse ones

@@ -500,18 +500,14 @@ def simulate_dataset(
     room = (readouts - 2 * WINDOW_MARGIN - 1) // (2 * held)
     fewer_views = None  # said once the scene is known
     if asked[0] is None and room < test_on_path:
-        fewer_views = (
-            None
-            if room < 0
-            # (under none the stream is refused below)
-            else (
+        if room >= 0:  # (under none the stream is refused below)
+            fewer_views = (
                 f"{readouts} readouts hold {room} on-path held-out views of the default "
                 f"{test_on_path} (each keeps the {held} readouts around it from training; the "
                 f"default keeps at most half of the {readouts - 2 * WINDOW_MARGIN - 1} training "
                 f"could use: {2 * held * test_on_path + 2 * WINDOW_MARGIN + 1} readouts for "
                 f"{test_on_path}): add readouts for more, or set test_on_path (--test-on-path)"
             )
-        )
         test_on_path = max(room, 0)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
     if readouts < min_readouts and not test_on_path:  # (holding out fewer than none frees none)
