@@ -172,7 +172,7 @@ def test_a_second_bench_into_one_folder_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
-def test_a_scoring_waits_for_no_other_in_its_run(simulated, tmp_path, capsys):
+def test_a_second_scoring_of_one_run_is_refused_busy(simulated, tmp_path, capsys):
     """Two `spikegs eval RUN --dataset D` of datasets in folders of one name, at once: both chose
     eval-data.json (the name free when each looked) and one's scores were lost, though both
     said they were written. A scoring holds the run's lock: the second is refused, busy."""
