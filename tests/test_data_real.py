@@ -245,6 +245,16 @@ def test_nerf_paths_with_windows_separators_load_as_with_slashes(nerf, tmp_path)
     np.testing.assert_array_equal(theirs.test_views[0].image, ours.test_views[0].image)
 
 
+def test_a_small_test_image_is_named_with_the_file_listing_it(nerf, tmp_path):
+    """A test image smaller than the spikes' frames, listed in transforms_test.json, was warned
+    of as transforms_train.json's."""
+    root = copy(nerf, tmp_path)
+    small = read_image(root / "test" / "r_0.exr")[::2, ::2]  # [H/2, W/2, 1]
+    write_image(root / "test" / "r_0.exr", small)
+    with pytest.warns(UserWarning, match=r"transforms_test\.json: 1 test image\(s\) smaller than"):
+        load_dataset(root)
+
+
 def test_raw_stream_options(sim, llff_stream, tmp_path):
     """Rows with extra columns, stored top-down: spikegs.json crops and un-flips."""
     root = copy(llff_stream, tmp_path)
