@@ -358,6 +358,12 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             {"speed": 0.01, "readouts": 80, "test_on_path": 0, "test_off_path": 1},
             r"turns up to 16\.\d° in 33 readouts: .*; slow the camera: more readouts \(the orbit",
         ),
+        # where the orbit turns it half the blur or more, a lower speed helps: said so
+        (
+            "solids",
+            {"speed": 0.4, "readouts": 80, "test_on_path": 0, "test_off_path": 1},
+            r"turns up to 20\.\d° in 33 readouts: .*; slow the camera: a lower speed",
+        ),
         # not the 0° between the ends; and 90° a readout crosses pixels between the light frames
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),
     ]
@@ -573,7 +579,12 @@ def test_negative_view_counts_refused(tmp_path):
     # from training, said (refused, though a frame sequence holds out as many as it has without
     # the option); as many as fit (4) left training timestamps at the two ends alone
     fewer = {**SMALL, "readouts": 700, "test_on_path": None}
-    with pytest.warns(UserWarning, match=r"700 readouts hold 2 on-path held-out views of the de"):
+    said = (
+        r"700 readouts hold 2 on-path held-out views of the default 8 \(each keeps the 129 "
+        r"readouts around it from training; the default keeps at most half of the 635 training "
+        r"could use: 2129 readouts for 8\)"
+    )
+    with pytest.warns(UserWarning, match=said):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)
     on_path = sorted(v.readout for v in ds.test_views if v.readout is not None)
     assert len(on_path) == 2
@@ -581,6 +592,10 @@ def test_negative_view_counts_refused(tmp_path):
         (ds.train_timestamps > on_path[0]) & (ds.train_timestamps < on_path[1])
     ]
     assert len(between) > 0
+    # none fit: said too, the views off the path alone (it was said where some fit)
+    with pytest.warns(UserWarning, match=r"200 readouts hold 0 on-path held-out views of the de"):
+        none = simulate_dataset("solids", tmp_path / "none_fit", **{**fewer, "readouts": 200})
+    assert all(v.readout is None for v in none.test_views) and none.test_views
     # an unknown scene is refused first, not warned of its run's length before (the API's
     # names beside the command's)
     with warnings.catch_warnings():
@@ -807,6 +822,45 @@ def test_a_mosaic_split_wrong_is_named_file_by_file():
     assert any("spikes_r.dat matches the images' channel 1" in text for text in said), said
     assert not any("upside down" in text for text in said), said
     assert any("another order" in text for text in said), said  # green and blue: an order
+
+
+def test_a_file_is_named_by_one_colour_check_and_in_most_views():
+    """The colour checks' bounds: a file matching its channel neither way up (an inverted one,
+    -0.95 as read, 0 flipped) is not called stored upside down; a file named as holding another
+    channel (red's holding green, green being red upside down) is not also called upside down;
+    a file ahead of its own channel in half the views, not most, is not named."""
+    from spikegs.data.channel_order import check_channels
+
+    rng = np.random.default_rng(3)
+    y, x = np.mgrid[:48, :48]
+    wave = np.sin(2 * np.pi * y / 48) + np.cos(2 * np.pi * y / 48)  # uncorrelated flipped
+    files = ["spikes_r.dat", "spikes_g.dat", "spikes_b.dat"]
+
+    def said(views) -> list[str]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_channels(views, files, "meta.json")
+        return [str(w.message) for w in caught]
+
+    def noisy(light):  # a TFP of 33 readouts of firing rates `light` [H, W]
+        return rng.poisson(light * 33) / 33
+
+    inverted, held, mixed = [], [], []
+    for shift in range(0, 18, 3):
+        p = 0.5 + 0.25 * np.roll(wave * np.cos(x / 6), shift, axis=1)
+        image = np.stack([p, p, p], -1) * 0.25
+        inverted.append(
+            ([noisy(image[..., 0]), noisy(image[..., 1]), noisy(0.25 - image[..., 2])], image)
+        )
+        q = 0.5 + 0.25 * np.roll(np.sin(x / 3 - y / 9), shift, axis=1)
+        coloured = np.stack([p, p[::-1], q], -1) * 0.25  # green: red upside down
+        tfps = [noisy(coloured[..., c]) for c in range(3)]
+        held.append(([tfps[1], tfps[1], tfps[2]], coloured))  # red's file holds green
+        mixed.append(([tfps[1] if shift < 9 else tfps[0], tfps[1], tfps[2]], coloured))
+    assert said(inverted) == []
+    (named,) = said(held)
+    assert "spikes_r.dat matches the images' channel 1" in named
+    assert said(mixed) == []  # red's file holds green in 3 of 6 views: not most
 
 
 def test_keys_meta_json_does_not_read_are_named(small, tmp_path):

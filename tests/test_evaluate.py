@@ -241,6 +241,20 @@ def test_another_tools_scene_scored_on_two_datasets_keeps_both(trained, run, tmp
     assert evaluate_run(run, trained[0], write_images=False)["file"] == first["file"]
 
 
+def test_a_missing_or_untrained_run_is_told_so_before_its_lock(trained, tmp_path):
+    """evaluate_run (eval --dataset) of a run folder not there, or of one not trained: the run's
+    state is told (its lock, taken first, failed on "[Errno 2] ... nope/.lock", and called an
+    empty folder being trained by another process), and no lock file is left in the user's
+    folder."""
+    with pytest.raises(FileNotFoundError, match="nope: no such run folder"):
+        evaluate_run(tmp_path / "nope", trained[0])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match=r"scene\.ply not found") as said:
+        evaluate_run(tmp_path / "empty", trained[0])
+    assert "another process" not in str(said.value)
+    assert list((tmp_path / "empty").iterdir()) == []
+
+
 def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run):
     """An eval.json whose views name paths (hand-edited, another tool's): eval removes the images
     of views the dataset no longer has, and must not follow such a name out of RUN/eval."""
