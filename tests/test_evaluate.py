@@ -255,6 +255,30 @@ def test_a_missing_or_untrained_run_is_told_so_before_its_lock(trained, tmp_path
     assert list((tmp_path / "empty").iterdir()) == []
 
 
+def test_another_tools_scene_in_its_datasets_folder_is_scored(trained, tmp_path):
+    """A scene.ply in its dataset's own folder (`spikegs eval D --dataset D`): eval held the
+    dataset's .lock shared as it read it, then asked for the run's, the same file, exclusive,
+    and refused itself as busy (exit 75, where it scored before the run lock)."""
+    from spikegs.cli import main
+
+    folder = shutil.copytree(trained[0].root, tmp_path / "data")
+    shutil.copy(trained[1] / "scene.ply", folder / "scene.ply")
+    assert main(["eval", str(folder), "--dataset", str(folder), "--no-images"]) == 0
+    assert json.loads((folder / "eval.json").read_text())["dataset"] == str(folder.resolve())
+
+
+def test_another_tools_aligned_scorings_of_two_datasets_keep_both(tmp_path):
+    """Aligned scorings (--align-poses) of a scene.ply without train.json on two datasets: the
+    second took eval-aligned.json, the first's, and replaced it (the plain scoring's mend missed
+    them). In a run with a dataset of its own, eval-aligned is its own data's, as before."""
+    first, second = tmp_path / "a" / "data", tmp_path / "b" / "data"
+    scoring = {"dataset": str(first.resolve()), "aligned_poses": {}}
+    (tmp_path / "eval-aligned.json").write_text(json.dumps(scoring))
+    assert evaluate._aligned_name(tmp_path, "eval", first, foreign=True) == "eval-aligned"
+    assert evaluate._aligned_name(tmp_path, "eval", second, foreign=True) == "eval-aligned-2"
+    assert evaluate._aligned_name(tmp_path, "eval", second) == "eval-aligned"
+
+
 def test_an_earlier_scoring_that_names_a_path_removes_nothing_there(trained, run):
     """An eval.json whose views name paths (hand-edited, another tool's): eval removes the images
     of views the dataset no longer has, and must not follow such a name out of RUN/eval."""

@@ -195,16 +195,18 @@ def _holds_run_data(folder: Path, data: str, scale: float, progress: bool = Fals
         return False
 
 
-def _aligned_name(run_dir: Path, own: str, root: Path) -> str:
+def _aligned_name(run_dir: Path, own: str, root: Path, foreign: bool = False) -> str:
     """OWN-aligned, the name of an aligned scoring (`own`: `_eval_name`'s, of dataset `root`), or
     OWN-aligned-2, -3, ... where that name holds another scoring: the plain one of a dataset
-    whose folder is named 'aligned' (eval-aligned) or 'NAME-aligned', which it replaced unsaid."""
+    whose folder is named 'aligned' (eval-aligned) or 'NAME-aligned', which it replaced unsaid,
+    or, in a `foreign` folder (another tool's scene.ply, no dataset of its own), another
+    dataset's aligned scoring (a second dataset's replaced the first's)."""
     for i in itertools.count(1):
         name = f"{own}-aligned" + (f"-{i}" if i > 1 else "")
         doc = _scoring(run_dir / f"{name}.json")
         if doc is None:
             return name
-        mine = own == EVAL or doc.get("dataset") == str(Path(root).resolve())
+        mine = (own == EVAL and not foreign) or doc.get("dataset") == str(Path(root).resolve())
         if "aligned_poses" in doc and mine:  # (an unreadable one's name is not reused)
             return name
 
@@ -396,7 +398,11 @@ def evaluate_run(
     # one process in the run at a time: two scorings of datasets of one folder name took one
     # eval-NAME.json, one's scores lost though both said they were written
     busy = f"{run_dir} is being scored or trained by another process; try again once it has ended"
-    with exclusive_lock(run_dir / LOCK, busy):
+    # (a scene in its dataset's own folder: one .lock, which `spikegs eval` holds shared as it
+    # reads the dataset, shutting out training there; taken again it refused eval itself)
+    in_dataset = run_dir.resolve() == Path(dataset.root).resolve()
+    locked = contextlib.nullcontext() if in_dataset else exclusive_lock(run_dir / LOCK, busy)
+    with locked:
         return _evaluate_locked(run_dir, dataset, write_images, progress, align_poses)
 
 
@@ -406,7 +412,8 @@ def _evaluate_locked(
     """`evaluate_run` with RUN locked."""
     train = read_summary(run_dir)
     own = _eval_name(run_dir, train, dataset, progress)
-    name = _aligned_name(run_dir, own, dataset.root) if align_poses else own
+    foreign = train.get("dataset") is None  # another tool's scene.ply: no dataset of its own
+    name = _aligned_name(run_dir, own, dataset.root, foreign) if align_poses else own
     scene = _other_scene(run_dir, train, dataset, "is scored on")
     model = trained_model(run_dir)
     ply = run_dir / SCENE  # (`trained_model`'s)
