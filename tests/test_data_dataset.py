@@ -826,9 +826,12 @@ def test_a_mosaic_split_wrong_is_named_file_by_file():
 
 def test_a_file_is_named_by_one_colour_check_and_in_most_views():
     """The colour checks' bounds: a file matching its channel neither way up (an inverted one,
-    -0.95 as read, 0 flipped) is not called stored upside down; a file named as holding another
-    channel (red's holding green, green being red upside down) is not also called upside down;
-    a file ahead of its own channel in half the views, not most, is not named."""
+    -0.95 as read, 0 flipped) is not called stored upside down; a file stored upside down
+    (independent channels, or blue at a quarter of the light) is called so, not a holder of
+    another channel (its own as read near 0, a channel alike by 0.27 named it: the review); a
+    file named as holding another channel (red's holding green, partly red upside down) is not
+    also called upside down; a file ahead of its own channel in half the views, not most, is
+    not named."""
     from spikegs.data.channel_order import check_channels
 
     rng = np.random.default_rng(3)
@@ -845,19 +848,33 @@ def test_a_file_is_named_by_one_colour_check_and_in_most_views():
     def noisy(light):  # a TFP of 33 readouts of firing rates `light` [H, W]
         return rng.poisson(light * 33) / 33
 
-    inverted, held, mixed = [], [], []
+    inverted, flipped, dim, held, mixed = [], [], [], [], []
     for shift in range(0, 18, 3):
         p = 0.5 + 0.25 * np.roll(wave * np.cos(x / 6), shift, axis=1)
-        image = np.stack([p, p, p], -1) * 0.25
+        grey = np.stack([p, p, p], -1) * 0.25
         inverted.append(
-            ([noisy(image[..., 0]), noisy(image[..., 1]), noisy(0.25 - image[..., 2])], image)
+            ([noisy(grey[..., 0]), noisy(grey[..., 1]), noisy(0.25 - grey[..., 2])], grey)
         )
         q = 0.5 + 0.25 * np.roll(np.sin(x / 3 - y / 9), shift, axis=1)
-        coloured = np.stack([p, p[::-1], q], -1) * 0.25  # green: red upside down
-        tfps = [noisy(coloured[..., c]) for c in range(3)]
+        r = 0.5 + 0.25 * np.roll(np.cos(x / 4 + y / 6), shift, axis=1)
+        apart = np.stack([p, r, q], -1) * 0.25
+        tfps = [noisy(apart[..., c]) for c in range(3)]
+        flipped.append(([tfps[0], tfps[1], tfps[2][::-1]], apart))
+        faint = apart * [1, 1, 0.25]
+        dim.append(
+            ([noisy(faint[..., 0]), noisy(faint[..., 1]), noisy(faint[..., 2])[::-1]], faint)
+        )
+        green = 0.6 * p[::-1] + 0.8 * r  # partly red upside down
+        coloured = np.stack([p, green / 1.4, q], -1) * 0.25
+        tfps = [rng.poisson(coloured[..., c] * 330) / 330 for c in range(3)]  # 330 readouts
         held.append(([tfps[1], tfps[1], tfps[2]], coloured))  # red's file holds green
         mixed.append(([tfps[1] if shift < 9 else tfps[0], tfps[1], tfps[2]], coloured))
     assert said(inverted) == []
+    for views in (flipped, dim):
+        (upside,) = said(views)
+        assert (
+            "the spikes of spikes_b.dat match their channel of the images better upside" in upside
+        )
     (named,) = said(held)
     assert "spikes_r.dat matches the images' channel 1" in named
     assert said(mixed) == []  # red's file holds green in 3 of 6 views: not most

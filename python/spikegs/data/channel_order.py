@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 
 from .correlation import correlation
-from .orientation import FLIP_MARGIN, MATCH_MIN
+from .orientation import FLIP_MARGIN
 
 
 def channel_correlations(tfps: list[np.ndarray], image: np.ndarray) -> np.ndarray:
@@ -69,13 +69,14 @@ def check_channels(
     named = {best[c] for c in range(channels) if best[c] != c} if best is not None else set()
     named |= _warn_of_files_holding_another_channel(scores, files, settings, named)
     flipped = scores[:, :, channels] - own > FLIP_MARGIN  # [V, C]
-    # a file that matches its channel upside down (not merely less unlike it: a file holding
-    # another channel, -0.01 against -0.26, was called stored the other way up)
+    # a file that matches its channel upside down, by FLIP_MARGIN at least (not merely less
+    # unlike it: a file holding another channel, -0.01 against -0.26, was called stored the
+    # other way up)
     upside = [
         c
         for c in range(channels)
         if flipped[:, c].sum() > len(scores) / 2
-        and np.median(scores[:, c, channels]) >= MATCH_MIN
+        and np.median(scores[:, c, channels]) >= FLIP_MARGIN
         and c not in named
     ]
     if upside and len(upside) < channels:
@@ -103,7 +104,10 @@ def _warn_of_files_holding_another_channel(
     channels = len(files)
     holding = {}  # file f: the channel c it matches best, other than its own
     for f in sorted(set(range(channels)) - named):
-        ahead = scores[:, :channels, f] - scores[:, f, f][:, None]  # [V, C]: channel c over own
+        # channel c over its own, read either way up (a file stored upside down is that, not
+        # another channel's: its own as read near 0, any channel alike by 0.2 was named)
+        own = np.maximum(scores[:, f, f], scores[:, f, channels])  # [V]
+        ahead = scores[:, :channels, f] - own[:, None]  # [V, C]
         ahead[:, f] = -np.inf
         c = int(np.argmax(np.median(ahead, axis=0)))
         if (ahead[:, c] > FLIP_MARGIN).sum() > len(scores) / 2:
