@@ -575,14 +575,14 @@ def test_negative_view_counts_refused(tmp_path):
             r"training timestamps, .* and 128 for each of the 2 on-path held-out views",
         ):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": readouts})
-    # the default 8 on-path views need 2129 readouts: as many as keep at most half the stream
+    # the default 8 on-path views need 2128 readouts: as many as keep at most half the stream
     # from training, said (refused, though a frame sequence holds out as many as it has without
     # the option); as many as fit (4) left training timestamps at the two ends alone
     fewer = {**SMALL, "readouts": 700, "test_on_path": None}
     said = (
         r"700 readouts hold 2 on-path held-out views of the default 8 \(each keeps the 129 "
-        r"readouts around it from training; the default keeps at most half of the 635 training "
-        r"could use: 2129 readouts for 8\)"
+        r"readouts around it from training; the default keeps at most half of the 636 training "
+        r"could use: 2128 readouts for 8\)"
     )
     with pytest.warns(UserWarning, match=said):
         ds = simulate_dataset("solids", tmp_path / "fewer", **fewer)

@@ -1265,6 +1265,8 @@ def test_a_bad_keyword_option_is_named_as_a_keyword_not_the_file(tmp_path):
         read_options(tmp_path, {"rate_at_one": 0})
     with pytest.raises(ValueError, match=r"keyword option\(s\) scene_center: scene_center needs"):
         read_options(tmp_path, {"scene_center": [0, 0, 1]})
+    with pytest.warns(UserWarning, match=r"keyword option\(s\) test_views: test_views lists \[3\]"):
+        read_options(tmp_path, {"test_views": [3, 1, 3]})
 
 
 def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):

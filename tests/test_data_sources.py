@@ -247,6 +247,9 @@ def test_frame_sequence_source(tmp_path, monkeypatch):
     assert source.name == tmp_path.name
     monkeypatch.chdir(tmp_path)  # `--scene .` was named after the file, transforms_train
     assert make_source(".", 32, 32, 3).name == tmp_path.name
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path / "sub")  # and `--scene ..` as ".."
+    assert make_source("..", 32, 32, 3).name == tmp_path.name
     np.testing.assert_allclose(source.viewmats, train_poses, atol=1e-6)  # OpenGL -> OpenCV
     np.testing.assert_allclose(source.K, truth.K, rtol=1e-6)
     np.testing.assert_allclose(source.frames, train, atol=1e-6)

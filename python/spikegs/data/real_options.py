@@ -103,12 +103,9 @@ def read_options(root: Path, overrides: dict) -> Options:
         return f"{root}: keyword option(s) {', '.join(keywords)}:" if keywords else f"{path}:"
 
     known = [f.name for f in dataclasses.fields(Options)]
-    for keys in (given, values):  # a keyword's first: `where` names it alone
-        unknown = sorted(set(keys) - set(known))
-        if unknown:
-            raise ValueError(
-                f"{where(unknown)} unknown options {unknown}; known: {', '.join(known)}"
-            )
+    unknown = sorted(set(given) - set(known)) or sorted(set(values) - set(known))  # keywords'
+    if unknown:
+        raise ValueError(f"{where(unknown)} unknown options {unknown}; known: {', '.join(known)}")
     for key, value in values.items():
         check, expected = CHECKS[key]
         if value is not None and not check(value):
@@ -121,7 +118,9 @@ def read_options(root: Path, overrides: dict) -> Options:
     views = values.get("test_views") or []
     twice = sorted({i for i in views if views.count(i) > 1})
     if twice:
-        warnings.warn(f"{path}: test_views lists {twice} more than once", stacklevel=2)
+        warnings.warn(
+            f"{where(['test_views'])} test_views lists {twice} more than once", stacklevel=2
+        )
     # null: the default, for every key (flip's and col_offset's None reached the reader)
     return Options(**{key: value for key, value in values.items() if value is not None})
 

@@ -496,17 +496,17 @@ def simulate_dataset(
     # readouts each) cover at most half the readouts training could use (as many as fit left
     # training timestamps at the path's two ends alone: 1000 readouts held 7, 22 % of the path
     # trained, off-path views 20.6 dB where 2 views gave 25.9)
-    held = 4 * WINDOW_MARGIN + 1
-    room = (readouts - 2 * WINDOW_MARGIN - 1) // (2 * held)
+    held, usable = 4 * WINDOW_MARGIN + 1, readouts - 2 * WINDOW_MARGIN  # [32, T - 33]
+    room = usable // (2 * held)
     fewer_views = None  # said once the scene is known
     if asked[0] is None and room < test_on_path:
         if room >= 0:  # (under none the stream is refused below)
             fewer_views = (
                 f"{readouts} readouts hold {room} on-path held-out views of the default "
                 f"{test_on_path} (each keeps the {held} readouts around it from training; the "
-                f"default keeps at most half of the {readouts - 2 * WINDOW_MARGIN - 1} training "
-                f"could use: {2 * held * test_on_path + 2 * WINDOW_MARGIN + 1} readouts for "
-                f"{test_on_path}): add readouts for more, or set test_on_path (--test-on-path)"
+                f"default keeps at most half of the {usable} training could use: "
+                f"{2 * held * test_on_path + 2 * WINDOW_MARGIN} readouts for {test_on_path}): add "
+                f"readouts for more, or set test_on_path (--test-on-path)"
             )
         test_on_path = max(room, 0)
     min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
@@ -653,7 +653,7 @@ def simulate_dataset(
         if len(train_timestamps(readouts, np.array(held_out), 1)) > len(timestamps)
         else "more readouts, or fewer on-path held-out views (--test-on-path)"
     )
-    spaced = len(range(WINDOW_MARGIN, readouts - WINDOW_MARGIN, train_every))  # none held out
+    spaced = len(train_timestamps(readouts, np.array([]), train_every))  # none held out
     # (--train-every 150 over 1500 readouts kept 2 of 10, unsaid)
     if 2 <= len(timestamps) < min(spaced / 2, FEW_TIMESTAMPS):
         warnings.warn(

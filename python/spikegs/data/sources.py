@@ -462,7 +462,7 @@ class FrameSequenceSource(Source):
         if len(paths) == 2:
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses[1], images[1]))]
         return cls(
-            path.absolute().parent.name or path.stem,  # (`--scene .`: the folder, not the file)
+            path.resolve().parent.name or path.stem,  # (`--scene .` or `..`: the folder's name)
             frames,
             viewmats,
             K,
