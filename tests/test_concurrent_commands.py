@@ -175,7 +175,8 @@ def test_a_second_bench_into_one_folder_is_refused(tmp_path, capsys):
 def test_a_second_scoring_of_one_run_is_refused_busy(simulated, tmp_path, capsys):
     """Two `spikegs eval RUN --dataset D` of datasets in folders of one name, at once: both chose
     eval-data.json (the name free when each looked) and one's scores were lost, though both
-    said they were written. A scoring holds the run's lock: the second is refused, busy."""
+    said they were written. A scoring holds the run's lock: with it held (by another process
+    here), a scoring is refused, busy, and writes nothing."""
     from spikegs.config import load_config
     from spikegs.data import load_dataset
     from spikegs.train import Trainer

@@ -345,15 +345,15 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     calibrate = options.rate_at_one is None
     checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
 
-    upsampled = []  # test images smaller than the spikes' frames: (file, w, h)
-    listed_in = []  # the transforms file listing each (transforms_test.json: the training file
-    # was named)
+    # test images smaller than the spikes' frames, by the transforms file listing them: {file:
+    # [(image, w, h)]} (transforms_test.json's were warned of as the training file's)
+    upsampled = {}
 
     def mono(i: int, frame: dict, is_test: bool = False) -> np.ndarray | None:
         image = sized.pop(i) if i in sized else _image(root, frame, listings)
         if is_test and image is not None and (image.shape[0] < height or image.shape[1] < row):
-            upsampled.append((frame["file_path"], image.shape[1], image.shape[0]))
-            listed_in.append(sources[i])
+            small = (frame["file_path"], image.shape[1], image.shape[0])
+            upsampled.setdefault(sources[i], []).append(small)
         name = f"{root / frame['file_path']}"
         return _mono(image, src, (height, row), slice(shift, shift + width), name, what)
 
@@ -369,8 +369,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         mono(i, frame, True) if is_test else training_image(i, frame, check)
         for i, (frame, is_test, check) in enumerate(zip(frames, test, checked))
     ]
-    remedy = "or set height and width in spikegs.json"
-    warn_upsampled_tests(listed_in[0] if listed_in else path, upsampled, row, height, remedy)
+    for listed_in, small in upsampled.items():
+        warn_upsampled_tests(
+            listed_in, small, row, height, "or set height and width in spikegs.json"
+        )
     sized.clear()  # a training image that gave the size but is not checked
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
