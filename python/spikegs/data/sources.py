@@ -13,6 +13,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 from __future__ import annotations
 
 import math
+import os
 import re
 import warnings
 from abc import ABC, abstractmethod
@@ -462,7 +463,8 @@ class FrameSequenceSource(Source):
         if len(paths) == 2:
             tests = [(f"off_{i:03d}", v, im) for i, (v, im) in enumerate(zip(poses[1], images[1]))]
         return cls(
-            path.resolve().parent.name or path.stem,  # (`--scene .` or `..`: the folder's name)
+            # (`--scene .` or `..`: the folder's name; a link's own, not its target's)
+            Path(os.path.abspath(path)).parent.name or path.stem,
             frames,
             viewmats,
             K,
