@@ -394,8 +394,8 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them.*; a smaller frame_every"))
     # one training view, which cannot place a scene in depth (it trained in silence)
     cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
-    one = {"readouts": 194, "test_on_path": 1, "train_every": 1}  # the held-out view's margins
-    cases.append(("solids", one, r"one training timestamp \(readout 161;.*--test-on-path"))
+    one = {"readouts": 195, "test_on_path": 1, "train_every": 129}  # 161 beside the view
+    cases.append(("solids", one, r"one training timestamp \(readout 32;.*a smaller train_ev"))
     cases.append(("solids", {"train_every": 100}, ()))  # two: not warned of
     # a stride's timestamps mostly beside the held-out views (2 of 10 kept, unsaid)
     sparse = {"readouts": 1500, "test_on_path": 8, "train_every": 150}
@@ -407,8 +407,23 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             r"of the 8 on-path held-out views .*; a smaller train_every",
         )
     )
+    # the least readouts for one on-path view give two timestamps (194 gave one: 32 and 161 lie
+    # within 64 of the view at 96, 161 of 97)
+    least = {**SMALL, "readouts": 195, "test_on_path": 1, "train_every": 1}
+    with pytest.warns(UserWarning, match=r"^2 training timestamps of the 131 that train_every 1"):
+        least_ds = simulate_dataset("solids", tmp_path / "least", **least)
+    assert list(least_ds.train_timestamps) == [32, 162]
+    with pytest.raises(ValueError, match=r"expected >= 195, found 194: 66 for two .* 129 for"):
+        simulate_dataset("solids", tmp_path / "fewer", **{**least, "readouts": 194})
+    # frames at readouts 0, 64.7, 129.3 and 194: the view at 64.7 keeps 32 from training
+    frames = np.full((4, 24, 32, 1), 0.5, np.float32)
+    poses = [look_at([np.cos(a), -3, 0], [0, 0, 0]) for a in range(4)]
+    K = intrinsics(32, 24, 40)
+    source = FrameSequenceSource("four", frames, poses, K, center=[0, 0, 0], radius=1.0)
     with pytest.raises(ValueError, match=r"no training timestamp: .*; a smaller train_every"):
-        simulate_dataset("solids", tmp_path / "none", **{**SMALL, **one, "train_every": 7})
+        simulate_dataset(
+            source, tmp_path / "none", **{**least, "train_every": 200, "test_off_path": 0}
+        )
     # light that saturates every pixel: flagged while simulating, then refused on loading
     saturated = ("100% of the held-out views' pixels fire every readout", "turns 0° and moves 0")
     cases.append((constant_source(5.0), still, saturated))
@@ -571,8 +586,8 @@ def test_negative_view_counts_refused(tmp_path):
     for readouts in (40, -1):  # (-1 was named as if the held-out views alone wanted more)
         with pytest.raises(
             ValueError,
-            match=rf"readouts \(--readouts\): expected >= 322, found {readouts}: 66 for two "
-            r"training timestamps, .* and 128 for each of the 2 on-path held-out views",
+            match=rf"readouts \(--readouts\): expected >= 324, found {readouts}: 66 for two "
+            r"training timestamps, .* and 129 for each of the 2 on-path held-out views",
         ):
             simulate_dataset("solids", tmp_path / "x", **{**SMALL, "readouts": readouts})
     # the default 8 on-path views need 2128 readouts: as many as keep at most half the stream

@@ -509,7 +509,7 @@ def simulate_dataset(
                 f"readouts for more, or set test_on_path (--test-on-path)"
             )
         test_on_path = max(room, 0)
-    min_readouts = 2 * WINDOW_MARGIN + 2 + 4 * WINDOW_MARGIN * test_on_path
+    min_readouts = 2 * WINDOW_MARGIN + 2 + held * test_on_path  # (128 a view: 194 gave one)
     if readouts < min_readouts and not test_on_path:  # (holding out fewer than none frees none)
         raise ValueError(
             f"readouts (--readouts): expected >= {min_readouts}, found {readouts}: two training "
@@ -520,8 +520,8 @@ def simulate_dataset(
         raise ValueError(  # (-1 was named as if the held-out views alone wanted more)
             f"readouts (--readouts): expected >= {min_readouts}, found {readouts}: "
             f"{2 * WINDOW_MARGIN + 2} for two training timestamps, each with the "
-            f"{2 * WINDOW_MARGIN + 1}-readout window around it, and {4 * WINDOW_MARGIN} for each "
-            f"of the {test_on_path} on-path held-out views (test_on_path, --test-on-path): add "
+            f"{2 * WINDOW_MARGIN + 1}-readout window around it, and {held} for each of the "
+            f"{test_on_path} on-path held-out views (test_on_path, --test-on-path): add "
             f"readouts or hold out fewer"
         )
     train_every = default_train_every(readouts) if train_every is None else train_every
