@@ -70,8 +70,12 @@ _Dumper.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
 
 def read_yaml(path: Path):
     """A YAML file read by the rules of config files (`_Loader`: YAML 1.2 numbers, no key given
-    twice), as a run's config.yaml was written (`dump_yaml`)."""
-    return yaml.load(read_text(path), Loader=_Loader)
+    twice), as a run's config.yaml was written (`dump_yaml`); empty documents around its one
+    (a closing `---`, which yaml.load refused as a second document) are left out."""
+    documents = [d for d in yaml.load_all(read_text(path), Loader=_Loader) if d is not None]
+    if len(documents) > 1:
+        raise yaml.YAMLError(f"{len(documents)} YAML documents (split by ---): expected one")
+    return documents[0] if documents else None
 
 
 def yaml_text(value) -> str:
