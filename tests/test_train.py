@@ -4461,7 +4461,9 @@ def test_a_fit_far_darker_than_its_targets_is_said(dataset, tmp_path):
         texts = [str(w.message) for w in caught if "brightness" in str(w.message)]
         assert len(texts) == said, texts
         if said:
-            assert "% of their instant targets' brightness over the last 100 steps" in texts[0]
+            assert (
+                "% of their instant targets' brightness over the term's last 100 steps" in texts[0]
+            )
             assert "instant_norm l1 fits the median of the TFP's whole spike counts" in texts[0]
 
 
@@ -4492,7 +4494,7 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
         fitted.observe("exposure", [one], one)
     said = biased_fit(fitted, SupervisionConfig(instant="sim", exposure_norm="l1"))
     assert said.endswith(
-        "200 % of their instant targets' brightness over the last 50 steps: a biased or "
+        "200 % of their instant targets' brightness over the term's last 50 steps: a biased or "
         "unconverged fit (its exposure renders hold 100 % of theirs: the instant targets, SIM's "
         "output, differ in brightness from the exposure targets; a SIM trained too briefly? "
         "sim.iterations)"
@@ -4510,8 +4512,8 @@ def test_fit_brightness_judges_each_term_over_its_last_steps():
     for _ in range(MIN_STEPS):
         record.observe("exposure", [one * -6.27], one)
     assert biased_fit(record, SupervisionConfig(exposure_norm="l1")) == (
-        "the exposure renders average below 0 over the last 50 steps: a diverging fit (nothing "
-        "keeps the learnt background at or above 0; learning rates too high?)"
+        "the exposure renders average below 0 over the term's last 50 steps: a diverging fit "
+        "(nothing keeps the learnt background at or above 0; learning rates too high?)"
     )
 
 
@@ -4529,14 +4531,16 @@ def test_fit_brightness_judges_each_colour_channel():
         record.observe("exposure", [render], target)
     ratio, steps, channel = record.ratios()["exposure"]
     assert (round(ratio, 2), steps, channel) == (0.39, MIN_STEPS, "blue")
-    assert "39 % of their exposure targets' brightness in blue over the last 50 steps" in (
+    assert "39 % of their exposure targets' brightness in blue over the term's last 50 steps" in (
         biased_fit(record, SupervisionConfig())
     )
     # beside a term fitted, its ratio in that channel (its red's, its worst, was quoted)
     for _ in range(MIN_STEPS):
         record.observe("instant", [target * torch.tensor([1.2, 1.0, 0.98])], target)
     said = biased_fit(record, SupervisionConfig(instant="sim", exposure_norm="smooth_l1"))
-    assert "in blue over the last 50 steps: a biased or unconverged fit (its instant " in said
+    assert (
+        "in blue over the term's last 50 steps: a biased or unconverged fit (its instant " in said
+    )
     assert "(its instant renders hold 98 % of theirs" in said
     red = FitBrightness()  # blue at 5 % of red's light, fitted at 10 % of it: not judged
     for _ in range(MIN_STEPS):

@@ -79,14 +79,14 @@ def biased_fit(brightness: FitBrightness, supervision) -> str | None:
             said.append(
                 f"the {term} renders average below 0"
                 + (f" in {channel}" if channel else "")
-                + f" over the last {steps} steps: a diverging fit (nothing keeps the learnt "
+                + f" over the term's last {steps} steps: a diverging fit (nothing keeps the learnt "
                 "background at or above 0; learning rates too high?)"
             )
             continue
         text = (
             f"the renders hold {round(100 * ratio)} % of their {term} targets' brightness"
             + (f" in {channel}" if channel else "")
-            + f" over the last {steps} steps: a biased or unconverged fit"
+            + f" over the term's last {steps} steps: a biased or unconverged fit"
         )
         fitted = [  # the other terms' ratios in that channel, where fitted
             (other, ratios[channel])
