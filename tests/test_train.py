@@ -1433,6 +1433,18 @@ def test_gaussian_model_refuses_sizes_without_gaussians():
     assert torch.equal(viewmat, torch.eye(4, dtype=torch.float64))  # the caller's, untouched
 
 
+def test_a_float64_model_moved_to_another_origin_keeps_its_dtype():
+    """centred_at gave a float64 model float32 means beside its float64 parameters, refused
+    as mixed (render_view of a float64 model about a dataset's origin failed)."""
+    state = GaussianModel.random(20, (0, 0, 0), 1.0, 1, sh_degree=1).state_dict()
+    state["params"] = {k: v.double() for k, v in state["params"].items()}
+    state["background"] = state["background"].double()
+    model = GaussianModel.from_state_dict(state)
+    moved = model.centred_at([0.5, -1.0, 2.0])
+    assert moved.dtype == torch.float64 and moved.params["means"].dtype == torch.float64
+    assert torch.equal(moved.world_means(), model.world_means())  # (exact in float64 here)
+
+
 def test_every_method_config_loads():
     methods = available_methods()
     assert {

@@ -230,12 +230,13 @@ class GaussianModel:
         return self.params["means"].detach().double() + torch.from_numpy(self.origin)
 
     def centred_at(self, origin) -> GaussianModel:
-        """This model with its means measured from `origin` [3] (itself where it already is)."""
+        """This model with its means measured from `origin` [3] (itself where it already is), of
+        its dtype."""
         origin = np.asarray(origin, np.float64)
         if np.array_equal(origin, self.origin):
             return self
         state = self.state_dict()
-        state["params"]["means"] = (self.world_means() - torch.from_numpy(origin)).float()
+        state["params"]["means"] = (self.world_means() - torch.from_numpy(origin)).to(self.dtype)
         state["origin"] = origin.tolist()
         return GaussianModel.from_state_dict(state)
 
