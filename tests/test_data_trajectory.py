@@ -138,6 +138,12 @@ def test_json_round_trip_states_the_convention(tmp_path, two_poses):
     )
     back = Trajectory.load_json(path)
     np.testing.assert_allclose(back.readouts, two_poses.readouts)
+    # numpy values (a Dataset's float32 K, its sizes) as Python's (json's TypeError for them)
+    K = np.array([[175.8, 0.0, 63.5], [0.0, 175.8, 47.5], [0, 0, 1]], np.float32)
+    two_poses.save_json(path, fl_x=K[0, 0], cx=K[0, 2], w=np.int64(128), K=K)
+    doc = json.loads(path.read_text())
+    assert (doc["fl_x"], doc["cx"], doc["w"]) == (float(K[0, 0]), 63.5, 128)
+    assert doc["K"] == K.tolist()
     np.testing.assert_allclose(back.viewmats, two_poses.viewmats, atol=1e-12)
 
 

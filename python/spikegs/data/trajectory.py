@@ -304,8 +304,12 @@ def write_camera_doc(path: Path, frames: Iterable[dict], **extra) -> None:
     """Write a camera file (trajectory.json, test_views.json) atomically: a JSON object of
     OpenCV cameras, `extra` keys at the top level, then `frames`, a frame a line, each encoded as
     it is written (a pose a readout of a long recording is never held whole as Python objects
-    and text: 160k readouts took 0.6 GB and 4.4 s, indented a number a line)."""
-    top = {"camera_model": "OPENCV", "convention": CONVENTION, **extra}
+    and text: 160k readouts took 0.6 GB and 4.4 s, indented a number a line); numpy values in
+    `extra` (a Dataset's float32 K[0, 0]) as Python's."""
+    plain = {
+        k: v.tolist() if isinstance(v, (np.ndarray, np.generic)) else v for k, v in extra.items()
+    }
+    top = {"camera_model": "OPENCV", "convention": CONVENTION, **plain}
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", encoding="utf-8") as file:
