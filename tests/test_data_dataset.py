@@ -395,8 +395,16 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     # one training view, which cannot place a scene in depth (it trained in silence)
     cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
     one = {"readouts": 195, "test_on_path": 1, "train_every": 129}  # 161 beside the view
-    cases.append(("solids", one, r"one training timestamp \(readout 32;.*a smaller train_ev"))
+    kept_one = r"^the 1 on-path held-out views keep 129 of the 131 readouts"
+    cases.append(
+        ("solids", one, (r"one training timestamp \(readout 32;.*a smaller train_", kept_one))
+    )
     cases.append(("solids", {"train_every": 100}, ()))  # two: not warned of
+    # on-path views asked for that keep most of the path from training (unsaid)
+    most = {"readouts": 1000, "test_on_path": 7}
+    kept = r"^the 7 on-path held-out views keep 782 of the 936 readouts .*: it trains on 16 % "
+    cases.append(("solids", most, kept + r".*; more readouts, or fewer on-path held-out views"))
+    cases.append(("solids", {"readouts": 1000, "test_on_path": 5}, ()))  # 30 %: not warned of
     # a stride's timestamps mostly beside the held-out views (2 of 10 kept, unsaid)
     sparse = {"readouts": 1500, "test_on_path": 8, "train_every": 150}
     cases.append(
