@@ -180,6 +180,24 @@ def constant_source(
     )
 
 
+def test_a_frame_sequence_of_image_codes_is_refused(tmp_path):
+    """uint8 frames or test images (an image reader's) were simulated as light 255 times white,
+    every pixel firing every readout, blamed on rate_at_one: refused as simulate_spikes does."""
+    light = constant_source(0.6)
+    codes = np.round(255 * light.frames).astype(np.uint8)  # [2, 16, 16, 1]
+    said = r"found uint8 codes: convert them to float and linear light first"
+    with pytest.raises(ValueError, match=rf"^frame sequence 'codes': frames expected .*{said}"):
+        FrameSequenceSource("codes", codes, light.viewmats, light.K, center=[0, 0, 0], radius=1)
+    name, viewmat, image = light.off_path_views(1)[0]
+    coded = [(name, viewmat, np.round(255 * image).astype(np.uint8))]
+    source = FrameSequenceSource(
+        "test", light.frames, light.viewmats, light.K, test_views=coded, center=[0, 0, 0], radius=1
+    )
+    with pytest.raises(ValueError, match=rf"^scene 'test': test view 'side' expected .*{said}"):
+        simulate_dataset(source, tmp_path / "d", height=16, width=16, readouts=400, test_on_path=1)
+    assert not (tmp_path / "d").exists()
+
+
 def test_static_camera_fires_at_the_calibrated_rate(tmp_path):
     with pytest.warns(UserWarning, match="the camera turns 0° and moves 0"):  # still, said
         ds = simulate_dataset(

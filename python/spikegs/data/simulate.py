@@ -16,7 +16,7 @@ from tqdm import tqdm
 from ..interrupt import deferred_interrupt, interruption
 from ..number_checks import as_flag, finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
-from ..spikes.simulate import simulate_channels
+from ..spikes.simulate import not_codes, simulate_channels
 from .dataset import (
     FAINTEST_MEASURED,
     FEW_TIMESTAMPS,
@@ -595,8 +595,9 @@ def simulate_dataset(
     # (through the simulation: 8 views of 1080x1920 colour, 0.2 GB)
     takes_arc = "arc_deg" in inspect.signature(source.off_path_views).parameters
     arc = {"arc_deg": speed * (readouts - 1)} if takes_arc else {}
+    codes = f"scene '{source.name}': test view"  # (8-bit codes were scored as light 255 x white)
     views += [
-        TestView(name, viewmat, image * rate, None)
+        TestView(name, viewmat, not_codes(np.asarray(image), f"{codes} {name!r}") * rate, None)
         for name, viewmat, image in source.off_path_views(test_off_path, **arc)
     ]
     off_path = len(views) - len(on_path)  # the views the source gives off the path

@@ -28,7 +28,7 @@ from ..machine_memory import machine_memory
 from ..missing_dependency import MissingDependencyError
 from ..number_checks import is_int
 from ..rasterize import MAX_SIZE, rasterize
-from ..spikes.simulate import sample_times
+from ..spikes.simulate import not_codes, sample_times
 from .dataset import check_meta_values, field_of_view_deg
 from .scenes import GaussianScene
 from .trajectory import WORLD_UP, Trajectory, look_at, orbit_eye, unit_vector
@@ -398,7 +398,8 @@ class FrameSequenceSource(Source):
         center=None,
         radius: float | None = None,
     ):
-        frames = np.asarray(frames, np.float32)  # [F, H, W, C]
+        frames = not_codes(np.asarray(frames), f"frame sequence '{name}': frames")  # [F, H, W, C]
+        frames = frames.astype(np.float32, copy=False)
         viewmats = np.asarray(viewmats, np.float64)  # [F, 4, 4]
         if frames.ndim != 4 or len(frames) < 2:
             raise ValueError(

@@ -180,6 +180,18 @@ SATURATED_SAMPLE = 4096  # values of a frame judged, at most: evenly strided (th
 CHANNEL_LAST_SIZES = (1, 3, 4)  # an [H, W, C] image's last axis, read as [F, H, W] frames
 
 
+def not_codes(light: np.ndarray, what: str) -> np.ndarray:
+    """`light`; ValueError where `what` holds an image file's uint8 or uint16 codes, not light
+    (255 taken as 255 times white)."""
+    if light.dtype in (np.uint8, np.uint16):
+        raise ValueError(
+            f"{what} expected intensities (1.0 fires rate_at_one a readout), found "
+            f"{light.dtype.name} codes: convert them to float and linear light first (an 8-bit "
+            f"sRGB image: spikegs.image_io.srgb_to_linear(image / 255))"
+        )
+    return light
+
+
 def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     """`frame` (an array or a torch tensor) as float32, ValueError unless real, of `shape` (if
     given), finite and >= 0. Light beyond float32's range (from float64) is taken at its largest
@@ -192,12 +204,7 @@ def _checked_frame(frame, shape: tuple | None, what: str) -> np.ndarray:
     frame = np.asarray(frame)
     if frame.dtype.kind not in "biuf":
         raise ValueError(f"{what} expected real intensities, found {frame.dtype.name} values")
-    if frame.dtype in (np.uint8, np.uint16):  # an image file's codes, not light: 255 = 255 × 1.0
-        raise ValueError(
-            f"{what} expected intensities (1.0 fires rate_at_one a readout), found "
-            f"{frame.dtype.name} codes: convert them to float and linear light first (an 8-bit "
-            f"sRGB image: spikegs.image_io.srgb_to_linear(image / 255))"
-        )
+    not_codes(frame, what)
     if shape is not None and frame.shape != shape:
         raise ValueError(f"{what} expected shape {list(shape)}, found {list(frame.shape)}")
     flat = frame.ndim < 2 or frame.size == 0  # (a width of 0: reshape(-1, 0) is no shape)
