@@ -519,14 +519,13 @@ def test_off_path_views_lie_along_the_arc_the_camera_turns(tmp_path):
 def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
     """Source.off_path_views takes the count alone: a Source of the user's own (spikegs.data
     exports the class), or a subclass of its orbits (ProceduralSource, MitsubaSource) written to
-    that signature, is not passed the arc an orbit's views follow (a TypeError)."""
+    that signature, is not passed the arc an orbit's views follow (a TypeError). Its name is
+    its class's and its kind "custom" (both unset were AttributeErrors inside simulate_dataset)."""
     from spikegs.data import ProceduralSource, Source
 
     orbit = ProceduralSource("solids", SCENES["solids"](), SMALL["width"], SMALL["height"], 1)
 
     class Own(Source):
-        name, kind = "own", "render"
-
         def __init__(self):
             super().__init__(orbit.width, orbit.height, 1, orbit.K, orbit.scene_center, 1.0)
 
@@ -547,6 +546,8 @@ def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
 
     views = simulate_dataset(Own(), tmp_path / "own", **SMALL).test_views
     assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
+    meta = json.loads((tmp_path / "own" / "meta.json").read_text())
+    assert (meta["scene"], meta["source"]) == ("Own", "custom")
 
     class Reversed(ProceduralSource):  # an orbit of one's own, overriding to that signature
         def off_path_views(self, count):

@@ -301,9 +301,9 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
         )
     motion = frame_motion(source, trajectory, times)
     if motion > FRAME_MOTION_PX:
-        # built-in and Mitsuba scenes render a frame every frame_every readouts; a frame
-        # sequence's spacing is its own
-        rendered = source.kind in ("procedural", "mitsuba")
+        # built-in, Mitsuba and a user's own scenes render a frame every frame_every readouts;
+        # a frame sequence's spacing is its own
+        rendered = source.kind != "frames"
         frames = "rendered light frames" if rendered else "frames of the sequence"
         remedy = (
             "a smaller frame_every (--frame-every)"

@@ -62,14 +62,20 @@ def horizontal_fov_deg(K: np.ndarray, width: int) -> float:
 
 
 class Source(ABC):
-    """Ground truth for a dataset of `width` × `height` pixels, `channels` 1 (mono) or 3."""
+    """Ground truth for a dataset of `width` × `height` pixels, `channels` 1 (mono) or 3.
+
+    A subclass of the user's own is named after its class unless it sets `name` first; its
+    `kind`, "custom", is treated as a rendered scene's (its light sampled at `light_times`
+    every frame_every readouts), where a frame sequence's ("frames") keeps its frames' own
+    spacing (simulate_dataset read both, an AttributeError where unset)."""
 
     name: str
-    kind: str
+    kind = "custom"
 
     def __init__(self, width: int, height: int, channels: int, K: np.ndarray, center, radius):
         if channels not in (1, 3):
             raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
+        self.name = getattr(self, "name", type(self).__name__)
         self.width, self.height, self.channels = int(width), int(height), int(channels)
         self.K = np.asarray(K, np.float64)  # [3, 3]
         self.scene_center = np.asarray(center, np.float64)  # [3]
