@@ -1554,6 +1554,28 @@ def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, 
         load_dataset(root)
 
 
+def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff_stream, tmp_path):
+    """Spikes at half the size of the images the poses were made from: the error names hwf as
+    what gave the size, and the size the file holds whole frames of (it advised truncating the
+    file alone); not where spikegs.json sets the size."""
+    root = copy(llff_stream, tmp_path)
+    table = np.load(root / "poses_bounds.npy")  # [N, 17]: hwf at columns 4, 9 and 14
+    table[:, [4, 9, 14]] *= 2
+    np.save(root / "poses_bounds.npy", table)
+    frames = VIEWS * LENGTH - 1  # (700 fill 175 frames of hwf's size: readouts.txt told that)
+    os.truncate(root / "spikes.dat", frames * H * W // 8)
+    with pytest.raises(
+        ValueError,
+        match=rf"expected frames of {2 * H}x{2 * W} pixels, the size of hwf \({2 * H}, {2 * W}\) "
+        rf"in {re.escape(str(root))}/poses_bounds.npy, .* if these are wrong; the file holds "
+        rf"{frames} whole frames of {H}x{W}: spikes at 1/2 of that size\?\)$",
+    ):
+        load_dataset(root)
+    (root / "spikegs.json").write_text(json.dumps({"height": 2 * H, "width": 2 * W}))
+    with pytest.raises(ValueError, match=r"pixels, rows of \d+ from column 0: .* are wrong\)$"):
+        load_dataset(root)
+
+
 def test_readouts_one_per_pose_strictly_increasing(tmp_path):
     """readouts.txt: two poses at one readout (a pose logged twice) and a line more than there
     are poses (another take's file) are refused; guards against a non-strict order check and a

@@ -360,6 +360,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
     computed = (None, None) if given else llff_sphere(viewmats, bounds, K, width, height, source)
     sphere = scene_sphere(options, *computed)
     near_far = {"near": float(bounds[:, 0].min()), "far": float(bounds[:, 1].max())}
+    hwf = f"hwf ({poses[0, 0, 4]:g}, {poses[0, 1, 4]:g}) in {source}"  # what gives the size
     folder = root / SPIKES_DIR
     if (root / STREAM).is_file():
         if folder.is_dir():
@@ -369,7 +370,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
             )
         readouts = _read_readouts(root / READOUTS, len(poses))
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
-        stream, rates = open_spikes(root / STREAM, height, width, options)
+        stream, rates = open_spikes(root / STREAM, height, width, options, hwf)
         warn_rows_out_of_line(stream, OPTIONS_FILE)
         warn_if_faint([rates], len(stream), stream.path, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
@@ -401,7 +402,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         )
     files = _spike_files(folder, len(poses), source)
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
-    opened = [open_spikes(p, height, width, options) for p in files]  # (stream, rates)
+    opened = [open_spikes(p, height, width, options, hwf) for p in files]  # (stream, rates)
     streams = [stream for stream, _ in opened]
     warn_rows_out_of_line(streams[0], OPTIONS_FILE)  # (the views share a frame size)
     warn_if_faint([opened[0][1]], len(streams[0]), streams[0].path, OPTIONS_FILE)  # (a light)

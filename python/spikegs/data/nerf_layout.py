@@ -376,7 +376,10 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     sized.clear()  # a training image that gave the size but is not checked
     sphere = scene_sphere(options, center, radius)
     meta = camera_meta("nerf", root, K, height, width, options, **sphere)
-    opened = [None if p is None else open_spikes(p, height, width, options) for p in spikes]
+    sized_by = f"{what} in {path}"
+    opened = [
+        None if p is None else open_spikes(p, height, width, options, sized_by) for p in spikes
+    ]
     streams = [None if o is None else o[0] for o in opened]  # (stream, rates) each
     first = next((o for o in opened if o is not None), None)
     if first is not None:

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _C
 from ..number_checks import is_int, is_number
 from ..regular_file import is_given
 from ..spikes import SpikeStream
@@ -126,13 +127,15 @@ def read_options(root: Path, overrides: dict) -> Options:
 
 
 def open_spikes(
-    path: Path, height: int, width: int, options: Options
+    path: Path, height: int, width: int, options: Options, size_from: str
 ) -> tuple[SpikeStream, np.ndarray]:
     """Memory-map a .dat of `height` x `width` readouts with the options' flip and raw-row crop,
     with its firing rates [H, W] (`check_stream_image`'s pass); FileNotFoundError or ValueError
-    naming the file (empty, not of the expected layout, or without information). Its callers
+    naming the file (empty, not of the expected layout, or without information) and, where the
+    options set no size, `size_from`, what the size was taken from (LLFF's hwf). Its callers
     found `path` a file."""
-    if path.stat().st_size == 0:
+    num_bytes = path.stat().st_size
+    if num_bytes == 0:
         raise ValueError(f"{path}: empty spike file (no readout)")
     try:
         stream = SpikeStream.open(
@@ -141,9 +144,27 @@ def open_spikes(
     except ValueError as err:
         where = "" if str(path) in str(err) else f"{path}: "
         raw = options.raw_width or width
+        given = options.height and options.width
+        origin = "" if given else f", the size of {size_from}"
+        smaller = "" if given or raw != width else _smaller_size(num_bytes, height, width, options)
         raise ValueError(
-            f"{where}{err} (expected frames of {height}x{width} pixels, rows of {raw} from column "
-            f"{options.col_offset}: set height, width, raw_width, col_offset in {OPTIONS_FILE} "
-            f"if these are wrong)"
+            f"{where}{err} (expected frames of {height}x{width} pixels{origin}, rows of {raw} "
+            f"from column {options.col_offset}: set height, width, raw_width, col_offset in "
+            f"{OPTIONS_FILE} if these are wrong{smaller})"
         ) from err
     return stream, check_stream_image(stream, OPTIONS_FILE)
+
+
+def _smaller_size(num_bytes: int, height: int, width: int, options: Options) -> str:
+    """What to say where `num_bytes` are whole frames of `height` x `width` divided by 2 to 8 (a
+    stream at half its poses' images' size was advised to be truncated)."""
+    for m in range(2, 9):
+        if height % m == 0 and width % m == 0:
+            size = (height // m, width // m)
+            frame = _C.SpikeLayout.dat(*size, options.flip, 0, 0).frame_bytes
+            if num_bytes % frame == 0:
+                return (
+                    f"; the file holds {num_bytes // frame} whole frames of {size[0]}x{size[1]}: "
+                    f"spikes at 1/{m} of that size?"
+                )
+    return ""
