@@ -31,10 +31,11 @@ from spikegs.data.llff import (
     frustum_sphere,
     llff_intrinsics,
     llff_sphere,
+    load_llff,
     to_poses_bounds,
     viewmats_from_llff,
 )
-from spikegs.data.nerf_layout import _spike_candidates
+from spikegs.data.nerf_layout import _spike_candidates, load_nerf_layout
 from spikegs.data.orientation import check_orientation, other_bit_order
 from spikegs.data.real import (
     _spaced_hold_out,
@@ -756,8 +757,10 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
 
     root = copy(llff, tmp_path / "every")  # a stream per view: train_every has nothing to space
     write_options(root, train_every=4)
-    with pytest.warns(UserWarning, match="train_every .* is not used with a spike stream per view"):
+    with pytest.warns(UserWarning, match="json: train_every is not used with a spike stream per"):
         load_dataset(root)
+    with pytest.warns(UserWarning, match=r"^\S+: keyword option train_every is not used with"):
+        load_llff(root, train_every=4)  # (named the file, whether or not it held the key)
 
     # readouts given in seconds (readout x 25 us) sent the user to pseudo_gt_window; a pose log
     # too dense for the held-out poses' margins said only "no training timestamp left", then
@@ -1275,13 +1278,13 @@ def test_a_dat_of_another_frame_size_names_the_rows_read(tmp_path):
     and the file, once, whether the stream's own message named it or not (rows too narrow)."""
     save_dat(tmp_path / "view.dat", np.ones((10, 4, 8), bool))  # 40 bytes: not 4x12 frames
     options = Options(raw_width=12, col_offset=2)
-    rows = r"view.dat: .*frames of 4x6 pixels, rows of 12 from col"
+    rows = r"view.dat: .*frames of 4x6 pixels, the size of x, rows of 12 from col"
     with pytest.raises(ValueError, match=rows) as said:
-        open_spikes(tmp_path / "view.dat", 4, 6, options)
+        open_spikes(tmp_path / "view.dat", 4, 6, options, "x")
     assert str(said.value).count("view.dat") == 1
     narrow = Options(raw_width=7, col_offset=2)
     with pytest.raises(ValueError, match=r"view.dat: stored rows of at least col_offset \+ width"):
-        open_spikes(tmp_path / "view.dat", 4, 6, narrow)
+        open_spikes(tmp_path / "view.dat", 4, 6, narrow, "x")
 
 
 def test_options_scene_center_needs_its_radius(tmp_path):
@@ -1469,10 +1472,18 @@ def test_llff_stream_and_per_view_spikes_both_present(llff, llff_stream, tmp_pat
 def test_nerf_test_views_and_transforms_train_alone(nerf, tmp_path):
     root = copy(nerf, tmp_path)
     write_options(root, test_views=[1])
-    with pytest.raises(ValueError, match="test_views is for a single transforms file"):
+    with pytest.raises(ValueError, match="spikegs.json: test_views is for a single transforms"):
         load_dataset(root)
+    # a keyword's named as such (spikegs.json was named, whether or not it held the key)
+    (root / "spikegs.json").write_text("{}")
+    keyword = rf"^{re.escape(str(root))}: keyword option test_views is for a single transforms"
+    with pytest.raises(ValueError, match=keyword):
+        load_nerf_layout(root, test_views=[1])
+    write_options(root, test_views=[1])
     (root / "transforms_test.json").unlink()  # transforms_train.json alone: test_views apply
     assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_3"]
+    with pytest.raises(ValueError, match=r"^\S+: keyword option test_views \[99\] outside the "):
+        load_nerf_layout(root, test_views=[99])
     (root / "spikegs.json").unlink()  # default: every 8th frame
     assert [v.name for v in load_dataset(root).test_views] == ["pseudo_train_r_2"]
 
@@ -2103,12 +2114,12 @@ def test_llff_intrinsics_of_a_raw_row_crop_keep_the_focal_and_shift_cx():
 
 def test_llff_holds_out_every_8th_view_from_view_0():
     """LLFF's convention: views 0, 8, 16, ... (a mask from 1 held out 1, 9 instead)."""
-    assert np.flatnonzero(held_out_mask(17, None, "x")).tolist() == [0, 8, 16]
-    assert np.flatnonzero(held_out_mask(5, [1, 3], "x")).tolist() == [1, 3]
+    assert np.flatnonzero(held_out_mask(17, Options(), "x")).tolist() == [0, 8, 16]
+    assert np.flatnonzero(held_out_mask(5, Options(test_views=[1, 3]), "x")).tolist() == [1, 3]
     with pytest.raises(
         ValueError, match=r"^d/spikegs.json: test_views \[5\] outside the 5 views \[0, 5\) of d/x$"
     ):
-        held_out_mask(5, [1, 5], "d/x")  # one past the last view: not an IndexError
+        held_out_mask(5, Options(test_views=[1, 5]), "d/x")  # one past the last: no IndexError
 
 
 def test_view_tfp_spans_the_whole_odd_view():

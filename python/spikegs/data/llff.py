@@ -355,7 +355,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
     viewmats = viewmats_from_llff(poses, str(source))  # [N, 4, 4]
     _warn_if_looking_away(viewmats, bounds, source)
     K, height, width = llff_intrinsics(poses[0, :, 4], options, str(source))
-    test = held_out_mask(len(poses), options.test_views, str(source))
+    test = held_out_mask(len(poses), options, str(source))
     given = options.scene_center is not None and options.scene_radius is not None
     computed = (None, None) if given else llff_sphere(viewmats, bounds, K, width, height, source)
     sphere = scene_sphere(options, *computed)

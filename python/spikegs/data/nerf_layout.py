@@ -181,8 +181,8 @@ def _frames(root: Path, options: Options):
     if given[train] and given[test]:
         if options.test_views is not None:
             raise ValueError(
-                f"{root / OPTIONS_FILE}: test_views is for a single transforms file; {test.name} "
-                f"lists the test frames here (remove one or the other)"
+                f"{options.origin('test_views', root)} is for a single transforms file; "
+                f"{test.name} lists the test frames here (remove one or the other)"
             )
         docs = [read_transforms_doc(train), read_transforms_doc(test)]
         paths = [train, test]
@@ -211,7 +211,7 @@ def _frames(root: Path, options: Options):
     if len(docs) == 2:
         mask = np.arange(len(frames)) >= len(docs[0]["frames"])
     else:
-        mask = held_out_mask(len(frames), options.test_views, str(paths[0]))
+        mask = held_out_mask(len(frames), options, str(paths[0]))
     return frames, sources, frame_docs, viewmats, mask
 
 

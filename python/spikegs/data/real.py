@@ -218,15 +218,16 @@ def ordinal(n: int) -> str:
     return f"{n}{last}"
 
 
-def held_out_mask(count: int, indices: list[int] | None, source: str) -> np.ndarray:
-    """Mask [count] of the test views: `indices` (spikegs.json's test_views), or every
-    HOLDOUT_EVERY-th from 0; `source`, the file of the views, is in the dataset's folder."""
-    indices = list(range(0, count, HOLDOUT_EVERY)) if indices is None else list(indices)
+def held_out_mask(count: int, options: Options, source: str) -> np.ndarray:
+    """Mask [count] of the test views: the options' test_views, or every HOLDOUT_EVERY-th from
+    0; `source`, the file of the views, is in the dataset's folder."""
+    given = options.test_views
+    indices = list(range(0, count, HOLDOUT_EVERY)) if given is None else list(given)
     bad = [i for i in indices if not 0 <= i < count]
     if bad:  # (named `source` alone until 2026-12-06, whose views were right)
         raise ValueError(
-            f"{Path(source).parent / OPTIONS_FILE}: test_views {bad} outside the {count} views "
-            f"[0, {count}) of {source}"
+            f"{options.origin('test_views', Path(source).parent)} {bad} outside the {count} "
+            f"views [0, {count}) of {source}"
         )
     mask = np.zeros(count, bool)
     mask[indices] = True
@@ -337,9 +338,9 @@ def views_dataset(
     pseudo_window = options.pseudo_gt_window
     if options.train_every is not None:
         warnings.warn(
-            f"{source}: train_every ({OPTIONS_FILE}) is not used with a spike stream per view "
-            f"(each training view is one timestamp, at its centre); it spaces the timestamps of "
-            f"one continuous stream",
+            f"{options.origin('train_every', root)} is not used with a spike stream per view "
+            f"(each training view of {source} is one timestamp, at its centre); it spaces the "
+            f"timestamps of one continuous stream",
             stacklevel=3,
         )
     twice = repeated(names)

@@ -57,6 +57,16 @@ class Options:
     scene_center: list[float] | None = None
     scene_radius: float | None = None
     rate_at_one: float | None = None
+    keywords = frozenset()  # the options a loader's keyword arguments set (not a field)
+
+    def origin(self, key: str, root: Path) -> str:
+        """Where option `key` was set, to begin a message: a loader's keyword, else the
+        dataset's ROOT/spikegs.json."""
+        return (
+            f"{root}: keyword option {key}"
+            if key in self.keywords
+            else f"{root / OPTIONS_FILE}: {key}"
+        )
 
 
 def _positive_int(v) -> bool:
@@ -123,7 +133,9 @@ def read_options(root: Path, overrides: dict) -> Options:
             f"{where(['test_views'])} test_views lists {twice} more than once", stacklevel=2
         )
     # null: the default, for every key (flip's and col_offset's None reached the reader)
-    return Options(**{key: value for key, value in values.items() if value is not None})
+    options = Options(**{key: value for key, value in values.items() if value is not None})
+    options.keywords = frozenset(given)
+    return options
 
 
 def open_spikes(
