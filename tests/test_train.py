@@ -58,6 +58,7 @@ from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.regular_file import NotText, read_text
 from spikegs.run_folder import run_lock
+from spikegs.sim_train import load_sim, weights_digest
 from spikegs.targets import build_targets, intensity_scale
 from spikegs.train import Trainer, _means_lr, _optimizer
 from spikegs.train_cli import config_from_args
@@ -506,6 +507,36 @@ def test_resume_after_interruption_equals_uninterrupted(
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
     assert torch.equal(whole.model.background, resumed.model.background)
+
+
+def test_a_run_resumed_against_another_sim_says_so(dataset, tmp_path, monkeypatch, ctrl_c):
+    """A resumed run whose SIM was retrained since (its dataset's sim/ deleted, at another
+    thread count) or replaced went on against other instant targets in silence: said, naming
+    the SIM's file; a resume against its own SIM says nothing of it."""
+    root = tmp_path / "data"
+    shutil.copytree(dataset.root, root)
+    data = load_dataset(root)
+    config = load_config(
+        "spikegs", {**FAST, "train": {**FAST["train"], "iterations": 60}, "sim": {"iterations": 5}}
+    )
+    run = tmp_path / "run"
+    for stop, resume in ((40, False), (50, True)):
+        _interrupt_during(Densifier, "step", stop, monkeypatch, signals=1)
+        with warnings.catch_warnings(record=True) as caught, pytest.raises(KeyboardInterrupt):
+            warnings.simplefilter("always")
+            Trainer(data, config, run, progress=False).train(resume=resume)
+        monkeypatch.undo()
+        assert not [w for w in caught if "SIM" in str(w.message)]
+    [path] = (root / "sim").glob("*.pt")  # one weight moved: another SIM, its record the same
+    saved = torch.load(path, weights_only=True)
+    first = next(iter(saved["state_dict"]))
+    saved["state_dict"][first] = saved["state_dict"][first] + 1e-3
+    torch.save(saved, path)
+    said = rf"last.pt: the run trained against another SIM than {re.escape(str(path))} \("
+    with pytest.warns(UserWarning, match=said):
+        Trainer(data, config, run, progress=False).train(resume=True)
+    state = torch.load(run / "checkpoints" / "last.pt", weights_only=True)
+    assert state["sim_digest"] == weights_digest(load_sim(path))  # the SIM it went on with
 
 
 def test_train_json_names_what_trained_the_run_from_which_iteration(

@@ -9,6 +9,7 @@ A stream is anything with `len(stream)`, `.height`, `.width`, `.window(k, w)` ->
 from __future__ import annotations
 
 import functools
+import hashlib
 import sys
 import time
 import warnings
@@ -263,6 +264,16 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
     """Save weights, architecture and `meta` (seed, steps, ...) to `path`."""
     path = Path(path)
     save_atomically({"config": model.config, "state_dict": model.state_dict(), "meta": meta}, path)
+
+
+def weights_digest(model: SIM) -> str:
+    """SHA-256 of a SIM's weights, in their order (one SIM's identity: SIM trained at another
+    thread count is another, every weight)."""
+    digest = hashlib.sha256()
+    for name, tensor in model.state_dict().items():
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
 
 
 def _read_saved(path: Path) -> dict:

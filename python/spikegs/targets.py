@@ -27,7 +27,13 @@ from .flicker import MAX_DEPTH, cached_flicker
 from .machine_memory import machine_memory
 from .number_checks import is_number
 from .pixel_defects import sensor_defects
-from .sim_train import fast_inference_model, predict, recorded_seconds, train_or_load
+from .sim_train import (
+    fast_inference_model,
+    predict,
+    recorded_seconds,
+    train_or_load,
+    weights_digest,
+)
 
 # readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
 # readouts k and k + 1 (a time ramp measures +0.50), so its pose is rendered there
@@ -134,6 +140,7 @@ class Targets:
     instant: TargetImages | None  # M images [H, W, C], or None
     exposure: TargetImages | None  # M images [H, W, C], or None
     sim_seconds: float = 0.0  # SIM's training time (loaded from its cache: the time it recorded)
+    sim: dict | None = None  # the instant targets' SIM: its file ("path") and "digest"
     # what the spikes showed that the targets leave out (train.json's `found_in_spikes`): the
     # light's flicker (None: none found, or not looked for) and the defect pixels masked
     found: dict = field(default_factory=dict)
@@ -376,7 +383,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     defects = sensor_defects(streams, dataset.root, s.mask_defects and from_spikes)
     valid = defects.valid
 
-    instant, sim_seconds = None, 0.0
+    instant, sim_seconds, sim = None, 0.0, None
     if config.instant_target() != "none":
         if s.instant == "sim":
             model, sim_seconds, path = trained_sim(
@@ -391,6 +398,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
                 sim_seconds = recorded_seconds(path)
                 took = f"trained in {sim_seconds:.0f} s" if sim_seconds else "no time recorded"
                 print(f"SIM: loaded {path} ({took})", file=sys.stderr)
+            sim = {"path": str(path), "digest": weights_digest(model)}
             fast = fast_inference_model(model)
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
@@ -405,6 +413,5 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     exposure = None
     if s.exposure_weight > 0:
         exposure = images(lambda st, k: st.tfp(k, s.exposure_window), s.exposure_window)
-    return Targets(
-        ts, instant, exposure, sim_seconds, {"flicker": found, "defect_pixels": defects.pixels}
-    )
+    left_out = {"flicker": found, "defect_pixels": defects.pixels}
+    return Targets(ts, instant, exposure, sim_seconds, sim, left_out)

@@ -179,6 +179,7 @@ class Trainer:
         self.settings_file = settings_file
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
+        self.sim_digest = None  # the instant targets' SIM's (`Targets.sim`), kept in checkpoints
         self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
         self.brightness = FitBrightness()  # of the steps this process takes
         self.targets = None  # a training's target images (`build_targets`), released after it
@@ -393,6 +394,7 @@ class Trainer:
             "iteration": self.iteration,
             "train_seconds": self.train_seconds,
             "sim_seconds": self.sim_seconds,
+            "sim_digest": self.sim_digest,
             "model": self.model.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "densifier": self.densifier.state_dict(),
@@ -450,6 +452,25 @@ class Trainer:
                 f"{state.get('dataset')}); resume it on its own dataset or train into another --out"
             )
         return state
+
+    def _sim_digest(self, state: dict | None) -> str | None:
+        """The digest of the targets' SIM, warning where a resumed run's checkpoint recorded
+        another: its SIM, retrained since (the dataset's sim/ deleted, at another thread count)
+        or swapped, was taken in silence, the run going on against other instant targets."""
+        sim = self.targets.sim
+        before = state and state.get("sim_digest")  # (an earlier version's checkpoint: none)
+        if sim and before and sim["digest"] != before:
+            last = (state.get("environments") or [{}])[-1].get("torch_threads", "unrecorded")
+            warnings.warn(
+                f"{self.checkpoint_path}: the run trained against another SIM than {sim['path']} "
+                f"(retrained since, or replaced; SIM trained at another thread count is another, "
+                f"every weight: the run's last process ran {last} threads, this one "
+                f"{torch.get_num_threads()}); it goes on against this SIM's instant targets, no "
+                f"longer as the uninterrupted run would (put the run's SIM file back, or train "
+                f"into another --out)",
+                stacklevel=3,
+            )
+        return sim and sim["digest"]
 
     def _load_checkpoint(self, state: dict) -> None:
         self.split_rng = torch.Generator()
@@ -838,6 +859,7 @@ class Trainer:
         self.sim_seconds = saved if finished or saved else self.targets.sim_seconds
         # what the targets leave out (a finished run built none: its checkpoint's, if it has it)
         self.found = state.get(FOUND) if finished else self.targets.found
+        self.sim_digest = state.get("sim_digest") if finished else self._sim_digest(state)
         if state is not None:
             self._load_checkpoint(state)
         else:
