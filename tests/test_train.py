@@ -959,6 +959,20 @@ def test_resume_refuses_other_data(dataset, tmp_path):
         Trainer(other, config, tmp_path / "run", progress=False).train(resume=True)
     moved = shutil.copytree(dataset.root, tmp_path / "moved")  # the same data elsewhere: fine
     Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
+    # its scene sphere edited (meta.json's radius tripled after a warning): the means' learning
+    # rate and densification's sizes scale with it, and it resumed in silence
+    meta = json.loads((moved / "meta.json").read_text())
+    radius = meta["scene_radius"]
+    (moved / "meta.json").write_text(json.dumps({**meta, "scene_radius": 3 * radius}))
+    said = rf"about another scene sphere than {re.escape(str(moved))}'s \(the run's centre \["
+    with pytest.raises(
+        ValueError, match=said + rf".*, radius {radius:.6g}, now .*{3 * radius:.6g}:"
+    ):
+        Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
+    checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"  # one saved before the record
+    state = torch.load(checkpoint, weights_only=True)
+    torch.save({k: v for k, v in state.items() if k != "scene_sphere"}, checkpoint)
+    Trainer(load_dataset(moved), config, tmp_path / "run", progress=False).train(resume=True)
 
 
 def test_a_run_fingerprinted_before_every_readout_was_hashed_is_its_datas(dataset, tmp_path):

@@ -79,6 +79,11 @@ CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever chec
 GROWING_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}+, {rate_fmt}{postfix}]"
 
 
+def _sphere_text(sphere: list[float]) -> str:
+    """A scene sphere [4] as a message shows it."""
+    return f"centre [{', '.join(f'{c:.6g}' for c in sphere[:3])}], radius {sphere[3]:.6g}"
+
+
 def _cut_log(path: Path, iteration: int) -> None:
     """Keep `path`'s records up to `iteration` (those of steps that a resumed run repeats, or all
     of a run that never checkpointed, are dropped)."""
@@ -403,6 +408,7 @@ class Trainer:
             "torch_rng": self.split_rng.get_state(),  # (a checkpoint before: the global one's)
             "config": self.config.to_dict(),
             "data": self.data,
+            "scene_sphere": self._scene_sphere(),
             "dataset": str(Path(self.dataset.root).resolve()),
             "environments": self.environments,
             FOUND: self.found,
@@ -451,7 +457,20 @@ class Trainer:
                 f"intensity scale; it was "
                 f"{state.get('dataset')}); resume it on its own dataset or train into another --out"
             )
+        sphere = state.get("scene_sphere")  # (checkpoints before 2026-12-07 have none)
+        now = self._scene_sphere()
+        if sphere is not None and not np.allclose(sphere, now, rtol=1e-6, atol=1e-6 * now[3]):
+            raise ValueError(
+                f"{self.checkpoint_path}: the run was trained about another scene sphere than "
+                f"{self.dataset.root}'s (the run's {_sphere_text(sphere)}, now "
+                f"{_sphere_text(now)}: the means' learning rate and densification's sizes scale "
+                f"with it); resume it with its own, or train into another --out"
+            )
         return state
+
+    def _scene_sphere(self) -> list[float]:
+        """The dataset's scene centre and radius [4], which training's scales follow."""
+        return [*map(float, self.dataset.scene_center), float(self.dataset.scene_radius)]
 
     def _sim_digest(self, state: dict | None) -> str | None:
         """The digest of the targets' SIM, warning where a resumed run's checkpoint recorded
