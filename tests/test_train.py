@@ -3935,6 +3935,15 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     said = capsys.readouterr().err
     assert f"trained with: put them back in {tmp_path / 'run' / 'config.yaml'} (or" in said
     assert "lr.means: 0.00048 in the run, 0.0001 now" in said
+    # its length or seed edited there: the file named too (it was taken for --iterations')
+    for key, value in (("iterations", 5), ("seed", 7)):
+        (tmp_path / "run" / "config.yaml").write_text(
+            dump_yaml({**yaml.safe_load(written), "train": {**edited["train"], key: value}})
+        )
+        assert main([*argv, "--resume"]) == 2
+        said = capsys.readouterr().err
+        assert f"put them back in {tmp_path / 'run' / 'config.yaml'} (or" in said, said
+        assert f"train.{key}: " in said
     (tmp_path / "run" / "config.yaml").write_text(written)
     # a section emptied (`supervision:`, null in YAML) or not a section: named, not a TypeError
     # from the keys added since the run was saved

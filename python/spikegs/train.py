@@ -150,6 +150,7 @@ class Trainer:
         progress: bool = True,
         settings_file: Path | None = None,
         resumable: bool = True,
+        command_line: tuple[str, ...] = (),
     ):
         check_dataset(dataset, "Trainer")
         progress = as_flag("Trainer: progress", progress)  # ("no" drew the bar)
@@ -179,9 +180,10 @@ class Trainer:
         # the world's origin)
         self.origin = frame_origin(dataset.scene_center, self.radius)
         self.checkpoint_path = last_checkpoint(self.run_dir)
-        # the file `config` was read from where a resume takes the run's own (RUN/config.yaml):
-        # a checkpoint's other settings are then that file's edits
-        self.settings_file = settings_file
+        # the file `config` was read from where a resume takes the run's own (RUN/config.yaml),
+        # and the settings the command line set over it (train.iterations, train.seed): a
+        # checkpoint's other settings are then that file's edits
+        self.settings_file, self.command_line = settings_file, command_line
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
         self.sim_digest = None  # the instant targets' SIM's (`Targets.sim`), kept in checkpoints
@@ -432,9 +434,10 @@ class Trainer:
         if changed:
             longer = any(c.startswith("train.iterations") for c in changed)
             same = "the same method and settings"
-            # what --iterations and --seed change (the schedule scaled with the length)
-            given = ("train.iterations:", "train.seed:")
-            given += tuple(f"densify.{key}:" for key in SCHEDULE_KEYS) if longer else ()
+            # what --iterations and --seed changed (the schedule scaled with the length)
+            given = tuple(f"{key}:" for key in self.command_line)
+            if "train.iterations" in self.command_line:
+                given += tuple(f"densify.{key}:" for key in SCHEDULE_KEYS)
             if self.settings_file is not None and any(not c.startswith(given) for c in changed):
                 # (it named no settings: the run's own file was edited)
                 same = f"the settings it trained with: put them back in {self.settings_file}"

@@ -213,7 +213,11 @@ def _train(args: argparse.Namespace, config) -> int:
     bars = show_bars(args.no_progress)
     dataset = load_dataset(args.dataset, bars)
     settings = Path(args.out) / CONFIG if resumes_own_settings(args) else None
-    trainer = Trainer(dataset, config, args.out, progress=bars, settings_file=settings)
+    given = {"train.iterations": args.iterations, "train.seed": args.seed}
+    command_line = tuple(key for key, value in given.items() if value is not None)
+    trainer = Trainer(
+        dataset, config, args.out, bars, settings_file=settings, command_line=command_line
+    )
     unprinted = trained = None  # the summary's printing's error; the training's own
     written = Path(args.out) / SUMMARY
     try:
