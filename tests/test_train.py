@@ -3717,6 +3717,19 @@ def test_resume_with_other_settings_names_them_before_any_work(dataset, tmp_path
     assert (tmp_path / "run" / "config.yaml").read_bytes() == saved
 
 
+def test_resume_with_a_copy_of_the_runs_config_file_names_the_method(dataset, tmp_path):
+    """Its config file copied under another name (a batch script's $TMPDIR/config.yaml): the
+    settings the same, the method named after the copy; "the same method and settings" said."""
+    (tmp_path / "c15.yaml").write_text(dump_yaml({"base": "tfp33", **FAST}))
+    Trainer(dataset, load_config(tmp_path / "c15.yaml"), tmp_path / "c15", progress=False).train()
+    (tmp_path / "staged").mkdir()
+    shutil.copy(tmp_path / "c15.yaml", tmp_path / "staged" / "config.yaml")
+    staged = load_config(tmp_path / "staged" / "config.yaml")
+    said = r"resume with its method's name: .* unless it sets `method: c15`, or leave out --con"
+    with pytest.raises(ValueError, match=said + r".* Differing: method: 'c15' in the run, 'con"):
+        Trainer(dataset, staged, tmp_path / "c15", progress=False).train(resume=True)
+
+
 def test_a_run_saved_with_a_schedule_that_never_densified_is_refused_saying_what_to_do(
     dataset, tmp_path, capsys
 ):

@@ -441,6 +441,11 @@ class Trainer:
             if self.settings_file is not None and any(not c.startswith(given) for c in changed):
                 # (it named no settings: the run's own file was edited)
                 same = f"the settings it trained with: put them back in {self.settings_file}"
+            elif all(c.startswith("method:") for c in changed):  # a copy of the run's file
+                same = (  # (named after its stem: staged as $TMPDIR/config.yaml, refused)
+                    f"its method's name: a config file is named after its file unless it sets "
+                    f"`method: {state['config'].get('method')}`, or leave out --config"
+                )
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
                 f"{same} (or train into another --out). Differing: "
