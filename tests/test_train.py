@@ -3701,6 +3701,9 @@ def test_log_holds_each_step_once_after_a_kill(dataset, tmp_path, monkeypatch):
     log.write_text("{}\n" + log.read_text())  # not a torn last line: named
     with pytest.raises(ValueError, match="log.jsonl: line 1 is not a log record"):
         Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    log.write_text('{"iteration": "50"}\n' + log.read_text()[3:])  # (a TypeError, comparing)
+    with pytest.raises(ValueError, match=r'line 1 is not a log record \(iteration "50": no wh'):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     _train_until(dataset, config, tmp_path / "early", 12, monkeypatch)  # before any checkpoint
     Trainer(dataset, config, tmp_path / "early", progress=False).train()  # a fresh run
     assert _logged(tmp_path / "early") == list(range(5, 61, 5))

@@ -40,7 +40,7 @@ from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt, interruption, progress_lost, say
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
-from .number_checks import as_flag
+from .number_checks import as_flag, is_int
 from .pixel_defects import hide
 from .ply import load_ply, save_ply
 from .point_cloud import (
@@ -98,6 +98,8 @@ def _cut_log(path: Path, iteration: int) -> None:
             try:
                 record = json.loads(line)
                 step = record["iteration"]
+                if not is_int(step):  # ("50": a TypeError at the comparison below)
+                    raise ValueError(f"iteration {strict_json.json_text(step)}: no whole number")
             except (ValueError, KeyError, TypeError) as err:
                 if number == len(lines):  # a last line cut short by a kill mid-write
                     break
