@@ -58,7 +58,8 @@ from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.regular_file import NotText, read_text
 from spikegs.run_folder import run_lock
-from spikegs.sim_train import load_sim, weights_digest
+from spikegs.sim import SIM
+from spikegs.sim_train import load_sim, save_sim, weights_digest
 from spikegs.targets import build_targets, intensity_scale
 from spikegs.train import Trainer, _means_lr, _optimizer
 from spikegs.train_cli import config_from_args
@@ -1005,9 +1006,11 @@ class _Planted:
         return (os.remove, ("planted",))
 
 
-@pytest.mark.parametrize("torn", [b"", b"hello", "truncated", "list", "code"])
+@pytest.mark.parametrize("torn", [b"", b"hello", "truncated", "list", "code", "sim", "model"])
 def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, monkeypatch, torn):
-    """... and runs no code a planted one carries (was unpickled in full: weights_only=False)."""
+    """... and runs no code a planted one carries (was unpickled in full: weights_only=False);
+    a saved SIM (its config was compared as the run's settings) or a checkpoint without its
+    model (a KeyError) is no checkpoint of spikegs train."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     checkpoint = tmp_path / "run" / "checkpoints" / "last.pt"
@@ -1019,9 +1022,15 @@ def test_resume_names_an_unreadable_checkpoint(dataset, tmp_path, monkeypatch, t
         monkeypatch.chdir(tmp_path)
         (tmp_path / "planted").write_text("")
         torch.save({"config": {}, "payload": _Planted()}, checkpoint)
+    elif torn == "sim":
+        save_sim(SIM(), checkpoint, seed=0)
+    elif torn == "model":
+        state = torch.load(checkpoint, weights_only=True)
+        torch.save({k: v for k, v in state.items() if k != "model"}, checkpoint)
     if isinstance(torn, bytes):
         checkpoint.write_bytes(torn)
-    with pytest.raises(ValueError, match=r"last.pt: cannot be resumed \(train afresh"):
+    said = r"last.pt: cannot be resumed \(train afresh into another --out\): (unreadable|not a c)"
+    with pytest.raises(ValueError, match=said):
         Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     assert torn != "code" or (tmp_path / "planted").exists()
 

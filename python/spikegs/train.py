@@ -428,7 +428,8 @@ class Trainer:
             state = torch.load(self.checkpoint_path, map_location="cpu", weights_only=True)
         except Exception as err:  # torch, pickle and zip raise their own kinds for a torn file
             raise ValueError(f"{unusable} unreadable ({type(err).__name__}: {err})") from None
-        if not (isinstance(state, dict) and "config" in state):
+        keys = ("config", "iteration", "model", "optimizer")  # (a saved SIM has a config)
+        if not (isinstance(state, dict) and all(key in state for key in keys)):
             raise ValueError(f"{unusable} not a checkpoint of spikegs train")
         changed = differences(
             with_defaults(state["config"]), self.config.to_dict(), ("in the run", "now")
