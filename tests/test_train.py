@@ -3693,6 +3693,31 @@ def _train_until(dataset, config, run, iteration: int, monkeypatch, error=Runtim
     monkeypatch.setattr(Trainer, "update", update)
 
 
+def test_a_run_resumed_past_its_instant_loss_builds_no_instant_targets(
+    dataset, tmp_path, monkeypatch
+):
+    """Resumed past the instant loss's last step (instant_until: densify), a run trained SIM
+    again where its cache was gone (100 s of a 300-iteration run, for nothing): none is made,
+    and the run ends as the uninterrupted one."""
+    root = tmp_path / "data"
+    shutil.copytree(dataset.root, root)
+    data = load_dataset(root)
+    train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
+    overrides = {**FAST, "train": train, "densify": {**FAST["densify"], "stop": 50}}
+    config = load_config("spikegs", {**overrides, "sim": {"iterations": 5}})
+    assert config.last_instant_iteration() == 50 and config.instant_target() == "sim"
+    whole = Trainer(data, config, tmp_path / "whole", progress=False)
+    whole.train()
+    _train_until(data, config, tmp_path / "cut", 57, monkeypatch)  # checkpointed at 50
+    shutil.rmtree(root / "sim")
+    monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("SIM made"))
+    resumed = Trainer(data, config, tmp_path / "cut", progress=False)
+    resumed.train(resume=True)
+    for name, value in whole.model.params.items():
+        assert torch.equal(value, resumed.model.params[name]), name
+    assert resumed.sim_digest == whole.sim_digest is not None  # (the run's, kept)
+
+
 def _logged(run) -> list[int]:
     lines = (run / "log.jsonl").read_text().splitlines()
     return [json.loads(line)["iteration"] for line in lines]

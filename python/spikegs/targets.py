@@ -328,9 +328,13 @@ def check_targets(dataset, config: Config) -> None:
         simulated_trajectory(dataset)
 
 
-def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
+def build_targets(
+    dataset, config: Config, progress: bool = True, instant_left: bool = True
+) -> Targets:
     """Instant and exposure targets of `config`'s method at the dataset's training timestamps
-    (SIM trained, or loaded from its cache, now; the images themselves on first use)."""
+    (SIM trained, or loaded from its cache, now; the images themselves on first use); no
+    instant ones where none is `instant_left` to train (a run resumed past their last step: SIM
+    was trained again, 100 s, where its cache was gone)."""
     s = config.supervision
     ts = np.asarray(dataset.train_timestamps)
     check_targets(dataset, config)
@@ -384,7 +388,7 @@ def build_targets(dataset, config: Config, progress: bool = True) -> Targets:
     valid = defects.valid
 
     instant, sim_seconds, sim = None, 0.0, None
-    if config.instant_target() != "none":
+    if config.instant_target() != "none" and instant_left:
         if s.instant == "sim":
             model, sim_seconds, path = trained_sim(
                 dataset,

@@ -500,7 +500,7 @@ class Trainer:
                 f"into another --out)",
                 stacklevel=3,
             )
-        return sim and sim["digest"]
+        return sim["digest"] if sim else before  # (none built past the instant loss's end)
 
     def _load_checkpoint(self, state: dict) -> None:
         self.split_rng = torch.Generator()
@@ -875,10 +875,11 @@ class Trainer:
         # a finished run needs no targets; SIM's training time for this run: trained now or
         # loaded from the dataset's cache (its recorded time), a resumed run's its checkpoint's
         if not finished:
+            left = state is None or state["iteration"] < self.config.last_instant_iteration()
             try:
-                self.targets = build_targets(self.dataset, self.config, self.progress)
+                self.targets = build_targets(self.dataset, self.config, self.progress, left)
             except KeyboardInterrupt:  # (it said "interrupted" alone)
-                if self.config.instant_target() == "sim":
+                if left and self.config.instant_target() == "sim":
                     say(
                         f"\nSIM's training, if it had begun, goes on from its last saved state "
                         f"when this run is trained again ({SAVED_EVERY})"
