@@ -74,3 +74,19 @@ def test_a_view_between_readouts_is_scored_at_the_nearest_one(tmp_path):
     for view, readout in zip(dataset.test_views, (39.7, 60.2)):
         view.readout = readout
     assert evaluate_dataset(model, dataset) == whole
+
+
+def test_a_view_whose_windows_reach_past_the_stream_is_left_out(tmp_path):
+    """An on-path view 20 readouts from the stream's start (a real recording's; the loaders
+    keep training timestamps away from it, not the stream's ends): TFP(65)'s window reaches
+    past the stream, and sim-train failed there once SIM had trained. Left out, said; every
+    view so: refused, naming them."""
+    dataset, model = _colour_dataset(tmp_path), SIM(window=33)
+    dataset.test_views[0].readout = 20.0
+    with pytest.warns(UserWarning, match=r"within 32 readouts .* left out .*: view_000 \(readou"):
+        scores = evaluate_dataset(model, dataset)
+    dataset.test_views = dataset.test_views[1:]  # view_001 alone
+    assert scores == evaluate_dataset(model, dataset)
+    dataset.test_views[0].readout = 90.0
+    with pytest.raises(ValueError, match=r"every held-out view .* view_001 \(readout 90\); none"):
+        evaluate_dataset(model, dataset)

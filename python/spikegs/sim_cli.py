@@ -133,7 +133,7 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as err:
         key = next((k for k in FLAGS if f"{k} =" in str(err)), None)
         raise ValueError(f"{FLAGS[key]}: {err}" if key else str(err)) from None
-    views = on_path_views(dataset)  # what SIM is scored on, before it is trained
+    views = on_path_views(dataset, sim.window)  # what SIM is scored on, before it is trained
     # the spikes that training's SIM learns from (the sensor's defects repaired): the one made
     # here is the one it reuses, and every decoder is scored on them
     defects = sensor_defects(dataset.streams, dataset.root, config.supervision.mask_defects)
@@ -161,7 +161,7 @@ def _run(args: argparse.Namespace) -> int:
     # the light's flicker, divided out of every method's images as out of training's targets
     found = cached_flicker(dataset.streams, bars) if config.supervision.deflicker else None
     flicker = divisible(found)
-    scores = evaluate_dataset(model, dataset, streams=defects.streams, flicker=flicker)
+    scores = evaluate_dataset(model, dataset, None, defects.streams, flicker, views)
     units = -20 * math.log10(intensity_scale(dataset))  # rates are intensity x that scale
     record = record_beside(out)  # the table for a script, beside the weights, never over them
     summary = {

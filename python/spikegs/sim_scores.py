@@ -3,6 +3,7 @@ views on the camera path: PSNR and SSIM against their clean images."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -11,7 +12,7 @@ from .flicker import Flicker
 from .metrics import psnr, ssim
 from .sim import SIM
 from .sim_train import infer_sim
-from .targets import TFI_TIME
+from .targets import TFI_TIME, readouts_beside
 
 
 def compare_methods(
@@ -73,22 +74,48 @@ def _decoded(model: SIM, stream, timestamps: np.ndarray, dtype) -> dict[str, np.
     }
 
 
-def on_path_views(dataset) -> list:
-    """The dataset's held-out views on the camera path (those SIM can be scored on); ValueError
-    when there is none."""
+WIDEST = 65  # TFP(65)'s window, the widest of the decoders scored beside SIM
+
+
+def on_path_views(dataset, sim_window: int) -> list:
+    """The dataset's held-out views on the camera path (those SIM can be scored on) around which
+    every decoder's window fits, SIM's of `sim_window` readouts too, warning of the others (a
+    real recording's view near its start ended sim-train, once SIM had trained, with the window's
+    error); ValueError when there is none."""
     views = [v for v in dataset.test_views if v.readout is not None]
     if not views:
         raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
-    return views
+    reach = max(WIDEST, sim_window) // 2
+    room = readouts_beside(dataset.streams[0], np.array([round(v.readout) for v in views]))
+    near = [f"{v.name} (readout {v.readout:g})" for v, r in zip(views, room) if r < reach]
+    if len(near) == len(views):
+        raise ValueError(
+            f"{dataset.root}: every held-out view on the camera path lies within {reach} readouts "
+            f"of its stream's ends, where a {2 * reach + 1}-readout window does not fit: "
+            f"{', '.join(near)}; none to compare on"
+        )
+    if near:
+        warnings.warn(
+            f"{dataset.root}: held-out views within {reach} readouts of their stream's ends, "
+            f"where a {2 * reach + 1}-readout window does not fit, are left out of the scores: "
+            f"{', '.join(near)}",
+            stacklevel=2,
+        )
+    return [v for v, r in zip(views, room) if r >= reach]
 
 
 def evaluate_dataset(
-    model: SIM, dataset, dtype=None, streams: list | None = None, flicker: Flicker | None = None
+    model: SIM,
+    dataset,
+    dtype=None,
+    streams: list | None = None,
+    flicker: Flicker | None = None,
+    views: list | None = None,
 ) -> dict[str, dict[str, float]]:
-    """`compare_methods` on a dataset's held-out on-path views, against their clean images (a
-    pseudo ground truth's own TFP left out), reading `streams` (default the dataset's; one a
-    channel), divided by a `flicker` of the light."""
-    views = on_path_views(dataset)
+    """`compare_methods` on a dataset's held-out on-path `views` (default `on_path_views`'),
+    against their clean images (a pseudo ground truth's own TFP left out), reading `streams`
+    (default the dataset's; one a channel), divided by a `flicker` of the light."""
+    views = on_path_views(dataset, model.window) if views is None else views
     timestamps = np.array([round(v.readout) for v in views])
     own = [None if v.window is None else f"TFP({v.window})" for v in views]
     gt = np.stack([v.image for v in views])  # [N, H, W, C] firing rates

@@ -291,9 +291,8 @@ def check_targets(dataset, config: Config) -> None:
         first, end = stream.bounds(ts)
         where = f"each in its view of {', '.join(map(str, sorted(set(end - first))))} readouts"
     else:
-        first, end = 0, len(stream)
         where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
-    room = int(np.minimum(ts - first, end - 1 - ts).min())  # readouts beside, on both sides
+    room = int(readouts_beside(stream, ts).min())
     for name, w in windows.items():
         if w // 2 > room:
             raise ValueError(
@@ -326,6 +325,15 @@ def check_targets(dataset, config: Config) -> None:
 
         clean_source(dataset)
         simulated_trajectory(dataset)
+
+
+def readouts_beside(stream, ts: np.ndarray) -> np.ndarray:
+    """The readouts [N] of `stream` on both sides of each readout `ts` [N] (within its own view,
+    of a stream per view): a window of 2 x that + 1 readouts around it fits."""
+    from .data.view_stream import ViewStreams  # (the data package imports us)
+
+    first, end = stream.bounds(ts) if isinstance(stream, ViewStreams) else (0, len(stream))
+    return np.minimum(ts - first, end - 1 - ts)
 
 
 def build_targets(
