@@ -29,6 +29,7 @@ from spikegs.sim import SIM
 from spikegs.sim_cli import _is_scores_record
 from spikegs.sim_scores import compare_methods
 from spikegs.sim_train import (
+    bf16_is_fast,
     fast_inference_model,
     infer_sim,
     inference_model,
@@ -358,7 +359,9 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert torch.load(path, weights_only=True)["meta"]["steps"] == 3
     # the thread count it trained at, recorded (SIM trained at another is another SIM, unsaid
     # where cached); reused at another all the same, as the settings are
-    assert torch.load(path, weights_only=True)["meta"]["threads"] == torch.get_num_threads()
+    meta = torch.load(path, weights_only=True)["meta"]
+    assert meta["threads"] == torch.get_num_threads()
+    assert meta["bf16"] == bf16_is_fast()  # (another SIM, too, with and without it)
     threads = torch.get_num_threads()
     try:
         torch.set_num_threads(threads + 1)

@@ -467,15 +467,17 @@ def train_or_load(
         # sim-train's scores of the SIM replaced, removed first: a kill between the two leaves
         # the old weights without their record, never the new ones with the old one's
         record_beside(path).unlink(missing_ok=True)
-        save_sim(  # (the thread count: SIM's training differs with it, every weight)
+        # the thread count and bfloat16 autocast (a CPU's native support): SIM's training
+        # differs with each, every weight
+        machine = {"threads": torch.get_num_threads(), "bf16": bf16_is_fast()}
+        save_sim(
             model,
             path,
             final_loss=final_loss,
             seconds=seconds,
             data=data,
             start=START,
-            threads=torch.get_num_threads(),
-            **settings,
+            **{**machine, **settings},
         )
         partial.unlink(missing_ok=True)
         if quiet:

@@ -490,14 +490,15 @@ class Trainer:
         sim = self.targets.sim
         before = state and state.get("sim_digest")  # (an earlier version's checkpoint: none)
         if sim and before and sim["digest"] != before:
-            last = (state.get("environments") or [{}])[-1].get("torch_threads", "unrecorded")
+            last = (state.get("environments") or [{}])[-1].get("torch_threads")
+            now = torch.get_num_threads()
+            threads = f": the run's last process ran {last} threads, this one {now}" * (last != now)
             warnings.warn(
                 f"{self.checkpoint_path}: the run trained against another SIM than {sim['path']} "
-                f"(retrained since, or replaced; SIM trained at another thread count is another, "
-                f"every weight: the run's last process ran {last} threads, this one "
-                f"{torch.get_num_threads()}); it goes on against this SIM's instant targets, no "
-                f"longer as the uninterrupted run would (put the run's SIM file back, or train "
-                f"into another --out)",
+                f"(retrained since, or replaced; SIM trained at another thread count, or on a CPU "
+                f"with bfloat16 and one without, is another, every weight{threads}); it goes on "
+                f"against this SIM's instant targets, no longer as the uninterrupted run would "
+                f"(put the run's SIM file back, or train into another --out)",
                 stacklevel=3,
             )
         return sim["digest"] if sim else before  # (none built past the instant loss's end)
