@@ -123,6 +123,24 @@ def test_a_sim_of_unrepaired_spikes_has_a_cache_of_its_own(dataset, tmp_path, ca
     assert "training SIM afresh" not in capsys.readouterr().err
 
 
+def test_a_dataset_without_defects_shares_one_sim_between_repaired_and_raw(dataset, tmp_path):
+    """Repairing changes no spike where there is no defect: supervision.mask_defects false
+    trained a second SIM, bit for bit the first, under the `_raw` name (the SIM trial); the
+    other name's SIM of the same spikes is taken, either way round."""
+    configs = [
+        load_config("spikegs", {**SIM_FAST, "supervision": {"mask_defects": m}})
+        for m in (True, False)
+    ]
+    for order in (configs, configs[::-1]):
+        root = tmp_path / f"data{len(list(tmp_path.iterdir()))}"
+        shutil.copytree(dataset.root, root, ignore=shutil.ignore_patterns("sim"))
+        data = load_dataset(root)
+        first, second = (build_targets(data, config, progress=False) for config in order)
+        assert second.sim_seconds == first.sim_seconds > 0  # its recorded time: not retrained
+        assert second.sim == first.sim  # one file, one SIM
+        assert len(list((root / "sim").glob("*.pt"))) == 1
+
+
 def test_crops_larger_than_the_image_share_one_cache(dataset):
     """Training caps the crop at the image (24²): crops 64 and 1000 train the same SIM, which was
     cached twice, as c64 and c1000."""

@@ -399,12 +399,14 @@ def train_or_load(
     window: int = SimConfig.window,
     force: bool = False,
     keep: bool = False,
+    alternates: Sequence[Path] = (),
     **kwargs,
 ):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
-    `spikes_fingerprint`) with these settings (`kwargs`), unless `force`; else train one and save
-    it there (a SIM there trained otherwise refused where `keep`: a file the user named). Where
-    `path`'s folder cannot be written (a read-only dataset), `user_cache` stands in for it.
+    `spikes_fingerprint`) with these settings (`kwargs`), unless `force`, or else such a SIM at
+    one of `alternates` (read, never replaced); else train one and save it at `path` (a SIM
+    there trained otherwise refused where `keep`: a file the user named). Where `path`'s folder
+    cannot be written (a read-only dataset), `user_cache` stands in for it.
 
     Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps
     included, the path it was loaded from or saved at).
@@ -416,6 +418,10 @@ def train_or_load(
     first = _streams(stream)[0]
     side = max(first.height, first.width)
     model = None if force else _cached(path, window, known, settings, side, say=False, keep=keep)
+    for other in alternates if model is None and not force else ():
+        model = _cached(Path(other), window, known, settings, side, say=False)
+        if model is not None:
+            return model, 0.0, Path(other)
     if model is None and not writable_folder(path.parent):
         fallback = user_cache(path.name, data)
         if fallback is None or not writable_folder(fallback.parent):

@@ -237,7 +237,9 @@ def trained_sim(
     default `sim_path`; `train_or_load` may cache elsewhere; a SIM trained otherwise at a `path`
     given is refused, not replaced, unless `force`), else trained on every channel's stream
     (`streams`, by default the dataset's; the sensor's defects `repaired` in them or not) at the
-    training timestamps."""
+    training timestamps. The other of the repaired and raw spikes' caches serves where it holds
+    a SIM of the same spikes (a dataset without defects: `_raw` trained a copy, bit for bit)."""
+    other = [] if path is not None else [sim_path(dataset, sim, seed, not repaired)]
     model, seconds, path = train_or_load(
         path or sim_path(dataset, sim, seed, repaired),
         streams or dataset.streams,  # a colour camera's channels share one SIM
@@ -245,6 +247,7 @@ def trained_sim(
         sim.window,
         force=force,
         keep=path is not None,
+        alternates=other,
         steps=sim.iterations,
         batch_size=sim.batch,
         crop=sim_crop(dataset, sim),  # as the cache's name has it
