@@ -1844,6 +1844,11 @@ def test_settings_a_method_never_reads_are_warned_of(tmp_path):
     child.write_text("base: mine.yaml\ntrain: {iterations: 100}\n")
     with pytest.warns(UserWarning, match=r"mine.yaml sets what method 'child' never reads: pose"):
         load_config(child)
+    # refinement enabled at a learning rate of 0: no pose moves (unsaid)
+    child.write_text("base: tfp33\npose_refine: {enabled: true, lr: 0}\n")
+    zero = r"never reads: pose_refine.enabled \(pose_refine.lr is 0: no pose is refined\)"
+    with pytest.warns(UserWarning, match=zero):
+        load_config(child)
     # read ones, and what a built-in method leaves unread (only_exposure's smooth-L1 instant
     # norm): nothing said
     mine.write_text("base: spikegs\nsim: {window: 17}\nsupervision: {exposure_poses: 9}\n")

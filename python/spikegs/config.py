@@ -666,6 +666,8 @@ def unread_settings(config: Config) -> dict[str, str]:
         unread["densify.instant_only"] = why
     if not config.pose_refine.enabled:
         unread["pose_refine.lr"] = "pose_refine.enabled is false"
+    elif config.pose_refine.lr == 0:  # (enabled, no pose moved: unsaid)
+        unread["pose_refine.enabled"] = "pose_refine.lr is 0: no pose is refined"
     if config.train.sh_degree == 0:
         unread["lr.sh_rest"] = "train.sh_degree is 0: no coefficients beyond the DC's"
     return unread | _unread_densify(config.densify, config.train.iterations)
