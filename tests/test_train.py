@@ -179,7 +179,9 @@ def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
     spikegs = load_config("spikegs", _few_steps(2))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        with pytest.raises(UserWarning, match=r"3 training timestamps.*exposure_weight: 1, "):
+        # a file of the line alone trained L1 norms, the dataclass's: its base said
+        said = r"3 training timestamps.*a config file of base: spikegs and supervision: {expos"
+        with pytest.raises(UserWarning, match=said):
             Trainer(few_views, spikegs, tmp_path / "run", progress=False).train()
         assert not (tmp_path / "run").exists()  # (told before the run folder is made)
         sparse = {"supervision": {"exposure_weight": 1.0, "instant_until": "run"}}

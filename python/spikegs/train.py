@@ -25,6 +25,7 @@ from .config import (
     MIN_GAUSSIANS,
     SCHEDULE_KEYS,
     Config,
+    available_methods,
     differences,
     warn_if_nothing_learns,
     with_defaults,
@@ -277,13 +278,16 @@ class Trainer:
         both = s.instant != "none" and s.instant_weight > 0 and s.exposure_weight > 0
         dense = s.exposure_weight > s.instant_weight or s.instant_until == "densify"
         if both and dense and n < FEW_TIMESTAMPS:
+            # (a file of the line alone starts from the dataclass's defaults, L1 norms: base)
+            method = self.config.method
+            base = f"base: {method}" if method in available_methods() else "its settings"
             warnings.warn(
                 f"{self.dataset.root}: {n} training timestamps, and supervision's exposure_weight "
                 f"{s.exposure_weight:g} against instant_weight {s.instant_weight:g}, "
-                f"instant_until {s.instant_until}, the settings for many views: with few, "
-                f"supervision: {{exposure_weight: {s.instant_weight:g}, instant_until: run}} "
-                f"scored 0.9-1.4 dB higher at 9 timestamps of each built-in scene "
-                f"(docs/datasets.md)",
+                f"instant_until {s.instant_until}, the settings for many views: with few, a "
+                f"config file of {base} and supervision: {{exposure_weight: "
+                f"{s.instant_weight:g}, instant_until: run}} scored 0.9-1.4 dB higher at 9 "
+                f"timestamps of each built-in scene (docs/datasets.md)",
                 stacklevel=3,
             )
 
