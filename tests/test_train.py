@@ -2791,6 +2791,22 @@ def test_a_demo_resumed_over_a_run_config_not_a_runs_names_it(tmp_path, capsys):
         assert message in capsys.readouterr().err
 
 
+def test_a_resumed_demo_writes_an_emptied_run_config_from_its_checkpoint(dataset, tmp_path):
+    """A demo run's config.yaml emptied: --resume said the settings were lost and to start
+    afresh, which refused the finished demo in turn (--overwrite alone, deleting it all); its
+    checkpoint holds them, as `spikegs train --resume` takes them (the remedies trial)."""
+    from spikegs.demo import started_iterations
+
+    run = tmp_path / "demo" / "runs" / "spikegs"
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 3}})
+    Trainer(dataset, config, run, progress=False).train()
+    written = (run / "config.yaml").read_text()
+    (run / "config.yaml").write_text("")
+    with pytest.warns(UserWarning, match=r"config.yaml was missing or empty: written again from"):
+        assert started_iterations(tmp_path / "demo") == 3
+    assert (run / "config.yaml").read_text() == written
+
+
 def test_a_resumed_demo_reads_its_dataset_before_what_it_recorded_as_it_started(tmp_path):
     """--resume takes the scene and camera from the demo's dataset (meta.json), else from what
     the demo recorded as it started (a demo stopped while simulating), and the iterations from

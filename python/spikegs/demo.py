@@ -157,16 +157,22 @@ def held_demo(out: Path, finished: dict | None) -> str | None:
 
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
-    config.yaml, else what it recorded when it started), None for the default; ValueError
-    naming a run's config.yaml that is empty or not a run's settings."""
+    config.yaml, else what it recorded when it started), None for the default; a run's empty
+    config.yaml is written again from its checkpoint's settings, as `spikegs train --resume`
+    does (it was refused, and so was the demo without --resume, holding the finished runs);
+    ValueError naming one that is empty without a checkpoint or not a run's settings."""
+    from .train_cli import restore_run_settings  # (it imports torch's training machinery)
+
     for method in METHODS:
         saved = out / "runs" / method / CONFIG
         if saved.is_file():
-            if is_blank(saved):
+            if is_blank(saved) and not last_checkpoint(saved.parent).is_file():
                 raise ValueError(
                     f"--resume: {saved} is empty: the run's settings are lost; start the demo "
                     f"afresh (without --resume)"
                 )
+            if is_blank(saved):
+                restore_run_settings(str(saved.parent), saved)
             return load_saved_run(saved).train.iterations
     iterations = _started(out).get("iterations")
     return iterations if isinstance(iterations, int) and iterations > 0 else None

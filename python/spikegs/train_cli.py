@@ -78,7 +78,7 @@ def config_from_args(args: argparse.Namespace):
     try:  # an empty one: the defaults would stand in for the run's
         empty = own and is_blank(saved)
     except NotText as err:
-        fix = (  # (`_restore_settings`, which needs the checkpoint)
+        fix = (  # (`restore_run_settings`, which needs the checkpoint)
             "delete it, and --resume writes it again from the checkpoint's settings"
             if last_checkpoint(args.out).is_file()
             else "name the run's settings again with --method or --config"
@@ -90,7 +90,7 @@ def config_from_args(args: argparse.Namespace):
             f"needs no --resume)"
         )
     if given is None and args.resume and (empty or not own):
-        _restore_settings(args.out, saved)
+        restore_run_settings(args.out, saved)
         own = True
     if not own:
         config = load_config(DEFAULT_METHOD if given is None else given, overrides, args.iterations)
@@ -120,7 +120,7 @@ def config_from_args(args: argparse.Namespace):
     return config
 
 
-def _restore_settings(out: str, saved: Path) -> None:
+def restore_run_settings(out: str, saved: Path) -> None:
     """Write a run's missing or empty config.yaml (`saved`) from the settings that its last
     checkpoint holds, said (the defaults stood in for them, refused by the checkpoint);
     ValueError where there is none to take them from."""
