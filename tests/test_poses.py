@@ -533,7 +533,7 @@ def test_an_implausible_estimated_focal_is_flagged():
         cases += [(focal, False), (beyond, True)]
     for focal, flagged in cases:
         recon.K = np.array([[focal, 0, 32], [0, focal, 32], [0, 0, 1]])
-        messages = _complete_meta(dict(meta), recon, estimated=True)
+        messages = _complete_meta(dict(meta), recon, True, None, {})
         assert any("field of view" in m for m in messages) == flagged, (focal, messages)
 
 
@@ -1107,7 +1107,7 @@ def test_scene_bounds_from_points_are_robust_to_outliers():
     points = np.concatenate([ball + [2.0, 0, 0], [[52.0, 0, 0], [52.0, 0.5, 0]]])
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64}
-    _complete_meta(meta, recon, estimated=False)
+    _complete_meta(meta, recon, False, None, {})
     np.testing.assert_allclose(meta["scene_center"], [2.0, 0, 0], atol=0.1)
     assert 0.93 < meta["scene_radius"] < 1.05, meta["scene_radius"]
 
@@ -1402,7 +1402,7 @@ def test_a_scene_centre_without_a_radius_is_estimated_with_it():
     points = np.random.default_rng(0).normal(size=(200, 3)) + [5.0, 0.0, 0.0]
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64, "scene_center": [0.0, 0.0, 0.0]}
-    _complete_meta(meta, recon, estimated=False)
+    _complete_meta(meta, recon, False, None, {})
     np.testing.assert_allclose(meta["scene_center"], np.median(points, axis=0))
     assert meta["scene_radius"] > 0
 
@@ -1889,6 +1889,68 @@ def test_a_raw_recordings_own_test_folder_and_a_later_pose_log_are_kept(logged_c
         json.loads((logged_copy / "sfm" / "report.json").read_text())["pose_reference"]
         == "pose log"
     )
+
+
+def test_a_pose_log_aligned_to_after_sfms_frame_estimates_the_scene_sphere_again(
+    tiny, tmp_path, monkeypatch, capsys
+):
+    """A raw recording posed in SfM's own frame (here the log's moved 10 along x) got its scene
+    sphere estimated there; its pose log, put in as trajectory.json and aligned to, kept that
+    sphere, which no training view saw (the remedies trial). The last run's estimate is made
+    again in the new frame; one the user set is kept."""
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    shift = np.eye(4)
+    shift[0, 3] = 10.0  # SfM's frame: the world moved 10 along x
+    logged = _logged_sfm(root)
+
+    def sfm_frame(*args, **kwargs):
+        recon = logged(*args, **kwargs)
+        moved = recon.viewmats @ np.linalg.inv(shift)  # [R, 4, 4]
+        return _recon(
+            recon.readouts, moved, recon.K, recon.points + shift[:3, 3], None, recon.num_images
+        )
+
+    _stub_sfm(monkeypatch, sfm_frame)
+    for name in ("trajectory.json", "train_timestamps.txt", "test_views.json"):
+        (root / name).rename(root / f"{name}.log")
+    meta = json.loads((root / "meta.json").read_text())
+    centre, radius = meta["scene_center"], meta["scene_radius"]
+    unframed = {k: v for k, v in meta.items() if k not in ("scene_center", "scene_radius")}
+    (root / "meta.json").write_text(json.dumps(unframed))
+    assert main(["poses", str(root), "--count", "24"]) == 0
+    first = json.loads((root / "meta.json").read_text())["scene_center"]
+    np.testing.assert_allclose(first, np.add(centre, shift[:3, 3]), atol=0.5)  # SfM's frame
+    (root / "trajectory.json.log").replace(root / "trajectory.json")
+    assert main(["poses", str(root), "--count", "24"]) == 0
+    assert "estimated from the points (meta.json) again: the last run's" in capsys.readouterr().out
+    again = json.loads((root / "meta.json").read_text())
+    np.testing.assert_allclose(again["scene_center"], centre, atol=0.5)  # the log's frame
+    dataset = load_dataset(root)  # trains: its views see the sphere
+    assert len(dataset.train_timestamps) > 0
+    # a sphere the user set since is kept
+    (root / "meta.json").write_text(json.dumps({**again, "scene_radius": 2 * radius}))
+    assert main(["poses", str(root), "--count", "24"]) == 0
+    assert json.loads((root / "meta.json").read_text())["scene_radius"] == 2 * radius
+
+
+def test_a_pose_log_moved_over_sfms_backup_is_named_a_pose_log(logged_copy, capsys):
+    """A raw recording posed twice (the second run aligned to the first's SfM poses, kept as the
+    .bak), then its pose log moved over the .bak, as the refusal of one put in as trajectory.json
+    tells: aligned to, it was called the first run's SfM poses ("not a pose log")."""
+    root = logged_copy
+    for name in ("trajectory.json", "train_timestamps.txt", "test_views.json"):
+        (root / name).rename(root / f"{name}.log")
+    for _ in range(2):
+        assert main(["poses", str(root), "--count", "24"]) == 0
+    assert "against the first spikegs poses run's poses, not a pose log" in (
+        capsys.readouterr().out
+    )
+    (root / "trajectory.json.log").replace(root / "trajectory.json.bak")
+    assert main(["poses", str(root), "--count", "24"]) == 0
+    out = capsys.readouterr().out
+    assert "rotation error median" in out and "not a pose log" not in out
+    assert json.loads((root / "meta.json").read_text())["pose_reference"] == "pose log"
 
 
 def test_a_split_without_its_pose_log_is_refused_before_any_work(logged_copy, capsys):

@@ -91,6 +91,7 @@ FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 # the keys of sfm/report.json that record the files a run wrote, by name
 DIGESTS = {TRAJECTORY: "trajectory_sha256", POINTS: "points_sha256"}
+BACKUP_DIGEST = "reference_sha256"  # the .bak aligned to, as the run that wrote the report read it
 # a median rotation error (degrees) past this after the alignment: the reference or SfM is wrong
 # (SfM's worst measured: 11.3° on `wires` from TFP; a pose log of world-to-camera matrices 48.6°,
 # of OpenGL's axes read as OpenCV's 78.4°)
@@ -223,6 +224,13 @@ def _written_over(path: Path, report: str | None) -> bool | None:
     return None if written is None else _digest(path) != written
 
 
+def _moved_in(backup: Path, report: str | None) -> bool:
+    """Whether the .bak at `backup` is another file than the last run aligned to, as its
+    `report` (sfm/report.json's text) recorded it: a pose log moved over an SfM .bak."""
+    read = _reported(report).get(BACKUP_DIGEST)
+    return backup.is_file() and read is not None and _digest(backup) != read
+
+
 def _image_window(window: int | None, sim_model) -> int:
     """The readouts an image reads: `window` (DEFAULT_WINDOW where None), or a SIM's own, which
     a `window` given otherwise would not change (it moved the images' centres alone, unsaid)."""
@@ -263,10 +271,17 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     return streams
 
 
-def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[str]:
+SPHERE_KEYS = ("scene_center", "scene_radius")
+
+
+def _complete_meta(
+    meta: dict, recon: Reconstruction, estimated: bool, last_sphere: dict | None, report: dict
+) -> list[str]:
     """Fill in what meta.json did not know from SfM: the intrinsics when SfM `estimated` them
     (recorded as intrinsics_from: sfm, so that a later run estimates them again), the scene centre
-    and radius when missing."""
+    and radius when missing or where they are the last run's estimate (`last_sphere`, its
+    report's), in its frame (a pose log aligned to since kept SfM's sphere: no training view saw
+    the scene), recording the estimate in this run's `report`."""
     messages = []
     if estimated:
         K = recon.K
@@ -283,12 +298,25 @@ def _complete_meta(meta: dict, recon: Reconstruction, estimated: bool) -> list[s
                 f"{FOV_PLAUSIBLE[0]}-{FOV_PLAUSIBLE[1]}°: a poor estimate (few registered images, "
                 f"little parallax?); state the camera's intrinsics in {META} if they are known"
             )
-    if "scene_center" not in meta or "scene_radius" not in meta:
+    again = _is_last_estimate(meta, last_sphere)
+    if any(key not in meta for key in SPHERE_KEYS) or again:
         centre = np.median(recon.points, axis=0)  # [3]
         distances = np.linalg.norm(recon.points - centre, axis=1)  # [P]
         meta.update(scene_center=centre.tolist(), scene_radius=float(np.percentile(distances, 95)))
-        messages.append(f"scene_center and scene_radius estimated from the points ({META})")
+        report["scene_sphere"] = {key: meta[key] for key in SPHERE_KEYS}  # (the next run's)
+        messages.append(
+            f"scene_center and scene_radius estimated from the points ({META})"
+            + (" again: the last run's estimate was in its own poses' frame" if again else "")
+        )
     return messages
+
+
+def _is_last_estimate(meta: dict, last_sphere: dict | None) -> bool:
+    """Whether meta's scene centre and radius are those the last run estimated (`last_sphere`),
+    not the user's."""
+    return isinstance(last_sphere, dict) and all(
+        key in meta and meta[key] == last_sphere.get(key) for key in SPHERE_KEYS
+    )
 
 
 def _stated_train_every(meta: dict, meta_path: Path) -> int | None:
@@ -579,6 +607,7 @@ def _estimate_poses(
             write_text_atomically(report_path, live_report)
         raise
     defective = int(defects.any(0).sum())  # pixels, in any channel
+    last_sphere = _reported(live_report).get("scene_sphere")  # the sphere the last run estimated
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),
@@ -613,7 +642,9 @@ def _estimate_poses(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "
             "similarity (arbitrary rotation, translation and scale)"
         )
-        framed = [key for key in ("scene_center", "scene_radius", "up") if key in meta]
+        ours = _is_last_estimate(meta, last_sphere)  # (estimated again, below)
+        framed = [k for k in ("scene_center", "scene_radius", "up") if k in meta]
+        framed = [k for k in framed if not (ours and k in SPHERE_KEYS)]
         if framed:  # (`up`: an orbit's axis, which `spikegs render` tilted unsaid)
             messages.append(
                 f"warning: {' / '.join(framed)} in {META} are kept, but they cannot be in SfM's "
@@ -622,13 +653,15 @@ def _estimate_poses(
             )
     else:
         recon = align(recon, reference)
-    messages += _complete_meta(meta, recon, estimated=K is None)
+    messages += _complete_meta(meta, recon, K is None, last_sphere, report)
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM where it had no pose log: a
         # difference, not an error
         # (a pose log put in place of an earlier run's SfM is a pose log)
-        sfm = not replaced and _reference_is_sfm(meta, backup.exists(), ours, live_report)
+        # (a pose log moved over an SfM .bak, as a refusal tells, was called the first run's)
+        logged = replaced or _moved_in(backup, live_report)
+        sfm = not logged and _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
         messages.append(
@@ -697,6 +730,8 @@ def _estimate_poses(
         report["summary"] = "\n".join(messages)
         # what this run wrote: a pose log or another tool's points put in their place is told
         report.update({key: _digest(root / name) for name, key in DIGESTS.items()})
+        if backup.exists():
+            report[BACKUP_DIGEST] = _digest(backup)
         write_text_atomically(report_path, json.dumps(report, indent=1))
     if interrupted():
         raise interruption(interrupted())
