@@ -1360,7 +1360,13 @@ def test_a_cameras_wider_rows_are_cropped_by_meta_json(tmp_path, small, offset):
         json.dumps({**meta, "raw_width": bits.shape[2] + 9, "col_offset": offset})
     )
     (root / "spikegs.json").write_text('{"rate_at_one": 0.3}')
-    with pytest.warns(UserWarning, match="spikegs.json is not read"):
+    with pytest.warns(UserWarning, match=r"spikegs.json is not read: .* in meta.json$"):
+        load_dataset(root)
+    # its split's options have no place in meta.json (train_every moved there as told was
+    # read by `spikegs poses` alone): the files that list it named
+    (root / "spikegs.json").write_text('{"train_every": 16, "pseudo_gt_window": 99}')
+    listed = r"train_timestamps.txt and test_views.json list .* \(train_every, pseudo_gt_window in"
+    with pytest.warns(UserWarning, match=listed):
         load_dataset(root)
 
 

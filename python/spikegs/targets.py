@@ -62,8 +62,9 @@ class ImageBudget:
                 f"training images: {self.kept} kept fill {self.used / 2**30:.2f} GiB of "
                 f"{self.limit / 2**30:.2f}, a quarter of the memory this process may use; "
                 f"images of further timestamps are computed at each visit (SIM's inference each "
-                f"step: slower). Fewer training timestamps keep them all (a larger train_every: "
-                f"simulate --train-every, meta.json's or spikegs.json's train_every)",
+                f"step: slower). Fewer training timestamps keep them all: a larger "
+                f"`simulate --train-every`, spikegs.json's train_every (an LLFF layout's one "
+                f"stream), or fewer lines in a meta.json dataset's train_timestamps.txt",
                 stacklevel=3,
             )
         return False

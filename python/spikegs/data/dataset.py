@@ -1065,12 +1065,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
     rate = float(np.mean([r.mean() for r in rates]))  # spikes a readout
     warn_rows_out_of_line(streams[0], META)  # (the channels share a frame size)
     if (root / "spikegs.json").is_file():
-        warnings.warn(
-            f"{root / 'spikegs.json'} is not read: it holds the options of the LLFF and NeRF "
-            f"layouts; a {META} dataset states its own (rate_at_one, raw_width, col_offset, ...) "
-            f"in {META}",
-            stacklevel=2,
-        )
+        warnings.warn(_options_not_read(root / "spikegs.json"), stacklevel=2)
     if others:
         warnings.warn(f"{root}: {not_read}", stacklevel=2)
     # the files' copies of the camera predate intrinsics that `spikegs poses` estimated
@@ -1218,6 +1213,31 @@ def _check_orientation(
     check_orientation(views, meta["flip"], str(path), META, *raw, judge_match=judge)
     if len(streams) > 1:
         check_channels(channels, [s.path.name for s in streams], str(path))
+
+
+# the real layouts' options of their split, which a meta.json dataset's own files list
+SPLIT_OPTIONS = ("test_views", "train_every", "pseudo_gt_window")
+
+
+def _options_not_read(path: Path) -> str:
+    """What is said of the LLFF and NeRF layouts' spikegs.json at `path` beside a meta.json:
+    not read, its camera's options stated in meta.json, and its split's in no place there
+    (train_every moved to meta.json as told was read by `spikegs poses` alone)."""
+    try:
+        doc = read_json(path)
+    except (OSError, ValueError):
+        doc = {}
+    split = [key for key in SPLIT_OPTIONS if isinstance(doc, dict) and key in doc]
+    return (
+        f"{path} is not read: it holds the options of the LLFF and NeRF layouts; a {META} "
+        f"dataset states its own (rate_at_one, raw_width, col_offset, ...) in {META}"
+        + (
+            f", and {TIMESTAMPS} and {TEST_VIEWS} list its training timestamps and held-out "
+            f"views ({', '.join(split)} in {path.name})"
+            if split
+            else ""
+        )
+    )
 
 
 # every key a meta.json may hold: what `spikegs simulate` and `spikegs poses` write, a recording's
