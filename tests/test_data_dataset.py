@@ -363,7 +363,8 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
         # (not also that the test images average 0.05 times their spikes: the dark current is
         # not the images', and meta.json states it; on every later load too)
         ("solids", {"dark_rate": 0.9}, r"dark_rate 0.9 spikes per readout against .* 0\.0[34]"),
-        ("solids", {"speed": 1.0}, r"the camera turns up to 32\.\d° in 33 readouts"),
+        # more readouts at one speed turn it as fast (they were advised)
+        ("solids", {"speed": 1.0}, r"up to 32\.\d° in 33 readouts: .*: a lower speed \(--speed, d"),
         # still on its orbit, or slow on it, a short recording's climb turns it: a lower speed
         # was advised (at 0.01 still, where it left 19.7° of 20.3)
         (
@@ -381,6 +382,26 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
             "solids",
             {"speed": 0.4, "readouts": 80, "test_on_path": 0, "test_off_path": 1},
             r"turns up to 20\.\d° in 33 readouts: .*; slow the camera: a lower speed",
+        ),
+        # a frame sequence turning 324° over 400 readouts: its frames spread over more (no
+        # speed to lower)
+        (
+            FrameSequenceSource(
+                "turning",
+                np.full((5, 24, 32, 1), 0.5, np.float32),
+                [
+                    look_at([3 * np.cos(a), 3 * np.sin(a), 0.5], [0, 0, 0])
+                    for a in np.linspace(0, 5.65, 5)
+                ],
+                intrinsics(32, 24, 40),
+                center=[0, 0, 0],
+                radius=1.0,
+            ),
+            {"readouts": 400, "test_on_path": 1, "test_off_path": 0},
+            (
+                r"turns up to 2\d\.\d° in 33 readouts: .*: more readouts, over which the frames",
+                "between two frames of the sequence: the simulator cross-fades them",
+            ),
         ),
         # not the 0° between the ends; and 90° a readout crosses pixels between the light frames
         ("solids", {"speed": 90.0}, (r"turns up to 288\d\.\d°", "cross-fades them")),

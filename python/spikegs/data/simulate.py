@@ -234,12 +234,15 @@ def warn_about_data(
         # where the orbit's speed turns it less than half of that, the camera turns as the
         # spiral climbs from its first elevation to its last over the recording (a short one:
         # 16° in 33 of 80 readouts, at any speed): a lower speed would not mend it
-        slower = (
-            "more readouts (the orbit turns mostly as it climbs its elevations, over the whole "
-            "recording: a lower speed would not slow it)"
-            if speed is not None and abs(speed) * (BLUR_WINDOW - 1) < degrees / 2
-            else "a lower speed (built-in scenes) or more readouts"
-        )
+        if speed is None:  # a frame sequence: its frames spread evenly over the readouts
+            slower = "more readouts, over which the frames spread"
+        elif abs(speed) * (BLUR_WINDOW - 1) < degrees / 2:
+            slower = (
+                "more readouts (the orbit turns mostly as it climbs its elevations, over the "
+                "whole recording: a lower speed would not slow it)"
+            )
+        else:  # (more readouts at one speed turn it as fast: "or more readouts" was advised)
+            slower = "a lower speed (--speed, degrees a readout)"
         warnings.warn(
             f"the camera turns up to {degrees:.1f}° in {BLUR_WINDOW} readouts: TFP and SIM "
             f"images will be motion-blurred and held-out views far from any training timestamp; "
