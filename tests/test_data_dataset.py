@@ -1341,6 +1341,8 @@ def test_wider_rows_are_not_named_swapped_where_they_read_more_alike(tmp_path, s
         warn_rows_out_of_line(SpikeStream.open(path, height, width, True), "spikegs.json")
     messages = [str(w.message) for w in said]
     assert len(messages) == 1 and f"set raw_width {width + extra}" in messages[0], messages
+    # the readouts read so (meta.json states them: a second refusal named them)
+    assert f"in spikegs.json; {len(bits)} readouts so)" in messages[0], messages
 
 
 def _wider_rows_copy(data, root: Path, offset: int) -> tuple[np.ndarray, dict]:

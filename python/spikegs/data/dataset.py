@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _C
 from ..atomic_save import NAME_MAX, is_temporary, target_name, write_text_atomically
 from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
@@ -855,13 +856,16 @@ def _warn_rows_wider(
             stacklevel=4,
         )
     else:
+        lay = stream.layout  # (meta.json states the readouts: a second refusal named them)
+        wide = _C.SpikeLayout.dat(lay.height, lay.width, lay.flip, row, 0).frame_bytes
+        readouts = len(stream) * lay.frame_bytes // wide
         warnings.warn(
             f"{stream.path}: its frames read as {given} with rows of "
             f"{stream.layout.row_bits} pixels give an image whose neighbouring rows correlate at "
             f"{as_read:.2f}, read with rows of {row} pixels at {score:.2f}: the file likely "
             f"stores {row} pixels a row (a camera's extra columns: set raw_width {row}, and "
-            f"col_offset, the first stored column kept, in {settings}); read so, training "
-            f"learns noise",
+            f"col_offset, the first stored column kept, in {settings}; {readouts} readouts so); "
+            f"read so, training learns noise",
             stacklevel=4,
         )
 
