@@ -762,7 +762,8 @@ def _own_name(path: Path, inherited: str | None, given: str | Path) -> str:
     if builtin.exists() and builtin.resolve() != path.resolve() and inherited != stem:
         raise ValueError(
             f"config file {path} is named like the built-in method '{stem}' but does not "
-            f"start from it: add 'base: {stem}' to change that method, or 'method: NAME' "
+            f"start from it: add 'base: {stem}' to change that method's other settings (not "
+            f"its supervision or SIM settings, which make it that method), or 'method: NAME' "
             f"to name yours"
         )
     return stem
