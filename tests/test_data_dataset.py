@@ -1184,6 +1184,19 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "fy"}),
             r"meta.json: missing keys \['fy'\]",
         ),
+        # removed as `spikegs poses` told, to have them estimated: what estimates them said
+        "missing sphere": (
+            "meta.json",
+            lambda text: json.dumps(
+                {k: v for k, v in json.loads(text).items() if not k.startswith("scene_")}
+            ),
+            r"missing keys \['scene_center', 'scene_radius'\] \(`spikegs poses .*` estimates th",
+        ),
+        "missing height": (
+            "meta.json",
+            lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "height"}),
+            r"meta.json: missing keys \['height'\]$",
+        ),
         "zero": ("trajectory.json", zero_pose, r"trajectory.json: the pose of frame 5 .* = 1 "),
         "path": ("test_views.json", views(frame0(file_path=3)), "file_path expected a path"),
         # an empty one was "frame image not found: DATASET", naming neither view nor file

@@ -1263,8 +1263,16 @@ def _check_meta(meta: dict, path: Path) -> None:
     camera's; a misspelt optional key, `"rate_at_1"`, left the rate guessed)."""
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
+    estimated = ("fx", "fy", "cx", "cy", "scene_center", "scene_radius")  # (removed as told)
     if missing:
-        raise ValueError(f"{path}: missing keys {missing}")
+        raise ValueError(
+            f"{path}: missing keys {missing}"
+            + (
+                f" (`spikegs poses {shell_path(path.parent)}` estimates them)"
+                if set(missing) <= set(estimated)
+                else ""
+            )
+        )
     unknown = sorted(set(meta) - set(META_KEYS))
     if unknown:
         warnings.warn(
