@@ -569,6 +569,15 @@ def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
     assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
     meta = json.loads((tmp_path / "own" / "meta.json").read_text())
     assert (meta["scene"], meta["source"]) == ("Own", "custom")
+    # light times short of the last readout: the method named (the simulator's "frame times"
+    # named none), before any spike
+    short = Own()
+    short.light_times = lambda num_readouts, frame_every: np.arange(0, num_readouts - 50, 8.0)
+    with pytest.raises(
+        ValueError, match=r"^scene 'Own': light_times: frame times expected .*\[0, 399\]"
+    ):
+        simulate_dataset(short, tmp_path / "short", **SMALL)
+    assert not (tmp_path / "short").exists()
 
     class Reversed(ProceduralSource):  # an orbit of one's own, overriding to that signature
         def off_path_views(self, count):

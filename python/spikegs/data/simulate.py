@@ -16,7 +16,7 @@ from tqdm import tqdm
 from ..interrupt import deferred_interrupt, interruption
 from ..number_checks import as_flag, finite_numbers, is_seed, whole_numbers
 from ..spikes import SimParams
-from ..spikes.simulate import not_codes, simulate_channels
+from ..spikes.simulate import checked_times, not_codes, simulate_channels
 from .dataset import (
     FAINTEST_MEASURED,
     FEW_TIMESTAMPS,
@@ -633,7 +633,10 @@ def simulate_dataset(
     warn_about_data(views, trajectory, params, speed if source.kind != "frames" else None)
     if motion["frame_every"] is None and source.kind != "frames":  # (a frame sequence's own)
         frame_every = float(default_frame_every(source, trajectory, readouts))
-    times = source.light_times(readouts, frame_every)  # [F]
+    try:  # (a Source of one's own: the simulator named "frame times" alone, after the views)
+        times = checked_times(source.light_times(readouts, frame_every), None, readouts - 1)  # [F]
+    except ValueError as err:
+        raise ValueError(f"scene '{source.name}': light_times: {err}") from None
     warn_about_frames(source, trajectory, times)
     if abs(speed) >= 180:  # the poses cannot show it: consecutive readouts look still or reversed
         warnings.warn(

@@ -235,7 +235,7 @@ def sample_times(num_readouts: int, frame_every: float) -> np.ndarray:
     return np.append(times[times < last], float(last))
 
 
-def _checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
+def checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
     """`frame_times` as floats [F] (F = `count`, or any F >= 1 where None); ValueError unless
     finite, strictly increasing and covering readouts [0, last]."""
     try:
@@ -281,7 +281,7 @@ class _Frames:
                         f"frame_every (each readout interpolates the two frames around it)"
                     )
                 frame_times = sample_times(num_readouts, frame_every)
-            self.times = _checked_times(frame_times, None, last)  # [F]
+            self.times = checked_times(frame_times, None, last)  # [F]
 
             def render(i: int, shape=None) -> np.ndarray:
                 t = float(self.times[i])
@@ -312,7 +312,7 @@ class _Frames:
                         f"frame_times"
                     )
                 frame_times = np.linspace(0.0, last, len(frames)) if len(frames) > 1 else [0.0]
-            self.times = _checked_times(frame_times, len(frames), last)  # [F]
+            self.times = checked_times(frame_times, len(frames), last)  # [F]
         if len(shape) != frame_ndim or (channels is not None and shape[-1] != channels):
             axes = "[H, W]" if channels is None else f"[H, W, {channels}]"
             raise ValueError(f"frames expected {axes} each, found {list(shape)}")
