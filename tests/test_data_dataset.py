@@ -569,6 +569,16 @@ def test_a_source_of_ones_own_gives_its_off_path_views_from_a_count(tmp_path):
     assert [v.name for v in views if v.readout is None] == ["off_001", "off_000"]
     meta = json.loads((tmp_path / "own" / "meta.json").read_text())
     assert (meta["scene"], meta["source"]) == ("Own", "custom")
+
+    class Named(Own):  # a name of its own, as a class attribute or a property: kept
+        name = "mine"
+
+    class Property(Own):
+        @property
+        def name(self):
+            return "mine too"
+
+    assert (Named().name, Property().name) == ("mine", "mine too")
     # light times short of the last readout: the method named (the simulator's "frame times"
     # named none), before any spike
     short = Own()

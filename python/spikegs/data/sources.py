@@ -75,7 +75,8 @@ class Source(ABC):
     def __init__(self, width: int, height: int, channels: int, K: np.ndarray, center, radius):
         if channels not in (1, 3):
             raise ValueError(f"channels expected 1 (mono) or 3 (colour), found {channels}")
-        self.name = getattr(self, "name", type(self).__name__)
+        if "name" not in vars(self) and not hasattr(type(self), "name"):  # (a property's kept)
+            self.name = type(self).__name__
         self.width, self.height, self.channels = int(width), int(height), int(channels)
         self.K = np.asarray(K, np.float64)  # [3, 3]
         self.scene_center = np.asarray(center, np.float64)  # [3]
