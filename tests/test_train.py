@@ -2995,11 +2995,16 @@ def test_demo_writes_its_results_and_resumes_to_the_same_ones(tmp_path, monkeypa
         assert main(["demo", "--no-progress", "--resume", "--out", str(stopped)]) == 2
         assert "notes.txt" in capsys.readouterr().err
         (stopped / "runs" / "tfp33" / "notes.txt").unlink()
+        # its second run's config.yaml emptied: written again from its checkpoint too (the
+        # first run's alone was; the second's gave the dataclass's defaults, refused)
+        kept = (stopped / "runs" / "tfp33" / "config.yaml").read_text()
+        (stopped / "runs" / "tfp33" / "config.yaml").write_text("")
         # Ctrl-C while it writes its figures: said how to go on, as in the stages before
         patch.setattr("spikegs.demo.write_figures", _ctrl_c)
         patch.setattr("spikegs.demo.demo_dataset", lambda *a: load_dataset(stopped / "data"))
         assert main(["demo", "--no-progress", "--resume", "--out", str(stopped)]) == 130
         assert "with --resume continues" in capsys.readouterr().err
+        assert (stopped / "runs" / "tfp33" / "config.yaml").read_text() == kept
         # a fresh demo over an earlier one is refused (its results were deleted unasked); with
         # --overwrite it deletes every earlier run and figure as it starts: stopped before its
         # last method, it left that method's finished run, which --resume refused

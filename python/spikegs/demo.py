@@ -157,25 +157,32 @@ def held_demo(out: Path, finished: dict | None) -> str | None:
 
 def started_iterations(out: Path) -> int | None:
     """The iterations an interrupted demo in `out` was started with (its first run's
-    config.yaml, else what it recorded when it started), None for the default; a run's empty
-    config.yaml is written again from its checkpoint's settings, as `spikegs train --resume`
-    does (it was refused, and so was the demo without --resume, holding the finished runs);
-    ValueError naming one that is empty without a checkpoint or not a run's settings."""
-    from .train_cli import restore_run_settings  # (it imports torch's training machinery)
-
+    config.yaml, as `saved_settings` gives it, else what it recorded when it started), None for
+    the default; ValueError naming a run's config.yaml that is empty without a checkpoint or not
+    a run's settings."""
     for method in METHODS:
-        saved = out / "runs" / method / CONFIG
-        if saved.is_file():
-            if is_blank(saved) and not last_checkpoint(saved.parent).is_file():
-                raise ValueError(
-                    f"--resume: {saved} is empty: the run's settings are lost; start the demo "
-                    f"afresh (without --resume)"
-                )
-            if is_blank(saved):
-                restore_run_settings(str(saved.parent), saved)
-            return load_saved_run(saved).train.iterations
+        run_dir = out / "runs" / method
+        if (run_dir / CONFIG).is_file():
+            return load_saved_run(saved_settings(run_dir)).train.iterations
     iterations = _started(out).get("iterations")
     return iterations if isinstance(iterations, int) and iterations > 0 else None
+
+
+def saved_settings(run_dir: Path) -> Path:
+    """A demo run's config.yaml, written again from its checkpoint's settings where emptied, as
+    `spikegs train --resume` does (it was refused, and so was the demo without --resume,
+    holding the finished runs); ValueError where it is empty without a checkpoint."""
+    from .train_cli import restore_run_settings  # (it imports torch's training machinery)
+
+    saved = run_dir / CONFIG
+    if is_blank(saved):
+        if not last_checkpoint(run_dir).is_file():
+            raise ValueError(
+                f"--resume: {saved} is empty: the run's settings are lost; start the demo "
+                f"afresh (without --resume)"
+            )
+        restore_run_settings(str(run_dir), saved)
+    return saved
 
 
 def _dataset_meta(out: Path) -> dict | None:
@@ -284,7 +291,7 @@ def train_and_evaluate(
         config = configs[method]
         if started and last_checkpoint(run_dir).is_file():  # (at the length asked for: another
             # is refused, as before)
-            config = load_saved_run(run_dir / CONFIG, iterations=config.train.iterations)
+            config = load_saved_run(saved_settings(run_dir), iterations=config.train.iterations)
         trainer = Trainer(dataset, config, run_dir, progress=progress)
         summary = trainer.train(started, on_eval=None if progress else print_evaluation)
         ev = evaluate_run(run_dir, dataset)
