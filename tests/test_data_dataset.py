@@ -1211,6 +1211,11 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             ),
             r"missing keys \['scene_center', 'scene_radius'\] \(`spikegs poses .*` estimates th",
         ),
+        "missing cx": (  # (poses refuses intrinsics stated in part: not told to run it)
+            "meta.json",
+            lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "cx"}),
+            r"meta.json: missing keys \['cx'\]$",
+        ),
         "missing height": (
             "meta.json",
             lambda text: json.dumps({k: v for k, v in json.loads(text).items() if k != "height"}),

@@ -1263,16 +1263,14 @@ def _check_meta(meta: dict, path: Path) -> None:
     camera's; a misspelt optional key, `"rate_at_1"`, left the rate guessed)."""
     required = ("height", "width", "channels", "num_readouts", "flip", "fx", "fy", "cx", "cy")
     missing = [k for k in (*required, "scene_center", "scene_radius") if k not in meta]
-    estimated = ("fx", "fy", "cx", "cy", "scene_center", "scene_radius")  # (removed as told)
+    # what `spikegs poses` estimates (removed as its warning tells): the scene sphere, and the
+    # intrinsics where all four are unstated (some of them stated it refuses)
+    intrinsics, sphere = {"fx", "fy", "cx", "cy"}, {"scene_center", "scene_radius"}
+    lost = set(missing)
+    estimated = lost <= intrinsics | sphere and (lost >= intrinsics or not lost & intrinsics)
     if missing:
-        raise ValueError(
-            f"{path}: missing keys {missing}"
-            + (
-                f" (`spikegs poses {shell_path(path.parent)}` estimates them)"
-                if set(missing) <= set(estimated)
-                else ""
-            )
-        )
+        poses = f" (`spikegs poses {shell_path(path.parent)}` estimates them)" * estimated
+        raise ValueError(f"{path}: missing keys {missing}{poses}")
     unknown = sorted(set(meta) - set(META_KEYS))
     if unknown:
         warnings.warn(
