@@ -434,7 +434,8 @@ def train_or_load(
         # a SIM cached there before 2026-11-28 lies under the sampled fingerprint's folder
         legacy = user_cache(path.name, known[1])
         path = fallback
-        for cached in (fallback, legacy) if not force else ():
+        others = [user_cache(Path(other).name, data) for other in alternates]  # (read alone)
+        for cached in (fallback, legacy, *others) if not force else ():
             model = _cached(cached, window, known, settings, side, say=False)
             if model is not None:
                 path = cached
