@@ -3795,7 +3795,8 @@ def test_resume_with_a_copy_of_the_runs_config_file_names_the_method(dataset, tm
     (tmp_path / "staged").mkdir()
     shutil.copy(tmp_path / "c15.yaml", tmp_path / "staged" / "config.yaml")
     staged = load_config(tmp_path / "staged" / "config.yaml")
-    said = r"resume with its method's name: .* unless it sets `method: c15`, or leave out --con"
+    said = r"resume with its method's name: .* unless it sets `method: c15`; or leave out --con"
+    said += r"fig and --method, to resume with the run's own settings"
     with pytest.raises(ValueError, match=said + r".* Differing: method: 'c15' in the run, 'con"):
         Trainer(dataset, staged, tmp_path / "c15", progress=False).train(resume=True)
 

@@ -451,7 +451,8 @@ class Trainer:
             elif all(c.startswith("method:") for c in changed):  # a copy of the run's file
                 same = (  # (named after its stem: staged as $TMPDIR/config.yaml, refused)
                     f"its method's name: a config file is named after its file unless it sets "
-                    f"`method: {state['config'].get('method')}`, or leave out --config"
+                    f"`method: {state['config'].get('method')}`; or leave out --config and "
+                    f"--method, to resume with the run's own settings"
                 )
             raise ValueError(
                 f"{self.checkpoint_path}: the run was trained with other settings; resume with "
