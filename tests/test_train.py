@@ -514,34 +514,45 @@ def test_resume_after_interruption_equals_uninterrupted(
 
 def test_a_run_resumed_against_another_sim_says_so(dataset, tmp_path, monkeypatch, ctrl_c):
     """A resumed run whose SIM was retrained since (its dataset's sim/ deleted, at another
-    thread count) or replaced went on against other instant targets in silence: said, naming
-    the SIM's file; a resume against its own SIM says nothing of it."""
+    thread count or precision) or replaced, or inferring in another precision, went on against
+    other instant targets in silence: said, naming the SIM's file and what it records; a resume
+    against its own SIM says nothing of it."""
     root = tmp_path / "data"
     shutil.copytree(dataset.root, root)
     data = load_dataset(root)
     config = load_config(
         "spikegs", {**FAST, "train": {**FAST["train"], "iterations": 60}, "sim": {"iterations": 5}}
     )
-    run = tmp_path / "run"
-    for stop, resume in ((40, False), (50, True)):
+    run, checkpoint = tmp_path / "run", tmp_path / "run" / "checkpoints" / "last.pt"
+    for stop, resume in ((40, False), (45, True)):
         _interrupt_during(Densifier, "step", stop, monkeypatch, signals=1)
         with warnings.catch_warnings(record=True) as caught, pytest.raises(KeyboardInterrupt):
             warnings.simplefilter("always")
             Trainer(data, config, run, progress=False).train(resume=resume)
         monkeypatch.undo()
         assert not [w for w in caught if "SIM" in str(w.message)]
-    [path] = (root / "sim").glob("*.pt")  # one weight moved: another SIM, its record the same
-    saved = torch.load(path, weights_only=True)
-    first = next(iter(saved["state_dict"]))
+    [path] = (root / "sim").glob("*.pt")
+    state = torch.load(checkpoint, weights_only=True)
+    assert state["sim"]["digest"] == weights_digest(load_sim(path))
+    assert state["sim"]["threads"] == torch.get_num_threads()  # as the SIM's file records it
+    # the same weights inferred in another precision (bfloat16 on one CPU, float32 on another)
+    # give other images
+    torch.save({**state, "sim": {**state["sim"], "inference": "float16"}}, checkpoint)
+    _interrupt_during(Densifier, "step", 50, monkeypatch, signals=1)
+    then = r"weights \w+, trained at \d+ threads in \w+, inferring in float16 then"
+    with pytest.warns(UserWarning, match=then), pytest.raises(KeyboardInterrupt):
+        Trainer(data, config, run, progress=False).train(resume=True)
+    monkeypatch.undo()
+    saved = torch.load(path, weights_only=True)  # one weight moved: another SIM, its record
+    first = next(iter(saved["state_dict"]))  # the same
     saved["state_dict"][first] = saved["state_dict"][first] + 1e-3
     torch.save(saved, path)
-    said = rf"last.pt: the run trained against another SIM than {re.escape(str(path))} \("
-    with pytest.warns(UserWarning, match=said) as caught:
+    said = "last.pt: the run trained against another SIM's instant targets than "
+    said += rf"{re.escape(str(path))} gives"
+    with pytest.warns(UserWarning, match=said):
         Trainer(data, config, run, progress=False).train(resume=True)
-    # the thread count named only where it differs (it was, equal, as the cause)
-    assert not [w for w in caught if "threads, this one" in str(w.message)]
-    state = torch.load(run / "checkpoints" / "last.pt", weights_only=True)
-    assert state["sim_digest"] == weights_digest(load_sim(path))  # the SIM it went on with
+    state = torch.load(checkpoint, weights_only=True)
+    assert state["sim"]["digest"] == weights_digest(load_sim(path))  # the SIM it went on with
 
 
 def test_train_json_names_what_trained_the_run_from_which_iteration(
@@ -3748,7 +3759,7 @@ def test_a_run_resumed_past_its_instant_loss_builds_no_instant_targets(
     resumed.train(resume=True)
     for name, value in whole.model.params.items():
         assert torch.equal(value, resumed.model.params[name]), name
-    assert resumed.sim_digest == whole.sim_digest is not None  # (the run's, kept)
+    assert resumed.sim == whole.sim is not None  # (the run's, kept)
 
 
 def _logged(run) -> list[int]:

@@ -268,7 +268,7 @@ def save_sim(model: SIM, path: Path, **meta) -> None:
 
 def weights_digest(model: SIM) -> str:
     """SHA-256 of a SIM's weights, in their order (one SIM's identity: SIM trained at another
-    thread count is another, every weight)."""
+    thread count or precision is another, every weight)."""
     digest = hashlib.sha256()
     for name, tensor in model.state_dict().items():
         digest.update(name.encode())
@@ -288,13 +288,18 @@ def _read_saved(path: Path) -> dict:
     return payload
 
 
+def recorded_meta(path: Path) -> dict:
+    """The meta that the SIM saved at `path` recorded ({} where it is no saved SIM)."""
+    try:
+        return _read_saved(path)["meta"]
+    except ValueError:
+        return {}
+
+
 def recorded_seconds(path: Path) -> float:
     """The training seconds that the SIM saved at `path` recorded (0 where it records none or
     is no saved SIM)."""
-    try:
-        seconds = _read_saved(path)["meta"].get("seconds", 0.0)
-    except ValueError:
-        return 0.0
+    seconds = recorded_meta(path).get("seconds", 0.0)
     return float(seconds) if is_number(seconds) and seconds > 0 else 0.0
 
 

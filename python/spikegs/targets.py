@@ -30,6 +30,7 @@ from .pixel_defects import sensor_defects
 from .sim_train import (
     fast_inference_model,
     predict,
+    recorded_meta,
     recorded_seconds,
     train_or_load,
     weights_digest,
@@ -141,7 +142,9 @@ class Targets:
     instant: TargetImages | None  # M images [H, W, C], or None
     exposure: TargetImages | None  # M images [H, W, C], or None
     sim_seconds: float = 0.0  # SIM's training time (loaded from its cache: the time it recorded)
-    sim: dict | None = None  # the instant targets' SIM: its file ("path") and "digest"
+    # the instant targets' SIM: its file ("path"), weights' "digest", the "threads" and "bf16"
+    # it trained with (as its file records them) and the dtype it infers in ("inference")
+    sim: dict | None = None
     # what the spikes showed that the targets leave out (train.json's `found_in_spikes`): the
     # light's flicker (None: none found, or not looked for) and the defect pixels masked
     found: dict = field(default_factory=dict)
@@ -414,8 +417,15 @@ def build_targets(
                 sim_seconds = recorded_seconds(path)
                 took = f"trained in {sim_seconds:.0f} s" if sim_seconds else "no time recorded"
                 print(f"SIM: loaded {path} ({took})", file=sys.stderr)
-            sim = {"path": str(path), "digest": weights_digest(model)}
             fast = fast_inference_model(model)
+            trained = recorded_meta(path)  # how it trained: another thread count or precision
+            sim = {  # is another SIM; inferring in another precision, other targets
+                "path": str(path),
+                "digest": weights_digest(model),
+                "threads": trained.get("threads"),
+                "bf16": trained.get("bf16"),
+                "inference": str(next(fast.parameters()).dtype).removeprefix("torch."),
+            }
             # SIM estimates the TFP of its target window (17 readouts for sim17)
             window = config.sim.target_readouts()
             infer = lambda st, k: predict(fast, st.window(k, fast.window))  # noqa: E731

@@ -80,6 +80,16 @@ CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever chec
 GROWING_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}+, {rate_fmt}{postfix}]"
 
 
+def _sim_text(sim: dict) -> str:
+    """A SIM's record (`Targets.sim`) as a message shows it."""
+    trained = {True: "bfloat16", False: "float32"}.get(sim.get("bf16"), "an unrecorded precision")
+    threads = f"{sim['threads']} threads" if sim.get("threads") else "an unrecorded thread count"
+    return (
+        f"weights {str(sim.get('digest'))[:12]}, trained at {threads} in {trained}, inferring in "
+        f"{sim.get('inference')}"
+    )
+
+
 def _sphere_text(sphere: list[float]) -> str:
     """A scene sphere [4] as a message shows it."""
     return f"centre [{', '.join(f'{c:.6g}' for c in sphere[:3])}], radius {sphere[3]:.6g}"
@@ -189,7 +199,7 @@ class Trainer:
         self.settings_file, self.command_line = settings_file, command_line
         self.data = data_fingerprint(dataset, self.scale)
         self.sim_seconds = 0.0  # SIM's training time for this run, set when training starts
-        self.sim_digest = None  # the instant targets' SIM's (`Targets.sim`), kept in checkpoints
+        self.sim = None  # the instant targets' SIM's record (`Targets.sim`), kept in checkpoints
         self.iteration, self.train_seconds = 0, 0.0  # a fresh state's or a checkpoint's, then
         self.brightness = FitBrightness()  # of the steps this process takes
         self.targets = None  # a training's target images (`build_targets`), released after it
@@ -407,7 +417,7 @@ class Trainer:
             "iteration": self.iteration,
             "train_seconds": self.train_seconds,
             "sim_seconds": self.sim_seconds,
-            "sim_digest": self.sim_digest,
+            "sim": self.sim,
             "model": self.model.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "densifier": self.densifier.state_dict(),
@@ -488,25 +498,25 @@ class Trainer:
         """The dataset's scene centre and radius [4], which training's scales follow."""
         return [*map(float, self.dataset.scene_center), float(self.dataset.scene_radius)]
 
-    def _sim_digest(self, state: dict | None) -> str | None:
-        """The digest of the targets' SIM, warning where a resumed run's checkpoint recorded
-        another: its SIM, retrained since (the dataset's sim/ deleted, at another thread count)
-        or swapped, was taken in silence, the run going on against other instant targets."""
+    def _sim_record(self, state: dict | None) -> dict | None:
+        """The record of the targets' SIM (`Targets.sim`), warning where a resumed run's
+        checkpoint recorded another SIM, or inference in another precision: its SIM, retrained
+        since (the dataset's sim/ deleted, at another thread count) or swapped, was taken in
+        silence, the run going on against other instant targets."""
         sim = self.targets.sim
-        before = state and state.get("sim_digest")  # (an earlier version's checkpoint: none)
-        if sim and before and sim["digest"] != before:
-            last = (state.get("environments") or [{}])[-1].get("torch_threads")
-            now = torch.get_num_threads()
-            threads = f": the run's last process ran {last} threads, this one {now}" * (last != now)
+        before = state and state.get("sim")  # (an earlier version's checkpoint: none)
+        same = ("digest", "inference")
+        if sim and before and any(sim[key] != before.get(key) for key in same):
             warnings.warn(
-                f"{self.checkpoint_path}: the run trained against another SIM than {sim['path']} "
-                f"(retrained since, or replaced; SIM trained at another thread count, or on a CPU "
-                f"with bfloat16 and one without, is another, every weight{threads}); it goes on "
-                f"against this SIM's instant targets, no longer as the uninterrupted run would "
-                f"(put the run's SIM file back, or train into another --out)",
+                f"{self.checkpoint_path}: the run trained against another SIM's instant targets "
+                f"than {sim['path']} gives: {_sim_text(before)} then, {_sim_text(sim)} now (SIM "
+                f"trained again at another thread count or precision is another, every weight; "
+                f"inference in another precision gives other images); it goes on against these, "
+                f"no longer as the uninterrupted run would (put the run's SIM file back, or "
+                f"train into another --out)",
                 stacklevel=3,
             )
-        return sim["digest"] if sim else before  # (none built past the instant loss's end)
+        return sim or before  # (none built past the instant loss's end: the run's)
 
     def _load_checkpoint(self, state: dict) -> None:
         self.split_rng = torch.Generator()
@@ -896,7 +906,7 @@ class Trainer:
         self.sim_seconds = saved if finished or saved else self.targets.sim_seconds
         # what the targets leave out (a finished run built none: its checkpoint's, if it has it)
         self.found = state.get(FOUND) if finished else self.targets.found
-        self.sim_digest = state.get("sim_digest") if finished else self._sim_digest(state)
+        self.sim = state.get("sim") if finished else self._sim_record(state)
         if state is not None:
             self._load_checkpoint(state)
         else:
