@@ -2028,6 +2028,7 @@ def test_rows_wider_than_given_are_judged_from_16_rows(tmp_path, height, judged)
         warn_rows_out_of_line(stream, "meta.json")
     said = [str(w.message) for w in caught]
     assert len(said) == judged and all(f"set raw_width {width + 8}" in m for m in said), said
+    assert all(f"in meta.json; num_readouts {n})" in m for m in said), said  # (its count)
 
 
 def test_frames_given_at_half_their_size_are_warned_of(tmp_path):

@@ -859,12 +859,13 @@ def _warn_rows_wider(
         lay = stream.layout  # (meta.json states the readouts: a second refusal named them)
         wide = _C.SpikeLayout.dat(lay.height, lay.width, lay.flip, row, 0).frame_bytes
         readouts = len(stream) * lay.frame_bytes // wide
+        counted = f"num_readouts {readouts}" if settings == META else f"{readouts} readouts so"
         warnings.warn(
             f"{stream.path}: its frames read as {given} with rows of "
             f"{stream.layout.row_bits} pixels give an image whose neighbouring rows correlate at "
             f"{as_read:.2f}, read with rows of {row} pixels at {score:.2f}: the file likely "
             f"stores {row} pixels a row (a camera's extra columns: set raw_width {row}, and "
-            f"col_offset, the first stored column kept, in {settings}; {readouts} readouts so); "
+            f"col_offset, the first stored column kept, in {settings}; {counted}); "
             f"read so, training learns noise",
             stacklevel=4,
         )
