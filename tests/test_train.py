@@ -3780,7 +3780,13 @@ def test_log_holds_each_step_once_after_a_kill(dataset, tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="log.jsonl: line 1 is not a log record"):
         Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     log.write_text('{"iteration": "50"}\n' + log.read_text()[3:])  # (a TypeError, comparing)
-    with pytest.raises(ValueError, match=r'line 1 is not a log record \(iteration "50": no wh'):
+    with pytest.raises(ValueError, match=r'line 1 is not a log record \(no integer iteration "50"'):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
+    # a whole last record is no torn one: named too (it was dropped as cut short by a kill)
+    records = [*log.read_text().splitlines()[1:], '{"iteration": 50.0}']
+    log.write_text("\n".join(records) + "\n")
+    last = len(records)
+    with pytest.raises(ValueError, match=rf"line {last} is not a log record \(no integer iter"):
         Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
     _train_until(dataset, config, tmp_path / "early", 12, monkeypatch)  # before any checkpoint
     Trainer(dataset, config, tmp_path / "early", progress=False).train()  # a fresh run

@@ -108,15 +108,18 @@ def _cut_log(path: Path, iteration: int) -> None:
         for number, line in enumerate(lines, start=1):
             try:
                 record = json.loads(line)
-                step = record["iteration"]
-                if not is_int(step):  # ("50": a TypeError at the comparison below)
-                    raise ValueError(f"iteration {strict_json.json_text(step)}: no whole number")
-            except (ValueError, KeyError, TypeError) as err:
+            except ValueError as err:
                 if number == len(lines):  # a last line cut short by a kill mid-write
                     break
                 raise ValueError(
                     f"{path}: line {number} is not a log record ({err}); {fix}"
                 ) from None
+            step = record.get("iteration") if isinstance(record, dict) else None
+            if not is_int(step):  # ("50": a TypeError at the comparison below)
+                what = "iteration" if step is None else f"iteration {strict_json.json_text(step)}"
+                raise ValueError(
+                    f"{path}: line {number} is not a log record (no integer {what}); {fix}"
+                )
             if step <= iteration:
                 kept.append(line)
     write_text_if_changed(path, "".join(line + "\n" for line in kept))  # a kill keeps them all
