@@ -184,6 +184,9 @@ def test_both_losses_at_the_dense_views_settings_on_few_timestamps_are_warned(
         with pytest.raises(UserWarning, match=said):
             Trainer(few_views, spikegs, tmp_path / "run", progress=False).train()
         assert not (tmp_path / "run").exists()  # (told before the run folder is made)
+        (tmp_path / "mine.yaml").write_text(dump_yaml({"base": "spikegs", **_few_steps(2)}))
+        with pytest.raises(UserWarning, match=r"run} added to the method's config file scored"):
+            Trainer(few_views, load_config(tmp_path / "mine.yaml"), tmp_path / "run").train()
         sparse = {"supervision": {"exposure_weight": 1.0, "instant_until": "run"}}
         for data, config in (
             (few_views, load_config("spikegs", {**_few_steps(2), **sparse})),

@@ -1238,7 +1238,7 @@ def _options_not_read(path: Path) -> str:
         f"dataset states its own (rate_at_one, raw_width, col_offset, ...) in {META}"
         + (
             f", and {TIMESTAMPS} and {TEST_VIEWS} list its training timestamps and held-out "
-            f"views ({', '.join(split)} in {path.name})"
+            f"views, each pseudo view with its window ({', '.join(split)} in {path.name})"
             if split
             else ""
         )
