@@ -1565,7 +1565,7 @@ def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, 
         load_dataset(root)
 
 
-def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff_stream, tmp_path):
+def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff, llff_stream, tmp_path):
     """Spikes at half the size of the images the poses were made from: the error names hwf as
     what gave the size, and the size the file holds whole frames of (it advised truncating the
     file alone); not where spikegs.json sets the size."""
@@ -1582,9 +1582,19 @@ def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff_stream, tmp_path):
         rf"{frames} whole frames of {H}x{W}: spikes at 1/2 of that size\?\)$",
     ):
         load_dataset(root)
+    write_options(root, height=2 * H)  # (the width still hwf's: named)
+    with pytest.raises(ValueError, match=r"pixels, the size of hwf \("):
+        load_dataset(root)
     (root / "spikegs.json").write_text(json.dumps({"height": 2 * H, "width": 2 * W}))
     with pytest.raises(ValueError, match=r"pixels, rows of \d+ from column 0: .* are wrong\)$"):
         load_dataset(root)
+    # a stream per view, its files at half the size: the same
+    views = copy(llff, tmp_path / "views")
+    table = np.load(views / "poses_bounds.npy")
+    table[:, [4, 9, 14]] *= 2
+    np.save(views / "poses_bounds.npy", table)
+    with pytest.raises(ValueError, match=rf"000.dat: .* the size of hwf \({2 * H}, {2 * W}\) in"):
+        load_dataset(views)
 
 
 def test_readouts_one_per_pose_strictly_increasing(tmp_path):

@@ -834,6 +834,41 @@ def test_sim_train_cli_needs_an_on_path_view_before_training(tmp_path, monkeypat
     assert "--window: config: sim.window = 201 readouts does not fit" in capsys.readouterr().err
 
 
+def _view_moved(root, readout: float, first: int, last: int) -> None:
+    """The dataset at `root` with its first on-path view moved to `readout` and its training
+    timestamps in [first, last] (a real recording's view near its start)."""
+    doc = json.loads((root / "test_views.json").read_text())
+    next(f for f in doc["frames"] if f["readout"] is not None)["readout"] = readout
+    (root / "test_views.json").write_text(json.dumps(doc))
+    ts = np.loadtxt(root / "train_timestamps.txt", dtype=np.int64)
+    np.savetxt(root / "train_timestamps.txt", ts[(ts >= first) & (ts <= last)], fmt="%d")
+
+
+def test_sim_train_scores_the_views_whose_windows_fit_said_once(tmp_path, monkeypatch, capsys):
+    """A view near the stream's start (a real recording's): left out of sim-train's scores,
+    said once (the views found before training are scored); with SIM's window the widest,
+    judged by it before training (--window 101: a view 45 readouts in)."""
+    from spikegs.cli import main
+    from spikegs.data import simulate_dataset
+
+    root = tmp_path / "near"
+    small = dict(height=16, width=16, readouts=600, test_on_path=2, test_off_path=0)
+    simulate_dataset("solids", root, progress=False, **small)
+    _view_moved(root, 20.0, 130, 540)
+    assert main(["sim-train", str(root), "--steps", "2", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("left out of the scores: on_000 (readout 20)") == 1, err
+    _view_moved(root, 45.0, 130, 540)
+
+    def stopped(*args, **kwargs):  # (the warning comes before SIM's training)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.sim_cli.trained_sim", stopped)
+    assert main(["sim-train", str(root), "--window", "101", "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert "within 50 readouts of their stream's ends, where a 101-readout window" in err, err
+
+
 def test_a_batch_that_cannot_fit_in_memory_is_refused_before_a_step(scene, monkeypatch):
     """`sim-train --batch-size 5000` was killed by the kernel at 24 GB, with no word: a step's
     memory, at least STEP_BYTES_PER_MAP a crop pixel and feature map, is checked first."""

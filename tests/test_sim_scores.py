@@ -4,6 +4,7 @@ pseudo ground truth is, is left out of that view."""
 
 from __future__ import annotations
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -85,8 +86,19 @@ def test_a_view_whose_windows_reach_past_the_stream_is_left_out(tmp_path):
     dataset.test_views[0].readout = 20.0
     with pytest.warns(UserWarning, match=r"within 32 readouts .* left out .*: view_000 \(readou"):
         scores = evaluate_dataset(model, dataset)
+    dataset.test_views[0].readout = 32.0  # 32 readouts before it: TFP(65)'s window fits
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        both = evaluate_dataset(model, dataset)
+    dataset.test_views[0].readout = 31.0
+    with pytest.warns(UserWarning, match=r"within 32 readouts .*: view_000 \(readout 31\)"):
+        evaluate_dataset(model, dataset)
+    # SIM's own window, where it is the widest: a view within its half of an end left out
+    dataset.test_views[0].readout = 32.0
+    with pytest.warns(UserWarning, match=r"within 33 readouts .*67-readout window"):
+        evaluate_dataset(SIM(window=67), dataset)
     dataset.test_views = dataset.test_views[1:]  # view_001 alone
-    assert scores == evaluate_dataset(model, dataset)
+    assert scores == evaluate_dataset(model, dataset) != both
     dataset.test_views[0].readout = 90.0
     with pytest.raises(ValueError, match=r"every held-out view .* view_001 \(readout 90\); none"):
         evaluate_dataset(model, dataset)

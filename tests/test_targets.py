@@ -139,6 +139,11 @@ def test_a_dataset_without_defects_shares_one_sim_between_repaired_and_raw(datas
         assert second.sim_seconds == first.sim_seconds > 0  # its recorded time: not retrained
         assert second.sim == first.sim  # one file, one SIM
         assert len(list((root / "sim").glob("*.pt"))) == 1
+    # forced: trained afresh at its own name, not the other's taken
+    _, seconds, path = trained_sim(
+        data, configs[1].sim, 0, progress=False, force=True, repaired=False
+    )
+    assert seconds > 0 and path.name.endswith("_raw_seed0.pt")
 
 
 def test_crops_larger_than_the_image_share_one_cache(dataset):

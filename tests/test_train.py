@@ -4006,6 +4006,9 @@ def test_resume_on_the_command_line_reads_the_runs_own_settings(dataset, tmp_pat
     said = capsys.readouterr().err
     assert "train.iterations: 3 in the run, 5 now (a run's length sets its schedule" in said
     assert "put them back" not in said  # (--iterations, not the run's config.yaml, differs)
+    assert main([*argv, "--resume", "--seed", "7"]) == 2  # (--seed's, too)
+    said = capsys.readouterr().err
+    assert "train.seed: 0 in the run, 7 now" in said and "put them back" not in said
     # config.yaml emptied or deleted: the defaults stood in for the run's settings (refused);
     # then the user was asked for them, though the checkpoint holds them: written from it
     written = (tmp_path / "run" / "config.yaml").read_text()
