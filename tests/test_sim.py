@@ -440,10 +440,10 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     assert train_or_load(dataset_sim / "sim.pt", stream, ts, 33, **tiny)[1:] == (0, legacy)
     # an alternate of the same spikes (the raw spikes' SIM where none is repaired) cached there:
     # read, not trained again (it was, beside it)
-    other = train_or_load(dataset_sim / "raw.pt", stream, ts, 33, **tiny)[2]
+    raw = train_or_load(dataset_sim / "raw.pt", stream, ts, 33, **tiny)[2]
     assert train_or_load(
         dataset_sim / "sim2.pt", stream, ts, 33, alternates=[dataset_sim / "raw.pt"], **tiny
-    )[1:] == (0, other)
+    )[1:] == (0, raw)
     other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
     assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
     # a cache that cannot be written either: refused before training (XDG_CACHE_HOME a file)
