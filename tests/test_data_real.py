@@ -1565,7 +1565,7 @@ def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, 
         load_dataset(root)
 
 
-def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff, llff_stream, tmp_path):
+def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff, llff_stream, nerf, tmp_path):
     """Spikes at half the size of the images the poses were made from: the error names hwf as
     what gave the size, and the size the file holds whole frames of (it advised truncating the
     file alone); not where spikegs.json sets the size."""
@@ -1588,6 +1588,12 @@ def test_spikes_at_a_fraction_of_hwfs_size_are_named_so(llff, llff_stream, tmp_p
     (root / "spikegs.json").write_text(json.dumps({"height": 2 * H, "width": 2 * W}))
     with pytest.raises(ValueError, match=r"pixels, rows of \d+ from column 0: .* are wrong\)$"):
         load_dataset(root)
+    # a NeRF layout whose w, h are twice its spikes': the transforms file named
+    doubled = copy(nerf, tmp_path / "nerf")
+    for name in ("transforms_train.json", "transforms_test.json"):
+        edit_json(doubled / name, lambda doc: doc.update(w=2 * W, h=2 * H))
+    with pytest.raises(ValueError, match=r"the size of the camera \(its w, h\) in .*transforms_"):
+        load_dataset(doubled)
     # a stream per view, its files at half the size: the same
     views = copy(llff, tmp_path / "views")
     table = np.load(views / "poses_bounds.npy")
