@@ -58,7 +58,11 @@ from spikegs.spikes import DatWriter, save_dat
 from spikegs.train import Trainer
 
 # the NeRF fixture's sharp test image is scaled by the percentile guess, which warns (tested below)
-pytestmark = pytest.mark.filterwarnings("ignore:.*sharp images are put in firing-rate units")
+# (and its test/r_1 has none beside r_0's: said, tested below)
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:.*sharp images are put in firing-rate units"),
+    pytest.mark.filterwarnings("ignore:.* held-out views have no sharp image"),
+]
 
 H, W, VIEWS, LENGTH = 32, 48, 10, 70  # a view: LENGTH readouts of the simulated stream
 SMALL = dict(height=H, width=W, test_on_path=1, test_off_path=0, progress=False)
@@ -805,6 +809,26 @@ def test_llff_bad_input(sim, llff, llff_stream, tmp_path):
         load_dataset(root)
 
 
+MIXED = ".* held-out views have no sharp image"  # the NeRF fixture's: r_0 sharp, r_1 not
+
+
+def test_a_test_set_mixing_sharp_and_pseudo_views_is_said(nerf, tmp_path):
+    """A held-out frame without its image (missing or misnamed) beside sharp ones was scored
+    against TFP of its own spikes, said at eval alone; all sharp, or all without: not said."""
+    with pytest.warns(UserWarning, match=r"1 of the 2 held-out views have no sharp image \(test"):
+        load_dataset(nerf)
+    root = copy(nerf, tmp_path)
+    edit_json(root / "transforms_test.json", lambda doc: doc["frames"].pop(0))  # r_1 alone
+    sharp = copy(nerf, tmp_path / "sharp")
+    edit_json(sharp / "transforms_test.json", lambda doc: doc["frames"].pop())  # r_0 alone
+    for data, pseudo in ((root, True), (sharp, False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            names = [v.name for v in load_dataset(data).test_views]
+        assert all(name.startswith("pseudo_") == pseudo for name in names), names
+        assert not [w for w in caught if "no sharp image" in str(w.message)]
+
+
 @pytest.mark.filterwarnings("default")
 def test_guessed_intensity_scale_of_sharp_test_images_is_named(sim, nerf, tmp_path):
     """Sharp test images were put in firing-rate units by a percentile guess (27 % off in a
@@ -815,6 +839,7 @@ def test_guessed_intensity_scale_of_sharp_test_images_is_named(sim, nerf, tmp_pa
     (root / "spikegs.json").write_text(json.dumps({"rate_at_one": 0.25}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # stated: nothing to say
+        warnings.filterwarnings("ignore", MIXED)  # (the fixture's r_1)
         load_dataset(root)
 
 
@@ -827,6 +852,7 @@ def test_sharp_test_images_in_other_units_are_named_from_their_spikes(sim, nerf,
     (root / "spikegs.json").write_text(json.dumps({"rate_at_one": 0.25}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # intensities, as they should be: nothing to say
+        warnings.filterwarnings("ignore", MIXED)  # (the fixture's r_1)
         load_dataset(root)
     sharp = make_source("solids", W, H, 1).render(view_poses(sim)[0])  # [H, W, 1]
     write_image(root / "test" / "r_0.exr", sharp * 0.25)  # firing rates
@@ -848,6 +874,7 @@ def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
         write_image(root / "train" / f"r_{i}.exr", source.render(viewmats[i]))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the right way up: nothing to say
+        warnings.filterwarnings("ignore", MIXED)  # (the fixture's r_1)
         load_dataset(root)
     (root / "spikegs.json").write_text(json.dumps({"flip": False}))
     with pytest.warns(

@@ -263,6 +263,14 @@ def _finish(
             stacklevel=3,
         )
     pseudo = len(held_out) - len(sharp)
+    if sharp and pseudo:  # (a test image missing or misnamed: its view scored so, unsaid)
+        names = ", ".join(h.name for h in held_out if h.image is None)
+        warnings.warn(
+            f"{root}: {pseudo} of the {len(held_out)} held-out views have no sharp image "
+            f"({names}): scored against TFP of their own spikes (named {PSEUDO_PREFIX}*), the "
+            f"{len(sharp)} others against their images (an image missing?)",
+            stacklevel=3,
+        )
     truth, notes = pseudo_truth([stream], progress) if pseudo else (None, {})
     for h in held_out:
         if h.image is None:
