@@ -299,7 +299,12 @@ def recorded_meta(path: Path) -> dict:
 def recorded_seconds(path: Path) -> float:
     """The training seconds that the SIM saved at `path` recorded (0 where it records none or
     is no saved SIM)."""
-    seconds = recorded_meta(path).get("seconds", 0.0)
+    return meta_seconds(recorded_meta(path))
+
+
+def meta_seconds(meta: dict) -> float:
+    """The training seconds a saved SIM's `meta` records (0 where it records none)."""
+    seconds = meta.get("seconds", 0.0)
     return float(seconds) if is_number(seconds) and seconds > 0 else 0.0
 
 

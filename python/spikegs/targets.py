@@ -29,9 +29,9 @@ from .number_checks import is_number
 from .pixel_defects import sensor_defects
 from .sim_train import (
     fast_inference_model,
+    meta_seconds,
     predict,
     recorded_meta,
-    recorded_seconds,
     train_or_load,
     weights_digest,
 )
@@ -413,13 +413,15 @@ def build_targets(
                 streams=defects.streams,
                 repaired=s.mask_defects,
             )
+            trained = recorded_meta(path)  # (read once: its time, threads and precision)
             if sim_seconds == 0.0:  # loaded from its cache: its training cost this run all the same
-                sim_seconds = recorded_seconds(path)
+                sim_seconds = meta_seconds(trained)
                 took = f"trained in {sim_seconds:.0f} s" if sim_seconds else "no time recorded"
                 print(f"SIM: loaded {path} ({took})", file=sys.stderr)
             fast = fast_inference_model(model)
-            trained = recorded_meta(path)  # how it trained: another thread count or precision
-            sim = {  # is another SIM; inferring in another precision, other targets
+            # how it trained (another thread count or precision is another SIM) and infers
+            # (another precision gives other targets)
+            sim = {
                 "path": str(path),
                 "digest": weights_digest(model),
                 "threads": trained.get("threads"),
