@@ -214,21 +214,15 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _written_over(path: Path, report: str | None) -> bool | None:
-    """Whether the file at `path` is another than the last run wrote there, as its `report`
-    (sfm/report.json's text) recorded it (`DIGESTS`): a pose log or another tool's points put in
-    its place; False where there is none, None where the report records none."""
+def _written_over(path: Path, report: str | None, key: str | None = None) -> bool | None:
+    """Whether the file at `path` is another than the last run wrote (or, `key`
+    BACKUP_DIGEST, aligned to) there, as its `report` (sfm/report.json's text) recorded it under
+    `key` (default `DIGESTS`'): a pose log or another tool's points put in its place, a pose log
+    moved over an SfM .bak; False where there is none, None where the report records none."""
     if not path.is_file():
         return False
-    written = _reported(report).get(DIGESTS[path.name])
+    written = _reported(report).get(key or DIGESTS[path.name])
     return None if written is None else _digest(path) != written
-
-
-def _moved_in(backup: Path, report: str | None) -> bool:
-    """Whether the .bak at `backup` is another file than the last run aligned to, as its
-    `report` (sfm/report.json's text) recorded it: a pose log moved over an SfM .bak."""
-    read = _reported(report).get(BACKUP_DIGEST)
-    return backup.is_file() and read is not None and _digest(backup) != read
 
 
 def _image_window(window: int | None, sim_model) -> int:
@@ -660,7 +654,7 @@ def _estimate_poses(
         # difference, not an error
         # (a pose log put in place of an earlier run's SfM is a pose log)
         # (a pose log moved over an SfM .bak, as a refusal tells, was called the first run's)
-        logged = replaced or _moved_in(backup, live_report)
+        logged = replaced or bool(_written_over(backup, live_report, BACKUP_DIGEST))
         sfm = not logged and _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
