@@ -533,7 +533,7 @@ def test_an_implausible_estimated_focal_is_flagged():
         cases += [(focal, False), (beyond, True)]
     for focal, flagged in cases:
         recon.K = np.array([[focal, 0, 32], [0, focal, 32], [0, 0, 1]])
-        messages = _complete_meta(dict(meta), recon, True, None, {})
+        messages = _complete_meta(dict(meta), recon, True, False, {})
         assert any("field of view" in m for m in messages) == flagged, (focal, messages)
 
 
@@ -1107,7 +1107,7 @@ def test_scene_bounds_from_points_are_robust_to_outliers():
     points = np.concatenate([ball + [2.0, 0, 0], [[52.0, 0, 0], [52.0, 0.5, 0]]])
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64}
-    _complete_meta(meta, recon, False, None, {})
+    _complete_meta(meta, recon, False, False, {})
     np.testing.assert_allclose(meta["scene_center"], [2.0, 0, 0], atol=0.1)
     assert 0.93 < meta["scene_radius"] < 1.05, meta["scene_radius"]
 
@@ -1402,7 +1402,7 @@ def test_a_scene_centre_without_a_radius_is_estimated_with_it():
     points = np.random.default_rng(0).normal(size=(200, 3)) + [5.0, 0.0, 0.0]
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), points, None, 3)
     meta = {"width": 64, "height": 64, "scene_center": [0.0, 0.0, 0.0]}
-    _complete_meta(meta, recon, False, None, {})
+    _complete_meta(meta, recon, False, False, {})
     np.testing.assert_allclose(meta["scene_center"], np.median(points, axis=0))
     assert meta["scene_radius"] > 0
 

@@ -269,13 +269,13 @@ SPHERE_KEYS = ("scene_center", "scene_radius")
 
 
 def _complete_meta(
-    meta: dict, recon: Reconstruction, estimated: bool, last_sphere: dict | None, report: dict
+    meta: dict, recon: Reconstruction, estimated: bool, again: bool, report: dict
 ) -> list[str]:
     """Fill in what meta.json did not know from SfM: the intrinsics when SfM `estimated` them
     (recorded as intrinsics_from: sfm, so that a later run estimates them again), the scene centre
-    and radius when missing or where they are the last run's estimate (`last_sphere`, its
-    report's), in its frame (a pose log aligned to since kept SfM's sphere: no training view saw
-    the scene), recording the estimate in this run's `report`."""
+    and radius when missing or `again` where they are the last run's estimate
+    (`_is_last_estimate`), in its frame (a pose log aligned to since kept SfM's sphere: no
+    training view saw the scene), recording the estimate in this run's `report`."""
     messages = []
     if estimated:
         K = recon.K
@@ -292,7 +292,6 @@ def _complete_meta(
                 f"{FOV_PLAUSIBLE[0]}-{FOV_PLAUSIBLE[1]}°: a poor estimate (few registered images, "
                 f"little parallax?); state the camera's intrinsics in {META} if they are known"
             )
-    again = _is_last_estimate(meta, last_sphere)
     if any(key not in meta for key in SPHERE_KEYS) or again:
         centre = np.median(recon.points, axis=0)  # [3]
         distances = np.linalg.norm(recon.points - centre, axis=1)  # [P]
@@ -601,7 +600,8 @@ def _estimate_poses(
             write_text_atomically(report_path, live_report)
         raise
     defective = int(defects.any(0).sum())  # pixels, in any channel
-    last_sphere = _reported(live_report).get("scene_sphere")  # the sphere the last run estimated
+    # meta's sphere the last run estimated (in its poses' frame: estimated again, below)
+    ours = _is_last_estimate(meta, _reported(live_report).get("scene_sphere"))
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),
@@ -636,7 +636,6 @@ def _estimate_poses(
             "no trajectory to align to: the poses are in SfM's own frame, known up to a "
             "similarity (arbitrary rotation, translation and scale)"
         )
-        ours = _is_last_estimate(meta, last_sphere)  # (estimated again, below)
         framed = [k for k in ("scene_center", "scene_radius", "up") if k in meta]
         framed = [k for k in framed if not (ours and k in SPHERE_KEYS)]
         if framed:  # (`up`: an orbit's axis, which `spikegs render` tilted unsaid)
@@ -647,7 +646,7 @@ def _estimate_poses(
             )
     else:
         recon = align(recon, reference)
-    messages += _complete_meta(meta, recon, K is None, last_sphere, report)
+    messages += _complete_meta(meta, recon, K is None, ours, report)
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM where it had no pose log: a
