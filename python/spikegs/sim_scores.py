@@ -14,6 +14,8 @@ from .sim import SIM
 from .sim_train import infer_sim
 from .targets import TFI_TIME, readouts_beside
 
+TFP_WINDOWS = (33, 65)  # the TFP decoders' windows scored beside SIM, in readouts
+
 
 def compare_methods(
     model: SIM,
@@ -40,8 +42,7 @@ def compare_methods(
     decoded = [_decoded(model, s, timestamps, dtype) for s in streams]  # C x {name: [N, H, W]}
     light = {  # the readouts of the light each image shows: span, time offset
         "SIM": (model.target.stop - model.target.start, 0.0),
-        "TFP(33)": (33, 0.0),
-        "TFP(65)": (65, 0.0),
+        **{f"TFP({w})": (w, 0.0) for w in TFP_WINDOWS},
         "TFI": (1, TFI_TIME),
     }
     gt = np.asarray(gt, dtype=np.float32)
@@ -68,13 +69,9 @@ def _decoded(model: SIM, stream, timestamps: np.ndarray, dtype) -> dict[str, np.
     """SIM's, TFP(33)'s, TFP(65)'s and TFI's images [N, H, W] of one stream at `timestamps`."""
     return {
         "SIM": infer_sim(model, stream, timestamps, dtype=dtype)[..., 0],
-        "TFP(33)": stream.tfp(timestamps, 33),
-        "TFP(65)": stream.tfp(timestamps, 65),
+        **{f"TFP({w})": stream.tfp(timestamps, w) for w in TFP_WINDOWS},
         "TFI": stream.tfi(timestamps),
     }
-
-
-WIDEST = 65  # TFP(65)'s window, the widest of the decoders scored beside SIM
 
 
 def on_path_views(dataset, sim_window: int) -> list:
@@ -85,7 +82,7 @@ def on_path_views(dataset, sim_window: int) -> list:
     views = [v for v in dataset.test_views if v.readout is not None]
     if not views:
         raise ValueError(f"{dataset.root}: no held-out view on the camera path to compare on")
-    reach = max(WIDEST, sim_window) // 2
+    reach = max(*TFP_WINDOWS, sim_window) // 2
     room = readouts_beside(dataset.streams[0], np.array([round(v.readout) for v in views]))
     near = [f"{v.name} (readout {v.readout:g})" for v, r in zip(views, room) if r < reach]
     if len(near) == len(views):
