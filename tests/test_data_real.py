@@ -55,6 +55,7 @@ from spikegs.image_io import read_image, write_image
 from spikegs.sim_scores import evaluate_dataset
 from spikegs.sim_train import train_sim
 from spikegs.spikes import DatWriter, save_dat
+from spikegs.targets import check_targets
 from spikegs.train import Trainer
 
 # the NeRF fixture's sharp test image is scaled by the percentile guess, which warns (tested below)
@@ -687,6 +688,10 @@ def test_windows_never_straddle_two_views(llff):
     # TFI at a view's last and first readouts: its own stream's, which stops at the view's ends
     np.testing.assert_array_equal(ds.stream.tfi(LENGTH - 1), ds.stream.streams[0].tfi(LENGTH - 1))
     np.testing.assert_array_equal(ds.stream.tfi(LENGTH), ds.stream.streams[1].tfi(0))
+    # a window wider than the views, refused before any work, names the views' length
+    wide = load_config("tfp33", {"supervision": {"instant_window": LENGTH + 1}})
+    with pytest.raises(ValueError, match=f"each in its view of {LENGTH} readouts.: at most"):
+        check_targets(ds, wide)
 
 
 def test_sim_trains_and_evaluates_on_view_streams(llff):

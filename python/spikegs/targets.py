@@ -294,14 +294,15 @@ def check_targets(dataset, config: Config) -> None:
     if s.exposure_weight > 0:
         windows["supervision.exposure_window"] = s.exposure_window
     stream = dataset.streams[0]
-    if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
-        first, end = stream.bounds(ts)
-        where = f"each in its view of {', '.join(map(str, sorted(set(end - first))))} readouts"
-    else:
-        where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
     room = int(readouts_beside(stream, ts).min())
     for name, w in windows.items():
         if w // 2 > room:
+            if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
+                first, end = stream.bounds(ts)
+                sizes = ", ".join(map(str, sorted(set(end - first))))
+                where = f"each in its view of {sizes} readouts"
+            else:
+                where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
             raise ValueError(
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
                 f"{dataset.root} ({where}): at most {2 * room + 1}"
