@@ -1300,6 +1300,14 @@ def test_the_api_refuses_what_would_fail_later_by_name():
             train_sim(stream, [50], 33, progress=False, **setting)
     with pytest.raises(ValueError, match=r"timestamps \[5, 99\]: .* \(centres 16..83 fit\)"):
         train_sim(stream, [5, 50, 99], 33, steps=1, progress=False)
+    with pytest.raises(ValueError, match="of 101 readouts .* 100 readouts .longer than the stream"):
+        train_sim(stream, [50], 101, steps=1, progress=False)  # (said "centres 50..49 fit")
+    # numpy's "all input arrays must have the same shape" at the first step, for either
+    with pytest.raises(ValueError, match=r"1-D integer array, found int64 of shape \(1, 2\)"):
+        train_sim(stream, [[40, 50]], 33, steps=1, progress=False)
+    narrow = SpikeStream.from_bits(np.zeros((100, 12, 10), bool))  # (first, its crops drew
+    with pytest.raises(ValueError, match=r"differ in frame size: \['12x10', '12x12'\]"):
+        train_sim([narrow, stream], [50], 33, steps=1, progress=False)  # the other's rows)
     model, _ = train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
     assert infer_sim(model, stream, []).shape == (0, 12, 12, 1)
     # one readout alone: "len() of unsized object"; a batch of 0: "range() arg 3 must not be zero"

@@ -121,7 +121,7 @@ def train_sim(
     caller's result depends on), at least every CHECKPOINT_S seconds; `resume`: such a state
     (`_resumable`) to continue from, to the same result as a run never interrupted.
     """
-    timestamps = np.asarray(timestamps)
+    timestamps, _ = as_readouts(timestamps)  # (2-D ones: numpy's error at the first step)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")
     for name, value in {"steps": steps, "batch_size": batch_size, "crop": crop}.items():
@@ -232,8 +232,13 @@ def _show_step(bar, losses: list[float]) -> None:
 
 
 def _streams(stream) -> list:
-    """`stream` as a list of streams: a colour camera's channels, or the one."""
-    return list(stream) if isinstance(stream, (list, tuple)) else [stream]
+    """`stream` as a list of streams: a colour camera's channels, or the one; ValueError where
+    they differ in frame size (crops of the larger came from the first one's rows alone)."""
+    streams = list(stream) if isinstance(stream, (list, tuple)) else [stream]
+    sizes = [f"{s.height}x{s.width}" for s in streams]
+    if len(set(sizes)) > 1:
+        raise ValueError(f"SIM's streams (a camera's channels) differ in frame size: {sizes}")
+    return streams
 
 
 def _resumable(checkpoint: Path | None, key: dict | None) -> dict | None:
@@ -549,10 +554,11 @@ def _check_windows(streams: list, timestamps: np.ndarray, window: int) -> None:
     lo, hi = centred_range(readouts, window)
     outside = timestamps[(timestamps < lo) | (timestamps > hi)]  # ([lo, hi] fit)
     if outside.size:
+        fit = f"centres {lo}..{hi} fit" if lo <= hi else "longer than the stream"
         raise ValueError(
             f"training timestamps {outside[:3].tolist()}{' ...' if outside.size > 3 else ''}: "
             f"their windows of {window} readouts run past the stream's {readouts} readouts "
-            f"(centres {lo}..{hi} fit)"
+            f"({fit})"
         )
 
 
