@@ -273,8 +273,11 @@ def test_channels_are_each_simulated_as_alone(tmp_path):
     with pytest.raises(ValueError, match="frame at t=150 expected finite intensities"):
         simulate_channels(fails, 200, new, seeds, frame_times=times)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in outs)
-    with pytest.raises(ValueError, match=r"frames expected \[H, W, 3\] each, found \[6, 11, 2\]"):
+    # (the frames were blamed where the outputs and seeds fell short of their channels)
+    with pytest.raises(ValueError, match=r"frames of 2 channels \(\[6, 11, 2\] each\) for 3 out"):
         simulate_channels(frames[..., :2], 200, outs, seeds, frame_times=times)
+    with pytest.raises(ValueError, match="of 3 channels .* for 1 outputs: expected an output"):
+        simulate_channels(frames, 200, outs[:1], seeds[:1], frame_times=times)
     with pytest.raises(ValueError, match="1 or more outputs, found 3 outputs and 2 seeds"):
         simulate_channels(frames, 200, outs, seeds[:2], frame_times=times)
     with pytest.raises(ValueError, match="found 0 outputs and 0 seeds"):

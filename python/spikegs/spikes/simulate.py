@@ -313,9 +313,14 @@ class _Frames:
                     )
                 frame_times = np.linspace(0.0, last, len(frames)) if len(frames) > 1 else [0.0]
             self.times = checked_times(frame_times, len(frames), last)  # [F]
-        if len(shape) != frame_ndim or (channels is not None and shape[-1] != channels):
+        if len(shape) != frame_ndim:
             axes = "[H, W]" if channels is None else f"[H, W, {channels}]"
             raise ValueError(f"frames expected {axes} each, found {list(shape)}")
+        if channels is not None and shape[-1] != channels:  # (the frames were blamed)
+            raise ValueError(
+                f"frames of {shape[-1]} channels ({list(shape)} each) for {channels} outputs: "
+                f"expected an output file and a seed for each channel"
+            )
         self.shape = shape if channels is not None else (*shape, 1)  # [H, W, C]
         self._get = read if channels is not None else lambda i: read(i)[..., None]
         if callable(source):  # its first frame rendered once: covering() finds it cached
