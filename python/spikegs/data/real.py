@@ -565,6 +565,19 @@ def stream_dataset(
         for i in np.flatnonzero(test & fits)
     ]
     held = np.flatnonzero(test)
+    unscored = np.flatnonzero(test & ~fits)
+    if held_out and unscored.size:  # (the held-out view count fell in silence)
+        named = ", ".join(f"{i} (readout {readouts[i]:g})" for i in unscored[:5])
+        warnings.warn(
+            f"{source}: held-out pose{'s' if unscored.size > 1 else ''} {named}"
+            f"{', ...' if unscored.size > 5 else ''} within {window // 2} readouts of the "
+            f"stream's ends, where a {window}-readout pseudo ground truth does not fit, "
+            f"{'are' if unscored.size > 1 else 'is'} not scored ({len(held_out)} of {held.size} "
+            f"held-out poses are; training stays clear of {'them' if unscored.size > 1 else 'it'}"
+            f" all the same); test_views in spikegs.json with room around them, or a shorter "
+            f"pseudo_gt_window, scores them",
+            stacklevel=3,
+        )
     if held.size and not held_out:
         raise ValueError(
             f"{source}: none of the {held.size} held-out poses (test_views {held.tolist()}) can "
