@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import filecmp
 import functools
 import hashlib
 import json
@@ -395,6 +396,32 @@ def test_a_sim_that_another_process_trains_is_waited_for_and_loaded(tmp_path, sc
     model, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     other.join()
     assert seconds == 0 and torch.equal(model.head[-1].bias, elsewhere.head[-1].bias)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
+def test_a_named_file_another_process_saves_meanwhile_is_kept(tmp_path, scene, monkeypatch):
+    """Two `sim-train --out FILE` at once on other datasets: the second, once the first's lock
+    was released, took the first's SIM for a stale cache and trained over it (refused when run
+    after it, as a file the user named is)."""
+    stream, ts = scene[1], [40, 50]
+    tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
+    train_or_load(tmp_path / "other" / "sim.pt", stream, [40, 51], 33, **tiny)
+    monkeypatch.setattr("spikegs.sim_train.train_sim", lambda *a, **k: pytest.fail("trained"))
+    path, holding = tmp_path / "sim.pt", threading.Event()
+
+    def other_process():  # trains another SIM at the same --out, saving it as it lets go
+        with exclusive_lock(tmp_path / "sim.pt.lock", busy="busy"):
+            holding.set()
+            time.sleep(0.5)
+            shutil.copy(tmp_path / "other" / "sim.pt", path)
+
+    other = threading.Thread(target=other_process)
+    other.start()
+    holding.wait()
+    with pytest.raises(FileExistsError, match="trained on other spikes.* which training would"):
+        train_or_load(path, stream, ts, 33, keep=True, **tiny)
+    other.join()
+    assert filecmp.cmp(path, tmp_path / "other" / "sim.pt", shallow=False)
 
 
 def test_a_sim_trained_over_another_takes_its_scores_away(tmp_path, scene):

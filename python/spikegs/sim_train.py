@@ -448,7 +448,7 @@ def train_or_load(
         print(f"{path.parent} cannot be written: SIM is cached in {fallback}", file=sys.stderr)
         # a SIM cached there before 2026-11-28 lies under the sampled fingerprint's folder
         legacy = user_cache(path.name, known[1])
-        path = fallback
+        path, keep = fallback, False  # (a cache, not the file the user named)
         others = [user_cache(Path(other).name, data) for other in alternates]  # (read alone)
         for cached in (fallback, legacy, *others) if not force else ():
             model = _cached(cached, window, known, settings, side, say=False)
@@ -461,7 +461,9 @@ def train_or_load(
     # loads what it saved
     path.parent.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(path.with_name(f"{path.name}.lock"), busy=None):
-        model = None if force else _cached(path, window, known, settings, side)
+        # (`keep`: a SIM another process saved at a file the user named, while this one waited,
+        # was trained over as a stale cache's)
+        model = None if force else _cached(path, window, known, settings, side, keep=keep)
         if model is not None:
             return model, 0.0, path
         partial = path.with_name(f"{path.name}.partial")  # SIM's training state, if interrupted
