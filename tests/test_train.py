@@ -789,6 +789,30 @@ def test_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(
     Trainer(dataset, config, tmp_path / "run", progress=False).train(resume=True)
 
 
+@pytest.mark.parametrize("moved", [True, False])
+def test_a_run_folder_moved_or_deleted_while_it_trains_stops_it(dataset, tmp_path, moved):
+    """`mv RUN NEW` mid-run: the checkpoints and scene.ply made a new RUN at the old path,
+    unlocked (a second --resume trained there beside the first), apart from the log and lock,
+    and the run failed at its end on its curve. It stops at its next checkpoint, naming where
+    the folder went and how to resume it there; nothing is written at the old path."""
+    train = {**FAST["train"], "iterations": 60, "eval_every": 25, "checkpoint_every": 25}
+    config = load_config("tfp33", {**FAST, "train": train})
+    run, new = tmp_path / "run", tmp_path / "new"
+
+    def move(trainer):  # at iteration 25's evaluation, before its checkpoint
+        if trainer.iteration == 25:
+            run.rename(new) if moved else shutil.rmtree(run)
+
+    went = rf" \(to {new}: spikegs train \S+ --out \S+new --resume\)" if moved else ""
+    with pytest.raises(FileNotFoundError, match=f"moved or deleted while it trained{went}; stop"):
+        Trainer(dataset, config, run, progress=False).train(on_eval=move)
+    assert not run.exists()
+    if moved:  # the log, to its first evaluation, and no checkpoint yet: resumed from the start
+        assert len((new / "log.jsonl").read_text().splitlines()) == 1
+        Trainer(dataset, config, new, progress=False).train(resume=True)
+        assert (new / "scene.ply").is_file()
+
+
 @pytest.mark.parametrize("resumable", [True, False])
 def test_a_ctrl_c_promises_resume_only_where_one_can_resume(
     dataset, tmp_path, monkeypatch, capsys, ctrl_c, resumable

@@ -3,6 +3,7 @@ files that are not a run's, which no run overwrites."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from .atomic_save import is_temporary
@@ -29,6 +30,49 @@ def run_lock(run_dir: Path):
         busy=f"{run_dir} is being trained by another process (or scored by spikegs eval); wait "
         f"for it to end or train into another --out",
     )
+
+
+def folder_identity(folder: Path) -> tuple[int, int] | None:
+    """The (device, inode) of `folder`: the same folder wherever it is named from; None where
+    nothing is there."""
+    try:
+        status = os.stat(folder)
+    except FileNotFoundError:
+        return None
+    return status.st_dev, status.st_ino
+
+
+class FolderWatch:
+    """For a `with` block: whether `folder` is still the folder its path named as it began (not
+    moved, renamed or deleted since), and where it went (on Linux, the folder held open)."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self._identity = folder_identity(self.folder)
+        try:
+            self._fd = os.open(self.folder, os.O_RDONLY)
+        except OSError:  # (a folder cannot be opened on Windows: where it went is unknown)
+            self._fd = None
+
+    def __enter__(self) -> FolderWatch:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def moved(self) -> bool:
+        """Whether the path names another folder now, or none."""
+        return folder_identity(self.folder) != self._identity
+
+    def now(self) -> Path | None:
+        """Where the folder lies now; None where that is not known or it was deleted."""
+        try:
+            where = os.readlink(f"/proc/self/fd/{self._fd}")
+        except (OSError, TypeError):  # (no /proc: another system; TypeError: no fd)
+            return None
+        return None if where.endswith(" (deleted)") else Path(where)
 
 
 # what a fresh run writes before its first checkpoint: it may start over a run stopped then

@@ -57,8 +57,8 @@ from .pose_refine import PoseRefiner, make_refiner
 from .provenance import environment
 from .psnr_fall import psnr_fall
 from .regular_file import NotText, read_text
-from .run_folder import check_fresh_run_dir, run_lock
-from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint
+from .run_folder import FolderWatch, check_fresh_run_dir, run_lock
+from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint, resume_command
 from .sim_train import SAVED_EVERY
 from .targets import build_targets, check_targets, intensity_scale
 from .yaml_files import dump_yaml
@@ -208,6 +208,7 @@ class Trainer:
         self.targets = None  # a training's target images (`build_targets`), released after it
         self.found = None  # what they leave out (`Targets.found`), kept in the checkpoint
         self.summary = None  # train.json's object once this process has written it
+        self._watch = None  # the run folder, while this process trains in it (`FolderWatch`)
 
     # -- state ---------------------------------------------------------------------------------
     @functools.cached_property
@@ -420,6 +421,7 @@ class Trainer:
             self.environments.append({"from_iteration": self.iteration, **now})
 
     def save_checkpoint(self) -> None:
+        self._check_in_place()
         state = {
             "iteration": self.iteration,
             "train_seconds": self.train_seconds,
@@ -439,6 +441,20 @@ class Trainer:
             FOUND: self.found,
         }
         save_atomically(state, self.checkpoint_path)  # a kill mid-save keeps the previous one
+
+    def _check_in_place(self) -> None:
+        """FileNotFoundError where the run's folder, as this training locked it, was moved,
+        renamed or deleted since: its checkpoints and scene made a new folder at the old path,
+        unlocked, apart from its log (and a second process resumed there beside this one)."""
+        if self._watch is None or not self._watch.moved():
+            return
+        now = self._watch.now()
+        went = "" if now is None else f" (to {now}: {resume_command(now, self.dataset.root)})"
+        raise FileNotFoundError(
+            f"{self.run_dir}: the run's folder was moved or deleted while it trained{went}; "
+            f"stopped at iteration {self.iteration}, the steps since its last checkpoint lost, "
+            f"writing nothing at the old path"
+        )
 
     def _read_checkpoint(self) -> dict:
         """The last checkpoint's state; ValueError naming every setting that differs from this
@@ -817,7 +833,11 @@ class Trainer:
         # here since), before any work
         # the dataset is not rewritten under the training (`spikegs simulate --overwrite`,
         # `spikegs poses`: Busy meanwhile, and the training Busy while one of them writes it)
-        with reading_dataset(self.dataset.root), run_lock(self.run_dir):
+        with (
+            reading_dataset(self.dataset.root),
+            run_lock(self.run_dir),
+            FolderWatch(self.run_dir) as self._watch,
+        ):
             # one process trains here: a temporary file is a killed process's, half-written
             for folder in (self.run_dir, self.checkpoint_path.parent):
                 sweep_temporaries(folder)
@@ -856,6 +876,7 @@ class Trainer:
             try:
                 return self._run(state, on_eval)
             finally:  # the run's target images go with it (a Trainer kept held them)
+                self._watch = None
                 if self.targets is not None:
                     self.targets.release()
 
