@@ -4838,6 +4838,9 @@ def test_eval_of_a_run_whose_dataset_is_gone_says_to_pass_one(dataset, tmp_path,
     shutil.rmtree(tmp_path / "data")
     assert main(["eval", str(tmp_path / "run")]) == 2
     assert "pass --dataset" in capsys.readouterr().err
+    (tmp_path / "data" / "sim").mkdir(parents=True)  # made at the old path: moved mid-run
+    assert main(["eval", str(tmp_path / "run")]) == 2
+    assert "data is gone: pass --dataset" in capsys.readouterr().err  # (no dataset found: …)
     assert main(["eval", str(tmp_path / "run"), "--dataset", str(dataset.root)]) == 0
 
 
