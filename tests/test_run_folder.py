@@ -9,7 +9,7 @@ import re
 import pytest
 from spikegs.cli import main
 from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files, run_lock
-from spikegs.run_summary import read_summary, trained_scene
+from spikegs.run_summary import read_summary, resume_command, trained_scene
 
 
 def test_evaluations_of_other_datasets_are_a_runs_files(tmp_path):
@@ -86,6 +86,21 @@ def test_a_stopped_run_in_a_folder_not_writable_says_how_to_finish_it(tmp_path, 
     monkeypatch.setattr("spikegs.run_summary.exclusive_lock", refused)
     with pytest.raises(FileNotFoundError, match="stopped before its end; finish it with spikegs"):
         trained_scene(run)
+
+
+def test_the_resume_command_of_a_run_whose_dataset_moved_asks_where_it_went(tmp_path):
+    """A stopped run whose dataset was moved since was told to finish with `spikegs train OLD
+    --out RUN --resume`, which failed: "dataset folder not found"."""
+    import torch
+
+    run, data = tmp_path / "run", tmp_path / "data"
+    (run / "checkpoints").mkdir(parents=True)
+    torch.save({"dataset": str(data)}, run / "checkpoints" / "last.pt")
+    assert resume_command(run) == (
+        f"spikegs train DATASET --out {run} --resume (DATASET where {data} went)"
+    )
+    data.mkdir()
+    assert resume_command(run) == f"spikegs train {data} --out {run} --resume"
 
 
 def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, capsys):

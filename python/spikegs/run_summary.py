@@ -29,7 +29,8 @@ def last_checkpoint(run_dir: Path) -> Path:
 def resume_command(run_dir: Path, dataset: Path | None = None) -> str:
     """`spikegs train DATASET --out RUN --resume`, which finishes a run stopped with a checkpoint:
     DATASET `dataset`, else the one its checkpoint names (the word DATASET where that cannot be
-    read: a torn file, a checkpoint from before the key)."""
+    read: a torn file, a checkpoint from before the key; or where it is gone, said)."""
+    gone = ""
     if dataset is None:
         import torch
 
@@ -38,8 +39,10 @@ def resume_command(run_dir: Path, dataset: Path | None = None) -> str:
             dataset = state.get("dataset") if isinstance(state, dict) else None
         except Exception:  # torch, pickle and zip raise their own kinds for a torn file
             dataset = None
+        if isinstance(dataset, str) and not Path(dataset).is_dir():  # (moved: it failed)
+            dataset, gone = None, f" (DATASET where {shell_path(dataset)} went)"
     where = "DATASET" if not isinstance(dataset, (str, Path)) else shell_path(dataset)
-    return f"spikegs train {where} --out {shell_path(run_dir)} --resume"
+    return f"spikegs train {where} --out {shell_path(run_dir)} --resume{gone}"
 
 
 def read_summary(run_dir: Path) -> dict:
