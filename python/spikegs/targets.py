@@ -284,7 +284,8 @@ def check_targets(dataset, config: Config) -> None:
     targets cannot be made from `dataset`: a window that, centred on a training timestamp, would
     reach past the stream (naming the setting), or clean images of a dataset that no built-in
     scene rendered."""
-    from .data.view_stream import ViewStreams  # (the data package imports us)
+    from .data.dataset import TIMESTAMPS  # (the data package imports us)
+    from .data.view_stream import ViewStreams
 
     s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
     instant = config.instant_target()
@@ -303,9 +304,13 @@ def check_targets(dataset, config: Config) -> None:
                 where = f"each in its view of {sizes} readouts"
             else:
                 where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
+            ends = "their views'" if isinstance(stream, ViewStreams) else "the stream's"
+            listed = Path(dataset.root, TIMESTAMPS)
+            listed = f" (listed in {listed})" if listed.is_file() else ""
             raise ValueError(
                 f"config: {name} = {w} readouts does not fit around the training timestamps of "
-                f"{dataset.root} ({where}): at most {2 * room + 1}"
+                f"{dataset.root} ({where}): at most {2 * room + 1}; a shorter window, or "
+                f"training timestamps {w // 2} readouts or more inside {ends} ends{listed}"
             )
     # the exposure's renders lie within the window's readouts (exposure_poses <= its length),
     # TFI's half a readout after its timestamp: poses there, where they do not cover the stream's
