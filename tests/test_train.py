@@ -1960,6 +1960,14 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
     ):
         with pytest.raises(ConfigError, match=f"^{re.escape(said)}"):
             load_config(tmp_path / "c.yaml", overrides)
+    # a rule that weighs a default against a setting the file wrote: that file and that setting
+    # (densify.start's default 500 against a stop of 400 was said of "config:")
+    (tmp_path / "stop.yaml").write_text("base: spikegs\ndensify: {stop: 400}\n")
+    with pytest.raises(ConfigError, match=r"stop.yaml: densify.start = 500, .*; densify.stop is "):
+        load_config(tmp_path / "stop.yaml")
+    (tmp_path / "cap.yaml").write_text("base: spikegs\ntrain: {init_gaussians: 300000}\n")
+    with pytest.raises(ConfigError, match=r"cap.yaml: densify.max_gaussians = .*init_gaussians is"):
+        load_config(tmp_path / "cap.yaml")
 
 
 @pytest.mark.parametrize(

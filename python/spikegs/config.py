@@ -345,6 +345,7 @@ class Config:
             d.start,
             f"<= the last densifying iteration {last} (densify.stop, or half of train.iterations "
             f"when 0), or >= train.iterations ({t.iterations}) for a run without densification",
+            also=("densify.stop", "train.iterations"),
         )
         # rounds fall on the multiples of every in start..stop, never at the run's last iteration
         # (`Densifier.step`): a stop past the run ends them at iterations - 1 (start 50, stop 1000,
@@ -358,6 +359,7 @@ class Config:
             f"runs at the multiples of every, before the run's last iteration {t.iterations}: "
             f"none there, the run would never densify), or densify.start >= train.iterations "
             f"({t.iterations}) for a run without densification, as such a schedule trains",
+            also=("densify.start", "densify.stop", "train.iterations"),
         )
         _require(
             d.grad_threshold > 0,
@@ -385,6 +387,7 @@ class Config:
             "densify.max_gaussians",
             d.max_gaussians,
             f">= train.init_gaussians ({t.init_gaussians:,}): raise the cap, or start with fewer",
+            also=("train.init_gaussians",),
         )
         _require(sim.window >= 1 and sim.window % 2 == 1, "sim.window", sim.window, "odd, >= 1")
         _require(
@@ -447,7 +450,11 @@ def _validated_scaled(config: Config, factors: dict[str, float], set_in: dict[st
     except ConfigError as err:
         key = err.name.removeprefix("densify.")
         scaled = factors.get(key, 1) != 1
-        if err.name not in set_in and not scaled:
+        # a rule weighing the setting against another that a file set, where it set none: that
+        # file named, and the setting (densify.start's default refused against a stop written
+        # was said of "config:")
+        named = next((k for k in (err.name, *err.also) if k in set_in), None)
+        if named is None and not scaled:
             raise
         expected = err.expected + (
             f"; scaled to train.iterations = {config.train.iterations} from the run length it "
@@ -456,8 +463,10 @@ def _validated_scaled(config: Config, factors: dict[str, float], set_in: dict[st
             if scaled
             else ""
         )
-        where = str(set_in.get(err.name, "config"))
-        raise ConfigError(err.name, err.value, expected, where) from None
+        if named not in (None, err.name):
+            expected += f"; {named} is set in this file"
+        where = str(set_in.get(named, "config"))
+        raise ConfigError(err.name, err.value, expected, where, err.also) from None
 
 
 def _scale_schedule(densify: DensifyConfig, keys, factor: float) -> None:
@@ -492,16 +501,16 @@ def _keep_a_round(densify: DensifyConfig, iterations: int) -> None:
 
 class ConfigError(ValueError):
     """A setting refused by `Config.validate`: `name` is its 'section.key', `where` the file that
-    set it ('config' where none did)."""
+    set it ('config' where none did), `also` the other settings the rule weighs it against."""
 
-    def __init__(self, name: str, value, expected: str, where: str = "config"):
+    def __init__(self, name: str, value, expected: str, where: str = "config", also=()):
         super().__init__(f"{where}: {name} = {value!r}, expected {expected}")
-        self.name, self.value, self.expected = name, value, expected
+        self.name, self.value, self.expected, self.also = name, value, expected, tuple(also)
 
 
-def _require(ok: bool, name: str, value, expected: str) -> None:
+def _require(ok: bool, name: str, value, expected: str, also=()) -> None:
     if not ok:
-        raise ConfigError(name, value, expected)
+        raise ConfigError(name, value, expected, also=also)
 
 
 def _numbers(section, where: str = ""):
