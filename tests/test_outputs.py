@@ -5,11 +5,13 @@ from __future__ import annotations
 import errno
 import io
 import os
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import pytest
 import spikegs
@@ -585,6 +587,14 @@ def test_an_unknown_or_shortened_option_is_refused_with_the_commands_usage(capsy
     with pytest.raises(SystemExit) as exit:
         main(["--version"])
     assert exit.value.code == 0 and capsys.readouterr().out == f"spikegs {spikegs.__version__}\n"
+
+
+def test_the_version_is_the_one_the_package_is_built_with():
+    """`__version__` and pyproject.toml's version are written apart: a bump of one alone made
+    `spikegs --version` and pip's metadata disagree (the install trial)."""
+    pyproject = (Path(__file__).parents[1] / "pyproject.toml").read_text(encoding="utf-8")
+    (built,) = re.findall(r'(?m)^version = "([^"]+)"$', pyproject)
+    assert spikegs.__version__ == built
 
 
 def test_names_with_dollar_signs_are_plotted_as_written(tmp_path):
