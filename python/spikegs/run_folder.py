@@ -68,9 +68,11 @@ class FolderWatch:
 
     def now(self) -> Path | None:
         """Where the folder lies now; None where that is not known or it was deleted."""
+        if self._fd is None:
+            return None
         try:
             where = os.readlink(f"/proc/self/fd/{self._fd}")
-        except (OSError, TypeError):  # (no /proc: another system; TypeError: no fd)
+        except OSError:  # (no /proc: another system)
             return None
         return None if where.endswith(" (deleted)") else Path(where)
 

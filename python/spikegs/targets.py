@@ -301,10 +301,9 @@ def check_targets(dataset, config: Config) -> None:
             if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
                 first, end = stream.bounds(ts)
                 sizes = ", ".join(map(str, sorted(set(end - first))))
-                where = f"each in its view of {sizes} readouts"
+                where, ends = f"each in its view of {sizes} readouts", "their views'"
             else:
-                where = f"{ts.min()}..{ts.max()} of {len(stream)} readouts"
-            ends = "their views'" if isinstance(stream, ViewStreams) else "the stream's"
+                where, ends = f"{ts.min()}..{ts.max()} of {len(stream)} readouts", "the stream's"
             listed = Path(dataset.root, TIMESTAMPS)
             listed = f" (listed in {listed})" if listed.is_file() else ""
             raise ValueError(
