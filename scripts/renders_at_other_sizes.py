@@ -43,7 +43,7 @@ def _resized(image: np.ndarray, width: int, height: int) -> np.ndarray:
 
 def _frame(way: str, model, viewmat: np.ndarray, dataset, scale: float) -> np.ndarray:
     """The frame [h, w, C] `scale` times the dataset's size from `viewmat` [4, 4], made `way`."""
-    camera = scaled_camera(dataset, scale)
+    camera = scaled_camera(dataset, scale, 1)
     if way == "render_scaled":
         return render_scaled(model, viewmat, dataset, scale)
     if way == "as it is":
@@ -66,7 +66,7 @@ def main() -> None:
     print("side  scale  " + "  ".join(f"{way}: PSNR / SSIM, ms a frame" for way in WAYS))
     for side in args.sides:
         scale = side / max(dataset.width, dataset.height)
-        camera = scaled_camera(dataset, scale)
+        camera = scaled_camera(dataset, scale, 1)
         truth = make_source(args.scene, camera.width, camera.height, dataset.channels, spp=args.spp)
         scores, seconds = {}, {}
         # the ground truth first: a render timed just after Mitsuba's took 1.5-2x as long
