@@ -14,6 +14,7 @@ and the frame-to-frame mean |difference| (a jump or a pop: a frame's far above t
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -111,7 +112,13 @@ def video(run: Path, path: Path) -> dict:
 
 
 def main() -> None:
-    run = Path(sys.argv[1])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("run", type=Path, help="a run evaluated with its images (spikegs eval)")
+    parser.add_argument("video", type=Path, nargs="?", help="spikegs render RUN's .mp4 or .gif")
+    args = parser.parse_args()
+    run = args.run
     errors = shifts(run)
     if not errors:
         sys.exit(f"{run / 'eval'}: no side-by-side images (spikegs eval without --no-images)")
@@ -121,8 +128,8 @@ def main() -> None:
     print(f"{run}: best shift (dy, dx) {best}, sub-pixel ({dy:+.3f}, {dx:+.3f}) px")
     for name, (x, y) in seams(run).items():
         print(f"  {name}: step at a tile boundary / elsewhere: columns {x:.3f}, rows {y:.3f}")
-    if len(sys.argv) > 2:
-        for key, value in video(run, Path(sys.argv[2])).items():
+    if args.video is not None:
+        for key, value in video(run, args.video).items():
             print(f"  {key}: {value}")
 
 
