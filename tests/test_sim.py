@@ -1335,7 +1335,12 @@ def test_the_api_refuses_what_would_fail_later_by_name():
     narrow = SpikeStream.from_bits(np.zeros((100, 12, 10), bool))  # (first, its crops drew
     with pytest.raises(ValueError, match=r"differ in frame size: \['12x10', '12x12'\]"):
         train_sim([narrow, stream], [50], 33, steps=1, progress=False)  # the other's rows)
-    model, _ = train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
+    # a notebook's torch.no_grad() left around the call: trained (torch's error at the step);
+    # under inference_mode, no tensor takes a gradient: refused by name
+    with torch.inference_mode(), pytest.raises(RuntimeError, match="train_sim: called under"):
+        train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
+    with torch.no_grad():
+        model, _ = train_sim(stream, [50], 33, steps=1, crop=12, progress=False)
     assert infer_sim(model, stream, []).shape == (0, 12, 12, 1)
     # one readout alone: "len() of unsized object"; a batch of 0: "range() arg 3 must not be zero"
     np.testing.assert_array_equal(infer_sim(model, stream, 50), infer_sim(model, stream, [50])[0])

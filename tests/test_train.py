@@ -814,6 +814,40 @@ def test_a_run_folder_moved_or_deleted_while_it_trains_stops_it(dataset, tmp_pat
         assert (new / "scene.ply").is_file()
 
 
+def test_train_s_arguments_and_the_callers_grad_mode_are_checked(dataset, tmp_path):
+    """A notebook's slips: `train(callback)` took the callback for resume=True and never called
+    it; a `torch.no_grad()` left around the call failed in torch at the first backward, and
+    `inference_mode` named an internal argument (screen_abs). Neither mode trains: no_grad is
+    lifted for the call, inference_mode refused before anything is written."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    trainer = Trainer(dataset, config, tmp_path / "run", progress=False)
+    with pytest.raises(ValueError, match=r"Trainer.train: resume: expected True or False"):
+        trainer.train(print)
+    with pytest.raises(TypeError, match="on_eval expected a callable, found 'yes'"):
+        trainer.train(False, "yes")
+    with torch.inference_mode(), pytest.raises(RuntimeError, match="under torch.inference_mode"):
+        trainer.train()
+    assert not (tmp_path / "run").exists()
+    with torch.no_grad():
+        assert trainer.train()["iterations"] == 2
+    assert torch.is_grad_enabled()
+
+
+def test_a_run_ending_in_a_warning_made_an_error_is_whole(dataset, tmp_path):
+    """Under -W error (a test's filter, PYTHONWARNINGS) a warning said as a run ends ("grew no
+    Gaussian") was raised before train.json was written: the run stayed unfinished, and its
+    resume raised it again each time before writing it."""
+    overrides = {**FAST, "train": {**FAST["train"], "iterations": 60}}
+    overrides["densify"] = {**FAST["densify"], "grad_threshold": 1.0}
+    config = load_config("tfp33", overrides)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="densification grew no Gaussian"):
+            Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    summary = json.loads((tmp_path / "run" / "train.json").read_text())
+    assert summary["iterations"] == 60 and (tmp_path / "run" / "scene.ply").is_file()
+
+
 @pytest.mark.parametrize("resumable", [True, False])
 def test_a_ctrl_c_promises_resume_only_where_one_can_resume(
     dataset, tmp_path, monkeypatch, capsys, ctrl_c, resumable

@@ -76,6 +76,7 @@ STEP_BYTES_PER_MAP = 10
 FINAL_LOSS_STEPS = 50  # a SIM's final_loss: the mean loss of its last steps (saved, and bench's)
 
 
+@torch.enable_grad()  # (a notebook's torch.no_grad() left around it: torch's error at a step)
 def train_sim(
     stream,
     timestamps: Sequence[int],
@@ -121,6 +122,11 @@ def train_sim(
     caller's result depends on), at least every CHECKPOINT_S seconds; `resume`: such a state
     (`_resumable`) to continue from, to the same result as a run never interrupted.
     """
+    if torch.is_inference_mode_enabled():
+        raise RuntimeError(
+            "train_sim: called under torch.inference_mode(), where no tensor takes a gradient; "
+            "call it outside"
+        )
     timestamps, _ = as_readouts(timestamps)  # (2-D ones: numpy's error at the first step)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")

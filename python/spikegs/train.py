@@ -818,7 +818,23 @@ class Trainer:
         then the first test view's PSNR, `trainer.test_psnr` the mean over every test view and
         `trainer.seconds_left` the training seconds the remaining steps take at the pace of
         those since the previous evaluation (NaN at the first; more while it `densifies_from`
-        the iteration)."""
+        the iteration).
+        Gradients are on for it whatever the caller's mode (a notebook's `torch.no_grad()` left
+        around the call failed in torch at the first backward); not under `inference_mode`."""
+        # (a callback given first was taken for resume=True, and never called)
+        resume = as_flag("Trainer.train: resume", resume)
+        if on_eval is not None and not callable(on_eval):
+            raise TypeError(f"Trainer.train: on_eval expected a callable, found {on_eval!r:.80}")
+        if torch.is_inference_mode_enabled():  # (its tensors take no gradient: an internal
+            raise RuntimeError(  # argument, screen_abs, was named)
+                "Trainer.train: called under torch.inference_mode(), where no tensor takes a "
+                "gradient; call it outside"
+            )
+        with torch.enable_grad():
+            return self._train(resume, on_eval)
+
+    def _train(self, resume: bool, on_eval) -> dict:
+        """`train` with its arguments checked and gradients on."""
         # a config that cannot train on this dataset is refused before the run folder is touched
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
@@ -1007,9 +1023,6 @@ class Trainer:
         ]
         sphere = self._sphere_first() if any(followers) else ""
         others = [psnr_fall(logged_curve(self.run_dir)), self.densifier.capped_note()]
-        for said in others + [f and f + sphere for f in followers]:
-            if said:
-                warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
         summary = {
             "method": self.config.method,
             "dataset": str(Path(self.dataset.root).resolve()),
@@ -1028,6 +1041,11 @@ class Trainer:
             summary[FOUND] = self.found
         write_text_if_changed(self.run_dir / SUMMARY, strict_json.dumps(summary, indent=2))
         self.summary = summary
+        # said once the run is whole: warnings made errors (-W error, a test's filter) left it
+        # without train.json, and its resume raised them again before writing it
+        for said in others + [f and f + sphere for f in followers]:
+            if said:
+                warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
         if stopped:
             raise interruption(stopped)
         if gone is not None:
