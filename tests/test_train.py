@@ -833,6 +833,33 @@ def test_train_s_arguments_and_the_callers_grad_mode_are_checked(dataset, tmp_pa
     assert torch.is_grad_enabled()
 
 
+@pytest.mark.parametrize("default", [torch.float64, torch.float16])
+def test_a_run_does_not_depend_on_torch_s_default_dtype(dataset, tmp_path, default):
+    """A script's `torch.set_default_dtype(torch.float64)` failed training with pose refinement
+    or the 3D filter (a float64 constant met float32 parameters); float16 trained another run
+    (its densification's accumulators in float16). The run is the float32 default's, bit for bit."""
+    overrides = {
+        **FAST,
+        "train": {**FAST["train"], "iterations": 60, "filter_3d": 0.2},
+        "pose_refine": {"enabled": True},
+    }
+    config = load_config("tfp33", overrides)
+    with warnings.catch_warnings():  # (few densification rounds at 60 iterations: said)
+        warnings.simplefilter("ignore")
+        Trainer(dataset, config, tmp_path / "float32", progress=False).train()
+        previous = torch.get_default_dtype()
+        torch.set_default_dtype(default)
+        try:
+            Trainer(dataset, config, tmp_path / "other", progress=False).train()
+        finally:
+            torch.set_default_dtype(previous)
+    ours, theirs = (
+        torch.load(tmp_path / run / "checkpoints" / "last.pt") for run in ("float32", "other")
+    )
+    for part in ("model", "poses"):  # the Gaussians, their 3D filter's widths; the corrections
+        torch.testing.assert_close(ours[part], theirs[part], rtol=0, atol=0)
+
+
 def test_a_run_ending_in_a_warning_made_an_error_is_whole(dataset, tmp_path):
     """Under -W error (a test's filter, PYTHONWARNINGS) a warning said as a run ends ("grew no
     Gaussian") was raised before train.json was written: the run stayed unfinished, and its

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import torch
 
+from .float32 import F32
 from .gaussians import GaussianModel
 from .reference import quat_to_rotation
 
@@ -107,9 +108,10 @@ class Densifier:
         self.scene_radius = scene_radius
         self.iterations = iterations  # of the whole run: no opacity reset too close to its end
         self.stop = config.last_iteration(iterations)
-        self.grad_sum = torch.zeros(0)  # [N] summed NDC screen-gradient norms since the last round
-        self.count = torch.zeros(0)  # [N] steps each Gaussian was visible in
-        self.max_radii = torch.zeros(0)  # [N] largest screen radius (pixels)
+        # (float32 each, whatever torch's default dtype a caller set: float16 changed the run)
+        self.grad_sum = torch.zeros(0, **F32)  # [N] summed NDC screen-gradient norms since a round
+        self.count = torch.zeros(0, **F32)  # [N] steps each Gaussian was visible in
+        self.max_radii = torch.zeros(0, **F32)  # [N] largest screen radius (pixels)
         self.pruned: dict[str, int] = {}  # the last round's: Gaussians each pruning setting removed
         self.strongest = 0.0  # the largest mean gradient a round has seen (inf: not recorded)
         self.capped = 0  # the most Gaussians over the threshold a round left for max_gaussians
@@ -117,9 +119,9 @@ class Densifier:
     def _resize(self, n: int) -> None:
         if self.grad_sum.shape[0] != n:
             self.grad_sum, self.count, self.max_radii = (
-                torch.zeros(n),
-                torch.zeros(n),
-                torch.zeros(n),
+                torch.zeros(n, **F32),
+                torch.zeros(n, **F32),
+                torch.zeros(n, **F32),
             )
 
     def observe(
@@ -129,7 +131,7 @@ class Densifier:
         per-pixel sums) for the Gaussians visible in it."""
         self._resize(radii.shape[0])
         visible = radii > 0  # selects by torch.where: boolean indexing took ~1 ms a step
-        ndc = screen_grad * torch.tensor([0.5 * width, 0.5 * height])
+        ndc = screen_grad * torch.tensor([0.5 * width, 0.5 * height], dtype=screen_grad.dtype)
         self.grad_sum += torch.where(visible, ndc.norm(dim=1), 0.0)
         self.count += visible
         self.max_radii = torch.maximum(self.max_radii, radii.float())  # radius 0 where hidden
@@ -144,7 +146,7 @@ class Densifier:
         if c.start <= iteration <= self.stop and iteration % c.every == 0 and not last:
             self._densify_and_prune(model, optimizer, iteration)
         if self._resets_opacity(iteration):
-            cap = torch.logit(torch.tensor(0.01))
+            cap = torch.logit(torch.tensor(0.01, **F32))
             _surgery(
                 model,
                 optimizer,
@@ -204,7 +206,7 @@ class Densifier:
                 if k == "means":
                     extra = extra + offsets
                 elif k == "log_scales":
-                    extra = extra - torch.log(torch.tensor(1.6))
+                    extra = extra - torch.log(torch.tensor(1.6, **F32))
                 new[k] = torch.cat([new[k], extra])
             added = new["means"].shape[0]  # clones + 2S
             _surgery(
@@ -220,7 +222,7 @@ class Densifier:
                     size = model.scales.max(dim=1).values
                     pruned["max_world_size"] = size > c.max_world_size * self.scene_radius
                 if c.max_screen_size:
-                    radii = torch.cat([self.max_radii, torch.zeros(added)])
+                    radii = torch.cat([self.max_radii, torch.zeros(added, **F32)])
                     pruned["max_screen_size"] = radii > c.max_screen_size
             for mask in pruned.values():
                 remove |= mask

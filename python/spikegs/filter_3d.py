@@ -16,6 +16,8 @@ import math
 
 import torch
 
+from .float32 import F32
+
 # Mip-Splatting's: a view counts a Gaussian whose centre projects up to 15 % of the image's side
 # outside it (its footprint reaches in)
 MARGIN = 0.15
@@ -45,9 +47,9 @@ def filter_widths(
     pixel = 1 / float(max(K[0, 0], K[1, 1]))  # world units a pixel at depth 1, finest axis
     # homogeneous points [N, 4] and each view's projection K·[R | t] [M, 3, 4]: one product gives
     # (u·z, v·z, z), compared with the image's bounds times z (z > near > 0: no division)
-    points = torch.cat([means.detach().float(), torch.ones(len(means), 1)], dim=1)
+    points = torch.cat([means.detach().float(), torch.ones(len(means), 1, **F32)], dim=1)
     projections = K @ torch.as_tensor(viewmats, dtype=torch.float32)[:, :3]
-    finest = torch.full((len(means),), math.inf)  # [N]: z of the nearest view that holds it
+    finest = torch.full((len(means),), math.inf, **F32)  # [N]: z of the nearest view that holds it
     for part in projections.split(VIEWS_AT_ONCE):
         uvz = (points @ part.reshape(-1, 4).T).reshape(len(means), len(part), 3)  # [N, B, 3]
         z = uvz[..., 2]
@@ -56,7 +58,7 @@ def filter_widths(
         inside &= (uvz[..., 1] >= -MARGIN * height * z) & (uvz[..., 1] <= (1 + MARGIN) * height * z)
         finest = torch.minimum(finest, torch.where(inside, z, math.inf).amin(dim=1))
     seen = torch.isfinite(finest)
-    widest = finest[seen].max() if seen.any() else torch.zeros(())
+    widest = finest[seen].max() if seen.any() else torch.zeros((), **F32)
     finest = torch.where(seen, finest, widest)
     return (math.sqrt(variance) * pixel * finest).to(means.dtype)
 

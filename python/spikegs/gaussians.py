@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from .filter_3d import smoothed
+from .float32 import F32
 from .number_checks import as_flag, is_int
 from .rasterize import CONSTANTS, RasterizeResult, check_dilation, rasterize
 from .sh import C0, MAX_DEGREE, num_coeffs
@@ -200,16 +201,15 @@ class GaussianModel:
                 f"points [N, 3] and colours [N, C] of one N expected, found {list(points.shape)} "
                 f"and {list(colors.shape)}"
             )
-        f32 = {"dtype": torch.float32}
         params = {
             "means": points.float(),
-            "log_scales": torch.full((n, 3), math.log(scale), **f32),
-            "quats": torch.tensor([1.0, 0.0, 0.0, 0.0], **f32).repeat(n, 1),
-            "opacity_logits": torch.full((n,), math.log(0.1 / 0.9), **f32),
+            "log_scales": torch.full((n, 3), math.log(scale), **F32),
+            "quats": torch.tensor([1.0, 0.0, 0.0, 0.0], **F32).repeat(n, 1),
+            "opacity_logits": torch.full((n,), math.log(0.1 / 0.9), **F32),
             "sh_dc": ((colors.float().clamp_min(MIN_START_INTENSITY) - 0.5) / C0).unsqueeze(1),
-            "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels, **f32),
+            "sh_rest": torch.zeros(n, num_coeffs(sh_degree) - 1, channels, **F32),
         }
-        return cls(params, torch.zeros(channels, **f32), sh_degree)
+        return cls(params, torch.zeros(channels, **F32), sh_degree)
 
     def __len__(self) -> int:
         return self.params["means"].shape[0]

@@ -14,6 +14,8 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
+from .float32 import F32
+
 # theta² below which the series expansions (to theta⁴: truncation < 3e-16) are used; above it the
 # closed forms lose at most ~1e-11 to cancellation in float64
 _SMALL = 1e-4
@@ -72,9 +74,10 @@ class PoseRefiner(torch.nn.Module):
 
     def __init__(self, num_views: int, scene_radius: float):
         super().__init__()
-        self.corrections = torch.nn.Parameter(torch.zeros(num_views, 6))  # [M, 6]
+        # (float32, whatever torch's default dtype a caller set: float64 failed in se3_exp)
+        self.corrections = torch.nn.Parameter(torch.zeros(num_views, 6, **F32))  # [M, 6]
         self.register_buffer(
-            "unit", torch.tensor([1.0, 1, 1, scene_radius, scene_radius, scene_radius])
+            "unit", torch.tensor([1.0, 1, 1, scene_radius, scene_radius, scene_radius], **F32)
         )
 
     def forward(self, viewmat: torch.Tensor, view: int) -> torch.Tensor:

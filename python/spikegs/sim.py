@@ -21,6 +21,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .float32 import F32
 from .number_checks import is_int
 
 # The side each branch looks towards, as a (row, col) step in the unrotated frame: k = 0 up,
@@ -102,13 +103,13 @@ class SIM(nn.Module):
         first = (window - target_window) // 2
         self.target = slice(first, first + target_window)  # the readouts whose TFP SIM learns
         self.out_channels = out_channels
-        f32 = {"dtype": torch.float32}  # whatever torch's default dtype, as its spike windows
+        # (float32 layers whatever torch's default dtype, as its spike windows)
         self.shift = nn.ModuleList(
-            nn.Conv2d(window if i == 0 else width, width, 3, **f32) for i in range(shift_layers)
+            nn.Conv2d(window if i == 0 else width, width, 3, **F32) for i in range(shift_layers)
         )
         head_in = [4 * width] + [head_width] * (head_layers - 1)
         head_out = [head_width] * (head_layers - 1) + [out_channels]
-        self.head = nn.ModuleList(nn.Conv2d(i, o, 1, **f32) for i, o in zip(head_in, head_out))
+        self.head = nn.ModuleList(nn.Conv2d(i, o, 1, **F32) for i, o in zip(head_in, head_out))
         # The output layer starts at zero: the network's first output is 0 and the features grow
         # from there. With PyTorch's default start, 300 training steps ended wherever the random
         # output layer had set them (SIM's bias 30.8 / 32.9 / 34.0 dB for seeds 0 / 1 / 2; 33.1 /
