@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import filecmp
 import functools
@@ -374,6 +375,28 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name, f"{path.name}.lock"]
 
 
+@contextlib.contextmanager
+def _saved_meanwhile(saved: Path, path: Path):
+    """For a `with` block: another process alike (a thread) holding `path`'s SIM lock, as one
+    training it does, that copies `saved` to `path` as it lets go; the block runs once it holds
+    the lock."""
+    holding = threading.Event()
+
+    def other_process():
+        with exclusive_lock(path.with_name(f"{path.name}.lock"), busy="busy"):
+            holding.set()
+            time.sleep(0.5)
+            shutil.copy(saved, path)
+
+    other = threading.Thread(target=other_process)
+    other.start()
+    holding.wait()
+    try:
+        yield
+    finally:
+        other.join()
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="flock is POSIX")
 def test_a_sim_that_another_process_trains_is_waited_for_and_loaded(tmp_path, scene, monkeypatch):
     """Two methods started together on one dataset each trained the same SIM, and the second to
@@ -382,19 +405,9 @@ def test_a_sim_that_another_process_trains_is_waited_for_and_loaded(tmp_path, sc
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
     elsewhere, _, _ = train_or_load(tmp_path / "other" / "sim.pt", stream, ts, 33, **tiny)
     monkeypatch.setattr("spikegs.sim_train.train_sim", lambda *a, **k: pytest.fail("trained"))
-    path, holding = tmp_path / "sim.pt", threading.Event()
-
-    def other_process():  # holds the SIM's lock, as a process training it does, then saves it
-        with exclusive_lock(tmp_path / "sim.pt.lock", busy="busy"):
-            holding.set()
-            time.sleep(0.5)
-            shutil.copy(tmp_path / "other" / "sim.pt", path)
-
-    other = threading.Thread(target=other_process)
-    other.start()
-    holding.wait()
-    model, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
-    other.join()
+    path = tmp_path / "sim.pt"
+    with _saved_meanwhile(tmp_path / "other" / "sim.pt", path):
+        model, seconds, _ = train_or_load(path, stream, ts, 33, **tiny)
     assert seconds == 0 and torch.equal(model.head[-1].bias, elsewhere.head[-1].bias)
 
 
@@ -407,20 +420,10 @@ def test_a_named_file_another_process_saves_meanwhile_is_kept(tmp_path, scene, m
     tiny = dict(steps=2, batch_size=1, crop=16, progress=False)
     train_or_load(tmp_path / "other" / "sim.pt", stream, [40, 51], 33, **tiny)
     monkeypatch.setattr("spikegs.sim_train.train_sim", lambda *a, **k: pytest.fail("trained"))
-    path, holding = tmp_path / "sim.pt", threading.Event()
-
-    def other_process():  # trains another SIM at the same --out, saving it as it lets go
-        with exclusive_lock(tmp_path / "sim.pt.lock", busy="busy"):
-            holding.set()
-            time.sleep(0.5)
-            shutil.copy(tmp_path / "other" / "sim.pt", path)
-
-    other = threading.Thread(target=other_process)
-    other.start()
-    holding.wait()
-    with pytest.raises(FileExistsError, match="trained on other spikes.* which training would"):
-        train_or_load(path, stream, ts, 33, keep=True, **tiny)
-    other.join()
+    path = tmp_path / "sim.pt"
+    with _saved_meanwhile(tmp_path / "other" / "sim.pt", path):  # another SIM at the same --out
+        with pytest.raises(FileExistsError, match="trained on other spikes.* which training wo"):
+            train_or_load(path, stream, ts, 33, keep=True, **tiny)
     assert filecmp.cmp(path, tmp_path / "other" / "sim.pt", shallow=False)
 
 
