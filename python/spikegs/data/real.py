@@ -566,16 +566,21 @@ def stream_dataset(
     ]
     held = np.flatnonzero(test)
     unscored = np.flatnonzero(test & ~fits)
-    if held_out and unscored.size:  # (the held-out view count fell in silence)
+    # held-out poses the user chose that cannot be scored (the view count fell in silence; the
+    # default's pose 0, at readout 0 in every LLFF log, is not: docs/datasets.md says so)
+    if options.test_views is not None and held_out and unscored.size:
         named = ", ".join(f"{i} (readout {readouts[i]:g})" for i in unscored[:5])
+        at = np.round(readouts[unscored]).astype(np.int64)
+        room = int(np.minimum(at, len(stream) - 1 - at).min())  # readouts beside the closest
+        shorter = f", or a pseudo_gt_window of {2 * room + 1} or less," if room else ""
         warnings.warn(
             f"{source}: held-out pose{'s' if unscored.size > 1 else ''} {named}"
             f"{', ...' if unscored.size > 5 else ''} within {window // 2} readouts of the "
             f"stream's ends, where a {window}-readout pseudo ground truth does not fit, "
             f"{'are' if unscored.size > 1 else 'is'} not scored ({len(held_out)} of {held.size} "
             f"held-out poses are; training stays clear of {'them' if unscored.size > 1 else 'it'}"
-            f" all the same); test_views in spikegs.json with room around them, or a shorter "
-            f"pseudo_gt_window, scores them",
+            f" all the same): test_views in spikegs.json with room around them{shorter} scores "
+            f"them",
             stacklevel=3,
         )
     if held.size and not held_out:
