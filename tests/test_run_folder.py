@@ -99,7 +99,9 @@ def test_the_resume_command_of_a_run_whose_dataset_moved_asks_where_it_went(tmp_
     assert resume_command(run) == (
         f"spikegs train DATASET --out {run} --resume (DATASET where {data} went)"
     )
-    data.mkdir()
+    (data / "sim").mkdir(parents=True)  # a folder a process made at the old path, after the move
+    assert resume_command(run).endswith(f"--resume (DATASET where {data} went)")
+    (data / "meta.json").write_text("{}")
     assert resume_command(run) == f"spikegs train {data} --out {run} --resume"
 
 

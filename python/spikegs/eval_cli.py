@@ -31,11 +31,11 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
     """The dataset a run was trained on, unless one is given."""
     if dataset is not None:
         return dataset
-    from .data.dataset import layout_files
     from .file_lock import refuse_if_held
     from .run_summary import (
         LOCK,
         SUMMARY,
+        dataset_there,
         last_checkpoint,
         read_summary,
         resume_command,
@@ -62,8 +62,8 @@ def run_dataset(run_dir: Path, dataset: Path | None) -> Path:
             f"(a scene.ply from another tool is scored and rendered with --dataset DATASET)"
         )
     own = Path(summary["dataset"])
-    if not own.is_dir() or not layout_files(own):  # (a folder a process made there, once
-        # the dataset moved mid-run: "no dataset found", without the remedy)
+    if not dataset_there(own):  # (a folder a process made there, once the dataset moved
+        # mid-run: "no dataset found", without the remedy)
         raise FileNotFoundError(f"the run's dataset {own} is gone: pass --dataset DATASET")
     return own
 

@@ -39,10 +39,18 @@ def resume_command(run_dir: Path, dataset: Path | None = None) -> str:
             dataset = state.get("dataset") if isinstance(state, dict) else None
         except Exception:  # torch, pickle and zip raise their own kinds for a torn file
             dataset = None
-        if isinstance(dataset, str) and not Path(dataset).is_dir():  # (moved: it failed)
+        if isinstance(dataset, str) and not dataset_there(Path(dataset)):  # (moved: it failed)
             dataset, gone = None, f" (DATASET where {shell_path(dataset)} went)"
     where = "DATASET" if not isinstance(dataset, (str, Path)) else shell_path(dataset)
     return f"spikegs train {where} --out {shell_path(run_dir)} --resume{gone}"
+
+
+def dataset_there(folder: Path) -> bool:
+    """Whether `folder` holds a dataset (not gone, nor a folder a process made at its old path
+    since it moved, as eval tells)."""
+    from .data.dataset import layout_files  # (the data package imports this module)
+
+    return folder.is_dir() and bool(layout_files(folder))
 
 
 def read_summary(run_dir: Path) -> dict:
