@@ -25,6 +25,7 @@ from .cache_home import cache_home
 from .config import SimConfig
 from .data_fingerprint import spikes_fingerprint
 from .file_lock import exclusive_lock
+from .grad_mode import refuse_inference_mode
 from .interrupt import deferred_interrupt, interruption, progress_lost, quiet_close
 from .losses import SIM_LOSSES
 from .machine_memory import machine_memory
@@ -122,11 +123,7 @@ def train_sim(
     caller's result depends on), at least every CHECKPOINT_S seconds; `resume`: such a state
     (`_resumable`) to continue from, to the same result as a run never interrupted.
     """
-    if torch.is_inference_mode_enabled():
-        raise RuntimeError(
-            "train_sim: called under torch.inference_mode(), where no tensor takes a gradient; "
-            "call it outside"
-        )
+    refuse_inference_mode("train_sim")
     timestamps, _ = as_readouts(timestamps)  # (2-D ones: numpy's error at the first step)
     if timestamps.size == 0:
         raise ValueError("no training timestamps")

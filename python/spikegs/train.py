@@ -38,6 +38,7 @@ from .evaluate import score_view
 from .filter_3d import filter_widths
 from .fit_brightness import FitBrightness, biased_fit
 from .gaussians import PARAMETER_NAMES, GaussianModel, frame_origin, near_plane
+from .grad_mode import refuse_inference_mode
 from .initial_intensity import ViewSample, projected_intensity
 from .interrupt import deferred_interrupt, interruption, progress_lost, say
 from .losses import dssim, exposure_loss, exposure_times, instant_loss
@@ -825,11 +826,7 @@ class Trainer:
         resume = as_flag("Trainer.train: resume", resume)
         if on_eval is not None and not callable(on_eval):
             raise TypeError(f"Trainer.train: on_eval expected a callable, found {on_eval!r:.80}")
-        if torch.is_inference_mode_enabled():  # (its tensors take no gradient: an internal
-            raise RuntimeError(  # argument, screen_abs, was named)
-                "Trainer.train: called under torch.inference_mode(), where no tensor takes a "
-                "gradient; call it outside"
-            )
+        refuse_inference_mode("Trainer.train")  # (an internal argument, screen_abs, was named)
         with torch.enable_grad():
             return self._train(resume, on_eval)
 
