@@ -1601,6 +1601,11 @@ def test_held_out_poses_chosen_whose_window_does_not_fit_are_said_unscored(llff_
     write_options(root, test_views=[1, 8], pseudo_gt_window=129)  # pose 1: 50 readouts in
     with pytest.warns(UserWarning, match=r"around them, or a pseudo_gt_window of 101 or less, s"):
         load_dataset(root)
+    write_options(root, test_views=[0])  # none scored: the error alone, not "0 of 1 are" first
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"none of the 1 held-out poses \(test_views \[0\]\)"):
+            load_dataset(root)
 
 
 def test_stream_cut_mid_frame_and_unsorted_readouts_say_what_to_do(llff_stream, tmp_path):

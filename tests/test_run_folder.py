@@ -8,7 +8,13 @@ import re
 
 import pytest
 from spikegs.cli import main
-from spikegs.run_folder import check_fresh_run_dir, foreign_files, refuse_foreign_files, run_lock
+from spikegs.run_folder import (
+    FolderWatch,
+    check_fresh_run_dir,
+    foreign_files,
+    refuse_foreign_files,
+    run_lock,
+)
 from spikegs.run_summary import read_summary, resume_command, trained_scene
 
 
@@ -86,6 +92,18 @@ def test_a_stopped_run_in_a_folder_not_writable_says_how_to_finish_it(tmp_path, 
     monkeypatch.setattr("spikegs.run_summary.exclusive_lock", refused)
     with pytest.raises(FileNotFoundError, match="stopped before its end; finish it with spikegs"):
         trained_scene(run)
+
+
+def test_a_folder_watch_tells_a_folder_made_again_at_the_path_from_the_one_it_watches(tmp_path):
+    """A run's folder moved and another made at its path (a second --resume there) is not the
+    folder its training locked: its own name is not its identity."""
+    run = tmp_path / "run"
+    run.mkdir()
+    with FolderWatch(run) as watch:
+        assert not watch.moved() and watch.now() in (run, None)
+        run.rename(tmp_path / "new")
+        run.mkdir()
+        assert watch.moved() and watch.now() in (tmp_path / "new", None)
 
 
 def test_the_resume_command_of_a_run_whose_dataset_moved_asks_where_it_went(tmp_path):

@@ -476,6 +476,13 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     )[1:] == (0, raw)
     other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
     assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
+    # a file the user named (sim-train --out, `keep`) in a folder that cannot be written: its
+    # cache stand-in holding a SIM of other settings is a cache, trained over (it was refused as
+    # the named file, "--force trains afresh over it, or give another --out")
+    named = dataset_sim / "mine.pt"
+    stale = train_or_load(named, stream, ts, 33, **{**tiny, "steps": 3})[2]
+    assert train_or_load(named, stream, ts, 33, keep=True, **tiny)[1:] != (0, stale)
+    assert torch.load(stale, weights_only=True)["meta"]["steps"] == 2
     # a cache that cannot be written either: refused before training (XDG_CACHE_HOME a file)
     (tmp_path / "file").write_text("")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "file"))

@@ -58,6 +58,7 @@ from spikegs.ply import load_ply, save_ply
 from spikegs.provenance import environment
 from spikegs.regular_file import NotText, read_text
 from spikegs.run_folder import run_lock
+from spikegs.shell_words import shell_path
 from spikegs.sim import SIM
 from spikegs.sim_train import load_sim, save_sim, weights_digest
 from spikegs.targets import build_targets, intensity_scale
@@ -804,8 +805,12 @@ def test_a_run_folder_moved_or_deleted_while_it_trains_stops_it(dataset, tmp_pat
             run.rename(new) if moved else shutil.rmtree(run)
 
     known = moved and Path("/proc/self/fd").is_dir()  # (where it went: Linux's record)
-    went = rf" \(to {new}: spikegs train \S+ --out \S+new --resume\)" if known else ""
-    with pytest.raises(FileNotFoundError, match=f"moved or deleted while it trained{went}; stop"):
+    resume = re.escape(f"spikegs train {shell_path(dataset.root)} --out {shell_path(new)} --res")
+    went = rf" \(to {new}: {resume}ume\)" if known else ""
+    stopped = "; stopped at iteration 25, the steps since its last checkpoint lost"
+    with pytest.raises(
+        FileNotFoundError, match=f"moved or deleted while it trained{went}{stopped}"
+    ):
         Trainer(dataset, config, run, progress=False).train(on_eval=move)
     assert not run.exists()
     if moved:  # the log, to its first evaluation, and no checkpoint yet: resumed from the start
@@ -839,8 +844,8 @@ def test_a_run_does_not_depend_on_torch_s_default_dtype(dataset, tmp_path, defau
     or the 3D filter (a float64 constant met float32 parameters); float16 trained another run
     (its densification's accumulators in float16). The run is the float32 default's, bit for bit."""
     overrides = {
-        **FAST,
         "train": {**FAST["train"], "iterations": 60, "filter_3d": 0.2},
+        "densify": {**FAST["densify"], "opacity_reset_every": 20},  # (a reset: its cap)
         "pose_refine": {"enabled": True},
     }
     config = load_config("tfp33", overrides)
@@ -856,7 +861,8 @@ def test_a_run_does_not_depend_on_torch_s_default_dtype(dataset, tmp_path, defau
     ours, theirs = (
         torch.load(tmp_path / run / "checkpoints" / "last.pt") for run in ("float32", "other")
     )
-    for part in ("model", "poses"):  # the Gaussians, their 3D filter's widths; the corrections
+    # the Gaussians and their 3D filter's widths, the corrections, the densifier's accumulators
+    for part in ("model", "poses", "densifier"):
         torch.testing.assert_close(ours[part], theirs[part], rtol=0, atol=0)
 
 
@@ -2027,6 +2033,12 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
     (tmp_path / "stop.yaml").write_text("base: spikegs\ndensify: {stop: 400}\n")
     with pytest.raises(ConfigError, match=r"stop.yaml: densify.start = 500, .*; densify.stop is "):
         load_config(tmp_path / "stop.yaml")
+    (tmp_path / "e.yaml").write_text("base: spikegs\ndensify: {start: 1450, stop: 1480}\n")
+    with pytest.raises(ConfigError, match=r"e.yaml: densify.every = 100, .*; densify.start is se"):
+        load_config(tmp_path / "e.yaml")
+    (tmp_path / "both.yaml").write_text("base: spikegs\ndensify: {start: 700, stop: 400}\n")
+    with pytest.raises(ConfigError, match=r"both.yaml: densify.start = 700, .*densification$"):
+        load_config(tmp_path / "both.yaml")  # (the key refused set there: named alone)
     (tmp_path / "cap.yaml").write_text("base: spikegs\ntrain: {init_gaussians: 300000}\n")
     with pytest.raises(ConfigError, match=r"cap.yaml: densify.max_gaussians = .*init_gaussians is"):
         load_config(tmp_path / "cap.yaml")
