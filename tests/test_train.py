@@ -38,6 +38,7 @@ from spikegs.config import (
     load_config,
     load_saved_run,
     warn_if_nothing_learns,
+    warn_if_schedule_unscaled,
 )
 from spikegs.curves import logged_curve
 from spikegs.data import load_dataset, simulate_dataset
@@ -1492,6 +1493,34 @@ def test_a_run_whose_learning_rates_are_all_0_is_warned_of(dataset, tmp_path):
             {"lr": {**frozen["lr"], "quats": 1e-3}},
         ):
             warn_if_nothing_learns(load_config("tfp33", overrides))
+
+
+def test_iterations_set_after_a_schedule_that_then_has_no_round_are_warned_of(dataset, tmp_path):
+    """A script's `config.train.iterations = 300` on load_config's config (its schedule for
+    3000: start 500) trained without densification, unsaid (a schedule trial). Not warned: a
+    length given to load_config or with_iterations (the schedule scaled), densification turned
+    off on a config of the run's length, a longer run set by hand (its rounds fall)."""
+    config = load_config("tfp33", {"train": {"init_gaussians": 800, "checkpoint_every": 1}})
+    config.train.iterations = 2
+    message = (
+        r"train.iterations = 2 was set after the densification schedule, which is for 3000 "
+        r"iterations \(densify.start 500, every 100\): no round .* iterations=2\)"
+    )
+    with pytest.warns(UserWarning, match=message):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    off = load_config("tfp33", iterations=2)
+    off.densify.start = 2
+    longer = load_config("tfp33")
+    longer.train.iterations = 30000  # 3DGS's schedule: rounds 500..15000
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for config in (
+            load_config("tfp33", iterations=2),
+            Config().with_iterations(2),
+            off,
+            longer,
+        ):
+            warn_if_schedule_unscaled(config)
 
 
 def test_gaussian_model_takes_numpy_bools_and_scalar_tensors():

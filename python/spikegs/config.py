@@ -201,6 +201,10 @@ class Config:
     densify: DensifyConfig = field(default_factory=DensifyConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     pose_refine: PoseRefineConfig = field(default_factory=PoseRefineConfig)
+    # the train.iterations its densification schedule is for (`load_config` and `with_iterations`
+    # set it; the defaults' is the default length): a script's `config.train.iterations = 300`
+    # after them leaves the schedule as it was (`warn_if_schedule_unscaled`)
+    _schedule_length = TrainConfig.iterations
 
     def validate(self) -> Config:
         s, t, d, sim = self.supervision, self.train, self.densify, self.sim
@@ -429,12 +433,13 @@ class Config:
     def with_iterations(self, iterations: int) -> Config:
         """A copy that trains for `iterations` steps, its densification schedule (start, stop,
         every, opacity reset) scaled by iterations / train.iterations so that a shorter or longer
-        run keeps its number of densification rounds; 0 (stop: half the run, reset: never) stays."""
+        run keeps about its number of densification rounds (each key rounded on its own: 16 at
+        44 iterations, 8 at 45); 0 (stop: half the run, reset: never) stays."""
         _require(is_count(iterations), "train.iterations", iterations, COUNTS)
         config = copy.deepcopy(self)
         factor = iterations / config.train.iterations
         _scale_schedule(config.densify, SCHEDULE_KEYS, factor)
-        config.train.iterations = iterations
+        config.train.iterations = config._schedule_length = iterations
         if factor != 1:
             _keep_a_round(config.densify, iterations)
         return _validated_scaled(config, dict.fromkeys(SCHEDULE_KEYS, factor), {})
@@ -638,6 +643,7 @@ def load_config(
         _scale_schedule(config.densify, [key], factors[key])
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
+    config._schedule_length = config.train.iterations
     config = _validated_scaled(config, factors, read.get(SET_IN, {}))
     if not saved_run:  # (a run's config.yaml sets every key)
         warn_if_unread(config, read.get(SET_IN, {}))
@@ -739,6 +745,26 @@ def warn_if_unread(config: Config, set_in: dict[str, Path]) -> None:
         f"config file {files} sets what method '{config.method}' never reads: "
         + "; ".join(f"{', '.join(keys)} ({why})" for why, keys in reasons.items())
         + (f". {unchanged}" if set(found) != {RESET_KEY} else ""),
+        stacklevel=3,
+    )
+
+
+def warn_if_schedule_unscaled(config: Config) -> None:
+    """A UserWarning, to the caller's caller, where train.iterations was set after the
+    densification schedule (a script's `config.train.iterations = 300` on a config `load_config`
+    made for 3000) and no round of it falls in the run: such a run trained without
+    densification, unsaid (`--iterations`, `load_config(iterations=)` and `with_iterations`
+    scale the schedule to the length)."""
+    d, iterations, length = config.densify, config.train.iterations, config._schedule_length
+    if iterations == length or d.last_round(iterations):
+        return
+    warnings.warn(
+        f"train.iterations = {iterations} was set after the densification schedule, which is "
+        f"for {length} iterations (densify.start {d.start}, every {d.every}): no round of it "
+        f"falls in the run, which trains without densification. load_config(..., "
+        f"iterations={iterations}), or config.with_iterations({iterations}) in place of setting "
+        f"train.iterations, scales the schedule to the run's length (a run meant to train "
+        f"without densification: densify.start set to train.iterations or more after that)",
         stacklevel=3,
     )
 

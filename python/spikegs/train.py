@@ -28,6 +28,7 @@ from .config import (
     available_methods,
     differences,
     warn_if_nothing_learns,
+    warn_if_schedule_unscaled,
     with_defaults,
 )
 from .curves import logged_curve
@@ -839,6 +840,7 @@ class Trainer:
             self._check_scene_in_view()
             self.cloud_points  # noqa: B018
             warn_if_nothing_learns(self.config)
+            warn_if_schedule_unscaled(self.config)
             self._warn_if_few_timestamps()
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
