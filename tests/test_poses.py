@@ -625,6 +625,18 @@ def test_poses_refuses_a_bad_meta_json_before_any_work(textured, tmp_path, capsy
     assert not (raw / "sfm").exists()
 
 
+def test_poses_names_meta_json_keys_it_does_not_read(tmp_path, monkeypatch, capsys):
+    """A misspelt `col_ofset` beside raw_width went unread, unsaid: SfM failed, blamed on the
+    images (the poses trial); loading a dataset names such keys, and now poses does."""
+    still = _solids(tmp_path / "still", 16, 200, speed=0.0005)
+    meta = json.loads((still.root / "meta.json").read_text())
+    (still.root / "meta.json").write_text(json.dumps({**meta, "col_ofset": 4}))
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", _stop_before_matching)
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    said = capsys.readouterr().err
+    assert re.search(r"meta.json: col_ofset: not meta.json's keys, not read", said), said
+
+
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):
     """Images enter COLMAP's database in order and two-view RANSAC is seeded: two runs register
     the same images with bitwise the same poses (the ids' order and clock seeds made them differ

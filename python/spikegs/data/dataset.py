@@ -1272,13 +1272,7 @@ def _check_meta(meta: dict, path: Path) -> None:
     if missing:
         poses = f" (`spikegs poses {shell_path(path.parent)}` estimates them)" * estimated
         raise ValueError(f"{path}: missing keys {missing}{poses}")
-    unknown = sorted(set(meta) - set(META_KEYS))
-    if unknown:
-        warnings.warn(
-            f"{path}: {', '.join(unknown)}: not {META}'s keys, not read (a misspelling? the keys "
-            f"read are in docs/datasets.md, `meta.json`; spikegs demosaics nothing)",
-            stacklevel=3,
-        )
+    warn_unknown_meta_keys(meta, path, stacklevel=3)
     version = meta.get("format_version", FORMAT_VERSION)
     if version != FORMAT_VERSION or isinstance(version, (bool, str)):  # 1.0 is 1
         raise ValueError(
@@ -1287,6 +1281,18 @@ def _check_meta(meta: dict, path: Path) -> None:
         )
     optional = [k for k in ("raw_width", "col_offset", "scene", "source", "spp") if k in meta]
     check_meta_values(meta, path, [*required, "scene_center", "scene_radius", *optional])
+
+
+def warn_unknown_meta_keys(meta: dict, path: Path, stacklevel: int) -> None:
+    """A UserWarning naming the keys of `meta` (read from `path`, a meta.json) not in META_KEYS,
+    which nothing reads, to `stacklevel` (as `warnings.warn`'s, from the caller)."""
+    unknown = sorted(set(meta) - set(META_KEYS))
+    if unknown:
+        warnings.warn(
+            f"{path}: {', '.join(unknown)}: not {META}'s keys, not read (a misspelling? the keys "
+            f"read are in docs/datasets.md, `meta.json`; spikegs demosaics nothing)",
+            stacklevel=stacklevel + 1,
+        )
 
 
 def check_meta_values(meta: dict, path: Path, keys) -> None:
