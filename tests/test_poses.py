@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import shutil
@@ -520,6 +521,37 @@ def test_a_raw_recording_becomes_a_dataset_that_trains(textured, tmp_path, capsy
     assert report["pose_reference"] == "first spikegs poses run"
 
 
+def test_a_rerun_makes_its_own_train_every_afresh(tmp_path, monkeypatch, capsys):
+    """The train_every a first run wrote to meta.json (its span's ceil(R / 1024)) was read by a
+    re-run as stated: registering 1468 readouts, it wrote 1275 timestamps (the poses trial)."""
+    data = _solids(tmp_path / "sim", 16, 2400)
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    shutil.copy(data.root / "spikes.dat", raw / "spikes.dat")
+    keys = ("height", "width", "channels", "num_readouts", "flip", "spike_files")
+    (raw / "meta.json").write_text(json.dumps({k: data.meta[k] for k in keys}))
+    span = (600, 1500)
+
+    def registered(images, readouts, work_dir, *args, **kwargs):  # the poses, within `span`
+        work_dir.mkdir(parents=True, exist_ok=True)
+        inside = readouts[(readouts >= span[0]) & (readouts <= span[1])]
+        points = data.scene_center + np.random.default_rng(0).normal(size=(50, 3)) * 0.1
+        colors = np.full((50, 3), 128, np.uint8)
+        return _recon(inside, data.trajectory.pose_at(inside), data.K, points, colors, 40)
+
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", registered)
+    assert main(["poses", str(raw)]) == 0
+    assert json.loads((raw / "meta.json").read_text())["train_every"] == 1  # ceil(~900 / 1024)
+    span = (100, 2300)
+    assert main(["poses", str(raw)]) == 0
+    again = load_dataset(raw)
+    assert again.meta["train_every"] == 3 and len(again.train_timestamps) <= 1024  # ~2200 / 1024
+    doc = json.loads((raw / "meta.json").read_text())  # a stated one is kept
+    (raw / "meta.json").write_text(json.dumps({**doc, "train_every": 5}))
+    assert main(["poses", str(raw)]) == 0
+    assert load_dataset(raw).meta["train_every"] == 5
+
+
 def test_an_implausible_estimated_focal_is_flagged():
     meta = {"width": 64, "scene_center": [0, 0, 0], "scene_radius": 1.0}
     recon = _recon(np.zeros(0), np.zeros((0, 4, 4)), np.eye(3), np.zeros((0, 3)), None, 3)
@@ -975,6 +1007,26 @@ def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_pat
     check_output(root, overwrite=True)  # the .bak is a dataset's part: simulate replaces it
     with pytest.raises(ValueError, match=r"no training timestamp .* readouts \[400, 420\]"):
         _registered_timestamps(root, np.array([400, 420]))
+
+
+def test_training_timestamps_edited_since_the_last_run_are_refused(tmp_path, monkeypatch, capsys):
+    """A list edited after a run that kept a .bak was written over by the next run's filtering
+    of the .bak, unsaid (the poses trial): refused before SfM, as a replaced trajectory is."""
+    still = _solids(tmp_path / "still", 16, 200, speed=0.0005)
+    listed = still.root / "train_timestamps.txt"
+    shutil.copy(listed, still.root / "train_timestamps.txt.bak")
+    (still.root / "sfm").mkdir()
+    written = {"timestamps_sha256": hashlib.sha256(listed.read_bytes()).hexdigest()}
+    (still.root / "sfm" / "report.json").write_text(json.dumps(written))
+    monkeypatch.setattr("spikegs.poses_cli.reconstruct", _stop_before_matching)
+    assert main(["poses", str(still.root), "--count", "8"]) == 2  # as the last run wrote it
+    assert "stopped before matching" in capsys.readouterr().err
+    listed.write_text("".join(f"{k}\n" for k in range(60, 141, 4)))
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    said = capsys.readouterr().err
+    assert "train_timestamps.txt: another list than the last spikegs poses run wrote" in said
+    assert "stopped before matching" not in said
+    assert listed.read_text().split() == [str(k) for k in range(60, 141, 4)]
 
 
 def test_similarity_never_mirrors_the_world():

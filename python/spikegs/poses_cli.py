@@ -91,7 +91,12 @@ SLOW_PAIRS = 20_000  # exhaustive matching beyond ~200 images: minutes on 2 core
 FOV_PLAUSIBLE = (10, 140)  # degrees: an estimated focal outside this is flagged
 HELD_OUT_BY = "spikegs poses"  # meta.json's held_out_by: the held-out views are this command's
 # the keys of sfm/report.json that record the files a run wrote, by name
-DIGESTS = {TRAJECTORY: "trajectory_sha256", POINTS: "points_sha256"}
+DIGESTS = {
+    TRAJECTORY: "trajectory_sha256",
+    POINTS: "points_sha256",
+    TIMESTAMPS: "timestamps_sha256",
+}
+MADE_EVERY = "train_every_made"  # the train_every a run wrote to meta.json, none being stated
 BACKUP_DIGEST = "reference_sha256"  # the .bak aligned to, as the run that wrote the report read it
 # a median rotation error (degrees) past this after the alignment: the reference or SfM is wrong
 # (SfM's worst measured: 11.3° on `wires` from TFP; a pose log of world-to-camera matrices 48.6°,
@@ -522,6 +527,14 @@ def _estimate_poses(
             f"writes its poses over {TRAJECTORY}: to align to the new file, move it to "
             f"{backup.name}; to align to {backup.name} again, remove {TRAJECTORY}"
         )
+    # a list edited since the last run (which a run filters from the .bak and writes over)
+    if (root / TIMESTAMPS_BACKUP).exists() and _written_over(root / TIMESTAMPS, live_report):
+        raise ValueError(
+            f"{root / TIMESTAMPS}: another list than the last spikegs poses run wrote (edited "
+            f"since?), where a run writes those of {TIMESTAMPS_BACKUP}, the list before any "
+            f"run, that its poses cover: to have the new list's kept, move it to "
+            f"{TIMESTAMPS_BACKUP}; to go back to {TIMESTAMPS_BACKUP}'s, copy it over {TIMESTAMPS}"
+        )
     reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
@@ -547,6 +560,8 @@ def _estimate_poses(
         )
     raw = ours or not split
     stated_every = _stated_train_every(meta, meta_path) if raw else None
+    if stated_every == _reported(live_report).get(MADE_EVERY):  # the last run's, for its span
+        stated_every = None
     import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
     posed = reference is not None
     sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
@@ -688,6 +703,8 @@ def _estimate_poses(
     if raw:  # held-out views and training timestamps too, so that the recording trains
         span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover
         train_every = stated_every or default_train_every(span)
+        if stated_every is None:  # (a re-run took it for stated: 1275 timestamps over 1468)
+            report[MADE_EVERY] = train_every
         truth, notes = pseudo_truth(streams)
         views, ks, spaced = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
         note = {**ground_truth_note(0, len(views)), **notes}
