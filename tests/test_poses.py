@@ -43,6 +43,7 @@ from spikegs.poses_cli import (
     _pose_report,
     _registered_timestamps,
     _reprojection_report,
+    _upside_down_note,
 )
 from spikegs.sfm import Reconstruction, align, reconstruct, similarity, spike_images
 from spikegs.sh import C0
@@ -983,6 +984,71 @@ def test_alignment_uses_the_cameras_orientations_on_a_short_arc():
     fitted = np.linalg.inv(aligned.viewmats[0])[:3, :3] @ np.linalg.inv(noisy[0])[:3, :3].T
     residual = Rotation.from_matrix(fitted @ turn).magnitude()  # fit ∘ turn = identity
     assert np.degrees(residual) < 1.5, np.degrees(residual)
+
+
+def test_alignment_to_an_earlier_runs_poses_compares_only_where_they_were_registered():
+    """An earlier run's SfM trajectory holds its first and last registered poses to the stream's
+    ends: a re-run registering a wider span fitted its cameras there to them (4.5 deg off) and
+    reported up to 36.7 deg from them (the poses trial). Compared only within the span now."""
+    azimuth = np.radians(np.linspace(0, 240, 81))
+    eyes = 3 * np.stack([np.cos(azimuth), np.sin(azimuth), np.full(81, 0.3)], -1)  # [81, 3]
+    truth = np.stack([look_at(e, [0.0, 0.0, 0.0]) for e in eyes])  # [81, 4, 4]
+    readouts = np.arange(81.0) * 10  # [81] over a 801-readout stream
+    first = _recon(readouts[20:60], truth[20:60], np.eye(3), np.zeros((0, 3)), None, 40)
+    reference = first.trajectory(801)  # readouts 0 and 800: held copies of 200's and 590's
+    assert reference.recorded_span() == (200.0, 590.0)
+    assert Trajectory(readouts, truth).recorded_span() == (0.0, 800.0)
+    assert Trajectory(readouts[:2], truth[[0, 0]]).recorded_span() == (10.0, 10.0)
+    world = np.eye(4)  # the re-run's SfM frame
+    world[:3, :3] = Rotation.from_euler("xyz", [20, -40, 70], degrees=True).as_matrix()
+    world[:3, 3] = [1.0, -2.0, 0.5]
+    wider = np.linalg.inv(world @ np.linalg.inv(truth))  # [81, 4, 4] the whole stream's
+    aligned = align(_recon(readouts, wider, np.eye(3), np.zeros((0, 3)), None, 81), reference)
+    np.testing.assert_allclose(aligned.viewmats, truth, atol=1e-9)
+    report = _pose_report(aligned, reference, radius=1.0)
+    assert report["compared"] == 40 and report["rotation_error_deg_max"] < 1e-6
+
+
+def test_cameras_of_images_read_upside_down_are_said_to_be(tmp_path):
+    """A wrong `flip` reads the images upside down: SfM's world is then mirrored, no similarity
+    aligns it (35 deg off a simulated log), and the warning blamed the log or SfM (the poses
+    trial). It names the flip now, where the cameras fit the log read upside down; not where
+    they fit as read, nor a log in OpenGL's axes."""
+    azimuth = np.radians(np.linspace(0, 200, 40))
+    elevation = np.radians(np.linspace(5, 35, 40))
+    eyes = 3 * np.stack(
+        [
+            np.cos(azimuth) * np.cos(elevation),
+            np.sin(azimuth) * np.cos(elevation),
+            np.sin(elevation),
+        ],
+        -1,
+    )  # [40, 3]
+    truth = np.stack([look_at(e, [0.0, 0.0, 0.0]) for e in eyes])  # [40, 4, 4]
+    readouts = np.arange(40.0) * 10
+    reference = Trajectory(readouts, truth)
+    rotations = sfm.ROW_FLIP @ truth[:, :3, :3] @ sfm.MIRROR  # SfM's of the rows reversed
+    centres = np.linalg.inv(truth)[:, :3, 3] @ sfm.MIRROR
+    mirrored = np.tile(np.eye(4), (40, 1, 1))
+    mirrored[:, :3, :3] = rotations
+    mirrored[:, :3, 3] = -np.einsum("nij,nj->ni", rotations, centres)
+    meta = {"flip": True}
+    for viewmats, said in (
+        (mirrored, True),
+        (truth, False),
+        (np.diag([1.0, -1, -1, 1]) @ truth, False),  # OpenGL's axes: the log's convention
+    ):
+        recon = align(_recon(readouts, viewmats, np.eye(3), np.zeros((0, 3)), None, 40), reference)
+        off = _pose_report(recon, reference, 1.0)["rotation_error_deg_median"]
+        note = _upside_down_note(recon, reference, off, "trajectory.json", meta)
+        assert (note is not None) == said, (off, note)
+    assert off > 20  # that log: warned of as before
+    recon = align(_recon(readouts, mirrored, np.eye(3), np.zeros((0, 3)), None, 40), reference)
+    note = _upside_down_note(recon, reference, 35.0, "trajectory.json", meta)
+    assert re.search(
+        r"fit trajectory.json mirrored, median .* and 0.00 with the images upside", note
+    )
+    assert "meta.json's flip (true) wrong; set it to false and run again" in note
 
 
 def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_path):

@@ -76,7 +76,15 @@ from .output_paths import writable_folder
 from .pixel_defects import defect_maps, repaired_spikes
 from .point_cloud import write_points
 from .pose_refine import pose_errors
-from .sfm import Reconstruction, align, import_pycolmap, reconstruct, spike_images
+from .sfm import (
+    Reconstruction,
+    align,
+    compared,
+    import_pycolmap,
+    reconstruct,
+    spike_images,
+    unmirrored,
+)
 from .shell_words import shell_path
 from .spikes import SpikeStream
 from .spikes.stream import centred_range
@@ -431,15 +439,40 @@ def _held_out_split(
 
 
 def _pose_report(recon: Reconstruction, reference: Trajectory, radius: float) -> dict:
-    """Rotation (degrees) and centre (scene radii) errors of aligned poses against `reference`."""
-    rotation, centre = pose_errors(recon.viewmats, reference.pose_at(recon.readouts))
+    """Rotation (degrees) and centre (scene radii) errors of aligned poses against `reference`,
+    at the registered readouts `compared` with it (their number: `compared`)."""
+    inside = compared(recon.readouts, reference)  # [R]
+    readouts = recon.readouts[inside]
+    rotation, centre = pose_errors(recon.viewmats[inside], reference.pose_at(readouts))
     centre = centre / radius
     return {
+        "compared": int(inside.sum()),
         "rotation_error_deg_median": float(np.median(rotation)),
         "rotation_error_deg_max": float(rotation.max()),
         "centre_error_median": float(np.median(centre)),
         "centre_error_max": float(centre.max()),
     }
+
+
+def _upside_down_note(
+    recon: Reconstruction, reference: Trajectory, off: float, name: str, meta: dict
+) -> str | None:
+    """The warning, where `recon`, aligned to `reference` (the file `name`), is `off` (its median
+    rotation error, degrees) by over SUSPECT_ROTATION_DEG but its cameras read upside down
+    (`unmirrored`) are within that: meta.json's `flip` is likely wrong (a wrong flip was 35 deg
+    off, blamed on the pose log or SfM); else None."""
+    if off <= SUSPECT_ROTATION_DEG:
+        return None
+    flipped = align(unmirrored(recon), reference)
+    turned = _pose_report(flipped, reference, 1.0)["rotation_error_deg_median"]
+    if turned > SUSPECT_ROTATION_DEG:
+        return None
+    return (
+        f"warning: the cameras fit {name} mirrored, median rotation error {off:.2f} deg as read "
+        f"and {turned:.2f} with the images upside down: the spikes are likely read upside down, "
+        f"{META}'s flip ({json_text(meta['flip'])}) wrong; set it to "
+        f"{json_text(not meta['flip'])} and run again (the poses written are aligned as read)"
+    )
 
 
 def _reprojection_report(recon: Reconstruction) -> dict:
@@ -674,16 +707,28 @@ def _estimate_poses(
         sfm = not logged and _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
+        first, last = reference.recorded_span()
+        within = (
+            f" of the {report['compared']} of {len(recon.readouts)} registered images within "
+            f"its poses' span (readouts {first:g}..{last:g}; its first and last poses are held "
+            f"constant outside it)"
+            if report["compared"] < len(recon.readouts)
+            else ""
+        )
         messages.append(
             f"aligned to {reference_path.name} by a similarity on the camera centres and "
-            f"orientations: rotation "
+            f"orientations{within}: rotation "
             f"{word} median {report['rotation_error_deg_median']:.2f} deg (max "
             f"{report['rotation_error_deg_max']:.2f}), centre {word} median "
             f"{report['centre_error_median']:.2%} of the scene radius "
             f"(max {report['centre_error_max']:.2%})"
             + (" — against the first spikegs poses run's poses, not a pose log" if sfm else "")
         )
-        if report["rotation_error_deg_median"] > SUSPECT_ROTATION_DEG:  # (written unsaid)
+        off = report["rotation_error_deg_median"]
+        upside_down = _upside_down_note(recon, reference, off, reference_path.name, meta)
+        if upside_down:
+            messages.append(upside_down)
+        elif off > SUSPECT_ROTATION_DEG:  # (written unsaid)
             messages.append(
                 f"warning: a median rotation {word} over {SUSPECT_ROTATION_DEG:.0f} deg: "
                 + (

@@ -377,12 +377,40 @@ def similarity(
     return scale, rotation, mu_dst - scale * rotation @ mu_src
 
 
+ROW_FLIP = np.diag([1.0, -1.0, 1.0])  # a camera's y axis reversed: its image upside down
+MIRROR = np.diag([1.0, 1.0, -1.0])  # a world mirrored (in z: any mirror, up to a similarity)
+
+
+def unmirrored(recon: Reconstruction) -> Reconstruction:
+    """The cameras that took `recon`'s images were they read upside down (a wrong `flip`): SfM's
+    world is then the true one mirrored, X' = M X, its rotations F R M (F: ROW_FLIP, M: MIRROR),
+    which no similarity undoes; returned: rotations F R' M, centres M C', points M X'."""
+    rotations = ROW_FLIP @ recon.viewmats[:, :3, :3] @ MIRROR  # [R, 3, 3] world-to-camera
+    centres = np.linalg.inv(recon.viewmats)[:, :3, 3] @ MIRROR  # [R, 3]
+    viewmats = np.tile(np.eye(4), (len(rotations), 1, 1))  # [R, 4, 4]
+    viewmats[:, :3, :3] = rotations
+    viewmats[:, :3, 3] = -np.einsum("nij,nj->ni", rotations, centres)
+    return dataclasses.replace(recon, viewmats=viewmats, points=recon.points @ MIRROR)
+
+
+def compared(readouts: np.ndarray, trajectory: Trajectory) -> np.ndarray:
+    """Which registered `readouts` [R] to compare with `trajectory`'s poses (bool [R]): those
+    within its recorded span (`Trajectory.recorded_span`: an earlier run's SfM holds its ends'
+    poses constant, which a re-run registering a wider span fitted, 4.5 deg off, and reported
+    16.9 deg from), all where fewer than 3 are."""
+    first, last = trajectory.recorded_span()
+    inside = (readouts >= first) & (readouts <= last)  # [R]
+    return inside if inside.sum() >= 3 else np.ones(len(readouts), bool)
+
+
 def align(recon: Reconstruction, trajectory: Trajectory) -> Reconstruction:
     """`recon` moved into `trajectory`'s world by the similarity that best maps its cameras (their
-    centres and orientations: `similarity`) onto the trajectory's at the same readouts."""
+    centres and orientations: `similarity`) onto the trajectory's at the same readouts (those
+    `compared`)."""
     if len(recon.readouts) < 3:
         raise ValueError(f"align: needs >= 3 registered images, found {len(recon.readouts)}")
-    c2w = np.linalg.inv(recon.viewmats)  # [R, 4, 4]
-    known = np.linalg.inv(trajectory.pose_at(recon.readouts))  # [R, 4, 4]
+    inside = compared(recon.readouts, trajectory)  # [R]
+    c2w = np.linalg.inv(recon.viewmats[inside])  # [R', 4, 4]
+    known = np.linalg.inv(trajectory.pose_at(recon.readouts[inside]))  # [R', 4, 4]
     fit = similarity(c2w[:, :3, 3], c2w[:, :3, :3], known[:, :3, 3], known[:, :3, :3])
     return recon.transformed(*fit)

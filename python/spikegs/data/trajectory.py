@@ -196,6 +196,19 @@ class Trajectory:
     def end(self) -> float:
         return float(self.readouts[-1])
 
+    def recorded_span(self) -> tuple[float, float]:
+        """The first and last readouts between which the poses change: the start and end but
+        where the first (last) pose is held, repeated, to it (`Reconstruction.trajectory` holds
+        SfM's first and last registered poses to the stream's ends)."""
+        held = np.isclose(self.viewmats[1:], self.viewmats[:-1], rtol=0, atol=1e-9)
+        held = held.all(axis=(1, 2))  # [P - 1] pose k+1 is pose k
+        first, last = 0, len(self) - 1
+        while first < last and held[first]:
+            first += 1
+        while last > first and held[last - 1]:
+            last -= 1
+        return float(self.readouts[first]), float(self.readouts[last])
+
     @property
     def centers(self) -> np.ndarray:
         """Camera centres [P, 3] in world coordinates."""
