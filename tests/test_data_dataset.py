@@ -1004,6 +1004,14 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         (root / name).unlink()
         with pytest.raises(FileNotFoundError, match=name.split("/")[-1]):
             load_dataset(root)
+    # a pose log of one's own in this layout was told the file missing alone (the docs trial)
+    for name in ("train_timestamps.txt", "test_views.json"):
+        root = tmp_path / f"split_{name}"
+        shutil.copytree(small.root, root)
+        (root / name).unlink()
+        said = rf"{name} \(train_timestamps.txt and test_views.json, .* the LLFF layout .*poses`"
+        with pytest.raises(FileNotFoundError, match=said):
+            load_dataset(root)
     with pytest.raises(FileNotFoundError, match=r"no dataset found: none of meta.json .*LLFF"):
         load_dataset(tmp_path / "meta.json")  # the copy above without its meta.json
     with pytest.raises(FileNotFoundError, match="from `spikegs poses"):  # a raw recording's

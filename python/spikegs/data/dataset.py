@@ -501,13 +501,24 @@ def write_parts(
     write_text_atomically(out / META, json.dumps(meta, indent=1))
 
 
-def existing_file(root: Path, name: str) -> Path:
-    """ROOT/name; FileNotFoundError naming it when it is missing, ValueError when its name holds
-    something else than a file (`is_given`: a folder was said to be missing)."""
+def existing_file(root: Path, name: str, what: str = "") -> Path:
+    """ROOT/name; FileNotFoundError naming it (and `what` it is, where given) when it is missing,
+    ValueError when its name holds something else than a file (`is_given`: a folder was said to
+    be missing)."""
     path = root / name
     if not is_given(path):
-        raise FileNotFoundError(f"dataset file not found: {path}")
+        raise FileNotFoundError(f"dataset file not found: {path}{f' ({what})' if what else ''}")
     return path
+
+
+# what a missing split file is, and the ways to one (a pose log of one's own, in this layout,
+# was told the file missing alone)
+SPLIT = (
+    f"{TIMESTAMPS} and {TEST_VIEWS}, the readouts training samples and the held-out views, are "
+    f"the dataset's split: write them (docs/datasets.md), or keep a pose log of your own in the "
+    f"LLFF layout (spikes.dat, poses_bounds.npy, readouts.txt), which makes its own split; "
+    f"`spikegs poses` makes them too, replacing the poses with SfM's aligned to them"
+)
 
 
 def open_streams(root: Path, names: list[str], meta: dict) -> list[SpikeStream]:
@@ -909,7 +920,7 @@ def check_test_views(views: list[TestView], where) -> None:
 def _read_test_views(root: Path, shape: tuple, camera: dict | None) -> list[TestView]:
     from .transforms_file import frame_file  # (it imports this module)
 
-    path = existing_file(root, TEST_VIEWS)
+    path = existing_file(root, TEST_VIEWS, SPLIT)
     views, listings = [], {}  # each image folder listed once (`frame_files`)
     readers: dict[Path, list[str]] = collections.defaultdict(list)  # image file -> its views
     for i, frame in enumerate(read_camera_doc(path, camera)):
@@ -1091,7 +1102,7 @@ def load_dataset(path: PathLike, progress: bool = False) -> Dataset:
             f"used (a pose log that ran on after the recording, or a recording cut short?)",
             stacklevel=2,
         )
-    timestamps = read_timestamps(existing_file(root, TIMESTAMPS))  # [M]
+    timestamps = read_timestamps(existing_file(root, TIMESTAMPS, SPLIT))  # [M]
     lo, hi = WINDOW_MARGIN, num - 1 - WINDOW_MARGIN
     if len(timestamps) == 0:
         raise ValueError(f"{root / TIMESTAMPS}: no training timestamps (one readout per line)")
