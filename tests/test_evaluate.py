@@ -253,6 +253,12 @@ def test_a_missing_or_untrained_run_is_told_so_before_its_lock(trained, tmp_path
         evaluate_run(tmp_path / "empty", trained[0])
     assert "another process" not in str(said.value)
     assert list((tmp_path / "empty").iterdir()) == []
+    for name in ("a", "b"):  # a folder of one's runs: was told to train the run first
+        (tmp_path / "runs" / name).mkdir(parents=True)
+        (tmp_path / "runs" / name / "config.yaml").write_text("method: tfp33\n")
+    said = r"runs: a folder of runs \(a, b\), not a run; give one of them, e.g. .*runs/a$"
+    with pytest.raises(FileNotFoundError, match=said):
+        evaluate_run(tmp_path / "runs", trained[0])
 
 
 def test_another_tools_scene_in_its_datasets_folder_is_scored(trained, tmp_path):

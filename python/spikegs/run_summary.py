@@ -110,16 +110,17 @@ def trained_scene(run_dir: Path) -> Path:
             f"{run_dir}: a dataset (its {', '.join(marks)}), not a run folder (spikegs train "
             f"{shell_path(run_dir)} --out RUN trains one)"
         )
-    runs = sorted(  # a demo's or a bench's folder: its runs within
+    runs = sorted(  # a folder of one's runs (it was told to train), a demo's or a bench's
         p.parent.relative_to(run_dir).as_posix()
-        for pattern in (f"runs/*/{CONFIG}", f"runs/*/*/{CONFIG}")
+        for pattern in (f"*/{CONFIG}", f"runs/*/{CONFIG}", f"runs/*/*/{CONFIG}")
         for p in Path(run_dir).glob(pattern)
     )
     if runs:
         shown = ", ".join(runs[:4]) + (f" and {len(runs) - 4} more" if len(runs) > 4 else "")
+        whose = ": a demo's or a bench's" if any(r.startswith("runs/") for r in runs) else ""
         raise FileNotFoundError(
-            f"{run_dir}: a folder of runs ({shown}: a demo's or a bench's), not a run; give "
-            f"one of them, e.g. {shell_path(Path(run_dir) / runs[0])}"
+            f"{run_dir}: a folder of runs ({shown}{whose}), not a run; give one of them, e.g. "
+            f"{shell_path(Path(run_dir) / runs[0])}"
         )
     raise FileNotFoundError(f"{ply} not found: train the run first (spikegs train)")
 
