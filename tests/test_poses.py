@@ -1009,7 +1009,7 @@ def test_alignment_to_an_earlier_runs_poses_compares_only_where_they_were_regist
     assert report["compared"] == 40 and report["rotation_error_deg_max"] < 1e-6
 
 
-def test_cameras_of_images_read_upside_down_are_said_to_be(tmp_path):
+def test_cameras_of_images_read_upside_down_are_said_to_be(monkeypatch):
     """A wrong `flip` reads the images upside down: SfM's world is then mirrored, no similarity
     aligns it (35 deg off a simulated log), and the warning blamed the log or SfM (the poses
     trial). It names the flip now, where the cameras fit the log read upside down; not where
@@ -1049,6 +1049,12 @@ def test_cameras_of_images_read_upside_down_are_said_to_be(tmp_path):
         r"fit trajectory.json mirrored, median .* and 0.00 with the images upside", note
     )
     assert "meta.json's flip (true) wrong; set it to false and run again" in note
+
+    def unfitted(*args):  # no similarity fits the cameras upside down: the warning as before
+        raise ValueError("align: the registered cameras' centres do not follow")
+
+    monkeypatch.setattr("spikegs.poses_cli.align", unfitted)
+    assert _upside_down_note(recon, reference, 35.0, "trajectory.json", meta) is None
 
 
 def test_training_timestamps_outside_the_registered_readouts_are_dropped(tmp_path):

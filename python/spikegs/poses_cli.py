@@ -463,7 +463,10 @@ def _upside_down_note(
     off, blamed on the pose log or SfM); else None."""
     if off <= SUSPECT_ROTATION_DEG:
         return None
-    flipped = align(unmirrored(recon), reference)
+    try:
+        flipped = align(unmirrored(recon), reference)
+    except ValueError:  # (no similarity fits them either: not this)
+        return None
     turned = _pose_report(flipped, reference, 1.0)["rotation_error_deg_median"]
     if turned > SUSPECT_ROTATION_DEG:
         return None
@@ -560,14 +563,6 @@ def _estimate_poses(
             f"writes its poses over {TRAJECTORY}: to align to the new file, move it to "
             f"{backup.name}; to align to {backup.name} again, remove {TRAJECTORY}"
         )
-    # a list edited since the last run (which a run filters from the .bak and writes over)
-    if (root / TIMESTAMPS_BACKUP).exists() and _written_over(root / TIMESTAMPS, live_report):
-        raise ValueError(
-            f"{root / TIMESTAMPS}: another list than the last spikegs poses run wrote (edited "
-            f"since?), where a run writes those of {TIMESTAMPS_BACKUP}, the list before any "
-            f"run, that its poses cover: to have the new list's kept, move it to "
-            f"{TIMESTAMPS_BACKUP}; to go back to {TIMESTAMPS_BACKUP}'s, copy it over {TIMESTAMPS}"
-        )
     reference_path = backup if backup.exists() else root / TRAJECTORY  # the original pose log
     reference = Trajectory.load_json(reference_path) if reference_path.exists() else None
     num = len(streams[0])
@@ -592,6 +587,19 @@ def _estimate_poses(
             f"the registered images"
         )
     raw = ours or not split
+    # a list edited since the last run, which filters the .bak's and writes them over it (a split
+    # this command made, `raw`, is made afresh)
+    if (
+        not raw
+        and (root / TIMESTAMPS_BACKUP).exists()
+        and _written_over(root / TIMESTAMPS, live_report)
+    ):
+        raise ValueError(
+            f"{root / TIMESTAMPS}: another list than the last spikegs poses run wrote (edited "
+            f"since?), where a run writes those of {TIMESTAMPS_BACKUP}, the list before any "
+            f"run, that its poses cover: to have the new list's kept, move it to "
+            f"{TIMESTAMPS_BACKUP}; to go back to {TIMESTAMPS_BACKUP}'s, copy it over {TIMESTAMPS}"
+        )
     stated_every = _stated_train_every(meta, meta_path) if raw else None
     if stated_every == _reported(live_report).get(MADE_EVERY):  # the last run's, for its span
         stated_every = None
