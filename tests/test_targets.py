@@ -296,6 +296,31 @@ def test_windows_longer_than_the_room_around_the_timestamps_refused_first(
     build_targets(dataset, load_config("tfp65"), progress=False)  # 65 fits
 
 
+def test_a_window_refused_names_the_file_that_set_it(dataset, tmp_path, monkeypatch):
+    """A window a config file set was refused as "config: sim.window = 67" (the file's name
+    left out, through a base chain too); one edited in Python since, or a built-in method's,
+    stays "config"."""
+    monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("trained"))
+    (tmp_path / "wide.yaml").write_text("base: spikegs\nsim: {window: 67}\n")
+    (tmp_path / "mine.yaml").write_text(f"base: {tmp_path / 'wide.yaml'}\n")
+    config = load_config(tmp_path / "mine.yaml")
+    with pytest.raises(ValueError, match=r"wide.yaml: sim.window = 67 readouts does not fit"):
+        check_targets(dataset, config)
+    config.sim.window = 69
+    with pytest.raises(ValueError, match=r"^config: sim.window = 69 readouts does not fit"):
+        check_targets(dataset, config)
+    (tmp_path / "far.yaml").write_text("supervision: {exposure_window: 21}\n")
+    ts = np.asarray(dataset.train_timestamps)
+    readouts = np.linspace(ts.min() - 5, ts.max() + 5, 20)  # poses 5 readouts beyond them
+    short = Dataset(
+        dataset.root, dataset.meta, dataset.streams,
+        Trajectory(readouts, dataset.trajectory.pose_at(readouts)),
+        dataset.train_timestamps, dataset.test_views,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"far.yaml: supervision.exposure_window = 21 readouts"):
+        check_targets(short, load_config(tmp_path / "far.yaml"))
+
+
 def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
     """A pose log that does not cover the stream's ends (a real recording's): the exposure's
     renders reached past it mid-run ('pose_at: t=... outside the trajectory's readouts')."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -205,6 +206,16 @@ class Config:
     # set it; the defaults' is the default length): a script's `config.train.iterations = 300`
     # after them leaves the schedule as it was (`warn_if_schedule_unscaled`)
     _schedule_length = TrainConfig.iterations
+    # 'section.key' -> (the config file that set it, the value it gave), as `load_config` read
+    # them (`set_by`; a file's, not a built-in method's); replaced, never changed in place
+    _set_in = {}
+
+    def set_by(self, name: str) -> str:
+        """The config file that set the setting `name` ('section.key') to the value it holds,
+        else "config" (a default, a built-in method's, a value set in Python since)."""
+        path, value = self._set_in.get(name, (None, None))
+        now = functools.reduce(getattr, name.split("."), self)
+        return str(path) if path is not None and now == value else "config"
 
     def validate(self) -> Config:
         s, t, d, sim = self.supervision, self.train, self.densify, self.sim
@@ -644,6 +655,10 @@ def load_config(
     if any(factors[k] != 1 for k in ("start", "stop", "every")):  # a schedule as written stays
         _keep_a_round(config.densify, config.train.iterations)
     config._schedule_length = config.train.iterations
+    config._set_in = {
+        name: (path, functools.reduce(getattr, name.split("."), config))
+        for name, path in read.get(SET_IN, {}).items()
+    }
     config = _validated_scaled(config, factors, read.get(SET_IN, {}))
     if not saved_run:  # (a run's config.yaml sets every key)
         warn_if_unread(config, read.get(SET_IN, {}))

@@ -307,9 +307,10 @@ def check_targets(dataset, config: Config) -> None:
             listed = Path(dataset.root, TIMESTAMPS)
             listed = f" (listed in {listed})" if listed.is_file() else ""
             raise ValueError(
-                f"config: {name} = {w} readouts does not fit around the training timestamps of "
-                f"{dataset.root} ({where}): at most {2 * room + 1}; a shorter window, or "
-                f"training timestamps {w // 2} readouts or more inside {ends} ends{listed}"
+                f"{config.set_by(name)}: {name} = {w} readouts does not fit around the training "
+                f"timestamps of {dataset.root} ({where}): at most {2 * room + 1}; a shorter "
+                f"window, or training timestamps {w // 2} readouts or more inside {ends} ends"
+                f"{listed}"
             )
     # the exposure's renders lie within the window's readouts (exposure_poses <= its length),
     # TFI's half a readout after its timestamp: poses there, where they do not cover the stream's
@@ -320,8 +321,8 @@ def check_targets(dataset, config: Config) -> None:
     early = ts.min() - reach < trajectory.start
     if early or ts.max() + late > trajectory.end:
         what = (
-            f"config: supervision.exposure_window = {s.exposure_window} readouts around the "
-            f"training timestamps reaches"
+            f"{config.set_by('supervision.exposure_window')}: supervision.exposure_window = "
+            f"{s.exposure_window} readouts around the training timestamps reaches"
             if reach
             else f"TFI's images, {TFI_TIME} readouts after the training timestamps, lie"
             if late and not early
