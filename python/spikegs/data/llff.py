@@ -126,19 +126,34 @@ def llff_sphere(
     viewmats: np.ndarray, bounds: np.ndarray, K: np.ndarray, width: int, height: int, source=""
 ):
     """Centre [3] and radius of the scene sphere. Inward-facing views (their directions spread,
-    CONVERGING): centred on the point nearest to all optical axes, the radius reaching each
-    camera's near bound (max over views of distance - near), capped by the frustum sphere.
-    Forward-facing: the frustum sphere, each view's far bound capped at the 90th percentile of
-    the far bounds. Warns when the result is LOOSE_SPHERE times the cameras' spread and near bound
-    (loose far bounds): set scene_center and scene_radius in spikegs.json then."""
+    CONVERGING): centred on the point nearest to all optical axes, the radius reaching the
+    cameras' near bounds (the 90th percentile over views of distance - near: one stray near
+    bound, 0.01 of 50, made it 2.5 times the scene's), capped by the frustum sphere; where no
+    near bound reaches in past that point (bounds in other units than the poses: x10 lost 9 dB
+    unsaid), the cameras' own sphere (`centre_of_view`), warned of. Forward-facing: the frustum
+    sphere, each view's far bound capped at the 90th percentile of the far bounds. Warns when
+    the result is LOOSE_SPHERE times the cameras' spread and near bound (loose far bounds): set
+    scene_center and scene_radius in spikegs.json then."""
     far = np.minimum(bounds[:, 1], np.percentile(bounds[:, 1], 90))
     center, radius = frustum_sphere(viewmats, np.stack([bounds[:, 0], far], 1), K, width, height)
     eyes = optical_axes(viewmats)[0]  # [N, 3]
     converged = converging_centre(viewmats)
     if converged is not None:
-        reach = np.linalg.norm(eyes - converged[0], axis=1) - bounds[:, 0]  # [N]
-        if reach.max() > 0:
-            center, radius = converged[0], min(radius, float(reach.max()))
+        distance = np.linalg.norm(eyes - converged[0], axis=1)  # [N]
+        reach = float(np.percentile(distance - bounds[:, 0], 90))
+        if reach > 0:
+            center, radius = converged[0], min(radius, reach)
+        else:
+            center, radius = converged
+            warnings.warn(
+                f"{source}: the near bounds (median {np.median(bounds[:, 0]):.3g}) lie beyond "
+                f"the point the cameras' optical axes meet at (median {np.median(distance):.3g} "
+                f"from them): bounds in other units than the poses? The scene sphere is taken "
+                f"from the cameras alone (centre there, radius {radius:.3g}, their mean distance "
+                f"/ 2.5); set scene_center and scene_radius in {OPTIONS_FILE} if the scene is "
+                f"known",
+                stacklevel=3,
+            )
     spread = np.linalg.norm(eyes - eyes.mean(0), axis=1).max()
     scale = max(spread, float(np.median(bounds[:, 0])))
     if radius > LOOSE_SPHERE * scale:
