@@ -879,7 +879,7 @@ def test_sharp_test_images_in_other_units_are_named_from_their_spikes(sim, nerf,
         load_dataset(root)
 
 
-def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
+def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path, monkeypatch):
     """A wrong `flip` trained the scene upside down without a word, though the training views'
     sharp images showed it."""
     root = copy(nerf, tmp_path)
@@ -900,6 +900,13 @@ def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path):
     # a rate_at_one given left the training images unread, and the check skipped
     (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
     with pytest.warns(UserWarning, match=r"better upside down .* over 7 views\): flip \(False"):
+        load_dataset(root)
+    # images on later training frames alone: the first ORIENTATION_VIEWS frames, imageless,
+    # were all that was read, and nothing checked (the layouts trial)
+    monkeypatch.setattr("spikegs.data.nerf_layout.ORIENTATION_VIEWS", 2)
+    for i in range(2, 6):
+        (root / "train" / f"r_{i}.exr").unlink()
+    with pytest.warns(UserWarning, match=r"better upside down .* over 2 views\): flip \(False"):
         load_dataset(root)
     # the held-out views' sharp images, where the training views have none (unsaid before)
     root = copy(nerf, tmp_path / "held")

@@ -340,10 +340,11 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         raise
     # [H, W, 1] intensity or None; a training frame's image (read one at a time) calibrates the
     # intensity scale where spikegs.json gives none, and checks the spikes' orientation: the first
-    # ORIENTATION_VIEWS training frames' where it gives one (the check was skipped then), those
+    # ORIENTATION_VIEWS training frames' images where it gives one (the check was skipped then;
+    # the first frames', images or not, checked none where only later frames had images), those
     # that cannot be read or fitted left out (nothing else needs them)
     calibrate = options.rate_at_one is None
-    checked = np.cumsum(~np.asarray(test, dtype=bool)) <= ORIENTATION_VIEWS  # [F]
+    checked = 0  # training images read for the orientation check alone
 
     # test images smaller than the spikes' frames, by the transforms file listing them: {file:
     # [(image, w, h)]} (transforms_test.json's were warned of as the training file's)
@@ -357,17 +358,22 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
         name = f"{root / frame['file_path']}"
         return _mono(image, src, (height, row), slice(shift, shift + width), name, what)
 
-    def training_image(i: int, frame: dict, check: bool) -> np.ndarray | None:
+    def training_image(i: int, frame: dict) -> np.ndarray | None:
+        nonlocal checked
         if calibrate:
             return mono(i, frame)
+        if checked >= ORIENTATION_VIEWS:
+            return None
         try:
-            return mono(i, frame) if check else None
+            image = mono(i, frame)
         except ValueError:  # unreadable, or of another aspect ratio
             return None
+        checked += image is not None
+        return image
 
     images = [
-        mono(i, frame, True) if is_test else training_image(i, frame, check)
-        for i, (frame, is_test, check) in enumerate(zip(frames, test, checked))
+        mono(i, frame, True) if is_test else training_image(i, frame)
+        for i, (frame, is_test) in enumerate(zip(frames, test))
     ]
     for listed_in, small in upsampled.items():
         warn_upsampled_tests(
