@@ -1313,8 +1313,12 @@ def test_malformed_test_views_and_json_refused(tmp_path, small):
             lambda text: json.dumps({**json.loads(text), "frames": []}),
             r"trajectory.json: no frames \(poses\)",
         ),
-        "cx off": ("meta.json", rewrite_meta(cx=1000), r"cx 1000 puts the image centre \d\d° off"),
-        "cy off": ("meta.json", rewrite_meta(cy=-100), r"cy -100 puts the image centre \d\d° off"),
+        "cx off": ("meta.json", rewrite_meta(cx=1000), r"cx 1000 puts the image centre 88.1° off"),
+        "cy off": (
+            "meta.json",
+            rewrite_meta(cy=-100),
+            r"cy -100 puts the image centre \d\d\.\d° off",
+        ),
         # a 180° pinhole trained without a word
         "fx tiny": ("meta.json", rewrite_meta(fx=1e-9), r"fx 1e-09 gives a 180° field of view"),
         # ... and a 0° one was inf in float32 (training blamed the poses)
@@ -1646,6 +1650,14 @@ def test_a_scene_far_from_the_origin_is_warned_of(small, moved_world):
     # a scene in other units, its cameras under a unit from its centre (0.3): judged alike
     with pytest.warns(UserWarning, match="lies 1.73e\\+05 units from the origin, .* round by"):
         moved_world(small, np.full(3, 1e5), scale=0.1)
+    # judged by the longer focal length, fy's where it is (fx alone: one tenth of the rounding
+    # said, or none; the geometry trial)
+    for key in ("fx", "fy"):
+        meta = {**small.meta, key: small.meta[key] / 10}
+        trajectory, timestamps = small.trajectory, small.train_timestamps
+        narrow = Dataset(small.root, meta, small.streams, trajectory, timestamps, [])
+        with pytest.warns(UserWarning, match="lies 1.73e\\+05 units .* round by ~0.1"):
+            moved_world(narrow, np.full(3, 1e5))
 
 
 def test_a_scene_radius_out_of_scale_with_the_cameras_is_warned_of(small):
@@ -1711,7 +1723,7 @@ def test_a_cropped_cameras_principal_point_is_accepted(tmp_path):
     """A 64-column crop of a 400-wide camera has cx ~ 200: off the image, 23° off its axis."""
     meta = {"width": 64, "height": 48, "fx": 400.0, "fy": 400.0, "cx": 200.0, "cy": 24.0}
     check_meta_values(meta, tmp_path / "meta.json", ["cx", "cy"])
-    with pytest.raises(ValueError, match="cx 1200.0 puts the image centre 71° off"):
+    with pytest.raises(ValueError, match="cx 1200.0 puts the image centre 71.1° off"):
         check_meta_values({**meta, "cx": 1200.0}, tmp_path / "meta.json", ["cx"])
     # a focal under a pixel (an 8-pixel frame at fx 0.5: 166° of view, accepted) is judged too
     tiny = {"width": 8, "height": 8, "fx": 0.5, "fy": 0.5, "cx": 6.0, "cy": 4.0}
@@ -1732,8 +1744,11 @@ def test_the_principal_points_angle_is_taken_from_the_image_centre(tmp_path, key
         if angle < 60:
             check_meta_values(*edited)
         else:
-            with pytest.raises(ValueError, match=f"{key} .* puts the image centre 60° off"):
-                check_meta_values(*edited)
+            with pytest.raises(ValueError, match=f"{key} .* puts the image centre 60.1° off"):
+                check_meta_values(*edited)  # (shown as 60°, under its own bound: a trial)
+    fx = 32 / math.tan(math.radians(170.3 / 2))  # 170.3° across 64 pixels, shown as 170°
+    with pytest.raises(ValueError, match=r"gives a 170.3° field of view .* to 170° of view"):
+        check_meta_values({**meta, "fx": fx}, tmp_path / "meta.json", ["fx"])
 
 
 def test_raw_width_equal_to_the_width_is_accepted_without_col_offset(tmp_path):

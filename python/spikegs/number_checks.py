@@ -29,6 +29,15 @@ def past_float(value: int) -> str:
     return f"a {len(str(abs(value)))}-digit integer, beyond a float's range"
 
 
+def shown_past(value: float, bound: float) -> str:
+    """`value` with the digits that show it past `bound` (170.3 beyond 170 was shown as 170)."""
+    for digits in range(3, 17):
+        text = f"{value:.{digits}g}"
+        if float(text) != bound:
+            return text
+    return repr(value)
+
+
 def as_flag(name: str, value) -> bool:
     """`value` as a bool; ValueError unless it is one (a string "false" would read as True)."""
     if not isinstance(value, (bool, np.bool_)):

@@ -30,7 +30,7 @@ from .. import _C
 from ..atomic_save import NAME_MAX, is_temporary, target_name, write_text_atomically
 from ..file_lock import exclusive_lock, refuse_if_held, shared_lock
 from ..image_io import read_stored_image, srgb_to_linear, write_image
-from ..number_checks import is_int, is_number
+from ..number_checks import is_int, is_number, shown_past
 from ..rasterize import MAX_SIZE
 from ..regular_file import is_given, read_text
 from ..run_summary import CONFIG, SUMMARY, read_summary
@@ -262,7 +262,7 @@ class Dataset:
         distance = self._camera_distance()
         if not distance > 0:  # cameras at the centre (a turn on the spot): no scale to judge by
             return
-        pixels = float(self.K[0, 0]) * offset * 2.0**-24 / float(distance)
+        pixels = float(self.K[:2, :2].max()) * offset * 2.0**-24 / float(distance)  # fx or fy
         if pixels > FLOAT32_ROUNDING_PX:
             warnings.warn(
                 f"{self.root}: the scene's centre lies {offset:.3g} units from the origin, where "
@@ -1339,10 +1339,11 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
             size = meta.get("width" if key == "fx" else "height")
             field = field_of_view_deg(size, meta[key]) if is_number(size) else 0
             if not MIN_FIELD_DEG <= field <= MAX_FIELD_DEG and is_number(size):
+                bound = MIN_FIELD_DEG if field < MIN_FIELD_DEG else MAX_FIELD_DEG
                 raise ValueError(
-                    f"{path}: {key} {meta[key]!r} gives a {field:.3g}° field of view across "
-                    f"{size} pixels; a pinhole camera's focal length in pixels expected, "
-                    f"{MIN_FIELD_DEG:g}° to {MAX_FIELD_DEG}° of view"
+                    f"{path}: {key} {meta[key]!r} gives a {shown_past(field, bound)}° field of "
+                    f"view across {size} pixels; a pinhole camera's focal length in pixels "
+                    f"expected, {MIN_FIELD_DEG:g}° to {MAX_FIELD_DEG}° of view"
                 )
         elif key in ("cx", "cy"):
             number(key)
@@ -1353,7 +1354,8 @@ def check_meta_values(meta: dict, path: Path, keys) -> None:
                 angle = np.degrees(np.arctan(abs(meta[key] - size / 2) / focal))
                 if angle > MAX_OFF_AXIS_DEG:  # a principal point 30 widths away trained nothing
                     raise ValueError(
-                        f"{path}: {key} {meta[key]!r} puts the image centre {angle:.0f}° off the "
+                        f"{path}: {key} {meta[key]!r} puts the image centre "
+                        f"{shown_past(angle, MAX_OFF_AXIS_DEG)}° off the "
                         f"optical axis (|{key} - {size}/2| over the focal length {focal}); "
                         f"expected under {MAX_OFF_AXIS_DEG}°"
                     )

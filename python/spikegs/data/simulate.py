@@ -581,7 +581,7 @@ def simulate_dataset(
     except ValueError as err:
         raise ValueError(
             f"{err}: the camera scene '{source.name}' gives a {height}x{width} frame (another "
-            f"size, or a narrower field of view)"
+            f"size, a narrower field of view, or a principal point nearer the image's centre)"
         ) from None
     trajectory = source.trajectory(readouts, speed)
     rate = params.rate_at_one  # test images in firing-rate units, as TFP estimates them
