@@ -1284,7 +1284,8 @@ def test_no_held_out_view_is_refused(llff, tmp_path):
     with pytest.raises(ValueError, match=r"test_views expected a non-empty list .*, found \[\]"):
         load_dataset(root)
     write_options(root, test_views=list(range(VIEWS)))
-    with pytest.raises(ValueError, match="no training timestamp left once the test views are"):
+    said = rf"no training timestamp left once the test views are held out \({VIEWS} of them\): "
+    with pytest.raises(ValueError, match=said + "fewer held-out views \\(test_views in spikegs"):
         load_dataset(root)
 
 
