@@ -1835,6 +1835,35 @@ def test_test_images_in_other_units_than_firing_rates_are_warned_of(tmp_path):
         load_dataset(root)
 
 
+def test_light_past_saturation_is_not_taken_for_other_units(tmp_path):
+    """A lamp past the sensor's saturation (its pixels fire every readout) shows brighter in its
+    image than any spikes: images in the right units were told "6.65 times their spikes'" (the
+    extreme-scenes trial). Saturated pixels are left out; images in other units are still told."""
+    from spikegs.data.dataset import TestView, warn_about_test_units
+
+    class Stream:  # a constant-light stream: TFP `rate` [H, W] at any readout
+        height, width = 32, 32
+
+        def __init__(self, rate):
+            self.rate = rate
+
+        def __len__(self):
+            return 200
+
+        def tfp(self, k, window):
+            return self.rate
+
+    light = np.full((32, 32), 0.2)
+    light[:8, :8] = 40.0  # a lamp: its image 40 spikes a readout, its spikes one
+    views = [TestView("v", np.eye(4), light[..., None], 100.0)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_about_test_units([Stream(np.minimum(light, 1.0))], views, tmp_path, 0.0)
+    views = [TestView("v", np.eye(4), 255 * light[..., None], 100.0)]  # 8-bit units
+    with pytest.warns(UserWarning, match=r"test images average 255 times their spikes'"):
+        warn_about_test_units([Stream(np.minimum(light, 1.0))], views, tmp_path, 0.0)
+
+
 def test_the_tiny_dataset_loads(tmp_path):
     ds = load_dataset(write_tiny(tmp_path / "d", timestamps=(32, T - 33)))
     assert ds.train_timestamps.tolist() == [32, T - 33]
