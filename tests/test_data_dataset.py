@@ -431,6 +431,11 @@ def test_data_that_defeats_every_method_is_flagged(tmp_path):
     cases.append(("solids", {"speed": 180.0}, aliased))
     # 18.9 dB against 21.4; a rendered scene's remedy, not a frame sequence's
     cases.append(("solids", {"frame_every": 100.0}, "cross-fades them.*; a smaller frame_every"))
+    # a frame every readout already: the least frame_every (a smaller one was advised, refused)
+    fastest = r"cross-fades them.*; a slower camera \(--speed\), or one further"
+    cases.append(
+        ("solids", {"speed": 60.0, "frame_every": 1.0}, (r"turns up to 1920\.0°", fastest))
+    )
     # one training view, which cannot place a scene in depth (it trained in silence)
     cases.append(("solids", {"train_every": 5000}, r"one training timestamp .*--train-every"))
     one = {"readouts": 195, "test_on_path": 1, "train_every": 129}  # 161 beside the view
@@ -838,6 +843,18 @@ def test_colour_files_in_another_order_or_one_upside_down_are_named(tmp_path):
     save_dat(blue, bits, flip=not ds.meta["flip"])
     (said,) = channel_warnings()
     assert "the spikes of spikes_b.dat match their channel of the images better upside" in said
+
+
+def test_light_with_no_lit_pixel_is_said_as_such():
+    """Light so faint that no pixel fires LIT_SPIKES spikes over the stream was said to fire "0
+    spikes a readout" (0.00047: the extreme-scenes trial); its brightest pixels' rate now."""
+    from spikegs.data.dataset import warn_if_faint
+
+    rates = np.full((16, 16), 0.0004)
+    rates[:4] = 0.0005
+    said = r"d/spikes.dat: no pixel fires 3 spikes in its 600 readouts \(the brightest 0.1 % fire "
+    with pytest.warns(FaintLightWarning, match=said + r"0.0005 spikes a readout\), fainter .* 0.0"):
+        warn_if_faint([rates], 600, Path("d/spikes.dat"), "meta.json")
 
 
 def test_faint_light_is_named_on_loading(small, tmp_path):

@@ -269,11 +269,14 @@ class Trainer:
         else:
             warnings.warn(
                 f"{d.root}: {sphere} covers {100 * coverage:.1f} % of the median training view "
-                f"(a right one covers 53-100 %): the Gaussians start in it, and the means' "
-                f"learning rate, the near plane and the sizes densification works with scale "
-                f"with its radius; a sphere too small for the scene (a radius 0.3x the right "
-                f"one, or translations in units 10x its own) trained 7.5-10.8 dB low. Check "
-                f"scene_center and scene_radius against the poses (docs/datasets.md)",
+                f"(a right one covers 53-100 % of views the scene fills): the Gaussians start "
+                f"in it, and the means' learning rate, the near plane and the sizes "
+                f"densification works with scale with its radius; a sphere too small for the "
+                f"scene (a radius 0.3x the right one, or translations in units 10x its own) "
+                f"trained 7.5-10.8 dB low. Check scene_center and scene_radius against the "
+                f"poses (docs/datasets.md); where they are right, the scene is that small in "
+                f"the views (cameras far from it: 100 radii away, a 40° view showed it a pixel "
+                f"across, and a run learnt a constant)",
                 stacklevel=2,
             )
 

@@ -664,19 +664,26 @@ def warn_if_faint(
     of the 99.9th percentile's rate and of LIT_SPIKES or more spikes (a dark pixel's spike or two
     in a short stream is no light), hot ones (HOT_RATE or more) left out of both. A recording's
     faint light was said nowhere; `source` names its file."""
-    light = 0.0
+    light = brightest = 0.0  # (the brightest 0.1 %'s rate, said where no pixel is lit)
     for channel in rates:
         usable = channel[channel < HOT_RATE]
         if usable.size:
             light_rates = usable - dark_rate
-            lit = (light_rates > LIT_SHARE * np.percentile(light_rates, 99.9)) & (
-                usable * readouts >= LIT_SPIKES
-            )
+            top = float(np.percentile(light_rates, 99.9))
+            lit = (light_rates > LIT_SHARE * top) & (usable * readouts >= LIT_SPIKES)
             light = max(light, float(light_rates[lit].mean()) if lit.any() else 0.0)
+            brightest = max(brightest, top)
     if light < FAINTEST_MEASURED:
         dark = f", less {settings}'s dark_rate {dark_rate:g}" if dark_rate else ""
+        lit = (  # (none: "fire 0 spikes a readout" was said of a light of 0.00047)
+            f"its lit pixels fire {light:.3g} spikes a readout on average{dark}"
+            if light
+            else f"no pixel fires {LIT_SPIKES} spikes in its {readouts} readouts (the brightest "
+            f"0.1 % fire {brightest:.2g} spikes a readout{dark})"
+        )
+        light = light or brightest
         warnings.warn(
-            f"{source}: its lit pixels fire {light:.3g} spikes a readout on average{dark}, "
+            f"{source}: {lit}, "
             f"fainter than any light SpikeGS was measured on ({FAINTEST_MEASURED:g}; a "
             f"33-readout TFP counts {33 * light:.2g} spikes): training fits shot noise, or "
             f"learns the background alone, and a held-out PSNR that falls is the light's, not "

@@ -310,6 +310,9 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
         frames = "rendered light frames" if rendered else "frames of the sequence"
         remedy = (
             "a smaller frame_every (--frame-every)"
+            if rendered and np.diff(times).max() > 1
+            else "a slower camera (--speed), or one further from the scene (a frame every "
+            "readout already: frame_every 1, the least)"
             if rendered
             else "a denser frame sequence, or its frames in order (a file listing frame_10 "
             "before frame_2, sorted as text, jumps back and forth)"
