@@ -1100,6 +1100,18 @@ def test_training_timestamps_edited_since_the_last_run_are_refused(tmp_path, mon
     assert "train_timestamps.txt: another list than the last spikegs poses run wrote" in said
     assert "stopped before matching" not in said
     assert listed.read_text().split() == [str(k) for k in range(60, 141, 4)]
+    # each remedy, followed, lets a run go on (the review: the list moved to the .bak left the
+    # split a file short, and a copy of the .bak back was refused as edited still)
+    backup = still.root / "train_timestamps.txt.bak"
+    shutil.copy(listed, backup)  # the new list kept
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    assert "stopped before matching" in capsys.readouterr().err
+    listed.write_text("".join(f"{k}\n" for k in range(80, 121, 4)))
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    assert "another list than the last" in capsys.readouterr().err
+    shutil.copy(backup, listed)  # back to the .bak's
+    assert main(["poses", str(still.root), "--count", "8"]) == 2
+    assert "stopped before matching" in capsys.readouterr().err
 
 
 def test_similarity_never_mirrors_the_world():

@@ -588,17 +588,19 @@ def _estimate_poses(
         )
     raw = ours or not split
     # a list edited since the last run, which filters the .bak's and writes them over it (a split
-    # this command made, `raw`, is made afresh)
+    # this command made, `raw`, is made afresh); one equal to the .bak is the .bak's
+    listed, backup_list = root / TIMESTAMPS, root / TIMESTAMPS_BACKUP
     if (
         not raw
-        and (root / TIMESTAMPS_BACKUP).exists()
-        and _written_over(root / TIMESTAMPS, live_report)
+        and backup_list.exists()
+        and _written_over(listed, live_report)
+        and listed.read_bytes() != backup_list.read_bytes()
     ):
         raise ValueError(
-            f"{root / TIMESTAMPS}: another list than the last spikegs poses run wrote (edited "
-            f"since?), where a run writes those of {TIMESTAMPS_BACKUP}, the list before any "
-            f"run, that its poses cover: to have the new list's kept, move it to "
-            f"{TIMESTAMPS_BACKUP}; to go back to {TIMESTAMPS_BACKUP}'s, copy it over {TIMESTAMPS}"
+            f"{listed}: another list than the last spikegs poses run wrote (edited since?), "
+            f"where a run writes those of {TIMESTAMPS_BACKUP}, the list before any run, that its "
+            f"poses cover: to have the new list's kept, copy it over {TIMESTAMPS_BACKUP}; to go "
+            f"back to {TIMESTAMPS_BACKUP}'s, copy that over {TIMESTAMPS}"
         )
     stated_every = _stated_train_every(meta, meta_path) if raw else None
     if stated_every == _reported(live_report).get(MADE_EVERY):  # the last run's, for its span
