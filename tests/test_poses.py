@@ -552,6 +552,16 @@ def test_a_rerun_makes_its_own_train_every_afresh(tmp_path, monkeypatch, capsys)
     (raw / "meta.json").write_text(json.dumps({**doc, "train_every": 5}))
     assert main(["poses", str(raw)]) == 0
     assert load_dataset(raw).meta["train_every"] == 5
+    # a re-run reading the spikes the other way up than the first run (its flip corrected):
+    # mirrored against that run's SfM, whose flip was the wrong one; not told to undo it (the
+    # review)
+    capsys.readouterr()
+    monkeypatch.setattr(
+        "spikegs.poses_cli.reconstruct", lambda *a, **k: sfm.unmirrored(registered(*a, **k))
+    )
+    assert main(["poses", str(raw)]) == 0
+    said = capsys.readouterr().out
+    assert "rotation difference median" in said and "flip" not in said, said
 
 
 def test_an_implausible_estimated_focal_is_flagged():
@@ -1054,6 +1064,15 @@ def test_cameras_of_images_read_upside_down_are_said_to_be(monkeypatch):
     def unfitted(*args):  # no similarity fits the cameras upside down: the warning as before
         raise ValueError("align: the registered cameras' centres do not follow")
 
+    # forward-facing cameras: a log in OpenGL's axes fits as well upside down (the review)
+    ahead = np.stack(
+        [np.linspace(-0.5, 0.5, 20), 0.1 * np.sin(np.linspace(0, 6, 20)), np.full(20, 3.0)], 1
+    )
+    sliding = np.stack([look_at(e, [0.0, 0.0, 0.0]) for e in ahead])  # [20, 4, 4]
+    gl_log = Trajectory(readouts[:20], np.diag([1.0, -1, -1, 1]) @ sliding)
+    recon = align(_recon(readouts[:20], sliding, np.eye(3), np.zeros((0, 3)), None, 20), gl_log)
+    off = _pose_report(recon, gl_log, 1.0)["rotation_error_deg_median"]
+    assert off > 20 and _upside_down_note(recon, gl_log, off, "trajectory.json", meta) is None
     monkeypatch.setattr("spikegs.poses_cli.align", unfitted)
     assert _upside_down_note(recon, reference, 35.0, "trajectory.json", meta) is None
 

@@ -70,6 +70,7 @@ from .data.real import (
 )
 from .data.simulate import default_train_every
 from .data.trajectory import Trajectory
+from .data.view_geometry import CONVERGING, axes_meeting
 from .interrupt import deferred_interrupt, interruption
 from .number_checks import is_int
 from .output_paths import writable_folder
@@ -460,8 +461,10 @@ def _upside_down_note(
     """The warning, where `recon`, aligned to `reference` (the file `name`), is `off` (its median
     rotation error, degrees) by over SUSPECT_ROTATION_DEG but its cameras read upside down
     (`unmirrored`) are within that: meta.json's `flip` is likely wrong (a wrong flip was 35 deg
-    off, blamed on the pose log or SfM); else None."""
-    if off <= SUSPECT_ROTATION_DEG:
+    off, blamed on the pose log or SfM); else None. Only where the cameras' view directions
+    spread (CONVERGING): forward-facing ones in a log of OpenGL's axes, or rolled 180 deg, fit
+    as well upside down (10.5 and 17.8 deg: the review)."""
+    if off <= SUSPECT_ROTATION_DEG or axes_meeting(recon.viewmats).spread < CONVERGING:
         return None
     try:
         flipped = align(unmirrored(recon), reference)
@@ -735,7 +738,9 @@ def _estimate_poses(
             + (" — against the first spikegs poses run's poses, not a pose log" if sfm else "")
         )
         off = report["rotation_error_deg_median"]
-        upside_down = _upside_down_note(recon, reference, off, reference_path.name, meta)
+        upside_down = (  # (against an earlier run's SfM, the flip it read with: unjudged)
+            None if sfm else _upside_down_note(recon, reference, off, reference_path.name, meta)
+        )
         if upside_down:
             messages.append(upside_down)
         elif off > SUSPECT_ROTATION_DEG:  # (written unsaid)
