@@ -544,10 +544,16 @@ def test_a_rerun_makes_its_own_train_every_afresh(tmp_path, monkeypatch, capsys)
     monkeypatch.setattr("spikegs.poses_cli.reconstruct", registered)
     assert main(["poses", str(raw)]) == 0
     assert json.loads((raw / "meta.json").read_text())["train_every"] == 1  # ceil(~900 / 1024)
+    report = json.loads((raw / "sfm" / "report.json").read_text())
+    del report["train_every_made"]  # a dataset posed before that record: judged by the span
+    (raw / "sfm" / "report.json").write_text(json.dumps(report))
     span = (100, 2300)
     assert main(["poses", str(raw)]) == 0
     again = load_dataset(raw)
     assert again.meta["train_every"] == 3 and len(again.train_timestamps) <= 1024  # ~2200 / 1024
+    span = (600, 1500)  # by the record
+    assert main(["poses", str(raw)]) == 0
+    assert load_dataset(raw).meta["train_every"] == 1
     doc = json.loads((raw / "meta.json").read_text())  # a stated one is kept
     (raw / "meta.json").write_text(json.dumps({**doc, "train_every": 5}))
     assert main(["poses", str(raw)]) == 0

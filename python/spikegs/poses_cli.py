@@ -338,6 +338,20 @@ def _stated_train_every(meta: dict, meta_path: Path) -> int | None:
     return None if every is None else int(every)
 
 
+def _made_every(root: Path, meta: dict, report: str | None) -> int | None:
+    """The train_every the last run made for its split and wrote to meta.json, none being
+    stated: its `report`'s (sfm/report.json's text) record; a report from before that record
+    (2026-12-07), of a split this command made: ceil(R / 1024) of the R readouts its poses span
+    (trajectory.json's recorded span); else None."""
+    reported = _reported(report)
+    if MADE_EVERY in reported:
+        return reported[MADE_EVERY]
+    if not reported or meta.get("held_out_by") != HELD_OUT_BY or not (root / TRAJECTORY).is_file():
+        return None
+    first, last = Trajectory.load_json(root / TRAJECTORY).recorded_span()
+    return default_train_every(int(last - first) + 1)
+
+
 def _registered_timestamps(root: Path, registered: np.ndarray):
     """The dataset's training timestamps [M], those before any poses run dropped some (its .bak,
     where there is one: a run registering a narrower span narrowed them for good), and which [M]
@@ -606,8 +620,8 @@ def _estimate_poses(
             f"back to {TIMESTAMPS_BACKUP}'s, copy that over {TIMESTAMPS}"
         )
     stated_every = _stated_train_every(meta, meta_path) if raw else None
-    if stated_every == _reported(live_report).get(MADE_EVERY):  # the last run's, for its span
-        stated_every = None
+    if stated_every is not None and stated_every == _made_every(root, meta, live_report):
+        stated_every = None  # the last run's, for its span
     import_pycolmap()  # not installed: refused before announcing SfM, the images unmade
     posed = reference is not None
     sim_model = _cached_sim(root, posed) if sim else None  # none cached: refused before SfM
@@ -763,8 +777,8 @@ def _estimate_poses(
     if raw:  # held-out views and training timestamps too, so that the recording trains
         span = recon.readouts[-1] - recon.readouts[0] + 1  # the readouts the poses cover
         train_every = stated_every or default_train_every(span)
-        if stated_every is None:  # (a re-run took it for stated: 1275 timestamps over 1468)
-            report[MADE_EVERY] = train_every
+        # (a re-run took it for stated: 1275 timestamps over 1468); null: stated
+        report[MADE_EVERY] = train_every if stated_every is None else None
         truth, notes = pseudo_truth(streams)
         views, ks, spaced = _held_out_split(streams, trajectory, recon.readouts, train_every, truth)
         note = {**ground_truth_note(0, len(views)), **notes}
