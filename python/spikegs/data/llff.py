@@ -53,6 +53,9 @@ POSES_BOUNDS, SPIKES_DIR, STREAM, READOUTS = (
 )
 # camera axes [down, right, backwards] <-> [right, down, forward]; the matrix is its own inverse
 LLFF_TO_OPENCV = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+# near bounds this many times the cameras' distance to where their axes meet: in other units
+# (x10 lost 9 dB unsaid); nearer, axes that cross in front of the scene keep the frustum sphere
+OFF_SCALE = 2.0
 LOOSE_SPHERE = 20.0  # warn when the sphere is this many times the cameras' spread and near bound
 # _warn_if_looking_away: view directions spread (CONVERGING) whose optical axes' nearest point
 # lies behind every camera, within 60° of straight behind (cos < BEHIND_COS), and as far from them
@@ -129,8 +132,9 @@ def llff_sphere(
     CONVERGING): centred on the point nearest to all optical axes, the radius reaching the
     cameras' near bounds (the 90th percentile over views of distance - near: one stray near
     bound, 0.01 of 50, made it 2.5 times the scene's), capped by the frustum sphere; where no
-    near bound reaches in past that point (bounds in other units than the poses: x10 lost 9 dB
-    unsaid), the cameras' own sphere (`centre_of_view`), warned of. Forward-facing: the frustum
+    near bound reaches in past that point, the frustum sphere, or, the near bounds OFF_SCALE
+    times the cameras' distance to it (in other units than the poses: x10 lost 9 dB unsaid),
+    the cameras' own sphere (`centre_of_view`), warned of. Forward-facing: the frustum
     sphere, each view's far bound capped at the 90th percentile of the far bounds. Warns when
     the result is LOOSE_SPHERE times the cameras' spread and near bound (loose far bounds): set
     scene_center and scene_radius in spikegs.json then."""
@@ -140,15 +144,17 @@ def llff_sphere(
     converged = converging_centre(viewmats)
     if converged is not None:
         distance = np.linalg.norm(eyes - converged[0], axis=1)  # [N]
-        reach = float(np.percentile(distance - bounds[:, 0], 90))
+        # (the largest left out below 11 views: interpolated, one stray bound still counted)
+        reach = float(np.percentile(distance - bounds[:, 0], 90, method="lower"))
         if reach > 0:
             center, radius = converged[0], min(radius, reach)
-        else:
+        elif np.median(bounds[:, 0]) > OFF_SCALE * np.median(distance):
             center, radius = converged
             warnings.warn(
-                f"{source}: the near bounds (median {np.median(bounds[:, 0]):.3g}) lie beyond "
-                f"the point the cameras' optical axes meet at (median {np.median(distance):.3g} "
-                f"from them): bounds in other units than the poses? The scene sphere is taken "
+                f"{source}: the near bounds (median {np.median(bounds[:, 0]):.3g}) lie over "
+                f"{OFF_SCALE:g} times as far from the cameras as the point their optical axes "
+                f"meet at (median {np.median(distance):.3g}): bounds in other units than the "
+                f"poses? The scene sphere is taken "
                 f"from the cameras alone (centre there, radius {radius:.3g}, their mean distance "
                 f"/ 2.5); set scene_center and scene_radius in {OPTIONS_FILE} if the scene is "
                 f"known",
