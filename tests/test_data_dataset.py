@@ -1026,7 +1026,8 @@ def test_missing_files_and_nan_poses(tmp_path, small):
         root = tmp_path / f"split_{name}"
         shutil.copytree(small.root, root)
         (root / name).unlink()
-        said = rf"{name} \(train_timestamps.txt and test_views.json, .* the LLFF layout .*poses`"
+        said = rf"{name} \(train_timestamps.txt and test_views.json, .* near and far .* the LLFF "
+        said += r"layout \(.* in a folder without meta.json\), .*poses`"
         with pytest.raises(FileNotFoundError, match=said):
             load_dataset(root)
     with pytest.raises(FileNotFoundError, match=r"no dataset found: none of meta.json .*LLFF"):

@@ -515,9 +515,10 @@ def existing_file(root: Path, name: str, what: str = "") -> Path:
 # was told the file missing alone)
 SPLIT = (
     f"{TIMESTAMPS} and {TEST_VIEWS}, the readouts training samples and the held-out views, are "
-    f"the dataset's split: write them (docs/datasets.md), or keep a pose log of your own in the "
-    f"LLFF layout (spikes.dat, poses_bounds.npy, readouts.txt), which makes its own split; "
-    f"`spikegs poses` makes them too, replacing the poses with SfM's aligned to them"
+    f"the dataset's split: write them (docs/datasets.md), or keep a pose log of your own, with "
+    f"near and far depth bounds, in the LLFF layout (spikes.dat, poses_bounds.npy, readouts.txt "
+    f"in a folder without {META}), which makes its own split; `spikegs poses` makes them too, "
+    f"replacing the poses with SfM's aligned to them"
 )
 
 

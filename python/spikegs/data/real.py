@@ -248,10 +248,12 @@ def _finish(
     `progress`: a bar where the search for a flicker takes long (`flicker.PROGRESS_AFTER`)."""
     meta["num_readouts"] = len(stream)
     if not len(timestamps):
+        per_view = isinstance(stream, ViewStreams)
         raise ValueError(  # (the options and the fix were not named: the layouts trial)
             f"{root}: no training timestamp left once the test views are held out ({len(held_out)} "
             f"of them): fewer held-out views (test_views in {OPTIONS_FILE}; every "
-            f"{HOLDOUT_EVERY}th view by default, the first included), or more views or readouts"
+            f"{HOLDOUT_EVERY}th view by default, the first included), or "
+            + ("more views (each trains at one timestamp)" if per_view else "more readouts")
         )
     dataset = Dataset(root, meta, [stream], trajectory, np.asarray(timestamps, np.int64), [])
     sharp = [h for h in held_out if h.image is not None]
