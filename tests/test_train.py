@@ -1510,6 +1510,10 @@ def test_iterations_set_after_a_schedule_that_then_has_no_round_are_warned_of(da
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
     off = load_config("tfp33", iterations=2)
     off.densify.start = 2
+    rescaled = load_config("tfp33")
+    rescaled.train.iterations = 2  # then scaled from there: the schedule still 3000's (review)
+    with pytest.warns(UserWarning, match=r"for 3000 iterations \(densify.start 500"):
+        warn_if_schedule_unscaled(rescaled.with_iterations(2))
     longer = load_config("tfp33")
     longer.train.iterations = 30000  # 3DGS's schedule: rounds 500..15000
     with warnings.catch_warnings():

@@ -450,7 +450,10 @@ class Config:
         config = copy.deepcopy(self)
         factor = iterations / config.train.iterations
         _scale_schedule(config.densify, SCHEDULE_KEYS, factor)
-        config.train.iterations = config._schedule_length = iterations
+        config.train.iterations = iterations
+        # the schedule's own length scaled alike: a train.iterations set by hand before, which
+        # left the schedule as it was, still warned of (`warn_if_schedule_unscaled`)
+        config._schedule_length = max(1, round(self._schedule_length * factor))
         if factor != 1:
             _keep_a_round(config.densify, iterations)
         return _validated_scaled(config, dict.fromkeys(SCHEDULE_KEYS, factor), {})
