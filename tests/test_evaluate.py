@@ -256,6 +256,9 @@ def test_a_missing_or_untrained_run_is_told_so_before_its_lock(trained, tmp_path
     for name in ("a", "b"):  # a folder of one's runs: was told to train the run first
         (tmp_path / "runs" / name).mkdir(parents=True)
         (tmp_path / "runs" / name / "config.yaml").write_text("method: tfp33\n")
+        (tmp_path / "runs" / name / "log.jsonl").write_text("")
+    (tmp_path / "runs" / "hydra").mkdir()  # another tool's config.yaml alone: not a run
+    (tmp_path / "runs" / "hydra" / "config.yaml").write_text("lr: 1\n")
     said = r"runs: a folder of runs \(a, b\), not a run; give one of them, e.g. .*runs/a$"
     with pytest.raises(FileNotFoundError, match=said):
         evaluate_run(tmp_path / "runs", trained[0])

@@ -114,6 +114,7 @@ def trained_scene(run_dir: Path) -> Path:
         p.parent.relative_to(run_dir).as_posix()
         for pattern in (f"*/{CONFIG}", f"runs/*/{CONFIG}", f"runs/*/*/{CONFIG}")
         for p in Path(run_dir).glob(pattern)
+        if (p.parent / LOG).is_file()  # a run's (another tool's config.yaml alone: not)
     )
     if runs:
         shown = ", ".join(runs[:4]) + (f" and {len(runs) - 4} more" if len(runs) > 4 else "")
