@@ -991,8 +991,11 @@ def test_keys_meta_json_does_not_read_are_named(small, tmp_path):
     meta = json.loads((root / "meta.json").read_text())
     assert set(meta) <= set(META_KEYS)
     (root / "meta.json").write_text(json.dumps({**meta, "bayer_pattern": "RGGB", "rate_at_1": 1}))
-    with pytest.warns(UserWarning, match=r"meta.json: bayer_pattern, rate_at_1: not meta.json's "):
+    with pytest.warns(
+        UserWarning, match=r"meta.json: bayer_pattern, rate_at_1: not meta.json's "
+    ) as said:
         load_dataset(root)
+    assert [w.filename for w in said if "bayer" in str(w.message)] == [__file__]  # the caller's
 
 
 def test_the_other_cameras_spike_files_beside_a_datasets_own_are_named_unread(tmp_path):

@@ -44,6 +44,7 @@ from spikegs.poses_cli import (
     _registered_timestamps,
     _reprojection_report,
     _upside_down_note,
+    estimate_poses,
 )
 from spikegs.sfm import Reconstruction, align, reconstruct, similarity, spike_images
 from spikegs.sh import C0
@@ -685,6 +686,10 @@ def test_poses_names_meta_json_keys_it_does_not_read(tmp_path, monkeypatch, caps
     assert main(["poses", str(still.root), "--count", "8"]) == 2
     said = capsys.readouterr().err
     assert re.search(r"meta.json: col_ofset: not meta.json's keys, not read", said), said
+    with pytest.warns(UserWarning, match="col_ofset") as warned:  # said of the caller's line
+        with pytest.raises(ValueError, match="stopped before matching"):
+            estimate_poses(still.root, count=8)
+    assert [w.filename for w in warned if "col_ofset" in str(w.message)] == [__file__]
 
 
 def test_structure_from_motion_is_the_same_run_twice(textured, tmp_path):

@@ -273,7 +273,8 @@ def _recording(root: Path, meta: dict) -> list[SpikeStream]:
     # as training reads them later, in its words: sizes > 0 (a 0 was refused by the stream
     # without naming meta.json), channels 1 or 3, flip a JSON boolean
     check_meta_values(meta, where, [*required, *stated])
-    warn_unknown_meta_keys(meta, where, stacklevel=2)  # (a misspelt col_offset: SfM failed)
+    # (a misspelt col_offset: SfM failed); said of estimate_poses' caller
+    warn_unknown_meta_keys(meta, where, stacklevel=4)
     streams = open_streams(root, spike_files(meta["channels"]), meta)
     for stream in streams:  # a dark or saturated file: said before SfM, not after it
         check_stream_image(stream, META)

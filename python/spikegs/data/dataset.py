@@ -1294,7 +1294,7 @@ def _check_meta(meta: dict, path: Path) -> None:
     if missing:
         poses = f" (`spikegs poses {shell_path(path.parent)}` estimates them)" * estimated
         raise ValueError(f"{path}: missing keys {missing}{poses}")
-    warn_unknown_meta_keys(meta, path, stacklevel=3)
+    warn_unknown_meta_keys(meta, path, stacklevel=3)  # (load_dataset's caller)
     version = meta.get("format_version", FORMAT_VERSION)
     if version != FORMAT_VERSION or isinstance(version, (bool, str)):  # 1.0 is 1
         raise ValueError(
