@@ -855,6 +855,12 @@ def test_light_with_no_lit_pixel_is_said_as_such():
     said = r"d/spikes.dat: no pixel fires 3 spikes in its 600 readouts \(the brightest 0.1 % fire "
     with pytest.warns(FaintLightWarning, match=said + r"0.0005 spikes a readout\), fainter .* 0.0"):
         warn_if_faint([rates], 600, Path("d/spikes.dat"), "meta.json")
+    for readouts in (1070, 600):  # 3 spikes, LIT_SPIKES, are lit (3 / 1070 * 1070 < 3)
+        rates = np.zeros((16, 16))
+        rates[:4] = 3 / readouts
+        said = rf"its lit pixels fire {3 / readouts:.3g} spikes a readout on average"
+        with pytest.warns(FaintLightWarning, match=said):
+            warn_if_faint([rates], readouts, Path("d/spikes.dat"), "meta.json")
 
 
 def test_faint_light_is_named_on_loading(small, tmp_path):

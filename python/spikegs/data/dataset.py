@@ -671,7 +671,8 @@ def warn_if_faint(
         if usable.size:
             light_rates = usable - dark_rate
             top = float(np.percentile(light_rates, 99.9))
-            lit = (light_rates > LIT_SHARE * top) & (usable * readouts >= LIT_SPIKES)
+            spikes = np.rint(usable * readouts)  # (3 / 1070 * 1070 is under 3)
+            lit = (light_rates > LIT_SHARE * top) & (spikes >= LIT_SPIKES)
             light = max(light, float(light_rates[lit].mean()) if lit.any() else 0.0)
             brightest = max(brightest, top)
     if light < FAINTEST_MEASURED:
