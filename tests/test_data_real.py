@@ -1402,6 +1402,8 @@ def test_llff_inward_sphere_reaches_the_near_bounds_but_a_stray_one(sim):
     near = distance[::5] - 1.0
     near[3] = 0.01
     assert llff_sphere(few, np.stack([near, near + 2], 1), sim.K, W, H)[1] == pytest.approx(1.0)
+    spread = distance[::5] - np.linspace(0.1, 1.0, 10)  # reaches 0.1..1.0: the 9th, 0.9
+    assert llff_sphere(few, np.stack([spread, spread + 2], 1), sim.K, W, H)[1] == pytest.approx(0.9)
     # the axes meeting in front of every near bound, in the poses' units: the frustum sphere, as
     # before, unsaid (the review: a sphere about the meeting point left the scene out)
     behind = np.stack([distance + 0.5, distance + 3], 1)  # the scene 0.5-3 past the point

@@ -5,7 +5,7 @@ import re
 
 import numpy as np
 import pytest
-from spikegs.number_checks import holds_bool, number_array
+from spikegs.number_checks import holds_bool, number_array, shown_past
 
 
 @pytest.mark.parametrize(
@@ -42,3 +42,12 @@ def test_number_array_names_what_is_not_a_number_and_where():
     assert number_array([[0, 10**30], [1, 2]]).tolist() == [[0, 1e30], [1, 2]]
     with pytest.raises(ValueError, match=re.escape("found an integer past 1.8e308 at [1]")):
         number_array([0, 10**400])
+
+
+def test_a_value_past_its_bound_is_shown_past_it():
+    """170.3 beyond a bound of 170 was shown as 170 (the geometry trial); three digits where they
+    tell it apart, more where they do not."""
+    assert shown_past(175.46, 170) == "175"
+    assert shown_past(170.3, 170) == "170.3"
+    assert shown_past(60.0004, 60) == "60.0004"
+    assert shown_past(0.00099, 0.001) == "0.00099"

@@ -40,13 +40,14 @@ from spikegs.poses_cli import (
     _complete_meta,
     _image_readouts,
     _keep_timestamps,
+    _made_every,
     _pose_report,
     _registered_timestamps,
     _reprojection_report,
     _upside_down_note,
     estimate_poses,
 )
-from spikegs.sfm import Reconstruction, align, reconstruct, similarity, spike_images
+from spikegs.sfm import Reconstruction, align, compared, reconstruct, similarity, spike_images
 from spikegs.sh import C0
 from spikegs.targets import build_targets
 from spikegs.train import Trainer
@@ -549,12 +550,16 @@ def test_a_rerun_makes_its_own_train_every_afresh(tmp_path, monkeypatch, capsys)
     del report["train_every_made"]  # a dataset posed before that record: judged by the span
     (raw / "sfm" / "report.json").write_text(json.dumps(report))
     span = (100, 2300)
+    capsys.readouterr()
     assert main(["poses", str(raw)]) == 0
+    within = "registered images within its poses' span (readouts 6"  # the first run's: 600..1500
+    assert within in capsys.readouterr().out
     again = load_dataset(raw)
     assert again.meta["train_every"] == 3 and len(again.train_timestamps) <= 1024  # ~2200 / 1024
     span = (600, 1500)  # by the record
     assert main(["poses", str(raw)]) == 0
     assert load_dataset(raw).meta["train_every"] == 1
+    assert "within its poses' span" not in capsys.readouterr().out  # all within the last's
     doc = json.loads((raw / "meta.json").read_text())  # a stated one is kept
     (raw / "meta.json").write_text(json.dumps({**doc, "train_every": 5}))
     assert main(["poses", str(raw)]) == 0
@@ -569,6 +574,22 @@ def test_a_rerun_makes_its_own_train_every_afresh(tmp_path, monkeypatch, capsys)
     assert main(["poses", str(raw)]) == 0
     said = capsys.readouterr().out
     assert "rotation difference median" in said and "flip" not in said, said
+
+
+def test_the_train_every_a_run_made_is_read_from_its_record_or_its_span(tmp_path):
+    """`_made_every`: the report's record (null: stated); a report before the record, of a split
+    this command made, ceil(R / 1024) of the span trajectory.json's poses record; else None."""
+    readouts = np.array([0.0, 100, 2147, 2999])  # poses held from 100 and to 2147: 2048 readouts
+    viewmats = np.stack([look_at([3.0, k / 1000, 0], [0, 0, 0]) for k in (100, 100, 2147, 2147)])
+    Trajectory(readouts, viewmats).save_json(tmp_path / "trajectory.json")
+    ours = {"held_out_by": "spikegs poses"}
+    assert _made_every(tmp_path, ours, '{"train_every_made": 5}') == 5
+    assert _made_every(tmp_path, ours, '{"train_every_made": null}') is None
+    assert _made_every(tmp_path, ours, '{"registered": 40}') == 2  # ceil(2048 / 1024)
+    assert _made_every(tmp_path, {"held_out_by": "me"}, '{"registered": 40}') is None
+    assert _made_every(tmp_path, ours, None) is None  # no run before
+    (tmp_path / "trajectory.json").unlink()
+    assert _made_every(tmp_path, ours, '{"registered": 40}') is None
 
 
 def test_an_implausible_estimated_focal_is_flagged():
@@ -1019,6 +1040,9 @@ def test_alignment_to_an_earlier_runs_poses_compares_only_where_they_were_regist
     first = _recon(readouts[20:60], truth[20:60], np.eye(3), np.zeros((0, 3)), None, 40)
     reference = first.trajectory(801)  # readouts 0 and 800: held copies of 200's and 590's
     assert reference.recorded_span() == (200.0, 590.0)
+    three = np.array([100.0, 200.0, 400.0, 590.0, 700.0])  # 3 within: only they compared
+    assert compared(three, reference).tolist() == [False, True, True, True, False]
+    assert compared(three[[0, 1, 2, 4]], reference).all()  # 2 within: all, as before
     assert Trajectory(readouts, truth).recorded_span() == (0.0, 800.0)
     assert Trajectory(readouts[:2], truth[[0, 0]]).recorded_span() == (10.0, 10.0)
     world = np.eye(4)  # the re-run's SfM frame
