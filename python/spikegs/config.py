@@ -214,8 +214,11 @@ class Config:
         """The config file that set the setting `name` ('section.key') to the value it holds,
         else "config" (a default, a built-in method's, a value set in Python since)."""
         path, value = self._set_in.get(name, (None, None))
-        now = functools.reduce(getattr, name.split("."), self)
-        return str(path) if path is not None and now == value else "config"
+        return str(path) if path is not None and self.setting(name) == value else "config"
+
+    def setting(self, name: str) -> Any:
+        """The value of the setting `name` ('section.key')."""
+        return functools.reduce(getattr, name.split("."), self)
 
     def validate(self) -> Config:
         s, t, d, sim = self.supervision, self.train, self.densify, self.sim
@@ -659,8 +662,7 @@ def load_config(
         _keep_a_round(config.densify, config.train.iterations)
     config._schedule_length = config.train.iterations
     config._set_in = {
-        name: (path, functools.reduce(getattr, name.split("."), config))
-        for name, path in read.get(SET_IN, {}).items()
+        name: (path, config.setting(name)) for name, path in read.get(SET_IN, {}).items()
     }
     config = _validated_scaled(config, factors, read.get(SET_IN, {}))
     if not saved_run:  # (a run's config.yaml sets every key)
