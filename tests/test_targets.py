@@ -310,28 +310,27 @@ def test_a_window_refused_names_the_file_that_set_it(dataset, tmp_path, monkeypa
     with pytest.raises(ValueError, match=r"^config: sim.window = 69 readouts does not fit"):
         check_targets(dataset, config)
     (tmp_path / "far.yaml").write_text("supervision: {exposure_window: 21}\n")
+    with pytest.raises(ValueError, match=r"far.yaml: supervision.exposure_window = 21 readouts"):
+        check_targets(_poses_beyond(dataset, 5), load_config(tmp_path / "far.yaml"))
+
+
+def _poses_beyond(dataset, margin: float):
+    """`dataset` with poses (20) only `margin` readouts beyond its training timestamps (a real
+    recording's pose log that does not cover the stream's ends)."""
     ts = np.asarray(dataset.train_timestamps)
-    readouts = np.linspace(ts.min() - 5, ts.max() + 5, 20)  # poses 5 readouts beyond them
-    short = Dataset(
+    readouts = np.linspace(ts.min() - margin, ts.max() + margin, 20)
+    return Dataset(
         dataset.root, dataset.meta, dataset.streams,
         Trajectory(readouts, dataset.trajectory.pose_at(readouts)),
         dataset.train_timestamps, dataset.test_views,
     )  # fmt: skip
-    with pytest.raises(ValueError, match=r"far.yaml: supervision.exposure_window = 21 readouts"):
-        check_targets(short, load_config(tmp_path / "far.yaml"))
 
 
 def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
     """A pose log that does not cover the stream's ends (a real recording's): the exposure's
     renders reached past it mid-run ('pose_at: t=... outside the trajectory's readouts')."""
     monkeypatch.setattr("spikegs.targets.trained_sim", lambda *a, **k: pytest.fail("trained"))
-    ts = np.asarray(dataset.train_timestamps)
-    readouts = np.linspace(ts.min() - 10, ts.max() + 10, 20)  # poses 10 readouts beyond them
-    short = Dataset(
-        dataset.root, dataset.meta, dataset.streams,
-        Trajectory(readouts, dataset.trajectory.pose_at(readouts)),
-        dataset.train_timestamps, dataset.test_views,
-    )  # fmt: skip
+    short = _poses_beyond(dataset, 10)
     with pytest.raises(ValueError, match="exposure_window = 33 readouts .* reaches past the poses"):
         build_targets(short, load_config("spikegs"), progress=False)
     check_targets(short, load_config("spikegs", {"supervision": {"exposure_window": 21}}))
