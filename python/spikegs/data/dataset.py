@@ -1200,9 +1200,10 @@ def warn_about_test_units(
     for view, k in _on_path(views, len(streams[0])):
         tfp = np.stack([s.tfp(k, UNITS_WINDOW) for s in streams], -1)  # [H, W, C]
         below = tfp < 1.0  # [H, W, C] not saturated
+        count = int(below.sum())
         image_sum += float(view.image[below].sum())
-        rate_sum += float(tfp[below].sum()) - dark_rate * int(below.sum())
-        pixels += int(below.sum())
+        rate_sum += float(tfp[below].sum()) - dark_rate * count
+        pixels += count
     if rate_sum * UNITS_WINDOW / len(streams) < UNITS_MIN_SPIKES:  # too faint to tell units
         return  # from shot noise (the light's spikes, a channel)
     ratio = image_sum / rate_sum

@@ -148,13 +148,12 @@ def llff_sphere(
         reach = float(np.percentile(distance - bounds[:, 0], 90, method="lower"))
         if reach > 0:
             center, radius = converged[0], min(radius, reach)
-        elif np.median(bounds[:, 0]) > OFF_SCALE * np.median(distance):
+        elif (near := np.median(bounds[:, 0])) > OFF_SCALE * (meet := np.median(distance)):
             center, radius = converged
             warnings.warn(
-                f"{source}: the near bounds (median {np.median(bounds[:, 0]):.3g}) lie over "
-                f"{OFF_SCALE:g} times as far from the cameras as the point their optical axes "
-                f"meet at (median {np.median(distance):.3g}): bounds in other units than the "
-                f"poses? The scene sphere is taken "
+                f"{source}: the near bounds (median {near:.3g}) lie over {OFF_SCALE:g} times as "
+                f"far from the cameras as the point their optical axes meet at (median "
+                f"{meet:.3g}): bounds in other units than the poses? The scene sphere is taken "
                 f"from the cameras alone (centre there, radius {radius:.3g}, their mean distance "
                 f"/ 2.5); set scene_center and scene_radius in {OPTIONS_FILE} if the scene is "
                 f"known",
