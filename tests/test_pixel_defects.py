@@ -65,6 +65,29 @@ def test_hot_stuck_and_dead_pixels_are_found(defective):
     assert pixels(dead) == set(DEAD)
 
 
+def test_defects_in_the_corners_and_on_the_edges_are_found_and_repaired_by_real_neighbours():
+    """Stuck and dead pixels at the frame's four corners were never found (the edge-repeated ring
+    made a corner three of its own 8 neighbours, its second brightest and darkest itself): found
+    as any pixel is, each repaired by one of its neighbours in the frame."""
+    size, corners = 24, [(0, 0), (0, 23), (23, 0), (23, 23)]
+    edges = [(0, 11), (23, 5), (9, 0), (14, 23)]
+    frames = np.full((1, size, size), 0.4, np.float32)  # ~0.1 spikes a readout
+    bits = np.unpackbits(simulate_spikes(frames, 2000, seed=1), axis=2, bitorder="little")
+    bits = bits[..., :size].astype(bool)  # [T, H, W]
+    for at, fires in ((corners[:2] + edges[:2], True), (corners[2:] + edges[2:], False)):
+        rows, columns = np.transpose(at)
+        bits[:, rows, columns] = fires
+    stream = SpikeStream.from_bits(bits)
+    hot, dead = find_defects(stream)
+    assert pixels(hot) == set(corners[:2] + edges[:2])
+    assert pixels(dead) == set(corners[2:] + edges[2:])
+    with pytest.warns(UserWarning, match="4 hot or stuck pixels .* and 4 dead ones"):
+        (repaired,) = sensor_defects([stream], "r").streams
+    for at, stand_in in zip(repaired.at, repaired.stand_in):
+        (y, x), (v, u) = divmod(at, size), divmod(stand_in, size)
+        assert max(abs(y - v), abs(x - u)) == 1  # a neighbour in the frame, not the pixel itself
+
+
 def test_a_search_tuned_at_run_time_searches_again(defective, monkeypatch):
     """A file's finding is kept for the process (`found_once`) under the search's settings as
     they are when asked: one tuned after a first search (a notebook's) searches again."""

@@ -45,21 +45,24 @@ def stretches(stream):
 
 
 def _ring(image: np.ndarray) -> np.ndarray:
-    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated) [8, H, W]."""
+    """Each pixel's 8 neighbours in `image` [H, W] [8, H, W], reflected about the frame's edges: a
+    border pixel's neighbours in the frame, some twice (edges repeated made a corner three of its
+    own neighbours, and so its second brightest and darkest: a defect there was never found)."""
     h, w = image.shape
-    pad = np.pad(image, 1, mode="edge")
+    pad = np.pad(image, 1, mode="reflect")
     ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
     return np.stack([pad[y : y + h, x : x + w] for y, x in ring])
 
 
 def _neighbours(image: np.ndarray) -> np.ndarray:
-    """Each pixel's 8 neighbours in `image` [H, W] (edges repeated), darkest first [8, H, W]."""
+    """Each pixel's 8 neighbours in `image` [H, W] (reflected at the edges), darkest first [8, H,
+    W]."""
     return np.sort(_ring(image), axis=0)
 
 
 def _second(rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The second darkest and second brightest [H, W] of each pixel's 8 neighbours in rates [H,
-    W] (edges repeated)."""
+    W] (reflected at the edges)."""
     around = _neighbours(rates)
     return around[1], around[-2]
 
@@ -171,7 +174,7 @@ def _repaired_spikes(streams: list, found: list) -> list:
 
 def repaired(image: np.ndarray, defects: np.ndarray) -> np.ndarray:
     """`image` [H, W] with each of its `defects` [H, W] (bool) replaced by the (upper) median of
-    its 8 neighbours (edges repeated), as a camera's defect-pixel correction does."""
+    its 8 neighbours (reflected at the edges), as a camera's defect-pixel correction does."""
     return np.where(defects, _neighbours(image)[4], image)
 
 
