@@ -3,7 +3,9 @@ while the memory budget lasts."""
 
 from __future__ import annotations
 
+import re
 import shutil
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -29,6 +31,7 @@ from spikegs.targets import (
     sim_path,
     tfp_sample,
     trained_sim,
+    warn_if_blurred,
 )
 from spikegs.train import Trainer
 
@@ -324,6 +327,52 @@ def _poses_beyond(dataset, margin: float):
         Trajectory(readouts, dataset.trajectory.pose_at(readouts)),
         dataset.train_timestamps, dataset.test_views,
     )  # fmt: skip
+
+
+def _fast(dataset, degrees: float):
+    """`dataset` with a pose log that orbits its scene at `degrees` a readout (its simulation's
+    camera, 0.15)."""
+    distance = np.linalg.norm(dataset.trajectory.centers - dataset.scene_center, axis=1)
+    spiral = Trajectory.spiral(
+        len(dataset.stream), radius=float(np.median(distance)), start_elevation_deg=20,
+        end_elevation_deg=30, degrees_per_readout=degrees, look_at=tuple(dataset.scene_center),
+    )  # fmt: skip
+    return Dataset(
+        dataset.root, dataset.meta, dataset.streams, spiral, dataset.train_timestamps,
+        dataset.test_views,
+    )  # fmt: skip
+
+
+def test_a_camera_fast_within_a_targets_window_is_warned_of(dataset, tmp_path, monkeypatch):
+    """A pose log that turns 3° a readout (96° in SIM's 33 readouts) trained a smeared scene,
+    unsaid (only `simulate` judged its camera's speed): warned of, by the trainer before any work
+    (the targets stand in for it by stopping the run), naming the longest window the targets read
+    and the file that set it; the simulated camera, and targets that read no spikes (the oracle's
+    clean images), are not."""
+    fast, spikegs = _fast(dataset, 3.0), load_config("spikegs")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_if_blurred(dataset, spikegs)
+        warn_if_blurred(_fast(dataset, 0.15), spikegs)
+        warn_if_blurred(fast, load_config("oracle"))
+    share = r"moves up to \d+ pixels \((\d+)% of the image's 24\) within"
+    with pytest.warns(
+        UserWarning, match=f"{share} sim.window = 33 readouts .* \\(config\\)"
+    ) as got:
+        warn_if_blurred(fast, spikegs)
+    assert int(re.search(share, str(got[0].message))[1]) > 100
+
+    def no_work(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("spikegs.train.build_targets", no_work)
+    with pytest.warns(UserWarning, match="sim.window = 33"), pytest.raises(KeyboardInterrupt):
+        Trainer(fast, spikegs, tmp_path / "run", progress=False).train()
+    (tmp_path / "long.yaml").write_text("base: spikegs\nsupervision: {exposure_window: 41}\n")
+    with pytest.warns(UserWarning, match=r"exposure_window = 41 readouts .* \(.*long.yaml\)"):
+        warn_if_blurred(fast, load_config(tmp_path / "long.yaml"))
+    with pytest.warns(UserWarning, match=r"within supervision.instant_window = 33 readouts"):
+        warn_if_blurred(fast, load_config("tfp33"))
 
 
 def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):

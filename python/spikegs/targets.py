@@ -39,6 +39,10 @@ from .sim_train import (
 # readouts from a timestamp k to the time TFI(k) shows: its inter-spike interval straddles
 # readouts k and k + 1 (a time ramp measures +0.50), so its pose is rendered there
 TFI_TIME = 0.5
+# of the image's larger side: the scene moving further within a target's window of readouts is
+# warned of (the default orbit's sphere moves 8% of it in 33 readouts; simulate warns of a turn
+# of 15° in 33, where the sphere moves about a quarter)
+BLUR_SHARE = 0.25
 
 
 class ImageBudget:
@@ -289,14 +293,9 @@ def check_targets(dataset, config: Config) -> None:
 
     s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
     instant = config.instant_target()
-    windows = {"sim.window": config.sim.window} if instant == "sim" else {}
-    if instant == "tfp":
-        windows["supervision.instant_window"] = s.instant_window
-    if s.exposure_weight > 0:
-        windows["supervision.exposure_window"] = s.exposure_window
     stream = dataset.streams[0]
     room = int(readouts_beside(stream, ts).min())
-    for name, w in windows.items():
+    for name, w in target_windows(config).items():
         if w // 2 > room:
             if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
                 first, end = stream.bounds(ts)
@@ -338,6 +337,44 @@ def check_targets(dataset, config: Config) -> None:
 
         clean_source(dataset)
         simulated_trajectory(dataset)
+
+
+def target_windows(config: Config) -> dict[str, int]:
+    """{'section.key': readouts} of each window of spikes that `config`'s targets read around a
+    training timestamp: SIM's or the instant TFP's, the exposure loss's."""
+    s, instant = config.supervision, config.instant_target()
+    windows = {"sim.window": config.sim.window} if instant == "sim" else {}
+    if instant == "tfp":
+        windows["supervision.instant_window"] = s.instant_window
+    if s.exposure_weight > 0:
+        windows["supervision.exposure_window"] = s.exposure_window
+    return windows
+
+
+def warn_if_blurred(dataset, config: Config) -> None:
+    """A UserWarning where the scene sphere's points move over BLUR_SHARE of the image's larger
+    side within a window of readouts that `config`'s targets read around a training timestamp
+    (by the dataset's poses): images made from those spikes are motion-blurred (a pose log as
+    fast as `simulate --speed 60`'s trained a near-constant image, unsaid)."""
+    from .data.sphere_motion import window_motion  # (the data package imports us)
+
+    windows = target_windows(config)
+    if not windows:
+        return
+    name = max(windows, key=windows.get)  # the longest: the most blurred
+    ts = dataset.train_timestamps
+    motion = window_motion(dataset, dataset.trajectory, ts, windows[name])
+    side = max(dataset.width, dataset.height)
+    if motion > BLUR_SHARE * side:
+        warnings.warn(
+            f"{dataset.root}: by its poses, the scene moves up to {motion:.0f} pixels "
+            f"({motion / side:.0%} of the image's {side}) within {name} = {windows[name]} "
+            f"readouts around a training timestamp: the targets made from those spikes are "
+            f"motion-blurred, and a run learns the scene smeared; a shorter window "
+            f"({config.set_by(name)}), or a recording whose camera moves slower against the "
+            f"readout rate",
+            stacklevel=3,
+        )
 
 
 def readouts_beside(stream, ts: np.ndarray) -> np.ndarray:

@@ -62,7 +62,7 @@ from .regular_file import NotText, read_text
 from .run_folder import FolderWatch, check_fresh_run_dir, run_lock
 from .run_summary import CONFIG, FOUND, LOG, SCENE, SUMMARY, last_checkpoint, resume_command
 from .sim_train import SAVED_EVERY
-from .targets import build_targets, check_targets, intensity_scale
+from .targets import build_targets, check_targets, intensity_scale, warn_if_blurred
 from .yaml_files import dump_yaml
 
 SPHERE_PROBES = 1000  # points spread through the scene sphere: half the views must see one
@@ -845,6 +845,7 @@ class Trainer:
             warn_if_nothing_learns(self.config)
             warn_if_schedule_unscaled(self.config)
             self._warn_if_few_timestamps()
+            warn_if_blurred(self.dataset, self.config)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         # one process trains in a run directory at a time; the checks again under the lock, so
         # that they see the state that this process will train from (another may have trained

@@ -46,7 +46,8 @@ from .dataset import (
 )
 from .scenes import SCENES
 from .sources import FrameSequenceSource, MitsubaSource, ProceduralSource, RenderSource, Source
-from .trajectory import WORLD_UP, Trajectory, project_points, unit_vector
+from .sphere_motion import sphere_track, track_steps
+from .trajectory import WORLD_UP, Trajectory, unit_vector
 from .transforms_file import TRANSFORMS, warn_unread_transforms
 
 DEFAULT_SIZE = 128  # pixels a side
@@ -260,14 +261,9 @@ FRAME_MOTION_PX = 6.0
 def frame_motion(source: Source, trajectory: Trajectory, times: np.ndarray) -> float:
     """The largest motion in pixels of the scene sphere's poles and centre between two light
     frames at readouts `times` [F] (points behind either camera of a pair not counted)."""
-    offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
-    points = source.scene_center + source.scene_radius * offsets  # the sphere's poles and centre
-    pixels, z = project_points(points, trajectory.pose_at(times), source.K)  # [F, 7, 2], [F, 7]
-    steps = np.linalg.norm(np.diff(pixels, axis=0), axis=-1)  # [F - 1, 7]
     # points in front of both cameras of a pair (a sphere around a camera has some behind it)
-    ahead = z > 0.01 * source.scene_radius
-    seen = ahead[1:] & ahead[:-1]
-    return float(steps[seen].max()) if seen.any() else 0.0
+    steps = track_steps(*sphere_track(source, trajectory.pose_at(times)))  # [F - 1, 7]
+    return float(steps.max()) if steps.size else 0.0
 
 
 def default_frame_every(source: Source, trajectory: Trajectory, num_readouts: int) -> float:

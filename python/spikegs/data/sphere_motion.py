@@ -1,0 +1,43 @@
+"""How far the scene moves across the image as the camera moves: the scene sphere's poles and
+centre projected into the cameras along a trajectory (the simulator's light frames, a training
+target's window of readouts)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .trajectory import Trajectory, project_points
+
+# at most this many poses a window is sampled at (a readout apart below it)
+WINDOW_SAMPLES = 65
+
+
+def sphere_track(scene, viewmats: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel positions [F, 7, 2] of the scene sphere's six poles and centre in the cameras
+    `viewmats` [F, 4, 4], and whether each lies ahead of its camera [F, 7] (by 1% of the radius:
+    a point near a camera's plane projects anywhere). `scene`: anything with scene_center,
+    scene_radius and K (a Dataset, a simulator's Source)."""
+    offsets = np.concatenate([np.eye(3), -np.eye(3), np.zeros((1, 3))])  # [7, 3]
+    points = np.asarray(scene.scene_center) + scene.scene_radius * offsets
+    pixels, z = project_points(points, viewmats, scene.K)
+    return pixels, z > 0.01 * scene.scene_radius
+
+
+def track_steps(pixels: np.ndarray, ahead: np.ndarray) -> np.ndarray:
+    """Each point's motion in pixels between consecutive poses [..., F - 1, 7] of `sphere_track`'s
+    [..., F, 7, 2] and [..., F, 7]; 0 where it lies behind either camera of the pair."""
+    steps = np.linalg.norm(np.diff(pixels, axis=-3), axis=-1)
+    return np.where(ahead[..., 1:, :] & ahead[..., :-1, :], steps, 0.0)
+
+
+def window_motion(scene, trajectory: Trajectory, timestamps, window: int) -> float:
+    """The longest path in pixels that a pole or the centre of the scene sphere traces across the
+    image within `window` readouts centred on any readout of `timestamps` [N] (the poses at every
+    readout of it, at most WINDOW_SAMPLES evenly; clipped to the trajectory's readouts): the
+    motion blur of an image made from those readouts' spikes."""
+    ts = np.asarray(timestamps, np.float64)[:, None]  # [N, 1]
+    offsets = np.linspace(-(window // 2), window // 2, min(window, WINDOW_SAMPLES))  # [S]
+    times = np.clip(ts + offsets, trajectory.start, trajectory.end)  # [N, S]
+    pixels, ahead = sphere_track(scene, trajectory.pose_at(times.ravel()))
+    steps = track_steps(pixels.reshape(*times.shape, 7, 2), ahead.reshape(*times.shape, 7))
+    return float(steps.sum(axis=-2).max()) if steps.size else 0.0

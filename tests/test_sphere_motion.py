@@ -1,0 +1,46 @@
+"""The scene sphere's motion across the image: against a camera's motion worked by hand."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from spikegs.data.sphere_motion import WINDOW_SAMPLES, window_motion
+from spikegs.data.trajectory import Trajectory, look_at
+
+K = np.array([[100.0, 0, 32], [0, 100.0, 32], [0, 0, 1]])
+SCENE = SimpleNamespace(scene_center=np.zeros(3), scene_radius=1.0, K=K)
+
+
+def sliding(speed: float, readouts: int = 400) -> Trajectory:
+    """A camera 5 units from the sphere's centre on -z, sliding along x at `speed` units a readout
+    and looking along +z: every point moves f · speed / depth pixels a readout along u."""
+    times = np.array([0.0, readouts - 1.0])
+    eyes = np.array([[0.0, 0, -5], [speed * (readouts - 1), 0, -5]])
+    return Trajectory(times, np.stack([look_at(e, e + [0, 0, 1], up=[0, -1, 0]) for e in eyes]))
+
+
+@pytest.mark.parametrize("window", [1, 33, 2 * WINDOW_SAMPLES + 1])
+def test_a_sliding_camera_moves_the_nearest_pole_by_focal_times_its_path_over_its_depth(window):
+    """The nearest pole (depth 4) moves 100 · 0.01 / 4 px a readout: over a window's w - 1 readouts
+    between its ends, 0.25 · (w - 1), sampled at every readout or WINDOW_SAMPLES of them."""
+    motion = window_motion(SCENE, sliding(0.01), [200], window)
+    assert motion == pytest.approx(0.25 * (window - 1), rel=1e-9)
+
+
+def test_windows_past_the_trajectory_are_clipped_to_it_and_the_largest_is_taken():
+    """A window around readout 0 reaches half its length before the poses: the motion is that of
+    its readouts within them; of several timestamps, the largest."""
+    trajectory = sliding(0.01)
+    assert window_motion(SCENE, trajectory, [0], 33) == pytest.approx(0.25 * 16)
+    assert window_motion(SCENE, trajectory, [0, 100, 399], 33) == pytest.approx(0.25 * 32)
+
+
+def test_points_behind_the_camera_add_no_motion():
+    """A camera inside the sphere (a pole behind it projects anywhere): only the points ahead."""
+    inside = SimpleNamespace(scene_center=np.array([0.0, 0, -5]), scene_radius=3.0, K=K)
+    motion = window_motion(inside, sliding(0.01), [200], 33)
+    # ahead: the +z pole at depth 3 moves 100 · 0.01 / 3 a readout; the centre, on the camera's
+    # plane, and the -z pole behind it, none
+    assert motion == pytest.approx(100 * 0.01 / 3 * 32)
