@@ -354,6 +354,9 @@ def test_save_load_round_trip_and_reuse(tmp_path, scene, trained, capsys):
     other = {**tiny, "steps": 3, "seed": 7}
     with pytest.raises(FileExistsError, match=r"a SIM trained with other settings \(steps 2, now"):
         train_or_load(path, stream, ts, 33, keep=True, **other)
+    torch.save({**good, "state_dict": {}}, stray)  # (said "a SIM not a saved SIM's architecture")
+    with pytest.raises(FileExistsError, match=f"{stray}: not a saved SIM's architecture or weig"):
+        train_or_load(stray, stream, ts, 33, keep=True, **tiny)
     assert torch.load(path, weights_only=True)["meta"]["steps"] == 2
     assert train_or_load(path, stream, ts, 33, keep=True, **tiny)[1] == 0  # its own: reused
     assert train_or_load(path, stream, ts, 33, **other)[1] > 0
@@ -937,6 +940,9 @@ def test_a_batch_that_cannot_fit_in_memory_is_refused_before_a_step(scene, monke
         (["--out", "file/sim.pt"], "a folder on its path is a file"),
         # a dataset's spikes.dat named by mistake was trained over as an 'unreadable' cache
         (["--out", "file"], "--out file: an existing file that is not a saved SIM"),
+        # --force ("retrain even if the weights exist") left it too, unsaid why (the sim-train
+        # trial: a SIM's file cut short)
+        (["--out", "file", "--force"], "not a saved SIM, which sim-train does not replace, --fo"),
         # its scores were written over a dataset's test_views.json, which then read as "no
         # convention" (the sim-train trial)
         (["--out", "test_views"], "its scores go to test_views.json, an existing file that is no"),
@@ -1112,6 +1118,18 @@ def test_a_sim_cached_from_another_start_is_retrained(tmp_path, capsys):
     capsys.readouterr()
     assert train_or_load(path, stream, ts, W, **TINY)[1] > 0
     assert "from another start; training SIM afresh" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["sim.pt", "sim.pt.json"])
+def test_a_folder_where_a_sim_is_saved_is_refused_before_training(tmp_path, monkeypatch, name):
+    """A folder at a cache's path, the weights' or their scores record's: SIM trained, then its
+    save ended the command ("[Errno 21] Is a directory"), the training lost (the sim-train
+    trial)."""
+    monkeypatch.setattr(sim_train, "train_sim", lambda *a, **k: pytest.fail("trained"))
+    (tmp_path / name).mkdir()
+    said = f"{tmp_path / name}: a folder where SIM's .* are saved, .*; move or delete it"
+    with pytest.raises(IsADirectoryError, match=said):
+        train_or_load(tmp_path / "sim.pt", SpikeArray(12, 12, 40), [20, 21], W, **TINY)
 
 
 def test_progress_is_not_a_setting_of_a_cached_sim(tmp_path):

@@ -78,7 +78,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="weights (default: the dataset's SIM cache, where spikegs train looks; the file name "
         "holds every setting, and train reuses a SIM made with its config's own)",
     )
-    parser.add_argument("--force", action="store_true", help="retrain even if the weights exist")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="retrain even if the weights exist (a saved SIM's: another file at --out is never "
+        "replaced)",
+    )
     add_no_progress(parser)
 
 
@@ -117,7 +122,9 @@ def _run(args: argparse.Namespace) -> int:
         check_file_output(args.out)
         if Path(args.out).exists() and not is_sim_file(Path(args.out)):
             raise ValueError(  # (a cache's torn file is retrained over; a file named is not)
-                f"--out {args.out}: an existing file that is not a saved SIM; give another path"
+                f"--out {args.out}: an existing file that is not a saved SIM, which sim-train "
+                f"does not replace, --force or not; give another path, or delete it (a SIM's "
+                f"file cut short)"
             )
         record = record_beside(Path(args.out))
         if record.exists() and not _is_scores_record(record):  # (`--out DATASET/test_views`

@@ -386,16 +386,16 @@ def _cached(
         if same and not other:
             return model
         why = (
-            "trained with other settings ("
+            "a SIM trained with other settings ("
             + ", ".join(f"{k} {was!r}, now {now!r}" for k, (was, now) in other.items())
             + ")"
             if same
-            else "trained on other spikes, for another window or from another start"
+            else "a SIM trained on other spikes, for another window or from another start"
         )
-    if keep:
+    if keep:  # (why: "a SIM trained ..." or "not a saved SIM's architecture or weights (...)")
         raise FileExistsError(
-            f"{path}: a SIM {why}, which training would replace; --force trains afresh over it, "
-            f"or give another --out"
+            f"{path}: {why}, which training would replace; --force trains afresh over it, or "
+            f"give another --out"
         )
     if say:
         print(f"{path}: {why}; training SIM afresh", file=sys.stderr)
@@ -460,6 +460,12 @@ def train_or_load(
                 break
     if model is not None:
         return model, 0.0, path
+    for saved in (path, record_beside(path)):  # (they were found folders once SIM had trained)
+        if saved.is_dir():
+            raise IsADirectoryError(
+                f"{saved}: a folder where SIM's {'weights' if saved == path else 'scores'} are "
+                f"saved, which SIM's training would end at; move or delete it"
+            )
     # one process trains each SIM: another (a second method on the same dataset) waits for it and
     # loads what it saved
     path.parent.mkdir(parents=True, exist_ok=True)
