@@ -303,7 +303,10 @@ def side_by_side(
 # unsettled, none of 39 back named (BENCHMARKS.md, "eval --align-poses: Levenberg-Marquardt"); it
 # needs most views right (with 6 of 8 lost none stands out)
 SUSPECT_RATIO = 2.0
-SUSPECT_LEAST = 0.1  # and leaves at least this (views that all match closely differ by noise)
+# and leaves at least this: views that all match closely differ by noise, and an under-fit run's
+# view at its exact pose left 0.15-0.18 where the others left 0.05-0.08 (64², 200 iterations: the
+# eval trial), between what views back and views lost left above
+SUSPECT_LEAST = 0.2
 # test views moving a median over this many degrees once aligned are warned of: exact poses of
 # 32² runs moved 9-12° (under-fit or coarse scenes drift to where the render matches better, all
 # alike, none suspect), a well-fit 64² one's 0.67°, SfM's poses lie 1-3° off (the eval trial)
