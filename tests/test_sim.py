@@ -479,6 +479,13 @@ def test_sim_of_a_read_only_dataset_is_cached_in_the_users_cache(scene, tmp_path
     )[1:] == (0, raw)
     other = BernoulliStream(scene[0], len(stream), seed=1)  # other spikes: another folder
     assert train_or_load(dataset_sim / "sim.pt", other, ts, 33, **tiny)[2] != path
+    # the folder writable again: the SIM cached meanwhile is read there (it was trained again),
+    # not for a file the user named (the sim-train trial)
+    with monkeypatch.context() as writable:
+        writable.setattr("spikegs.sim_train.writable_folder", writable_folder)
+        assert train_or_load(dataset_sim / "raw.pt", stream, ts, 33, **tiny)[1:] == (0, raw)
+        named = train_or_load(dataset_sim / "raw.pt", stream, ts, 33, keep=True, **tiny)
+        assert named[1] > 0 and named[2] == dataset_sim / "raw.pt"
     # a file the user named (sim-train --out, `keep`) in a folder that cannot be written: its
     # cache stand-in holding a SIM of other settings is a cache, trained over (it was refused as
     # the named file, "--force trains afresh over it, or give another --out")

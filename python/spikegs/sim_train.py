@@ -422,9 +422,10 @@ def train_or_load(
 ):
     """Load the SIM at `path` if it was trained for this window on these spikes (the same
     `spikes_fingerprint`) with these settings (`kwargs`), unless `force`, or else such a SIM at
-    one of `alternates` (read, never replaced); else train one and save it at `path` (a SIM
-    there trained otherwise refused where `keep`: a file the user named). Where `path`'s folder
-    cannot be written (a read-only dataset), `user_cache` stands in for it.
+    one of `alternates` or in the user cache in place of either (read, never replaced); else
+    train one and save it at `path` (a SIM there trained otherwise refused where `keep`: a file
+    the user named). Where `path`'s folder cannot be written (a read-only dataset), `user_cache`
+    stands in for it.
 
     Returns (model, seconds spent training, 0 when loaded; a resumed training's earlier steps
     included, the path it was loaded from or saved at).
@@ -436,7 +437,10 @@ def train_or_load(
     first = _streams(stream)[0]
     side = max(first.height, first.width)
     model = None if force else _cached(path, window, known, settings, side, say=False, keep=keep)
-    for other in alternates if model is None and not force else ():
+    # and where the folder could not be written once: the user cache's (a SIM stranded there was
+    # trained again once the dataset could be written); a file the user named is that file alone
+    stranded = [] if keep else [user_cache(Path(p).name, data) for p in (path, *alternates)]
+    for other in [*alternates, *filter(None, stranded)] if model is None and not force else ():
         model = _cached(Path(other), window, known, settings, side, say=False)
         if model is not None:
             return model, 0.0, Path(other)
