@@ -940,6 +940,9 @@ def test_spikegs_train_checkpoints_on_sigterm(
     saved = torch.load(run / "checkpoints" / "last.pt")["iteration"]
     assert saved >= logged[-1] > 0
     assert not (run / "curve.png").exists()  # written as a run finishes, not where it stops
+    # where it stands, and the way on (it said "terminated" alone: the signals trial)
+    on = f"spikegs train {dataset.root} --out {run} --resume continues from its last checkpoint"
+    assert f"{on}, at iteration {saved} of 100000\n{said}\n" in err, err
 
 
 @pytest.fixture
@@ -3537,7 +3540,8 @@ def test_spikegs_train_stopped_before_its_first_step_says_interrupted(
     monkeypatch.setattr(train_module, "build_targets", ctrl_c)
     argv = ["train", str(dataset.root), "--method", "tfp33", "--out", str(tmp_path / "run")]
     assert main([*argv, "--iterations", "30", "--no-progress"]) == 130
-    assert capsys.readouterr().err.endswith("interrupted\n")
+    err = capsys.readouterr().err
+    assert err.endswith("interrupted\n") and "--resume continues" not in err  # (no checkpoint)
 
 
 def test_spikegs_train_stopped_in_its_last_step_plots_its_curve(

@@ -210,6 +210,7 @@ class Trainer:
         self.targets = None  # a training's target images (`build_targets`), released after it
         self.found = None  # what they leave out (`Targets.found`), kept in the checkpoint
         self.summary = None  # train.json's object once this process has written it
+        self.saved_iteration = None  # the iteration of the last checkpoint this process saved
         self._watch = None  # the run folder, while this process trains in it (`FolderWatch`)
 
     # -- state ---------------------------------------------------------------------------------
@@ -446,6 +447,7 @@ class Trainer:
             FOUND: self.found,
         }
         save_atomically(state, self.checkpoint_path)  # a kill mid-save keeps the previous one
+        self.saved_iteration = self.iteration
 
     def _check_in_place(self) -> None:
         """FileNotFoundError where the run's folder, as this training locked it, was moved,

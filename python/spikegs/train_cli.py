@@ -24,7 +24,7 @@ from .config import (
     older_run_keys,
 )
 from .curves import save_logged_curves
-from .interrupt import FULL
+from .interrupt import FULL, say
 from .output_paths import check_folder_output
 from .regular_file import NotText, is_blank
 from .run_summary import CONFIG, CURVE, SUMMARY, last_checkpoint, resume_command
@@ -225,6 +225,14 @@ def _train(args: argparse.Namespace, config) -> int:
             trainer.train(args.resume, on_eval=None if bars else print_evaluation)
         except OSError as err:
             trained = err
+            raise
+        except KeyboardInterrupt:  # (a stopped run said "interrupted" alone: where it stands)
+            if trainer.iteration < config.train.iterations and last_checkpoint(args.out).is_file():
+                at = trainer.saved_iteration
+                say(
+                    f"{resume_command(args.out, args.dataset)} continues from its last checkpoint"
+                    + ("" if at is None else f", at iteration {at} of {config.train.iterations}")
+                )
             raise
         finally:  # a run stopped in its last step finished all the same: its curve and summary
             if trainer.iteration >= config.train.iterations:
