@@ -345,16 +345,19 @@ def _fast(dataset, degrees: float):
 
 def test_a_camera_fast_within_a_targets_window_is_warned_of(dataset, tmp_path, monkeypatch):
     """A pose log that turns 3° a readout (96° in SIM's 33 readouts) trained a smeared scene,
-    unsaid (only `simulate` judged its camera's speed): warned of, by the trainer before any work
-    (the targets stand in for it by stopping the run), naming the longest window the targets read
-    and the file that set it; the simulated camera, and targets that read no spikes (the oracle's
-    clean images), are not."""
+    unsaid (only `simulate` judged its camera's speed): warned of past a fifth of the image, by
+    the trainer before any work (the targets stand in for it by stopping the run), naming the
+    longest window the targets read and the file that set it; the simulated camera, and targets
+    that read no spikes (the oracle's clean images), are not."""
     fast, spikegs = _fast(dataset, 3.0), load_config("spikegs")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_if_blurred(dataset, spikegs)
         warn_if_blurred(_fast(dataset, 0.15), spikegs)
+        warn_if_blurred(_fast(dataset, 0.4), spikegs)  # (19 % of the image: under a fifth)
         warn_if_blurred(fast, load_config("oracle"))
+    with pytest.warns(UserWarning, match=r"\(22% of the image's 24\)"):  # (0.5°: 3.3 times it)
+        warn_if_blurred(_fast(dataset, 0.5), spikegs)
     share = r"moves up to \d+ pixels \((\d+)% of the image's 24\) within"
     with pytest.warns(
         UserWarning, match=f"{share} sim.window = 33 readouts .* \\(config\\)"
