@@ -10,21 +10,33 @@ set -euo pipefail
 python -c 'import sys; sys.exit(0 if sys.version_info >= (3, 10) else
   "SpikeGS needs Python 3.10 or newer (torch 2.13.0 has no wheel for Python %d.%d): %s"
   % (sys.version_info[0], sys.version_info[1], sys.executable))'
-has_glm() {
-  local dir
-  for dir in /usr/include /usr/local/include /opt/homebrew/include "${CONDA_PREFIX:-/nonexistent}/include"; do
-    [ -f "$dir/glm/glm.hpp" ] && return 0
+has_glm() {  # where CMake looks too: the prefixes in CMAKE_PREFIX_PATH (a cluster's modules)
+  local dir prefixes
+  IFS=: read -r -a prefixes <<<"${CMAKE_PREFIX_PATH:-}"
+  # (an empty array's "${prefixes[@]}" is unbound under set -u in macOS's bash 3.2)
+  for dir in /usr /usr/local /opt/homebrew "${CONDA_PREFIX:-/nonexistent}" ${prefixes[@]+"${prefixes[@]}"}; do
+    [ -n "$dir" ] && [ -f "$dir/include/glm/glm.hpp" ] && return 0
   done
   return 1
+}
+has_compiler() {  # CXX, as CMake takes it (conda's compilers are named x86_64-conda-linux-gnu-c++)
+  if [ -n "${CXX:-}" ]; then
+    command -v "${CXX%% *}" >/dev/null
+  else
+    command -v c++ >/dev/null || command -v g++ >/dev/null || command -v clang++ >/dev/null
+  fi
 }
 apt_install() {  # Debian/Ubuntu packages, with sudo unless root
   local sudo=""
   [ "$(id -u)" -ne 0 ] && sudo="sudo"
   $sudo apt-get update -qq && $sudo apt-get install -y -qq "$@"
 }
-if ! command -v c++ >/dev/null && ! command -v g++ >/dev/null && ! command -v clang++ >/dev/null; then
-  if command -v apt-get >/dev/null; then  # a bare image: no C++17 compiler
+if ! has_compiler; then
+  if [ -z "${CXX:-}" ] && command -v apt-get >/dev/null; then  # a bare image: no C++17 compiler
     apt_install g++
+  elif [ -n "${CXX:-}" ]; then
+    echo "no C++ compiler at CXX=$CXX: set CXX to one, or unset it to use g++ or clang++" >&2
+    exit 1
   else
     echo "no C++ compiler: install g++ or clang++ (C++17; on macOS, Xcode's command line tools)" >&2
     exit 1
@@ -36,7 +48,8 @@ if ! has_glm; then
   elif command -v brew >/dev/null; then
     brew install glm
   else
-    echo "GLM is missing: install it with your package manager (conda install glm, vcpkg glm)" >&2
+    echo "GLM is missing: install it with your package manager (conda install glm), or name the" \
+      "prefix it is installed under in CMAKE_PREFIX_PATH (vcpkg's: docs/install.md)" >&2
     exit 1
   fi
 fi

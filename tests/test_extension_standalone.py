@@ -58,3 +58,6 @@ def test_a_package_without_its_extension_says_it_is_not_built(tmp_path):
     assert said.startswith("ImportError: spikegs's C++ extension (spikegs._C) is not built in"), (
         said
     )
+    # both options the in-place build needs (INPLACE alone configured, then built no module:
+    # the install trial; CMakeLists.txt now refuses it)
+    assert "(-DSPIKEGS_PYTHON=ON -DSPIKEGS_INPLACE=ON: docs/install.md)" in said, said

@@ -33,8 +33,8 @@ with ImportInterrupted(running_as_command()):  # a command's Ctrl-C as torch loa
         raise ImportError(  # (Python's said "cannot import name '_C' ... circular import")
             f"spikegs's C++ extension (spikegs._C) is not built in {os.path.dirname(__file__)}: "
             f"install the package (`pip install .` in its checkout), or build it in place for "
-            f"PYTHONPATH=python (-DSPIKEGS_INPLACE=ON: docs/install.md); a checkout's python/ "
-            f"folder on the path hides an installed copy"
+            f"PYTHONPATH=python (-DSPIKEGS_PYTHON=ON -DSPIKEGS_INPLACE=ON: docs/install.md); a "
+            f"checkout's python/ folder on the path hides an installed copy"
         ) from None
     from .rasterize import RasterizeResult, rasterize
     from .sim import SIM
