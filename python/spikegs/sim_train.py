@@ -457,7 +457,10 @@ def train_or_load(
         legacy = user_cache(path.name, known[1])
         path, keep = fallback, False  # (a cache, not the file the user named)
         others = [user_cache(Path(other).name, data) for other in alternates]  # (read alone)
+        # (those `stranded` names were read above)
         for cached in (fallback, legacy, *others) if not force else ():
+            if cached in stranded:
+                continue
             model = _cached(cached, window, known, settings, side, say=False)
             if model is not None:
                 path = cached
