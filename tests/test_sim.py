@@ -949,7 +949,8 @@ def test_a_batch_that_cannot_fit_in_memory_is_refused_before_a_step(scene, monke
         (["--out", "file"], "--out file: an existing file that is not a saved SIM"),
         # --force ("retrain even if the weights exist") left it too, unsaid why (the sim-train
         # trial: a SIM's file cut short)
-        (["--out", "file", "--force"], "not a saved SIM, which sim-train does not replace, --fo"),
+        # (a recording's spikes.dat named by mistake: "delete it" comes with its condition)
+        (["--out", "file", "--force"], "not replace, --force or not; give another path (where"),
         # its scores were written over a dataset's test_views.json, which then read as "no
         # convention" (the sim-train trial)
         (["--out", "test_views"], "its scores go to test_views.json, an existing file that is no"),
@@ -1125,6 +1126,20 @@ def test_a_sim_cached_from_another_start_is_retrained(tmp_path, capsys):
     capsys.readouterr()
     assert train_or_load(path, stream, ts, W, **TINY)[1] > 0
     assert "from another start; training SIM afresh" in capsys.readouterr().err
+
+
+def test_a_user_cache_that_cannot_be_read_is_no_cache(tmp_path, monkeypatch):
+    """The lookup of a SIM stranded in the user cache, on a writable dataset: a cache that
+    cannot be read (a container's user with HOME=/root) raised PermissionError where SIM had
+    trained before (the review)."""
+    unreadable = Path("/proc/1/root/spikegs-cache")
+    try:
+        unreadable.exists()
+        pytest.skip("no path that refuses to be read here")  # (root outside a container, macOS)
+    except PermissionError:
+        pass
+    monkeypatch.setenv("XDG_CACHE_HOME", str(unreadable))
+    assert train_or_load(tmp_path / "sim.pt", SpikeArray(12, 12, 40), [20, 21], W, **TINY)[1] > 0
 
 
 @pytest.mark.parametrize("name", ["sim.pt", "sim.pt.json"])

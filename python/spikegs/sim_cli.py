@@ -123,8 +123,8 @@ def _run(args: argparse.Namespace) -> int:
         if Path(args.out).exists() and not is_sim_file(Path(args.out)):
             raise ValueError(  # (a cache's torn file is retrained over; a file named is not)
                 f"--out {args.out}: an existing file that is not a saved SIM, which sim-train "
-                f"does not replace, --force or not; give another path, or delete it (a SIM's "
-                f"file cut short)"
+                f"does not replace, --force or not; give another path (where it is a SIM's "
+                f"file cut short, delete it first)"
             )
         record = record_beside(Path(args.out))
         if record.exists() and not _is_scores_record(record):  # (`--out DATASET/test_views`

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import sys
 import time
 import warnings
@@ -440,7 +441,9 @@ def train_or_load(
     # and where the folder could not be written once: the user cache's (a SIM stranded there was
     # trained again once the dataset could be written); a file the user named is that file alone
     stranded = [] if keep else [user_cache(Path(p).name, data) for p in (path, *alternates)]
-    for other in [*alternates, *filter(None, stranded)] if model is None and not force else ():
+    # (os.path.exists: a cache that cannot be read is none; Path.exists raised PermissionError)
+    stranded = [p for p in stranded if p is not None and os.path.exists(p)]
+    for other in [*alternates, *stranded] if model is None and not force else ():
         model = _cached(Path(other), window, known, settings, side, say=False)
         if model is not None:
             return model, 0.0, Path(other)
