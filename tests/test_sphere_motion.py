@@ -10,14 +10,15 @@ from spikegs.data.sphere_motion import WINDOW_SAMPLES, window_motion
 from spikegs.data.trajectory import Trajectory, look_at
 
 K = np.array([[100.0, 0, 32], [0, 100.0, 32], [0, 0, 1]])
-SCENE = SimpleNamespace(scene_center=np.zeros(3), scene_radius=1.0, K=K)
+SCENE = SimpleNamespace(scene_center=np.zeros(3), scene_radius=1.0, K=K, width=64, height=64)
 
 
 def sliding(speed: float, readouts: int = 400) -> Trajectory:
     """A camera 5 units from the sphere's centre on -z, sliding along x at `speed` units a readout
-    and looking along +z: every point moves f · speed / depth pixels a readout along u."""
-    times = np.array([0.0, readouts - 1.0])
-    eyes = np.array([[0.0, 0, -5], [speed * (readouts - 1), 0, -5]])
+    and looking along +z, past x = 0 halfway: every point moves f · speed / depth pixels a readout
+    along u."""
+    times, half = np.array([0.0, readouts - 1.0]), speed * (readouts - 1) / 2
+    eyes = np.array([[-half, 0, -5], [half, 0, -5]])
     return Trajectory(times, np.stack([look_at(e, e + [0, 0, 1], up=[0, -1, 0]) for e in eyes]))
 
 
@@ -39,8 +40,24 @@ def test_windows_past_the_trajectory_are_clipped_to_it_and_the_largest_is_taken(
 
 def test_points_behind_the_camera_add_no_motion():
     """A camera inside the sphere (a pole behind it projects anywhere): only the points ahead."""
-    inside = SimpleNamespace(scene_center=np.array([0.0, 0, -5]), scene_radius=3.0, K=K)
+    inside = SimpleNamespace(
+        scene_center=np.array([0.0, 0, -5]), scene_radius=3.0, K=K, width=64, height=64
+    )
     motion = window_motion(inside, sliding(0.01), [200], 33)
     # ahead: the +z pole at depth 3 moves 100 · 0.01 / 3 a readout; the centre, on the camera's
     # plane, and the -z pole behind it, none
     assert motion == pytest.approx(100 * 0.01 / 3 * 32)
+
+
+def test_points_far_off_the_image_add_no_motion():
+    """A camera orbiting slowly inside the sphere (0.3 radii from its centre, which it looks at):
+    the poles beside it, near its plane, project far off the image and swept thousands of pixels
+    as the image barely moved (302 % of a 24² image at 0.05° a readout: the review). Steps whose
+    ends both lie within half the image's size of it count: here the far pole's, near the
+    centre, 1 · sin(azimuth) off the view axis at depth ~1.3: f · cos(10°) · 1.6° / 1.3 = 2.1 px
+    (the elevation's 10° adds a little)."""
+    orbit = Trajectory.spiral(
+        400, radius=0.3, start_elevation_deg=10, end_elevation_deg=10, degrees_per_readout=0.05
+    )
+    motion = window_motion(SCENE, orbit, [200], 33)
+    assert 2.0 < motion < 2.5

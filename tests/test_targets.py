@@ -360,7 +360,7 @@ def test_a_camera_fast_within_a_targets_window_is_warned_of(dataset, tmp_path, m
         warn_if_blurred(_fast(dataset, 0.5), spikegs)
     share = r"moves up to \d+ pixels \((\d+)% of the image's 24\) within"
     with pytest.warns(
-        UserWarning, match=f"{share} sim.window = 33 readouts .* \\(config\\)"
+        UserWarning, match=f"{share} sim.window = 33 readouts .* \\(sim.window, conf"
     ) as got:
         warn_if_blurred(fast, spikegs)
     assert int(re.search(share, str(got[0].message))[1]) > 100
@@ -371,11 +371,23 @@ def test_a_camera_fast_within_a_targets_window_is_warned_of(dataset, tmp_path, m
     monkeypatch.setattr("spikegs.train.build_targets", no_work)
     with pytest.warns(UserWarning, match="sim.window = 33"), pytest.raises(KeyboardInterrupt):
         Trainer(fast, spikegs, tmp_path / "run", progress=False).train()
-    (tmp_path / "long.yaml").write_text("base: spikegs\nsupervision: {exposure_window: 41}\n")
-    with pytest.warns(UserWarning, match=r"exposure_window = 41 readouts .* \(.*long.yaml\)"):
-        warn_if_blurred(fast, load_config(tmp_path / "long.yaml"))
+    # the exposure loss's renders model the motion across its window: each render's span judged
+    # (its window over its poses), the remedy more poses
+    (tmp_path / "two.yaml").write_text("base: only_exposure\nsupervision: {exposure_poses: 2}\n")
+    each = r"within the 17 readouts each of the exposure loss's 2 renders stands for \(supervision"
+    more = r"more poses \(supervision.exposure_poses, .*two.yaml\)"
+    with pytest.warns(
+        UserWarning, match=f"{each}.exposure_window 33 / exposure_poses 2\\).*{more}"
+    ):
+        warn_if_blurred(fast, load_config(tmp_path / "two.yaml"))
+    with warnings.catch_warnings():  # (7 readouts each of 5 renders: at 0.5°, a few %)
+        warnings.simplefilter("error")
+        warn_if_blurred(_fast(dataset, 0.5), load_config("only_exposure"))
     with pytest.warns(UserWarning, match=r"within supervision.instant_window = 33 readouts"):
         warn_if_blurred(fast, load_config("tfp33"))
+    # SIM's image is its target window's, not the window it reads
+    with pytest.warns(UserWarning, match=r"within sim.target_window = 9 readouts .*a shorter win"):
+        warn_if_blurred(fast, load_config("spikegs", {"sim": {"target_window": 9}}))
 
 
 def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):

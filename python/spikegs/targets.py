@@ -13,6 +13,7 @@ puts targets, renders and ground truth on a [0, 1]-like scale where the 3DGS def
 
 from __future__ import annotations
 
+import math
 import sys
 import warnings
 from collections.abc import Callable
@@ -352,28 +353,53 @@ def target_windows(config: Config) -> dict[str, int]:
     return windows
 
 
+def blurring_spans(config: Config) -> list[tuple[str, int, str]]:
+    """(the setting that sets it, readouts, what they are) of each span of readouts that one
+    image of `config`'s targets or renders stands for: the instant image's (SIM's target window,
+    or the instant TFP's), and each of the exposure loss's renders' (its window over its poses:
+    the motion across the window itself is modelled by them)."""
+    s, instant, spans = config.supervision, config.instant_target(), []
+    if instant == "sim":
+        name = "sim.target_window" if config.sim.target_window else "sim.window"
+        readouts = config.sim.target_readouts()
+        spans.append((name, readouts, f"{name} = {readouts} readouts"))
+    if instant == "tfp":
+        spans.append(
+            ("supervision.instant_window", s.instant_window, f"supervision.instant_window = "
+             f"{s.instant_window} readouts")
+        )  # fmt: skip
+    if s.exposure_weight > 0:
+        each = math.ceil(s.exposure_window / s.exposure_poses)
+        spans.append(
+            ("supervision.exposure_poses", each, f"the {each} readouts each of the exposure "
+             f"loss's {s.exposure_poses} renders stands for (supervision.exposure_window "
+             f"{s.exposure_window} / exposure_poses {s.exposure_poses})")
+        )  # fmt: skip
+    return spans
+
+
 def warn_if_blurred(dataset, config: Config) -> None:
     """A UserWarning where the scene sphere's points move over BLUR_SHARE of the image's larger
-    side within a window of readouts that `config`'s targets read around a training timestamp
-    (by the dataset's poses): images made from those spikes are motion-blurred (a pose log as
-    fast as `simulate --speed 60`'s trained a near-constant image, unsaid)."""
+    side within a span of readouts that one image of `config`'s targets or renders stands for
+    (`blurring_spans`), by the dataset's poses: the images made from those spikes are motion-
+    blurred (a pose log as fast as `simulate --speed 60`'s trained a near-constant image,
+    unsaid). The span that moves most is named."""
     from .data.sphere_motion import window_motion  # (the data package imports us)
 
-    windows = target_windows(config)
-    if not windows:
-        return
-    name = max(windows, key=windows.get)  # the longest: the most blurred
-    ts = dataset.train_timestamps
-    motion = window_motion(dataset, dataset.trajectory, ts, windows[name])
-    side = max(dataset.width, dataset.height)
+    side, ts = max(dataset.width, dataset.height), dataset.train_timestamps
+    moves = [
+        (window_motion(dataset, dataset.trajectory, ts, readouts), name, what)
+        for name, readouts, what in blurring_spans(config)
+    ]
+    motion, name, what = max(moves, default=(0.0, "", ""))
     if motion > BLUR_SHARE * side:
+        remedy = "more poses" if name == "supervision.exposure_poses" else "a shorter window"
         warnings.warn(
             f"{dataset.root}: by its poses, the scene moves up to {motion:.0f} pixels "
-            f"({motion / side:.0%} of the image's {side}) within {name} = {windows[name]} "
-            f"readouts around a training timestamp: the targets made from those spikes are "
-            f"motion-blurred, and a run learns the scene smeared; a shorter window "
-            f"({config.set_by(name)}), or a recording whose camera moves slower against the "
-            f"readout rate",
+            f"({motion / side:.0%} of the image's {side}) within {what} around a training "
+            f"timestamp: the images made from them are motion-blurred, and a run learns the "
+            f"scene smeared; {remedy} ({name}, {config.set_by(name)}), or a recording whose "
+            f"camera moves slower against the readout rate",
             stacklevel=3,
         )
 

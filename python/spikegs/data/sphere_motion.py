@@ -34,13 +34,19 @@ def track_steps(pixels: np.ndarray, ahead: np.ndarray) -> np.ndarray:
 def window_motion(scene, trajectory: Trajectory, timestamps, window: int) -> float:
     """The longest path in pixels that a pole or the centre of the scene sphere traces across the
     image within `window` readouts centred on a readout of `timestamps` [N] (at most WINDOWS of
-    them, evenly spread; the poses at every readout of a window, at most WINDOW_SAMPLES evenly,
-    clipped to the trajectory's readouts): the motion blur of an image made from those
-    readouts' spikes."""
+    them, evenly spread: a short fast stretch of a long pose log between them is not seen; the
+    poses at every readout of a window, at most WINDOW_SAMPLES evenly, clipped to the
+    trajectory's readouts): the motion blur of an image made from those readouts' spikes. Only
+    steps whose ends both project within half the image's size of it count: a pole near a
+    camera's plane (a camera in or near the sphere) moved thousands of pixels off the image as
+    the image itself barely moved. `scene` as `sphere_track`'s, with the image's width and
+    height."""
     ts = np.sort(np.asarray(timestamps, np.float64))  # [N]
     ts = ts[np.unique(np.linspace(0, len(ts) - 1, min(len(ts), WINDOWS)).round().astype(int))]
     offsets = np.linspace(-(window // 2), window // 2, min(window, WINDOW_SAMPLES))  # [S]
     times = np.clip(ts[:, None] + offsets, trajectory.start, trajectory.end)  # [N', S]
     pixels, ahead = sphere_track(scene, trajectory.pose_at(times.ravel()))
-    steps = track_steps(pixels.reshape(*times.shape, 7, 2), ahead.reshape(*times.shape, 7))
+    size = np.array([scene.width, scene.height], np.float64)
+    near = ahead & np.all((pixels > -size / 2) & (pixels < 1.5 * size), axis=-1)  # [F, 7]
+    steps = track_steps(pixels.reshape(*times.shape, 7, 2), near.reshape(*times.shape, 7))
     return float(steps.sum(axis=-2).max()) if steps.size else 0.0
