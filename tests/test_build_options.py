@@ -32,9 +32,13 @@ def test_an_in_place_build_without_the_python_module_is_refused_at_configure(tmp
 
 def _install_deps(tmp_path, **env) -> subprocess.CompletedProcess:
     """scripts/install-deps.sh on a PATH of `id` and a `python` that records its arguments in
-    tmp_path/python.args (no c++, g++, clang++, apt-get or brew), with `env`."""
+    tmp_path/python.args (no c++, g++, clang++, apt-get or brew), with `env`; GLM found under a
+    prefix of CMAKE_PREFIX_PATH, wherever the machine keeps its own (or has none)."""
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
+    (tmp_path / "prefix" / "include" / "glm").mkdir(parents=True)
+    (tmp_path / "prefix" / "include" / "glm" / "glm.hpp").write_text("")
+    env = {"CMAKE_PREFIX_PATH": str(tmp_path / "prefix"), **env}
     (bin_dir / "id").symlink_to(shutil.which("id"))
     python = bin_dir / "python"
     python.write_text(f'#!/bin/sh\necho "$@" >> {tmp_path / "python.args"}\n')

@@ -731,15 +731,16 @@ def test_eval_with_aligned_poses_names_the_views_likely_settled_off(trained, run
     assert result["aligned_poses"]["unexplained_median"] == pytest.approx(0.275)
 
 
-def test_an_under_fit_view_at_its_pose_is_not_named(trained, run, monkeypatch):
+@pytest.mark.parametrize("share, named", [(0.18, False), (0.27, True)])
+def test_an_under_fit_view_at_its_pose_is_not_named(trained, run, monkeypatch, share, named):
     """A view at its exact pose that an under-fit run (64², 200 iterations) fits worse than the
     others left 0.15-0.18 of its coarse structure where they left 0.05-0.08: named as "likely
     settled off" its pose, its aligned score "not the scene's" (the eval trial). Under 0.2, not
-    named: views lost at 128² left 0.27 and more (BENCHMARKS.md)."""
+    named: views lost at 128² left 0.27 and more (BENCHMARKS.md), still named."""
     from spikegs import evaluate
     from spikegs.pose_align import Alignment
 
-    shares = iter([0.06, 0.18, 0.05, 0.07])  # the median 0.065: over twice it, under 0.2
+    shares = iter([0.06, share, 0.05, 0.07])  # the median 0.065: over twice it
 
     def aligned(model, viewmat, image, dataset):
         return Alignment(np.asarray(viewmat, np.float64), 10, True, next(shares))
@@ -749,8 +750,8 @@ def test_an_under_fit_view_at_its_pose_is_not_named(trained, run, monkeypatch):
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         result = evaluate_run(run, turned, write_images=False, align_poses=True)
-    assert not any("likely settled off" in str(w.message) for w in said)
-    assert result["aligned_poses"]["suspect"] == []
+    assert any("likely settled off" in str(w.message) for w in said) == named
+    assert result["aligned_poses"]["suspect"] == [turned.test_views[1].name] * named
 
 
 def test_views_whose_renders_bear_no_likeness_are_named_whatever_the_median(
