@@ -46,8 +46,10 @@ def stretches(stream):
 
 def _ring(image: np.ndarray) -> np.ndarray:
     """Each pixel's 8 neighbours in `image` [H, W] [8, H, W], reflected about the frame's edges: a
-    border pixel's neighbours in the frame, some twice (edges repeated made a corner three of its
-    own neighbours, and so its second brightest and darkest: a defect there was never found)."""
+    border pixel's neighbours in the frame, an edge's inner three twice and a corner's diagonal
+    four times, as a scene's line crossing the edge goes on past it (edges repeated made a corner
+    three of its own neighbours, and so its second brightest and darkest: a defect there was
+    never found; left out, NaN, a still line's pixel at the edge was taken for a defect)."""
     h, w = image.shape
     pad = np.pad(image, 1, mode="reflect")
     ring = [(dy, dx) for dy in range(3) for dx in range(3) if (dy, dx) != (1, 1)]
