@@ -7,35 +7,34 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_an_in_place_build_without_the_python_module_is_refused_at_configure(tmp_path):
+@pytest.mark.parametrize("inplace", [True, False])
+def test_an_in_place_build_without_the_python_module_is_refused_at_configure(tmp_path, inplace):
     """-DSPIKEGS_INPLACE=ON alone (the extension's not-built message named it alone) configured,
-    then built no module, unsaid: refused, naming the option it needs (the install trial)."""
+    then built no module, unsaid: refused, naming the option it needs (the install trial); the
+    C++ tests' build alone (PYTHON=OFF) is not."""
+    options = ["-DSPIKEGS_PYTHON=OFF", "-DSPIKEGS_TESTS=OFF", f"-DSPIKEGS_INPLACE={inplace:d}"]
     done = subprocess.run(
-        [
-            "cmake",
-            "-S",
-            str(ROOT),
-            "-B",
-            str(tmp_path),
-            "-DSPIKEGS_INPLACE=ON",
-            "-DSPIKEGS_PYTHON=OFF",
-        ],
-        capture_output=True,
-        text=True,
+        ["cmake", "-S", str(ROOT), "-B", str(tmp_path), *options], capture_output=True, text=True
     )
-    assert done.returncode != 0
-    assert "SPIKEGS_PYTHON=OFF does not build: add -DSPIKEGS_PYTHON=ON" in done.stderr, done.stderr
+    refused = "SPIKEGS_PYTHON=OFF does not build: add -DSPIKEGS_PYTHON=ON" in done.stderr
+    assert refused == inplace and (done.returncode != 0) == inplace, done.stderr
 
 
-def _install_deps(tmp_path, **env) -> subprocess.CompletedProcess:
+def _install_deps(tmp_path, apt: bool = False, **env) -> subprocess.CompletedProcess:
     """scripts/install-deps.sh on a PATH of `id` and a `python` that records its arguments in
-    tmp_path/python.args (no c++, g++, clang++, apt-get or brew), with `env`; GLM found under a
-    prefix of CMAKE_PREFIX_PATH, wherever the machine keeps its own (or has none)."""
+    tmp_path/python.args (no c++, g++, clang++ or brew; an `apt-get` recording its arguments in
+    tmp_path/apt.args where `apt`), with `env`; GLM found under a prefix of CMAKE_PREFIX_PATH,
+    wherever the machine keeps its own (or has none)."""
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
+    if apt:
+        (bin_dir / "apt-get").write_text(f'#!/bin/sh\necho "$@" >> {tmp_path / "apt.args"}\n')
+        (bin_dir / "apt-get").chmod(0o755)
     (tmp_path / "prefix" / "include" / "glm").mkdir(parents=True)
     (tmp_path / "prefix" / "include" / "glm" / "glm.hpp").write_text("")
     env = {"CMAKE_PREFIX_PATH": str(tmp_path / "prefix"), **env}
@@ -60,7 +59,11 @@ def test_install_deps_takes_the_compiler_cxx_names(tmp_path):
     done = _install_deps(tmp_path, CXX=str(compiler))
     assert done.returncode == 0, done.stderr
     assert "pip install" in (tmp_path / "python.args").read_text()  # on to the build backend
+    (tmp_path / "flags").mkdir()  # (CXX with its flags: the program is its first word)
+    assert _install_deps(tmp_path / "flags", CXX=f"{compiler} -O2").returncode == 0
+    # a CXX that is no program: said, and no g++ installed in its place (CMake would take CXX)
     (tmp_path / "other").mkdir()
-    missing = _install_deps(tmp_path / "other", CXX="/nonexistent/c++")
+    missing = _install_deps(tmp_path / "other", apt=True, CXX="/nonexistent/c++")
     assert missing.returncode == 1
     assert "no C++ compiler at CXX=/nonexistent/c++: set CXX to one" in missing.stderr
+    assert not (tmp_path / "other" / "apt.args").exists()

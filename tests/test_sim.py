@@ -1128,6 +1128,16 @@ def test_a_sim_cached_from_another_start_is_retrained(tmp_path, capsys):
     assert "from another start; training SIM afresh" in capsys.readouterr().err
 
 
+def test_no_user_cache_is_looked_in_where_there_is_none(tmp_path, monkeypatch):
+    """No home directory (no user cache): a SIM trains in a writable folder; a file the user
+    named, holding a SIM of other spikes, is refused as such."""
+    monkeypatch.setattr(sim_train, "cache_home", lambda: None)
+    path, stream = tmp_path / "sim.pt", SpikeArray(12, 12, 40)
+    assert train_or_load(path, stream, [20, 21], W, **TINY)[1] > 0
+    with pytest.raises(FileExistsError, match=f"{path}: a SIM trained on other spikes, for anoth"):
+        train_or_load(path, stream, [22, 23], W, keep=True, **TINY)
+
+
 def test_a_user_cache_that_cannot_be_read_is_no_cache(tmp_path, monkeypatch):
     """The lookup of a SIM stranded in the user cache, on a writable dataset: a cache that
     cannot be read (a container's user with HOME=/root) raised PermissionError where SIM had
@@ -1142,14 +1152,16 @@ def test_a_user_cache_that_cannot_be_read_is_no_cache(tmp_path, monkeypatch):
     assert train_or_load(tmp_path / "sim.pt", SpikeArray(12, 12, 40), [20, 21], W, **TINY)[1] > 0
 
 
-@pytest.mark.parametrize("name", ["sim.pt", "sim.pt.json"])
-def test_a_folder_where_a_sim_is_saved_is_refused_before_training(tmp_path, monkeypatch, name):
+@pytest.mark.parametrize("name, what", [("sim.pt", "weights"), ("sim.pt.json", "scores")])
+def test_a_folder_where_a_sim_is_saved_is_refused_before_training(
+    tmp_path, monkeypatch, name, what
+):
     """A folder at a cache's path, the weights' or their scores record's: SIM trained, then its
     save ended the command ("[Errno 21] Is a directory"), the training lost (the sim-train
     trial)."""
     monkeypatch.setattr(sim_train, "train_sim", lambda *a, **k: pytest.fail("trained"))
     (tmp_path / name).mkdir()
-    said = f"{tmp_path / name}: a folder where SIM's .* are saved, .*; move or delete it"
+    said = f"{tmp_path / name}: a folder where SIM's {what} are saved, .*; move or delete it"
     with pytest.raises(IsADirectoryError, match=said):
         train_or_load(tmp_path / "sim.pt", SpikeArray(12, 12, 40), [20, 21], W, **TINY)
 

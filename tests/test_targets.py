@@ -390,6 +390,24 @@ def test_a_camera_fast_within_a_targets_window_is_warned_of(dataset, tmp_path, m
         warn_if_blurred(fast, load_config("spikegs", {"sim": {"target_window": 9}}))
 
 
+def test_the_blur_is_judged_against_the_larger_side_at_every_timestamp():
+    """A 16 x 64 image (the larger side its height) and a camera still until readout 200, then
+    sliding 0.02 units a readout 4 units from the nearest pole: 16 px in SIM's 33 readouts, a
+    quarter of 64 (warned of), seen at the second timestamp alone."""
+    from test_sphere_motion import looking_along_z
+
+    K16 = np.array([[100.0, 0, 16], [0, 100.0, 32], [0, 0, 1]])  # (the pole from u 16 to 0)
+    later = looking_along_z([0.0, 200, 399], [[0, 0, -5], [0, 0, -5], [3.98, 0, -5]])
+    scene = dict(root="r", K=K16, scene_center=np.zeros(3), scene_radius=1.0, width=16, height=64)
+    spikegs = load_config("spikegs")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (still before readout 200)
+        warn_if_blurred(SimpleNamespace(**scene, trajectory=later, train_timestamps=[50]), spikegs)
+    fast = SimpleNamespace(**scene, trajectory=later, train_timestamps=np.array([50, 216]))
+    with pytest.warns(UserWarning, match=r"\(25% of the image's 64\)"):
+        warn_if_blurred(fast, spikegs)
+
+
 def test_an_exposure_past_the_poses_is_refused_first(dataset, monkeypatch):
     """A pose log that does not cover the stream's ends (a real recording's): the exposure's
     renders reached past it mid-run ('pose_at: t=... outside the trajectory's readouts')."""

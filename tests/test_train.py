@@ -3554,9 +3554,25 @@ def test_spikegs_train_stopped_in_its_last_step_plots_its_curve(
     argv = ["train", str(dataset.root), "--method", "tfp33", "--out", str(tmp_path / "run")]
     assert main([*argv, "--iterations", "30", "--no-progress"]) == 143
     assert read_image(tmp_path / "run" / "curve.png").ndim == 3
-    printed = json.loads(capsys.readouterr().out)
+    said = capsys.readouterr()
+    printed = json.loads(said.out)
     assert printed == json.loads((tmp_path / "run" / "train.json").read_text())
     assert printed["iterations"] == 30
+    assert "--resume continues" not in said.err  # (finished: nothing to continue)
+
+
+def test_spikegs_train_stopped_at_once_names_its_last_checkpoint(
+    dataset, tmp_path, monkeypatch, sigterm_raises, capsys
+):
+    """Two SIGTERMs at step 40 of 60, a checkpoint every 25: the run stops at once, and the way
+    on names the checkpoint's iteration, 25, not the step it stopped in."""
+    config = tmp_path / "c.yaml"
+    train = {**FAST["train"], "iterations": 60, "checkpoint_every": 25}
+    config.write_text(yaml.safe_dump({"base": "tfp33", **FAST, "train": train}))
+    _interrupt_during(Densifier, "step", 40, monkeypatch, 2, signal.SIGTERM)
+    argv = ["train", str(dataset.root), "--config", str(config), "--out", str(tmp_path / "run")]
+    assert main([*argv, "--no-progress"]) == 143
+    assert "continues from its last checkpoint, at iteration 25 of 60" in capsys.readouterr().err
 
 
 def test_a_base_name_is_a_method_whatever_the_current_directory_holds(tmp_path, monkeypatch):
