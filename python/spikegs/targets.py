@@ -295,9 +295,14 @@ def check_targets(dataset, config: Config) -> None:
 
     s, ts = config.supervision, np.asarray(dataset.train_timestamps, dtype=np.int64)
     instant = config.instant_target()
+    windows = {"sim.window": config.sim.window} if instant == "sim" else {}
+    if instant == "tfp":
+        windows["supervision.instant_window"] = s.instant_window
+    if s.exposure_weight > 0:
+        windows["supervision.exposure_window"] = s.exposure_window
     stream = dataset.streams[0]
     room = int(readouts_beside(stream, ts).min())
-    for name, w in target_windows(config).items():
+    for name, w in windows.items():
         if w // 2 > room:
             if isinstance(stream, ViewStreams):  # a window stays in its timestamp's view
                 first, end = stream.bounds(ts)
@@ -339,18 +344,6 @@ def check_targets(dataset, config: Config) -> None:
 
         clean_source(dataset)
         simulated_trajectory(dataset)
-
-
-def target_windows(config: Config) -> dict[str, int]:
-    """{'section.key': readouts} of each window of spikes that `config`'s targets read around a
-    training timestamp: SIM's or the instant TFP's, the exposure loss's."""
-    s, instant = config.supervision, config.instant_target()
-    windows = {"sim.window": config.sim.window} if instant == "sim" else {}
-    if instant == "tfp":
-        windows["supervision.instant_window"] = s.instant_window
-    if s.exposure_weight > 0:
-        windows["supervision.exposure_window"] = s.exposure_window
-    return windows
 
 
 def blurring_spans(config: Config) -> list[tuple[str, int, str]]:
