@@ -1732,6 +1732,9 @@ def test_readouts_one_per_pose_strictly_increasing(tmp_path):
     np.savetxt(path, [0, 10, 20, 30], fmt="%d")
     with pytest.raises(ValueError, match="readouts.txt: 4 readouts for 3 poses; expected one per"):
         _read_readouts(path, 3)
+    path.write_text("0\n1_0\n20\n")  # (Python's float read it as 10: a typo taken as a number)
+    with pytest.raises(ValueError, match=r"readouts.txt: line 2: expected one readout index a li"):
+        _read_readouts(path, 3)
 
 
 def test_llff_stream_length_checked_at_its_last_readout():

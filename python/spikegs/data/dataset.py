@@ -1418,6 +1418,8 @@ def read_column(path: Path, what: str) -> np.ndarray:
         if not text:
             continue
         try:
+            if "_" in text:  # (Python's float took 9_0 for 90: a typo read as another number)
+                raise ValueError
             values.append(float(text))
         except ValueError:
             fields = len(text.replace(",", " ").split())
