@@ -438,17 +438,18 @@ def train_or_load(
     first = _streams(stream)[0]
     side = max(first.height, first.width)
     model = None if force else _cached(path, window, known, settings, side, say=False, keep=keep)
-    # and where the folder could not be written once: the user cache's (a SIM stranded there was
-    # trained again once the dataset could be written); a file the user named is that file alone
-    stranded = [] if keep else [user_cache(Path(p).name, data) for p in (path, *alternates)]
+    # where `path` and `alternates` are cached while their folder cannot be written (None: no
+    # home directory); read where it can be too, a SIM stranded there (trained again once the
+    # dataset could be written), but for a file the user named, which is that file alone
+    in_cache = [user_cache(Path(p).name, data) for p in (path, *alternates)]
     # (os.path.exists: a cache that cannot be read is none; Path.exists raised PermissionError)
-    stranded = [p for p in stranded if p is not None and os.path.exists(p)]
+    stranded = [] if keep else [p for p in in_cache if p is not None and os.path.exists(p)]
     for other in [*alternates, *stranded] if model is None and not force else ():
         model = _cached(Path(other), window, known, settings, side, say=False)
         if model is not None:
             return model, 0.0, Path(other)
     if model is None and not writable_folder(path.parent):
-        fallback = user_cache(path.name, data)
+        fallback, *others = in_cache  # (the alternates' read alone)
         if fallback is None or not writable_folder(fallback.parent):
             raise OSError(
                 f"SIM cannot be cached: {path.parent} cannot be written, nor the user cache "
@@ -459,8 +460,7 @@ def train_or_load(
         # a SIM cached there before 2026-11-28 lies under the sampled fingerprint's folder
         legacy = user_cache(path.name, known[1])
         path, keep = fallback, False  # (a cache, not the file the user named)
-        others = [user_cache(Path(other).name, data) for other in alternates]  # (read alone)
-        # (those `stranded` names were read above)
+        # (those `stranded` were read above)
         for cached in (fallback, legacy, *others) if not force else ():
             if cached in stranded:
                 continue
