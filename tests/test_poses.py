@@ -355,7 +355,7 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     vertex = np.zeros(21, dtype=[(a, "f8") for a in "xyz"])  # another tool's float64 cloud
     vertex["x"][-1] = 1e39  # finite in float64, inf as the Gaussians' float32
     PlyData([PlyElement.describe(vertex, "vertex")]).write(root / POINTS)
-    with pytest.raises(ValueError, match="all finite \\(in float32\\)"):
+    with pytest.raises(ValueError, match=r"all finite \(in float32\); found 1 of 21 not, from #20"):
         read_points(root / POINTS)
     (root / POINTS).write_bytes(bytes(range(256)))
     with pytest.raises(ValueError, match="not a readable PLY"):
@@ -363,6 +363,45 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     with pytest.raises(ValueError, match="not a readable PLY"):  # before any work
         Trainer(load_dataset(root), load_config("tfp33", TINY), tmp_path / "r3", False).train()
     assert not (tmp_path / "r3").exists()
+
+
+def test_a_run_started_from_a_point_cloud_says_so_and_records_it(tiny, tmp_path, capsys):
+    """Whether the Gaussians started at DATASET/points3d.ply moved a run's score by 6 dB (20
+    points against random ones), and nothing of a run told it: train.json's `data` is the same
+    either way. It is said as the run starts and recorded (file, points, SHA-256); null for a
+    random start; a resumed run keeps its record, even with the cloud deleted since."""
+    root = tmp_path / "data"
+    shutil.copytree(tiny.root, root)
+    points = np.random.default_rng(0).normal(size=(50, 3))  # [P, 3]
+    write_points(root / POINTS, np.concatenate([points, points]))  # copies: 50 distinct
+    config = load_config("tfp33", {**TINY, "pose_refine": {"enabled": False}})
+    cloud = Trainer(load_dataset(root), config, tmp_path / "cloud", False).train()
+    said = capsys.readouterr().err
+    assert f"{(root / POINTS).resolve()}: the 50 initial Gaussians start at its points (50" in said
+    record = {
+        "file": str((root / POINTS).resolve()),
+        "points": 50,
+        "sha256": hashlib.sha256((root / POINTS).read_bytes()).hexdigest(),
+    }
+    assert cloud["start_points"] == record
+    assert json.loads((tmp_path / "cloud" / "train.json").read_text())["start_points"] == record
+    (root / POINTS).unlink()
+    random = Trainer(load_dataset(root), config, tmp_path / "random", False).train()
+    assert random["start_points"] is None and random["data"] == cloud["data"]
+    assert "initial Gaussians start" not in capsys.readouterr().err
+    write_points(root / POINTS, points)
+    stopped = Trainer(load_dataset(root), config, tmp_path / "resumed", False)
+    stopped._fresh_state()
+    stopped.save_checkpoint()  # at iteration 0, from the cloud
+    (root / POINTS).unlink()
+    resumed = Trainer(load_dataset(root), config, tmp_path / "resumed", False).train(resume=True)
+    assert resumed["start_points"]["points"] == 50
+    state = torch.load(stopped.checkpoint_path, weights_only=True)
+    del state["start_points"]  # a checkpoint from before the record
+    torch.save(state, stopped.checkpoint_path)
+    (tmp_path / "resumed" / "train.json").unlink()
+    old = Trainer(load_dataset(root), config, tmp_path / "resumed", False).train(resume=True)
+    assert old["start_points"] == "unrecorded"
 
 
 @pytest.fixture(scope="module")
@@ -1699,7 +1738,7 @@ def test_a_point_cloud_without_points_is_refused(tmp_path):
     non-finite one does (it was taken for a cloud of 0 distinct points and the run started
     from random ones)."""
     write_points(tmp_path / POINTS, np.zeros((0, 3)))
-    with pytest.raises(ValueError, match=f"{POINTS}: expected at least one point"):
+    with pytest.raises(ValueError, match=f"{POINTS}: expected at least one point.*; found none"):
         read_points(tmp_path / POINTS)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -27,6 +28,11 @@ def _sampled_readouts(stream) -> bytes:
     for k in np.linspace(0, len(stream) - 1, 16).astype(np.int64) if len(stream) else []:
         parts.append(np.ascontiguousarray(stream.window(int(k), 1)).tobytes())
     return b"".join(parts)
+
+
+def file_digest(path) -> str:
+    """The SHA-256 of the file at `path`, hex."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def data_fingerprint(dataset, scale: float, sampled: bool = False) -> str:

@@ -43,8 +43,13 @@ def read_points(path: str | Path) -> np.ndarray:
         raise ValueError(f"{path}: expected vertex properties x, y, z; found {list(names)}")
     points = np.stack([vertex[a] for a in "xyz"], axis=1).astype(np.float64)  # [P, 3]
     # finite in float32 too, the Gaussians' precision (1e39 became inf there)
-    if not len(points) or not (np.abs(points) <= np.finfo(np.float32).max).all():  # NaN too
-        raise ValueError(f"{path}: expected at least one point, all finite (in float32)")
+    finite = (np.abs(points) <= np.finfo(np.float32).max).all(axis=1)  # [P] (NaN: False)
+    if not len(points) or not finite.all():
+        bad = np.flatnonzero(~finite)
+        found = "none" if not len(points) else f"{len(bad)} of {len(points)} not, from #{bad[0]}"
+        raise ValueError(
+            f"{path}: expected at least one point, all finite (in float32); found {found}"
+        )
     return points
 
 

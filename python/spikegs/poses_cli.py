@@ -14,7 +14,6 @@ the real-data loaders do), training timestamps between the registered images, cl
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import shutil
 import sys
@@ -71,6 +70,7 @@ from .data.real import (
 from .data.simulate import default_train_every
 from .data.trajectory import Trajectory
 from .data.view_geometry import CONVERGING, axes_meeting
+from .data_fingerprint import file_digest
 from .interrupt import deferred_interrupt, interruption
 from .number_checks import is_int
 from .output_paths import writable_folder
@@ -224,11 +224,6 @@ def _reported(report: str | None) -> dict:
     return reported if isinstance(reported, dict) else {}
 
 
-def _digest(path: Path) -> str:
-    """The SHA-256 of the file at `path`, hex."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def _written_over(path: Path, report: str | None, key: str | None = None) -> bool | None:
     """Whether the file at `path` is another than the last run wrote (or, `key`
     BACKUP_DIGEST, aligned to) there, as its `report` (sfm/report.json's text) recorded it under
@@ -237,7 +232,7 @@ def _written_over(path: Path, report: str | None, key: str | None = None) -> boo
     if not path.is_file():
         return False
     written = _reported(report).get(key or DIGESTS[path.name])
-    return None if written is None else _digest(path) != written
+    return None if written is None else file_digest(path) != written
 
 
 def _image_window(window: int | None, sim_model) -> int:
@@ -816,9 +811,9 @@ def _estimate_poses(
         write_points(root / POINTS, recon.points, recon.colors)
         report["summary"] = "\n".join(messages)
         # what this run wrote: a pose log or another tool's points put in their place is told
-        report.update({key: _digest(root / name) for name, key in DIGESTS.items()})
+        report.update({key: file_digest(root / name) for name, key in DIGESTS.items()})
         if backup.exists():
-            report[BACKUP_DIGEST] = _digest(backup)
+            report[BACKUP_DIGEST] = file_digest(backup)
         write_text_atomically(report_path, json.dumps(report, indent=1))
     if interrupted():
         raise interruption(interrupted())

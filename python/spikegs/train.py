@@ -33,7 +33,7 @@ from .config import (
 )
 from .curves import logged_curve
 from .data.dataset import FEW_TIMESTAMPS, POINTS, camera_keys, check_dataset, reading_dataset
-from .data_fingerprint import data_fingerprint, same_data
+from .data_fingerprint import data_fingerprint, file_digest, same_data
 from .densify import Densifier
 from .evaluate import score_view
 from .filter_3d import filter_widths
@@ -79,6 +79,9 @@ FILTER_3D_EVERY, FILTER_3D_VIEWS = 100, 256
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
 # the bar while densification rounds remain, which slow the steps as they add Gaussians: its
 # time left marked "+" (a 30000-iteration run's was 0.4-0.75x the time it then took)
+# train.json's and a checkpoint's record of the point cloud the Gaussians started at (None: random
+# points), and its value for a run from a checkpoint saved before it was recorded (2026-12-07)
+START_POINTS, UNRECORDED = "start_points", "unrecorded"
 GROWING_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}+, {rate_fmt}{postfix}]"
 
 
@@ -383,9 +386,18 @@ class Trainer:
         # deleted there
         cap = self.config.densify.max_world_size * self.radius
         max_scale = 0.99 * cap if cap else math.inf
+        self.start_points = None  # random points in the scene bounds
         if self.cloud_points is not None:
             self.model = gaussians_from_points(
                 self.cloud_points - origin, t.init_gaussians, t.sh_degree, gen, colors_of, max_scale
+            )
+            cloud = Path(self.dataset.root, POINTS).resolve()
+            count = len(self.cloud_points)
+            self.start_points = {"file": str(cloud), "points": count, "sha256": file_digest(cloud)}
+            print(  # (it moves a run's scores by dB, and the dataset's other files look the same)
+                f"{cloud}: the {len(self.model)} initial Gaussians start at its points ({count} "
+                f"distinct; delete it to start at random points in the scene bounds)",
+                file=sys.stderr,
             )
         else:
             self.model = GaussianModel.random(
@@ -441,6 +453,7 @@ class Trainer:
             "torch_rng": self.split_rng.get_state(),  # (a checkpoint before: the global one's)
             "config": self.config.to_dict(),
             "data": self.data,
+            START_POINTS: self.start_points,
             "scene_sphere": self._scene_sphere(),
             "dataset": str(Path(self.dataset.root).resolve()),
             "environments": self.environments,
@@ -564,6 +577,7 @@ class Trainer:
         self.rng.bit_generator.state = state["rng"]
         self.iteration, self.train_seconds = state["iteration"], state["train_seconds"]
         self.environments = state.get("environments", [])
+        self.start_points = state.get(START_POINTS, UNRECORDED)
 
     # -- one step ------------------------------------------------------------------------------
     def _poses(self, readouts: list[float], view: int) -> list[torch.Tensor]:
@@ -1040,6 +1054,7 @@ class Trainer:
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
+            START_POINTS: self.start_points,  # (the cloud is no part of `data`: nor of a SIM's)
             "environment": self.environments,  # what trained it, from which iteration
         }
         if self.found is not None:  # (none in a checkpoint from before the key)
