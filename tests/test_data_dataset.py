@@ -1497,7 +1497,11 @@ def test_a_wrong_col_offset_is_named_by_the_sharp_test_views(tmp_path, small, of
     if offset == stated:
         return
     assert f"{abs(offset - stated)} columns {way} their stored rows" in shifted[0]
-    assert f"col_offset ({stated}, in meta.json) is likely {offset}," in shifted[0]
+    assert (
+        f"col_offset is likely {offset}, the first stored column of the image (read with "
+        in shifted[0]
+    )
+    assert f"col_offset {stated}; it is set in meta.json)" in shifted[0]
 
 
 def test_test_images_unlike_the_frame_and_binary_timestamps_are_named(tmp_path, small):
@@ -2173,7 +2177,7 @@ def test_a_flip_stated_wrong_in_meta_json_is_warned_of(small, tmp_path):
     with pytest.warns(
         UserWarning,
         match=r"meta.json: the spikes match their views' sharp images better upside down .* over "
-        r"2 views\): flip \(False, in meta.json\) is likely wrong",
+        r"2 views\): flip is likely wrong \(read with flip False; it is set in meta.json\)",
     ):
         load_dataset(wrong)
     with warnings.catch_warnings():

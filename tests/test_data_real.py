@@ -894,25 +894,35 @@ def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path, monkeypa
     with pytest.warns(
         UserWarning,
         match=r"better upside down \(median correlation 0\.\d+ flipped against -?0\.\d+ as "
-        r"read, over 7 views\): flip \(False, in spikegs.json\) is likely wrong",
+        r"read, over 7 views\): flip is likely wrong \(read with flip False; it is set in "
+        r"spikegs.json\)",
     ):
         load_dataset(root)
     # a rate_at_one given left the training images unread, and the check skipped
     (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
-    with pytest.warns(UserWarning, match=r"better upside down .* over 7 views\): flip \(False"):
+    with pytest.warns(
+        UserWarning,
+        match=r"better upside down .* over 7 views\): flip is likely wrong \(read with flip False",
+    ):
         load_dataset(root)
     # images on later training frames alone: the first ORIENTATION_VIEWS frames, imageless,
     # were all that was read, and nothing checked (the layouts trial)
     monkeypatch.setattr("spikegs.data.nerf_layout.ORIENTATION_VIEWS", 2)
     for i in range(2, 6):
         (root / "train" / f"r_{i}.exr").unlink()
-    with pytest.warns(UserWarning, match=r"better upside down .* over 2 views\): flip \(False"):
+    with pytest.warns(
+        UserWarning,
+        match=r"better upside down .* over 2 views\): flip is likely wrong \(read with flip False",
+    ):
         load_dataset(root)
     # the held-out views' sharp images, where the training views have none (unsaid before)
     root = copy(nerf, tmp_path / "held")
     write_view(sim, root / "spike_data" / "r_0.dat", 0)  # test/r_0: its spikes and image
     (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
-    with pytest.warns(UserWarning, match=r"better upside down .* over 1 views\): flip \(False"):
+    with pytest.warns(
+        UserWarning,
+        match=r"better upside down .* over 1 views\): flip is likely wrong \(read with flip False",
+    ):
         load_dataset(root)
 
 

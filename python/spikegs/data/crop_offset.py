@@ -61,8 +61,8 @@ def warn_if_shifted(
         f"{source}: the spikes match their views' sharp images better read {abs(shift)} "
         f"column{'s' * (abs(shift) != 1)} {'further along' if shift > 0 else 'back'} their "
         f"stored rows (median correlation {top:.2f} against {kept:.2f} as read, over {count} of "
-        f"{len(found)} views): col_offset ({col_offset}, in {settings}) is likely "
-        f"{col_offset + shift}, the first stored column of the image",
+        f"{len(found)} views): col_offset is likely {col_offset + shift}, the first stored "
+        f"column of the image (read with col_offset {col_offset}; it is set in {settings})",
         stacklevel=stacklevel + 1,
     )
     return True

@@ -36,7 +36,7 @@ def warn_if_upside_down(
         warnings.warn(
             f"{source}: the spikes match their views' sharp images better upside down (median "
             f"correlation {flipped:.2f} flipped against {kept:.2f} as read, over {len(pairs)} "
-            f"views): flip ({flip}, in {settings}) is likely wrong",
+            f"views): flip is likely wrong (read with flip {flip}; it is set in {settings})",
             stacklevel=stacklevel + 1,
         )
 
