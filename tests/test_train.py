@@ -1438,9 +1438,22 @@ def test_ply_edge_cases(tmp_path):
         UserWarning, match=r"culls 1 \(not finite once activated\); 1 activate to finite values, d"
     ):
         load_ply(tmp_path / "nan.ply")
-    # Gaussians without an orientation: culled by the renderer, which eval scored unsaid
+    # a finite log-scale whose scale is infinite once activated (float32's exp past 88.72):
+    # culled by the renderer, unsaid (the warning counted values not finite in the file alone)
     model.params["means"].data[1, 0] = 0.0
     model.params["opacity_logits"].data[2] = 0.0
+    model.params["log_scales"].data[3, 1] = 100.0
+    model.params["log_scales"].data[4, 0] = 88.0  # 1.65e38: finite
+    save_ply(model, tmp_path / "huge.ply")
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        load_ply(tmp_path / "huge.ply")
+    assert [str(w.message) for w in said] == [
+        f"{tmp_path / 'huge.ply'}: 1 of its 20 Gaussians have a log-scale past 88.72, an "
+        f"infinite scale once activated (exp, in float32): kept, and culled by the renderer"
+    ]
+    model.params["log_scales"].data[3:5] = 0.0
+    # Gaussians without an orientation: culled by the renderer, which eval scored unsaid
     model.params["quats"].data[:3] = 0.0
     save_ply(model, tmp_path / "q.ply")
     with pytest.warns(UserWarning, match=r"q.ply: 3 of its 20 Gaussians have the rotation quat"):

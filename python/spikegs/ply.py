@@ -236,11 +236,19 @@ def load_ply(path: str | Path) -> GaussianModel:
             f"background",
             stacklevel=2,
         )
-    broken = int(_not_finite(params.values()).sum())
+    activated = dict(params, log_scales=params["log_scales"].exp())
+    activated["opacity_logits"] = params["opacity_logits"].sigmoid()
+    not_finite, culled_mask = _not_finite(params.values()), _not_finite(activated.values())  # [N]
+    broken, culled = int(not_finite.sum()), int((culled_mask & not_finite).sum())
+    overflowing = int((culled_mask & ~not_finite).sum())  # a finite log-scale past ~88.7
+    if overflowing:
+        warnings.warn(
+            f"{path}: {overflowing} of its {n} Gaussians have a log-scale past "
+            f"{math.log(torch.finfo(torch.float32).max):.4g}, an infinite scale once activated "
+            f"(exp, in float32): kept, and culled by the renderer",
+            stacklevel=2,
+        )
     if broken:  # (an infinite opacity logit or a log-scale of -inf activates to a finite value)
-        activated = dict(params, log_scales=params["log_scales"].exp())
-        activated["opacity_logits"] = params["opacity_logits"].sigmoid()
-        culled = int(_not_finite(activated.values()).sum())
         finite = (  # (-inf's opacity 0 is culled as any too faint, a dot antialiased too)
             f"; {broken - culled} activate to finite values, drawn or culled as any (an opacity "
             f"logit of +inf is opacity 1, -inf 0; a log-scale of -inf a scale of 0)"
