@@ -750,7 +750,7 @@ def test_a_data_folder_holding_its_lock_alone_is_simulated_into_as_an_empty_one(
     assert capsys.readouterr().out == ""
     (root / "meta.json").write_text("{}")  # an incomplete dataset is said to be replaced
     train.dataset_for("solids", root, {})
-    assert "not this benchmark's dataset" in capsys.readouterr().out
+    assert "solids: a dataset simulated at other settings" in capsys.readouterr().out
 
 
 def test_bench_all_refuses_a_users_files_in_its_data_folders_before_any_part(tmp_path, capsys):
@@ -765,6 +765,40 @@ def test_bench_all_refuses_a_users_files_in_its_data_folders_before_any_part(tmp
     printed = capsys.readouterr()
     assert "notes.txt" in printed.err and "== rasterizer" not in printed.out
     assert mine.read_text() == "mine"
+
+
+@pytest.mark.parametrize("part", ["stiff", "all"])
+def test_a_users_file_or_a_folder_at_a_parts_results_is_refused_before_any_part(
+    tmp_path, capsys, part
+):
+    """A user's poses.json (or any PART.json) in --out was replaced by the bench's unsaid; a
+    folder in its place ended the part once its work was done ("[Errno 21] Is a directory");
+    a file named data in OUT ended bench all at its train part, after three others had run."""
+    from spikegs.cli import main
+
+    (tmp_path / "poses.json").write_text('{"mine": 1}')
+    assert main(["bench", part, "--quick", "--out", str(tmp_path)]) == (0 if part == "stiff" else 2)
+    printed = capsys.readouterr()
+    if part == "all":
+        assert "poses.json: not spikegs bench poses's results, where bench poses writes them" in (
+            printed.err
+        )
+        assert "== " not in printed.out and (tmp_path / "poses.json").read_text() == '{"mine": 1}'
+    (tmp_path / "poses.json").unlink()
+    (tmp_path / "stiff.json").unlink(missing_ok=True)  # (its own results: replaced)
+    (tmp_path / "stiff.json").mkdir()
+    assert main(["bench", part, "--quick", "--out", str(tmp_path)]) == 2
+    printed = capsys.readouterr()
+    assert (
+        "stiff.json: a folder, where bench stiff writes them; move it, or give anot" in printed.err
+    )
+    assert "== " not in printed.out
+    (tmp_path / "stiff.json").rmdir()
+    (tmp_path / "data").write_text("mine")
+    assert main(["bench", "all", "--quick", "--out", str(tmp_path)]) == 2
+    printed = capsys.readouterr()
+    assert "data is a file, where the benchmark writes its data" in printed.err
+    assert "== " not in printed.out
 
 
 def test_train_equal_time_gives_each_baseline_spikegs_seconds(tmp_path, monkeypatch, capsys):
@@ -1008,4 +1042,11 @@ def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tm
     shutil.rmtree(tmp_path / "runs")
     (tmp_path / "runs").write_text("the user's")
     with pytest.raises(FileExistsError, match=r"/runs is a file, where the benchmark writes its"):
+        train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)
+    # a file named data in OUT: its scene's folder neither existed nor was a folder, and the
+    # check passed; the bench failed with "[Errno 20] Not a directory" after the parts before
+    (tmp_path / "runs").unlink()
+    shutil.rmtree(tmp_path / "data")
+    (tmp_path / "data").write_text("the user's")
+    with pytest.raises(FileExistsError, match=r"/data is a file, where the benchmark writes its d"):
         train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)

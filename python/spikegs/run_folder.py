@@ -145,13 +145,14 @@ def check_fresh_run_dir(run_dir: Path, checkpoint: Path) -> None:
     refuse_foreign_files(run_dir, "; give an empty or new --out")
 
 
-def _bench_results(path: Path) -> bool:
-    """Whether `path` holds a benchmark's results (`bench.common`'s object, its "benchmark"
+def is_bench_results(path: Path, part: str) -> bool:
+    """Whether `path` holds benchmark `part`'s results (`bench.common`'s object, its "benchmark"
     named): `bench train` writes OUT/train.json, a run's summary's name."""
     try:
-        return "benchmark" in read_json(path)
+        results = read_json(path)
     except (OSError, ValueError):
         return False
+    return isinstance(results, dict) and results.get("benchmark") == part
 
 
 def refuse_dataset_or_run(out: Path, writer: str, datasets: int) -> None:
@@ -165,7 +166,9 @@ def refuse_dataset_or_run(out: Path, writer: str, datasets: int) -> None:
     if not out.is_dir():
         return
     run = sorted(p.name for p in out.iterdir() if p.name in RUN_FILES - {LOCK})
-    if run == [SUMMARY] and _bench_results(out / SUMMARY):  # `bench train`'s own, not a run's
+    if run == [SUMMARY] and is_bench_results(
+        out / SUMMARY, "train"
+    ):  # `bench train`'s own, not a run's
         run = []
     marks = layout_files(out)
     if run:

@@ -12,7 +12,7 @@ from ..cli import add_no_progress, file_path, positive_float, positive_int, show
 from ..demo import DEMO_OVERRIDES
 from ..file_lock import exclusive_lock
 from ..output_paths import check_folder_output
-from ..run_folder import refuse_dataset_or_run
+from ..run_folder import is_bench_results, refuse_dataset_or_run
 from ..run_summary import LOCK
 from .train import (
     FULL_ITERATIONS,
@@ -142,6 +142,13 @@ def run(args: argparse.Namespace) -> int:
         check_outputs(Path(args.out), scenes, run_names(methods, equal_time), seeds)
     # (bench stiff said it would write datasets and runs, which only bench train writes there)
     refuse_dataset_or_run(Path(args.out), f"spikegs bench {args.part}", len(scenes))
+    for part in parts:  # (written once the part's work was done: minutes lost, or a file)
+        results = Path(args.out) / f"{part}.json"
+        if results.is_dir() or (results.exists() and not is_bench_results(results, part)):
+            what = "a folder" if results.is_dir() else f"not spikegs bench {part}'s results"
+            raise FileExistsError(
+                f"{results}: {what}, where bench {part} writes them; move it, or give another --out"
+            )
     failures = []
     with bench_lock(Path(args.out)):
         for part in parts:

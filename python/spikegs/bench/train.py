@@ -146,7 +146,10 @@ def dataset_for(scene: str, root: Path, settings: dict) -> tuple:
     except (FileNotFoundError, ValueError, KeyError):
         pass
     if holds_files(root):  # (a folder holding its lock alone is an empty one)
-        print(f"{root}: not this benchmark's dataset (other settings, or incomplete); replaced")
+        print(
+            f"{root}: a dataset simulated at other settings (a full run's and a --quick one's "
+            f"differ, as do two --spp), or incomplete; replaced"
+        )
     start = time.perf_counter()
     dataset = simulate_dataset(scene, root, overwrite=True, progress=False, **settings)
     return dataset, time.perf_counter() - start
@@ -413,10 +416,12 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
         # the run folders there that a run would delete (every name of --seeds 2**63 - 1 was
         # checked, for ever)
         runs = Path(out) / "runs" / scene
-        for above in (runs.parent, runs):  # (a file there: "[Errno 20] Not a directory", late)
+        # (a file there: "[Errno 20] Not a directory", late; OUT/data's passed check_output, its
+        # scene's folder neither existing nor a folder, and failed after the parts before train)
+        for above, what in ((runs.parent, "runs"), (runs, "runs"), (Path(out) / "data", "data")):
             if above.exists() and not above.is_dir():
                 raise FileExistsError(
-                    f"{above} is a file, where the benchmark writes its runs; give another --out"
+                    f"{above} is a file, where the benchmark writes its {what}; give another --out"
                 )
         for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
             method, _, seed = folder.name.rpartition("-seed")
