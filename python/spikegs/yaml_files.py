@@ -15,9 +15,10 @@ from .regular_file import read_text
 
 class _Loader(yaml.SafeLoader):
     """yaml.SafeLoader that reads numbers as YAML 1.2 does: 1e-4 as a float (YAML 1.1, PyYAML's,
-    wants a dot, 1.0e-4, and reads 1e-4 as a string), 020 as 20 (1.1: octal 16) and 1:20 as a
-    string (1.1: base 60, 80); and refuses a key given twice in one mapping (PyYAML keeps the
-    last: a second `train:` section would drop the first) or a key that is a list or mapping."""
+    wants a dot, 1.0e-4, and reads 1e-4 as a string; .5e3 too), 020 as 20 (1.1: octal 16) and
+    1:20 and 1:20.0 as strings (1.1: base 60, 80 and 80.0); and refuses a key given twice in
+    one mapping (PyYAML keeps the last: a second `train:` section would drop the first) or a key
+    that is a list or mapping."""
 
     def construct_mapping(self, node, deep=False):
         seen = set()
@@ -38,13 +39,17 @@ class _Loader(yaml.SafeLoader):
 
 
 _FLOAT, _INT = "tag:yaml.org,2002:float", "tag:yaml.org,2002:int"
-_FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$")  # 1e-4, 1.5E3
+# 1.5, .5, 1., 1e-4, .5e3, 1.5E+3, .inf, .nan
+_FLOAT_12 = re.compile(
+    r"^[-+]?(\.[0-9][0-9_]*|[0-9][0-9_]*\.[0-9_]*)([eE][-+]?[0-9]+)?$"
+    r"|^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$|^[-+]?\.(inf|Inf|INF)$|^\.(nan|NaN|NAN)$"
+)
 _INT_12 = re.compile(r"^[-+]?[0-9][0-9_]*$|^0o_*[0-7][0-7_]*$|^0x_*[0-9a-fA-F][0-9a-fA-F_]*$")
-_Loader.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
 _Loader.yaml_implicit_resolvers = {
-    first: [(tag, regexp) for tag, regexp in resolvers if tag != _INT]
+    first: [(tag, regexp) for tag, regexp in resolvers if tag not in (_INT, _FLOAT)]
     for first, resolvers in _Loader.yaml_implicit_resolvers.items()
 }
+_Loader.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+.0123456789"))
 _Loader.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
 
 
@@ -64,7 +69,7 @@ class _Dumper(yaml.SafeDumper):
     0o17)."""
 
 
-_Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+0123456789"))
+_Dumper.add_implicit_resolver(_FLOAT, _FLOAT_12, list("-+.0123456789"))
 _Dumper.add_implicit_resolver(_INT, _INT_12, list("-+0123456789"))
 
 
