@@ -1499,7 +1499,10 @@ def test_a_run_whose_learning_rates_are_all_0_is_warned_of(dataset, tmp_path):
     frozen = {"lr": dict.fromkeys(names, 0.0)}  # sh_rest's rate kept: degree 0 has no such
     train = {**FAST["train"], "iterations": 1, "checkpoint_every": 1}
     config = load_config("tfp33", {**FAST, **frozen, "train": train})
-    with pytest.warns(UserWarning, match=r"lr.means, .*, lr.background: every learning rate is 0"):
+    with pytest.warns(
+        UserWarning,
+        match=r"lr.means, .*, lr.background: every learning rate is 0.*opacity resets l",
+    ):
         Trainer(dataset, config, tmp_path / "run", progress=False).train()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -2091,6 +2094,20 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
     (tmp_path / "cap.yaml").write_text("base: spikegs\ntrain: {init_gaussians: 300000}\n")
     with pytest.raises(ConfigError, match=r"cap.yaml: densify.max_gaussians = .*init_gaussians is"):
         load_config(tmp_path / "cap.yaml")
+    # the supervision rules weighing two settings named the base's one, of "config:" (the most
+    # natural ablation file, lambda 0 on spikegs, among them: the configs trial)
+    for base, text, said in (
+        (
+            "spikegs",
+            "{exposure_weight: 0}",
+            "instant_until = 'densify', .*; supervision.exposure_w",
+        ),
+        ("spikegs", "{exposure_window: 3}", "exposure_poses = 5, .*; supervision.exposure_window "),
+        ("tfp65", "{instant: sim}", "instant_window = 65, .*; supervision.instant is set in"),
+    ):
+        (tmp_path / "s.yaml").write_text(f"base: {base}\nsupervision: {text}\n")
+        with pytest.raises(ConfigError, match=f"^{tmp_path / 's.yaml'}: supervision.{said}"):
+            load_config(tmp_path / "s.yaml")
 
 
 @pytest.mark.parametrize(
@@ -2115,6 +2132,7 @@ def test_a_value_out_of_range_names_the_file_that_set_it(tmp_path):
         # the reset at 1000 with the last round: a round at 1000 prunes before it (the review)
         ("densify: {stop: 1050, max_screen_size: 2.0}", r"max_screen_size \(size pruning is"),
         ("lr: {sh_rest: 0.01}", r"lr.sh_rest \(train.sh_degree is 0: no coefficients beyond"),
+        ("lr: {means: 0, means_final: 0.01}", r"lr.means_final \(lr.means is 0: the means do n"),
         (  # densification off: its settings trained nothing
             "densify: {start: 3000, grad_threshold: 0.001, max_gaussians: 9000}",
             r"densify.grad_threshold, densify.max_gaussians \(no densification round falls in the "

@@ -267,6 +267,7 @@ class Config:
             s.instant_until,
             "run without the exposure loss (densify leaves the steps after densification "
             "without a loss: exposure_weight > 0 finishes the run)",
+            also=("supervision.exposure_weight", "supervision.instant"),
         )
         for name in ("instant_norm", "exposure_norm"):
             value = getattr(s, name)
@@ -284,6 +285,7 @@ class Config:
                 s.exposure_poses,
                 f">= 2 and at most supervision.exposure_window ({s.exposure_window}): one render "
                 f"a readout at most (more would reach past the window)",
+                also=("supervision.exposure_window",),
             )
         _require(
             s.dssim_weight == 0 or (s.instant != "none" and s.instant_weight > 0),
@@ -300,6 +302,7 @@ class Config:
             f"{SupervisionConfig.instant_window} (the default) with instant {s.instant}: it is the "
             f"TFP window, and the smooth-L1 zone's spike for tfi and clean (SIM's is "
             f"sim.target_window, or sim.window when 0)",
+            also=("supervision.instant",),
         )
         _require(
             s.instant_weight > 0 or s.exposure_weight > 0,
@@ -707,6 +710,8 @@ def unread_settings(config: Config) -> dict[str, str]:
         unread["pose_refine.enabled"] = "pose_refine.lr is 0: no pose is refined"
     if config.train.sh_degree == 0:
         unread["lr.sh_rest"] = "train.sh_degree is 0: no coefficients beyond the DC's"
+    if config.lr.means == 0:  # (`train._means_lr`)
+        unread["lr.means_final"] = "lr.means is 0: the means do not move, nothing decays"
     return unread | _unread_densify(config.densify, config.train.iterations)
 
 
@@ -803,7 +808,8 @@ def warn_if_nothing_learns(config: Config) -> None:
     if not any(rates.values()):
         warnings.warn(
             f"{', '.join(rates)}: every learning rate is 0, so no step changes a parameter "
-            f"(densification alone clones, splits and prunes the Gaussians); 3DGS's are "
+            f"(densification alone clones, splits and prunes the Gaussians, and its opacity "
+            f"resets lower their opacities); 3DGS's are "
             f"1e-4..5e-2",
             stacklevel=3,
         )
