@@ -77,11 +77,11 @@ MIN_SPHERE_COVERAGE = 0.15
 # trained model's widths by 0.6 % at most; 50,000 Gaussians took 0.37 s against 1.3, one thread)
 FILTER_3D_EVERY, FILTER_3D_VIEWS = 100, 256
 CHECKPOINT_S = 60.0  # a checkpoint at least this often (seconds), whatever checkpoint_every says
-# the bar while densification rounds remain, which slow the steps as they add Gaussians: its
-# time left marked "+" (a 30000-iteration run's was 0.4-0.75x the time it then took)
 # train.json's and a checkpoint's record of the point cloud the Gaussians started at (None: random
 # points), and its value for a run from a checkpoint saved before it was recorded (2026-12-07)
 START_POINTS, UNRECORDED = "start_points", "unrecorded"
+# the bar while densification rounds remain, which slow the steps as they add Gaussians: its
+# time left marked "+" (a 30000-iteration run's was 0.4-0.75x the time it then took)
 GROWING_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}+, {rate_fmt}{postfix}]"
 
 
