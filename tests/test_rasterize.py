@@ -1300,8 +1300,9 @@ def needles(count: int, length_px: float, seed: int) -> list[dict]:
 @pytest.mark.parametrize("op", [spikegs.rasterize, reference.rasterize], ids=["core", "reference"])
 def test_needle_axis_has_no_holes_in_float32(op):
     """On the axis of a needle 1e4 px long the true power is ~0 and float32 rounds it either way:
-    a power > 0 counts as 0 (alpha = opacity) in both implementations, where skipping it, as 3DGS
-    does, left pixels of alpha 0 between pixels of ~0.7 (the first needle; 3 in 150 random ones)."""
+    a power > 0 counts as 0 (alpha = opacity) in the reference (the core's, a sum of squares, is
+    never positive), where skipping it, as 3DGS does, left pixels of alpha 0 between pixels of
+    ~0.7 (the first needle; 3 in 150 random ones)."""
     for scene in needles(40, 1e4, seed=1):
         args = dict(scene)
         dims = (args.pop("width"), args.pop("height"))
@@ -1310,6 +1311,43 @@ def test_needle_axis_has_no_holes_in_float32(op):
         assert (alpha32 - alpha64).abs().max() < 1e-3
         # never above the opacity: exp of the rounded power gave up to +1.1e-4 (core)
         assert alpha32.max() <= scene["opacities"][0].double()
+
+
+@needs_cpp
+@pytest.mark.parametrize("dilation", [0.01, 0.1, 0.3])
+def test_a_needle_centred_on_the_image_is_drawn_in_float32_as_in_float64(dilation):
+    """The conic's form -(A dx² + C dy²)/2 - B dx dy cancels along a long, thin splat, the more
+    the lower the dilation (its entries reach 1/dilation): a needle centred on a 256² image, 300
+    px long, was 0.037 off in alpha at dilation 0.01 (101 pixels over 1/255; 0.0083 at 0.1, 0.0031
+    at 0.3) and its quaternion's gradient 7 % (47 % at 0.1; the rasterizer trial). Taken as a sum
+    of squares through the conic's Cholesky factor: 0.0023, 0.0017, 0.0010 (the conic's own
+    rounding), the gradient 0.5 % and 1.2 %."""
+    angle = math.pi / 4
+    values = (
+        [[0.0013, -0.0007, 1.0]],
+        [[math.cos(angle / 2), 0, 0, math.sin(angle / 2)]],
+        [[1e-7, 300 / 256, 1e-7]],
+        [0.9],
+        [[1.0, 1.0, 1.0]],
+    )
+    K = [[256.0, 0, 128], [0, 256, 128], [0, 0, 1]]
+    alpha, grad = {}, {}
+    for dtype in (torch.float32, torch.float64):
+        params = [torch.tensor(v, dtype=dtype, requires_grad=True) for v in values]
+        out = spikegs.rasterize(
+            *params,
+            torch.eye(4, dtype=dtype),
+            torch.tensor(K, dtype=dtype),
+            256,
+            256,
+            dilation=dilation,
+        )
+        out.alpha.sum().backward()
+        alpha[dtype], grad[dtype] = out.alpha.double(), params[1].grad.double()
+    assert (alpha[torch.float32] - alpha[torch.float64]).abs().max() < 0.003
+    assert alpha[torch.float64].max() > 0.3  # (drawn)
+    error = (grad[torch.float32] - grad[torch.float64]).norm() / grad[torch.float64].norm()
+    assert error < 0.02 or dilation > 0.1  # (0.49 of a gradient of ~1 at 0.3: was 6.8)
 
 
 @pytest.mark.parametrize(
