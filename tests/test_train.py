@@ -4742,26 +4742,44 @@ def test_eval_on_another_dataset_keeps_the_runs_own_scores(dataset, tmp_path):
         shutil.move(moved, dataset.root)  # the module's dataset, for the tests after this one
 
 
-def test_eval_on_another_dataset_of_another_scale_says_so(dataset, tmp_path):
-    """A run scored on another dataset takes its renders' intensity as the dataset's: where the
-    scales differ (an LLFF stream's guessed 0.18 against its simulation's 0.25: 20.35 dB where
-    25.62 was due) it was unsaid; a warning names both. The same scale says nothing."""
+def test_eval_on_another_dataset_of_a_guessed_scale_says_so(dataset, tmp_path):
+    """A run scored on another dataset takes its renders' intensity as the dataset's: where a
+    scale is guessed (an LLFF stream's 0.18 against its simulation's 0.25: 20.35 dB where 25.62
+    was due) it was unsaid; a warning names both and which is guessed. Two stated scales are the
+    cameras' calibration, the same light: they were warned of too, with the advice "give both
+    the same rate_at_one", which scored 12 dB low where followed (the workflows trial); now
+    nothing is said of them, nor of the same scale."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
-    for name, factor in (("same", 1.0), ("other", 0.5)):
-        shutil.copytree(dataset.root, tmp_path / name)
-        meta = json.loads((tmp_path / name / "meta.json").read_text())
-        meta["sim"]["rate_at_one"] *= factor
-        meta["image_scale"] *= factor
-        (tmp_path / name / "meta.json").write_text(json.dumps(meta))
+    summary = json.loads((tmp_path / "run" / "train.json").read_text())
+    assert summary["intensity_scale_guessed"] is False
+
+    def scale_warnings(name: str) -> list[str]:
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")
             evaluate_run(tmp_path / "run", load_dataset(tmp_path / name), write_images=False)
-        scales = [
+        return [
             str(w.message) for w in said if "its renders' intensity is scored" in str(w.message)
         ]
-        assert len(scales) == (name == "other"), scales
-    assert f"states {meta['image_scale']:.4g}: its renders' intensity is scored as" in scales[0]
+
+    for name, factor in (("same", 1.0), ("other", 0.5), ("guessed", None)):
+        shutil.copytree(dataset.root, tmp_path / name)
+        meta = json.loads((tmp_path / name / "meta.json").read_text())
+        if factor is None:
+            del meta["sim"]["rate_at_one"], meta["image_scale"]
+        else:
+            meta["sim"]["rate_at_one"] *= factor
+            meta["image_scale"] *= factor
+        (tmp_path / name / "meta.json").write_text(json.dumps(meta))
+        said = scale_warnings(name)
+        assert len(said) == (name == "guessed"), said
+    assert "spikes a readout for intensity 1 (stated), " in said[0]
+    assert f"{tmp_path / 'guessed'} guesses 0." in said[0]
+    # a run trained before train.json said whether its scale was guessed: said, as either
+    del summary["intensity_scale_guessed"]
+    (tmp_path / "run" / "train.json").write_text(json.dumps(summary))
+    said = scale_warnings("other")
+    assert len(said) == 1 and "(stated or guessed), " in said[0] and " states 0." in said[0]
 
 
 def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path, capsys):

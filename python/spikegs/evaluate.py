@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
 from .box_filter import block_means
-from .data.dataset import check_dataset, is_view_name
+from .data.dataset import check_dataset, is_view_name, scale_guessed
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .file_lock import exclusive_lock
@@ -452,6 +452,7 @@ def _evaluate_locked(
     # in over the one stated now; on another dataset the render's intensity is the truth's; the
     # same to 6 digits (as the data's fingerprint: a guess's last bits differ between machines)
     changed = f"{run_scale:.6g}" != f"{scale:.6g}"
+    run_guessed = train.get("intensity_scale_guessed")  # None: a run trained before the key
     units = run_scale / scale if own == EVAL and changed else 1.0
     if units != 1 and any(not v.name.startswith(PSEUDO_PREFIX) for v in dataset.test_views):
         warnings.warn(
@@ -460,12 +461,18 @@ def _evaluate_locked(
             f"are scored in the scale stated now (x {units:.4g})",
             stacklevel=2,
         )
-    elif changed and own != EVAL:  # (an LLFF stream's guessed 0.18 on its simulation's 0.25:
-        warnings.warn(  # 20.35 dB where its renders in that scale scored 25.62, unsaid)
+    elif changed and own != EVAL and (run_guessed is not False or scale_guessed(dataset.meta)):
+        # (an LLFF stream's guessed 0.18 on its simulation's 0.25: 20.35 dB where its renders in
+        # that scale scored 25.62, unsaid; two stated scales are the same light, calibrated, and
+        # their advice, "give both the same rate_at_one", scored 12 dB low where followed)
+        run_how = {True: "guessed", False: "stated"}.get(run_guessed, "stated or guessed")
+        data_how = "guesses" if scale_guessed(dataset.meta) else "states"
+        warnings.warn(
             f"{run_dir} trained in an intensity scale of {run_scale:.4g} spikes a readout for "
-            f"intensity 1, {dataset.root} states {scale:.4g}: its renders' intensity is scored "
-            f"as the dataset's, which is the same light only where the scales agree (give both "
-            f"the same rate_at_one: docs/datasets.md)",
+            f"intensity 1 ({run_how}), {dataset.root} {data_how} {scale:.4g}: its renders' "
+            f"intensity is scored as the dataset's, the same light only where both scales are "
+            f"the cameras' calibration (state rate_at_one where one is guessed: "
+            f"docs/datasets.md)",
             stacklevel=2,
         )
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"

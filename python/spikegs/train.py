@@ -32,7 +32,14 @@ from .config import (
     with_defaults,
 )
 from .curves import logged_curve
-from .data.dataset import FEW_TIMESTAMPS, POINTS, camera_keys, check_dataset, reading_dataset
+from .data.dataset import (
+    FEW_TIMESTAMPS,
+    POINTS,
+    camera_keys,
+    check_dataset,
+    reading_dataset,
+    scale_guessed,
+)
 from .data_fingerprint import data_fingerprint, file_digest, same_data
 from .densify import Densifier
 from .evaluate import score_view
@@ -1053,6 +1060,7 @@ class Trainer:
             "sim_seconds": self.sim_seconds,
             "gaussians": len(self.model),
             "intensity_scale": self.scale,
+            "intensity_scale_guessed": scale_guessed(self.dataset.meta),  # eval on other data
             "data": self.data,  # `spikegs eval` knows the run's own data, moved, by it
             START_POINTS: self.start_points,  # (the cloud is no part of `data`: nor of a SIM's)
             "environment": self.environments,  # what trained it, from which iteration

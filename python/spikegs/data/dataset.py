@@ -94,6 +94,17 @@ def stated_scales(meta: dict) -> dict:
     return {k: v for k, v in stated.items() if v is not None}
 
 
+GUESSED_SCALE = (
+    "image_scale_guessed"  # a real layout's meta: its image_scale is the trainer's guess
+)
+
+
+def scale_guessed(meta: dict) -> bool:
+    """Whether the firing rate of intensity 1 of a dataset of `meta` is guessed (TFP(33)'s 99.5th
+    percentile: `targets.intensity_scale`), not stated or calibrated."""
+    return not stated_scales(meta) or bool(meta.get(GUESSED_SCALE))
+
+
 class GuessedUnitsWarning(UserWarning):
     """The test images' units (firing rate of intensity 1) are guessed: their PSNR depends on it."""
 
@@ -1277,7 +1288,7 @@ META_KEYS = (
     *("fx", "fy", "cx", "cy", "scene_center", "scene_radius", "degrees_per_readout"),
     *("frame_every", "up", "luma", "image_scale", "train_every", "spp", "rate_at_one"),
     *("intrinsics_from", "poses_from", "pose_reference", "held_out_by", "test_ground_truth"),
-    *("rate_at_one_from", "layout", "near", "far", "view_readouts"),
+    *("rate_at_one_from", "layout", "near", "far", "view_readouts", GUESSED_SCALE),
 )
 
 

@@ -24,6 +24,7 @@ from ..spikes.stream import centred_range
 from ..targets import intensity_scale
 from .dataset import (
     FORMAT_VERSION,
+    GUESSED_SCALE,
     PSEUDO_PREFIX,
     READOUT_PERIOD_S,
     WINDOW_MARGIN,
@@ -289,6 +290,7 @@ def _finish(
     meta["test_ground_truth"] = {**ground_truth_note(len(sharp), pseudo), **notes}
     if sharp:
         meta["image_scale"] = scale
+        meta[GUESSED_SCALE] = not stated
     check_test_views(dataset.test_views, root)
     if sharp and stated:  # (a guessed scale is warned of above)
         named = {h.name for h in sharp}  # their images in firing-rate units, against their TFP
