@@ -62,7 +62,7 @@ from spikegs.run_folder import run_lock
 from spikegs.shell_words import shell_path
 from spikegs.sim import SIM
 from spikegs.sim_train import load_sim, save_sim, weights_digest
-from spikegs.targets import build_targets, intensity_scale
+from spikegs.targets import build_targets, check_targets, intensity_scale
 from spikegs.train import Trainer, _means_lr, _optimizer
 from spikegs.train_cli import config_from_args
 from spikegs.yaml_files import dump_yaml
@@ -5805,3 +5805,74 @@ def test_a_fall_of_3_db_or_more_is_said():
 
     assert psnr_fall(curve(20.0, 17.01)) is None
     assert psnr_fall(curve(20.0, 17.0)).startswith("the held-out PSNR fell 3.00 dB, from 20.00")
+
+
+def test_a_trainer_keeps_the_dataset_it_was_built_with(dataset, tmp_path):
+    """A sweep that edits one Dataset between constructing its trainers (its training timestamps)
+    trained each on the last edit, train.json's `data` the one it was built with; a notebook's
+    chdir during training took the run's folder for moved, and stopped (the API trial)."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    full = dataset.copy()
+    assert full.train_timestamps is not dataset.train_timestamps
+    np.testing.assert_array_equal(full.train_timestamps, dataset.train_timestamps)
+    edited = dataset.copy()
+    edited.train_timestamps = full.train_timestamps[:5]
+    few = Trainer(edited, config, tmp_path / "few", progress=False)
+    edited.train_timestamps = full.train_timestamps
+    edited.meta["image_scale"] = 0.5  # (a scale edited after too)
+    seen = []
+    summary = few.train(on_eval=lambda t: seen.append(len(t.targets.timestamps)))
+    assert seen and set(seen) == {5}
+    built = full.copy()
+    built.train_timestamps = full.train_timestamps[:5]
+    assert summary["data"] == data_fingerprint(built, intensity_scale(full))
+    assert summary["intensity_scale"] == intensity_scale(full)
+    here = Path.cwd()
+    (tmp_path / "elsewhere").mkdir()
+    os.chdir(tmp_path)
+    try:
+        moving = Trainer(dataset, config, "moving", progress=False)
+        os.chdir(tmp_path / "elsewhere")  # before training, and during it
+        moving.train(on_eval=lambda t: os.chdir(tmp_path))
+    finally:
+        os.chdir(here)
+    assert (tmp_path / "moving" / "train.json").is_file()
+    assert not (tmp_path / "elsewhere" / "moving").exists()
+
+
+def test_no_test_view_and_timestamps_not_whole_readouts_are_refused_before_any_work(
+    dataset, tmp_path
+):
+    """A Dataset edited in memory: no test views trained until its first evaluation failed on
+    an IndexError, and evaluate_run replaced a run's eval.json with one of no scores, deleting
+    its side-by-sides; float timestamps were cast to int unsaid, none failed in numpy's min."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
+    Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    scores = evaluate_run(tmp_path / "run", dataset)
+    bare = dataset.copy()
+    bare.test_views = []
+    for call, where in (
+        (lambda: Trainer(bare, config, tmp_path / "bare", progress=False).train(), "Trainer"),
+        (lambda: evaluate_run(tmp_path / "run", bare), "evaluate_run"),
+    ):
+        with pytest.raises(ValueError, match=f"^{where}: .* holds no test view"):
+            call()
+    assert not (tmp_path / "bare").exists()
+    assert json.loads((tmp_path / "run" / "eval.json").read_text()) == scores
+    assert all((tmp_path / "run" / "eval" / f"{name}.png").is_file() for name in scores["views"])
+    for stamps, said in (
+        (
+            np.linspace(40.0, 500.0, 7),
+            r"whole readout numbers, found float64 of shape \[7\] \(116.667 first\)$",
+        ),
+        (np.zeros(0, np.int64), r"found int64 of shape \[0\]$"),
+        (np.array([[40, 50]]), r"found int64 of shape \[1, 2\]$"),
+    ):
+        odd = dataset.copy()
+        odd.train_timestamps = stamps
+        with pytest.raises(ValueError, match=said):
+            Trainer(odd, config, tmp_path / "odd", progress=False).train()
+    assert not (tmp_path / "odd").exists()
+    whole = dataset.copy()
+    whole.train_timestamps = dataset.train_timestamps.astype(np.float64)  # whole: taken
+    check_targets(whole, config)

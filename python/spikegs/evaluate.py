@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
 from .box_filter import block_means
-from .data.dataset import check_dataset, is_view_name, scale_guessed
+from .data.dataset import check_dataset, check_test_views_given, is_view_name, scale_guessed
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .file_lock import exclusive_lock
@@ -391,6 +391,8 @@ def evaluate_run(
     )
     run_dir = Path(run_dir)
     trained_scene(run_dir)  # a run unfinished, being trained, not there: said before the lock
+    # (none: eval.json was replaced by one without scores, and every side-by-side deleted)
+    check_test_views_given(dataset, "evaluate_run")
     # refused before any view is rendered, not after the images are written
     if not writable_folder(run_dir):
         raise ValueError(

@@ -37,6 +37,7 @@ from .data.dataset import (
     POINTS,
     camera_keys,
     check_dataset,
+    check_test_views_given,
     reading_dataset,
     scale_guessed,
 )
@@ -190,16 +191,20 @@ class Trainer:
                 f"Trainer: config expected a Config (spikegs.config.load_config(METHOD, "
                 f"overrides) makes one), found {type(config).__name__} {config!r:.80}"
             )
-        # a copy: a sweep that edits one Config between constructing its trainers (or after one
+        # copies: a sweep that edits one Config between constructing its trainers (or after one
         # trained, before resuming it) trained every run with the last settings; validated, as
         # load_config validates: a value edited out of range (densify.every = 0, a float
-        # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid
+        # train.iterations, an unknown supervision.instant) crashed mid-run or trained unsaid.
+        # The dataset's timestamps edited so trained each run on the last, its train.json the
+        # data it was built with (the API trial)
         self.dataset, self.config, self.progress = (
-            dataset,
+            dataset.copy(),
             copy.deepcopy(config).validate(),
             progress,
         )
-        self.run_dir = Path(run_dir)
+        # absolute: a notebook's chdir during training took the folder for moved, and stopped
+        self.run_dir = Path(run_dir).absolute()
+        dataset = self.dataset
         self.scale = intensity_scale(dataset)
         self.K = torch.as_tensor(dataset.K, dtype=torch.float32)
         self.radius = float(dataset.scene_radius)
@@ -860,6 +865,7 @@ class Trainer:
     def _train(self, resume: bool, on_eval) -> dict:
         """`train` with its arguments checked and gradients on."""
         # a config that cannot train on this dataset is refused before the run folder is touched
+        check_test_views_given(self.dataset, "Trainer")
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
             # poses, or a point cloud, that cannot train are refused before any work

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import copy
 import dataclasses
 import functools
 import json
@@ -203,6 +204,15 @@ class Dataset:
         self._warn_about_scene_size()
         self._warn_about_one_viewpoint()
 
+    def copy(self) -> Dataset:
+        """A copy whose training timestamps, test view list, meta, intrinsics and scene centre are
+        its own (its streams and trajectory shared): what a Trainer keeps."""
+        twin = copy.copy(self)
+        twin.train_timestamps = np.array(self.train_timestamps)
+        twin.test_views, twin.meta = list(self.test_views), copy.deepcopy(self.meta)
+        twin.K, twin.scene_center = self.K.copy(), self.scene_center.copy()
+        return twin
+
     def _check_coordinates(self) -> None:
         """ValueError where a camera centre or the scene centre lies MAX_COORDINATE or farther
         from the origin: poses in other units, or corrupt."""
@@ -332,6 +342,16 @@ def check_dataset(dataset, where: str) -> None:
         raise TypeError(
             f"{where}: dataset expected a Dataset (spikegs.data.load_dataset(PATH) opens one), "
             f"found {type(dataset).__name__} {dataset!r:.80}"
+        )
+
+
+def check_test_views_given(dataset, where: str) -> None:
+    """ValueError where `dataset` holds no test view (one edited in memory: `where` scored none,
+    and replaced a run's scores with none, or trained until its first evaluation failed)."""
+    if not dataset.test_views:
+        raise ValueError(
+            f"{where}: {dataset.root} holds no test view (dataset.test_views is empty): its "
+            f"held-out views are what a run is scored on; give it one or more"
         )
 
 
