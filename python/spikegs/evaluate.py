@@ -455,6 +455,7 @@ def _evaluate_locked(
     # same to 6 digits (as the data's fingerprint: a guess's last bits differ between machines)
     changed = f"{run_scale:.6g}" != f"{scale:.6g}"
     run_guessed = train.get("intensity_scale_guessed")  # None: a run trained before the key
+    data_guessed = scale_guessed(dataset.meta)
     units = run_scale / scale if own == EVAL and changed else 1.0
     if units != 1 and any(not v.name.startswith(PSEUDO_PREFIX) for v in dataset.test_views):
         warnings.warn(
@@ -463,12 +464,12 @@ def _evaluate_locked(
             f"are scored in the scale stated now (x {units:.4g})",
             stacklevel=2,
         )
-    elif changed and own != EVAL and (run_guessed is not False or scale_guessed(dataset.meta)):
+    elif changed and own != EVAL and (run_guessed is not False or data_guessed):
         # (an LLFF stream's guessed 0.18 on its simulation's 0.25: 20.35 dB where its renders in
         # that scale scored 25.62, unsaid; two stated scales are the same light, calibrated, and
         # their advice, "give both the same rate_at_one", scored 12 dB low where followed)
         run_how = {True: "guessed", False: "stated"}.get(run_guessed, "stated or guessed")
-        data_how = "guesses" if scale_guessed(dataset.meta) else "states"
+        data_how = "guesses" if data_guessed else "states"
         warnings.warn(
             f"{run_dir} trained in an intensity scale of {run_scale:.4g} spikes a readout for "
             f"intensity 1 ({run_how}), {dataset.root} {data_how} {scale:.4g}: its renders' "

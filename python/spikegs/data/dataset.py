@@ -95,9 +95,8 @@ def stated_scales(meta: dict) -> dict:
     return {k: v for k, v in stated.items() if v is not None}
 
 
-GUESSED_SCALE = (
-    "image_scale_guessed"  # a real layout's meta: its image_scale is the trainer's guess
-)
+# a real layout's meta key: whether its image_scale is the trainer's guess
+GUESSED_SCALE = "image_scale_guessed"
 
 
 def scale_guessed(meta: dict) -> bool:
