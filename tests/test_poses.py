@@ -355,7 +355,9 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     vertex = np.zeros(21, dtype=[(a, "f8") for a in "xyz"])  # another tool's float64 cloud
     vertex["x"][-1] = 1e39  # finite in float64, inf as the Gaussians' float32
     PlyData([PlyElement.describe(vertex, "vertex")]).write(root / POINTS)
-    with pytest.raises(ValueError, match=r"all finite \(in float32\); found 1 of 21 not, from #20"):
+    with pytest.raises(
+        ValueError, match=r"all finite \(in float32\); found 1 of 21 not finite, #20 first"
+    ):
         read_points(root / POINTS)
     (root / POINTS).write_bytes(bytes(range(256)))
     with pytest.raises(ValueError, match="not a readable PLY"):

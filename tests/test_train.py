@@ -62,7 +62,7 @@ from spikegs.run_folder import run_lock
 from spikegs.shell_words import shell_path
 from spikegs.sim import SIM
 from spikegs.sim_train import load_sim, save_sim, weights_digest
-from spikegs.targets import build_targets, check_targets, intensity_scale
+from spikegs.targets import build_targets, intensity_scale
 from spikegs.train import Trainer, _means_lr, _optimizer
 from spikegs.train_cli import config_from_args
 from spikegs.yaml_files import dump_yaml
@@ -4775,11 +4775,13 @@ def test_eval_on_another_dataset_of_a_guessed_scale_says_so(dataset, tmp_path):
         assert len(said) == (name == "guessed"), said
     assert "spikes a readout for intensity 1 (stated), " in said[0]
     assert f"{tmp_path / 'guessed'} guesses 0." in said[0]
+    assert f"calibration (state rate_at_one in {tmp_path / 'guessed'}: docs" in said[0]
     # a run trained before train.json said whether its scale was guessed: said, as either
     del summary["intensity_scale_guessed"]
     (tmp_path / "run" / "train.json").write_text(json.dumps(summary))
     said = scale_warnings("other")
     assert len(said) == 1 and "(stated or guessed), " in said[0] and " states 0." in said[0]
+    assert "(train the run again with its dataset's rate_at_one stated: docs" in said[0]
 
 
 def test_eval_of_its_dataset_changed_in_place_keeps_the_runs_scores(tmp_path, capsys):
@@ -5845,34 +5847,43 @@ def test_no_test_view_and_timestamps_not_whole_readouts_are_refused_before_any_w
 ):
     """A Dataset edited in memory: no test views trained until its first evaluation failed on
     an IndexError, and evaluate_run replaced a run's eval.json with one of no scores, deleting
-    its side-by-sides; float timestamps were cast to int unsaid, none failed in numpy's min."""
+    its side-by-sides; float timestamps were cast to int unsaid, none failed in numpy's min, and
+    with a guessed scale (TFP at construction) each failed in numpy (the review)."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     Trainer(dataset, config, tmp_path / "run", progress=False).train()
     scores = evaluate_run(tmp_path / "run", dataset)
     bare = dataset.copy()
     bare.test_views = []
     for call, where in (
-        (lambda: Trainer(bare, config, tmp_path / "bare", progress=False).train(), "Trainer"),
+        (lambda: Trainer(bare, config, tmp_path / "bare", progress=False), "Trainer"),
         (lambda: evaluate_run(tmp_path / "run", bare), "evaluate_run"),
     ):
-        with pytest.raises(ValueError, match=f"^{where}: .* holds no test view"):
+        with pytest.raises(ValueError, match=f"^{where}: .*: no held-out test view"):
             call()
     assert not (tmp_path / "bare").exists()
     assert json.loads((tmp_path / "run" / "eval.json").read_text()) == scores
     assert all((tmp_path / "run" / "eval" / f"{name}.png").is_file() for name in scores["views"])
+    guessed = dataset.copy()
+    del guessed.meta["image_scale"], guessed.meta["sim"]["rate_at_one"]
     for stamps, said in (
         (
             np.linspace(40.0, 500.0, 7),
-            r"whole readout numbers, found float64 of shape \[7\] \(116.667 first\)$",
+            r"finite whole readout numbers, found float64 of shape \[7\] \(116.667 first\)$",
         ),
+        (np.array([100.0, np.inf]), r"found float64 of shape \[2\] \(inf first\)$"),
+        (np.array([100.0, np.nan]), r"found float64 of shape \[2\] \(nan first\)$"),
+        (np.array([100, 200], complex), r"found complex128 of shape \[2\]$"),
         (np.zeros(0, np.int64), r"found int64 of shape \[0\]$"),
         (np.array([[40, 50]]), r"found int64 of shape \[1, 2\]$"),
     ):
-        odd = dataset.copy()
-        odd.train_timestamps = stamps
-        with pytest.raises(ValueError, match=said):
-            Trainer(odd, config, tmp_path / "odd", progress=False).train()
+        for base in (dataset, guessed):
+            odd = base.copy()
+            odd.train_timestamps = stamps
+            with pytest.raises(
+                ValueError, match="^Trainer: .*: train_timestamps expected .*" + said
+            ):
+                Trainer(odd, config, tmp_path / "odd", progress=False)
     assert not (tmp_path / "odd").exists()
     whole = dataset.copy()
     whole.train_timestamps = dataset.train_timestamps.astype(np.float64)  # whole: taken
-    check_targets(whole, config)
+    Trainer(whole, config, tmp_path / "whole", progress=False)

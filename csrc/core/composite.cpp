@@ -48,7 +48,8 @@ std::vector<T> gather_splats(const Projected<T>& proj, const TileBins& bins, int
     const double level = support_level(double(proj.opacity[i]));
     const bool ellipse = det > 0 && A > 0 && C > 0;
     // L of the conic as rounded, from that det (l22² = det / A); one that rounding left
-    // indefinite is taken as the line it nearly is (l22 = 0)
+    // indefinite is taken as the line it nearly is (l22 = 0: the backward's conic gradient stays
+    // the form's, a needle whose float32 det is rounding noise, drawn off already)
     const double l11 = A > 0 ? std::sqrt(double(A)) : 0;
     s[2] = T(l11), s[3] = A > 0 ? T(B / l11) : T(0);
     s[4] = A > 0 ? T(std::sqrt(std::max(det, 0.0) / A)) : T(std::sqrt(std::max(double(C), 0.0)));

@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 from . import strict_json
 from .atomic_save import STEM_MAX, short_name, sweep_temporaries, write_text_atomically
 from .box_filter import block_means
-from .data.dataset import check_dataset, check_test_views_given, is_view_name, scale_guessed
+from .data.dataset import check_dataset, check_edited_dataset, is_view_name, scale_guessed
 from .data.real import PSEUDO_PREFIX
 from .data_fingerprint import same_data
 from .file_lock import exclusive_lock
@@ -392,7 +392,7 @@ def evaluate_run(
     run_dir = Path(run_dir)
     trained_scene(run_dir)  # a run unfinished, being trained, not there: said before the lock
     # (none: eval.json was replaced by one without scores, and every side-by-side deleted)
-    check_test_views_given(dataset, "evaluate_run")
+    check_edited_dataset(dataset, "evaluate_run")
     # refused before any view is rendered, not after the images are written
     if not writable_folder(run_dir):
         raise ValueError(
@@ -470,12 +470,14 @@ def _evaluate_locked(
         # their advice, "give both the same rate_at_one", scored 12 dB low where followed)
         run_how = {True: "guessed", False: "stated"}.get(run_guessed, "stated or guessed")
         data_how = "guesses" if data_guessed else "states"
+        fixes = [f"state rate_at_one in {dataset.root}"] if data_guessed else []
+        if run_guessed is not False:  # (a run keeps the scale it trained in)
+            fixes.append("train the run again with its dataset's rate_at_one stated")
         warnings.warn(
             f"{run_dir} trained in an intensity scale of {run_scale:.4g} spikes a readout for "
             f"intensity 1 ({run_how}), {dataset.root} {data_how} {scale:.4g}: its renders' "
             f"intensity is scored as the dataset's, the same light only where both scales are "
-            f"the cameras' calibration (state rate_at_one where one is guessed: "
-            f"docs/datasets.md)",
+            f"the cameras' calibration ({' and '.join(fixes)}: docs/datasets.md)",
             stacklevel=2,
         )
     folder, scores_file = run_dir / name, run_dir / f"{name}.json"

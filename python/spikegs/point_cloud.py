@@ -46,7 +46,11 @@ def read_points(path: str | Path) -> np.ndarray:
     finite = (np.abs(points) <= np.finfo(np.float32).max).all(axis=1)  # [P] (NaN: False)
     if not len(points) or not finite.all():
         bad = np.flatnonzero(~finite)
-        found = "none" if not len(points) else f"{len(bad)} of {len(points)} not, from #{bad[0]}"
+        found = (
+            "none"
+            if not len(points)
+            else f"{len(bad)} of {len(points)} not finite, #{bad[0]} first"
+        )
         raise ValueError(
             f"{path}: expected at least one point, all finite (in float32); found {found}"
         )

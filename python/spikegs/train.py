@@ -37,7 +37,7 @@ from .data.dataset import (
     POINTS,
     camera_keys,
     check_dataset,
-    check_test_views_given,
+    check_edited_dataset,
     reading_dataset,
     scale_guessed,
 )
@@ -182,6 +182,7 @@ class Trainer:
         command_line: tuple[str, ...] = (),
     ):
         check_dataset(dataset, "Trainer")
+        check_edited_dataset(dataset, "Trainer")  # (before its scale is taken from TFP)
         progress = as_flag("Trainer: progress", progress)  # ("no" drew the bar)
         # False where the caller trains the run afresh each time (the benchmarks): a Ctrl-C's
         # message then promises no --resume, which they have not
@@ -238,6 +239,8 @@ class Trainer:
         cloud = Path(self.dataset.root) / POINTS
         if not cloud.exists():
             return None
+        # its digest as it is read (`start_points`): fresh state follows minutes of SIM training
+        self._cloud_digest = file_digest(cloud)
         points = distinct_points(read_points(cloud))
         instead = "the Gaussians start at random points in the scene bounds instead"
         if len(points) < MIN_GAUSSIANS:
@@ -405,7 +408,7 @@ class Trainer:
             )
             cloud = Path(self.dataset.root, POINTS).resolve()
             count = len(self.cloud_points)
-            self.start_points = {"file": str(cloud), "points": count, "sha256": file_digest(cloud)}
+            self.start_points = {"file": str(cloud), "points": count, "sha256": self._cloud_digest}
             print(  # (it moves a run's scores by dB, and the dataset's other files look the same)
                 f"{cloud}: the {len(self.model)} initial Gaussians start at its points ({count} "
                 f"distinct; delete it to start at random points in the scene bounds)",
@@ -865,7 +868,6 @@ class Trainer:
     def _train(self, resume: bool, on_eval) -> dict:
         """`train` with its arguments checked and gradients on."""
         # a config that cannot train on this dataset is refused before the run folder is touched
-        check_test_views_given(self.dataset, "Trainer")
         check_targets(self.dataset, self.config)
         if not self._from_checkpoint(resume):
             # poses, or a point cloud, that cannot train are refused before any work

@@ -102,7 +102,7 @@ GUESSED_SCALE = "image_scale_guessed"
 def scale_guessed(meta: dict) -> bool:
     """Whether the firing rate of intensity 1 of a dataset of `meta` is guessed (TFP(33)'s 99.5th
     percentile: `targets.intensity_scale`), not stated or calibrated."""
-    return not stated_scales(meta) or bool(meta.get(GUESSED_SCALE))
+    return not stated_scales(meta) or meta.get(GUESSED_SCALE) is True
 
 
 class GuessedUnitsWarning(UserWarning):
@@ -344,13 +344,25 @@ def check_dataset(dataset, where: str) -> None:
         )
 
 
-def check_test_views_given(dataset, where: str) -> None:
-    """ValueError where `dataset` holds no test view (one edited in memory: `where` scored none,
-    and replaced a run's scores with none, or trained until its first evaluation failed)."""
-    if not dataset.test_views:
+def check_edited_dataset(dataset, where: str) -> None:
+    """ValueError, for `where` (the Trainer, evaluate_run), where a Dataset edited in memory
+    holds no test view, or one whose name is no file name, (`check_test_views`: with none,
+    evaluate_run replaced a run's scores with none and a run trained until its first evaluation
+    failed), or training timestamps that are not one or more finite whole readout numbers (floats
+    were cast to int unsaid; none, or a guessed scale's TFP, failed in numpy)."""
+    views = dataset.test_views
+    check_test_views(
+        list(views) if isinstance(views, (list, tuple)) else [], f"{where}: {dataset.root}"
+    )
+    given = np.asarray(dataset.train_timestamps)
+    real = np.issubdtype(given.dtype, np.integer) or np.issubdtype(given.dtype, np.floating)
+    listed = given.ndim == 1 and len(given) > 0 and real
+    if not (listed and np.isfinite(given).all() and np.array_equal(given, np.round(given))):
+        odd = given[~np.isfinite(given) | (given != np.round(given))] if listed else []
         raise ValueError(
-            f"{where}: {dataset.root} holds no test view (dataset.test_views is empty): its "
-            f"held-out views are what a run is scored on; give it one or more"
+            f"{where}: {dataset.root}: train_timestamps expected a 1-D array of one or more "
+            f"finite whole readout numbers, found {given.dtype} of shape {list(given.shape)}"
+            + (f" ({float(odd[0]):g} first)" if len(odd) else "")
         )
 
 
