@@ -797,6 +797,14 @@ def test_a_users_file_or_a_folder_at_a_parts_results_is_refused_before_any_part(
     )
     assert "== " not in printed.out
     (tmp_path / "stiff.json").rmdir()
+    if part == "stiff":  # its own results replaced, run after run; another part's, or none, not
+        assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 0
+        assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 0
+        for mine in ('{"benchmark": "poses"}', "[1]"):
+            (tmp_path / "stiff.json").write_text(mine)
+            assert main(["bench", "stiff", "--quick", "--out", str(tmp_path)]) == 2
+            assert "stiff.json: not spikegs bench stiff's results" in capsys.readouterr().err
+        (tmp_path / "stiff.json").unlink()
     (tmp_path / "data").write_text("mine")
     assert main(["bench", "all", "--quick", "--out", str(tmp_path)]) == 2
     printed = capsys.readouterr()
@@ -1044,7 +1052,9 @@ def test_bench_train_refuses_a_users_files_in_the_run_folders_it_would_delete(tm
         train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)
     shutil.rmtree(tmp_path / "runs")
     (tmp_path / "runs").write_text("the user's")
-    with pytest.raises(FileExistsError, match=r"/runs is a file, where the benchmark writes its"):
+    with pytest.raises(
+        FileExistsError, match=r"/runs is a file, where the benchmark writes its runs; give anoth"
+    ):
         train.check_outputs(tmp_path, ["wires"], ["tfp33"], 1)
     # a file named data in OUT: its scene's folder neither existed nor was a folder, and the
     # check passed; the bench failed with "[Errno 20] Not a directory" after the parts before

@@ -20,7 +20,7 @@ from spikegs.cli import main
 from spikegs.config import load_config
 from spikegs.data import load_dataset, make_source, simulate_dataset
 from spikegs.data.correlation import correlation
-from spikegs.data.dataset import Dataset
+from spikegs.data.dataset import Dataset, scale_guessed
 from spikegs.data.llff import (
     _check_stream_length,
     _read_poses_bounds,
@@ -848,13 +848,16 @@ def test_guessed_intensity_scale_of_sharp_test_images_is_named(sim, nerf, tmp_pa
     """Sharp test images were put in firing-rate units by a percentile guess (27 % off in a
     walkthrough) without a word, though their PSNR depends on it."""
     with pytest.warns(UserWarning, match=r"by a guess, TFP\(33\)'s 99.5th percentile \(0\.\d+ "):
-        load_dataset(nerf)
+        guessed = load_dataset(nerf)
+    # its meta says so (eval on another dataset weighs it): image_scale is set either way
+    assert guessed.meta["image_scale_guessed"] is True and scale_guessed(guessed.meta)
     root = copy(nerf, tmp_path)
     (root / "spikegs.json").write_text(json.dumps({"rate_at_one": 0.25}))
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # stated: nothing to say
         warnings.filterwarnings("ignore", MIXED)  # (the fixture's r_1)
-        load_dataset(root)
+        stated = load_dataset(root)
+    assert stated.meta["image_scale_guessed"] is False and not scale_guessed(stated.meta)
 
 
 def test_sharp_test_images_in_other_units_are_named_from_their_spikes(sim, nerf, tmp_path):

@@ -354,9 +354,10 @@ def test_gaussians_start_at_the_datasets_point_cloud(tiny, tmp_path):
     )
     vertex = np.zeros(21, dtype=[(a, "f8") for a in "xyz"])  # another tool's float64 cloud
     vertex["x"][-1] = 1e39  # finite in float64, inf as the Gaussians' float32
+    vertex["y"][3] = np.nan
     PlyData([PlyElement.describe(vertex, "vertex")]).write(root / POINTS)
     with pytest.raises(
-        ValueError, match=r"all finite \(in float32\); found 1 of 21 not finite, #20 first"
+        ValueError, match=r"all finite \(in float32\); found 2 of 21 not finite, #3 first"
     ):
         read_points(root / POINTS)
     (root / POINTS).write_bytes(bytes(range(256)))
@@ -398,6 +399,12 @@ def test_a_run_started_from_a_point_cloud_says_so_and_records_it(tiny, tmp_path,
     (root / POINTS).unlink()
     resumed = Trainer(load_dataset(root), config, tmp_path / "resumed", False).train(resume=True)
     assert resumed["start_points"]["points"] == 50
+    many = np.random.default_rng(1).normal(size=(TINY["train"]["init_gaussians"] + 20, 3))
+    write_points(root / POINTS, many)  # more than the run starts: a subset, the file's count
+    more = Trainer(load_dataset(root), config, tmp_path / "more", False)
+    more._fresh_state()
+    assert more.start_points["points"] == len(many) and len(more.model) == len(many) - 20
+    assert f"initial Gaussians start at its points ({len(many)} distinct" in capsys.readouterr().err
     state = torch.load(stopped.checkpoint_path, weights_only=True)
     del state["start_points"]  # a checkpoint from before the record
     torch.save(state, stopped.checkpoint_path)

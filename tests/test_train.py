@@ -1452,6 +1452,16 @@ def test_ply_edge_cases(tmp_path):
         f"{tmp_path / 'huge.ply'}: 1 of its 20 Gaussians have a log-scale past 88.72, an "
         f"infinite scale once activated (exp, in float32): kept, and culled by the renderer"
     ]
+    model.params["means"].data[5, 0] = float("nan")  # beside one not finite in the file
+    save_ply(model, tmp_path / "huge.ply")
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        load_ply(tmp_path / "huge.ply")
+    assert "1 of its 20 Gaussians have a log-scale past" in str(said[0].message)
+    assert "1 of its 20 Gaussians hold a NaN or infinite property: kept; the renderer culls 1 " in (
+        str(said[1].message)
+    )
+    model.params["means"].data[5, 0] = 0.0
     model.params["log_scales"].data[3:5] = 0.0
     # Gaussians without an orientation: culled by the renderer, which eval scored unsaid
     model.params["quats"].data[:3] = 0.0
@@ -4776,6 +4786,23 @@ def test_eval_on_another_dataset_of_a_guessed_scale_says_so(dataset, tmp_path):
     assert "spikes a readout for intensity 1 (stated), " in said[0]
     assert f"{tmp_path / 'guessed'} guesses 0." in said[0]
     assert f"calibration (state rate_at_one in {tmp_path / 'guessed'}: docs" in said[0]
+    # a run trained in a guessed scale records it; scored on a stated dataset, said so
+    shutil.copytree(dataset.root, tmp_path / "unstated")
+    meta = json.loads((tmp_path / "unstated" / "meta.json").read_text())
+    del meta["sim"]["rate_at_one"], meta["image_scale"]
+    (tmp_path / "unstated" / "meta.json").write_text(json.dumps(meta))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (its guess is warned of)
+        unstated = load_dataset(tmp_path / "unstated")
+        Trainer(unstated, config, tmp_path / "g", progress=False).train()
+    assert json.loads((tmp_path / "g" / "train.json").read_text())["intensity_scale_guessed"]
+    with warnings.catch_warnings(record=True) as heard:
+        warnings.simplefilter("always")
+        evaluate_run(tmp_path / "g", load_dataset(tmp_path / "other"), write_images=False)
+    [guess] = [
+        str(w.message) for w in heard if "its renders' intensity is scored" in str(w.message)
+    ]
+    assert "intensity 1 (guessed), " in guess and "(train the run again with its" in guess
     # a run trained before train.json said whether its scale was guessed: said, as either
     del summary["intensity_scale_guessed"]
     (tmp_path / "run" / "train.json").write_text(json.dumps(summary))
@@ -5815,13 +5842,20 @@ def test_a_trainer_keeps_the_dataset_it_was_built_with(dataset, tmp_path):
     chdir during training took the run's folder for moved, and stopped (the API trial)."""
     config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 2}})
     full = dataset.copy()
-    assert full.train_timestamps is not dataset.train_timestamps
+    for name in ("train_timestamps", "test_views", "meta", "K", "scene_center"):
+        assert getattr(full, name) is not getattr(dataset, name), name
+    assert full.meta["sim"] is not dataset.meta["sim"]  # (deep: the scale's key is nested)
+    assert full.streams is dataset.streams and full.trajectory is dataset.trajectory
     np.testing.assert_array_equal(full.train_timestamps, dataset.train_timestamps)
     edited = dataset.copy()
     edited.train_timestamps = full.train_timestamps[:5]
     few = Trainer(edited, config, tmp_path / "few", progress=False)
     edited.train_timestamps = full.train_timestamps
-    edited.meta["image_scale"] = 0.5  # (a scale edited after too)
+    edited.meta["image_scale"] = 0.5  # (a scale edited after too, in place)
+    del edited.meta["sim"]["rate_at_one"]
+    edited.K[0, 0] *= 2
+    edited.scene_center += 1.0
+    edited.test_views.clear()
     seen = []
     summary = few.train(on_eval=lambda t: seen.append(len(t.targets.timestamps)))
     assert seen and set(seen) == {5}
@@ -5829,6 +5863,7 @@ def test_a_trainer_keeps_the_dataset_it_was_built_with(dataset, tmp_path):
     built.train_timestamps = full.train_timestamps[:5]
     assert summary["data"] == data_fingerprint(built, intensity_scale(full))
     assert summary["intensity_scale"] == intensity_scale(full)
+    assert summary["intensity_scale_guessed"] is False
     here = Path.cwd()
     (tmp_path / "elsewhere").mkdir()
     os.chdir(tmp_path)
@@ -5873,6 +5908,8 @@ def test_no_test_view_and_timestamps_not_whole_readouts_are_refused_before_any_w
         (np.array([100.0, np.inf]), r"found float64 of shape \[2\] \(inf first\)$"),
         (np.array([100.0, np.nan]), r"found float64 of shape \[2\] \(nan first\)$"),
         (np.array([100, 200], complex), r"found complex128 of shape \[2\]$"),
+        (np.array([True, False]), r"found bool of shape \[2\]$"),
+        (np.array([100.000001, 200.0]), r"found float64 of shape \[2\] \(100 first\)$"),
         (np.zeros(0, np.int64), r"found int64 of shape \[0\]$"),
         (np.array([[40, 50]]), r"found int64 of shape \[1, 2\]$"),
     ):

@@ -29,6 +29,10 @@ def test_floats_read_by_yaml_1_2s_core_schema(tmp_path):
     (tmp_path / "back.yaml").write_text(dump_yaml({"a": numbers}))
     back = read_yaml(tmp_path / "back.yaml")["a"]
     assert back[:8] + back[9:] == numbers[:8] + numbers[9:] and back[8] != back[8]
+    # text that reads as a float is written quoted, and a dot alone is text
+    texts = {"a": ".5e3", "b": "1e-4", "c": "1.", "d": "."}
+    (tmp_path / "texts.yaml").write_text(dump_yaml(texts))
+    assert read_yaml(tmp_path / "texts.yaml") == texts
 
 
 def test_one_document_with_empty_ones_around_it(tmp_path):
