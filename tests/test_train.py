@@ -5920,6 +5920,11 @@ def test_no_test_view_and_timestamps_not_whole_readouts_are_refused_before_any_w
                 ValueError, match="^Trainer: .*: train_timestamps expected .*" + said
             ):
                 Trainer(odd, config, tmp_path / "odd", progress=False)
+    for stamps in ([40, 600], [-1, 40]):  # past the stream: said as "at most -201" readouts
+        odd = dataset.copy()
+        odd.train_timestamps = np.array(stamps)
+        with pytest.raises(ValueError, match=rf"{stamps[0]}..{stamps[1]} reach past the stream's "):
+            Trainer(odd, config, tmp_path / "odd", progress=False)
     assert not (tmp_path / "odd").exists()
     whole = dataset.copy()
     whole.train_timestamps = dataset.train_timestamps.astype(np.float64)  # whole: taken

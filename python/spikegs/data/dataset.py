@@ -364,6 +364,12 @@ def check_edited_dataset(dataset, where: str) -> None:
             f"finite whole readout numbers, found {given.dtype} of shape {list(given.shape)}"
             + (f" ({float(odd[0]):g} first)" if len(odd) else "")
         )
+    count = len(dataset.streams[0])  # (one past the stream was said as "at most -201" readouts)
+    if given.min() < 0 or given.max() >= count:
+        raise ValueError(
+            f"{where}: {dataset.root}: train_timestamps {given.min():g}..{given.max():g} reach "
+            f"past the stream's readouts 0..{count - 1}"
+        )
 
 
 def _in_use(root: Path, remedy: str) -> str:
