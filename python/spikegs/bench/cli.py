@@ -144,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     refuse_dataset_or_run(Path(args.out), f"spikegs bench {args.part}", len(scenes))
     for part in parts:  # (written once the part's work was done: minutes lost, or a file)
         results = Path(args.out) / f"{part}.json"
-        if results.is_dir() or (results.exists() and not is_bench_results(results, part)):
+        if results.exists() and not is_bench_results(results, part):  # (a folder is not)
             what = "a folder" if results.is_dir() else f"not spikegs bench {part}'s results"
             raise FileExistsError(
                 f"{results}: {what}, where bench {part} writes them; move it, or give another --out"

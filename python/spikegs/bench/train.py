@@ -403,9 +403,21 @@ def equal_time_iterations(runs: dict, method: str, iterations: int) -> int:
     return max(iterations, round(iterations * budget / max(runs[method]["train_seconds"], 1e-9)))
 
 
+def _refuse_file(folder: Path, what: str) -> None:
+    """FileExistsError where a file stands at `folder`, where the benchmark writes its `what`: it
+    failed late, "[Errno 20] Not a directory", after the parts before train (OUT/data passed
+    check_output, its scene's folder neither existing nor a folder)."""
+    if folder.exists() and not folder.is_dir():
+        raise FileExistsError(
+            f"{folder} is a file, where the benchmark writes its {what}; give another --out"
+        )
+
+
 def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seeds: int) -> None:
     """Refuse, before any work, a user's files where the benchmark writes: each run is trained
     afresh, its folder deleted first, and a scene's dataset folder replaced unless it matches."""
+    for top in ("data", "runs"):
+        _refuse_file(Path(out) / top, top)
     for scene in scenes:
         # (the remedy was "give an empty or new folder": one --out sets)
         check_output(
@@ -416,13 +428,7 @@ def check_outputs(out: Path, scenes: Sequence[str], methods: Sequence[str], seed
         # the run folders there that a run would delete (every name of --seeds 2**63 - 1 was
         # checked, for ever)
         runs = Path(out) / "runs" / scene
-        # (a file there: "[Errno 20] Not a directory", late; OUT/data's passed check_output, its
-        # scene's folder neither existing nor a folder, and failed after the parts before train)
-        for above, what in ((runs.parent, "runs"), (runs, "runs"), (Path(out) / "data", "data")):
-            if above.exists() and not above.is_dir():
-                raise FileExistsError(
-                    f"{above} is a file, where the benchmark writes its {what}; give another --out"
-                )
+        _refuse_file(runs, "runs")
         for folder in sorted(runs.iterdir()) if runs.is_dir() else []:
             method, _, seed = folder.name.rpartition("-seed")
             seeded = seed.isdecimal() and method in methods and int(seed) < seeds
