@@ -901,6 +901,12 @@ def test_wrong_flip_is_named_from_the_sharp_images(sim, nerf, tmp_path, monkeypa
         r"spikegs.json\)",
     ):
         load_dataset(root)
+    with pytest.warns(  # given as the loader's keyword, which overrides the file: named so
+        UserWarning,
+        match=r"flip is likely wrong \(read with flip False; it is set in spikegs.json or the "
+        r"loader's keywords \(flip\), which override it\)",
+    ):
+        load_nerf_layout(root, flip=False)
     # a rate_at_one given left the training images unread, and the check skipped
     (root / "spikegs.json").write_text(json.dumps({"flip": False, "rate_at_one": 0.25}))
     with pytest.warns(

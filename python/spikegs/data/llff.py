@@ -391,7 +391,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
         readouts = _read_readouts(root / READOUTS, len(poses))
         meta = camera_meta("llff-stream", root, K, height, width, options, **near_far, **sphere)
         stream, rates = open_spikes(root / STREAM, height, width, options, hwf)
-        warn_rows_out_of_line(stream, OPTIONS_FILE)
+        warn_rows_out_of_line(stream, options.frame_settings())
         warn_if_faint([rates], len(stream), stream.path, OPTIONS_FILE)
         _check_stream_length(stream, readouts, poses[0, :, 4], options)
         dataset = stream_dataset(
@@ -424,7 +424,7 @@ def load_llff(path: PathLike, *, progress: bool = False, **overrides) -> Dataset
     meta = camera_meta("llff", root, K, height, width, options, **near_far, **sphere)
     opened = [open_spikes(p, height, width, options, hwf) for p in files]  # (stream, rates)
     streams = [stream for stream, _ in opened]
-    warn_rows_out_of_line(streams[0], OPTIONS_FILE)  # (the views share a frame size)
+    warn_rows_out_of_line(streams[0], options.frame_settings())  # (the views share a frame size)
     warn_if_faint([opened[0][1]], len(streams[0]), streams[0].path, OPTIONS_FILE)  # (a light)
     names = [p.stem for p in files]
     return views_dataset(

@@ -389,6 +389,6 @@ def load_nerf_layout(path: PathLike, **overrides) -> Dataset:
     streams = [None if o is None else o[0] for o in opened]  # (stream, rates) each
     first = next((o for o in opened if o is not None), None)
     if first is not None:
-        warn_rows_out_of_line(first[0], OPTIONS_FILE)  # (the views share a frame size)
+        warn_rows_out_of_line(first[0], options.frame_settings())  # (the views share a frame size)
         warn_if_faint([first[1]], len(first[0]), first[0].path, OPTIONS_FILE)  # (a light)
     return views_dataset(root, meta, names, viewmats, streams, images, test, options, str(path))

@@ -403,7 +403,12 @@ def views_dataset(
     held = [i for i in present if test[i] and images[i] is not None][:ORIENTATION_VIEWS]
     checked = view_tfps((streams[i], images[i]) for i in sharp + held)
     check_orientation(
-        checked, options.flip, source, OPTIONS_FILE, options.raw_width, options.col_offset
+        checked,
+        options.flip,
+        source,
+        options.frame_settings(),
+        options.raw_width,
+        options.col_offset,
     )
     if sharp and "rate_at_one" not in meta:
         tfps = view_tfps((streams[i], images[i]) for i in sharp)

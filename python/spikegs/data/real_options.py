@@ -42,6 +42,9 @@ ASPECT_FIX = (
 )
 
 
+FRAME_OPTIONS = ("flip", "height", "width", "raw_width", "col_offset")  # how a .dat is read
+
+
 @dataclasses.dataclass
 class Options:
     """The options of the module docstring; None: the layout's default."""
@@ -67,6 +70,16 @@ class Options:
             if key in self.keywords
             else f"{root / OPTIONS_FILE}: {key}"
         )
+
+    def frame_settings(self) -> str:
+        """Where the frame options (FRAME_OPTIONS) are set, for the checks' advice on how a .dat
+        is read: spikegs.json, or the loader's keywords where they override it (the advice named
+        spikegs.json for a flip given as a keyword)."""
+        keyed = [key for key in FRAME_OPTIONS if key in self.keywords]
+        given = (
+            f" or the loader's keywords ({', '.join(keyed)}), which override it" if keyed else ""
+        )
+        return OPTIONS_FILE + given
 
 
 def _positive_int(v) -> bool:
