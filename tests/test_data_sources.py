@@ -623,6 +623,18 @@ def test_a_mitsuba_scene_is_orbited_about_its_bounding_box(mitsuba):
     assert source.scene_radius == pytest.approx(0.5 * np.sqrt(3), rel=1e-4)
 
 
+def test_a_mitsuba_scene_in_any_units_is_drawn(mitsuba):
+    """A scene in millimetres or of a radius of 10⁻³ draws as one of radius 1: Mitsuba's own clip
+    planes (0.01 and 10⁴) drew them as their background alone, unsaid."""
+    images = []
+    for scale in (1.0, 2e4, 1e-3):
+        source = MitsubaSource(glowing_ball([scale, 0.0, 0.0], scale), 16, 16, spp=1)
+        images.append(source.render(source.trajectory(2, 1.0).pose_at(0.0)))  # [16, 16, 1]
+    assert (images[0] > 0.5).sum() > 20
+    np.testing.assert_allclose(images[1], images[0], atol=1e-3)
+    np.testing.assert_allclose(images[2], images[0], atol=1e-3)
+
+
 def test_up_rotation_turns_z_into_up():
     """The identity, exactly, for +z (the built-in scenes' datasets stay bit for bit), a proper
     rotation taking +z to any other unit vector, -z a half turn."""

@@ -12,6 +12,7 @@ luma of linear RGB, Y = 0.2126 R + 0.7152 G + 0.0722 B (relative luminance); col
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -277,6 +278,10 @@ def import_mitsuba():
     return mi
 
 
+CLIP_MARGIN = 2.0  # Mitsuba's far clip over the camera's distance to the bounding box's far corner
+NEAR_OVER_FAR = 1e-6  # its near clip over its far (Mitsuba's defaults' ratio)
+
+
 class MitsubaSource(RenderSource):
     """A Mitsuba 3 scene (a .xml file or a scene dict) rendered on the CPU (`scalar_rgb`).
 
@@ -325,6 +330,7 @@ class MitsubaSource(RenderSource):
         center = (lo + hi) / 2 if center is None else center
         radius = np.linalg.norm(hi - lo) / 2 if radius is None else radius
         super().__init__(width, height, channels, center, radius, fov_deg=fov_deg, up=up)
+        self._corners = np.array(list(itertools.product(*zip(lo, hi))))  # [8, 3], for the clips
         self._mi, self.spp = mi, int(spp)
         self._sensor = mi.load_dict(
             {
@@ -347,6 +353,10 @@ class MitsubaSource(RenderSource):
     def render(self, viewmat: np.ndarray) -> np.ndarray:
         c2w = np.linalg.inv(viewmat) @ np.diag([-1.0, -1.0, 1.0, 1.0])  # OpenCV -> Mitsuba axes
         self._params["to_world"] = self._mi.ScalarTransform4f(c2w.tolist())
+        # clip planes about the scene, in its units: Mitsuba's own, 0.01 and 10⁴, drew a scene in
+        # millimetres (radius 2·10⁴) or of radius 10⁻³ as its background alone, unsaid
+        far = CLIP_MARGIN * float(np.linalg.norm(self._corners - c2w[:3, 3], axis=1).max())
+        self._params["far_clip"], self._params["near_clip"] = far, far * NEAR_OVER_FAR
         self._params.update()
         rgb = np.array(self._mi.render(self._scene, sensor=self._sensor, spp=self.spp, seed=0))
         if not self._negative_warned and (rgb < 0).any():  # a negative emitter's radiance
