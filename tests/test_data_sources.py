@@ -1276,23 +1276,3 @@ def test_cross_fade_warning_sees_only_points_in_front(radius, warned):
     if warned:  # two frames, the first and the last: a frame sequence's remedy, not frame_every
         with pytest.warns(UserWarning, match=r"two frames of the sequence: .*a denser frame"):
             warn_about_frames(source, trajectory, trajectory.readouts[[0, -1]])
-
-
-def test_frames_between_two_readouts_are_warned_of():
-    """20 frames over 7 readouts: 8 of them are neither the frame at or before a readout nor the
-    next (none where the readout falls on a frame), unread, and were dropped without a word; 13
-    frames half a readout apart leave 6 unread; 10 frames over 7 readouts are all read."""
-    from spikegs.data.simulate import warn_about_frames
-
-    viewmats = np.stack([look_at((4.0, 0.0, 0.0), np.zeros(3), up=(0.0, 0.0, 1.0))] * 10)
-    K = np.array([[200.0, 0, 16], [0, 200.0, 16], [0, 0, 1]])
-    frames = np.zeros((10, 32, 32, 1), np.float32)
-    source = FrameSequenceSource("still", frames, viewmats, K, center=np.zeros(3), radius=1.0)
-    trajectory = source.trajectory(7, 0.0)
-    for frames, unread in ((20, 8), (13, 6)):
-        said = f"{unread} of {frames} light frames lie between two .*each of the 7 readouts"
-        with pytest.warns(UserWarning, match=said):
-            warn_about_frames(source, trajectory, np.linspace(0, 6, frames))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        warn_about_frames(source, trajectory, np.linspace(0, 6, 10))

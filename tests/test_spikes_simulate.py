@@ -10,7 +10,12 @@ import pytest
 import torch
 from spikegs import _C, SimParams, SpikeStream, simulate_spikes
 from spikegs.spikes import simulate
-from spikegs.spikes.simulate import fpn_gain, sample_times, simulate_channels
+from spikegs.spikes.simulate import (
+    fpn_gain,
+    sample_times,
+    simulate_channels,
+    warn_unread_frames,
+)
 
 
 def rates(packed: np.ndarray, width: int) -> np.ndarray:
@@ -221,6 +226,30 @@ def test_a_callable_is_sampled_at_the_frame_times_given():
         simulate_spikes(light, 120, frame_times=[0.0, 100.0])
 
 
+def test_frames_between_readouts_are_said_unread():
+    """Frames packed more densely than readouts (ten a readout, evenly over the stream) were
+    simulated from the two around each readout alone, unsaid: the light between, here all of
+    it, fired nothing. Frames a readout or more apart are read, each."""
+    frames = np.full((100, 4, 8), 2.0, np.float32)
+    frames[::11] = 0.0  # the frames at readouts 0 to 9, the only ones read
+    with pytest.warns(UserWarning, match=r"^90 of 100 light frames lie between two readouts and "):
+        dark = np.unpackbits(simulate_spikes(frames, 10)).mean()  # ~0.45 where read
+    assert dark < 0.02  # (a first readout's spike of the random initial charge)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        simulate_spikes(frames[:10], 10)  # a frame a readout
+        simulate_spikes(frames[:3], 10, frame_times=[0.0, 4.5, 9.0])
+    # 20 frames over 7 readouts: 8 are neither the frame at or before a readout nor the next
+    # (none where the readout falls on a frame); 13 half a readout apart leave 6; 10 none
+    for count, unread in ((20, 8), (13, 6)):
+        said = f"{unread} of {count} light frames lie between two .*each of the 7 readouts"
+        with pytest.warns(UserWarning, match=said):
+            warn_unread_frames(np.linspace(0, 6, count), 7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_unread_frames(np.linspace(0, 6, 10), 7)
+
+
 def test_a_chunk_holds_its_frames_light_up_to_a_cap(tmp_path, monkeypatch, alive_arrays):
     """Large frames shorten a chunk so that the frames it holds stay under CHUNK_LIGHT_BYTES: a
     256-readout chunk held 129 frames of light rendered every 2 readouts, 1.1 GB at 1080x1920
@@ -298,7 +327,8 @@ def test_frame_every_that_rounds_onto_the_last_readout():
     # (a frame every 1e-7 readouts stacked 10**7 frames a chunk)
     calls = []
     ramp = lambda t: calls.append(t) or np.full((4, 4), 0.1 * t, np.float32)  # noqa: E731
-    spikes = simulate_spikes(ramp, 6, frame_every=1e-6, seed=2)
+    with pytest.warns(UserWarning, match="4999995 of 5000001 light frames lie between two"):
+        spikes = simulate_spikes(ramp, 6, frame_every=1e-6, seed=2)
     assert len(calls) <= 2 * 6
     np.testing.assert_array_equal(spikes, simulate_spikes(ramp, 6, frame_every=1, seed=2))
     with pytest.raises(ValueError, match="samples the light .* times, over 1e\\+08"):
@@ -582,7 +612,8 @@ def test_a_callable_is_sampled_at_most_max_light_times(monkeypatch):
     light = lambda t: np.ones((2, 8), np.float32)  # noqa: E731
     with pytest.raises(ValueError, match="frame_every 0.05 samples the light 10 / 0.05 times"):
         simulate_spikes(light, 11, frame_every=0.05)  # 200 times
-    assert simulate_spikes(light, 11, frame_every=0.125).shape[0] == 11  # 80 times
+    with pytest.warns(UserWarning, match="70 of 81 light frames lie between two readouts"):
+        assert simulate_spikes(light, 11, frame_every=0.125).shape[0] == 11  # 80 times
 
 
 def test_light_in_other_units_and_a_channel_last_image_are_warned_of():

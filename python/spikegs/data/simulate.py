@@ -287,17 +287,6 @@ def warn_about_frames(source: Source, trajectory: Trajectory, times: np.ndarray)
     name, not an IndexError here)."""
     if len(times) < 2:
         return
-    readouts = np.arange(int(times[-1]) + 1)  # [R]
-    before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
-    after = (before + 1)[times[before] != readouts]  # the next, unless the readout is on a frame
-    read = np.unique(np.clip(np.concatenate([before, after]), 0, len(times) - 1))
-    if len(read) < len(times):  # a readout interpolates the two frames around it
-        warnings.warn(
-            f"{len(times) - len(read)} of {len(times)} light frames lie between two readouts "
-            f"and are never read (each of the {len(readouts)} readouts interpolates the frame "
-            f"at or before it and the next): more readouts, or fewer frames",
-            stacklevel=3,
-        )
     motion = frame_motion(source, trajectory, times)
     if motion > FRAME_MOTION_PX:
         # built-in, Mitsuba and a user's own scenes render a frame every frame_every readouts;

@@ -259,6 +259,23 @@ def checked_times(frame_times, count: int | None, last: int) -> np.ndarray:
     return times
 
 
+def warn_unread_frames(times: np.ndarray, num_readouts: int) -> None:
+    """A UserWarning where some of the frames at readouts `times` [F] (increasing) lie between
+    two readouts and are never read: each readout interpolates the frame at or before it and the
+    next (frames packed more densely than readouts were dropped unsaid by simulate_spikes)."""
+    readouts = np.arange(num_readouts)  # [R]
+    before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
+    after = (before + 1)[times[before] != readouts]  # the next, unless the readout is on a frame
+    read = np.unique(np.clip(np.concatenate([before, after]), 0, len(times) - 1))
+    if len(read) < len(times):
+        warnings.warn(
+            f"{len(times) - len(read)} of {len(times)} light frames lie between two readouts "
+            f"and are never read (each of the {num_readouts} readouts interpolates the frame "
+            f"at or before it and the next): more readouts, or fewer frames",
+            stacklevel=4,
+        )
+
+
 class _Frames:
     """The light: frames [F, H, W, C] at readout times [F], read lazily from an array or a
     callable (frames [F, H, W] and a callable's [H, W] given a channel axis when `channels` is
@@ -321,6 +338,7 @@ class _Frames:
                 f"frames of {shape[-1]} channels ({list(shape)} each) for {channels} outputs: "
                 f"expected an output file and a seed for each channel"
             )
+        warn_unread_frames(self.times, num_readouts)
         self.shape = shape if channels is not None else (*shape, 1)  # [H, W, C]
         self._get = read if channels is not None else lambda i: read(i)[..., None]
         if callable(source):  # its first frame rendered once: covering() finds it cached
