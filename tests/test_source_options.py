@@ -403,6 +403,22 @@ def test_a_frame_sequence_is_named_after_its_folder(tmp_path):
     assert FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1).name == "lego"
 
 
+def test_frames_with_times_of_their_own_are_said_unread(tmp_path):
+    """D-NeRF's per-frame `time` was ignored unsaid (the frames spread evenly in the listed
+    order, whatever their times): named, as not read; a file without one says nothing."""
+    path = tmp_path / "seq" / "transforms.json"
+    write_transforms(path, "seq", ring_viewmats(np.arange(0, 80, 10)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
+    doc = json.loads(path.read_text())
+    for i, frame in enumerate(doc["frames"]):
+        frame["time"] = (i / 7) ** 2
+    path.write_text(json.dumps(doc))
+    with pytest.warns(UserWarning, match=r"transforms.json: its frames state time, which is not "):
+        FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
+
+
 def test_a_dollys_frames_listed_out_of_order_are_warned_of(tmp_path):
     """The path is the cameras' centres: a sideways dolly (every camera looking the same way)
     listed out of its names' order is warned of (its optical axes' path, of length 0 for a

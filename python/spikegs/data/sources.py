@@ -396,6 +396,23 @@ def warn_if_names_order_the_path(path: Path, names: list[str], viewmats: np.ndar
         )
 
 
+FRAME_TIME_KEYS = ("time", "timestamp")  # a frame's time in other tools' files (D-NeRF's)
+
+
+def warn_if_frames_timed(path: Path, frames: list[dict]) -> None:
+    """A UserWarning where the frames [F] of a transforms file state times of their own (D-NeRF's
+    `time`): a frame sequence spreads its frames evenly over the readouts in the listed order,
+    and such times were ignored unsaid."""
+    keys = sorted({key for frame in frames for key in FRAME_TIME_KEYS if key in frame})
+    if keys:
+        warnings.warn(
+            f"{path}: its frames state {' and '.join(keys)}, which is not read: the frames are "
+            f"spread evenly over the readouts in the order listed (resample them to even "
+            f"times, in time order, if they are not)",
+            stacklevel=3,
+        )
+
+
 class FrameSequenceSource(Source):
     """Rendered frames [F, H, W, C] with poses [F, 4, 4] (world-to-camera, OpenCV), spread evenly
     over the readouts; the light in between is the linear interpolation of the two frames.
@@ -467,6 +484,7 @@ class FrameSequenceSource(Source):
                 f"camera's path (the light between two is interpolated)"
             )
         warn_if_names_order_the_path(path, [f["file_path"] for f in doc["frames"]], viewmats)
+        warn_if_frames_timed(path, doc["frames"])
         check_meta_values(doc, path, [k for k in ("scene_center", "scene_radius") if k in doc])
         fix = f"add scene_center [x, y, z] and scene_radius to {path.name}"
         center, radius = view_sphere(
