@@ -235,6 +235,16 @@ def _written_over(path: Path, report: str | None, key: str | None = None) -> boo
     return None if written is None else file_digest(path) != written
 
 
+def _backup_placed(backup: Path, report: str | None) -> bool:
+    """Whether the .bak at `backup` is a file put there since the last run, which wrote the
+    `report` (sfm/report.json's text): another than the one it aligned to, or one where it
+    aligned to none (its report records its files' digests, not the .bak's)."""
+    written_over = _written_over(backup, report, BACKUP_DIGEST)
+    if written_over is None:  # none recorded: placed since, unless the report predates digests
+        return DIGESTS[TRAJECTORY] in _reported(report)
+    return written_over
+
+
 def _image_window(window: int | None, sim_model) -> int:
     """The readouts an image reads: `window` (DEFAULT_WINDOW where None), or a SIM's own, which
     a `window` given otherwise would not change (it moved the images' centres alone, unsaid)."""
@@ -674,7 +684,7 @@ def _estimate_poses(
         raise
     defective = int(defects.any(0).sum())  # pixels, in any channel
     # meta's sphere the last run estimated (in its poses' frame: estimated again, below)
-    ours = _is_last_estimate(meta, _reported(live_report).get("scene_sphere"))
+    sphere_again = _is_last_estimate(meta, _reported(live_report).get("scene_sphere"))
     report = {
         "images": recon.num_images,
         "registered": len(recon.readouts),
@@ -688,6 +698,14 @@ def _estimate_poses(
         f"reprojection error {recon.reprojection_error:.2f} px (worst image "
         f"{report['reprojection_error_px_max']:.2f} px)"
     ]
+    pairs, parallax = recon.pair_counts
+    if pairs and not parallax:  # (no longer refused before mapping: small images' orbits)
+        messages.append(
+            f"warning: none of the {pairs} matched image pairs showed parallax to COLMAP's "
+            f"verification (each explained by a homography within its 4 px, as most pairs of "
+            f"small images are): right poses where the camera moved, poses fitted to noise "
+            f"where it barely moved or only turned (no poses can be estimated then)"
+        )
     if sim_model is None and len(streams) == 1:  # (a colour camera's mean is as clean)
         how = (
             "--sim reads the SIM trained on them"
@@ -710,7 +728,7 @@ def _estimate_poses(
             "similarity (arbitrary rotation, translation and scale)"
         )
         framed = [k for k in ("scene_center", "scene_radius", "up") if k in meta]
-        framed = [k for k in framed if not (ours and k in SPHERE_KEYS)]
+        framed = [k for k in framed if not (sphere_again and k in SPHERE_KEYS)]
         if framed:  # (`up`: an orbit's axis, which `spikegs render` tilted unsaid)
             messages.append(
                 f"warning: {' / '.join(framed)} in {META} are kept, but they cannot be in SfM's "
@@ -719,14 +737,15 @@ def _estimate_poses(
             )
     else:
         recon = align(recon, reference)
-    messages += _complete_meta(meta, recon, K is None, ours, report)
+    messages += _complete_meta(meta, recon, K is None, sphere_again, report)
     if reference is not None:
         report.update(_pose_report(recon, reference, float(meta["scene_radius"])))
         # a raw recording's reference is the first run's SfM where it had no pose log: a
         # difference, not an error
         # (a pose log put in place of an earlier run's SfM is a pose log)
-        # (a pose log moved over an SfM .bak, as a refusal tells, was called the first run's)
-        logged = replaced or bool(_written_over(backup, live_report, BACKUP_DIGEST))
+        # (a pose log moved over an SfM .bak, as a refusal tells, was called the first run's;
+        # one put there where the last run kept none, as docs/datasets.md tells, too)
+        logged = replaced or _backup_placed(backup, live_report)
         sfm = not logged and _reference_is_sfm(meta, backup.exists(), ours, live_report)
         report["pose_reference"] = meta["pose_reference"] = SFM_REFERENCE if sfm else LOG_REFERENCE
         word = "difference" if sfm else "error"
