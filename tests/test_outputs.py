@@ -399,6 +399,33 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (Linux's)")
+def test_results_printed_into_a_full_disk_are_said_as_stdouts(tmp_path):
+    """eval's, render's, sim-train's and the demo's results printed into `> /dev/full` (more than
+    stdout's buffer: the print fails inside the command) were said as a bare "[Errno 28] No space
+    left on device", read as their files failing, which are written; a file's error, stdout
+    fine, is said as it is."""
+    script = (
+        "import argparse, errno, os, sys\n"
+        "import spikegs.cli as cli\n"
+        "def lost(args):\n"
+        "    if sys.argv[1] == 'file':\n"
+        "        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))\n"
+        "    print('psnr 30.1 ' * 10**4)\n"
+        "sys.exit(cli._run(argparse.Namespace(command='eval', _run=lost)))\n"
+    )
+    with open("/dev/full", "w") as disk:
+        done = subprocess.run(
+            [sys.executable, "-c", script, "stdout"], stdout=disk, stderr=subprocess.PIPE
+        )
+    assert done.returncode == 2
+    said = "spikegs eval: error: stdout: No space left on device: what the command printed is lost"
+    assert done.stderr.decode().splitlines() == [said]
+    done = subprocess.run([sys.executable, "-c", script, "file"], capture_output=True)
+    assert done.returncode == 2
+    assert done.stderr.decode() == "spikegs eval: error: [Errno 28] No space left on device\n"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (Linux's)")
 @pytest.mark.parametrize(
     "full, status, said",
     [

@@ -350,8 +350,38 @@ def _lost_output_status(err: OSError) -> int:
         return BROKEN_PIPE
     if err.errno == errno.EIO:
         return HUNG_UP
-    say(f"spikegs: error: stdout: {err.strerror or err}: what the command printed is lost")
+    say(f"spikegs: error: stdout: {err.strerror or err}: {PRINTED_LOST}")
     return 2
+
+
+PRINTED_LOST = "what the command printed is lost"  # (its files are written as it says)
+STDOUT = "<stdout>"  # the file name of stdout's write errors (`_NamedStdout`)
+
+
+class _NamedStdout:
+    """stdout, its full-disk write errors naming it (a command's results printed into `>
+    /dev/full` were said as a bare "[Errno 28] No space left on device", read as its files
+    failing, which are written); all else stdout's own."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _named(self, call, *args):
+        try:
+            return call(*args)
+        except OSError as err:
+            if err.errno not in FULL or err.filename is not None:
+                raise
+            raise OSError(err.errno, err.strerror, STDOUT) from err
+
+    def write(self, text: str) -> int:
+        return self._named(self._stream.write, text)
+
+    def flush(self) -> None:
+        return self._named(self._stream.flush)
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
 
 
 def _stopped(stop: KeyboardInterrupt) -> int:
@@ -383,6 +413,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """Run the parsed command; its errors as messages and exit codes."""
+    stdout, sys.stdout = sys.stdout, _NamedStdout(sys.stdout)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt as stop:
@@ -395,6 +426,8 @@ def _run(args: argparse.Namespace) -> int:
     # bad input, missing or unwritable files, an extra not installed (pip install '.[..]'),
     # a warning that PYTHONWARNINGS=error or -W error made an exception (a traceback before)
     except (ValueError, OSError, MissingDependencyError, Warning) as err:
+        if isinstance(err, OSError) and err.filename == STDOUT:
+            err = f"stdout: {err.strerror}: {PRINTED_LOST}"
         warned = isinstance(err, Warning)
         note = " (a warning, which PYTHONWARNINGS or -W makes an error)" if warned else ""
         # (a closed terminal's EIO, stdout's or stderr's, once more as this is said: quiet)
@@ -412,6 +445,8 @@ def _run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
+    finally:
+        sys.stdout = stdout
 
 
 if __name__ == "__main__":
