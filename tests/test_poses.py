@@ -18,6 +18,7 @@ import scipy.linalg
 import torch
 from edited_spikes import write_edited_spikes
 from plyfile import PlyData, PlyElement
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 from spikegs import sfm
 from spikegs.bench.poses import noisy_dataset, refined_pose_errors
@@ -381,6 +382,9 @@ def test_a_run_started_from_a_point_cloud_says_so_and_records_it(tiny, tmp_path,
     cloud = Trainer(load_dataset(root), config, tmp_path / "cloud", False).train()
     said = capsys.readouterr().err
     assert f"{(root / POINTS).resolve()}: the 50 initial Gaussians start at its points (50" in said
+    spacing = np.median(cKDTree(points).query(points, k=2)[0][:, 1]) / tiny.scene_radius
+    size = min(spacing, 0.99 * config.densify.max_world_size)  # (pruned above it)
+    assert f"distinct), {size:.2g} of the scene radius wide (their median spacing, at" in said
     record = {
         "file": str((root / POINTS).resolve()),
         "points": 50,
@@ -405,6 +409,9 @@ def test_a_run_started_from_a_point_cloud_says_so_and_records_it(tiny, tmp_path,
     more._fresh_state()
     assert more.start_points["points"] == len(many) and len(more.model) == len(many) - 20
     assert f"initial Gaussians start at its points ({len(many)} distinct" in capsys.readouterr().err
+    write_points(root / POINTS, points * 1e-3)  # a cloud a thousand times smaller: said so
+    Trainer(load_dataset(root), config, tmp_path / "small", False)._fresh_state()
+    assert f"distinct), {spacing * 1e-3:.2g} of the scene radius wide" in capsys.readouterr().err
     state = torch.load(stopped.checkpoint_path, weights_only=True)
     del state["start_points"]  # a checkpoint from before the record
     torch.save(state, stopped.checkpoint_path)

@@ -409,9 +409,13 @@ class Trainer:
             cloud = Path(self.dataset.root, POINTS).resolve()
             count = len(self.cloud_points)
             self.start_points = {"file": str(cloud), "points": count, "sha256": self._cloud_digest}
+            # (a cloud whose points lay within 1e-7 started Gaussians that small, unsaid)
+            size = math.exp(float(self.model.params["log_scales"][0, 0])) / self.radius
             print(  # (it moves a run's scores by dB, and the dataset's other files look the same)
                 f"{cloud}: the {len(self.model)} initial Gaussians start at its points ({count} "
-                f"distinct; delete it to start at random points in the scene bounds)",
+                f"distinct), {size:.2g} of the scene radius wide (their median spacing, at most "
+                f"the size densification prunes; delete it to start at random points in the "
+                f"scene bounds)",
                 file=sys.stderr,
             )
         else:
