@@ -282,10 +282,9 @@ def _failure(
     width: int | None = None,
 ) -> str:
     """The failure message: what SfM managed (`registered` None: no pair matched, mapping not
-    tried), in numbers,
-    the likely reasons, and where its `images` (SIM's where `from_sim`; `can_sim`: SIM's could
-    be made) are to look at. `K` [3, 3]: the stated intrinsics SfM held fixed, for images
-    `width` px wide (a focal in mm failed as "no parallax", unnamed)."""
+    tried), in numbers, the likely reasons, and where its `images` (SIM's where `from_sim`;
+    `can_sim`: SIM's could be made) are to look at. `K` [3, 3]: the stated intrinsics SfM held
+    fixed, for images `width` px wide (a focal in mm failed as "no parallax", unnamed)."""
     n = stats["images"]
     need = max(3, int(np.ceil(min_registered * n)))
     if registered is not None:

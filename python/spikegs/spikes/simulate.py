@@ -263,13 +263,15 @@ def warn_unread_frames(times: np.ndarray, num_readouts: int) -> None:
     """A UserWarning where some of the frames at readouts `times` [F] (increasing) lie between
     two readouts and are never read: each readout interpolates the frame at or before it and the
     next (frames packed more densely than readouts were dropped unsaid by simulate_spikes)."""
-    readouts = np.arange(num_readouts)  # [R]
-    before = np.searchsorted(times, readouts, side="right") - 1  # the frame at or before each
-    after = (before + 1)[times[before] != readouts]  # the next, unless the readout is on a frame
-    read = np.unique(np.clip(np.concatenate([before, after]), 0, len(times) - 1))
-    if len(read) < len(times):
+    # frame i is the one at or before a readout in [t_i, t_i+1) (the last's up to the last
+    # readout), or the next of one in (t_i-1, t_i): counted over the frames, not the readouts
+    ends = np.append(times[1:], num_readouts)  # [F]
+    before = np.ceil(ends) > np.ceil(times)  # [F]
+    after = np.ceil(times[1:]) - np.floor(times[:-1]) > 1  # [F - 1]
+    unread = int((~before).sum() - (after & ~before[1:]).sum())
+    if unread:
         warnings.warn(
-            f"{len(times) - len(read)} of {len(times)} light frames lie between two readouts "
+            f"{unread} of {len(times)} light frames lie between two readouts "
             f"and are never read (each of the {num_readouts} readouts interpolates the frame "
             f"at or before it and the next): more readouts, or fewer frames",
             stacklevel=4,
