@@ -25,6 +25,20 @@ def test_an_in_place_build_without_the_python_module_is_refused_at_configure(tmp
     assert refused == inplace and (done.returncode != 0) == inplace, done.stderr
 
 
+def test_a_missing_pybind11_says_how_to_install_it(tmp_path):
+    """CMake's own message for a pybind11 it cannot find named pybind11_DIR and
+    CMAKE_PREFIX_PATH, not the pip package (the install trial); GLM's says how too."""
+    options = ["-DSPIKEGS_PYTHON=ON", "-DSPIKEGS_TESTS=OFF", f"-Dpybind11_DIR={tmp_path / 'no'}"]
+    done = subprocess.run(
+        ["cmake", "-S", str(ROOT), "-B", str(tmp_path / "b"), *options],
+        capture_output=True,
+        text=True,
+    )
+    said = " ".join(done.stderr.split())  # (CMake wraps its messages)
+    assert done.returncode != 0 and "pybind11 not found for " in said, done.stderr
+    assert "pip install 'pybind11>=2.12' (or bash scripts/install-deps.sh)" in said, said
+
+
 def _install_deps(tmp_path, apt: bool = False, **env) -> subprocess.CompletedProcess:
     """scripts/install-deps.sh on a PATH of `id` and a `python` that records its arguments in
     tmp_path/python.args (no c++, g++, clang++ or brew; an `apt-get` recording its arguments in
