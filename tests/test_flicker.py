@@ -43,6 +43,14 @@ def test_flickers_at_either_end_of_the_mains_range_are_found(period):
     assert found.depth == pytest.approx(0.2, abs=0.02)
 
 
+@pytest.mark.parametrize("period", [78.0, 450.0, 500.0])
+def test_a_flicker_beyond_the_periods_searched_is_not_found_at_their_edge(period):
+    """A depth-0.3 flicker of 450 or 500 readouts, past the longest period searched (420), was
+    found at 419.6 and depth 0.13 or 0.06, and training divided that out, the flicker left in
+    (the sensor trial); 78, past the shortest (80), likewise. Not found: outside the band."""
+    assert find_flicker([_grey(0.3, period, 0.0, 4000)]) is None
+
+
 @pytest.mark.parametrize("depth, readouts", [(0.0, 2000), (0.3, 1500)])
 def test_no_flicker_in_a_steady_light_or_a_recording_too_short_to_tell(depth, readouts):
     assert find_flicker([_grey(depth, 250.0, 0.0, readouts)]) is None

@@ -26,6 +26,7 @@ from .number_checks import is_number
 from .spikes.stream import SpikeStream
 
 PERIODS = (80.0, 420.0)  # readouts searched: 100-120 Hz at 20-40 kHz, and 240 Hz (a harmonic)
+BEYOND = 1.1  # a peak within this factor past PERIODS is a flicker outside them, not one in them
 # a sinusoid of a depth (relative amplitude) below MIN_DEPTH, or under PEAK times the median of
 # the periodogram over PERIODS, is no flicker: on the built-in scenes the camera's motion gives
 # depths up to 0.01 there (BENCHMARKS.md, "Lighting flicker")
@@ -130,12 +131,17 @@ def _fft_size(bins: int, per_bin: float) -> int:
 
 def periodogram(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The periods [F] (readouts) within PERIODS and the amplitudes [F] of relative rates `x` [n]
-    of evenly spaced bins at times `t` [n] (zero-padded to PAD times the bins or more)."""
+    of evenly spaced bins at times `t` [n] (zero-padded to PAD times the bins or more); none
+    where a higher amplitude lies within BEYOND of the band, outside it (a flicker of 450 or 500
+    readouts, outside PERIODS, was found at 419.6 and a fraction of its depth, its peak's flank)."""
     size = _fft_size(len(x), PAD)
     amp = 2 * np.abs(np.fft.rfft(x, size)) / len(x)  # [size / 2 + 1]
     with np.errstate(divide="ignore"):
         period = (t[1] - t[0]) / np.fft.rfftfreq(size)  # readouts
     band = (period >= PERIODS[0]) & (period <= PERIODS[1])
+    near = (period >= PERIODS[0] / BEYOND) & (period <= PERIODS[1] * BEYOND)
+    if amp[near].max() > amp[band].max():
+        return period[:0], amp[:0]
     return period[band], amp[band]
 
 
@@ -178,7 +184,7 @@ def _detector() -> bytes:
 def _settings() -> tuple:
     """The search's settings as they are now (a notebook may tune them after a first search)."""
     judged = (MIN_DEPTH, PEAK, MAX_DEPTH, GRID, IN_PHASE, LIT, MIN_PERIODS)
-    return (PERIODS, *judged, BINS_A_PERIOD, PAD, PHASE_STEP)
+    return (PERIODS, BEYOND, *judged, BINS_A_PERIOD, PAD, PHASE_STEP)
 
 
 def cached_flicker(streams, progress: bool = False) -> Flicker | None:
@@ -225,6 +231,8 @@ def find_flicker(streams, progress: bool = False) -> Flicker | None:
     frame = totals.sum(axis=1)  # [n]
     frame = _detrended(t, frame / max(frame.mean(), 1e-12) - 1)  # relative rates
     periods, amp = periodogram(t, frame)  # [F]
+    if not len(amp):  # (its peak beyond the band)
+        return None
     best, top = _peak(t, frame, periods[np.argmax(amp)])
     w = 2 * np.pi / best  # radians a readout
     basis = np.stack([np.ones_like(t), t, np.sin(w * t), np.cos(w * t)], axis=1)  # [n, 4]
