@@ -3568,6 +3568,29 @@ def test_a_stop_in_the_last_step_finishes_the_run_then_stops(
     assert (tmp_path / "run" / "scene.ply").exists()
 
 
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_as_the_last_files_are_written_finishes_them_then_stops(
+    dataset, tmp_path, monkeypatch, ctrl_c, sigterm_raises, signum
+):
+    """Ctrl-C or SIGTERM (a scheduler's limit) after the last step, as scene.ply was written:
+    the run was left without scene.ply and train.json, its last checkpoint the one before, and
+    no --resume said (the kill trial). Its files are written, then it stops."""
+    config = load_config("tfp33", {**FAST, "train": {**FAST["train"], "iterations": 40}})
+    original = train_module.save_ply
+
+    def stopped_while_saved(*args):
+        os.kill(os.getpid(), signum)
+        original(*args)
+
+    monkeypatch.setattr(train_module, "save_ply", stopped_while_saved)
+    with pytest.raises(Terminated if signum == signal.SIGTERM else KeyboardInterrupt):
+        Trainer(dataset, config, tmp_path / "run", progress=False).train()
+    assert json.loads((tmp_path / "run" / "train.json").read_text())["iterations"] == 40
+    assert (tmp_path / "run" / "scene.ply").exists()
+    checkpoint = torch.load(tmp_path / "run" / "checkpoints" / "last.pt", weights_only=True)
+    assert checkpoint["iteration"] == 40
+
+
 def test_spikegs_train_stopped_before_its_first_step_says_interrupted(
     dataset, tmp_path, monkeypatch, capsys
 ):

@@ -1044,11 +1044,23 @@ class Trainer:
                 closed = progress_lost(bar.close, bar)  # the run done: it finishes, then stops
                 log.close()
             gone = gone or closed
+            if gone is not None and self.iteration < t.iterations:
+                self.save_checkpoint()  # nothing to show the rest to: stopped, as `| head` stops it
+                raise gone
+            # the run's last files written with a stop deferred too: one there left no scene.ply,
+            # no train.json and the checkpoint before, and said no --resume (the kill trial)
+            summary = self._finish(finished)
             stopped = interrupted()  # in the last step: the run finishes, then stops (a demo
             # went on to its next method, which the scheduler's SIGKILL then cut)
-        if gone is not None and self.iteration < t.iterations:
-            self.save_checkpoint()  # nothing to show the rest to: stopped, as `| head` stops it
+        if stopped:
+            raise interruption(stopped)
+        if gone is not None:
             raise gone
+        return summary
+
+    def _finish(self, finished: bool) -> dict:
+        """The run's last checkpoint (unless `finished` before), scene.ply and train.json, and
+        what the run leaves to say; returns the summary."""
         if not finished:
             self.save_checkpoint()
         if not (finished and self._scene_readable()):
@@ -1085,9 +1097,5 @@ class Trainer:
         # without train.json, and its resume raised them again before writing it
         for said in others + [f and f + sphere for f in followers]:
             if said:
-                warnings.warn(f"{self.run_dir}: {said}", stacklevel=2)
-        if stopped:
-            raise interruption(stopped)
-        if gone is not None:
-            raise gone
+                warnings.warn(f"{self.run_dir}: {said}", stacklevel=3)
         return summary
