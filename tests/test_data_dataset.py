@@ -309,6 +309,27 @@ def test_a_stop_while_the_new_dataset_moves_in_lets_it_finish(tmp_path, monkeypa
     assert not (old / STAGING).exists()
 
 
+def test_a_dataset_moves_in_with_meta_json_deleted_first_and_moved_in_last(tmp_path, monkeypatch):
+    """meta.json is written last, so that a folder without it is simulated again; --overwrite's
+    swap deleted and moved in the files in the directory's order, and a kill between left a
+    meta.json beside a part of them (the kill trial): it goes first, and comes in last."""
+    from spikegs.data.dataset import move_in
+
+    names = ["a_spikes.dat", "meta.json", "trajectory.json", "z_test_views.json"]
+    for folder in (tmp_path, tmp_path / STAGING):
+        folder.mkdir(exist_ok=True)
+        for name in names:
+            (folder / name).write_text(folder.name)
+    done = []
+    unlink, rename = Path.unlink, Path.rename
+    monkeypatch.setattr(Path, "unlink", lambda p, *a: done.append(("-", p.name)) or unlink(p, *a))
+    monkeypatch.setattr(Path, "rename", lambda p, t: done.append(("+", p.name)) or rename(p, t))
+    move_in(tmp_path)
+    assert done[0] == ("-", "meta.json") and done[-1] == ("+", "meta.json")
+    assert sorted(done) == sorted([(sign, name) for sign in "+-" for name in names])
+    assert all((tmp_path / name).read_text() == STAGING for name in names)
+
+
 def test_a_staging_folder_a_killed_simulation_left_is_replaced_under_overwrite(tmp_path):
     """A simulation killed (SIGKILL, a machine's reboot) leaves its staging folder inside the
     dataset: `--overwrite` clears it before staging anew, none of its files kept."""

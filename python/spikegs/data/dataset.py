@@ -501,17 +501,24 @@ def move_in(out: Path) -> None:
     lock (`writing_dataset`'s, held by the caller: a new file would be another lock, which a
     second process could take), then the new one's entries moved in, within the folder."""
     staging = out / STAGING
-    # entry by entry: the lock stays, and a link (a dataset on another disk) keeps its target
-    for entry in out.iterdir():  # (rmtree refuses a link)
+    # entry by entry: the lock stays, and a link (a dataset on another disk) keeps its target;
+    # meta.json goes first and comes in last, as it is written last (a kill between, in the
+    # directory's order, left a meta.json beside a part of the files: a dataset missing one)
+    for entry in reversed(_meta_last(out)):  # (rmtree refuses a link)
         if entry.name in (LOCK, STAGING):
             continue
         if entry.is_dir() and not entry.is_symlink():
             shutil.rmtree(entry)
         else:
             entry.unlink()
-    for entry in staging.iterdir():
+    for entry in _meta_last(staging):
         entry.rename(out / entry.name)
     staging.rmdir()
+
+
+def _meta_last(folder: Path) -> list[Path]:
+    """The entries of `folder`, meta.json last."""
+    return sorted(folder.iterdir(), key=lambda entry: entry.name == META)
 
 
 def camera_keys(meta: dict) -> dict:
