@@ -8,6 +8,7 @@ import re
 
 import pytest
 from spikegs.cli import main
+from spikegs.data.dataset import reading_dataset
 from spikegs.run_folder import (
     FolderWatch,
     check_fresh_run_dir,
@@ -134,6 +135,9 @@ def test_a_dataset_and_a_run_folder_given_for_each_other_are_named(tmp_path, cap
     (run / "train.json").write_text(json.dumps({"dataset": str(data)}))
     for argv in (["eval", str(data)], ["render", str(data), "--out", str(tmp_path / "o.gif")]):
         assert main(argv) == 2
+        assert "data: a dataset (its meta.json), not a run folder" in capsys.readouterr().err
+        with reading_dataset(data):  # a training reads it: named all the same (said busy, 75)
+            assert main(argv) == 2
         assert "data: a dataset (its meta.json), not a run folder" in capsys.readouterr().err
     for argv in (["train", str(run), "--out", str(tmp_path / "new")], ["poses", str(run)]):
         assert main(argv) == 2

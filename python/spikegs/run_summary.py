@@ -84,6 +84,14 @@ def trained_scene(run_dir: Path) -> Path:
     ply = Path(run_dir) / SCENE
     if ply.exists():
         return ply
+    from .data.dataset import layout_files  # (the data package imports this module)
+
+    marks = layout_files(Path(run_dir))
+    if marks:  # a dataset given where a run goes (before its lock, which a training reads by)
+        raise FileNotFoundError(
+            f"{run_dir}: a dataset (its {', '.join(marks)}), not a run folder (spikegs train "
+            f"{shell_path(run_dir)} --out RUN trains one)"
+        )
     lock = Path(run_dir) / LOCK
     if lock.is_file():  # a run being trained holds it (`spikegs train`): --resume would fail
         busy = f"{ply} not found yet: {run_dir} is being trained by another process"
@@ -102,14 +110,6 @@ def trained_scene(run_dir: Path) -> Path:
     if not Path(run_dir).is_dir():
         what = "a file, not a run folder" if Path(run_dir).exists() else "no such run folder"
         raise FileNotFoundError(f"{run_dir}: {what} (spikegs train ... --out RUN)")
-    from .data.dataset import layout_files  # (the data package imports this module)
-
-    marks = layout_files(Path(run_dir))
-    if marks:  # a dataset given where a run goes
-        raise FileNotFoundError(
-            f"{run_dir}: a dataset (its {', '.join(marks)}), not a run folder (spikegs train "
-            f"{shell_path(run_dir)} --out RUN trains one)"
-        )
     runs = sorted(  # a folder of one's runs (it was told to train), a demo's or a bench's
         p.parent.relative_to(run_dir).as_posix()
         for pattern in (f"*/{CONFIG}", f"runs/*/{CONFIG}", f"runs/*/*/{CONFIG}")
