@@ -413,7 +413,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """Run the parsed command; its errors as messages and exit codes."""
-    stdout, sys.stdout = sys.stdout, _NamedStdout(sys.stdout)
+    stdout = sys.stdout
+    if stdout is not None:  # (None: a closed stdout, which print passes by)
+        sys.stdout = _NamedStdout(stdout)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt as stop:

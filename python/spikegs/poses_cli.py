@@ -702,9 +702,9 @@ def _estimate_poses(
     if pairs and not parallax:  # (no longer refused before mapping: small images' orbits)
         messages.append(
             f"warning: none of the {pairs} matched image pairs showed parallax to COLMAP's "
-            f"verification (each explained by a homography within its 4 px, as most pairs of "
-            f"small images are): right poses where the camera moved, poses fitted to noise "
-            f"where it barely moved or only turned (no poses can be estimated then)"
+            f"verification (most of each pair's matches explained by a homography within 4 "
+            f"px, as in most pairs of small images): check these poses; where the camera "
+            f"barely moved or only turned they are fitted to noise"
         )
     if sim_model is None and len(streams) == 1:  # (a colour camera's mean is as clean)
         how = (

@@ -410,7 +410,7 @@ class Trainer:
             count = len(self.cloud_points)
             self.start_points = {"file": str(cloud), "points": count, "sha256": self._cloud_digest}
             # (a cloud whose points lay within 1e-7 started Gaussians that small, unsaid)
-            size = math.exp(float(self.model.params["log_scales"][0, 0])) / self.radius
+            size = math.exp(float(self.model.params["log_scales"][0, 0].detach())) / self.radius
             print(  # (it moves a run's scores by dB, and the dataset's other files look the same)
                 f"{cloud}: the {len(self.model)} initial Gaussians start at its points ({count} "
                 f"distinct), {size:.2g} of the scene radius wide (their median spacing, at most "
