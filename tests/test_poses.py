@@ -410,10 +410,7 @@ def test_a_run_started_from_a_point_cloud_says_so_and_records_it(tiny, tmp_path,
     assert more.start_points["points"] == len(many) and len(more.model) == len(many) - 20
     assert f"initial Gaussians start at its points ({len(many)} distinct" in capsys.readouterr().err
     write_points(root / POINTS, points * 1e-3)  # a cloud a thousand times smaller: said so
-    small = Trainer(load_dataset(root), config, tmp_path / "small", False)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # (torch's, of a scalar read from a parameter: -W error)
-        small._fresh_state()
+    Trainer(load_dataset(root), config, tmp_path / "small", False)._fresh_state()
     assert f"distinct), {spacing * 1e-3:.2g} of the scene radius wide" in capsys.readouterr().err
     state = torch.load(stopped.checkpoint_path, weights_only=True)
     del state["start_points"]  # a checkpoint from before the record
