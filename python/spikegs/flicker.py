@@ -27,6 +27,7 @@ from .spikes.stream import SpikeStream
 
 PERIODS = (80.0, 420.0)  # readouts searched: 100-120 Hz at 20-40 kHz, and 240 Hz (a harmonic)
 BEYOND = 1.1  # a peak within this factor past PERIODS is a flicker outside them, not one in them
+EDGE = 1.01  # but for one within this factor, the spread of a peak's refinement at the edge
 # a sinusoid of a depth (relative amplitude) below MIN_DEPTH, or under PEAK times the median of
 # the periodogram over PERIODS, is no flicker: on the built-in scenes the camera's motion gives
 # depths up to 0.01 there (BENCHMARKS.md, "Lighting flicker")
@@ -129,26 +130,25 @@ def _fft_size(bins: int, per_bin: float) -> int:
     return int(2 ** np.ceil(np.log2(per_bin * bins)))
 
 
-def periodogram(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The periods [F] (readouts) within PERIODS and the amplitudes [F] of relative rates `x` [n]
-    of evenly spaced bins at times `t` [n] (zero-padded to PAD times the bins or more); none
-    where a higher amplitude lies within BEYOND of the band, outside it (a flicker of 450 or 500
-    readouts, outside PERIODS, was found at 419.6 and a fraction of its depth, its peak's flank)."""
+def periodogram(
+    t: np.ndarray, x: np.ndarray, band: tuple[float, float] = PERIODS
+) -> tuple[np.ndarray, np.ndarray]:
+    """The periods [F] (readouts) within `band` and the amplitudes [F] of relative rates `x` [n]
+    of evenly spaced bins at times `t` [n] (zero-padded to PAD times the bins or more)."""
     size = _fft_size(len(x), PAD)
     amp = 2 * np.abs(np.fft.rfft(x, size)) / len(x)  # [size / 2 + 1]
     with np.errstate(divide="ignore"):
         period = (t[1] - t[0]) / np.fft.rfftfreq(size)  # readouts
-    band = (period >= PERIODS[0]) & (period <= PERIODS[1])
-    near = (period >= PERIODS[0] / BEYOND) & (period <= PERIODS[1] * BEYOND)
-    if amp[near].max() > amp[band].max():
-        return period[:0], amp[:0]
-    return period[band], amp[band]
+    kept = (period >= band[0]) & (period <= band[1])
+    return period[kept], amp[kept]
 
 
-def _peak(t: np.ndarray, x: np.ndarray, near: float) -> tuple[float, float]:
+def _peak(
+    t: np.ndarray, x: np.ndarray, near: float, band: tuple[float, float] = PERIODS
+) -> tuple[float, float]:
     """(period in readouts, amplitude) of the highest amplitude of `x` [n] at times `t` [n] on
     frequencies PHASE_STEP radians of phase over the recording apart (the grid a periodogram
-    padded to that would have), within PERIODS and a periodogram's step of period `near`: a
+    padded to that would have), within `band` and a periodogram's step of period `near`: a
     chirp-z transform of a few dozen frequencies, memory as the bins'."""
     from scipy.signal import czt  # (0.1-0.5 s to import: only where a peak is sought)
 
@@ -157,7 +157,7 @@ def _peak(t: np.ndarray, x: np.ndarray, near: float) -> tuple[float, float]:
     centre = round(size * step / near)
     index = np.arange(centre - reach, centre + reach + 1)  # [m] frequencies, of `size`
     period = step / (index / size)  # readouts
-    index = index[(period >= PERIODS[0]) & (period <= PERIODS[1])]
+    index = index[(period >= band[0]) & (period <= band[1])]
     turn = np.exp(-2j * np.pi / size)  # a step along the grid
     start = np.exp(2j * np.pi * index[0] / size)
     amp = 2 * np.abs(czt(x, len(index), turn, start)) / len(x)  # [m]
@@ -184,7 +184,7 @@ def _detector() -> bytes:
 def _settings() -> tuple:
     """The search's settings as they are now (a notebook may tune them after a first search)."""
     judged = (MIN_DEPTH, PEAK, MAX_DEPTH, GRID, IN_PHASE, LIT, MIN_PERIODS)
-    return (PERIODS, BEYOND, *judged, BINS_A_PERIOD, PAD, PHASE_STEP)
+    return (PERIODS, BEYOND, EDGE, *judged, BINS_A_PERIOD, PAD, PHASE_STEP)
 
 
 def cached_flicker(streams, progress: bool = False) -> Flicker | None:
@@ -230,10 +230,15 @@ def find_flicker(streams, progress: bool = False) -> Flicker | None:
     t, totals = _region_totals(streams, progress)
     frame = totals.sum(axis=1)  # [n]
     frame = _detrended(t, frame / max(frame.mean(), 1e-12) - 1)  # relative rates
-    periods, amp = periodogram(t, frame)  # [F]
-    if not len(amp):  # (its peak beyond the band)
+    # the highest peak within BEYOND of PERIODS, refined: one outside them (but for EDGE, its
+    # refinement's spread) is no flicker of theirs (one of 450 or 500 readouts was found at
+    # 419.6, its peak's flank, at a fraction of its depth, and divided out wrongly)
+    wide = (PERIODS[0] / BEYOND, PERIODS[1] * BEYOND)
+    periods, amp = periodogram(t, frame, wide)  # [F]
+    best, top = _peak(t, frame, periods[np.argmax(amp)], wide)
+    if not PERIODS[0] / EDGE <= best <= PERIODS[1] * EDGE:
         return None
-    best, top = _peak(t, frame, periods[np.argmax(amp)])
+    amp = amp[(periods >= PERIODS[0]) & (periods <= PERIODS[1])]  # (its median: PEAK's)
     w = 2 * np.pi / best  # radians a readout
     basis = np.stack([np.ones_like(t), t, np.sin(w * t), np.cos(w * t)], axis=1)  # [n, 4]
     _, _, a, b = np.linalg.lstsq(basis, frame, rcond=None)[0]
