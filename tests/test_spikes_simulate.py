@@ -245,6 +245,11 @@ def test_frames_between_readouts_are_said_unread():
         said = f"{unread} of {count} light frames lie between two .*each of the 7 readouts"
         with pytest.warns(UserWarning, match=said):
             warn_unread_frames(np.linspace(0, 6, count), 7)
+    # frames before the first readout or past the last (frame times cover the readouts): those
+    # no readout reads are counted (readouts that do not exist were counted as reading them)
+    for times, readouts, unread in (([-2.5, -1.5, 0.5, 3.0], 4, 1), ([0.0, 0.5, 1e9], 1, 2)):
+        with pytest.warns(UserWarning, match=f"^{unread} of {len(times)} light frames lie"):
+            warn_unread_frames(np.array(times), readouts)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_unread_frames(np.linspace(0, 6, 10), 7)

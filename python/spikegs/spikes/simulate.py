@@ -263,12 +263,15 @@ def warn_unread_frames(times: np.ndarray, num_readouts: int) -> None:
     """A UserWarning where some of the frames at readouts `times` [F] (increasing) lie between
     two readouts and are never read: each readout interpolates the frame at or before it and the
     next (frames packed more densely than readouts were dropped unsaid by simulate_spikes)."""
-    # frame i is the one at or before a readout in [t_i, t_i+1) (the last's up to the last
-    # readout), or the next of one in (t_i-1, t_i): counted over the frames, not the readouts
-    ends = np.append(times[1:], num_readouts)  # [F]
-    before = np.ceil(ends) > np.ceil(times)  # [F]
-    after = np.ceil(times[1:]) - np.floor(times[:-1]) > 1  # [F - 1]
-    unread = int((~before).sum() - (after & ~before[1:]).sum())
+    # frame i is the one at or before a readout r in [t_i, t_i+1), or the next of one in
+    # (t_i-1, t_i), r in [0, num_readouts): counted over the frames, not the readouts (frame
+    # times cover the readouts, the first at or before 0 and the last at or after the last)
+    last = num_readouts - 1
+    ends = np.append(times[1:], np.inf)  # [F]
+    first = np.maximum(np.ceil(times), 0)  # [F] the first readout at or after each frame
+    before = np.minimum(np.ceil(ends) - 1, last) >= first  # [F]
+    after = np.minimum(np.ceil(times[1:]) - 1, last) >= np.maximum(np.floor(times[:-1]) + 1, 0)
+    unread = int((~(before | np.append(False, after))).sum())
     if unread:
         warnings.warn(
             f"{unread} of {len(times)} light frames lie between two readouts "
