@@ -27,7 +27,7 @@ def test_an_in_place_build_without_the_python_module_is_refused_at_configure(tmp
 
 def test_a_missing_pybind11_says_how_to_install_it(tmp_path):
     """CMake's own message for a pybind11 it cannot find named pybind11_DIR and
-    CMAKE_PREFIX_PATH, not the pip package (the install trial); GLM's says how too."""
+    CMAKE_PREFIX_PATH, not the pip package (the install trial)."""
     options = ["-DSPIKEGS_PYTHON=ON", "-DSPIKEGS_TESTS=OFF", f"-Dpybind11_DIR={tmp_path / 'no'}"]
     done = subprocess.run(
         ["cmake", "-S", str(ROOT), "-B", str(tmp_path / "b"), *options],

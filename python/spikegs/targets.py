@@ -198,7 +198,7 @@ def intensity_scale(dataset) -> float:
     # not at the hot or stuck pixels found (0.6 % of them, the top of a sensor's usual share,
     # guessed 1.0 for 0.18, scoring 14 dB higher, unsaid), which the losses leave out too
     defects = np.moveaxis(defect_maps(dataset.streams), 0, -1)  # [H, W, C]
-    guess = float(np.percentile(rates[:, ~defects], 99.5)) if not defects.all() else 0.0
+    guess = float(np.percentile(rates[:, ~defects] if not defects.all() else rates, 99.5))
     if guess == 0:
         warnings.warn(
             f"{dataset.root}: TFP(33) is 0 at 99.5 % or more of the pixels of {len(ts)} training "
