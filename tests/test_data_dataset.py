@@ -321,7 +321,9 @@ def test_a_dataset_moves_in_with_meta_json_deleted_first_and_moved_in_last(tmp_p
         for name in names:
             (folder / name).write_text(folder.name)
     done = []
-    unlink, rename = Path.unlink, Path.rename
+    unlink, rename, iterdir = Path.unlink, Path.rename, Path.iterdir
+    # (a directory's own order: meta.json amid the others, whatever the disk lists first)
+    monkeypatch.setattr(Path, "iterdir", lambda p: iter(sorted(iterdir(p), reverse=True)))
     monkeypatch.setattr(Path, "unlink", lambda p, *a: done.append(("-", p.name)) or unlink(p, *a))
     monkeypatch.setattr(Path, "rename", lambda p, t: done.append(("+", p.name)) or rename(p, t))
     move_in(tmp_path)

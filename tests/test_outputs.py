@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
 import errno
+import functools
 import io
 import os
 import re
@@ -396,6 +398,38 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert (done.returncode, done.stdout, done.stderr) == (141, "", "")
+
+
+def test_stdout_is_named_in_its_full_disk_errors_alone_and_restored(capsys):
+    """_NamedStdout names stdout in a full disk's error of its own, not another file's error nor
+    another kind; and a command leaves sys.stdout as it found it, returned or raised."""
+    from spikegs import cli
+
+    class Failing:
+        def __init__(self, err):
+            self.err = err
+
+        def write(self, text):
+            raise self.err
+
+        def flush(self):
+            raise self.err
+
+    for err, named in (
+        (OSError(errno.ENOSPC, "No space left on device"), True),
+        (OSError(errno.ENOSPC, "No space left on device", "other.json"), False),
+        (OSError(errno.EPIPE, "Broken pipe"), False),
+    ):
+        stdout = cli._NamedStdout(Failing(err))
+        for call in (functools.partial(stdout.write, "x"), stdout.flush):
+            with pytest.raises(OSError) as raised:
+                call()
+            assert raised.value.filename == (cli.STDOUT if named else err.filename), err
+            assert raised.value.errno == err.errno
+    before = sys.stdout
+    for run in (lambda args: None, lambda args: int("x")):  # (a ValueError: said, status 2)
+        cli._run(argparse.Namespace(command="eval", _run=run))
+        assert sys.stdout is before
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (Linux's)")

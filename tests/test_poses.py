@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import re
@@ -2247,6 +2248,23 @@ def test_a_pose_log_put_as_the_backup_after_one_run_is_named_a_pose_log(logged_c
     out = capsys.readouterr().out
     assert "rotation error median" in out and "not a pose log" not in out
     assert json.loads((root / "meta.json").read_text())["pose_reference"] == "pose log"
+
+
+@pytest.mark.parametrize("pairs, parallax", [(5, 0), (5, 1), (0, 0)])
+def test_the_parallax_warning_is_said_where_no_matched_pair_showed_it(
+    logged_copy, monkeypatch, capsys, pairs, parallax
+):
+    """Matched pairs none of which showed parallax to COLMAP: said (a still camera's poses are
+    fitted to noise); one that showed it, or no count at all (another SfM's): not."""
+    logged = _logged_sfm(logged_copy)
+
+    def counted(*args, **kwargs):
+        return dataclasses.replace(logged(*args, **kwargs), pair_counts=(pairs, parallax))
+
+    _stub_sfm(monkeypatch, counted)
+    assert main(["poses", str(logged_copy), "--count", "8"]) == 0
+    said = f"warning: none of the {pairs} matched image pairs showed parallax"
+    assert (said in capsys.readouterr().out) == (pairs > 0 and parallax == 0)
 
 
 def test_a_split_without_its_pose_log_is_refused_before_any_work(logged_copy, capsys):

@@ -403,7 +403,8 @@ def test_a_frame_sequence_is_named_after_its_folder(tmp_path):
     assert FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1).name == "lego"
 
 
-def test_frames_with_times_of_their_own_are_said_unread(tmp_path):
+@pytest.mark.parametrize("keys", [("time",), ("timestamp",), ("time", "timestamp")])
+def test_frames_with_times_of_their_own_are_said_unread(tmp_path, keys):
     """D-NeRF's per-frame `time` was ignored unsaid (the frames spread evenly in the listed
     order, whatever their times): named, as not read; a file without one says nothing."""
     path = tmp_path / "seq" / "transforms.json"
@@ -413,9 +414,10 @@ def test_frames_with_times_of_their_own_are_said_unread(tmp_path):
         FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
     doc = json.loads(path.read_text())
     for i, frame in enumerate(doc["frames"]):
-        frame["time"] = (i / 7) ** 2
+        frame.update({key: (i / 7) ** 2 for key in keys})
     path.write_text(json.dumps(doc))
-    with pytest.warns(UserWarning, match=r"transforms.json: its frames state time, which is not "):
+    stated = " and ".join(keys)
+    with pytest.warns(UserWarning, match=rf"transforms.json: its frames state {stated}, which is "):
         FrameSequenceSource.from_transforms(path, SIZE, SIZE, 1)
 
 
