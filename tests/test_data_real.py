@@ -296,6 +296,9 @@ def test_rows_wider_than_the_image_without_raw_width_are_named(sim, llff_stream,
         rf"with rows of {W + 24} pixels at 0\.\d+: .* set raw_width {W + 24}",
     ):
         load_dataset(root)
+    keyed = r"in spikegs.json or the loader's keywords \(height, width\), which override it; "
+    with pytest.warns(UserWarning, match=rf"set raw_width {W + 24}, and col_offset, .* {keyed}"):
+        load_llff(root, height=H, width=W)
     write_options(root, height=H, width=W, raw_width=W + 24, col_offset=4)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -2227,6 +2230,9 @@ def test_nerf_spikes_with_rows_wider_than_the_camera_are_named(sim, nerf, tmp_pa
     save_dat(root / "spike_data" / "train" / "r_2.dat", raw)
     with pytest.warns(UserWarning, match=rf"rows of {W + 24} pixels .* set raw_width {W + 24}"):
         load_dataset(root)
+    keyed = r"in spikegs.json or the loader's keywords \(flip\), which override it; "
+    with pytest.warns(UserWarning, match=rf"set raw_width {W + 24}, and col_offset, .* {keyed}"):
+        load_nerf_layout(root, flip=True)  # (its default, given: where the advice says to look)
 
 
 def test_nerf_training_views_of_one_name_refused(nerf, tmp_path):

@@ -377,6 +377,12 @@ def test_a_guessed_intensity_scale_leaves_the_defects_out(clean, tmp_path):
     scale = intensity_scale(unstated(clean))
     assert intensity_scale(unstated(defective)) == pytest.approx(scale, rel=0.02)
     assert np.percentile(tfp_sample(defective)[1], 99.5) > 3 * scale  # (what it guessed)
+    # a colour camera's, the stuck pixels in its green and blue channels alone: each channel's
+    # defects left out of the channels' pooled percentile
+    d = unstated(defective)
+    streams = [clean.stream, defective.stream, defective.stream]
+    colour = Dataset(d.root, d.meta, streams, d.trajectory, d.train_timestamps, d.test_views)
+    assert intensity_scale(colour) == pytest.approx(scale, rel=0.02)
 
 
 def test_the_switch_and_clean_targets_mask_nothing(defective):
