@@ -39,6 +39,28 @@ def test_a_missing_pybind11_says_how_to_install_it(tmp_path):
     assert "pip install 'pybind11>=2.12' (or bash scripts/install-deps.sh)" in said, said
 
 
+def test_a_missing_glm_says_how_to_install_it_and_pass_its_prefix_through_pip(tmp_path):
+    """GLM found nowhere (the search rooted in an empty folder): the message says how to install
+    it and how to pass its prefix, through pip too (-DCMAKE_PREFIX_PATH alone is CMake's, which
+    `pip install .` takes as -C cmake.define...; the install trial)."""
+    (tmp_path / "root").mkdir()
+    options = [
+        "-DSPIKEGS_PYTHON=OFF",
+        "-DSPIKEGS_TESTS=OFF",
+        f"-DCMAKE_FIND_ROOT_PATH={tmp_path / 'root'}",
+        "-DCMAKE_FIND_ROOT_PATH_MODE_INCLUDE=ONLY",
+        "-DCMAKE_FIND_ROOT_PATH_MODE_PACKAGE=ONLY",
+    ]
+    done = subprocess.run(
+        ["cmake", "-S", str(ROOT), "-B", str(tmp_path / "b"), *options],
+        capture_output=True,
+        text=True,
+    )
+    said = " ".join(done.stderr.split())  # (CMake wraps its messages)
+    assert done.returncode != 0 and "GLM not found: install it (Debian/Ubuntu: apt-get" in said
+    assert "(through pip: -C cmake.define.CMAKE_PREFIX_PATH=<glm prefix>)" in said, said
+
+
 def _install_deps(tmp_path, apt: bool = False, **env) -> subprocess.CompletedProcess:
     """scripts/install-deps.sh on a PATH of `id` and a `python` that records its arguments in
     tmp_path/python.args (no c++, g++, clang++ or brew; an `apt-get` recording its arguments in

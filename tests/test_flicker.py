@@ -132,6 +132,11 @@ def test_a_search_tuned_at_run_time_searches_again(monkeypatch):
     assert flicker.cached_flicker(streams).depth == pytest.approx(0.2, abs=0.02)
     monkeypatch.setattr(flicker, "MIN_DEPTH", 0.5)
     assert flicker.cached_flicker(streams) is None
+    monkeypatch.setattr(flicker, "MIN_DEPTH", 0.03)
+    beyond = [_grey(0.3, 450.0, 0.0, 4000)]  # past the band: none, but with no reach past it
+    assert flicker.cached_flicker(beyond) is None
+    monkeypatch.setattr(flicker, "BEYOND", 1.0)
+    assert flicker.cached_flicker(beyond).period == pytest.approx(420, rel=0.01)
 
 
 def test_streams_not_judged_read_no_digest(monkeypatch):
