@@ -306,6 +306,19 @@ def test_rows_wider_than_the_image_without_raw_width_are_named(sim, llff_stream,
     np.testing.assert_array_equal(ds.stream.packed(), sim.stream.packed())
 
 
+def test_per_view_rows_wider_than_the_image_name_the_loaders_keywords(sim, llff, tmp_path):
+    """LLFF's per-view files are checked as its stream is: a camera's rows of W + 24 pixels read
+    W at a time are warned of, the advice naming the loader's keywords where they were given."""
+    root = copy(llff, tmp_path)
+    bits = np.unpackbits(sim.stream.packed(0, LENGTH), axis=-1, bitorder="little")[..., :W]
+    raw = np.random.default_rng(0).integers(0, 2, (LENGTH, H, W + 24), dtype=np.uint8)
+    raw[..., 4 : 4 + W] = bits  # [T, H, W + 24] the extra columns: noise
+    save_dat(root / "spikes" / "000.dat", raw)
+    keyed = r"in spikegs.json or the loader's keywords \(flip\), which override it; "
+    with pytest.warns(UserWarning, match=rf"set raw_width {W + 24}, and col_offset, .* {keyed}"):
+        load_llff(root, flip=True)  # (its default, given: where the advice says to look)
+
+
 def test_a_dense_pose_log_holds_out_poses_spaced_in_readouts(sim, llff_stream, tmp_path):
     """A pose every 5 readouts (a motion-capture log): every 8th pose, 40 readouts apart, kept
     every training timestamp within 64 readouts of one and none was left, an error (a log a

@@ -355,7 +355,7 @@ def test_a_colour_stream_counts_each_pixel_once(defective):
     assert found.pixels == len(HOT + STUCK + DEAD)
 
 
-def test_a_guessed_intensity_scale_leaves_the_defects_out(clean, tmp_path):
+def test_a_guessed_intensity_scale_leaves_the_defects_out(clean, tmp_path, monkeypatch):
     """Without a stated scale, TFP(33)'s 99.5th percentile was taken over the stuck pixels too,
     found and counted: 1.2 % of them guessed the clean recording's scale 6.6 times (0.6 % of 64²
     pixels guessed 1.0 for 0.18, scoring 14 dB higher, unsaid; the sensor trial)."""
@@ -383,6 +383,10 @@ def test_a_guessed_intensity_scale_leaves_the_defects_out(clean, tmp_path):
     streams = [clean.stream, defective.stream, defective.stream]
     colour = Dataset(d.root, d.meta, streams, d.trajectory, d.train_timestamps, d.test_views)
     assert intensity_scale(colour) == pytest.approx(scale, rel=0.02)
+    # every pixel a defect: the guess over them all (it said TFP was 0 at 99.5 % of the pixels)
+    every = np.ones((1, SIZE, SIZE), bool)  # [C, H, W]
+    monkeypatch.setattr("spikegs.targets.defect_maps", lambda streams: every)
+    assert intensity_scale(d) == pytest.approx(np.percentile(tfp_sample(defective)[1], 99.5))
 
 
 def test_the_switch_and_clean_targets_mask_nothing(defective):
